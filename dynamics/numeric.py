@@ -1,0 +1,249 @@
+"""Numeric functions of each formulation: CasADi SX Functions (expanded, small) with numpy
+wrappers. Compiled once per derived model and cached with it (see :mod:`.cache`).
+
+Every function takes the parameter vector ``params`` in the order of
+``System.param_symbols`` and the input vector ``u`` in the order of ``System.inputs``.
+
+Reduced ODE (z = (q, P, P̃)):
+    rhs(t, z, u, params) → ż;  jacobian(t, z, u, params) → (∂ż/∂z, ∂ż/∂u);
+    qdot(z, params) → q̇;  qddot(t, z, u, params) → q̈;  state(q, q̇, params) → z;
+    energy(z, params) → h;  singular(q, params) → normalised Gram determinant of ω_s (0 on
+    the singular set).
+Lagrangian DAE (x = (q, q̇), λ):
+    ode(t, x, u, params) → (ẋ, λ)  [index reduction: λ solved from ωq̈ + ω̇q̇ = 0];
+    dae_f(t, x, λ, u, params) → ẋ;  dae_g(t, x, λ, u, params) → ωq̈ + ω̇q̇ (index-1 algebraic);
+    energy(x, params);  constraint(x, params) → ωq̇.
+Hamiltonian DAE (x = (q, p), λ): the same names, with the algebraic equation d/dt(ω∂H/∂p) = 0.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+import sympy as sp
+
+from .bridge import to_casadi
+
+
+@dataclass(frozen=True, eq=False)
+class NumericModel:
+    """CasADi Functions of one formulation plus the orderings needed to call them."""
+
+    formulation: str
+    state_names: tuple
+    input_names: tuple
+    param_names: tuple
+    param_defaults: tuple
+    functions: dict = field(repr=False)
+    n_coordinates: int = 0
+    n_multipliers: int = 0
+
+    def params(self, values=None) -> np.ndarray:
+        """Parameter vector: defaults overridden by a mapping ``values``."""
+        vec = np.array(self.param_defaults, dtype=float)
+        if values is None:
+            return vec
+        if isinstance(values, dict):
+            for k, v in values.items():
+                if k not in self.param_names:
+                    from .errors import ModelError
+                    raise ModelError([f"unknown parameter {k!r} (parameters: {', '.join(self.param_names)})"])
+                vec[self.param_names.index(k)] = float(v)
+            return vec
+        arr = np.asarray(values, dtype=float).ravel()
+        if arr.size != vec.size:
+            from .errors import ModelError
+            raise ModelError([f"expected {vec.size} parameter values, got {arr.size}"])
+        return arr
+
+    def __getitem__(self, name) -> ca.Function:
+        return self.functions[name]
+
+    def call(self, name, *args):
+        """Evaluate function ``name`` with numpy arguments; returns numpy arrays."""
+        out = self.functions[name](*args)
+        if isinstance(out, (list, tuple)):
+            return tuple(_to_numpy(o) for o in out)
+        return _to_numpy(out)
+
+    # pickling through CasADi's own serialisation
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state["functions"] = {k: f.serialize() for k, f in self.functions.items()}
+        return state
+
+    def __setstate__(self, state):
+        state = dict(state)
+        state["functions"] = {k: ca.Function.deserialize(s) for k, s in state["functions"].items()}
+        self.__dict__.update(state)
+
+
+def _to_numpy(o):
+    a = o.full() if hasattr(o, "full") else np.asarray(o, dtype=float)
+    if a.ndim == 2 and a.shape[1] == 1:
+        return a[:, 0]
+    if a.shape == (1, 1):
+        return a[0, 0]
+    return a
+
+
+def _syms(system):
+    t = ca.SX.sym("t")
+    u = ca.SX.sym("u", len(system.input_symbols))
+    p = ca.SX.sym("params", len(system.param_symbols))
+    return t, u, p
+
+
+def _conv(exprs, sym_list, sx_list):
+    return to_casadi(list(exprs), sym_list, sx_list)
+
+
+def _base(system, formulation, state_names, functions, n_mult=0):
+    return NumericModel(formulation=formulation, state_names=tuple(state_names),
+                        input_names=tuple(system.inputs),
+                        param_names=tuple(s.name for s in system.param_symbols),
+                        param_defaults=tuple(system.param_values), functions=functions,
+                        n_coordinates=system.n, n_multipliers=n_mult)
+
+
+def compile_reduced(model) -> NumericModel:
+    """CasADi functions of a :class:`~nhgait.dynamics.reduction.ReducedODE`."""
+    system = model.system
+    n, nz = system.n, len(model.state)
+    t, u, p = _syms(system)
+    z = ca.SX.sym("z", nz)
+    q_sx = z[:n]
+    base_syms = [TIME_SYM] + list(model.state) + list(system.input_symbols) + list(system.param_symbols)
+    base_sx = [t] + [z[i] for i in range(nz)] + [u[i] for i in range(u.shape[0])] + [p[i] for i in range(p.shape[0])]
+    rhs = ca.vertcat(*_conv(model.rhs, base_syms, base_sx))
+    qdot = ca.vertcat(*_conv(model.qdot, base_syms, base_sx))
+    h = _conv([model.hamiltonian], base_syms, base_sx)[0]
+    qddot = ca.jtimes(qdot, z, rhs)
+    # state map (q, q̇) -> z
+    qv = ca.SX.sym("q", n)
+    qdv = ca.SX.sym("qdot", n)
+    map_syms = list(system.q) + list(system.q_dot) + list(system.param_symbols)
+    map_sx = [qv[i] for i in range(n)] + [qdv[i] for i in range(n)] + [p[i] for i in range(p.shape[0])]
+    P_of_v = ca.vertcat(*_conv(model.momenta_of_velocity, map_syms, map_sx))
+    W = system.omega()
+    cons = ca.vertcat(*_conv(list(W * sp.Matrix(system.q_dot)), map_syms, map_sx)) if system.k else ca.SX(0, 1)
+    # singularity measure: normalised Gram determinant of ω_s
+    si = [system.coordinates.index(c) for c in model.fiber]
+    if system.k:
+        Ws = W.extract(list(range(system.k)), si)
+        Ws_sx = ca.reshape(ca.vertcat(*_conv(list(Ws.T), map_syms, map_sx)), system.k, len(si))
+        G = ca.mtimes(Ws_sx, Ws_sx.T)
+        norm = 1
+        for i in range(system.k):
+            norm = norm * G[i, i]
+        sing = ca.det(G) / (norm + 1e-300)
+    else:
+        sing = ca.SX(1)
+    fns = {
+        "rhs": ca.Function("rhs", [t, z, u, p], [rhs], ["t", "z", "u", "params"], ["zdot"]),
+        "jacobian": ca.Function("rhs_jacobian", [t, z, u, p], [ca.jacobian(rhs, z), ca.jacobian(rhs, u)],
+                           ["t", "z", "u", "params"], ["dfdz", "dfdu"]),
+        "qdot": ca.Function("qdot", [z, p], [qdot], ["z", "params"], ["qdot"]),
+        "qddot": ca.Function("qddot", [t, z, u, p], [qddot], ["t", "z", "u", "params"], ["qddot"]),
+        "energy": ca.Function("energy", [z, p], [h], ["z", "params"], ["h"]),
+        "state": ca.Function("state", [qv, qdv, p], [ca.vertcat(qv, P_of_v)], ["q", "qdot", "params"], ["z"]),
+        "constraint": ca.Function("constraint", [qv, qdv, p], [cons], ["q", "qdot", "params"], ["residual"]),
+        "singular": ca.Function("singular", [qv, p], [sing], ["q", "params"], ["gram"]),
+    }
+    return _base(system, "reduced", model.state_names, fns)
+
+
+def compile_lagrange(model) -> NumericModel:
+    """CasADi functions of a :class:`~nhgait.dynamics.lagrange.LagrangianDAE`."""
+    system = model.system
+    n, k = system.n, system.k
+    t, u, p = _syms(system)
+    x = ca.SX.sym("x", 2 * n)
+    lam = ca.SX.sym("lam", k)
+    syms = [TIME_SYM] + list(model.state) + list(system.input_symbols) + list(system.param_symbols)
+    sx = [t] + [x[i] for i in range(2 * n)] + [u[i] for i in range(u.shape[0])] + [p[i] for i in range(p.shape[0])]
+    M = ca.reshape(ca.vertcat(*_conv(list(model.M.T), syms, sx)), n, n)
+    F = ca.vertcat(*_conv(model.F, syms, sx))
+    tau = ca.vertcat(*_conv(model.tau, syms, sx))
+    E = _conv([model.energy], syms, sx)[0]
+    qd = x[n:]
+    if k:
+        W = ca.reshape(ca.vertcat(*_conv(list(model.omega.T), syms, sx)), k, n)
+        Wdq = ca.vertcat(*_conv(model.omega_dot_qdot, syms, sx))
+        Minv_f = ca.solve(M, F + tau)
+        Minv_Wt = ca.solve(M, W.T)
+        S = ca.mtimes(W, Minv_Wt)
+        lam_sol = -ca.solve(S, ca.mtimes(W, Minv_f) + Wdq)
+        qdd = Minv_f + ca.mtimes(Minv_Wt, lam_sol)
+        qdd_dae = ca.solve(M, F + tau + ca.mtimes(W.T, lam))
+        g_alg = ca.mtimes(W, qdd_dae) + Wdq
+        cons = ca.mtimes(W, qd)
+    else:
+        lam_sol = ca.SX(0, 1)
+        qdd = ca.solve(M, F + tau)
+        qdd_dae = qdd
+        g_alg = ca.SX(0, 1)
+        cons = ca.SX(0, 1)
+    xdot = ca.vertcat(qd, qdd)
+    fns = {
+        "ode": ca.Function("ode", [t, x, u, p], [xdot, lam_sol], ["t", "x", "u", "params"], ["xdot", "lam"]),
+        "jacobian": ca.Function("rhs_jacobian", [t, x, u, p], [ca.jacobian(xdot, x), ca.jacobian(xdot, u)],
+                           ["t", "x", "u", "params"], ["dfdx", "dfdu"]),
+        "dae_f": ca.Function("dae_f", [t, x, lam, u, p], [ca.vertcat(qd, qdd_dae)], ["t", "x", "lam", "u", "params"], ["xdot"]),
+        "dae_g": ca.Function("dae_g", [t, x, lam, u, p], [g_alg], ["t", "x", "lam", "u", "params"], ["g"]),
+        "energy": ca.Function("energy", [x, p], [E], ["x", "params"], ["E"]),
+        "constraint": ca.Function("constraint", [x, p], [cons], ["x", "params"], ["residual"]),
+        "qdot": ca.Function("qdot", [x, p], [qd], ["x", "params"], ["qdot"]),
+        "mass": ca.Function("mass", [x, p], [M], ["x", "params"], ["M"]),
+    }
+    return _base(system, "lagrange", model.state_names, fns, k)
+
+
+def compile_hamilton(model) -> NumericModel:
+    """CasADi functions of a :class:`~nhgait.dynamics.hamilton.HamiltonianDAE`."""
+    system = model.system
+    n, k = system.n, system.k
+    t, u, p = _syms(system)
+    x = ca.SX.sym("x", 2 * n)
+    lam = ca.SX.sym("lam", k)
+    syms = [TIME_SYM] + list(model.state) + list(system.input_symbols) + list(system.param_symbols)
+    sx = [t] + [x[i] for i in range(2 * n)] + [u[i] for i in range(u.shape[0])] + [p[i] for i in range(p.shape[0])]
+    dHdp = ca.vertcat(*_conv(model.dH_dp, syms, sx))
+    dHdq = ca.vertcat(*_conv(model.dH_dq, syms, sx))
+    tau = ca.vertcat(*_conv(model.tau, syms, sx))
+    H = _conv([model.H], syms, sx)[0]
+    Minv = ca.reshape(ca.vertcat(*_conv(list(model.Minv.T), syms, sx)), n, n)
+    q_sx = x[:n]
+    if k:
+        W = ca.reshape(ca.vertcat(*_conv(list(model.omega.T), syms, sx)), k, n)
+        G = ca.mtimes(W, dHdp)                         # constraint ω ∂H/∂p
+        dG_dq = ca.jacobian(G, q_sx)
+        WMinv = ca.mtimes(W, Minv)                     # ∂G/∂p
+        base = -dHdq + tau
+        lam_sol = -ca.solve(ca.mtimes(WMinv, W.T), ca.mtimes(dG_dq, dHdp) + ca.mtimes(WMinv, base))
+        pdot = base + ca.mtimes(W.T, lam_sol)
+        pdot_dae = base + ca.mtimes(W.T, lam)
+        g_alg = ca.mtimes(dG_dq, dHdp) + ca.mtimes(WMinv, pdot_dae)
+        cons = G
+    else:
+        lam_sol = ca.SX(0, 1)
+        pdot = -dHdq + tau
+        pdot_dae = pdot
+        g_alg = ca.SX(0, 1)
+        cons = ca.SX(0, 1)
+    xdot = ca.vertcat(dHdp, pdot)
+    fns = {
+        "ode": ca.Function("ode", [t, x, u, p], [xdot, lam_sol], ["t", "x", "u", "params"], ["xdot", "lam"]),
+        "jacobian": ca.Function("rhs_jacobian", [t, x, u, p], [ca.jacobian(xdot, x), ca.jacobian(xdot, u)],
+                           ["t", "x", "u", "params"], ["dfdx", "dfdu"]),
+        "dae_f": ca.Function("dae_f", [t, x, lam, u, p], [ca.vertcat(dHdp, pdot_dae)], ["t", "x", "lam", "u", "params"], ["xdot"]),
+        "dae_g": ca.Function("dae_g", [t, x, lam, u, p], [g_alg], ["t", "x", "lam", "u", "params"], ["g"]),
+        "energy": ca.Function("energy", [x, p], [H], ["x", "params"], ["E"]),
+        "constraint": ca.Function("constraint", [x, p], [cons], ["x", "params"], ["residual"]),
+        "qdot": ca.Function("qdot", [x, p], [dHdp], ["x", "params"], ["qdot"]),
+    }
+    return _base(system, "hamilton", model.state_names, fns, k)
+
+
+from .system import TIME as TIME_SYM  # noqa: E402  (kept at the end to avoid a cycle in docs)

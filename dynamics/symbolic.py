@@ -1,0 +1,147 @@
+"""Small symbolic helpers shared by the derivations (no physics here)."""
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+import sympy as sp
+from sympy.polys.fields import sfield
+
+_TRIG = (sp.sin, sp.cos, sp.tan, sp.cot, sp.sec, sp.csc)
+
+
+def has_trig(expr) -> bool:
+    return any(expr.has(f) for f in _TRIG)
+
+
+def tidy(expr):
+    """Cheap, predictable simplification: trig identities where trig functions appear, then
+    cancellation of rational factors. Keeps expressions readable without ``simplify``'s cost.
+    Results are memoised (the same minors recur across candidates and steps)."""
+    if isinstance(expr, sp.MatrixBase):
+        return expr.applyfunc(tidy)
+    if expr == 0 or expr.is_Number or expr.is_Symbol:
+        return expr
+    return _tidy_scalar(expr)
+
+
+@lru_cache(maxsize=8192)
+def _tidy_scalar(expr):
+    return trig_normal(expr)
+
+
+def _reduce_poly(poly, pairs):
+    """Reduce a PolyElement modulo S² + C² − 1 for each (index S, index C) pair: S² → 1 − C²."""
+    if not pairs:
+        return poly
+    ring = poly.ring
+    out = ring.zero
+    one = ring.one
+    for monom, coeff in poly.terms():
+        mon = list(monom)
+        factor = one
+        for iS, iC in pairs:
+            k = mon[iS]
+            if k >= 2:
+                mon[iS] = k % 2
+                factor = factor * (one - ring.gens[iC] ** 2) ** (k // 2)
+        out += ring({tuple(mon): coeff}) * factor
+    return out
+
+
+def trig_normal(expr):
+    """Normal form of a rational expression in sines and cosines.
+
+    Trig functions are expanded to sin/cos of single symbols, replaced by polynomial
+    variables S_x, C_x, brought into a sparse rational-function field (exact gcd cancellation)
+    and S_x² is reduced to 1 − C_x². The result is canonical (a zero expression always returns
+    0) and costs only sparse polynomial arithmetic — orders of magnitude cheaper than
+    ``trigsimp`` on the expressions of steps 15–19.
+    """
+    if not expr.free_symbols:
+        return sp.nsimplify(expr) if expr.is_Float else sp.simplify(expr)
+    e = expr
+    if has_trig(e):
+        e = e.replace(sp.tan, lambda a: sp.sin(a) / sp.cos(a)).replace(sp.cot, lambda a: sp.cos(a) / sp.sin(a))
+        e = e.replace(sp.sec, lambda a: 1 / sp.cos(a)).replace(sp.csc, lambda a: 1 / sp.sin(a))
+        e = sp.expand_trig(e)
+    atoms = e.atoms(sp.sin, sp.cos)
+    args = sorted({a.args[0] for a in atoms}, key=sp.default_sort_key)
+    if any(not a.is_Symbol for a in args):
+        # arguments expand_trig could not split (e.g. sin(x**2)): fall back to trigsimp
+        return sp.factor_terms(sp.trigsimp(expr))
+    fwd, back, dummies = {}, {}, []
+    for a in args:
+        S, C = sp.Dummy(f"S_{a}"), sp.Dummy(f"C_{a}")
+        fwd[sp.sin(a)], fwd[sp.cos(a)] = S, C
+        back[S], back[C] = sp.sin(a), sp.cos(a)
+        dummies.append((S, C))
+    e = e.xreplace(fwd)
+    try:
+        extra = [x for pair in dummies for x in pair]
+        field, elems = sfield([e] + extra)
+        f = elems[0]
+    except Exception:  # not a rational function of its generators: keep a safe form
+        return sp.factor_terms(sp.cancel(expr))
+    syms = list(f.numer.ring.symbols)
+    pairs = [(syms.index(S), syms.index(C)) for S, C in dummies if S in syms and C in syms]
+    num = _reduce_poly(f.numer, pairs)
+    if not num:
+        return sp.Integer(0)
+    den = _reduce_poly(f.denom, pairs)
+    f2 = field(num) / field(den)
+    num = _reduce_poly(f2.numer, pairs)
+    den = _reduce_poly(f2.denom, pairs)
+    out = num.as_expr() / den.as_expr()
+    return out.xreplace(back)
+
+
+def null_basis_adjugate(A: sp.Matrix, pivots: list[int]) -> sp.Matrix:
+    """Basis of the right null space of the k×l matrix ``A`` (rank k) without divisions.
+
+    With B = A[:, pivots] (k×k, invertible at generic points) each free column j gives the
+    null vector v = det(B)·e_j − (adj(B)·A[:, j]) placed on the pivot rows. Its entries are the
+    k×k minors of A, so v vanishes exactly where rank A < k (the singular set), never at a
+    spurious point. Returns an l×(l−k) matrix.
+    """
+    k, l = A.shape
+    free = [j for j in range(l) if j not in pivots]
+    if k == 0:
+        return sp.eye(l)
+    B = A.extract(list(range(k)), pivots)
+    detB = B.det(method="berkowitz")
+    adjB = B.adjugate(method="berkowitz")
+    cols = []
+    for j in free:
+        v = sp.zeros(l, 1)
+        v[j] = detB
+        w = adjB * A[:, j]
+        for i, p in enumerate(pivots):
+            v[p] = -w[i]
+        v = tidy(v)
+        # remove a common constant/polynomial factor, fix the sign of the free entry
+        try:
+            g = sp.gcd(list(v))
+            if g not in (0, 1) and g.is_Number:
+                v = tidy(v / g)
+        except (sp.PolynomialError, sp.GeneratorsNeeded, TypeError):
+            pass
+        if v[j].could_extract_minus_sign():
+            v = -v
+        cols.append(v)
+    return sp.Matrix.hstack(*cols) if cols else sp.zeros(l, 0)
+
+
+def numeric_pivots(A_num: np.ndarray, order=None, tol=1e-9) -> list[int]:
+    """Greedy choice of linearly independent columns of a numeric matrix (in ``order``)."""
+    k, l = A_num.shape
+    order = list(range(l)) if order is None else list(order)
+    chosen: list[int] = []
+    for j in order:
+        trial = chosen + [j]
+        sub = A_num[:, trial]
+        if np.linalg.matrix_rank(sub, tol=tol * max(1.0, np.abs(A_num).max())) == len(trial):
+            chosen.append(j)
+        if len(chosen) == k:
+            break
+    return sorted(chosen)
