@@ -1,0 +1,36 @@
+"""nhgait.dynamics — from (q, L, ω, τ) to equations of motion.
+
+Entry points (imported lazily, so ``import nhgait.dynamics`` does no symbolic work):
+
+* :class:`System` — state a system; :func:`load_scene` — read a TOML scene file;
+* :func:`unicycle`, :func:`snakeboard`, :func:`chaplygin_sleigh`, :func:`knife_edge_incline`;
+* :func:`derive` — ``derive(system, "reduced" | "lagrange" | "hamilton")``, cached on disk;
+* :func:`simulate` — forward simulation of any formulation;
+* :func:`jacobi_test` — Jacobi identity of the reduced bracket and holonomy of ω.
+"""
+from __future__ import annotations
+
+import importlib
+
+_EXPORTS = {
+    "System": "system", "ModelError": "errors", "SingularConfigurationError": "errors",
+    "unicycle": "models", "snakeboard": "models", "chaplygin_sleigh": "models",
+    "knife_edge_incline": "models", "builtin": "models",
+    "derive": "derive", "FORMULATIONS": "derive",
+    "ReducedODE": "reduction", "LagrangianDAE": "lagrange", "HamiltonianDAE": "hamilton",
+    "load_scene": "scene", "Scene": "scene",
+    "simulate": "simulate", "Trajectory": "simulate",
+    "jacobi_test": "analysis", "to_state": "states", "from_state": "states",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name):
+    try:
+        module = _EXPORTS[name]
+    except KeyError:
+        raise AttributeError(f"module 'nhgait.dynamics' has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value

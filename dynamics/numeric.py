@@ -7,12 +7,12 @@ Every function takes the parameter vector ``params`` in the order of
 Reduced ODE (z = (q, P, P̃)):
     rhs(t, z, u, params) → ż;  jacobian(t, z, u, params) → (∂ż/∂z, ∂ż/∂u);
     qdot(z, params) → q̇;  qddot(t, z, u, params) → q̈;  state(q, q̇, params) → z;
-    energy(z, params) → h;  singular(q, params) → normalised Gram determinant of ω_s (0 on
+    energy(z, params) → h;  power(t, z, u, params) → τ·q̇;  singular(q, params) → normalised Gram determinant of ω_s (0 on
     the singular set).
 Lagrangian DAE (x = (q, q̇), λ):
     ode(t, x, u, params) → (ẋ, λ)  [index reduction: λ solved from ωq̈ + ω̇q̇ = 0];
     dae_f(t, x, λ, u, params) → ẋ;  dae_g(t, x, λ, u, params) → ωq̈ + ω̇q̇ (index-1 algebraic);
-    energy(x, params);  constraint(x, params) → ωq̇.
+    energy(x, params);  power(t, x, u, params) → τ·q̇;  constraint(x, params) → ωq̇;  qdot(x, params).
 Hamiltonian DAE (x = (q, p), λ): the same names, with the algebraic equation d/dt(ω∂H/∂p) = 0.
 """
 from __future__ import annotations
@@ -81,10 +81,10 @@ class NumericModel:
 
 def _to_numpy(o):
     a = o.full() if hasattr(o, "full") else np.asarray(o, dtype=float)
-    if a.ndim == 2 and a.shape[1] == 1:
-        return a[:, 0]
     if a.shape == (1, 1):
         return a[0, 0]
+    if a.ndim == 2 and a.shape[1] == 1:
+        return a[:, 0]
     return a
 
 
@@ -150,6 +150,9 @@ def compile_reduced(model) -> NumericModel:
         "state": ca.Function("state", [qv, qdv, p], [ca.vertcat(qv, P_of_v)], ["q", "qdot", "params"], ["z"]),
         "constraint": ca.Function("constraint", [qv, qdv, p], [cons], ["q", "qdot", "params"], ["residual"]),
         "singular": ca.Function("singular", [qv, p], [sing], ["q", "params"], ["gram"]),
+        "power": ca.Function("power", [t, z, u, p], [ca.dot(ca.vertcat(*_conv(system.force_vector().xreplace(
+            {v: model.qdot[i] for i, v in enumerate(system.q_dot)}), base_syms, base_sx)), qdot)],
+            ["t", "z", "u", "params"], ["power"]),
     }
     return _base(system, "reduced", model.state_names, fns)
 
@@ -196,6 +199,7 @@ def compile_lagrange(model) -> NumericModel:
         "constraint": ca.Function("constraint", [x, p], [cons], ["x", "params"], ["residual"]),
         "qdot": ca.Function("qdot", [x, p], [qd], ["x", "params"], ["qdot"]),
         "mass": ca.Function("mass", [x, p], [M], ["x", "params"], ["M"]),
+        "power": ca.Function("power", [t, x, u, p], [ca.dot(tau, qd)], ["t", "x", "u", "params"], ["power"]),
     }
     return _base(system, "lagrange", model.state_names, fns, k)
 
@@ -242,6 +246,7 @@ def compile_hamilton(model) -> NumericModel:
         "energy": ca.Function("energy", [x, p], [H], ["x", "params"], ["E"]),
         "constraint": ca.Function("constraint", [x, p], [cons], ["x", "params"], ["residual"]),
         "qdot": ca.Function("qdot", [x, p], [dHdp], ["x", "params"], ["qdot"]),
+        "power": ca.Function("power", [t, x, u, p], [ca.dot(tau, dHdp)], ["t", "x", "u", "params"], ["power"]),
     }
     return _base(system, "hamilton", model.state_names, fns, k)
 

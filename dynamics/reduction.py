@@ -454,10 +454,10 @@ def derive_reduced(system: System, version: str | None = None) -> ReducedODE:
     # singular set: where the constraints on the fiber lose rank or K degenerates
     sing = []
     if k:
-        gram = tidy(sp.factor(tidy((Ws * Ws.T).det(method="berkowitz"))))
+        gram = sp.factor(tidy((Ws * Ws.T).det(method="berkowitz")))
         sing.append(gram)
     if d:
-        sing.append(tidy(sp.factor(K_nh.det(method="berkowitz"))))
+        sing.append(sp.factor(tidy(K_nh.det(method="berkowitz"))))
     singular = tuple(e for e in sing if not e.is_Number)
 
     momenta_of_velocity = sp.Matrix([_linear_tidy(e, qd) for e in X.T * M * sp.Matrix(qd)])

@@ -1,0 +1,54 @@
+"""Shared fixtures: a temporary model cache for the whole session and session-scoped derived
+models, so each expensive derivation runs once per test run."""
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent))  # the Kane oracle (tests/oracles.py)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _temporary_cache(tmp_path_factory):
+    old = os.environ.get("NHGAIT_CACHE_DIR")
+    os.environ["NHGAIT_CACHE_DIR"] = str(tmp_path_factory.mktemp("nhgait-cache"))
+    yield
+    if old is None:
+        os.environ.pop("NHGAIT_CACHE_DIR", None)
+    else:
+        os.environ["NHGAIT_CACHE_DIR"] = old
+
+
+SYSTEMS = ("unicycle", "snakeboard", "chaplygin_sleigh", "knife_edge_incline")
+
+
+@pytest.fixture(scope="session")
+def systems(_temporary_cache):
+    from nhgait.dynamics import builtin
+    return {name: builtin(name) for name in SYSTEMS}
+
+
+@pytest.fixture(scope="session")
+def models(systems):
+    """models[name][formulation] for the built-in systems (derived once, cached)."""
+    from nhgait.dynamics import derive
+
+    class _Lazy(dict):
+        def __missing__(self, key):
+            name, formulation = key
+            value = derive(systems[name], formulation)
+            self[key] = value
+            return value
+
+    lazy = _Lazy()
+
+    class _View:
+        def __getitem__(self, name):
+            class _F:
+                def __getitem__(_, formulation):
+                    return lazy[name, formulation]
+            return _F()
+    return _View()
