@@ -77,6 +77,7 @@ def chaplygin_sleigh(**parameters) -> System:
         forces={"x": "F*cos(theta)", "y": "F*sin(theta)", "theta": "tau"},
         parameters=params,
         inputs=["F", "tau"],
+        fiber=["x", "y", "theta"],
     )
 
 

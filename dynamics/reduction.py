@@ -38,7 +38,7 @@ import sympy as sp
 
 from .errors import ModelError
 from .steps import Step, Steps
-from .symbolic import numeric_pivots, tidy
+from .symbolic import numeric_pivots, strip_factors, tidy
 from .symmetry import SymmetryTest, group_transform, symmetry_test, _numeric
 from .system import TIME, System
 
@@ -106,12 +106,27 @@ class ReducedODE:
         """The equations ż = f as sympy Eq objects (time derivatives written as ``<z>_dot``)."""
         return [sp.Eq(sp.Symbol(f"{nm}_dot"), e) for nm, e in zip(self.state_names, self.rhs)]
 
-    def to_text(self) -> str:
+    def pretty_rhs(self) -> list:
+        """ż with every coefficient of the momentum/input monomials factored (for display)."""
+        gens = list(self.momenta) + list(self.system.input_symbols)
+        out = []
+        for e in self.rhs:
+            e = sp.expand(e)
+            try:
+                poly = sp.Poly(e, *gens)
+                terms = [sp.factor(c) * sp.Mul(*[g ** k for g, k in zip(gens, mon)]) for mon, c in poly.terms()]
+                out.append(sp.Add(*terms))
+            except sp.PolynomialError:
+                out.append(e)
+        return out
+
+    def to_text(self, pretty: bool = True) -> str:
         lines = [f"Reduced constrained Hamiltonian equations of {self.system.name} "
                  f"({self.dimension} = 2n − k first-order ODEs, version {self.version}, "
                  f"fiber s = ({', '.join(self.fiber)}), shape r = ({', '.join(self.shape)}), "
-                 f"{self.classification})"]
-        for nm, e in zip(self.state_names, self.rhs):
+                 f"{self.classification})",
+                 f"  state z = ({', '.join(self.state_names)})"]
+        for nm, e in zip(self.state_names, self.pretty_rhs() if pretty else self.rhs):
             lines.append(f"  d{nm}/dt = {sp.sstr(e)}")
         return "\n".join(lines)
 
@@ -124,6 +139,13 @@ class ReducedODE:
 
 def _sym(name):
     return sp.Symbol(name, real=True)
+
+
+def _embed(N, si, n):
+    out = sp.zeros(n, N.shape[1])
+    for a, i in enumerate(si):
+        out[i, :] = N[a, :]
+    return out
 
 
 def _col(symbols):
@@ -188,7 +210,7 @@ def derive_reduced(system: System, version: str | None = None) -> ReducedODE:
     ri = [i for i in range(n) if i not in si]
     shape = tuple(names[i] for i in ri)
     l, m = len(si), len(ri)
-    N = cand.xi                       # l×d
+    N = strip_factors(cand.xi, [q[i] for i in si])  # l×d, no vanishing factor in the group variables
     d = N.shape[1]
     marks.append(time.perf_counter())
     steps.append(Step(2, "Constraint distribution D_q = null ω(q)", "§3.2.2, eqs. 3.3–3.4, 3.62–3.64",
@@ -197,7 +219,7 @@ def derive_reduced(system: System, version: str | None = None) -> ReducedODE:
     marks.append(time.perf_counter())
     steps.append(Step(3, "Full symmetry group", "§3.2.2, Table 3.1, eqs. 3.5–3.8, 3.65–3.68", {
         "table": sym.table_markdown(), "s (fiber)": ", ".join(fiber), "r (shape)": ", ".join(shape),
-        "G": cand.group, "xi_Q^q (columns)": cand.S_q, "xi (Lie algebra element)": N,
+        "G": cand.group, "xi_Q^q (columns)": _embed(N, si, n), "xi (Lie algebra element)": N,
         "chosen by": sym.chosen_by},
         "Candidates T_q Orb = span{∂/∂s}; S_q = D_q ∩ T_q Orb; the full candidate of smallest l."))
 
@@ -244,8 +266,8 @@ def derive_reduced(system: System, version: str | None = None) -> ReducedODE:
     Gamma_q = tidy(N * K_nh_inv) if d else sp.zeros(l, 0)
     A_body = tidy(ginv * A_q)
     Gamma_body = tidy(ginv * Gamma_q)
-    s_dot = sp.Matrix([qd[i] for i in si])
-    r_dot = sp.Matrix([qd[i] for i in ri])
+    s_dot = _col([qd[i] for i in si])
+    r_dot = _col([qd[i] for i in ri])
     xi_syms = [_sym(f"xi{i + 1}") for i in range(l)]
     marks.append(time.perf_counter())
     steps.append(Step(5, "Reconstruction equation", "§3.2.2 (4), eqs. 2.47, 3.10–3.13, 3.36, 3.71", {

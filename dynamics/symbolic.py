@@ -132,6 +132,32 @@ def null_basis_adjugate(A: sp.Matrix, pivots: list[int]) -> sp.Matrix:
     return sp.Matrix.hstack(*cols) if cols else sp.zeros(l, 0)
 
 
+def strip_factors(N: sp.Matrix, symbols) -> sp.Matrix:
+    """Divide each column of ``N`` by the common factor of its entries that depends on
+    ``symbols`` (e.g. a sin θ common to a null vector when θ is a group variable), so a basis
+    vector does not vanish at a spurious point. Factors of other symbols are kept."""
+    symbols = set(symbols)
+    cols = []
+    for j in range(N.shape[1]):
+        v = N[:, j]
+        try:
+            g = sp.factor(sp.gcd([e for e in v if e != 0]))
+        except (sp.PolynomialError, sp.GeneratorsNeeded, TypeError):
+            cols.append(v)
+            continue
+        keep = sp.Integer(1)
+        for f in sp.Mul.make_args(g):
+            if f.free_symbols & symbols:
+                keep *= f
+        if keep != 1:
+            v = tidy(v / keep)
+            nz = [e for e in v if e != 0]
+            if nz and nz[-1].could_extract_minus_sign():
+                v = -v
+        cols.append(v)
+    return sp.Matrix.hstack(*cols) if cols else N
+
+
 def numeric_pivots(A_num: np.ndarray, order=None, tol=1e-9) -> list[int]:
     """Greedy choice of linearly independent columns of a numeric matrix (in ``order``)."""
     k, l = A_num.shape

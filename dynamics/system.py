@@ -65,6 +65,7 @@ def _parse(text, names: dict, where: str, problems: list):
     if isinstance(text, (int, float)):
         return sp.sympify(text)
     if isinstance(text, str):
+        text = " ".join(text.split())  # multi-line TOML strings
         glob = {"Integer": sp.Integer, "Float": sp.Float, "Rational": sp.Rational,
                 "Symbol": sp.Symbol, "Function": sp.Function, **_FUNCTIONS, **_CONSTANTS}
         try:
