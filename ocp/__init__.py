@@ -1,0 +1,41 @@
+"""nhgait.ocp — optimal control of reduced ODEs: statement, transcription, solver, solution.
+
+Layers (each imports only the ones before it; none imports sympy):
+
+* :mod:`.problem` — :class:`OptimalControlProblem` (what to solve);
+* :mod:`.transcription` — :class:`MultipleShooting` (RK4, default), :class:`Collocation`;
+* :mod:`.solver` — :class:`OCPSolver` / :func:`solve` (Ipopt; optional cached jit);
+* :mod:`.solution` — :class:`Solution` (data, with ``verify()`` and ``to_json()``).
+
+Example::
+
+    from nhgait.ocp import OptimalControlProblem, InitialGuess, solve
+    problem = OptimalControlProblem(model, horizon=4.0, intervals=50,
+                                    initial={n: 0.0 for n in model.state_names},
+                                    final={"x": 0.0, "y": 0.5, "theta": 0.0, "p": 0.0, "pt_theta": 0.0},
+                                    control_bounds=5.0)
+    solution = solve(problem, InitialGuess(states, controls)).verified()
+"""
+from __future__ import annotations
+
+import importlib
+
+_EXPORTS = {
+    "OptimalControlProblem": "problem", "Quantity": "problem", "ProblemError": "problem",
+    "MultipleShooting": "transcription", "Collocation": "transcription", "TranscribedNLP": "transcription",
+    "get_transcription": "transcription",
+    "SolverOptions": "solver", "OCPSolver": "solver", "solve": "solver", "InitialGuess": "solver",
+    "Solution": "solution", "Verification": "solution",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name):
+    try:
+        module = _EXPORTS[name]
+    except KeyError:
+        raise AttributeError(f"module 'nhgait.ocp' has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value

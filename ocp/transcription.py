@@ -1,0 +1,380 @@
+"""Transcriptions of an :class:`~nhgait.ocp.problem.OptimalControlProblem` into an NLP.
+
+Both transcriptions produce a :class:`TranscribedNLP`: CasADi MX expressions of one flat
+decision vector w, objective f(w) and constraints g(w), with numeric bounds. The decision
+vector is stacked interval by interval so the KKT matrix is banded for MUMPS::
+
+    multiple shooting  w = (z_0, u_0, z_1, u_1, …, z_{N-1}, u_{N-1}, z_N [, T])
+    collocation        w = (z_0, Z_0, u_0, z_1, Z_1, u_1, …, z_N [, T])   Z_k: nz × d
+
+Simple conditions on states (fixed values, ranges, path bounds at the nodes) become bounds
+on w, and a periodic state fixed at one end is fixed at the other end by a bound too; only
+the dynamics (gaps or collocation equations), conditions on derived quantities and the
+remaining periodicity conditions are rows of g.
+
+* :class:`MultipleShooting` — ``steps`` explicit RK4 sub-steps per interval (default 4) in
+  ONE CasADi SX Function ``F(z_k, u_k) -> z_{k+1}`` (``F(z, u, h)`` for a free horizon),
+  applied to all intervals by ``F.map(N)``.
+* :class:`Collocation` — Legendre (or Radau) collocation of degree d (default 3) on each
+  interval, the collocation equations of one interval one Function mapped over N.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from .problem import OptimalControlProblem, ProblemError
+
+__all__ = ["MultipleShooting", "Collocation", "TranscribedNLP", "TRANSCRIPTIONS", "get_transcription"]
+
+
+@dataclass(frozen=True, eq=False)
+class TranscribedNLP:
+    """An NLP ``min f(w) s.t. lbg ≤ g(w) ≤ ubg, lbx ≤ w ≤ ubx`` and its layout.
+
+    ``node_index`` (nz × (N+1)) and ``control_index`` (nu × N) give the positions of z_k and
+    u_k in w; ``horizon_index`` the position of T (free horizon) or None.
+    """
+
+    problem: OptimalControlProblem
+    transcription: Any
+    w: ca.MX
+    f: ca.MX
+    g: ca.MX
+    lbx: np.ndarray
+    ubx: np.ndarray
+    lbg: np.ndarray
+    ubg: np.ndarray
+    node_index: np.ndarray
+    control_index: np.ndarray
+    horizon_index: int | None
+    kernel: ca.Function
+    guess_filler: Any = field(default=None, repr=False)
+
+    @property
+    def n_w(self) -> int:
+        return int(self.w.shape[0])
+
+    def pack(self, states: np.ndarray, controls: np.ndarray, horizon: float | None = None) -> np.ndarray:
+        """A decision vector from node states (nz × (N+1)) and controls (nu × N)."""
+        w0 = np.zeros(self.n_w)
+        w0[self.node_index] = states
+        w0[self.control_index] = controls
+        if self.horizon_index is not None:
+            w0[self.horizon_index] = self.problem.horizon if horizon is None else horizon
+        if self.guess_filler is not None:
+            self.guess_filler(w0, np.asarray(states, float), np.asarray(controls, float))
+        return w0
+
+    def unpack(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        """(states (nz × (N+1)), controls (nu × N), T) from a decision vector."""
+        w = np.asarray(w, dtype=float).ravel()
+        T = float(w[self.horizon_index]) if self.horizon_index is not None else float(self.problem.horizon)
+        return w[self.node_index], w[self.control_index], T
+
+
+def _ode_function(problem: OptimalControlProblem) -> ca.Function:
+    """f(z, u) with the parameters substituted (constants folded) as one SX Function."""
+    nz, nu = problem.n_states, problem.n_controls
+    z, u, t = ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("t")
+    rhs = problem.model.numeric["rhs"](t, z, u, problem.params)
+    if ca.depends_on(rhs, t):
+        raise ProblemError(["time-varying dynamics (rhs depends on t) are not supported by the transcriptions"])
+    return ca.Function("ode", [z, u], [rhs], ["z", "u"], ["zdot"])
+
+
+class _Builder:
+    """Shared bookkeeping: bounds on w, rows of g, objective terms."""
+
+    def __init__(self, problem: OptimalControlProblem):
+        self.problem = problem
+        self.g, self.lbg, self.ubg = [], [], []
+
+    def add_g(self, expr, lo, hi):
+        n = int(expr.shape[0])
+        self.g.append(expr)
+        self.lbg.append(np.broadcast_to(np.asarray(lo, float), (n,)))
+        self.ubg.append(np.broadcast_to(np.asarray(hi, float), (n,)))
+
+    def node_bounds(self) -> tuple[np.ndarray, np.ndarray, list]:
+        """Bounds (nz × (N+1)) on the node states and the periodic states left for g."""
+        p = self.problem
+        nz, N = p.n_states, p.intervals
+        lo = np.full((nz, N + 1), -np.inf)
+        hi = np.full((nz, N + 1), np.inf)
+        for name, value in p.state_bounds.items():
+            if p.is_state(name):
+                i = p.state_names.index(name)
+                lo[i, :], hi[i, :] = p.bounds(p.state_bounds, name)
+        for col, mapping in ((0, p.initial), (N, p.final)):
+            for name in mapping:
+                if p.is_state(name):
+                    i = p.state_names.index(name)
+                    a, b = p.bounds(mapping, name)
+                    lo[i, col], hi[i, col] = max(lo[i, col], a), min(hi[i, col], b)
+        periodic_g = []
+        for name in p.periodic:
+            if not p.is_state(name):
+                periodic_g.append(name)
+                continue
+            i = p.state_names.index(name)
+            # a periodic state fixed at one end is fixed at the other end (a bound, not a row of g)
+            if lo[i, 0] == hi[i, 0] or lo[i, N] == hi[i, N]:
+                value = lo[i, 0] if lo[i, 0] == hi[i, 0] else lo[i, N]
+                lo[i, 0] = hi[i, 0] = lo[i, N] = hi[i, N] = value
+            else:
+                periodic_g.append(name)
+        return lo, hi, periodic_g
+
+    def derived_rows(self, Z, Zfirst, Zlast, periodic_g):
+        """Rows of g for derived-quantity conditions and periodic states not fixed by bounds."""
+        p = self.problem
+        N = p.intervals
+        zs = ca.SX.sym("z", p.n_states)
+        cache = {}
+
+        def qfun(name):
+            if name not in cache:
+                cache[name] = ca.Function(f"q_{name}", [zs], [p.quantity(name, zs)])
+            return cache[name]
+
+        for col, mapping, zc in ((0, p.initial, Zfirst), (N, p.final, Zlast)):
+            for name in mapping:
+                if not p.is_state(name):
+                    a, b = p.bounds(mapping, name)
+                    self.add_g(qfun(name)(zc), a, b)
+        for name in periodic_g:
+            f = qfun(name)
+            self.add_g(f(Zlast) - f(Zfirst), 0.0, 0.0)
+        for name in p.state_bounds:
+            if not p.is_state(name):
+                a, b = p.bounds(p.state_bounds, name)
+                self.add_g(ca.vec(qfun(name).map(N + 1)(Z)), a, b)
+
+    def objective(self, Z, U, h, T):
+        p = self.problem
+        wu = np.array([float(p.control_weights.get(n, 1.0)) for n in p.control_names])
+        if np.all(wu == 1.0):
+            f = h * ca.sumsqr(U)
+        else:
+            f = h * ca.sumsqr(ca.mtimes(ca.diag(ca.DM(np.sqrt(wu))), U))
+        if p.state_weights:
+            wz = np.array([float(p.state_weights.get(n, 0.0)) for n in p.state_names])
+            f = f + h * ca.sum2(ca.mtimes(ca.DM(wz).T, Z[:, :-1] ** 2))
+        if p.time_weight:
+            f = f + float(p.time_weight) * T
+        return f
+
+    def finish(self, transcription, w, f, lbx, ubx, node_index, control_index, horizon_index, kernel,
+               guess_filler=None):
+        g = ca.vertcat(*self.g) if self.g else ca.MX(0, 1)
+        lbg = np.concatenate(self.lbg) if self.lbg else np.zeros(0)
+        ubg = np.concatenate(self.ubg) if self.ubg else np.zeros(0)
+        return TranscribedNLP(self.problem, transcription, w, f, g, lbx, ubx, lbg, ubg,
+                              node_index, control_index, horizon_index, kernel, guess_filler)
+
+    def horizon_variable(self):
+        p = self.problem
+        if p.free_horizon is None:
+            return None, float(p.horizon), None
+        T = ca.MX.sym("T")
+        lo, hi = p.bounds({"T": p.free_horizon}, "T")
+        return T, T, (lo, hi)
+
+
+@dataclass(frozen=True)
+class MultipleShooting:
+    """Direct multiple shooting with ``steps`` explicit RK4 sub-steps per interval."""
+
+    steps: int = 4
+    map_mode: str = "serial"
+    name = "multiple-shooting"
+
+    def step_function(self, problem: OptimalControlProblem, h: float | None) -> ca.Function:
+        """F(z, u) -> z after one interval of length h (h an input ``F(z, u, h)`` if None)."""
+        if not (isinstance(self.steps, int) and self.steps >= 1):
+            raise ProblemError([f"multiple shooting: steps = {self.steps!r} must be an integer ≥ 1"])
+        ode = _ode_function(problem)
+        z0, u = ca.SX.sym("z0", problem.n_states), ca.SX.sym("u", problem.n_controls)
+        hs = ca.SX.sym("h") if h is None else h
+        dt = hs / self.steps
+        z = z0
+        for _ in range(self.steps):
+            k1 = ode(z, u)
+            k2 = ode(z + dt / 2 * k1, u)
+            k3 = ode(z + dt / 2 * k2, u)
+            k4 = ode(z + dt * k3, u)
+            z = z + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        if h is None:
+            return ca.Function("rk4_step", [z0, u, hs], [z], ["z0", "u", "h"], ["zf"])
+        return ca.Function("rk4_step", [z0, u], [z], ["z0", "u"], ["zf"])
+
+    def settings(self) -> dict:
+        return {"transcription": self.name, "rk4_steps": self.steps, "map_mode": self.map_mode}
+
+    def build(self, problem: OptimalControlProblem) -> TranscribedNLP:
+        nz, nu, N = problem.n_states, problem.n_controls, problem.intervals
+        b = _Builder(problem)
+        Tsym, T, Tbounds = b.horizon_variable()
+        V = ca.MX.sym("V", nz + nu, N)
+        ZN = ca.MX.sym("zN", nz)
+        parts = [ca.vec(V), ZN] + ([Tsym] if Tsym is not None else [])
+        w = ca.vertcat(*parts)
+        Z = ca.horzcat(V[:nz, :], ZN)
+        U = V[nz:, :]
+        h = T / N
+        if Tsym is None:
+            F = self.step_function(problem, h)
+            Zend = F.map(N, self.map_mode)(Z[:, :N], U)
+        else:
+            F = self.step_function(problem, None)
+            Zend = F.map(N, self.map_mode)(Z[:, :N], U, ca.repmat(h, 1, N))
+        b.add_g(ca.vec(Zend - Z[:, 1:]), 0.0, 0.0)
+        lo, hi, periodic_g = b.node_bounds()
+        b.derived_rows(Z, Z[:, 0], Z[:, N], periodic_g)
+        f = b.objective(Z, U, h, T)
+        ulo, uhi = problem.control_bound_vectors()
+        # layout
+        idx = np.arange((nz + nu) * N).reshape((N, nz + nu)).T        # column k = (z_k, u_k)
+        node_index = np.hstack([idx[:nz, :], (nz + nu) * N + np.arange(nz)[:, None]])
+        control_index = idx[nz:, :]
+        n_w = int(w.shape[0])
+        lbx, ubx = np.full(n_w, -np.inf), np.full(n_w, np.inf)
+        lbx[node_index], ubx[node_index] = lo, hi
+        lbx[control_index], ubx[control_index] = ulo[:, None], uhi[:, None]
+        horizon_index = None
+        if Tsym is not None:
+            horizon_index = n_w - 1
+            lbx[horizon_index], ubx[horizon_index] = Tbounds
+        return b.finish(self, w, f, lbx, ubx, node_index, control_index, horizon_index, F)
+
+
+@dataclass(frozen=True)
+class Collocation:
+    """Direct collocation: degree-d polynomials on Legendre (or Radau) points per interval."""
+
+    degree: int = 3
+    scheme: str = "legendre"
+    map_mode: str = "serial"
+    name = "collocation"
+
+    def settings(self) -> dict:
+        return {"transcription": self.name, "degree": self.degree, "scheme": self.scheme,
+                "map_mode": self.map_mode}
+
+    def coefficients(self):
+        """Collocation points τ (0 prepended), derivative matrix C, continuity D, quadrature B."""
+        d = self.degree
+        tau = np.append(0.0, ca.collocation_points(d, self.scheme))
+        C = np.zeros((d + 1, d + 1))
+        D = np.zeros(d + 1)
+        for j in range(d + 1):
+            coeff = np.poly1d([1.0])
+            for r in range(d + 1):
+                if r != j:
+                    coeff *= np.poly1d([1.0, -tau[r]]) / (tau[j] - tau[r])
+            D[j] = coeff(1.0)
+            dcoeff = np.polyder(coeff)
+            for r in range(d + 1):
+                C[j, r] = dcoeff(tau[r])
+        return tau, C, D
+
+    def interval_function(self, problem: OptimalControlProblem, h) -> ca.Function:
+        """Residuals of one interval: (z_k, Z_k, u_k[, h]) -> (collocation residuals, z_end)."""
+        if not (isinstance(self.degree, int) and self.degree >= 1):
+            raise ProblemError([f"collocation: degree = {self.degree!r} must be an integer ≥ 1"])
+        if self.scheme not in ("legendre", "radau"):
+            raise ProblemError([f"collocation: unknown scheme {self.scheme!r} (legendre, radau)"])
+        ode = _ode_function(problem)
+        nz, nu, d = problem.n_states, problem.n_controls, self.degree
+        tau, C, D = self.coefficients()
+        zk, Zc, u = ca.SX.sym("zk", nz), ca.SX.sym("Zc", nz, d), ca.SX.sym("u", nu)
+        hs = ca.SX.sym("h") if h is None else h
+        pts = ca.horzcat(zk, Zc)
+        res = []
+        for j in range(1, d + 1):
+            zp = ca.mtimes(pts, ca.DM(C[:, j]))
+            res.append(hs * ode(pts[:, j], u) - zp)
+        zend = ca.mtimes(pts, ca.DM(D))
+        ins = [zk, Zc, u] + ([hs] if h is None else [])
+        names = ["zk", "Zc", "u"] + (["h"] if h is None else [])
+        return ca.Function("collocation_interval", ins, [ca.vertcat(*res), zend], names, ["residual", "zend"])
+
+    def build(self, problem: OptimalControlProblem) -> TranscribedNLP:
+        nz, nu, N, d = problem.n_states, problem.n_controls, problem.intervals, self.degree
+        b = _Builder(problem)
+        Tsym, T, Tbounds = b.horizon_variable()
+        blk = nz + nz * d + nu
+        V = ca.MX.sym("V", blk, N)
+        ZN = ca.MX.sym("zN", nz)
+        w = ca.vertcat(*([ca.vec(V), ZN] + ([Tsym] if Tsym is not None else [])))
+        Z = ca.horzcat(V[:nz, :], ZN)
+        Zc = V[nz:nz + nz * d, :]                   # column k: vec(Z_k), nz*d
+        U = V[nz + nz * d:, :]
+        h = T / N
+        Fi = self.interval_function(problem, None if Tsym is not None else h)
+        # map over intervals: Zc column k reshaped to nz × d inside a wrapper
+        zk, zc, u = ca.MX.sym("zk", nz), ca.MX.sym("zc", nz * d), ca.MX.sym("u", nu)
+        if Tsym is None:
+            r, ze = Fi(zk, ca.reshape(zc, nz, d), u)
+            W = ca.Function("interval", [zk, zc, u], [r, ze])
+            R, Zend = W.map(N, self.map_mode)(Z[:, :N], Zc, U)
+        else:
+            hh = ca.MX.sym("h")
+            r, ze = Fi(zk, ca.reshape(zc, nz, d), u, hh)
+            W = ca.Function("interval", [zk, zc, u, hh], [r, ze])
+            R, Zend = W.map(N, self.map_mode)(Z[:, :N], Zc, U, ca.repmat(h, 1, N))
+        # interleave residuals and continuity per interval (banded Jacobian)
+        b.add_g(ca.vec(ca.vertcat(R, Zend - Z[:, 1:])), 0.0, 0.0)
+        lo, hi, periodic_g = b.node_bounds()
+        b.derived_rows(Z, Z[:, 0], Z[:, N], periodic_g)
+        f = b.objective(Z, U, h, T)
+        ulo, uhi = problem.control_bound_vectors()
+        idx = np.arange(blk * N).reshape((N, blk)).T
+        node_index = np.hstack([idx[:nz, :], blk * N + np.arange(nz)[:, None]])
+        coll_index = idx[nz:nz + nz * d, :]
+        control_index = idx[nz + nz * d:, :]
+        n_w = int(w.shape[0])
+        lbx, ubx = np.full(n_w, -np.inf), np.full(n_w, np.inf)
+        lbx[node_index], ubx[node_index] = lo, hi
+        lbx[control_index], ubx[control_index] = ulo[:, None], uhi[:, None]
+        # path bounds on states also hold at the collocation points
+        path_lo, path_hi = np.full(nz, -np.inf), np.full(nz, np.inf)
+        for name in problem.state_bounds:
+            if problem.is_state(name):
+                i = problem.state_names.index(name)
+                path_lo[i], path_hi[i] = problem.bounds(problem.state_bounds, name)
+        lbx[coll_index] = np.tile(path_lo, d)[:, None]
+        ubx[coll_index] = np.tile(path_hi, d)[:, None]
+        horizon_index = None
+        if Tsym is not None:
+            horizon_index = n_w - 1
+            lbx[horizon_index], ubx[horizon_index] = Tbounds
+        tau = self.coefficients()[0]
+
+        def fill(w0, states, controls):
+            # collocation states: linear interpolation between the node guesses
+            for j in range(d):
+                s = tau[j + 1]
+                w0[coll_index[j * nz:(j + 1) * nz, :]] = (1 - s) * states[:, :-1] + s * states[:, 1:]
+
+        return b.finish(self, w, f, lbx, ubx, node_index, control_index, horizon_index, Fi, fill)
+
+
+TRANSCRIPTIONS = {"multiple-shooting": MultipleShooting, "collocation": Collocation}
+
+
+def get_transcription(spec=None):
+    """A transcription from a name (``multiple-shooting``, ``collocation``) or an instance."""
+    if spec is None:
+        return MultipleShooting()
+    if isinstance(spec, str):
+        try:
+            return TRANSCRIPTIONS[spec]()
+        except KeyError:
+            raise ProblemError([f"unknown transcription {spec!r} (known: {', '.join(TRANSCRIPTIONS)})"]) from None
+    return spec
