@@ -357,10 +357,12 @@ def derive_reduced(system: System, version: str | None = None) -> ReducedODE:
     # components vanish (X_r is constant), so the bracket is linear in μ: −μᵀ g⁻¹[X_a, X_b]_s.
     JX = [X[:, a].jacobian(q) for a in range(nP)]
     bracket_mu_coef = {}      # (a, b) -> l-vector c with {P_a, P_b} = c·mu
+    lie_brackets = {}
     C_mu = sp.zeros(nP, nP)
     for a in range(nP):
         for b in range(a + 1, nP):
             lie = JX[b] * X[:, a] - JX[a] * X[:, b]
+            lie_brackets[a, b] = lie
             lie_s = sp.Matrix([lie[i] for i in si])
             lie_r = [tidy(lie[i]) for i in ri]
             if any(e != 0 for e in lie_r):  # pragma: no cover - X_r is constant by construction
@@ -378,15 +380,18 @@ def derive_reduced(system: System, version: str | None = None) -> ReducedODE:
     MXKinv = M * XKinv                           # p|_M = (M X K⁻¹) P
     mu_M_coef = tidy(g.T * MXKinv.extract(si, list(range(nP)))) if l else sp.zeros(0, nP)  # μ|_M = coef·P
     mu_on_M = mu_M_coef * sp.Matrix(P_all) if l else sp.Matrix([])
+    # {P_a, P_b}|_M = μ|_Mᵀ·c_ab = −Σ_c γ_abc (K⁻¹P)_c with γ_abc = X_cᵀ M [X_a, X_b]: the same
+    # number, assembled from the small factors γ (no K⁻¹ inside) before multiplying by K⁻¹.
     C_coef = {}                                  # (a, b) -> nP-vector: {P_a,P_b}|_M = coef·P
     C = sp.zeros(nP, nP)
-    for (a, b), c in bracket_mu_coef.items():
-        coef = tidy((c.T * mu_M_coef).T) if l else sp.zeros(nP, 1)
+    for (a, b), lie in lie_brackets.items():
+        gam = [tidy((X[:, c].T * M * lie)[0, 0]) for c in range(nP)]
+        coef = sp.Matrix([tidy(-sum((gam[c] * Kinv[c, j] for c in range(nP) if Kinv[c, j] != 0), sp.Integer(0)))
+                          for j in range(nP)])
         C_coef[a, b] = coef
         C_coef[b, a] = -coef
         C[a, b] = sum((coef[j] * P_all[j] for j in range(nP)), sp.Integer(0))
         C[b, a] = -C[a, b]
-    marks.append(time.perf_counter())
     steps.append(Step(16, "Brackets restricted to M̄", "§3.2.4, eqs. 3.29–3.30, 3.46–3.47, 3.89–3.90",
                       {"mu|M": mu_on_M, "{P_a, P_b}|M": C}, "μ|_M̄ = gᵀ(M X K⁻¹P)_s."))
 

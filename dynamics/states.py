@@ -10,6 +10,8 @@ error, not silently projected) and, for the reduced ODE, that q is off the singu
 """
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from .errors import ModelError, SingularConfigurationError
@@ -36,14 +38,18 @@ def _raw_state(model, q, qdot, pv):
     return np.r_[q, M @ qdot]
 
 
+_MASS_FUNCTIONS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
 def model_mass(model, q, pv):
+    """M(q) as a numpy array (lambdified once per system)."""
     import sympy as sp
     system = model.system
-    cache = model.__dict__.setdefault("_mass_fn", None)
-    if cache is None:
-        cache = sp.lambdify([system.q, system.param_symbols], system.mass_matrix(), "numpy")
-        model.__dict__["_mass_fn"] = cache
-    return np.array(cache(np.asarray(q, float), pv), dtype=float)
+    fn = _MASS_FUNCTIONS.get(system)
+    if fn is None:
+        fn = sp.lambdify([system.q, system.param_symbols], system.mass_matrix(), "numpy")
+        _MASS_FUNCTIONS[system] = fn
+    return np.array(fn(np.asarray(q, float), pv), dtype=float)
 
 
 def check_configuration(model, q, params=None) -> None:

@@ -125,6 +125,16 @@ def group_transform(system: System, fiber: tuple[str, ...], version: str) -> sp.
     return g
 
 
+def _lambdified(system, M, W, V):
+    cache = system.__dict__.get("_nhgait_lambdified")
+    if cache is None:
+        cache = (sp.lambdify([system.q, system.param_symbols], M, "numpy"),
+                 sp.lambdify([system.q, system.param_symbols], W, "numpy") if system.k else None,
+                 sp.lambdify([system.q, system.param_symbols], V, "numpy"))
+        object.__setattr__(system, "_nhgait_lambdified", cache)
+    return cache
+
+
 def _invariance(system: System, fiber: tuple[str, ...], M, W, V) -> tuple[bool, str, str]:
     """Is (L, ω) invariant under the group acting on the fiber? Returns (ok, group label, why)."""
     s_syms = {system.q[system.coordinates.index(c)] for c in fiber}
@@ -141,9 +151,7 @@ def _invariance(system: System, fiber: tuple[str, ...], M, W, V) -> tuple[bool, 
     # numeric SE(2) invariance: T(q) = blockdiag(R(heading) on x, y; identity elsewhere)
     n = system.n
     ix, iy, ih = (system.coordinates.index(c) for c in pf)
-    M_f = sp.lambdify([system.q, system.param_symbols], M, "numpy")
-    W_f = sp.lambdify([system.q, system.param_symbols], W, "numpy") if system.k else None
-    V_f = sp.lambdify([system.q, system.param_symbols], V, "numpy")
+    M_f, W_f, V_f = _lambdified(system, M, W, V)
     pv = system.param_vector()
     rng = np.random.default_rng(7)
     fib_idx = [system.coordinates.index(c) for c in fiber]
@@ -205,10 +213,15 @@ def symmetry_test(system: System) -> SymmetryTest:
             Sq = sp.zeros(n, xi.shape[1])
             for a, i in enumerate(idx):
                 Sq[i, :] = xi[a, :]
-            # which fiber coordinates never move within S_q (numerically, at random points)
+            # which fiber coordinates never move within S_q (numeric null spaces at 3 points)
             if xi.shape[1]:
-                xin = _numeric(system, xi, 3, seed=9)
-                locked = [fiber[a] for a in range(size) if all(np.allclose(x[a], 0, atol=1e-12) for x in xin)]
+                locked = list(fiber)
+                for w in Wn:
+                    ws = w[:, idx] if k else np.zeros((0, size))
+                    _, sv, vt = np.linalg.svd(ws) if k else (None, np.zeros(0), np.eye(size))
+                    nullv = vt[rank:].T if k else np.eye(size)
+                    moving = np.abs(nullv).max(axis=1) > 1e-10 if nullv.size else np.zeros(size, bool)
+                    locked = [f for a, f in enumerate(fiber) if f in locked and not moving[a]]
             else:
                 locked = list(fiber)
             if not inv:

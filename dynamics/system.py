@@ -416,6 +416,14 @@ class System:
         if self.k >= self.n:
             problems.append(f"{self.k} constraints on {self.n} coordinates leave no motion")
 
+    # ------------------------------------------------------------------ pickling
+    def __getstate__(self):
+        """Drop private caches (lambdified functions are not picklable)."""
+        return {k: v for k, v in self.__dict__.items() if not k.startswith("_nhgait")}
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+
     # ------------------------------------------------------------------ identity
     def canonical_text(self) -> str:
         """A canonical textual form of everything the derivations depend on (not the parameter

@@ -146,3 +146,103 @@ def specialise(model, params=None) -> SpecialisedModel:
     if numeric is None:  # simplification did not pass its check: keep the general functions
         return SpecialisedModel(model, model.numeric, False)
     return SpecialisedModel(model, numeric, True)
+
+
+# ------------------------------------------------------------------ planning
+@dataclass(frozen=True, eq=False)
+class PlanResult:
+    """What :func:`plan` produced: the verified solution, the guesses tried and the files."""
+
+    system: str
+    gait: str
+    solution: Any
+    attempts: tuple                  # ((guess label, status), ...)
+    files: tuple = ()
+    derive_time_s: float = 0.0
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def success(self) -> bool:
+        return bool(self.solution.success)
+
+
+def solve_task(problem, family: str, *, transcription="multiple-shooting", jit=False, options=None):
+    """Solve ``problem`` from the guesses of ``family`` until Ipopt succeeds.
+
+    Returns (solution, attempts, solver). The transcription/NLP is built once and reused for
+    every candidate guess.
+    """
+    from nhgait.ocp import OCPSolver, SolverOptions
+    from .guesses import candidates
+
+    solver = OCPSolver(problem, transcription, options or SolverOptions(jit=jit))
+    attempts = []
+    solution = None
+    for guess in candidates(problem, family):
+        solution = solver.solve(guess)
+        attempts.append((guess.label, solution.status))
+        if solution.success:
+            break
+    return solution, tuple(attempts), solver
+
+
+def plan(system_name: str, gait: str, *, distance=None, angle=None, period=None, intervals=None,
+         transcription="multiple-shooting", jit=False, out_dir=None, animate=True,
+         verify=True) -> PlanResult:
+    """Plan a gait: derive → specialise → task → guess → solve → verify → write files.
+
+    Files in ``out_dir`` (when given): ``solution.json``, ``path.png``, ``shape.png``,
+    ``histories.png``, ``momentum.png`` and ``motion.gif`` (``animate=False`` skips the GIF).
+    """
+    from nhgait.dynamics import builtin, derive
+    from .tasks import get_task
+
+    task = get_task(system_name, gait)
+    timings = {}
+    t0 = time.perf_counter()
+    model = derive(builtin(system_name), "reduced")
+    timings["derive_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    fast = specialise(model)
+    timings["specialise_s"] = time.perf_counter() - t0
+    problem = task.problem(fast, distance=distance, angle=angle, period=period,
+                           intervals=100 if intervals is None else int(intervals))
+    solution, attempts, solver = solve_task(problem, task.guess_family, transcription=transcription, jit=jit)
+    timings["setup_s"] = solver.setup_time_s
+    timings["jit_cached"] = solver.jit_cached
+    if verify:
+        solution = solution.verified()
+    solution = _with_settings(solution, {"system": system_name, "gait": gait, "attempts": [list(a) for a in attempts],
+                                         "specialised_model": fast.simplified, **timings})
+    files = []
+    if out_dir is not None:
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        files.append(solution.to_json(out / "solution.json"))
+        files.extend(_write_figures(solution, out, system_name, animate))
+    return PlanResult(system_name, gait, solution, attempts, tuple(files), timings["derive_s"], timings)
+
+
+def _with_settings(solution, extra):
+    from dataclasses import replace
+    return replace(solution, settings={**solution.settings, **extra})
+
+
+def _write_figures(solution, out: Path, system_name: str, animate: bool) -> list:
+    import matplotlib
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+    from . import plots
+
+    files = []
+    for name, fn in (("path.png", plots.plot_path), ("shape.png", plots.plot_shape_loop),
+                     ("histories.png", plots.plot_histories), ("momentum.png", plots.plot_momentum)):
+        fig = fn(solution, system=system_name).figure
+        path = out / name
+        fig.savefig(path, dpi=110, bbox_inches="tight")
+        plt.close(fig)
+        files.append(path)
+    if animate:
+        from .animation import animate_solution
+        files.append(animate_solution(solution, out / "motion.gif", system=system_name))
+    return files
