@@ -121,6 +121,10 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
     for key in ("coordinates", "lagrangian"):
         if key not in sysd:
             problems.append(f"[system]: missing key {key!r}")
+    sim_early = data.get("simulation")
+    if isinstance(sim_early, dict) and set(sim_early) - SIMULATION_KEYS:
+        problems.append(f"[simulation]: unknown key(s) {sorted(set(sim_early) - SIMULATION_KEYS)} "
+                        f"(allowed: {', '.join(sorted(SIMULATION_KEYS))})")
     params = sysd.get("parameters", {})
     if not isinstance(params, dict):
         problems.append("[system].parameters must be a table of name = value")
@@ -141,9 +145,6 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
     if sim is not None:
         if not isinstance(sim, dict):
             raise ModelError(["[simulation] must be a table"], title=f"invalid scene {source}")
-        unknown = set(sim) - SIMULATION_KEYS
-        if unknown:
-            problems.append(f"[simulation]: unknown key(s) {sorted(unknown)} (allowed: {', '.join(sorted(SIMULATION_KEYS))})")
         for key in ("q0", "qdot0", "t_final", "samples"):
             if key not in sim:
                 problems.append(f"[simulation]: missing key {key!r}")

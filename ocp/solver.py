@@ -142,7 +142,7 @@ class OCPSolver:
     def _jit_solver(self, nlp: dict, opts: dict):
         plain = ca.nlpsol("ocp_plain", "ipopt", nlp, {**opts, "expand": False})
         x, p = ca.MX.sym("x", self.nlp.w.shape[0]), ca.MX.sym("p", 0)
-        oracle = ca.Function("nlp", [x, p], [*plain.get_function("nlp_f")(x, p), *plain.get_function("nlp_g")(x, p)],
+        oracle = ca.Function("nlp", [x, p], [plain.get_function("nlp_f")(x, p), plain.get_function("nlp_g")(x, p)],
                              ["x", "p"], ["f", "g"])
         functions = [oracle] + [plain.get_function(name) for name in _JIT_FUNCTIONS]
         so, cached = _compile_cached(functions, tuple(self.options.jit_flags))
