@@ -16,10 +16,10 @@ _EXPORTS = {
     "System": "system", "ModelError": "errors", "SingularConfigurationError": "errors",
     "unicycle": "models", "snakeboard": "models", "chaplygin_sleigh": "models",
     "knife_edge_incline": "models", "builtin": "models",
-    "derive": "derive", "FORMULATIONS": "derive",
+    "derive": "derivation", "FORMULATIONS": "derivation",
     "ReducedODE": "reduction", "LagrangianDAE": "lagrange", "HamiltonianDAE": "hamilton",
     "load_scene": "scene", "Scene": "scene",
-    "simulate": "simulate", "Trajectory": "simulate",
+    "simulate": "simulation", "Trajectory": "simulation",
     "jacobi_test": "analysis", "to_state": "states", "from_state": "states",
 }
 

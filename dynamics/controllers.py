@@ -1,4 +1,4 @@
-"""Controllers for :func:`~nhgait.dynamics.simulate.simulate`: u = controller(t, q, q̇).
+"""Controllers for :func:`~nhgait.dynamics.simulation.simulate`: u = controller(t, q, q̇).
 
 Protocol (duck-typed; every controller here implements it)
 ---------------------------------------------------------

@@ -50,7 +50,7 @@ def cmd_derive(args) -> int:
 def cmd_simulate(args) -> int:
     from nhgait.dynamics import derive
     from nhgait.dynamics.errors import ModelError
-    from nhgait.dynamics.simulate import simulate
+    from nhgait.dynamics.simulation import simulate
     scene = _scene(args.scene)
     spec = scene.simulation
     if spec is None:

@@ -27,10 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
+# functions first through the package's lazy exports: loading a submodule that shares a
+# function's name (derive, simulate) any other way leaves the package attribute bound to the module
+from nhgait.dynamics import builtin, derive, simulate  # isort: skip
 from nhgait.dynamics.controllers import snakeboard_pd, unicycle_pd
-from nhgait.dynamics.derive import FORMULATIONS, derive
-from nhgait.dynamics.models import builtin
-from nhgait.dynamics.simulate import simulate
+from nhgait.dynamics.derivation import FORMULATIONS
 from nhgait.dynamics.states import constraint_residual
 
 #: name → (controller factory, final time, number of output points)
@@ -71,7 +72,7 @@ def run_case(name, *, rtol=1e-10, formulations=FORMULATIONS, idas=True, params=N
     Returns
     -------
     dict with ``t_eval`` (N,), ``q0``, ``qdot0`` (n,), ``controller`` and ``runs``
-    (label → :class:`~nhgait.dynamics.simulate.Trajectory`).
+    (label → :class:`~nhgait.dynamics.simulation.Trajectory`).
     """
     factory, t_final, n_points = CASES[name]
     controller = factory()

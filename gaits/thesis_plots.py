@@ -93,9 +93,13 @@ def multiplier_figure(runs, *, reference=None, title=None):
     """λ₁ and λ₂ one above the other, sharing the time axis; returns the Figure."""
     fig = Figure(figsize=(6.4, 6.4))
     top, bottom = fig.subplots(2, 1, sharex=True)
-    plot_multiplier(runs, 0, reference=reference, ax=top, title=title)
+    plot_multiplier(runs, 0, reference=reference, ax=top)
     plot_multiplier(runs, 1, reference=reference, ax=bottom)
     top.set_xlabel("")
+    bottom.get_legend().remove()
+    top.legend(loc="lower center", bbox_to_anchor=(0.5, 1.02), ncol=2, fontsize="small")
+    if title:
+        fig.suptitle(title)
     return fig
 
 

@@ -148,7 +148,7 @@ class OCPSolver:
         so, cached = _compile_cached(functions, tuple(self.options.jit_flags))
         ext = {f.name(): ca.external(f.name(), str(so)) for f in functions}
         jit_opts = {**opts, "expand": False, "grad_f": ext["nlp_grad_f"], "jac_g": ext["nlp_jac_g"],
-                    "hess_lag": ext["nlp_hess_l"], "calc_lam_p": False}
+                    "hess_lag": ext["nlp_hess_l"], "calc_lam_p": False, "no_nlp_grad": True}
         if self.options.hessian != "exact":
             jit_opts.pop("hess_lag")
         return ca.nlpsol("ocp", "ipopt", ext["nlp"], jit_opts), cached, so

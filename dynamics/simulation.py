@@ -139,7 +139,7 @@ class Trajectory:
 # input checks
 # --------------------------------------------------------------------------------------------
 def _check_request(model, t_span, t_eval, controller, method, dae, stabilization, baumgarte,
-                   rtol, atol):
+                   rtol, atol, max_steps=1):
     """Every problem with the request, as a list of sentences."""
     system = model.system
     problems = []
@@ -172,6 +172,8 @@ def _check_request(model, t_span, t_eval, controller, method, dae, stabilization
                 problems.append(f"baumgarte = (alpha, beta) must be finite and ≥ 0, got {baumgarte!r}")
         except (TypeError, ValueError):
             problems.append(f"baumgarte must be a pair (alpha, beta), got {baumgarte!r}")
+    if not (isinstance(max_steps, (int, np.integer)) and max_steps > 0):
+        problems.append(f"max_steps must be a positive integer, got {max_steps!r}")
     if not (rtol > 0 and atol > 0):
         problems.append(f"rtol and atol must be positive, got rtol={rtol!r}, atol={atol!r}")
     if t_eval is not None and t0 is not None:
@@ -375,7 +377,8 @@ def _controller_input(controller, loop, t_c, y, pv, qdot_fn=None):
     return np.asarray(controller(t_c, y[:loop.n_q], qdot), dtype=float).ravel()
 
 
-def _integrate_scipy(loop, controller, segments, y0, pv, t_eval, method, rtol, atol, max_step):
+def _integrate_scipy(loop, controller, segments, y0, pv, t_eval, method, rtol, atol, max_step,
+                     max_steps):
     cls = SCIPY_METHODS[method]
     run = _Run(t=[], t_c=[], y=[])
     te = None if t_eval is None else np.asarray(t_eval, dtype=float)
@@ -422,6 +425,11 @@ def _integrate_scipy(loop, controller, segments, y0, pv, t_eval, method, rtol, a
                                + (message or "non-finite state"))
                 return run
             run.n_steps += 1
+            if run.n_steps > max_steps:
+                run.nfev += solver.nfev
+                run.status = -1
+                run.message = f"integration failed at t = {solver.t:.9g}: max_steps = {max_steps} reached"
+                return run
             t_new, y_new = solver.t, solver.y.copy()
             if project is not None:
                 y_new = project(y_new, pv)
@@ -433,6 +441,8 @@ def _integrate_scipy(loop, controller, segments, y0, pv, t_eval, method, rtol, a
                     dense = solver.dense_output()
                     for tt in inside:
                         yy = y_new if tt >= t_new else dense(tt)
+                        if project is not None and tt < t_new:
+                            yy = project(yy, pv)
                         run.t.append(float(tt)), run.t_c.append(min(float(tt), t_hi)), run.y.append(yy)
             if loop.project is not None and solver.status == "running":
                 run.nfev += solver.nfev
@@ -446,14 +456,14 @@ def _integrate_scipy(loop, controller, segments, y0, pv, t_eval, method, rtol, a
     return run
 
 
-def _integrate_idas(loop, segments, y0, lam0, pv, t_eval, rtol, atol):
+def _integrate_idas(loop, segments, y0, lam0, pv, t_eval, rtol, atol, max_steps):
     te = np.asarray(t_eval, dtype=float)
     run = _Run(t=[], t_c=[], y=[], lam=[])
     t0 = segments[0][0]
     if abs(te[0] - t0) <= 1e-12 * max(1.0, abs(t0)):
         run.t.append(t0), run.t_c.append(t0), run.y.append(np.array(y0)), run.lam.append(lam0)
     y, lam = np.array(y0, dtype=float), np.array(lam0, dtype=float)
-    opts = {"abstol": atol, "reltol": rtol, "max_num_steps": 1_000_000, "calc_ic": True, "suppress_algebraic": True,
+    opts = {"abstol": atol, "reltol": rtol, "max_num_steps": int(max_steps), "calc_ic": True, "suppress_algebraic": True,
             "print_stats": False}
     for j, (a, b) in enumerate(segments):
         tol = 1e-12 * max(1.0, abs(b))
@@ -485,13 +495,13 @@ def _integrate_idas(loop, segments, y0, lam0, pv, t_eval, rtol, atol):
 def simulate(model, t_span, q0, qdot0, *, controller=None, params=None, method: str = "DOP853",
              rtol: float = 1e-8, atol: float = 1e-10, t_eval=None, dae: str = "index1",
              stabilization: str | None = None, baumgarte=(1.0, 0.0),
-             max_step: float = np.inf) -> Trajectory:
+             max_step: float = np.inf, max_steps: int = 1_000_000) -> Trajectory:
     """Simulate a derived formulation from a consistent physical state (q0, q̇0).
 
     Parameters
     ----------
     model : ReducedODE, LagrangianDAE or HamiltonianDAE
-        From :func:`~nhgait.dynamics.derive.derive`.
+        From :func:`~nhgait.dynamics.derivation.derive`.
     t_span : (t0, tf) with tf > t0.
     q0, qdot0 : (n,) initial coordinates and velocities; q̇0 must satisfy ω(q0)q̇0 = 0 (it is
         mapped to the formulation's state by :func:`~nhgait.dynamics.states.to_state`, which
@@ -509,13 +519,15 @@ def simulate(model, t_span, q0, qdot0, *, controller=None, params=None, method: 
     stabilization : {None, "baumgarte", "projection"} — constraint stabilisation of the DAE forms.
     baumgarte : (alpha, beta) — ġ + 2αg + β²∫g = 0 when ``stabilization="baumgarte"``.
     max_step : largest step of the scipy solvers.
+    max_steps : cap on accepted steps (scipy: in total; IDAS: per output interval); reaching it
+        is an integrator failure.
 
     Returns
     -------
     Trajectory
     """
     problems = _check_request(model, t_span, t_eval, controller, method, dae, stabilization,
-                              baumgarte, rtol, atol)
+                              baumgarte, rtol, atol, max_steps)
     if problems:
         raise ModelError(problems, title="invalid simulation request")
     system, num = model.system, model.numeric
@@ -535,11 +547,11 @@ def simulate(model, t_span, q0, qdot0, *, controller=None, params=None, method: 
     y0 = np.r_[x0, 0.0, np.zeros(loop.n_y - loop.n_x - 1)]
     if dae == "idas":
         lam0 = _evaluate(loop, controller, [t0], [t0], [y0], pv)["lam"][0]
-        run = _integrate_idas(loop, segments, y0, lam0, pv, t_eval, rtol, atol)
+        run = _integrate_idas(loop, segments, y0, lam0, pv, t_eval, rtol, atol, max_steps)
         method_name = "IDAS"
     else:
         run = _integrate_scipy(loop, controller, segments, y0, pv, t_eval, method, rtol, atol,
-                               max_step)
+                               max_step, max_steps)
         method_name = method
     out = _evaluate(loop, controller, run.t, run.t_c, run.y, pv)
     wall = time.perf_counter() - start
@@ -553,7 +565,7 @@ def simulate(model, t_span, q0, qdot0, *, controller=None, params=None, method: 
     settings = {"method": method_name, "dae": dae if model.formulation != "reduced" else None,
                 "rtol": rtol, "atol": atol, "stabilization": stabilization,
                 "baumgarte": tuple(float(v) for v in baumgarte) if stabilization == "baumgarte" else None,
-                "max_step": max_step, "t_span": (t0, tf), "segments": len(segments),
+                "max_step": max_step, "max_steps": max_steps, "t_span": (t0, tf), "segments": len(segments),
                 "params": dict(zip(num.param_names, pv.tolist())),
                 "controller": None if controller is None else type(controller).__name__}
     arrays = dict(t=np.array(run.t, dtype=float), q=out["q"], qdot=out["qdot"], state=Y[:, :loop.n_x],
