@@ -41,3 +41,27 @@ def test_derive_scene_file_with_error_exits_2(tmp_path, capsys):
 def test_derive_no_cache(capsys):
     assert main(["derive", "knife_edge_incline", "--no-cache"]) == 0
     assert "principally kinematic" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("formulation", ["reduced", "lagrange", "hamilton"])
+def test_simulate_snakeboard_scene_writes_csv(tmp_path, formulation, capsys):
+    out = tmp_path / "traj.csv"
+    assert main(["simulate", "snakeboard", "--formulation", formulation, "--rtol", "1e-10",
+                 "--out", str(out)]) == 0
+    with out.open() as fh:
+        rows = list(csv.reader(fh))
+    assert rows[0] == ["t", "x", "y", "theta", "psi", "phi"]
+    data = np.array(rows[1:], dtype=float)
+    assert data.shape == (501, 6)                         # `samples` uniform times
+    np.testing.assert_allclose(data[:, 0], np.linspace(0, 10 * np.pi, 501), rtol=0, atol=1e-12)
+    # independent KanesMethod + DOP853 at 1e-12: x(10π) = 2.2990248, y(10π) = −0.00906814
+    assert data[-1, 1] == pytest.approx(2.2990248, abs=2e-7)
+    assert data[-1, 2] == pytest.approx(-0.00906814, abs=2e-8)
+
+
+def test_simulate_inconsistent_initial_state_exits_2(tmp_path, capsys):
+    scene = tmp_path / "s.toml"
+    text = open(__import__("nhgait.dynamics", fromlist=["x"]).__path__[0] + "/scenes/unicycle.toml").read()
+    scene.write_text(text.replace("qdot0 = [0.1, 0.0, 1.0, 1.0]", "qdot0 = [0.5, 0.0, 1.0, 1.0]"))
+    assert main(["simulate", str(scene), "--out", str(tmp_path / "t.csv")]) == 2
+    assert "violates the constraints" in capsys.readouterr().err
