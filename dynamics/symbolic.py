@@ -57,6 +57,8 @@ def _collect_generators(e, gens: dict):
     """Generators of ``e`` as a rational function: symbols and opaque subexpressions."""
     if e.is_Symbol:
         gens.setdefault(e, None)
+    elif isinstance(e, (sp.sin, sp.cos)) and e.args[0].is_Symbol:
+        gens.setdefault(e, None)
     elif e.is_Rational:
         return
     elif e.is_Float:
@@ -146,39 +148,36 @@ def _to_field(e, extra):
 def trig_normal(expr):
     """Normal form of a rational expression in sines and cosines.
 
-    Trig functions are expanded to sin/cos of single symbols, replaced by polynomial
-    variables S_x, C_x, brought into a sparse rational-function field (exact gcd cancellation)
-    and S_x² is reduced to 1 − C_x². The result is canonical (a zero expression always returns
-    0) and costs only sparse polynomial arithmetic — orders of magnitude cheaper than
-    ``trigsimp`` on the expressions of steps 15–19.
+    Trig functions are expanded to sin/cos of single symbols; sin(x) and cos(x) become
+    generators of a sparse polynomial ring over ℚ in which the expression is evaluated as a
+    fraction (walking the tree, one gcd at the end); sin(x)² is reduced to 1 − cos(x)². The
+    result is canonical (a zero expression always returns 0) and costs only sparse polynomial
+    arithmetic — orders of magnitude cheaper than ``trigsimp`` on the expressions of steps
+    15–19.
     """
     if not expr.free_symbols:
         return sp.nsimplify(expr) if expr.is_Float else sp.simplify(expr)
     e = expr
-    if has_trig(e):
+    if e.has(sp.tan, sp.cot, sp.sec, sp.csc):
         e = e.replace(sp.tan, lambda a: sp.sin(a) / sp.cos(a)).replace(sp.cot, lambda a: sp.cos(a) / sp.sin(a))
         e = e.replace(sp.sec, lambda a: 1 / sp.cos(a)).replace(sp.csc, lambda a: 1 / sp.sin(a))
-        e = sp.expand_trig(e)
-    if not e.free_symbols:
-        return sp.nsimplify(e) if e.is_Float else e
     atoms = e.atoms(sp.sin, sp.cos)
+    if any(not a.args[0].is_Symbol for a in atoms):
+        e = sp.expand_trig(e)
+        if not e.free_symbols:
+            return sp.nsimplify(e) if e.is_Float else e
+        atoms = e.atoms(sp.sin, sp.cos)
     args = sorted({a.args[0] for a in atoms}, key=sp.default_sort_key)
     if any(not a.is_Symbol for a in args):
         # arguments expand_trig could not split (e.g. sin(x**2)): fall back to trigsimp
         return sp.factor_terms(sp.trigsimp(expr))
-    fwd, back, dummies = {}, {}, []
-    for a in args:
-        S, C = sp.Dummy(f"S_{a}"), sp.Dummy(f"C_{a}")
-        fwd[sp.sin(a)], fwd[sp.cos(a)] = S, C
-        back[S], back[C] = sp.sin(a), sp.cos(a)
-        dummies.append((S, C))
-    e = e.xreplace(fwd)
+    pairs_expr = [(sp.sin(a), sp.cos(a)) for a in args]
     try:
-        R, num, den = _to_field(e, [x for pair in dummies for x in pair])
+        R, num, den = _to_field(e, [x for pair in pairs_expr for x in pair])
     except _NotRational:
-        return sp.factor_terms(sp.cancel(e.xreplace(back)))
+        return sp.factor_terms(sp.cancel(e))
     syms = list(R.symbols)
-    pairs = [(syms.index(S), syms.index(C)) for S, C in dummies if S in syms and C in syms]
+    pairs = [(syms.index(S), syms.index(C)) for S, C in pairs_expr]
     num = _reduce_poly(num, pairs)
     if not num:
         return sp.Integer(0)
@@ -187,8 +186,7 @@ def trig_normal(expr):
     num = _reduce_poly(num, pairs)
     den = _reduce_poly(den, pairs)
     num, den = num.cancel(den)
-    out = num.as_expr() / den.as_expr()
-    return out.xreplace(back)
+    return num.as_expr() / den.as_expr()
 
 
 def null_basis_adjugate(A: sp.Matrix, pivots: list[int]) -> sp.Matrix:
