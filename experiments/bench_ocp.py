@@ -6,7 +6,9 @@ N = 25, 50, 100, 200: median solve time of ``--repeats`` solves (same built NLP,
 own first working guess), Ipopt iterations, set-up time, objective and its relative error vs
 the reference objective, verification error; the reference (``experiments/
 reference_casadi_ocp.py``, imported by path) is run in the same process and the ratio
-ours/reference printed. ``--jit`` compares jit against jit. Writes ``out/bench_ocp.json``.
+ours/reference printed. ``--jit`` compares jit against jit. The planner's model is the task's
+velocity-coordinate model (``specialise(..., velocities=task.velocities)``), as in ``plan``.
+Writes ``out/bench_ocp.json``.
 
 Usage: python experiments/bench_ocp.py [--quick] [--jit] [--N 25,50] [--problems P1,P2]
 """
@@ -42,7 +44,7 @@ def bench_case(ref, key, N, *, jit, repeats):
     system, gait = PROBLEMS[key]
     task = get_task(system, gait)
     t0 = time.perf_counter()
-    model = specialise(derive(builtin(system), "reduced"))
+    model = specialise(derive(builtin(system), "reduced"), velocities=task.velocities)
     model_time = time.perf_counter() - t0
     problem = task.problem(model, intervals=N)
     sol, attempts, solver = solve_task(problem, task.guess_family, options=SolverOptions(jit=jit))

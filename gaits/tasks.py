@@ -16,12 +16,17 @@ Benchmark defaults (controls piecewise constant, J = ∫ |u|² dt, RK4 with 4 su
   sideways shift of half a board length r ≈ 1.18 — large enough to need a real gait, small
   enough for one period).
 
+Statements are coordinate-free: they name configuration coordinates and velocity quantities
+(``<coordinate>_dot``, ``forward_velocity``), never the momenta, so a task is the same problem
+on the momentum model and on a velocity-coordinate model. Each task also names the velocity
+quantities the planner uses as states (``velocities``, see :func:`~nhgait.gaits.planner.specialise`):
+the snakeboard's (v, ψ̇, φ̇) with v the forward body velocity, the unicycle's (φ̇, θ̇). In those
+coordinates every boundary condition and periodicity condition is a bound on a state or a
+linear row, as in the hand-written reference, and Ipopt needs its iteration counts.
+
 Periodicity (snakeboard): the benchmark asks for ψ, φ, v, ψ̇, φ̇ periodic with v the forward
-body velocity. In the reduced state (p, p̃_ψ, p̃_φ) this is stated as: ψ, φ, p̃_ψ, p̃_φ periodic
-and v(T) = v(0) = 0. Given φ(T) = φ(0) and v(T) = v(0), the momenta p̃_ψ (a function of
-v, ψ̇, φ) and p̃_φ = 2 J_w φ̇ are periodic exactly when ψ̇ and φ̇ are, and then p (a function of
-v, ψ̇, φ) is periodic too — the same feasible set. (Stating p periodic instead of v(T) = 0
-is equivalent but took Ipopt 12–14 instead of 10–11 iterations.)
+body velocity and v(0) = 0, i.e. ψ, φ, ψ̇, φ̇ periodic and v(T) = v(0) = 0. (In momentum
+coordinates p̃_ψ, p̃_φ periodic is the same feasible set given φ and v periodic.)
 """
 from __future__ import annotations
 
@@ -44,6 +49,7 @@ class GaitTask:
     description: str
     defaults: dict
     guess_family: str
+    velocities: tuple = ()      # velocity quantities used as states by the planner
 
     def problem(self, model, *, distance=None, angle=None, period=None, intervals=50) -> OptimalControlProblem:
         opts = dict(self.defaults)
@@ -57,10 +63,12 @@ class GaitTask:
 TASKS: dict = {}
 
 
-def register(system: str, name: str, *, description: str, defaults: dict, guess_family: str):
+def register(system: str, name: str, *, description: str, defaults: dict, guess_family: str,
+             velocities: tuple = ()):
     """Decorator: register ``factory(model, *, intervals, distance, angle, period)``."""
     def deco(factory):
-        TASKS[(system, name)] = GaitTask(system, name, factory, description, dict(defaults), guess_family)
+        TASKS[(system, name)] = GaitTask(system, name, factory, description, dict(defaults), guess_family,
+                                         tuple(velocities))
         return factory
     return deco
 
@@ -79,14 +87,19 @@ def build_problem(model, system: str, gait: str, **options) -> OptimalControlPro
 
 
 # ----------------------------------------------------------------------------- unicycle
-@register("unicycle", "parallel-park", guess_family="unicycle-park",
+UNICYCLE_VELOCITIES = ("phi_dot", "theta_dot")
+SNAKEBOARD_VELOCITIES = ("forward_velocity", "psi_dot", "phi_dot")
+
+
+@register("unicycle", "parallel-park", guess_family="unicycle-park", velocities=UNICYCLE_VELOCITIES,
           description="P1: shift sideways by `distance` and end at rest with the same heading",
           defaults={"distance": 0.5, "angle": 0.0, "period": 4.0})
 def parallel_park(model, *, intervals, distance, angle, period):
-    start = {name: 0.0 for name in model.state_names}
+    rest = {"phi_dot": 0.0, "theta_dot": 0.0}
     return OptimalControlProblem(
-        model, horizon=period, intervals=intervals, initial=start,
-        final={"x": 0.0, "y": distance, "theta": angle, "p": 0.0, "pt_theta": 0.0},
+        model, horizon=period, intervals=intervals,
+        initial={"x": 0.0, "y": 0.0, "theta": 0.0, "phi": 0.0, **rest},
+        final={"x": 0.0, "y": distance, "theta": angle, **rest},
         control_bounds=5.0)
 
 
@@ -96,18 +109,18 @@ def _snakeboard(model, *, intervals, period, final):
         model, horizon=period, intervals=intervals,
         initial={"x": 0.0, "y": 0.0, "theta": 0.0, "psi": 0.0, "forward_velocity": 0.0},
         final={**final, "forward_velocity": 0.0},
-        periodic=("psi", "phi", "pt_psi", "pt_phi"),
+        periodic=("psi", "phi", "psi_dot", "phi_dot"),
         state_bounds={"phi": (-1.0, 1.0)}, control_bounds=10.0)
 
 
-@register("snakeboard", "forward", guess_family="drive",
+@register("snakeboard", "forward", guess_family="drive", velocities=SNAKEBOARD_VELOCITIES,
           description="P2: move `distance` forward in one period, start and end at rest",
           defaults={"distance": 1.0, "angle": 0.0, "period": 2 * math.pi})
 def forward(model, *, intervals, distance, angle, period):
     return _snakeboard(model, intervals=intervals, period=period, final={"x": distance, "theta": angle})
 
 
-@register("snakeboard", "rotate", guess_family="rotate",
+@register("snakeboard", "rotate", guess_family="rotate", velocities=SNAKEBOARD_VELOCITIES,
           description="P3: turn by `angle` on the spot in one period",
           defaults={"distance": 0.0, "angle": math.pi / 2, "period": 2 * math.pi})
 def rotate(model, *, intervals, distance, angle, period):
@@ -115,7 +128,7 @@ def rotate(model, *, intervals, distance, angle, period):
                        final={"x": distance, "y": 0.0, "theta": angle})
 
 
-@register("snakeboard", "lateral", guess_family="park",
+@register("snakeboard", "lateral", guess_family="park", velocities=SNAKEBOARD_VELOCITIES,
           description="P4: shift sideways by `distance` (x(T) = 0, θ(T) = 0) in one period",
           defaults={"distance": 0.5, "angle": 0.0, "period": 2 * math.pi})
 def lateral(model, *, intervals, distance, angle, period):
