@@ -38,6 +38,8 @@ def cmd_derive(args) -> int:
         if form == "reduced":
             if args.table:
                 print(model.symmetry.table_markdown() + "\n")
+            if args.checks:
+                _print_checks(model)
             if args.steps == "markdown":
                 print(model.steps.to_markdown(model.symbol_names))
             elif args.steps == "latex":
@@ -45,6 +47,23 @@ def cmd_derive(args) -> int:
     if args.table and "reduced" not in forms:
         print(symmetry_test(system).table_markdown())
     return 0
+
+
+def _print_checks(model) -> None:
+    import sympy as sp
+    from nhgait.dynamics import jacobi_test
+    res = jacobi_test(model)
+    print(f"Jacobi identity of the reduced bracket: {'holds' if res.jacobi_holds else 'fails'} "
+          f"(max relative Jacobiator {res.jacobiator:.2g}); constraints "
+          f"{'holonomic' if res.holonomic else 'nonholonomic'} (max |ω[X_a, X_b]| {res.holonomy:.2g}); "
+          f"thesis §2.2.2 (Jacobi ⇔ holonomic): {'consistent' if res.consistent else 'INCONSISTENT'}")
+    print(f"classification (thesis Table 2.1): {model.classification}")
+    print("initial-state map (Tables 3.2–3.3), P = Xᵀ M(q) q̇ on ω(q)q̇ = 0:")
+    for s, e in zip(model.momenta, model.momenta_of_velocity):
+        print(f"  {s} = {sp.sstr(e)}")
+    if model.singular_set:
+        print("singular set: " + " or ".join(f"{sp.sstr(e)} = 0" for e in model.singular_set))
+    print()
 
 
 def cmd_simulate(args) -> int:
@@ -92,6 +111,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--formulation", choices=["reduced", "lagrange", "hamilton", "all"], default="reduced")
     p.add_argument("--steps", choices=["latex", "markdown"], help="also print every step of the 20-step method")
     p.add_argument("--table", action="store_true", help="print the full-symmetry-group table (thesis Table 3.1)")
+    p.add_argument("--checks", action="store_true",
+                   help="Jacobi/holonomy test, Table 2.1 class, the (q, q̇) → state map and the singular set")
     p.add_argument("--version", choices=["A", "B"], help="g = identity (A) or SE(2)-type (B)")
     p.add_argument("--no-cache", action="store_true", help="derive afresh; do not read or write the cache")
     p.set_defaults(func=cmd_derive)

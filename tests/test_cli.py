@@ -65,3 +65,11 @@ def test_simulate_inconsistent_initial_state_exits_2(tmp_path, capsys):
     scene.write_text(text.replace("qdot0 = [0.1, 0.0, 1.0, 1.0]", "qdot0 = [0.5, 0.0, 1.0, 1.0]"))
     assert main(["simulate", str(scene), "--out", str(tmp_path / "t.csv")]) == 2
     assert "violates the constraints" in capsys.readouterr().err
+
+
+def test_derive_checks(capsys):
+    assert main(["derive", "unicycle", "--checks"]) == 0
+    out = capsys.readouterr().out
+    assert "Jacobi identity of the reduced bracket: fails" in out
+    assert "(Jacobi ⇔ holonomic): consistent" in out
+    assert "p = J_phi*phi_dot + m*r*x_dot*cos(theta) + m*r*y_dot*sin(theta)" in out
