@@ -218,7 +218,7 @@ def derive_reduced(system: System, version: str | None = None) -> ReducedODE:
                       "Basis vectors are k×k minors of ω, so they vanish only where rank ω < k."))
     marks.append(time.perf_counter())
     steps.append(Step(3, "Full symmetry group", "§3.2.2, Table 3.1, eqs. 3.5–3.8, 3.65–3.68", {
-        "table": sym.table_markdown(), "s (fiber)": ", ".join(fiber), "r (shape)": ", ".join(shape),
+        "table": sym, "s (fiber)": ", ".join(fiber), "r (shape)": ", ".join(shape),
         "G": cand.group, "xi_Q^q (columns)": _embed(N, si, n), "xi (Lie algebra element)": N,
         "chosen by": sym.chosen_by},
         "Candidates T_q Orb = span{∂/∂s}; S_q = D_q ∩ T_q Orb; the full candidate of smallest l."))

@@ -51,7 +51,7 @@ class Step:
         for name, obj in self.items.items():
             if isinstance(obj, (sp.Basic, sp.MatrixBase)):
                 out.append(f"- {name}: $${sp.latex(obj, symbol_names=symbol_names)}$$")
-            elif isinstance(obj, str) and "\n" in obj:
+            elif "\n" in str(obj):
                 out.append(f"- {name}:\n\n{obj}\n")
             else:
                 out.append(f"- {name}: {obj}")

@@ -21,7 +21,8 @@ ties go to the candidate with fewer forced fiber coordinates, then to coordinate
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import sympy as sp
@@ -35,23 +36,49 @@ FULL = "full"
 KINEMATIC = "principally kinematic (S_q = 0)"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Candidate:
-    """One row of the symmetry table (thesis Table 3.1)."""
+    """One row of the symmetry table (thesis Table 3.1).
+
+    The verdict comes from exact invariance checks and the numeric rank structure of ω_s;
+    the symbolic columns ``xi`` (S_q in s-components) and ``S_q`` are computed on first access.
+    """
 
     fiber: tuple[str, ...]          # s
     group: str                      # G, e.g. "R^3 (x, y, phi)" or "SE(2) (x, y, theta)"
     orbit_tangent: tuple[str, ...]  # T_q Orb = span{∂/∂s}
     rank: int                       # generic rank of ω_s
     invariant: bool
-    S_q: sp.Matrix | None           # n×d basis (None if rank < k)
-    xi: sp.Matrix | None            # l×d: S_q basis in s-components
     verdict: str
     reason: str
+    omega_s: sp.Matrix | None = field(default=None, repr=False)   # k×l columns of ω for s
+    pivots: tuple = field(default=(), repr=False)
+    indices: tuple = field(default=(), repr=False)
+    n: int = 0
 
     @property
     def admissible(self) -> bool:
         return self.verdict in (FULL, KINEMATIC)
+
+    @cached_property
+    def xi(self) -> sp.Matrix | None:
+        """l×d basis of S_q in the s-components (None when rank ω_s < k)."""
+        if self.omega_s is None:
+            return None
+        if self.omega_s.shape[0] == 0:
+            return sp.eye(len(self.fiber))
+        return null_basis_adjugate(self.omega_s, list(self.pivots))
+
+    @cached_property
+    def S_q(self) -> sp.Matrix | None:
+        """n×d basis of S_q = D_q ∩ T_q Orb(q) (None when rank ω_s < k)."""
+        xi = self.xi
+        if xi is None:
+            return None
+        out = sp.zeros(self.n, xi.shape[1])
+        for a, i in enumerate(self.indices):
+            out[i, :] = xi[a, :]
+        return out
 
 
 @dataclass(frozen=True)
@@ -62,6 +89,9 @@ class SymmetryTest:
     candidates: tuple[Candidate, ...]
     chosen: Candidate
     chosen_by: str                   # "user" or "test"
+
+    def __str__(self) -> str:
+        return self.table_markdown()
 
     def table_markdown(self) -> str:
         """The table as Markdown (thesis Table 3.1 generated for this system)."""
@@ -202,19 +232,15 @@ def symmetry_test(system: System) -> SymmetryTest:
                        for w in Wn)
             inv, group, why_inv = _invariance(system, fiber, M, W, V)
             if rank < k:
-                candidates.append(Candidate(fiber, group, fiber, rank, inv, None, None,
-                                            "not solvable",
+                candidates.append(Candidate(fiber, group, fiber, rank, inv, "not solvable",
                                             f"rank ω_s = {rank} < k = {k}: the constraints do not "
-                                            "determine the fiber velocities"))
+                                            "determine the fiber velocities", n=n))
                 continue
             Ws = W[:, list(idx)] if k else sp.zeros(0, size)
             piv = numeric_pivots(Wn[0][:, idx]) if k else []
-            xi = null_basis_adjugate(Ws, piv) if k else sp.eye(size)
-            Sq = sp.zeros(n, xi.shape[1])
-            for a, i in enumerate(idx):
-                Sq[i, :] = xi[a, :]
+            d = size - k
             # which fiber coordinates never move within S_q (numeric null spaces at 3 points)
-            if xi.shape[1]:
+            if d:
                 locked = list(fiber)
                 for w in Wn:
                     ws = w[:, idx] if k else np.zeros((0, size))
@@ -226,14 +252,15 @@ def symmetry_test(system: System) -> SymmetryTest:
                 locked = list(fiber)
             if not inv:
                 verdict, reason = "not a symmetry", why_inv
-            elif xi.shape[1] == 0:
+            elif d == 0:
                 verdict, reason = KINEMATIC, f"l = k = {k}: no nonholonomic momentum, ξ = −A(r)ṙ"
             elif locked:
                 verdict = "not full"
                 reason = f"ξ vanishes along {', '.join(locked)}: no motion allowed there"
             else:
                 verdict, reason = FULL, why_inv
-            candidates.append(Candidate(fiber, group, fiber, rank, inv, Sq, xi, verdict, reason))
+            candidates.append(Candidate(fiber, group, fiber, rank, inv, verdict, reason,
+                                        omega_s=Ws, pivots=tuple(piv), indices=tuple(idx), n=n))
 
     forced = {c for c, f in zip(names, system.tau) if f != 0}
 
