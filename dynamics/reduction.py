@@ -434,16 +434,22 @@ def derive_reduced(system: System, version: str | None = None) -> ReducedODE:
     xi_eq = xi_coef * sp.Matrix(P_all) if l else sp.Matrix([])
     mom_dot = []
     for a in range(nP):
-        Q = sp.zeros(nP, nP)
+        T = sp.zeros(nP, nP)                      # raw coefficients of P_j P_l (not yet symmetric)
         for b in range(nP):
-            if b == a:
-                continue
-            Q += C_coef[a, b] * Kinv[b, :]       # coefficient of P_j P_l: C_coef[a,b][j] * Kinv[b, l]
+            if b != a:
+                T += C_coef[a, b] * Kinv[b, :]   # C_coef[a,b][j] * Kinv[b, l]
         if a >= d:                                # shape momentum: − ∂h/∂r_α
-            Q -= dKinv_dr[a - d] / 2
-        Q = tidy((Q + Q.T) / 2)
+            T -= dKinv_dr[a - d] / 2
+        quad = sp.Integer(0)
+        for j in range(nP):
+            for l_ in range(j, nP):
+                raw = T[j, j] if j == l_ else T[j, l_] + T[l_, j]
+                if raw != 0:
+                    c = tidy(raw)
+                    if c != 0:
+                        quad += c * P_all[j] * P_all[l_]
         extra = -dV_dr[a - d] if a >= d else sp.Integer(0)
-        mom_dot.append(_quadratic(Q, P_all) + extra + F[a])
+        mom_dot.append(quad + extra + F[a])
     Pdot = sp.Matrix(mom_dot[:d]) if d else sp.zeros(0, 1)
     Ptdot = sp.Matrix(mom_dot[d:]) if m else sp.zeros(0, 1)
     rdot = dh_dPt
