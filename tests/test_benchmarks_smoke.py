@@ -1,0 +1,43 @@
+"""Fast smoke runs of the on-demand benchmarks (the full runs live in experiments/)."""
+import importlib.util
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _load(name):
+    spec = importlib.util.spec_from_file_location(name, ROOT / "experiments" / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_bench_derivation_smoke(tmp_path, capsys):
+    bench = _load("bench_derivation")
+    out = tmp_path / "bench.json"
+    assert bench.main(["--repeats", "1", "--systems", "unicycle", "--json", str(out)]) == 0
+    data = json.loads(out.read_text())["unicycle"]
+    for label in ("KanesMethod", "LagrangesMethod", "nhgait reduced (20 steps)",
+                  "cached reload (derive call)"):
+        assert data[label]["median_s"] > 0
+    assert "ratio = time / KanesMethod" in capsys.readouterr().out
+
+
+def test_bench_ocp_smoke(tmp_path, capsys):
+    bench = _load("bench_ocp")
+    out = tmp_path / "ocp.json"
+    assert bench.main(["--problems", "P1", "--N", "25", "--repeats", "1", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "P1" in text and "1.543703" in text
+
+
+def test_thesis_printed_equations_script(capsys):
+    script = _load("thesis_printed_equations")
+    assert script.main() == 0
+    out = capsys.readouterr().out
+    assert "x(10pi)=4.8299458" in out and "x(10pi)=2.2990248" in out
