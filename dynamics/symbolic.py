@@ -264,3 +264,339 @@ def numeric_pivots(A_num: np.ndarray, order=None, tol=1e-9) -> list[int]:
         if len(chosen) == k:
             break
     return sorted(chosen)
+
+
+class FracField:
+    """One field ℚ(generators) per derivation: symbols, sin/cos of the angles and opaque
+    subexpressions are generators of a sparse polynomial ring; elements are pairs (num, den).
+
+    Intermediate quantities stay as ring fractions across steps (no round trips through sympy
+    expressions); :meth:`normal` gives exactly the normal form of :func:`trig_normal` and
+    :meth:`expr` its sympy expression. Raises ``_NotRational`` for anything it cannot represent
+    (the caller then falls back to the plain sympy derivation)."""
+
+    def __init__(self, exprs, symbols=(), angles=()):
+        from sympy.polys.domains import QQ
+        from sympy.polys.rings import ring as make_ring
+        gens: dict = {}
+        for e in exprs:
+            for x in (e if isinstance(e, sp.MatrixBase) else [sp.sympify(e)]):
+                x = tidy(x) if has_trig(x) else x
+                _check_trig(x)
+                _collect_generators(x, gens)
+        for s in symbols:
+            gens.setdefault(s, None)
+        for a in angles:
+            gens.setdefault(sp.sin(a), None)
+            gens.setdefault(sp.cos(a), None)
+        order = sorted(gens, key=sp.default_sort_key)
+        self.QQ = QQ
+        self.R, *g = make_ring(order, QQ)
+        self.order = order
+        self.index = {x: i for i, x in enumerate(order)}
+        self.one, self.zero = self.R.one, self.R.zero
+        self.table = {x: (v, self.one) for x, v in zip(order, g)}
+        self.gens = g
+        self.angle = {}
+        pairs = []
+        for x in order:
+            if isinstance(x, sp.sin) and sp.cos(x.args[0]) in self.index:
+                iS, iC = self.index[x], self.index[sp.cos(x.args[0])]
+                pairs.append((iS, iC))
+                self.angle[x.args[0]] = (iS, iC)
+        self.pairs = pairs
+        self.opaque = [x for x in order if not x.is_Symbol and x not in {sp.sin(a) for a in self.angle}
+                       and x not in {sp.cos(a) for a in self.angle}]
+        self._sub = {}
+
+    # -- conversion ------------------------------------------------------------------------
+    def frac(self, e, normal=False):
+        e = sp.sympify(e)
+        try:
+            out = self._walk(e)
+        except (_NotRational, KeyError):
+            e2 = tidy(e)
+            out = self._walk(e2)
+            normal = False
+        return self.normal(out) if normal else out
+
+    def _walk(self, e):
+        R, one, QQ, table = self.R, self.one, self.QQ, self.table
+        memo = {}
+
+        def ev(x):
+            got = table.get(x)
+            if got is not None:
+                return got
+            got = memo.get(x)
+            if got is not None:
+                return got
+            if x.is_Rational:
+                out = (R(QQ(int(x.p), int(x.q))), one)
+            elif x.is_Float:
+                r = sp.Rational(x)
+                out = (R(QQ(int(r.p), int(r.q))), one)
+            elif x.is_Add:
+                out = self.add_many([ev(a) for a in x.args])
+            elif x.is_Mul:
+                num, den = one, one
+                for a in x.args:
+                    an, ad = ev(a)
+                    num, den = num * an, den * ad
+                out = (num, den)
+            elif x.is_Pow and x.exp.is_Integer:
+                bn, bd = ev(x.base)
+                k = int(x.exp)
+                if k < 0:
+                    if not bn:
+                        raise ZeroDivisionError("division by zero")
+                    out = (bd ** (-k), bn ** (-k))
+                else:
+                    out = (bn ** k, bd ** k)
+            else:
+                raise _NotRational
+            memo[x] = out
+            return out
+
+        return ev(e)
+
+    def mat(self, A, normal=False):
+        return [[self.frac(A[i, j], normal) for j in range(A.shape[1])] for i in range(A.shape[0])]
+
+    def expr(self, f):
+        num, den = f
+        if not num:
+            return sp.Integer(0)
+        if den == self.one:
+            return num.as_expr()
+        return num.as_expr() / den.as_expr()
+
+    def matrix(self, F, rows=None, cols=None):
+        if rows is None:
+            rows = len(F)
+        if cols is None:
+            cols = len(F[0]) if F else 0
+        if rows == 0 or cols == 0:
+            return sp.zeros(rows, cols)
+        return sp.Matrix(rows, cols, [self.expr(F[i][j]) for i in range(rows) for j in range(cols)])
+
+    # -- arithmetic ------------------------------------------------------------------------
+    def add_many(self, terms):
+        groups: dict = {}
+        zero = self.zero
+        for nmr, dnm in terms:
+            if not nmr:
+                continue
+            key = id(dnm)
+            for k_, (gd, gn) in groups.items():
+                if gd is dnm or gd == dnm:
+                    groups[k_] = (gd, gn + nmr)
+                    break
+            else:
+                groups[key] = (dnm, nmr)
+        num, den = None, None
+        for dnm, nmr in groups.values():
+            if num is None:
+                num, den = nmr, dnm
+            elif dnm == den:
+                num = num + nmr
+            else:
+                num, den = num * dnm + nmr * den, den * dnm
+        if num is None:
+            return (zero, self.one)
+        return (num, den)
+
+    def mul(self, f, g):
+        if not f[0] or not g[0]:
+            return (self.zero, self.one)
+        return (f[0] * g[0], f[1] * g[1])
+
+    def neg(self, f):
+        return (-f[0], f[1])
+
+    def scale(self, f, p, q=1):
+        return (f[0] * self.QQ(p, q), f[1])
+
+    def is_zero(self, f):
+        return not f[0]
+
+    def _compress(self, num, den):
+        used = set()
+        for p in (num, den):
+            for mon in p.itermonoms():
+                for i, k in enumerate(mon):
+                    if k:
+                        used.add(i)
+        used = tuple(sorted(used))
+        sub = self._sub.get(used)
+        if sub is None:
+            from sympy.polys.rings import ring as make_ring
+            if used:
+                Rs = make_ring([self.order[i] for i in used], self.QQ)[0]
+            else:
+                Rs = None
+            pos = {i: a for a, i in enumerate(used)}
+            spairs = [(pos[s], pos[c]) for s, c in self.pairs if s in pos and c in pos]
+            sub = self._sub[used] = (Rs, spairs)
+        return used, sub
+
+    def normal(self, f):
+        """Exactly the normal form of :func:`trig_normal` (sin² → 1 − cos², one cancel)."""
+        num, den = f
+        if not num:
+            return (self.zero, self.one)
+        num = _reduce_poly(num, self.pairs)
+        if not num:
+            return (self.zero, self.one)
+        den = _reduce_poly(den, self.pairs)
+        used, (Rs, spairs) = self._compress(num, den)
+        if Rs is None:
+            c = num.LC / den.LC
+            return (self.R(c), self.one)
+        n_ = Rs({tuple(m[i] for i in used): c for m, c in num.items()})
+        d_ = Rs({tuple(m[i] for i in used): c for m, c in den.items()})
+        n_, d_ = n_.cancel(d_)
+        n_ = _reduce_poly(n_, spairs)
+        d_ = _reduce_poly(d_, spairs)
+        n_, d_ = n_.cancel(d_)
+        ng = self.R.ngens
+
+        def back(p):
+            out = {}
+            for m, c in p.items():
+                full = [0] * ng
+                for a, i in enumerate(used):
+                    full[i] = m[a]
+                out[tuple(full)] = c
+            return self.R(out)
+        return (back(n_), back(d_))
+
+    def matmul(self, A, B, normal=True):
+        n_ = len(B)
+        cols = len(B[0]) if B else 0
+        out = []
+        for row in A:
+            r = []
+            for j in range(cols):
+                s = self.add_many([self.mul(row[k], B[k][j]) for k in range(n_) if row[k][0] and B[k][j][0]])
+                r.append(self.normal(s) if normal else s)
+            out.append(r)
+        return out
+
+    def T(self, A, rows=None):
+        if not A:
+            return []
+        return [[A[i][j] for i in range(len(A))] for j in range(len(A[0]))]
+
+    def madd(self, A, B, normal=True):
+        return [[(self.normal if normal else (lambda x: x))(self.add_many([a, b])) for a, b in zip(ra, rb)]
+                for ra, rb in zip(A, B)]
+
+    def mneg(self, A):
+        return [[self.neg(x) for x in r] for r in A]
+
+    def inv(self, A):
+        """Inverse of a small square matrix by Gauss–Jordan over the field (pivots nonzero)."""
+        n_ = len(A)
+        W = [list(r) + [(self.one if i == j else self.zero, self.one) for j in range(n_)] for i, r in enumerate(A)]
+        for c in range(n_):
+            p = next((r for r in range(c, n_) if W[r][c][0]), None)
+            if p is None:
+                raise ZeroDivisionError("singular matrix")
+            W[c], W[p] = W[p], W[c]
+            pn, pd = W[c][c]
+            W[c] = [self.normal((x[0] * pd, x[1] * pn)) for x in W[c]]
+            for r in range(n_):
+                if r != c and W[r][c][0]:
+                    fct = W[r][c]
+                    W[r] = [self.normal(self.add_many([x, self.neg(self.mul(fct, y))])) for x, y in zip(W[r], W[c])]
+        return [r[n_:] for r in W]
+
+    def diff(self, f, x):
+        """d f/d x with d sin x = cos x dx, d cos x = −sin x dx."""
+        num, den = f
+        if not num:
+            return f
+        for o in self.opaque:
+            if x in o.free_symbols:
+                raise _NotRational
+        gens = self.gens
+
+        def dp(p):
+            out = self.zero
+            i = self.index.get(x)
+            if i is not None:
+                out = p.diff(gens[i])
+            ang = self.angle.get(x)
+            if ang is not None:
+                iS, iC = ang
+                out = out + p.diff(gens[iS]) * gens[iC] - p.diff(gens[iC]) * gens[iS]
+            return out
+        dn, dd = dp(num), dp(den)
+        if not dd:
+            return (dn, den)
+        return (dn * den - num * dd, den * den)
+
+    def subs(self, f, sub):
+        """Substitute generators (index -> fraction) in f = (num, den); den must not contain them."""
+        num, den = f
+        for m in den.itermonoms():
+            if any(m[i] for i in sub):
+                raise _NotRational
+        terms = []
+        idx = list(sub)
+        for m, c in num.items():
+            mm = list(m)
+            for i in idx:
+                mm[i] = 0
+            t = (self.R({tuple(mm): c}), self.one)
+            for i in idx:
+                k = m[i]
+                if k:
+                    sn, sd = sub[i]
+                    t = (t[0] * sn ** k, t[1] * sd ** k)
+            terms.append(t)
+        s = self.add_many(terms)
+        return (s[0], s[1] * den)
+
+    def linear_split(self, f, variables):
+        """(constant part, [coefficient of v]) like ``_linear_tidy``: terms of degree 1 in v."""
+        num, den = f
+        vi = [self.index[v] for v in variables]
+        for m in den.itermonoms():
+            if any(m[i] for i in vi):
+                raise _NotRational
+        const = {}
+        coefs = [{} for _ in vi]
+        for m, c in num.items():
+            if not any(m[i] for i in vi):
+                const[m] = c
+            for a, i in enumerate(vi):
+                if m[i] == 1:
+                    mm = list(m)
+                    mm[i] = 0
+                    coefs[a][tuple(mm)] = c
+        return (self.normal((self.R(const), den)), [self.normal((self.R(cd), den)) for cd in coefs])
+
+    def quadratic(self, Q, variables, half=False):
+        """Σ_{i≤j} c_ij v_i v_j with c_ii = Q_ii, c_ij = Q_ij + Q_ji (tidy coefficients)."""
+        out = sp.Integer(0)
+        nv = len(variables)
+        for i in range(nv):
+            for j in range(i, nv):
+                c = Q[i][j] if i == j else self.add_many([Q[i][j], Q[j][i]])
+                if c[0]:
+                    if half:
+                        c = self.scale(c, 1, 2)
+                    c = self.normal(c)
+                    if c[0]:
+                        out += self.expr(c) * variables[i] * variables[j]
+        return out
+
+
+def _check_trig(x):
+    if x.has(sp.tan, sp.cot, sp.sec, sp.csc):
+        raise _NotRational
+    for a in x.atoms(sp.sin, sp.cos):
+        if not a.args[0].is_Symbol:
+            raise _NotRational
