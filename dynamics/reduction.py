@@ -194,7 +194,9 @@ def derive_reduced(system: System, version: str | None = None) -> ReducedODE:
         return _derive_reduced_plain(system, version)
 
 
-def _derive_reduced_field(system: System, version: str | None = None) -> ReducedODE:
+def _set_up(system: System, version):
+    """Steps 1–3 (set-up, D_q, the full symmetry group) and the choice of g; shared by both
+    derivation paths."""
     t0 = time.perf_counter()
     n, k = system.n, system.k
     q, qd = list(system.q), list(system.q_dot)
@@ -240,6 +242,55 @@ def _derive_reduced_field(system: System, version: str | None = None) -> Reduced
         version = "B" if pf is not None and pf[0] in fiber and pf[1] in fiber else "A"
     g = group_transform(system, fiber, version)
     ginv = tidy(g.T) if version == "B" else sp.eye(l)
+    return (t0, n, k, q, qd, names, M, V, W, L, tau_raw, steps, marks, sym, cand, fiber, si, ri, shape, l, m, N, d, version, g, ginv)
+
+
+def _assemble(system, version, sym, steps, t0, *, q, names, si, ri, fiber, shape, k, d, P_all, Pt,
+              sdot, rdot, Pdot, Ptdot, A_body, Ws, K_nh, X, K, h, J_z, qdot_of_P,
+              momenta_of_velocity) -> ReducedODE:
+    """The ODE in state order, the Table 2.1 class, the singular set and the result object
+    (shared by both derivation paths)."""
+    n = len(q)
+    qdot_rhs = sp.zeros(n, 1)
+    for a, i in enumerate(si):
+        qdot_rhs[i] = sdot[a]
+    for b, i in enumerate(ri):
+        qdot_rhs[i] = rdot[b]
+    rhs = sp.Matrix.vstack(qdot_rhs, Pdot, Ptdot)
+    state = tuple(q) + tuple(P_all)
+    state_names = tuple(names) + tuple(str(s) for s in P_all)
+
+    # classification (thesis Table 2.1)
+    if k == 0:
+        cls = PURELY_MECHANICAL
+    elif d == 0:
+        cls = PRINCIPALLY_KINEMATIC
+    elif all(e == 0 for e in A_body):
+        cls = PURELY_DYNAMIC
+    else:
+        cls = MIXED
+
+    # singular set: where the constraints on the fiber lose rank or K degenerates
+    sing = []
+    if k:
+        gram = sp.factor(tidy((Ws * Ws.T).det(method="berkowitz")))
+        sing.append(gram)
+    if d:
+        sing.append(sp.factor(tidy(K_nh.det(method="berkowitz"))))
+    singular = tuple(e for e in sing if not e.is_Number)
+    symbol_names = {s: f"\\tilde{{p}}_{{{sp.latex(q[i])}}}" for s, i in zip(Pt, ri)}
+    return ReducedODE(
+        system=system, version=version, fiber=fiber, shape=shape, state=state,
+        state_names=state_names, momenta=tuple(P_all), rhs=rhs, X=X, K=K, hamiltonian=h,
+        structure=J_z, qdot=qdot_of_P, momenta_of_velocity=momenta_of_velocity,
+        classification=cls, singular_set=singular, steps=Steps(steps), symmetry=sym,
+        derive_time_s=time.perf_counter() - t0, symbol_names=symbol_names)
+
+
+def _derive_reduced_field(system: System, version: str | None = None) -> ReducedODE:
+    (t0, n, k, q, qd, names, M, V, W, L, tau_raw, steps, marks, sym, cand, fiber, si, ri, shape,
+     l, m, N, d, version, g, ginv) = \
+        _set_up(system, version)
 
     p_canon = [_sym(f"p_{c}") for c in names]
     nh_names = ["p"] if d == 1 else [f"p{i + 1}" for i in range(d)]
@@ -587,33 +638,6 @@ def _derive_reduced_field(system: System, version: str | None = None) -> Reduced
                       {"s_dot = g xi": sdot}, "ṡ = gξ."))
     qdot_of_P = XKinv * sp.Matrix(P_all)
 
-    qdot_rhs = sp.zeros(n, 1)
-    for a, i in enumerate(si):
-        qdot_rhs[i] = sdot[a]
-    for b, i in enumerate(ri):
-        qdot_rhs[i] = rdot[b]
-    rhs = sp.Matrix.vstack(qdot_rhs, Pdot, Ptdot)
-    state = tuple(q) + tuple(P_all)
-    state_names = tuple(names) + tuple(str(s) for s in P_all)
-
-    # classification (thesis Table 2.1)
-    if k == 0:
-        cls = PURELY_MECHANICAL
-    elif d == 0:
-        cls = PRINCIPALLY_KINEMATIC
-    elif all(e == 0 for e in A_body):
-        cls = PURELY_DYNAMIC
-    else:
-        cls = MIXED
-
-    # singular set: where the constraints on the fiber lose rank or K degenerates
-    sing = []
-    if k:
-        gram = sp.factor(tidy((Ws * Ws.T).det(method="berkowitz")))
-        sing.append(gram)
-    if d:
-        sing.append(sp.factor(tidy(K_nh.det(method="berkowitz"))))
-    singular = tuple(e for e in sing if not e.is_Number)
 
     fMqd = Fd.matmul(fXTM, vec(qd), normal=False)
     mov = []
@@ -625,13 +649,10 @@ def _derive_reduced_field(system: System, version: str | None = None) -> Reduced
                 e += Fd.expr(c) * v
         mov.append(e)
     momenta_of_velocity = sp.Matrix(mov) if nP else sp.zeros(0, 1)
-    symbol_names = {s: f"\\tilde{{p}}_{{{sp.latex(q[i])}}}" for s, i in zip(Pt, ri)}
-    return ReducedODE(
-        system=system, version=version, fiber=fiber, shape=shape, state=state,
-        state_names=state_names, momenta=tuple(P_all), rhs=rhs, X=X, K=K, hamiltonian=h,
-        structure=J_z, qdot=qdot_of_P, momenta_of_velocity=momenta_of_velocity,
-        classification=cls, singular_set=singular, steps=Steps(steps), symmetry=sym,
-        derive_time_s=time.perf_counter() - t0, symbol_names=symbol_names)
+    return _assemble(system, version, sym, steps, t0, q=q, names=names, si=si, ri=ri, fiber=fiber,
+                     shape=shape, k=k, d=d, P_all=P_all, Pt=Pt, sdot=sdot, rdot=rdot, Pdot=Pdot,
+                     Ptdot=Ptdot, A_body=A_body, Ws=Ws, K_nh=K_nh, X=X, K=K, h=h, J_z=J_z,
+                     qdot_of_P=qdot_of_P, momenta_of_velocity=momenta_of_velocity)
 
 
 def _derive_reduced_plain(system: System, version: str | None = None) -> ReducedODE:
@@ -644,50 +665,9 @@ def _derive_reduced_plain(system: System, version: str | None = None) -> Reduced
         g = identity (A) or the SE(2)-type rotation (B, needs a planar frame with x, y in the
         fiber). None: B when available, else A.
     """
-    t0 = time.perf_counter()
-    n, k = system.n, system.k
-    q, qd = list(system.q), list(system.q_dot)
-    names = system.coordinates
-    M = tidy(system.mass_matrix())
-    V = system.potential()
-    W = system.omega()
-    L = system.L
-    steps: list[Step] = []
-    marks: list[float] = [time.perf_counter()]
-
-    # ---- step 1: set-up -----------------------------------------------------------------
-    marks.append(time.perf_counter())
-    steps.append(Step(1, "Set-up", "§3.2.1, Fig. 3.3", {
-        "q": sp.Matrix(q).T, "L": L, "omega": W, "tau": system.force_vector().T, "M": M, "V": V,
-        "parameters": ", ".join(f"{k_}={v}" for k_, v in system.parameters.items())},
-        "Coordinates, Lagrangian, Pfaffian constraints ω(q)q̇ = 0, forces and parameters."))
-
-    # ---- steps 2–3: distribution and full symmetry group ------------------------------------
-    sym = symmetry_test(system)
-    cand = sym.chosen
-    fiber = cand.fiber
-    si = [names.index(c) for c in fiber]
-    ri = [i for i in range(n) if i not in si]
-    shape = tuple(names[i] for i in ri)
-    l, m = len(si), len(ri)
-    N = strip_factors(cand.xi, [q[i] for i in si])  # l×d, no vanishing factor in the group variables
-    d = N.shape[1]
-    marks.append(time.perf_counter())
-    steps.append(Step(2, "Constraint distribution D_q = null ω(q)", "§3.2.2, eqs. 3.3–3.4, 3.62–3.64",
-                      {"D_q (columns)": sym.distribution},
-                      "Basis vectors are k×k minors of ω, so they vanish only where rank ω < k."))
-    marks.append(time.perf_counter())
-    steps.append(Step(3, "Full symmetry group", "§3.2.2, Table 3.1, eqs. 3.5–3.8, 3.65–3.68", {
-        "table": sym, "s (fiber)": ", ".join(fiber), "r (shape)": ", ".join(shape),
-        "G": cand.group, "xi_Q^q (columns)": _embed(N, si, n), "xi (Lie algebra element)": N,
-        "chosen by": sym.chosen_by},
-        "Candidates T_q Orb = span{∂/∂s}; S_q = D_q ∩ T_q Orb; the full candidate of smallest l."))
-
-    if version is None:
-        pf = system.planar_frame
-        version = "B" if pf is not None and pf[0] in fiber and pf[1] in fiber else "A"
-    g = group_transform(system, fiber, version)
-    ginv = tidy(g.T) if version == "B" else sp.eye(l)
+    (t0, n, k, q, qd, names, M, V, W, L, tau_raw, steps, marks, sym, cand, fiber, si, ri, shape,
+     l, m, N, d, version, g, ginv) = \
+        _set_up(system, version)
 
     # ---- step 4: nonholonomic momenta ---------------------------------------------------------
     p_canon = [_sym(f"p_{c}") for c in names]
@@ -925,39 +905,9 @@ def _derive_reduced_plain(system: System, version: str | None = None) -> Reduced
                       {"s_dot = g xi": sdot}, "ṡ = gξ."))
     qdot_of_P = XKinv * sp.Matrix(P_all)
 
-    qdot_rhs = sp.zeros(n, 1)
-    for a, i in enumerate(si):
-        qdot_rhs[i] = sdot[a]
-    for b, i in enumerate(ri):
-        qdot_rhs[i] = rdot[b]
-    rhs = sp.Matrix.vstack(qdot_rhs, Pdot, Ptdot)
-    state = tuple(q) + tuple(P_all)
-    state_names = tuple(names) + tuple(str(s) for s in P_all)
-
-    # classification (thesis Table 2.1)
-    if k == 0:
-        cls = PURELY_MECHANICAL
-    elif d == 0:
-        cls = PRINCIPALLY_KINEMATIC
-    elif all(e == 0 for e in A_body):
-        cls = PURELY_DYNAMIC
-    else:
-        cls = MIXED
-
-    # singular set: where the constraints on the fiber lose rank or K degenerates
-    sing = []
-    if k:
-        gram = sp.factor(tidy((Ws * Ws.T).det(method="berkowitz")))
-        sing.append(gram)
-    if d:
-        sing.append(sp.factor(tidy(K_nh.det(method="berkowitz"))))
-    singular = tuple(e for e in sing if not e.is_Number)
 
     momenta_of_velocity = sp.Matrix([_linear_tidy(e, qd) for e in X.T * M * sp.Matrix(qd)])
-    symbol_names = {s: f"\\tilde{{p}}_{{{sp.latex(q[i])}}}" for s, i in zip(Pt, ri)}
-    return ReducedODE(
-        system=system, version=version, fiber=fiber, shape=shape, state=state,
-        state_names=state_names, momenta=tuple(P_all), rhs=rhs, X=X, K=K, hamiltonian=h,
-        structure=J_z, qdot=qdot_of_P, momenta_of_velocity=momenta_of_velocity,
-        classification=cls, singular_set=singular, steps=Steps(steps), symmetry=sym,
-        derive_time_s=time.perf_counter() - t0, symbol_names=symbol_names)
+    return _assemble(system, version, sym, steps, t0, q=q, names=names, si=si, ri=ri, fiber=fiber,
+                     shape=shape, k=k, d=d, P_all=P_all, Pt=Pt, sdot=sdot, rdot=rdot, Pdot=Pdot,
+                     Ptdot=Ptdot, A_body=A_body, Ws=Ws, K_nh=K_nh, X=X, K=K, h=h, J_z=J_z,
+                     qdot_of_P=qdot_of_P, momenta_of_velocity=momenta_of_velocity)
