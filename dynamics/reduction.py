@@ -207,10 +207,8 @@ def _set_up(system: System, version):
     L = system.L
     tau_raw = system.force_vector()
     steps: list[Step] = []
-    marks: list[float] = [time.perf_counter()]
 
     # ---- step 1: set-up -----------------------------------------------------------------
-    marks.append(time.perf_counter())
     steps.append(Step(1, "Set-up", "§3.2.1, Fig. 3.3", {
         "q": sp.Matrix(q).T, "L": L, "omega": W, "tau": tau_raw.T, "M": M, "V": V,
         "parameters": ", ".join(f"{k_}={v}" for k_, v in system.parameters.items())},
@@ -226,11 +224,9 @@ def _set_up(system: System, version):
     l, m = len(si), len(ri)
     N = strip_factors(cand.xi, [q[i] for i in si])  # l×d, no vanishing factor in the group variables
     d = N.shape[1]
-    marks.append(time.perf_counter())
     steps.append(Step(2, "Constraint distribution D_q = null ω(q)", "§3.2.2, eqs. 3.3–3.4, 3.62–3.64",
                       {"D_q (columns)": sym.distribution},
                       "Basis vectors are k×k minors of ω, so they vanish only where rank ω < k."))
-    marks.append(time.perf_counter())
     steps.append(Step(3, "Full symmetry group", "§3.2.2, Table 3.1, eqs. 3.5–3.8, 3.65–3.68", {
         "table": sym, "s (fiber)": ", ".join(fiber), "r (shape)": ", ".join(shape),
         "G": cand.group, "xi_Q^q (columns)": _embed(N, si, n), "xi (Lie algebra element)": N,
@@ -242,7 +238,7 @@ def _set_up(system: System, version):
         version = "B" if pf is not None and pf[0] in fiber and pf[1] in fiber else "A"
     g = group_transform(system, fiber, version)
     ginv = tidy(g.T) if version == "B" else sp.eye(l)
-    return (t0, n, k, q, qd, names, M, V, W, L, tau_raw, steps, marks, sym, cand, fiber, si, ri, shape, l, m, N, d, version, g, ginv)
+    return (t0, n, k, q, qd, names, M, V, W, L, tau_raw, steps, sym, cand, fiber, si, ri, shape, l, m, N, d, version, g, ginv)
 
 
 def _assemble(system, version, sym, steps, t0, *, q, names, si, ri, fiber, shape, k, d, P_all, Pt,
@@ -288,7 +284,7 @@ def _assemble(system, version, sym, steps, t0, *, q, names, si, ri, fiber, shape
 
 
 def _derive_reduced_field(system: System, version: str | None = None) -> ReducedODE:
-    (t0, n, k, q, qd, names, M, V, W, L, tau_raw, steps, marks, sym, cand, fiber, si, ri, shape,
+    (t0, n, k, q, qd, names, M, V, W, L, tau_raw, steps, sym, cand, fiber, si, ri, shape,
      l, m, N, d, version, g, ginv) = \
         _set_up(system, version)
 
@@ -319,7 +315,6 @@ def _derive_reduced_field(system: System, version: str | None = None) -> Reduced
     Ms, Msr = M.extract(si, si), M.extract(si, ri) if m else sp.zeros(l, 0)
     fMs, fMsr = ext(fM, si, si), ext(fM, si, ri)
     p_nh_expr = [tidy(sum((dLdqd[i] * N[a, j] for a, i in enumerate(si)), sp.Integer(0))) for j in range(d)]
-    marks.append(time.perf_counter())
     steps.append(Step(4, "Nonholonomic momentum", "§3.2.2 (3), eqs. 3.9, 3.69",
                       {nm: e for nm, e in zip(nh_names, p_nh_expr)} if d else {"(none)": "l = k: no momentum"},
                       "p_i = ⟨∂L/∂q̇, ξ_Q^i⟩."))
@@ -367,7 +362,6 @@ def _derive_reduced_field(system: System, version: str | None = None) -> Reduced
         xi_rec = Fd.madd(Fd.mneg(Fd.matmul(fA_body, f_rdot, normal=False)) if m else [[zero] for _ in range(l)],
                          Fd.matmul(fGamma_body, vec(P_nh), normal=False) if d else [[zero] for _ in range(l)])
         xi_rec = Fd.matrix(xi_rec, l, 1)
-    marks.append(time.perf_counter())
     steps.append(Step(5, "Reconstruction equation", "§3.2.2 (4), eqs. 2.47, 3.10–3.13, 3.36, 3.71", {
         "g": g, "g^-1 s_dot": Fd.matrix(Fd.matmul(fginv, f_sdot), l, 1), "A(r)": A_body, "Gamma(r)": Gamma_body,
         "xi = -A r_dot + Gamma p": xi_rec if l else sp.Matrix([])},
@@ -382,7 +376,6 @@ def _derive_reduced_field(system: System, version: str | None = None) -> Reduced
         xi_constrained = Fd.matrix(f_xic, l, 1)
     else:
         xi_constrained = sp.Matrix([])
-    marks.append(time.perf_counter())
     steps.append(Step(6, "Body-fixed basis e and Ω", "§3.2.2 (5), eqs. 3.14–3.15, 3.37–3.38, 3.72–3.73", {
         "e = g^-1 xi_Q": e_body, "Omega = K_Omega^-1 p": K_nh_inv * _col(P_nh),
         "xi = -A r_dot + e Omega": xi_constrained}, "Γ(r)p = eΩ."))
@@ -394,7 +387,6 @@ def _derive_reduced_field(system: System, version: str | None = None) -> Reduced
     f_sdot_xi = Fd.matmul(fg, vec(xi_syms), normal=False)
     fl_red = Fd.normal(Fd.subs(fL, {Fd.index[qd[i]]: f_sdot_xi[a][0] for a, i in enumerate(si)}))
     l_red = Fd.expr(fl_red)
-    marks.append(time.perf_counter())
     steps.append(Step(7, "Reduced Lagrangian l(r, ṙ, ξ)", "§3.2.2 (6), eqs. 3.16, 3.74",
                       {"l": l_red}, "L with ṡ = gξ."))
 
@@ -431,7 +423,6 @@ def _derive_reduced_field(system: System, version: str | None = None) -> Reduced
             fK[d + i][d + j] = fK_rr[i][j]
     v_syms = Om + [qd[i] for i in ri]
     l_c = Fd.quadratic(fK, v_syms, half=True) - V
-    marks.append(time.perf_counter())
     steps.append(Step(8, "Reduced constrained Lagrangian l_c(r, ṙ, Ω)", "§3.2.2 (7), eqs. 3.17, 3.75",
                       {"l_c": l_c, "K = X^T M X": K}, "l with ξ = −Aṙ + eΩ; no Ω–ṙ cross terms."))
 
@@ -439,7 +430,6 @@ def _derive_reduced_field(system: System, version: str | None = None) -> Reduced
     f_v = vec(v_syms)
     fKv = Fd.matmul(fK, f_v) if nP else []
     legendre = {str(s_): Fd.expr(fKv[j][0]) for j, s_ in enumerate(P_all)}
-    marks.append(time.perf_counter())
     steps.append(Step(9, "Legendre transformation", "§3.2.3, eqs. 3.18, 3.76–3.77",
                       {f"{s} = dl_c/d{v}": e for (s, e), v in zip(legendre.items(), v_syms)}, "P = ∂l_c/∂v = Kv."))
     fK_rr_inv = Fd.inv(fK_rr) if m else []
@@ -453,18 +443,15 @@ def _derive_reduced_field(system: System, version: str | None = None) -> Reduced
         for j in range(m):
             fKinv[d + i][d + j] = fK_rr_inv[i][j]
     v_of_P = Kinv * sp.Matrix(P_all)
-    marks.append(time.perf_counter())
     steps.append(Step(10, "Velocities from momenta", "§3.2.3, eqs. 3.19, 3.78–3.79",
                       {f"{v}": e for v, e in zip(v_syms, v_of_P)}, "v = K⁻¹P."))
     h = Fd.quadratic(fKinv, P_all, half=True) + V
-    marks.append(time.perf_counter())
     steps.append(Step(11, "Reduced constrained Hamiltonian", "§3.2.3, eqs. 3.20, 3.80",
                       {"h": h}, "h = P·v − l_c = ½PᵀK⁻¹P + V."))
 
     # ---- steps 12–14: momenta in canonical momenta and in mu ------------------------------------
     p_vec = sp.Matrix(p_canon)
     P_of_p = X.T * p_vec
-    marks.append(time.perf_counter())
     steps.append(Step(12, "Nonholonomic momenta in canonical momenta", "§3.2.4, eqs. 3.21–3.22, 3.81",
                       {f"{s}": P_of_p[j] for j, s in enumerate(P_nh)} or {"(none)": "d = 0"},
                       "p_i = ξ_Q^iᵀ p, p = ∂L/∂q̇."))
@@ -482,7 +469,6 @@ def _derive_reduced_field(system: System, version: str | None = None) -> Reduced
         mu_of_v = sp.Matrix(mu_rows)
     else:
         mu_of_v = sp.Matrix([])
-    marks.append(time.perf_counter())
     steps.append(Step(13, "Shape momenta in canonical momenta", "§3.2.4, eqs. 3.24, 3.83",
                       {**{f"{s}": P_of_p[d + b] for b, s in enumerate(Pt)}, "mu = dl/dxi (on xi = -A r_dot + e Omega)": mu_of_v},
                       "P̃_α = p_α + μ·∂ξ/∂ṙ_α = p_α − μ·A_α."))
@@ -491,7 +477,6 @@ def _derive_reduced_field(system: System, version: str | None = None) -> Reduced
     ps_of_mu = tidy(ginv.T * sp.Matrix(mu_syms))  # p_s = g^-T mu
     P_of_mu = sp.Matrix([_linear_tidy(P_of_p[a].xreplace({p_canon[i]: ps_of_mu[j] for j, i in enumerate(si)}),
                                       mu_syms + [p_canon[i] for i in ri]) for a in range(nP)])
-    marks.append(time.perf_counter())
     steps.append(Step(14, "Momenta in terms of μ", "§3.2.4, eqs. 3.25–3.27, 3.84–3.87",
                       {"mu = g^T p_s": mu_of_p, "P(mu)": P_of_mu}, "P_i = e_iᵀμ, P̃_α = p_α − A_αᵀμ."))
 
@@ -515,7 +500,6 @@ def _derive_reduced_field(system: System, version: str | None = None) -> Reduced
                 c = Fd.mneg(Fd.matmul(fginv, [lie[i] for i in si]))
                 C_mu[a, b] = sum((Fd.expr(c[i][0]) * mu_syms[i] for i in range(l)), sp.Integer(0))
             C_mu[b, a] = -C_mu[a, b]
-    marks.append(time.perf_counter())
     steps.append(Step(15, "Brackets of the momenta in μ", "§3.2.4, eqs. 3.28, 3.45, 3.88",
                       {"{P_a, P_b}(mu)": C_mu}, "{P_a, P_b} = −pᵀ[X_a, X_b] = −μᵀg⁻¹[X_a, X_b]_s."))
 
@@ -553,7 +537,6 @@ def _derive_reduced_field(system: System, version: str | None = None) -> Reduced
         [sp.zeros(m, l), sp.zeros(m, d), sp.zeros(m, m), sp.eye(m)],
         [A_body.T, Crn, -sp.eye(m), Crr]]).as_explicit()
     J_z = sp.BlockMatrix([[sp.zeros(n, n), X], [-X.T, C]]).as_explicit()
-    marks.append(time.perf_counter())
     steps.append(Step(17, "Reduced Poisson structure matrix", "§3.2.4, Fig. 3.7, eqs. 3.31, 3.48, 3.91",
                       {"J (rows xi, P, r, Pt)": J_thesis, "J_z (rows q, P)": J_z},
                       "Skew-symmetric; rows (ξ, P, r, P̃) as in the thesis, and in z = (q, P) coordinates."))
@@ -571,7 +554,6 @@ def _derive_reduced_field(system: System, version: str | None = None) -> Reduced
     dV_dr = [Fd.expr(Fd.normal(Fd.diff(fV, q[i]))) for i in ri]
     dh_dr = _col([Fd.quadratic(fdKinv_dr[b], P_all, half=True) + dV_dr[b] for b in range(m)])
     grad = sp.Matrix.vstack(sp.zeros(l, 1), dh_dP, dh_dr, dh_dPt)
-    marks.append(time.perf_counter())
     steps.append(Step(18, "Gradient of h", "§3.2.5, eqs. 3.32, 3.49, 3.92",
                       {"(0, dh/dP, dh/dr, dh/dPt)": grad}, "∂h/∂s = 0 by symmetry."))
 
@@ -626,14 +608,12 @@ def _derive_reduced_field(system: System, version: str | None = None) -> Reduced
     Pdot = sp.Matrix(mom_dot[:d]) if d else sp.zeros(0, 1)
     Ptdot = sp.Matrix(mom_dot[d:]) if m else sp.zeros(0, 1)
     rdot = dh_dPt
-    marks.append(time.perf_counter())
     steps.append(Step(19, "Reduced constrained Hamiltonian equations", "§3.2.5, eqs. 3.33, 3.50, 3.93", {
         "xi": xi_eq, "P_dot": Pdot, "r_dot": rdot, "Pt_dot": Ptdot, "forces X^T tau": F},
         "(ξ, Ṗ, ṙ, dP̃/dt) = J∇h + (0, Xᵀτ)."))
 
     # ---- step 20: fiber velocities ------------------------------------------------------------
     sdot = (Fd.matrix(Fd.matmul(fg, fxi_coef), l, nP) * sp.Matrix(P_all)) if l else sp.Matrix([])
-    marks.append(time.perf_counter())
     steps.append(Step(20, "Reconstruction of the fiber velocities", "§3.2.5, eqs. 3.51, 3.94",
                       {"s_dot = g xi": sdot}, "ṡ = gξ."))
     qdot_of_P = XKinv * sp.Matrix(P_all)
@@ -665,7 +645,7 @@ def _derive_reduced_plain(system: System, version: str | None = None) -> Reduced
         g = identity (A) or the SE(2)-type rotation (B, needs a planar frame with x, y in the
         fiber). None: B when available, else A.
     """
-    (t0, n, k, q, qd, names, M, V, W, L, tau_raw, steps, marks, sym, cand, fiber, si, ri, shape,
+    (t0, n, k, q, qd, names, M, V, W, L, tau_raw, steps, sym, cand, fiber, si, ri, shape,
      l, m, N, d, version, g, ginv) = \
         _set_up(system, version)
 
@@ -676,7 +656,6 @@ def _derive_reduced_plain(system: System, version: str | None = None) -> Reduced
     nh_names = ["p"] if d == 1 else [f"p{i + 1}" for i in range(d)]
     P_nh = [_sym(nm) for nm in nh_names]
     p_nh_expr = [tidy(sum((dLdqd[i] * N[a, j] for a, i in enumerate(si)), sp.Integer(0))) for j in range(d)]
-    marks.append(time.perf_counter())
     steps.append(Step(4, "Nonholonomic momentum", "§3.2.2 (3), eqs. 3.9, 3.69",
                       {nm: e for nm, e in zip(nh_names, p_nh_expr)} if d else {"(none)": "l = k: no momentum"},
                       "p_i = ⟨∂L/∂q̇, ξ_Q^i⟩."))
@@ -709,7 +688,6 @@ def _derive_reduced_plain(system: System, version: str | None = None) -> Reduced
     s_dot = _col([qd[i] for i in si])
     r_dot = _col([qd[i] for i in ri])
     xi_syms = [_sym(f"xi{i + 1}") for i in range(l)]
-    marks.append(time.perf_counter())
     steps.append(Step(5, "Reconstruction equation", "§3.2.2 (4), eqs. 2.47, 3.10–3.13, 3.36, 3.71", {
         "g": g, "g^-1 s_dot": tidy(ginv * s_dot), "A(r)": A_body, "Gamma(r)": Gamma_body,
         "xi = -A r_dot + Gamma p": tidy(-A_body * r_dot + Gamma_body * _col(P_nh)) if l else sp.Matrix([])},
@@ -719,7 +697,6 @@ def _derive_reduced_plain(system: System, version: str | None = None) -> Reduced
     e_body = tidy(ginv * N) if d else sp.zeros(l, 0)
     Om = [_sym("Omega") if d == 1 else _sym(f"Omega{i + 1}") for i in range(d)]
     xi_constrained = tidy(-A_body * r_dot + e_body * _col(Om)) if l else sp.Matrix([])
-    marks.append(time.perf_counter())
     steps.append(Step(6, "Body-fixed basis e and Ω", "§3.2.2 (5), eqs. 3.14–3.15, 3.37–3.38, 3.72–3.73", {
         "e = g^-1 xi_Q": e_body, "Omega = K_Omega^-1 p": K_nh_inv * _col(P_nh),
         "xi = -A r_dot + e Omega": xi_constrained}, "Γ(r)p = eΩ."))
@@ -728,7 +705,6 @@ def _derive_reduced_plain(system: System, version: str | None = None) -> Reduced
     sdot_of_xi = g * sp.Matrix(xi_syms)
     sub_xi = {qd[i]: sdot_of_xi[a] for a, i in enumerate(si)}
     l_red = tidy(sp.expand(L.xreplace(sub_xi)))
-    marks.append(time.perf_counter())
     steps.append(Step(7, "Reduced Lagrangian l(r, ṙ, ξ)", "§3.2.2 (6), eqs. 3.16, 3.74",
                       {"l": l_red}, "L with ṡ = gξ."))
 
@@ -745,7 +721,6 @@ def _derive_reduced_plain(system: System, version: str | None = None) -> Reduced
     K = sp.diag(K_nh, K_rr) if d and m else (K_nh if d else K_rr)
     v_syms = Om + [qd[i] for i in ri]
     l_c = _quadratic(K / 2, v_syms) - V
-    marks.append(time.perf_counter())
     steps.append(Step(8, "Reduced constrained Lagrangian l_c(r, ṙ, Ω)", "§3.2.2 (7), eqs. 3.17, 3.75",
                       {"l_c": l_c, "K = X^T M X": K}, "l with ξ = −Aṙ + eΩ; no Ω–ṙ cross terms."))
 
@@ -753,17 +728,14 @@ def _derive_reduced_plain(system: System, version: str | None = None) -> Reduced
     Pt = [_sym(f"pt_{names[i]}") for i in ri]
     P_all = P_nh + Pt
     legendre = {str(s): tidy(sp.diff(l_c, v)) for s, v in zip(P_all, v_syms)}
-    marks.append(time.perf_counter())
     steps.append(Step(9, "Legendre transformation", "§3.2.3, eqs. 3.18, 3.76–3.77",
                       {f"{s} = dl_c/d{v}": e for (s, e), v in zip(legendre.items(), v_syms)}, "P = ∂l_c/∂v = Kv."))
     K_rr_inv = tidy(K_rr.inv()) if m else sp.zeros(0, 0)
     Kinv = sp.diag(K_nh_inv, K_rr_inv) if d and m else (K_nh_inv if d else K_rr_inv)
     v_of_P = Kinv * sp.Matrix(P_all)
-    marks.append(time.perf_counter())
     steps.append(Step(10, "Velocities from momenta", "§3.2.3, eqs. 3.19, 3.78–3.79",
                       {f"{v}": e for v, e in zip(v_syms, v_of_P)}, "v = K⁻¹P."))
     h = _quadratic(Kinv / 2, P_all) + V
-    marks.append(time.perf_counter())
     steps.append(Step(11, "Reduced constrained Hamiltonian", "§3.2.3, eqs. 3.20, 3.80",
                       {"h": h}, "h = P·v − l_c = ½PᵀK⁻¹P + V."))
 
@@ -771,14 +743,12 @@ def _derive_reduced_plain(system: System, version: str | None = None) -> Reduced
     nP = d + m
     p_vec = sp.Matrix(p_canon)
     P_of_p = X.T * p_vec
-    marks.append(time.perf_counter())
     steps.append(Step(12, "Nonholonomic momenta in canonical momenta", "§3.2.4, eqs. 3.21–3.22, 3.81",
                       {f"{s}": P_of_p[j] for j, s in enumerate(P_nh)} or {"(none)": "d = 0"},
                       "p_i = ξ_Q^iᵀ p, p = ∂L/∂q̇."))
     dl_dxi = sp.Matrix([sp.diff(l_red, x) for x in xi_syms])
     mu_of_v = sp.Matrix([_linear_tidy(dl_dxi[i].xreplace({x: xi_constrained[j] for j, x in enumerate(xi_syms)}),
                                       v_syms) for i in range(l)]) if l else sp.Matrix([])
-    marks.append(time.perf_counter())
     steps.append(Step(13, "Shape momenta in canonical momenta", "§3.2.4, eqs. 3.24, 3.83",
                       {**{f"{s}": P_of_p[d + b] for b, s in enumerate(Pt)}, "mu = dl/dxi (on xi = -A r_dot + e Omega)": mu_of_v},
                       "P̃_α = p_α + μ·∂ξ/∂ṙ_α = p_α − μ·A_α."))
@@ -788,7 +758,6 @@ def _derive_reduced_plain(system: System, version: str | None = None) -> Reduced
     ps_of_mu = tidy(ginv.T * sp.Matrix(mu_syms))  # p_s = g^-T mu
     P_of_mu = sp.Matrix([_linear_tidy(P_of_p[a].xreplace({p_canon[i]: ps_of_mu[j] for j, i in enumerate(si)}),
                                       mu_syms + [p_canon[i] for i in ri]) for a in range(nP)])
-    marks.append(time.perf_counter())
     steps.append(Step(14, "Momenta in terms of μ", "§3.2.4, eqs. 3.25–3.27, 3.84–3.87",
                       {"mu = g^T p_s": mu_of_p, "P(mu)": P_of_mu}, "P_i = e_iᵀμ, P̃_α = p_α − A_αᵀμ."))
 
@@ -811,7 +780,6 @@ def _derive_reduced_plain(system: System, version: str | None = None) -> Reduced
             bracket_mu_coef[a, b] = c
             C_mu[a, b] = sum((c[i] * mu_syms[i] for i in range(l)), sp.Integer(0))
             C_mu[b, a] = -C_mu[a, b]
-    marks.append(time.perf_counter())
     steps.append(Step(15, "Brackets of the momenta in μ", "§3.2.4, eqs. 3.28, 3.45, 3.88",
                       {"{P_a, P_b}(mu)": C_mu}, "{P_a, P_b} = −pᵀ[X_a, X_b] = −μᵀg⁻¹[X_a, X_b]_s."))
 
@@ -844,7 +812,6 @@ def _derive_reduced_plain(system: System, version: str | None = None) -> Reduced
         [sp.zeros(m, l), sp.zeros(m, d), sp.zeros(m, m), sp.eye(m)],
         [A_body.T, Crn, -sp.eye(m), Crr]]).as_explicit()
     J_z = sp.BlockMatrix([[sp.zeros(n, n), X], [-X.T, C]]).as_explicit()
-    marks.append(time.perf_counter())
     steps.append(Step(17, "Reduced Poisson structure matrix", "§3.2.4, Fig. 3.7, eqs. 3.31, 3.48, 3.91",
                       {"J (rows xi, P, r, Pt)": J_thesis, "J_z (rows q, P)": J_z},
                       "Skew-symmetric; rows (ξ, P, r, P̃) as in the thesis, and in z = (q, P) coordinates."))
@@ -862,7 +829,6 @@ def _derive_reduced_plain(system: System, version: str | None = None) -> Reduced
     dV_dr = [tidy(sp.diff(V, q[i])) for i in ri]
     dh_dr = _col([_quadratic(dKinv_dr[b] / 2, P_all) + dV_dr[b] for b in range(m)])
     grad = sp.Matrix.vstack(sp.zeros(l, 1), dh_dP, dh_dr, dh_dPt)
-    marks.append(time.perf_counter())
     steps.append(Step(18, "Gradient of h", "§3.2.5, eqs. 3.32, 3.49, 3.92",
                       {"(0, dh/dP, dh/dr, dh/dPt)": grad}, "∂h/∂s = 0 by symmetry."))
 
@@ -893,14 +859,12 @@ def _derive_reduced_plain(system: System, version: str | None = None) -> Reduced
     Pdot = sp.Matrix(mom_dot[:d]) if d else sp.zeros(0, 1)
     Ptdot = sp.Matrix(mom_dot[d:]) if m else sp.zeros(0, 1)
     rdot = dh_dPt
-    marks.append(time.perf_counter())
     steps.append(Step(19, "Reduced constrained Hamiltonian equations", "§3.2.5, eqs. 3.33, 3.50, 3.93", {
         "xi": xi_eq, "P_dot": Pdot, "r_dot": rdot, "Pt_dot": Ptdot, "forces X^T tau": F},
         "(ξ, Ṗ, ṙ, dP̃/dt) = J∇h + (0, Xᵀτ)."))
 
     # ---- step 20: fiber velocities ------------------------------------------------------------
     sdot = (tidy(g * xi_coef) * sp.Matrix(P_all)) if l else sp.Matrix([])
-    marks.append(time.perf_counter())
     steps.append(Step(20, "Reconstruction of the fiber velocities", "§3.2.5, eqs. 3.51, 3.94",
                       {"s_dot = g xi": sdot}, "ṡ = gξ."))
     qdot_of_P = XKinv * sp.Matrix(P_all)
