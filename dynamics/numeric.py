@@ -12,7 +12,8 @@ Reduced ODE (z = (q, P, P̃)):
 Lagrangian DAE (x = (q, q̇), λ):
     ode(t, x, u, params) → (ẋ, λ)  [index reduction: λ solved from ωq̈ + ω̇q̇ = 0];
     dae_f(t, x, λ, u, params) → ẋ;  dae_g(t, x, λ, u, params) → ωq̈ + ω̇q̇ (index-1 algebraic);
-    energy(x, params);  power(t, x, u, params) → τ·q̇;  constraint(x, params) → ωq̇;  qdot(x, params).
+    energy(x, params);  power(t, x, u, params) → τ·q̇;  constraint(x, params) → ωq̇;  qdot(x, params);
+    mass(x, params) → M(q).
 Hamiltonian DAE (x = (q, p), λ): the same names, with the algebraic equation d/dt(ω∂H/∂p) = 0.
 """
 from __future__ import annotations
@@ -247,6 +248,8 @@ def compile_hamilton(model) -> NumericModel:
         "constraint": ca.Function("constraint", [x, p], [cons], ["x", "params"], ["residual"]),
         "qdot": ca.Function("qdot", [x, p], [dHdp], ["x", "params"], ["qdot"]),
         "power": ca.Function("power", [t, x, u, p], [ca.dot(tau, dHdp)], ["t", "x", "u", "params"], ["power"]),
+        "mass": ca.Function("mass", [x, p], [ca.reshape(ca.vertcat(*_conv(list(system.mass_matrix().T), syms, sx)), n, n)],
+                            ["x", "params"], ["M"]),
     }
     return _base(system, "hamilton", model.state_names, fns, k)
 

@@ -39,7 +39,7 @@ import sympy as sp
 from .errors import ModelError
 from .steps import Step, Steps
 from .symbolic import FracField, _NotRational, numeric_pivots, strip_factors, tidy
-from .symmetry import SymmetryTest, group_transform, symmetry_test, _numeric
+from .symmetry import SymmetryTest, group_transform, omega_samples, symmetry_test
 from .system import TIME, System
 
 PURELY_MECHANICAL = "purely mechanical"
@@ -328,7 +328,7 @@ def _derive_reduced_field(system: System, version: str | None = None) -> Reduced
     Ws = W.extract(list(range(k)), si) if k else sp.zeros(0, l)
     Wr = W.extract(list(range(k)), ri) if k and m else sp.zeros(k, m)
     fW = Fd.mat(W) if k else []
-    piv = numeric_pivots(_numeric(system, Ws, 1, seed=13)[0]) if k else []
+    piv = numeric_pivots(omega_samples(system, 1, seed=13)[0][:, si]) if k else []
     zero = (Fd.zero, Fd.one)
     fXs = [[zero] * m for _ in range(l)]   # s-part of the horizontal lifts X_alpha
     if k and any(e != 0 for e in Wr):
@@ -665,7 +665,7 @@ def _derive_reduced_plain(system: System, version: str | None = None) -> Reduced
     K_nh_inv = tidy(K_nh.inv()) if d else sp.zeros(0, 0)
     Ws = W.extract(list(range(k)), si) if k else sp.zeros(0, l)
     Wr = W.extract(list(range(k)), ri) if k and m else sp.zeros(k, m)
-    piv = numeric_pivots(_numeric(system, Ws, 1, seed=13)[0]) if k else []
+    piv = numeric_pivots(omega_samples(system, 1, seed=13)[0][:, si]) if k else []
     Xs_shape = sp.zeros(l, m)   # s-part of the horizontal lifts X_alpha
     if k and any(e != 0 for e in Wr):
         B = Ws.extract(list(range(k)), piv)

@@ -10,8 +10,6 @@ error, not silently projected) and, for the reduced ODE, that q is off the singu
 """
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 
 from .errors import ModelError, SingularConfigurationError
@@ -32,24 +30,11 @@ def constraint_residual(model, q, qdot, params=None) -> np.ndarray:
 
 
 def _raw_state(model, q, qdot, pv):
+    """(q, q̇) for the Lagrangian form, (q, p = M(q)q̇) for the Hamiltonian form."""
     if model.formulation == "lagrange":
         return np.r_[q, qdot]
-    M = model_mass(model, q, pv)
+    M = np.atleast_2d(model.numeric.call("mass", np.r_[q, np.zeros_like(q)], pv))
     return np.r_[q, M @ qdot]
-
-
-_MASS_FUNCTIONS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
-
-
-def model_mass(model, q, pv):
-    """M(q) as a numpy array (lambdified once per system)."""
-    import sympy as sp
-    system = model.system
-    fn = _MASS_FUNCTIONS.get(system)
-    if fn is None:
-        fn = sp.lambdify([system.q, system.param_symbols], system.mass_matrix(), "numpy")
-        _MASS_FUNCTIONS[system] = fn
-    return np.array(fn(np.asarray(q, float), pv), dtype=float)
 
 
 def check_configuration(model, q, params=None) -> None:

@@ -118,19 +118,18 @@ def constraint_distribution(system: System) -> sp.Matrix:
     W = system.omega()
     if system.k == 0:
         return sp.eye(system.n)
-    Wn = _numeric(system, W, 1)[0]
-    piv = numeric_pivots(Wn)
+    piv = numeric_pivots(omega_samples(system, 1)[0])
     return null_basis_adjugate(W, piv)
 
 
-def _numeric(system: System, expr: sp.Matrix, count: int, seed: int = 3, qs=None):
-    f = sp.lambdify([system.q, system.param_symbols], expr, "numpy")
+def omega_samples(system: System, count: int, seed: int = 3) -> list:
+    """ω(q) (k×n numpy arrays) at ``count`` random configurations, default parameters."""
+    f = system.numeric_functions()[1]
     pv = system.param_vector()
-    qs = system.sample_configurations(count, seed) if qs is None else qs
     out = []
-    for qv in qs:
+    for qv in system.sample_configurations(count, seed):
         with np.errstate(all="ignore"):
-            out.append(np.array(f(qv, pv), dtype=float).reshape(expr.shape))
+            out.append(np.array(f(qv, pv), dtype=float).reshape(system.k, system.n))
     return out
 
 
@@ -155,16 +154,6 @@ def group_transform(system: System, fiber: tuple[str, ...], version: str) -> sp.
     return g
 
 
-def _lambdified(system, M, W, V):
-    cache = system.__dict__.get("_nhgait_lambdified")
-    if cache is None:
-        cache = (sp.lambdify([system.q, system.param_symbols], M, "numpy"),
-                 sp.lambdify([system.q, system.param_symbols], W, "numpy") if system.k else None,
-                 sp.lambdify([system.q, system.param_symbols], V, "numpy"))
-        object.__setattr__(system, "_nhgait_lambdified", cache)
-    return cache
-
-
 def _invariance(system: System, fiber: tuple[str, ...], M, W, V) -> tuple[bool, str, str]:
     """Is (L, ω) invariant under the group acting on the fiber? Returns (ok, group label, why)."""
     s_syms = {system.q[system.coordinates.index(c)] for c in fiber}
@@ -181,7 +170,7 @@ def _invariance(system: System, fiber: tuple[str, ...], M, W, V) -> tuple[bool, 
     # numeric SE(2) invariance: T(q) = blockdiag(R(heading) on x, y; identity elsewhere)
     n = system.n
     ix, iy, ih = (system.coordinates.index(c) for c in pf)
-    M_f, W_f, V_f = _lambdified(system, M, W, V)
+    M_f, W_f, V_f = system.numeric_functions()
     pv = system.param_vector()
     rng = np.random.default_rng(7)
     fib_idx = [system.coordinates.index(c) for c in fiber]
@@ -222,7 +211,7 @@ def symmetry_test(system: System) -> SymmetryTest:
     M = system.mass_matrix()
     V = system.potential()
     D = constraint_distribution(system)
-    Wn = _numeric(system, W, 3, seed=5) if k else [np.zeros((0, n))] * 3
+    Wn = omega_samples(system, 3, seed=5) if k else [np.zeros((0, n))] * 3
     candidates = []
     names = system.coordinates
     for size in range(1, n + 1):

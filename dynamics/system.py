@@ -381,11 +381,20 @@ class System:
         rng = np.random.default_rng(seed)
         return rng.uniform(-1.2, 1.2, size=(count, self.n))
 
+    def numeric_functions(self):
+        """(M(q, params), ω(q, params) or None, V(q, params)) as numpy callables, lambdified once
+        per system and shared by the input checks and the symmetry test (not pickled)."""
+        cache = self.__dict__.get("_nhgait_lambdified")
+        if cache is None:
+            args = [self.q, self.param_symbols]
+            cache = (sp.lambdify(args, self.mass_matrix(), "numpy"),
+                     sp.lambdify(args, self.omega(), "numpy") if self.k else None,
+                     sp.lambdify(args, self.potential(), "numpy"))
+            object.__setattr__(self, "_nhgait_lambdified", cache)
+        return cache
+
     def _numeric_checks(self, problems: list) -> None:
-        M = self.mass_matrix()
-        omega = self.omega()
-        f_M = sp.lambdify([self.q, self.param_symbols], M, "numpy")
-        f_w = sp.lambdify([self.q, self.param_symbols], omega, "numpy") if self.k else None
+        f_M, f_w, _ = self.numeric_functions()
         pv = self.param_vector()
         worst_eig, where_eig = np.inf, None
         max_rank = 0
