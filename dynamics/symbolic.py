@@ -5,7 +5,6 @@ from functools import lru_cache
 
 import numpy as np
 import sympy as sp
-from sympy.polys.fields import sfield
 
 _TRIG = (sp.sin, sp.cos, sp.tan, sp.cot, sp.sec, sp.csc)
 
@@ -77,6 +76,72 @@ def _collect_generators(e, gens: dict):
             gens.setdefault(e, None)
 
 
+def _add_fractions(terms, zero, one):
+    """Σ num/den over fractions of one ring: equal denominators are summed first, so a sum
+    over a common denominator costs no multiplication of denominators."""
+    groups: list = []
+    for nmr, dnm in terms:
+        if not nmr:
+            continue
+        for i, (gd, gn) in enumerate(groups):
+            if gd is dnm or gd == dnm:
+                groups[i] = (gd, gn + nmr)
+                break
+        else:
+            groups.append((dnm, nmr))
+    if not groups:
+        return (zero, one)
+    den, num = groups[0]
+    for dnm, nmr in groups[1:]:
+        num, den = num * dnm + nmr * den, den * dnm
+    return (num, den)
+
+
+def _walk_fraction(e, R, table: dict):
+    """Evaluate the sympy expression ``e`` as a fraction (num, den) of the ring ``R``, where
+    ``table`` maps every generator (symbol, sin/cos, opaque subexpression) to its fraction.
+    No gcd is taken on the way; raises ``_NotRational`` for a node it cannot represent."""
+    from sympy.polys.domains import QQ
+    one = R.one
+    memo: dict = {}
+
+    def ev(x):
+        got = table.get(x)
+        if got is not None:
+            return got
+        got = memo.get(x)
+        if got is not None:
+            return got
+        if x.is_Rational:
+            out = (R(QQ(int(x.p), int(x.q))), one)
+        elif x.is_Float:
+            r = sp.Rational(x)
+            out = (R(QQ(int(r.p), int(r.q))), one)
+        elif x.is_Add:
+            out = _add_fractions([ev(a) for a in x.args], R.zero, one)
+        elif x.is_Mul:
+            num, den = one, one
+            for a in x.args:
+                an, ad = ev(a)
+                num, den = num * an, den * ad
+            out = (num, den)
+        elif x.is_Pow and x.exp.is_Integer:
+            bn, bd = ev(x.base)
+            k = int(x.exp)
+            if k < 0:
+                if not bn:
+                    raise ZeroDivisionError(f"division by zero in {e}")
+                out = (bd ** (-k), bn ** (-k))
+            else:
+                out = (bn ** k, bd ** k)
+        else:
+            raise _NotRational
+        memo[x] = out
+        return out
+
+    return ev(e)
+
+
 def _to_field(e, extra):
     """Evaluate ``e`` as a fraction num/den of sparse polynomials over QQ in the generators of
     ``e`` (plus ``extra``), walking the tree without intermediate gcds (one cancellation at
@@ -91,57 +156,7 @@ def _to_field(e, extra):
     if not order:
         raise _NotRational
     R, *g = make_ring(order, QQ)
-    one = R.one
-    table = {k: (v, one) for k, v in zip(order, g)}
-    memo = {}
-
-    def ev(x):
-        if x in table:
-            return table[x]
-        got = memo.get(x)
-        if got is not None:
-            return got
-        if x.is_Rational:
-            out = (R(QQ(int(x.p), int(x.q))), one)
-        elif x.is_Float:
-            r = sp.Rational(x)
-            out = (R(QQ(int(r.p), int(r.q))), one)
-        elif x.is_Add:
-            terms = [ev(a) for a in x.args]
-            # group terms with equal denominators first
-            groups: dict = {}
-            for nmr, dnm in terms:
-                groups[dnm] = groups.get(dnm, R.zero) + nmr
-            num, den = None, None
-            for dnm, nmr in groups.items():
-                if num is None:
-                    num, den = nmr, dnm
-                elif dnm == den:
-                    num = num + nmr
-                else:
-                    num, den = num * dnm + nmr * den, den * dnm
-            out = (num, den)
-        elif x.is_Mul:
-            num, den = one, one
-            for a in x.args:
-                an, ad = ev(a)
-                num, den = num * an, den * ad
-            out = (num, den)
-        elif x.is_Pow and x.exp.is_Integer:
-            bn, bd = ev(x.base)
-            k = int(x.exp)
-            if k < 0:
-                if not bn:
-                    raise ZeroDivisionError("division by zero in trig_normal")
-                out = (bd ** (-k), bn ** (-k))
-            else:
-                out = (bn ** k, bd ** k)
-        else:  # pragma: no cover - every other node was registered as a generator
-            raise _NotRational
-        memo[x] = out
-        return out
-
-    num, den = ev(e)
+    num, den = _walk_fraction(e, R, {k: (v, R.one) for k, v in zip(order, g)})
     return R, num, den
 
 
@@ -321,44 +336,7 @@ class FracField:
         return self.normal(out) if normal else out
 
     def _walk(self, e):
-        R, one, QQ, table = self.R, self.one, self.QQ, self.table
-        memo = {}
-
-        def ev(x):
-            got = table.get(x)
-            if got is not None:
-                return got
-            got = memo.get(x)
-            if got is not None:
-                return got
-            if x.is_Rational:
-                out = (R(QQ(int(x.p), int(x.q))), one)
-            elif x.is_Float:
-                r = sp.Rational(x)
-                out = (R(QQ(int(r.p), int(r.q))), one)
-            elif x.is_Add:
-                out = self.add_many([ev(a) for a in x.args])
-            elif x.is_Mul:
-                num, den = one, one
-                for a in x.args:
-                    an, ad = ev(a)
-                    num, den = num * an, den * ad
-                out = (num, den)
-            elif x.is_Pow and x.exp.is_Integer:
-                bn, bd = ev(x.base)
-                k = int(x.exp)
-                if k < 0:
-                    if not bn:
-                        raise ZeroDivisionError("division by zero")
-                    out = (bd ** (-k), bn ** (-k))
-                else:
-                    out = (bn ** k, bd ** k)
-            else:
-                raise _NotRational
-            memo[x] = out
-            return out
-
-        return ev(e)
+        return _walk_fraction(e, self.R, self.table)
 
     def mat(self, A, normal=False):
         return [[self.frac(A[i, j], normal) for j in range(A.shape[1])] for i in range(A.shape[0])]
@@ -382,29 +360,7 @@ class FracField:
 
     # -- arithmetic ------------------------------------------------------------------------
     def add_many(self, terms):
-        groups: dict = {}
-        zero = self.zero
-        for nmr, dnm in terms:
-            if not nmr:
-                continue
-            key = id(dnm)
-            for k_, (gd, gn) in groups.items():
-                if gd is dnm or gd == dnm:
-                    groups[k_] = (gd, gn + nmr)
-                    break
-            else:
-                groups[key] = (dnm, nmr)
-        num, den = None, None
-        for dnm, nmr in groups.values():
-            if num is None:
-                num, den = nmr, dnm
-            elif dnm == den:
-                num = num + nmr
-            else:
-                num, den = num * dnm + nmr * den, den * dnm
-        if num is None:
-            return (zero, self.one)
-        return (num, den)
+        return _add_fractions(terms, self.zero, self.one)
 
     def mul(self, f, g):
         if not f[0] or not g[0]:
