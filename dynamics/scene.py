@@ -24,8 +24,10 @@ from .system import TIME, System, _parse
 SYSTEM_KEYS = {"name", "coordinates", "lagrangian", "constraints", "forces", "parameters", "inputs",
                "fiber", "planar_frame", "description"}
 SIMULATION_KEYS = {"q0", "qdot0", "t_final", "samples", "t0", "inputs", "parameters", "formulation",
-                   "rtol", "atol", "method"}
-TOP_KEYS = {"system", "simulation"}
+                   "rtol", "atol", "method", "outputs"}
+#: top-level tables; ``task``, ``units`` and ``drawing`` are kept as data for the planner and
+#: the plots (validated there), ``quantities`` are named expressions of (q, q̇)
+TOP_KEYS = {"system", "simulation", "task", "units", "drawing", "quantities"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -76,6 +78,7 @@ class SimulationSpec:
     rtol: float | None = None
     atol: float | None = None
     method: str | None = None
+    outputs: tuple | None = None
 
     @property
     def t_eval(self) -> np.ndarray:
@@ -89,6 +92,10 @@ class Scene:
     system: System
     simulation: SimulationSpec | None
     source: str = ""
+    task: dict | None = None
+    units: dict = field(default_factory=dict)
+    drawing: dict | None = None
+    quantities: dict = field(default_factory=dict)
 
 
 def _number(value, where, problems):
@@ -110,7 +117,7 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
     problems = []
     unknown = set(data) - TOP_KEYS
     if unknown:
-        problems.append(f"unknown top-level table(s) {sorted(unknown)} (allowed: system, simulation)")
+        problems.append(f"unknown top-level table(s) {sorted(unknown)} (allowed: {', '.join(sorted(TOP_KEYS))})")
     sysd = data.get("system")
     if not isinstance(sysd, dict):
         problems.append("missing [system] table")
@@ -201,8 +208,60 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
             raise ModelError(problems, title=f"invalid scene {source}")
         spec = SimulationSpec(q0=q0, qdot0=qd0, t_final=tf, samples=samples, t0=t0,
                               controller=controller, parameters=sim_params, formulation=formulation,
-                              rtol=sim.get("rtol"), atol=sim.get("atol"), method=sim.get("method"))
-    return Scene(system=system, simulation=spec, source=source)
+                              rtol=sim.get("rtol"), atol=sim.get("atol"), method=sim.get("method"),
+                              outputs=_outputs(sim.get("outputs"), problems))
+        if problems:
+            raise ModelError(problems, title=f"invalid scene {source}")
+    extra = {}
+    for key in ("task", "units", "drawing", "quantities"):
+        value = data.get(key)
+        if value is not None and not isinstance(value, dict):
+            problems.append(f"[{key}] must be a table")
+        elif value is not None:
+            extra[key] = value
+    if "units" in extra:
+        bad = [k for k, v in extra["units"].items() if not isinstance(v, str)]
+        if bad:
+            problems.append(f"[units]: values must be strings such as \"N*m\" (not for {bad})")
+    quantities = _quantities(system, extra.pop("quantities", {}), problems)
+    if problems:
+        raise ModelError(problems, title=f"invalid scene {source}")
+    return Scene(system=system, simulation=spec, source=source, quantities=quantities, **extra)
+
+
+def _outputs(value, problems):
+    """``[simulation].outputs``: the names the scene needs (see docs/scene-format.md)."""
+    if value is None:
+        return None
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        problems.append(f"[simulation].outputs must be a list of names, got {value!r}")
+        return None
+    return tuple(value)
+
+
+def _quantities(system, table, problems) -> dict:
+    """``[quantities]``: name = expression in the coordinates, velocities and parameters."""
+    names = {s.name: s for s in system.q + system.q_dot + system.param_symbols}
+    taken = set(names) | set(system.inputs) | {"t"}
+    out = {}
+    for key, text in table.items():
+        where = f"[quantities].{key}"
+        if not str(key).isidentifier() or key in taken:
+            problems.append(f"{where}: the name must be a new identifier (not a coordinate, velocity, "
+                            "parameter, input or t)")
+            continue
+        if not isinstance(text, str):
+            problems.append(f"{where}: must be an expression string, got {text!r}")
+            continue
+        e = _parse(text, names, where, problems)
+        if e is None:
+            continue
+        bad = sorted(s.name for s in e.free_symbols if s.name not in names)
+        if bad:
+            problems.append(f"{where}: unknown symbol(s) {bad} (allowed: coordinates, velocities, parameters)")
+            continue
+        out[key] = e
+    return out
 
 
 def load_scene(path_or_name) -> Scene:
