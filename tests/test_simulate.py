@@ -14,6 +14,7 @@ import pytest
 from nhgait.dynamics import simulate  # the function (lazy export), before any submodule import
 from nhgait.dynamics.controllers import OpenLoop, PDTracking, Sinusoid, snakeboard_pd, unicycle_pd
 from nhgait.dynamics.errors import ModelError
+from nhgait.dynamics.simulation import NONFINITE
 
 SNAKE_Q0 = np.array([0.0, 0.0, 0.0, 0.0, 1.0])      # Table 3.3: psi_d(0) = 0, phi_d(0) = 1
 SNAKE_QDOT0 = np.array([0.0, 0.0, 0.0, 1.0, 0.0])   # psi_dot_d(0) = 1, phi_dot_d(0) = 0
@@ -186,18 +187,21 @@ class _BreaksAtHalf:
 
 
 def test_integrator_failure_is_a_result(models):
+    """A NaN input after t = 0.5 stops the run there (status −3), naming the controller."""
     traj = simulate(models["unicycle"]["reduced"], (0.0, 1.0), UNI_Q0, UNI_QDOT0,
                     controller=_BreaksAtHalf())
-    assert not traj.success and traj.status == -1
-    assert "integration failed" in traj.message
-    assert traj.t[-1] <= 0.5 + 1e-9 and traj.q.shape == (traj.t.size, 4)
+    assert not traj.success and traj.status == NONFINITE
+    assert "_BreaksAtHalf returned a non-finite input tau_theta" in traj.message
+    assert 0.5 - 1e-9 <= traj.t[-1] <= 0.5 + 1e-9 and traj.q.shape == (traj.t.size, 4)
+    assert np.all(np.isfinite(traj.q)) and np.all(np.isfinite(traj.energy_balance))
 
 
 def test_idas_failure_is_a_result(models):
     traj = simulate(models["unicycle"]["lagrange"], (0.0, 1.0), UNI_Q0, UNI_QDOT0,
                     controller=_BreaksAtHalf(), dae="idas", t_eval=np.linspace(0, 1, 11),
                     max_steps=500)
-    assert not traj.success and traj.status == -1 and "IDAS failed" in traj.message
+    assert not traj.success and traj.status == NONFINITE
+    assert "returned a non-finite input tau_theta" in traj.message
     assert traj.t.size == 1 and traj.t[0] == 0.0
 
 
@@ -216,7 +220,8 @@ def test_to_csv_columns(models, tmp_path):
     traj.to_csv(path, columns="all")
     header = next(csv.reader(open(path)))
     assert header[6:11] == ["x_dot", "y_dot", "theta_dot", "psi_dot", "phi_dot"]
-    assert header[-5:] == ["lambda1", "lambda2", "energy", "work", "energy_balance"]
+    assert header[-7:] == ["lambda1", "lambda2", "constraint1", "constraint2", "energy", "work",
+                           "energy_balance"]
     traj.to_csv(path, columns="state")
     assert next(csv.reader(open(path)))[6:] == ["p_x", "p_y", "p_theta", "p_psi", "p_phi"]
     with pytest.raises(ModelError, match="unknown columns"):
