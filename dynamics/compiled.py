@@ -14,8 +14,9 @@ The library is compiled once with the system C compiler (``$NHGAIT_CC``, else ``
 ``cc``; flags :data:`CFLAGS`) and cached in ``<cache dir>/jit`` under the SHA-256 of the
 generated C source, the compiler command and the flags. Next to it a record holds the
 SHA-256 of the library file; a cached library is loaded only if that hash matches and neither
-the directory nor the files are writable by group/others or owned by another user — otherwise
-it is refused with a warning and rebuilt. Within a process, loaded libraries are kept by key.
+the directory nor the files are writable by group/others, links or owned by another user
+(:func:`~.cache.trusted_dir`, :func:`~.cache.trusted_file`) — otherwise it is refused with a
+warning and rebuilt. Within a process, loaded libraries are kept by key.
 Without a working compiler :func:`build` raises :class:`CompilerUnavailable` (the caller falls
 back to scipy).
 """
@@ -27,11 +28,9 @@ import json
 import os
 import shlex
 import shutil
-import stat
 import subprocess
 import tempfile
 import time
-import warnings
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -125,62 +124,30 @@ def c_source(rhs: ca.Function, outputs: ca.Function, event: ca.Function | None) 
 
 
 # --------------------------------------------------------------------------------------------
-# cache with trust rules
+# cache with trust rules (nhgait.dynamics.cache)
 # --------------------------------------------------------------------------------------------
-def _jit_dir() -> Path:
-    from .cache import cache_dir
-    return cache_dir() / "jit"
-
-
-def _distrust(path: Path) -> str | None:
-    """Why ``path`` must not be trusted (None if it may be used)."""
-    try:
-        st = os.lstat(path)
-    except OSError as exc:
-        return f"cannot stat {path} ({exc})"
-    if stat.S_ISLNK(st.st_mode):
-        return f"{path} is a symbolic link"
-    if hasattr(os, "getuid") and st.st_uid != os.getuid():
-        return f"{path} is owned by another user (uid {st.st_uid})"
-    if st.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
-        return f"{path} is writable by group or others (mode {stat.S_IMODE(st.st_mode):o})"
-    return None
-
-
-def _file_sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
-
-
 def _load_cached(directory: Path, key: str):
-    """The cached library for ``key`` if present and trusted, else None (with a warning if a
-    present entry is refused)."""
+    """The cached library for ``key`` if present and trusted (directory and files pass the
+    trust rules, the library matches the SHA-256 in its record), else None; a refused entry
+    warns (:class:`~.cache.UntrustedCacheWarning`)."""
+    from .cache import trusted_file
     so, record = directory / f"{key}.so", directory / f"{key}.json"
-    if not so.exists() or not record.exists():
+    if not (so.exists() and record.exists()) or not trusted_file(record):
         return None
-    reasons = [r for r in (_distrust(directory), _distrust(so), _distrust(record)) if r]
-    if not reasons:
-        try:
-            recorded = json.loads(record.read_text())["library_sha256"]
-        except (OSError, ValueError, KeyError, TypeError) as exc:
-            reasons.append(f"unreadable record {record.name} ({type(exc).__name__})")
-        else:
-            if recorded != _file_sha256(so):
-                reasons.append(f"{so.name} does not match its recorded SHA-256")
-    if reasons:
-        warnings.warn("refusing cached compiled library (" + "; ".join(reasons) + "); rebuilding it",
-                      stacklevel=3)
+    try:
+        recorded = json.loads(record.read_text())["library_sha256"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    if not trusted_file(so, recorded):
         return None
     return ctypes.CDLL(str(so))
 
 
 def _compile(source: str, directory: Path, key: str, command: list) -> float:
-    """Compile ``source`` into ``directory/key.so`` (atomically) and write its record."""
+    """Compile ``source`` into ``directory/key.so`` (atomically) with a record of its SHA-256."""
+    from .cache import file_sha256
     if shutil.which(command[0]) is None:
         raise CompilerUnavailable(f"C compiler {command[0]!r} not found")
-    directory.mkdir(parents=True, exist_ok=True, mode=0o700)
-    reason = _distrust(directory)
-    if reason:
-        raise CompilerUnavailable(f"refusing to write compiled code into an untrusted directory: {reason}")
     start = time.perf_counter()
     with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:
         c_file, so_tmp = Path(tmp) / f"{key}.c", Path(tmp) / f"{key}.so"
@@ -194,9 +161,8 @@ def _compile(source: str, directory: Path, key: str, command: list) -> float:
             tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
             raise CompilerUnavailable(f"C compiler {' '.join(command)!r} failed: " + " | ".join(tail))
         os.chmod(so_tmp, 0o700)
-        digest = _file_sha256(so_tmp)
         record_tmp = Path(tmp) / f"{key}.json"
-        record_tmp.write_text(json.dumps({"library_sha256": digest, "source_sha256": key,
+        record_tmp.write_text(json.dumps({"library_sha256": file_sha256(so_tmp), "source_sha256": key,
                                           "compiler": command, "flags": list(CFLAGS),
                                           "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}))
         os.chmod(record_tmp, 0o600)
@@ -207,15 +173,21 @@ def _compile(source: str, directory: Path, key: str, command: list) -> float:
 
 def build(rhs: ca.Function, outputs: ca.Function, event: ca.Function | None = None) -> "CompiledLoop":
     """Compile (or load from the cache) the closed loop ``rhs(t, t_c, y, p)``,
-    ``outputs(t, t_c, y, p)`` and ``event(y, p)``. Raises :class:`CompilerUnavailable`."""
+    ``outputs(t, t_c, y, p)`` and ``event(y, p)``. Raises :class:`CompilerUnavailable`.
+
+    The library lives in ``<cache dir>/jit``; if that directory is refused by the trust rules,
+    it is compiled into a private temporary directory instead (and not kept)."""
+    from .cache import cache_dir, trusted_dir
     source = c_source(rhs, outputs, event)
     command = compiler_command()
     key = hashlib.sha256("\0".join([source, " ".join(command), " ".join(CFLAGS)]).encode()).hexdigest()
     lib, compile_time = _LOADED.get(key), 0.0
     if lib is None:
-        directory = _jit_dir()
-        lib = _load_cached(directory, key)
+        directory = trusted_dir(cache_dir() / "jit")
+        lib = None if directory is None else _load_cached(directory, key)
         if lib is None:
+            if directory is None:
+                directory = Path(tempfile.mkdtemp(prefix="nhgait-jit-"))
             compile_time = _compile(source, directory, key, command)
             lib = _load_cached(directory, key)
             if lib is None:

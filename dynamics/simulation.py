@@ -286,76 +286,25 @@ def _check_controller(system, controller, t0, tf, dae, method):
     return problems
 
 
-_METRICS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
-
-
-def _metric_function(model) -> ca.Function:
-    """(q, params) ↦ kinetic metric of the velocity part of x (K⁻¹, M or M⁻¹), once per model."""
-    f = _METRICS.get(model.numeric)
-    if f is None:
-        f = _METRICS[model.numeric] = _build_metric(model)
-    return f
-
-
-def _build_metric(model) -> ca.Function:
-    num, n = model.numeric, model.system.n
-    x = ca.SX.sym("x", len(model.state_names))
-    params = ca.SX.sym("params", len(num.param_names))
-    metric = ca.hessian(num["energy"](x, params), x[n:])[0]
-    return ca.Function("metric", [x[:n], params],
-                       [ca.substitute(metric, x[n:], ca.SX.zeros(x.shape[0] - n))])
-
-
-def check_parameters(model, params, q0=None) -> list:
-    """Problems with parameter values, checked as the system checks its defaults: finite
-    values and a positive-definite kinetic metric at q0 and at the system's sample
-    configurations (the latter remembered per model and parameter vector)."""
-    num = model.numeric
-    pv = num.params(params)
-    bad = [f"parameter {nm} = {v!r} is not finite" for nm, v in zip(num.param_names, pv)
-           if not np.isfinite(v)]
-    if bad:
-        return bad
-    memo = _PARAMS_CHECKED.setdefault(num, {})
-    samples = memo.get(pv.tobytes())
-    if samples is None:
-        samples = _metric_problems(model, params, pv, model.system.sample_configurations(8, seed=1))
-        if len(memo) < 256:
-            memo[pv.tobytes()] = samples
-    if samples or q0 is None:
-        return list(samples)
-    return _metric_problems(model, params, pv, np.asarray(q0, dtype=float)[None, :])
-
-
 _PARAMS_CHECKED: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
-def _metric_problems(model, params, pv, configurations) -> list:
-    num = model.numeric
-    configurations = np.atleast_2d(configurations)
-    N, k = configurations.shape[0], len(model.state_names) - model.system.n
-    with np.errstate(all="ignore"):
-        metrics = np.asarray(_metric_function(model).map(N)(configurations.T, np.repeat(pv[:, None], N, 1)))
-    worst, where = np.inf, None
-    for i, q in enumerate(configurations):
-        W = metrics[:, i * k:(i + 1) * k]
-        if not np.all(np.isfinite(W)):
-            return [f"the kinetic metric is not finite at q = {np.round(q, 3).tolist()} with "
-                    f"{_params_text(num, params)}"]
-        ev = np.linalg.eigvalsh(0.5 * (W + W.T))[0]
-        if ev < worst:
-            worst, where = ev, q
-    if worst <= 1e-12 * max(1.0, abs(worst)):
-        word = "singular" if abs(worst) <= 1e-12 else "not positive definite"
-        return [f"the kinetic metric is {word} with {_params_text(num, params)}: smallest eigenvalue "
-                f"{worst:.3g} at q = {np.round(where, 3).tolist()}"]
-    return []
-
-
-def _params_text(num, params) -> str:
-    if isinstance(params, dict):
-        return "params " + ", ".join(f"{k} = {v:g}" for k, v in params.items())
-    return "the given parameter values"
+def _parameter_problems(model, params) -> list:
+    """``System.parameter_problems`` for ``simulate(params=...)`` (remembered per system and
+    parameter vector): non-finite values, a singular or indefinite kinetic metric, dependent
+    constraints."""
+    system = model.system
+    try:
+        key = model.numeric.params(params).tobytes()
+    except (ModelError, TypeError, ValueError):
+        key = None
+    memo = _PARAMS_CHECKED.setdefault(system, {})
+    if key is not None and key in memo:
+        return list(memo[key])
+    problems = system.parameter_problems(params, label="the given params")
+    if key is not None and len(memo) < 256:
+        memo[key] = tuple(problems)
+    return problems
 
 
 def _segments(t0, tf, controller):
@@ -420,8 +369,8 @@ def simulate(model, t_span, q0, qdot0, *, controller=None, params=None, method: 
             resolved = resolve_outputs(model, tuple(outputs), quantities)
         except ModelError as err:
             problems += list(err.problems)
-    if not problems:
-        problems += check_parameters(model, params, q0 if np.size(q0) == model.system.n else None)
+    if not problems and params is not None:
+        problems += _parameter_problems(model, params)
     if problems:
         raise ModelError(problems, title="invalid simulation request")
     system, num = model.system, model.numeric
