@@ -209,6 +209,24 @@ def closed_loop(model, controller, *, stabilization=None, baumgarte=(1.0, 0.0),
     return loop
 
 
+def _invariant_entries(expr, x, params, candidates, param_values, samples=6) -> list:
+    """Entries of x that ``expr`` reads only structurally: ∂expr/∂x_i vanishes (to 1e-12
+    relative) at ``samples`` random states. The singular-set measure of a reduced model is
+    invariant under the symmetry group, yet its expression contains the fiber coordinates."""
+    if not candidates:
+        return []
+    grad = ca.Function("grad", [x, params], [ca.jacobian(expr, x[candidates]), expr])
+    rng = np.random.default_rng(7)
+    pv = np.asarray(param_values, dtype=float)
+    free = np.ones(len(candidates), dtype=bool)
+    for _ in range(samples):
+        with np.errstate(all="ignore"):
+            d, value = grad(rng.uniform(-1.2, 1.2, x.shape[0]), pv)
+        d = np.abs(np.asarray(d, dtype=float)).ravel()
+        free &= np.isfinite(d) & (d <= 1e-12 * (1.0 + abs(float(value))))
+    return [i for i, f in zip(candidates, free) if f]
+
+
 def _velocity_metric(energy, v):
     return ca.hessian(energy, v)[0]
 
@@ -293,6 +311,8 @@ def _build(model, controller, stabilization, baumgarte, seeds) -> ClosedLoop:
         def reads(expr):
             return [i for i in range(nx) if ca.depends_on(expr, x[i])]
         dep = np.array(ca.DM(ca.jacobian_sparsity(xdot, x), 1)).astype(bool)
+        free = _invariant_entries(measure, x, params, reads(measure), num.param_defaults)
+        measure = ca.substitute(measure, x[free], ca.SX.zeros(len(free))) if free else measure
         index = closure(dep, list(seeds) + reads(measure) + (reads(g) if n_int else []))
         has_work = set(reads(power)) <= set(index)
     full = len(index) == nx

@@ -24,7 +24,7 @@ Methods (``method``)
   controller runs on scipy DOP853 instead, and without a C compiler it warns and does the same
   (``Trajectory.settings["fallback"]`` says why);
 * ``"auto"``: ``"compiled"`` with stiffness detection; when the explicit method's step size is
-  limited by stability (h|λ| beyond its stability limit for 15 steps) the run is redone with
+  limited by stability (h|λ| above :data:`~.integrators.STIFF_LIMIT` for 15 steps) the run is redone with
   ``"CVODES"`` (``"Radau"`` for a Python controller) and ``settings["auto"]`` says so.
   The explicit methods always report the detection (``diagnostics["stiff_at"]`` and a
   recommendation) — with ``"auto"`` the switch is automatic.
@@ -455,9 +455,9 @@ def _run_route(model, loop, controller, method, dae, segments, y0, seg_params, t
 def _switch_to_implicit(loop, controller, run, explicit_u, segments, y0, seg_params, t_eval,
                         rtol, atol, max_step, max_steps, singular_tol, settings, extra):
     implicit = "Radau" if explicit_u else "CVODES"
-    settings["auto"] = (f"compiled DOP853 detected stiffness at t = {run.t_stiff:.6g} "
-                        f"(h|λ| up to {run.h_lambda:.3g}, beyond its stability limit 6.1) after "
-                        f"{run.nfev} evaluations; redone with {implicit}")
+    settings["auto"] = (f"compiled DOP853 detected stiffness at t = {run.t_stiff:.6g} (h|λ| "
+                        f"up to {run.h_lambda:.3g} for 15 steps: the step is set by stability) "
+                        f"after {run.nfev} evaluations; redone with {implicit}")
     if implicit == "CVODES":
         new = integrate_sundials(loop, "cvodes", segments, y0, None, seg_params, t_eval, rtol,
                                  atol, max_steps, singular_tol)
