@@ -44,7 +44,7 @@ from .errors import ModelError
 __all__ = ["ClosedLoop", "closed_loop", "controller_key", "OUTPUT_NAMES"]
 
 #: the blocks of ``ClosedLoop.outputs``, in order
-OUTPUT_NAMES = ("q", "qdot", "lam", "g", "energy", "u", "measure", "metric", "gram")
+OUTPUT_NAMES = ("q", "qdot", "lam", "g", "energy", "u_applied", "measure", "metric", "gram")
 
 #: per model.numeric object: key → ClosedLoop (dropped with the model)
 _MEMO: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
@@ -115,13 +115,15 @@ class ClosedLoop:
     _pieces: dict
     _compiled: dict = dataclasses.field(default_factory=dict)
 
-    def compiled(self):
-        """The loop as a compiled library (:func:`.compiled.build`), built once per compiler
-        command; raises :class:`~.compiled.CompilerUnavailable`."""
+    def compiled(self, projection: bool = False):
+        """The loop as a compiled library (:func:`.compiled.build`; with ``projection`` every
+        step is projected onto the constraints), built once per compiler command; raises
+        :class:`~.compiled.CompilerUnavailable`."""
         from .compiled import build, compiler_command
-        key = tuple(compiler_command())
+        key = (tuple(compiler_command()), projection)
         if key not in self._compiled:
-            self._compiled[key] = build(self.rhs, self.outputs, self.event)
+            self._compiled[key] = build(self.rhs, self.outputs, self.event,
+                                        self.project if projection else None)
         return self._compiled[key]
 
     @property
@@ -313,7 +315,9 @@ def _build(model, controller, stabilization, baumgarte, seeds) -> ClosedLoop:
         dep = np.array(ca.DM(ca.jacobian_sparsity(xdot, x), 1)).astype(bool)
         free = _invariant_entries(measure, x, params, reads(measure), num.param_defaults)
         measure = ca.substitute(measure, x[free], ca.SX.zeros(len(free))) if free else measure
-        index = closure(dep, list(seeds) + reads(measure) + (reads(g) if n_int else []))
+        # a controller without a CasADi form may read any coordinate and velocity
+        opaque = list(range(n)) + reads(qdot) if u_args else []
+        index = closure(dep, list(seeds) + reads(measure) + (reads(g) if n_int else []) + opaque)
         has_work = set(reads(power)) <= set(index)
     full = len(index) == nx
     if full:

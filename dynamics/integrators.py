@@ -214,10 +214,17 @@ def integrate_scipy(loop, controller, segments, y0, seg_params, t_eval, method, 
                 run.nfev += solver.nfev - counted
                 return run.fail(MAX_STEPS, solver.t, f"evaluation budget ({_EVALS_PER_STEP}·max_steps) "
                                 f"spent at t = {solver.t:.9g}")
+            except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+                # e.g. a non-finite finite-difference Jacobian refused by the LU factorisation
+                run.nfev += solver.nfev - counted
+                run.t_bad = _attempted(solver, b)
+                return run.fail(FAILED, solver.t, f"integration failed at t = {solver.t:.9g}: scipy "
+                                f"{method} raised {type(exc).__name__} ({exc})")
             run.nfev += solver.nfev - counted
             counted = solver.nfev
             if solver.status == "failed" or _first_bad(solver.y) is not None:
                 run.njev += getattr(solver, "njev", 0)
+                run.t_bad = _attempted(solver, b)
                 return run.fail(FAILED, solver.t, f"integration failed at t = {solver.t:.9g}: "
                                 + (message or "non-finite state"))
             run.n_steps += 1
@@ -292,6 +299,13 @@ def _scipy_fun(rhs, qdot_fn, loop, controller, t_hi, p, budget):
     return fun
 
 
+def _attempted(solver, b) -> float:
+    """A time the failed step tried to reach (for the diagnosis of the failure)."""
+    h = getattr(solver, "h_abs", None)
+    h = float(h) if h is not None and np.isfinite(h) and h > 0 else 0.0
+    return min(float(solver.t) + max(h, 1e-9 * max(1.0, abs(solver.t))), b)
+
+
 def _next_step(solver):
     """The step the solver proposes next (RK/Radau/BDF keep it as ``h_abs``), else the last."""
     h = getattr(solver, "h_abs", None)
@@ -341,8 +355,12 @@ def integrate_sundials(loop, kind, segments, y0, lam0, seg_params, t_eval, rtol,
                 return run.fail(SINGULAR, t_ok, f"{kind.upper()} stopped between t = {t_ok:.9g} and "
                                 f"t = {t_bad:.9g}, next to the singular set (measure "
                                 f"{float(event(y_ok, p)[0]):.3g} at t = {t_ok:.9g})")
+            reason = str(err).splitlines()[-1].split(": ")[-1]
+            if "TOO_MUCH_WORK" in reason:
+                return run.fail(MAX_STEPS, t_ok, f"max_steps = {max_steps} (per output interval) "
+                                f"reached between t = {t_ok:.9g} and t = {t_bad:.9g}")
             return run.fail(FAILED, t_ok, f"{kind.upper()} failed between t = {t_ok:.9g} and "
-                            f"t = {t_bad:.9g}: {str(err).splitlines()[-1].split(': ')[-1]}")
+                            f"t = {t_bad:.9g}: {reason}")
         stats = F.stats()
         run.nfev += int(stats.get("nfevals", 0))
         run.njev += int(stats.get("n_call_jacF", stats.get("njevals", 0)))

@@ -32,8 +32,8 @@ Methods (``method``)
 Both DAE routes integrate the *index-reduced* system: the velocity constraint ω(q)q̇ = 0 itself
 is only an invariant and drifts at the level of the integration error. Stabilisation is off by
 default and recorded in ``Trajectory.settings`` when on: ``"baumgarte"`` (ġ + 2αg + β²∫g = 0)
-and ``"projection"`` (scipy methods: after every accepted step the velocities are projected onto
-{g = 0} in the kinetic-energy metric and the solver restarts).
+and ``"projection"`` (scipy and compiled methods: after every accepted step the velocities are
+projected onto {g = 0} in the kinetic-energy metric and the integration restarts from there).
 
 Failure is data, never a hang
 -----------------------------
@@ -233,9 +233,9 @@ def _check_request(model, t_span, t_eval, controller, method, dae, stabilization
         if stabilization is not None:
             problems.append("stabilization applies to the DAE forms; the reduced ODE satisfies the "
                             "constraints by construction")
-    if stabilization == "projection" and (dae == "idas" or method not in SCIPY_METHODS):
-        problems.append("stabilization='projection' needs dae='index1' and a scipy method (it "
-                        "restarts the solver after every step)")
+    if stabilization == "projection" and (dae == "idas" or method in ("CVODES", "auto")):
+        problems.append("stabilization='projection' needs dae='index1' and a scipy or compiled "
+                        "method (the state is projected after every step)")
     if stabilization == "baumgarte":
         try:
             alpha, beta = (float(v) for v in baumgarte)
@@ -430,7 +430,7 @@ def _run_route(model, loop, controller, method, dae, segments, y0, seg_params, t
         return run, "CVODES", extra
     if method in COMPILED_METHODS or method == "auto":
         scheme = COMPILED_METHODS.get(method, "DOP853")
-        library, reason = _library(loop, explicit_u)
+        library, reason = _library(loop, explicit_u, stabilization == "projection")
         if library is None:
             settings["fallback"] = f"{reason}; integrated with scipy DOP853"
             if "compiler" in reason:
@@ -469,14 +469,14 @@ def _switch_to_implicit(loop, controller, run, explicit_u, segments, y0, seg_par
     return new, implicit, extra
 
 
-def _library(loop, explicit_u):
+def _library(loop, explicit_u, projection=False):
     """(CompiledLoop, None) or (None, the reason the compiled route cannot run)."""
     if explicit_u:
         return None, ("the controller has no casadi(t, q, qdot) method, so it cannot be compiled "
                       "into the closed loop")
     from .compiled import CompilerUnavailable
     try:
-        return loop.compiled(), None
+        return loop.compiled(projection), None
     except CompilerUnavailable as exc:
         return None, f"no usable C compiler ({exc})"
 

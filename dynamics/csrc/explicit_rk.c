@@ -6,7 +6,10 @@
  *   nhg_event(y, p) -> g                 (singular-set measure; only if NHG_HAS_EVENT)
  *   nhg_out(t, t_c, y, p) -> outputs     (evaluated at the output points)
  * and the macros NHG_NY, NHG_NP, NHG_NOUT, NHG_HAS_EVENT, NHG_SZ_ARG, NHG_SZ_RES, NHG_SZ_IW,
- * NHG_SZ_W, and the tableau arrays of nhgait.dynamics.rk_tableaus (DOP853_*, DOPRI5_*).
+ * NHG_SZ_W, and the tableau arrays of nhgait.dynamics.rk_tableaus (DOP853_*, DOPRI5_*); with
+ * NHG_HAS_PROJECT also nhg_project(y, p) -> y (velocities projected onto the constraints), applied
+ * to every accepted step and every output point (the next step restarts from the projected
+ * state with a fresh f(t, y)).
  *
  * Method (Hairer, Norsett & Wanner I, II.4-II.6 and II.10): explicit stages, error estimate
  * of the embedded pair in the RMS norm with weights atol + rtol max(|y|, |y1|), step-size
@@ -116,6 +119,20 @@ static double nhg_g(nhg_ctx *cx, const double *y) {
 #else
   (void)cx; (void)y;
   return 1.0;
+#endif
+}
+
+/* y <- project(y) (constraint stabilisation by projection), or nothing */
+static void nhg_proj(nhg_ctx *cx, double *y) {
+#if NHG_HAS_PROJECT
+  double tmp[NHG_NY];
+  memcpy(tmp, y, sizeof tmp);
+  cx->arg[0] = tmp;
+  cx->arg[1] = cx->p;
+  cx->res[0] = y;
+  nhg_project(cx->arg, cx->res, cx->iw, cx->w, 0);
+#else
+  (void)cx; (void)y;
 #endif
 }
 
@@ -388,17 +405,20 @@ CASADI_SYMBOL_EXPORT int nhg_run(int method, double t_end, double t_hi, double *
             }
             nhg_dense(m, (t_eval[j] - t) / h, y, R, &y_eval[j * NHG_NY]);
           }
+          nhg_proj(&cx, &y_eval[j * NHG_NY]);
           ++j;
         }
         cnt[NHG_N_IEVAL] = j;
       } else if (t_steps && !event) {
         t_steps[cnt[NHG_N_OUT]] = t_new;
         memcpy(&y_steps[cnt[NHG_N_OUT] * NHG_NY], y1, sizeof y1);
+        nhg_proj(&cx, &y_steps[cnt[NHG_N_OUT] * NHG_NY]);
         ++cnt[NHG_N_OUT];
       }
     }
     if (event) {
       double t_ev = t + theta_ev * h;
+      nhg_proj(&cx, yev);
       if (!t_eval && t_steps) {
         t_steps[cnt[NHG_N_OUT]] = t_ev;
         memcpy(&y_steps[cnt[NHG_N_OUT] * NHG_NY], yev, sizeof yev);
@@ -410,8 +430,13 @@ CASADI_SYMBOL_EXPORT int nhg_run(int method, double t_end, double t_hi, double *
       return NHG_EVENT;
     }
     t = t_new;
+    if (NHG_HAS_PROJECT) {
+      nhg_proj(&cx, y1);
+      nhg_f(&cx, t, y1, k[0]);
+    } else {
+      memcpy(k[0], k[m->i_new], sizeof k[0]);
+    }
     memcpy(y, y1, sizeof y1);
-    memcpy(k[0], k[m->i_new], sizeof k[0]);
     bad = nhg_first_bad(k[0], NHG_NY);
     if (bad >= 0) {
       cnt[NHG_N_BAD] = bad;
