@@ -174,7 +174,7 @@ class System:
         hides one in another; checks that need an earlier result (linearity needs the parsed
         constraint, the metric test needs every expression) run on whatever is valid."""
         problems: list[str] = []
-        coord_names, param_names, values, declared_inputs = self._declare(problems)
+        coord_names, param_names, values, declared_inputs, declared = self._declare(problems)
         q = tuple(sp.Symbol(c, real=True) for c in coord_names)
         qd = tuple(sp.Symbol(velocity_name(c), real=True) for c in coord_names)
         ps = tuple(sp.Symbol(p, real=True) for p in param_names)
@@ -182,11 +182,13 @@ class System:
         names["t"] = TIME
         for u in declared_inputs or ():
             names[u] = sp.Symbol(u, real=True)
-        parsed = len(problems)
-        known = set(q) | set(qd) | set(ps)
-        L, cons, tau, inputs = self._expressions(coord_names, names, declared_inputs, known, problems)
-        complete = L is not None and None not in cons and len(problems) == parsed
-        self._check_structure(L, cons, qd, problems)
+        known = set(q) | set(qd) | set(ps)  # symbol checks need valid names (no cascade of
+                                            # "unknown symbol" after a bad coordinates field)
+        L, cons, tau, inputs = self._expressions(coord_names, names, declared_inputs, known,
+                                                 problems, check_symbols=declared)
+        complete = declared and L is not None and None not in cons and not problems
+        if declared:
+            self._check_structure(L, cons, qd, problems)
 
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen dataclass)
         set_("q", q)
@@ -207,7 +209,8 @@ class System:
             raise ModelError(problems)
 
     def _declare(self, problems):
-        """Names of coordinates, parameters and inputs; parameter values (nan when invalid)."""
+        """Names of coordinates, parameters and inputs; parameter values (nan when invalid);
+        whether the names are valid."""
         coord_names = _names(self.coordinates, "coordinates", problems)
         if not coord_names and not any(p.startswith("coordinates") for p in problems):
             problems.append("coordinates: at least one coordinate is required")
@@ -229,10 +232,11 @@ class System:
                 problems.append(f"name {nm!r} is used twice (coordinates, velocities, parameters,"
                                 " inputs and t must be distinct)")
             seen.add(nm)
+        names_ok = not problems
         values = [number_problems(v, f"parameter {nm!r}", problems) for nm, v in zip(param_names, params.values())]
-        return coord_names, param_names, values, declared
+        return coord_names, param_names, values, declared, names_ok
 
-    def _expressions(self, coord_names, names, declared_inputs, known, problems):
+    def _expressions(self, coord_names, names, declared_inputs, known, problems, check_symbols=True):
         """Parse L, the constraints and the forces; find or check the inputs."""
         L = _parse(self.lagrangian, names, "lagrangian", problems)
         raw = self.constraints if self.constraints is not None else ()
@@ -253,11 +257,14 @@ class System:
                 problems.append(f"forces: {exc}")
                 continue
             if kname not in coord_names:
-                problems.append(f"forces: {kname!r} is not a coordinate (coordinates: {', '.join(coord_names)})")
+                if check_symbols:
+                    problems.append(f"forces: {kname!r} is not a coordinate (coordinates: {', '.join(coord_names)})")
                 continue
             e = _parse(val, names, f"force on {kname}", problems)
             if e is not None:
                 tau[coord_names.index(kname)] = e
+        if not check_symbols:
+            return L, cons, tau, ()
         if L is not None:
             self._check_symbols(L, "the Lagrangian", known, names, problems)
         for i, c in enumerate(cons):
