@@ -36,6 +36,23 @@ TIME = sp.Symbol("t", real=True)
 _NON_SMOOTH = (sp.Heaviside, sp.sign, sp.Min, sp.Max)
 
 
+def jump_times(exprs, subs=None) -> tuple:
+    """Times at which ``exprs`` jump: the roots t = −b/a of the arguments a·t + b (a, b numbers
+    after ``subs``) of Heaviside and sign. A simulation restarts its integrator there (a
+    breakpoint), so a jump in a force or an input law is never stepped over."""
+    out = set()
+    for e in exprs:
+        e = e.xreplace(subs) if subs else e
+        for f in e.atoms(sp.Heaviside, sp.sign):
+            arg = sp.expand(f.args[0])
+            if arg.free_symbols != {TIME}:
+                continue
+            a, b = arg.coeff(TIME, 1), arg.coeff(TIME, 0)
+            if a.is_number and b.is_number and a != 0 and sp.expand(arg - a * TIME - b) == 0:
+                out.add(float(-b / a))
+    return tuple(sorted(out))
+
+
 def velocity_name(coordinate: str) -> str:
     """Name of the velocity symbol of ``coordinate`` (``x`` → ``x_dot``)."""
     return f"{coordinate}_dot"
@@ -379,6 +396,10 @@ class System:
         if not self.constraint_exprs:
             return sp.zeros(0, self.n)
         return sp.Matrix([[sp.diff(c, v) for v in self.q_dot] for c in self.constraint_exprs])
+
+    def force_jump_times(self, values=None) -> tuple:
+        """Times at which a force jumps (Heaviside/sign of a·t + b): integration breakpoints."""
+        return jump_times(self.tau, self.param_subs(values))
 
     def force_vector(self) -> sp.Matrix:
         """Generalized forces τ(t, q, q̇, u), n×1."""
