@@ -2,7 +2,7 @@
 
 :func:`build` turns the CasADi functions of a closed loop (:mod:`.closed_loop`) into one shared
 library: CasADi's C code generator writes the right-hand side, the output map and the event
-measure; the template ``csrc/explicit_rk.c`` adds an embedded explicit Runge–Kutta integrator
+measure; the template ``explicit_rk.c`` (package data) adds an embedded explicit Runge–Kutta integrator
 (DOP853, Dormand–Prince 8(5,3) with its 7th-order dense output, or DOPRI5, the 5(4) pair with
 Shampine's dense output; tableaus in :mod:`.rk_tableaus`), with step-size control, output on a
 grid, a singular-set event located by bisection, stiffness detection and a stop at the first
@@ -124,7 +124,7 @@ def c_source(rhs: ca.Function, outputs: ca.Function, event: ca.Function | None,
               f"#define NHG_HAS_PROJECT {int(project is not None)}\n"
               f"#define NHG_SZ_ARG {sizes[0]}\n#define NHG_SZ_RES {sizes[1]}\n"
               f"#define NHG_SZ_IW {sizes[2]}\n#define NHG_SZ_W {sizes[3]}\n")
-    template = resources.files("nhgait.dynamics").joinpath("csrc", "explicit_rk.c").read_text()
+    template = resources.files("nhgait.dynamics").joinpath("explicit_rk.c").read_text()
     return header + gen.dump() + "\n" + _tableau_source() + "\n" + template
 
 

@@ -159,7 +159,7 @@ def _cancel_numeric(num, den, tol):
     if not d0.free_symbols:
         return sp.factor(exact)
     const, factors = sp.factor_list(d0)
-    num, den = sp.expand(n0), sp.S(const)
+    num, den = sp.expand(n0), const
     for f, k in factors:
         for _ in range(k):
             gens = sorted(num.free_symbols | f.free_symbols, key=sp.default_sort_key)
