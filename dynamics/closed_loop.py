@@ -18,8 +18,10 @@ Functions (SX unless the model's functions are MX)
 ``rhs(t, t_c, y, p[, u]) → ẏ``; ``outputs(t, t_c, y, p[, u]) → (q, q̇, λ, g, E, u, s, W_v, S)``
 with s the singular-set measure (1 away from it, 0 on it), W_v the kinetic metric of the
 velocity part of x (∂²E/∂v², column-major) and S = ω M⁻¹ ωᵀ (DAE forms; column-major);
-``event(y, p) → s``; ``qdot(y, p) → q̇``. ``t_c`` is the controller's time (t clamped to the
-current interval, see :func:`~.simulation.simulate`). ``p = (params, u₀, u₁, t_a)`` for an
+``event(y, p) → s``; ``qdot(y, p) → q̇``. ``t_c`` is t clamped to the current interval
+[a, b) (see :func:`~.simulation.simulate`): the controller *and* the model's time-dependent
+forces are evaluated at t_c, so a jump at a breakpoint b is seen from the left up to b and from
+the right after it, however the integrator places its stages. ``p = (params, u₀, u₁, t_a)`` for an
 open-loop input integrated by segments (u = u₀ + u₁(t_c − t_a) on a segment), else ``params``.
 ``u`` is an explicit input only for a controller without a CasADi form.
 
@@ -170,11 +172,12 @@ class ClosedLoop:
         z = ca.SX.sym("lam", k)
         u_d = ca.substitute(pc["u"], pc["t_c"], ca.fmin(t, t_hi)) if (self.symbolic_u or self.segment_u) else pc["u"]
         xp = pc["params"]
-        res = num["dae_g"](t, x, z, u_d, xp)
+        t_d = ca.fmin(t, t_hi)
+        res = num["dae_g"](t_d, x, z, u_d, xp)
         alpha, beta = pc["alpha"], pc["beta"]
         if stabilization == "baumgarte":
             res = res + 2 * alpha * pc["g"] + (beta ** 2 * pc["g_int"] if self.n_int else 0)
-        ode = ca.vertcat(num["dae_f"](t, x, z, u_d, xp), num["power"](t, x, u_d, xp),
+        ode = ca.vertcat(num["dae_f"](t_d, x, z, u_d, xp), num["power"](t_d, x, u_d, xp),
                          pc["g"] if self.n_int else ca.SX(0, 1))
         return {"t": t, "x": y, "z": z, "p": ca.vertcat(pc["p"], t_hi), "ode": ode, "alg": res}
 
@@ -283,7 +286,7 @@ def _build(model, controller, stabilization, baumgarte, seeds) -> ClosedLoop:
         u_args = [u]
 
     if reduced:
-        xdot = num["rhs"](t, x, u, params)
+        xdot = num["rhs"](t_c, x, u, params)
         lam = ca.SX(0, 1)
         g = num["constraint"](q, qdot, params)
         measure = num["singular"](q, params) if system.k else ca.SX(1)
@@ -292,18 +295,18 @@ def _build(model, controller, stabilization, baumgarte, seeds) -> ClosedLoop:
         g = num["constraint"](x, params)
         if stabilization == "baumgarte":
             lam_sym = ca.SX.sym("lam", k)
-            res = num["dae_g"](t, x, lam_sym, u, params) + 2 * alpha * g
+            res = num["dae_g"](t_c, x, lam_sym, u, params) + 2 * alpha * g
             if n_int:
                 res = res + beta ** 2 * g_int
             S_lam = ca.jacobian(res, lam_sym)
             lam = -ca.solve(S_lam, ca.substitute(res, lam_sym, ca.SX.zeros(k)))
-            xdot = num["dae_f"](t, x, lam, u, params)
+            xdot = num["dae_f"](t_c, x, lam, u, params)
         else:
-            xdot, lam = num["ode"](t, x, u, params)
+            xdot, lam = num["ode"](t_c, x, u, params)
         S = _constraint_gram(model, num, x, params, n) if k else ca.SX(0, 0)
         measure = _hadamard_ratio(S, k) if k else ca.SX(1)
         gram = ca.vec(S)
-    power = num["power"](t, x, u, params)
+    power = num["power"](t_c, x, u, params)
     energy = num["energy"](x, params)
     metric = ca.vec(_velocity_metric(energy, x[n:]))
 

@@ -307,13 +307,16 @@ def _parameter_problems(model, params) -> list:
     return problems
 
 
-def _segments(t0, tf, controller):
-    """Integration intervals [(a, b)] split at the controller's breakpoints inside (t0, tf)."""
-    cuts = [t0, tf]
+def _segments(t0, tf, controller, system=None, params=None):
+    """Integration intervals [(a, b)] split at the controller's breakpoints and at the times a
+    force jumps (``System.force_jump_times``) inside (t0, tf)."""
+    cuts = set()
     if controller is not None and getattr(controller, "breakpoints", None) is not None:
-        bp = np.asarray(controller.breakpoints, dtype=float).ravel()
-        cuts = [t0] + sorted(float(b) for b in bp if t0 < b < tf) + [tf]
-    return list(zip(cuts[:-1], cuts[1:]))
+        cuts.update(float(b) for b in np.asarray(controller.breakpoints, dtype=float).ravel())
+    if system is not None and hasattr(system, "force_jump_times"):
+        cuts.update(system.force_jump_times(params))
+    points = [t0] + sorted(b for b in cuts if t0 < b < tf) + [tf]
+    return list(zip(points[:-1], points[1:]))
 
 
 # --------------------------------------------------------------------------------------------
@@ -377,7 +380,7 @@ def simulate(model, t_span, q0, qdot0, *, controller=None, params=None, method: 
     pv = num.params(params)
     t0, tf = float(t_span[0]), float(t_span[1])
     x0 = to_state(model, q0, qdot0, params)
-    segments = _segments(t0, tf, controller)
+    segments = _segments(t0, tf, controller, system, dict(zip(num.param_names, pv.tolist())))
     if controller is not None:
         with np.errstate(all="ignore"):
             u0 = np.asarray(controller(t0, np.asarray(q0, float), np.asarray(qdot0, float)), float).ravel()

@@ -233,3 +233,21 @@ def test_trajectory_arrays_are_read_only(models):
     assert traj.lam is None and traj.state.shape[1] == 6
     with pytest.raises(ValueError):
         traj.q[0, 0] = 1.0
+
+
+@pytest.mark.parametrize("method", ["DOP853", "compiled", "CVODES"])
+def test_force_jump_is_a_breakpoint(method):
+    """τ_θ = Heaviside(t − 0.3): θ = (t − 0.3)²/(2 J_θ) after the jump (closed form), even though
+    no controller announces the jump time (System.force_jump_times splits the run)."""
+    from nhgait.dynamics import System, derive
+    system = System(name="uni_step", coordinates=["x", "y", "theta", "phi"],
+                    lagrangian="m*(x_dot**2 + y_dot**2)/2 + J_theta*theta_dot**2/2 + J_phi*phi_dot**2/2",
+                    constraints=["x_dot - r*cos(theta)*phi_dot", "y_dot - r*sin(theta)*phi_dot"],
+                    forces={"theta": "Heaviside(t - 0.3)"},
+                    parameters={"m": 0.5, "r": 0.1, "J_phi": 0.2, "J_theta": 0.3})
+    traj = simulate(derive(system, "reduced"), (0.0, 1.0), np.zeros(4), np.zeros(4), method=method,
+                    rtol=1e-12, atol=1e-14, t_eval=[0.0, 0.3, 1.0])
+    assert traj.success and traj.settings["segments"] == 2
+    assert traj.q[1, 2] == pytest.approx(0.0, abs=1e-14)
+    assert traj.q[2, 2] == pytest.approx(0.7 ** 2 / (2 * 0.3), abs=1e-11)
+    assert traj.qdot[2, 2] == pytest.approx(0.7 / 0.3, abs=1e-11)
