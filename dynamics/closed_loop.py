@@ -340,7 +340,8 @@ def _build(model, controller, stabilization, baumgarte, seeds) -> ClosedLoop:
     args = [t, t_c, y] + u_args + [p]
     names = ["t", "t_c", "y"] + ["u"] * bool(u_args) + ["p"]
     outs = [restrict(o) for o in (q, qdot, lam, g, energy, u, measure, metric, gram)]
-    rhs = ca.Function("closed_loop", args, [ca.densify(ydot)], names, ["ydot"])
+    ydot = ca.cse(ca.densify(ydot))       # the model's functions share subexpressions once inlined
+    rhs = ca.Function("closed_loop", args, [ydot], names, ["ydot"])
     outputs = ca.Function("outputs", args, [ca.densify(o) for o in outs], names, list(OUTPUT_NAMES))
     event = ca.Function("event", [y, p], [restrict(measure)], ["y", "p"], ["measure"]) if system.k else None
     qdot_f = ca.Function("qdot", [y, p], [ca.densify(restrict(qdot))], ["y", "p"], ["qdot"])

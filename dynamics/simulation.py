@@ -609,15 +609,15 @@ def _diagnostics(model, loop, run, out, extra) -> dict:
 
 
 def _max_cond(block) -> float | None:
+    """Largest 2-norm condition number of the (k, k) matrices stored column-major per row."""
     if not block.size:
         return None
     k = int(round(np.sqrt(block.shape[1])))
-    worst = None
-    for row in block:
-        if np.all(np.isfinite(row)):
-            c = float(np.linalg.cond(row.reshape(k, k)))
-            worst = c if worst is None else max(worst, c)
-    return worst
+    rows = block[np.all(np.isfinite(block), axis=1)]
+    if not rows.size:
+        return None
+    with np.errstate(all="ignore"):
+        return float(np.max(np.linalg.cond(rows.reshape(-1, k, k).transpose(0, 2, 1))))
 
 
 def _named_outputs(model, loop, resolved, quantities, out, Y, pv) -> dict:
