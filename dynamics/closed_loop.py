@@ -253,101 +253,108 @@ def _hadamard_ratio(S, k):
     return ca.det(S) / (diag + 1e-300)
 
 
+def _input(controller, m, t_c, q, qdot, params):
+    """(u, explicit u arguments, p, symbolic, by segments): the input as the closed loop sees it."""
+    if controller is None:
+        return ca.SX.zeros(m), [], params, False, False
+    if _is_open_loop(controller):                 # u = u₀ + u₁(t_c − a) on each segment
+        u0, u1, t_a = ca.SX.sym("u0", m), ca.SX.sym("u1", m), ca.SX.sym("t_a")
+        return u0 + u1 * (t_c - t_a), [], ca.vertcat(params, u0, u1, t_a), False, True
+    if hasattr(controller, "casadi"):
+        u = ca.vertcat(controller.casadi(t_c, q, qdot))
+        if u.shape != (m, 1):
+            raise ModelError([f"controller.casadi returned shape {u.shape}, expected ({m}, 1)"],
+                             title="invalid controller")
+        return u, [], params, True, False
+    u = ca.SX.sym("u", m)
+    return u, [u], params, False, False
+
+
+def _dynamics(model, stabilization, alpha, beta, t_c, x, u, params, g_int):
+    """(ẋ, λ, g, singular-set measure, vec S) of the formulation at (t_c, x, u)."""
+    num, system = model.numeric, model.system
+    n = system.n
+    if model.formulation == "reduced":
+        q, qdot = x[:n], num["qdot"](x, params)
+        measure = num["singular"](q, params) if system.k else ca.SX(1)
+        return (num["rhs"](t_c, x, u, params), ca.SX(0, 1), num["constraint"](q, qdot, params),
+                measure, ca.SX(0, 1))
+    k = num.n_multipliers
+    g = num["constraint"](x, params)
+    if stabilization == "baumgarte":              # ġ + 2αg + β²∫g = 0 solved for λ
+        lam_sym = ca.SX.sym("lam", k)
+        res = num["dae_g"](t_c, x, lam_sym, u, params) + 2 * alpha * g
+        if g_int.shape[0]:
+            res = res + beta ** 2 * g_int
+        S_lam = ca.jacobian(res, lam_sym)
+        lam = -ca.solve(S_lam, ca.substitute(res, lam_sym, ca.SX.zeros(k)))
+        xdot = num["dae_f"](t_c, x, lam, u, params)
+    else:
+        xdot, lam = num["ode"](t_c, x, u, params)
+    S = _constraint_gram(model, num, x, params, n) if k else ca.SX(0, 0)
+    return xdot, lam, g, (_hadamard_ratio(S, k) if k else ca.SX(1)), ca.vec(S)
+
+
+def _integrated(model, seeds, x, params, xdot, measure, qdot, g, power, n_int, opaque_u):
+    """(indices of x to integrate, measure, whether W is integrated): the closure of the seeds
+    plus what the event, ∫g and an opaque controller read (see :mod:`.closure`)."""
+    nx, n = x.shape[0], model.system.n
+    if seeds is None:
+        return tuple(range(nx)), measure, True
+
+    def reads(expr):
+        return [i for i in range(nx) if ca.depends_on(expr, x[i])]
+    dep = np.array(ca.DM(ca.jacobian_sparsity(xdot, x), 1)).astype(bool)
+    free = _invariant_entries(measure, x, params, reads(measure), model.numeric.param_defaults)
+    measure = ca.substitute(measure, x[free], ca.SX.zeros(len(free))) if free else measure
+    opaque = list(range(n)) + reads(qdot) if opaque_u else []   # a Python law may read anything
+    index = closure(dep, list(seeds) + reads(measure) + (reads(g) if n_int else []) + opaque)
+    return index, measure, set(reads(power)) <= set(index)
+
+
 def _build(model, controller, stabilization, baumgarte, seeds) -> ClosedLoop:
-    num = model.numeric
-    system = model.system
+    num, system = model.numeric, model.system
     n, nx, m = system.n, len(model.state_names), len(system.inputs)
-    reduced = model.formulation == "reduced"
-    k = 0 if reduced else num.n_multipliers
+    k = 0 if model.formulation == "reduced" else num.n_multipliers
     alpha, beta = (float(v) for v in baumgarte) if stabilization == "baumgarte" else (0.0, 0.0)
     n_int = k if (stabilization == "baumgarte" and beta != 0.0) else 0
     t, t_c = ca.SX.sym("t"), ca.SX.sym("t_c")
     params = ca.SX.sym("params", len(num.param_names))
     x, work, g_int = ca.SX.sym("x", nx), ca.SX.sym("work"), ca.SX.sym("g_int", n_int)
-    q = x[:n]
-    qdot = num["qdot"](x, params)
-
-    segment_u = controller is not None and _is_open_loop(controller)
-    symbolic_u = controller is not None and not segment_u and hasattr(controller, "casadi")
-    u_args, p = [], params
-    if controller is None:
-        u = ca.SX.zeros(m)
-    elif segment_u:
-        u0, u1, t_a = ca.SX.sym("u0", m), ca.SX.sym("u1", m), ca.SX.sym("t_a")
-        u = u0 + u1 * (t_c - t_a)
-        p = ca.vertcat(params, u0, u1, t_a)
-    elif symbolic_u:
-        u = ca.vertcat(controller.casadi(t_c, q, qdot))
-        if u.shape != (m, 1):
-            raise ModelError([f"controller.casadi returned shape {u.shape}, expected ({m}, 1)"],
-                             title="invalid controller")
-    else:
-        u = ca.SX.sym("u", m)
-        u_args = [u]
-
-    if reduced:
-        xdot = num["rhs"](t_c, x, u, params)
-        lam = ca.SX(0, 1)
-        g = num["constraint"](q, qdot, params)
-        measure = num["singular"](q, params) if system.k else ca.SX(1)
-        gram = ca.SX(0, 1)
-    else:
-        g = num["constraint"](x, params)
-        if stabilization == "baumgarte":
-            lam_sym = ca.SX.sym("lam", k)
-            res = num["dae_g"](t_c, x, lam_sym, u, params) + 2 * alpha * g
-            if n_int:
-                res = res + beta ** 2 * g_int
-            S_lam = ca.jacobian(res, lam_sym)
-            lam = -ca.solve(S_lam, ca.substitute(res, lam_sym, ca.SX.zeros(k)))
-            xdot = num["dae_f"](t_c, x, lam, u, params)
-        else:
-            xdot, lam = num["ode"](t_c, x, u, params)
-        S = _constraint_gram(model, num, x, params, n) if k else ca.SX(0, 0)
-        measure = _hadamard_ratio(S, k) if k else ca.SX(1)
-        gram = ca.vec(S)
+    q, qdot = x[:n], num["qdot"](x, params)
+    u, u_args, p, symbolic_u, segment_u = _input(controller, m, t_c, q, qdot, params)
+    xdot, lam, g, measure, gram = _dynamics(model, stabilization, alpha, beta, t_c, x, u, params, g_int)
     power = num["power"](t_c, x, u, params)
     energy = num["energy"](x, params)
     metric = ca.vec(_velocity_metric(energy, x[n:]))
+    index, measure, has_work = _integrated(model, seeds, x, params, xdot, measure, qdot, g, power,
+                                           n_int, bool(u_args))
+    if len(index) == nx:
+        x_s = x
 
-    # which entries of x are integrated: the closure of the seeds (+ what the event and ∫g read)
-    index, has_work = tuple(range(nx)), True
-    if seeds is not None:
-        def reads(expr):
-            return [i for i in range(nx) if ca.depends_on(expr, x[i])]
-        dep = np.array(ca.DM(ca.jacobian_sparsity(xdot, x), 1)).astype(bool)
-        free = _invariant_entries(measure, x, params, reads(measure), num.param_defaults)
-        measure = ca.substitute(measure, x[free], ca.SX.zeros(len(free))) if free else measure
-        # a controller without a CasADi form may read any coordinate and velocity
-        opaque = list(range(n)) + reads(qdot) if u_args else []
-        index = closure(dep, list(seeds) + reads(measure) + (reads(g) if n_int else []) + opaque)
-        has_work = set(reads(power)) <= set(index)
-    full = len(index) == nx
-    if full:
-        x_s = x_full = x
-    else:
+        def restrict(expr):
+            return expr
+    else:                                         # entries not integrated are NaN constants
         x_s = ca.SX.sym("x_s", len(index))
         entries = [ca.SX(np.nan)] * nx
         for j, i in enumerate(index):
             entries[i] = x_s[j]
         x_full = ca.vertcat(*entries)
 
-    def restrict(expr):
-        return expr if full else ca.substitute(expr, x, x_full)
-
+        def restrict(expr):
+            return ca.substitute(expr, x, x_full)
     y = ca.vertcat(x_s, work if has_work else ca.SX(0, 1), g_int)
     ydot = restrict(ca.vertcat(xdot[list(index)], power if has_work else ca.SX(0, 1), g[:n_int]))
-    args = [t, t_c, y] + u_args + [p]
-    names = ["t", "t_c", "y"] + ["u"] * bool(u_args) + ["p"]
-    outs = [restrict(o) for o in (q, qdot, lam, g, energy, u, measure, metric, gram)]
-    ydot = ca.cse(ca.densify(ydot))       # the model's functions share subexpressions once inlined
-    rhs = ca.Function("closed_loop", args, [ydot], names, ["ydot"])
-    outputs = ca.Function("outputs", args, [ca.densify(o) for o in outs], names, list(OUTPUT_NAMES))
-    event = ca.Function("event", [y, p], [restrict(measure)], ["y", "p"], ["measure"]) if system.k else None
-    qdot_f = ca.Function("qdot", [y, p], [ca.densify(restrict(qdot))], ["y", "p"], ["qdot"])
-    pieces = dict(args=args, names=names, ydot=ydot, y=y, x=x, g=g, energy=energy, num=num, t=t,
-                  t_c=t_c, u=u, p=p, params=params, g_int=g_int, alpha=alpha, beta=beta)
-    return ClosedLoop(formulation=model.formulation, n_q=n, n_x=nx, n_y=int(y.shape[0]),
-                      n_params=len(num.param_names), n_u=m, state_index=tuple(index),
-                      has_work=has_work, n_int=n_int, symbolic_u=symbolic_u, segment_u=segment_u,
-                      rhs=rhs, outputs=outputs, event=event, qdot=qdot_f, _pieces=pieces)
+    ydot = ca.cse(ca.densify(ydot))               # the model's functions share subexpressions
+    args, names = [t, t_c, y] + u_args + [p], ["t", "t_c", "y"] + ["u"] * bool(u_args) + ["p"]
+    outs = [ca.densify(restrict(o)) for o in (q, qdot, lam, g, energy, u, measure, metric, gram)]
+    return ClosedLoop(
+        formulation=model.formulation, n_q=n, n_x=nx, n_y=int(y.shape[0]),
+        n_params=len(num.param_names), n_u=m, state_index=tuple(index), has_work=has_work,
+        n_int=n_int, symbolic_u=symbolic_u, segment_u=segment_u,
+        rhs=ca.Function("closed_loop", args, [ydot], names, ["ydot"]),
+        outputs=ca.Function("outputs", args, outs, names, list(OUTPUT_NAMES)),
+        event=ca.Function("event", [y, p], [restrict(measure)], ["y", "p"], ["measure"]) if system.k else None,
+        qdot=ca.Function("qdot", [y, p], [ca.densify(restrict(qdot))], ["y", "p"], ["qdot"]),
+        _pieces=dict(args=args, names=names, ydot=ydot, y=y, x=x, g=g, energy=energy, num=num, t=t,
+                     t_c=t_c, u=u, p=p, params=params, g_int=g_int, alpha=alpha, beta=beta))

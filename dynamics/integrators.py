@@ -171,9 +171,10 @@ def _event_in_step(solver, event, params, t_old, t_new, y_new, g_old, tol):
 
 
 def integrate_scipy(loop, controller, segments, y0, seg_params, t_eval, method, rtol, atol, max_step,
-                    max_steps, event_tol, projection=False) -> Run:
+                    max_steps, event_tol, projection=False, stop_on_stiff=False) -> Run:
     """Integrate with a scipy OdeSolver, one step at a time (see the module docstring);
-    ``projection``: project the velocities onto the constraints after every step."""
+    ``projection``: project the velocities onto the constraints after every step;
+    ``stop_on_stiff``: end (message "stiff") when stiffness is detected."""
     cls = SCIPY_METHODS[method]
     run = Run()
     te = None if t_eval is None else np.asarray(t_eval, dtype=float)
@@ -184,7 +185,7 @@ def integrate_scipy(loop, controller, segments, y0, seg_params, t_eval, method, 
     project = Fast(loop.project) if projection else None
     event = Fast(loop.event) if (loop.event is not None and event_tol) else None
     budget = {"left": _EVALS_PER_STEP * max_steps + 1000}
-    last_h, stiff_count = None, 0
+    last_h, stiff = None, {"count": 0}
     for j, (a, b) in enumerate(segments):
         t_hi, p = left_of(b), seg_params[j]
         fun = _scipy_fun(rhs, qdot_fn, loop, controller, t_hi, p, budget)
@@ -192,75 +193,37 @@ def integrate_scipy(loop, controller, segments, y0, seg_params, t_eval, method, 
         if _first_bad(f0) is not None:
             return run.fail(NONFINITE, a, "", bad=_first_bad(f0))
 
-        def jac(t, yy, t_hi=t_hi, p=p):
-            return jac_fn(t, min(t, t_hi), yy, p)
-
-        def make(t_start, y_start, h):
+        def make(t_start, y_start, h, t_hi=t_hi, p=p, b=b, fun=fun):
             opts = dict(rtol=rtol, atol=atol, max_step=max_step)
             if h is not None:
                 opts["first_step"] = min(h, b - t_start)
             if jac_fn is not None:
-                opts["jac"] = jac
+                opts["jac"] = lambda t, yy: jac_fn(t, min(t, t_hi), yy, p)
             return cls(fun, t_start, y_start, b, **opts)
 
-        solver = make(a, y, last_h)
-        counted = 0
+        solver, counted = make(a, y, last_h), 0
         g_old = float(event(y, p)[0]) if event is not None else 1.0
         while solver.status == "running":
             t_old = solver.t
-            try:
-                message = solver.step()
-            except _Budget:
-                run.nfev += solver.nfev - counted
-                return run.fail(MAX_STEPS, solver.t, f"evaluation budget ({_EVALS_PER_STEP}·max_steps) "
-                                f"spent at t = {solver.t:.9g}")
-            except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
-                # e.g. a non-finite finite-difference Jacobian refused by the LU factorisation
-                run.nfev += solver.nfev - counted
-                run.t_bad = _attempted(solver, b)
-                return run.fail(FAILED, solver.t, f"integration failed at t = {solver.t:.9g}: scipy "
-                                f"{method} raised {type(exc).__name__} ({exc})")
-            run.nfev += solver.nfev - counted
-            counted = solver.nfev
-            if solver.status == "failed" or _first_bad(solver.y) is not None:
-                run.njev += getattr(solver, "njev", 0)
-                run.t_bad = _attempted(solver, b)
-                return run.fail(FAILED, solver.t, f"integration failed at t = {solver.t:.9g}: "
-                                + (message or "non-finite state"))
-            run.n_steps += 1
+            ok, counted = _advance(solver, run, method, b, counted)
+            if not ok:
+                return run
             t_new, y_new = solver.t, solver.y.copy()
-            f_new = getattr(solver, "f", None)
-            hl = _stiffness(solver, method)
-            if hl is not None:
-                run.h_lambda = max(run.h_lambda, hl)
-                stiff_count = stiff_count + 1 if hl > STIFF_LIMIT[method] else 0
-                if stiff_count >= 15 and run.t_stiff is None:
-                    run.t_stiff = t_new
+            if _watch_stiffness(solver, method, run, stiff) and stop_on_stiff:
+                return run.fail(FAILED, t_new, "stiff")
             if project is not None:
                 y_new = project(y_new, p[:loop.n_params])
-            dense = None
-            t_end_step = t_new
+            found = None
             if event is not None:
                 found, g_old = _event_in_step(solver, event, p, t_old, t_new, y_new, g_old, event_tol)
-                if found is not None:
-                    t_end_step, y_ev = found
-            if te is None:
-                if t_end_step == t_new:
-                    run.add(t_new, t_hi, j, y_new)
-            else:
-                while i_eval < te.size and te[i_eval] <= t_end_step + 1e-12 * max(1.0, abs(t_end_step)):
-                    tt = float(te[i_eval])
-                    if tt >= t_new:
-                        yy = y_new
-                    else:
-                        dense = dense or solver.dense_output()
-                        yy = dense(tt) if project is None else project(dense(tt), p[:loop.n_params])
-                    run.add(tt, t_hi, j, yy)
-                    i_eval += 1
-            if t_end_step < t_new:
-                run.add(t_end_step, t_hi, j, y_ev)
+            t_stop = t_new if found is None else found[0]
+            i_eval = _record_step(run, solver, te, i_eval, t_stop, y_new, project, p[:loop.n_params],
+                                  t_hi, j)
+            if found is not None:
+                run.add(found[0], t_hi, j, found[1])
                 run.njev += getattr(solver, "njev", 0)
-                return run.fail(SINGULAR, t_end_step, "")
+                return run.fail(SINGULAR, found[0], "")
+            f_new = getattr(solver, "f", None)        # f(t_new, y_new) of the RK and Radau solvers
             if f_new is not None and _first_bad(f_new) is not None:
                 return run.fail(NONFINITE, t_new, "", bad=_first_bad(f_new))
             if run.n_steps >= max_steps and (solver.status == "running" or j < len(segments) - 1):
@@ -273,6 +236,67 @@ def integrate_scipy(loop, controller, segments, y0, seg_params, t_eval, method, 
         last_h = _next_step(solver)
         y = np.asarray(solver.y if project is None else y_new, dtype=float)
     return run
+
+
+def _advance(solver, run, method, b, counted):
+    """One step of ``solver``: (True, evaluations counted) or (False, …) with ``run`` failed."""
+    try:
+        message = solver.step()
+    except _Budget:
+        run.nfev += solver.nfev - counted
+        run.fail(MAX_STEPS, solver.t, f"evaluation budget ({_EVALS_PER_STEP}·max_steps) spent at "
+                 f"t = {solver.t:.9g}")
+        return False, counted
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        # e.g. a non-finite finite-difference Jacobian refused by the LU factorisation
+        run.nfev += solver.nfev - counted
+        run.t_bad = _attempted(solver, b)
+        run.fail(FAILED, solver.t, f"integration failed at t = {solver.t:.9g}: scipy {method} "
+                 f"raised {type(exc).__name__} ({exc})")
+        return False, counted
+    run.nfev += solver.nfev - counted
+    if solver.status == "failed" or _first_bad(solver.y) is not None:
+        run.njev += getattr(solver, "njev", 0)
+        run.t_bad = _attempted(solver, b)
+        run.fail(FAILED, solver.t, f"integration failed at t = {solver.t:.9g}: "
+                 + (message or "non-finite state"))
+        return False, solver.nfev
+    run.n_steps += 1
+    return True, solver.nfev
+
+
+def _watch_stiffness(solver, method, run, stiff) -> bool:
+    """Update h|λ| and the count of consecutive stiff steps; True when stiffness is detected."""
+    hl = _stiffness(solver, method)
+    if hl is None:
+        return False
+    run.h_lambda = max(run.h_lambda, hl)
+    stiff["count"] = stiff["count"] + 1 if hl > STIFF_LIMIT[method] else 0
+    if stiff["count"] >= 15 and run.t_stiff is None:
+        run.t_stiff = float(solver.t)
+        return True
+    return False
+
+
+def _record_step(run, solver, te, i_eval, t_stop, y_new, project, params, t_hi, j) -> int:
+    """Record the step's output points up to ``t_stop`` (the step's end, or an event inside it);
+    returns the next index into ``te``."""
+    t_new = solver.t
+    if te is None:
+        if t_stop == t_new:
+            run.add(t_new, t_hi, j, y_new)
+        return i_eval
+    dense = None
+    while i_eval < te.size and te[i_eval] <= t_stop + 1e-12 * max(1.0, abs(t_stop)):
+        tt = float(te[i_eval])
+        if tt >= t_new:
+            yy = y_new
+        else:
+            dense = dense or solver.dense_output()
+            yy = dense(tt) if project is None else project(dense(tt), params)
+        run.add(tt, t_hi, j, yy)
+        i_eval += 1
+    return i_eval
 
 
 def _explicit_u(loop, controller) -> bool:

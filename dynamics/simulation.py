@@ -437,7 +437,7 @@ def _run_route(model, loop, controller, method, dae, segments, y0, seg_params, t
         if library is None:
             settings["fallback"] = f"{reason}; integrated with scipy DOP853"
             if "compiler" in reason:
-                warnings.warn(f"method={method!r}: {settings['fallback']}", stacklevel=4)
+                warnings.warn(f"method={method!r}: {settings['fallback']}", stacklevel=3)
         else:
             extra["library"] = library
             extra["compile_time_s"] = library.compile_time_s
@@ -449,7 +449,15 @@ def _run_route(model, loop, controller, method, dae, segments, y0, seg_params, t
                                            seg_params, t_eval, rtol, atol, max_step, max_steps,
                                            singular_tol, settings, extra)
             return run, f"compiled {scheme}", extra
-        method = "DOP853"
+        auto, method = method == "auto", "DOP853"
+        if auto:
+            run = integrate_scipy(loop, controller, segments, y0, seg_params, t_eval, method, rtol,
+                                  atol, max_step, max_steps, singular_tol, stop_on_stiff=True)
+            if run.message == "stiff":
+                return _switch_to_implicit(loop, controller, run, explicit_u, segments, y0,
+                                           seg_params, t_eval, rtol, atol, max_step, max_steps,
+                                           singular_tol, settings, extra)
+            return run, method, extra
     run = integrate_scipy(loop, controller, segments, y0, seg_params, t_eval, method, rtol, atol,
                           max_step, max_steps, singular_tol, projection=stabilization == "projection")
     return run, method, extra
@@ -458,7 +466,7 @@ def _run_route(model, loop, controller, method, dae, segments, y0, seg_params, t
 def _switch_to_implicit(loop, controller, run, explicit_u, segments, y0, seg_params, t_eval,
                         rtol, atol, max_step, max_steps, singular_tol, settings, extra):
     implicit = "Radau" if explicit_u else "CVODES"
-    settings["auto"] = (f"compiled DOP853 detected stiffness at t = {run.t_stiff:.6g} (h|λ| "
+    settings["auto"] = (f"DOP853 detected stiffness at t = {run.t_stiff:.6g} (h|λ| "
                         f"up to {run.h_lambda:.3g} for 15 steps: the step is set by stability) "
                         f"after {run.nfev} evaluations; redone with {implicit}")
     if implicit == "CVODES":

@@ -187,3 +187,20 @@ def test_world_writable_jit_directory_is_refused(models, monkeypatch, tmp_path):
                         method="compiled", rtol=1e-10, atol=1e-12)
     assert traj.success and np.max(np.abs(traj.q[-1] - _closed_form(1.0))) < 1e-8
     assert Path(tmp_path / "jit").stat().st_mode & 0o777 == 0o777    # left as the user set it
+
+
+def test_auto_without_compiler_still_switches_when_stiff(models, monkeypatch):
+    """method="auto" on scipy DOP853 (no compiler) detects the stiff gains and switches."""
+    import math
+    from nhgait.dynamics.controllers import PDTracking, Sinusoid
+    monkeypatch.setenv("NHGAIT_CC", "/nonexistent/bin/cc")
+    stiff = PDTracking(coordinates=("psi", "phi"),
+                       desired={"psi": Sinusoid(), "phi": Sinusoid(phase=math.pi / 2)},
+                       kp=1e4, kd=1000.0, feedforward=True,
+                       system_coordinates=("x", "y", "theta", "psi", "phi"), inputs=("tau_psi", "tau_phi"))
+    with pytest.warns(UserWarning, match="no usable C compiler"):
+        traj = simulate(models["snakeboard"]["reduced"], (0.0, 2.0), np.array([0, 0, 0, 0, 1.0]),
+                        np.array([0, 0, 0, 1.0, 0]), controller=stiff, method="auto", rtol=1e-6,
+                        atol=1e-8, t_eval=[0.0, 2.0])
+    assert traj.success and traj.method == "CVODES"
+    assert "DOP853 detected stiffness" in traj.settings["auto"] and "fallback" in traj.settings
