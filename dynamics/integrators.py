@@ -339,70 +339,86 @@ def _next_step(solver):
 # --------------------------------------------------------------------------------------------
 # SUNDIALS through CasADi
 # --------------------------------------------------------------------------------------------
+#: output points per SUNDIALS call: a failure loses at most this many outputs
+_CHUNK = 16
+
+
 def integrate_sundials(loop, kind, segments, y0, lam0, seg_params, t_eval, rtol, atol, max_steps,
                        event_tol, stabilization=None, baumgarte=(1.0, 0.0)) -> Run:
     """CVODES (``kind="cvodes"``, BDF with Newton) on the ODE or IDAS (``kind="idas"``) on the
-    index-1 DAE; outputs at ``t_eval`` (or the interval ends); the event is checked there."""
+    index-1 DAE; outputs at ``t_eval`` (or the interval ends), :data:`_CHUNK` output points per
+    call; the event is checked at the outputs. For CVODES a step size below 10⁻¹³·max(1, |t|) is
+    a failure (it would otherwise spend ``max_steps`` steps going nowhere next to a
+    singularity)."""
     te = None if t_eval is None else np.asarray(t_eval, dtype=float)
     run = Run(lam=[] if kind == "idas" else None)
     y, lam = np.array(y0, dtype=float), None if lam0 is None else np.array(lam0, dtype=float)
+    t_max = max(abs(segments[0][0]), abs(segments[-1][1]), 1.0)
     opts = {"abstol": atol, "reltol": rtol, "max_num_steps": int(max_steps), "print_stats": False,
             "show_eval_warnings": False, "disable_internal_warnings": True}
     if kind == "idas":
         opts.update(calc_ic=True, suppress_algebraic=True)
         problem = loop.dae(stabilization, baumgarte)
     else:
+        opts["min_step_size"] = 1e-13 * t_max        # CVODES only (IDAS has no such option)
         problem = _cvodes_problem(loop)
     event = Fast(loop.event) if (loop.event is not None and event_tol) else None
     for j, (a, b) in enumerate(segments):
         tol = 1e-12 * max(1.0, abs(b))
-        record = [] if te is None else [float(tt) for tt in te if a + 1e-12 * max(1.0, abs(a)) < tt <= b + tol]
-        grid = record[:-1] + [b] if record and abs(record[-1] - b) <= tol else record + [b]
-        if te is None:
-            record = [b]
-        p = seg_params[j]
+        wanted = [] if te is None else [float(tt) for tt in te if a + 1e-12 * max(1.0, abs(a)) < tt <= b + tol]
+        grid = [min(tt, b) for tt in wanted]
+        if not grid or grid[-1] < b:
+            grid.append(b)
+        names = dict(zip(grid, wanted)) if te is not None else {b: b}
+        p, t_cur = seg_params[j], a
         pv = np.r_[p, left_of(b)]
-        F = ca.integrator(f"{kind}_segment_{j}", kind, problem, a, grid, opts)
-        args = dict(x0=y, p=pv)
-        if kind == "idas":
-            args["z0"] = lam
-        try:
-            out = F(**args)
-        except RuntimeError as err:
-            run.nfev += int(F.stats().get("nfevals", 0))
-            t_last = run.t[-1] if run.t and run.seg[-1] == j else a
-            y_last = run.y[-1] if run.t and run.seg[-1] == j else y
-            lam_last = run.lam[-1] if (lam is not None and run.t and run.seg[-1] == j) else lam
-            t_ok, y_ok, t_bad = _bracket_failure(kind, problem, opts, pv, t_last, y_last, lam_last, b)
-            run.y_fail, run.t_bad = y_ok, t_bad
-            if event is not None and float(event(y_ok, p)[0]) < WATCH * event_tol:
-                return run.fail(SINGULAR, t_ok, f"{kind.upper()} stopped between t = {t_ok:.9g} and "
-                                f"t = {t_bad:.9g}, next to the singular set (measure "
-                                f"{float(event(y_ok, p)[0]):.3g} at t = {t_ok:.9g})")
-            reason = str(err).splitlines()[-1].split(": ")[-1]
-            if "TOO_MUCH_WORK" in reason:
-                return run.fail(MAX_STEPS, t_ok, f"max_steps = {max_steps} (per output interval) "
-                                f"reached between t = {t_ok:.9g} and t = {t_bad:.9g}")
-            return run.fail(FAILED, t_ok, f"{kind.upper()} failed between t = {t_ok:.9g} and "
-                            f"t = {t_bad:.9g}: {reason}")
-        stats = F.stats()
-        run.nfev += int(stats.get("nfevals", 0))
-        run.njev += int(stats.get("n_call_jacF", stats.get("njevals", 0)))
-        run.n_steps += int(stats.get("nsteps", 0))
-        xf = np.asarray(out["xf"]).reshape(y.size, -1)
-        zf = np.asarray(out["zf"]).reshape(lam.size, -1) if kind == "idas" else None
-        for i, tt in enumerate(record):
-            col = grid.index(tt) if tt in grid else len(grid) - 1
-            if event is not None:
-                g = float(event(xf[:, col], p)[0])
-                if not (np.isfinite(g) and g >= event_tol):
-                    t_prev = run.t[-1] if run.t else a
-                    return run.fail(SINGULAR, tt, f"reached the singular set between t = {t_prev:.9g} "
-                                    f"and t = {tt:.9g} (measure {g:.3g} < {event_tol:g} on the output grid)")
-            run.add(tt, left_of(b), j, xf[:, col], None if zf is None else zf[:, col])
-        y = xf[:, -1].copy()
-        lam = None if zf is None else zf[:, -1].copy()
+        for c in range(0, len(grid), _CHUNK):
+            chunk = grid[c:c + _CHUNK]
+            F = ca.integrator(f"{kind}_segment_{j}", kind, problem, t_cur, chunk, opts)
+            args = dict(x0=y, p=pv) if kind != "idas" else dict(x0=y, p=pv, z0=lam)
+            try:
+                out = F(**args)
+            except RuntimeError as err:
+                run.nfev += int(F.stats().get("nfevals", 0))
+                return _sundials_failure(run, kind, problem, opts, pv, p, t_cur, y, lam, b, err,
+                                         event, event_tol, max_steps)
+            stats = F.stats()
+            run.nfev += int(stats.get("nfevals", 0))
+            run.njev += int(stats.get("n_call_jacF", stats.get("njevals", 0)))
+            run.n_steps += int(stats.get("nsteps", 0))
+            xf = np.asarray(out["xf"]).reshape(y.size, -1)
+            zf = np.asarray(out["zf"]).reshape(lam.size, -1) if kind == "idas" else None
+            for col, gt in enumerate(chunk):
+                if gt not in names:
+                    continue
+                if event is not None:
+                    g = float(event(xf[:, col], p)[0])
+                    if not (np.isfinite(g) and g >= event_tol):
+                        t_prev = run.t[-1] if run.t else a
+                        return run.fail(SINGULAR, names[gt], f"reached the singular set between "
+                                        f"t = {t_prev:.9g} and t = {names[gt]:.9g} (measure {g:.3g} "
+                                        f"< {event_tol:g} on the output grid)")
+                run.add(names[gt], left_of(b), j, xf[:, col], None if zf is None else zf[:, col])
+            y, t_cur = xf[:, -1].copy(), chunk[-1]
+            lam = None if zf is None else zf[:, -1].copy()
     return run
+
+
+def _sundials_failure(run, kind, problem, opts, pv, p, t, y, lam, b, err, event, event_tol,
+                      max_steps) -> Run:
+    """Bracket a SUNDIALS failure after (t, y) and classify it (singular set, max_steps, other)."""
+    t_ok, y_ok, t_bad = _bracket_failure(kind, problem, opts, pv, t, y, lam, b)
+    run.y_fail, run.t_bad = y_ok, t_bad
+    if event is not None and float(event(y_ok, p)[0]) < WATCH * event_tol:
+        return run.fail(SINGULAR, t_ok, f"{kind.upper()} stopped between t = {t_ok:.9g} and "
+                        f"t = {t_bad:.9g}, next to the singular set (measure "
+                        f"{float(event(y_ok, p)[0]):.3g} at t = {t_ok:.9g})")
+    reason = str(err).splitlines()[-1].split(": ")[-1]
+    if "TOO_MUCH_WORK" in reason:
+        return run.fail(MAX_STEPS, t_ok, f"max_steps = {max_steps} (per output interval) reached "
+                        f"between t = {t_ok:.9g} and t = {t_bad:.9g}")
+    return run.fail(FAILED, t_ok, f"{kind.upper()} failed between t = {t_ok:.9g} and "
+                    f"t = {t_bad:.9g}: {reason}")
 
 
 def _bracket_failure(kind, problem, opts, pv, t, y, lam, b, levels=2, pieces=16):
