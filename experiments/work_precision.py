@@ -471,7 +471,13 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default="out/work_precision")
     parser.add_argument("--docs", action="store_true", help="also write docs/benchmarks.md and docs/img")
     parser.add_argument("--no-anchor", action="store_true")
+    parser.add_argument("--replot", metavar="CSV", help="only redraw the figures from an earlier CSV")
     args = parser.parse_args(argv)
+    if args.replot:
+        import matplotlib
+        matplotlib.use("Agg", force=False)
+        Path(args.out).mkdir(parents=True, exist_ok=True)
+        return replot(args.replot, args.out)
     tolerances = [float(t) for t in args.tols.split(",")]
     methods = [m for m in args.methods.split(",") if m]
     out = Path(args.out)
@@ -501,17 +507,8 @@ def main(argv=None) -> int:
             rows += [dataclasses.replace(r, label=r.label + " (all 8 states)") for r in
                      wp.measure(full, setups, tols, repeats=args.repeats)]
         all_rows += rows + anchors
-        forms = list(dict.fromkeys(r.formulation for r in rows))
-        fig, axes = plt.subplots(1, len(forms), figsize=(5.2 * len(forms), 5.2), sharex=True,
-                                 sharey=True, squeeze=False)
-        for ax, f in zip(axes[0], forms):
-            wp.plot_case([r for r in rows if r.formulation == f], ax, anchor=anchors,
-                         title=f"{name}: {f} (rtol 1e-4 … 1e-12)")
-        fig.suptitle(f"work-precision, {case.description.split(';')[0]}; error against {case.reference_label}",
-                     fontsize=8)
-        fig.tight_layout()
-        fig.savefig(out / f"{name}.png", dpi=110)
-        plt.close(fig)
+        _figure(name, rows, anchors, f"work-precision, {case.description.split(';')[0]}; error "
+                f"against {case.reference_label}", out / f"{name}.png")
         text = [f"### {name}", "", case.description, "", wp.markdown_table(anchors + rows), ""]
         if name == "snakeboard" and anchors:
             summary += ["Snakeboard PD 10π targets (ratios measured in this run):"] + targets(
@@ -536,6 +533,32 @@ def main(argv=None) -> int:
     return 0
 
 
+def _figure(name, rows, anchors, title, path):
+    """One panel per formulation (log-log error against wall time), written to ``path``."""
+    import matplotlib.pyplot as plt
+    forms = list(dict.fromkeys(r.formulation for r in rows))
+    fig, axes = plt.subplots(1, len(forms), figsize=(5.2 * len(forms), 5.2), sharex=True,
+                             sharey=True, squeeze=False)
+    for ax, f in zip(axes[0], forms):
+        wp.plot_case([r for r in rows if r.formulation == f], ax, anchor=anchors,
+                     title=f"{name}: {f} (rtol 1e-4 … 1e-12)")
+    fig.suptitle(title, fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def replot(csv_path, out) -> int:
+    """Redraw the figures from a CSV written by an earlier run."""
+    rows = wp.read_csv(csv_path)
+    for case in dict.fromkeys(r.case for r in rows if not r.case.endswith("(all states)")):
+        mine = [r for r in rows if r.case in (case, f"{case} (all states)") and r.formulation != "anchor"]
+        anchors = [r for r in rows if r.case == case and r.formulation == "anchor"]
+        _figure(case, mine, anchors, f"work-precision, {case} (data: {Path(csv_path).name})",
+                Path(out) / f"{case}.png")
+    return 0
+
+
 def _markdown(info, summary, sections, hard) -> str:
     lines = [f"Machine: {info}.", "", *summary, ""]
     lines += sections
@@ -543,7 +566,7 @@ def _markdown(info, summary, sections, hard) -> str:
         lines += ["### hard cases", "", "| case | formulation | method | outcome | t reached [s] | wall [s] | detail |",
                   "|---|---|---|---|---|---|---|"]
         for row in hard:
-            lines.append("| " + " | ".join(f"{c:.6g}" if isinstance(c, float) else str(c).replace("|", "/")
+            lines.append("| " + " | ".join(f"{c:.6g}" if isinstance(c, float) else str(c).replace("|", "\\|")
                                           for c in row) + " |")
     return "\n".join(lines) + "\n"
 

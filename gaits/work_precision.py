@@ -27,7 +27,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-__all__ = ["Case", "Setup", "Row", "measure", "time_call", "write_csv", "plot_case",
+__all__ = ["Case", "Setup", "Row", "measure", "time_call", "write_csv", "read_csv", "plot_case",
            "markdown_table", "time_at_error", "TOLERANCES", "default_setups"]
 
 #: tolerances of the full report
@@ -204,6 +204,22 @@ def write_csv(rows, path) -> None:
             writer.writerow(r.as_dict())
 
 
+def read_csv(path) -> list:
+    """Rows written by :func:`write_csv` (to redraw figures without re-running)."""
+    rows = []
+    with open(path, newline="") as fh:
+        for d in csv.DictReader(fh):
+            rows.append(Row(case=d["case"], label=d["label"], formulation=d["formulation"],
+                            method=d["method"], rtol=float(d["rtol"]), error=float(d["error"]),
+                            wall_s=float(d["wall_s"]),
+                            wall_all_s=tuple(float(v) for v in d["wall_all_s"].split()),
+                            nfev=int(d["nfev"]), n_steps=int(d["n_steps"]),
+                            constraint=float(d["constraint"]), energy_drift=float(d["energy_drift"]),
+                            success=d["success"] == "True", status=int(d["status"]),
+                            states=int(d["states"]), compile_s=float(d["compile_s"]), note=d["note"]))
+    return rows
+
+
 def time_at_error(rows, level: float) -> tuple:
     """(fastest median wall time with error ≤ level, its row) among ``rows``, or (nan, None)."""
     ok = [r for r in rows if r.success and np.isfinite(r.error) and r.error <= level]
@@ -239,7 +255,7 @@ def plot_case(rows, ax=None, *, title: str = "", anchor=None):
     ax.set_ylabel("final-state error max|Δq|, |Δq̇| [m, rad, m/s, rad/s]")
     ax.set_title(title or "work-precision (one marker per tolerance, rtol 1e-4 … 1e-12)", fontsize=9)
     ax.grid(True, which="both", lw=0.3, alpha=0.5)
-    ax.legend(fontsize=6, loc="best", title="formulation/method (one marker per rtol)",
+    ax.legend(fontsize=6, loc="upper right", title="formulation/method (one marker per rtol)",
               title_fontsize=6)
     return ax
 
@@ -261,6 +277,6 @@ def markdown_table(rows, *, columns=("label", "rtol", "error", "wall_s", "nfev",
             elif c in ("error", "constraint", "energy_drift", "rtol"):
                 cells.append("—" if not np.isfinite(v) else f"{v:.2g}")
             else:
-                cells.append(str(v).replace("|", "/"))
+                cells.append(str(v).replace("|", "\\|"))
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
