@@ -18,7 +18,8 @@ Functions (SX unless the model's functions are MX)
 ``rhs(t, t_c, y, p[, u]) → ẏ``; ``outputs(t, t_c, y, p[, u]) → (q, q̇, λ, g, E, u, s, W_v, S)``
 with s the singular-set measure (1 away from it, 0 on it), W_v the kinetic metric of the
 velocity part of x (∂²E/∂v², column-major) and S = ω M⁻¹ ωᵀ (DAE forms; column-major);
-``event(y, p) → s``; ``qdot(y, p) → q̇``. ``t_c`` is t clamped to the current interval
+``event(y, ẏ, p) → (s, ṡ)`` (the rate ṡ = ∇s·ẏ tells the integrators when a step may hide a
+crossing); ``qdot(y, p) → q̇``. ``t_c`` is t clamped to the current interval
 [a, b) (see :func:`~.simulation.simulate`): the controller *and* the model's time-dependent
 forces are evaluated at t_c, so a jump at a breakpoint b is seen from the left up to b and from
 the right after it, however the integrator places its stages. ``p = (params, u₀, u₁, t_a)`` for an
@@ -232,6 +233,13 @@ def _invariant_entries(expr, x, params, candidates, param_values, samples=6) -> 
     return [i for i, f in zip(candidates, free) if f]
 
 
+def _event_function(measure, y, p) -> ca.Function:
+    """``event(y, ẏ, p) → (s, ṡ)``: the singular-set measure and its rate along ẏ."""
+    ydot = ca.SX.sym("ydot", y.shape[0])
+    return ca.Function("event", [y, ydot, p], [measure, ca.jtimes(measure, y, ydot)],
+                       ["y", "ydot", "p"], ["measure", "rate"])
+
+
 def _velocity_metric(energy, v):
     return ca.hessian(energy, v)[0]
 
@@ -354,7 +362,7 @@ def _build(model, controller, stabilization, baumgarte, seeds) -> ClosedLoop:
         n_int=n_int, symbolic_u=symbolic_u, segment_u=segment_u,
         rhs=ca.Function("closed_loop", args, [ydot], names, ["ydot"]),
         outputs=ca.Function("outputs", args, outs, names, list(OUTPUT_NAMES)),
-        event=ca.Function("event", [y, p], [restrict(measure)], ["y", "p"], ["measure"]) if system.k else None,
+        event=_event_function(restrict(measure), y, p) if system.k else None,
         qdot=ca.Function("qdot", [y, p], [ca.densify(restrict(qdot))], ["y", "p"], ["qdot"]),
         _pieces=dict(args=args, names=names, ydot=ydot, y=y, x=x, g=g, energy=energy, num=num, t=t,
                      t_c=t_c, u=u, p=p, params=params, g_int=g_int, alpha=alpha, beta=beta))

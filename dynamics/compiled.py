@@ -179,7 +179,8 @@ def _compile(source: str, directory: Path, key: str, command: list) -> float:
 def build(rhs: ca.Function, outputs: ca.Function, event: ca.Function | None = None,
           project: ca.Function | None = None) -> "CompiledLoop":
     """Compile (or load from the cache) the closed loop ``rhs(t, t_c, y, p)``,
-    ``outputs(t, t_c, y, p)``, ``event(y, p)`` and ``project(y, params)`` (optional). Raises
+    ``outputs(t, t_c, y, p)``, ``event(y, ydot, p) → (s, ṡ)`` and ``project(y, params)``
+    (optional). Raises
     :class:`CompilerUnavailable`.
 
     The library lives in ``<cache dir>/jit``; if that directory is refused by the trust rules,

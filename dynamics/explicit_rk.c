@@ -3,7 +3,7 @@
  *
  * This file is a template. nhgait.dynamics.compiled prepends the CasADi-generated functions
  *   nhg_rhs(t, t_c, y, p) -> ydot        (closed loop; t_c = min(t, t_hi) is the controller time)
- *   nhg_event(y, p) -> g                 (singular-set measure; only if NHG_HAS_EVENT)
+ *   nhg_event(y, ydot, p) -> (g, gdot)   (singular-set measure and its rate; if NHG_HAS_EVENT)
  *   nhg_out(t, t_c, y, p) -> outputs     (evaluated at the output points)
  * and the macros NHG_NY, NHG_NP, NHG_NOUT, NHG_HAS_EVENT, NHG_SZ_ARG, NHG_SZ_RES, NHG_SZ_IW,
  * NHG_SZ_W, and the tableau arrays of nhgait.dynamics.rk_tableaus (DOP853_*, DOPRI5_*); with
@@ -108,16 +108,22 @@ static void nhg_f(nhg_ctx *cx, double t, const double *y, double *dy) {
   ++*cx->nfev;
 }
 
-static double nhg_g(nhg_ctx *cx, const double *y) {
+/* the event measure g(y) and, with ydot, its rate dg/dt = grad g . ydot */
+static double nhg_g(nhg_ctx *cx, const double *y, const double *ydot, double *gdot) {
 #if NHG_HAS_EVENT
-  double g = 0.0;
+  static const double zeros[NHG_NY] = {0};
+  double g = 0.0, rate = 0.0;
   cx->arg[0] = y;
-  cx->arg[1] = cx->p;
+  cx->arg[1] = ydot ? ydot : zeros;
+  cx->arg[2] = cx->p;
   cx->res[0] = &g;
+  cx->res[1] = &rate;
   nhg_event(cx->arg, cx->res, cx->iw, cx->w, 0);
+  if (gdot) *gdot = rate;
   return g;
 #else
-  (void)cx; (void)y;
+  (void)cx; (void)y; (void)ydot;
+  if (gdot) *gdot = 0.0;
   return 1.0;
 #endif
 }
@@ -259,7 +265,7 @@ static double nhg_locate(nhg_ctx *cx, const nhg_method *m, double t, double h, c
   for (it = 0; it < 80 && (hi - lo) * fabs(h) > 4.0 * DBL_EPSILON * fmax(fabs(t), 1.0); ++it) {
     double mid = 0.5 * (lo + hi), g;
     nhg_dense(m, mid, y, R, ytmp);
-    g = nhg_g(cx, ytmp);
+    g = nhg_g(cx, ytmp, 0, 0);
     if (isfinite(g) && g >= tol) lo = mid;
     else hi = mid;
   }
@@ -267,19 +273,24 @@ static double nhg_locate(nhg_ctx *cx, const nhg_method *m, double t, double h, c
   return hi;
 }
 
-/* Event in the step? The measure is checked at the end point and, when either end is within
-   NHG_WATCH * tol of the threshold (the measure may touch zero and rise again inside one
-   step), at 7 interior points of the continuous extension. Returns theta of the first point
-   below tol (located by bisection) or -1. */
+/* Event in the step? The measure is checked at the end point. It touches zero and rises again
+   where a trajectory crosses the singular set, so one step can jump over a crossing that its
+   end points do not show: when either end is within NHG_WATCH * tol of the threshold, or the
+   measure can change by more than half its value within the step (h |dg/dt| > g / 2 at an
+   end), it is also checked at 7 interior points of the continuous extension. Returns theta of
+   the first point below tol (located by bisection) or -1; g and dg/dt at the end in g1, g1dot. */
 #define NHG_WATCH 1e4
 static double nhg_event_in_step(nhg_ctx *cx, const nhg_method *m, double t, double h,
                                 const double *y, const double *y1, double k[][NHG_NY],
-                                double R[][NHG_NY], int *dense_ready, double g0, double tol,
-                                double *ctl, double *y_event) {
-  double g1 = nhg_g(cx, y1), lo = 0.0, ytmp[NHG_NY];
+                                double R[][NHG_NY], int *dense_ready, double g0, double g0dot,
+                                double tol, double *g1_out, double *g1dot_out, double *y_event) {
+  double g1dot, g1 = nhg_g(cx, y1, k[m->i_new], &g1dot), lo = 0.0, ytmp[NHG_NY], gmin;
   int j;
-  ctl[NHG_C_GLAST] = g1;
-  if (isfinite(g1) && g1 >= tol && fmin(g0, g1) >= NHG_WATCH * tol) return -1.0;
+  *g1_out = g1;
+  *g1dot_out = g1dot;
+  gmin = fmin(g0, g1);
+  if (isfinite(g1) && g1 >= tol && gmin >= NHG_WATCH * tol &&
+      fabs(h) * fmax(fabs(g0dot), fabs(g1dot)) <= 0.5 * gmin) return -1.0;
   if (!*dense_ready) {
     nhg_prepare_dense(cx, m, t, h, y, k, R);
     *dense_ready = 1;
@@ -288,7 +299,7 @@ static double nhg_event_in_step(nhg_ctx *cx, const nhg_method *m, double t, doub
     double theta = j / 8.0, g;
     if (j < 8) {
       nhg_dense(m, theta, y, R, ytmp);
-      g = nhg_g(cx, ytmp);
+      g = nhg_g(cx, ytmp, 0, 0);
     } else {
       g = g1;
     }
@@ -318,7 +329,7 @@ CASADI_SYMBOL_EXPORT int nhg_run(int method, double t_end, double t_hi, double *
   double t = ctl[NHG_C_T], h = ctl[NHG_C_H];
   double rtol = ctl[NHG_C_RTOL], atol = ctl[NHG_C_ATOL], hmax = ctl[NHG_C_HMAX];
   double evtol = ctl[NHG_C_EVTOL], err_old = ctl[NHG_C_ERROLD];
-  double g_prev = 1.0;
+  double g_prev = 1.0, g_prev_dot = 0.0;
   int last_rejected = 0, trial_nonfinite = 0, i, bad;
   cx.p = p;
   cx.t_hi = t_hi;
@@ -333,7 +344,7 @@ CASADI_SYMBOL_EXPORT int nhg_run(int method, double t_end, double t_hi, double *
     return NHG_NONFINITE;
   }
   if (!(h > 0.0)) h = nhg_initial_step(&cx, m, t, y, k[0], rtol, atol, hmax, t_end - t);
-  if (evtol > 0.0) g_prev = nhg_g(&cx, y);
+  if (evtol > 0.0) g_prev = nhg_g(&cx, y, k[0], &g_prev_dot);
 
   while (t < t_end) {
     double err, t_new, hmin = 16.0 * DBL_EPSILON * fmax(fabs(t), DBL_MIN);
@@ -388,9 +399,12 @@ CASADI_SYMBOL_EXPORT int nhg_run(int method, double t_end, double t_hi, double *
     if (m->i_new >= m->s_step) nhg_f(&cx, t_new, y1, k[m->i_new]);
     nhg_stiffness(m, h, y1, ystiff, k, ctl, cnt, t_new);
     if (evtol > 0.0) {
-      theta_ev = nhg_event_in_step(&cx, m, t, h, y, y1, k, R, &dense_ready, g_prev, evtol, ctl, yev);
+      double g1, g1dot;
+      theta_ev = nhg_event_in_step(&cx, m, t, h, y, y1, k, R, &dense_ready, g_prev, g_prev_dot,
+                                   evtol, &g1, &g1dot, yev);
       event = theta_ev > 0.0;
-      g_prev = ctl[NHG_C_GLAST];
+      ctl[NHG_C_GLAST] = g_prev = g1;
+      g_prev_dot = g1dot;
     }
     {                                                           /* outputs in (t, t + theta h] */
       double t_stop = event ? t + theta_ev * h : t_new;

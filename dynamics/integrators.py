@@ -99,6 +99,27 @@ class Fast:
         rows, cols = self._shapes[0]
         return self._res[0].reshape(cols, rows).T.copy() if cols > 1 else self._res[0].copy()
 
+    def scalars(self, *args) -> tuple:
+        """All outputs, each a scalar (for functions with scalar outputs only)."""
+        for dst, a in zip(self._args, args):
+            dst[:] = a
+        self._eval()
+        return tuple(float(r[0]) for r in self._res)
+
+
+class Measure:
+    """The singular-set measure s(y) and its rate ṡ = ∇s·ẏ (``ClosedLoop.event``)."""
+
+    def __init__(self, event: ca.Function):
+        self._fast = Fast(event)
+        self._zeros = np.zeros(event.nnz_in(0))
+
+    def __call__(self, y, p) -> float:
+        return self._fast.scalars(y, self._zeros, p)[0]
+
+    def with_rate(self, y, ydot, p) -> tuple:
+        return self._fast.scalars(y, ydot, p)
+
 
 class _Budget(Exception):
     """Raised inside the right-hand side when the evaluation budget is spent."""
@@ -143,7 +164,7 @@ def _locate(dense, event, params, t_lo, t_hi, tol):
         if hi - lo <= 4 * np.finfo(float).eps * max(abs(hi), 1.0):
             break
         mid = 0.5 * (lo + hi)
-        g = float(event(dense(mid), params)[0])
+        g = event(dense(mid), params)
         if np.isfinite(g) and g >= tol:
             lo = mid
         else:
@@ -151,23 +172,28 @@ def _locate(dense, event, params, t_lo, t_hi, tol):
     return hi, dense(hi)
 
 
-def _event_in_step(solver, event, params, t_old, t_new, y_new, g_old, tol):
-    """(t, y) of the first point of the step with measure < tol, or None; ``g`` at the end.
-    Near the set (either end below WATCH·tol) 7 interior points of the dense output are checked
-    too: the measure touches 0 and rises again where a trajectory crosses the set, so a step can
-    jump over a crossing that the end points do not show."""
-    g_new = float(event(y_new, params)[0])
-    if np.isfinite(g_new) and g_new >= tol and min(g_old, g_new) >= WATCH * tol:
-        return None, g_new
+def _event_in_step(solver, event, params, t_old, t_new, y_new, f_new, old, tol):
+    """(t, y) of the first point of the step with measure < tol, or None; and (s, ṡ) at the end.
+    The measure touches 0 and rises again where a trajectory crosses the set, so a step can jump
+    over a crossing its end points do not show: near the set (an end below WATCH·tol) or when s
+    can change by more than half its value within the step (h|ṡ| > s/2 at an end), 7 interior
+    points of the dense output are checked too."""
+    g_new, rate_new = event.with_rate(y_new, f_new, params)
+    g_old, rate_old = old
+    gmin = min(g_old, g_new)
+    h = abs(t_new - t_old)
+    if (np.isfinite(g_new) and g_new >= tol and gmin >= WATCH * tol
+            and h * max(abs(rate_old), abs(rate_new)) <= 0.5 * gmin):
+        return None, (g_new, rate_new)
     dense = solver.dense_output()
     lo = t_old
     for theta in np.arange(1, 9) / 8.0:
         tt = t_old + theta * (t_new - t_old)
-        g = g_new if theta == 1.0 else float(event(dense(tt), params)[0])
+        g = g_new if theta == 1.0 else event(dense(tt), params)
         if not (np.isfinite(g) and g >= tol):
-            return _locate(dense, event, params, lo, tt, tol), g_new
+            return _locate(dense, event, params, lo, tt, tol), (g_new, rate_new)
         lo = tt
-    return None, g_new
+    return None, (g_new, rate_new)
 
 
 def integrate_scipy(loop, controller, segments, y0, seg_params, t_eval, method, rtol, atol, max_step,
@@ -183,7 +209,7 @@ def integrate_scipy(loop, controller, segments, y0, seg_params, t_eval, method, 
     rhs, qdot_fn = Fast(loop.rhs), Fast(loop.qdot)
     jac_fn = Fast(loop.jac) if method in IMPLICIT_METHODS and not _explicit_u(loop, controller) else None
     project = Fast(loop.project) if projection else None
-    event = Fast(loop.event) if (loop.event is not None and event_tol) else None
+    event = Measure(loop.event) if (loop.event is not None and event_tol) else None
     budget = {"left": _EVALS_PER_STEP * max_steps + 1000}
     last_h, stiff = None, {"count": 0}
     for j, (a, b) in enumerate(segments):
@@ -202,7 +228,7 @@ def integrate_scipy(loop, controller, segments, y0, seg_params, t_eval, method, 
             return cls(fun, t_start, y_start, b, **opts)
 
         solver, counted = make(a, y, last_h), 0
-        g_old = float(event(y, p)[0]) if event is not None else 1.0
+        g_old = event.with_rate(y, f0, p) if event is not None else None
         while solver.status == "running":
             t_old = solver.t
             ok, counted = _advance(solver, run, method, b, counted)
@@ -215,7 +241,11 @@ def integrate_scipy(loop, controller, segments, y0, seg_params, t_eval, method, 
                 y_new = project(y_new, p[:loop.n_params])
             found = None
             if event is not None:
-                found, g_old = _event_in_step(solver, event, p, t_old, t_new, y_new, g_old, event_tol)
+                f_new = getattr(solver, "f", None)
+                if f_new is None:                     # BDF, LSODA keep no f(t_new, y_new)
+                    f_new, run.nfev = fun(t_new, y_new), run.nfev + 1
+                found, g_old = _event_in_step(solver, event, p, t_old, t_new, y_new, f_new, g_old,
+                                              event_tol)
             t_stop = t_new if found is None else found[0]
             i_eval = _record_step(run, solver, te, i_eval, t_stop, y_new, project, p[:loop.n_params],
                                   t_hi, j)
@@ -362,7 +392,7 @@ def integrate_sundials(loop, kind, segments, y0, lam0, seg_params, t_eval, rtol,
     else:
         opts["min_step_size"] = 1e-13 * t_max        # CVODES only (IDAS has no such option)
         problem = _cvodes_problem(loop)
-    event = Fast(loop.event) if (loop.event is not None and event_tol) else None
+    event = Measure(loop.event) if (loop.event is not None and event_tol) else None
     for j, (a, b) in enumerate(segments):
         tol = 1e-12 * max(1.0, abs(b))
         wanted = [] if te is None else [float(tt) for tt in te if a + 1e-12 * max(1.0, abs(a)) < tt <= b + tol]
@@ -392,7 +422,7 @@ def integrate_sundials(loop, kind, segments, y0, lam0, seg_params, t_eval, rtol,
                 if gt not in names:
                     continue
                 if event is not None:
-                    g = float(event(xf[:, col], p)[0])
+                    g = event(xf[:, col], p)
                     if not (np.isfinite(g) and g >= event_tol):
                         t_prev = run.t[-1] if run.t else a
                         return run.fail(SINGULAR, names[gt], f"reached the singular set between "
@@ -409,10 +439,10 @@ def _sundials_failure(run, kind, problem, opts, pv, p, t, y, lam, b, err, event,
     """Bracket a SUNDIALS failure after (t, y) and classify it (singular set, max_steps, other)."""
     t_ok, y_ok, t_bad = _bracket_failure(kind, problem, opts, pv, t, y, lam, b)
     run.y_fail, run.t_bad = y_ok, t_bad
-    if event is not None and float(event(y_ok, p)[0]) < WATCH * event_tol:
+    if event is not None and event(y_ok, p) < WATCH * event_tol:
         return run.fail(SINGULAR, t_ok, f"{kind.upper()} stopped between t = {t_ok:.9g} and "
                         f"t = {t_bad:.9g}, next to the singular set (measure "
-                        f"{float(event(y_ok, p)[0]):.3g} at t = {t_ok:.9g})")
+                        f"{event(y_ok, p):.3g} at t = {t_ok:.9g})")
     reason = str(err).splitlines()[-1].split(": ")[-1]
     if "TOO_MUCH_WORK" in reason:
         return run.fail(MAX_STEPS, t_ok, f"max_steps = {max_steps} (per output interval) reached "

@@ -713,7 +713,8 @@ def _nonfinite_source(model, loop, controller, t, y, p, t_hi, bad) -> str | None
         i = _bad(ydot) if _bad(ydot) is not None else bad
         return (f"the right-hand side d/dt {_y_name(model, loop, i)} is non-finite at t = {t:.9g}"
                 + (" (the state is near the singular set)" if loop.event is not None and
-                   float(np.asarray(loop.event(y, p)).ravel()[0]) < 1e-6 else ""))
+                   float(np.asarray(loop.event(y, np.zeros_like(y), p)[0]).ravel()[0]) < 1e-6
+                   else ""))
     return None
 
 
