@@ -352,7 +352,8 @@ def _build(model, controller, stabilization, baumgarte, seeds) -> ClosedLoop:
         def restrict(expr):
             return ca.substitute(expr, x, x_full)
     y = ca.vertcat(x_s, work if has_work else ca.SX(0, 1), g_int)
-    ydot = restrict(ca.vertcat(xdot[list(index)], power if has_work else ca.SX(0, 1), g[:n_int]))
+    ydot = restrict(ca.vertcat(xdot[list(index)], power if has_work else ca.SX(0, 1),
+                               g if n_int else ca.SX(0, 1)))
     ydot = ca.cse(ca.densify(ydot))               # the model's functions share subexpressions
     args, names = [t, t_c, y] + u_args + [p], ["t", "t_c", "y"] + ["u"] * bool(u_args) + ["p"]
     outs = [ca.densify(restrict(o)) for o in (q, qdot, lam, g, energy, u, measure, metric, gram)]
