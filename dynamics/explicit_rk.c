@@ -273,18 +273,47 @@ static double nhg_locate(nhg_ctx *cx, const nhg_method *m, double t, double h, c
   return hi;
 }
 
+/* minimum of g(y(theta)) on [lo, hi] by golden-section search; returns theta, g in *gmin */
+static double nhg_golden(nhg_ctx *cx, const nhg_method *m, const double *y, double R[][NHG_NY],
+                         double lo, double hi, double *gmin) {
+  const double r = 0.6180339887498949;
+  double ytmp[NHG_NY], a = hi - r * (hi - lo), b = lo + r * (hi - lo), ga, gb;
+  int it;
+  nhg_dense(m, a, y, R, ytmp);
+  ga = nhg_g(cx, ytmp, 0, 0);
+  nhg_dense(m, b, y, R, ytmp);
+  gb = nhg_g(cx, ytmp, 0, 0);
+  for (it = 0; it < 60 && hi - lo > 1e-13; ++it) {
+    if (!(ga >= gb)) {           /* also when ga is NaN: keep the left part */
+      hi = b; b = a; gb = ga;
+      a = hi - r * (hi - lo);
+      nhg_dense(m, a, y, R, ytmp);
+      ga = nhg_g(cx, ytmp, 0, 0);
+    } else {
+      lo = a; a = b; ga = gb;
+      b = lo + r * (hi - lo);
+      nhg_dense(m, b, y, R, ytmp);
+      gb = nhg_g(cx, ytmp, 0, 0);
+    }
+  }
+  *gmin = fmin(ga, gb);
+  return ga < gb ? a : b;
+}
+
 /* Event in the step? The measure is checked at the end point. It touches zero and rises again
-   where a trajectory crosses the singular set, so one step can jump over a crossing that its
-   end points do not show: when either end is within NHG_WATCH * tol of the threshold, or the
-   measure can change by more than half its value within the step (h |dg/dt| > g / 2 at an
-   end), it is also checked at 7 interior points of the continuous extension. Returns theta of
-   the first point below tol (located by bisection) or -1; g and dg/dt at the end in g1, g1dot. */
+   where a trajectory crosses the singular set (it is a squared quantity), so a step can jump
+   over a crossing its end points do not show. When either end is within NHG_WATCH * tol of the
+   threshold, or the measure can change by more than half its value within the step
+   (h |dg/dt| > g / 2 at an end), it is sampled at 7 interior points of the continuous extension
+   and every local minimum of the samples (and one next to an end where the end rate points
+   down) is refined by golden-section search. Returns theta of the first point below tol
+   (located by bisection) or -1; g and dg/dt at the end in g1_out, g1dot_out. */
 #define NHG_WATCH 1e4
 static double nhg_event_in_step(nhg_ctx *cx, const nhg_method *m, double t, double h,
                                 const double *y, const double *y1, double k[][NHG_NY],
                                 double R[][NHG_NY], int *dense_ready, double g0, double g0dot,
                                 double tol, double *g1_out, double *g1dot_out, double *y_event) {
-  double g1dot, g1 = nhg_g(cx, y1, k[m->i_new], &g1dot), lo = 0.0, ytmp[NHG_NY], gmin;
+  double g1dot, g1 = nhg_g(cx, y1, k[m->i_new], &g1dot), gs[9], ytmp[NHG_NY], gmin;
   int j;
   *g1_out = g1;
   *g1dot_out = g1dot;
@@ -295,16 +324,30 @@ static double nhg_event_in_step(nhg_ctx *cx, const nhg_method *m, double t, doub
     nhg_prepare_dense(cx, m, t, h, y, k, R);
     *dense_ready = 1;
   }
-  for (j = 1; j <= 8; ++j) {
-    double theta = j / 8.0, g;
-    if (j < 8) {
-      nhg_dense(m, theta, y, R, ytmp);
-      g = nhg_g(cx, ytmp, 0, 0);
-    } else {
-      g = g1;
+  gs[0] = g0;
+  gs[8] = g1;
+  for (j = 1; j < 8; ++j) {
+    nhg_dense(m, j / 8.0, y, R, ytmp);
+    gs[j] = nhg_g(cx, ytmp, 0, 0);
+  }
+  for (j = 0; j <= 8; ++j) {        /* in theta order: a sample below tol, or a dip below it */
+    double a, b, g, th;
+    int dip;
+    if (j > 0 && !(isfinite(gs[j]) && gs[j] >= tol))
+      return nhg_locate(cx, m, t, h, y, R, tol, (j - 1) / 8.0, j / 8.0, y_event);
+    if (j == 0) {                  /* falling at the start but up again at the first sample */
+      dip = g0dot < 0.0 && gs[1] > gs[0];
+      a = 0.0, b = 1.0 / 8.0;
+    } else if (j < 8) {            /* a local minimum of the samples */
+      dip = gs[j] <= gs[j - 1] && gs[j] <= gs[j + 1];
+      a = (j - 1) / 8.0, b = (j + 1) / 8.0;
+    } else {                       /* rising at the end but down from the last sample */
+      dip = g1dot > 0.0 && gs[7] > gs[8];
+      a = 7.0 / 8.0, b = 1.0;
     }
-    if (!(isfinite(g) && g >= tol)) return nhg_locate(cx, m, t, h, y, R, tol, lo, theta, y_event);
-    lo = theta;
+    if (!dip) continue;
+    th = nhg_golden(cx, m, y, R, a, b, &g);
+    if (!(isfinite(g) && g >= tol)) return nhg_locate(cx, m, t, h, y, R, tol, a, th, y_event);
   }
   return -1.0;
 }

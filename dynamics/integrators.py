@@ -172,12 +172,34 @@ def _locate(dense, event, params, t_lo, t_hi, tol):
     return hi, dense(hi)
 
 
+def _golden(dense, event, params, lo, hi):
+    """(t, s) at the minimum of s(dense(t)) on [lo, hi] (golden-section search)."""
+    r = 0.6180339887498949
+    a, b = hi - r * (hi - lo), lo + r * (hi - lo)
+    ga, gb = event(dense(a), params), event(dense(b), params)
+    for _ in range(60):
+        if hi - lo <= 1e-13 * max(1.0, abs(hi)):
+            break
+        if not ga >= gb:
+            hi, b, gb = b, a, ga
+            a = hi - r * (hi - lo)
+            ga = event(dense(a), params)
+        else:
+            lo, a, ga = a, b, gb
+            b = lo + r * (hi - lo)
+            gb = event(dense(b), params)
+    return (a, ga) if ga < gb else (b, gb)
+
+
 def _event_in_step(solver, event, params, t_old, t_new, y_new, f_new, old, tol):
     """(t, y) of the first point of the step with measure < tol, or None; and (s, ṡ) at the end.
-    The measure touches 0 and rises again where a trajectory crosses the set, so a step can jump
-    over a crossing its end points do not show: near the set (an end below WATCH·tol) or when s
-    can change by more than half its value within the step (h|ṡ| > s/2 at an end), 7 interior
-    points of the dense output are checked too."""
+
+    The measure is a squared quantity: it touches 0 and rises again where a trajectory crosses
+    the set, so a step can jump over a crossing its end points do not show. Near the set (an end
+    below WATCH·tol) or when s can change by more than half its value within the step
+    (h|ṡ| > s/2 at an end), 7 interior points of the dense output are sampled and every local
+    minimum of the samples (and one next to an end where the end rate says so) is refined by
+    golden-section search (the same rule as the compiled integrator)."""
     g_new, rate_new = event.with_rate(y_new, f_new, params)
     g_old, rate_old = old
     gmin = min(g_old, g_new)
@@ -186,13 +208,21 @@ def _event_in_step(solver, event, params, t_old, t_new, y_new, f_new, old, tol):
             and h * max(abs(rate_old), abs(rate_new)) <= 0.5 * gmin):
         return None, (g_new, rate_new)
     dense = solver.dense_output()
-    lo = t_old
-    for theta in np.arange(1, 9) / 8.0:
-        tt = t_old + theta * (t_new - t_old)
-        g = g_new if theta == 1.0 else event(dense(tt), params)
-        if not (np.isfinite(g) and g >= tol):
-            return _locate(dense, event, params, lo, tt, tol), (g_new, rate_new)
-        lo = tt
+    ts = t_old + (t_new - t_old) * np.arange(9) / 8.0
+    gs = [g_old] + [event(dense(tt), params) for tt in ts[1:8]] + [g_new]
+    for j in range(9):
+        if j > 0 and not (np.isfinite(gs[j]) and gs[j] >= tol):
+            return _locate(dense, event, params, ts[j - 1], ts[j], tol), (g_new, rate_new)
+        if j == 0:
+            dip, a, b = rate_old < 0 and gs[1] > gs[0], ts[0], ts[1]
+        elif j < 8:
+            dip, a, b = gs[j] <= gs[j - 1] and gs[j] <= gs[j + 1], ts[j - 1], ts[j + 1]
+        else:
+            dip, a, b = rate_new > 0 and gs[7] > gs[8], ts[7], ts[8]
+        if dip:
+            t_min, g = _golden(dense, event, params, a, b)
+            if not (np.isfinite(g) and g >= tol):
+                return _locate(dense, event, params, a, t_min, tol), (g_new, rate_new)
     return None, (g_new, rate_new)
 
 
