@@ -247,7 +247,7 @@ def plot_case(rows, ax=None, *, title: str = "", anchor=None):
     pts = sorted([r for r in anchor or () if r.success and r.error > 0], key=lambda r: r.rtol, reverse=True)
     if pts:
         ax.loglog([r.wall_s for r in pts], [r.error for r in pts], "k--*", ms=9, lw=1,
-                  label="anchor: sympy LagrangesMethod + lambdify, scipy DOP853")
+                  label="anchor: LagrangesMethod + lambdify, scipy DOP853")
         for r in pts:
             ax.annotate(f"{r.rtol:.0e}", (r.wall_s, r.error), fontsize=6, xytext=(3, 3),
                         textcoords="offset points")
