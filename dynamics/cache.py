@@ -20,8 +20,11 @@ import tempfile
 import warnings
 from pathlib import Path
 
-_DERIVATION_MODULES = ("system.py", "symbolic.py", "symmetry.py", "reduction.py", "lagrange.py",
-                       "hamilton.py", "numeric.py", "bridge.py", "steps.py")
+_DERIVATION_MODULES = ("system.py", "symbolic.py", "symmetry.py", "lagrange.py",
+                       "hamilton.py", "numeric.py", "bridge.py", "steps.py", "reduction/__init__.py",
+                       "reduction/arithmetic.py", "reduction/setup.py", "reduction/connection.py",
+                       "reduction/legendre.py", "reduction/poisson.py", "reduction/equations.py",
+                       "reduction/model.py")
 _SOURCE_HASH: str | None = None
 
 

@@ -216,6 +216,8 @@ def null_basis_adjugate(A: sp.Matrix, pivots: list[int]) -> sp.Matrix:
     free = [j for j in range(l) if j not in pivots]
     if k == 0:
         return sp.eye(l)
+    if not free:
+        return sp.zeros(l, 0)
     B = A.extract(list(range(k)), pivots)
     detB = B.det(method="berkowitz")
     adjB = B.adjugate(method="berkowitz")
@@ -281,7 +283,113 @@ def numeric_pivots(A_num: np.ndarray, order=None, tol=1e-9) -> list[int]:
     return sorted(chosen)
 
 
-class FracField:
+class MatrixOps:
+    """Matrix operations shared by every arithmetic back end (matrices are lists of rows of
+    elements); the back end supplies the scalar operations (see
+    :mod:`nhgait.dynamics.reduction.arithmetic`)."""
+
+    def mat(self, A, normal=False):
+        return [[self.frac(A[i, j], normal) for j in range(A.shape[1])] for i in range(A.shape[0])]
+
+    def vec(self, symbols):
+        return [[self.sym(s)] for s in symbols]
+
+    def zeros(self, rows, cols):
+        return [[self.ZERO for _ in range(cols)] for _ in range(rows)]
+
+    def matmul(self, A, B, normal=True):
+        n_ = len(B)
+        cols = len(B[0]) if B else 0
+        out = []
+        for row in A:
+            r = []
+            for j in range(cols):
+                s = self.add_many([self.mul(row[k], B[k][j]) for k in range(n_)
+                                   if not self.is_zero(row[k]) and not self.is_zero(B[k][j])])
+                r.append(self.normal(s) if normal else s)
+            out.append(r)
+        return out
+
+    def T(self, A):
+        if not A:
+            return []
+        return [[A[i][j] for i in range(len(A))] for j in range(len(A[0]))]
+
+    def madd(self, A, B, normal=True):
+        return [[(self.normal if normal else (lambda x: x))(self.add_many([a, b])) for a, b in zip(ra, rb)]
+                for ra, rb in zip(A, B)]
+
+    def mneg(self, A):
+        return [[self.neg(x) for x in r] for r in A]
+
+    def inv(self, A, what="matrix"):
+        return self.gauss_jordan(A, what)
+
+    def gauss_jordan(self, A, what="matrix"):
+        """Inverse of a small square matrix by Gauss–Jordan over the back end's field.
+
+        Raises :class:`~nhgait.dynamics.errors.ModelError` naming ``what`` when no nonzero
+        pivot exists (the matrix is singular for every configuration)."""
+        from .errors import ModelError
+        n_ = len(A)
+        one, zero = self.frac(1), self.frac(0)
+        W = [list(r) + [one if i == j else zero for j in range(n_)] for i, r in enumerate(A)]
+        for c in range(n_):
+            p = next((r for r in range(c, n_) if not self.is_zero(W[r][c])), None)
+            if p is None:
+                raise ModelError([f"the {what} is singular for every configuration (no pivot in "
+                                  f"column {c + 1}); the reduction cannot invert it"],
+                                 title="singular matrix in the reduction")
+            W[c], W[p] = W[p], W[c]
+            piv = W[c][c]
+            W[c] = [self.normal(self.div(x, piv)) for x in W[c]]
+            for r in range(n_):
+                if r != c and not self.is_zero(W[r][c]):
+                    fct = W[r][c]
+                    W[r] = [self.normal(self.add_many([x, self.neg(self.mul(fct, y))])) for x, y in zip(W[r], W[c])]
+        return [r[n_:] for r in W]
+
+    def div(self, f, g):
+        return f / g
+
+    def show(self, A, rows=None, cols=None):
+        """The sympy Matrix of ``A`` (normal forms)."""
+        rows = len(A) if rows is None else rows
+        cols = (len(A[0]) if A else 0) if cols is None else cols
+        if rows == 0 or cols == 0:
+            return sp.zeros(rows, cols)
+        return sp.Matrix(rows, cols, [self.expr(A[i][j]) for i in range(rows) for j in range(cols)])
+
+    def value(self, e):
+        """A sympy expression as a display value (sympy itself for the sympy back ends)."""
+        return e
+
+    def column(self, values):
+        """Display values as a column (a sympy Matrix)."""
+        return sp.Matrix(values) if values else sp.zeros(0, 1)
+
+    def form(self, terms):
+        """Σ coefficient · monomial for [(element, [symbols])]: a sympy expression."""
+        out = sp.Integer(0)
+        for c, variables in terms:
+            if not self.is_zero(c):
+                out += self.expr(c) * sp.Mul(*variables)
+        return out
+
+    def quadratic(self, Q, variables, half=False):
+        """Σ_{i≤j} c_ij v_i v_j with c_ii = Q_ii, c_ij = Q_ij + Q_ji (normal coefficients)."""
+        terms = []
+        nv = len(variables)
+        for i in range(nv):
+            for j in range(i, nv):
+                c = Q[i][j] if i == j else self.add_many([Q[i][j], Q[j][i]])
+                if not self.is_zero(c):
+                    if half:
+                        c = self.scale(c, 1, 2)
+                    terms.append((self.normal(c), [variables[i], variables[j]]))
+        return self.form(terms)
+
+class FracField(MatrixOps):
     """One field ℚ(generators) per derivation: symbols, sin/cos of the angles and opaque
     subexpressions are generators of a sparse polynomial ring; elements are pairs (num, den).
 
@@ -310,6 +418,7 @@ class FracField:
         self.order = order
         self.index = {x: i for i, x in enumerate(order)}
         self.one, self.zero = self.R.one, self.R.zero
+        self.ZERO, self.ONE = (self.zero, self.one), (self.one, self.one)
         self.table = {x: (v, self.one) for x, v in zip(order, g)}
         self.gens = g
         self.angle = {}
@@ -338,8 +447,21 @@ class FracField:
     def _walk(self, e):
         return _walk_fraction(e, self.R, self.table)
 
-    def mat(self, A, normal=False):
-        return [[self.frac(A[i, j], normal) for j in range(A.shape[1])] for i in range(A.shape[0])]
+    kind = "ring"
+
+    def sym(self, s):
+        return self.table[s]
+
+    def sub_key(self, s):
+        return self.index[s]
+
+    def div(self, f, g):
+        if not g[0]:
+            raise ZeroDivisionError("division by zero in FracField")
+        return (f[0] * g[1], f[1] * g[0])
+
+    def matrix(self, F, rows=None, cols=None):
+        return self.show(F, rows, cols)
 
     def expr(self, f):
         num, den = f
@@ -349,16 +471,6 @@ class FracField:
             return num.as_expr()
         return num.as_expr() / den.as_expr()
 
-    def matrix(self, F, rows=None, cols=None):
-        if rows is None:
-            rows = len(F)
-        if cols is None:
-            cols = len(F[0]) if F else 0
-        if rows == 0 or cols == 0:
-            return sp.zeros(rows, cols)
-        return sp.Matrix(rows, cols, [self.expr(F[i][j]) for i in range(rows) for j in range(cols)])
-
-    # -- arithmetic ------------------------------------------------------------------------
     def add_many(self, terms):
         return _add_fractions(terms, self.zero, self.one)
 
@@ -427,47 +539,6 @@ class FracField:
             return self.R(out)
         return (back(n_), back(d_))
 
-    def matmul(self, A, B, normal=True):
-        n_ = len(B)
-        cols = len(B[0]) if B else 0
-        out = []
-        for row in A:
-            r = []
-            for j in range(cols):
-                s = self.add_many([self.mul(row[k], B[k][j]) for k in range(n_) if row[k][0] and B[k][j][0]])
-                r.append(self.normal(s) if normal else s)
-            out.append(r)
-        return out
-
-    def T(self, A, rows=None):
-        if not A:
-            return []
-        return [[A[i][j] for i in range(len(A))] for j in range(len(A[0]))]
-
-    def madd(self, A, B, normal=True):
-        return [[(self.normal if normal else (lambda x: x))(self.add_many([a, b])) for a, b in zip(ra, rb)]
-                for ra, rb in zip(A, B)]
-
-    def mneg(self, A):
-        return [[self.neg(x) for x in r] for r in A]
-
-    def inv(self, A):
-        """Inverse of a small square matrix by Gauss–Jordan over the field (pivots nonzero)."""
-        n_ = len(A)
-        W = [list(r) + [(self.one if i == j else self.zero, self.one) for j in range(n_)] for i, r in enumerate(A)]
-        for c in range(n_):
-            p = next((r for r in range(c, n_) if W[r][c][0]), None)
-            if p is None:
-                raise ZeroDivisionError("singular matrix")
-            W[c], W[p] = W[p], W[c]
-            pn, pd = W[c][c]
-            W[c] = [self.normal((x[0] * pd, x[1] * pn)) for x in W[c]]
-            for r in range(n_):
-                if r != c and W[r][c][0]:
-                    fct = W[r][c]
-                    W[r] = [self.normal(self.add_many([x, self.neg(self.mul(fct, y))])) for x, y in zip(W[r], W[c])]
-        return [r[n_:] for r in W]
-
     def diff(self, f, x):
         """d f/d x with d sin x = cos x dx, d cos x = −sin x dx."""
         num, den = f
@@ -533,22 +604,6 @@ class FracField:
                     mm[i] = 0
                     coefs[a][tuple(mm)] = c
         return (self.normal((self.R(const), den)), [self.normal((self.R(cd), den)) for cd in coefs])
-
-    def quadratic(self, Q, variables, half=False):
-        """Σ_{i≤j} c_ij v_i v_j with c_ii = Q_ii, c_ij = Q_ij + Q_ji (tidy coefficients)."""
-        out = sp.Integer(0)
-        nv = len(variables)
-        for i in range(nv):
-            for j in range(i, nv):
-                c = Q[i][j] if i == j else self.add_many([Q[i][j], Q[j][i]])
-                if c[0]:
-                    if half:
-                        c = self.scale(c, 1, 2)
-                    c = self.normal(c)
-                    if c[0]:
-                        out += self.expr(c) * variables[i] * variables[j]
-        return out
-
 
 def _check_trig(x):
     if x.has(sp.tan, sp.cot, sp.sec, sp.csc):
