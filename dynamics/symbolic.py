@@ -52,6 +52,10 @@ class _NotRational(Exception):
     pass
 
 
+class WorkBudgetExceeded(Exception):
+    """The exact arithmetic exceeded its work budget (the caller then uses the implicit form)."""
+
+
 def _collect_generators(e, gens: dict):
     """Generators of ``e`` as a rational function: symbols and opaque subexpressions."""
     if e.is_Symbol:
@@ -352,6 +356,33 @@ class MatrixOps:
     def div(self, f, g):
         return f / g
 
+    def jvp(self, col, xs, direction):
+        """Σ_j ∂col_i/∂x_j · direction_j (the derivative of a column along a vector field)."""
+        out = []
+        for c in col:
+            terms = [self.mul(self.diff(c, x), dj) for x, dj in zip(xs, direction)
+                     if not self.is_zero(dj) and not self.is_zero(c)]
+            out.append(self.normal(self.add_many(terms)))
+        return out
+
+    def directional_inverse(self, Ainv, A, xs, direction, partials):
+        """Σ_j ∂(A⁻¹)/∂x_j · direction_j, from the per-coordinate ``partials`` {j: ∂A⁻¹/∂x_j}."""
+        n_ = len(Ainv)
+        out = [[[] for _ in range(n_)] for _ in range(n_)]
+        for j, D in partials.items():
+            dj = direction[j]
+            if self.is_zero(dj):
+                continue
+            for a in range(n_):
+                for b in range(n_):
+                    if not self.is_zero(D[a][b]):
+                        out[a][b].append(self.mul(dj, D[a][b]))
+        return [[self.normal(self.add_many(t)) for t in r] for r in out]
+
+    def diff_inverse(self, Ainv, A, x):
+        """∂(A⁻¹)/∂x given A⁻¹ and A: entry by entry (exact back ends)."""
+        return [[self.normal(self.diff(e, x)) for e in r] for r in Ainv]
+
     def show(self, A, rows=None, cols=None):
         """The sympy Matrix of ``A`` (normal forms)."""
         rows = len(A) if rows is None else rows
@@ -419,6 +450,8 @@ class FracField(MatrixOps):
         self.index = {x: i for i, x in enumerate(order)}
         self.one, self.zero = self.R.one, self.R.zero
         self.ZERO, self.ONE = (self.zero, self.one), (self.one, self.one)
+        self.work = 0
+        self.budget = None     # max Σ (terms of num × terms of den) over all normalisations
         self.table = {x: (v, self.one) for x, v in zip(order, g)}
         self.gens = g
         self.angle = {}
@@ -513,6 +546,10 @@ class FracField(MatrixOps):
         num, den = f
         if not num:
             return (self.zero, self.one)
+        if self.budget is not None:
+            self.work += len(num) * len(den)
+            if self.work > self.budget:
+                raise WorkBudgetExceeded
         num = _reduce_poly(num, self.pairs)
         if not num:
             return (self.zero, self.one)

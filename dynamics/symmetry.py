@@ -84,14 +84,27 @@ class Candidate:
         return out
 
 
+#: largest k for which step 2 writes out a basis of D_q (k×k minors); larger: described only
+DISTRIBUTION_MAX_K = 3
+
+
 @dataclass(frozen=True)
 class SymmetryTest:
-    """Result of steps 2–3: D_q, the candidate table and the chosen fiber."""
+    """Result of steps 2–3: the candidate table, the chosen fiber and D_q (on first access)."""
 
-    distribution: sp.Matrix          # n×(n−k) basis of D_q
+    system: System = field(repr=False)
     candidates: tuple[Candidate, ...]
     chosen: Candidate
     chosen_by: str                   # "user" or "test"
+
+    @cached_property
+    def distribution(self):
+        """n×(n−k) basis of D_q (entries k×k minors of ω) for k ≤ DISTRIBUTION_MAX_K; for
+        larger k a sentence (the basis X of step 8 spans D_q)."""
+        if self.system.k > DISTRIBUTION_MAX_K:
+            return (f"null ω(q), dimension {self.system.n - self.system.k}: spanned by the columns "
+                    f"of X (step 8); minors not expanded (k = {self.system.k})")
+        return constraint_distribution(self.system)
 
     def __str__(self) -> str:
         return self.table_markdown()
@@ -157,10 +170,10 @@ def group_transform(system: System, fiber: tuple[str, ...], version: str) -> sp.
     return g
 
 
-def _invariance(system: System, fiber: tuple[str, ...], M, W, V) -> tuple[bool, str, str]:
-    """Is (L, ω) invariant under the group acting on the fiber? Returns (ok, group label, why)."""
+def _invariance(system: System, fiber: tuple[str, ...], free: set) -> tuple[bool, str, str]:
+    """Is (L, ω) invariant under the group acting on the fiber? Returns (ok, group label, why).
+    ``free``: the free symbols of M, ω and V."""
     s_syms = {system.q[system.coordinates.index(c)] for c in fiber}
-    free = set().union(M.free_symbols, W.free_symbols, V.free_symbols)
     dep = sorted((s.name for s in s_syms & free))
     label = f"R^{len(fiber)} ({', '.join(fiber)})"
     if not dep:
@@ -203,7 +216,7 @@ def _invariance(system: System, fiber: tuple[str, ...], M, W, V) -> tuple[bool, 
     return True, label, "L and ω are SE(2)-invariant (checked at random points)"
 
 
-def symmetry_test(system: System) -> SymmetryTest:
+def symmetry_test(system: System, M: sp.Matrix | None = None) -> SymmetryTest:
     """Steps 2–3: D_q, the candidate table over all fiber sets, and the chosen fiber.
 
     Raises :class:`ModelError` (with the table) when no candidate is admissible or when the
@@ -211,9 +224,9 @@ def symmetry_test(system: System) -> SymmetryTest:
     """
     n, k = system.n, system.k
     W = system.omega()
-    M = system.mass_matrix()
+    M = system.mass_matrix() if M is None else M
     V = system.potential()
-    D = constraint_distribution(system)
+    free = set().union(M.free_symbols, W.free_symbols, V.free_symbols)
     Wn = omega_samples(system, 3, seed=5) if k else [np.zeros((0, n))] * 3
     candidates = []
     names = system.coordinates
@@ -222,7 +235,7 @@ def symmetry_test(system: System) -> SymmetryTest:
             fiber = tuple(names[i] for i in idx)
             rank = min(np.linalg.matrix_rank(w[:, idx], tol=1e-9 * max(1, np.abs(w).max())) if k else 0
                        for w in Wn)
-            inv, group, why_inv = _invariance(system, fiber, M, W, V)
+            inv, group, why_inv = _invariance(system, fiber, free)
             Ws = W[:, list(idx)] if k else sp.zeros(0, size)
             rows = None
             if k and rank < k:   # the other k − rank constraints restrict the shape velocities
@@ -265,15 +278,15 @@ def symmetry_test(system: System) -> SymmetryTest:
         want = tuple(sorted(system.fiber, key=names.index))
         chosen = next(c for c in candidates if c.fiber == want)
         if not chosen.admissible:
-            table = SymmetryTest(D, tuple(candidates), chosen, "user").table_markdown()
+            table = SymmetryTest(system, tuple(candidates), chosen, "user").table_markdown()
             raise ModelError([f"the fiber coordinates ({', '.join(want)}) do not give a full symmetry "
                               f"group: {chosen.verdict}: {chosen.reason}\n{table}"],
                              title="no full symmetry group")
-        return SymmetryTest(D, tuple(candidates), chosen, "user")
+        return SymmetryTest(system, tuple(candidates), chosen, "user")
     full = sorted((c for c in candidates if c.admissible), key=key)
     if not full:
-        table = SymmetryTest(D, tuple(candidates), candidates[0], "test").table_markdown()
+        table = SymmetryTest(system, tuple(candidates), candidates[0], "test").table_markdown()
         raise ModelError(["no candidate group of fiber coordinates gives a full Lie algebra element "
                           "(and none is principally kinematic); the symmetry table:\n" + table],
                          title="no full symmetry group")
-    return SymmetryTest(D, tuple(candidates), full[0], "test")
+    return SymmetryTest(system, tuple(candidates), full[0], "test")

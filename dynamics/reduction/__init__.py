@@ -29,7 +29,8 @@ Two forms (``model.form``):
 
 * ``"explicit"`` — every step is a sympy object in canonical trigonometric normal form and
   ``model.rhs`` is ż as a sympy Matrix. Chosen when every matrix the steps invert is at most
-  2×2 (``setup.EXPLICIT_MAX_INVERSE``) and the shape velocities are free.
+  2×2 (``setup.EXPLICIT_MAX_INVERSE``), the shape velocities are free and the exact
+  arithmetic stays within ``EXPLICIT_WORK_BUDGET``.
 * ``"implicit"`` — the same steps run on CasADi SX (inverses are linear solves, derivatives are
   AD, common subexpressions shared), so the cost grows gently with the system. ``model.rhs`` is
   None; ``model.implicit`` states the linear systems solved at evaluation time; the step
@@ -37,9 +38,10 @@ Two forms (``model.form``):
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 
-from ..symbolic import _NotRational
+from ..symbolic import WorkBudgetExceeded, _NotRational
 from ..system import System
 from . import connection, equations, legendre, poisson
 from .arithmetic import make_arithmetic
@@ -49,6 +51,10 @@ from .setup import Layout, layout
 __all__ = ["ReducedODE", "derive_reduced", "Layout", "run_steps"]
 
 FORMS = ("explicit", "implicit")
+#: work budget of the explicit form's exact arithmetic (Σ terms(num)·terms(den) over all
+#: normalisations; snakeboard ≈ 1.2e4, a 2-link snake with a rotor ≈ 1.9e6): beyond it the
+#: implicit form is used (deterministic, unlike a time limit)
+EXPLICIT_WORK_BUDGET = 200_000
 
 
 def run_steps(F, lay: Layout) -> tuple[list, dict]:
@@ -103,14 +109,19 @@ def derive_reduced(system: System, version: str | None = None, form: str | None 
         from ..errors import ModelError
         raise ModelError([f"unknown form {form!r} (explicit or implicit)"], title="invalid request")
     lay, first = layout(system, version, form)
-    if lay.form == "implicit":
-        steps, out = run_steps(_arithmetic("casadi", lay), lay)
-        return _implicit_model(lay, first, steps, out, t0)
-    try:
-        steps, out = run_steps(_arithmetic("ring", lay), lay)
-    except _NotRational:
-        steps, out = run_steps(_arithmetic("sympy", lay), lay)
-    return _explicit_model(lay, first, steps, out, t0)
+    if lay.form == "explicit":
+        F = _arithmetic("ring", lay)
+        F.budget = None if form == "explicit" else EXPLICIT_WORK_BUDGET
+        try:
+            steps, out = run_steps(F, lay)
+            return _explicit_model(lay, first, steps, out, t0)
+        except _NotRational:
+            steps, out = run_steps(_arithmetic("sympy", lay), lay)
+            return _explicit_model(lay, first, steps, out, t0)
+        except WorkBudgetExceeded:
+            lay = dataclasses.replace(lay, form="implicit")
+    steps, out = run_steps(_arithmetic("casadi", lay), lay)
+    return _implicit_model(lay, first, steps, out, t0)
 
 
 def _common(lay, out):

@@ -95,6 +95,7 @@ class CasadiArithmetic(MatrixOps):
         self.zero = self.ZERO = ca.SX(0)
         self.one = self.ONE = ca.SX(1)
         self.table: dict = {}
+        self._mats: dict = {}
 
     def sym(self, s):
         got = self.table.get(s)
@@ -110,6 +111,20 @@ class CasadiArithmetic(MatrixOps):
         syms = list(self.table)
         out = to_casadi([e], syms, [self.table[s] for s in syms])[0]
         return out if isinstance(out, self.ca.SX) else self.ca.SX(out)
+
+    def mat(self, A, normal=False):
+        """All entries of a sympy Matrix in one conversion (shared subexpressions), memoised."""
+        from ..bridge import to_casadi
+        key = sp.ImmutableMatrix(A)
+        got = self._mats.get(key)
+        if got is None:
+            for s in A.free_symbols:
+                self.sym(s)
+            syms = list(self.table)
+            flat = to_casadi(list(A), syms, [self.table[s] for s in syms]) if A.shape[0] * A.shape[1] else []
+            flat = [x if isinstance(x, self.ca.SX) else self.ca.SX(x) for x in flat]
+            got = self._mats[key] = [flat[i * A.shape[1]:(i + 1) * A.shape[1]] for i in range(A.shape[0])]
+        return [list(r) for r in got]
 
     def expr(self, f):
         return f
@@ -165,6 +180,35 @@ class CasadiArithmetic(MatrixOps):
                 Am[i, j] = A[i][j]
         Ainv = ca.solve(Am, ca.SX.eye(n))
         return [[Ainv[i, j] for j in range(n)] for i in range(n)]
+
+    def _sx(self, A):
+        return self.show(A)
+
+    def _rows(self, M):
+        return [[M[i, j] for j in range(M.shape[1])] for i in range(M.shape[0])]
+
+    def jvp(self, col, xs, direction):
+        """Forward-mode AD of the column along ``direction`` (one pass, no per-entry Jacobians)."""
+        ca = self.ca
+        c = ca.vertcat(*col)
+        x = ca.vertcat(*[self.sym(s) for s in xs])
+        out = ca.jtimes(c, x, ca.vertcat(*direction))
+        return [out[i] for i in range(out.shape[0])]
+
+    def diff_inverse(self, Ainv, A, x):
+        """∂(A⁻¹)/∂x = −A⁻¹(∂A/∂x)A⁻¹ (no inverse is differentiated)."""
+        ca = self.ca
+        dA = ca.jacobian(ca.vec(self._sx(A)), self.sym(x))
+        dA = ca.reshape(dA, len(A), len(A))
+        return self._rows(-ca.mtimes([self._sx(Ainv), dA, self._sx(Ainv)]))
+
+    def directional_inverse(self, Ainv, A, xs, direction, partials=None):
+        """−A⁻¹(D_dir A)A⁻¹ with D_dir A by forward AD along ``direction``."""
+        ca = self.ca
+        n = len(A)
+        x = ca.vertcat(*[self.sym(s) for s in xs])
+        dA = ca.reshape(ca.jtimes(ca.vec(self._sx(A)), x, ca.vertcat(*direction)), n, n)
+        return self._rows(-ca.mtimes([self._sx(Ainv), dA, self._sx(Ainv)]))
 
     def show(self, A, rows=None, cols=None):
         """An SX matrix (printed by CasADi with shared subexpressions)."""

@@ -4,7 +4,10 @@ Hamiltonian equations and the reconstruction of the fiber velocities.
 Momentum equations (Hamel form, what ż = J_z∇h + (0, Xᵀτ) says row by row):
 
     Ṗ_a = Σ_b {P_a, P_b}|_M̄ v_b − X_aᵀ ∂h/∂q + X_aᵀτ,   v = K⁻¹P,
-    ∂h/∂q_i = −½ vᵀ (∂K/∂q_i) v + ∂V/∂q_i     (∂K⁻¹/∂q = −K⁻¹ K_q K⁻¹: no derivative of an inverse),
+    ∂h/∂q_i = ½ Pᵀ(∂K⁻¹/∂q_i)P + ∂V/∂q_i = −½ vᵀ(∂K/∂q_i)v + ∂V/∂q_i,
+
+(``F.diff_inverse``: the exact back ends differentiate K⁻¹ entry by entry, the CasADi back
+end uses −K⁻¹K_qK⁻¹, so no inverse is differentiated),
 
 zero along the fiber by symmetry. Each Ṗ_a is assembled as a quadratic form in P with normal
 coefficients, plus −X_aᵀ∂V/∂q and the forces.
@@ -13,10 +16,6 @@ from __future__ import annotations
 
 from ..errors import ModelError
 from ..steps import Step
-
-
-def _KinvKiKinv(F, Kinv, dK):
-    return F.matmul(F.matmul(Kinv, dK, normal=False), Kinv)
 
 
 def gradient(F, lay, sy, con, Kinv) -> tuple[Step, dict]:
@@ -29,12 +28,12 @@ def gradient(F, lay, sy, con, Kinv) -> tuple[Step, dict]:
             if any(not F.is_zero(F.normal(F.diff(e, q[i]))) for r in con.K for e in r) or \
                     not F.is_zero(F.normal(F.diff(V, q[i]))):
                 raise ModelError(["h depends on the fiber coordinates: the chosen group is not a symmetry"])
-    quad = {}                      # i -> coefficient matrix of ∂h/∂q_i in P (i ∈ r)
+    quad = {}                      # i -> ∂K⁻¹/∂q_i (i ∈ r): ∂h/∂q_i = ½Pᵀ(∂K⁻¹/∂q_i)P + ∂V/∂q_i
     dV = {}
     for i in lay.ri:
-        dK = [[F.normal(F.diff(e, q[i])) for e in r] for r in con.K]
-        if any(not F.is_zero(e) for r in dK for e in r):
-            quad[i] = F.mneg(_KinvKiKinv(F, Kinv, dK))
+        dKinv = F.diff_inverse(Kinv, con.K, q[i])
+        if any(not F.is_zero(e) for r in dKinv for e in r):
+            quad[i] = dKinv
         dV[i] = F.normal(F.diff(V, q[i]))
     shown = [F.quadratic(quad[i], sy.P, half=True) + F.expr(dV[i]) if i in quad else F.expr(dV[i])
              for i in lay.ri]
@@ -46,7 +45,8 @@ def gradient(F, lay, sy, con, Kinv) -> tuple[Step, dict]:
 
 
 def _momentum_rate(F, lay, sy, con, Kinv, coef, grad, forces, a):
-    """Ṗ_a as Σ_{j≤l} c_jl P_j P_l − X_aᵀ∂V/∂q + (Xᵀτ)_a."""
+    """Ṗ_a as Σ_{j≤l} c_jl P_j P_l − X_aᵀ∂V/∂q + (Xᵀτ)_a (−X_aᵀ∂h/∂q through the derivative
+    of K⁻¹ along X_a)."""
     nP = len(sy.P)
     T = [[[] for _ in range(nP)] for _ in range(nP)]
     for b in range(nP):
@@ -59,14 +59,12 @@ def _momentum_rate(F, lay, sy, con, Kinv, coef, grad, forces, a):
                     if not F.is_zero(Kinv[b][l_]):
                         T[j][l_].append(F.mul(cab[j], Kinv[b][l_]))
     extra = []
-    for i, Q in grad["quad"].items():      # −X_ia ∂h/∂q_i = +½ X_ia Pᵀ K⁻¹K_iK⁻¹ P − X_ia V_i
-        x = con.X[i][a]
-        if F.is_zero(x):
-            continue
-        for j in range(nP):
-            for l_ in range(nP):
-                if not F.is_zero(Q[j][l_]):
-                    T[j][l_].append(F.neg(F.scale(F.mul(x, Q[j][l_]), 1, 2)))
+    Xa = [con.X[i][a] for i in range(lay.n)]
+    Q = F.directional_inverse(Kinv, con.K, lay.system.q, Xa, grad["quad"])
+    for j in range(nP):                    # −X_aᵀ∂h/∂q = −½ Pᵀ(D_{X_a}K⁻¹)P − X_aᵀ∇V
+        for l_ in range(nP):
+            if not F.is_zero(Q[j][l_]):
+                T[j][l_].append(F.neg(F.scale(Q[j][l_], 1, 2)))
     for i, dv in grad["dV"].items():
         if not F.is_zero(dv) and not F.is_zero(con.X[i][a]):
             extra.append(F.neg(F.mul(con.X[i][a], dv)))

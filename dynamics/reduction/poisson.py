@@ -54,22 +54,17 @@ def momenta_in_mu(F, lay, sy, con) -> Step:
 
 
 def lie_brackets(F, lay, con) -> dict:
-    """[X_a, X_b] = DX_b·X_a − DX_a·X_b for a < b (n-vectors of elements)."""
+    """[X_a, X_b] = DX_b·X_a − DX_a·X_b for a < b (n-vectors of elements): derivatives of the
+    columns along each other (``F.jvp``; forward AD in the implicit form)."""
     n, q = lay.n, lay.system.q
     nP = len(con.X[0]) if con.X else 0
-    JX = [[[F.diff(con.X[i][a], q[j]) if not F.is_zero(con.X[i][a]) else F.ZERO for j in range(n)]
-           for i in range(n)] for a in range(nP)]
+    cols = [[con.X[i][a] for i in range(n)] for a in range(nP)]
     out = {}
     for a in range(nP):
         for b in range(a + 1, nP):
-            lie = []
-            for i in range(n):
-                terms = [F.mul(JX[b][i][j], con.X[j][a]) for j in range(n)
-                         if not F.is_zero(JX[b][i][j]) and not F.is_zero(con.X[j][a])]
-                terms += [F.neg(F.mul(JX[a][i][j], con.X[j][b])) for j in range(n)
-                          if not F.is_zero(JX[a][i][j]) and not F.is_zero(con.X[j][b])]
-                lie.append([F.normal(F.add_many(terms))])
-            out[a, b] = lie
+            d_b = F.jvp(cols[b], q, cols[a])
+            d_a = F.jvp(cols[a], q, cols[b])
+            out[a, b] = [[F.normal(F.add_many([x, F.neg(y)]))] for x, y in zip(d_b, d_a)]
     return out
 
 

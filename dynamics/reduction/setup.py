@@ -102,11 +102,11 @@ class _Symbols:
     v: list
 
 
-def set_up(system: System) -> Step:
+def set_up(system: System, M: sp.Matrix) -> Step:
     """Step 1 (§3.2.1, Fig. 3.3): q, L, ω, τ, M = ∂²L/∂q̇² (eq. 2.5), V and the parameters."""
     return Step(1, "Set-up", "§3.2.1, Fig. 3.3", {
         "q": sp.Matrix(system.q).T, "L": system.L, "omega": system.omega(),
-        "tau": system.force_vector().T, "M": tidy(system.mass_matrix()), "V": system.potential(),
+        "tau": system.force_vector().T, "M": M, "V": system.potential(),
         "parameters": ", ".join(f"{k_}={v}" for k_, v in system.parameters.items())},
         "Coordinates, Lagrangian, Pfaffian constraints ω(q)q̇ = 0, forces and parameters.",
         labels={"omega": "omega (k x n)", "tau": "tau"})
@@ -155,12 +155,13 @@ def choose_form(k: int, d: int, m: int, dependent: int) -> str:
 def layout(system: System, version: str | None = None, form: str | None = None) -> tuple[Layout, list]:
     """Steps 1–3 and the choices of the reconstruction; returns (layout, [steps 1, 2, 3])."""
     names = system.coordinates
-    sym = symmetry_test(system)
+    M = system.mass_matrix()
+    sym = symmetry_test(system, M)
     fiber = sym.chosen.fiber
     si = tuple(names.index(c) for c in fiber)
     ri = tuple(i for i in range(system.n) if i not in si)
     N = strip_factors(sym.chosen.xi, [system.q[i] for i in si])
-    steps = [set_up(system), *distribution_and_group(system, sym, N, si, ri)]
+    steps = [set_up(system, M), *distribution_and_group(system, sym, N, si, ri)]
     if version is None:
         pf = system.planar_frame
         version = "B" if pf is not None and pf[0] in fiber and pf[1] in fiber else "A"
@@ -173,6 +174,6 @@ def layout(system: System, version: str | None = None, form: str | None = None) 
         form = choose_form(system.k, N.shape[1], len(free), len(dependent))
     return Layout(system=system, version=version, fiber=fiber, shape=tuple(names[i] for i in ri),
                   si=si, ri=ri, pivots=pivots, free=free, N=N, g=g, ginv=ginv,
-                  M=tidy(system.mass_matrix()), V=system.potential(), W=system.omega(), form=form,
+                  M=M, V=system.potential(), W=system.omega(), form=form,
                   symmetry=sym), steps
 
