@@ -138,7 +138,7 @@ def singular_measure(layout, conv):
     parts = []
     if k:
         W = layout.W
-        parts.append(_normalised_det(conv(W.extract(list(range(k)), list(layout.pivots)))))
+        parts.append(_normalised_det(conv(layout.Wb.extract(list(range(k)), list(layout.pivots)))))
         if not layout.dependent:
             Ws = conv(W.extract(list(range(k)), si))
             G = ca.mtimes(Ws, Ws.T)

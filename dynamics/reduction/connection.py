@@ -46,9 +46,10 @@ def momentum(F, lay, sy) -> Step:
                 labels={"p": "p (nonholonomic momenta " + ", ".join(map(str, sy.P_nh)) + ")"})
 
 
-def _shape_column(F, lay, M, N, NT, K_nh_inv, Binv, W, ja):
+def _shape_column(F, lay, M, N, NT, K_nh_inv, Binv, W, ja, g):
     """The horizontal lift X_α of ∂/∂r_α (eq. 2.47): 1 at r_α, the pivot velocities from
-    ω X_α = 0, then made M-orthogonal to every ξ_Q^i (so K is block-diagonal)."""
+    ω X_α = 0 (fiber pivots in body velocities ξ, ṡ = gξ), then made M-orthogonal to every
+    ξ_Q^i (so K is block-diagonal)."""
     n = lay.n
     w = [F.ZERO] * n
     w[ja] = F.ONE
@@ -56,8 +57,15 @@ def _shape_column(F, lay, M, N, NT, K_nh_inv, Binv, W, ja):
         col = [[W[i][ja]] for i in range(lay.k)]
         if any(not F.is_zero(c[0]) for c in col):
             wp = F.matmul(Binv, col)
+            xi = [F.ZERO] * len(lay.si)
             for i, pv in enumerate(lay.pivots):
-                w[pv] = F.neg(wp[i][0])
+                if pv in lay.si:
+                    xi[lay.si.index(pv)] = F.neg(wp[i][0])
+                else:
+                    w[pv] = F.neg(wp[i][0])
+            sdot = F.matmul(g, [[x] for x in xi], normal=False)
+            for a, i in enumerate(lay.si):
+                w[i] = sdot[a][0]
     if lay.d:
         inner = F.matmul([M[i] for i in lay.si], [[x] for x in w], normal=False)
         beta = F.mneg(F.matmul(K_nh_inv, F.matmul(NT, inner)))
@@ -75,10 +83,11 @@ def reconstruction(F, lay, sy) -> tuple[Step, Connection]:
     NT = F.T(N) if d else []
     K_nh = F.matmul(F.matmul(NT, [[M[i][j] for j in lay.si] for i in lay.si], normal=False), N) if d else []
     K_nh_inv = F.inv(K_nh, "kinetic metric K_Ω = NᵀM_ssN") if d else []
-    W = F.mat(lay.W) if k else []
+    W = F.mat(lay.Wb) if k else []
     needs_B = k and any(not F.is_zero(W[i][j]) for i in range(k) for j in lay.free)
     Binv = F.inv([[W[i][p] for p in lay.pivots] for i in range(k)], "pivot block of ω") if needs_B else None
-    cols = [_shape_column(F, lay, M, N, NT, K_nh_inv, Binv, W, ja) for ja in lay.free]
+    g = F.mat(lay.g)
+    cols = [_shape_column(F, lay, M, N, NT, K_nh_inv, Binv, W, ja, g) for ja in lay.free]
     X = [[F.ZERO] * (d + len(cols)) for _ in range(n)]
     for j in range(d):
         for a, i in enumerate(lay.si):

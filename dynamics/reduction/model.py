@@ -57,7 +57,8 @@ def casadi_text(obj):
 class ImplicitForm:
     """What the implicit form solves at evaluation time (CasADi, ``model.numeric``).
 
-    With B = ω[:, pivots] (k×k), N the basis of S_q, K_Ω = NᵀM_ssN:
+    With B = ω_b[:, pivots] (k×k; ω_b = (ω_s g, ω_r), fiber velocities in the body frame),
+    N the basis of S_q, K_Ω = NᵀM_ssN:
 
     1. X_α = e_α − (B⁻¹ω e_α on the pivot rows), made M-orthogonal to N: X = [N, X_α] (step 5);
     2. K = XᵀMX; v solves K v = P (steps 8–10);
@@ -75,7 +76,7 @@ class ImplicitForm:
 
     @classmethod
     def of(cls, lay):
-        B = lay.W.extract(list(range(lay.k)), list(lay.pivots)) if lay.k else sp.zeros(0, 0)
+        B = lay.Wb.extract(list(range(lay.k)), list(lay.pivots)) if lay.k else sp.zeros(0, 0)
         return cls(B=B, N=lay.N, M=lay.M, omega=lay.W, pivots=tuple(lay.system.coordinates[i] for i in lay.pivots))
 
 
@@ -106,7 +107,7 @@ def singular_set(lay) -> tuple:
         Ws = lay.W.extract(list(range(k)), si)
         if not lay.dependent and k <= SINGULAR_DET_MAX:
             out.append(_det(Ws * Ws.T))
-        out.append(_det(lay.W.extract(list(range(k)), list(lay.pivots))))
+        out.append(_det(lay.Wb.extract(list(range(k)), list(lay.pivots))))
     if lay.d:
         Ms = lay.M.extract(si, si)
         out.append(_det(tidy(lay.N.T * Ms * lay.N)))

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
 import sympy as sp
 
 from ..steps import Step
@@ -39,6 +40,7 @@ class Layout:
     free : indices of the free shape coordinates (their momenta are the P̃).
     N : sympy l×d basis of S_q in the s-components (step 3).
     g, ginv : the reconstruction's g (l×l) and its inverse.
+    W, Wb : ω and ω with its fiber columns in body velocities (ω_s g).
     form : "explicit" (every step a sympy object) or "implicit" (linear solves at evaluation).
     """
 
@@ -56,6 +58,7 @@ class Layout:
     M: sp.Matrix
     V: sp.Expr
     W: sp.Matrix
+    Wb: sp.Matrix
     form: str
     symmetry: SymmetryTest = field(repr=False, default=None)
 
@@ -133,15 +136,50 @@ def distribution_and_group(system: System, sym: SymmetryTest, N: sp.Matrix, si, 
     return s2, s3
 
 
-def _pivots(system: System, si, ri) -> tuple:
-    """k pivot columns of ω: fiber columns first (rank ω_s of them), then shape columns from
-    the last one backwards (numeric, at a random configuration)."""
-    if not system.k:
+def body_omega(W: sp.Matrix, g: sp.Matrix, si) -> sp.Matrix:
+    """ω with its fiber columns in body velocities, ω_s g (so ω_s ṡ = (ω_s g)ξ): for an SE(2)
+    symmetry its pivot blocks do not depend on the heading."""
+    Wb = sp.Matrix(W)
+    if W.shape[0]:
+        body = tidy(W[:, list(si)] * g)
+        for a, i in enumerate(si):
+            Wb[:, i] = body[:, a]
+    return Wb
+
+
+#: most pivot sets compared by their worst conditioning (else the greedy choice)
+PIVOT_CANDIDATES = 120
+
+
+def _pivots(system: System, Wb: sp.Matrix, si, ri) -> tuple:
+    """k pivot columns of ω_b = (ω_s g, ω_r): as many fiber columns as rank ω_s, then shape
+    columns. Among the admissible sets the one whose normalised |det| is largest in the worst
+    of a few configurations (q = 0 and random ones) is chosen, so the basis avoids singular
+    points of its own making where it can."""
+    import itertools
+    k = system.k
+    if not k:
         return ()
-    W = omega_samples(system, 1, seed=13)[0]
-    order = list(si) + list(reversed(ri))
-    chosen = numeric_pivots(W, order)
-    return tuple(i for i in order if i in chosen)
+    f = sp.lambdify([system.q, system.param_symbols], Wb, "numpy")
+    pv = system.param_vector()
+    samples = [np.zeros(system.n)] + list(system.sample_configurations(4, seed=17))
+    mats = [np.array(f(qv, pv), dtype=float).reshape(k, system.n) for qv in samples]
+    greedy = numeric_pivots(mats[1], list(si) + list(reversed(ri)))
+    k_s = sum(1 for i in greedy if i in si)
+
+    def score(cols):
+        worst = np.inf
+        for A in mats:
+            B = A[:, list(cols)]
+            norm = np.prod(np.linalg.norm(B, axis=1)) or 1.0
+            worst = min(worst, abs(np.linalg.det(B)) / norm)
+        return worst
+    fiber_sets = list(itertools.combinations(si, k_s))
+    shape_sets = list(itertools.combinations(list(reversed(ri)), k - k_s))
+    if len(fiber_sets) * len(shape_sets) > PIVOT_CANDIDATES:
+        return tuple(i for i in list(si) + list(reversed(ri)) if i in greedy)
+    best = max(((a + b) for a in fiber_sets for b in shape_sets), key=score)
+    return tuple(best)
 
 
 def choose_form(k: int, d: int, m: int, dependent: int) -> str:
@@ -167,13 +205,15 @@ def layout(system: System, version: str | None = None, form: str | None = None) 
         version = "B" if pf is not None and pf[0] in fiber and pf[1] in fiber else "A"
     g = group_transform(system, fiber, version)
     ginv = tidy(g.T) if version == "B" else sp.eye(len(si))
-    pivots = _pivots(system, si, ri)
+    W = system.omega()
+    Wb = body_omega(W, g, si)
+    pivots = _pivots(system, Wb, si, ri)
     free = tuple(i for i in ri if i not in pivots)
     dependent = [i for i in pivots if i in ri]
     if form is None:
         form = choose_form(system.k, N.shape[1], len(free), len(dependent))
     return Layout(system=system, version=version, fiber=fiber, shape=tuple(names[i] for i in ri),
                   si=si, ri=ri, pivots=pivots, free=free, N=N, g=g, ginv=ginv,
-                  M=M, V=system.potential(), W=system.omega(), form=form,
+                  M=M, V=system.potential(), W=W, Wb=Wb, form=form,
                   symmetry=sym), steps
 
