@@ -121,12 +121,13 @@ def _absdet(A):
     return out
 
 
-def _normalised_det(A, rows=True):
-    """|det A| / Π‖rows of A‖ ∈ [0, 1] (Hadamard), 0 exactly where A is singular."""
+def _normalised_det(B, rows):
+    """|det B| / Π‖row of ``rows``‖ ∈ [0, 1] (Hadamard; B a block of ``rows``), 0 exactly
+    where B is singular."""
     norm = 1
-    for i in range(A.shape[0]):
-        norm = norm * ca.norm_2(A[i, :].T if rows else A[:, i])
-    return _absdet(A) / (norm + 1e-300)
+    for i in range(rows.shape[0]):
+        norm = norm * ca.norm_2(rows[i, :].T)
+    return _absdet(B) / (norm + 1e-300)
 
 
 def singular_measure(layout, conv):
@@ -138,7 +139,9 @@ def singular_measure(layout, conv):
     parts = []
     if k:
         W = layout.W
-        parts.append(_normalised_det(conv(layout.Wb.extract(list(range(k)), list(layout.pivots)))))
+        if layout.uses_pivot_block:
+            Wb = conv(layout.Wb)
+            parts.append(_normalised_det(Wb[:, list(layout.pivots)], Wb))
         if not layout.dependent:
             Ws = conv(W.extract(list(range(k)), si))
             G = ca.mtimes(Ws, Ws.T)

@@ -47,8 +47,8 @@ def tex_text(text: str) -> str:
         elif ch + nxt in _UNICODE_TEX:
             out.append(f"${_UNICODE_TEX[ch + nxt]}$")
             i += 1
-        elif ch in _UNICODE_TEX:
-            out.append(f"${_UNICODE_TEX[ch]}$")
+        elif ch in _UNICODE_TEX or _greek(ch):
+            out.append(f"${_math_char(ch)}$")
         elif ch in _TEXT_PUNCT:
             out.append(_TEXT_PUNCT[ch])
         elif ch in "_#%&{}":
@@ -56,7 +56,7 @@ def tex_text(text: str) -> str:
         elif ch in "^~\\":
             out.append({"^": r"\^{}", "~": r"\~{}", "\\": r"\textbackslash{}"}[ch])
         elif ch in "<>|":
-            out.append(f"$\\{'lt' if ch == '<' else 'gt' if ch == '>' else 'vert'}$")
+            out.append({"<": "$<$", ">": "$>$", "|": r"$\vert$"}[ch])
         elif ord(ch) < 128:
             out.append(ch)
         else:
@@ -65,8 +65,19 @@ def tex_text(text: str) -> str:
     return re.sub(r"\$\$", "", "".join(out))      # join adjacent math runs
 
 
+def _greek(ch):
+    """\\alpha for α, \\Gamma for Γ (None for other characters)."""
+    name = unicodedata.name(ch, "")
+    for prefix, case in (("GREEK SMALL LETTER ", str.lower), ("GREEK CAPITAL LETTER ", str.capitalize)):
+        if name.startswith(prefix):
+            word = name[len(prefix):].replace("LAMDA", "LAMBDA")
+            if " " not in word:
+                return "\\" + case(word)
+    return None
+
+
 def _math_char(ch):
-    return _UNICODE_TEX.get(ch, ch)
+    return _UNICODE_TEX.get(ch) or _greek(ch) or ch
 
 
 def default_symbol_names(symbols) -> dict:

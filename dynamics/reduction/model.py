@@ -107,7 +107,8 @@ def singular_set(lay) -> tuple:
         Ws = lay.W.extract(list(range(k)), si)
         if not lay.dependent and k <= SINGULAR_DET_MAX:
             out.append(_det(Ws * Ws.T))
-        out.append(_det(lay.Wb.extract(list(range(k)), list(lay.pivots))))
+        if lay.uses_pivot_block:
+            out.append(_det(lay.Wb.extract(list(range(k)), list(lay.pivots))))
     if lay.d:
         Ms = lay.M.extract(si, si)
         out.append(_det(tidy(lay.N.T * Ms * lay.N)))

@@ -75,6 +75,11 @@ class Layout:
         return self.N.shape[1]
 
     @property
+    def uses_pivot_block(self) -> bool:
+        """Step 5 inverts B = ω_b[:, pivots] (some free shape velocity enters ω)."""
+        return bool(self.k) and any(self.Wb[i, j] != 0 for i in range(self.k) for j in self.free)
+
+    @property
     def dependent(self):
         """Shape coordinates whose velocities the constraints determine."""
         return tuple(i for i in self.pivots if i in self.ri)
@@ -167,12 +172,11 @@ def _pivots(system: System, Wb: sp.Matrix, si, ri) -> tuple:
     greedy = numeric_pivots(mats[1], list(si) + list(reversed(ri)))
     k_s = sum(1 for i in greedy if i in si)
 
-    def score(cols):
+    def score(cols):       # |det B| / Π‖row of ω_b‖: how well the pivots carry each row
         worst = np.inf
         for A in mats:
-            B = A[:, list(cols)]
-            norm = np.prod(np.linalg.norm(B, axis=1)) or 1.0
-            worst = min(worst, abs(np.linalg.det(B)) / norm)
+            norm = np.prod(np.linalg.norm(A, axis=1)) or 1.0
+            worst = min(worst, abs(np.linalg.det(A[:, list(cols)])) / norm)
         return worst
     fiber_sets = list(itertools.combinations(si, k_s))
     shape_sets = list(itertools.combinations(list(reversed(ri)), k - k_s))
