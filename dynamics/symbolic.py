@@ -356,6 +356,10 @@ class MatrixOps:
     def div(self, f, g):
         return f / g
 
+    def solve(self, A, B, what="matrix"):
+        """A⁻¹B (exact back ends: through the inverse, which they normalise)."""
+        return self.matmul(self.inv(A, what), B)
+
     def jvp(self, col, xs, direction):
         """Σ_j ∂col_i/∂x_j · direction_j (the derivative of a column along a vector field)."""
         out = []

@@ -54,7 +54,7 @@ FORMS = ("explicit", "implicit")
 #: work budget of the explicit form's exact arithmetic (Σ terms(num)·terms(den) over all
 #: normalisations; snakeboard ≈ 1.2e4, a 2-link snake with a rotor ≈ 1.9e6): beyond it the
 #: implicit form is used (deterministic, unlike a time limit)
-EXPLICIT_WORK_BUDGET = 200_000
+EXPLICIT_WORK_BUDGET = 60_000
 
 
 def run_steps(F, lay: Layout) -> tuple[list, dict]:

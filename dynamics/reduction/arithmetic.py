@@ -210,6 +210,11 @@ class CasadiArithmetic(MatrixOps):
         dA = ca.reshape(ca.jtimes(ca.vec(self._sx(A)), x, ca.vertcat(*direction)), n, n)
         return self._rows(-ca.mtimes([self._sx(Ainv), dA, self._sx(Ainv)]))
 
+    def solve(self, A, B, what="matrix"):
+        """A⁻¹B by one symbolic QR solve (no inverse formed)."""
+        sol = self.ca.solve(self._sx(A), self._sx(B))
+        return self._rows(sol)
+
     def show(self, A, rows=None, cols=None):
         """An SX matrix (printed by CasADi with shared subexpressions)."""
         ca = self.ca

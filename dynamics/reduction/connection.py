@@ -46,26 +46,23 @@ def momentum(F, lay, sy) -> Step:
                 labels={"p": "p (nonholonomic momenta " + ", ".join(map(str, sy.P_nh)) + ")"})
 
 
-def _shape_column(F, lay, M, N, NT, K_nh_inv, Binv, W, ja, g):
+def _shape_column(F, lay, M, N, NT, K_nh_inv, wp, ja, g):
     """The horizontal lift X_α of ∂/∂r_α (eq. 2.47): 1 at r_α, the pivot velocities from
     ω X_α = 0 (fiber pivots in body velocities ξ, ṡ = gξ), then made M-orthogonal to every
     ξ_Q^i (so K is block-diagonal)."""
     n = lay.n
     w = [F.ZERO] * n
     w[ja] = F.ONE
-    if Binv is not None:
-        col = [[W[i][ja]] for i in range(lay.k)]
-        if any(not F.is_zero(c[0]) for c in col):
-            wp = F.matmul(Binv, col)
-            xi = [F.ZERO] * len(lay.si)
-            for i, pv in enumerate(lay.pivots):
-                if pv in lay.si:
-                    xi[lay.si.index(pv)] = F.neg(wp[i][0])
-                else:
-                    w[pv] = F.neg(wp[i][0])
-            sdot = F.matmul(g, [[x] for x in xi], normal=False)
-            for a, i in enumerate(lay.si):
-                w[i] = sdot[a][0]
+    if wp is not None:              # B⁻¹ω_b e_α (a k-vector), or None when ω_b e_α = 0
+        xi = [F.ZERO] * len(lay.si)
+        for i, pv in enumerate(lay.pivots):
+            if pv in lay.si:
+                xi[lay.si.index(pv)] = F.neg(wp[i][0])
+            else:
+                w[pv] = F.neg(wp[i][0])
+        sdot = F.matmul(g, [[x] for x in xi], normal=False)
+        for a, i in enumerate(lay.si):
+            w[i] = sdot[a][0]
     if lay.d:
         inner = F.matmul([M[i] for i in lay.si], [[x] for x in w], normal=False)
         beta = F.mneg(F.matmul(K_nh_inv, F.matmul(NT, inner)))
@@ -77,7 +74,9 @@ def _shape_column(F, lay, M, N, NT, K_nh_inv, Binv, W, ja, g):
 
 def reconstruction(F, lay, sy) -> tuple[Step, Connection]:
     """Step 5 (eqs. 2.47, 3.10–3.13, 3.36, 3.71): solve ω_s ṡ + ω_r ṙ = 0 with the momentum
-    definition for ṡ = −A_q ṙ + Γ_q p; A = g⁻¹A_q, Γ = g⁻¹Γ_q = g⁻¹N K_Ω⁻¹."""
+    definition for ṡ = −A_q ṙ + Γ_q p; A = g⁻¹A_q, Γ = g⁻¹Γ_q = g⁻¹N K_Ω⁻¹. The pivot block B
+    of ω_b is solved against the free shape columns (``F.solve``: a linear solve in the
+    implicit form)."""
     n, k, d, l = lay.n, lay.k, lay.d, len(lay.si)
     M, N = F.mat(lay.M), F.mat(lay.N)
     NT = F.T(N) if d else []
@@ -85,9 +84,13 @@ def reconstruction(F, lay, sy) -> tuple[Step, Connection]:
     K_nh_inv = F.inv(K_nh, "kinetic metric K_Ω = NᵀM_ssN") if d else []
     W = F.mat(lay.Wb) if k else []
     needs_B = k and any(not F.is_zero(W[i][j]) for i in range(k) for j in lay.free)
-    Binv = F.inv([[W[i][p] for p in lay.pivots] for i in range(k)], "pivot block of ω") if needs_B else None
+    rhs = [ja for ja in lay.free if k and any(not F.is_zero(W[i][ja]) for i in range(k))]
+    sol = F.solve([[W[i][p] for p in lay.pivots] for i in range(k)], [[W[i][ja] for ja in rhs] for i in range(k)],
+                  "pivot block of ω") if needs_B and rhs else []
     g = F.mat(lay.g)
-    cols = [_shape_column(F, lay, M, N, NT, K_nh_inv, Binv, W, ja, g) for ja in lay.free]
+    cols = [_shape_column(F, lay, M, N, NT, K_nh_inv,
+                          [[sol[i][rhs.index(ja)]] for i in range(k)] if ja in rhs else None, ja, g)
+            for ja in lay.free]
     X = [[F.ZERO] * (d + len(cols)) for _ in range(n)]
     for j in range(d):
         for a, i in enumerate(lay.si):
