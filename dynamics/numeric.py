@@ -225,27 +225,25 @@ def compile_reduced_from(model, out) -> NumericModel:
     """The implicit form's functions from the CasADi run of the steps (``out`` of
     :func:`~nhgait.dynamics.reduction.run_steps` on :class:`CasadiArithmetic`)."""
     system, F = model.system, out["F"]
-    S = F.sym
-    t = S(TIME_SYM)
-    q = ca.vertcat(*[S(s) for s in system.q])
-    P = ca.vertcat(*[S(s) for s in model.momenta]) if model.momenta else ca.SX(0, 1)
+    sym_of = F.sym
+    t = sym_of(TIME_SYM)
+    q = ca.vertcat(*[sym_of(s) for s in system.q])
+    P = ca.vertcat(*[sym_of(s) for s in model.momenta]) if model.momenta else ca.SX(0, 1)
     z = ca.vertcat(q, P)
-    qd = ca.vertcat(*[S(s) for s in system.q_dot])
-    u = ca.vertcat(*[S(s) for s in system.input_symbols]) if system.input_symbols else ca.SX(0, 1)
-    p = ca.vertcat(*[S(s) for s in system.param_symbols]) if system.param_symbols else ca.SX(0, 1)
+    qd = ca.vertcat(*[sym_of(s) for s in system.q_dot])
+    u = ca.vertcat(*[sym_of(s) for s in system.input_symbols]) if system.input_symbols else ca.SX(0, 1)
+    p = ca.vertcat(*[sym_of(s) for s in system.param_symbols]) if system.param_symbols else ca.SX(0, 1)
     qdot = ca.vertcat(*out["qdot"])
     rhs = ca.vertcat(qdot, *out["Pdot"]) if out["Pdot"] else qdot
     rhs, qdot = ca.cse(rhs), ca.cse(qdot)
     P_of_v = ca.vertcat(*out["momenta_of_velocity"]) if out["momenta_of_velocity"] else ca.SX(0, 1)
     tau = ca.vertcat(*[F.frac(e) for e in system.force_vector()])
     tau_z = ca.substitute(tau, qd, qdot)
-    syms = list(system.q) + list(system.param_symbols)
 
     def conv(A):
         if A.shape[0] == 0 or A.shape[1] == 0:
             return ca.SX(A.shape[0], A.shape[1])
         return ca.reshape(ca.vertcat(*[F.frac(e) for e in A.T]), A.shape[0], A.shape[1])
-    del syms
     fns = _reduced_functions(model, t, z, u, p, q, qd, rhs, qdot, out["h"], P_of_v, out["X"], out["J_z"],
                              singular_measure(model.layout, conv), tau_z)
     return _base(system, "reduced", model.state_names, fns)

@@ -156,7 +156,13 @@ class Step:
     labels: dict = field(default_factory=dict)
 
     def __getitem__(self, key):
-        return self.items[key]
+        """An artefact by identifier, or by its display label."""
+        if key in self.items:
+            return self.items[key]
+        for ident, label in self.labels.items():
+            if label == key:
+                return self.items[ident]
+        raise KeyError(key)
 
     def __getattr__(self, name):
         if name.startswith("_") or name in ("items", "labels"):

@@ -212,9 +212,10 @@ def null_basis_adjugate(A: sp.Matrix, pivots: list[int]) -> sp.Matrix:
     """Basis of the right null space of the k×l matrix ``A`` (rank k) without divisions.
 
     With B = A[:, pivots] (k×k, invertible at generic points) each free column j gives the
-    null vector v = det(B)·e_j − (adj(B)·A[:, j]) placed on the pivot rows. Its entries are the
-    k×k minors of A, so v vanishes exactly where rank A < k (the singular set), never at a
-    spurious point. Returns an l×(l−k) matrix.
+    null vector v = det(B)·e_j − (adj(B)·A[:, j]) placed on the pivot rows. Its entries are
+    k×k minors of A, so no vector vanishes through a division; the vectors do become
+    dependent where det B = 0, which may happen where rank A = k (a singular point of the
+    basis, listed in the reduction's singular set). Returns an l×(l−k) matrix.
     """
     k, l = A.shape
     free = [j for j in range(l) if j not in pivots]
@@ -438,7 +439,7 @@ class FracField(MatrixOps):
         from sympy.polys.rings import ring as make_ring
         gens: dict = {}
         for e in exprs:
-            for x in (e if isinstance(e, sp.MatrixBase) else [sp.sympify(e)]):
+            for x in (e if isinstance(e, sp.MatrixBase) else [_basic(e)]):
                 x = tidy(x) if has_trig(x) else x
                 _check_trig(x)
                 _collect_generators(x, gens)
@@ -472,7 +473,7 @@ class FracField(MatrixOps):
 
     # -- conversion ------------------------------------------------------------------------
     def frac(self, e, normal=False):
-        e = sp.sympify(e)
+        e = _basic(e)
         try:
             out = self._walk(e)
         except (_NotRational, KeyError):
@@ -645,6 +646,13 @@ class FracField(MatrixOps):
                     mm[i] = 0
                     coefs[a][tuple(mm)] = c
         return (self.normal((self.R(const), den)), [self.normal((self.R(cd), den)) for cd in coefs])
+
+def _basic(e):
+    """A sympy object for an internal value (sympy objects pass through; numbers convert)."""
+    if isinstance(e, sp.Basic):
+        return e
+    return sp.Integer(e) if isinstance(e, int) else sp.Float(e)
+
 
 def _check_trig(x):
     if x.has(sp.tan, sp.cot, sp.sec, sp.csc):

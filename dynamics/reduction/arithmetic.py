@@ -23,7 +23,7 @@ from __future__ import annotations
 import sympy as sp
 
 from ..errors import ModelError
-from ..symbolic import FracField, MatrixOps, tidy
+from ..symbolic import FracField, MatrixOps, _basic, tidy
 
 
 class SympyArithmetic(MatrixOps):
@@ -36,7 +36,7 @@ class SympyArithmetic(MatrixOps):
         self.one = self.ONE = sp.Integer(1)
 
     def frac(self, e, normal=False):
-        e = sp.sympify(e)
+        e = _basic(e)
         return tidy(e) if normal else e
 
     def sym(self, s):
@@ -105,7 +105,7 @@ class CasadiArithmetic(MatrixOps):
 
     def frac(self, e, normal=False):
         from ..bridge import to_casadi
-        e = sp.sympify(e)
+        e = _basic(e)
         for s in e.free_symbols:
             self.sym(s)
         syms = list(self.table)
