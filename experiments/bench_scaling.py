@@ -13,7 +13,7 @@ the thesis systems, in one run:
   capped at ``--cap`` seconds;
 * the operation count of the CasADi right-hand side ż = f(t, z, u, params);
 * oracle agreement: max relative |q̈ − q̈_Kane| at 100 random consistent states off the
-  singular set (singular measure ≥ 1e-3).
+  singular set (singular measure ≥ 1e-2).
 
 Writes a JSON file, a PNG (derivation time and RHS operations against n) and prints a table.
 Usage: python experiments/bench_scaling.py [--repeats 3] [--members a,b] [--out out/bench_scaling]
@@ -38,6 +38,8 @@ sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "experiments"))
 
 BUILTINS = ("unicycle", "snakeboard")
+#: states closer to the singular set than this measure are not drawn (the basis is ill-conditioned there)
+SINGULAR_MIN = 1e-2
 
 
 def _fresh():
@@ -157,7 +159,7 @@ def _agreement(system, model, name, count=100, seed=0):
     while used < count and tries < 20 * count:
         tries += 1
         q = rng.uniform(-1.2, 1.2, system.n)
-        if num.call("singular", q, pv) < 1e-3:
+        if num.call("singular", q, pv) < SINGULAR_MIN:
             continue
         qd = orc.consistent_qdot(q, rng.uniform(-1.0, 1.0, len(orc.independent)), po)
         u = rng.uniform(-2.0, 2.0, len(system.inputs))

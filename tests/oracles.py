@@ -399,13 +399,49 @@ def _model_snake(n_links, rotor=False):
                 constraints=constraints, dependent_sets=dep_sets)
 
 
+def _model_snakeboard_two_steering():
+    """The snakeboard with independently steered wheels: front wheel heading theta + phi_f,
+    back wheel heading theta + phi_b, torques tau_f, tau_b between each wheel and the board
+    and tau_psi between rotor and board (issue 8's 6-coordinate reproduction case)."""
+    import sympy as sp
+    from sympy.physics.mechanics import (Point, ReferenceFrame, RigidBody, dynamicsymbols,
+                                         inertia)
+    x, y, th, psi, pf, pb = q = dynamicsymbols("x y theta psi phi_f phi_b")
+    m, J, Jr, Jw, r = p = sp.symbols("m J J_r J_w r", positive=True)
+    tau_psi, tau_f, tau_b = inp = sp.symbols("tau_psi tau_f tau_b")
+    N = ReferenceFrame("N")
+    B = N.orientnew("B", "Axis", [th, N.z])
+    R = N.orientnew("R", "Axis", [th + psi, N.z])
+    F = N.orientnew("F", "Axis", [th + pf, N.z])
+    K = N.orientnew("K", "Axis", [th + pb, N.z])
+    O = Point("O")
+    O.set_vel(N, 0)
+    C = O.locatenew("C", x * N.x + y * N.y)
+    C.set_vel(N, C.pos_from(O).dt(N))
+    Pf = C.locatenew("Pf", r * B.x)
+    Pb = C.locatenew("Pb", -r * B.x)
+    Pf.v2pt_theory(C, N, B)
+    Pb.v2pt_theory(C, N, B)
+    bodies = [RigidBody("board", C, B, m, (inertia(B, 0, 0, J), C)),
+              RigidBody("rotor", C, R, 0, (inertia(R, 0, 0, Jr), C)),
+              RigidBody("front", Pf, F, 0, (inertia(F, 0, 0, Jw), Pf)),
+              RigidBody("back", Pb, K, 0, (inertia(K, 0, 0, Jw), Pb))]
+    constraints = [Pb.vel(N).dot(K.y), Pf.vel(N).dot(F.y)]
+    loads = [(R, tau_psi * N.z), (B, -tau_psi * N.z), (F, tau_f * N.z), (B, -tau_f * N.z),
+             (K, tau_b * N.z), (B, -tau_b * N.z)]
+    return dict(N=N, q=list(q), params=list(p), inputs=list(inp), bodies=bodies, loads=loads,
+                constraints=constraints, dependent_sets=[(0, 1), (0, 2), (1, 2)])
+
+
 def _family(name):
     """Builders of the scaling families' members by name (see experiments/scaling_systems.py)."""
     if name.startswith("cart_trailers_"):
         return lambda: _model_cart_trailers(int(name.rsplit("_", 1)[1]))
     if name == "cart_trailer_absolute":
         return lambda: _model_cart_trailers(1, absolute=True)
-    if name.startswith("snake_"):
+    if name == "snakeboard_two_steering":
+        return _model_snakeboard_two_steering
+    if name.startswith("snake_") and name[6:7].isdigit():
         parts = name.split("_")
         return lambda: _model_snake(int(parts[1]), rotor=name.endswith("_rotor"))
     return None
