@@ -20,7 +20,7 @@ Hamiltonian DAE (x = (q, p), λ): the same names, with the algebraic equation d/
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import casadi as ca
 import numpy as np
@@ -41,6 +41,15 @@ class NumericModel:
     functions: dict = field(repr=False)
     n_coordinates: int = 0
     n_multipliers: int = 0
+
+    def with_defaults(self, values) -> "NumericModel":
+        """The same compiled functions with other default parameter values (a structure is
+        compiled once; each system binds its own values)."""
+        values = tuple(float(v) for v in values)
+        if len(values) != len(self.param_names):
+            from .errors import ModelError
+            raise ModelError([f"expected {len(self.param_names)} parameter values, got {len(values)}"])
+        return replace(self, param_defaults=values)
 
     def params(self, values=None) -> np.ndarray:
         """Parameter vector: defaults overridden by a mapping ``values``."""

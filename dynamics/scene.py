@@ -19,7 +19,8 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
 from .errors import ModelError
-from .system import TIME, System, _parse
+from .expressions import number_problems
+from .system import TIME, System, _parse, jump_times
 
 SYSTEM_KEYS = {"name", "coordinates", "lagrangian", "constraints", "forces", "parameters", "inputs",
                "fiber", "planar_frame", "description"}
@@ -45,10 +46,17 @@ class ExpressionController:
     def __post_init__(self):
         s = self.system
         subs = s.param_subs(self.params)
-        exprs = [sp.sympify(e).xreplace(subs) for e in self.expressions]
+        exprs = [e.xreplace(subs) for e in self.expressions]
         f = sp.lambdify([TIME, s.q, s.q_dot], exprs, "numpy")
         object.__setattr__(self, "_f", f)
         object.__setattr__(self, "_exprs_num", exprs)
+
+    @property
+    def breakpoints(self):
+        """Times at which a law jumps (Heaviside/sign of a·t + b) or the forces do: the
+        simulator restarts there; None when there are none."""
+        times = sorted(set(jump_times(self._exprs_num)) | set(self.system.force_jump_times(self.params)))
+        return np.array(times) if times else None
 
     def __call__(self, t, q, qdot):
         return np.array(self._f(float(t), np.asarray(q, float), np.asarray(qdot, float)), dtype=float).ravel()
@@ -99,134 +107,189 @@ class Scene:
 
 
 def _number(value, where, problems):
-    if isinstance(value, str):
-        try:
-            return float(sp.sympify(value, locals={"pi": sp.pi}).evalf())
-        except (sp.SympifyError, TypeError, ValueError):
-            problems.append(f"{where}: {value!r} is not a number")
-            return math.nan
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        problems.append(f"{where}: {value!r} is not a number")
-        return math.nan
+    return number_problems(value, where, problems)
+
+
+def _table(value, where, problems) -> dict:
+    """A TOML table or {} with one problem."""
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        problems.append(f"{where} must be a table of name = value, got {_kind(value)}")
+        return {}
+    return value
+
+
+def _kind(value) -> str:
+    return "a string" if isinstance(value, str) else f"a {type(value).__name__}"
+
+
+def _vector(value, where, n, problems):
+    """A list of n numbers (or constant expressions)."""
+    if not isinstance(value, list):
+        problems.append(f"{where} must be a list of {n if n else 'the'} numbers (coordinate order), "
+                        f"got {_kind(value)}")
+        return None
+    out = np.array([_number(v, f"{where}[{i}]", problems) for i, v in enumerate(value)])
+    if n is not None and out.size != n:
+        problems.append(f"{where} has {out.size} entries, the system has {n} coordinates")
+        return None
+    return out
 
 
 def parse_scene(data: dict, source: str = "<scene>") -> Scene:
-    """Build a :class:`Scene` from a parsed TOML document; every problem is reported at once."""
-    problems = []
+    """Build a :class:`Scene` from a parsed TOML document; every problem (system, simulation,
+    further tables) is reported at once in one :class:`ModelError`."""
+    problems: list = []
     unknown = set(data) - TOP_KEYS
     if unknown:
         problems.append(f"unknown top-level table(s) {sorted(unknown)} (allowed: {', '.join(sorted(TOP_KEYS))})")
-    sysd = data.get("system")
-    if not isinstance(sysd, dict):
-        problems.append("missing [system] table")
-        raise ModelError(problems, title=f"invalid scene {source}")
-    unknown = set(sysd) - SYSTEM_KEYS
-    if unknown:
-        problems.append(f"[system]: unknown key(s) {sorted(unknown)} (allowed: {', '.join(sorted(SYSTEM_KEYS))})")
-    for key in ("coordinates", "lagrangian"):
-        if key not in sysd:
-            problems.append(f"[system]: missing key {key!r}")
-    sim_early = data.get("simulation")
-    if isinstance(sim_early, dict) and set(sim_early) - SIMULATION_KEYS:
-        problems.append(f"[simulation]: unknown key(s) {sorted(set(sim_early) - SIMULATION_KEYS)} "
-                        f"(allowed: {', '.join(sorted(SIMULATION_KEYS))})")
-    params = sysd.get("parameters", {})
-    if not isinstance(params, dict):
-        problems.append("[system].parameters must be a table of name = value")
-        params = {}
-    params = {k: _number(v, f"parameter {k}", problems) for k, v in params.items()}
-    forces = sysd.get("forces", {})
-    if not isinstance(forces, dict):
-        problems.append("[system].forces must be a table of coordinate = expression")
-        forces = {}
-    if problems:
-        raise ModelError(problems, title=f"invalid scene {source}")
-    system = System(coordinates=sysd["coordinates"], lagrangian=sysd["lagrangian"],
-                    constraints=sysd.get("constraints", []), forces=forces, parameters=params,
-                    inputs=sysd.get("inputs"), name=sysd.get("name", Path(source).stem or "system"),
-                    fiber=sysd.get("fiber"), planar_frame=sysd.get("planar_frame", "auto"))
-    sim = data.get("simulation")
+    system = _system(data.get("system"), source, problems)
     spec = None
-    if sim is not None:
-        if not isinstance(sim, dict):
-            raise ModelError(["[simulation] must be a table"], title=f"invalid scene {source}")
-        for key in ("q0", "qdot0", "t_final", "samples"):
-            if key not in sim:
-                problems.append(f"[simulation]: missing key {key!r}")
-        if problems:
-            raise ModelError(problems, title=f"invalid scene {source}")
-        q0 = np.array([_number(v, "q0", problems) for v in sim["q0"]])
-        qd0 = np.array([_number(v, "qdot0", problems) for v in sim["qdot0"]])
-        if q0.size != system.n:
-            problems.append(f"[simulation].q0 has {q0.size} entries, the system has {system.n} coordinates")
-        if qd0.size != system.n:
-            problems.append(f"[simulation].qdot0 has {qd0.size} entries, the system has {system.n} coordinates")
-        t0 = _number(sim.get("t0", 0.0), "t0", problems)
-        tf = _number(sim["t_final"], "t_final", problems)
-        if not tf > t0:
-            problems.append(f"[simulation]: t_final = {tf} must be greater than t0 = {t0}")
-        samples = sim["samples"]
-        if not isinstance(samples, int) or samples < 2:
-            problems.append(f"[simulation].samples must be an integer ≥ 2, got {samples!r}")
-        sim_params = {k: _number(v, f"simulation parameter {k}", problems) for k, v in sim.get("parameters", {}).items()}
-        bad = [k for k in sim_params if k not in system.parameters]
-        if bad:
-            problems.append(f"[simulation].parameters: unknown parameter(s) {bad}")
-        inputs = sim.get("inputs", {})
-        controller = None
-        if system.inputs:
-            if not isinstance(inputs, dict):
-                problems.append("[simulation].inputs must be a table of input = expression")
-                inputs = {}
-            missing = [u for u in system.inputs if u not in inputs]
-            extra = [u for u in inputs if u not in system.inputs]
-            if missing:
-                problems.append(f"[simulation].inputs: no law for input(s) {missing} (write 0 for none)")
-            if extra:
-                problems.append(f"[simulation].inputs: {extra} are not inputs of the system ({', '.join(system.inputs)})")
-            if not missing and not extra:
-                names = {s.name: s for s in system.q + system.q_dot + system.param_symbols}
-                names["t"] = TIME
-                exprs = []
-                for u in system.inputs:
-                    e = _parse(str(inputs[u]), names, f"input law {u}", problems)
-                    if e is not None:
-                        bad_syms = [s.name for s in e.free_symbols if s not in set(names.values())]
-                        if bad_syms:
-                            problems.append(f"input law {u}: unknown symbol(s) {sorted(bad_syms)}")
-                        exprs.append(e)
-                if not problems:
-                    controller = ExpressionController(system, tuple(exprs), sim_params)
-        elif inputs:
-            problems.append("[simulation].inputs given but the system has no inputs")
-        formulation = sim.get("formulation")
-        if formulation is not None and formulation not in ("reduced", "lagrange", "hamilton"):
-            problems.append(f"[simulation].formulation {formulation!r} is not reduced, lagrange or hamilton")
-        if problems:
-            raise ModelError(problems, title=f"invalid scene {source}")
-        spec = SimulationSpec(q0=q0, qdot0=qd0, t_final=tf, samples=samples, t0=t0,
-                              controller=controller, parameters=sim_params, formulation=formulation,
-                              rtol=sim.get("rtol"), atol=sim.get("atol"), method=sim.get("method"),
-                              outputs=_outputs(sim.get("outputs"), problems))
-        if problems:
-            raise ModelError(problems, title=f"invalid scene {source}")
+    if data.get("simulation") is not None:
+        spec = _simulation(data["simulation"], system, problems)
     extra = {}
     for key in ("task", "units", "drawing", "quantities"):
         value = data.get(key)
         if value is not None and not isinstance(value, dict):
-            problems.append(f"[{key}] must be a table")
+            problems.append(f"[{key}] must be a table, got {_kind(value)}")
         elif value is not None:
             extra[key] = value
-    if "units" in extra:
-        bad = [k for k, v in extra["units"].items() if not isinstance(v, str)]
-        if bad:
-            problems.append(f"[units]: values must be strings such as \"N*m\" (not for {bad})")
-    quantities = _quantities(system, extra.pop("quantities", {}), problems)
+    bad = [k for k, v in extra.get("units", {}).items() if not isinstance(v, str)]
+    if bad:
+        problems.append(f"[units]: values must be strings such as \"N*m\" (not for {bad})")
+    quantities = _quantities(system, extra.pop("quantities", {}), problems) if system else {}
     if problems:
         raise ModelError(problems, title=f"invalid scene {source}")
     return Scene(system=system, simulation=spec, source=source, quantities=quantities, **extra)
+
+
+def _system(sysd, source, problems) -> System | None:
+    """The ``[system]`` table as a :class:`System` (None after recording its problems)."""
+    if not isinstance(sysd, dict):
+        problems.append("missing [system] table" if sysd is None else f"[system] must be a table, got {_kind(sysd)}")
+        return None
+    unknown = set(sysd) - SYSTEM_KEYS
+    if unknown:
+        problems.append(f"[system]: unknown key(s) {sorted(unknown)} (allowed: {', '.join(sorted(SYSTEM_KEYS))})")
+    missing = [key for key in ("coordinates", "lagrangian") if key not in sysd]
+    problems.extend(f"[system]: missing key {key!r}" for key in missing)
+    name = sysd.get("name", Path(source).stem or "system")
+    if not isinstance(name, str):
+        problems.append(f"[system].name must be a string, got {_kind(name)}")
+        name = "system"
+    if missing:
+        return None
+    try:
+        return System(coordinates=sysd["coordinates"], lagrangian=sysd["lagrangian"],
+                      constraints=sysd.get("constraints", []), forces=sysd.get("forces", {}),
+                      parameters=sysd.get("parameters", {}), inputs=sysd.get("inputs"), name=name,
+                      fiber=sysd.get("fiber"), planar_frame=sysd.get("planar_frame", "auto"))
+    except ModelError as exc:
+        problems.extend(exc.problems)
+        return None
+
+
+def _simulation(sim, system, problems) -> SimulationSpec | None:
+    """The ``[simulation]`` table (its checks that need the system are skipped without one)."""
+    if not isinstance(sim, dict):
+        problems.append(f"[simulation] must be a table, got {_kind(sim)}")
+        return None
+    start = len(problems)
+    unknown = set(sim) - SIMULATION_KEYS
+    if unknown:
+        problems.append(f"[simulation]: unknown key(s) {sorted(unknown)} (allowed: {', '.join(sorted(SIMULATION_KEYS))})")
+    for key in ("q0", "qdot0", "t_final", "samples"):
+        if key not in sim:
+            problems.append(f"[simulation]: missing key {key!r}")
+    n = system.n if system else None
+    q0 = _vector(sim["q0"], "[simulation].q0", n, problems) if "q0" in sim else None
+    t0 = _number(sim.get("t0", 0.0), "[simulation].t0", problems)
+    tf = _number(sim["t_final"], "[simulation].t_final", problems) if "t_final" in sim else math.nan
+    if math.isfinite(t0) and math.isfinite(tf) and not tf > t0:
+        problems.append(f"[simulation]: t_final = {tf} must be greater than t0 = {t0}")
+    samples = sim.get("samples", 2)
+    if isinstance(samples, bool) or not isinstance(samples, int) or not 2 <= samples <= 10_000_000:
+        problems.append(f"[simulation].samples must be an integer from 2 to 10⁷, got {samples!r}")
+    sim_params = {k: _number(v, f"[simulation].parameters.{k}", problems)
+                  for k, v in _table(sim.get("parameters"), "[simulation].parameters", problems).items()}
+    for key in ("rtol", "atol"):
+        if key in sim and not (isinstance(sim[key], (int, float)) and not isinstance(sim[key], bool)
+                               and 0 < sim[key] < 1):
+            problems.append(f"[simulation].{key} must be a number in (0, 1), got {sim[key]!r}")
+    for key in ("method", "formulation"):
+        if key in sim and not isinstance(sim[key], str):
+            problems.append(f"[simulation].{key} must be a string, got {_kind(sim[key])}")
+    formulation = sim.get("formulation")
+    if isinstance(formulation, str) and formulation not in ("reduced", "lagrange", "hamilton"):
+        problems.append(f"[simulation].formulation {formulation!r} is not reduced, lagrange or hamilton")
+    outputs = _outputs(sim.get("outputs"), problems)
+    if system is None:
+        return None
+    bad = [k for k in sim_params if k not in system.parameters]
+    if bad:
+        problems.append(f"[simulation].parameters: unknown parameter(s) {bad}")
+    elif sim_params and len(problems) == start:
+        problems.extend(system.parameter_problems(sim_params, label="the [simulation] parameters"))
+    qd0 = _initial_velocities(sim.get("qdot0"), system, q0, sim_params, problems) if "qdot0" in sim else None
+    controller = _input_laws(sim.get("inputs", {}), system, sim_params, problems)
+    if len(problems) > start:
+        return None
+    return SimulationSpec(q0=q0, qdot0=qd0, t_final=tf, samples=samples, t0=t0, controller=controller,
+                          parameters=sim_params, formulation=formulation, rtol=sim.get("rtol"),
+                          atol=sim.get("atol"), method=sim.get("method"), outputs=outputs)
+
+
+def _initial_velocities(value, system, q0, params, problems):
+    """``qdot0``: a full list, or a partial table {name = value} whose remaining velocities are
+    solved from ω(q0)q̇ = 0 (:func:`~nhgait.dynamics.states.consistent_velocities`)."""
+    if isinstance(value, dict):
+        given = {}
+        for k, v in value.items():
+            name = k[:-4] if k.endswith("_dot") else k
+            given[name] = _number(v, f"[simulation].qdot0.{k}", problems)
+        if q0 is None:
+            return None
+        from .states import consistent_velocities
+        try:
+            return consistent_velocities(system, q0, given, params=params)
+        except ModelError as exc:
+            problems.extend(f"[simulation].qdot0: {p}" for p in exc.problems)
+            return None
+    return _vector(value, "[simulation].qdot0", system.n, problems)
+
+
+def _input_laws(inputs, system, params, problems):
+    """``[simulation.inputs]``: one law per system input, as an :class:`ExpressionController`."""
+    inputs = _table(inputs, "[simulation].inputs", problems)
+    if not system.inputs:
+        if inputs:
+            problems.append("[simulation].inputs given but the system has no inputs")
+        return None
+    missing = [u for u in system.inputs if u not in inputs]
+    extra = [u for u in inputs if u not in system.inputs]
+    if missing:
+        problems.append(f"[simulation].inputs: no law for input(s) {missing} (write 0 for none)")
+    if extra:
+        problems.append(f"[simulation].inputs: {extra} are not inputs of the system ({', '.join(system.inputs)})")
+    if missing or extra:
+        return None
+    names = {s.name: s for s in system.q + system.q_dot + system.param_symbols}
+    names["t"] = TIME
+    exprs, ok = [], True
+    for u in system.inputs:
+        value = inputs[u]
+        e = _parse(value if isinstance(value, str) else value, names, f"[simulation].inputs.{u}", problems)
+        if e is None:
+            ok = False
+            continue
+        bad_syms = sorted(s.name for s in e.free_symbols if s.name not in names)
+        if bad_syms:
+            problems.append(f"[simulation].inputs.{u}: unknown symbol(s) {bad_syms} (allowed: t, "
+                            "coordinates, velocities, parameters)")
+            ok = False
+        exprs.append(e)
+    return ExpressionController(system, tuple(exprs), params) if ok else None
 
 
 def _outputs(value, problems):

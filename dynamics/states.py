@@ -96,3 +96,75 @@ def from_state(model, x, params=None):
     if model.formulation == "reduced":
         return x[:n].copy(), np.asarray(num.call("qdot", x, pv), dtype=float).ravel()
     return x[:n].copy(), np.asarray(num.call("qdot", x, pv), dtype=float).ravel()
+
+
+def consistent_velocities(system, q, given: dict, *, params=None, tol: float = 1e-10) -> np.ndarray:
+    """Velocities q̇ with ω(q)q̇ = 0 from the ones ``given`` (name → value; ``x`` or ``x_dot``).
+
+    The remaining velocities q̇_U solve ω_U(q) q̇_U = −ω_G(q) q̇_G (G: given, U: the rest). This
+    determines them exactly when ω_U has full column rank; otherwise the error names which
+    further velocities, if given, would determine the rest. Given velocities that violate the
+    constraints are an error too.
+
+    Parameters
+    ----------
+    system : System (or a derived model, whose ``system`` is used)
+    q : (n,) configuration.
+    given : mapping coordinate (or ``<coordinate>_dot``) name → velocity.
+    params : mapping name → value overriding the default parameters, optional.
+
+    Returns
+    -------
+    (n,) velocities in coordinate order.
+    """
+    system = getattr(system, "system", system)
+    names = list(system.coordinates)
+    q = np.asarray(q, dtype=float).ravel()
+    problems = []
+    if q.size != system.n:
+        problems.append(f"q has {q.size} entries, expected {system.n} ({', '.join(names)})")
+    values = {}
+    for key, v in dict(given).items():
+        name = key[:-4] if key.endswith("_dot") and key[:-4] in names else key
+        if name not in names:
+            problems.append(f"{key!r} is not a coordinate or velocity (coordinates: {', '.join(names)})")
+        elif not np.isfinite(v):
+            problems.append(f"the velocity of {name} is not finite")
+        else:
+            values[name] = float(v)
+    if problems:
+        raise ModelError(problems, title="cannot solve for the velocities")
+    qdot = np.zeros(system.n)
+    G = [names.index(c) for c in values]
+    U = [i for i in range(system.n) if i not in G]
+    qdot[G] = [values[names[i]] for i in G]
+    if system.k == 0:
+        if U:
+            raise ModelError([f"without constraints every velocity must be given; missing "
+                              f"{', '.join(names[i] + '_dot' for i in U)}"], title="cannot solve for the velocities")
+        return qdot
+    f_w = system.numeric_functions()[1]
+    with np.errstate(all="ignore"):
+        W = np.array(f_w(q, system.param_vector(params)), dtype=float).reshape(system.k, system.n)
+    if not np.all(np.isfinite(W)):
+        raise ModelError([f"ω(q) is not finite at q = {q.tolist()}"], title="cannot solve for the velocities")
+    scale = max(1.0, np.abs(W).max())
+    WU = W[:, U]
+    rank = np.linalg.matrix_rank(WU, tol=1e-9 * scale) if U else 0
+    if rank < len(U):
+        from .symbolic import numeric_pivots
+        pivots = [U[j] for j in numeric_pivots(WU)] if U else []
+        free = [names[i] + "_dot" for i in U if i not in pivots]
+        raise ModelError([f"the given velocities ({', '.join(c + '_dot' for c in values) or 'none'}) do not "
+                          f"determine the rest: {len(U)} unknown velocities but only {rank} independent "
+                          f"constraints on them at this q; give {len(U) - rank} more, for example {', '.join(free)}"],
+                         title="cannot solve for the velocities")
+    rhs = -W[:, G] @ qdot[G]
+    if U:
+        qdot[U] = np.linalg.lstsq(WU, rhs, rcond=None)[0]
+    residual = W @ qdot
+    if np.max(np.abs(residual)) > tol * max(1.0, np.linalg.norm(qdot)) * scale:
+        raise ModelError([f"the given velocities violate the constraints: ω(q)q̇ = "
+                          f"{np.array2string(residual, precision=3)} cannot be made zero by the others"],
+                         title="cannot solve for the velocities")
+    return qdot

@@ -647,6 +647,7 @@ class FracField(MatrixOps):
                     coefs[a][tuple(mm)] = c
         return (self.normal((self.R(const), den)), [self.normal((self.R(cd), den)) for cd in coefs])
 
+
 def _basic(e):
     """A sympy object for an internal value (sympy objects pass through; numbers convert)."""
     if isinstance(e, sp.Basic):

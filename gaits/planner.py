@@ -33,6 +33,7 @@ coordinates (:func:`to_momentum_coordinates`) and verifies it there.
 """
 from __future__ import annotations
 
+import hashlib
 import math
 import time
 from dataclasses import dataclass, field
@@ -158,7 +159,7 @@ def _cancel_numeric(num, den, tol):
     if not d0.free_symbols:
         return sp.factor(exact)
     const, factors = sp.factor_list(d0)
-    num, den = sp.expand(n0), sp.S(const)
+    num, den = sp.expand(n0), const
     for f, k in factors:
         for _ in range(k):
             gens = sorted(num.free_symbols | f.free_symbols, key=sp.default_sort_key)
@@ -341,10 +342,11 @@ def specialise(model, params=None, *, velocities=None) -> SpecialisedModel:
 
     params = np.asarray(model.numeric.params(params), dtype=float)
     velocities = tuple(velocities or ())
+    code = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()   # the code that specialises
     key = cache.cache_key(model.system, "reduced-specialised",
                           "params=" + ",".join(float(v).hex() for v in params)
-                          + ";velocities=" + ",".join(velocities) + ";v2")
-    hit = cache.load(key)
+                          + ";velocities=" + ",".join(velocities) + ";code=" + code)
+    hit = cache.load(key, dict)
     if hit is None:
         if velocities:
             numeric = _build_velocity(model, params, velocities)
