@@ -30,7 +30,7 @@ from __future__ import annotations
 import sympy as sp
 
 CART = {"m": 2.0, "I": 0.3, "a": 0.15, "rho": 0.1, "J_w": 0.02}
-TRAILER = {"m_t": 1.0, "I_t": 0.12, "b": 0.2, "l_t": 0.6, "c_t": 0.35}
+TRAILER = {"m_t": 1.0, "I_t": 0.12, "l_t": 0.6, "c_t": 0.35}
 SNAKE = {"m_s": 1.0, "I_s": 0.08, "l_s": 0.25}
 ROTOR = {"J_r": 0.05}
 BOARD = {"m": 0.5, "J": 0.3, "J_r": 0.2, "J_w": 0.1, "r": 1.3784048752090221}
@@ -54,21 +54,31 @@ def _velocity_text(coords):
     return qs, d
 
 
+def _compact(e):
+    """A velocity expression grouped by its sines and cosines (short scene text)."""
+    e = sp.expand(e)
+    return sp.collect(e, sorted(e.atoms(sp.sin, sp.cos), key=sp.default_sort_key), func=sp.factor)
+
+
 def _kinetic(points, angles, d):
-    """Σ ½ m |ṗ|² + ½ I θ̇² for (mass, position) and (inertia, absolute angle) pairs."""
+    """Σ ½ m |ṗ|² + ½ I θ̇² for (mass, position) and (inertia, absolute angle) pairs, written
+    as sums of squares of velocity components (as a user would write it)."""
     T = sp.Integer(0)
     for mass, pos in points:
         v = pos.applyfunc(d)
-        T += mass * (v[0] ** 2 + v[1] ** 2) / 2
+        T += mass * (_compact(v[0]) ** 2 + _compact(v[1]) ** 2) / 2
     for inertia, ang in angles:
-        T += inertia * d(ang) ** 2 / 2
+        T += inertia * _compact(d(ang)) ** 2 / 2
     return T
 
 
 def _trig_tidy(c):
-    """Products of sin/cos to sums and back to sines/cosines of sums (cheap, readable)."""
+    """Products of sin/cos to sums and back to sines/cosines of sums, masses collected (cheap,
+    readable, and short enough for the scene parser's size limit)."""
     from sympy.simplify.fu import TR8, TR10i
-    return sp.factor_terms(TR10i(sp.expand(TR8(c))))
+    c = sp.factor_terms(TR10i(sp.expand(TR8(c))))
+    masses = [sp.Symbol(n, real=True) for n in ("m_t", "m", "m_s")]
+    return sp.collect(sp.expand(c), masses, func=sp.factor_terms)
 
 
 def _tidy_form(expr, coords):
@@ -80,7 +90,6 @@ def _tidy_form(expr, coords):
 
 
 def _toml(name, coords, L, constraints, forces, params, inputs, description):
-    L = _tidy_form(L, coords)
     constraints = [_tidy_form(c, coords) for c in constraints]
     lines = [f"# {description}", "[system]", f'name = "{name}"',
              "coordinates = [" + ", ".join(f'"{c}"' for c in coords) + "]",
@@ -103,13 +112,12 @@ def _cart_chain(coords, headings, k, d):
     angles = [(P["I"], th0), (P["J_w"], phi)]
     cons = [_n(th0).dot(axle.applyfunc(d)), _e(th0).dot(axle.applyfunc(d)) - P["rho"] * d(phi)]
     for i in range(1, k + 1):
-        hitch = axle - P["b"] * _e(headings[i - 1])
+        hitch = axle                       # on-axle hitching
         axle = hitch - P["l_t"] * _e(headings[i])
         points.append((P["m_t"], hitch - P["c_t"] * _e(headings[i])))
         angles.append((P["I_t"], headings[i]))
         cons.append(_n(headings[i]).dot(axle.applyfunc(d)))
-    T = _kinetic(points, angles, d)
-    return sp.expand(T), [sp.expand(c) for c in cons]
+    return _kinetic(points, angles, d), cons
 
 
 def cart_trailers(k: int) -> str:
@@ -158,13 +166,13 @@ def snake(N: int, rotor: bool = False) -> str:
         cons.append(_n(heading).dot(centre.applyfunc(d)))
     if rotor:
         angles.append((P["J_r"], th + qs[3]))
-    T = sp.expand(_kinetic(points, angles, d))
+    T = _kinetic(points, angles, d)
     forces = {j: f"tau_{j}" for j in joints}
     if rotor:
         forces = {"psi": "tau_psi", **forces}
     params = {**SNAKE, **(ROTOR if rotor else {})}
     name = f"snake_{N}" + ("_rotor" if rotor else "")
-    return _toml(name, coords, T, [sp.expand(c) for c in cons], forces, params,
+    return _toml(name, coords, T, cons, forces, params,
                  [f"tau_{c}" for c in forces],
                  f"Wheeled {N}-link snake{' with a head rotor' if rotor else ''} (experiments/scaling_systems.py).")
 
@@ -181,7 +189,7 @@ def snakeboard_two_steering() -> str:
     front = centre + P["r"] * _e(th)
     back = centre - P["r"] * _e(th)
     cons = [_n(th + pb).dot(back.applyfunc(d)), _n(th + pf).dot(front.applyfunc(d))]
-    return _toml("snakeboard_two_steering", coords, sp.expand(T), [sp.expand(c) for c in cons],
+    return _toml("snakeboard_two_steering", coords, T, cons,
                  {"psi": "tau_psi", "phi_f": "tau_f", "phi_b": "tau_b"}, BOARD,
                  ["tau_psi", "tau_f", "tau_b"],
                  "Snakeboard with independently steered wheels (issue 8 reproduction).")

@@ -284,8 +284,8 @@ def _model_knife_edge_incline():
 def _model_cart_trailers(k, absolute=False):
     """A cart (axle midpoint (x, y), heading theta, centre of mass a ahead of the axle) on one
     driven wheel of radius rho at the axle (spin phi, inertia J_w about the axle), pulling k
-    trailers: trailer i hangs on a hitch b behind the previous axle, its axle l_t behind the
-    hitch, its centre of mass c_t behind the hitch. Relative hitch angles beta_i, or (k = 1,
+    trailers: trailer i hangs on a hitch at the previous axle's midpoint, its axle l_t behind
+    the hitch, its centre of mass c_t behind the hitch. Relative hitch angles beta_i, or (k = 1,
     ``absolute``) absolute headings theta0, theta1. Steering torque tau_theta on the cart,
     wheel torque tau_phi between wheel and cart."""
     import sympy as sp
@@ -303,7 +303,7 @@ def _model_cart_trailers(k, absolute=False):
         for b_ in betas:
             headings.append(headings[-1] + b_)
     m, I, a, rho, Jw = cart = sp.symbols("m I a rho J_w", positive=True)
-    mt, It, b, lt, ct = trailer = sp.symbols("m_t I_t b l_t c_t", positive=True)
+    mt, It, lt, ct = trailer = sp.symbols("m_t I_t l_t c_t", positive=True)
     params = list(cart) + (list(trailer) if k else [])
     tau_th, tau_ph = inp = sp.symbols("tau_theta tau_phi")
     N = ReferenceFrame("N")
@@ -323,8 +323,7 @@ def _model_cart_trailers(k, absolute=False):
     prev_frame, prev_axle = C, axle
     for i in range(1, k + 1):
         T = N.orientnew(f"T{i}", "Axis", [headings[i], N.z])
-        hitch = prev_axle.locatenew(f"H{i}", -b * prev_frame.x)
-        hitch.v2pt_theory(prev_axle, N, prev_frame)
+        hitch = prev_axle                              # on-axle hitching
         ax = hitch.locatenew(f"P{i}", -lt * T.x)
         ax.v2pt_theory(hitch, N, T)
         G = hitch.locatenew(f"G{i}", -ct * T.x)

@@ -20,7 +20,6 @@ from oracles import oracle
 
 ROOT = Path(__file__).resolve().parents[1]
 RTOL = 1e-10
-SINGULAR_MIN = 1e-2
 
 
 def _families():
@@ -32,16 +31,16 @@ def _families():
 
 
 def _agreement(system, model, orc, count=100, seed=0):
-    """Worst relative q̈ error and the number of states used."""
+    """Worst relative q̈ error over ``count`` consistent states: of 1.2·count random
+    configurations the 1/6 nearest the singular set (smallest singular measure) are dropped."""
     num = model.numeric
     pv = system.param_vector()
     po = np.array([system.parameters[p] for p in orc.parameters])
     rng = np.random.default_rng(seed)
-    worst, used = 0.0, 0
-    while used < count:
-        q = rng.uniform(-1.2, 1.2, system.n)
-        if num.call("singular", q, pv) < SINGULAR_MIN:
-            continue
+    drawn = rng.uniform(-1.2, 1.2, (count + count // 5, system.n))
+    measure = np.array([num.call("singular", q, pv) for q in drawn])
+    worst = 0.0
+    for q in drawn[np.argsort(measure)[::-1][:count]]:   # the count farthest from the singular set
         qd = orc.consistent_qdot(q, rng.uniform(-1.0, 1.0, len(orc.independent)), po)
         u = rng.uniform(-2.0, 2.0, len(system.inputs))
         uo = np.array([u[system.inputs.index(i)] for i in orc.inputs])
@@ -50,7 +49,6 @@ def _agreement(system, model, orc, count=100, seed=0):
         np.testing.assert_allclose(num.call("qdot", z, pv), qd, rtol=1e-9, atol=1e-9)
         got = num.call("qddot", 0.0, z, u, pv)
         worst = max(worst, np.max(np.abs(got - ref)) / max(1.0, np.max(np.abs(ref))))
-        used += 1
     return worst
 
 
