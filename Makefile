@@ -3,17 +3,20 @@ PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
+LOG    := $(VENV)/install.log
 
 .PHONY: demo test bench reproduce clean
 
+# The set-up's pip/setuptools output goes to $(LOG) (shown in full if the install fails).
 $(STAMP): pyproject.toml
-	test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[test]"
-	touch $(STAMP)
+	@echo "setting up $(VENV) (log: $(LOG))"
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	@$(PY) -m pip install --upgrade pip > $(LOG) 2>&1 || (cat $(LOG); exit 1)
+	@$(PY) -m pip install -e ".[test]" >> $(LOG) 2>&1 || (cat $(LOG); exit 1)
+	@touch $(STAMP)
 
 demo: $(STAMP)
-	$(VENV)/bin/nhgait plan snakeboard --gait forward --out out/demo
+	@$(VENV)/bin/nhgait plan snakeboard --gait forward --out out/demo
 
 test: $(STAMP)
 	$(PY) -m pytest -q

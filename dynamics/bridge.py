@@ -8,17 +8,23 @@ from __future__ import annotations
 import casadi as ca
 import sympy as sp
 
+from .errors import ModelError
+
 _UNARY = {
     sp.sin: ca.sin, sp.cos: ca.cos, sp.tan: ca.tan, sp.asin: ca.asin, sp.acos: ca.acos,
     sp.atan: ca.atan, sp.sinh: ca.sinh, sp.cosh: ca.cosh, sp.tanh: ca.tanh, sp.exp: ca.exp,
     sp.log: ca.log, sp.Abs: ca.fabs, sp.sign: ca.sign,
     sp.sec: lambda x: 1 / ca.cos(x), sp.csc: lambda x: 1 / ca.sin(x),
-    sp.cot: lambda x: 1 / ca.tan(x), sp.Heaviside: lambda x: ca.if_else(x >= 0, 1, 0),
+    sp.cot: lambda x: 1 / ca.tan(x),
+    sp.Heaviside: lambda x: ca.if_else(x > 0, 1, ca.if_else(x < 0, 0, 0.5)),   # sympy: H(0) = 1/2
 }
 
 
-class BridgeError(TypeError):
+class BridgeError(ModelError):
     """An expression uses a function the CasADi bridge does not know."""
+
+    def __init__(self, problems):
+        super().__init__(problems, title="cannot evaluate the equations numerically")
 
 
 def to_casadi(exprs, symbols, sx_args):
@@ -73,6 +79,10 @@ def to_casadi(exprs, symbols, sx_args):
                     out = 1 / out
             else:
                 out = conv(b) ** conv(x)
+        elif isinstance(e, sp.DiracDelta):
+            # the derivative of a jump (Heaviside, sign) is taken as 0 away from the jump: the
+            # equations hold almost everywhere and the integrator steps over the jump itself
+            out = 0.0
         elif e.func in _UNARY:
             out = _UNARY[e.func](conv(e.args[0]))
         elif e.func is sp.atan2:

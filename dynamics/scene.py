@@ -20,7 +20,7 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
 
 from .errors import ModelError
 from .expressions import number_problems
-from .system import TIME, System, _parse
+from .system import TIME, System, _parse, jump_times
 
 SYSTEM_KEYS = {"name", "coordinates", "lagrangian", "constraints", "forces", "parameters", "inputs",
                "fiber", "planar_frame", "description"}
@@ -50,6 +50,13 @@ class ExpressionController:
         f = sp.lambdify([TIME, s.q, s.q_dot], exprs, "numpy")
         object.__setattr__(self, "_f", f)
         object.__setattr__(self, "_exprs_num", exprs)
+
+    @property
+    def breakpoints(self):
+        """Times at which a law jumps (Heaviside/sign of a·t + b) or the forces do: the
+        simulator restarts there; None when there are none."""
+        times = sorted(set(jump_times(self._exprs_num)) | set(self.system.force_jump_times(self.params)))
+        return np.array(times) if times else None
 
     def __call__(self, t, q, qdot):
         return np.array(self._f(float(t), np.asarray(q, float), np.asarray(qdot, float)), dtype=float).ravel()

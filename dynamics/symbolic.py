@@ -295,7 +295,7 @@ class FracField:
         from sympy.polys.rings import ring as make_ring
         gens: dict = {}
         for e in exprs:
-            for x in (e if isinstance(e, sp.MatrixBase) else [sp.sympify(e)]):
+            for x in (e if isinstance(e, sp.MatrixBase) else [_basic(e)]):
                 x = tidy(x) if has_trig(x) else x
                 _check_trig(x)
                 _collect_generators(x, gens)
@@ -326,7 +326,7 @@ class FracField:
 
     # -- conversion ------------------------------------------------------------------------
     def frac(self, e, normal=False):
-        e = sp.sympify(e)
+        e = _basic(e)
         try:
             out = self._walk(e)
         except (_NotRational, KeyError):
@@ -548,6 +548,13 @@ class FracField:
                     if c[0]:
                         out += self.expr(c) * variables[i] * variables[j]
         return out
+
+
+def _basic(e):
+    """A sympy object for an internal value (sympy objects pass through; numbers convert)."""
+    if isinstance(e, sp.Basic):
+        return e
+    return sp.Integer(e) if isinstance(e, int) else sp.Float(e)
 
 
 def _check_trig(x):

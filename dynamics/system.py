@@ -36,6 +36,23 @@ TIME = sp.Symbol("t", real=True)
 _NON_SMOOTH = (sp.Heaviside, sp.sign, sp.Min, sp.Max)
 
 
+def jump_times(exprs, subs=None) -> tuple:
+    """Times at which ``exprs`` jump: the roots t = −b/a of the arguments a·t + b (a, b numbers
+    after ``subs``) of Heaviside and sign. A simulation restarts its integrator there (a
+    breakpoint), so a jump in a force or an input law is never stepped over."""
+    out = set()
+    for e in exprs:
+        e = e.xreplace(subs) if subs else e
+        for f in e.atoms(sp.Heaviside, sp.sign):
+            arg = sp.expand(f.args[0])
+            if arg.free_symbols != {TIME}:
+                continue
+            a, b = arg.coeff(TIME, 1), arg.coeff(TIME, 0)
+            if a.is_number and b.is_number and a != 0 and sp.expand(arg - a * TIME - b) == 0:
+                out.add(float(-b / a))
+    return tuple(sorted(out))
+
+
 def velocity_name(coordinate: str) -> str:
     """Name of the velocity symbol of ``coordinate`` (``x`` → ``x_dot``)."""
     return f"{coordinate}_dot"
@@ -174,7 +191,7 @@ class System:
         hides one in another; checks that need an earlier result (linearity needs the parsed
         constraint, the metric test needs every expression) run on whatever is valid."""
         problems: list[str] = []
-        coord_names, param_names, values, declared_inputs = self._declare(problems)
+        coord_names, param_names, values, declared_inputs, declared = self._declare(problems)
         q = tuple(sp.Symbol(c, real=True) for c in coord_names)
         qd = tuple(sp.Symbol(velocity_name(c), real=True) for c in coord_names)
         ps = tuple(sp.Symbol(p, real=True) for p in param_names)
@@ -182,11 +199,13 @@ class System:
         names["t"] = TIME
         for u in declared_inputs or ():
             names[u] = sp.Symbol(u, real=True)
-        parsed = len(problems)
-        known = set(q) | set(qd) | set(ps)
-        L, cons, tau, inputs = self._expressions(coord_names, names, declared_inputs, known, problems)
-        complete = L is not None and None not in cons and len(problems) == parsed
-        self._check_structure(L, cons, qd, problems)
+        known = set(q) | set(qd) | set(ps)  # symbol checks need valid names (no cascade of
+                                            # "unknown symbol" after a bad coordinates field)
+        L, cons, tau, inputs = self._expressions(coord_names, names, declared_inputs, known,
+                                                 problems, check_symbols=declared)
+        complete = declared and L is not None and None not in cons and not problems
+        if declared:
+            self._check_structure(L, cons, qd, problems)
 
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen dataclass)
         set_("q", q)
@@ -207,7 +226,8 @@ class System:
             raise ModelError(problems)
 
     def _declare(self, problems):
-        """Names of coordinates, parameters and inputs; parameter values (nan when invalid)."""
+        """Names of coordinates, parameters and inputs; parameter values (nan when invalid);
+        whether the names are valid."""
         coord_names = _names(self.coordinates, "coordinates", problems)
         if not coord_names and not any(p.startswith("coordinates") for p in problems):
             problems.append("coordinates: at least one coordinate is required")
@@ -229,10 +249,11 @@ class System:
                 problems.append(f"name {nm!r} is used twice (coordinates, velocities, parameters,"
                                 " inputs and t must be distinct)")
             seen.add(nm)
+        names_ok = not problems
         values = [number_problems(v, f"parameter {nm!r}", problems) for nm, v in zip(param_names, params.values())]
-        return coord_names, param_names, values, declared
+        return coord_names, param_names, values, declared, names_ok
 
-    def _expressions(self, coord_names, names, declared_inputs, known, problems):
+    def _expressions(self, coord_names, names, declared_inputs, known, problems, check_symbols=True):
         """Parse L, the constraints and the forces; find or check the inputs."""
         L = _parse(self.lagrangian, names, "lagrangian", problems)
         raw = self.constraints if self.constraints is not None else ()
@@ -253,11 +274,14 @@ class System:
                 problems.append(f"forces: {exc}")
                 continue
             if kname not in coord_names:
-                problems.append(f"forces: {kname!r} is not a coordinate (coordinates: {', '.join(coord_names)})")
+                if check_symbols:
+                    problems.append(f"forces: {kname!r} is not a coordinate (coordinates: {', '.join(coord_names)})")
                 continue
             e = _parse(val, names, f"force on {kname}", problems)
             if e is not None:
                 tau[coord_names.index(kname)] = e
+        if not check_symbols:
+            return L, cons, tau, ()
         if L is not None:
             self._check_symbols(L, "the Lagrangian", known, names, problems)
         for i, c in enumerate(cons):
@@ -372,6 +396,10 @@ class System:
         if not self.constraint_exprs:
             return sp.zeros(0, self.n)
         return sp.Matrix([[sp.diff(c, v) for v in self.q_dot] for c in self.constraint_exprs])
+
+    def force_jump_times(self, values=None) -> tuple:
+        """Times at which a force jumps (Heaviside/sign of a·t + b): integration breakpoints."""
+        return jump_times(self.tau, self.param_subs(values))
 
     def force_vector(self) -> sp.Matrix:
         """Generalized forces τ(t, q, q̇, u), n×1."""

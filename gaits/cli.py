@@ -5,13 +5,16 @@
     nhgait reproduce [--out DIR] ...               (gaits/cli_reproduce.py)
     nhgait plan <system> ... --out DIR             (gaits/cli_plan.py)
 
-Errors in the user's input print one clear message (every problem listed) and exit with
-status 2; no traceback from sympy or CasADi.
+Exit status: 0 success; 1 the job ran but did not succeed (an integration that stopped early,
+an optimisation that did not converge); 2 bad input — one message listing every problem, no
+traceback; 3 an internal error (a bug: one line naming it; ``NHGAIT_DEBUG=1`` shows the
+traceback).
 """
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 #: (module, function adding the subcommand), in the order of ``nhgait --help``
@@ -24,7 +27,9 @@ SUBCOMMANDS = (
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from nhgait import __version__
     parser = argparse.ArgumentParser(prog="nhgait", description="Dynamics and gait planning of nonholonomic robots.")
+    parser.add_argument("--version", action="version", version=f"nhgait {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     for module, adder in SUBCOMMANDS:
         getattr(importlib.import_module(module), adder)(sub)
@@ -37,9 +42,15 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except ModelError as exc:
+    except ModelError as exc:            # bad input (ProblemError and BridgeError included)
         print(f"nhgait: {exc}", file=sys.stderr)
         return 2
+    except Exception as exc:  # noqa: BLE001 - a bug: one line, the traceback on request
+        if os.environ.get("NHGAIT_DEBUG"):
+            raise
+        print(f"nhgait: internal error ({type(exc).__name__}: {exc}); this is a bug in nhgait — "
+              "rerun with NHGAIT_DEBUG=1 for the traceback and please report it", file=sys.stderr)
+        return 3
 
 
 if __name__ == "__main__":  # pragma: no cover
