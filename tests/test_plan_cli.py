@@ -38,7 +38,8 @@ def test_builtin_gait_as_in_make_demo(tmp_path, capsys):
                  "--out", str(out)]) == 0
     data = json.loads((out / "solution.json").read_text())
     assert data["objective"] == pytest.approx(0.110252, rel=1e-4)       # hand-written reference, N = 25
-    assert data["settings"]["solver"] == "ipopt" and data["guess"]["won"]
+    assert data["settings"]["solver"] == "fatrop" and data["guess"]["won"]       # the default: auto
+    assert data["guess"]["tried"][0]["solver"] == "fatrop"
 
 
 def test_plan_errors_are_one_message(tmp_path, capsys):
