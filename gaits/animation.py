@@ -42,7 +42,7 @@ def animate_solution(solution, ctx, path, *, fps: int = 15, frames: int = 60) ->
     span = max(np.ptp(allx), np.ptp(ally), 0.2)
     pad = 0.12 * span
     ratio = (np.ptp(ally) + 2 * pad) / (np.ptp(allx) + 2 * pad)
-    fig = Figure(figsize=(6.0, float(np.clip(6.0 * ratio, 2.2, 6.0)) + 1.2))
+    fig = Figure(figsize=(6.0, float(np.clip(6.0 * ratio, 2.2, 6.0)) + 1.2), layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
     ax.set_xlim(allx.min() - pad, allx.max() + pad)
@@ -60,8 +60,7 @@ def animate_solution(solution, ctx, path, *, fps: int = 15, frames: int = 60) ->
     bar = _nice(span)
     x0, y0 = allx.min() - 0.6 * pad, ally.min() - 0.6 * pad
     ax.plot([x0, x0 + bar], [y0, y0], "-", color="k", lw=3, label=f"scale bar {bar:g} m")
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=3, fontsize="small", frameon=False)
-    fig.subplots_adjust(bottom=0.3)
+    fig.legend(loc="outside lower center", ncol=3, fontsize="small", frameon=False)
     title = ax.set_title("")
     nodes = np.linspace(0, len(x) - 1, min(frames, len(x))).round().astype(int)
 
