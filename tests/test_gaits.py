@@ -212,3 +212,21 @@ def test_auto_solver_falls_back_to_ipopt(monkeypatch):
     assert result.success and result.solution.settings["solver"] == "ipopt"
     assert solvers[0] == "fatrop" and solvers[-1] == "ipopt" and "fatrop" in solvers
     assert result.solution.objective == pytest.approx(0.110252, rel=1e-4)
+
+
+def test_scene_quantities_in_a_task(tmp_path):
+    """A task may name the scene's own quantities: a linear one becomes a velocity state, a
+    nonlinear one a path bound (a row of g); both hold in the re-simulation."""
+    text = (EXAMPLES / "car.toml").read_text()
+    text = text.replace("[units]", '[quantities]\nv_rear = "cos(theta)*x_dot + sin(theta)*y_dot"\n'
+                                   'speed2 = "x_dot**2 + y_dot**2"\n\n[units]')
+    text = text.replace("forward_velocity", "v_rear").replace("bounds = {phi = [-0.7, 0.7]}",
+                                                                "bounds = {phi = [-0.7, 0.7], speed2 = [0.0, 0.16]}")
+    scene = tmp_path / "car_q.toml"
+    scene.write_text(text)
+    result = plan(str(scene), intervals=50, jit=False)
+    s = result.solution
+    assert s.success and s.settings["velocities"] == ["v_rear", "phi_dot"]
+    assert s.verification.max_condition_error <= 1e-6 and s.verification.max_error <= 1e-6
+    qd = s.velocities()
+    assert np.max(qd[0] ** 2 + qd[1] ** 2) <= 0.16 + 1e-6          # the nonlinear path bound
