@@ -95,13 +95,9 @@ class PlanResult:
 
 
 def known_names(model, quantities) -> tuple:
-    """The names a task may use on ``model``: coordinates, ``<coordinate>_dot``, the planar
-    body velocities and the scene's quantities."""
-    from nhgait.dynamics.specialisation import BODY_VELOCITIES
-    coords = tuple(model.system.coordinates)
-    frame = getattr(model.system, "planar_frame", None)
-    return (coords + tuple(f"{c}_dot" for c in coords) + (BODY_VELOCITIES if frame else ())
-            + tuple(n for n in quantities if n not in coords))
+    """The names a task may use on ``model`` (see :func:`~nhgait.gaits.task.task_names`)."""
+    from .task import task_names
+    return task_names(model.system, quantities)
 
 
 def _quantity_objects(model, scene):

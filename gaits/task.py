@@ -36,7 +36,8 @@ from typing import Any
 
 from nhgait.ocp import OptimalControlProblem, ProblemError, Quantity
 
-__all__ = ["Task", "FrozenMap", "parse_task", "apply_overrides", "check_names", "to_problem", "TASK_KEYS"]
+__all__ = ["Task", "FrozenMap", "parse_task", "apply_overrides", "check_names", "task_names", "to_problem",
+           "TASK_KEYS"]
 
 TASK_KEYS = ("name", "description", "horizon", "intervals", "initial", "final", "periodic", "bounds",
              "control_bounds", "objective", "velocities")
@@ -243,8 +244,12 @@ def _control_bounds(data, problems):
     return abs(b)
 
 
-def parse_task(data, *, where: str = "[task]") -> Task:
-    """A :class:`Task` from a ``[task]`` table (dict); every problem in one ProblemError."""
+def parse_task(data, *, where: str = "[task]", system=None, quantities=()) -> Task:
+    """A :class:`Task` from a ``[task]`` table (dict); every problem in one ProblemError.
+
+    With ``system`` (and the scene's ``quantities``) the names and counts are checked too, in
+    the same error (no derivation needed: names come from the system's statement).
+    """
     if isinstance(data, Task):
         return data
     if not isinstance(data, Mapping):
@@ -269,6 +274,10 @@ def parse_task(data, *, where: str = "[task]") -> Task:
     for key in ("name", "description"):
         if key in data and not isinstance(data[key], str):
             problems.append(f"{where}.{key} must be a string")
+    if system is not None:
+        parts = {"initial": initial, "final": final, "periodic": periodic, "bounds": bounds,
+                 "control_bounds": control_bounds, "objective": objective, "velocities": velocities}
+        problems += _system_problems(parts, system, quantities)
     if problems:
         raise ProblemError(problems, title="invalid task")
     return Task(horizon=T, intervals=N, initial=initial, final=final, periodic=periodic, bounds=bounds,
@@ -285,7 +294,7 @@ def _contradictions(initial, final, periodic, bounds, problems):
     """Values that cannot hold together: outside a path bound, periodic with unequal ends."""
     for where, table in (("initial", initial), ("final", final)):
         for name, v in table.items():
-            if name in bounds:
+            if name in bounds and bounds[name][0] <= bounds[name][1]:   # (lo > hi is reported once)
                 lo, hi = _range(v)
                 blo, bhi = bounds[name]
                 if hi < blo or lo > bhi:
@@ -346,31 +355,53 @@ def apply_overrides(data, assignments) -> dict:
 
 
 # ----------------------------------------------------------------------------- names and problem
-def check_names(task: Task, known: tuple, inputs: tuple, *, n_states: int, n_velocities: int):
-    """Unknown names and impossible counts of ``task`` on a model (one ProblemError)."""
+def task_names(system, quantities=()) -> tuple:
+    """The names a task may use on ``system``: coordinates, ``<coordinate>_dot``, the planar
+    body velocities (with a planar frame) and the scene's quantities."""
+    from nhgait.dynamics.specialisation import BODY_VELOCITIES
+    coords = tuple(system.coordinates)
+    frame = getattr(system, "planar_frame", None)
+    return (coords + tuple(f"{c}_dot" for c in coords) + (BODY_VELOCITIES if frame else ())
+            + tuple(n for n in quantities if n not in coords))
+
+
+def _name_problems(parts: dict, known, inputs, n_states, n_velocities) -> list:
+    """Unknown names and impossible counts of a task's parts on a system."""
     problems = []
-    for where, names in (("initial", task.initial), ("final", task.final), ("periodic", task.periodic),
-                         ("bounds", task.bounds)):
-        for name in names:
+    for where in ("initial", "final", "periodic", "bounds"):
+        for name in parts[where]:
             if name not in known:
                 problems.append(f"[task].{where}: unknown name {name!r} (known: {', '.join(known)})")
-    if isinstance(task.control_bounds, Mapping):
-        for name in task.control_bounds:
+    if isinstance(parts["control_bounds"], Mapping):
+        for name in parts["control_bounds"]:
             if name not in inputs:
                 problems.append(f"[task].control_bounds: unknown input {name!r} (inputs: {', '.join(inputs)})")
-    for name in task.objective:
+    for name in parts["objective"]:
         if name not in OBJECTIVES and name not in inputs:
             problems.append(f"[task].objective: unknown weight {name!r} (effort, time or an input: {', '.join(inputs)})")
-    for where, table in (("initial", task.initial), ("final", task.final)):
-        fixed = [n for n, v in table.items() if not isinstance(v, tuple)]
+    for where in ("initial", "final"):
+        fixed = [n for n, v in parts[where].items() if not isinstance(v, tuple)]
         if len(fixed) > n_states:
             problems.append(f"[task].{where} fixes {len(fixed)} values but the state has only {n_states} "
                             f"({', '.join(fixed)})")
-    if task.velocities and len(task.velocities) != n_velocities:
+    if parts["velocities"] and len(parts["velocities"]) != n_velocities:
         problems.append(f"[task].velocities: the system needs {n_velocities} velocity states, got "
-                        f"{len(task.velocities)} ({', '.join(task.velocities)})")
+                        f"{len(parts['velocities'])} ({', '.join(parts['velocities'])})")
     if not inputs:
         problems.append("the system has no inputs: there is nothing to plan")
+    return problems
+
+
+def _system_problems(parts: dict, system, quantities) -> list:
+    n, k = system.n, len(system.constraint_exprs)
+    return _name_problems(parts, task_names(system, quantities), tuple(system.inputs), 2 * n - k, n - k)
+
+
+def check_names(task: Task, known: tuple, inputs: tuple, *, n_states: int, n_velocities: int):
+    """Unknown names and impossible counts of ``task`` on a model (one ProblemError)."""
+    parts = {key: getattr(task, key) for key in ("initial", "final", "periodic", "bounds", "control_bounds",
+                                                 "objective", "velocities")}
+    problems = _name_problems(parts, known, inputs, n_states, n_velocities)
     if problems:
         raise ProblemError(problems, title="invalid task")
 

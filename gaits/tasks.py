@@ -134,9 +134,9 @@ def resolve(system, task=None, *, overrides=()) -> Plan:
     lib = library(name) if str(scene.source).startswith("built-in scene ") else None
     units = {**((lib or {}).get("units", {})), **dict(scene.units or {})}
     drawing = scene.drawing if scene.drawing is not None else (lib or {}).get("drawing")
+    check = {"system": scene.system, "quantities": scene.quantities}
     if isinstance(task, Task):
-        if overrides:
-            task = parse_task(apply_overrides(task.to_dict(), overrides))
+        task = parse_task(apply_overrides(task.to_dict(), overrides), **check)
         return Plan(scene, task, f"{name}/{task.name}", units, drawing)
     if isinstance(task, str):
         tasks = (lib or {}).get("tasks", {})
@@ -155,7 +155,7 @@ def resolve(system, task=None, *, overrides=()) -> Plan:
     else:
         raise ProblemError([f"task must be a gait name, a [task] table or a Task, got {type(task).__name__}"],
                            title="invalid task")
-    parsed = parse_task(apply_overrides(table, overrides), where=where)
+    parsed = parse_task(apply_overrides(table, overrides), where=where, **check)
     return Plan(scene, parsed, f"{name}/{parsed.name}", units, drawing)
 
 
