@@ -1,0 +1,338 @@
+"""Gait landscapes: one optimal control problem per point of a grid over task values and
+parameters, solved in parallel, continued from solved neighbours, stored as they finish.
+
+::
+
+    from nhgait.gaits.sweep import sweep
+    result = sweep("unicycle", "parallel-park", ["final.y=0.3:0.7:3", "horizon=3:5:3"], out="out/park")
+    result.objectives()          # grid-shaped array of J (nan where the solve failed)
+
+Steps (:func:`run_sweep`)
+-------------------------
+1. The grid (:mod:`.sweep_grid`) and the case — scene, base task, parameters as data
+   (:func:`.sweep_point.describe_case`).
+2. The store (:mod:`.sweep_store`): a new sweep records what it is; ``resume=True`` checks it
+   is the same sweep and skips every point that already has a row.
+3. Points run on a back end (:mod:`.sweep_backends`) as soon as their parent in the
+   continuation tree (:meth:`Grid.parent`) has finished: warm-started from the nearest solved
+   ancestor's trajectory (the planner's own guesses when there is none, and when a warm start
+   fails), each verified by the planner's re-simulation.
+4. Each finished point is written at once (solution file, then its row). A point whose worker
+   died (or whose solve raised) is submitted once more; a second failure is recorded as
+   failed with the reason. Input the planner rejects stops the sweep with its message.
+"""
+from __future__ import annotations
+
+import concurrent.futures as cf
+import math
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from nhgait.ocp import ProblemError
+
+from .sweep_backends import WorkerDied, make_backend
+from .sweep_grid import Grid, parse_grid
+from .sweep_point import PointJob, SweepCase, point_task, solve_point
+from .sweep_store import PointRecord, SweepStore
+
+__all__ = ["sweep", "run_sweep", "load_sweep", "SweepResult", "Progress"]
+
+_RESULT_KEYS = ("success", "status", "message", "objective", "iterations", "solve_time_s", "wall_time_s",
+                "verification_error", "constraint_violation", "start", "worker")
+
+
+@dataclass(frozen=True)
+class Progress:
+    """Where a running sweep is (handed to the ``progress`` callback after every point)."""
+
+    finished: int          # points with a row (this run and earlier runs)
+    total: int
+    succeeded: int
+    failed: int
+    running: int
+    retried: int
+    elapsed_s: float
+    solved_now: int        # points finished in this run
+    last: PointRecord | None = None
+
+    @property
+    def rate(self) -> float:
+        """Points per second in this run."""
+        return self.solved_now / self.elapsed_s if self.elapsed_s > 0 else math.nan
+
+    def line(self) -> str:
+        left = self.total - self.finished
+        eta = f", about {left / self.rate:.0f} s left" if self.rate > 0 and left else ""
+        return (f"[{self.finished}/{self.total}] {100 * self.finished / max(self.total, 1):3.0f}%  "
+                f"ok {self.succeeded}  failed {self.failed}  running {self.running}  retried {self.retried}  "
+                f"{self.rate:.2f} points/s{eta}")
+
+
+@dataclass(frozen=True, eq=False)
+class SweepResult:
+    """A sweep's rows (:class:`~.sweep_store.PointRecord`, grid order) with the grid they fill.
+
+    ``solved_now``: points solved by this call (0 for :func:`load_sweep`); ``retried``:
+    points submitted twice; ``wall_time_s``: this call's duration; ``backend``: where it ran.
+    """
+
+    directory: Any
+    grid: Grid
+    case: dict
+    records: tuple
+    solved_now: int = 0
+    retried: int = 0
+    wall_time_s: float = 0.0
+    backend: str = ""
+    units: dict = field(default_factory=dict)
+
+    def record(self, index) -> PointRecord | None:
+        key = "-".join(str(int(i)) for i in index)
+        return next((r for r in self.records if r.id == key), None)
+
+    def values(self, column: str, *, only_success: bool = True) -> np.ndarray:
+        """A grid-shaped array of ``column`` (nan where missing, or failed when ``only_success``)."""
+        out = np.full(self.grid.shape, np.nan)
+        for r in self.records:
+            if r.success or not only_success:
+                out[r.idx] = float(getattr(r, column))
+        return out
+
+    def objectives(self) -> np.ndarray:
+        return self.values("objective")
+
+    def success_mask(self) -> np.ndarray:
+        """Grid-shaped: 1 solved and verified, 0 failed, nan not solved."""
+        out = np.full(self.grid.shape, np.nan)
+        for r in self.records:
+            out[r.idx] = 1.0 if r.success else 0.0
+        return out
+
+    @property
+    def complete(self) -> bool:
+        return len(self.records) == self.grid.size
+
+    def summary_lines(self, *, max_rows: int = 40) -> list:
+        return summary_lines(self, max_rows=max_rows)
+
+
+# ----------------------------------------------------------------------------- driver
+def _record(point, job: PointJob, answer: dict, attempts: int, solution_path) -> PointRecord:
+    values = {k: answer[k] for k in _RESULT_KEYS if k in answer}
+    return PointRecord(id=point.id, idx=point.index, axis_values=dict(point.values), task=job.task,
+                       params=job.params, attempts=attempts, warm_from=job.warm_from,
+                       solution_path=solution_path, **values)
+
+
+def _failure(point, job: PointJob, reason: str, status: str, attempts: int) -> PointRecord:
+    return PointRecord(id=point.id, idx=point.index, axis_values=dict(point.values), task=job.task,
+                       params=job.params, success=False, status=status, message=reason, attempts=attempts,
+                       start="warm" if job.warm is not None else "cold", warm_from=job.warm_from)
+
+
+class _Tree:
+    """The continuation tree of a grid: children of each point and the warm data held."""
+
+    def __init__(self, grid: Grid):
+        self.grid = grid
+        self.children: dict = {}
+        for p in grid.points():
+            self.children.setdefault(grid.parent(p.index), []).append(p)
+        self.warm: dict = {}          # index → warm data of a solved point (or its path)
+
+    def warm_source(self, index):
+        """(warm data, id) of the nearest solved ancestor of ``index``, or (None, None)."""
+        parent = self.grid.parent(index)
+        while parent is not None:
+            if parent in self.warm:
+                return self.warm[parent], self.grid.point(parent).id
+            parent = self.grid.parent(parent)
+        return None, None
+
+
+def _load_warm(store: SweepStore, record: PointRecord):
+    """Warm data of a point solved in an earlier run (from its solution file), or None."""
+    solution = store.load_solution(record)
+    if not solution or "warm_start" not in solution:
+        return None
+    return {k: (np.asarray(v, float) if isinstance(v, list) else v) for k, v in solution["warm_start"].items()}
+
+
+def _jsonable_warm(warm: dict) -> dict:
+    return {k: (np.asarray(v).tolist() if isinstance(v, np.ndarray) else v) for k, v in warm.items()}
+
+
+def run_sweep(case: SweepCase, grid: Grid, backend, store: SweepStore, *, resume: bool = False,
+              warm_start: bool = True, solve: Callable = solve_point, progress: Callable | None = None,
+              max_in_flight: int | None = None) -> SweepResult:
+    """Run (or resume) a sweep on an open back end and store (see the module docstring).
+
+    ``solve``: the module-level function a worker calls with a :class:`PointJob` (default
+    :func:`.sweep_point.solve_point`); ``progress``: called with a :class:`Progress` after
+    every finished point; ``max_in_flight``: points submitted at once (default: the back
+    end's workers).
+    """
+    t_start = time.perf_counter()
+    store.start({"scene": case.scene.describe(), "task": case.task, "params": case.params,
+                 "options": case.options, "grid": grid.to_dict(), "label": case.label, "units": case.units,
+                 "shape": list(case.shape), "coordinates": list(case.coordinates)}, resume=resume)
+    tree = _Tree(grid)
+    done = {r.idx: r for r in store.records()} if resume else {}
+    for idx, r in done.items():
+        if r.success and warm_start:
+            tree.warm[idx] = ("file", r)
+    counts = {"ok": sum(r.success for r in done.values()), "failed": sum(not r.success for r in done.values()),
+              "now": 0, "retried": 0}
+    ready = deque()
+
+    def release(index):       # the children of a finished (or previously stored) point
+        for child in tree.children.get(index, ()):
+            if child.index in done:
+                release(child.index)
+            else:
+                ready.append(child)
+
+    root = grid.point(grid.centre)
+    if root.index in done:
+        release(root.index)
+    else:
+        ready.append(root)
+
+    def job_for(point) -> PointJob:
+        task, params = point_task(case.task, case.params, point)
+        warm, warm_from = tree.warm_source(point.index) if warm_start else (None, None)
+        if isinstance(warm, tuple):                   # stored by an earlier run: read it now
+            warm = _load_warm(store, warm[1])
+            if warm is None:
+                warm_from = None
+        return PointJob(case, point.id, task, params, warm, warm_from)
+
+    in_flight: dict = {}
+    limit = max(1, int(max_in_flight or backend.workers))
+    while ready or in_flight:
+        while ready and len(in_flight) < limit:
+            point = ready.popleft()
+            job = job_for(point)
+            in_flight[backend.submit(solve, job)] = (point, job, 1)
+        finished, _ = cf.wait(list(in_flight), return_when=cf.FIRST_COMPLETED)
+        for future in finished:
+            point, job, attempts = in_flight.pop(future)
+            try:
+                answer = future.result()
+            except Exception as exc:  # noqa: BLE001 - a dead worker or a bug in the solve: retry once
+                status = "worker-died" if isinstance(exc, WorkerDied) else "error"
+                if attempts == 1:
+                    counts["retried"] += 1
+                    in_flight[backend.submit(solve, job)] = (point, job, 2)
+                    continue
+                record = _failure(point, job, f"{status} twice: {exc}", status, attempts)
+            else:
+                if "input_error" in answer:
+                    raise ProblemError([answer["input_error"]], title=f"grid point {point.id} "
+                                       f"({', '.join(f'{k} = {v:g}' for k, v in point.values)})")
+                path = None
+                if answer.get("solution") is not None:
+                    solution = dict(answer["solution"])
+                    if answer.get("warm") is not None:
+                        solution["warm_start"] = _jsonable_warm(answer["warm"])
+                    path = store.write_solution(point.id, solution)
+                record = _record(point, job, answer, attempts, path)
+                if record.success and warm_start and answer.get("warm") is not None:
+                    tree.warm[point.index] = answer["warm"]
+            store.add(record)
+            done[point.index] = record
+            counts["ok" if record.success else "failed"] += 1
+            counts["now"] += 1
+            release(point.index)
+            if progress is not None:
+                progress(Progress(len(done), grid.size, counts["ok"], counts["failed"], len(in_flight),
+                                  counts["retried"], time.perf_counter() - t_start, counts["now"], record))
+    return SweepResult(store.directory, grid, case.describe(), tuple(store.records()), counts["now"],
+                       counts["retried"], time.perf_counter() - t_start,
+                       backend.describe() if hasattr(backend, "describe") else "", dict(case.units))
+
+
+def sweep(system, task=None, grid=(), *, out, params=None, scheduler: str | None = None,
+          workers: int | None = None, backend=None, resume: bool = False, warm_start: bool = True,
+          options: dict | None = None, progress: Callable | None = None) -> SweepResult:
+    """Sweep ``task`` on ``system`` over ``grid``, storing every point in ``out``.
+
+    Parameters
+    ----------
+    system : scene file or built-in scene name
+    task : None (the scene's ``[task]``), a built-in gait name, or a ``[task]`` dict
+    grid : ``NAME=SPEC`` axis texts (``"final.x=0.2:2.0:10"``; :mod:`.sweep_grid`) or a
+        mapping name → values
+    out : the sweep directory (``sweep.sqlite``, ``solutions/``)
+    params : parameter values overriding the scene's
+    scheduler : Dask scheduler address or ``local:N`` (None: the local process pool)
+    workers : local pool size (None: one per core; 0: in this process)
+    backend : an open back end to use instead (not closed here)
+    resume : continue the sweep stored in ``out`` (solve only its missing points)
+    warm_start : continue from solved neighbours (False: every point cold, for comparison)
+    options : planner options (``transcription``, ``solver``, ``jit``)
+    progress : callback receiving a :class:`Progress` after each point
+    """
+    from .sweep_point import describe_case
+    case = describe_case(system, task, params=params, options=options)
+    the_grid = grid if isinstance(grid, Grid) else parse_grid(grid, parameters=tuple(case.params))
+    own = backend is None
+    backend = make_backend(scheduler, workers) if own else backend
+    try:
+        with SweepStore(out) as store:
+            return run_sweep(case, the_grid, backend, store, resume=resume, warm_start=warm_start,
+                             progress=progress)
+    finally:
+        if own:
+            backend.close()
+
+
+def load_sweep(directory) -> SweepResult:
+    """The stored sweep of ``directory`` (complete or not)."""
+    with SweepStore(directory, create=False) as store:
+        meta = store.meta
+        records = tuple(store.records())
+    if "grid" not in meta:
+        raise ProblemError([f"{directory}: the store has no sweep description"], title="no sweep")
+    case = {k: meta.get(k) for k in ("scene", "task", "params", "label", "options", "shape", "coordinates")}
+    return SweepResult(directory, Grid.from_dict(meta["grid"]), case, records, units=meta.get("units", {}))
+
+
+# ----------------------------------------------------------------------------- summary
+def _fmt(value, spec=".4g") -> str:
+    return "—" if value is None or (isinstance(value, float) and math.isnan(value)) else format(value, spec)
+
+
+def summary_lines(result: SweepResult, *, max_rows: int = 40) -> list:
+    """The table printed at the end of ``nhgait sweep``: totals, then one line per point."""
+    recs = result.records
+    ok = [r for r in recs if r.success]
+    J = np.array([r.objective for r in ok]) if ok else np.array([np.nan])
+    warm_it = [r.iterations for r in ok if r.start == "warm"]
+    cold_it = [r.iterations for r in ok if r.start != "warm"]
+    lines = [f"sweep {result.case.get('label', '')}: {len(recs)}/{result.grid.size} points, {len(ok)} solved "
+             f"and verified, {len(recs) - len(ok)} failed" + (f", {result.retried} retried" if result.retried else ""),
+             f"  grid       {' × '.join(f'{a.name} ({len(a)})' for a in result.grid.axes)}",
+             f"  objective  min {_fmt(np.nanmin(J))}, median {_fmt(float(np.nanmedian(J)))}, max {_fmt(np.nanmax(J))}",
+             f"  iterations median {_fmt(float(np.median(warm_it)), '.0f') if warm_it else '—'} warm-started "
+             f"({len(warm_it)} points), {_fmt(float(np.median(cold_it)), '.0f') if cold_it else '—'} cold "
+             f"({len(cold_it)})",
+             f"  verification error max {_fmt(max((r.verification_error for r in ok), default=math.nan), '.2e')}"]
+    if result.solved_now:
+        lines.append(f"  this run   {result.solved_now} points in {result.wall_time_s:.1f} s "
+                     f"({result.solved_now / max(result.wall_time_s, 1e-9):.2f} points/s) on {result.backend}")
+    names = result.grid.names
+    head = f"  {'point':>8}  " + "  ".join(f"{n:>12}" for n in names) + \
+        f"  {'status':<22} {'J':>11} {'iter':>5} {'start':>5} {'verif.':>8}"
+    lines.append(head)
+    for r in recs[:max_rows]:
+        lines.append(f"  {r.id:>8}  " + "  ".join(f"{r.axis_values[n]:>12.5g}" for n in names)
+                     + f"  {r.status[:22]:<22} {_fmt(r.objective, '.5g'):>11} {r.iterations:>5} "
+                     f"{(r.start or '—')[:5]:>5} {_fmt(r.verification_error, '.1e'):>8}")
+    if len(recs) > max_rows:
+        lines.append(f"  … {len(recs) - max_rows} more rows in {result.directory}/sweep.sqlite")
+    return lines

@@ -1,0 +1,197 @@
+"""One grid point as data, and the one place where the sweep meets the planner.
+
+A worker gets a :class:`PointJob` — the scene as TOML text (or a built-in name), the point's
+``[task]`` table, its parameter values and, for a warm start, the parent point's trajectory
+as plain arrays — and answers with a plain dict (:func:`solve_point`). Nothing live (no
+CasADi object, no model) crosses a process boundary; each worker derives its model and builds
+its solver itself, the derivation coming from the content-hash cache
+(:mod:`nhgait.dynamics.cache`) after the first time.
+
+Everything that knows the planner's API is in :func:`describe_case` (driver side: the scene
+and base task as data) and :func:`_plan_point` (worker side: one plan, warm or cold).
+"""
+from __future__ import annotations
+
+import copy
+import hashlib
+import math
+import os
+import socket
+import time
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+
+from nhgait.ocp import ProblemError
+
+from .sweep_grid import GridPoint
+
+__all__ = ["SceneData", "SweepCase", "PointJob", "point_task", "solve_point", "describe_case", "warm_data"]
+
+
+@dataclass(frozen=True)
+class SceneData:
+    """A scene as data: a built-in name, or a scene file's TOML text and where it came from."""
+
+    source: str
+    builtin: str | None = None
+    text: str | None = None
+
+    @property
+    def sha256(self) -> str:
+        return hashlib.sha256((self.builtin or "").encode() + b"\0" + (self.text or "").encode()).hexdigest()
+
+    def describe(self) -> dict:
+        return {"source": self.source, "builtin": self.builtin, "sha256": self.sha256}
+
+
+@dataclass(frozen=True, eq=False)
+class SweepCase:
+    """What every point of a sweep shares, as picklable data.
+
+    ``task``: the base ``[task]`` table; ``params``: the scene's parameter values (name →
+    value); ``label``: "<system>/<task>"; ``units``: the scene's ``[units]`` table;
+    ``shape``: the shape coordinates (for shape-loop plots); ``options``: planner options
+    (``transcription``, ``solver``, ``jit``).
+    """
+
+    scene: SceneData
+    task: dict
+    params: dict
+    label: str = ""
+    units: dict = field(default_factory=dict)
+    shape: tuple = ()
+    coordinates: tuple = ()
+    options: dict = field(default_factory=dict)
+
+    def describe(self) -> dict:
+        return {"scene": self.scene.describe(), "task": self.task, "params": self.params, "label": self.label,
+                "options": self.options, "shape": list(self.shape), "coordinates": list(self.coordinates)}
+
+
+@dataclass(frozen=True, eq=False)
+class PointJob:
+    """One point for a worker: ``task`` and ``params`` are the point's own (base + axis values);
+    ``warm`` is the parent's :func:`warm_data` (None: cold start from the planner's guesses)."""
+
+    case: SweepCase
+    point_id: str
+    task: dict
+    params: dict
+    warm: dict | None = None
+    warm_from: str | None = None
+
+
+# ----------------------------------------------------------------------------- task values
+def point_task(task: Mapping, params: Mapping, point: GridPoint) -> tuple[dict, dict]:
+    """(``[task]`` table, parameter values) of ``point``: the base with each axis value set.
+
+    ``horizon`` keeps a free horizon's bounds (the value becomes its initial guess);
+    ``objective.<w>`` turns a one-word objective into a table of weights.
+    """
+    task = copy.deepcopy(dict(task))
+    params = dict(params)
+    for name, value in point.values:
+        table, _, key = name.partition(".")
+        if table == "params":
+            params[key] = float(value)
+        elif name == "horizon" and isinstance(task.get("horizon"), Mapping):
+            task["horizon"] = {**task["horizon"], "initial": float(value)}
+        elif name == "intervals":
+            task["intervals"] = int(round(value))
+        elif not key:
+            task[name] = float(value)
+        else:
+            current = task.get(table, {})
+            if isinstance(current, str):             # objective = "effort"
+                current = {current: 1.0}
+            task[table] = {**dict(current or {}), key: float(value)}
+    return task, params
+
+
+# ----------------------------------------------------------------------------- warm starts
+def warm_data(solution) -> dict:
+    """A solved point as plain arrays, the warm start of its children.
+
+    Configuration q and generalised velocities q̇ at the nodes (n × (N+1), coordinates in the
+    system's order), controls (m × N), horizon T — coordinate-free: any model of the system
+    maps (q, q̇) to its own state with its ``state(q, q̇)`` function.
+    """
+    n = solution.problem.model.numeric.n_coordinates
+    return {"t": np.asarray(solution.t, float), "q": np.asarray(solution.states[:n], float),
+            "qdot": np.asarray(solution.velocities(), float), "controls": np.asarray(solution.controls, float),
+            "horizon": float(solution.horizon)}
+
+
+def _resampled(values: np.ndarray, n_out: int) -> np.ndarray:
+    """Columns of ``values`` resampled linearly on ``n_out`` evenly spaced columns."""
+    if values.shape[1] == n_out:
+        return values
+    s_in, s_out = np.linspace(0, 1, values.shape[1]), np.linspace(0, 1, n_out)
+    return np.vstack([np.interp(s_out, s_in, row) for row in values])
+
+
+def warm_guess(warm: Mapping, problem, label: str):
+    """The :class:`~nhgait.ocp.InitialGuess` of ``problem`` from a parent's :func:`warm_data`
+    (resampled when the number of intervals differs)."""
+    from nhgait.ocp import InitialGuess
+    N = problem.intervals
+    q = _resampled(np.asarray(warm["q"], float), N + 1)
+    qdot = _resampled(np.asarray(warm["qdot"], float), N + 1)
+    controls = np.asarray(warm["controls"], float)
+    if controls.shape[1] != N:   # piecewise constant: resample at the interval midpoints
+        mids_in = (np.arange(controls.shape[1]) + 0.5) / controls.shape[1]
+        mids_out = (np.arange(N) + 0.5) / N
+        controls = np.vstack([np.interp(mids_out, mids_in, row) for row in controls])
+    state = problem.model.numeric["state"]
+    Z = np.column_stack([np.asarray(state(q[:, k], qdot[:, k], problem.params)).ravel() for k in range(N + 1)])
+    return InitialGuess(Z, controls, horizon=float(problem.horizon), label=label)
+
+
+# ----------------------------------------------------------------------------- the worker
+def _nan(value) -> float:
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        return math.nan
+    return out
+
+
+def solve_point(job: PointJob) -> dict:
+    """Solve one point (in a worker process); never raises for bad input or a failed solve.
+
+    Returns a dict: ``id``, ``success``, ``status``, ``message``, ``objective``,
+    ``iterations``, ``solve_time_s``, ``wall_time_s``, ``verification_error``,
+    ``constraint_violation``, ``start``, ``worker``, ``solution`` (JSON-able full solution,
+    or None) and ``warm`` (:func:`warm_data`, or None); or, for input the planner rejects,
+    ``input_error`` (the message; the sweep stops: every point would fail the same way).
+    """
+    from nhgait.dynamics.errors import ModelError
+    t0 = time.perf_counter()
+    worker = f"{socket.gethostname()}:{os.getpid()}"
+    try:
+        out = _plan_point(job)
+    except ModelError as exc:
+        return {"id": job.point_id, "input_error": str(exc), "worker": worker}
+    return {"id": job.point_id, "worker": worker, "wall_time_s": time.perf_counter() - t0, **out}
+
+
+def _outcome(result, start: str) -> dict:
+    s = result.solution
+    return {"success": bool(s.success), "status": str(s.status), "message": str(s.message),
+            "objective": _nan(s.objective), "iterations": int(s.iterations), "solve_time_s": _nan(s.solve_time_s),
+            "verification_error": _nan(s.verification_error),
+            "constraint_violation": _nan(s.constraint_violation), "start": start,
+            "solution": s.to_dict(), "warm": warm_data(s) if s.success else None}
+
+
+# ---- the planner adapter (the only code that knows the planner's API) -------------------
+def describe_case(scene, task=None, *, params=None, options=None) -> SweepCase:  # pragma: no cover - planner
+    """The :class:`SweepCase` of a scene (file, built-in name) and a task (None: the scene's
+    ``[task]``; a built-in gait name; a ``[task]`` dict)."""
+    raise NotImplementedError("the planner adapter is wired when the planner's plan(...) API lands")
+
+
+def _plan_point(job: PointJob) -> dict:  # pragma: no cover - planner
+    raise NotImplementedError("the planner adapter is wired when the planner's plan(...) API lands")
