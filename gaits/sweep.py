@@ -179,7 +179,8 @@ def run_sweep(case: SweepCase, grid: Grid, backend, store: SweepStore, *, resume
     t_start = time.perf_counter()
     store.start({"scene": case.scene.describe(), "task": case.task, "params": case.params,
                  "options": case.options, "grid": grid.to_dict(), "label": case.label, "units": case.units,
-                 "shape": list(case.shape), "coordinates": list(case.coordinates)}, resume=resume)
+                 "shape": list(case.shape), "coordinates": list(case.coordinates),
+                 "inputs": list(case.inputs)}, resume=resume)
     tree = _Tree(grid)
     done = {r.idx: r for r in store.records()} if resume else {}
     for idx, r in done.items():
@@ -256,7 +257,7 @@ def run_sweep(case: SweepCase, grid: Grid, backend, store: SweepStore, *, resume
                        backend.describe() if hasattr(backend, "describe") else "", dict(case.units))
 
 
-def sweep(system, task=None, grid=(), *, out, params=None, scheduler: str | None = None,
+def sweep(system, task=None, grid=(), *, out, overrides=(), params=None, scheduler: str | None = None,
           workers: int | None = None, backend=None, resume: bool = False, warm_start: bool = True,
           options: dict | None = None, progress: Callable | None = None) -> SweepResult:
     """Sweep ``task`` on ``system`` over ``grid``, storing every point in ``out``.
@@ -265,6 +266,7 @@ def sweep(system, task=None, grid=(), *, out, params=None, scheduler: str | None
     ----------
     system : scene file or built-in scene name
     task : None (the scene's ``[task]``), a built-in gait name, or a ``[task]`` dict
+    overrides : ``key.sub=value`` changes of the base task (``--set``)
     grid : ``NAME=SPEC`` axis texts (``"final.x=0.2:2.0:10"``; :mod:`.sweep_grid`) or a
         mapping name → values
     out : the sweep directory (``sweep.sqlite``, ``solutions/``)
@@ -278,7 +280,7 @@ def sweep(system, task=None, grid=(), *, out, params=None, scheduler: str | None
     progress : callback receiving a :class:`Progress` after each point
     """
     from .sweep_point import describe_case
-    case = describe_case(system, task, params=params, options=options)
+    case = describe_case(system, task, overrides=overrides, params=params, options=options)
     the_grid = grid if isinstance(grid, Grid) else parse_grid(grid, parameters=tuple(case.params))
     own = backend is None
     backend = make_backend(scheduler, workers) if own else backend
@@ -298,7 +300,8 @@ def load_sweep(directory) -> SweepResult:
         records = tuple(store.records())
     if "grid" not in meta:
         raise ProblemError([f"{directory}: the store has no sweep description"], title="no sweep")
-    case = {k: meta.get(k) for k in ("scene", "task", "params", "label", "options", "shape", "coordinates")}
+    case = {k: meta.get(k) for k in ("scene", "task", "params", "label", "options", "shape", "coordinates",
+                                           "inputs")}
     return SweepResult(directory, Grid.from_dict(meta["grid"]), case, records, units=meta.get("units", {}))
 
 

@@ -52,7 +52,8 @@ class SweepCase:
 
     ``task``: the base ``[task]`` table; ``params``: the scene's parameter values (name →
     value); ``label``: "<system>/<task>"; ``units``: the scene's ``[units]`` table;
-    ``shape``: the shape coordinates (for shape-loop plots); ``options``: planner options
+    ``shape``: the shape coordinates (for shape-loop plots); ``coordinates``, ``inputs``: the
+    system's names; ``options``: planner options
     (``transcription``, ``solver``, ``jit``).
     """
 
@@ -63,11 +64,12 @@ class SweepCase:
     units: dict = field(default_factory=dict)
     shape: tuple = ()
     coordinates: tuple = ()
+    inputs: tuple = ()
     options: dict = field(default_factory=dict)
 
     def describe(self) -> dict:
         return {"scene": self.scene.describe(), "task": self.task, "params": self.params, "label": self.label,
-                "options": self.options, "shape": list(self.shape), "coordinates": list(self.coordinates)}
+                "options": self.options, "shape": list(self.shape), "coordinates": list(self.coordinates), "inputs": list(self.inputs)}
 
 
 @dataclass(frozen=True, eq=False)
@@ -187,7 +189,7 @@ def _outcome(result, start: str) -> dict:
 
 
 # ---- the planner adapter (the only code that knows the planner's API) -------------------
-def describe_case(scene, task=None, *, params=None, options=None) -> SweepCase:  # pragma: no cover - planner
+def describe_case(scene, task=None, *, overrides=(), params=None, options=None) -> SweepCase:  # pragma: no cover - planner
     """The :class:`SweepCase` of a scene (file, built-in name) and a task (None: the scene's
     ``[task]``; a built-in gait name; a ``[task]`` dict)."""
     raise NotImplementedError("the planner adapter is wired when the planner's plan(...) API lands")

@@ -243,3 +243,36 @@ def test_pool_reports_a_dead_worker_as_worker_died():
         with pytest.raises(WorkerDied, match="exit code 3"):
             future.result(timeout=60)
         assert pool.submit(abs, -2).result(timeout=60) == 2        # replaced, still working
+
+
+# ----------------------------------------------------------------------------- plots
+def test_landscape_shows_the_closed_form_and_marks_failures(tmp_path):
+    from nhgait.gaits import sweep_plots
+    grid = parse_grid(["final.x=-0.5:1.5:5", "horizon=2:4:3", "params.J_r=0.1,0.2"])
+    case = SweepCase(CASE.scene, CASE.task, CASE.params, label="fake/task", units={"x": "m", "J_r": "kg*m^2"},
+                     inputs=("u",), shape=("q0", "q1"))
+    with SweepStore(tmp_path) as store:
+        result = run_sweep(case, grid, SerialBackend(), store, solve=fake_solve)
+    ax = sweep_plots.plot_landscape(result, "final.x", "horizon", fixed={"params.J_r": 0.2})
+    mesh = ax.collections[0].get_array()                 # rows: horizon, columns: final.x
+    xs, Ts = np.array(grid.axis("final.x").values), np.array(grid.axis("horizon").values)
+    expected = (xs[None, :] - 1) ** 2 / Ts[:, None] + 1.0 * 0.2
+    expected[:, xs < 0] = np.nan                         # failed points are not coloured
+    np.testing.assert_allclose(np.ma.filled(mesh, np.nan).reshape(3, 5), expected, rtol=1e-14)
+    assert ax.get_xlabel() == "final.x [m]" and ax.get_ylabel() == "horizon [s]"
+    assert "params.J_r = 0.2" in ax.get_title()
+    crosses = [line for line in ax.lines if line.get_marker() == "x"][0]
+    assert list(crosses.get_xdata()) == [-0.5] * 3        # the failed column, every horizon
+    fax = sweep_plots.plot_feasibility(result, "horizon", "params.J_r")
+    assert fax.get_ylabel() == "params.J_r [kg*m^2]"
+    assert sweep_plots.axis_label("final.theta_dot", {"theta": "rad"}) == "final.theta_dot [rad/s]"
+    assert sweep_plots.objective_label(("u",), {"u": "N"}) == "optimal cost J = ∫|u|² dt [(N)²·s]"
+
+
+def test_plots_reject_unknown_axes(tmp_path):
+    from nhgait.gaits import sweep_plots
+    grid = parse_grid(["final.x=0.5:1.5:3"])
+    with SweepStore(tmp_path) as store:
+        result = run_sweep(CASE, grid, SerialBackend(), store, solve=fake_solve)
+    with pytest.raises(ProblemError, match="no grid axis 'horizon'"):
+        sweep_plots.plot_landscape(result, "final.x", "horizon")
