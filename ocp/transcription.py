@@ -54,6 +54,7 @@ class TranscribedNLP:
     horizon_index: int | None
     kernel: ca.Function
     guess_filler: Any = field(default=None, repr=False)
+    structure: dict | None = None        # stage structure (N, nx, nu, ng) for FATROP
 
     @property
     def n_w(self) -> int:
@@ -170,12 +171,12 @@ class _Builder:
         return f
 
     def finish(self, transcription, w, f, lbx, ubx, node_index, control_index, horizon_index, kernel,
-               guess_filler=None):
+               guess_filler=None, structure=None):
         g = ca.vertcat(*self.g) if self.g else ca.MX(0, 1)
         lbg = np.concatenate(self.lbg) if self.lbg else np.zeros(0)
         ubg = np.concatenate(self.ubg) if self.ubg else np.zeros(0)
         return TranscribedNLP(self.problem, transcription, w, f, g, lbx, ubx, lbg, ubg,
-                              node_index, control_index, horizon_index, kernel, guess_filler)
+                              node_index, control_index, horizon_index, kernel, guess_filler, structure)
 
     def horizon_variable(self):
         p = self.problem
@@ -365,7 +366,129 @@ class Collocation:
         return b.finish(self, w, f, lbx, ubx, node_index, control_index, horizon_index, Fi, fill)
 
 
-TRANSCRIPTIONS = {"multiple-shooting": MultipleShooting, "collocation": Collocation}
+@dataclass(frozen=True)
+class StageShooting(MultipleShooting):
+    """Multiple shooting in stage order, for structure-exploiting solvers (FATROP).
+
+    FATROP needs an optimal control structure: the decision vector stage by stage,
+    w = (x̃_0, u_0, x̃_1, u_1, …, x̃_N), and the constraints stage by stage, each stage's
+    dynamics gap x̃_{k+1} − F̃(x̃_k, u_k) followed by the conditions on (x̃_k, u_k) alone.
+    Conditions linking the two ends (periodicity) or using a global variable (a free
+    horizon T) are made stage-local by *carrying* the values along the horizon:
+
+        x̃_k = (z_k, c_k [, T_k]),   c_{k+1} = c_k,  T_{k+1} = T_k,
+        c_0 = y_per(z_0)  (stage 0),     y_per(z_N) − c_N = 0  (stage N),
+
+    with y_per the periodic quantities not already fixed at both ends by bounds. The problem
+    is the one :class:`MultipleShooting` transcribes (same optimum, checked in the tests).
+    """
+
+    name = "multiple-shooting-stages"
+
+    def settings(self) -> dict:
+        return {**super().settings(), "transcription": self.name}
+
+    def build(self, problem: OptimalControlProblem) -> TranscribedNLP:
+        nz, nu, N = problem.n_states, problem.n_controls, problem.intervals
+        b = _Builder(problem)
+        lo, hi, periodic_g = b.node_bounds()
+        zs = ca.SX.sym("z", nz)
+        yper = ca.Function("y_per", [zs], [ca.vertcat(*[problem.quantity(n, zs) for n in periodic_g])]
+                           if periodic_g else [ca.SX(0, 1)])
+        nc, free = len(periodic_g), problem.free_horizon is not None
+        nx = nz + nc + (1 if free else 0)
+        X = [ca.MX.sym(f"x{k}", nx) for k in range(N + 1)]
+        U = [ca.MX.sym(f"u{k}", nu) for k in range(N)]
+        F = self.step_function(problem, None if free else float(problem.horizon) / N)
+        Zs = [x[:nz] for x in X]
+        Ts = [x[nx - 1] / N for x in X] if free else None
+        derived = _StageRows(problem)
+        w, f_terms = [], []
+        wu = np.array([float(problem.control_weights.get(n, 1.0)) for n in problem.control_names])
+        h_fixed = float(problem.horizon) / N
+        for k in range(N):
+            w += [X[k], U[k]]
+            h = Ts[k] if free else h_fixed
+            zend = F(Zs[k], U[k], h) if free else F(Zs[k], U[k])
+            carried = [X[k][nz:]] if nx > nz else []
+            b.add_g(X[k + 1] - ca.vertcat(zend, *carried), 0.0, 0.0)
+            if k == 0 and nc:
+                b.add_g(X[0][nz:nz + nc] - yper(Zs[0]), 0.0, 0.0)
+            derived.add(b, k, Zs[k], N)
+            f_terms.append(h * ca.sumsqr(ca.DM(np.sqrt(wu)) * U[k]))
+            if problem.state_weights:
+                wz = np.array([float(problem.state_weights.get(n, 0.0)) for n in problem.state_names])
+                f_terms.append(h * ca.dot(ca.DM(wz), Zs[k] ** 2))
+        w.append(X[N])
+        if nc:
+            b.add_g(yper(Zs[N]) - X[N][nz:nz + nc], 0.0, 0.0)
+        derived.add(b, N, Zs[N], N)
+        f = ca.sum1(ca.vertcat(*f_terms))
+        if problem.time_weight:
+            f = f + float(problem.time_weight) * X[0][nx - 1]
+        return self._layout(problem, b, ca.vertcat(*w), f, lo, hi, nx, F, derived.counts, yper, nc)
+
+    def _layout(self, problem, b, w, f, lo, hi, nx, F, counts, yper, nc):
+        nz, nu, N = problem.n_states, problem.n_controls, problem.intervals
+        blk = nx + nu
+        starts = np.arange(N + 1) * blk
+        node_index = starts[None, :] + np.arange(nz)[:, None]
+        control_index = starts[None, :N] + nx + np.arange(nu)[:, None]
+        n_w = int(w.shape[0])
+        lbx, ubx = np.full(n_w, -np.inf), np.full(n_w, np.inf)
+        lbx[node_index], ubx[node_index] = lo, hi
+        ulo, uhi = problem.control_bound_vectors()
+        lbx[control_index], ubx[control_index] = ulo[:, None], uhi[:, None]
+        horizon_index = None
+        if problem.free_horizon is not None:
+            T_index = starts + nx - 1
+            lbx[T_index], ubx[T_index] = problem.bounds({"T": problem.free_horizon}, "T")
+            horizon_index = int(T_index[0])
+        ng = [counts.get(k, 0) + (nc if k in (0, N) else 0) for k in range(N + 1)]
+        structure = {"N": N, "nx": [nx] * (N + 1), "nu": [nu] * N + [0], "ng": ng}
+
+        def fill(w0, states, controls):
+            # the carried copies: y_per(z_0) and T on every stage
+            extra = []
+            if nc:
+                extra.append(np.asarray(yper(states[:, 0])).ravel())
+            if horizon_index is not None:
+                extra.append(np.array([w0[horizon_index]]))
+            if extra:
+                extra = np.concatenate(extra)
+                for k in range(N + 1):
+                    w0[starts[k] + nz:starts[k] + nx] = extra
+
+        return b.finish(self, w, f, lbx, ubx, node_index, control_index, horizon_index, F, fill, structure)
+
+
+class _StageRows:
+    """Conditions on derived quantities, stage by stage (t_0: initial, t_N: final, every node:
+    path bounds), counted per stage for the FATROP structure."""
+
+    def __init__(self, problem):
+        self.problem = problem
+        self.counts: dict = {}
+        zs = ca.SX.sym("z", problem.n_states)
+        self.fns = {name: ca.Function(f"q_{name}", [zs], [problem.quantity(name, zs)])
+                    for name in set(problem.initial) | set(problem.final) | set(problem.state_bounds)
+                    if not problem.is_state(name)}
+
+    def add(self, b, k, z, N):
+        p = self.problem
+        rows = []
+        if k == 0:
+            rows += [(n, p.bounds(p.initial, n)) for n in p.initial if not p.is_state(n)]
+        if k == N:
+            rows += [(n, p.bounds(p.final, n)) for n in p.final if not p.is_state(n)]
+        rows += [(n, p.bounds(p.state_bounds, n)) for n in p.state_bounds if not p.is_state(n)]
+        for name, (lo, hi) in rows:
+            b.add_g(self.fns[name](z), lo, hi)
+        self.counts[k] = len(rows)
+
+
+TRANSCRIPTIONS = {"multiple-shooting": MultipleShooting, "collocation": Collocation,
+                  "multiple-shooting-stages": StageShooting}
 
 
 def get_transcription(spec=None):
