@@ -41,7 +41,7 @@ from .sweep_store import PointRecord, SweepStore
 
 __all__ = ["sweep", "run_sweep", "load_sweep", "SweepResult", "Progress"]
 
-_RESULT_KEYS = ("success", "status", "message", "objective", "iterations", "solve_time_s", "wall_time_s",
+_RESULT_KEYS = ("success", "status", "message", "objective", "iterations", "total_iterations", "solve_time_s", "wall_time_s",
                 "verification_error", "constraint_violation", "start", "worker")
 
 
@@ -279,9 +279,11 @@ def sweep(system, task=None, grid=(), *, out, overrides=(), params=None, schedul
     options : planner options (``transcription``, ``solver``, ``jit``)
     progress : callback receiving a :class:`Progress` after each point
     """
-    from .sweep_point import describe_case
+    from .sweep_point import check_case, describe_case
     case = describe_case(system, task, overrides=overrides, params=params, options=options)
     the_grid = grid if isinstance(grid, Grid) else parse_grid(grid, parameters=tuple(case.params))
+    centre = the_grid.point(the_grid.centre)
+    check_case(case, PointJob(case, centre.id, *point_task(case.task, case.params, centre)))
     own = backend is None
     backend = make_backend(scheduler, workers) if own else backend
     try:

@@ -179,9 +179,10 @@ def solve_point(job: PointJob) -> dict:
     return {"id": job.point_id, "worker": worker, "wall_time_s": time.perf_counter() - t0, **out}
 
 
-def _outcome(result, start: str) -> dict:
-    s = result.solution
-    return {"success": bool(s.success), "status": str(s.status), "message": str(s.message),
+def _outcome(s, start: str) -> dict:
+    """The plain-data answer of a verified solution (success needs the verification too)."""
+    verified = s.verification is not None and s.verification.success
+    return {"success": bool(s.success) and verified, "status": str(s.status), "message": str(s.message),
             "objective": _nan(s.objective), "iterations": int(s.iterations), "solve_time_s": _nan(s.solve_time_s),
             "verification_error": _nan(s.verification_error),
             "constraint_violation": _nan(s.constraint_violation), "start": start,
@@ -189,11 +190,128 @@ def _outcome(result, start: str) -> dict:
 
 
 # ---- the planner adapter (the only code that knows the planner's API) -------------------
-def describe_case(scene, task=None, *, overrides=(), params=None, options=None) -> SweepCase:  # pragma: no cover - planner
+def _scene_data(system) -> SceneData:
+    from pathlib import Path
+    from nhgait.dynamics.errors import ModelError
+    if isinstance(system, SceneData):
+        return system
+    if not isinstance(system, (str, Path)):
+        raise ModelError([f"a sweep's system is a scene file or a built-in scene name, got {type(system).__name__} "
+                          "(a sweep sends the scene to its workers as data)"], title="invalid sweep")
+    path = Path(system)
+    if path.exists():
+        return SceneData(str(path), text=path.read_text())
+    if path.suffix == ".toml":
+        raise ModelError([f"scene file {path} does not exist"], title="unknown scene")
+    return SceneData(f"built-in scene {system}", builtin=str(system))
+
+
+def _scene(data: SceneData):
+    """What the planner's ``resolve`` takes: the built-in name, or the Scene parsed from the text."""
+    if data.builtin is not None:
+        return data.builtin
+    from nhgait.dynamics.scene import parse_scene
+    from .tasks import _read_toml
+    return parse_scene(_read_toml(data.text, data.source), data.source)
+
+
+def describe_case(system, task=None, *, overrides=(), params=None, options=None) -> SweepCase:
     """The :class:`SweepCase` of a scene (file, built-in name) and a task (None: the scene's
-    ``[task]``; a built-in gait name; a ``[task]`` dict)."""
-    raise NotImplementedError("the planner adapter is wired when the planner's plan(...) API lands")
+    ``[task]``; a built-in gait name; a ``[task]`` dict), with ``--set`` overrides and
+    parameter values; the planner checks the task on the model here, before any point runs."""
+    from nhgait.dynamics import derive
+    from .tasks import resolve
+    data = _scene_data(system)
+    the_plan = resolve(_scene(data), task, overrides=overrides)
+    sys_ = the_plan.scene.system
+    problems = sys_.parameter_problems(dict(params), label="params") if params else []
+    if problems:
+        raise ProblemError(problems, title="invalid sweep parameters")
+    values = {**dict(sys_.parameters), **{k: float(v) for k, v in dict(params or {}).items()}}
+    model = derive(sys_, "reduced")
+    opts = {"jit": False, **dict(options or {})}
+    return SweepCase(data, the_plan.task.to_dict(), values, label=the_plan.label, units=dict(the_plan.units),
+                     shape=tuple(model.shape), coordinates=tuple(sys_.coordinates), inputs=tuple(sys_.inputs),
+                     options=opts)
 
 
-def _plan_point(job: PointJob) -> dict:  # pragma: no cover - planner
-    raise NotImplementedError("the planner adapter is wired when the planner's plan(...) API lands")
+def check_case(case: SweepCase, job: PointJob) -> None:
+    """Raise the planner's error when ``job``'s task or parameters do not fit the model (run
+    once by the driver on the centre point, so bad input stops the sweep before it starts)."""
+    from .planner import prepare
+    from .tasks import resolve
+    prepare(resolve(_scene(case.scene), job.task), params=job.params)
+
+
+#: per worker process: built solvers by structure (scene, parameters, task shape, options),
+#: least recently used dropped beyond _MEMO_SIZE — a cache, never a source of results
+_MEMO: dict = {}
+_MEMO_SIZE = 8
+
+
+def _structure(task: Mapping) -> str:
+    """The task with the values that only enter the NLP's bounds (initial, final, path and
+    control bounds) replaced by their names: points with equal structure share one NLP."""
+    import json
+    shape = {}
+    for key, value in task.items():
+        if key in ("initial", "final", "bounds") and isinstance(value, Mapping):
+            shape[key] = sorted(value)
+        elif key == "control_bounds":
+            shape[key] = sorted(value) if isinstance(value, Mapping) else "one bound"
+        elif key not in ("name", "description"):
+            shape[key] = value
+    return json.dumps(shape, sort_keys=True, default=str)
+
+
+def _solver_for(job: PointJob):
+    """(derived model, problem, OCPSolver, plan) of ``job``, reusing this process's solver of the
+    same structure (``OCPSolver.with_problem``: same NLP functions, new bounds)."""
+    from nhgait.ocp import OCPSolver, SolverOptions
+    from .planner import _quantity_objects, prepare
+    from .task import to_problem
+    from .tasks import resolve
+    case = job.case
+    the_plan = resolve(_scene(case.scene), job.task)
+    key = (case.scene.sha256, tuple(sorted(job.params.items())), _structure(job.task),
+           tuple(sorted(case.options.items())))
+    if key in _MEMO:
+        model, fast, solver = _MEMO.pop(key)
+        _MEMO[key] = (model, fast, solver)
+        problem = to_problem(the_plan.task, fast, quantities=_quantity_objects(fast, the_plan.scene),
+                             params=job.params, name=the_plan.label)
+        return model, problem, solver.with_problem(problem), the_plan
+    model, fast, problem = prepare(the_plan, params=job.params)
+    solver = OCPSolver(problem, case.options.get("transcription"),
+                       SolverOptions(jit=case.options.get("jit"), solver=case.options.get("solver", "ipopt")))
+    _MEMO[key] = (model, fast, solver)
+    while len(_MEMO) > _MEMO_SIZE:
+        _MEMO.pop(next(iter(_MEMO)))
+    return model, problem, solver, the_plan
+
+
+def _plan_point(job: PointJob) -> dict:
+    """Warm start from the parent when there is one; else (or when it fails) the planner's own
+    guesses and continuation; then the planner's verification in momentum coordinates."""
+    from .guesses import candidates
+    from .planner import _quantity_objects, continuation, solve_from_guesses, to_momentum_coordinates
+    model, problem, solver, the_plan = _solver_for(job)
+    solution, start = None, "cold"
+    if job.warm is not None:
+        solution = solver.solve(warm_guess(job.warm, problem, f"warm start from point {job.warm_from}"))
+        start = "warm" if solution.success else "cold after warm failed"
+    spent = int(solution.iterations) if solution is not None else 0
+    if solution is None or not solution.success:
+        guesses = candidates(problem)
+        solution, attempts, _ = solve_from_guesses(solver, guesses, workers=1)
+        spent += sum(a.iterations for a in attempts)
+        if solution is None:
+            solution, more = continuation(solver, guesses[0])
+            spent += sum(a.iterations for a in more)
+        if solution is None:
+            solution = solver.solve(guesses[0])
+            spent += int(solution.iterations)
+    momentum = problem.replace(model=model, quantities=_quantity_objects(model, the_plan.scene), params=job.params)
+    qdot_warm = warm_data(solution) if solution.success else None
+    solution = to_momentum_coordinates(solution, momentum).verified()
+    return {**_outcome(solution, start), "warm": qdot_warm, "total_iterations": spent}

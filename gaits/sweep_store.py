@@ -11,7 +11,9 @@ finishes, each in its own committed transaction — an interrupted sweep keeps e
 wrote, and ``resume`` solves only the points without one. Columns (see :class:`PointRecord`):
 ``id`` (indices joined by ``-``, the primary key), ``idx`` and ``axis_values`` (JSON), the
 point's full ``task`` table and parameter values ``params`` (JSON), ``success``, ``status``,
-``message``, ``objective``, ``iterations``, ``solve_time_s`` (Ipopt), ``wall_time_s`` (the
+``message``, ``objective``, ``iterations`` (of the solve that produced the solution),
+``total_iterations`` (every solve the point needed: a failed warm start, the guesses tried),
+``solve_time_s`` (Ipopt), ``wall_time_s`` (the
 whole point in its worker: set-up, solve, verification), ``verification_error`` (max
 |z_sim − z| of the re-simulation), ``constraint_violation``, ``start`` (``cold``,
 ``warm`` or ``cold after warm failed``), ``warm_from`` (the parent point's id),
@@ -51,6 +53,7 @@ class PointRecord:
     message: str = ""
     objective: float = math.nan
     iterations: int = 0
+    total_iterations: int = 0
     solve_time_s: float = math.nan
     wall_time_s: float = math.nan
     verification_error: float = math.nan
@@ -66,7 +69,7 @@ class PointRecord:
 _JSON = ("idx", "axis_values", "task", "params")
 _REAL = ("objective", "solve_time_s", "wall_time_s", "verification_error", "constraint_violation")
 _COLUMNS = tuple(f.name for f in fields(PointRecord))
-_TYPES = {"success": "INTEGER NOT NULL", "iterations": "INTEGER", "attempts": "INTEGER NOT NULL",
+_TYPES = {"success": "INTEGER NOT NULL", "iterations": "INTEGER", "total_iterations": "INTEGER", "attempts": "INTEGER NOT NULL",
           **{c: "REAL" for c in _REAL}, **{c: "TEXT NOT NULL" for c in ("idx", "axis_values", "task", "params",
                                                                           "status")}}
 
