@@ -52,7 +52,8 @@ class SweepCase:
 
     ``task``: the base ``[task]`` table; ``params``: the scene's parameter values (name →
     value); ``label``: "<system>/<task>"; ``units``: the scene's ``[units]`` table;
-    ``shape``: the shape coordinates (for shape-loop plots); ``coordinates``, ``inputs``: the
+    ``shape``: the two coordinates of the shape-loop plots (the shape variables, completed by
+    the last fiber coordinate when the shape is one-dimensional, e.g. the unicycle's (θ, φ)); ``coordinates``, ``inputs``: the
     system's names; ``options``: planner options
     (``transcription``, ``solver``, ``jit``).
     """
@@ -231,7 +232,7 @@ def describe_case(system, task=None, *, overrides=(), params=None, options=None)
     model = derive(sys_, "reduced")
     opts = {"jit": False, **dict(options or {})}
     return SweepCase(data, the_plan.task.to_dict(), values, label=the_plan.label, units=dict(the_plan.units),
-                     shape=tuple(model.shape), coordinates=tuple(sys_.coordinates), inputs=tuple(sys_.inputs),
+                     shape=(tuple(model.shape) + tuple(reversed(model.fiber)))[:2], coordinates=tuple(sys_.coordinates), inputs=tuple(sys_.inputs),
                      options=opts)
 
 
