@@ -36,7 +36,7 @@ from nhgait.ocp import ProblemError
 
 from .sweep_backends import WorkerDied, make_backend
 from .sweep_grid import Grid, parse_grid
-from .sweep_point import PointJob, SweepCase, point_task, solve_point
+from .sweep_point import PointJob, SweepCase, point_task, prepare_worker, solve_point
 from .sweep_store import PointRecord, SweepStore
 
 __all__ = ["sweep", "run_sweep", "load_sweep", "SweepResult", "Progress"]
@@ -168,13 +168,16 @@ def _jsonable_warm(warm: dict) -> dict:
 
 def run_sweep(case: SweepCase, grid: Grid, backend, store: SweepStore, *, resume: bool = False,
               warm_start: bool = True, solve: Callable = solve_point, progress: Callable | None = None,
-              max_in_flight: int | None = None) -> SweepResult:
+              max_in_flight: int | None = None, prepare: Callable | None = None) -> SweepResult:
     """Run (or resume) a sweep on an open back end and store (see the module docstring).
 
     ``solve``: the module-level function a worker calls with a :class:`PointJob` (default
     :func:`.sweep_point.solve_point`); ``progress``: called with a :class:`Progress` after
-    every finished point; ``max_in_flight``: points submitted at once (default: the back
-    end's workers).
+    every finished point; ``max_in_flight``: points submitted at once (default: twice the
+    back end's workers, so that a worker finds its next point waiting instead of a round
+    trip to the driver); ``prepare``: a function submitted with the centre point's job to
+    each other worker while the centre is solved (default :func:`.sweep_point.prepare_worker`
+    with the default ``solve``), its result ignored.
     """
     t_start = time.perf_counter()
     store.start({"scene": case.scene.describe(), "task": case.task, "params": case.params,
@@ -213,7 +216,15 @@ def run_sweep(case: SweepCase, grid: Grid, backend, store: SweepStore, *, resume
         return PointJob(case, point.id, task, params, warm, warm_from)
 
     in_flight: dict = {}
-    limit = max(1, int(max_in_flight or backend.workers))
+    limit = max(1, int(max_in_flight or 2 * backend.workers))
+    if prepare is None and solve is solve_point:
+        prepare = prepare_worker
+    warming = []
+    if prepare is not None and warm_start and backend.workers > 1 and root.index not in done:
+        job = job_for(root)
+        in_flight[backend.submit(solve, job)] = (root, job, 1)
+        ready.popleft()
+        warming = [backend.submit(prepare, job) for _ in range(backend.workers - 1)]
     while ready or in_flight:
         while ready and len(in_flight) < limit:
             point = ready.popleft()
@@ -252,6 +263,8 @@ def run_sweep(case: SweepCase, grid: Grid, backend, store: SweepStore, *, resume
             if progress is not None:
                 progress(Progress(len(done), grid.size, counts["ok"], counts["failed"], len(in_flight),
                                   counts["retried"], time.perf_counter() - t_start, counts["now"], record))
+    for future in warming:
+        future.cancel()
     return SweepResult(store.directory, grid, case.describe(), tuple(store.records()), counts["now"],
                        counts["retried"], time.perf_counter() - t_start,
                        backend.describe() if hasattr(backend, "describe") else "", dict(case.units))
