@@ -30,21 +30,15 @@ import time
 from pathlib import Path
 
 
+import operator
+
+_echo = operator.itemgetter(1)      # a picklable function that does no work: payload → answer
+
+
 def _warm_up(backend) -> None:
     """Import nhgait's planner in every worker (not part of a sweep's timing)."""
-    futures = [backend.submit(_import_planner) for _ in range(backend.workers)]
-    for f in futures:
-        f.result()
-
-
-def _import_planner() -> bool:
-    import nhgait.gaits.planner  # noqa: F401
-    import nhgait.gaits.sweep_point  # noqa: F401
-    return True
-
-
-def _echo(payload):
-    return payload[1]
+    from nhgait.gaits.sweep_backends import warm_up
+    warm_up(backend)
 
 
 def timed_sweep(case, grid, backend, *, warm_start=True):
@@ -76,15 +70,14 @@ def throughput(repeats: int, axes) -> dict:
             "speedup_2_over_1": med[1] / med[2]}
 
 
-def dask_overhead(samples: int, solves: int) -> dict:
+def dask_overhead(samples: int, solves: int, scene=("snakeboard", "forward")) -> dict:
     import numpy as np
     from nhgait.gaits.planner import plan
     from nhgait.gaits.sweep_backends import DaskBackend
     from nhgait.gaits.sweep_point import PointJob, describe_case, warm_data
-    p2 = [plan("snakeboard", "forward", overrides=["intervals=50"], animate=False, jit=False)
-          for _ in range(solves)]
+    p2 = [plan(*scene, overrides=["intervals=50"], animate=False, jit=False) for _ in range(solves)]
     solve_s = statistics.median(r.solution.solve_time_s for r in p2)
-    case = describe_case("snakeboard", "forward", overrides=["intervals=50"])
+    case = describe_case(*scene, overrides=["intervals=50"])
     sol = p2[-1].solution
     job = PointJob(case, "0-0", case.task, case.params, {k: np.asarray(v) if isinstance(v, np.ndarray) else v
                                                        for k, v in warm_data(sol).items()}, "0-1")
@@ -127,11 +120,11 @@ def _pipelined(backend, payload, count: int) -> float:
     return (time.perf_counter() - t0) / count
 
 
-def continuation(axes) -> dict:
+def continuation(axes, scene=("snakeboard", "forward")) -> dict:
     from nhgait.gaits.sweep_backends import ProcessPool
     from nhgait.gaits.sweep_grid import parse_grid
     from nhgait.gaits.sweep_point import describe_case
-    case = describe_case("snakeboard", "forward", overrides=["intervals=50"])
+    case = describe_case(*scene, overrides=["intervals=50"])
     grid = parse_grid(axes)
     out = {"grid": list(axes), "points": grid.size}
     with ProcessPool(2) as pool:
@@ -147,16 +140,18 @@ def continuation(axes) -> dict:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="tiny sizes (smoke test)")
+    ap.add_argument("--quick", action="store_true", help="tiny sizes, P1 only (smoke test)")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--out", default="out/bench_sweep.json")
     args = ap.parse_args(argv)
+    from nhgait.dynamics.errors import ModelError
     if args.quick:
-        p1_axes, p2_axes, samples, solves = ["final.y=0.45:0.55:2", "final.theta=-0.1,0.1"], \
-            ["final.x=0.9,1.1"], 5, 1
+        p1_axes, p2_axes, samples, solves = ["final.y=0.45,0.55"], ["final.y=0.45,0.55"], 3, 1
+        p2 = ("unicycle", "parallel-park")
     else:
         p1_axes, p2_axes, samples, solves = ["final.y=0.3:0.75:10", "final.theta=-0.15:0.15:4"], \
             ["final.x=0.6:1.4:5", "horizon=5.5:7.0:3"], 50, 3
+        p2 = ("snakeboard", "forward")
     report = {"note": "2 cores shared with other work: compare ratios measured in this run"}
     print("nhgait sweep benchmark (machine possibly shared: ratios are from this one run)")
     t = report["throughput"] = throughput(max(1, args.repeats), p1_axes)
@@ -165,18 +160,18 @@ def main(argv=None) -> int:
     print(f"   2 workers median {t['median_s'][2]:.2f} s  runs {[round(x, 2) for x in t['times_s'][2]]}")
     print(f"   speed-up 2 workers / 1 worker = {t['speedup_2_over_1']:.2f}  (target ≥ 1.7); solved {t['solved']}")
     try:
-        d = report["dask"] = dask_overhead(samples, solves)
-    except ImportError as exc:  # pragma: no cover - Dask not installed
+        d = report["dask"] = dask_overhead(samples, solves, p2)
+    except ModelError as exc:  # pragma: no cover - Dask not installed
         print(f"2. Dask overhead: skipped ({exc})")
     else:
-        print(f"2. Dask per-point overhead (LocalCluster, 1 worker; a P2 job and a solution-sized answer): "
+        print(f"2. Dask per-point overhead (LocalCluster, 1 worker; a {p2[0]} job and a solution-sized answer): "
               f"{d['dask_overhead_s'] * 1e3:.1f} ms per point with 2 points in flight as the sweep keeps them "
               f"(median of 3 × {d['samples']}), {d['dask_round_trip_s'] * 1e3:.1f} ms for one isolated round trip;")
-        print(f"   P2 N=50 solve median {d['p2_solve_s'] * 1e3:.1f} ms ({d['p2_iterations']} iterations) → "
+        print(f"   {'/'.join(p2)} N=50 solve median {d['p2_solve_s'] * 1e3:.1f} ms ({d['p2_iterations']} iterations) → "
               f"{100 * d['overhead_fraction_of_p2_solve']:.1f} % in a sweep (target ≤ 10 %), "
               f"{100 * d['round_trip_fraction_of_p2_solve']:.1f} % isolated")
-    c = report["continuation"] = continuation(p2_axes)
-    print(f"3. continuation, P2 N=50, {c['points']} points ({' × '.join(p2_axes)}), 2 workers:")
+    c = report["continuation"] = continuation(p2_axes, p2)
+    print(f"3. continuation, {'/'.join(p2)} N=50, {c['points']} points ({' × '.join(p2_axes)}), 2 workers:")
     print(f"   warm: {c['warm']['iterations']} Ipopt iterations, {c['warm']['solved']} solved, {c['warm']['wall_s']:.1f} s")
     print(f"   cold: {c['cold']['iterations']} Ipopt iterations, {c['cold']['solved']} solved, {c['cold']['wall_s']:.1f} s")
     print(f"   iterations warm / cold = {c['iteration_ratio_warm_over_cold']:.2f}  (target ≤ 0.60)")

@@ -4,7 +4,8 @@ Writes ``DIR/sweep.sqlite`` (one row per point, as each finishes), ``DIR/solutio
 and, at the end, ``landscape.png`` (cost over the first two axes with more than one value),
 ``feasibility.png`` and ``loops.png`` (shape loops along the first axis). Prints a progress
 line while it runs and a summary table at the end. Exit status 0 when every point was solved
-and verified, 1 when some failed, 2 for bad input.
+and verified, 1 when some failed, 2 for bad input, 130 when interrupted (Ctrl-C; the stored
+points are kept: ``--resume``).
 """
 from __future__ import annotations
 
@@ -94,11 +95,17 @@ def write_plots(result, out: Path, requested=None) -> list:
 
 
 def run(args) -> int:
-    from .sweep import sweep
+    from .sweep import load_sweep, sweep
     out = Path(args.out)
-    result = sweep(args.scene, args.task, args.grid, out=out, scheduler=args.scheduler, workers=args.workers,
-                   resume=args.resume, warm_start=not args.cold, overrides=args.overrides,
-                   progress=None if args.quiet else _ProgressPrinter())
+    try:
+        result = sweep(args.scene, args.task, args.grid, out=out, scheduler=args.scheduler, workers=args.workers,
+                       resume=args.resume, warm_start=not args.cold, overrides=args.overrides,
+                       progress=None if args.quiet else _ProgressPrinter())
+    except KeyboardInterrupt:
+        stored = len(load_sweep(out).records) if (out / "sweep.sqlite").exists() else 0
+        print(f"\nnhgait sweep: interrupted; {stored} points are stored in {out} — continue with --resume",
+              file=sys.stderr)
+        return 130
     for line in result.summary_lines():
         print(line)
     if not args.no_plots:

@@ -277,3 +277,19 @@ def test_plots_reject_unknown_axes(tmp_path):
         result = run_sweep(CASE, grid, SerialBackend(), store, solve=fake_solve)
     with pytest.raises(ProblemError, match="no grid axis 'horizon'"):
         sweep_plots.plot_landscape(result, "final.x", "horizon")
+
+
+def test_bench_sweep_smoke(tmp_path, capsys):
+    import importlib.util
+    from pathlib import Path
+    spec = importlib.util.spec_from_file_location(
+        "bench_sweep", Path(__file__).resolve().parents[1] / "experiments" / "bench_sweep.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    assert bench.main(["--quick", "--repeats", "1", "--out", str(tmp_path / "b.json")]) == 0
+    text = capsys.readouterr().out
+    assert "speed-up 2 workers / 1 worker" in text and "iterations warm / cold" in text
+    import json
+    report = json.loads((tmp_path / "b.json").read_text())
+    assert report["throughput"]["solved"] == {"1": 2, "2": 2}
+    assert report["continuation"]["warm"]["solved"] == report["continuation"]["cold"]["solved"] == 2
