@@ -29,12 +29,16 @@ def axis_label(name: str, units=None) -> str:
     elif name.startswith("objective."):
         return f"weight {key}"
     elif key in units:
-        unit = units[key]
+        unit = _pretty(units[key])
     elif key.endswith("_dot") and key[:-4] in units:
-        unit = f"{units[key[:-4]]}/s"
+        unit = f"{_pretty(units[key[:-4]])}/s"
     else:
         unit = "SI units"
     return f"{name} [{unit}]"
+
+
+def _pretty(unit: str) -> str:
+    return str(unit).replace("**2", "²").replace("^2", "²").replace("*", "·")
 
 
 def objective_label(inputs=(), units=None) -> str:
@@ -42,8 +46,14 @@ def objective_label(inputs=(), units=None) -> str:
     units = dict(units or {})
     found = {units.get(u) for u in inputs}
     if inputs and len(found) == 1 and None not in found:
-        return f"optimal cost J = ∫|u|² dt [({found.pop()})²·s]"
+        return f"optimal cost J = ∫|u|² dt [({_pretty(found.pop())})²·s]"
     return "optimal cost J = ∫|u|² dt [SI units]"
+
+
+def _coordinate_label(name: str, units) -> str:
+    """``θ [rad]``: the planner's readable name and the unit."""
+    from .plots import label
+    return f"{label(name)} [{_pretty(dict(units or {}).get(name, 'SI units'))}]"
 
 
 def grid_slice(result, keep: tuple, fixed=None) -> tuple:
@@ -98,19 +108,26 @@ def _slice_title(result, keep, fixed) -> str:
 
 
 def plot_landscape(result, x: str, y: str, *, column: str = "objective", fixed=None, ax=None,
-                   contours: bool = True, cmap: str = "viridis"):
+                   contours: bool = True, cmap: str = "viridis", log: bool | None = None):
     """Heat map of ``column`` (solved points) over axes ``x`` and ``y``, with contour lines;
-    failed points crossed out (red ×), points not yet solved left blank."""
+    failed points crossed out (red ×), points not yet solved left blank. ``log``: a
+    logarithmic colour scale (None: when the values are positive and span more than 20×)."""
+    from matplotlib.colors import LogNorm
     ax = _new_ax(ax)
     units = result.units
     xs, ys, Z = _plane(result, x, y, result.values(column), fixed)
     _, _, ok = _plane(result, x, y, result.success_mask(), fixed)
-    mesh = ax.pcolormesh(_edges(xs), _edges(ys), np.ma.masked_invalid(Z), cmap=cmap, shading="flat")
+    finite = Z[np.isfinite(Z)]
+    if log is None:
+        log = finite.size > 1 and finite.min() > 0 and finite.max() > 20 * finite.min()
+    norm = LogNorm(finite.min(), finite.max()) if log and finite.size and finite.min() > 0 else None
+    mesh = ax.pcolormesh(_edges(xs), _edges(ys), np.ma.masked_invalid(Z), cmap=cmap, shading="flat", norm=norm)
     label = objective_label(result.case.get("inputs") or (), units) if column == "objective" else column
     ax.figure.colorbar(mesh, ax=ax, label=label)
     if contours and np.isfinite(Z).sum() >= 4 and min(Z.shape) >= 2:
         Zc = np.ma.masked_invalid(Z)
-        cs = ax.contour(xs, ys, Zc, levels=6, colors="white", linewidths=0.8)
+        levels = np.geomspace(finite.min(), finite.max(), 8)[1:-1] if norm is not None else 6
+        cs = ax.contour(xs, ys, Zc, levels=levels, colors="white", linewidths=0.8)
         ax.clabel(cs, fontsize=7, fmt="%.3g")
     fy, fx = np.nonzero(ok == 0)
     if fx.size:
@@ -179,9 +196,9 @@ def plot_shape_loops(result, axis: str, *, shape=None, fixed=None, axes=None):
             ax.text(0.5, 0.5, "failed" if record is not None else "not solved", transform=ax.transAxes,
                     ha="center", va="center", color="tab:red")
         ax.set_title(f"{axis} = {value:g}", fontsize=8)
-        ax.set_xlabel(axis_label(shape[0], units), fontsize=8)
+        ax.set_xlabel(_coordinate_label(shape[0], units), fontsize=8)
         if i == 0:
-            ax.set_ylabel(axis_label(shape[1], units), fontsize=8)
+            ax.set_ylabel(_coordinate_label(shape[1], units), fontsize=8)
     axes[0].figure.suptitle(f"{result.case.get('label', '')}: shape loops along {axis}"
                             f"{_slice_title(result, (axis,), fixed)}", fontsize=9)
     return axes

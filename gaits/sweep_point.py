@@ -232,9 +232,20 @@ def describe_case(system, task=None, *, overrides=(), params=None, options=None)
     values = {**dict(sys_.parameters), **{k: float(v) for k, v in dict(params or {}).items()}}
     model = derive(sys_, "reduced")
     opts = {"jit": False, **dict(options or {})}
-    return SweepCase(data, the_plan.task.to_dict(), values, label=the_plan.label, units=dict(the_plan.units),
+    return SweepCase(data, the_plan.task.to_dict(), values, label=the_plan.label, units=_units(the_plan, model),
                      shape=(tuple(model.shape) + tuple(reversed(model.fiber)))[:2], coordinates=tuple(sys_.coordinates), inputs=tuple(sys_.inputs),
                      options=opts)
+
+
+def _units(the_plan, model) -> dict:
+    """Units of the coordinates, their rates and the inputs by the planner's plot rules (the
+    scene's ``[units]`` first, then rad/m from the model), and every ``[units]`` entry."""
+    from .plots import FigureContext, unit
+    sys_ = model.system
+    ctx = FigureContext(sys_, dict(the_plan.units), None, None, tuple(model.fiber), tuple(model.shape))
+    names = [*sys_.coordinates, *(f"{c}_dot" for c in sys_.coordinates), *sys_.inputs]
+    found = {name: unit(ctx, name) for name in names}
+    return {**{k: str(v) for k, v in the_plan.units.items()}, **{k: v for k, v in found.items() if v}}
 
 
 def check_case(case: SweepCase, job: PointJob) -> None:

@@ -265,7 +265,7 @@ def test_landscape_shows_the_closed_form_and_marks_failures(tmp_path):
     crosses = [line for line in ax.lines if line.get_marker() == "x"][0]
     assert list(crosses.get_xdata()) == [-0.5] * 3        # the failed column, every horizon
     fax = sweep_plots.plot_feasibility(result, "horizon", "params.J_r")
-    assert fax.get_ylabel() == "params.J_r [kg*m^2]"
+    assert fax.get_ylabel() == "params.J_r [kg·m²]"
     assert sweep_plots.axis_label("final.theta_dot", {"theta": "rad"}) == "final.theta_dot [rad/s]"
     assert sweep_plots.objective_label(("u",), {"u": "N"}) == "optimal cost J = ∫|u|² dt [(N)²·s]"
 
