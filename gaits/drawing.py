@@ -123,7 +123,7 @@ def _placed(exprs, frame, system, n):
 
 
 def _trig(theta):
-    """cos θ, sin θ as expressions of the symbol θ (through the safe parser: no sympy here)."""
+    """cos θ, sin θ as expressions of the symbol θ, built by the safe parser of the dynamics layer."""
     from nhgait.dynamics.expressions import parse_expression
     names = {theta.name: theta}
     return (parse_expression(f"cos({theta.name})", names, "drawing frame"),

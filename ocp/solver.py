@@ -2,10 +2,12 @@
 
 * **Compiled by default** (``SolverOptions(jit=None)``: compile when a C compiler is found —
   ``$CC``, else ``gcc``/``cc``): the NLP is *not* expanded (the MX graph keeps ``F.map(N)`` as
-  a loop over one RK4 kernel); its functions (``nlp`` = (f, g), ``nlp_grad_f``, ``nlp_jac_g``,
-  ``nlp_hess_l``) are generated as one C file, compiled once to
+  a loop over one RK4 kernel); the oracle ``nlp`` = (f, g) and every function the solver
+  builds from it (``nlp_grad_f``, ``nlp_jac_g``, ``nlp_hess_l``, …) are generated as one C
+  file, compiled once to
   ``$NHGAIT_CACHE_DIR/jit/<sha256 of the C source, compiler, flags, CasADi version>.so`` and
-  loaded with ``casadi.external``. The library's SHA-256 is recorded beside it
+  loaded with ``casadi.external`` (the solver's ``factory`` calls find each function in the
+  library by name). The library's SHA-256 is recorded beside it
   (``<key>.so.sha256``) and a cached library is loaded only through
   :func:`nhgait.dynamics.cache.trusted_file` (directory 0700, not group/world-writable, owned
   by the user, content hash unchanged); otherwise it is rebuilt. Boundary values live in the
@@ -129,11 +131,13 @@ def jit_cache_dir() -> Path:
     return cache_dir() / "jit"
 
 
-_JIT_FUNCTIONS = ("nlp_grad_f", "nlp_jac_g", "nlp_hess_l")
-
-
 class CompileError(RuntimeError):
     """The C compiler is missing or failed (the solver falls back to interpreted functions)."""
+
+
+def _no_compiler() -> str:
+    cc = os.environ.get("CC")
+    return f"no C compiler found ({'$CC = ' + repr(cc) if cc else 'looked for gcc and cc'})"
 
 
 def _compile(source: str, compiler: str, flags: tuple, folder: Path, key: str) -> Path:
@@ -168,7 +172,7 @@ def _compile_cached(functions: list, flags: tuple) -> tuple[Path, bool]:
     source = cg.dump()
     compiler = find_compiler()
     if compiler is None:
-        raise CompileError(f"no C compiler found ({'$CC = ' + repr(os.environ['CC']) if os.environ.get('CC') else 'gcc, cc'})")
+        raise CompileError(_no_compiler())
     key = hashlib.sha256("\0".join([source, os.path.basename(compiler), *flags, ca.__version__]).encode()).hexdigest()
     folder = cache.trusted_dir(jit_cache_dir())
     if folder is None:   # untrusted or unwritable cache: compile privately, do not share
@@ -211,7 +215,9 @@ class OCPSolver:
             self.options = replace(self.options, ipopt={**self.options.ipopt, "mumps_scaling": 8})
         self.nlp: TranscribedNLP = self.transcription.build(problem)
         self.jit_cached, self.jit_fallback, self.compiled = None, None, False
-        if self.options.compiled:
+        if self.options.jit is None and find_compiler() is None:
+            self.jit_fallback = _no_compiler()
+        elif self.options.jit is not False:
             try:
                 self.solver, self.jit_cached, self.jit_path = self._jit_solver()
                 self.compiled = True
@@ -233,20 +239,20 @@ class OCPSolver:
         return ca.nlpsol(name, self.options.solver, nlp, opts)
 
     def _jit_solver(self):
+        """The solver on compiled functions: every function the solver plugin builds from its
+        oracle (``nlp_f``, ``nlp_g``, ``nlp_grad_f``, ``nlp_jac_g``, ``nlp_hess_l``, …, read off
+        an uncompiled instance) and the oracle ``nlp`` itself are generated into one library;
+        the solver is then made from the external oracle, whose ``factory`` loads each
+        function from the library by name (Ipopt and FATROP alike)."""
         opts = self.options.nlpsol_options(compiled=True)
         plain = self._nlpsol("ocp_plain", {"x": self.nlp.w, "f": self.nlp.f, "g": self.nlp.g},
                              {**opts, "expand": False})
         x, p = ca.MX.sym("x", self.nlp.w.shape[0]), ca.MX.sym("p", 0)
         oracle = ca.Function("nlp", [x, p], [plain.get_function("nlp_f")(x, p), plain.get_function("nlp_g")(x, p)],
                              ["x", "p"], ["f", "g"])
-        functions = [oracle] + [plain.get_function(name) for name in _JIT_FUNCTIONS]
+        functions = [oracle] + [plain.get_function(name) for name in plain.get_function()]
         so, cached = _compile_cached(functions, tuple(self.options.jit_flags))
-        ext = {f.name(): ca.external(f.name(), str(so)) for f in functions}
-        jit_opts = {**opts, "expand": False, "grad_f": ext["nlp_grad_f"], "jac_g": ext["nlp_jac_g"],
-                    "hess_lag": ext["nlp_hess_l"], "calc_lam_p": False, "no_nlp_grad": True}
-        if self.options.hessian != "exact":
-            jit_opts.pop("hess_lag")
-        return self._nlpsol("ocp", ext["nlp"], jit_opts), cached, so
+        return self._nlpsol("ocp", ca.external("nlp", str(so)), {**opts, "expand": False}), cached, so
 
     def with_problem(self, problem: OptimalControlProblem) -> "OCPSolver":
         """This solver for ``problem``, a problem of the same structure whose values (targets,
@@ -301,8 +307,10 @@ class OCPSolver:
         fn_time = sum(float(v) for k, v in stats.items() if k.startswith("t_wall_nlp_"))
         total = float(stats.get("t_wall_total", wall))
         status = str(stats.get("return_status", "exception" if error else "unknown"))
-        if self.options.solver == "fatrop" and error is None and not stats.get("success", False):
-            stats = {**stats, "success": _fatrop_converged(stats, viol, self.options.tol)}
+        if self.options.solver == "fatrop" and error is None:
+            ok = bool(stats.get("success", False)) or _fatrop_converged(stats, viol, self.options.tol)
+            stats = {**stats, "success": ok}
+            status = "Solve_Succeeded" if ok else f"fatrop_return_flag_{status}"
         success = bool(stats.get("success", False)) and error is None
         message = status if error is None else f"{status}: {error}"
         return Solution(success=success, status=status, message=message,

@@ -397,36 +397,48 @@ class StageShooting(MultipleShooting):
                            if periodic_g else [ca.SX(0, 1)])
         nc, free = len(periodic_g), problem.free_horizon is not None
         nx = nz + nc + (1 if free else 0)
-        X = [ca.MX.sym(f"x{k}", nx) for k in range(N + 1)]
-        U = [ca.MX.sym(f"u{k}", nu) for k in range(N)]
-        F = self.step_function(problem, None if free else float(problem.horizon) / N)
-        Zs = [x[:nz] for x in X]
-        Ts = [x[nx - 1] / N for x in X] if free else None
-        derived = _StageRows(problem)
-        w, f_terms = [], []
-        wu = np.array([float(problem.control_weights.get(n, 1.0)) for n in problem.control_names])
-        h_fixed = float(problem.horizon) / N
-        for k in range(N):
-            w += [X[k], U[k]]
-            h = Ts[k] if free else h_fixed
-            zend = F(Zs[k], U[k], h) if free else F(Zs[k], U[k])
-            carried = [X[k][nz:]] if nx > nz else []
-            b.add_g(X[k + 1] - ca.vertcat(zend, *carried), 0.0, 0.0)
-            if k == 0 and nc:
-                b.add_g(X[0][nz:nz + nc] - yper(Zs[0]), 0.0, 0.0)
-            derived.add(b, k, Zs[k], N)
-            f_terms.append(h * ca.sumsqr(ca.DM(np.sqrt(wu)) * U[k]))
-            if problem.state_weights:
-                wz = np.array([float(problem.state_weights.get(n, 0.0)) for n in problem.state_names])
-                f_terms.append(h * ca.dot(ca.DM(wz), Zs[k] ** 2))
-        w.append(X[N])
+        V, XN = ca.MX.sym("V", nx + nu, N), ca.MX.sym("xN", nx)
+        w = ca.vertcat(ca.vec(V), XN)                  # (x̃_0, u_0, …, x̃_{N-1}, u_{N-1}, x̃_N)
+        X, U = ca.horzcat(V[:nx, :], XN), V[nx:, :]
+        Z = X[:nz, :]
+        if free:
+            h = X[nx - 1, :] / N
+            F = self.step_function(problem, None)
+            Zend = F.map(N, self.map_mode)(Z[:, :N], U, h[:, :N])
+        else:
+            h = float(problem.horizon) / N
+            F = self.step_function(problem, h)
+            Zend = F.map(N, self.map_mode)(Z[:, :N], U)
+        gaps = X[:, 1:] - ca.vertcat(Zend, X[nz:, :N])            # column k: gap of stage k
+        path = _StagePaths(problem, Z)                            # rows on every node
+        first, last = _end_rows(problem, Z[:, 0], "initial"), _end_rows(problem, Z[:, N], "final")
         if nc:
-            b.add_g(yper(Zs[N]) - X[N][nz:nz + nc], 0.0, 0.0)
-        derived.add(b, N, Zs[N], N)
-        f = ca.sum1(ca.vertcat(*f_terms))
+            first.append((X[nz:nz + nc, 0] - yper(Z[:, 0]), 0.0, 0.0))
+            last.append((yper(Z[:, N]) - X[nz:nz + nc, N], 0.0, 0.0))
+        # stage 0: gap, path rows, start rows; stages 1..N-1: (gap, path rows) column by column
+        b.add_g(gaps[:, 0], 0.0, 0.0)
+        path.add(b, 0)
+        for expr, a, c in first:
+            b.add_g(expr, a, c)
+        if N > 1:
+            body = ca.vertcat(gaps[:, 1:], path.matrix[:, 1:N]) if path.n else gaps[:, 1:]
+            b.add_g(ca.vec(body), np.tile(np.concatenate([np.zeros(nx), path.lo]), N - 1),
+                    np.tile(np.concatenate([np.zeros(nx), path.hi]), N - 1))
+        path.add(b, N)
+        for expr, a, c in last:
+            b.add_g(expr, a, c)
+        counts = {k: path.n for k in range(N + 1)}
+        counts[0] += sum(int(e.shape[0]) for e, _, _ in first)
+        counts[N] += sum(int(e.shape[0]) for e, _, _ in last)
+        wu = np.array([float(problem.control_weights.get(n, 1.0)) for n in problem.control_names])
+        hk = h[:, :N] if free else h                   # the step of each interval
+        f = ca.sum2(hk * ca.mtimes(ca.DM(wu).T, U ** 2))
+        if problem.state_weights:
+            wz = np.array([float(problem.state_weights.get(n, 0.0)) for n in problem.state_names])
+            f = f + ca.sum2(hk * ca.mtimes(ca.DM(wz).T, Z[:, :N] ** 2))
         if problem.time_weight:
-            f = f + float(problem.time_weight) * X[0][nx - 1]
-        return self._layout(problem, b, ca.vertcat(*w), f, lo, hi, nx, F, derived.counts, yper, nc)
+            f = f + float(problem.time_weight) * X[nx - 1, 0]
+        return self._layout(problem, b, w, f, lo, hi, nx, F, counts, yper, nc)
 
     def _layout(self, problem, b, w, f, lo, hi, nx, F, counts, yper, nc):
         nz, nu, N = problem.n_states, problem.n_controls, problem.intervals
@@ -444,7 +456,7 @@ class StageShooting(MultipleShooting):
             T_index = starts + nx - 1
             lbx[T_index], ubx[T_index] = problem.bounds({"T": problem.free_horizon}, "T")
             horizon_index = int(T_index[0])
-        ng = [counts.get(k, 0) + (nc if k in (0, N) else 0) for k in range(N + 1)]
+        ng = [counts.get(k, 0) for k in range(N + 1)]
         structure = {"N": N, "nx": [nx] * (N + 1), "nu": [nu] * N + [0], "ng": ng}
 
         def fill(w0, states, controls):
@@ -462,29 +474,31 @@ class StageShooting(MultipleShooting):
         return b.finish(self, w, f, lbx, ubx, node_index, control_index, horizon_index, F, fill, structure)
 
 
-class _StageRows:
-    """Conditions on derived quantities, stage by stage (t_0: initial, t_N: final, every node:
-    path bounds), counted per stage for the FATROP structure."""
+def _end_rows(problem, z, where) -> list:
+    """(expression, lo, hi) of the conditions on derived quantities at one end."""
+    mapping = problem.initial if where == "initial" else problem.final
+    return [(problem.quantity(n, z), *problem.bounds(mapping, n)) for n in mapping if not problem.is_state(n)]
 
-    def __init__(self, problem):
-        self.problem = problem
-        self.counts: dict = {}
+
+class _StagePaths:
+    """Path bounds on derived quantities at every node, as a matrix (rows × (N+1))."""
+
+    def __init__(self, problem, Z):
+        names = [n for n in problem.state_bounds if not problem.is_state(n)]
         zs = ca.SX.sym("z", problem.n_states)
-        self.fns = {name: ca.Function(f"q_{name}", [zs], [problem.quantity(name, zs)])
-                    for name in set(problem.initial) | set(problem.final) | set(problem.state_bounds)
-                    if not problem.is_state(name)}
+        self.n = len(names)
+        bounds = [problem.bounds(problem.state_bounds, n) for n in names]
+        self.lo = np.array([a for a, _ in bounds])
+        self.hi = np.array([c for _, c in bounds])
+        if self.n:
+            fn = ca.Function("path", [zs], [ca.vertcat(*[problem.quantity(n, zs) for n in names])])
+            self.matrix = fn.map(Z.shape[1])(Z)
+        else:
+            self.matrix = None
 
-    def add(self, b, k, z, N):
-        p = self.problem
-        rows = []
-        if k == 0:
-            rows += [(n, p.bounds(p.initial, n)) for n in p.initial if not p.is_state(n)]
-        if k == N:
-            rows += [(n, p.bounds(p.final, n)) for n in p.final if not p.is_state(n)]
-        rows += [(n, p.bounds(p.state_bounds, n)) for n in p.state_bounds if not p.is_state(n)]
-        for name, (lo, hi) in rows:
-            b.add_g(self.fns[name](z), lo, hi)
-        self.counts[k] = len(rows)
+    def add(self, b, k):
+        if self.n:
+            b.add_g(self.matrix[:, k], self.lo, self.hi)
 
 
 TRANSCRIPTIONS = {"multiple-shooting": MultipleShooting, "collocation": Collocation,
