@@ -124,13 +124,24 @@ def _worker_main(conn) -> None:
             conn.send(("error", f"the answer cannot be sent back ({type(exc).__name__}: {exc})"))
 
 
+#: set in each worker's environment unless the user set them: one point per core, so the
+#: linear-algebra libraries must not start threads of their own (Dask's nannies do the same)
+SINGLE_THREADED = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
 class _Slot:
     """One worker process, its pipe and the future of the point it runs (None when idle)."""
 
     def __init__(self, ctx):
         self.conn, child = ctx.Pipe()
         self.process = ctx.Process(target=_worker_main, args=(child,), daemon=True)
-        self.process.start()
+        added = {k: v for k, v in SINGLE_THREADED.items() if k not in os.environ}
+        os.environ.update(added)          # a spawned child copies the environment at start
+        try:
+            self.process.start()
+        finally:
+            for key in added:
+                os.environ.pop(key, None)
         child.close()
         self.future: cf.Future | None = None
 

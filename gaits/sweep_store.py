@@ -37,6 +37,8 @@ __all__ = ["SweepStore", "PointRecord", "STORE_NAME", "FORMAT"]
 
 STORE_NAME = "sweep.sqlite"
 FORMAT = 1
+#: what makes a sweep the same sweep on --resume
+IDENTITY = ("scene", "task", "params", "options", "grid")
 
 
 @dataclass(frozen=True)
@@ -135,8 +137,9 @@ class SweepStore:
     def start(self, meta: dict, *, resume: bool) -> None:
         """Record ``meta`` for a new sweep, or check it against the stored one on ``resume``.
 
-        A new sweep refuses a directory that already holds points; a resumed one refuses
-        different scene, task, grid or options (every difference listed).
+        A new sweep refuses a directory that already holds points; a resumed one refuses a
+        different scene, task, parameters, options or grid (:data:`IDENTITY`; every difference
+        listed) and refreshes the descriptive entries (units, labels).
         """
         stored = self.meta
         if not resume:
@@ -156,12 +159,17 @@ class SweepStore:
         if stored.get("format") != FORMAT:
             problems.append(f"the store has format {stored.get('format')}, this nhgait writes {FORMAT}")
         for key, value in meta.items():
+            if key not in IDENTITY:        # units, labels: descriptive, refreshed below
+                continue
             if json.loads(json.dumps(value, sort_keys=True)) != stored.get(key):
                 problems.append(f"--resume: the {key} differs from the stored sweep's "
                                 f"(stored {json.dumps(stored.get(key), sort_keys=True)[:200]}, "
                                 f"now {json.dumps(value, sort_keys=True)[:200]})")
         if problems:
             raise ProblemError(problems, title="cannot resume this sweep")
+        with self._db:
+            self._db.executemany("INSERT OR REPLACE INTO meta VALUES (?, ?)",
+                                 [(k, json.dumps(v, sort_keys=True)) for k, v in meta.items() if k not in IDENTITY])
 
     # ------------------------------------------------------------------ rows
     def write_solution(self, point_id: str, solution: dict) -> str:

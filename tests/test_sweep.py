@@ -293,3 +293,11 @@ def test_bench_sweep_smoke(tmp_path, capsys):
     report = json.loads((tmp_path / "b.json").read_text())
     assert report["throughput"]["solved"] == {"1": 2, "2": 2}
     assert report["continuation"]["warm"]["solved"] == report["continuation"]["cold"]["solved"] == 2
+
+
+def test_pool_workers_run_single_threaded_linear_algebra():
+    with ProcessPool(1) as pool:
+        found = {key: pool.submit(os.getenv, key).result(timeout=60) for key in ("OMP_NUM_THREADS",
+                                                                               "OPENBLAS_NUM_THREADS")}
+    for key, value in found.items():
+        assert value == os.environ.get(key, "1")          # the user's setting wins, else 1
