@@ -133,7 +133,8 @@ def continuation(axes, scene=("snakeboard", "forward")) -> dict:
             wall, result = timed_sweep(case, grid, pool, warm_start=warm)
             out[label] = {"wall_s": wall, "solved": sum(r.success for r in result.records),
                           "iterations": sum(r.total_iterations for r in result.records),
-                          "objectives": [r.objective for r in result.records]}
+                          "objectives": [r.objective for r in result.records],
+                          "point_wall_median_s": statistics.median(r.wall_time_s for r in result.records)}
     out["iteration_ratio_warm_over_cold"] = out["warm"]["iterations"] / max(out["cold"]["iterations"], 1)
     return out
 
@@ -175,6 +176,11 @@ def main(argv=None) -> int:
     print(f"   warm: {c['warm']['iterations']} Ipopt iterations, {c['warm']['solved']} solved, {c['warm']['wall_s']:.1f} s")
     print(f"   cold: {c['cold']['iterations']} Ipopt iterations, {c['cold']['solved']} solved, {c['cold']['wall_s']:.1f} s")
     print(f"   iterations warm / cold = {c['iteration_ratio_warm_over_cold']:.2f}  (target ≤ 0.60)")
+    if "dask" in report:
+        point = c["warm"]["point_wall_median_s"]
+        report["dask"]["overhead_fraction_of_warm_point"] = report["dask"]["dask_overhead_s"] / point
+        print(f"   a warm point in its worker (set-up reuse, solve, re-simulation): median {point * 1e3:.0f} ms → "
+              f"Dask overhead {100 * report['dask']['overhead_fraction_of_warm_point']:.1f} % of a whole point")
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(report, indent=1, default=float))

@@ -166,6 +166,92 @@ def _jsonable_warm(warm: dict) -> dict:
     return {k: (np.asarray(v).tolist() if isinstance(v, np.ndarray) else v) for k, v in warm.items()}
 
 
+class _Run:
+    """The driver's state for one call of :func:`run_sweep`: the continuation tree, the stored
+    rows, the points ready to run and those in flight."""
+
+    def __init__(self, case, grid, backend, store, *, resume, warm_start, solve, progress):
+        self.case, self.grid, self.backend, self.store = case, grid, backend, store
+        self.warm_start, self.solve, self.progress = warm_start, solve, progress
+        self.t_start = time.perf_counter()
+        self.tree = _Tree(grid)
+        self.done = {r.idx: r for r in store.records()} if resume else {}
+        for idx, r in self.done.items():
+            if r.success and warm_start:
+                self.tree.warm[idx] = ("file", r)
+        self.counts = {"ok": sum(r.success for r in self.done.values()),
+                       "failed": sum(not r.success for r in self.done.values()), "now": 0, "retried": 0}
+        self.ready: deque = deque()
+        self.in_flight: dict = {}
+        self.root = grid.point(grid.centre)
+        if self.root.index in self.done:
+            self.release(self.root.index)
+        else:
+            self.ready.append(self.root)
+
+    def release(self, index) -> None:
+        """Make the children of a finished (or stored) point ready; stored ones release theirs."""
+        stack = [index]
+        while stack:
+            for child in self.tree.children.get(stack.pop(), ()):
+                if child.index in self.done:
+                    stack.append(child.index)
+                else:
+                    self.ready.append(child)
+
+    def job_for(self, point) -> PointJob:
+        task, params = point_task(self.case.task, self.case.params, point)
+        warm, warm_from = self.tree.warm_source(point.index) if self.warm_start else (None, None)
+        if isinstance(warm, tuple):                   # stored by an earlier run: read it now
+            warm = _load_warm(self.store, warm[1])
+            warm_from = warm_from if warm is not None else None
+        return PointJob(self.case, point.id, task, params, warm, warm_from)
+
+    def submit(self, point, job=None, attempt: int = 1) -> PointJob:
+        job = job or self.job_for(point)
+        self.in_flight[self.backend.submit(self.solve, job)] = (point, job, attempt)
+        return job
+
+    def finish(self, future) -> None:
+        """Store a finished point (or resubmit it once when its worker died or its solve raised)."""
+        point, job, attempts = self.in_flight.pop(future)
+        try:
+            answer = future.result()
+        except Exception as exc:  # noqa: BLE001 - a dead worker or a bug in the solve: retry once
+            status = "worker-died" if isinstance(exc, WorkerDied) else "error"
+            if attempts == 1:
+                self.counts["retried"] += 1
+                self.submit(point, job, 2)
+                return
+            record = _failure(point, job, f"{status} twice: {exc}", status, attempts)
+        else:
+            record = self._record(point, job, answer, attempts)
+        self.store.add(record)
+        self.done[point.index] = record
+        self.counts["ok" if record.success else "failed"] += 1
+        self.counts["now"] += 1
+        self.release(point.index)
+        if self.progress is not None:
+            c = self.counts
+            self.progress(Progress(len(self.done), self.grid.size, c["ok"], c["failed"], len(self.in_flight),
+                                   c["retried"], time.perf_counter() - self.t_start, c["now"], record))
+
+    def _record(self, point, job, answer, attempts) -> PointRecord:
+        if "input_error" in answer:
+            raise ProblemError([answer["input_error"]], title=f"grid point {point.id} "
+                               f"({', '.join(f'{k} = {v:g}' for k, v in point.values)})")
+        path = None
+        if answer.get("solution") is not None:
+            solution = dict(answer["solution"])
+            if answer.get("warm") is not None:
+                solution["warm_start"] = _jsonable_warm(answer["warm"])
+            path = self.store.write_solution(point.id, solution)
+        record = _record(point, job, answer, attempts, path)
+        if record.success and self.warm_start and answer.get("warm") is not None:
+            self.tree.warm[point.index] = answer["warm"]
+        return record
+
+
 def run_sweep(case: SweepCase, grid: Grid, backend, store: SweepStore, *, resume: bool = False,
               warm_start: bool = True, solve: Callable = solve_point, progress: Callable | None = None,
               max_in_flight: int | None = None, prepare: Callable | None = None) -> SweepResult:
@@ -179,94 +265,28 @@ def run_sweep(case: SweepCase, grid: Grid, backend, store: SweepStore, *, resume
     each other worker while the centre is solved (default :func:`.sweep_point.prepare_worker`
     with the default ``solve``), its result ignored.
     """
-    t_start = time.perf_counter()
     store.start({"scene": case.scene.describe(), "task": case.task, "params": case.params,
                  "options": case.options, "grid": grid.to_dict(), "label": case.label, "units": case.units,
                  "shape": list(case.shape), "coordinates": list(case.coordinates),
                  "inputs": list(case.inputs)}, resume=resume)
-    tree = _Tree(grid)
-    done = {r.idx: r for r in store.records()} if resume else {}
-    for idx, r in done.items():
-        if r.success and warm_start:
-            tree.warm[idx] = ("file", r)
-    counts = {"ok": sum(r.success for r in done.values()), "failed": sum(not r.success for r in done.values()),
-              "now": 0, "retried": 0}
-    ready = deque()
-
-    def release(index):       # the children of a finished (or previously stored) point
-        for child in tree.children.get(index, ()):
-            if child.index in done:
-                release(child.index)
-            else:
-                ready.append(child)
-
-    root = grid.point(grid.centre)
-    if root.index in done:
-        release(root.index)
-    else:
-        ready.append(root)
-
-    def job_for(point) -> PointJob:
-        task, params = point_task(case.task, case.params, point)
-        warm, warm_from = tree.warm_source(point.index) if warm_start else (None, None)
-        if isinstance(warm, tuple):                   # stored by an earlier run: read it now
-            warm = _load_warm(store, warm[1])
-            if warm is None:
-                warm_from = None
-        return PointJob(case, point.id, task, params, warm, warm_from)
-
-    in_flight: dict = {}
+    run = _Run(case, grid, backend, store, resume=resume, warm_start=warm_start, solve=solve, progress=progress)
     limit = max(1, int(max_in_flight or 2 * backend.workers))
     if prepare is None and solve is solve_point:
         prepare = prepare_worker
     warming = []
-    if prepare is not None and warm_start and backend.workers > 1 and root.index not in done:
-        job = job_for(root)
-        in_flight[backend.submit(solve, job)] = (root, job, 1)
-        ready.popleft()
+    if prepare is not None and warm_start and backend.workers > 1 and run.ready and run.ready[0] is run.root:
+        job = run.submit(run.ready.popleft())
         warming = [backend.submit(prepare, job) for _ in range(backend.workers - 1)]
-    while ready or in_flight:
-        while ready and len(in_flight) < limit:
-            point = ready.popleft()
-            job = job_for(point)
-            in_flight[backend.submit(solve, job)] = (point, job, 1)
-        finished, _ = cf.wait(list(in_flight), return_when=cf.FIRST_COMPLETED)
+    while run.ready or run.in_flight:
+        while run.ready and len(run.in_flight) < limit:
+            run.submit(run.ready.popleft())
+        finished, _ = cf.wait(list(run.in_flight), return_when=cf.FIRST_COMPLETED)
         for future in finished:
-            point, job, attempts = in_flight.pop(future)
-            try:
-                answer = future.result()
-            except Exception as exc:  # noqa: BLE001 - a dead worker or a bug in the solve: retry once
-                status = "worker-died" if isinstance(exc, WorkerDied) else "error"
-                if attempts == 1:
-                    counts["retried"] += 1
-                    in_flight[backend.submit(solve, job)] = (point, job, 2)
-                    continue
-                record = _failure(point, job, f"{status} twice: {exc}", status, attempts)
-            else:
-                if "input_error" in answer:
-                    raise ProblemError([answer["input_error"]], title=f"grid point {point.id} "
-                                       f"({', '.join(f'{k} = {v:g}' for k, v in point.values)})")
-                path = None
-                if answer.get("solution") is not None:
-                    solution = dict(answer["solution"])
-                    if answer.get("warm") is not None:
-                        solution["warm_start"] = _jsonable_warm(answer["warm"])
-                    path = store.write_solution(point.id, solution)
-                record = _record(point, job, answer, attempts, path)
-                if record.success and warm_start and answer.get("warm") is not None:
-                    tree.warm[point.index] = answer["warm"]
-            store.add(record)
-            done[point.index] = record
-            counts["ok" if record.success else "failed"] += 1
-            counts["now"] += 1
-            release(point.index)
-            if progress is not None:
-                progress(Progress(len(done), grid.size, counts["ok"], counts["failed"], len(in_flight),
-                                  counts["retried"], time.perf_counter() - t_start, counts["now"], record))
+            run.finish(future)
     for future in warming:
         future.cancel()
-    return SweepResult(store.directory, grid, case.describe(), tuple(store.records()), counts["now"],
-                       counts["retried"], time.perf_counter() - t_start,
+    return SweepResult(store.directory, grid, case.describe(), tuple(store.records()), run.counts["now"],
+                       run.counts["retried"], time.perf_counter() - run.t_start,
                        backend.describe() if hasattr(backend, "describe") else "", dict(case.units))
 
 
