@@ -15,7 +15,8 @@ Sections (all in one process, so every ratio is measured in one run on the same 
 
 P1 (unicycle parallel-park), P2 (snakeboard forward), P3 (snakeboard rotate) at
 N = 25, 50, 100, 200; each time is the median of ``--repeats`` solves of the built NLP (set-up
-reported apart). Writes ``out/bench_ocp.json``. The machine is shared: compare ratios, not
+reported apart), the solvers of one row taking turns (a, b, a, b, …) so that a shared
+machine's load falls on all alike. Writes ``out/bench_ocp.json``. Compare ratios, not
 absolute times.
 
 Usage: python experiments/bench_ocp.py [--quick] [--N 25,50] [--problems P1,P2]
@@ -44,39 +45,68 @@ def _reference():
     return mod
 
 
-def ours(key, N, *, solver="ipopt", transcription=None, repeats=5, jit=None, guess_label=None) -> dict:
-    """Median solve of the planner's NLP (its own winning guess, or ``guess_label``)."""
-    from nhgait.gaits.guesses import candidates
-    from nhgait.gaits.planner import prepare, solve_from_guesses
-    from nhgait.gaits.tasks import resolve
-    from nhgait.ocp import OCPSolver, SolverOptions
+class Ours:
+    """The planner's NLP built once (its own winning guess, or ``guess_label``); :meth:`run`
+    solves it once more from that guess."""
 
-    system, gait = PROBLEMS[key]
-    t0 = time.perf_counter()
-    _, _, problem = prepare(resolve(system, gait, overrides=[f"intervals={N}"]))
-    model_time = time.perf_counter() - t0
-    S = OCPSolver(problem, transcription, SolverOptions(jit=jit, solver=solver, max_iter=500))
-    guesses = candidates(problem)
-    if guess_label is None:
-        first, attempts, guess_label = solve_from_guesses(S, guesses)
-    guess = next(g for g in guesses if g.label == guess_label)
-    runs = [S.solve(guess) for _ in range(repeats)]
-    sol = runs[-1].verified()
-    return {"objective": sol.objective, "iterations": sol.iterations, "success": sol.success,
-            "solve_time_s": statistics.median(r.solve_time_s for r in runs),
-            "function_time_s": statistics.median(r.function_time_s for r in runs),
-            "solver_time_s": statistics.median(r.solver_time_s for r in runs),
-            "setup_time_s": S.setup_time_s, "model_time_s": model_time, "compiled": S.compiled,
-            "jit_cached": S.jit_cached, "verification_error": sol.verification_error, "guess": guess_label}
+    def __init__(self, key, N, *, solver="ipopt", transcription=None, jit=None, guess_label=None):
+        from nhgait.gaits.guesses import candidates
+        from nhgait.gaits.planner import prepare, solve_from_guesses
+        from nhgait.gaits.tasks import resolve
+        from nhgait.ocp import OCPSolver, SolverOptions
+
+        system, gait = PROBLEMS[key]
+        t0 = time.perf_counter()
+        _, _, problem = prepare(resolve(system, gait, overrides=[f"intervals={N}"]))
+        self.model_time = time.perf_counter() - t0
+        self.solver = OCPSolver(problem, transcription, SolverOptions(jit=jit, solver=solver, max_iter=500))
+        guesses = candidates(problem)
+        if guess_label is None:
+            _, _, guess_label = solve_from_guesses(self.solver, guesses)
+        self.guess = next(g for g in guesses if g.label == guess_label)
+        self.runs = []
+
+    def run(self):
+        self.runs.append(self.solver.solve(self.guess))
+
+    def result(self) -> dict:
+        runs, S = self.runs, self.solver
+        sol = runs[-1].verified()
+        return {"objective": sol.objective, "iterations": sol.iterations, "success": sol.success,
+                "solve_time_s": statistics.median(r.solve_time_s for r in runs),
+                "function_time_s": statistics.median(r.function_time_s for r in runs),
+                "solver_time_s": statistics.median(r.solver_time_s for r in runs),
+                "setup_time_s": S.setup_time_s, "model_time_s": self.model_time, "compiled": S.compiled,
+                "jit_cached": S.jit_cached, "verification_error": sol.verification_error,
+                "guess": self.guess.label}
 
 
-def reference(ref, key, N, *, jit=True, repeats=5) -> dict:
-    runs = [ref.solve(key, N, jit=jit) for _ in range(repeats)]
-    r = runs[-1]
-    return {"objective": r["objective"], "iterations": r["iterations"], "success": r["success"],
-            "solve_time_s": statistics.median(x["solve_time_s"] for x in runs),
-            "solver_time_s": statistics.median(x["ipopt_time_s"] for x in runs),
-            "setup_time_s": r["setup_time_s"]}
+class Reference:
+    """The hand-written reference (compiled): built once by its own cache, one solve per :meth:`run`."""
+
+    def __init__(self, ref, key, N, *, jit=True):
+        self.ref, self.key, self.N, self.jit = ref, key, N, jit
+        self.runs = []
+
+    def run(self):
+        self.runs.append(self.ref.solve(self.key, self.N, jit=self.jit))
+
+    def result(self) -> dict:
+        runs = self.runs
+        r = runs[-1]
+        return {"objective": r["objective"], "iterations": r["iterations"], "success": r["success"],
+                "solve_time_s": statistics.median(x["solve_time_s"] for x in runs),
+                "solver_time_s": statistics.median(x["ipopt_time_s"] for x in runs),
+                "setup_time_s": r["setup_time_s"]}
+
+
+def interleaved(runners, repeats) -> list:
+    """Solve each runner ``repeats`` times in turn (a, b, c, a, b, c, …) so that the load of a
+    shared machine falls on all of them alike; returns their results."""
+    for _ in range(repeats):
+        for r in runners:
+            r.run()
+    return [r.result() for r in runners]
 
 
 def _ms(x):
@@ -106,8 +136,7 @@ def main(argv=None) -> int:
               f"{'ref ms':>8s} {'ratio':>5s} {'setup ms':>8s} {'ref setup':>9s} {'verify':>8s}  guess")
         for key in keys:
             for N in Ns:
-                o = ours(key, N, repeats=args.repeats)
-                r = reference(ref, key, N, repeats=args.repeats)
+                o, r = interleaved([Ours(key, N), Reference(ref, key, N)], args.repeats)
                 rel = abs(o["objective"] - ref.REFERENCE[key][N]) / ref.REFERENCE[key][N] if N in ref.REFERENCE[key] \
                     else abs(o["objective"] - r["objective"]) / abs(r["objective"])
                 ratio = o["solve_time_s"] / r["solve_time_s"]
@@ -124,9 +153,9 @@ def main(argv=None) -> int:
               f"{'ref/F':>5s} {'ipopt/F':>7s}")
         for key in keys:
             for N in Ns:
-                i = ours(key, N, repeats=args.repeats)
-                f = ours(key, N, solver="fatrop", repeats=args.repeats, guess_label=i["guess"])
-                r = reference(ref, key, N, repeats=args.repeats)
+                ipopt = Ours(key, N)
+                fatrop = Ours(key, N, solver="fatrop", guess_label=ipopt.guess.label)
+                i, f, r = interleaved([ipopt, fatrop, Reference(ref, key, N)], args.repeats)
                 rel = abs(f["objective"] - i["objective"]) / abs(i["objective"])
                 ok &= f["success"] and rel < 1e-6
                 rows.append({"section": "fatrop", "problem": key, "N": N, "fatrop": f, "ipopt": i, "reference": r,
@@ -143,8 +172,9 @@ def main(argv=None) -> int:
               f"{'MS ms':>8s} {'coll ms':>8s} {'ratio':>5s} {'coll setup ms':>13s}")
         for key in keys:
             for N in Ns:
-                m = ours(key, N, repeats=args.repeats)
-                c = ours(key, N, transcription="collocation", repeats=args.repeats, guess_label=m["guess"])
+                shooting = Ours(key, N)
+                colloc = Ours(key, N, transcription="collocation", guess_label=shooting.guess.label)
+                m, c = interleaved([shooting, colloc], args.repeats)
                 ratio = c["solve_time_s"] / m["solve_time_s"]
                 ok &= c["success"]
                 rows.append({"section": "collocation", "problem": key, "N": N, "shooting": m, "collocation": c,

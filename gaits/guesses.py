@@ -40,7 +40,7 @@ __all__ = ["ShapeGuess", "shape_guesses", "rollout_guesses", "guess_from_shape",
 
 RATIOS = ((1, 1), (2, 1), (1, 2), (3, 2), (2, 3))
 #: (A, B) as fractions of the largest allowed amplitude of each variable (1 rad when unbounded)
-AMPLITUDES = ((1.0, 0.6), (1.0, 0.9), (-1.0, 0.6), (0.6, 1.0))
+AMPLITUDES = ((1.0, 0.9), (1.0, 0.6), (-1.0, 0.9), (0.6, 1.0))
 SINGLE = ((1, 0.5), (1, 1.0), (2, 0.5), (1, -0.5))
 
 

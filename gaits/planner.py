@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["plan", "PlanResult", "Attempt", "prepare", "solve_from_guesses", "continuation",
-           "to_momentum_coordinates", "known_names"]
+           "to_momentum_coordinates", "known_names", "warm_start", "read_solution"]
 
 
 @dataclass(frozen=True)
@@ -197,13 +197,56 @@ def continuation(solver, guess, steps=(0.25, 0.5, 0.75, 1.0)):
     return replace(solution, problem=solver.problem), tuple(attempts)
 
 
+# ----------------------------------------------------------------------------- warm start
+def read_solution(path) -> dict:
+    """The content of a ``solution.json`` written by :func:`plan` (a dict)."""
+    import json
+    return json.loads(Path(path).read_text())
+
+
+def _trajectory_of(previous) -> tuple:
+    """(t (K+1,), q (n × K+1), q̇ (n × K+1), u (m × K)) of a previous result of any kind."""
+    from nhgait.ocp import Solution
+    if isinstance(previous, PlanResult):
+        previous = previous.solution
+    if isinstance(previous, (str, Path)):
+        previous = read_solution(previous)
+    if isinstance(previous, Solution):
+        n = len(previous.problem.model.system.coordinates)
+        return previous.t, previous.states[:n], previous.velocities(), previous.controls
+    tr = previous["trajectory"]
+    return (np.asarray(tr["t"], float), np.asarray(tr["q"], float).T, np.asarray(tr["qdot"], float).T,
+            np.asarray(tr["u"], float).T)
+
+
+def warm_start(previous, problem, label: str = "warm start"):
+    """An initial guess for ``problem`` from a previous solution (Solution, PlanResult,
+    solution.json dict or path, or an InitialGuess), resampled on the problem's grid in
+    normalised time t/T (configurations and velocities linearly, inputs piecewise constant)
+    and mapped to the problem's state by the model's ``state(q, q̇)``."""
+    from nhgait.ocp import InitialGuess
+    if isinstance(previous, InitialGuess):
+        return previous
+    t, q, qdot, u = _trajectory_of(previous)
+    grid = problem.grid()
+    s_old, s_new = t / t[-1], grid / grid[-1]
+    q_new = np.vstack([np.interp(s_new, s_old, row) for row in q])
+    qd_new = np.vstack([np.interp(s_new, s_old, row) for row in qdot]) * (t[-1] / grid[-1])
+    mid = (s_new[:-1] + s_new[1:]) / 2
+    k = np.clip(np.searchsorted(s_old, mid, side="right") - 1, 0, u.shape[1] - 1)
+    state = problem.model.numeric["state"]
+    Z = np.column_stack([np.asarray(state(q_new[:, j], qd_new[:, j], problem.params)).ravel()
+                         for j in range(grid.size)])
+    return InitialGuess(Z, u[:, k], horizon=float(grid[-1]), label=label)
+
+
 # ----------------------------------------------------------------------------- plan
 def _default_workers() -> int:
     return max(1, min(2, (os.cpu_count() or 1)))
 
 
 def plan(system, task=None, *, overrides=(), intervals=None, solver="ipopt", transcription=None,
-         jit=None, workers=1, params=None, max_iter=500, out_dir=None, animate=True,
+         jit=None, workers=1, params=None, max_iter=500, guess=None, out_dir=None, animate=False,
          verify=True) -> PlanResult:
     """Plan a gait: see the module docstring.
 
@@ -219,7 +262,9 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="ipopt", tra
     workers : candidates tried at once (separate processes); "auto" for up to 2 per machine
     params : parameter values overriding the scene's (mapping)
     max_iter : iteration limit of each candidate's solve
-    out_dir : write solution.json and the figures there
+    guess : a previous result to start from (Solution, PlanResult, solution.json dict or path,
+        InitialGuess), tried before the planner's own candidates (:func:`warm_start`)
+    out_dir : write solution.json and the figures there (``animate``: also motion.gif)
     """
     from nhgait.ocp import OCPSolver, SolverOptions
     from .guesses import candidates
@@ -237,6 +282,8 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="ipopt", tra
     timings["setup_s"] = time.perf_counter() - t0
     workers = _default_workers() if workers in (None, "auto") else int(workers)
     guesses = candidates(problem)
+    if guess is not None:
+        guesses = [warm_start(guess, problem)] + guesses
     solution, attempts, won = solve_from_guesses(ocp_solver, guesses, workers=workers)
     if solution is None:
         solution, more = continuation(ocp_solver, guesses[0])

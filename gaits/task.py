@@ -30,17 +30,48 @@ a model, :func:`to_problem` states the :class:`~nhgait.ocp.OptimalControlProblem
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from types import MappingProxyType
-from typing import Any, Mapping
+from typing import Any
 
 from nhgait.ocp import OptimalControlProblem, ProblemError, Quantity
 
-__all__ = ["Task", "parse_task", "apply_overrides", "check_names", "to_problem", "TASK_KEYS"]
+__all__ = ["Task", "FrozenMap", "parse_task", "apply_overrides", "check_names", "to_problem", "TASK_KEYS"]
 
 TASK_KEYS = ("name", "description", "horizon", "intervals", "initial", "final", "periodic", "bounds",
              "control_bounds", "objective", "velocities")
 OBJECTIVES = ("effort", "time")
+
+
+class FrozenMap(Mapping):
+    """A read-only mapping that pickles (tasks travel to worker processes) and compares equal
+    to any mapping with the same items."""
+
+    __slots__ = ("_data",)
+
+    def __init__(self, data=()):
+        object.__setattr__(self, "_data", dict(data))
+
+    def __getitem__(self, key):
+        return self._data[key]
+
+    def __iter__(self):
+        return iter(self._data)
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+    def __setattr__(self, name, value):
+        raise AttributeError("FrozenMap is read-only")
+
+    def __reduce__(self):
+        return (FrozenMap, (self._data,))
+
+    def __repr__(self) -> str:
+        return f"FrozenMap({self._data!r})"
+
+    def __hash__(self):
+        return hash(tuple(sorted(self._data.items(), key=lambda kv: str(kv[0]))))
 
 
 @dataclass(frozen=True)
@@ -67,9 +98,9 @@ class Task:
 
     def __post_init__(self):
         for key in ("initial", "final", "bounds", "objective"):
-            object.__setattr__(self, key, MappingProxyType(dict(getattr(self, key))))
+            object.__setattr__(self, key, FrozenMap(getattr(self, key)))
         if isinstance(self.control_bounds, Mapping):
-            object.__setattr__(self, "control_bounds", MappingProxyType(dict(self.control_bounds)))
+            object.__setattr__(self, "control_bounds", FrozenMap(self.control_bounds))
         object.__setattr__(self, "periodic", tuple(self.periodic))
         object.__setattr__(self, "velocities", tuple(self.velocities))
 

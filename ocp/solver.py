@@ -48,6 +48,8 @@ from .transcription import Collocation, StageShooting, TranscribedNLP, get_trans
 __all__ = ["SolverOptions", "OCPSolver", "solve", "InitialGuess", "jit_cache_dir", "find_compiler", "SOLVERS"]
 
 SOLVERS = ("ipopt", "fatrop")
+#: MUMPS settings for collocation KKT matrices (see the module docstring)
+COLLOCATION_MUMPS = {"mumps_scaling": 8, "mumps_pivot_order": 0}
 
 
 def find_compiler() -> str | None:
@@ -210,9 +212,8 @@ class OCPSolver:
         if self.options.solver == "fatrop" and self.nlp_structure_missing():
             raise ProblemError([f"FATROP needs a stage-ordered transcription (multiple-shooting-stages), "
                                 f"got {self.transcription.name}"])
-        if isinstance(self.transcription, Collocation) and self.options.solver == "ipopt" \
-                and "mumps_scaling" not in self.options.ipopt:
-            self.options = replace(self.options, ipopt={**self.options.ipopt, "mumps_scaling": 8})
+        if isinstance(self.transcription, Collocation) and self.options.solver == "ipopt":
+            self.options = replace(self.options, ipopt={**COLLOCATION_MUMPS, **self.options.ipopt})
         self.nlp: TranscribedNLP = self.transcription.build(problem)
         self.jit_cached, self.jit_fallback, self.compiled = None, None, False
         if self.options.jit is None and find_compiler() is None:

@@ -176,3 +176,17 @@ def test_unknown_names_and_counts_are_one_error(tmp_path):
     text = str(info.value)
     assert "unknown name 'zz'" in text and "unknown input 'tau_q'" in text and "unknown weight 'tau_z'" in text
     assert "fixes 9 values but the state has only 8" in text
+
+
+def test_warm_start_from_a_previous_solution(tmp_path):
+    """A solution (object or solution.json) of a coarser grid starts a finer one: it is tried
+    first, wins, and Ipopt needs fewer iterations than from the planner's own guess."""
+    import pickle
+    coarse = plan("snakeboard", "rotate", intervals=25, jit=False, out_dir=tmp_path, verify=False)
+    fine_own = plan("snakeboard", "rotate", intervals=50, jit=False, verify=False)
+    for previous in (coarse, tmp_path / "solution.json"):
+        fine = plan("snakeboard", "rotate", intervals=50, jit=False, guess=previous, verify=False)
+        assert fine.guess == "warm start" and fine.success
+        assert fine.solution.objective == pytest.approx(2.110183, rel=1e-4)       # reference, N = 50
+        assert fine.solution.iterations < fine_own.solution.iterations
+    assert pickle.loads(pickle.dumps(coarse.task)) == coarse.task

@@ -30,9 +30,13 @@ def test_builtin_tasks_are_library_data():
 
 
 def test_task_table_round_trip():
+    import pickle
     task = parse_task(P2)
     again = parse_task(task.to_dict())
     assert again == task
+    assert pickle.loads(pickle.dumps(task)) == task          # tasks travel to worker processes
+    with pytest.raises((TypeError, AttributeError)):
+        task.final["x"] = 2.0
     free = parse_task({**P2, "horizon": [2.0, 8.0], "objective": {"effort": 1.0, "time": 0.1}})
     assert free.horizon_bounds == (2.0, 8.0) and free.horizon == 5.0
     assert parse_task(free.to_dict()) == free
