@@ -71,17 +71,15 @@ def throughput(repeats: int, axes) -> dict:
 
 
 def dask_overhead(samples: int, solves: int, scene=("snakeboard", "forward")) -> dict:
-    import numpy as np
     from nhgait.gaits.planner import plan
     from nhgait.gaits.sweep_backends import DaskBackend
     from nhgait.gaits.sweep_point import PointJob, describe_case, warm_data
     p2 = [plan(*scene, overrides=["intervals=50"], animate=False, jit=False) for _ in range(solves)]
     solve_s = statistics.median(r.solution.solve_time_s for r in p2)
     case = describe_case(*scene, overrides=["intervals=50"])
-    sol = p2[-1].solution
-    job = PointJob(case, "0-0", case.task, case.params, {k: np.asarray(v) if isinstance(v, np.ndarray) else v
-                                                       for k, v in warm_data(sol).items()}, "0-1")
-    answer = {"solution": sol.to_dict(), "warm": warm_data(sol), "objective": sol.objective}
+    solution = p2[-1].solution.to_dict()
+    job = PointJob(case, "0-0", case.task, case.params, warm_data(solution), "0-1")
+    answer = {"solution": solution, "warm": warm_data(solution), "objective": solution["objective"]}
     payload = (job, answer)
     local = []
     for _ in range(samples):

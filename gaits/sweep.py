@@ -155,15 +155,13 @@ class _Tree:
 
 
 def _load_warm(store: SweepStore, record: PointRecord):
-    """Warm data of a point solved in an earlier run (from its solution file), or None."""
+    """Warm data of a point solved in an earlier run (its solution file), or None."""
+    from .sweep_point import warm_data
     solution = store.load_solution(record)
-    if not solution or "warm_start" not in solution:
+    try:
+        return warm_data(solution)
+    except (KeyError, TypeError):
         return None
-    return {k: (np.asarray(v, float) if isinstance(v, list) else v) for k, v in solution["warm_start"].items()}
-
-
-def _jsonable_warm(warm: dict) -> dict:
-    return {k: (np.asarray(v).tolist() if isinstance(v, np.ndarray) else v) for k, v in warm.items()}
 
 
 class _Run:
@@ -242,10 +240,7 @@ class _Run:
                                f"({', '.join(f'{k} = {v:g}' for k, v in point.values)})")
         path = None
         if answer.get("solution") is not None:
-            solution = dict(answer["solution"])
-            if answer.get("warm") is not None:
-                solution["warm_start"] = _jsonable_warm(answer["warm"])
-            path = self.store.write_solution(point.id, solution)
+            path = self.store.write_solution(point.id, answer["solution"])
         record = _record(point, job, answer, attempts, path)
         if record.success and self.warm_start and answer.get("warm") is not None:
             self.tree.warm[point.index] = answer["warm"]

@@ -2,13 +2,18 @@
 
 A worker gets a :class:`PointJob` — the scene as TOML text (or a built-in name), the point's
 ``[task]`` table, its parameter values and, for a warm start, the parent point's trajectory
-as plain arrays — and answers with a plain dict (:func:`solve_point`). Nothing live (no
+(t, q, q̇, u as plain lists, :func:`warm_data`) — and answers with a plain dict
+(:func:`solve_point`). Nothing live (no
 CasADi object, no model) crosses a process boundary; each worker derives its model and builds
 its solver itself, the derivation coming from the content-hash cache
 (:mod:`nhgait.dynamics.cache`) after the first time.
 
 Everything that knows the planner's API is in :func:`describe_case` (driver side: the scene
-and base task as data) and :func:`_plan_point` (worker side: one plan, warm or cold).
+and base task as data) and :func:`_plan_point` (worker side: one point, warm or cold). The
+worker uses the planner's building blocks (``prepare``, ``warm_start``, the guesses,
+``solve_from_guesses``, ``continuation``, ``to_momentum_coordinates``, ``Solution.verified``)
+rather than ``plan(guess=...)`` itself, to keep one built solver per structure across points
+and to build the cold candidates only when a warm start fails.
 """
 from __future__ import annotations
 
@@ -21,7 +26,6 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
-import numpy as np
 
 from nhgait.ocp import ProblemError
 
@@ -115,42 +119,12 @@ def point_task(task: Mapping, params: Mapping, point: GridPoint) -> tuple[dict, 
 
 
 # ----------------------------------------------------------------------------- warm starts
-def warm_data(solution) -> dict:
-    """A solved point as plain arrays, the warm start of its children.
-
-    Configuration q and generalised velocities q̇ at the nodes (n × (N+1), coordinates in the
-    system's order), controls (m × N), horizon T — coordinate-free: any model of the system
-    maps (q, q̇) to its own state with its ``state(q, q̇)`` function.
-    """
-    n = solution.problem.model.numeric.n_coordinates
-    return {"t": np.asarray(solution.t, float), "q": np.asarray(solution.states[:n], float),
-            "qdot": np.asarray(solution.velocities(), float), "controls": np.asarray(solution.controls, float),
-            "horizon": float(solution.horizon)}
-
-
-def _resampled(values: np.ndarray, n_out: int) -> np.ndarray:
-    """Columns of ``values`` resampled linearly on ``n_out`` evenly spaced columns."""
-    if values.shape[1] == n_out:
-        return values
-    s_in, s_out = np.linspace(0, 1, values.shape[1]), np.linspace(0, 1, n_out)
-    return np.vstack([np.interp(s_out, s_in, row) for row in values])
-
-
-def warm_guess(warm: Mapping, problem, label: str):
-    """The :class:`~nhgait.ocp.InitialGuess` of ``problem`` from a parent's :func:`warm_data`
-    (resampled when the number of intervals differs)."""
-    from nhgait.ocp import InitialGuess
-    N = problem.intervals
-    q = _resampled(np.asarray(warm["q"], float), N + 1)
-    qdot = _resampled(np.asarray(warm["qdot"], float), N + 1)
-    controls = np.asarray(warm["controls"], float)
-    if controls.shape[1] != N:   # piecewise constant: resample at the interval midpoints
-        mids_in = (np.arange(controls.shape[1]) + 0.5) / controls.shape[1]
-        mids_out = (np.arange(N) + 0.5) / N
-        controls = np.vstack([np.interp(mids_out, mids_in, row) for row in controls])
-    state = problem.model.numeric["state"]
-    Z = np.column_stack([np.asarray(state(q[:, k], qdot[:, k], problem.params)).ravel() for k in range(N + 1)])
-    return InitialGuess(Z, controls, horizon=float(problem.horizon), label=label)
+def warm_data(solution: Mapping) -> dict:
+    """The part of a solution dict (``Solution.to_dict()``, solution.json) a warm start needs:
+    ``trajectory.t``, ``q`` and ``q̇`` (coordinate order) and ``u`` — coordinate-free, so the
+    planner's :func:`~nhgait.gaits.planner.warm_start` maps it to any model's own state."""
+    tr = solution["trajectory"]
+    return {"trajectory": {k: tr[k] for k in ("t", "q", "qdot", "u")}}
 
 
 # ----------------------------------------------------------------------------- the worker
@@ -188,7 +162,7 @@ def _outcome(s, start: str) -> dict:
             "objective": _nan(s.objective), "iterations": int(s.iterations), "solve_time_s": _nan(s.solve_time_s),
             "verification_error": _nan(s.verification_error),
             "constraint_violation": _nan(s.constraint_violation), "start": start,
-            "solution": s.to_dict(), "warm": warm_data(s) if s.success else None}
+            "solution": s.to_dict()}
 
 
 # ---- the planner adapter (the only code that knows the planner's API) -------------------
@@ -326,11 +300,11 @@ def _plan_point(job: PointJob) -> dict:
     """Warm start from the parent when there is one; else (or when it fails) the planner's own
     guesses and continuation; then the planner's verification in momentum coordinates."""
     from .guesses import candidates
-    from .planner import _quantity_objects, continuation, solve_from_guesses, to_momentum_coordinates
+    from .planner import _quantity_objects, continuation, solve_from_guesses, to_momentum_coordinates, warm_start
     solution, start = None, "cold"
     if job.warm is not None:
         model, problem, solver, the_plan = _solver_for(job, warm=True)
-        solution = solver.solve(warm_guess(job.warm, problem, f"warm start from point {job.warm_from}"))
+        solution = solver.solve(warm_start(job.warm, problem, f"warm start from point {job.warm_from}"))
         start = "warm" if solution.success else "cold after warm failed"
     spent = int(solution.iterations) if solution is not None else 0
     if solution is None or not solution.success:
@@ -345,6 +319,5 @@ def _plan_point(job: PointJob) -> dict:
             solution = solver.solve(guesses[0])
             spent += int(solution.iterations)
     momentum = problem.replace(model=model, quantities=_quantity_objects(model, the_plan.scene), params=job.params)
-    qdot_warm = warm_data(solution) if solution.success else None
-    solution = to_momentum_coordinates(solution, momentum).verified()
-    return {**_outcome(solution, start), "warm": qdot_warm, "total_iterations": spent}
+    out = _outcome(to_momentum_coordinates(solution, momentum).verified(), start)
+    return {**out, "warm": warm_data(out["solution"]) if out["success"] else None, "total_iterations": spent}

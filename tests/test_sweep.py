@@ -32,12 +32,12 @@ def fake_solve(job: PointJob) -> dict:
     """Deterministic: J from :func:`fake_objective`; 5 iterations warm, 20 cold; fails for x_f < 0."""
     ok = job.task["final"]["x"] >= 0
     J = fake_objective(job.task, job.params)
-    warm = {"q": np.full((1, 3), J), "qdot": np.zeros((1, 3)), "controls": np.zeros((1, 2)), "horizon": 1.0}
+    trajectory = {"t": [0.0, 1.0], "q": [[J], [J]], "qdot": [[0.0], [0.0]], "u": [[0.0]]}
     return {"id": job.point_id, "success": ok, "status": "Solve_Succeeded" if ok else "Infeasible_Problem_Detected",
             "message": "", "objective": J, "iterations": 5 if job.warm is not None else 20,
             "solve_time_s": 0.0, "wall_time_s": 0.0, "verification_error": 1e-9, "constraint_violation": 0.0,
             "start": "warm" if job.warm is not None else "cold", "worker": str(os.getpid()),
-            "solution": {"objective": J}, "warm": warm if ok else None}
+            "solution": {"objective": J, "trajectory": trajectory}, "warm": {"trajectory": trajectory} if ok else None}
 
 
 def slow_solve(job: PointJob) -> dict:
