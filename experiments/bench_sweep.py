@@ -5,7 +5,8 @@
    warm-started continuation) on the local process pool with 1 and with 2 workers; the pool
    is started and its workers import nhgait before the clock runs (model derivation and
    solver builds are inside the timing). Median wall time of ``--repeats`` runs each, the
-   runs alternating 1, 2, 1, 2, …; ratio = time(1 worker) / time(2 workers).
+   runs alternating 1, 2, 1, 2, …; ratio = time(1 worker) / time(2 workers); and how many
+   points ran at once on average (the points' own wall times over the sweep's).
 2. Dask overhead per point: a realistic point (a P2 job with its warm start, answered with a
    solution-sized dict) sent through ``DaskBackend("local:1")`` to a function that does no
    work: seconds per point with 2 points in flight (as the sweep driver keeps them), minus
@@ -57,7 +58,7 @@ def throughput(repeats: int, axes) -> dict:
     case = describe_case("unicycle", "parallel-park", overrides=["intervals=50"])
     grid = parse_grid(axes)
     times = {1: [], 2: []}
-    solved = {}
+    solved, busy = {}, {1: [], 2: []}
     for _ in range(repeats):
         for workers in (1, 2):
             with ProcessPool(workers) as pool:
@@ -65,9 +66,11 @@ def throughput(repeats: int, axes) -> dict:
                 wall, result = timed_sweep(case, grid, pool)
             times[workers].append(wall)
             solved[workers] = sum(r.success for r in result.records)
+            busy[workers].append(sum(r.wall_time_s for r in result.records) / wall)
     med = {w: statistics.median(t) for w, t in times.items()}
     return {"points": grid.size, "grid": list(axes), "times_s": times, "median_s": med, "solved": solved,
-            "speedup_2_over_1": med[1] / med[2]}
+            "speedup_2_over_1": med[1] / med[2],
+            "concurrency": {w: statistics.median(b) for w, b in busy.items()}}
 
 
 def dask_overhead(samples: int, solves: int, scene=("snakeboard", "forward")) -> dict:
@@ -158,6 +161,9 @@ def main(argv=None) -> int:
     print(f"   1 worker  median {t['median_s'][1]:.2f} s  runs {[round(x, 2) for x in t['times_s'][1]]}")
     print(f"   2 workers median {t['median_s'][2]:.2f} s  runs {[round(x, 2) for x in t['times_s'][2]]}")
     print(f"   speed-up 2 workers / 1 worker = {t['speedup_2_over_1']:.2f}  (target ≥ 1.7); solved {t['solved']}")
+    print(f"   points running at once (Σ point wall / sweep wall, median): 1 worker {t['concurrency'][1]:.2f}, "
+          f"2 workers {t['concurrency'][2]:.2f} — below 2 while the centre is solved cold and when the "
+          f"cores are shared")
     try:
         d = report["dask"] = dask_overhead(samples, solves, p2)
     except ModelError as exc:  # pragma: no cover - Dask not installed
