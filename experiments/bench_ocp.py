@@ -3,10 +3,11 @@
 
 Sections (all in one process, so every ratio is measured in one run on the same machine):
 
-* ``default``: the default ``nhgait plan`` path (velocity-coordinate model, multiple shooting,
-  Ipopt, compiled NLP functions from the content-hash cache, the planner's own winning guess)
-  against ``experiments/reference_casadi_ocp.py`` compiled (``--jit``: CasADi's jit, gcc -O1),
-  which uses its own hand-made guess;
+* ``default``: the default ``nhgait plan`` path (velocity-coordinate model, ``--solver auto``
+  = FATROP on the stage-ordered multiple shooting, compiled NLP functions from the
+  content-hash cache, the planner's own winning guess) against
+  ``experiments/reference_casadi_ocp.py`` compiled (``--jit``: CasADi's jit, gcc -O1, Ipopt),
+  which uses its own hand-made guess; and, in the same rows, our Ipopt path (compiled);
 * ``fatrop``: the same problem solved by FATROP on the stage-ordered transcription (compiled),
   against our Ipopt and the reference's compiled Ipopt; same optimum (relative difference of
   the objectives) and the time split into function evaluations and solver;
@@ -49,12 +50,14 @@ class Ours:
     """The planner's NLP built once (its own winning guess, or ``guess_label``); :meth:`run`
     solves it once more from that guess."""
 
-    def __init__(self, key, N, *, solver="ipopt", transcription=None, jit=None, guess_label=None):
+    def __init__(self, key, N, *, solver=None, transcription=None, jit=None, guess_label=None):
         from nhgait.gaits.guesses import candidates
         from nhgait.gaits.planner import prepare, solve_from_guesses
         from nhgait.gaits.tasks import resolve
         from nhgait.ocp import OCPSolver, SolverOptions
 
+        from nhgait.gaits.planner import solver_order
+        solver = solver or solver_order("auto", transcription)[0]
         system, gait = PROBLEMS[key]
         t0 = time.perf_counter()
         _, _, problem = prepare(resolve(system, gait, overrides=[f"intervals={N}"]))
@@ -130,22 +133,27 @@ def main(argv=None) -> int:
     sections = [s.strip() for s in args.sections.split(",") if s.strip()]
     rows, ok = [], True
     if "default" in sections:
-        print("\n# default nhgait plan (compiled, Ipopt, multiple shooting, own guess) vs hand-written reference "
-              "(compiled, its guess)")
+        print("\n# default nhgait plan (auto = FATROP, compiled, own guess) and our Ipopt path (compiled) vs the "
+              "hand-written reference (Ipopt, compiled, its guess)")
         print(f"{'prob':4s} {'N':>4s} {'objective':>10s} {'rel err':>8s} {'it':>3s} {'ref it':>6s} {'ours ms':>8s} "
-              f"{'ref ms':>8s} {'ratio':>5s} {'setup ms':>8s} {'ref setup':>9s} {'verify':>8s}  guess")
+              f"{'ref ms':>8s} {'ratio':>5s} {'ipopt ms':>8s} {'ratio':>5s} {'setup ms':>8s} {'ref setup':>9s} "
+              f"{'verify':>8s}  guess")
         for key in keys:
             for N in Ns:
-                o, r = interleaved([Ours(key, N), Reference(ref, key, N)], args.repeats)
+                default = Ours(key, N)
+                o, i, r = interleaved([default, Ours(key, N, solver="ipopt", guess_label=default.guess.label),
+                                       Reference(ref, key, N)], args.repeats)
                 rel = abs(o["objective"] - ref.REFERENCE[key][N]) / ref.REFERENCE[key][N] if N in ref.REFERENCE[key] \
                     else abs(o["objective"] - r["objective"]) / abs(r["objective"])
                 ratio = o["solve_time_s"] / r["solve_time_s"]
                 ok &= o["success"] and rel < 1e-4
-                rows.append({"section": "default", "problem": key, "N": N, "ours": o, "reference": r,
-                             "rel_error": rel, "time_ratio": ratio})
+                ratio_i = i["solve_time_s"] / r["solve_time_s"]
+                rows.append({"section": "default", "problem": key, "N": N, "ours": o, "ours_ipopt": i,
+                             "reference": r, "rel_error": rel, "time_ratio": ratio, "ipopt_time_ratio": ratio_i})
                 print(f"{key:4s} {N:4d} {o['objective']:10.6f} {rel:8.1e} {o['iterations']:3d} {r['iterations']:6d} "
-                      f"{_ms(o['solve_time_s'])} {_ms(r['solve_time_s'])} {ratio:5.2f} {_ms(o['setup_time_s'])} "
-                      f"{r['setup_time_s'] * 1e3:9.1f} {o['verification_error']:8.1e}  {o['guess']}", flush=True)
+                      f"{_ms(o['solve_time_s'])} {_ms(r['solve_time_s'])} {ratio:5.2f} {_ms(i['solve_time_s'])} "
+                      f"{ratio_i:5.2f} {_ms(o['setup_time_s'])} {r['setup_time_s'] * 1e3:9.1f} "
+                      f"{o['verification_error']:8.1e}  {o['guess']}", flush=True)
     if "fatrop" in sections:
         print("\n# FATROP (stage-ordered, compiled) vs our Ipopt (compiled) vs the reference's Ipopt (compiled); same guess")
         print(f"{'prob':4s} {'N':>4s} {'J fatrop':>10s} {'rel diff':>8s} {'it F':>4s} {'it I':>4s} {'fatrop ms':>9s} "
@@ -153,7 +161,7 @@ def main(argv=None) -> int:
               f"{'ref/F':>5s} {'ipopt/F':>7s}")
         for key in keys:
             for N in Ns:
-                ipopt = Ours(key, N)
+                ipopt = Ours(key, N, solver="ipopt")
                 fatrop = Ours(key, N, solver="fatrop", guess_label=ipopt.guess.label)
                 i, f, r = interleaved([ipopt, fatrop, Reference(ref, key, N)], args.repeats)
                 rel = abs(f["objective"] - i["objective"]) / abs(i["objective"])
@@ -172,8 +180,8 @@ def main(argv=None) -> int:
               f"{'MS ms':>8s} {'coll ms':>8s} {'ratio':>5s} {'coll setup ms':>13s}")
         for key in keys:
             for N in Ns:
-                shooting = Ours(key, N)
-                colloc = Ours(key, N, transcription="collocation", guess_label=shooting.guess.label)
+                shooting = Ours(key, N, solver="ipopt")
+                colloc = Ours(key, N, solver="ipopt", transcription="collocation", guess_label=shooting.guess.label)
                 m, c = interleaved([shooting, colloc], args.repeats)
                 ratio = c["solve_time_s"] / m["solve_time_s"]
                 ok &= c["success"]

@@ -16,7 +16,7 @@ def add_plan_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "plan", help="plan an optimal gait of a scene's [task] (or a built-in gait) and verify it",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Plan an optimal gait (CasADi + Ipopt or FATROP), verify it by an independent "
+        description="Plan an optimal gait (CasADi + FATROP or Ipopt), verify it by an independent "
                     "simulation and write solution.json, PNG plots and a GIF.\n\n"
                     "  nhgait plan my_robot.toml --out out/robot          # the scene's [task]\n"
                     "  nhgait plan my_robot.toml --set final.x=2.0 --out out/robot2\n"
@@ -27,8 +27,9 @@ def add_plan_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a task value, e.g. final.x=2.0, horizon=6.0, bounds.phi=-1,1 (repeatable)")
     p.add_argument("--intervals", type=int, default=None, help="control intervals N (default: the task's)")
-    p.add_argument("--solver", choices=["ipopt", "fatrop"], default="ipopt",
-                   help="NLP solver (default ipopt; fatrop uses the stage-ordered transcription)")
+    p.add_argument("--solver", choices=["auto", "fatrop", "ipopt"], default="auto",
+                   help="NLP solver: auto (default) = FATROP on the stage-ordered transcription, then "
+                        "Ipopt if FATROP finds no solution; or one of them alone")
     p.add_argument("--transcription", choices=["multiple-shooting", "collocation"], default=None)
     jit = p.add_mutually_exclusive_group()
     jit.add_argument("--jit", dest="jit", action="store_true", default=None,

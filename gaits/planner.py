@@ -46,13 +46,26 @@ __all__ = ["plan", "PlanResult", "Attempt", "prepare", "solve_from_guesses", "co
 
 @dataclass(frozen=True)
 class Attempt:
-    """One candidate tried: its label and Ipopt/FATROP's verdict."""
+    """One candidate tried: its label, the solver and its verdict."""
 
     label: str
     status: str
     success: bool
     iterations: int
     objective: float
+    solver: str = ""
+
+
+def solver_order(solver: str, transcription=None) -> tuple:
+    """The solvers ``plan`` tries: "auto" is FATROP, then Ipopt if FATROP finds no solution
+    (Ipopt alone for collocation, which FATROP does not take)."""
+    from nhgait.ocp import ProblemError
+    from nhgait.ocp.solver import SOLVERS
+    if solver == "auto":
+        return ("ipopt",) if transcription == "collocation" else ("fatrop", "ipopt")
+    if solver not in SOLVERS:
+        raise ProblemError([f"unknown solver {solver!r} (auto, {', '.join(SOLVERS)})"])
+    return (solver,)
 
 
 @dataclass(frozen=True, eq=False)
@@ -245,7 +258,7 @@ def _default_workers() -> int:
     return max(1, min(2, (os.cpu_count() or 1)))
 
 
-def plan(system, task=None, *, overrides=(), intervals=None, solver="ipopt", transcription=None,
+def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", transcription=None,
          jit=None, workers=1, params=None, max_iter=500, guess=None, out_dir=None, animate=False,
          verify=True) -> PlanResult:
     """Plan a gait: see the module docstring.
@@ -256,7 +269,8 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="ipopt", tra
     task : None (the scene's ``[task]``), a built-in gait name, a ``[task]`` dict or a Task
     overrides : ``key.sub=value`` strings (``--set``), e.g. ``["final.x=2.0"]``
     intervals : N, overriding the task's
-    solver : "ipopt" (default) or "fatrop"
+    solver : "auto" (default: FATROP, then Ipopt when FATROP finds no solution), "fatrop" or
+        "ipopt"
     transcription : None (multiple shooting; stage-ordered for FATROP) or "collocation"
     jit : compile the NLP functions (None: when a C compiler is found)
     workers : candidates tried at once (separate processes); "auto" for up to 2 per machine
@@ -277,18 +291,24 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="ipopt", tra
     the_plan = resolve(system, task, overrides=overrides)
     model, fast, problem = prepare(the_plan, params=params)
     timings["prepare_s"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    ocp_solver = OCPSolver(problem, transcription, SolverOptions(jit=jit, solver=solver, max_iter=max_iter))
-    timings["setup_s"] = time.perf_counter() - t0
     workers = _default_workers() if workers in (None, "auto") else int(workers)
     guesses = candidates(problem)
     if guess is not None:
         guesses = [warm_start(guess, problem)] + guesses
-    solution, attempts, won = solve_from_guesses(ocp_solver, guesses, workers=workers)
-    if solution is None:
-        solution, more = continuation(ocp_solver, guesses[0])
-        attempts += more
-        won = more[-1].label if solution is not None else None
+    t0 = time.perf_counter()
+    solution, attempts, won = None, (), None
+    for name in solver_order(solver, transcription):
+        t1 = time.perf_counter()
+        ocp_solver = OCPSolver(problem, transcription, SolverOptions(jit=jit, solver=name, max_iter=max_iter))
+        timings["setup_s"] = timings.get("setup_s", 0.0) + time.perf_counter() - t1
+        solution, tried, won = solve_from_guesses(ocp_solver, guesses, workers=workers)
+        if solution is None:
+            solution, more = continuation(ocp_solver, guesses[0])
+            tried += more
+            won = more[-1].label if solution is not None else None
+        attempts += tuple(replace(a, solver=name) for a in tried)
+        if solution is not None:
+            break
     if solution is None:   # report the first candidate's failure
         solution = ocp_solver.solve(guesses[0])
     timings["solve_s"] = time.perf_counter() - t0 - timings["setup_s"]

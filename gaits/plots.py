@@ -53,6 +53,7 @@ class FigureContext:
     frame: tuple | None
     fiber: tuple
     shape: tuple
+    model: object = None
 
     def unit(self, name: str) -> str:
         return unit(self, name)
@@ -132,7 +133,7 @@ def figure_context(solution, model, units=None, drawing=None) -> FigureContext:
     parsed = parse_drawing(drawing, system) if drawing is not None else None
     frame = parsed.frame if parsed is not None else default_frame(system)
     return FigureContext(system, dict(units or {}), parsed, frame, tuple(getattr(model, "fiber", ())),
-                         tuple(getattr(model, "shape", ())))
+                         tuple(getattr(model, "shape", ())), model)
 
 
 def _axes(ax, **kw):
@@ -313,12 +314,28 @@ def plot_momentum(solution, ctx: FigureContext, axes=None):
             ax.set_ylabel(f"{label(name)} [{unit(ctx, name)}]")
             ax.set_title(f"{label(name)}: shape momentum conjugate to {label(name[3:])}", fontsize="small")
         else:
-            ax.set_ylabel(f"{label(name)} [XᵀMq̇ units]")
+            u = _basis_momentum_unit(ctx, names.index(name))
+            ax.set_ylabel(f"{label(name)} [{u}]" if u else f"{label(name)} [unit of XᵀMq̇]")
             ax.set_title(f"{label(name)}: nonholonomic momentum P = XᵀM q̇ along the constraint-adapted "
-                         "basis X (unit set by X)", fontsize="small")
+                         "basis X", fontsize="small")
         ax.grid(True, alpha=0.3)
     axes[-1].set_xlabel("t [s]")
     return axes
+
+
+def _basis_momentum_unit(ctx, j) -> str:
+    """Unit of the j-th momentum P_j = Σ_i X_ij (∂L/∂q̇_i): the unit of the momentum conjugate to a
+    coordinate q_i whose basis entry X_ij is a pure number (no parameter in it); "" if none is."""
+    X = getattr(ctx.model, "X", None)
+    if X is None:
+        return ""
+    params = set(ctx.system.param_symbols)
+    coords = tuple(ctx.system.coordinates)
+    for i, c in enumerate(coords):
+        entry = X[i, j]
+        if entry != 0 and not (entry.free_symbols & params):
+            return "N·m·s" if _coordinate_unit(ctx, c) == "rad" else "N·s"
+    return ""
 
 
 # ----------------------------------------------------------------------------- files

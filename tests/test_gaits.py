@@ -190,3 +190,25 @@ def test_warm_start_from_a_previous_solution(tmp_path):
         assert fine.solution.objective == pytest.approx(2.110183, rel=1e-4)       # reference, N = 50
         assert fine.solution.iterations < fine_own.solution.iterations
     assert pickle.loads(pickle.dumps(coarse.task)) == coarse.task
+
+
+def test_auto_solver_falls_back_to_ipopt(monkeypatch):
+    """solver="auto": FATROP first; when it finds nothing (here: every FATROP solve reported as
+    failed), Ipopt plans the task and the report says which solver did what."""
+    from dataclasses import replace as dc_replace
+    from nhgait.gaits.planner import solver_order
+    from nhgait.ocp import OCPSolver, ProblemError
+    assert solver_order("auto") == ("fatrop", "ipopt") and solver_order("auto", "collocation") == ("ipopt",)
+    with pytest.raises(ProblemError, match="unknown solver 'snopt'"):
+        solver_order("snopt")
+    original = OCPSolver.solve
+
+    def fatrop_fails(self, guess):
+        sol = original(self, guess)
+        return dc_replace(sol, success=False, status="forced failure") if self.options.solver == "fatrop" else sol
+    monkeypatch.setattr(OCPSolver, "solve", fatrop_fails)
+    result = plan("snakeboard", "forward", intervals=25, jit=False, verify=False, max_iter=30)
+    solvers = [a.solver for a in result.attempts]
+    assert result.success and result.solution.settings["solver"] == "ipopt"
+    assert solvers[0] == "fatrop" and solvers[-1] == "ipopt" and "fatrop" in solvers
+    assert result.solution.objective == pytest.approx(0.110252, rel=1e-4)

@@ -38,7 +38,8 @@ def test_builtin_gait_as_in_make_demo(tmp_path, capsys):
                  "--out", str(out)]) == 0
     data = json.loads((out / "solution.json").read_text())
     assert data["objective"] == pytest.approx(0.110252, rel=1e-4)       # hand-written reference, N = 25
-    assert data["settings"]["solver"] == "ipopt" and data["guess"]["won"]
+    assert data["settings"]["solver"] == "fatrop" and data["guess"]["won"]       # the default: auto
+    assert data["guess"]["tried"][0]["solver"] == "fatrop"
 
 
 def test_plan_errors_are_one_message(tmp_path, capsys):
@@ -85,6 +86,8 @@ def test_plots_use_the_scene_units_and_leave_global_state(car_solution):
     fig3, axes3 = plt.subplots(2, 1)
     plots.plot_momentum(car_solution.solution, ctx, axes=axes3)
     assert all("SI" not in a.get_ylabel() for a in axes3) and axes3[1].get_ylabel() == "p̃_φ [N·m·s]"
+    # P = XᵀMq̇ with the car's basis entry 1·sin φ on θ: an angular momentum
+    assert axes3[0].get_ylabel() == "p [N·m·s]"
     for f in (fig, fig2, fig3):
         plt.close(f)
     assert dict(matplotlib.rcParams) == before
