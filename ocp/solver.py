@@ -35,6 +35,7 @@ import shutil
 import subprocess
 import tempfile
 import time
+import weakref
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -160,12 +161,13 @@ def _compile(source: str, compiler: str, flags: tuple, folder: Path, key: str) -
     return so
 
 
-def _compile_cached(functions: list, flags: tuple) -> tuple[Path, bool]:
-    """C code of ``functions`` compiled to ``jit/<sha256>.so``; returns (path, was_cached).
+def _compile_cached(functions: list, flags: tuple) -> tuple[Path, bool, bool]:
+    """C code of ``functions`` compiled to ``jit/<sha256>.so``; returns (path, was_cached,
+    private).
 
     The library is loaded from the cache only when :func:`~nhgait.dynamics.cache.trusted_file`
     accepts it with the SHA-256 recorded when it was written; an untrusted cache directory
-    means a private temporary directory for this process.
+    means a private temporary directory (``private`` True: the caller removes it).
     """
     from nhgait.dynamics import cache
     cg = ca.CodeGenerator("nhgait_nlp.c", {"with_header": False})
@@ -177,17 +179,18 @@ def _compile_cached(functions: list, flags: tuple) -> tuple[Path, bool]:
         raise CompileError(_no_compiler())
     key = hashlib.sha256("\0".join([source, os.path.basename(compiler), *flags, ca.__version__]).encode()).hexdigest()
     folder = cache.trusted_dir(jit_cache_dir())
-    if folder is None:   # untrusted or unwritable cache: compile privately, do not share
+    private = folder is None
+    if private:   # untrusted or unwritable cache: compile privately, do not share
         folder = Path(tempfile.mkdtemp(prefix="nhgait-jit-"))
     so, record = folder / f"{key}.so", folder / f"{key}.so.sha256"
     if so.exists() and record.exists() and cache.trusted_file(so, record.read_text().strip()):
-        return so, True
+        return so, True, private
     so = _compile(source, compiler, flags, folder, key)
     fd, tmp = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=".sha256")
     with os.fdopen(fd, "w") as fh:
         fh.write(cache.file_sha256(so))
     os.replace(tmp, record)
-    return so, False
+    return so, False, private
 
 
 class OCPSolver:
@@ -252,7 +255,9 @@ class OCPSolver:
         oracle = ca.Function("nlp", [x, p], [plain.get_function("nlp_f")(x, p), plain.get_function("nlp_g")(x, p)],
                              ["x", "p"], ["f", "g"])
         functions = [oracle] + [plain.get_function(name) for name in plain.get_function()]
-        so, cached = _compile_cached(functions, tuple(self.options.jit_flags))
+        so, cached, private = _compile_cached(functions, tuple(self.options.jit_flags))
+        if private:   # the library stays loaded; its private folder goes with this solver
+            weakref.finalize(self, shutil.rmtree, so.parent, True)
         return self._nlpsol("ocp", ca.external("nlp", str(so)), {**opts, "expand": False}), cached, so
 
     def with_problem(self, problem: OptimalControlProblem) -> "OCPSolver":
