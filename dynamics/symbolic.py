@@ -607,11 +607,17 @@ class FracField(MatrixOps):
         return (dn * den - num * dd, den * den)
 
     def subs(self, f, sub):
-        """Substitute generators (index -> fraction) in f = (num, den); den must not contain them."""
+        """Substitute generators (index -> fraction) in f = (num, den); den must not contain them
+        and no opaque generator (e.g. sign(φ̇)) may depend on them — the substitution could not
+        reach inside it, so the plain sympy back end takes over (``_NotRational``)."""
         num, den = f
         for m in den.itermonoms():
             if any(m[i] for i in sub):
                 raise _NotRational
+        targets = {self.order[i] for i in sub}
+        used = {i for m in num.itermonoms() for i, k in enumerate(m) if k}
+        if any(self.order[i] in self.opaque and self.order[i].free_symbols & targets for i in used):
+            raise _NotRational
         terms = []
         idx = list(sub)
         for m, c in num.items():

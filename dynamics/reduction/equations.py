@@ -80,7 +80,8 @@ def _momentum_rate(F, lay, sy, con, Kinv, coef, grad, forces, a):
 
 
 def _forces(F, lay, sy, con, XKinv):
-    """Xᵀτ(t, q, q̇ = XK⁻¹P, u), linear coefficients in P normalised."""
+    """Xᵀτ(t, q, q̇ = XK⁻¹P, u): coefficients of the affine part in P normalised, and any
+    remainder (forces nonlinear in the velocities) as one more term."""
     n, nP = lay.n, len(sy.P)
     qd = lay.system.q_dot
     qdot = F.matmul(XKinv, F.vec(sy.P), normal=False)
@@ -89,8 +90,16 @@ def _forces(F, lay, sy, con, XKinv):
     XtT = F.matmul(F.T(con.X), tau, normal=False) if nP else []
     out = []
     for a in range(nP):
-        c0, cs = F.linear_split(XtT[a][0], sy.P)
-        out.append(F.form([(c0, [])] + [(c, [v]) for c, v in zip(cs, sy.P)]))
+        total = XtT[a][0]
+        c0, cs = F.linear_split(total, sy.P)
+        terms = [(c0, [])] + [(c, [v]) for c, v in zip(cs, sy.P)]
+        # a force need not be affine in the momenta (drag −c q̇², friction sign(q̇)): what the
+        # affine split does not hold is kept as its own term, never dropped
+        affine = F.add_many([c0] + [F.mul(c, F.sym(v)) for c, v in zip(cs, sy.P)])
+        rest = F.normal(F.add_many([total, F.neg(affine)]))
+        if not F.is_zero(rest):
+            terms.append((rest, []))
+        out.append(F.form(terms))
     return out
 
 
