@@ -47,19 +47,23 @@ class JacobiTest:
 
 
 def jacobi_test(model, samples: int = 20, seed: int = 0, tol: float = 1e-9) -> JacobiTest:
-    """Check the Jacobi identity of ``model.structure`` and the holonomy of the constraints."""
+    """Check the Jacobi identity of the structure J_z and the holonomy of the constraints.
+
+    Works on ``model.numeric``'s ``structure`` and ``basis`` functions (either form of the
+    reduced ODE), differentiated by CasADi's AD."""
     system = model.system
     n, nz = system.n, len(model.state)
+    num = model.numeric
     z = ca.SX.sym("z", nz)
     p = ca.SX.sym("p", len(system.param_symbols))
-    syms = list(model.state) + list(system.param_symbols)
-    sx = [z[i] for i in range(nz)] + [p[i] for i in range(p.shape[0])]
-    J = ca.reshape(ca.vertcat(*to_casadi(list(model.structure.T), syms, sx)), nz, nz)
+    J = num["structure"](z, p)
     dJ = ca.jacobian(ca.vec(J), z)                        # (nz*nz) × nz, column-major vec
-    X = ca.reshape(ca.vertcat(*to_casadi(list(model.X.T), syms, sx)), n, model.X.shape[1])
+    X = num["basis"](z, p)
+    syms = list(system.q) + list(system.param_symbols)
+    sx = [z[i] for i in range(n)] + [p[i] for i in range(p.shape[0])]
     W = ca.reshape(ca.vertcat(*to_casadi(list(system.omega().T), syms, sx)), system.k, n) if system.k else ca.SX(0, n)
     q = z[:n]
-    cols = model.X.shape[1]
+    cols = X.shape[1]
     brackets = []
     for a in range(cols):
         for b in range(a + 1, cols):

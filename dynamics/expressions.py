@@ -21,8 +21,10 @@ text. Size limits keep a hostile input from costing more than milliseconds: at m
 from __future__ import annotations
 
 import ast
+import io
 import keyword
 import math
+import tokenize
 
 import sympy as sp
 
@@ -43,15 +45,13 @@ FUNCTIONS = {
 #: constant name → value
 CONSTANTS = {"pi": sp.pi, "E": sp.E}
 
-MAX_LENGTH = 20_000
-MAX_NODES = 5_000
-MAX_DEPTH = 60
+MAX_LENGTH = 50_000
+MAX_NODES = 50_000
+MAX_DEPTH = 100
 MAX_EXPONENT = 1_000
 #: largest exact number (decimal digits of numerator or denominator) an expression may build
 MAX_DIGITS = 300
 
-_BINARY = {ast.Add: sp.Add, ast.Sub: lambda a, b: sp.Add(a, -b), ast.Mult: sp.Mul,
-           ast.Div: lambda a, b: sp.Mul(a, sp.Pow(b, -1))}
 _OPERATOR_HINT = {ast.BitXor: "'^' is not a power: write '**'", ast.Mod: "'%' is not supported",
                   ast.FloorDiv: "'//' is not supported: write '/'",
                   ast.MatMult: "'@' is not supported"}
@@ -139,12 +139,29 @@ class _Builder:
         op = type(node.op)
         if op in _OPERATOR_HINT:
             raise _Reject(f"{_OPERATOR_HINT[op]} (in {self.segment(node)!r})")
-        a, b = self.build(node.left, depth), self.build(node.right, depth)
+        if op in (ast.Add, ast.Sub):
+            return sp.Add(*[t if positive else -t for t, positive in self._chain(node, depth, ast.Add, ast.Sub)])
+        if op in (ast.Mult, ast.Div):
+            return sp.Mul(*[f if positive else sp.Pow(f, -1) for f, positive in self._chain(node, depth, ast.Mult, ast.Div)])
         if op is ast.Pow:
-            return self._power(a, b, node)
-        if op in _BINARY:
-            return _BINARY[op](a, b)
+            return self._power(self.build(node.left, depth), self.build(node.right, depth), node)
         raise _Reject(f"operator in {self.segment(node)!r} is not allowed")
+
+    def _chain(self, node, depth, plus, minus):
+        """Operands of a left-associated chain a ± b ± c … (or a ×/÷ b …) with their signs,
+        walked iteratively: a sum of many terms is one level of nesting, not one per term."""
+        operands = []
+        while isinstance(node, ast.BinOp) and isinstance(node.op, (plus, minus)):
+            operands.append((node.right, isinstance(node.op, plus)))
+            node = node.left
+        operands.append((node, True))
+        out = []
+        for operand, positive in reversed(operands):
+            value = self.build(operand, depth)
+            if not positive and minus is ast.Div and value.is_Number and value == 0:
+                raise _Reject(f"division by zero: {self.segment(operand)!r}")
+            out.append((value, positive))
+        return out
 
     def _power(self, base, exponent, node):
         if exponent.is_Number and not exponent.is_Integer:
@@ -186,22 +203,65 @@ def _digits(value: int) -> int:
 
 
 def _syntax_tree(text: str):
-    """``ast`` tree of ``text`` or a :class:`_Reject` (too long, too large, bad syntax)."""
-    if len(text) > MAX_LENGTH:
-        raise _Reject(f"text of {len(text)} characters is too long (at most {MAX_LENGTH})")
+    """``ast`` tree of ``text`` or a :class:`_Reject` (bad syntax, too deep for the parser)."""
     try:
-        tree = ast.parse(text, mode="eval")
+        return ast.parse(text, mode="eval")
     except SyntaxError as exc:
         where = f" at column {exc.offset}" if exc.offset else ""
         raise _Reject(f"cannot parse: syntax error{where} ({exc.msg})") from None
     except (RecursionError, MemoryError, ValueError) as exc:
-        raise _Reject(f"cannot be parsed ({type(exc).__name__})") from None
-    count = 0
-    for _ in ast.walk(tree):
-        count += 1
-        if count > MAX_NODES:
-            raise _Reject(f"expression has more than {MAX_NODES} parts")
-    return tree
+        raise _Reject(f"cannot be parsed ({type(exc).__name__}: nested or chained too deeply)") from None
+
+
+def _top_level_terms(source: str) -> list:
+    """``source`` split at its top-level binary ``+``/``-`` into (term text, sign) pairs, with
+    the tokenizer (a lexer: nothing is evaluated). Python's parser nests a sum of n terms n
+    levels deep, so a Lagrangian with thousands of terms is parsed term by term. Returns
+    [(source, True)] when the text does not tokenize (the parser then names the error)."""
+    try:
+        tokens = list(tokenize.generate_tokens(io.StringIO(source).readline))
+    except (tokenize.TokenError, SyntaxError, IndentationError):
+        return [(source, True)]
+    terms, start, positive, depth, previous = [], 0, True, 0, None
+    for tok in tokens:
+        if tok.type == tokenize.OP and tok.string in "([{":
+            depth += 1
+        elif tok.type == tokenize.OP and tok.string in ")]}":
+            depth -= 1
+        elif (tok.type == tokenize.OP and tok.string in "+-" and depth == 0 and previous is not None
+              and (previous.type in (tokenize.NAME, tokenize.NUMBER, tokenize.STRING)
+                   or previous.string in (")", "]", "}"))):
+            terms.append((source[start:tok.start[1]], positive))
+            start, positive = tok.end[1], tok.string == "+"
+        if tok.type not in (tokenize.NEWLINE, tokenize.NL, tokenize.ENDMARKER, tokenize.COMMENT):
+            previous = tok
+    terms.append((source[start:], positive))
+    return terms
+
+
+def _build(source: str, names: dict, allow_unknown: bool):
+    """The sympy expression of ``source``: each top-level term parsed and built on its own,
+    within the size limits; raises :class:`_Reject`."""
+    if len(source) > MAX_LENGTH:
+        raise _Reject(f"text of {len(source)} characters is too long (at most {MAX_LENGTH})")
+    try:
+        pieces = [(source, True, _syntax_tree(source))]
+    except _Reject as exc:
+        if "nested or chained too deeply" not in str(exc):
+            raise
+        pieces = [(text, positive, None) for text, positive in _top_level_terms(source)]
+    terms, count, unknown = [], 0, {}
+    for text, positive, tree in pieces:
+        builder = _Builder(text.strip(), names, allow_unknown)
+        builder.unknown = unknown
+        tree = tree if tree is not None else _syntax_tree(builder.source)
+        for _ in ast.walk(tree):
+            count += 1
+            if count > MAX_NODES:
+                raise _Reject(f"expression has more than {MAX_NODES} parts")
+        value = builder.build(tree.body)
+        terms.append(value if positive else -value)
+    return sp.Add(*terms)
 
 
 def expression_problems(text: str, names: dict, where: str, problems: list, *,
@@ -231,9 +291,8 @@ def expression_problems(text: str, names: dict, where: str, problems: list, *,
     if not source:
         problems.append(f"{where}: empty expression")
         return None
-    builder = _Builder(source, names, allow_unknown)
     try:
-        expr = builder.build(_syntax_tree(source).body)
+        expr = _build(source, names, allow_unknown)
     except _Reject as exc:
         problems.append(f"{where}: {exc}")
         return None

@@ -7,8 +7,10 @@ Every function takes the parameter vector ``params`` in the order of
 Reduced ODE (z = (q, P, P̃)):
     rhs(t, z, u, params) → ż;  jacobian(t, z, u, params) → (∂ż/∂z, ∂ż/∂u);
     qdot(z, params) → q̇;  qddot(t, z, u, params) → q̈;  state(q, q̇, params) → z;
-    energy(z, params) → h;  power(t, z, u, params) → τ·q̇;  singular(q, params) → normalised Gram determinant of ω_s (0 on
-    the singular set).
+    energy(z, params) → h;  power(t, z, u, params) → τ·q̇;  singular(q, params) → normalised
+    measure of every matrix the reduction inverts (pivot block of ω, Gram of ω_s, basis N),
+    in [0, 1], 0 exactly on the singular set;  basis(z, params) → X(q);
+    structure(z, params) → J_z.
 Lagrangian DAE (x = (q, q̇), λ):
     ode(t, x, u, params) → (ẋ, λ)  [index reduction: λ solved from ωq̈ + ω̇q̇ = 0];
     dae_f(t, x, λ, u, params) → ẋ;  dae_g(t, x, λ, u, params) → ωq̈ + ω̇q̇ (index-1 algebraic);
@@ -117,53 +119,142 @@ def _base(system, formulation, state_names, functions, n_mult=0):
                         n_coordinates=system.n, n_multipliers=n_mult)
 
 
-def compile_reduced(model) -> NumericModel:
-    """CasADi functions of a :class:`~nhgait.dynamics.reduction.ReducedODE`."""
-    system = model.system
-    n, nz = system.n, len(model.state)
-    t, u, p = _syms(system)
-    z = ca.SX.sym("z", nz)
-    q_sx = z[:n]
-    base_syms = [TIME_SYM] + list(model.state) + list(system.input_symbols) + list(system.param_symbols)
-    base_sx = [t] + [z[i] for i in range(nz)] + [u[i] for i in range(u.shape[0])] + [p[i] for i in range(p.shape[0])]
-    rhs = ca.vertcat(*_conv(model.rhs, base_syms, base_sx))
-    qdot = ca.vertcat(*_conv(model.qdot, base_syms, base_sx))
-    h = _conv([model.hamiltonian], base_syms, base_sx)[0]
-    qddot = ca.jtimes(qdot, z, rhs)
-    # state map (q, q̇) -> z
-    qv = ca.SX.sym("q", n)
-    qdv = ca.SX.sym("qdot", n)
-    map_syms = list(system.q) + list(system.q_dot) + list(system.param_symbols)
-    map_sx = [qv[i] for i in range(n)] + [qdv[i] for i in range(n)] + [p[i] for i in range(p.shape[0])]
-    P_of_v = ca.vertcat(*_conv(model.momenta_of_velocity, map_syms, map_sx))
-    W = system.omega()
-    cons = ca.vertcat(*_conv(list(W * sp.Matrix(system.q_dot)), map_syms, map_sx)) if system.k else ca.SX(0, 1)
-    # singularity measure: normalised Gram determinant of ω_s
-    si = [system.coordinates.index(c) for c in model.fiber]
-    if system.k:
-        Ws = W.extract(list(range(system.k)), si)
-        Ws_sx = ca.reshape(ca.vertcat(*_conv(list(Ws.T), map_syms, map_sx)), system.k, len(si))
-        G = ca.mtimes(Ws_sx, Ws_sx.T)
+def _absdet(A):
+    """|det A| of a small square SX matrix (cofactors up to 3×3, else the QR factor)."""
+    if A.shape[0] <= 3:
+        return ca.fabs(ca.det(A))
+    _, R = ca.qr(A)
+    out = 1
+    for i in range(A.shape[0]):
+        out = out * ca.fabs(R[i, i])
+    return out
+
+
+def _normalised_det(B, rows):
+    """|det B| / Π‖row of ``rows``‖ ∈ [0, 1] (Hadamard; B a block of ``rows``), 0 exactly
+    where B is singular."""
+    norm = 1
+    for i in range(rows.shape[0]):
+        norm = norm * ca.norm_2(rows[i, :].T)
+    return _absdet(B) / (norm + 1e-300)
+
+
+def singular_measure(layout, conv):
+    """Normalised measure of every matrix the reduction inverts (thesis steps 3–6): the pivot
+    block B of ω, the Gram matrix of ω_s (when the fiber takes every constraint) and the basis
+    N of S_q (K_Ω = NᵀM_ssN is singular exactly where N loses rank). Their minimum: 0 exactly
+    on the singular set, 1 for orthogonal rows. ``conv`` maps a sympy Matrix to SX."""
+    k, si = layout.k, list(layout.si)
+    parts = []
+    if k:
+        W = layout.W
+        if layout.uses_pivot_block:
+            Wb = conv(layout.Wb)
+            parts.append(_normalised_det(Wb[:, list(layout.pivots)], Wb))
+        if not layout.dependent:
+            Ws = conv(W.extract(list(range(k)), si))
+            G = ca.mtimes(Ws, Ws.T)
+            norm = 1
+            for i in range(k):
+                norm = norm * G[i, i]
+            parts.append(ca.fabs(ca.det(G) if k <= 3 else _absdet(G)) / (norm + 1e-300))
+    if layout.d and layout.d < len(si):
+        N = conv(layout.N)
+        G = ca.mtimes(N.T, N)
         norm = 1
-        for i in range(system.k):
+        for i in range(layout.d):
             norm = norm * G[i, i]
-        sing = ca.det(G) / (norm + 1e-300)
-    else:
-        sing = ca.SX(1)
-    fns = {
+        parts.append(_absdet(G) / (norm + 1e-300))
+    out = ca.SX(1)
+    for part in parts:
+        out = ca.fmin(out, part)
+    return out
+
+
+def _matrix_converter(syms, sx):
+    def conv(A):
+        if A.shape[0] == 0 or A.shape[1] == 0:
+            return ca.SX(A.shape[0], A.shape[1])
+        return ca.reshape(ca.vertcat(*_conv(list(A.T), syms, sx)), A.shape[0], A.shape[1])
+    return conv
+
+
+def _reduced_functions(model, t, z, u, p, qv, qdv, rhs, qdot, h, P_of_v, X, J_z, sing, tau_z):
+    """The Function table shared by both forms (names and signatures of the module docstring)."""
+    system = model.system
+    qddot = ca.jtimes(qdot, z, rhs)
+    W = system.omega()
+    map_syms = list(system.q) + list(system.q_dot) + list(system.param_symbols)
+    map_sx = [qv[i] for i in range(system.n)] + [qdv[i] for i in range(system.n)] + [p[i] for i in range(p.shape[0])]
+    cons = ca.vertcat(*_conv(list(W * sp.Matrix(system.q_dot)), map_syms, map_sx)) if system.k else ca.SX(0, 1)
+    return {
         "rhs": ca.Function("rhs", [t, z, u, p], [rhs], ["t", "z", "u", "params"], ["zdot"]),
         "jacobian": ca.Function("rhs_jacobian", [t, z, u, p], [ca.jacobian(rhs, z), ca.jacobian(rhs, u)],
-                           ["t", "z", "u", "params"], ["dfdz", "dfdu"]),
+                                ["t", "z", "u", "params"], ["dfdz", "dfdu"]),
         "qdot": ca.Function("qdot", [z, p], [qdot], ["z", "params"], ["qdot"]),
         "qddot": ca.Function("qddot", [t, z, u, p], [qddot], ["t", "z", "u", "params"], ["qddot"]),
         "energy": ca.Function("energy", [z, p], [h], ["z", "params"], ["h"]),
         "state": ca.Function("state", [qv, qdv, p], [ca.vertcat(qv, P_of_v)], ["q", "qdot", "params"], ["z"]),
         "constraint": ca.Function("constraint", [qv, qdv, p], [cons], ["q", "qdot", "params"], ["residual"]),
         "singular": ca.Function("singular", [qv, p], [sing], ["q", "params"], ["gram"]),
-        "power": ca.Function("power", [t, z, u, p], [ca.dot(ca.vertcat(*_conv(system.force_vector().xreplace(
-            {v: model.qdot[i] for i, v in enumerate(system.q_dot)}), base_syms, base_sx)), qdot)],
-            ["t", "z", "u", "params"], ["power"]),
+        "power": ca.Function("power", [t, z, u, p], [ca.dot(tau_z, qdot)], ["t", "z", "u", "params"], ["power"]),
+        "basis": ca.Function("basis", [z, p], [X], ["z", "params"], ["X"]),
+        "structure": ca.Function("structure", [z, p], [J_z], ["z", "params"], ["J_z"]),
     }
+
+
+def compile_reduced(model) -> NumericModel:
+    """CasADi functions of a :class:`~nhgait.dynamics.reduction.ReducedODE` (either form).
+
+    Besides the functions of the module docstring: ``basis(z, params)`` → X(q) and
+    ``structure(z, params)`` → J_z (used by :func:`~nhgait.dynamics.analysis.jacobi_test`)."""
+    if model.form == "implicit":
+        from .reduction import _arithmetic, run_steps
+        _, out = run_steps(_arithmetic("casadi", model.layout), model.layout)
+        return compile_reduced_from(model, out)
+    system = model.system
+    n, nz = system.n, len(model.state)
+    t, u, p = _syms(system)
+    z = ca.SX.sym("z", nz)
+    base_syms = [TIME_SYM] + list(model.state) + list(system.input_symbols) + list(system.param_symbols)
+    base_sx = [t] + [z[i] for i in range(nz)] + [u[i] for i in range(u.shape[0])] + [p[i] for i in range(p.shape[0])]
+    conv_z = _matrix_converter(base_syms, base_sx)
+    qv, qdv = ca.SX.sym("q", n), ca.SX.sym("qdot", n)
+    map_syms = list(system.q) + list(system.q_dot) + list(system.param_symbols)
+    map_sx = [qv[i] for i in range(n)] + [qdv[i] for i in range(n)] + [p[i] for i in range(p.shape[0])]
+    conv_q = _matrix_converter(map_syms, map_sx)
+    tau_z = conv_z(system.force_vector().xreplace({v: model.qdot[i] for i, v in enumerate(system.q_dot)}))
+    fns = _reduced_functions(model, t, z, u, p, qv, qdv, conv_z(model.rhs), conv_z(model.qdot),
+                             conv_z(sp.Matrix([model.hamiltonian]))[0], conv_q(model.momenta_of_velocity),
+                             conv_z(model.X), conv_z(model.structure), singular_measure(model.layout, conv_q), tau_z)
+    return _base(system, "reduced", model.state_names, fns)
+
+
+def compile_reduced_from(model, out) -> NumericModel:
+    """The implicit form's functions from the CasADi run of the steps (``out`` of
+    :func:`~nhgait.dynamics.reduction.run_steps` on :class:`CasadiArithmetic`)."""
+    system, F = model.system, out["F"]
+    sym_of = F.sym
+    t = sym_of(TIME_SYM)
+    q = ca.vertcat(*[sym_of(s) for s in system.q])
+    P = ca.vertcat(*[sym_of(s) for s in model.momenta]) if model.momenta else ca.SX(0, 1)
+    z = ca.vertcat(q, P)
+    qd = ca.vertcat(*[sym_of(s) for s in system.q_dot])
+    u = ca.vertcat(*[sym_of(s) for s in system.input_symbols]) if system.input_symbols else ca.SX(0, 1)
+    p = ca.vertcat(*[sym_of(s) for s in system.param_symbols]) if system.param_symbols else ca.SX(0, 1)
+    qdot = ca.vertcat(*out["qdot"])
+    rhs = ca.vertcat(qdot, *out["Pdot"]) if out["Pdot"] else qdot
+    rhs, qdot = ca.cse(rhs), ca.cse(qdot)
+    P_of_v = ca.vertcat(*out["momenta_of_velocity"]) if out["momenta_of_velocity"] else ca.SX(0, 1)
+    tau = ca.vertcat(*[F.frac(e) for e in system.force_vector()])
+    tau_z = ca.substitute(tau, qd, qdot)
+
+    def conv(A):
+        if A.shape[0] == 0 or A.shape[1] == 0:
+            return ca.SX(A.shape[0], A.shape[1])
+        return ca.reshape(ca.vertcat(*[F.frac(e) for e in A.T]), A.shape[0], A.shape[1])
+    fns = _reduced_functions(model, t, z, u, p, q, qd, rhs, qdot, out["h"], P_of_v, out["X"], out["J_z"],
+                             singular_measure(model.layout, conv), tau_z)
     return _base(system, "reduced", model.state_names, fns)
 
 

@@ -16,7 +16,8 @@ from .errors import ModelError, SingularConfigurationError
 
 #: relative tolerance on |ω q̇| / (|ω| |q̇|) for a state to count as consistent
 CONSTRAINT_TOL = 1e-8
-#: normalised Gram determinant of ω_s below which a configuration counts as singular
+#: singular measure (``numeric["singular"]``: the smallest normalised measure of the matrices the
+#: reduction inverts, in [0, 1]) below which a configuration counts as singular
 SINGULAR_TOL = 1e-10
 
 
@@ -42,15 +43,15 @@ def check_configuration(model, q, params=None) -> None:
     if model.formulation != "reduced" or model.system.k == 0:
         return
     num = model.numeric
-    gram = float(num.call("singular", np.asarray(q, float), num.params(params)))
-    if not np.isfinite(gram) or gram < SINGULAR_TOL:
+    measure = float(num.call("singular", np.asarray(q, float), num.params(params)))
+    if not np.isfinite(measure) or measure < SINGULAR_TOL:
         names = model.system.coordinates
         where = ", ".join(f"{c} = {v:.6g}" for c, v in zip(names, q))
         raise SingularConfigurationError([
-            f"q = ({where}) is on the singular set of the reduction: the constraints restricted "
-            f"to the fiber ({', '.join(model.fiber)}) are dependent there (normalised Gram "
-            f"determinant {gram:.3g}); singular set: "
-            + " or ".join(f"{e} = 0" for e in model.singular_set)])
+            f"q = ({where}) is on the singular set of the reduction: a matrix the reduction "
+            f"inverts (the constraints on the fiber ({', '.join(model.fiber)}), their pivot "
+            f"block or the momentum basis) loses rank there (singular measure {measure:.3g}); "
+            "singular set: " + " or ".join(f"{e} = 0" for e in model.singular_set)])
 
 
 def to_state(model, q, qdot, params=None, *, tol: float = CONSTRAINT_TOL) -> np.ndarray:

@@ -52,6 +52,10 @@ class _NotRational(Exception):
     pass
 
 
+class WorkBudgetExceeded(Exception):
+    """The exact arithmetic exceeded its work budget (the caller then uses the implicit form)."""
+
+
 def _collect_generators(e, gens: dict):
     """Generators of ``e`` as a rational function: symbols and opaque subexpressions."""
     if e.is_Symbol:
@@ -208,14 +212,17 @@ def null_basis_adjugate(A: sp.Matrix, pivots: list[int]) -> sp.Matrix:
     """Basis of the right null space of the k×l matrix ``A`` (rank k) without divisions.
 
     With B = A[:, pivots] (k×k, invertible at generic points) each free column j gives the
-    null vector v = det(B)·e_j − (adj(B)·A[:, j]) placed on the pivot rows. Its entries are the
-    k×k minors of A, so v vanishes exactly where rank A < k (the singular set), never at a
-    spurious point. Returns an l×(l−k) matrix.
+    null vector v = det(B)·e_j − (adj(B)·A[:, j]) placed on the pivot rows. Its entries are
+    k×k minors of A, so no vector vanishes through a division; the vectors do become
+    dependent where det B = 0, which may happen where rank A = k (a singular point of the
+    basis, listed in the reduction's singular set). Returns an l×(l−k) matrix.
     """
     k, l = A.shape
     free = [j for j in range(l) if j not in pivots]
     if k == 0:
         return sp.eye(l)
+    if not free:
+        return sp.zeros(l, 0)
     B = A.extract(list(range(k)), pivots)
     detB = B.det(method="berkowitz")
     adjB = B.adjugate(method="berkowitz")
@@ -281,7 +288,144 @@ def numeric_pivots(A_num: np.ndarray, order=None, tol=1e-9) -> list[int]:
     return sorted(chosen)
 
 
-class FracField:
+class MatrixOps:
+    """Matrix operations shared by every arithmetic back end (matrices are lists of rows of
+    elements); the back end supplies the scalar operations (see
+    :mod:`nhgait.dynamics.reduction.arithmetic`)."""
+
+    def mat(self, A, normal=False):
+        return [[self.frac(A[i, j], normal) for j in range(A.shape[1])] for i in range(A.shape[0])]
+
+    def vec(self, symbols):
+        return [[self.sym(s)] for s in symbols]
+
+    def zeros(self, rows, cols):
+        return [[self.ZERO for _ in range(cols)] for _ in range(rows)]
+
+    def matmul(self, A, B, normal=True):
+        n_ = len(B)
+        cols = len(B[0]) if B else 0
+        out = []
+        for row in A:
+            r = []
+            for j in range(cols):
+                s = self.add_many([self.mul(row[k], B[k][j]) for k in range(n_)
+                                   if not self.is_zero(row[k]) and not self.is_zero(B[k][j])])
+                r.append(self.normal(s) if normal else s)
+            out.append(r)
+        return out
+
+    def T(self, A):
+        if not A:
+            return []
+        return [[A[i][j] for i in range(len(A))] for j in range(len(A[0]))]
+
+    def madd(self, A, B, normal=True):
+        return [[(self.normal if normal else (lambda x: x))(self.add_many([a, b])) for a, b in zip(ra, rb)]
+                for ra, rb in zip(A, B)]
+
+    def mneg(self, A):
+        return [[self.neg(x) for x in r] for r in A]
+
+    def inv(self, A, what="matrix"):
+        return self.gauss_jordan(A, what)
+
+    def gauss_jordan(self, A, what="matrix"):
+        """Inverse of a small square matrix by Gauss–Jordan over the back end's field.
+
+        Raises :class:`~nhgait.dynamics.errors.ModelError` naming ``what`` when no nonzero
+        pivot exists (the matrix is singular for every configuration)."""
+        from .errors import ModelError
+        n_ = len(A)
+        one, zero = self.frac(1), self.frac(0)
+        W = [list(r) + [one if i == j else zero for j in range(n_)] for i, r in enumerate(A)]
+        for c in range(n_):
+            p = next((r for r in range(c, n_) if not self.is_zero(W[r][c])), None)
+            if p is None:
+                raise ModelError([f"the {what} is singular for every configuration (no pivot in "
+                                  f"column {c + 1}); the reduction cannot invert it"],
+                                 title="singular matrix in the reduction")
+            W[c], W[p] = W[p], W[c]
+            piv = W[c][c]
+            W[c] = [self.normal(self.div(x, piv)) for x in W[c]]
+            for r in range(n_):
+                if r != c and not self.is_zero(W[r][c]):
+                    fct = W[r][c]
+                    W[r] = [self.normal(self.add_many([x, self.neg(self.mul(fct, y))])) for x, y in zip(W[r], W[c])]
+        return [r[n_:] for r in W]
+
+    def div(self, f, g):
+        return f / g
+
+    def solve(self, A, B, what="matrix"):
+        """A⁻¹B (exact back ends: through the inverse, which they normalise)."""
+        return self.matmul(self.inv(A, what), B)
+
+    def jvp(self, col, xs, direction):
+        """Σ_j ∂col_i/∂x_j · direction_j (the derivative of a column along a vector field)."""
+        out = []
+        for c in col:
+            terms = [self.mul(self.diff(c, x), dj) for x, dj in zip(xs, direction)
+                     if not self.is_zero(dj) and not self.is_zero(c)]
+            out.append(self.normal(self.add_many(terms)))
+        return out
+
+    def directional_inverse(self, Ainv, A, xs, direction, partials):
+        """Σ_j ∂(A⁻¹)/∂x_j · direction_j, from the per-coordinate ``partials`` {j: ∂A⁻¹/∂x_j}."""
+        n_ = len(Ainv)
+        out = [[[] for _ in range(n_)] for _ in range(n_)]
+        for j, D in partials.items():
+            dj = direction[j]
+            if self.is_zero(dj):
+                continue
+            for a in range(n_):
+                for b in range(n_):
+                    if not self.is_zero(D[a][b]):
+                        out[a][b].append(self.mul(dj, D[a][b]))
+        return [[self.normal(self.add_many(t)) for t in r] for r in out]
+
+    def diff_inverse(self, Ainv, A, x):
+        """∂(A⁻¹)/∂x given A⁻¹ and A: entry by entry (exact back ends)."""
+        return [[self.normal(self.diff(e, x)) for e in r] for r in Ainv]
+
+    def show(self, A, rows=None, cols=None):
+        """The sympy Matrix of ``A`` (normal forms)."""
+        rows = len(A) if rows is None else rows
+        cols = (len(A[0]) if A else 0) if cols is None else cols
+        if rows == 0 or cols == 0:
+            return sp.zeros(rows, cols)
+        return sp.Matrix(rows, cols, [self.expr(A[i][j]) for i in range(rows) for j in range(cols)])
+
+    def value(self, e):
+        """A sympy expression as a display value (sympy itself for the sympy back ends)."""
+        return e
+
+    def column(self, values):
+        """Display values as a column (a sympy Matrix)."""
+        return sp.Matrix(values) if values else sp.zeros(0, 1)
+
+    def form(self, terms):
+        """Σ coefficient · monomial for [(element, [symbols])]: a sympy expression."""
+        out = sp.Integer(0)
+        for c, variables in terms:
+            if not self.is_zero(c):
+                out += self.expr(c) * sp.Mul(*variables)
+        return out
+
+    def quadratic(self, Q, variables, half=False):
+        """Σ_{i≤j} c_ij v_i v_j with c_ii = Q_ii, c_ij = Q_ij + Q_ji (normal coefficients)."""
+        terms = []
+        nv = len(variables)
+        for i in range(nv):
+            for j in range(i, nv):
+                c = Q[i][j] if i == j else self.add_many([Q[i][j], Q[j][i]])
+                if not self.is_zero(c):
+                    if half:
+                        c = self.scale(c, 1, 2)
+                    terms.append((self.normal(c), [variables[i], variables[j]]))
+        return self.form(terms)
+
+class FracField(MatrixOps):
     """One field ℚ(generators) per derivation: symbols, sin/cos of the angles and opaque
     subexpressions are generators of a sparse polynomial ring; elements are pairs (num, den).
 
@@ -310,6 +454,9 @@ class FracField:
         self.order = order
         self.index = {x: i for i, x in enumerate(order)}
         self.one, self.zero = self.R.one, self.R.zero
+        self.ZERO, self.ONE = (self.zero, self.one), (self.one, self.one)
+        self.work = 0
+        self.budget = None     # max Σ (terms of num × terms of den) over all normalisations
         self.table = {x: (v, self.one) for x, v in zip(order, g)}
         self.gens = g
         self.angle = {}
@@ -338,8 +485,21 @@ class FracField:
     def _walk(self, e):
         return _walk_fraction(e, self.R, self.table)
 
-    def mat(self, A, normal=False):
-        return [[self.frac(A[i, j], normal) for j in range(A.shape[1])] for i in range(A.shape[0])]
+    kind = "ring"
+
+    def sym(self, s):
+        return self.table[s]
+
+    def sub_key(self, s):
+        return self.index[s]
+
+    def div(self, f, g):
+        if not g[0]:
+            raise ZeroDivisionError("division by zero in FracField")
+        return (f[0] * g[1], f[1] * g[0])
+
+    def matrix(self, F, rows=None, cols=None):
+        return self.show(F, rows, cols)
 
     def expr(self, f):
         num, den = f
@@ -349,16 +509,6 @@ class FracField:
             return num.as_expr()
         return num.as_expr() / den.as_expr()
 
-    def matrix(self, F, rows=None, cols=None):
-        if rows is None:
-            rows = len(F)
-        if cols is None:
-            cols = len(F[0]) if F else 0
-        if rows == 0 or cols == 0:
-            return sp.zeros(rows, cols)
-        return sp.Matrix(rows, cols, [self.expr(F[i][j]) for i in range(rows) for j in range(cols)])
-
-    # -- arithmetic ------------------------------------------------------------------------
     def add_many(self, terms):
         return _add_fractions(terms, self.zero, self.one)
 
@@ -401,6 +551,10 @@ class FracField:
         num, den = f
         if not num:
             return (self.zero, self.one)
+        if self.budget is not None:
+            self.work += len(num) * len(den)
+            if self.work > self.budget:
+                raise WorkBudgetExceeded
         num = _reduce_poly(num, self.pairs)
         if not num:
             return (self.zero, self.one)
@@ -426,47 +580,6 @@ class FracField:
                 out[tuple(full)] = c
             return self.R(out)
         return (back(n_), back(d_))
-
-    def matmul(self, A, B, normal=True):
-        n_ = len(B)
-        cols = len(B[0]) if B else 0
-        out = []
-        for row in A:
-            r = []
-            for j in range(cols):
-                s = self.add_many([self.mul(row[k], B[k][j]) for k in range(n_) if row[k][0] and B[k][j][0]])
-                r.append(self.normal(s) if normal else s)
-            out.append(r)
-        return out
-
-    def T(self, A, rows=None):
-        if not A:
-            return []
-        return [[A[i][j] for i in range(len(A))] for j in range(len(A[0]))]
-
-    def madd(self, A, B, normal=True):
-        return [[(self.normal if normal else (lambda x: x))(self.add_many([a, b])) for a, b in zip(ra, rb)]
-                for ra, rb in zip(A, B)]
-
-    def mneg(self, A):
-        return [[self.neg(x) for x in r] for r in A]
-
-    def inv(self, A):
-        """Inverse of a small square matrix by Gauss–Jordan over the field (pivots nonzero)."""
-        n_ = len(A)
-        W = [list(r) + [(self.one if i == j else self.zero, self.one) for j in range(n_)] for i, r in enumerate(A)]
-        for c in range(n_):
-            p = next((r for r in range(c, n_) if W[r][c][0]), None)
-            if p is None:
-                raise ZeroDivisionError("singular matrix")
-            W[c], W[p] = W[p], W[c]
-            pn, pd = W[c][c]
-            W[c] = [self.normal((x[0] * pd, x[1] * pn)) for x in W[c]]
-            for r in range(n_):
-                if r != c and W[r][c][0]:
-                    fct = W[r][c]
-                    W[r] = [self.normal(self.add_many([x, self.neg(self.mul(fct, y))])) for x, y in zip(W[r], W[c])]
-        return [r[n_:] for r in W]
 
     def diff(self, f, x):
         """d f/d x with d sin x = cos x dx, d cos x = −sin x dx."""
@@ -494,11 +607,17 @@ class FracField:
         return (dn * den - num * dd, den * den)
 
     def subs(self, f, sub):
-        """Substitute generators (index -> fraction) in f = (num, den); den must not contain them."""
+        """Substitute generators (index -> fraction) in f = (num, den); den must not contain them
+        and no opaque generator (e.g. sign(φ̇)) may depend on them — the substitution could not
+        reach inside it, so the plain sympy back end takes over (``_NotRational``)."""
         num, den = f
         for m in den.itermonoms():
             if any(m[i] for i in sub):
                 raise _NotRational
+        targets = {self.order[i] for i in sub}
+        used = {i for m in num.itermonoms() for i, k in enumerate(m) if k}
+        if any(self.order[i] in self.opaque and self.order[i].free_symbols & targets for i in used):
+            raise _NotRational
         terms = []
         idx = list(sub)
         for m, c in num.items():
@@ -533,21 +652,6 @@ class FracField:
                     mm[i] = 0
                     coefs[a][tuple(mm)] = c
         return (self.normal((self.R(const), den)), [self.normal((self.R(cd), den)) for cd in coefs])
-
-    def quadratic(self, Q, variables, half=False):
-        """Σ_{i≤j} c_ij v_i v_j with c_ii = Q_ii, c_ij = Q_ij + Q_ji (tidy coefficients)."""
-        out = sp.Integer(0)
-        nv = len(variables)
-        for i in range(nv):
-            for j in range(i, nv):
-                c = Q[i][j] if i == j else self.add_many([Q[i][j], Q[j][i]])
-                if c[0]:
-                    if half:
-                        c = self.scale(c, 1, 2)
-                    c = self.normal(c)
-                    if c[0]:
-                        out += self.expr(c) * variables[i] * variables[j]
-        return out
 
 
 def _basic(e):

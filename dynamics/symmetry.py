@@ -9,14 +9,15 @@ For every candidate set of fiber coordinates s ⊂ q (the rest r are shape coord
 * the candidate is a symmetry if L and ω are invariant under the group acting on s: translations
   of s (identity g), or SE(2) on a planar frame (x, y, heading) ⊂ s times translations of the
   other fiber coordinates; checked exactly (identity) or numerically at random points (SE(2));
-* the constraints must determine the fiber velocities: rank ω_s = k (so D_q + T_q Orb = T_q Q);
+* rank ω_s = k in the thesis (D_q + T_q Orb = T_q Q); with rank ω_s < k the other constraints
+  restrict the shape velocities (an extension: such candidates rank after those with rank k);
 * verdict "full" when S_q ≠ 0 and every fiber coordinate moves in S_q (thesis: "a Lie algebra
   element made of a zero in one of the basis means that no motion is allowed in that
   direction", Remark 3.2). With S_q = 0 and l = k the candidate is principally kinematic
   (Table 2.1), accepted only when no full candidate exists.
 
-Selection rule (documented in docs/reduction.md): the full candidate of smallest dimension l;
-ties go to the candidate with fewer forced fiber coordinates, then to coordinate order.
+Selection rule (documented in docs/reduction.md): fewest shape constraints k − rank ω_s first,
+then a full candidate before a principally kinematic one, then smallest dimension l; ties go to the candidate with fewer forced fiber coordinates, then to coordinate order.
 """
 from __future__ import annotations
 
@@ -55,6 +56,7 @@ class Candidate:
     pivots: tuple = field(default=(), repr=False)
     indices: tuple = field(default=(), repr=False)
     n: int = 0
+    rows: tuple | None = field(default=None, repr=False)   # independent rows of ω_s (rank < k)
 
     @property
     def admissible(self) -> bool:
@@ -65,9 +67,10 @@ class Candidate:
         """l×d basis of S_q in the s-components (None when rank ω_s < k)."""
         if self.omega_s is None:
             return None
-        if self.omega_s.shape[0] == 0:
+        Ws = self.omega_s if self.rows is None else self.omega_s.extract(list(self.rows), list(range(len(self.fiber))))
+        if Ws.shape[0] == 0:
             return sp.eye(len(self.fiber))
-        return null_basis_adjugate(self.omega_s, list(self.pivots))
+        return null_basis_adjugate(Ws, list(self.pivots))
 
     @cached_property
     def S_q(self) -> sp.Matrix | None:
@@ -81,14 +84,27 @@ class Candidate:
         return out
 
 
+#: largest k for which step 2 writes out a basis of D_q (k×k minors); larger: described only
+DISTRIBUTION_MAX_K = 3
+
+
 @dataclass(frozen=True)
 class SymmetryTest:
-    """Result of steps 2–3: D_q, the candidate table and the chosen fiber."""
+    """Result of steps 2–3: the candidate table, the chosen fiber and D_q (on first access)."""
 
-    distribution: sp.Matrix          # n×(n−k) basis of D_q
+    system: System = field(repr=False)
     candidates: tuple[Candidate, ...]
     chosen: Candidate
     chosen_by: str                   # "user" or "test"
+
+    @cached_property
+    def distribution(self):
+        """n×(n−k) basis of D_q (entries k×k minors of ω) for k ≤ DISTRIBUTION_MAX_K; for
+        larger k a sentence (the basis X of step 8 spans D_q)."""
+        if self.system.k > DISTRIBUTION_MAX_K:
+            return (f"null ω(q), dimension {self.system.n - self.system.k}: spanned by the columns "
+                    f"of X (step 8); minors not expanded (k = {self.system.k})")
+        return constraint_distribution(self.system)
 
     def __str__(self) -> str:
         return self.table_markdown()
@@ -154,10 +170,10 @@ def group_transform(system: System, fiber: tuple[str, ...], version: str) -> sp.
     return g
 
 
-def _invariance(system: System, fiber: tuple[str, ...], M, W, V) -> tuple[bool, str, str]:
-    """Is (L, ω) invariant under the group acting on the fiber? Returns (ok, group label, why)."""
+def _invariance(system: System, fiber: tuple[str, ...], free: set) -> tuple[bool, str, str]:
+    """Is (L, ω) invariant under the group acting on the fiber? Returns (ok, group label, why).
+    ``free``: the free symbols of M, ω and V."""
     s_syms = {system.q[system.coordinates.index(c)] for c in fiber}
-    free = set().union(M.free_symbols, W.free_symbols, V.free_symbols)
     dep = sorted((s.name for s in s_syms & free))
     label = f"R^{len(fiber)} ({', '.join(fiber)})"
     if not dep:
@@ -200,7 +216,7 @@ def _invariance(system: System, fiber: tuple[str, ...], M, W, V) -> tuple[bool, 
     return True, label, "L and ω are SE(2)-invariant (checked at random points)"
 
 
-def symmetry_test(system: System) -> SymmetryTest:
+def symmetry_test(system: System, M: sp.Matrix | None = None) -> SymmetryTest:
     """Steps 2–3: D_q, the candidate table over all fiber sets, and the chosen fiber.
 
     Raises :class:`ModelError` (with the table) when no candidate is admissible or when the
@@ -208,9 +224,9 @@ def symmetry_test(system: System) -> SymmetryTest:
     """
     n, k = system.n, system.k
     W = system.omega()
-    M = system.mass_matrix()
+    M = system.mass_matrix() if M is None else M
     V = system.potential()
-    D = constraint_distribution(system)
+    free = set().union(M.free_symbols, W.free_symbols, V.free_symbols)
     Wn = omega_samples(system, 3, seed=5) if k else [np.zeros((0, n))] * 3
     candidates = []
     names = system.coordinates
@@ -219,15 +235,13 @@ def symmetry_test(system: System) -> SymmetryTest:
             fiber = tuple(names[i] for i in idx)
             rank = min(np.linalg.matrix_rank(w[:, idx], tol=1e-9 * max(1, np.abs(w).max())) if k else 0
                        for w in Wn)
-            inv, group, why_inv = _invariance(system, fiber, M, W, V)
-            if rank < k:
-                candidates.append(Candidate(fiber, group, fiber, rank, inv, "not solvable",
-                                            f"rank ω_s = {rank} < k = {k}: the constraints do not "
-                                            "determine the fiber velocities", n=n))
-                continue
+            inv, group, why_inv = _invariance(system, fiber, free)
             Ws = W[:, list(idx)] if k else sp.zeros(0, size)
-            piv = numeric_pivots(Wn[0][:, idx]) if k else []
-            d = size - k
+            rows = None
+            if k and rank < k:   # the other k − rank constraints restrict the shape velocities
+                rows = tuple(numeric_pivots(Wn[0][:, idx].T))
+            piv = numeric_pivots(Wn[0][np.ix_(list(rows), list(idx))] if rows is not None else Wn[0][:, idx]) if k and rank else []
+            d = size - rank
             # which fiber coordinates never move within S_q (numeric null spaces at 3 points)
             if d:
                 locked = list(fiber)
@@ -242,35 +256,37 @@ def symmetry_test(system: System) -> SymmetryTest:
             if not inv:
                 verdict, reason = "not a symmetry", why_inv
             elif d == 0:
-                verdict, reason = KINEMATIC, f"l = k = {k}: no nonholonomic momentum, ξ = −A(r)ṙ"
+                verdict, reason = KINEMATIC, f"l = rank ω_s = {rank}: no nonholonomic momentum, ξ = −A(r)ṙ"
             elif locked:
                 verdict = "not full"
                 reason = f"ξ vanishes along {', '.join(locked)}: no motion allowed there"
             else:
                 verdict, reason = FULL, why_inv
+            if verdict in (FULL, KINEMATIC) and rank < k:
+                reason += f"; {k - rank} constraint(s) restrict the shape velocities"
             candidates.append(Candidate(fiber, group, fiber, rank, inv, verdict, reason,
-                                        omega_s=Ws, pivots=tuple(piv), indices=tuple(idx), n=n))
+                                        omega_s=Ws, pivots=tuple(piv), indices=tuple(idx), n=n,
+                                        rows=rows))
 
     forced = {c for c, f in zip(names, system.tau) if f != 0}
 
     def key(c):
-        return (len(c.fiber), len(set(c.fiber) & forced), [names.index(f) for f in c.fiber])
+        return (k - c.rank, c.verdict != FULL, len(c.fiber), len(set(c.fiber) & forced),
+                [names.index(f) for f in c.fiber])
 
     if system.fiber is not None:
         want = tuple(sorted(system.fiber, key=names.index))
         chosen = next(c for c in candidates if c.fiber == want)
         if not chosen.admissible:
-            table = SymmetryTest(D, tuple(candidates), chosen, "user").table_markdown()
+            table = SymmetryTest(system, tuple(candidates), chosen, "user").table_markdown()
             raise ModelError([f"the fiber coordinates ({', '.join(want)}) do not give a full symmetry "
                               f"group: {chosen.verdict}: {chosen.reason}\n{table}"],
                              title="no full symmetry group")
-        return SymmetryTest(D, tuple(candidates), chosen, "user")
-    full = sorted((c for c in candidates if c.verdict == FULL), key=key)
+        return SymmetryTest(system, tuple(candidates), chosen, "user")
+    full = sorted((c for c in candidates if c.admissible), key=key)
     if not full:
-        full = sorted((c for c in candidates if c.verdict == KINEMATIC), key=key)
-    if not full:
-        table = SymmetryTest(D, tuple(candidates), candidates[0], "test").table_markdown()
+        table = SymmetryTest(system, tuple(candidates), candidates[0], "test").table_markdown()
         raise ModelError(["no candidate group of fiber coordinates gives a full Lie algebra element "
                           "(and none is principally kinematic); the symmetry table:\n" + table],
                          title="no full symmetry group")
-    return SymmetryTest(D, tuple(candidates), full[0], "test")
+    return SymmetryTest(system, tuple(candidates), full[0], "test")

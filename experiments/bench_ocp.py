@@ -1,16 +1,27 @@
 #!/usr/bin/env python3
 """Benchmark of the nhgait gait planner against the hand-written CasADi reference.
 
-P1 (unicycle parallel-park), P2 (snakeboard forward), P3 (snakeboard rotate) at
-N = 25, 50, 100, 200: median solve time of ``--repeats`` solves (same built NLP, the planner's
-own first working guess), Ipopt iterations, set-up time, objective and its relative error vs
-the reference objective, verification error; the reference (``experiments/
-reference_casadi_ocp.py``, imported by path) is run in the same process and the ratio
-ours/reference printed. ``--jit`` compares jit against jit. The planner's model is the task's
-velocity-coordinate model (``specialise(..., velocities=task.velocities)``), as in ``plan``.
-Writes ``out/bench_ocp.json``.
+Sections (all in one process, so every ratio is measured in one run on the same machine):
 
-Usage: python experiments/bench_ocp.py [--quick] [--jit] [--N 25,50] [--problems P1,P2]
+* ``default``: the default ``nhgait plan`` path (velocity-coordinate model, ``--solver auto``
+  = FATROP on the stage-ordered multiple shooting, compiled NLP functions from the
+  content-hash cache, the planner's own winning guess) against
+  ``experiments/reference_casadi_ocp.py`` compiled (``--jit``: CasADi's jit, gcc -O1, Ipopt),
+  which uses its own hand-made guess; and, in the same rows, our Ipopt path (compiled);
+* ``fatrop``: the same problem solved by FATROP on the stage-ordered transcription (compiled),
+  against our Ipopt and the reference's compiled Ipopt; same optimum (relative difference of
+  the objectives) and the time split into function evaluations and solver;
+* ``collocation``: Legendre collocation (degree 3) against multiple shooting, both ours
+  compiled.
+
+P1 (unicycle parallel-park), P2 (snakeboard forward), P3 (snakeboard rotate) at
+N = 25, 50, 100, 200; each time is the median of ``--repeats`` solves of the built NLP (set-up
+reported apart), the solvers of one row taking turns (a, b, a, b, …) so that a shared
+machine's load falls on all alike. Writes ``out/bench_ocp.json``. Compare ratios, not
+absolute times.
+
+Usage: python experiments/bench_ocp.py [--quick] [--N 25,50] [--problems P1,P2]
+       [--sections default,fatrop,collocation] [--repeats 5]
 """
 from __future__ import annotations
 
@@ -24,6 +35,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 PROBLEMS = {"P1": ("unicycle", "parallel-park"), "P2": ("snakeboard", "forward"), "P3": ("snakeboard", "rotate")}
+SECTIONS = ("default", "fatrop", "collocation")
 
 
 def _reference():
@@ -34,38 +46,74 @@ def _reference():
     return mod
 
 
-def bench_case(ref, key, N, *, jit, repeats):
-    from nhgait.dynamics import builtin, derive
-    from nhgait.gaits.guesses import candidates
-    from nhgait.gaits.planner import solve_task, specialise
-    from nhgait.gaits.tasks import get_task
-    from nhgait.ocp import SolverOptions
+class Ours:
+    """The planner's NLP built once (its own winning guess, or ``guess_label``); :meth:`run`
+    solves it once more from that guess."""
 
-    system, gait = PROBLEMS[key]
-    task = get_task(system, gait)
-    t0 = time.perf_counter()
-    model = specialise(derive(builtin(system), "reduced"), velocities=task.velocities)
-    model_time = time.perf_counter() - t0
-    problem = task.problem(model, intervals=N)
-    sol, attempts, solver = solve_task(problem, task.guess_family, options=SolverOptions(jit=jit))
-    guess = next(g for g in candidates(problem, task.guess_family) if g.label == attempts[-1][0])
-    runs = [sol] + [solver.solve(guess) for _ in range(repeats - 1)]
-    sol = runs[-1].verified()
-    ours = {"objective": sol.objective, "iterations": sol.iterations, "success": sol.success,
-            "solve_time_s": statistics.median(r.solve_time_s for r in runs),
-            "function_time_s": statistics.median(r.function_time_s for r in runs),
-            "setup_time_s": solver.setup_time_s, "model_time_s": model_time,
-            "verification_error": sol.verification_error, "guess": attempts[-1][0],
-            "guesses_tried": len(attempts), "jit_cached": solver.jit_cached}
-    rruns = [ref.solve(key, N, jit=jit) for _ in range(repeats)]
-    r = rruns[-1]
-    refd = {"objective": r["objective"], "iterations": r["iterations"], "success": r["success"],
-            "solve_time_s": statistics.median(x["solve_time_s"] for x in rruns), "setup_time_s": r["setup_time_s"]}
-    ref_obj = ref.REFERENCE[key][N] if N in ref.REFERENCE[key] else r["objective"]
-    return {"problem": key, "N": N, "jit": jit, "ours": ours, "reference": refd,
-            "reference_objective": ref_obj,
-            "rel_error": abs(ours["objective"] - ref_obj) / abs(ref_obj),
-            "time_ratio": ours["solve_time_s"] / refd["solve_time_s"]}
+    def __init__(self, key, N, *, solver=None, transcription=None, jit=None, guess_label=None):
+        from nhgait.gaits.guesses import candidates
+        from nhgait.gaits.planner import prepare, solve_from_guesses
+        from nhgait.gaits.tasks import resolve
+        from nhgait.ocp import OCPSolver, SolverOptions
+
+        from nhgait.gaits.planner import solver_order
+        solver = solver or solver_order("auto", transcription)[0]
+        system, gait = PROBLEMS[key]
+        t0 = time.perf_counter()
+        _, _, problem = prepare(resolve(system, gait, overrides=[f"intervals={N}"]))
+        self.model_time = time.perf_counter() - t0
+        self.solver = OCPSolver(problem, transcription, SolverOptions(jit=jit, solver=solver, max_iter=500))
+        guesses = candidates(problem)
+        if guess_label is None:
+            _, _, guess_label = solve_from_guesses(self.solver, guesses)
+        self.guess = next(g for g in guesses if g.label == guess_label)
+        self.runs = []
+
+    def run(self):
+        self.runs.append(self.solver.solve(self.guess))
+
+    def result(self) -> dict:
+        runs, S = self.runs, self.solver
+        sol = runs[-1].verified()
+        return {"objective": sol.objective, "iterations": sol.iterations, "success": sol.success,
+                "solve_time_s": statistics.median(r.solve_time_s for r in runs),
+                "function_time_s": statistics.median(r.function_time_s for r in runs),
+                "solver_time_s": statistics.median(r.solver_time_s for r in runs),
+                "setup_time_s": S.setup_time_s, "model_time_s": self.model_time, "compiled": S.compiled,
+                "jit_cached": S.jit_cached, "verification_error": sol.verification_error,
+                "guess": self.guess.label}
+
+
+class Reference:
+    """The hand-written reference (compiled): built once by its own cache, one solve per :meth:`run`."""
+
+    def __init__(self, ref, key, N, *, jit=True):
+        self.ref, self.key, self.N, self.jit = ref, key, N, jit
+        self.runs = []
+
+    def run(self):
+        self.runs.append(self.ref.solve(self.key, self.N, jit=self.jit))
+
+    def result(self) -> dict:
+        runs = self.runs
+        r = runs[-1]
+        return {"objective": r["objective"], "iterations": r["iterations"], "success": r["success"],
+                "solve_time_s": statistics.median(x["solve_time_s"] for x in runs),
+                "solver_time_s": statistics.median(x["ipopt_time_s"] for x in runs),
+                "setup_time_s": r["setup_time_s"]}
+
+
+def interleaved(runners, repeats) -> list:
+    """Solve each runner ``repeats`` times in turn (a, b, c, a, b, c, …) so that the load of a
+    shared machine falls on all of them alike; returns their results."""
+    for _ in range(repeats):
+        for r in runners:
+            r.run()
+    return [r.result() for r in runners]
+
+
+def _ms(x):
+    return f"{x * 1e3:8.1f}"
 
 
 def main(argv=None) -> int:
@@ -73,32 +121,78 @@ def main(argv=None) -> int:
     ap.add_argument("--problems", default="P1,P2,P3")
     ap.add_argument("--N", default="25,50,100,200")
     ap.add_argument("--repeats", type=int, default=5)
-    ap.add_argument("--jit", action="store_true", help="jit on both sides (compiled artefacts cached)")
+    ap.add_argument("--sections", default=",".join(SECTIONS))
     ap.add_argument("--quick", action="store_true", help="smoke run: N = 25, 2 repeats")
     ap.add_argument("--out", default="out/bench_ocp.json")
     args = ap.parse_args(argv)
     if args.quick:
         args.N, args.repeats = "25", 2
     ref = _reference()
-    rows = []
-    hdr = (f"{'prob':4s} {'N':>4s} {'jit':>3s} {'objective':>10s} {'rel err':>8s} {'it':>3s} {'ref it':>6s} "
-           f"{'ours ms':>8s} {'ref ms':>8s} {'ratio':>5s} {'setup ms':>8s} {'ref setup':>9s} {'verify':>8s}")
-    print(hdr)
-    print("-" * len(hdr))
-    ok = True
-    for key in [p.strip() for p in args.problems.split(",") if p.strip()]:
-        for N in [int(n) for n in args.N.split(",") if n.strip()]:
-            row = bench_case(ref, key, N, jit=args.jit, repeats=max(1, args.repeats))
-            rows.append(row)
-            o, r = row["ours"], row["reference"]
-            ok &= o["success"] and row["rel_error"] < 1e-4
-            print(f"{key:4s} {N:4d} {'y' if args.jit else 'n':>3s} {o['objective']:10.6f} {row['rel_error']:8.1e} "
-                  f"{o['iterations']:3d} {r['iterations']:6d} {o['solve_time_s'] * 1e3:8.1f} "
-                  f"{r['solve_time_s'] * 1e3:8.1f} {row['time_ratio']:5.2f} {o['setup_time_s'] * 1e3:8.1f} "
-                  f"{r['setup_time_s'] * 1e3:9.1f} {o['verification_error']:8.1e}", flush=True)
+    keys = [p.strip() for p in args.problems.split(",") if p.strip()]
+    Ns = [int(n) for n in args.N.split(",") if n.strip()]
+    sections = [s.strip() for s in args.sections.split(",") if s.strip()]
+    rows, ok = [], True
+    if "default" in sections:
+        print("\n# default nhgait plan (auto = FATROP, compiled, own guess) and our Ipopt path (compiled) vs the "
+              "hand-written reference (Ipopt, compiled, its guess)")
+        print(f"{'prob':4s} {'N':>4s} {'objective':>10s} {'rel err':>8s} {'it':>3s} {'ref it':>6s} {'ours ms':>8s} "
+              f"{'ref ms':>8s} {'ratio':>5s} {'ipopt ms':>8s} {'ratio':>5s} {'setup ms':>8s} {'ref setup':>9s} "
+              f"{'verify':>8s}  guess")
+        for key in keys:
+            for N in Ns:
+                default = Ours(key, N)
+                o, i, r = interleaved([default, Ours(key, N, solver="ipopt", guess_label=default.guess.label),
+                                       Reference(ref, key, N)], args.repeats)
+                rel = abs(o["objective"] - ref.REFERENCE[key][N]) / ref.REFERENCE[key][N] if N in ref.REFERENCE[key] \
+                    else abs(o["objective"] - r["objective"]) / abs(r["objective"])
+                ratio = o["solve_time_s"] / r["solve_time_s"]
+                ok &= o["success"] and rel < 1e-4
+                ratio_i = i["solve_time_s"] / r["solve_time_s"]
+                rows.append({"section": "default", "problem": key, "N": N, "ours": o, "ours_ipopt": i,
+                             "reference": r, "rel_error": rel, "time_ratio": ratio, "ipopt_time_ratio": ratio_i})
+                print(f"{key:4s} {N:4d} {o['objective']:10.6f} {rel:8.1e} {o['iterations']:3d} {r['iterations']:6d} "
+                      f"{_ms(o['solve_time_s'])} {_ms(r['solve_time_s'])} {ratio:5.2f} {_ms(i['solve_time_s'])} "
+                      f"{ratio_i:5.2f} {_ms(o['setup_time_s'])} {r['setup_time_s'] * 1e3:9.1f} "
+                      f"{o['verification_error']:8.1e}  {o['guess']}", flush=True)
+    if "fatrop" in sections:
+        print("\n# FATROP (stage-ordered, compiled) vs our Ipopt (compiled) vs the reference's Ipopt (compiled); same guess")
+        print(f"{'prob':4s} {'N':>4s} {'J fatrop':>10s} {'rel diff':>8s} {'it F':>4s} {'it I':>4s} {'fatrop ms':>9s} "
+              f"{'(fun':>6s} {'solver)':>7s} {'ipopt ms':>8s} {'(fun':>6s} {'solver)':>7s} {'ref ms':>8s} "
+              f"{'ref/F':>5s} {'ipopt/F':>7s}")
+        for key in keys:
+            for N in Ns:
+                ipopt = Ours(key, N, solver="ipopt")
+                fatrop = Ours(key, N, solver="fatrop", guess_label=ipopt.guess.label)
+                i, f, r = interleaved([ipopt, fatrop, Reference(ref, key, N)], args.repeats)
+                rel = abs(f["objective"] - i["objective"]) / abs(i["objective"])
+                ok &= f["success"] and rel < 1e-6
+                rows.append({"section": "fatrop", "problem": key, "N": N, "fatrop": f, "ipopt": i, "reference": r,
+                             "rel_diff": rel, "speedup_vs_reference": r["solve_time_s"] / f["solve_time_s"],
+                             "speedup_vs_ipopt": i["solve_time_s"] / f["solve_time_s"]})
+                print(f"{key:4s} {N:4d} {f['objective']:10.6f} {rel:8.1e} {f['iterations']:4d} {i['iterations']:4d} "
+                      f"{f['solve_time_s'] * 1e3:9.1f} {f['function_time_s'] * 1e3:6.1f} {f['solver_time_s'] * 1e3:7.1f} "
+                      f"{_ms(i['solve_time_s'])} {i['function_time_s'] * 1e3:6.1f} {i['solver_time_s'] * 1e3:7.1f} "
+                      f"{_ms(r['solve_time_s'])} {r['solve_time_s'] / f['solve_time_s']:5.2f} "
+                      f"{i['solve_time_s'] / f['solve_time_s']:7.2f}", flush=True)
+    if "collocation" in sections:
+        print("\n# collocation (Legendre, degree 3) vs multiple shooting, both ours compiled, same guess")
+        print(f"{'prob':4s} {'N':>4s} {'J shooting':>10s} {'J colloc':>10s} {'it MS':>5s} {'it C':>4s} "
+              f"{'MS ms':>8s} {'coll ms':>8s} {'ratio':>5s} {'coll setup ms':>13s}")
+        for key in keys:
+            for N in Ns:
+                shooting = Ours(key, N, solver="ipopt")
+                colloc = Ours(key, N, solver="ipopt", transcription="collocation", guess_label=shooting.guess.label)
+                m, c = interleaved([shooting, colloc], args.repeats)
+                ratio = c["solve_time_s"] / m["solve_time_s"]
+                ok &= c["success"]
+                rows.append({"section": "collocation", "problem": key, "N": N, "shooting": m, "collocation": c,
+                             "time_ratio": ratio})
+                print(f"{key:4s} {N:4d} {m['objective']:10.6f} {c['objective']:10.6f} {m['iterations']:5d} "
+                      f"{c['iterations']:4d} {_ms(m['solve_time_s'])} {_ms(c['solve_time_s'])} {ratio:5.2f} "
+                      f"{c['setup_time_s'] * 1e3:13.1f}", flush=True)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps({"rows": rows, "jit": args.jit, "repeats": args.repeats}, indent=1))
+    out.write_text(json.dumps({"rows": rows, "repeats": args.repeats}, indent=1, default=float))
     print(f"wrote {out}")
     return 0 if ok else 1
 

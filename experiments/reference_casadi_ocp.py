@@ -93,11 +93,13 @@ Usage:  python experiments/reference_casadi_ocp.py [--problems P1,P2,P3]
 from __future__ import annotations
 
 import argparse
+import contextlib
 import functools
 import math
 import os
 import statistics
 import sys
+import tempfile
 import time
 
 import casadi as ca
@@ -281,10 +283,23 @@ def _ipopt_opts(jit: bool, expand: bool = True) -> dict:
     opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes", "record_time": True,
             "ipopt.hessian_approximation": "exact", "expand": expand}
     if jit:
-        # CasADi writes jit_tmp*.c / tmp_casadi_compiler_shell*.so into the cwd and
-        # removes them when the solver is destroyed (leftovers only if the process is killed).
-        opts.update({"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O1"]}})
+        # CasADi writes jit_tmp*.c / tmp_casadi_compiler_shell*.so into the working directory
+        # and may leave them at exit: the solvers are built inside _scratch_cwd().
+        opts.update({"jit": True, "compiler": "shell", "jit_cleanup": False, "jit_options": {"flags": ["-O1"], "cleanup": False}})
     return opts
+
+
+@contextlib.contextmanager
+def _scratch_cwd():
+    """Run inside a temporary working directory (CasADi's shell compiler writes its jit_tmp*
+    files there; the compiled library is loaded before the directory is removed)."""
+    old = os.getcwd()
+    with tempfile.TemporaryDirectory(prefix="nhgait-reference-jit-") as tmp:
+        os.chdir(tmp)
+        try:
+            yield
+        finally:
+            os.chdir(old)
 
 
 def _map(F: ca.Function, N: int, mode: str) -> ca.Function:
@@ -316,7 +331,8 @@ class _NlpsolOCP:
             g.append(XN[i] - Xs[i, 0])
         g = ca.vertcat(*g)
         J = (T / N) * ca.sumsqr(Us)
-        self.solver = ca.nlpsol("ocp", "ipopt", {"x": w, "f": J, "g": g}, _ipopt_opts(jit, expand))
+        with _scratch_cwd():
+            self.solver = ca.nlpsol("ocp", "ipopt", {"x": w, "f": J, "g": g}, _ipopt_opts(jit, expand))
         self.lbg = np.zeros(g.shape[0])
         self.ubg = np.zeros(g.shape[0])
         # variable bounds
@@ -388,7 +404,8 @@ class _OptiOCP:
         # Opti constructs nlpsol (expand / JIT) lazily inside the first solve(): do one
         # warm-up solve and book its non-Ipopt part as setup time.
         t_build = time.perf_counter() - t0
-        warm = self.solve(*initial_guess(problem, N))
+        with _scratch_cwd():
+            warm = self.solve(*initial_guess(problem, N))
         self.setup_time = t_build + warm["solve_time_s"] - warm["ipopt_time_s"]
 
     def solve(self, X0, U0):

@@ -1,4 +1,9 @@
-"""Animated GIF of a planned gait (matplotlib.animation + PillowWriter)."""
+"""Animated GIF of a planned gait (matplotlib.animation + PillowWriter, no pyplot state).
+
+Each frame shows the path so far, the body at that instant (the scene's ``[drawing]``, else
+the frame point with a heading arrow), the time in seconds and a scale bar; the axes are in
+metres and a legend explains the marks.
+"""
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,38 +13,65 @@ import numpy as np
 __all__ = ["animate_solution"]
 
 
-def animate_solution(solution, path, *, system=None, fps: int = 15, frames: int = 60) -> Path:
-    """Write the motion (path so far + body) to ``path`` as a GIF; returns the path."""
-    import matplotlib.pyplot as plt
+def _nice(length: float) -> float:
+    """A round scale-bar length (1, 2 or 5 × 10^k) about a quarter of ``length``."""
+    target = max(length / 4, 1e-6)
+    k = np.floor(np.log10(target))
+    for m in (5, 2, 1):
+        if m * 10 ** k <= target:
+            return float(m * 10 ** k)
+    return float(10 ** k)
+
+
+def animate_solution(solution, ctx, path, *, fps: int = 15, frames: int = 60) -> Path:
+    """Write the motion to ``path`` as a GIF; returns the path."""
     from matplotlib.animation import FuncAnimation, PillowWriter
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
-    from .plots import _half_length, body_outline
+    from .plots import _series, _with_unit, body_segments, label
 
-    names = solution.state_names
-    x, y = solution.states[names.index("x")], solution.states[names.index("y")]
-    r = _half_length(solution)
-    fig, ax = plt.subplots(figsize=(5, 5))
-    pad = 1.3 * r
-    ax.set_xlim(x.min() - pad, x.max() + pad)
-    ax.set_ylim(y.min() - pad, y.max() + pad)
+    if ctx.frame is None:   # no planar frame: animate the fiber path only
+        fx, fy = (list(ctx.fiber) + list(solution.state_names))[:2]
+    else:
+        fx, fy = ctx.frame[:2]
+    x, y = _series(solution, fx), _series(solution, fy)
+    segs = [body_segments(solution, ctx, k) if ctx.frame is not None else [] for k in range(len(x))]
+    allx = np.concatenate([x] + [np.ravel(s[0]) for ss in segs for s in ss])
+    ally = np.concatenate([y] + [np.ravel(s[1]) for ss in segs for s in ss])
+    span = max(np.ptp(allx), np.ptp(ally), 0.2)
+    pad = 0.12 * span
+    ratio = (np.ptp(ally) + 2 * pad) / (np.ptp(allx) + 2 * pad)
+    fig = Figure(figsize=(6.0, float(np.clip(6.0 * ratio, 2.2, 6.0)) + 1.2), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    ax.set_xlim(allx.min() - pad, allx.max() + pad)
+    ax.set_ylim(ally.min() - pad, ally.max() + pad)
     ax.set_aspect("equal")
-    ax.set_xlabel("x")
-    ax.set_ylabel("y")
-    trace, = ax.plot([], [], "-", color="C0", lw=1)
-    n_seg = len(body_outline(solution, 0, system))
-    lines = [ax.plot([], [], "-", color="C1" if i == 0 else "C3", lw=3 if i == 0 else 2)[0] for i in range(n_seg)]
+    ax.set_xlabel(_with_unit(ctx, fx))
+    ax.set_ylabel(_with_unit(ctx, fy))
+    ax.grid(True, alpha=0.3)
+    trace, = ax.plot([], [], "-", color="C0", lw=1.5, label="path so far")
+    n_seg = len(segs[0])
+    widths = ctx.drawing.widths if ctx.drawing is not None else (2.0,) * n_seg
+    body_label = "body" if ctx.drawing is not None else f"heading {label(ctx.frame[2]) if ctx.frame else ''}"
+    lines = [ax.plot([], [], "-", color="C1", lw=widths[i], label=body_label if i == 0 else None)[0]
+             for i in range(n_seg)]
+    bar = _nice(span)
+    x0, y0 = allx.min() - 0.6 * pad, ally.min() - 0.6 * pad
+    ax.plot([x0, x0 + bar], [y0, y0], "-", color="k", lw=3, label=f"scale bar {bar:g} m")
+    fig.legend(loc="outside lower center", ncol=3, fontsize="small", frameon=False)
     title = ax.set_title("")
     nodes = np.linspace(0, len(x) - 1, min(frames, len(x))).round().astype(int)
 
     def update(k):
         trace.set_data(x[:k + 1], y[:k + 1])
-        for line, (xs, ys) in zip(lines, body_outline(solution, k, system)):
+        for line, (xs, ys) in zip(lines, segs[k]):
             line.set_data(xs, ys)
-        title.set_text(f"t = {solution.t[k]:.2f}")
+        title.set_text(f"t = {solution.t[k]:.2f} s of {solution.t[-1]:.2f} s")
         return [trace, *lines, title]
 
     anim = FuncAnimation(fig, update, frames=nodes, blit=False)
     path = Path(path)
     anim.save(path, writer=PillowWriter(fps=fps))
-    plt.close(fig)
     return path

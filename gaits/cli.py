@@ -24,6 +24,7 @@ SUBCOMMANDS = (
     ("nhgait.gaits.cli_bench", "add_bench_parser"),
     ("nhgait.gaits.cli_reproduce", "add_reproduce_parser"),
     ("nhgait.gaits.cli_plan", "add_plan_parser"),
+    ("nhgait.gaits.cli_sweep", "add_sweep_parser"),
 )
 
 

@@ -1,5 +1,5 @@
 """``nhgait derive <scene.toml | built-in> ...``: print the equations of motion (registered by
-:mod:`nhgait.gaits.cli`)."""
+:mod:`nhgait.gaits.cli`). No symbolic work here: the models print themselves."""
 from __future__ import annotations
 
 import time
@@ -9,8 +9,8 @@ __all__ = ["add_derive_parser", "cmd_derive"]
 
 def cmd_derive(args) -> int:
     from nhgait.dynamics import derive
-    from nhgait.dynamics.symmetry import symmetry_test
     from nhgait.dynamics.scene import load_scene
+    from nhgait.dynamics.symmetry import symmetry_test
     scene = load_scene(args.scene)
     system = scene.system
     forms = ["reduced", "lagrange", "hamilton"] if args.formulation == "all" else [args.formulation]
@@ -24,31 +24,14 @@ def cmd_derive(args) -> int:
             if args.table:
                 print(model.symmetry.table_markdown() + "\n")
             if args.checks:
-                _print_checks(model)
+                print(model.checks_text())
             if args.steps == "markdown":
-                print(model.steps.to_markdown(model.symbol_names))
+                print(model.steps.to_markdown())
             elif args.steps == "latex":
-                print(model.steps.to_latex(model.symbol_names))
+                print(model.steps.to_latex())
     if args.table and "reduced" not in forms:
         print(symmetry_test(system).table_markdown())
     return 0
-
-
-def _print_checks(model) -> None:
-    import sympy as sp
-    from nhgait.dynamics import jacobi_test
-    res = jacobi_test(model)
-    print(f"Jacobi identity of the reduced bracket: {'holds' if res.jacobi_holds else 'fails'} "
-          f"(max relative Jacobiator {res.jacobiator:.2g}); constraints "
-          f"{'holonomic' if res.holonomic else 'nonholonomic'} (max |ω[X_a, X_b]| {res.holonomy:.2g}); "
-          f"thesis §2.2.2 (Jacobi ⇔ holonomic): {'consistent' if res.consistent else 'INCONSISTENT'}")
-    print(f"classification (thesis Table 2.1): {model.classification}")
-    print("initial-state map (Tables 3.2–3.3), P = Xᵀ M(q) q̇ on ω(q)q̇ = 0:")
-    for s, e in zip(model.momenta, model.momenta_of_velocity):
-        print(f"  {s} = {sp.sstr(e)}")
-    if model.singular_set:
-        print("singular set: " + " or ".join(f"{sp.sstr(e)} = 0" for e in model.singular_set))
-    print()
 
 
 def add_derive_parser(subparsers):

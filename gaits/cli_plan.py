@@ -1,26 +1,42 @@
-"""``nhgait plan <system> --gait <name> ... --out DIR`` (registered by :mod:`nhgait.gaits.cli`)."""
+"""``nhgait plan <scene> [--gait NAME] [--set key=value ...] --out DIR``.
+
+Plans the scene file's ``[task]`` (or a built-in gait of a built-in scene), verifies the
+optimum by an independent simulation and writes solution.json, PNG plots and a GIF.
+Registered by :mod:`nhgait.gaits.cli`.
+"""
 from __future__ import annotations
 
 import argparse
-import math
 
 __all__ = ["add_plan_parser", "run"]
 
 
 def add_plan_parser(subparsers) -> argparse.ArgumentParser:
-    from .tasks import TASKS
-    gaits = sorted({n for _, n in TASKS})
-    p = subparsers.add_parser("plan", help="plan an optimal periodic gait and verify it",
-                              description="Plan an optimal gait (CasADi + Ipopt), verify it by an independent "
-                                          "simulation and write solution.json, PNG plots and a GIF.")
-    p.add_argument("system", help="built-in system (unicycle, snakeboard)")
-    p.add_argument("--gait", required=True, help=f"gait task ({', '.join(gaits)})")
-    p.add_argument("--distance", type=float, default=None, help="task distance (gait default if omitted)")
-    p.add_argument("--angle", type=float, default=None, help="task angle in rad (gait default if omitted)")
-    p.add_argument("--period", type=float, default=None, help="period T in s (gait default if omitted)")
-    p.add_argument("--intervals", type=int, default=None, help="control intervals N (default 100)")
-    p.add_argument("--transcription", choices=["multiple-shooting", "collocation"], default="multiple-shooting")
-    p.add_argument("--jit", action="store_true", help="compile the NLP functions (cached on disk)")
+    from .tasks import describe_library
+    p = subparsers.add_parser(
+        "plan", help="plan an optimal gait of a scene's [task] (or a built-in gait) and verify it",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Plan an optimal gait (CasADi + FATROP or Ipopt), verify it by an independent "
+                    "simulation and write solution.json, PNG plots and a GIF.\n\n"
+                    "  nhgait plan my_robot.toml --out out/robot          # the scene's [task]\n"
+                    "  nhgait plan my_robot.toml --set final.x=2.0 --out out/robot2\n"
+                    "  nhgait plan snakeboard --gait forward --out out/demo\n\n"
+                    "Built-in gaits:\n" + describe_library())
+    p.add_argument("system", help="scene file (.toml) or built-in scene name")
+    p.add_argument("--gait", default=None, help="a built-in gait of a built-in scene (default: the scene's [task])")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a task value, e.g. final.x=2.0, horizon=6.0, bounds.phi=-1,1 (repeatable)")
+    p.add_argument("--intervals", type=int, default=None, help="control intervals N (default: the task's)")
+    p.add_argument("--solver", choices=["auto", "fatrop", "ipopt"], default="auto",
+                   help="NLP solver: auto (default) = FATROP on the stage-ordered transcription, then "
+                        "Ipopt if FATROP finds no solution; or one of them alone")
+    p.add_argument("--transcription", choices=["multiple-shooting", "collocation"], default=None)
+    jit = p.add_mutually_exclusive_group()
+    jit.add_argument("--jit", dest="jit", action="store_true", default=None,
+                     help="compile the NLP functions (default: when a C compiler is found; cached)")
+    jit.add_argument("--no-jit", dest="jit", action="store_false", help="interpreted NLP functions")
+    p.add_argument("--workers", default="1", help="initial guesses tried at once, in separate processes "
+                                                 "(a number or 'auto'; default 1)")
     p.add_argument("--no-gif", action="store_true", help="skip the animation")
     p.add_argument("--out", required=True, help="output directory")
     p.set_defaults(func=run)
@@ -28,22 +44,10 @@ def add_plan_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from .planner import plan
-    res = plan(args.system, args.gait, distance=args.distance, angle=args.angle, period=args.period,
-               intervals=args.intervals, transcription=args.transcription, jit=args.jit,
-               out_dir=args.out, animate=not getattr(args, "no_gif", False))
-    s = res.solution
-    v = s.verification_error
-    print(f"nhgait plan {res.system} --gait {res.gait}: {'SUCCESS' if s.success else 'FAILED'} ({s.status})")
-    print(f"  objective          J = {s.objective:.6f}  (∫|u|² dt)")
-    print(f"  iterations         {s.iterations}  (guesses tried: {', '.join(a for a, _ in res.attempts)})")
-    print(f"  solve time         {s.solve_time_s * 1e3:.1f} ms  (functions {s.function_time_s * 1e3:.1f} ms, "
-          f"solver {s.solver_time_s * 1e3:.1f} ms); set-up {s.setup_time_s * 1e3:.1f} ms; "
-          f"derivation/cache {res.derive_time_s * 1e3:.1f} ms")
-    print(f"  verification error {v:.2e}" if not math.isnan(v) else "  verification       not run")
-    print(f"  N = {s.settings.get('intervals')}, T = {s.horizon:.4f}, {s.settings.get('transcription')}, "
-          f"jit = {s.settings.get('jit')}" + (f" (cached: {res.timings.get('jit_cached')})" if s.settings.get('jit') else ""))
-    print("  files:")
-    for f in res.files:
-        print(f"    {f}")
-    return 0 if s.success else 1
+    from .planner import plan, summary_lines
+    workers = args.workers if args.workers == "auto" else int(args.workers)
+    result = plan(args.system, args.gait, overrides=args.overrides, intervals=args.intervals,
+                  solver=args.solver, transcription=args.transcription, jit=args.jit, workers=workers,
+                  out_dir=args.out, animate=not args.no_gif)
+    print("\n".join(summary_lines(result)))
+    return 0 if result.success else 1

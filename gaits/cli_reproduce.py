@@ -17,6 +17,9 @@ def add_reproduce_parser(subparsers):
                         help="relative tolerance of every run, atol = rtol·1e-2 (default 1e-10)")
     parser.add_argument("--no-idas", action="store_true",
                         help="skip the CasADi IDAS runs of the DAE forms")
+    parser.add_argument("--columns", choices=["q", "qdot", "all"], default=None,
+                        help="also write every run as <case>_<run>.csv: q (coordinates), qdot (and velocities) "
+                             "or all (and inputs, multipliers, energy, work)")
     parser.set_defaults(func=run)
     return parser
 
@@ -25,9 +28,11 @@ def run(args) -> int:
     """Run the reproduction; print a summary table; 0 when every run reached the end."""
     from .reproduction import reproduce
 
-    summary = reproduce(args.out, rtol=args.rtol, idas=not args.no_idas)
+    summary = reproduce(args.out, rtol=args.rtol, idas=not args.no_idas, columns=getattr(args, "columns", None))
     print_summary(summary)
-    print(f"wrote {args.out}/summary.json and {sum(len(summary[c].get('figures', [])) for c in ('unicycle', 'snakeboard'))} figures")
+    n_csv = sum(len(summary[c].get("csv", [])) for c in ("unicycle", "snakeboard"))
+    print(f"wrote {args.out}/summary.json and {sum(len(summary[c].get('figures', [])) for c in ('unicycle', 'snakeboard'))} figures"
+          + (f" and {n_csv} CSV files ({args.columns} columns)" if n_csv else ""))
     ok = all(r.get("success", True) for c in ("unicycle", "snakeboard") for r in summary[c]["runs"].values())
     return 0 if ok else 1
 

@@ -1,452 +1,343 @@
-"""The gait planner: derive → specialise → task → guess → solve → verify → write.
+"""The gait planner: scene + task → derive → specialise → guesses → solve → verify → write.
 
-:func:`plan` is the one entry point used by ``nhgait plan``::
+:func:`plan` is the one entry point used by ``nhgait plan``; built-in gaits and a user's
+scene file take the same path::
 
-    result = plan("snakeboard", "forward", distance=1.0, out_dir="out/demo")
-    result.solution.objective, result.solution.verification_error, result.files
+    result = plan("my_robot.toml")                         # the scene's [task]
+    result = plan("snakeboard", "forward", overrides=["final.x=0.8"], out_dir="out/demo")
+    result.solution.objective, result.solution.verification_error, result.guess, result.files
 
-Specialisation
---------------
-The derived reduced ODE keeps its parameters symbolic, so its CasADi expressions carry
-every parameter combination (the snakeboard's ż costs ~310 SX operations). For planning the
-parameters are fixed, so :func:`specialise` substitutes their values into the sympy rhs and
-q̇(z), brings each component to one fraction with sin/cos of each angle as symbols reduced
-by sin² = 1 − cos², drops coefficients below 1e-13 of the largest one (round-off of
-cancelled terms such as J + J_r + 2J_w − m r²), cancels denominator factors that divide a
-numerator up to round-off, and rationalises the remaining coefficients. The result
-(snakeboard 65 operations) is checked against the original functions at random states
-(relative error ≤ 1e-12, else the original is kept) and cached on disk by the model's
-content hash and the exact parameter values, so a second process pays neither the
-derivation nor the simplification.
-
-Velocity coordinates
---------------------
-``specialise(model, velocities=names)`` also changes the state from the momenta to n − k
-velocity quantities y = Y(q) q̇ (``<coordinate>_dot``, ``forward_velocity``): with the
-reduced velocities v = K⁻¹P = B⁻¹y (B = Y X), q̇ = X v and ẏ = Ḃ v + B K⁻¹(Ṗ − K̇ v),
-simplified as above and checked against the momentum ODE (ẏ by automatic differentiation
-of Y(q) q̇(z) along ż). Each gait task names its velocities; the snakeboard's (v, ψ̇, φ̇), v the
-forward body velocity, give a 46-operation ODE in which the tasks' rest and periodicity
-conditions are bounds or linear rows, and Ipopt takes the reference's iteration counts
-(P3: 13–17 instead of 24–36 in momenta). :func:`plan` reports its solution in the momentum
-coordinates (:func:`to_momentum_coordinates`) and verifies it there.
+Steps
+-----
+1. :func:`~nhgait.gaits.tasks.resolve`: the scene and the parsed task (one ProblemError for
+   every problem of the task's form).
+2. ``derive(system, "reduced")`` (cached) and :func:`~nhgait.dynamics.specialisation.specialise`:
+   parameter values bound, the state in velocity coordinates z = (q, y) with y the task's own
+   velocity quantities when they parametrise the allowed velocities (else chosen by
+   :func:`~nhgait.dynamics.specialisation.choose_velocities`). Conditions on velocities are
+   then bounds or linear rows.
+3. :func:`~nhgait.gaits.task.to_problem`: the :class:`~nhgait.ocp.OptimalControlProblem`
+   (unknown names and impossible counts are one ProblemError).
+4. :func:`solve_from_guesses`: the candidates of :mod:`.guesses` in batches of ``workers``
+   (separate processes when ``workers > 1``); within the first batch with a success the lowest
+   objective wins. When every direct candidate fails, :func:`continuation` solves easier
+   versions (the fixed end values moved a fraction 1/4, 1/2, 3/4 of the way from their
+   initial values) and grows them to the task, each warm-started from the last.
+5. The solution is re-expressed in the momentum coordinates of the derived model
+   (:func:`to_momentum_coordinates`) and verified there by an independent re-simulation of the
+   general (unspecialised) model: DOP853, rtol 1e-10 (``Solution.verify``), including how far
+   the re-simulated trajectory is from each boundary and periodicity condition.
+6. ``solution.json``, ``path.png``, ``shape.png``, ``histories.png``, ``momentum.png`` and
+   ``motion.gif`` in ``out_dir``.
 """
 from __future__ import annotations
 
-import hashlib
-import math
+import os
 import time
-from dataclasses import dataclass, field
-from fractions import Fraction
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-__all__ = ["plan", "PlanResult", "specialise", "SpecialisedModel", "solve_task", "to_momentum_coordinates"]
+__all__ = ["plan", "PlanResult", "Attempt", "prepare", "solve_from_guesses", "continuation",
+           "to_momentum_coordinates", "known_names", "warm_start", "read_solution"]
 
 
-# ------------------------------------------------------------------ specialisation
-@dataclass(frozen=True, eq=False)
-class SpecialisedModel:
-    """A reduced model with its parameter values substituted into the numeric functions.
+@dataclass(frozen=True)
+class Attempt:
+    """One candidate tried: its label, the solver and its verdict."""
 
-    Same interface as :class:`~nhgait.dynamics.reduction.ReducedODE` for the OCP layer
-    (``numeric``, ``state_names``, ``system``); ``numeric.params()`` returns the baked values
-    and the functions ignore their ``params`` argument.
-    """
-
-    base: Any
-    numeric: Any
-    simplified: bool
-
-    @property
-    def system(self):
-        return self.base.system
-
-    @property
-    def state_names(self):
-        return tuple(self.numeric.state_names)
-
-    @property
-    def velocities(self) -> tuple:
-        """The velocity quantities of the state (empty: momentum coordinates)."""
-        if self.numeric.formulation != "reduced-velocity":
-            return ()
-        return tuple(self.numeric.state_names[self.numeric.n_coordinates:])
-
-    @property
-    def momenta(self):
-        return self.base.momenta
+    label: str
+    status: str
+    success: bool
+    iterations: int
+    objective: float
+    solver: str = ""
 
 
-def _rational(c: float, tol: float) -> "Any":
-    import sympy as sp
-    f = Fraction(c).limit_denominator(10**6)
-    if abs(float(f) - c) <= tol * abs(c):
-        return sp.Rational(f.numerator, f.denominator)
-    f = Fraction(c)
-    return sp.Rational(f.numerator, f.denominator)
-
-
-def _trig_symbols(expr):
-    """``expr`` with sin(a), cos(a) (after ``expand_trig``) replaced by symbols S_a, C_a.
-
-    Returns (expr, pairs [(S_a, C_a), ...], back-substitution dict).
-    """
-    import sympy as sp
-    expr = sp.expand_trig(expr.replace(sp.tan, lambda a: sp.sin(a) / sp.cos(a)))
-    args = sorted({f.args[0] for f in expr.atoms(sp.sin, sp.cos)}, key=sp.default_sort_key)
-    pairs, fwd, back = [], {}, {}
-    for k, a in enumerate(args):
-        S, C = sp.Dummy(f"S{k}"), sp.Dummy(f"C{k}")
-        fwd[sp.sin(a)], fwd[sp.cos(a)] = S, C
-        back[S], back[C] = sp.sin(a), sp.cos(a)
-        pairs.append((S, C))
-    return expr.xreplace(fwd), pairs, back
-
-
-def _pythagoras(poly, pairs):
-    """``poly`` reduced modulo S² + C² − 1 for each pair (at most linear in every S)."""
-    import sympy as sp
-    for S, C in pairs:
-        poly = sp.expand(sp.rem(sp.expand(poly), S**2 + C**2 - 1, S))
-    return poly
-
-
-def _simplify_numeric(expr, linear_symbols, tol=1e-13):
-    """expr (floats for the parameters) as Σ monomial(linear symbols) · cancelled coefficient.
-
-    sin/cos of each angle are treated as symbols S, C with S² = 1 − C² (so terms that vanish
-    only through the Pythagorean identity, e.g. a velocity basis written with sin 2φ and
-    cos²φ, cancel), coefficients below ``tol`` of the largest are dropped (round-off of
-    cancelled parameter combinations) and the rest rationalised.
-    """
-    import sympy as sp
-    expr, pairs, back = _trig_symbols(expr)
-    num, den = sp.fraction(sp.cancel(sp.together(expr)))
-    num, den = _pythagoras(num, pairs), _pythagoras(den, pairs)
-    if num == 0:
-        return sp.S.Zero
-
-    def chop(poly):
-        terms = sp.Add.make_args(sp.expand(poly))
-        coeffs = [float(t.as_coeff_Mul()[0]) for t in terms]
-        big = max(abs(c) for c in coeffs)
-        return sp.Add(*[_rational(c / big, 1e-14) * t.as_coeff_Mul()[1]
-                        for c, t in zip(coeffs, terms) if abs(c) > tol * big]), big
-
-    (n2, nb), (d2, db) = chop(num), chop(den)
-    if n2 == 0:
-        return sp.S.Zero
-    scale = _rational(nb / db, 1e-14)
-    groups = sp.collect(sp.expand(n2), list(linear_symbols), evaluate=False)
-    out = sp.S.Zero
-    for mono, coeff in groups.items():
-        out += mono * _cancel_numeric(scale * coeff, d2, tol)
-    return sp.N(out.xreplace(back), 17)
-
-
-def _cancel_numeric(num, den, tol):
-    """num/den with the factors of den that divide num up to round-off (remainder ≤ tol) cancelled.
-
-    Exact ``cancel`` misses factors when irrational parameter values (r = √2.4) leave
-    rationalised coefficients that agree with a product only to ~1e-16.
-    """
-    import sympy as sp
-    exact = sp.cancel(num / den)
-    n0, d0 = sp.fraction(exact)
-    if not d0.free_symbols:
-        return sp.factor(exact)
-    const, factors = sp.factor_list(d0)
-    num, den = sp.expand(n0), const
-    for f, k in factors:
-        for _ in range(k):
-            gens = sorted(num.free_symbols | f.free_symbols, key=sp.default_sort_key)
-            pn = sp.Poly(num, *gens, domain="RR")
-            qt, rm = pn.div(sp.Poly(f, *gens, domain="RR"))
-            size = max(abs(float(c)) for c in pn.coeffs())
-            if rm.is_zero or max(abs(float(c)) for c in rm.coeffs()) <= 1e3 * tol * size:
-                num = qt.as_expr()
-            else:
-                den = den * f
-    terms = sp.Add.make_args(sp.expand(num))
-    big = max(abs(float(t.as_coeff_Mul()[0])) for t in terms)
-    num = sp.Add(*[_rational(float(t.as_coeff_Mul()[0]), 1e-14) * t.as_coeff_Mul()[1] for t in terms
-                   if abs(float(t.as_coeff_Mul()[0])) > tol * big])
-    return sp.factor(num / den)
-
-
-def _build_specialised(model, params):
-    import casadi as ca
-    import sympy as sp
-    from nhgait.dynamics.bridge import to_casadi
-    from nhgait.dynamics.numeric import NumericModel
-    from nhgait.dynamics.system import TIME
-
-    system = model.system
-    subs = {s: sp.Float(float(v), 17) for s, v in zip(system.param_symbols, params)}
-    linear = list(model.momenta) + list(system.input_symbols)
-    rhs = [_simplify_numeric(e.xreplace(subs), linear) for e in model.rhs]
-    qdot = [_simplify_numeric(e.xreplace(subs), linear) for e in model.qdot]
-    nz, nu, npar = len(model.state), len(system.input_symbols), len(system.param_symbols)
-    t, z, u, p = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", npar)
-    syms = [TIME] + list(model.state) + list(system.input_symbols)
-    sx = [t] + [z[i] for i in range(nz)] + [u[i] for i in range(nu)]
-    rhs_sx = ca.vertcat(*to_casadi(rhs, syms, sx))
-    qdot_sx = ca.vertcat(*to_casadi(qdot, syms, sx))
-    fns = dict(model.numeric.functions)
-    fns["rhs"] = ca.Function("rhs", [t, z, u, p], [rhs_sx], ["t", "z", "u", "params"], ["zdot"])
-    fns["qdot"] = ca.Function("qdot", [z, p], [qdot_sx], ["z", "params"], ["qdot"])
-    # numeric check against the general functions at random states away from singular sets
-    rng = np.random.default_rng(0)
-    worst = 0.0
-    for _ in range(50):
-        zz, uu = rng.uniform(-1.2, 1.2, nz), rng.normal(size=nu)
-        for name, args in (("rhs", (0.3, zz, uu)), ("qdot", (zz,))):
-            a = np.asarray(fns[name](*args, params)).ravel()
-            b = np.asarray(model.numeric[name](*args, params)).ravel()
-            worst = max(worst, float(np.max(np.abs(a - b) / (1.0 + np.abs(b)))))
-    if not worst <= 1e-12:
-        return None
-    old = model.numeric
-    return NumericModel(formulation=old.formulation, state_names=old.state_names,
-                        input_names=old.input_names, param_names=old.param_names,
-                        param_defaults=tuple(float(v) for v in params), functions=fns,
-                        n_coordinates=old.n_coordinates, n_multipliers=old.n_multipliers)
-
-
-def _velocity_rows(names, coordinates, q):
-    """Rows Y(q) (sympy, one per name) of velocity quantities y = Y(q) q̇.
-
-    ``<coordinate>_dot`` is q̇_i; for planar bodies (coordinates x, y, theta)
-    ``forward_velocity`` = ẋ cos θ + ẏ sin θ and ``lateral_velocity`` = −ẋ sin θ + ẏ cos θ
-    (the same quantities :mod:`nhgait.ocp.problem` offers on every model).
-    """
-    import sympy as sp
+def solver_order(solver: str, transcription=None) -> tuple:
+    """The solvers ``plan`` tries: "auto" is FATROP, then Ipopt if FATROP finds no solution
+    (Ipopt alone for collocation, which FATROP does not take)."""
     from nhgait.ocp import ProblemError
-
-    n = len(coordinates)
-    rows, problems = [], []
-    for name in names:
-        row = [sp.S.Zero] * n
-        if name.endswith("_dot") and name[:-4] in coordinates:
-            row[coordinates.index(name[:-4])] = sp.S.One
-        elif name in ("forward_velocity", "lateral_velocity") and {"x", "y", "theta"} <= set(coordinates):
-            th = q[coordinates.index("theta")]
-            c, s_ = sp.cos(th), sp.sin(th)
-            ix, iy = coordinates.index("x"), coordinates.index("y")
-            row[ix], row[iy] = (c, s_) if name == "forward_velocity" else (-s_, c)
-        else:
-            problems.append(f"velocities: {name!r} is not a velocity quantity (use <coordinate>_dot"
-                            f" for {', '.join(coordinates)}, forward_velocity or lateral_velocity)")
-        rows.append(row)
-    if len(set(names)) != len(names):
-        problems.append(f"velocities: repeated names in {tuple(names)}")
-    if problems:
-        raise ProblemError(problems, title="invalid velocity coordinates")
-    return sp.Matrix(rows)
+    from nhgait.ocp.solver import SOLVERS
+    if solver == "auto":
+        return ("ipopt",) if transcription == "collocation" else ("fatrop", "ipopt")
+    if solver not in SOLVERS:
+        raise ProblemError([f"unknown solver {solver!r} (auto, {', '.join(SOLVERS)})"])
+    return (solver,)
 
 
-def _build_velocity(model, params, velocities):
-    """The reduced ODE in velocity coordinates z = (q, y), y = Y(q) q̇ (see :func:`specialise`)."""
-    import casadi as ca
-    import sympy as sp
-    from nhgait.dynamics.bridge import to_casadi
-    from nhgait.dynamics.numeric import NumericModel
-    from nhgait.ocp import ProblemError
-
-    system = model.system
-    coords = tuple(system.coordinates)
-    n, nv = len(coords), len(model.state) - len(coords)
-    if len(velocities) != nv:
-        raise ProblemError([f"velocities: {system.name if hasattr(system, 'name') else 'the model'} needs "
-                            f"{nv} velocity quantities (one per reduced momentum), got {len(velocities)}"],
-                           title="invalid velocity coordinates")
-    subs = {s: sp.Float(float(v), 17) for s, v in zip(system.param_symbols, params)}
-    q, P = list(model.state[:n]), list(model.state[n:])
-    ys = sp.Matrix(sp.symbols(f"y0:{nv}"))
-    vs = sp.Matrix(sp.symbols(f"v0:{nv}"))
-    K = model.K.xreplace(subs)
-    X = model.X.xreplace(subs)
-    Y = _velocity_rows(velocities, coords, q)
-    B = (Y * X).applyfunc(lambda e: _simplify_numeric(e, []))        # y = B(q) v, v = K⁻¹P
-    rng = np.random.default_rng(0)
-    probe = {qi: float(rng.uniform(-0.7, 0.7)) for qi in q}
-    if abs(float(B.xreplace(probe).det())) < 1e-9:
-        raise ProblemError([f"velocities {tuple(velocities)} do not parametrise the allowed velocities "
-                            "(Y X is singular)"], title="invalid velocity coordinates")
-    Binv = B.inv()
-    v_of_y = Binv * ys
-    rhs = model.rhs.xreplace(subs)
-    qdot_v = list(X * vs)                                             # q̇ = X v
-    Pdot = sp.Matrix([e.xreplace(dict(zip(P, K * vs))) for e in rhs[n:]])
-    Kdot, Bdot = sp.zeros(nv, nv), sp.zeros(nv, nv)
-    for i, qi in enumerate(q):
-        Kdot += K.diff(qi) * qdot_v[i]
-        Bdot += B.diff(qi) * qdot_v[i]
-    vdot = K.inv() * (Pdot - Kdot * vs)                               # P = K v
-    ydot = Bdot * vs + B * vdot
-    back = dict(zip(vs, v_of_y))
-    inputs = list(system.input_symbols)
-    linear = list(ys) + inputs
-    qdot = [_simplify_numeric(e.xreplace(back), linear) for e in qdot_v]
-    ydot = [_simplify_numeric(e.xreplace(back), linear) for e in ydot]
-    nz, nu, npar = n + nv, len(inputs), len(system.param_symbols)
-    t, z, u, p = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", npar)
-    sx = [z[i] for i in range(nz)] + [u[i] for i in range(nu)]
-    out = to_casadi(qdot + ydot, q + list(ys) + inputs, sx)
-    qs, qd = ca.SX.sym("q", n), ca.SX.sym("qdot", n)
-    # list(M.T) is M column-major, as ca.reshape expects
-    Ysx = ca.reshape(ca.vertcat(*to_casadi(list(Y.T), q, [qs[i] for i in range(n)])), nv, n)
-    KBinv = ca.reshape(ca.vertcat(*to_casadi(list((K * Binv).T), q, [z[i] for i in range(n)])), nv, nv)
-    fns = {
-        "rhs": ca.Function("rhs", [t, z, u, p], [ca.vertcat(*out)], ["t", "z", "u", "params"], ["zdot"]),
-        "qdot": ca.Function("qdot", [z, p], [ca.vertcat(*out[:n])], ["z", "params"], ["qdot"]),
-        "state": ca.Function("state", [qs, qd, p], [ca.vertcat(qs, ca.mtimes(Ysx, qd))],
-                             ["q", "qdot", "params"], ["z"]),
-        "momentum_state": ca.Function("momentum_state", [z, p], [ca.vertcat(z[:n], ca.mtimes(KBinv, z[n:]))],
-                                      ["z", "params"], ["z_momentum"]),
-    }
-    # check against the momentum model: z_P = (q, K B⁻¹ y); q̇ must agree and
-    # ẏ = d/dt [Y(q) q̇(z_P)] along ż_P = rhs_P (automatic differentiation).
-    zp, up = ca.SX.sym("zp", nz), ca.SX.sym("up", nu)
-    y_of_zp = ca.substitute(ca.mtimes(Ysx, model.numeric["qdot"](zp, params)), qs, zp[:n])
-    ydot_ref = ca.Function("ydot_ref", [zp, up], [ca.jtimes(y_of_zp, zp, model.numeric["rhs"](0, zp, up, params))])
-    worst = 0.0
-    for _ in range(50):
-        zz, uu = rng.uniform(-1.2, 1.2, nz), rng.normal(size=nu)
-        zP = np.asarray(fns["momentum_state"](zz, params)).ravel()
-        a = np.asarray(fns["rhs"](0.0, zz, uu, params)).ravel()
-        b = np.concatenate([np.asarray(model.numeric["qdot"](zP, params)).ravel(),
-                            np.asarray(ydot_ref(zP, uu)).ravel()])
-        c = np.asarray(fns["state"](zz[:n], a[:n], params)).ravel()
-        worst = max(worst, float(np.max(np.abs(a - b) / (1.0 + np.abs(b)))),
-                    float(np.max(np.abs(c - zz) / (1.0 + np.abs(zz)))))
-    if not worst <= 1e-10:
-        raise RuntimeError(f"velocity-coordinate ODE disagrees with the momentum ODE (relative error {worst:.1e})")
-    old = model.numeric
-    return NumericModel(formulation="reduced-velocity", state_names=coords + tuple(velocities),
-                        input_names=old.input_names, param_names=old.param_names,
-                        param_defaults=tuple(float(v) for v in params), functions=fns, n_coordinates=n)
-
-
-def specialise(model, params=None, *, velocities=None) -> SpecialisedModel:
-    """``model`` with parameter values substituted and simplified (cached on disk).
-
-    With ``velocities`` (names of n − k velocity quantities, e.g. ``("forward_velocity",
-    "psi_dot", "phi_dot")``) the state becomes z = (q, y), y = Y(q) q̇, instead of the
-    momenta: with v = K⁻¹P = B⁻¹y (B = Y X), q̇ = X v and ẏ = Ḃ v + B K⁻¹(Ṗ − K̇ v).
-    """
-    from nhgait.dynamics import cache
-
-    params = np.asarray(model.numeric.params(params), dtype=float)
-    velocities = tuple(velocities or ())
-    code = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()   # the code that specialises
-    key = cache.cache_key(model.system, "reduced-specialised",
-                          "params=" + ",".join(float(v).hex() for v in params)
-                          + ";velocities=" + ",".join(velocities) + ";code=" + code)
-    hit = cache.load(key, dict)
-    if hit is None:
-        if velocities:
-            numeric = _build_velocity(model, params, velocities)
-        else:
-            numeric = _build_specialised(model, params)
-        hit = {"numeric": numeric}
-        cache.store(key, hit)
-    numeric = hit["numeric"]
-    if numeric is None:  # simplification did not pass its check: keep the general functions
-        return SpecialisedModel(model, model.numeric, False)
-    return SpecialisedModel(model, numeric, True)
-
-
-# ------------------------------------------------------------------ planning
 @dataclass(frozen=True, eq=False)
 class PlanResult:
-    """What :func:`plan` produced: the verified solution, the guesses tried and the files."""
+    """What :func:`plan` produced.
 
-    system: str
-    gait: str
+    Attributes
+    ----------
+    label : "<system>/<task>"; task : the Task as solved; solution : the verified Solution
+    (momentum coordinates); guess : label of the winning candidate; attempts : every
+    candidate tried; files : written files; timings : seconds per step; plan : the Plan.
+    """
+
+    label: str
+    task: Any
     solution: Any
-    attempts: tuple                  # ((guess label, status), ...)
+    guess: str
+    attempts: tuple
     files: tuple = ()
-    derive_time_s: float = 0.0
     timings: dict = field(default_factory=dict)
+    plan: Any = None
+    model: Any = None
 
     @property
     def success(self) -> bool:
         return bool(self.solution.success)
 
 
-def solve_task(problem, family: str, *, transcription="multiple-shooting", jit=False, options=None):
-    """Solve ``problem`` from the guesses of ``family`` until Ipopt succeeds.
+def known_names(model, quantities) -> tuple:
+    """The names a task may use on ``model`` (see :func:`~nhgait.gaits.task.task_names`)."""
+    from .task import task_names
+    return task_names(model.system, quantities)
 
-    Returns (solution, attempts, solver). The transcription/NLP is built once and reused for
-    every candidate guess.
+
+def _quantity_objects(model, scene):
+    from nhgait.dynamics.quantities import quantity_function
+    from .task import scene_quantities
+    if not scene.quantities:
+        return {}
+    return scene_quantities(model, quantity_function(model.system, scene.quantities))
+
+
+def prepare(the_plan, *, params=None):
+    """(derived model, specialised model, problem) of a :class:`~nhgait.gaits.tasks.Plan`."""
+    from nhgait.dynamics import derive
+    from nhgait.dynamics.specialisation import choose_velocities, specialise
+    from .task import check_names, to_problem
+
+    task, scene = the_plan.task, the_plan.scene
+    model = derive(scene.system, "reduced")
+    n = len(model.system.coordinates)
+    check_names(task, known_names(model, scene.quantities), tuple(model.system.inputs),
+                n_states=len(model.state_names), n_velocities=len(model.state_names) - n)
+    velocities = task.velocities or choose_velocities(model, task.names, scene.quantities, params)
+    fast = specialise(model, params, velocities=velocities, quantities=scene.quantities)
+    problem = to_problem(task, fast, quantities=_quantity_objects(fast, scene), params=params,
+                         name=the_plan.label)
+    return model, fast, problem
+
+
+# ----------------------------------------------------------------------------- candidates
+_BATCH: tuple = ()
+
+
+def _solve_index(i):
+    """Worker of a forked process: solve candidate i of the batch set up by the parent."""
+    solver, guesses = _BATCH
+    return replace(solver.solve(guesses[i]), problem=None)
+
+
+def _solve_batch(solver, guesses, workers: int) -> list:
+    """Solutions of ``guesses`` (in order), in ``workers`` forked processes when possible."""
+    import multiprocessing as mp
+    if workers > 1 and len(guesses) > 1 and "fork" in mp.get_all_start_methods():
+        global _BATCH
+        _BATCH = (solver, guesses)
+        try:
+            with mp.get_context("fork").Pool(min(workers, len(guesses))) as pool:
+                sols = pool.map(_solve_index, range(len(guesses)))
+            return [replace(s, problem=solver.problem) for s in sols]
+        except (OSError, RuntimeError):   # no fork here (sandbox, resources): solve in turn
+            pass
+        finally:
+            _BATCH = ()
+    return [solver.solve(g) for g in guesses]
+
+
+def solve_from_guesses(solver, guesses, *, workers: int = 1):
+    """Try ``guesses`` in batches of ``workers``; the best success of the first batch with one.
+
+    Returns (solution or None, attempts, winning label or None).
+    """
+    attempts = []
+    workers = max(1, int(workers))
+    for start in range(0, len(guesses), workers):
+        batch = guesses[start:start + workers]
+        sols = _solve_batch(solver, batch, workers)
+        for g, s in zip(batch, sols):
+            attempts.append(Attempt(g.label, s.status, bool(s.success), int(s.iterations), float(s.objective)))
+        good = [(s.objective, i) for i, s in enumerate(sols) if s.success]
+        if good:
+            _, i = min(good)
+            return sols[i], tuple(attempts), batch[i].label
+    return None, tuple(attempts), None
+
+
+def _moved(problem, alpha):
+    """``problem`` with every end value fixed at both ends moved a fraction ``alpha`` of the way."""
+    final = {}
+    for name, value in problem.final.items():
+        lo, hi = problem.bounds(problem.final, name)
+        if name in problem.initial and lo == hi:
+            a0, b0 = problem.bounds(problem.initial, name)
+            if a0 == b0:
+                final[name] = a0 + alpha * (lo - a0)
+                continue
+        final[name] = value
+    return problem.replace(final=final)
+
+
+def continuation(solver, guess, steps=(0.25, 0.5, 0.75, 1.0)):
+    """Grow an easier problem into ``solver.problem`` (see the module docstring, step 4).
+
+    Returns (solution or None, attempts).
+    """
+    from nhgait.ocp import InitialGuess
+    attempts, current = [], guess
+    solution = None
+    for alpha in steps:
+        sub = solver.with_problem(_moved(solver.problem, alpha))
+        solution = sub.solve(current)
+        label = f"continuation {alpha:g} from {guess.label}"
+        attempts.append(Attempt(label, solution.status, bool(solution.success), int(solution.iterations),
+                                float(solution.objective)))
+        if not solution.success:
+            return None, tuple(attempts)
+        current = InitialGuess(solution.states, solution.controls, solution.horizon, label)
+    return replace(solution, problem=solver.problem), tuple(attempts)
+
+
+# ----------------------------------------------------------------------------- warm start
+def read_solution(path) -> dict:
+    """The content of a ``solution.json`` written by :func:`plan` (a dict)."""
+    import json
+    return json.loads(Path(path).read_text())
+
+
+def _trajectory_of(previous) -> tuple:
+    """(t (K+1,), q (n × K+1), q̇ (n × K+1), u (m × K)) of a previous result of any kind."""
+    from nhgait.ocp import Solution
+    if isinstance(previous, PlanResult):
+        previous = previous.solution
+    if isinstance(previous, (str, Path)):
+        previous = read_solution(previous)
+    if isinstance(previous, Solution):
+        n = len(previous.problem.model.system.coordinates)
+        return previous.t, previous.states[:n], previous.velocities(), previous.controls
+    tr = previous["trajectory"]
+    return (np.asarray(tr["t"], float), np.asarray(tr["q"], float).T, np.asarray(tr["qdot"], float).T,
+            np.asarray(tr["u"], float).T)
+
+
+def warm_start(previous, problem, label: str = "warm start"):
+    """An initial guess for ``problem`` from a previous solution (Solution, PlanResult,
+    solution.json dict or path, or an InitialGuess), resampled on the problem's grid in
+    normalised time t/T (configurations and velocities linearly, inputs piecewise constant)
+    and mapped to the problem's state by the model's ``state(q, q̇)``."""
+    from nhgait.ocp import InitialGuess
+    if isinstance(previous, InitialGuess):
+        return previous
+    t, q, qdot, u = _trajectory_of(previous)
+    grid = problem.grid()
+    s_old, s_new = t / t[-1], grid / grid[-1]
+    q_new = np.vstack([np.interp(s_new, s_old, row) for row in q])
+    qd_new = np.vstack([np.interp(s_new, s_old, row) for row in qdot]) * (t[-1] / grid[-1])
+    mid = (s_new[:-1] + s_new[1:]) / 2
+    k = np.clip(np.searchsorted(s_old, mid, side="right") - 1, 0, u.shape[1] - 1)
+    state = problem.model.numeric["state"]
+    Z = np.column_stack([np.asarray(state(q_new[:, j], qd_new[:, j], problem.params)).ravel()
+                         for j in range(grid.size)])
+    return InitialGuess(Z, u[:, k], horizon=float(grid[-1]), label=label)
+
+
+# ----------------------------------------------------------------------------- plan
+def _default_workers() -> int:
+    return max(1, min(2, (os.cpu_count() or 1)))
+
+
+def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", transcription=None,
+         jit=None, workers=1, params=None, max_iter=500, guess=None, out_dir=None, animate=False,
+         verify=True) -> PlanResult:
+    """Plan a gait: see the module docstring.
+
+    Parameters
+    ----------
+    system : scene file, built-in scene name, Scene or System
+    task : None (the scene's ``[task]``), a built-in gait name, a ``[task]`` dict or a Task
+    overrides : ``key.sub=value`` strings (``--set``), e.g. ``["final.x=2.0"]``
+    intervals : N, overriding the task's
+    solver : "auto" (default: FATROP, then Ipopt when FATROP finds no solution), "fatrop" or
+        "ipopt"
+    transcription : None (multiple shooting; stage-ordered for FATROP) or "collocation"
+    jit : compile the NLP functions (None: when a C compiler is found)
+    workers : candidates tried at once (separate processes); "auto" for up to 2 per machine
+    params : parameter values overriding the scene's (mapping)
+    max_iter : iteration limit of each candidate's solve
+    guess : a previous result to start from (Solution, PlanResult, solution.json dict or path,
+        InitialGuess), tried before the planner's own candidates (:func:`warm_start`)
+    out_dir : write solution.json and the figures there (``animate``: also motion.gif)
     """
     from nhgait.ocp import OCPSolver, SolverOptions
     from .guesses import candidates
+    from .tasks import resolve
 
-    solver = OCPSolver(problem, transcription, options or SolverOptions(jit=jit))
-    attempts = []
-    solution = None
-    for guess in candidates(problem, family):
-        solution = solver.solve(guess)
-        attempts.append((guess.label, solution.status))
-        if solution.success:
-            break
-    return solution, tuple(attempts), solver
-
-
-def plan(system_name: str, gait: str, *, distance=None, angle=None, period=None, intervals=None,
-         transcription="multiple-shooting", jit=False, out_dir=None, animate=True,
-         verify=True) -> PlanResult:
-    """Plan a gait: derive → specialise → task → guess → solve → verify → write files.
-
-    Files in ``out_dir`` (when given): ``solution.json``, ``path.png``, ``shape.png``,
-    ``histories.png``, ``momentum.png`` and ``motion.gif`` (``animate=False`` skips the GIF).
-    """
-    from nhgait.dynamics import builtin, derive
-    from .tasks import get_task
-
-    task = get_task(system_name, gait)
     timings = {}
     t0 = time.perf_counter()
-    model = derive(builtin(system_name), "reduced")
-    timings["derive_s"] = time.perf_counter() - t0
+    if intervals is not None:
+        overrides = [*overrides, f"intervals={int(intervals)}"]
+    the_plan = resolve(system, task, overrides=overrides)
+    model, fast, problem = prepare(the_plan, params=params)
+    timings["prepare_s"] = time.perf_counter() - t0
+    workers = _default_workers() if workers in (None, "auto") else int(workers)
+    guesses = candidates(problem)
+    if guess is not None:
+        guesses = [warm_start(guess, problem)] + guesses
     t0 = time.perf_counter()
-    fast = specialise(model, velocities=task.velocities)
-    timings["specialise_s"] = time.perf_counter() - t0
-    problem = task.problem(fast, distance=distance, angle=angle, period=period,
-                           intervals=100 if intervals is None else int(intervals))
-    solution, attempts, solver = solve_task(problem, task.guess_family, transcription=transcription, jit=jit)
-    timings["setup_s"] = solver.setup_time_s
-    timings["jit_cached"] = solver.jit_cached
-    if fast.velocities:  # report (and verify) in the momentum coordinates z = (q, P)
-        momentum_problem = task.problem(specialise(model), distance=distance, angle=angle, period=period,
-                                        intervals=problem.intervals)
-        solution = to_momentum_coordinates(solution, momentum_problem)
+    solution, attempts, won = None, (), None
+    for name in solver_order(solver, transcription):
+        t1 = time.perf_counter()
+        ocp_solver = OCPSolver(problem, transcription, SolverOptions(jit=jit, solver=name, max_iter=max_iter))
+        timings["setup_s"] = timings.get("setup_s", 0.0) + time.perf_counter() - t1
+        solution, tried, won = solve_from_guesses(ocp_solver, guesses, workers=workers)
+        if solution is None:
+            solution, more = continuation(ocp_solver, guesses[0])
+            tried += more
+            won = more[-1].label if solution is not None else None
+        attempts += tuple(replace(a, solver=name) for a in tried)
+        if solution is not None:
+            break
+    if solution is None:   # report the first candidate's failure
+        solution = ocp_solver.solve(guesses[0])
+    timings["solve_s"] = time.perf_counter() - t0 - timings["setup_s"]
+    momentum = _momentum_problem(model, problem, the_plan, params)
+    solution = to_momentum_coordinates(solution, momentum)
     if verify:
+        t0 = time.perf_counter()
         solution = solution.verified()
-    solution = _with_settings(solution, {"system": system_name, "gait": gait, "attempts": [list(a) for a in attempts],
-                                         "specialised_model": fast.simplified, **timings})
-    files = []
+        timings["verify_s"] = time.perf_counter() - t0
+    solution = replace(solution, settings={**solution.settings, "system": the_plan.label,
+                                           "velocities": list(fast.velocities), "specialisation": fast.route,
+                                           "workers": workers, **{k: round(v, 6) for k, v in timings.items()}})
+    result = PlanResult(the_plan.label, the_plan.task.replace(intervals=problem.intervals), solution,
+                        won or "none", attempts, (), timings, the_plan, model)
     if out_dir is not None:
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        files.append(solution.to_json(out / "solution.json"))
-        files.extend(_write_figures(solution, out, system_name, animate))
-    return PlanResult(system_name, gait, solution, attempts, tuple(files), timings["derive_s"], timings)
+        result = replace(result, files=tuple(write_outputs(result, Path(out_dir), animate=animate)))
+    return result
+
+
+def _momentum_problem(model, problem, the_plan, params):
+    """The same statement on the derived (momentum-coordinate, unspecialised) model."""
+    return problem.replace(model=model, quantities=_quantity_objects(model, the_plan.scene), params=params)
 
 
 def to_momentum_coordinates(solution, momentum_problem):
-    """A velocity-coordinate solution re-expressed on ``momentum_problem`` (z = (q, P), P = K B⁻¹y).
+    """A velocity-coordinate solution re-expressed on ``momentum_problem`` (z = (q, P)).
 
     The statement is the same (tasks are coordinate-free); only the states change. Any
     verification is dropped: verify the returned solution in momentum coordinates.
     """
-    from dataclasses import replace
     model = solution.problem.model
+    if "momentum_state" not in model.numeric.functions:
+        return replace(solution, problem=momentum_problem, verification=None)
     to_p = model.numeric["momentum_state"]
     params = solution.problem.params
     states = np.column_stack([np.asarray(to_p(solution.states[:, k], params)).ravel()
@@ -456,26 +347,41 @@ def to_momentum_coordinates(solution, momentum_problem):
                    problem=momentum_problem, verification=None, settings=settings)
 
 
-def _with_settings(solution, extra):
-    from dataclasses import replace
-    return replace(solution, settings={**solution.settings, **extra})
-
-
-def _write_figures(solution, out: Path, system_name: str, animate: bool) -> list:
-    import matplotlib
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
+# ----------------------------------------------------------------------------- outputs
+def write_outputs(result: PlanResult, out: Path, *, animate: bool = True) -> list:
+    """solution.json (with ``task`` and ``guess``) and the figures; returns the paths."""
     from . import plots
-
-    files = []
-    for name, fn in (("path.png", plots.plot_path), ("shape.png", plots.plot_shape_loop),
-                     ("histories.png", plots.plot_histories), ("momentum.png", plots.plot_momentum)):
-        fig = fn(solution, system=system_name).figure
-        path = out / name
-        fig.savefig(path, dpi=110, bbox_inches="tight")
-        plt.close(fig)
-        files.append(path)
-    if animate:
-        from .animation import animate_solution
-        files.append(animate_solution(solution, out / "motion.gif", system=system_name))
+    out.mkdir(parents=True, exist_ok=True)
+    extra = {"task": result.task.to_dict(), "system": result.label,
+             "guess": {"won": result.guess, "tried": [a.__dict__ for a in result.attempts]}}
+    files = [result.solution.to_json(out / "solution.json", extra=extra)]
+    files.extend(plots.write_figures(result.solution, out, units=result.plan.units,
+                                     drawing=result.plan.drawing, model=result.model, animate=animate))
     return files
+
+
+def summary_lines(result: PlanResult) -> list:
+    """The lines ``nhgait plan`` prints."""
+    s = result.solution
+    v = s.verification
+    lines = [f"nhgait plan {result.label}: {'SUCCESS' if s.success else 'FAILED'} ({s.status})",
+             f"  objective          J = {s.objective:.6f}",
+             f"  iterations         {s.iterations}  (guess: {result.guess}; tried {len(result.attempts)})",
+             f"  solve time         {s.solve_time_s * 1e3:.1f} ms  (functions {s.function_time_s * 1e3:.1f} ms, "
+             f"solver {s.solver_time_s * 1e3:.1f} ms); set-up {s.setup_time_s * 1e3:.1f} ms"]
+    if v is not None:
+        lines.append(f"  verification       max state error {v.max_error:.2e}, conditions met to "
+                     f"{v.max_condition_error:.2e} (DOP853, rtol {v.rtol:g})")
+    else:
+        lines.append("  verification       not run")
+    st = s.settings
+    jit = "compiled" + (" (cached)" if st.get("jit_cached") else "") if st.get("jit") else "interpreted"
+    if st.get("jit_fallback"):
+        jit += f" (no compiled code: {st['jit_fallback']})"
+    lines.append(f"  N = {st.get('intervals')}, T = {s.horizon:.4f} s, {st.get('transcription')}, "
+                 f"{st.get('solver')}, {jit}, states ({', '.join(st.get('transcribed_in', s.state_names))})")
+    if result.files:
+        lines.append("  files:")
+        lines.extend(f"    {f}" for f in result.files)
+    return lines
+

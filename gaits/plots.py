@@ -1,17 +1,139 @@
-"""Plots of a planned gait. Every function takes an optional ``ax`` (or ``axes``), returns the
-axes it drew on, never calls ``plt.show()`` and never changes ``rcParams``.
+"""Plots of a planned gait for any system. Every function takes an optional ``ax`` (or
+``axes``), returns what it drew on, never calls ``plt.show()`` and never changes ``rcParams``.
 
-* :func:`plot_path` — x–y path with the body (snakeboard: board and wheels; unicycle: wheel)
-  drawn at intervals;
-* :func:`plot_shape_loop` — the shape loop φ vs ψ (snakeboard) or θ vs φ (unicycle);
-* :func:`plot_histories` — shape coordinates and controls over time;
-* :func:`plot_momentum` — the momenta (p, p̃) over time.
+* :func:`plot_path` — the fiber path: the planar frame's point in the x–y plane with the body
+  drawn at a few instants (from the scene's ``[drawing]``, else the point and an arrow along
+  the heading); without a planar frame, the first two fiber coordinates;
+* :func:`plot_shape_loop` — the loop in shape space: one shape variable r against ṙ, two
+  against each other, more as parallel coordinates;
+* :func:`plot_histories` — shape coordinates and the inputs (one panel per input unit);
+* :func:`plot_momentum` — the reduced momenta, one panel each, named with their meaning.
+
+Names and units come from the system and the scene's ``[units]`` (``tau = "N*m"``);
+coordinates default to rad when they appear inside a trigonometric function of the model,
+else m, and the planar frame's position is in m.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+from pathlib import Path
+
 import numpy as np
 
-__all__ = ["plot_path", "plot_shape_loop", "plot_histories", "plot_momentum", "body_outline"]
+__all__ = ["plot_path", "plot_shape_loop", "plot_histories", "plot_momentum", "write_figures",
+           "FigureContext", "figure_context", "label", "unit"]
+
+_GREEK = {g: c for g, c in zip(
+    ("alpha", "beta", "gamma", "delta", "epsilon", "zeta", "eta", "theta", "iota", "kappa", "lambda",
+     "mu", "nu", "xi", "pi", "rho", "sigma", "tau", "upsilon", "phi", "chi", "psi", "omega"),
+    "αβγδεζηθικλμνξπρστυφχψω")}
+
+
+def label(name: str) -> str:
+    """A readable label: Greek letter names as letters, ``pt_x`` as p̃_x, ``x_dot`` as ẋ."""
+    if name.startswith("pt_"):
+        return "p̃_" + label(name[3:])
+    if name.endswith("_dot"):
+        return label(name[:-4]) + "\u0307"
+    parts = name.split("_")
+    return "_".join(_GREEK.get(p, p) for p in parts)
+
+
+def _pretty_unit(u: str) -> str:
+    return u.replace("**2", "²").replace("^2", "²").replace("*", "·")
+
+
+@dataclass(frozen=True, eq=False)
+class FigureContext:
+    """What the plots need to know about the system beyond the solution."""
+
+    system: object
+    units: dict
+    drawing: object          # Drawing or None
+    frame: tuple | None
+    fiber: tuple
+    shape: tuple
+    model: object = None
+
+    def unit(self, name: str) -> str:
+        return unit(self, name)
+
+
+def _is_angle(system, name) -> bool:
+    """Does coordinate ``name`` appear inside a trigonometric function of L, ω or τ?"""
+    sym = system.q[tuple(system.coordinates).index(name)]
+    trig = ("sin", "cos", "tan", "cot", "sec", "csc")
+    for e in (system.L, *system.constraint_exprs, *system.tau):
+        for call in e.find(lambda x: getattr(getattr(x, "func", None), "__name__", "") in trig):
+            if sym in call.free_symbols:
+                return True
+    return False
+
+
+def _input_unit(system, name) -> str:
+    """N·m for an input acting on angles only, N when it acts on a length (a guess; the
+    scene's [units] decide)."""
+    coords = tuple(system.coordinates)
+    syms = [s for s in system.input_symbols if s.name == name]
+    if not syms:
+        return ""
+    on = [c for c, f in zip(coords, system.tau) if syms[0] in getattr(f, "free_symbols", ())]
+    if on and all(_is_angle(system, c) and not _is_frame_position(system, c) for c in on):
+        return "N·m"
+    return "N" if on else ""
+
+
+def _is_frame_position(system, name) -> bool:
+    frame = getattr(system, "planar_frame", None)
+    return bool(frame) and name in tuple(frame)[:2]
+
+
+def unit(ctx: FigureContext, name: str) -> str:
+    """The unit of a coordinate, velocity, input or quantity (scene's [units] first)."""
+    if name in ctx.units:
+        return _pretty_unit(ctx.units[name])
+    system = ctx.system
+    coords = tuple(system.coordinates)
+    if name in coords:
+        return _coordinate_unit(ctx, name)
+    if name.endswith("_dot") and name[:-4] in coords:
+        return unit(ctx, name[:-4]) + "/s"
+    if name in ("forward_velocity", "lateral_velocity"):
+        return "m/s"
+    if name in tuple(system.inputs):
+        return _input_unit(system, name)
+    if name.startswith("pt_") and name[3:] in coords:
+        return "N·m·s" if unit(ctx, name[3:]) == "rad" else "N·s"
+    return ""
+
+
+def _coordinate_unit(ctx, name) -> str:
+    """m for the planar frame's position; rad for a coordinate named by a Greek letter, inside a
+    trigonometric function, or driven by an input in N·m; else m (the scene's [units] decide)."""
+    system = ctx.system
+    if _is_frame_position(system, name):
+        return "m"
+    if name.split("_")[0] in _GREEK or _is_angle(system, name):
+        return "rad"
+    i = tuple(system.coordinates).index(name)
+    driving = [s.name for s in getattr(system.tau[i], "free_symbols", ()) if s.name in tuple(system.inputs)]
+    if driving and all(_pretty_unit(ctx.units.get(u, "")) == "N·m" for u in driving):
+        return "rad"
+    return "m"
+
+
+def _with_unit(ctx, name) -> str:
+    u = unit(ctx, name)
+    return f"{label(name)} [{u}]" if u else label(name)
+
+
+def figure_context(solution, model, units=None, drawing=None) -> FigureContext:
+    from .drawing import default_frame, parse_drawing
+    system = model.system
+    parsed = parse_drawing(drawing, system) if drawing is not None else None
+    frame = parsed.frame if parsed is not None else default_frame(system)
+    return FigureContext(system, dict(units or {}), parsed, frame, tuple(getattr(model, "fiber", ())),
+                         tuple(getattr(model, "shape", ())), model)
 
 
 def _axes(ax, **kw):
@@ -21,119 +143,221 @@ def _axes(ax, **kw):
     return ax
 
 
-def _half_length(solution) -> float:
-    problem = solution.problem
-    names = getattr(problem.model.numeric, "param_names", ()) if problem is not None else ()
-    if "r" in names:
-        return float(problem.params[list(names).index("r")])
-    return 0.1
+def _series(solution, name):
+    return solution.states[list(solution.state_names).index(name)]
 
 
-def body_outline(solution, k: int, system: str | None = None):
-    """Line segments [(xs, ys), ...] of the body at node k."""
-    names = solution.state_names
-    x, y, th = (solution.states[names.index(n), k] for n in ("x", "y", "theta"))
-    r = _half_length(solution)
-    c, s = np.cos(th), np.sin(th)
-    if "psi" in names:  # snakeboard: board of length 2r, wheels at ±r steered by ∓phi / ±phi
-        phi = solution.states[names.index("phi"), k]
-        segs = [([x - r * c, x + r * c], [y - r * s, y + r * s])]
-        w = 0.25 * r
-        for sign in (1.0, -1.0):
-            cx, cy = x + sign * r * c, y + sign * r * s
-            a = th + sign * phi
-            segs.append(([cx - w * np.cos(a), cx + w * np.cos(a)], [cy - w * np.sin(a), cy + w * np.sin(a)]))
-        return segs
-    w = max(r, 0.05)   # unicycle: the wheel seen from above, a segment along the heading
-    return [([x - w * c, x + w * c], [y - w * s, y + w * s])]
+def _q(solution, k):
+    n = len(solution.problem.model.system.coordinates)
+    return solution.states[:n, k]
 
 
-_GREEK = {"psi": "ψ", "phi": "φ", "theta": "θ", "tau_psi": "τ_ψ", "tau_phi": "τ_φ",
-          "tau_theta": "τ_θ", "p": "p", "pt_psi": "p̃_ψ", "pt_phi": "p̃_φ", "pt_theta": "p̃_θ"}
+# ----------------------------------------------------------------------------- path
+def body_segments(solution, ctx, k) -> list:
+    """Segments [(xs, ys), …] of the body at node k (drawing, or point + heading arrow)."""
+    if ctx.drawing is not None:
+        return ctx.drawing.segments(_q(solution, k), solution.problem.params)
+    x, y, th = (_series(solution, c)[k] for c in ctx.frame)
+    size = _scale(solution, ctx)
+    return [([x, x + 0.15 * size * np.cos(th)], [y, y + 0.15 * size * np.sin(th)])]
 
 
-def _label(name: str) -> str:
-    return _GREEK.get(name, name)
+def _scale(solution, ctx) -> float:
+    x, y = _series(solution, ctx.frame[0]), _series(solution, ctx.frame[1])
+    return max(float(np.ptp(x)), float(np.ptp(y)), 0.2)
 
 
-def plot_path(solution, ax=None, *, system=None, bodies: int = 7):
-    """x–y path of the body's reference point with the body drawn at ``bodies`` evenly spaced
-    nodes (earlier poses lighter), true to scale."""
-    ax = _axes(ax, figsize=(7, 4.5))
-    names = solution.state_names
-    x, y = solution.states[names.index("x")], solution.states[names.index("y")]
+def plot_path(solution, ctx: FigureContext, ax=None, *, bodies: int = 7):
+    """The fiber path (see the module docstring), true to scale, with a legend."""
+    ax = _axes(ax, figsize=(7, 4.8))
+    if ctx.frame is None:
+        return _plot_fiber(solution, ctx, ax)
+    fx, fy, fh = ctx.frame
+    x, y = _series(solution, fx), _series(solution, fy)
     nodes = np.linspace(0, len(x) - 1, bodies).round().astype(int)
+    t = solution.t
     for j, k in enumerate(nodes):
-        alpha = 0.25 + 0.6 * j / max(1, len(nodes) - 1)
-        for i, (xs, ys) in enumerate(body_outline(solution, k, system)):
-            if i == 0:
-                ax.plot(xs, ys, "-", color="0.45", lw=3.0, alpha=alpha, solid_capstyle="round", zorder=1)
-            else:
-                ax.plot(xs, ys, "-", color="k", lw=2.0, alpha=alpha, zorder=2)
-    ax.plot(x, y, "-", color="C0", lw=2.5, label="path of the centre", zorder=3)
-    ax.plot(x[0], y[0], "o", color="C2", ms=8, label="start", zorder=4)
-    ax.plot(x[-1], y[-1], "s", color="C3", ms=8, label="end", zorder=4)
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
+        alpha = 0.25 + 0.65 * j / max(1, len(nodes) - 1)
+        for i, (xs, ys) in enumerate(body_segments(solution, ctx, k)):
+            lw = ctx.drawing.widths[i] if ctx.drawing is not None else 2.0
+            lab = None
+            if j == len(nodes) - 1 and i == 0:
+                lab = (f"body at {bodies} instants t = 0 … {t[-1]:.3g} s (lighter = earlier)"
+                       if ctx.drawing is not None else f"heading {label(fh)} at {bodies} instants (lighter = earlier)")
+            ax.plot(xs, ys, "-", color="0.3", lw=lw, alpha=alpha, solid_capstyle="round", zorder=1, label=lab)
+    ax.plot(x, y, "-", color="C0", lw=2.0, label=f"path of the frame point ({label(fx)}, {label(fy)})", zorder=3)
+    ax.plot(x[0], y[0], "o", color="C2", ms=8, label="start (t = 0)", zorder=4)
+    ax.plot(x[-1], y[-1], "s", color="C3", ms=8, label=f"end (t = {t[-1]:.3g} s)", zorder=4)
+    ax.set_xlabel(_with_unit(ctx, fx))
+    ax.set_ylabel(_with_unit(ctx, fy))
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize="small")
-    ax.set_title(f"x–y path (body drawn at {bodies} instants, to scale)")
+    ax.set_title("path in the plane (to scale)")
     return ax
 
 
-def plot_shape_loop(solution, ax=None, *, system=None):
-    """The closed curve traced in shape space, with its start and direction."""
-    ax = _axes(ax, figsize=(5, 4.5))
-    names = solution.state_names
-    a, b = ("psi", "phi") if "psi" in names else ("phi", "theta")
-    u, v = solution.states[names.index(a)], solution.states[names.index(b)]
-    ax.plot(u, v, "-", color="C0", lw=2)
-    ax.plot(u[0], v[0], "o", color="C2", ms=7, label="start")
-    k = len(u) // 8
-    if k > 0:
+def _plot_fiber(solution, ctx, ax):
+    fiber = [c for c in ctx.fiber if c in solution.state_names] or list(solution.state_names[:1])
+    if len(fiber) >= 2:
+        a, b = _series(solution, fiber[0]), _series(solution, fiber[1])
+        ax.plot(a, b, "-", color="C0", lw=2, label="fiber path")
+        ax.plot(a[0], b[0], "o", color="C2", label="start (t = 0)")
+        ax.plot(a[-1], b[-1], "s", color="C3", label=f"end (t = {solution.t[-1]:.3g} s)")
+        ax.set_xlabel(_with_unit(ctx, fiber[0]))
+        ax.set_ylabel(_with_unit(ctx, fiber[1]))
+    else:
+        ax.plot(solution.t, _series(solution, fiber[0]), "-", color="C0", lw=2, label=label(fiber[0]))
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel(_with_unit(ctx, fiber[0]))
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="small")
+    ax.set_title("fiber path")
+    return ax
+
+
+# ----------------------------------------------------------------------------- shape
+def plot_shape_loop(solution, ctx: FigureContext, ax=None):
+    """The closed curve in shape space, with its start and direction of motion."""
+    ax = _axes(ax, figsize=(5.2, 4.6))
+    shape = [c for c in ctx.shape if c in solution.state_names]
+    if len(shape) >= 3:
+        return _parallel_coordinates(solution, ctx, shape, ax)
+    if len(shape) == 2:
+        a, b = shape
+        u, v = _series(solution, a), _series(solution, b)
+        xl, yl = _with_unit(ctx, a), _with_unit(ctx, b)
+        title = "shape loop"
+    else:
+        a = shape[0] if shape else solution.state_names[0]
+        u = _series(solution, a)
+        v = np.asarray(solution.velocities())[list(ctx.system.coordinates).index(a)]
+        xl, yl = _with_unit(ctx, a), _with_unit(ctx, f"{a}_dot")
+        title = f"shape motion: {label(a)} against its rate"
+    ax.plot(u, v, "-", color="C0", lw=2, label="shape trajectory")
+    ax.plot(u[0], v[0], "o", color="C2", ms=7, label="start (t = 0)")
+    k = max(1, len(u) // 8)
+    if k + 1 < len(u):
         ax.annotate("", xy=(u[k + 1], v[k + 1]), xytext=(u[k], v[k]),
                     arrowprops=dict(arrowstyle="->", color="C0", lw=2))
-    ax.set_xlabel(f"{_label(a)} [rad]")
-    ax.set_ylabel(f"{_label(b)} [rad]")
+        ax.plot([], [], marker=r"$\rightarrow$", ls="", color="C0", label="direction of motion")
+    ax.set_xlabel(xl)
+    ax.set_ylabel(yl)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize="small")
-    ax.set_title("shape loop")
+    ax.set_title(title)
     return ax
 
 
-def plot_histories(solution, axes=None, *, system=None):
-    """Shape coordinates (top) and piecewise-constant controls (bottom) over time."""
+def _parallel_coordinates(solution, ctx, shape, ax):
+    """One vertical axis per shape variable; each node a polyline coloured by time."""
+    import matplotlib.cm as cm
+    data = np.vstack([_series(solution, c) for c in shape])
+    lo, hi = data.min(axis=1, keepdims=True), data.max(axis=1, keepdims=True)
+    scaled = (data - lo) / np.where(hi > lo, hi - lo, 1.0)
+    colors = cm.viridis(np.linspace(0, 1, data.shape[1]))
+    for k in range(data.shape[1]):
+        ax.plot(range(len(shape)), scaled[:, k], "-", color=colors[k], lw=0.8, alpha=0.7)
+    ax.set_xticks(range(len(shape)))
+    ax.set_xticklabels([f"{_with_unit(ctx, c)}\n[{lo[i, 0]:.2g}, {hi[i, 0]:.2g}]" for i, c in enumerate(shape)])
+    ax.set_ylabel("value scaled to its range [min, max] (1 = max)")
+    ax.plot([], [], color=colors[0], label="t = 0")
+    ax.plot([], [], color=colors[-1], label=f"t = {solution.t[-1]:.3g} s")
+    ax.legend(fontsize="small")
+    ax.set_title("shape motion (parallel coordinates)")
+    return ax
+
+
+# ----------------------------------------------------------------------------- histories
+def plot_histories(solution, ctx: FigureContext, axes=None):
+    """Shape coordinates (top) and the inputs, one panel per input unit; returns the axes."""
+    units = []
+    for n in solution.control_names:
+        u = unit(ctx, n)
+        if u not in units:
+            units.append(u)
     if axes is None:
         import matplotlib.pyplot as plt
-        _, axes = plt.subplots(2, 1, sharex=True, figsize=(7, 5))
-    names = solution.state_names
-    for n in ("psi", "phi", "theta"):
-        if n in names and not (n == "theta" and "psi" in names):
-            axes[0].plot(solution.t, solution.states[names.index(n)], lw=2, label=_label(n))
-    axes[0].set_ylabel("shape angle [rad]")
-    axes[0].grid(True, alpha=0.3)
+        _, axes = plt.subplots(1 + len(units), 1, sharex=True, figsize=(7, 2.4 * (1 + len(units))))
+    axes = list(np.atleast_1d(axes))
+    shape = [c for c in ctx.shape if c in solution.state_names] or list(ctx.system.coordinates)
+    shape_units = sorted({unit(ctx, c) for c in shape})
+    for c in shape:
+        axes[0].plot(solution.t, _series(solution, c), lw=2, label=_with_unit(ctx, c))
+    axes[0].set_ylabel(f"shape [{', '.join(u for u in shape_units if u)}]")
     axes[0].legend(fontsize="small")
-    for i, n in enumerate(solution.control_names):
-        axes[1].step(solution.t, np.append(solution.controls[i], solution.controls[i, -1]), where="post",
-                     lw=1.5, label=_label(n))
-    axes[1].set_ylabel("torque [N·m]")
-    axes[1].set_xlabel("t [s]")
-    axes[1].grid(True, alpha=0.3)
-    axes[1].legend(fontsize="small")
-    axes[0].set_title("shape and controls (piecewise constant)")
-    return axes[0]
+    axes[0].set_title("shape coordinates and inputs (inputs constant on each interval)")
+    for ax, u in zip(axes[1:], units):
+        for i, n in enumerate(solution.control_names):
+            if unit(ctx, n) == u:
+                ax.step(solution.t, np.append(solution.controls[i], solution.controls[i, -1]), where="post",
+                        lw=1.5, label=_with_unit(ctx, n))
+        ax.set_ylabel(f"input [{u}]" if u else "input")
+        ax.legend(fontsize="small")
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+    axes[-1].set_xlabel("t [s]")
+    return axes
 
 
-def plot_momentum(solution, ax=None, *, system=None):
-    """The momenta (nonholonomic p and shape p̃) over time."""
-    ax = _axes(ax, figsize=(7, 3.5))
-    n_q = len(solution.problem.model.system.coordinates) if solution.problem is not None else 0
-    for i, n in enumerate(solution.state_names[n_q:], start=n_q):
-        ax.plot(solution.t, solution.states[i], lw=2, label=_label(n))
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("momentum [SI]")
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize="small")
-    ax.set_title("reduced momenta")
-    return ax
+def plot_momentum(solution, ctx: FigureContext, axes=None):
+    """The reduced momenta over time, one panel each, with their meaning and unit."""
+    n = len(ctx.system.coordinates)
+    names = list(solution.state_names[n:])
+    if axes is None:
+        import matplotlib.pyplot as plt
+        _, axes = plt.subplots(len(names), 1, sharex=True, figsize=(7, 1.9 * max(1, len(names))))
+    axes = list(np.atleast_1d(axes))
+    for ax, name in zip(axes, names):
+        ax.plot(solution.t, _series(solution, name), lw=2, color="C0")
+        if name.startswith("pt_"):
+            ax.set_ylabel(f"{label(name)} [{unit(ctx, name)}]")
+            ax.set_title(f"{label(name)}: shape momentum conjugate to {label(name[3:])}", fontsize="small")
+        else:
+            u = _basis_momentum_unit(ctx, names.index(name))
+            ax.set_ylabel(f"{label(name)} [{u}]" if u else f"{label(name)} [unit of XᵀMq̇]")
+            ax.set_title(f"{label(name)}: nonholonomic momentum P = XᵀM q̇ along the constraint-adapted "
+                         "basis X", fontsize="small")
+        ax.grid(True, alpha=0.3)
+    axes[-1].set_xlabel("t [s]")
+    return axes
+
+
+def _basis_momentum_unit(ctx, j) -> str:
+    """Unit of the j-th momentum P_j = Σ_i X_ij (∂L/∂q̇_i): the unit of the momentum conjugate to a
+    coordinate q_i whose basis entry X_ij is a pure number (no parameter in it); "" if none is."""
+    X = getattr(ctx.model, "X", None)
+    if X is None:
+        return ""
+    params = set(ctx.system.param_symbols)
+    coords = tuple(ctx.system.coordinates)
+    for i, c in enumerate(coords):
+        entry = X[i, j]
+        if entry != 0 and not (entry.free_symbols & params):
+            return "N·m·s" if _coordinate_unit(ctx, c) == "rad" else "N·s"
+    return ""
+
+
+# ----------------------------------------------------------------------------- files
+def write_figures(solution, out: Path, *, units=None, drawing=None, model=None, animate=True) -> list:
+    """path.png, shape.png, histories.png, momentum.png (and motion.gif) in ``out``."""
+    from matplotlib.figure import Figure
+
+    model = model if model is not None else solution.problem.model
+    ctx = figure_context(solution, model, units, drawing)
+    n_units = len({unit(ctx, c) for c in solution.control_names})
+    n_mom = max(1, len(solution.state_names) - len(ctx.system.coordinates))
+    layouts = (("path.png", plot_path, (7, 4.8), 1), ("shape.png", plot_shape_loop, (5.2, 4.6), 1),
+               ("histories.png", plot_histories, (7, 2.4 * (1 + n_units)), 1 + n_units),
+               ("momentum.png", plot_momentum, (7, 1.9 * n_mom), n_mom))
+    files = []
+    for name, fn, size, rows in layouts:
+        fig = Figure(figsize=size)          # no pyplot state: nothing global is touched
+        axes = fig.subplots(rows, 1, sharex=rows > 1, squeeze=False)[:, 0]
+        fn(solution, ctx, axes[0] if rows == 1 else axes)
+        fig.savefig(out / name, dpi=110, bbox_inches="tight")
+        files.append(out / name)
+    if animate:
+        from .animation import animate_solution
+        files.append(animate_solution(solution, ctx, out / "motion.gif"))
+    return files

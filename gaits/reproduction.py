@@ -176,8 +176,18 @@ def write_figures(name, case, out_dir, references=None) -> list:
     return paths
 
 
+def write_csv(name, case, out_dir, columns) -> list:
+    """Each run of ``case`` as ``<name>_<run label>.csv`` (``/`` in a label becomes ``-``)."""
+    files = []
+    for label, trajectory in case["runs"].items():
+        path = Path(out_dir) / f"{name}_{label.replace('/', '-')}.csv"
+        trajectory.to_csv(path, columns=columns)
+        files.append(str(path))
+    return files
+
+
 def reproduce(out_dir, *, rtol=1e-10, formulations=FORMULATIONS, idas=True, reference=None,
-              figures=True) -> dict:
+              figures=True, columns=None) -> dict:
     """Run both thesis cases, write ``summary.json`` and the figures into ``out_dir``.
 
     Parameters
@@ -191,6 +201,8 @@ def reproduce(out_dir, *, rtol=1e-10, formulations=FORMULATIONS, idas=True, refe
         added to the comparison (``info``, e.g. wall time, goes into the summary) and drawn as
         the figures' reference.
     figures : write the PNG figures.
+    columns : None, or "q" / "qdot" / "all": also write every run as ``<case>_<run>.csv`` with
+        those columns (:meth:`~nhgait.dynamics.simulation.Trajectory.to_csv`).
 
     Returns
     -------
@@ -210,6 +222,8 @@ def reproduce(out_dir, *, rtol=1e-10, formulations=FORMULATIONS, idas=True, refe
         summary[name] = summarize(case, references)
         if figures:
             summary[name]["figures"] = write_figures(name, case, out_dir, references)
+        if columns is not None:
+            summary[name]["csv"] = write_csv(name, case, out_dir, columns)
     with open(out_dir / "summary.json", "w") as fh:
         json.dump(summary, fh, indent=2)
     return summary

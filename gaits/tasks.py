@@ -1,136 +1,168 @@
-"""A catalogue of gait tasks: small plug-ins, registry name → factory.
+"""Where a plan's system and task come from: scene files, the built-in task library, overrides.
 
-A task factory takes the (specialised) model and the user's options and returns an
-:class:`~nhgait.ocp.OptimalControlProblem`. Add one with :func:`register`; the planner and
-``nhgait plan --gait NAME`` find it by (system, name).
+The built-in gait tasks are data, in the same ``[task]`` format a user writes
+(``gaits/library/<scene>.toml``: ``scene = "<built-in scene>"``, optional ``[units]`` and
+``[drawing]`` for the plots, and one ``[tasks.<name>]`` table per task):
 
-Benchmark defaults (controls piecewise constant, J = ∫ |u|² dt, RK4 with 4 sub-steps):
+* unicycle ``parallel-park`` (P1), snakeboard ``forward`` (P2), ``rotate`` (P3), ``lateral`` (P4).
 
-* unicycle ``parallel-park`` (P1): T = 4, z(0) = 0 (x, y, θ, φ at 0 and at rest), end
-  x = 0, y = ``distance`` (0.5), θ = 0, θ̇ = φ̇ = 0 (momenta p = p̃_θ = 0), φ free; |τ| ≤ 5.
-* snakeboard ``forward`` (P2): T = ``period`` (2π); start x = y = θ = ψ = 0 and the board at
-  rest (forward body velocity ``forward_velocity`` = ẋ cos θ + ẏ sin θ = 0, through q̇(z));
-  end x = ``distance`` (1.0), θ = 0, y free; |φ| ≤ 1 at the nodes, |τ| ≤ 10.
-* snakeboard ``rotate`` (P3): as forward, end x = y = 0, θ = ``angle`` (π/2).
-* snakeboard ``lateral`` (P4): as forward, end x = 0, θ = 0, y = ``distance`` (0.5; a
-  sideways shift of half a board length r ≈ 1.18 — large enough to need a real gait, small
-  enough for one period).
-
-Statements are coordinate-free: they name configuration coordinates and velocity quantities
-(``<coordinate>_dot``, ``forward_velocity``), never the momenta, so a task is the same problem
-on the momentum model and on a velocity-coordinate model. Each task also names the velocity
-quantities the planner uses as states (``velocities``, see :func:`~nhgait.gaits.planner.specialise`):
-the snakeboard's (v, ψ̇, φ̇) with v the forward body velocity, the unicycle's (φ̇, θ̇). In those
-coordinates every boundary condition and periodicity condition is a bound on a state or a
-linear row, as in the hand-written reference, and Ipopt needs its iteration counts.
-
-Periodicity (snakeboard): the benchmark asks for ψ, φ, v, ψ̇, φ̇ periodic with v the forward
-body velocity and v(0) = 0, i.e. ψ, φ, ψ̇, φ̇ periodic and v(T) = v(0) = 0. (In momentum
-coordinates p̃_ψ, p̃_φ periodic is the same feasible set given φ and v periodic.)
+:func:`resolve` turns what the user gave — a scene (file, built-in name, :class:`Scene` or
+:class:`System`), a task (None for the scene's own ``[task]``, a gait name of the library, a
+``[task]`` dict or a :class:`~nhgait.gaits.task.Task`) and ``--set`` overrides — into one
+:class:`Plan`: the scene and the parsed task. Built-ins and users share this one path.
 """
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
-from typing import Callable
+from dataclasses import dataclass, field
+from importlib import resources
+from typing import Any, Mapping
 
-from nhgait.ocp import OptimalControlProblem, ProblemError
+from nhgait.ocp import ProblemError
 
-__all__ = ["GaitTask", "register", "get_task", "TASKS", "build_problem"]
+from .task import Task, apply_overrides, parse_task
 
+__all__ = ["Plan", "resolve", "library", "library_tasks", "get_task", "TASKS"]
 
-@dataclass(frozen=True)
-class GaitTask:
-    """One gait task: its system, name, defaults and problem factory."""
-
-    system: str
-    name: str
-    factory: Callable
-    description: str
-    defaults: dict
-    guess_family: str
-    velocities: tuple = ()      # velocity quantities used as states by the planner
-
-    def problem(self, model, *, distance=None, angle=None, period=None, intervals=50) -> OptimalControlProblem:
-        opts = dict(self.defaults)
-        for key, value in (("distance", distance), ("angle", angle), ("period", period)):
-            if value is not None:
-                opts[key] = float(value)
-        problem = self.factory(model, intervals=intervals, **opts)
-        return problem.replace(name=f"{self.system}/{self.name}")
+LIBRARY_KEYS = {"scene", "units", "drawing", "tasks"}
 
 
-TASKS: dict = {}
+@dataclass(frozen=True, eq=False)
+class Plan:
+    """A system and a task to plan.
+
+    Attributes
+    ----------
+    scene : the :class:`~nhgait.dynamics.scene.Scene` (system, quantities, units, drawing).
+    task : the parsed :class:`~nhgait.gaits.task.Task`.
+    label : "<system>/<task>" for reports and file headers.
+    units, drawing : the scene's tables merged over the library's (for built-ins).
+    """
+
+    scene: Any
+    task: Task
+    label: str
+    units: Mapping = field(default_factory=dict)
+    drawing: Mapping | None = None
+
+    @property
+    def system(self):
+        return self.scene.system
 
 
-def register(system: str, name: str, *, description: str, defaults: dict, guess_family: str,
-             velocities: tuple = ()):
-    """Decorator: register ``factory(model, *, intervals, distance, angle, period)``."""
-    def deco(factory):
-        TASKS[(system, name)] = GaitTask(system, name, factory, description, dict(defaults), guess_family,
-                                         tuple(velocities))
-        return factory
-    return deco
-
-
-def get_task(system: str, name: str) -> GaitTask:
+def _read_toml(text: str, source: str) -> dict:
     try:
-        return TASKS[(system, name)]
-    except KeyError:
-        known = ", ".join(f"{s} {n}" for s, n in sorted(TASKS))
-        raise ProblemError([f"unknown gait {name!r} for system {system!r} (known: {known})"],
-                           title="invalid gait task") from None
+        import tomllib
+    except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+        import tomli as tomllib
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ProblemError([f"TOML syntax error: {exc}"], title=f"invalid task file {source}") from None
 
 
-def build_problem(model, system: str, gait: str, **options) -> OptimalControlProblem:
-    return get_task(system, gait).problem(model, **options)
+def library(scene_name: str) -> dict | None:
+    """The library entry of a built-in scene (dict with scene, units, drawing, tasks) or None."""
+    name = str(scene_name).replace("-", "_")
+    try:
+        text = resources.files("nhgait.gaits").joinpath("library", f"{name}.toml").read_text()
+    except (FileNotFoundError, OSError):
+        return None
+    data = _read_toml(text, f"built-in task library {name}")
+    unknown = set(data) - LIBRARY_KEYS
+    tasks = data.get("tasks", {})
+    if unknown or not isinstance(tasks, dict):  # pragma: no cover - guards the shipped data
+        raise ProblemError([f"unknown key(s) {sorted(unknown)} or bad [tasks]"], title=f"invalid library {name}")
+    return data
 
 
-# ----------------------------------------------------------------------------- unicycle
-UNICYCLE_VELOCITIES = ("phi_dot", "theta_dot")
-SNAKEBOARD_VELOCITIES = ("forward_velocity", "psi_dot", "phi_dot")
+def _library_names() -> list:
+    folder = resources.files("nhgait.gaits").joinpath("library")
+    return sorted(f.name[:-5] for f in folder.iterdir() if f.name.endswith(".toml"))
 
 
-@register("unicycle", "parallel-park", guess_family="unicycle-park", velocities=UNICYCLE_VELOCITIES,
-          description="P1: shift sideways by `distance` and end at rest with the same heading",
-          defaults={"distance": 0.5, "angle": 0.0, "period": 4.0})
-def parallel_park(model, *, intervals, distance, angle, period):
-    rest = {"phi_dot": 0.0, "theta_dot": 0.0}
-    return OptimalControlProblem(
-        model, horizon=period, intervals=intervals,
-        initial={"x": 0.0, "y": 0.0, "theta": 0.0, "phi": 0.0, **rest},
-        final={"x": 0.0, "y": distance, "theta": angle, **rest},
-        control_bounds=5.0)
+def library_tasks() -> dict:
+    """(scene, task name) → the raw ``[tasks.<name>]`` table, for every built-in task."""
+    out = {}
+    for name in _library_names():
+        for task_name, table in library(name).get("tasks", {}).items():
+            out[(name, task_name)] = table
+    return out
 
 
-# ----------------------------------------------------------------------------- snakeboard
-def _snakeboard(model, *, intervals, period, final):
-    return OptimalControlProblem(
-        model, horizon=period, intervals=intervals,
-        initial={"x": 0.0, "y": 0.0, "theta": 0.0, "psi": 0.0, "forward_velocity": 0.0},
-        final={**final, "forward_velocity": 0.0},
-        periodic=("psi", "phi", "psi_dot", "phi_dot"),
-        state_bounds={"phi": (-1.0, 1.0)}, control_bounds=10.0)
+TASKS = tuple(sorted(library_tasks()))
 
 
-@register("snakeboard", "forward", guess_family="drive", velocities=SNAKEBOARD_VELOCITIES,
-          description="P2: move `distance` forward in one period, start and end at rest",
-          defaults={"distance": 1.0, "angle": 0.0, "period": 2 * math.pi})
-def forward(model, *, intervals, distance, angle, period):
-    return _snakeboard(model, intervals=intervals, period=period, final={"x": distance, "theta": angle})
+def get_task(scene_name: str, name: str) -> Task:
+    """The built-in task ``name`` of ``scene_name`` (ProblemError listing the known ones)."""
+    data = library(scene_name)
+    tasks = (data or {}).get("tasks", {})
+    if name not in tasks:
+        known = ", ".join(f"{s} {n}" for s, n in TASKS)
+        raise ProblemError([f"unknown gait {name!r} for system {scene_name!r} (known: {known}; a scene "
+                            "file plans its own [task])"], title="invalid gait task")
+    return parse_task({"name": name, **tasks[name]}, where=f"[tasks.{name}]")
 
 
-@register("snakeboard", "rotate", guess_family="rotate", velocities=SNAKEBOARD_VELOCITIES,
-          description="P3: turn by `angle` on the spot in one period",
-          defaults={"distance": 0.0, "angle": math.pi / 2, "period": 2 * math.pi})
-def rotate(model, *, intervals, distance, angle, period):
-    return _snakeboard(model, intervals=intervals, period=period,
-                       final={"x": distance, "y": 0.0, "theta": angle})
+def _load_scene(system):
+    from nhgait.dynamics.scene import Scene, load_scene
+    from nhgait.dynamics.system import System
+    if isinstance(system, Scene):
+        return system
+    if isinstance(system, System):
+        return Scene(system=system, simulation=None, source=system.name)
+    return load_scene(system)
 
 
-@register("snakeboard", "lateral", guess_family="park", velocities=SNAKEBOARD_VELOCITIES,
-          description="P4: shift sideways by `distance` (x(T) = 0, θ(T) = 0) in one period",
-          defaults={"distance": 0.5, "angle": 0.0, "period": 2 * math.pi})
-def lateral(model, *, intervals, distance, angle, period):
-    return _snakeboard(model, intervals=intervals, period=period,
-                       final={"x": 0.0, "y": distance, "theta": angle})
+def _scene_name(scene) -> str:
+    source = str(scene.source)
+    if source.startswith("built-in scene "):
+        return source[len("built-in scene "):]
+    return scene.system.name
+
+
+def resolve(system, task=None, *, overrides=()) -> Plan:
+    """The :class:`Plan` for ``system`` and ``task`` (see the module docstring).
+
+    Parameters
+    ----------
+    system : scene file path, built-in scene name, Scene or System
+    task : None (the scene's ``[task]``), a library gait name (str), a ``[task]`` dict or a Task
+    overrides : ``key.sub=value`` strings applied to the task table (``nhgait plan --set``)
+    """
+    scene = _load_scene(system)
+    name = _scene_name(scene)
+    lib = library(name) if str(scene.source).startswith("built-in scene ") else None
+    units = {**((lib or {}).get("units", {})), **dict(scene.units or {})}
+    drawing = scene.drawing if scene.drawing is not None else (lib or {}).get("drawing")
+    check = {"system": scene.system, "quantities": scene.quantities}
+    if isinstance(task, Task):
+        task = parse_task(apply_overrides(task.to_dict(), overrides), **check)
+        return Plan(scene, task, f"{name}/{task.name}", units, drawing)
+    if isinstance(task, str):
+        tasks = (lib or {}).get("tasks", {})
+        if task not in tasks:
+            get_task(name, task)      # raises with the list of known gaits
+        table, where = {"name": task, **tasks[task]}, f"[tasks.{task}]"
+    elif task is None:
+        if scene.task is None:
+            known = [n for s, n in TASKS if s == name]
+            hint = (f" or choose a built-in gait with --gait ({', '.join(known)})" if known else "")
+            raise ProblemError([f"{scene.source} has no [task] table: add one (docs/gait-planning.md){hint}"],
+                               title="nothing to plan")
+        table, where = {"name": "task", **scene.task}, "[task]"
+    elif isinstance(task, Mapping):
+        table, where = {"name": "task", **task}, "[task]"
+    else:
+        raise ProblemError([f"task must be a gait name, a [task] table or a Task, got {type(task).__name__}"],
+                           title="invalid task")
+    parsed = parse_task(apply_overrides(table, overrides), where=where, **check)
+    return Plan(scene, parsed, f"{name}/{parsed.name}", units, drawing)
+
+
+def describe_library() -> str:
+    """One line per built-in task (for ``--help``)."""
+    lines = []
+    for (scene, name), table in library_tasks().items():
+        lines.append(f"{scene} {name}: {table.get('description', '')}")
+    return "\n".join(lines)
+

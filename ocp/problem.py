@@ -69,28 +69,26 @@ def _coordinates(model) -> tuple:
 
 
 def builtin_quantities(model) -> dict:
-    """Derived quantities every model offers: ``<q>_dot`` and, for planar bodies, body velocities."""
+    """Derived quantities every model offers: ``<q>_dot`` and, for a planar frame (x, y, θ)
+    (``system.planar_frame``), the body velocities of
+    :func:`nhgait.dynamics.specialisation.body_velocity` (the one definition)."""
+    from nhgait.dynamics.specialisation import BODY_VELOCITIES, body_velocity
     coords = _coordinates(model)
     qdot = model.numeric["qdot"]
     out = {}
     for i, c in enumerate(coords):
         out[f"{c}_dot"] = Quantity(f"{c}_dot", lambda z, params, i=i: qdot(z, params)[i],
                                    f"generalised velocity d{c}/dt (through qdot(z))")
-    if {"x", "y", "theta"} <= set(coords):
-        ix, iy, ith = coords.index("x"), coords.index("y"), coords.index("theta")
-
-        def forward(z, params):
-            v = qdot(z, params)
-            return v[ix] * ca.cos(z[ith]) + v[iy] * ca.sin(z[ith])
-
-        def lateral(z, params):
-            v = qdot(z, params)
-            return -v[ix] * ca.sin(z[ith]) + v[iy] * ca.cos(z[ith])
-
-        out["forward_velocity"] = Quantity("forward_velocity", forward,
-                                           "body velocity along the heading, ẋ cos θ + ẏ sin θ")
-        out["lateral_velocity"] = Quantity("lateral_velocity", lateral,
-                                           "body velocity across the heading, −ẋ sin θ + ẏ cos θ")
+    frame = getattr(getattr(model, "system", None), "planar_frame", None)
+    if frame is None and {"x", "y", "theta"} <= set(coords):
+        frame = ("x", "y", "theta")
+    if frame and all(c in coords for c in frame):
+        ix, iy, ih = (coords.index(c) for c in frame)
+        for name in BODY_VELOCITIES:
+            def body(z, params, name=name):
+                v = qdot(z, params)
+                return body_velocity(name, v[ix], v[iy], z[ih], ca.cos, ca.sin)
+            out[name] = Quantity(name, body, f"planar body velocity {name} of the frame {tuple(frame)}")
     return out
 
 

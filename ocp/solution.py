@@ -19,7 +19,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-__all__ = ["Solution", "Verification", "simulate_piecewise_constant"]
+__all__ = ["Solution", "Verification", "simulate_piecewise_constant", "condition_errors"]
 
 
 @dataclass(frozen=True)
@@ -30,6 +30,8 @@ class Verification:
     ----------
     max_error : float
         max over nodes k and states i of |z_i^sim(t_k) − z_i(t_k)|.
+    condition_errors : dict "initial.<name>" / "final.<name>" / "periodic.<name>" → how far the
+        re-simulated trajectory is from meeting that condition of the problem (0 when met).
     state_errors : dict name → max over nodes of the error of that state.
     states : ndarray (nz × (N+1)), the re-simulated node states.
     method, rtol, atol : the integrator settings.
@@ -44,6 +46,12 @@ class Verification:
     atol: float = 1e-12
     success: bool = True
     time_s: float = 0.0
+    condition_errors: dict = field(default_factory=dict)
+
+    @property
+    def max_condition_error(self) -> float:
+        """Largest violation of a boundary or periodicity condition by the re-simulation."""
+        return max(self.condition_errors.values(), default=0.0)
 
 
 def simulate_piecewise_constant(model, params, t, z0, controls, *, rtol=1e-10, atol=1e-12,
@@ -72,6 +80,26 @@ def simulate_piecewise_constant(model, params, t, z0, controls, *, rtol=1e-10, a
         z = sol.y[:, -1]
         out[:, k + 1] = z
     return out, ok
+
+
+def condition_errors(problem, states) -> dict:
+    """How far ``states`` (nz × (N+1)) are from meeting each boundary and periodicity condition
+    of ``problem``: distance of y(t_0) / y(t_N) to its value or range, |y(t_N) − y(t_0)|."""
+    zs = ca.SX.sym("z", problem.n_states)
+    out = {}
+
+    def value(name, col):
+        f = ca.Function("y", [zs], [problem.quantity(name, zs)])
+        return float(f(states[:, col]))
+
+    for where, mapping, col in (("initial", problem.initial, 0), ("final", problem.final, -1)):
+        for name in mapping:
+            lo, hi = problem.bounds(mapping, name)
+            y = value(name, col)
+            out[f"{where}.{name}"] = float(max(lo - y, y - hi, 0.0))
+    for name in problem.periodic:
+        out[f"periodic.{name}"] = abs(value(name, -1) - value(name, 0))
+    return out
 
 
 def _jsonable(obj):
@@ -149,7 +177,7 @@ class Solution:
         return Verification(max_error=float(err.max()),
                             state_errors={n: float(e) for n, e in zip(self.state_names, err.max(axis=1))},
                             states=sim, method=method, rtol=rtol, atol=atol, success=ok,
-                            time_s=time.perf_counter() - t0)
+                            time_s=time.perf_counter() - t0, condition_errors=condition_errors(self.problem, sim))
 
     def verified(self, **kwargs) -> "Solution":
         """A copy of this solution carrying :meth:`verify`'s result."""
@@ -167,22 +195,34 @@ class Solution:
             "verification_error": v.max_error if v is not None else None,
             "verification": None if v is None else {
                 "max_error": v.max_error, "state_errors": v.state_errors, "method": v.method,
-                "rtol": v.rtol, "atol": v.atol, "success": v.success},
+                "rtol": v.rtol, "atol": v.atol, "success": v.success,
+                "condition_errors": v.condition_errors, "max_condition_error": v.max_condition_error},
             "settings": self.settings,
             "problem": self.problem.describe() if self.problem is not None else None,
-            "trajectory": {
-                "t": self.t, "horizon": self.horizon,
-                "state_names": list(self.state_names), "control_names": list(self.control_names),
-                "states": {n: self.states[i] for i, n in enumerate(self.state_names)},
-                "controls": {n: self.controls[i] for i, n in enumerate(self.control_names)},
-            },
+            "trajectory": self._trajectory(),
         })
 
-    def to_json(self, path) -> Path:
-        """Write :meth:`to_dict` to ``path`` (parents created); returns the path."""
+    def _trajectory(self) -> dict:
+        """t (N+1), q (N+1 × n) in ``coordinates`` order, q̇ (N+1 × n), u (N × m, constant on
+        [t_k, t_k+1)) in ``inputs`` order, and the states and controls by name."""
+        out = {"t": self.t, "horizon": self.horizon,
+               "state_names": list(self.state_names), "control_names": list(self.control_names),
+               "states": {n: self.states[i] for i, n in enumerate(self.state_names)},
+               "controls": {n: self.controls[i] for i, n in enumerate(self.control_names)},
+               "inputs": list(self.control_names), "u": self.controls.T}
+        if self.problem is not None:
+            coords = tuple(getattr(self.problem.model.system, "coordinates", ()))
+            n = len(coords)
+            out.update({"coordinates": list(coords), "q": self.states[:n].T, "qdot": self.velocities().T})
+        return out
+
+    def to_json(self, path, extra: dict | None = None) -> Path:
+        """Write :meth:`to_dict` (plus ``extra`` top-level keys) to ``path`` (parents created)."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(self.to_dict(), indent=1))
+        data = self.to_dict()
+        data.update(_jsonable(dict(extra or {})))
+        path.write_text(json.dumps(data, indent=1))
         return path
 
     def summary(self) -> str:

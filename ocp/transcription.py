@@ -54,6 +54,7 @@ class TranscribedNLP:
     horizon_index: int | None
     kernel: ca.Function
     guess_filler: Any = field(default=None, repr=False)
+    structure: dict | None = None        # stage structure (N, nx, nu, ng) for FATROP
 
     @property
     def n_w(self) -> int:
@@ -170,12 +171,12 @@ class _Builder:
         return f
 
     def finish(self, transcription, w, f, lbx, ubx, node_index, control_index, horizon_index, kernel,
-               guess_filler=None):
+               guess_filler=None, structure=None):
         g = ca.vertcat(*self.g) if self.g else ca.MX(0, 1)
         lbg = np.concatenate(self.lbg) if self.lbg else np.zeros(0)
         ubg = np.concatenate(self.ubg) if self.ubg else np.zeros(0)
         return TranscribedNLP(self.problem, transcription, w, f, g, lbx, ubx, lbg, ubg,
-                              node_index, control_index, horizon_index, kernel, guess_filler)
+                              node_index, control_index, horizon_index, kernel, guess_filler, structure)
 
     def horizon_variable(self):
         p = self.problem
@@ -365,7 +366,143 @@ class Collocation:
         return b.finish(self, w, f, lbx, ubx, node_index, control_index, horizon_index, Fi, fill)
 
 
-TRANSCRIPTIONS = {"multiple-shooting": MultipleShooting, "collocation": Collocation}
+@dataclass(frozen=True)
+class StageShooting(MultipleShooting):
+    """Multiple shooting in stage order, for structure-exploiting solvers (FATROP).
+
+    FATROP needs an optimal control structure: the decision vector stage by stage,
+    w = (x̃_0, u_0, x̃_1, u_1, …, x̃_N), and the constraints stage by stage, each stage's
+    dynamics gap x̃_{k+1} − F̃(x̃_k, u_k) followed by the conditions on (x̃_k, u_k) alone.
+    Conditions linking the two ends (periodicity) or using a global variable (a free
+    horizon T) are made stage-local by *carrying* the values along the horizon:
+
+        x̃_k = (z_k, c_k [, T_k]),   c_{k+1} = c_k,  T_{k+1} = T_k,
+        c_0 = y_per(z_0)  (stage 0),     y_per(z_N) − c_N = 0  (stage N),
+
+    with y_per the periodic quantities not already fixed at both ends by bounds. The problem
+    is the one :class:`MultipleShooting` transcribes (same optimum, checked in the tests).
+    """
+
+    name = "multiple-shooting-stages"
+
+    def settings(self) -> dict:
+        return {**super().settings(), "transcription": self.name}
+
+    def build(self, problem: OptimalControlProblem) -> TranscribedNLP:
+        nz, nu, N = problem.n_states, problem.n_controls, problem.intervals
+        b = _Builder(problem)
+        lo, hi, periodic_g = b.node_bounds()
+        zs = ca.SX.sym("z", nz)
+        yper = ca.Function("y_per", [zs], [ca.vertcat(*[problem.quantity(n, zs) for n in periodic_g])]
+                           if periodic_g else [ca.SX(0, 1)])
+        nc, free = len(periodic_g), problem.free_horizon is not None
+        nx = nz + nc + (1 if free else 0)
+        V, XN = ca.MX.sym("V", nx + nu, N), ca.MX.sym("xN", nx)
+        w = ca.vertcat(ca.vec(V), XN)                  # (x̃_0, u_0, …, x̃_{N-1}, u_{N-1}, x̃_N)
+        X, U = ca.horzcat(V[:nx, :], XN), V[nx:, :]
+        Z = X[:nz, :]
+        if free:
+            h = X[nx - 1, :] / N
+            F = self.step_function(problem, None)
+            Zend = F.map(N, self.map_mode)(Z[:, :N], U, h[:, :N])
+        else:
+            h = float(problem.horizon) / N
+            F = self.step_function(problem, h)
+            Zend = F.map(N, self.map_mode)(Z[:, :N], U)
+        gaps = X[:, 1:] - ca.vertcat(Zend, X[nz:, :N])            # column k: gap of stage k
+        path = _StagePaths(problem, Z)                            # rows on every node
+        first, last = _end_rows(problem, Z[:, 0], "initial"), _end_rows(problem, Z[:, N], "final")
+        if nc:
+            first.append((X[nz:nz + nc, 0] - yper(Z[:, 0]), 0.0, 0.0))
+            last.append((yper(Z[:, N]) - X[nz:nz + nc, N], 0.0, 0.0))
+        # stage 0: gap, path rows, start rows; stages 1..N-1: (gap, path rows) column by column
+        b.add_g(gaps[:, 0], 0.0, 0.0)
+        path.add(b, 0)
+        for expr, a, c in first:
+            b.add_g(expr, a, c)
+        if N > 1:
+            body = ca.vertcat(gaps[:, 1:], path.matrix[:, 1:N]) if path.n else gaps[:, 1:]
+            b.add_g(ca.vec(body), np.tile(np.concatenate([np.zeros(nx), path.lo]), N - 1),
+                    np.tile(np.concatenate([np.zeros(nx), path.hi]), N - 1))
+        path.add(b, N)
+        for expr, a, c in last:
+            b.add_g(expr, a, c)
+        counts = {k: path.n for k in range(N + 1)}
+        counts[0] += sum(int(e.shape[0]) for e, _, _ in first)
+        counts[N] += sum(int(e.shape[0]) for e, _, _ in last)
+        wu = np.array([float(problem.control_weights.get(n, 1.0)) for n in problem.control_names])
+        hk = h[:, :N] if free else h                   # the step of each interval
+        f = ca.sum2(hk * ca.mtimes(ca.DM(wu).T, U ** 2))
+        if problem.state_weights:
+            wz = np.array([float(problem.state_weights.get(n, 0.0)) for n in problem.state_names])
+            f = f + ca.sum2(hk * ca.mtimes(ca.DM(wz).T, Z[:, :N] ** 2))
+        if problem.time_weight:
+            f = f + float(problem.time_weight) * X[nx - 1, 0]
+        return self._layout(problem, b, w, f, lo, hi, nx, F, counts, yper, nc)
+
+    def _layout(self, problem, b, w, f, lo, hi, nx, F, counts, yper, nc):
+        nz, nu, N = problem.n_states, problem.n_controls, problem.intervals
+        blk = nx + nu
+        starts = np.arange(N + 1) * blk
+        node_index = starts[None, :] + np.arange(nz)[:, None]
+        control_index = starts[None, :N] + nx + np.arange(nu)[:, None]
+        n_w = int(w.shape[0])
+        lbx, ubx = np.full(n_w, -np.inf), np.full(n_w, np.inf)
+        lbx[node_index], ubx[node_index] = lo, hi
+        ulo, uhi = problem.control_bound_vectors()
+        lbx[control_index], ubx[control_index] = ulo[:, None], uhi[:, None]
+        horizon_index = None
+        if problem.free_horizon is not None:
+            T_index = starts + nx - 1
+            lbx[T_index], ubx[T_index] = problem.bounds({"T": problem.free_horizon}, "T")
+            horizon_index = int(T_index[0])
+        ng = [counts.get(k, 0) for k in range(N + 1)]
+        structure = {"N": N, "nx": [nx] * (N + 1), "nu": [nu] * N + [0], "ng": ng}
+
+        def fill(w0, states, controls):
+            # the carried copies: y_per(z_0) and T on every stage
+            extra = []
+            if nc:
+                extra.append(np.asarray(yper(states[:, 0])).ravel())
+            if horizon_index is not None:
+                extra.append(np.array([w0[horizon_index]]))
+            if extra:
+                extra = np.concatenate(extra)
+                for k in range(N + 1):
+                    w0[starts[k] + nz:starts[k] + nx] = extra
+
+        return b.finish(self, w, f, lbx, ubx, node_index, control_index, horizon_index, F, fill, structure)
+
+
+def _end_rows(problem, z, where) -> list:
+    """(expression, lo, hi) of the conditions on derived quantities at one end."""
+    mapping = problem.initial if where == "initial" else problem.final
+    return [(problem.quantity(n, z), *problem.bounds(mapping, n)) for n in mapping if not problem.is_state(n)]
+
+
+class _StagePaths:
+    """Path bounds on derived quantities at every node, as a matrix (rows × (N+1))."""
+
+    def __init__(self, problem, Z):
+        names = [n for n in problem.state_bounds if not problem.is_state(n)]
+        zs = ca.SX.sym("z", problem.n_states)
+        self.n = len(names)
+        bounds = [problem.bounds(problem.state_bounds, n) for n in names]
+        self.lo = np.array([a for a, _ in bounds])
+        self.hi = np.array([c for _, c in bounds])
+        if self.n:
+            fn = ca.Function("path", [zs], [ca.vertcat(*[problem.quantity(n, zs) for n in names])])
+            self.matrix = fn.map(Z.shape[1])(Z)
+        else:
+            self.matrix = None
+
+    def add(self, b, k):
+        if self.n:
+            b.add_g(self.matrix[:, k], self.lo, self.hi)
+
+
+TRANSCRIPTIONS = {"multiple-shooting": MultipleShooting, "collocation": Collocation,
+                  "multiple-shooting-stages": StageShooting}
 
 
 def get_transcription(spec=None):

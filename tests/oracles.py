@@ -281,6 +281,171 @@ def _model_knife_edge_incline():
                 loads=loads, constraints=constraints, dependent_sets=[(1,), (0,)])
 
 
+def _model_cart_trailers(k, absolute=False):
+    """A cart (axle midpoint (x, y), heading theta, centre of mass a ahead of the axle) on one
+    driven wheel of radius rho at the axle (spin phi, inertia J_w about the axle), pulling k
+    trailers: trailer i hangs on a hitch at the previous axle's midpoint, its axle l_t behind
+    the hitch, its centre of mass c_t behind the hitch. Relative hitch angles beta_i, or (k = 1,
+    ``absolute``) absolute headings theta0, theta1. Steering torque tau_theta on the cart,
+    wheel torque tau_phi between wheel and cart."""
+    import sympy as sp
+    from sympy.physics.mechanics import (Point, ReferenceFrame, RigidBody, dynamicsymbols,
+                                         inertia)
+    if absolute:
+        x, y, th, th1, ph = q = dynamicsymbols("x y theta0 theta1 phi")
+        headings = [th, th1]
+    else:
+        x, y, th, ph = dynamicsymbols("x y theta phi")
+        betas = dynamicsymbols(" ".join(f"beta{i}" for i in range(1, k + 1))) if k else []
+        betas = [betas] if k == 1 else list(betas)
+        q = [x, y, th, ph] + betas
+        headings = [th]
+        for b_ in betas:
+            headings.append(headings[-1] + b_)
+    m, I, a, rho, Jw = cart = sp.symbols("m I a rho J_w", positive=True)
+    mt, It, lt, ct = trailer = sp.symbols("m_t I_t l_t c_t", positive=True)
+    params = list(cart) + (list(trailer) if k else [])
+    tau_th, tau_ph = inp = sp.symbols("tau_theta tau_phi")
+    N = ReferenceFrame("N")
+    C = N.orientnew("C", "Axis", [headings[0], N.z])
+    W = C.orientnew("W", "Axis", [ph, C.y])
+    O = Point("O")
+    O.set_vel(N, 0)
+    axle = O.locatenew("P0", x * N.x + y * N.y)
+    axle.set_vel(N, axle.pos_from(O).dt(N))
+    G0 = axle.locatenew("G0", a * C.x)
+    G0.v2pt_theory(axle, N, C)
+    contact = axle.locatenew("Q", -rho * N.z)          # wheel contact point, fixed in W
+    contact.v2pt_theory(axle, N, W)
+    bodies = [RigidBody("cart", G0, C, m, (inertia(C, 0, 0, I), G0)),
+              RigidBody("wheel", axle, W, 0, (inertia(W, 0, Jw, 0), axle))]
+    constraints = [contact.vel(N).dot(C.y), contact.vel(N).dot(C.x)]
+    prev_frame, prev_axle = C, axle
+    for i in range(1, k + 1):
+        T = N.orientnew(f"T{i}", "Axis", [headings[i], N.z])
+        hitch = prev_axle                              # on-axle hitching
+        ax = hitch.locatenew(f"P{i}", -lt * T.x)
+        ax.v2pt_theory(hitch, N, T)
+        G = hitch.locatenew(f"G{i}", -ct * T.x)
+        G.v2pt_theory(hitch, N, T)
+        bodies.append(RigidBody(f"trailer{i}", G, T, mt, (inertia(T, 0, 0, It), G)))
+        constraints.append(ax.vel(N).dot(T.y))
+        prev_frame, prev_axle = T, ax
+    loads = [(C, tau_th * N.z), (W, tau_ph * C.y), (C, -tau_ph * C.y)]
+    names = [qi.func.__name__ for qi in q]
+    ind = (names.index("theta0" if absolute else "theta"), names.index("phi"))
+    dep = tuple(i for i in range(len(q)) if i not in ind)
+    return dict(N=N, q=list(q), params=params, inputs=list(inp), bodies=bodies, loads=loads,
+                constraints=constraints, dependent_sets=[dep])
+
+
+def _model_snake(n_links, rotor=False):
+    """Wheeled snake: n_links links of length 2 l_s (mass m_s, inertia I_s about the centre),
+    an axle with no side slip at each link's centre; (x, y) the head link's centre, theta its
+    heading, alpha_j the joint angle between links j and j+1 (torque tau_alpha<j> between
+    them); optionally a rotor on the head (inertia J_r, angle psi relative to the head,
+    torque tau_psi)."""
+    import itertools
+    import sympy as sp
+    from sympy.physics.mechanics import (Point, ReferenceFrame, RigidBody, dynamicsymbols,
+                                         inertia)
+    x, y, th = dynamicsymbols("x y theta")
+    psi = dynamicsymbols("psi") if rotor else None
+    alphas = [dynamicsymbols(f"alpha{j}") for j in range(1, n_links)]
+    q = [x, y, th] + ([psi] if rotor else []) + alphas
+    ms, Is, ls = sp.symbols("m_s I_s l_s", positive=True)
+    params = [ms, Is, ls]
+    if rotor:
+        Jr = sp.Symbol("J_r", positive=True)
+        params.append(Jr)
+    taus = ([sp.Symbol("tau_psi")] if rotor else []) + [sp.Symbol(f"tau_alpha{j}") for j in range(1, n_links)]
+    N = ReferenceFrame("N")
+    O = Point("O")
+    O.set_vel(N, 0)
+    frames = [N.orientnew("L1", "Axis", [th, N.z])]
+    centre = O.locatenew("C1", x * N.x + y * N.y)
+    centre.set_vel(N, centre.pos_from(O).dt(N))
+    centres = [centre]
+    for j in range(1, n_links):
+        Lj = N.orientnew(f"L{j + 1}", "Axis", [th + sum(alphas[:j]), N.z])
+        joint = centres[-1].locatenew(f"J{j}", -ls * frames[-1].x)
+        joint.v2pt_theory(centres[-1], N, frames[-1])
+        c = joint.locatenew(f"C{j + 1}", -ls * Lj.x)
+        c.v2pt_theory(joint, N, Lj)
+        frames.append(Lj)
+        centres.append(c)
+    bodies = [RigidBody(f"link{i + 1}", c, F, ms, (inertia(F, 0, 0, Is), c)) for i, (c, F) in enumerate(zip(centres, frames))]
+    loads = []
+    if rotor:
+        R = frames[0].orientnew("R", "Axis", [psi, N.z])
+        bodies.append(RigidBody("rotor", centres[0], R, 0, (inertia(R, 0, 0, Jr), centres[0])))
+        loads += [(R, taus[0] * N.z), (frames[0], -taus[0] * N.z)]
+    for j in range(1, n_links):
+        tau = taus[j - 1 + (1 if rotor else 0)]
+        loads += [(frames[j], tau * N.z), (frames[j - 1], -tau * N.z)]
+    constraints = [c.vel(N).dot(F.y) for c, F in zip(centres, frames)]
+    k, n = n_links, len(q)
+    free = [i for i in range(n) if i >= (4 if rotor else 3)]   # the joint angles
+    fixed_ind = [3] if rotor else []
+    dep_sets = []
+    n_ind = n - k - len(fixed_ind)
+    for ind in itertools.combinations(free + [2], n_ind):
+        dep = tuple(i for i in range(n) if i not in ind and i not in fixed_ind)
+        dep_sets.append(dep)
+        if len(dep_sets) == 3:
+            break
+    return dict(N=N, q=q, params=params, inputs=taus, bodies=bodies, loads=loads,
+                constraints=constraints, dependent_sets=dep_sets)
+
+
+def _model_snakeboard_two_steering():
+    """The snakeboard with independently steered wheels: front wheel heading theta + phi_f,
+    back wheel heading theta + phi_b, torques tau_f, tau_b between each wheel and the board
+    and tau_psi between rotor and board (issue 8's 6-coordinate reproduction case)."""
+    import sympy as sp
+    from sympy.physics.mechanics import (Point, ReferenceFrame, RigidBody, dynamicsymbols,
+                                         inertia)
+    x, y, th, psi, pf, pb = q = dynamicsymbols("x y theta psi phi_f phi_b")
+    m, J, Jr, Jw, r = p = sp.symbols("m J J_r J_w r", positive=True)
+    tau_psi, tau_f, tau_b = inp = sp.symbols("tau_psi tau_f tau_b")
+    N = ReferenceFrame("N")
+    B = N.orientnew("B", "Axis", [th, N.z])
+    R = N.orientnew("R", "Axis", [th + psi, N.z])
+    F = N.orientnew("F", "Axis", [th + pf, N.z])
+    K = N.orientnew("K", "Axis", [th + pb, N.z])
+    O = Point("O")
+    O.set_vel(N, 0)
+    C = O.locatenew("C", x * N.x + y * N.y)
+    C.set_vel(N, C.pos_from(O).dt(N))
+    Pf = C.locatenew("Pf", r * B.x)
+    Pb = C.locatenew("Pb", -r * B.x)
+    Pf.v2pt_theory(C, N, B)
+    Pb.v2pt_theory(C, N, B)
+    bodies = [RigidBody("board", C, B, m, (inertia(B, 0, 0, J), C)),
+              RigidBody("rotor", C, R, 0, (inertia(R, 0, 0, Jr), C)),
+              RigidBody("front", Pf, F, 0, (inertia(F, 0, 0, Jw), Pf)),
+              RigidBody("back", Pb, K, 0, (inertia(K, 0, 0, Jw), Pb))]
+    constraints = [Pb.vel(N).dot(K.y), Pf.vel(N).dot(F.y)]
+    loads = [(R, tau_psi * N.z), (B, -tau_psi * N.z), (F, tau_f * N.z), (B, -tau_f * N.z),
+             (K, tau_b * N.z), (B, -tau_b * N.z)]
+    return dict(N=N, q=list(q), params=list(p), inputs=list(inp), bodies=bodies, loads=loads,
+                constraints=constraints, dependent_sets=[(0, 1), (0, 2), (1, 2)])
+
+
+def _family(name):
+    """Builders of the scaling families' members by name (see experiments/scaling_systems.py)."""
+    if name.startswith("cart_trailers_"):
+        return lambda: _model_cart_trailers(int(name.rsplit("_", 1)[1]))
+    if name == "cart_trailer_absolute":
+        return lambda: _model_cart_trailers(1, absolute=True)
+    if name == "snakeboard_two_steering":
+        return _model_snakeboard_two_steering
+    if name.startswith("snake_") and name[6:7].isdigit():
+        parts = name.split("_")
+        return lambda: _model_snake(int(parts[1]), rotor=name.endswith("_rotor"))
+    return None
+
+
 _MODELS = {
     "unicycle": _model_unicycle,
     "snakeboard": _model_snakeboard,
@@ -364,5 +529,9 @@ def _build(name: str) -> KaneOracle:
 def oracle(name: str) -> KaneOracle:
     """The (cached, lazily built) Kane oracle for ``name`` (see ORACLE_NAMES)."""
     if name not in _MODELS:
-        raise KeyError(f"unknown oracle {name!r}; choose from {ORACLE_NAMES}")
+        builder = _family(name)
+        if builder is None:
+            raise KeyError(f"unknown oracle {name!r}; choose from {ORACLE_NAMES} or a family member "
+                           "(cart_trailers_<k>, cart_trailer_absolute, snake_<N>[_rotor])")
+        _MODELS[name] = builder
     return _build(name)

@@ -33,7 +33,11 @@ def test_bench_ocp_smoke(tmp_path, capsys):
     out = tmp_path / "ocp.json"
     assert bench.main(["--problems", "P1", "--N", "25", "--repeats", "1", "--out", str(out)]) == 0
     text = capsys.readouterr().out
-    assert "P1" in text and "1.543703" in text
+    assert "P1" in text and "1.543703" in text and "FATROP" in text and "collocation" in text
+    rows = json.loads(out.read_text())["rows"]
+    assert {r["section"] for r in rows} == {"default", "fatrop", "collocation"}
+    fatrop = next(r for r in rows if r["section"] == "fatrop")
+    assert fatrop["rel_diff"] < 1e-6 and fatrop["fatrop"]["success"]
 
 
 def test_thesis_printed_equations_script(capsys):

@@ -30,7 +30,7 @@ def _experiment():
 def reproduction(tmp_path_factory, models):
     models["unicycle"]["reduced"], models["snakeboard"]["reduced"]   # derive once, session cache
     out = tmp_path_factory.mktemp("reproduce")
-    summary = reproduce(out, rtol=1e-10, reference=_experiment().kane_reference)
+    summary = reproduce(out, rtol=1e-10, reference=_experiment().kane_reference, columns="all")
     return out, summary
 
 
@@ -91,10 +91,27 @@ def test_outputs_written(reproduction):
     assert s["snakeboard"]["q0"]["phi"] == pytest.approx(1.0)
 
 
+@pytest.mark.slow
+def test_csv_columns(reproduction):
+    """``--columns all``: every run as CSV; its last row agrees with the summary and the
+    unicycle's rolling constraint ẋ = r cos θ φ̇ (r = 0.1) holds in the written columns."""
+    out, s = reproduction
+    path = out / "unicycle_lagrange-idas.csv"
+    header = path.read_text().splitlines()[0]
+    columns = [c.strip().split(" ")[0].split("[")[0] for c in header.lstrip("# ").split(",")]
+    for name in ("t", "x", "theta", "x_dot", "phi_dot", "tau_theta", "lambda1", "energy"):
+        assert name in columns, name
+    table = np.loadtxt(path, delimiter=",", comments="#", skiprows=1)
+    col = {c: table[:, i] for i, c in enumerate(columns)}
+    assert col["x"][-1] == pytest.approx(s["unicycle"]["runs"]["lagrange/idas"]["final_q"]["x"], abs=1e-12)
+    assert np.max(np.abs(col["x_dot"] - 0.1 * np.cos(col["theta"]) * col["phi_dot"])) < 1e-7
+    assert len(s["snakeboard"]["csv"]) == len(s["snakeboard"]["runs"]) - 1       # all but the Kane reference
+
+
 def test_cli_parser_registers_reproduce():
     import argparse
     from nhgait.gaits.cli_reproduce import add_reproduce_parser, run
     parser = argparse.ArgumentParser()
     add_reproduce_parser(parser.add_subparsers())
-    args = parser.parse_args(["reproduce", "--out", "x", "--rtol", "1e-8", "--no-idas"])
-    assert args.func is run and args.rtol == 1e-8 and args.no_idas and args.out == "x"
+    args = parser.parse_args(["reproduce", "--out", "x", "--rtol", "1e-8", "--no-idas", "--columns", "qdot"])
+    assert args.func is run and args.rtol == 1e-8 and args.no_idas and args.out == "x" and args.columns == "qdot"

@@ -3,7 +3,6 @@ import numpy as np
 import pytest
 
 from nhgait.dynamics import ModelError, load_scene
-from nhgait.dynamics.models import BUILTIN
 
 GOOD = '''
 [system]
@@ -41,15 +40,6 @@ def test_good_scene(tmp_path):
     assert scene.simulation.t_eval.shape == (11,)
     u = scene.simulation.controller(np.pi / 2, [0, 0], [0, 2.0])
     np.testing.assert_allclose(u, [0.1 - 2.0], rtol=1e-15)
-
-
-@pytest.mark.parametrize("name", list(BUILTIN))
-def test_builtin_scene_matches_factory(name):
-    scene = load_scene(name)
-    factory = BUILTIN[name]()
-    assert scene.system.content_hash() == factory.content_hash()
-    for k, v in factory.parameters.items():
-        assert scene.system.parameters[k] == pytest.approx(v, rel=1e-15)
 
 
 def test_unknown_keys_are_errors(tmp_path):

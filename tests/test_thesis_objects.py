@@ -53,21 +53,21 @@ def test_unicycle_symmetry_table_is_table_3_1(uni_B):
     assert same_matrix(rows[("x", "y", "theta")].xi, [0, 0, 1])
     assert rows[("x", "y", "phi")].verdict == "full"
     assert uni_B.symmetry.chosen.fiber == ("x", "y", "phi")              # G = R² × S¹
-    assert same_matrix(uni_B.steps.get(3)["xi (Lie algebra element)"], [r * sp.cos(th), r * sp.sin(th), 1])  # 3.8
+    assert same_matrix(uni_B.steps[3].xi, [r * sp.cos(th), r * sp.sin(th), 1])  # 3.8
 
 
 def test_unicycle_momentum_and_reconstruction(uni_A, uni_B):
-    assert same(uni_B.steps.get(4)["p"], m * r * sp.cos(th) * xd + m * r * sp.sin(th) * yd + Jphi * phid)  # 3.9
+    assert same(uni_B.steps[4].p[0], m * r * sp.cos(th) * xd + m * r * sp.sin(th) * yd + Jphi * phid)  # 3.9
     D = Jphi + m * r**2
-    assert same_matrix(uni_A.steps.get(5)["Gamma(r)"], [r * sp.cos(th) / D, r * sp.sin(th) / D, 1 / D])  # 3.13
-    assert same_matrix(uni_B.steps.get(5)["Gamma(r)"], [r / D, 0, 1 / D])                                # 3.36
-    assert same_matrix(uni_B.steps.get(6)["e = g^-1 xi_Q"], [r, 0, 1])                                   # 3.37
-    assert all(e == 0 for e in uni_B.steps.get(5)["A(r)"])                                               # A = 0
+    assert same_matrix(uni_A.steps[5].Gamma, [r * sp.cos(th) / D, r * sp.sin(th) / D, 1 / D])  # 3.13
+    assert same_matrix(uni_B.steps[5].Gamma, [r / D, 0, 1 / D])                                # 3.36
+    assert same_matrix(uni_B.steps[6].e, [r, 0, 1])                                   # 3.37
+    assert all(e == 0 for e in uni_B.steps[5].A)                                               # A = 0
     assert uni_B.classification == "purely dynamic"
 
 
 def test_unicycle_lagrangian_hamiltonian_and_equations(uni_B):
-    assert same(uni_B.steps.get(8)["l_c"], ((Jphi + m * r**2) * Om**2 + Jth * thd**2) / 2)             # 3.17
+    assert same(uni_B.steps[8].l_c, ((Jphi + m * r**2) * Om**2 + Jth * thd**2) / 2)             # 3.17
     assert same(uni_B.hamiltonian, (p**2 / (Jphi + m * r**2) + pt_theta**2 / Jth) / 2)                   # 3.20
     tau_th, tau_ph = sp.symbols("tau_theta tau_phi", real=True)
     D = Jphi + m * r**2
@@ -86,7 +86,7 @@ def test_unicycle_table_3_2_initial_momenta(uni_B):
 def test_snakeboard_lie_algebra_element_3_68(board):
     assert board.symmetry.chosen.fiber == ("x", "y", "theta")
     xi = [2 * r * sp.cos(th) * sp.cos(phi)**2, 2 * r * sp.sin(th) * sp.cos(phi)**2, sp.sin(2 * phi)]
-    assert same_matrix(board.steps.get(3)["xi (Lie algebra element)"], xi)
+    assert same_matrix(board.steps[3].xi, xi)
     assert board.classification == "mixed"
 
 
@@ -94,13 +94,13 @@ def test_snakeboard_momentum_3_69_corrected(board):
     # 3.69 prints "J_0 φ̇" in the last term; the correct term is J_r ψ̇
     expected = (2 * m * r * sp.cos(th) * sp.cos(phi)**2 * xd + 2 * m * r * sp.sin(th) * sp.cos(phi)**2 * yd
                 + sp.sin(2 * phi) * (m * r**2 * thd + Jr * psid))
-    assert same(board.steps.get(4)["p"], expected, THESIS)
+    assert same(board.steps[4].p[0], expected, THESIS)
 
 
 def test_snakeboard_reconstruction_3_71_to_3_73(board):
-    assert same_matrix(board.steps.get(5)["Gamma(r)"], [1 / (2 * m * r), 0, sp.tan(phi) / (2 * m * r**2)], THESIS)
-    assert same_matrix(board.steps.get(6)["e = g^-1 xi_Q"], [2 * r * sp.cos(phi)**2, 0, sp.sin(2 * phi)])
-    A = board.steps.get(5)["A(r)"]   # columns (psi, phi); 3.73 prints φ̇ where ψ̇ multiplies A
+    assert same_matrix(board.steps[5].Gamma, [1 / (2 * m * r), 0, sp.tan(phi) / (2 * m * r**2)], THESIS)
+    assert same_matrix(board.steps[6].e, [2 * r * sp.cos(phi)**2, 0, sp.sin(2 * phi)])
+    A = board.steps[5].A   # columns (psi, phi); 3.73 prints φ̇ where ψ̇ multiplies A
     assert same_matrix(A[:, 0], [Jr * sp.sin(phi) * sp.cos(phi) / (m * r), 0, Jr * sp.sin(phi)**2 / (m * r**2)], THESIS)
     assert same_matrix(A[:, 1], [0, 0, 0])
 
@@ -126,7 +126,7 @@ def test_snakeboard_table_3_3_initial_momenta(board):
 
 
 def test_snakeboard_structure_matrix_is_skew(board):
-    J_ = board.steps.get(17)["J (rows xi, P, r, Pt)"]
+    J_ = board.steps[17].J
     assert same_matrix(J_ + J_.T, sp.zeros(*J_.shape))
     Jz = board.structure
     assert Jz.shape == (8, 8) and same_matrix(Jz + Jz.T, sp.zeros(8, 8))
@@ -134,6 +134,7 @@ def test_snakeboard_structure_matrix_is_skew(board):
 
 def test_every_step_is_present_and_printable(board):
     assert [s.number for s in board.steps] == list(range(1, 21))
-    md = board.steps.to_markdown(board.symbol_names)
-    tex = board.steps.to_latex(board.symbol_names)
-    assert "Step 20" in md and "\\tilde{p}_{\\psi}" in tex
+    md = board.steps.to_markdown()
+    tex = board.steps.to_latex()
+    assert "Step 20" in md and "\\tilde{p}_{\\psi}" in tex and "\\dot{\\theta}" in tex
+    assert board.steps[5].label("A") == "A(r)" and board.steps[17].J.shape == (8, 8)

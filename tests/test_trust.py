@@ -195,3 +195,18 @@ r = 0.5
     with pytest.raises(ModelError, match="parameter 'm'"):
         load_scene(scene)
     assert not marker.exists()
+
+
+def test_long_legitimate_expressions_parse():
+    """A Lagrangian of thousands of terms is not 'nested': sums and products are chains."""
+    import sympy as sp
+    from nhgait.dynamics.expressions import expression_problems
+    names = {f"x{i}": sp.Symbol(f"x{i}", real=True) for i in range(50)}
+    text = " + ".join(f"x{i % 50}*x{(3 * i) % 50}/7" for i in range(2500))
+    problems = []
+    expr = expression_problems(text, names, "lagrangian", problems)
+    assert not problems
+    expected = sum(sp.Rational(1, 7) * names[f"x{i % 50}"] * names[f"x{(3 * i) % 50}"] for i in range(2500))
+    assert sp.expand(expr - expected) == 0
+    assert expression_problems("x1 - (x2 - x3) - -x4 + 2**-x1", names, "L", []) == (
+        names["x1"] - names["x2"] + names["x3"] + names["x4"] + 2 ** -names["x1"])

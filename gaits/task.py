@@ -1,0 +1,450 @@
+"""A gait-planning task as data: the ``[task]`` table of a scene file, a dict or a :class:`Task`.
+
+Format (docs/gait-planning.md)::
+
+    [task]
+    name = "forward"                     # optional label
+    horizon = 6.283185307179586          # s; or free: horizon = [2.0, 8.0] (or a table
+                                         #   {initial = 4.0, min = 2.0, max = 8.0})
+    intervals = 50                       # N control intervals (piecewise-constant inputs)
+    initial = {x = 0.0, theta = 0.0, forward_velocity = 0.0}   # t = 0
+    final = {x = 1.0, theta = 0.0}                              # t = T
+    periodic = ["psi", "phi", "psi_dot", "phi_dot"]             # y(T) = y(0)
+    bounds = {phi = [-1.0, 1.0]}                                # at every node
+    control_bounds = {tau_psi = [-10.0, 10.0]}                  # or one number b: |u| ≤ b
+    objective = "effort"                 # ∫|u|² dt; "time" (free horizon); or weights
+                                         #   {effort = 1.0, time = 0.1, tau_psi = 2.0}
+    velocities = ["forward_velocity", "psi_dot", "phi_dot"]     # optional: velocity states
+
+Names are the system's coordinates, ``<coordinate>_dot``, the scene's named quantities
+(``[quantities]``) and, for a planar frame (x, y, θ), ``forward_velocity`` and
+``lateral_velocity``. A value is a number, a constant expression such as ``"pi/2"`` (parsed
+by :func:`nhgait.dynamics.expressions.number_problems`, never evaluated as code), or
+``[lo, hi]`` for a range (``"inf"``/``"-inf"`` for one-sided). Every problem found — unknown
+keys and names, wrong types, contradictory values, impossible counts — is listed in one
+:class:`~nhgait.ocp.ProblemError`.
+
+:func:`parse_task` checks the form (no model needed), :func:`check_names` the names against
+a model, :func:`to_problem` states the :class:`~nhgait.ocp.OptimalControlProblem`.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from nhgait.ocp import OptimalControlProblem, ProblemError, Quantity
+
+__all__ = ["Task", "FrozenMap", "parse_task", "apply_overrides", "check_names", "task_names", "to_problem",
+           "TASK_KEYS"]
+
+TASK_KEYS = ("name", "description", "horizon", "intervals", "initial", "final", "periodic", "bounds",
+             "control_bounds", "objective", "velocities")
+OBJECTIVES = ("effort", "time")
+
+
+class FrozenMap(Mapping):
+    """A read-only mapping that pickles (tasks travel to worker processes) and compares equal
+    to any mapping with the same items."""
+
+    __slots__ = ("_data",)
+
+    def __init__(self, data=()):
+        object.__setattr__(self, "_data", dict(data))
+
+    def __getitem__(self, key):
+        return self._data[key]
+
+    def __iter__(self):
+        return iter(self._data)
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+    def __setattr__(self, name, value):
+        raise AttributeError("FrozenMap is read-only")
+
+    def __reduce__(self):
+        return (FrozenMap, (self._data,))
+
+    def __repr__(self) -> str:
+        return f"FrozenMap({self._data!r})"
+
+    def __hash__(self):
+        return hash(tuple(sorted(self._data.items(), key=lambda kv: str(kv[0]))))
+
+
+@dataclass(frozen=True)
+class Task:
+    """A gait task (see the module docstring). Values are floats, ranges (lo, hi) tuples.
+
+    ``horizon_bounds`` is None for a fixed horizon; otherwise the horizon is free in
+    [lo, hi] and ``horizon`` is its initial guess. ``objective`` maps "effort" (weight of
+    ∫|u|²), "time" (weight of T) and input names (weights of each u_j², default 1) to weights.
+    """
+
+    horizon: float
+    intervals: int = 50
+    initial: Mapping = field(default_factory=dict)
+    final: Mapping = field(default_factory=dict)
+    periodic: tuple = ()
+    bounds: Mapping = field(default_factory=dict)
+    control_bounds: Any = field(default_factory=dict)
+    objective: Mapping = field(default_factory=lambda: {"effort": 1.0})
+    horizon_bounds: tuple | None = None
+    velocities: tuple = ()
+    name: str = "task"
+    description: str = ""
+
+    def __post_init__(self):
+        for key in ("initial", "final", "bounds", "objective"):
+            object.__setattr__(self, key, FrozenMap(getattr(self, key)))
+        if isinstance(self.control_bounds, Mapping):
+            object.__setattr__(self, "control_bounds", FrozenMap(self.control_bounds))
+        object.__setattr__(self, "periodic", tuple(self.periodic))
+        object.__setattr__(self, "velocities", tuple(self.velocities))
+
+    @property
+    def names(self) -> tuple:
+        """Every quantity name the task uses, in order of appearance."""
+        out = []
+        for name in (*self.initial, *self.final, *self.periodic, *self.bounds):
+            if name not in out:
+                out.append(name)
+        return tuple(out)
+
+    def replace(self, **changes) -> "Task":
+        return replace(self, **changes)
+
+    def to_dict(self) -> dict:
+        """The task as a ``[task]`` table (JSON/TOML-friendly)."""
+        out = {"name": self.name, "description": self.description, "intervals": self.intervals,
+               "horizon": ({"initial": self.horizon, "min": self.horizon_bounds[0], "max": self.horizon_bounds[1]}
+                           if self.horizon_bounds else self.horizon)}
+        for key in ("initial", "final", "bounds"):
+            out[key] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in getattr(self, key).items()}
+        out["periodic"] = list(self.periodic)
+        cb = self.control_bounds
+        out["control_bounds"] = ({k: list(v) for k, v in cb.items()} if isinstance(cb, Mapping) else cb)
+        out["objective"] = dict(self.objective)
+        out["velocities"] = list(self.velocities)
+        return out
+
+
+# ----------------------------------------------------------------------------- parsing
+def _number(value, where, problems, *, allow_inf=False) -> float:
+    from nhgait.dynamics.expressions import number_problems
+    if allow_inf and (value in ("inf", "+inf", "-inf") or (isinstance(value, float) and math.isinf(value))):
+        return float(value)
+    return number_problems(value, where, problems)
+
+
+def _value(value, where, problems):
+    """A number or a [lo, hi] range."""
+    if isinstance(value, (list, tuple)):
+        if len(value) != 2:
+            problems.append(f"{where}: a range is [lo, hi], got {len(value)} entries")
+            return (-math.inf, math.inf)
+        lo = _number(value[0], f"{where} lower bound", problems, allow_inf=True)
+        hi = _number(value[1], f"{where} upper bound", problems, allow_inf=True)
+        if lo > hi:
+            problems.append(f"{where}: contradictory range, lower bound {lo:g} > upper bound {hi:g}")
+        return (lo, hi)
+    return _number(value, where, problems)
+
+
+def _table(data, key, problems) -> dict:
+    value = data.get(key, {})
+    if not isinstance(value, Mapping):
+        problems.append(f"[task].{key} must be a table of name = value, got {type(value).__name__} {value!r}")
+        return {}
+    out = {}
+    for name, v in value.items():
+        out[str(name)] = _value(v, f"[task].{key}.{name}", problems)
+        if key == "bounds" and not isinstance(v, (list, tuple)):
+            problems.append(f"[task].bounds.{name}: a path bound is a range [lo, hi], got {v!r}")
+    return out
+
+
+def _names_list(data, key, problems) -> tuple:
+    value = data.get(key, [])
+    if isinstance(value, str) or not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
+        problems.append(f"[task].{key} must be a list of names such as [\"psi\", \"phi_dot\"], got {value!r}")
+        return ()
+    if len(set(value)) != len(value):
+        problems.append(f"[task].{key}: repeated names in {list(value)}")
+    return tuple(value)
+
+
+def _horizon(data, problems):
+    """(T, bounds or None) from ``horizon``."""
+    if "horizon" not in data:
+        problems.append("[task]: missing key 'horizon' (a number of seconds, or [min, max] for a free horizon)")
+        return math.nan, None
+    value = data["horizon"]
+    if isinstance(value, Mapping):
+        unknown = set(value) - {"initial", "min", "max"}
+        if unknown or not {"min", "max"} <= set(value):
+            problems.append("[task].horizon as a table needs min and max (and optionally initial), "
+                            f"got keys {sorted(value)}")
+            return math.nan, None
+        lo = _number(value["min"], "[task].horizon.min", problems)
+        hi = _number(value["max"], "[task].horizon.max", problems)
+        T = _number(value.get("initial", (lo + hi) / 2), "[task].horizon.initial", problems)
+    elif isinstance(value, (list, tuple)):
+        if len(value) != 2:
+            problems.append(f"[task].horizon: a free horizon is [min, max], got {len(value)} entries")
+            return math.nan, None
+        lo = _number(value[0], "[task].horizon min", problems)
+        hi = _number(value[1], "[task].horizon max", problems)
+        T = (lo + hi) / 2
+    else:
+        T = _number(value, "[task].horizon", problems)
+        if not T > 0:
+            problems.append(f"[task].horizon = {value!r} must be positive")
+        return T, None
+    if not 0 < lo <= hi:
+        problems.append(f"[task].horizon: need 0 < min ≤ max, got [{lo:g}, {hi:g}]")
+    elif not lo <= T <= hi:
+        problems.append(f"[task].horizon: initial {T:g} outside [{lo:g}, {hi:g}]")
+    return T, (lo, hi)
+
+
+def _objective(value, problems) -> dict:
+    if isinstance(value, str):
+        if value not in OBJECTIVES:
+            problems.append(f"[task].objective = {value!r}: use \"effort\" (∫|u|² dt), \"time\" or a table of weights")
+            return {"effort": 1.0}
+        return {value: 1.0}
+    if not isinstance(value, Mapping) or not value:
+        problems.append(f"[task].objective must be \"effort\", \"time\" or a table of weights, got {value!r}")
+        return {"effort": 1.0}
+    out = {}
+    for name, w in value.items():
+        out[str(name)] = _number(w, f"[task].objective.{name}", problems)
+        if out[str(name)] < 0:
+            problems.append(f"[task].objective.{name} = {w!r} must be ≥ 0")
+    return out
+
+
+def _control_bounds(data, problems):
+    value = data.get("control_bounds", {})
+    if isinstance(value, Mapping):
+        out = {}
+        for name, v in value.items():
+            out[str(name)] = _value(v, f"[task].control_bounds.{name}", problems)
+            if not isinstance(out[str(name)], tuple):
+                b = abs(out[str(name)])
+                out[str(name)] = (-b, b)
+        return out
+    b = _number(value, "[task].control_bounds", problems)
+    if not b > 0:
+        problems.append(f"[task].control_bounds = {value!r} must be a positive number or a table")
+    return abs(b)
+
+
+def parse_task(data, *, where: str = "[task]", system=None, quantities=()) -> Task:
+    """A :class:`Task` from a ``[task]`` table (dict); every problem in one ProblemError.
+
+    With ``system`` (and the scene's ``quantities``) the names and counts are checked too, in
+    the same error (no derivation needed: names come from the system's statement).
+    """
+    if isinstance(data, Task):
+        return data
+    if not isinstance(data, Mapping):
+        raise ProblemError([f"{where} must be a table, got {type(data).__name__}"], title="invalid task")
+    problems: list = []
+    unknown = sorted(set(data) - set(TASK_KEYS))
+    if unknown:
+        problems.append(f"{where}: unknown key(s) {unknown} (allowed: {', '.join(TASK_KEYS)})")
+    T, bounds_T = _horizon(data, problems)
+    N = data.get("intervals", 50)
+    if isinstance(N, bool) or not isinstance(N, int) or N < 1:
+        problems.append(f"{where}.intervals = {N!r} must be an integer ≥ 1")
+    initial, final = _table(data, "initial", problems), _table(data, "final", problems)
+    bounds = _table(data, "bounds", problems)
+    periodic = _names_list(data, "periodic", problems)
+    velocities = _names_list(data, "velocities", problems)
+    objective = _objective(data.get("objective", "effort"), problems)
+    if "time" in objective and objective["time"] > 0 and bounds_T is None:
+        problems.append(f"{where}.objective: a time objective needs a free horizon (horizon = [min, max])")
+    control_bounds = _control_bounds(data, problems)
+    _contradictions(initial, final, periodic, bounds, problems)
+    for key in ("name", "description"):
+        if key in data and not isinstance(data[key], str):
+            problems.append(f"{where}.{key} must be a string")
+    if system is not None:
+        parts = {"initial": initial, "final": final, "periodic": periodic, "bounds": bounds,
+                 "control_bounds": control_bounds, "objective": objective, "velocities": velocities}
+        problems += _system_problems(parts, system, quantities)
+    if problems:
+        raise ProblemError(problems, title="invalid task")
+    return Task(horizon=T, intervals=N, initial=initial, final=final, periodic=periodic, bounds=bounds,
+                control_bounds=control_bounds, objective=objective, horizon_bounds=bounds_T,
+                velocities=velocities, name=str(data.get("name", "task")),
+                description=str(data.get("description", "")))
+
+
+def _range(v):
+    return v if isinstance(v, tuple) else (v, v)
+
+
+def _contradictions(initial, final, periodic, bounds, problems):
+    """Values that cannot hold together: outside a path bound, periodic with unequal ends."""
+    for where, table in (("initial", initial), ("final", final)):
+        for name, v in table.items():
+            if name in bounds and bounds[name][0] <= bounds[name][1]:   # (lo > hi is reported once)
+                lo, hi = _range(v)
+                blo, bhi = bounds[name]
+                if hi < blo or lo > bhi:
+                    problems.append(f"[task].{where}.{name} = {v} lies outside bounds.{name} = [{blo:g}, {bhi:g}]")
+    for name in periodic:
+        if name in initial and name in final:
+            a, b = _range(initial[name]), _range(final[name])
+            if max(a[0], b[0]) > min(a[1], b[1]):
+                problems.append(f"[task]: {name} is periodic but initial {initial[name]} and final "
+                                f"{final[name]} cannot be equal")
+
+
+# ----------------------------------------------------------------------------- overrides
+def apply_overrides(data, assignments) -> dict:
+    """``data`` (a ``[task]`` table) with ``key.sub=value`` assignments applied (``--set``).
+
+    Values are data: numbers or constant expressions (checked by :func:`parse_task`), ranges
+    written ``lo,hi`` or ``[lo, hi]``, name lists ``a,b`` for ``periodic``/``velocities``;
+    ``objective`` and ``name`` take words. A malformed assignment is a ProblemError.
+    """
+    out = {k: (dict(v) if isinstance(v, Mapping) else v) for k, v in dict(data or {}).items()}
+    problems = []
+    for text in assignments or ():
+        key, sep, value = str(text).partition("=")
+        key, value = key.strip(), value.strip()
+        if not sep or not key or not value:
+            problems.append(f"--set {text!r}: expected key=value, e.g. final.x=2.0")
+            continue
+        parts = key.split(".")
+        if parts[0] not in TASK_KEYS or len(parts) > 2:
+            problems.append(f"--set {text!r}: unknown key {key!r} (allowed: {', '.join(TASK_KEYS)}, "
+                            "or table.name such as final.x)")
+            continue
+        if value.startswith("[") and value.endswith("]"):
+            value = value[1:-1]
+        items = [v.strip() for v in value.split(",")]
+        if parts[0] in ("periodic", "velocities"):
+            parsed = [v for v in items if v]
+        elif parts[0] in ("name", "description") or (parts[0] == "objective" and len(parts) == 1):
+            parsed = value
+        elif len(items) == 2:
+            parsed = items
+        elif parts[0] == "intervals":
+            parsed = int(value) if value.isdigit() else value
+        else:
+            parsed = value
+        if len(parts) == 1:
+            out[parts[0]] = parsed
+        else:
+            table = out.get(parts[0], {})
+            if not isinstance(table, Mapping):
+                problems.append(f"--set {text!r}: [task].{parts[0]} is not a table")
+                continue
+            out[parts[0]] = {**table, parts[1]: parsed}
+    if problems:
+        raise ProblemError(problems, title="invalid --set")
+    return out
+
+
+# ----------------------------------------------------------------------------- names and problem
+def task_names(system, quantities=()) -> tuple:
+    """The names a task may use on ``system``: coordinates, ``<coordinate>_dot``, the planar
+    body velocities (with a planar frame) and the scene's quantities."""
+    from nhgait.dynamics.specialisation import BODY_VELOCITIES
+    coords = tuple(system.coordinates)
+    frame = getattr(system, "planar_frame", None)
+    return (coords + tuple(f"{c}_dot" for c in coords) + (BODY_VELOCITIES if frame else ())
+            + tuple(n for n in quantities if n not in coords))
+
+
+def _name_problems(parts: dict, known, inputs, n_states, n_velocities) -> list:
+    """Unknown names and impossible counts of a task's parts on a system."""
+    problems = []
+    for where in ("initial", "final", "periodic", "bounds"):
+        for name in parts[where]:
+            if name not in known:
+                problems.append(f"[task].{where}: unknown name {name!r} (known: {', '.join(known)})")
+    if isinstance(parts["control_bounds"], Mapping):
+        for name in parts["control_bounds"]:
+            if name not in inputs:
+                problems.append(f"[task].control_bounds: unknown input {name!r} (inputs: {', '.join(inputs)})")
+    for name in parts["objective"]:
+        if name not in OBJECTIVES and name not in inputs:
+            problems.append(f"[task].objective: unknown weight {name!r} (effort, time or an input: {', '.join(inputs)})")
+    for where in ("initial", "final"):
+        fixed = [n for n, v in parts[where].items() if not isinstance(v, tuple)]
+        if len(fixed) > n_states:
+            problems.append(f"[task].{where} fixes {len(fixed)} values but the state has only {n_states} "
+                            f"({', '.join(fixed)})")
+    if parts["velocities"] and len(parts["velocities"]) != n_velocities:
+        problems.append(f"[task].velocities: the system needs {n_velocities} velocity states, got "
+                        f"{len(parts['velocities'])} ({', '.join(parts['velocities'])})")
+    if not inputs:
+        problems.append("the system has no inputs: there is nothing to plan")
+    return problems
+
+
+def _system_problems(parts: dict, system, quantities) -> list:
+    n, k = system.n, len(system.constraint_exprs)
+    return _name_problems(parts, task_names(system, quantities), tuple(system.inputs), 2 * n - k, n - k)
+
+
+def check_names(task: Task, known: tuple, inputs: tuple, *, n_states: int, n_velocities: int):
+    """Unknown names and impossible counts of ``task`` on a model (one ProblemError)."""
+    parts = {key: getattr(task, key) for key in ("initial", "final", "periodic", "bounds", "control_bounds",
+                                                 "objective", "velocities")}
+    problems = _name_problems(parts, known, inputs, n_states, n_velocities)
+    if problems:
+        raise ProblemError(problems, title="invalid task")
+
+
+def scene_quantities(model, quantity_function) -> dict:
+    """The scene's named quantities as OCP :class:`Quantity` objects of the state z.
+
+    ``quantity_function`` is the CasADi Function (q, q̇, params) → y of
+    :func:`nhgait.dynamics.quantities.quantity_function`; q is the first n entries of z and q̇
+    the model's ``qdot(z)``.
+    """
+    if quantity_function is None:
+        return {}
+    n = len(model.system.coordinates)
+    names = quantity_function.name_out(0).split(",")
+    qdot = model.numeric["qdot"]
+    out = {}
+    for i, name in enumerate(names):
+        if not name or name in model.state_names:
+            continue
+        out[name] = Quantity(name, lambda z, params, i=i: quantity_function(z[:n], qdot(z, params), params)[i],
+                             f"scene quantity {name}")
+    return out
+
+
+def control_weights(objective: Mapping, inputs: tuple) -> dict:
+    """Weights w_j of Σ_j w_j ∫u_j² dt: ``effort`` × the input's own weight (default 1).
+
+    ``effort`` defaults to 1, except for a pure time objective (``{"time": c}``: 0).
+    """
+    has_inputs = any(k in inputs for k in objective)
+    default = 0.0 if ("time" in objective and not has_inputs) else 1.0
+    effort = float(objective.get("effort", default))
+    return {u: effort * float(objective.get(u, 1.0)) for u in inputs}
+
+
+def to_problem(task: Task, model, *, quantities=None, params=None, name: str = "") -> OptimalControlProblem:
+    """The :class:`OptimalControlProblem` of ``task`` on ``model`` (states, quantities, inputs)."""
+    weights = control_weights(task.objective, tuple(model.system.inputs))
+    return OptimalControlProblem(
+        model, horizon=task.horizon, intervals=task.intervals, initial=dict(task.initial), final=dict(task.final),
+        periodic=task.periodic, state_bounds=dict(task.bounds),
+        control_bounds=(dict(task.control_bounds) if isinstance(task.control_bounds, Mapping) else task.control_bounds),
+        control_weights=weights, time_weight=float(task.objective.get("time", 0.0)),
+        free_horizon=task.horizon_bounds, quantities=dict(quantities or {}), params=params,
+        name=name or task.name)

@@ -1,0 +1,23 @@
+"""Fast smoke run of experiments/bench_scaling.py (the full run is on demand, docs/scaling.md)."""
+import importlib.util
+import json
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_bench_scaling_smoke(tmp_path, capsys):
+    spec = importlib.util.spec_from_file_location("bench_scaling", ROOT / "experiments" / "bench_scaling.py")
+    bench = importlib.util.module_from_spec(spec)
+    sys.modules["bench_scaling"] = bench
+    spec.loader.exec_module(bench)
+    assert bench.main(["--repeats", "1", "--members", "unicycle,cart_trailers_0", "--no-cli",
+                       "--out", str(tmp_path)]) == 0
+    rows = json.loads((tmp_path / "bench_scaling.json").read_text())
+    assert [r["name"] for r in rows] == ["unicycle", "cart_trailers_0"]
+    for r in rows:
+        assert r["derive_s"] > 0 and r["lagrange_s"] > 0 and r["kane_s"] > 0 and r["rhs_ops"] > 0
+        assert r["oracle_error"] < 1e-10            # against the independent Kane model
+    assert (tmp_path / "bench_scaling.png").stat().st_size > 0
+    assert "| unicycle | 4 | 2 | explicit |" in capsys.readouterr().out

@@ -1,0 +1,111 @@
+"""dynamics.specialisation: parameter values bound (symbolic normal form or numeric binding),
+velocity coordinates, the cache key, and the fallback for implicit models.
+
+Independent references: the general reduced model evaluated with the parameter vector (the
+specialisation must reproduce it to round-off at random states), and the momentum ODE
+re-simulated by DOP853 (the velocity-coordinate flow must be the same flow).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from nhgait.dynamics.errors import ModelError
+from nhgait.dynamics.specialisation import choose_velocities, specialise
+
+SNAKEBOARD_V = ("forward_velocity", "psi_dot", "phi_dot")
+
+
+def _agree(a, b, nz, nu, params, rtol=1e-12, samples=20):
+    rng = np.random.default_rng(1)
+    for _ in range(samples):
+        z, u = rng.uniform(-1, 1, nz), rng.normal(size=nu)
+        x = np.asarray(a.numeric["rhs"](0, z, u, params)).ravel()
+        y = np.asarray(b.numeric["rhs"](0, z, u, params)).ravel()
+        assert np.allclose(x, y, rtol=rtol, atol=rtol), np.max(np.abs(x - y))
+
+
+def test_symbolic_route_reproduces_the_general_model(models):
+    model = models["snakeboard"]["reduced"]
+    fast = specialise(model, use_cache=False)
+    assert fast.route == "symbolic"
+    assert fast.numeric["rhs"].n_instructions() < model.numeric["rhs"].n_instructions() / 2
+    _agree(fast, model, 8, 2, model.numeric.params())
+
+
+def test_velocity_model_is_small_and_has_the_momentum_flow(models):
+    """Same controls, same initial condition mapped by state(q, q̇): the configurations agree."""
+    from nhgait.ocp.solution import simulate_piecewise_constant
+    model = models["snakeboard"]["reduced"]
+    fast = specialise(model, velocities=SNAKEBOARD_V, use_cache=False)
+    assert fast.route == "symbolic" and fast.state_names[5:] == SNAKEBOARD_V
+    assert fast.numeric["rhs"].n_instructions() <= 60     # hand-written reference: 49
+    P = model.numeric.params()
+    q0, qd0 = np.array([0.1, -0.2, 0.3, 0.1, 0.2]), np.array([0.0, 0.0, 0.0, 0.4, -0.3])
+    qd0[:3] = np.asarray(model.numeric["qdot"](model.numeric["state"](q0, qd0, P), P)).ravel()[:3]
+    t = np.linspace(0.0, 2.0, 9)
+    controls = np.random.default_rng(2).normal(size=(2, 8))
+    zv, ok_v = simulate_piecewise_constant(fast, P, t, np.asarray(fast.numeric["state"](q0, qd0, P)).ravel(), controls)
+    zp, ok_p = simulate_piecewise_constant(model, P, t, np.asarray(model.numeric["state"](q0, qd0, P)).ravel(), controls)
+    assert ok_v and ok_p
+    assert np.max(np.abs(zv[:5] - zp[:5])) < 1e-8          # DOP853 at rtol 1e-10 over 2 s
+    mapped = np.column_stack([np.asarray(fast.numeric["momentum_state"](zv[:, k], P)).ravel() for k in range(9)])
+    assert np.max(np.abs(mapped - zp)) < 1e-8
+    qd = np.asarray(fast.numeric["qdot"](zv[:, -1], P)).ravel()
+    assert qd[0] * np.cos(zv[2, -1]) + qd[1] * np.sin(zv[2, -1]) == pytest.approx(zv[5, -1], abs=1e-12)
+
+
+def test_parameter_values_key_the_cache(models):
+    model = models["unicycle"]["reduced"]
+    a = specialise(model)
+    b = specialise(model, {"r": 0.2})
+    assert a.numeric.params()[list(a.numeric.param_names).index("r")] == 0.1
+    z, u = np.array([0.0, 0.0, 0.3, 0.0, 0.5, 0.2]), np.array([0.0, 0.0])
+    ax = np.asarray(a.numeric["qdot"](z, a.numeric.params())).ravel()
+    bx = np.asarray(b.numeric["qdot"](z, b.numeric.params())).ravel()
+    # the rolling constraint ẋ = r cos θ φ̇ with each model's own r (closed form)
+    assert ax[0] == pytest.approx(0.1 * np.cos(0.3) * ax[3], rel=1e-12) and ax[0] != 0
+    assert bx[0] == pytest.approx(0.2 * np.cos(0.3) * bx[3], rel=1e-12)
+    again = specialise(model, {"r": 0.2})                  # from the cache: same functions
+    assert np.allclose(np.asarray(again.numeric["qdot"](z, 0)).ravel(), bx, rtol=0, atol=0)
+
+
+@dataclass(frozen=True, eq=False)
+class _Implicit:
+    """A reduced model in the engine's implicit form: no sympy rhs, numeric functions only."""
+
+    base: object
+    form: str = "implicit"
+    rhs: object = None
+
+    def __getattr__(self, name):
+        return getattr(self.base, name)
+
+
+def test_implicit_models_bind_numerically(models):
+    model = models["snakeboard"]["reduced"]
+    implicit = _Implicit(model)
+    plain = specialise(implicit, use_cache=False)
+    assert plain.route == "numeric"
+    _agree(plain, model, 8, 2, model.numeric.params())
+    fast = specialise(implicit, velocities=SNAKEBOARD_V, use_cache=False)
+    symbolic = specialise(model, velocities=SNAKEBOARD_V, use_cache=False)
+    assert fast.route == "numeric"
+    _agree(fast, symbolic, 8, 2, model.numeric.params(), rtol=1e-10)
+
+
+def test_choose_velocities(models):
+    assert choose_velocities(models["snakeboard"]["reduced"], ("x", "forward_velocity", "psi", "phi_dot")) \
+        == ("forward_velocity", "phi_dot", "psi_dot")
+    assert choose_velocities(models["unicycle"]["reduced"], ("phi_dot", "theta_dot")) == ("phi_dot", "theta_dot")
+
+
+def test_bad_velocity_coordinates_are_listed(models):
+    with pytest.raises(ModelError, match=r"(?s)'omega' is not a velocity quantity.*repeated names"):
+        specialise(models["snakeboard"]["reduced"], velocities=("omega", "psi_dot", "psi_dot"))
+    with pytest.raises(ModelError, match="Y X is singular"):
+        specialise(models["snakeboard"]["reduced"], velocities=("lateral_velocity", "psi_dot", "phi_dot"))
+    with pytest.raises(ModelError, match="needs 3 velocity quantities"):
+        specialise(models["snakeboard"]["reduced"], velocities=("psi_dot",))
