@@ -26,8 +26,8 @@ the right after it, however the integrator places its stages. ``p = (params, u�
 open-loop input integrated by segments (u = u₀ + u₁(t_c − t_a) on a segment), else ``params``.
 ``u`` is an explicit input only for a controller without a CasADi form.
 
-The singular-set measure s: the reduced ODE's ``numeric["singular"]`` (normalised Gram
-determinant of the constraints restricted to the fiber); for the DAE forms the Hadamard ratio
+The singular-set measure s: the reduced ODE's ``numeric["singular"]`` (the engine's measure,
+0 where any matrix the reduction inverts loses rank); for the DAE forms the Hadamard ratio
 det S / Π Sᵢᵢ of the matrix ω M⁻¹ ωᵀ that the multipliers are solved with.
 """
 from __future__ import annotations
