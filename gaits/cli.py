@@ -21,6 +21,7 @@ import sys
 SUBCOMMANDS = (
     ("nhgait.gaits.cli_derive", "add_derive_parser"),
     ("nhgait.gaits.cli_simulate", "add_simulate_parser"),
+    ("nhgait.gaits.cli_bench", "add_bench_parser"),
     ("nhgait.gaits.cli_reproduce", "add_reproduce_parser"),
     ("nhgait.gaits.cli_plan", "add_plan_parser"),
     ("nhgait.gaits.cli_sweep", "add_sweep_parser"),

@@ -1,5 +1,12 @@
-"""``nhgait simulate <scene.toml | built-in> ... --out traj.csv`` (registered by
-:mod:`nhgait.gaits.cli`)."""
+"""``nhgait simulate <scene.toml | built-in> [--method compiled] [--columns all] --out out/traj.csv``
+(registered by :mod:`nhgait.gaits.cli`).
+
+Integrates the scene's ``[simulation]`` table and writes a CSV whose header names each column's
+unit (``t [s]``, ``x [m]`` …: from the scene's ``[units]`` table, "SI" where it names none).
+When the scene states ``[simulation].outputs``, only the states those outputs depend on are
+integrated (``--all-states`` integrates everything) and the CSV holds t and the outputs. The
+summary line gives the number of states integrated.
+"""
 from __future__ import annotations
 
 import sys
@@ -7,12 +14,14 @@ from pathlib import Path
 
 __all__ = ["add_simulate_parser", "cmd_simulate"]
 
+COLUMNS = ("q", "qdot", "all", "state", "outputs")
+
 
 def cmd_simulate(args) -> int:
-    from nhgait.dynamics import derive
+    import numpy as np
+
+    from nhgait.dynamics import derive, load_scene, simulate  # functions via the lazy exports
     from nhgait.dynamics.errors import ModelError
-    from nhgait.dynamics.simulation import simulate
-    from nhgait.dynamics.scene import load_scene
     scene = load_scene(args.scene)
     spec = scene.simulation
     if spec is None:
@@ -22,40 +31,64 @@ def cmd_simulate(args) -> int:
     model = derive(scene.system, form, use_cache=not args.no_cache)
     rtol = args.rtol if args.rtol is not None else (spec.rtol or 1e-8)
     atol = args.atol if args.atol is not None else (spec.atol or rtol * 1e-2)
-    kwargs = {}
-    if form != "reduced":
-        kwargs["dae"] = args.dae
+    outputs = None if args.all_states else spec.outputs
+    kwargs = {"dae": args.dae} if form != "reduced" else {}
     traj = simulate(model, (spec.t0, spec.t_final), spec.q0, spec.qdot0, controller=spec.controller,
                     params=spec.parameters or None, method=args.method or spec.method or "DOP853",
-                    rtol=rtol, atol=atol, t_eval=spec.t_eval, **kwargs)
-    if not traj.success:
-        print(f"simulation failed: {traj.message}", file=sys.stderr)
-        return 1
+                    rtol=rtol, atol=atol, t_eval=spec.t_eval, outputs=outputs,
+                    quantities=scene.quantities or None, **kwargs)
+    used, total = traj.diagnostics["state_count"]
+    columns = args.columns or ("outputs" if outputs else "q")
+    if columns == "outputs" and not traj.outputs:
+        raise ModelError(["--columns outputs needs [simulation].outputs in the scene"],
+                         title="invalid request")
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    traj.to_csv(out)
-    q_end = ", ".join(f"{c}={v:.8g}" for c, v in zip(scene.system.coordinates, traj.q[-1]))
-    print(f"{scene.system.name}: {form} formulation, {len(traj.t)} samples to t = {traj.t[-1]:.6g} "
-          f"({traj.nfev} evaluations, {traj.wall_time_s:.3f} s); q(t_final): {q_end}")
-    import numpy as np
-    if traj.constraint_residual is not None and traj.constraint_residual.size:
+    traj.to_csv(out, columns=columns, units=dict(scene.units or {}))
+    status = "" if traj.success else " — STOPPED"
+    print(f"{scene.system.name}: {form} formulation, {traj.method}, {used} of {total} states "
+          f"integrated ({', '.join(traj.state_names)}), {len(traj.t)} samples to "
+          f"t = {traj.t[-1]:.6g} s ({traj.nfev} evaluations, {traj.wall_time_s:.3f} s){status}")
+    if "fallback" in traj.settings:
+        print(f"  note: {traj.settings['fallback']}")
+    if "auto" in traj.settings:
+        print(f"  auto: {traj.settings['auto']}")
+    finite = np.isfinite(traj.q[-1])
+    q_end = ", ".join(f"{c}={v:.8g}" for c, v, ok in zip(scene.system.coordinates, traj.q[-1], finite) if ok)
+    print(f"  q(t_end): {q_end}")
+    if traj.constraint_residual.size and np.isfinite(traj.constraint_residual).all():
         print(f"  max |ω(q)q̇| = {np.abs(traj.constraint_residual).max():.3g}, "
-              f"max |energy balance| = {np.abs(traj.energy_balance).max():.3g}")
-    print(f"  wrote {out}")
+              f"max |energy balance| = {np.nanmax(np.abs(traj.energy_balance)):.3g}")
+    if "recommendation" in traj.diagnostics:
+        print(f"  {traj.diagnostics['recommendation']}")
+    print(f"  wrote {out} (columns: {columns})")
+    if not traj.success:
+        print(f"simulation stopped: {traj.message}", file=sys.stderr)
+        return 1
     return 0
 
 
 def add_simulate_parser(subparsers):
     """Add the ``simulate`` subcommand to an argparse ``subparsers`` object."""
+    from nhgait.dynamics.simulation import METHODS
     p = subparsers.add_parser("simulate", help="integrate a scene's [simulation] and write a CSV")
     p.add_argument("scene")
     p.add_argument("--formulation", choices=["reduced", "lagrange", "hamilton"])
     p.add_argument("--rtol", type=float)
     p.add_argument("--atol", type=float)
-    p.add_argument("--method", help="scipy method (DOP853, RK45, Radau, BDF, LSODA)")
+    p.add_argument("--method", choices=METHODS,
+                   help="scipy (DOP853, RK45, Radau, BDF, LSODA, RK23), CVODES, compiled "
+                        "(Dormand-Prince 8(5,3) in C), compiled-DOPRI5, auto (compiled, switches to "
+                        "CVODES when stiff); default: the scene's method or DOP853")
     p.add_argument("--dae", choices=["index1", "idas"], default="index1",
                    help="DAE forms: index-reduced ODE (default) or CasADi IDAS")
-    p.add_argument("--out", required=True, help="CSV path: column t, then one column per coordinate")
+    p.add_argument("--columns", choices=COLUMNS,
+                   help="q (default), qdot (q and velocities), all (also inputs, multipliers, "
+                        "constraint residuals, energy, work, energy balance), state, outputs "
+                        "(default when the scene states [simulation].outputs)")
+    p.add_argument("--all-states", action="store_true",
+                   help="integrate every state even when the scene states its outputs")
+    p.add_argument("--out", required=True, help="CSV path, e.g. out/traj.csv")
     p.add_argument("--no-cache", action="store_true")
     p.set_defaults(func=cmd_simulate)
     return p

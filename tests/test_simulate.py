@@ -14,6 +14,7 @@ import pytest
 from nhgait.dynamics import simulate  # the function (lazy export), before any submodule import
 from nhgait.dynamics.controllers import OpenLoop, PDTracking, Sinusoid, snakeboard_pd, unicycle_pd
 from nhgait.dynamics.errors import ModelError
+from nhgait.dynamics.simulation import NONFINITE
 
 SNAKE_Q0 = np.array([0.0, 0.0, 0.0, 0.0, 1.0])      # Table 3.3: psi_d(0) = 0, phi_d(0) = 1
 SNAKE_QDOT0 = np.array([0.0, 0.0, 0.0, 1.0, 0.0])   # psi_dot_d(0) = 1, phi_dot_d(0) = 0
@@ -186,18 +187,21 @@ class _BreaksAtHalf:
 
 
 def test_integrator_failure_is_a_result(models):
+    """A NaN input after t = 0.5 stops the run there (status −3), naming the controller."""
     traj = simulate(models["unicycle"]["reduced"], (0.0, 1.0), UNI_Q0, UNI_QDOT0,
                     controller=_BreaksAtHalf())
-    assert not traj.success and traj.status == -1
-    assert "integration failed" in traj.message
-    assert traj.t[-1] <= 0.5 + 1e-9 and traj.q.shape == (traj.t.size, 4)
+    assert not traj.success and traj.status == NONFINITE
+    assert "_BreaksAtHalf returned a non-finite input tau_theta" in traj.message
+    assert 0.5 - 1e-9 <= traj.t[-1] <= 0.5 + 1e-9 and traj.q.shape == (traj.t.size, 4)
+    assert np.all(np.isfinite(traj.q)) and np.all(np.isfinite(traj.energy_balance))
 
 
 def test_idas_failure_is_a_result(models):
     traj = simulate(models["unicycle"]["lagrange"], (0.0, 1.0), UNI_Q0, UNI_QDOT0,
                     controller=_BreaksAtHalf(), dae="idas", t_eval=np.linspace(0, 1, 11),
                     max_steps=500)
-    assert not traj.success and traj.status == -1 and "IDAS failed" in traj.message
+    assert not traj.success and traj.status == NONFINITE
+    assert "returned a non-finite input tau_theta" in traj.message
     assert traj.t.size == 1 and traj.t[0] == 0.0
 
 
@@ -216,7 +220,8 @@ def test_to_csv_columns(models, tmp_path):
     traj.to_csv(path, columns="all")
     header = next(csv.reader(open(path)))
     assert header[6:11] == ["x_dot", "y_dot", "theta_dot", "psi_dot", "phi_dot"]
-    assert header[-5:] == ["lambda1", "lambda2", "energy", "work", "energy_balance"]
+    assert header[-7:] == ["lambda1", "lambda2", "constraint1", "constraint2", "energy", "work",
+                           "energy_balance"]
     traj.to_csv(path, columns="state")
     assert next(csv.reader(open(path)))[6:] == ["p_x", "p_y", "p_theta", "p_psi", "p_phi"]
     with pytest.raises(ModelError, match="unknown columns"):
@@ -228,3 +233,21 @@ def test_trajectory_arrays_are_read_only(models):
     assert traj.lam is None and traj.state.shape[1] == 6
     with pytest.raises(ValueError):
         traj.q[0, 0] = 1.0
+
+
+@pytest.mark.parametrize("method", ["DOP853", "compiled", "CVODES"])
+def test_force_jump_is_a_breakpoint(method):
+    """τ_θ = Heaviside(t − 0.3): θ = (t − 0.3)²/(2 J_θ) after the jump (closed form), even though
+    no controller announces the jump time (System.force_jump_times splits the run)."""
+    from nhgait.dynamics import System, derive
+    system = System(name="uni_step", coordinates=["x", "y", "theta", "phi"],
+                    lagrangian="m*(x_dot**2 + y_dot**2)/2 + J_theta*theta_dot**2/2 + J_phi*phi_dot**2/2",
+                    constraints=["x_dot - r*cos(theta)*phi_dot", "y_dot - r*sin(theta)*phi_dot"],
+                    forces={"theta": "Heaviside(t - 0.3)"},
+                    parameters={"m": 0.5, "r": 0.1, "J_phi": 0.2, "J_theta": 0.3})
+    traj = simulate(derive(system, "reduced"), (0.0, 1.0), np.zeros(4), np.zeros(4), method=method,
+                    rtol=1e-12, atol=1e-14, t_eval=[0.0, 0.3, 1.0])
+    assert traj.success and traj.settings["segments"] == 2
+    assert traj.q[1, 2] == pytest.approx(0.0, abs=1e-14)
+    assert traj.q[2, 2] == pytest.approx(0.7 ** 2 / (2 * 0.3), abs=1e-11)
+    assert traj.qdot[2, 2] == pytest.approx(0.7 / 0.3, abs=1e-11)
