@@ -345,8 +345,17 @@ def load_scene(path_or_name) -> Scene:
             raise ModelError([f"scene file {p} does not exist"], title="unknown scene")
         text = p.read_text()
         source = str(p)
+    return scene_from_text(text, source)
+
+
+def read_toml(text: str, source: str, error=ModelError) -> dict:
+    """A TOML document as a dict; a syntax error is one ``error`` naming ``source``."""
     try:
-        data = tomllib.loads(text)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ModelError([f"TOML syntax error: {exc}"], title=f"invalid scene {source}") from None
-    return parse_scene(data, source)
+        raise error([f"TOML syntax error: {exc}"], title=f"invalid file {source}") from None
+
+
+def scene_from_text(text: str, source: str = "<scene>") -> Scene:
+    """A :class:`Scene` from the text of a scene file (``source`` names it in errors)."""
+    return parse_scene(read_toml(text, source), source)

@@ -29,6 +29,7 @@ the planner tries them (several at once when cores allow) and reports which one 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import combinations
 
@@ -36,7 +37,8 @@ import numpy as np
 
 from nhgait.ocp import InitialGuess
 
-__all__ = ["ShapeGuess", "shape_guesses", "rollout_guesses", "guess_from_shape", "candidates", "RATIOS", "AMPLITUDES"]
+__all__ = ["ShapeGuess", "shape_guesses", "rollout_guesses", "guess_from_shape", "candidates", "Candidates",
+           "RATIOS", "AMPLITUDES"]
 
 RATIOS = ((1, 1), (2, 1), (1, 2), (3, 2), (2, 3))
 #: (A, B) as fractions of the largest allowed amplitude of each variable (1 rad when unbounded)
@@ -242,10 +244,39 @@ def _rate_states(model, shape: tuple) -> tuple:
     return tuple(v for v in model.state_names[n:] if v not in {f"{c}_dot" for c in shape})
 
 
-def candidates(problem, *, shape=None) -> list:
-    """Initial guesses for ``problem`` in order of preference (see the module docstring).
+class Candidates(Sequence):
+    """The planner's initial guesses in order of preference, each built when first used (a
+    rollout integrates the kinematics, so building all of them up front would delay the
+    first solve); ``with_first(guess)`` puts a ready guess (a warm start) in front."""
 
-    ``shape`` defaults to the model's shape variables (``problem.model.shape``).
+    def __init__(self, problem, shapes, coordinates, first=()):
+        self._problem, self._shapes, self._coordinates = problem, tuple(shapes), tuple(coordinates)
+        self._first = tuple(first)
+        self._built: dict = {}
+
+    def __len__(self) -> int:
+        return len(self._first) + len(self._shapes)
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(len(self)))]
+        i = index + len(self) if index < 0 else index
+        if not 0 <= i < len(self):
+            raise IndexError(index)
+        if i < len(self._first):
+            return self._first[i]
+        j = i - len(self._first)
+        if j not in self._built:
+            self._built[j] = guess_from_shape(self._problem, self._shapes[j], self._coordinates)
+        return self._built[j]
+
+    def with_first(self, guess) -> "Candidates":
+        return Candidates(self._problem, self._shapes, self._coordinates, (guess, *self._first))
+
+
+def candidates(problem, *, shape=None) -> Candidates:
+    """Initial guesses for ``problem`` in order of preference (see the module docstring),
+    built lazily. ``shape`` defaults to the model's shape variables (``problem.model.shape``).
     """
     model = problem.model
     coords = tuple(model.system.coordinates)
@@ -253,5 +284,4 @@ def candidates(problem, *, shape=None) -> list:
     n_pairs = len(shape) * (len(shape) - 1) // 2
     loops = _order(shape_guesses(problem, shape), n_pairs)
     rollouts = rollout_guesses(problem, shape, _rate_states(model, shape))
-    guesses = _interleave(loops[:-1], rollouts) + loops[-1:]
-    return [guess_from_shape(problem, g, coords) for g in guesses]
+    return Candidates(problem, _interleave(loops[:-1], rollouts) + loops[-1:], coords)

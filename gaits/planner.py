@@ -100,7 +100,8 @@ def known_names(model, quantities) -> tuple:
     return task_names(model.system, quantities)
 
 
-def _quantity_objects(model, scene):
+def quantity_objects(model, scene):
+    """The scene's named quantities as :class:`~nhgait.ocp.Quantity` objects on ``model``."""
     from nhgait.dynamics.quantities import quantity_function
     from .task import scene_quantities
     if not scene.quantities:
@@ -121,7 +122,7 @@ def prepare(the_plan, *, params=None):
                 n_states=len(model.state_names), n_velocities=len(model.state_names) - n)
     velocities = task.velocities or choose_velocities(model, task.names, scene.quantities, params)
     fast = specialise(model, params, velocities=velocities, quantities=scene.quantities)
-    problem = to_problem(task, fast, quantities=_quantity_objects(fast, scene), params=params,
+    problem = to_problem(task, fast, quantities=quantity_objects(fast, scene), params=params,
                          name=the_plan.label)
     return model, fast, problem
 
@@ -170,6 +171,17 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1):
             _, i = min(good)
             return sols[i], tuple(attempts), batch[i].label
     return None, tuple(attempts), None
+
+
+def solve_with_fallbacks(solver, guesses, *, workers: int = 1):
+    """The guesses in order (:func:`solve_from_guesses`), then :func:`continuation` from the
+    first one. Returns (solution or None, attempts, winning label or None)."""
+    solution, tried, won = solve_from_guesses(solver, guesses, workers=workers)
+    if solution is None:
+        solution, more = continuation(solver, guesses[0])
+        tried += more
+        won = more[-1].label if solution is not None else None
+    return solution, tried, won
 
 
 def _moved(problem, alpha):
@@ -290,25 +302,21 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     workers = _default_workers() if workers in (None, "auto") else int(workers)
     guesses = candidates(problem)
     if guess is not None:
-        guesses = [warm_start(guess, problem)] + guesses
+        guesses = guesses.with_first(warm_start(guess, problem))
     t0 = time.perf_counter()
     solution, attempts, won = None, (), None
     for name in solver_order(solver, transcription):
         t1 = time.perf_counter()
         ocp_solver = OCPSolver(problem, transcription, SolverOptions(jit=jit, solver=name, max_iter=max_iter))
         timings["setup_s"] = timings.get("setup_s", 0.0) + time.perf_counter() - t1
-        solution, tried, won = solve_from_guesses(ocp_solver, guesses, workers=workers)
-        if solution is None:
-            solution, more = continuation(ocp_solver, guesses[0])
-            tried += more
-            won = more[-1].label if solution is not None else None
+        solution, tried, won = solve_with_fallbacks(ocp_solver, guesses, workers=workers)
         attempts += tuple(replace(a, solver=name) for a in tried)
         if solution is not None:
             break
     if solution is None:   # report the first candidate's failure
         solution = ocp_solver.solve(guesses[0])
     timings["solve_s"] = time.perf_counter() - t0 - timings["setup_s"]
-    momentum = _momentum_problem(model, problem, the_plan, params)
+    momentum = momentum_problem(model, problem, the_plan, params)
     solution = to_momentum_coordinates(solution, momentum)
     if verify:
         t0 = time.perf_counter()
@@ -324,27 +332,27 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     return result
 
 
-def _momentum_problem(model, problem, the_plan, params):
+def momentum_problem(model, problem, the_plan, params):
     """The same statement on the derived (momentum-coordinate, unspecialised) model."""
-    return problem.replace(model=model, quantities=_quantity_objects(model, the_plan.scene), params=params)
+    return problem.replace(model=model, quantities=quantity_objects(model, the_plan.scene), params=params)
 
 
-def to_momentum_coordinates(solution, momentum_problem):
-    """A velocity-coordinate solution re-expressed on ``momentum_problem`` (z = (q, P)).
+def to_momentum_coordinates(solution, momentum):
+    """A velocity-coordinate solution re-expressed on the problem ``momentum`` (z = (q, P)).
 
     The statement is the same (tasks are coordinate-free); only the states change. Any
     verification is dropped: verify the returned solution in momentum coordinates.
     """
     model = solution.problem.model
     if "momentum_state" not in model.numeric.functions:
-        return replace(solution, problem=momentum_problem, verification=None)
+        return replace(solution, problem=momentum, verification=None)
     to_p = model.numeric["momentum_state"]
     params = solution.problem.params
     states = np.column_stack([np.asarray(to_p(solution.states[:, k], params)).ravel()
                               for k in range(solution.states.shape[1])])
     settings = {**solution.settings, "transcribed_in": list(solution.state_names)}
-    return replace(solution, states=states, state_names=momentum_problem.state_names,
-                   problem=momentum_problem, verification=None, settings=settings)
+    return replace(solution, states=states, state_names=momentum.state_names,
+                   problem=momentum, verification=None, settings=settings)
 
 
 # ----------------------------------------------------------------------------- outputs

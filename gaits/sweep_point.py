@@ -186,9 +186,8 @@ def _scene(data: SceneData):
     """What the planner's ``resolve`` takes: the built-in name, or the Scene parsed from the text."""
     if data.builtin is not None:
         return data.builtin
-    from nhgait.dynamics.scene import parse_scene
-    from .tasks import _read_toml
-    return parse_scene(_read_toml(data.text, data.source), data.source)
+    from nhgait.dynamics.scene import scene_from_text
+    return scene_from_text(data.text, data.source)
 
 
 def describe_case(system, task=None, *, overrides=(), params=None, options=None) -> SweepCase:
@@ -265,7 +264,7 @@ def _solver_for(job: PointJob, *, warm: bool = False):
     same structure (``OCPSolver.with_problem``: same NLP functions, new bounds); ``warm``: the
     solver with :data:`WARM_IPOPT` (Ipopt only)."""
     from nhgait.ocp import OCPSolver, SolverOptions
-    from .planner import _quantity_objects, prepare
+    from .planner import quantity_objects, prepare
     from .task import to_problem
     from .tasks import resolve
     case = job.case
@@ -276,7 +275,7 @@ def _solver_for(job: PointJob, *, warm: bool = False):
     if key in _MEMO:
         model, fast, solver = _MEMO.pop(key)
         _MEMO[key] = (model, fast, solver)
-        problem = to_problem(the_plan.task, fast, quantities=_quantity_objects(fast, the_plan.scene),
+        problem = to_problem(the_plan.task, fast, quantities=quantity_objects(fast, the_plan.scene),
                              params=job.params, name=the_plan.label)
         return model, problem, solver.with_problem(problem), the_plan
     model, fast, problem = prepare(the_plan, params=job.params)
@@ -300,7 +299,7 @@ def _plan_point(job: PointJob) -> dict:
     """Warm start from the parent when there is one; else (or when it fails) the planner's own
     guesses and continuation; then the planner's verification in momentum coordinates."""
     from .guesses import candidates
-    from .planner import _quantity_objects, continuation, solve_from_guesses, to_momentum_coordinates, warm_start
+    from .planner import momentum_problem, solve_with_fallbacks, to_momentum_coordinates, warm_start
     solution, start = None, "cold"
     if job.warm is not None:
         model, problem, solver, the_plan = _solver_for(job, warm=True)
@@ -310,14 +309,11 @@ def _plan_point(job: PointJob) -> dict:
     if solution is None or not solution.success:
         model, problem, solver, the_plan = _solver_for(job)
         guesses = candidates(problem)
-        solution, attempts, _ = solve_from_guesses(solver, guesses, workers=1)
+        solution, attempts, _ = solve_with_fallbacks(solver, guesses)
         spent += sum(a.iterations for a in attempts)
-        if solution is None:
-            solution, more = continuation(solver, guesses[0])
-            spent += sum(a.iterations for a in more)
-        if solution is None:
+        if solution is None:   # record the first candidate's failure
             solution = solver.solve(guesses[0])
             spent += int(solution.iterations)
-    momentum = problem.replace(model=model, quantities=_quantity_objects(model, the_plan.scene), params=job.params)
+    momentum = momentum_problem(model, problem, the_plan, job.params)
     out = _outcome(to_momentum_coordinates(solution, momentum).verified(), start)
     return {**out, "warm": warm_data(out["solution"]) if out["success"] else None, "total_iterations": spent}

@@ -49,17 +49,6 @@ class Plan:
         return self.scene.system
 
 
-def _read_toml(text: str, source: str) -> dict:
-    try:
-        import tomllib
-    except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-        import tomli as tomllib
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ProblemError([f"TOML syntax error: {exc}"], title=f"invalid task file {source}") from None
-
-
 def library(scene_name: str) -> dict | None:
     """The library entry of a built-in scene (dict with scene, units, drawing, tasks) or None."""
     name = str(scene_name).replace("-", "_")
@@ -67,7 +56,8 @@ def library(scene_name: str) -> dict | None:
         text = resources.files("nhgait.gaits").joinpath("library", f"{name}.toml").read_text()
     except (FileNotFoundError, OSError):
         return None
-    data = _read_toml(text, f"built-in task library {name}")
+    from nhgait.dynamics.scene import read_toml
+    data = read_toml(text, f"built-in task library {name}", ProblemError)
     unknown = set(data) - LIBRARY_KEYS
     tasks = data.get("tasks", {})
     if unknown or not isinstance(tasks, dict):  # pragma: no cover - guards the shipped data
