@@ -34,21 +34,9 @@ def _fresh():
 
 
 def _kane(name):
-    from sympy.physics.mechanics import KanesMethod, dynamicsymbols
     import oracles
-    mdl = oracles._MODELS[name]()
-    q = mdl["q"]
-    t = dynamicsymbols._t
-    u = [dynamicsymbols(f"u_{qi.func.__name__}") for qi in q]
-    kd = [qi.diff(t) - ui for qi, ui in zip(q, u)]
-    from sympy.physics.mechanics import msubs
-    cons = [msubs(c, dict(zip([qi.diff(t) for qi in q], u))) for c in mdl["constraints"]]
-    dep = mdl["dependent_sets"][0]
-    ind = [i for i in range(len(q)) if i not in dep]
-    km = KanesMethod(mdl["N"], q_ind=q, u_ind=[u[i] for i in ind], kd_eqs=kd,
-                     u_dependent=[u[i] for i in dep], velocity_constraints=cons)
-    km.kanes_equations(mdl["bodies"], mdl["loads"])
-    return km
+    mdl = oracles.model_description(name)
+    return oracles.kanes_method(mdl, mdl["dependent_sets"][0])
 
 
 def _lagrange(name):

@@ -95,28 +95,20 @@ def _scene_text(name):
 
 
 def _mechanics(name, kind):
+    """A callable that runs sympy's LagrangesMethod (equations + rhs()) or KanesMethod on the
+    oracle's physical description of ``name`` (timed from the description onwards)."""
     import oracles
-    from sympy.physics.mechanics import KanesMethod, Lagrangian, LagrangesMethod, dynamicsymbols, msubs
-    builder = oracles._MODELS.get(name) or oracles._family(name)
+    from sympy.physics.mechanics import Lagrangian, LagrangesMethod
 
     def run():
-        mdl = builder()
-        q = mdl["q"]
+        mdl = oracles.model_description(name)
         if kind == "lagrange":
-            lm = LagrangesMethod(Lagrangian(mdl["N"], *mdl["bodies"]), q, forcelist=mdl["loads"],
+            lm = LagrangesMethod(Lagrangian(mdl["N"], *mdl["bodies"]), mdl["q"], forcelist=mdl["loads"],
                                  frame=mdl["N"], nonhol_coneqs=mdl["constraints"])
             lm.form_lagranges_equations()
             lm.rhs()
             return
-        t = dynamicsymbols._t
-        u = [dynamicsymbols(f"u_{qi.func.__name__}") for qi in q]
-        kd = [qi.diff(t) - ui for qi, ui in zip(q, u)]
-        cons = [msubs(c, dict(zip([qi.diff(t) for qi in q], u))) for c in mdl["constraints"]]
-        dep = mdl["dependent_sets"][0]
-        ind = [i for i in range(len(q)) if i not in dep]
-        km = KanesMethod(mdl["N"], q_ind=q, u_ind=[u[i] for i in ind], kd_eqs=kd,
-                         u_dependent=[u[i] for i in dep], velocity_constraints=cons)
-        km.kanes_equations(mdl["bodies"], mdl["loads"])
+        oracles.kanes_method(mdl, mdl["dependent_sets"][0])
     return run
 
 
@@ -146,28 +138,6 @@ def _has_script():
     return Path(_script()).exists()
 
 
-def _agreement(system, model, name, count=100, seed=0):
-    """Max relative q̈ error against the oracle at ``count`` consistent states: of 1.2·count
-    random configurations the 1/6 nearest the singular set are dropped."""
-    from oracles import oracle
-    orc = oracle(name)
-    num = model.numeric
-    pv = system.param_vector()
-    po = np.array([system.parameters[p] for p in orc.parameters])
-    rng = np.random.default_rng(seed)
-    drawn = rng.uniform(-1.2, 1.2, (count + count // 5, system.n))
-    measure = np.array([num.call("singular", q, pv) for q in drawn])
-    worst = 0.0
-    for q in drawn[np.argsort(measure)[::-1][:count]]:
-        qd = orc.consistent_qdot(q, rng.uniform(-1.0, 1.0, len(orc.independent)), po)
-        u = rng.uniform(-2.0, 2.0, len(system.inputs))
-        uo = np.array([u[system.inputs.index(i)] for i in orc.inputs])
-        ref = orc.qddot(q, qd, uo, po)
-        got = num.call("qddot", 0.0, num.call("state", q, qd, pv), u, pv)
-        worst = max(worst, float(np.max(np.abs(got - ref)) / max(1.0, np.max(np.abs(ref)))))
-    return worst
-
-
 def measure(name, repeats, cap, cli=True, agreement=True):
     """One member's row of the table (times in seconds, None when capped)."""
     from nhgait.dynamics import derive
@@ -183,7 +153,11 @@ def measure(name, repeats, cap, cli=True, agreement=True):
     row["cli_s"] = _cli_time(name, repeats, cap) if cli else None
     row["lagrange_s"] = _median(_mechanics(name, "lagrange"), repeats, cap)
     row["kane_s"] = _median(_mechanics(name, "kane"), repeats, cap)
-    row["oracle_error"] = _agreement(system, model, name) if agreement else None
+    if agreement:
+        from oracles import agreement as oracle_agreement, oracle
+        row["oracle_error"] = oracle_agreement(system, model, oracle(name))
+    else:
+        row["oracle_error"] = None
     return row
 
 

@@ -53,7 +53,7 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["KaneOracle", "oracle", "ORACLE_NAMES"]
+__all__ = ["KaneOracle", "oracle", "ORACLE_NAMES", "kanes_method", "model_description", "agreement"]
 
 ORACLE_NAMES = ("unicycle", "snakeboard", "chaplygin_sleigh", "knife_edge_incline")
 
@@ -457,9 +457,60 @@ _MODELS = {
 # --------------------------------------------------------------------------- #
 # build
 # --------------------------------------------------------------------------- #
+def kanes_method(mdl: dict, dependent) -> "KanesMethod":
+    """sympy's KanesMethod of a model description (``_MODELS[name]()``) with the speeds
+    ``dependent`` (indices) dependent; ``kanes_equations`` already formed. Generalized speeds
+    u_i = q̇_i. Used by the oracle and by the benchmarks that time KanesMethod."""
+    from sympy.physics.mechanics import KanesMethod, dynamicsymbols, msubs
+    q = mdl["q"]
+    t = dynamicsymbols._t
+    u = [dynamicsymbols(f"u_{qi.func.__name__}") for qi in q]
+    kd = [qi.diff(t) - ui for qi, ui in zip(q, u)]
+    cons = [msubs(c, dict(zip([qi.diff(t) for qi in q], u))) for c in mdl["constraints"]]
+    ind = [i for i in range(len(q)) if i not in dependent]
+    km = KanesMethod(mdl["N"], q_ind=q, u_ind=[u[i] for i in ind], kd_eqs=kd,
+                     u_dependent=[u[i] for i in dependent], velocity_constraints=cons)
+    km.kanes_equations(mdl["bodies"], mdl["loads"])
+    return km
+
+
+def model_description(name: str) -> dict:
+    """The physical description (frames, bodies, loads, constraints) of oracle ``name``."""
+    if name not in _MODELS:
+        builder = _family(name)
+        if builder is None:
+            raise KeyError(f"unknown oracle {name!r}; choose from {ORACLE_NAMES} or a family member "
+                           "(cart_trailers_<k>, cart_trailer_absolute, snake_<N>[_rotor])")
+        _MODELS[name] = builder
+    return _MODELS[name]()
+
+
+def agreement(system, model, orc, count=100, seed=0) -> float:
+    """Worst relative q̈ error of ``model`` against the oracle ``orc`` over ``count`` consistent
+    states: of 1.2·count random configurations the 1/6 nearest the singular set (smallest
+    singular measure) are dropped. Also checks the round trip q̇ → z → q̇ at each state."""
+    num = model.numeric
+    pv = system.param_vector()
+    po = np.array([system.parameters[p] for p in orc.parameters])
+    rng = np.random.default_rng(seed)
+    drawn = rng.uniform(-1.2, 1.2, (count + count // 5, system.n))
+    measure = np.array([num.call("singular", q, pv) for q in drawn])
+    worst = 0.0
+    for q in drawn[np.argsort(measure)[::-1][:count]]:   # the count farthest from the singular set
+        qd = orc.consistent_qdot(q, rng.uniform(-1.0, 1.0, len(orc.independent)), po)
+        u = rng.uniform(-2.0, 2.0, len(system.inputs))
+        uo = np.array([u[system.inputs.index(i)] for i in orc.inputs])
+        ref = orc.qddot(q, qd, uo, po)
+        z = num.call("state", q, qd, pv)
+        np.testing.assert_allclose(num.call("qdot", z, pv), qd, rtol=1e-9, atol=1e-9)
+        got = num.call("qddot", 0.0, z, u, pv)
+        worst = max(worst, float(np.max(np.abs(got - ref)) / max(1.0, np.max(np.abs(ref)))))
+    return worst
+
+
 def _build(name: str) -> KaneOracle:
     import sympy as sp
-    from sympy.physics.mechanics import KanesMethod, dynamicsymbols, kinetic_energy, msubs
+    from sympy.physics.mechanics import dynamicsymbols, kinetic_energy, msubs
     from sympy.physics.mechanics import find_dynamicsymbols
 
     mdl = _MODELS[name]()
@@ -469,7 +520,6 @@ def _build(name: str) -> KaneOracle:
     qd = [qi.diff(t) for qi in q]
     u = [dynamicsymbols(f"u_{qi.func.__name__}") for qi in q]
     qd_to_u = dict(zip(qd, u))
-    kd = [qdi - ui for qdi, ui in zip(qd, u)]
 
     # plain symbols for lambdify
     qs = sp.symbols([f"q_{i}" for i in range(n)])
@@ -500,9 +550,7 @@ def _build(name: str) -> KaneOracle:
     variants = []
     for dep in mdl["dependent_sets"]:
         ind = tuple(i for i in range(n) if i not in dep)
-        km = KanesMethod(N, q_ind=q, u_ind=[u[i] for i in ind], kd_eqs=kd,
-                         u_dependent=[u[i] for i in dep], velocity_constraints=cons_u)
-        km.kanes_equations(mdl["bodies"], mdl["loads"])
+        km = kanes_method(mdl, dep)
         M = plain(km.mass_matrix)
         f = plain(km.forcing)
         assert M.shape == (n, n) and f.shape == (n, 1)
@@ -528,10 +576,5 @@ def _build(name: str) -> KaneOracle:
 @functools.lru_cache(maxsize=None)
 def oracle(name: str) -> KaneOracle:
     """The (cached, lazily built) Kane oracle for ``name`` (see ORACLE_NAMES)."""
-    if name not in _MODELS:
-        builder = _family(name)
-        if builder is None:
-            raise KeyError(f"unknown oracle {name!r}; choose from {ORACLE_NAMES} or a family member "
-                           "(cart_trailers_<k>, cart_trailer_absolute, snake_<N>[_rotor])")
-        _MODELS[name] = builder
+    model_description(name)   # registers a family member
     return _build(name)

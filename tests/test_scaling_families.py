@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from oracles import oracle
+from oracles import agreement, oracle
 
 ROOT = Path(__file__).resolve().parents[1]
 RTOL = 1e-10
@@ -28,28 +28,6 @@ def _families():
     sys.modules["scaling_systems"] = mod
     spec.loader.exec_module(mod)
     return mod
-
-
-def _agreement(system, model, orc, count=100, seed=0):
-    """Worst relative q̈ error over ``count`` consistent states: of 1.2·count random
-    configurations the 1/6 nearest the singular set (smallest singular measure) are dropped."""
-    num = model.numeric
-    pv = system.param_vector()
-    po = np.array([system.parameters[p] for p in orc.parameters])
-    rng = np.random.default_rng(seed)
-    drawn = rng.uniform(-1.2, 1.2, (count + count // 5, system.n))
-    measure = np.array([num.call("singular", q, pv) for q in drawn])
-    worst = 0.0
-    for q in drawn[np.argsort(measure)[::-1][:count]]:   # the count farthest from the singular set
-        qd = orc.consistent_qdot(q, rng.uniform(-1.0, 1.0, len(orc.independent)), po)
-        u = rng.uniform(-2.0, 2.0, len(system.inputs))
-        uo = np.array([u[system.inputs.index(i)] for i in orc.inputs])
-        ref = orc.qddot(q, qd, uo, po)
-        z = num.call("state", q, qd, pv)
-        np.testing.assert_allclose(num.call("qdot", z, pv), qd, rtol=1e-9, atol=1e-9)
-        got = num.call("qddot", 0.0, z, u, pv)
-        worst = max(worst, np.max(np.abs(got - ref)) / max(1.0, np.max(np.abs(ref))))
-    return worst
 
 
 MEMBERS = {"cart_trailers_0": "explicit", "cart_trailers_1": "implicit", "cart_trailers_2": "implicit",
@@ -64,7 +42,7 @@ def test_family_member_equals_kane(name):
     model = derive(system, "reduced")
     assert model.form == MEMBERS[name]
     assert model.dimension == 2 * system.n - system.k
-    worst = _agreement(system, model, oracle(name))
+    worst = agreement(system, model, oracle(name))
     assert worst < RTOL, f"{name}: max relative q̈ error {worst:.3g}"
 
 
@@ -72,7 +50,7 @@ def test_implicit_form_forced_on_the_snakeboard(systems):
     from nhgait.dynamics.reduction import derive_reduced
     model = derive_reduced(systems["snakeboard"], form="implicit")
     assert model.form == "implicit" and model.rhs is None and model.implicit.pivots
-    assert _agreement(systems["snakeboard"], model, oracle("snakeboard")) < RTOL
+    assert agreement(systems["snakeboard"], model, oracle("snakeboard")) < RTOL
 
 
 def test_explicit_and_implicit_forms_give_the_same_vector_field(systems):
