@@ -79,7 +79,6 @@ class HamiltonianDAE:
 def derive_hamiltonian(system: System) -> HamiltonianDAE:
     """Derive the Hamiltonian DAE (eqs. 2.19–2.24) of ``system``."""
     t0 = time.perf_counter()
-    n = system.n
     q = sp.Matrix(system.q)
     p = sp.Matrix([sp.Symbol(f"p_{c}", real=True) for c in system.coordinates])
     M = system.mass_matrix()

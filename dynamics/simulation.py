@@ -64,8 +64,8 @@ import numpy as np
 
 from .closed_loop import closed_loop
 from .errors import ModelError
-from .integrators import (FAILED, FINISHED, IMPLICIT_METHODS, MAX_STEPS, NONFINITE, SCIPY_METHODS,
-                          SINGULAR, Run, integrate_compiled, integrate_scipy, integrate_sundials,
+from .integrators import (FAILED, FINISHED, MAX_STEPS, NONFINITE, SCIPY_METHODS,
+                          SINGULAR, integrate_compiled, integrate_scipy, integrate_sundials,
                           left_of)
 from .states import to_state
 
@@ -683,7 +683,6 @@ def _diagnose(model, loop, controller, run, seg_params, segments, y0) -> None:
 def _nonfinite_source(model, loop, controller, t, y, p, t_hi, bad) -> str | None:
     """A sentence naming the first non-finite quantity at (t, y), or None."""
     system = model.system
-    n = loop.n_q
     if _bad(y) is not None:
         return f"the state entry {_y_name(model, loop, _bad(y))} is non-finite"
     tc = min(t, t_hi)

@@ -289,7 +289,7 @@ def _numeric_bound(model, params) -> dict:
 def _numeric_velocity(model, params, names, quantities) -> dict:
     """Functions of z = (q, y) by automatic differentiation (no sympy; any model form)."""
     n, nz = model.system.n, len(model.state_names)
-    nv, nu = nz - n, len(model.numeric.input_names)
+    nu = len(model.numeric.input_names)
     Yf = _row_function(model, names, quantities)
     Qf = _momentum_basis(model, params)
     t, z, u, p = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", len(params))

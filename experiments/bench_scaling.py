@@ -170,8 +170,8 @@ def _fmt(x, spec=".3f"):
 
 
 def table(rows, cap) -> str:
-    head = (f"| member | n | k | form | derive (s) | ÷ Lagrange+rhs | ÷ Kane | print (s) | CLI (s) | "
-            f"RHS ops | q̈ error vs Kane |\n|---|---|---|---|---|---|---|---|---|---|---|")
+    head = ("| member | n | k | form | derive (s) | ÷ Lagrange+rhs | ÷ Kane | print (s) | CLI (s) | "
+            "RHS ops | q̈ error vs Kane |\n|---|---|---|---|---|---|---|---|---|---|---|")
     lines = [head]
     for r in rows:
         lag = _fmt(_ratio(r["derive_s"], r["lagrange_s"]), ".2f") if r["lagrange_s"] else f"> cap ({cap:.0f} s)"

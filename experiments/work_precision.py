@@ -484,7 +484,6 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     import matplotlib
     matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
 
     info = machine()
     print(f"machine: {info}", flush=True)

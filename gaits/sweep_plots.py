@@ -10,7 +10,6 @@ nearest grid value is used) and defaults to the axis's middle value.
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np

@@ -24,7 +24,7 @@ import os
 import socket
 import time
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Mapping
 
 
 from nhgait.ocp import ProblemError

@@ -20,7 +20,6 @@ remaining periodicity conditions are rows of g.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any
 

@@ -320,7 +320,7 @@ def _model_cart_trailers(k, absolute=False):
     bodies = [RigidBody("cart", G0, C, m, (inertia(C, 0, 0, I), G0)),
               RigidBody("wheel", axle, W, 0, (inertia(W, 0, Jw, 0), axle))]
     constraints = [contact.vel(N).dot(C.y), contact.vel(N).dot(C.x)]
-    prev_frame, prev_axle = C, axle
+    prev_axle = axle
     for i in range(1, k + 1):
         T = N.orientnew(f"T{i}", "Axis", [headings[i], N.z])
         hitch = prev_axle                              # on-axle hitching
@@ -330,7 +330,7 @@ def _model_cart_trailers(k, absolute=False):
         G.v2pt_theory(hitch, N, T)
         bodies.append(RigidBody(f"trailer{i}", G, T, mt, (inertia(T, 0, 0, It), G)))
         constraints.append(ax.vel(N).dot(T.y))
-        prev_frame, prev_axle = T, ax
+        prev_axle = ax
     loads = [(C, tau_th * N.z), (W, tau_ph * C.y), (C, -tau_ph * C.y)]
     names = [qi.func.__name__ for qi in q]
     ind = (names.index("theta0" if absolute else "theta"), names.index("phi"))
@@ -457,7 +457,7 @@ _MODELS = {
 # --------------------------------------------------------------------------- #
 # build
 # --------------------------------------------------------------------------- #
-def kanes_method(mdl: dict, dependent) -> "KanesMethod":
+def kanes_method(mdl: dict, dependent):
     """sympy's KanesMethod of a model description (``_MODELS[name]()``) with the speeds
     ``dependent`` (indices) dependent; ``kanes_equations`` already formed. Generalized speeds
     u_i = q̇_i. Used by the oracle and by the benchmarks that time KanesMethod."""

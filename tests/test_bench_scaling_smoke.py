@@ -1,17 +1,14 @@
 """Fast smoke run of experiments/bench_scaling.py (the full run is on demand, docs/scaling.md)."""
-import importlib.util
 import json
-import sys
 from pathlib import Path
+
+import experiment_scripts
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_bench_scaling_smoke(tmp_path, capsys):
-    spec = importlib.util.spec_from_file_location("bench_scaling", ROOT / "experiments" / "bench_scaling.py")
-    bench = importlib.util.module_from_spec(spec)
-    sys.modules["bench_scaling"] = bench
-    spec.loader.exec_module(bench)
+    bench = experiment_scripts.load("bench_scaling")
     assert bench.main(["--repeats", "1", "--members", "unicycle,cart_trailers_0", "--no-cli",
                        "--out", str(tmp_path)]) == 0
     rows = json.loads((tmp_path / "bench_scaling.json").read_text())

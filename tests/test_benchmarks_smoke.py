@@ -1,20 +1,13 @@
 """Fast smoke runs of the on-demand benchmarks (the full runs live in experiments/)."""
-import importlib.util
 import json
-import sys
 from pathlib import Path
 
-import pytest
+import experiment_scripts
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _load(name):
-    spec = importlib.util.spec_from_file_location(name, ROOT / "experiments" / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[name] = mod
-    spec.loader.exec_module(mod)
-    return mod
+_load = experiment_scripts.load
 
 
 def test_bench_derivation_smoke(tmp_path, capsys):

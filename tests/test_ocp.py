@@ -9,14 +9,13 @@ Our state uses momenta instead of velocities; for the unicycle the two are linea
 from __future__ import annotations
 
 import json
-import math
 import subprocess
 import sys
 
 import numpy as np
 import pytest
 
-from nhgait.ocp import (Collocation, InitialGuess, OCPSolver, OptimalControlProblem, ProblemError,
+from nhgait.ocp import (Collocation, OCPSolver, OptimalControlProblem, ProblemError,
                         SolverOptions, solve)
 
 REF_25 = {"P1": 1.543703, "P2": 0.110252, "P3": 2.162582}

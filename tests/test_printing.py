@@ -1,26 +1,22 @@
 """Printing of the reduced model: Markdown and LaTeX with no arguments, LaTeX that a real
 LaTeX engine compiles (pdflatex when installed; otherwise the structural checks alone: ASCII
 only, balanced braces, velocities as \\dot{…}), a one-line repr, and the implicit form's text."""
-import importlib.util
 import re
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from nhgait.dynamics.steps import latex_document, tex_text
 
+import experiment_scripts
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def _family_system(name):
-    spec = importlib.util.spec_from_file_location("scaling_systems", ROOT / "experiments" / "scaling_systems.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["scaling_systems"] = mod
-    spec.loader.exec_module(mod)
-    return mod.system(name)
+    return experiment_scripts.load("scaling_systems").system(name)
 
 
 @pytest.fixture(scope="module")
@@ -81,9 +77,7 @@ def test_repr_is_one_line_and_text_of_the_implicit_form(trailer, models):
 
 def test_cli_derive_scene_file_with_checks_and_steps(tmp_path, capsys):
     from nhgait.gaits.cli import main
-    spec = importlib.util.spec_from_file_location("scaling_systems", ROOT / "experiments" / "scaling_systems.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = experiment_scripts.load("scaling_systems")
     scene = tmp_path / "trailer.toml"
     scene.write_text(mod.cart_trailer_absolute())
     assert main(["derive", str(scene), "--checks", "--steps", "latex"]) == 0

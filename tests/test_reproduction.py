@@ -6,7 +6,6 @@ Known values (independent KanesMethod + DOP853, rtol 1e-12): unicycle x(2π) = 0
 """
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
@@ -15,15 +14,13 @@ import pytest
 
 from nhgait.gaits.reproduction import reproduce
 
+import experiment_scripts
+
 REPO = Path(__file__).resolve().parents[1]
 
 
 def _experiment():
-    spec = importlib.util.spec_from_file_location("reproduce_thesis",
-                                                  REPO / "experiments" / "reproduce_thesis.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return experiment_scripts.load("reproduce_thesis")
 
 
 @pytest.fixture(scope="module")

@@ -9,8 +9,6 @@ rotor, and the issue's two reproduction cases (the cart with one trailer in abso
 the snakeboard whose wheels steer independently). The snakeboard with the
 implicit form forced checks that form on a thesis system.
 """
-import importlib.util
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -18,16 +16,14 @@ import pytest
 
 from oracles import agreement, oracle
 
+import experiment_scripts
+
 ROOT = Path(__file__).resolve().parents[1]
 RTOL = 1e-10
 
 
 def _families():
-    spec = importlib.util.spec_from_file_location("scaling_systems", ROOT / "experiments" / "scaling_systems.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["scaling_systems"] = mod
-    spec.loader.exec_module(mod)
-    return mod
+    return experiment_scripts.load("scaling_systems")
 
 
 MEMBERS = {"cart_trailers_0": "explicit", "cart_trailers_1": "implicit", "cart_trailers_2": "implicit",

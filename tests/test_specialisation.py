@@ -62,7 +62,7 @@ def test_parameter_values_key_the_cache(models):
     a = specialise(model)
     b = specialise(model, {"r": 0.2})
     assert a.numeric.params()[list(a.numeric.param_names).index("r")] == 0.1
-    z, u = np.array([0.0, 0.0, 0.3, 0.0, 0.5, 0.2]), np.array([0.0, 0.0])
+    z = np.array([0.0, 0.0, 0.3, 0.0, 0.5, 0.2])
     ax = np.asarray(a.numeric["qdot"](z, a.numeric.params())).ravel()
     bx = np.asarray(b.numeric["qdot"](z, b.numeric.params())).ravel()
     # the rolling constraint ẋ = r cos θ φ̇ with each model's own r (closed form)

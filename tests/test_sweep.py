@@ -17,6 +17,7 @@ from nhgait.gaits.sweep_grid import Grid, parse_grid
 from nhgait.gaits.sweep_point import PointJob, SceneData, SweepCase, point_task
 from nhgait.gaits.sweep_store import SweepStore
 from nhgait.ocp import ProblemError
+import experiment_scripts
 
 CASE = SweepCase(SceneData("fake"), task={"horizon": 4.0, "intervals": 10, "final": {"x": 1.0}},
                  params={"m": 1.0, "J_r": 0.2}, label="fake/task")
@@ -280,12 +281,7 @@ def test_plots_reject_unknown_axes(tmp_path):
 
 
 def test_bench_sweep_smoke(tmp_path, capsys):
-    import importlib.util
-    from pathlib import Path
-    spec = importlib.util.spec_from_file_location(
-        "bench_sweep", Path(__file__).resolve().parents[1] / "experiments" / "bench_sweep.py")
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = experiment_scripts.load("bench_sweep")
     assert bench.main(["--quick", "--repeats", "1", "--out", str(tmp_path / "b.json")]) == 0
     text = capsys.readouterr().out
     assert "speed-up 2 workers / 1 worker" in text and "iterations warm / cold" in text

@@ -82,7 +82,7 @@ def _momentum_rate(F, lay, sy, con, Kinv, coef, grad, forces, a):
 def _forces(F, lay, sy, con, XKinv):
     """Xᵀτ(t, q, q̇ = XK⁻¹P, u): coefficients of the affine part in P normalised, and any
     remainder (forces nonlinear in the velocities) as one more term."""
-    n, nP = lay.n, len(sy.P)
+    nP = len(sy.P)
     qd = lay.system.q_dot
     qdot = F.matmul(XKinv, F.vec(sy.P), normal=False)
     tau = [[F.subs(F.frac(e), {F.sub_key(v): qdot[j][0] for j, v in enumerate(qd)})]

@@ -16,7 +16,7 @@ import sympy as sp
 
 from ..steps import Step
 from ..symbolic import numeric_pivots, strip_factors, tidy
-from ..symmetry import SymmetryTest, group_transform, omega_samples, symmetry_test
+from ..symmetry import SymmetryTest, group_transform, symmetry_test
 from ..system import System
 
 #: largest matrix the explicit form inverts symbolically (pivot block, K_Ω, K_r); larger
