@@ -50,7 +50,7 @@ def test_simulate_snakeboard_scene_writes_csv(tmp_path, formulation, capsys):
                  "--out", str(out)]) == 0
     with out.open() as fh:
         rows = list(csv.reader(fh))
-    assert rows[0] == ["t [s]", "x [SI]", "y [SI]", "theta [SI]", "psi [SI]", "phi [SI]"]
+    assert rows[0] == ["t [s]", "x [m]", "y [m]", "theta [rad]", "psi [rad]", "phi [rad]"]
     data = np.array(rows[1:], dtype=float)
     assert data.shape == (501, 6)                         # `samples` uniform times
     np.testing.assert_allclose(data[:, 0], np.linspace(0, 10 * np.pi, 501), rtol=0, atol=1e-12)

@@ -94,8 +94,7 @@ def test_cli_prints_the_state_count_and_writes_the_outputs(tmp_path, capsys):
     from nhgait.gaits.cli import main
     text = resources.files("nhgait.dynamics").joinpath("scenes", "snakeboard.toml").read_text()
     scene = tmp_path / "shape.toml"
-    scene.write_text(text.replace("samples = 501", 'samples = 51\noutputs = ["shape", "momenta"]')
-                     + '\n[units]\npsi = "rad"\nphi = "rad"\n')
+    scene.write_text(text.replace("samples = 501", 'samples = 51\noutputs = ["shape", "momenta"]'))
     out = tmp_path / "out" / "shape.csv"
     assert main(["simulate", str(scene), "--method", "compiled", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
@@ -106,4 +105,4 @@ def test_cli_prints_the_state_count_and_writes_the_outputs(tmp_path, capsys):
     assert main(["simulate", str(scene), "--all-states", "--columns", "qdot", "--out", str(out)]) == 0
     assert "8 of 8 states" in capsys.readouterr().out
     header = next(csv.reader(out.open()))
-    assert header[:3] == ["t [s]", "x [SI]", "y [SI]"] and header[-1] == "phi_dot [rad/s]"
+    assert header[:3] == ["t [s]", "x [m]", "y [m]"] and header[-1] == "phi_dot [rad/s]"
