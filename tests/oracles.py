@@ -202,37 +202,45 @@ def _model_unicycle():
                 dependent_sets=[(0, 1)])
 
 
-def _model_snakeboard():
-    import sympy as sp
-    from sympy.physics.mechanics import (Point, ReferenceFrame, RigidBody, dynamicsymbols,
-                                         inertia)
-    x, y, th, psi, ph = q = dynamicsymbols("x y theta psi phi")
-    m, J, Jr, Jw, r = p = sp.symbols("m J J_r J_w r", positive=True)
-    tau_psi, tau_phi = inp = sp.symbols("tau_psi tau_phi")
-
+def _board_with_wheels(x, y, th, psi, front_angle, back_angle, m, J, Jr, Jw, r):
+    """Frames and bodies of a snakeboard-like robot: a board (mass m, inertia J) at (x, y)
+    heading th, a rotor (Jr) at its centre turned by psi, massless wheel assemblies (Jw) on
+    axles at ±r along the board heading th + front_angle and th + back_angle; the two
+    no-sideslip constraints (back, front). Returns (N, B, R, F, K, bodies, constraints)."""
+    from sympy.physics.mechanics import Point, ReferenceFrame, RigidBody, inertia
     N = ReferenceFrame("N")
-    B = N.orientnew("B", "Axis", [th, N.z])          # board
-    R = N.orientnew("R", "Axis", [th + psi, N.z])    # rotor
-    F = N.orientnew("F", "Axis", [th + ph, N.z])     # front wheel assembly
-    K = N.orientnew("K", "Axis", [th - ph, N.z])     # back wheel assembly
+    B = N.orientnew("B", "Axis", [th, N.z])                   # board
+    R = N.orientnew("R", "Axis", [th + psi, N.z])             # rotor
+    F = N.orientnew("F", "Axis", [th + front_angle, N.z])     # front wheel assembly
+    K = N.orientnew("K", "Axis", [th + back_angle, N.z])      # back wheel assembly
     O = Point("O")
     O.set_vel(N, 0)
     C = O.locatenew("C", x * N.x + y * N.y)
     C.set_vel(N, C.pos_from(O).dt(N))
     Pf = C.locatenew("Pf", r * B.x)
     Pb = C.locatenew("Pb", -r * B.x)
-    Pf.v2pt_theory(C, N, B)                          # wheel axles are fixed on the board
+    Pf.v2pt_theory(C, N, B)                                   # wheel axles are fixed on the board
     Pb.v2pt_theory(C, N, B)
-    board = RigidBody("board", C, B, m, (inertia(B, 0, 0, J), C))
-    rotor = RigidBody("rotor", C, R, 0, (inertia(R, 0, 0, Jr), C))
-    front = RigidBody("front", Pf, F, 0, (inertia(F, 0, 0, Jw), Pf))
-    back = RigidBody("back", Pb, K, 0, (inertia(K, 0, 0, Jw), Pb))
+    bodies = [RigidBody("board", C, B, m, (inertia(B, 0, 0, J), C)),
+              RigidBody("rotor", C, R, 0, (inertia(R, 0, 0, Jr), C)),
+              RigidBody("front", Pf, F, 0, (inertia(F, 0, 0, Jw), Pf)),
+              RigidBody("back", Pb, K, 0, (inertia(K, 0, 0, Jw), Pb))]
     constraints = [Pb.vel(N).dot(K.y), Pf.vel(N).dot(F.y)]
+    return N, B, R, F, K, bodies, constraints
+
+
+def _model_snakeboard():
+    import sympy as sp
+    from sympy.physics.mechanics import dynamicsymbols
+    x, y, th, psi, ph = q = dynamicsymbols("x y theta psi phi")
+    m, J, Jr, Jw, r = p = sp.symbols("m J J_r J_w r", positive=True)
+    tau_psi, tau_phi = inp = sp.symbols("tau_psi tau_phi")
+    N, B, R, F, K, bodies, constraints = _board_with_wheels(x, y, th, psi, ph, -ph, m, J, Jr, Jw, r)
     loads = [(R, tau_psi * N.z), (B, -tau_psi * N.z),        # rotor motor
              (F, tau_phi / 2 * N.z), (K, -tau_phi / 2 * N.z)]  # wheel coupling
     # (the board reaction of the wheel motor, -tau_phi/2 + tau_phi/2, is zero)
     return dict(N=N, q=list(q), params=list(p), inputs=list(inp),
-                bodies=[board, rotor, front, back], loads=loads, constraints=constraints,
+                bodies=bodies, loads=loads, constraints=constraints,
                 dependent_sets=[(0, 1), (0, 2), (1, 2)])
 
 
@@ -403,29 +411,11 @@ def _model_snakeboard_two_steering():
     back wheel heading theta + phi_b, torques tau_f, tau_b between each wheel and the board
     and tau_psi between rotor and board (issue 8's 6-coordinate reproduction case)."""
     import sympy as sp
-    from sympy.physics.mechanics import (Point, ReferenceFrame, RigidBody, dynamicsymbols,
-                                         inertia)
+    from sympy.physics.mechanics import dynamicsymbols
     x, y, th, psi, pf, pb = q = dynamicsymbols("x y theta psi phi_f phi_b")
     m, J, Jr, Jw, r = p = sp.symbols("m J J_r J_w r", positive=True)
     tau_psi, tau_f, tau_b = inp = sp.symbols("tau_psi tau_f tau_b")
-    N = ReferenceFrame("N")
-    B = N.orientnew("B", "Axis", [th, N.z])
-    R = N.orientnew("R", "Axis", [th + psi, N.z])
-    F = N.orientnew("F", "Axis", [th + pf, N.z])
-    K = N.orientnew("K", "Axis", [th + pb, N.z])
-    O = Point("O")
-    O.set_vel(N, 0)
-    C = O.locatenew("C", x * N.x + y * N.y)
-    C.set_vel(N, C.pos_from(O).dt(N))
-    Pf = C.locatenew("Pf", r * B.x)
-    Pb = C.locatenew("Pb", -r * B.x)
-    Pf.v2pt_theory(C, N, B)
-    Pb.v2pt_theory(C, N, B)
-    bodies = [RigidBody("board", C, B, m, (inertia(B, 0, 0, J), C)),
-              RigidBody("rotor", C, R, 0, (inertia(R, 0, 0, Jr), C)),
-              RigidBody("front", Pf, F, 0, (inertia(F, 0, 0, Jw), Pf)),
-              RigidBody("back", Pb, K, 0, (inertia(K, 0, 0, Jw), Pb))]
-    constraints = [Pb.vel(N).dot(K.y), Pf.vel(N).dot(F.y)]
+    N, B, R, F, K, bodies, constraints = _board_with_wheels(x, y, th, psi, pf, pb, m, J, Jr, Jw, r)
     loads = [(R, tau_psi * N.z), (B, -tau_psi * N.z), (F, tau_f * N.z), (B, -tau_f * N.z),
              (K, tau_b * N.z), (B, -tau_b * N.z)]
     return dict(N=N, q=list(q), params=list(p), inputs=list(inp), bodies=bodies, loads=loads,
