@@ -9,9 +9,11 @@
    points ran at once on average (the points' own wall times over the sweep's).
 2. Dask overhead per point: a realistic point (a P2 job with its warm start, answered with a
    solution-sized dict) sent through ``DaskBackend("local:1")`` to a function that does no
-   work: seconds per point with 2 points in flight (as the sweep driver keeps them), minus
-   the same call in this process (also: one isolated round trip), against the median Ipopt
-   time of a P2 (snakeboard forward) N = 50 solve (the planner's ``plan``).
+   work: seconds per point with 2 tasks in flight (as the sweep driver keeps them), minus
+   the same call in this process (also: one isolated round trip), for tasks of 1, 2 and 4
+   points (a sweep's continuation chains, ``--chain``), against the median Ipopt time of a
+   P2 (snakeboard forward) N = 50 solve (the planner's ``plan``). How many points a task
+   carries in a real sweep is counted on the grid of 3., swept on ``DaskBackend("local:2")``.
 3. Continuation: a P2 N = 50 grid (final.x × horizon) swept warm and cold (every point from
    the planner's guesses) on 2 workers; ratio of the Ipopt iterations summed over the points
    (every solve a point needed, failed candidates included).
@@ -28,12 +30,17 @@ import json
 import statistics
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 
 import operator
 
 _echo = operator.itemgetter(1)      # a picklable function that does no work: payload → answer
+_carried = operator.attrgetter("warm")     # the same for a job carrying its answer as ``warm``
+
+
+CHAINS = (1, 2, 4)
 
 
 def _warm_up(backend) -> None:
@@ -89,7 +96,7 @@ def dask_overhead(samples: int, solves: int, scene=("snakeboard", "forward")) ->
         t0 = time.perf_counter()
         _echo(payload)
         local.append(time.perf_counter() - t0)
-    trips, pipelined = [], []
+    trips, pipelined = [], {k: [] for k in CHAINS}
     with DaskBackend("local:1") as backend:
         backend.submit(_echo, payload).result()
         for _ in range(samples):
@@ -97,28 +104,63 @@ def dask_overhead(samples: int, solves: int, scene=("snakeboard", "forward")) ->
             backend.submit(_echo, payload).result()
             trips.append(time.perf_counter() - t0)
         for _ in range(3):
-            pipelined.append(_pipelined(backend, payload, samples) - statistics.median(local))
-    overhead = statistics.median(pipelined)
+            for k in CHAINS:
+                pipelined[k].append(_pipelined(backend, payload, samples, k) - statistics.median(local))
+    per_point = {k: statistics.median(v) for k, v in pipelined.items()}
     return {"p2_solve_s": solve_s, "p2_iterations": p2[-1].solution.iterations,
             "dask_round_trip_s": statistics.median(trips) - statistics.median(local),
-            "dask_overhead_s": overhead, "overhead_fraction_of_p2_solve": overhead / solve_s,
+            "dask_overhead_s": per_point[1], "overhead_fraction_of_p2_solve": per_point[1] / solve_s,
+            "overhead_per_point_s_by_chain": per_point,
+            "overhead_fraction_of_p2_solve_by_chain": {k: v / solve_s for k, v in per_point.items()},
             "round_trip_fraction_of_p2_solve": (statistics.median(trips) - statistics.median(local)) / solve_s,
             "samples": samples}
 
 
-def _pipelined(backend, payload, count: int) -> float:
-    """Seconds per point for ``count`` points kept 2 per worker in flight, as the sweep driver does."""
+def _pipelined(backend, payload, count: int, chain: int = 1) -> float:
+    """Seconds per point for ``count`` tasks of ``chain`` points each, kept 2 per worker in
+    flight as the sweep driver does."""
     import concurrent.futures as cf
+    from nhgait.gaits.sweep_point import solve_chain
     t0 = time.perf_counter()
     in_flight, sent = set(), 0
     while sent < count or in_flight:
         while sent < count and len(in_flight) < 2 * backend.workers:
-            in_flight.add(backend.submit(_echo, payload))
+            if chain == 1:
+                in_flight.add(backend.submit(_echo, payload))
+            else:
+                # the sweep's own chain task; each "solve" answers with the answer its job carries
+                carrier = replace(payload[0], warm=payload[1])
+                in_flight.add(backend.submit(solve_chain, _carried, (carrier,) * chain, False))
             sent += 1
         done, in_flight = cf.wait(in_flight, return_when=cf.FIRST_COMPLETED)
         for f in done:
             f.result()
-    return (time.perf_counter() - t0) / count
+    return (time.perf_counter() - t0) / (count * chain)
+
+
+def dask_chains(axes, scene=("snakeboard", "forward")) -> dict:
+    """Points per task when the grid of 3. is swept on a 2-worker local Dask cluster."""
+    from nhgait.gaits.sweep_backends import DaskBackend
+    from nhgait.gaits.sweep_grid import parse_grid
+    from nhgait.gaits.sweep_point import describe_case
+    case = describe_case(*scene, overrides=["intervals=50"])
+    grid = parse_grid(axes)
+    sizes = []
+
+    class Counting(DaskBackend):
+        def submit(self, fn, *args):
+            sizes.append(len(args[1]) if fn.__name__ == "solve_chain" else 1)
+            return super().submit(fn, *args)
+
+    with Counting("local:2") as backend:
+        _warm_up(backend)
+        sizes.clear()
+        wall, result = timed_sweep(case, grid, backend)
+    points = sum(sizes) - (backend.workers - 1)          # the prepare tasks carry no point
+    tasks = len(sizes) - (backend.workers - 1)
+    return {"points": grid.size, "solved": sum(r.success for r in result.records), "tasks": tasks,
+            "points_per_task": points / tasks, "wall_s": wall, "chain": backend.chain,
+            "objectives": [r.objective for r in result.records]}
 
 
 def continuation(axes, scene=("snakeboard", "forward")) -> dict:
@@ -173,8 +215,21 @@ def main(argv=None) -> int:
               f"{d['dask_overhead_s'] * 1e3:.1f} ms per point with 2 points in flight as the sweep keeps them "
               f"(median of 3 × {d['samples']}), {d['dask_round_trip_s'] * 1e3:.1f} ms for one isolated round trip;")
         print(f"   {'/'.join(p2)} N=50 solve median {d['p2_solve_s'] * 1e3:.1f} ms ({d['p2_iterations']} iterations) → "
-              f"{100 * d['overhead_fraction_of_p2_solve']:.1f} % in a sweep (target ≤ 10 %), "
+              f"{100 * d['overhead_fraction_of_p2_solve']:.1f} % for one point per task, "
               f"{100 * d['round_trip_fraction_of_p2_solve']:.1f} % isolated")
+        for k in CHAINS:
+            print(f"   tasks of {k} point{'s' if k > 1 else ' '}: {d['overhead_per_point_s_by_chain'][k] * 1e3:5.1f} ms per point "
+                  f"= {100 * d['overhead_fraction_of_p2_solve_by_chain'][k]:4.1f} % of the solve")
+        ch = d["sweep"] = dask_chains(p2_axes, p2)
+        m = ch["points_per_task"]
+        lo = max(k for k in CHAINS if k <= m)
+        hi = min((k for k in CHAINS if k >= m), default=lo)
+        f = d["overhead_fraction_of_p2_solve_by_chain"]
+        est = f[lo] if hi == lo else f[lo] + (f[hi] - f[lo]) * (m - lo) / (hi - lo)
+        d["overhead_fraction_in_sweep"] = est
+        print(f"   a Dask sweep of the grid of 3. (local:2, chain {ch['chain']}): {ch['points']} points in "
+              f"{ch['tasks']} tasks = {m:.2f} points per task ({ch['solved']} solved) → overhead ≈ "
+              f"{100 * est:.1f} % of a solve per point (target ≤ 10 %)")
     c = report["continuation"] = continuation(p2_axes, p2)
     print(f"3. continuation, {'/'.join(p2)} N=50, {c['points']} points ({' × '.join(p2_axes)}), 2 workers:")
     print(f"   warm: {c['warm']['iterations']} Ipopt iterations, {c['warm']['solved']} solved, {c['warm']['wall_s']:.1f} s")

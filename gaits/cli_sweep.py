@@ -37,6 +37,9 @@ def add_sweep_parser(subparsers) -> argparse.ArgumentParser:
                         "LocalCluster of N workers on 127.0.0.1 (needs pip install 'nhgait[dask]')")
     p.add_argument("--workers", type=int, default=None,
                    help="local pool size (default: one per core; 0: in this process)")
+    p.add_argument("--chain", type=int, default=None, metavar="N",
+                   help="grid points per back-end task, solved in a row down the continuation tree "
+                        "(default: 1 for the local pool, 4 for Dask, whose fixed cost per task they share)")
     p.add_argument("--cold", action="store_true", help="no continuation: start every point from the planner's guesses")
     p.add_argument("--plot", default=None, metavar="X,Y", help="axes of the heat map (default: the first two)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG files")
@@ -99,7 +102,7 @@ def run(args) -> int:
     out = Path(args.out)
     try:
         result = sweep(args.scene, args.task, args.grid, out=out, scheduler=args.scheduler, workers=args.workers,
-                       resume=args.resume, warm_start=not args.cold, overrides=args.overrides,
+                       resume=args.resume, warm_start=not args.cold, overrides=args.overrides, chain=args.chain,
                        progress=None if args.quiet else _ProgressPrinter())
     except KeyboardInterrupt:
         stored = len(load_sweep(out).records) if (out / "sweep.sqlite").exists() else 0

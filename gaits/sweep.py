@@ -16,10 +16,14 @@ Steps (:func:`run_sweep`)
 3. Points run on a back end (:mod:`.sweep_backends`) as soon as their parent in the
    continuation tree (:meth:`Grid.parent`) has finished: warm-started from the nearest solved
    ancestor's trajectory (the planner's own guesses when there is none, and when a warm start
-   fails), each verified by the planner's re-simulation.
+   fails), each verified by the planner's re-simulation. On a back end with a fixed cost per
+   task (Dask: ``chain = 4``) one task solves a *chain* of up to ``chain`` points down the
+   tree, each warm-started from the one before (:func:`.sweep_point.solve_chain`); a chain
+   passes a branch point only while the other workers have work, so the frontier stays wide.
 4. Each finished point is written at once (solution file, then its row). A point whose worker
-   died (or whose solve raised) is submitted once more; a second failure is recorded as
-   failed with the reason. Input the planner rejects stops the sweep with its message.
+   died (or whose solve raised) is submitted once more (a chain's points one by one); a second
+   failure is recorded as failed with the reason. Input the planner rejects stops the sweep
+   with its message.
 """
 from __future__ import annotations
 
@@ -36,7 +40,7 @@ from nhgait.ocp import ProblemError
 
 from .sweep_backends import WorkerDied, make_backend
 from .sweep_grid import Grid, parse_grid
-from .sweep_point import PointJob, SweepCase, point_task, prepare_worker, solve_point
+from .sweep_point import PointJob, SweepCase, point_task, prepare_worker, solve_chain, solve_point
 from .sweep_store import PointRecord, SweepStore
 
 __all__ = ["sweep", "run_sweep", "load_sweep", "SweepResult", "Progress"]
@@ -124,7 +128,7 @@ class SweepResult:
 def _record(point, job: PointJob, answer: dict, attempts: int, solution_path) -> PointRecord:
     values = {k: answer[k] for k in _RESULT_KEYS if k in answer}
     return PointRecord(id=point.id, idx=point.index, axis_values=dict(point.values), task=job.task,
-                       params=job.params, attempts=attempts, warm_from=job.warm_from,
+                       params=job.params, attempts=attempts, warm_from=answer.get("warm_from", job.warm_from),
                        solution_path=solution_path, **values)
 
 
@@ -143,6 +147,15 @@ class _Tree:
         for p in grid.points():
             self.children.setdefault(grid.parent(p.index), []).append(p)
         self.warm: dict = {}          # index → warm data of a solved point (or its path)
+        self.size: dict = {}          # index → points in its subtree (itself included)
+        for p in sorted(grid.points(), key=lambda p: -self._depth(p.index)):
+            self.size[p.index] = 1 + sum(self.size[c.index] for c in self.children.get(p.index, ()))
+
+    def _depth(self, index) -> int:
+        depth = 0
+        while (index := self.grid.parent(index)) is not None:
+            depth += 1
+        return depth
 
     def warm_source(self, index):
         """(warm data, id) of the nearest solved ancestor of ``index``, or (None, None)."""
@@ -168,8 +181,10 @@ class _Run:
     """The driver's state for one call of :func:`run_sweep`: the continuation tree, the stored
     rows, the points ready to run and those in flight."""
 
-    def __init__(self, case, grid, backend, store, *, resume, warm_start, solve, progress):
+    def __init__(self, case, grid, backend, store, *, resume, warm_start, solve, progress, chain=1):
         self.case, self.grid, self.backend, self.store = case, grid, backend, store
+        self.chain = max(1, int(chain))
+        self.second_try: set = set()   # points of a failed chain after its head: alone, attempt 2
         self.warm_start, self.solve, self.progress = warm_start, solve, progress
         self.t_start = time.perf_counter()
         self.tree = _Tree(grid)
@@ -205,30 +220,61 @@ class _Run:
             warm_from = warm_from if warm is not None else None
         return PointJob(self.case, point.id, task, params, warm, warm_from)
 
+    def chain_from(self, point) -> list:
+        """``point`` and up to ``chain - 1`` descendants, each a child of the one before (the
+        largest subtree first); past a point with several children only while the other workers
+        have work (``ready`` and in flight), since its other children wait for the whole chain."""
+        points = [point]
+        while len(points) < self.chain:
+            kids = sorted((c for c in self.tree.children.get(points[-1].index, ()) if c.index not in self.done),
+                          key=lambda c: -self.tree.size[c.index])
+            if not kids or (len(kids) > 1 and len(self.ready) + len(self.in_flight) < self.backend.workers):
+                break
+            if kids[0].index in self.second_try:
+                break
+            points.append(kids[0])
+        return points
+
     def submit(self, point, job=None, attempt: int = 1) -> PointJob:
-        job = job or self.job_for(point)
-        self.in_flight[self.backend.submit(self.solve, job)] = (point, job, attempt)
-        return job
+        """Submit ``point`` (a first attempt: with its chain) and return its job."""
+        if point.index in self.second_try:
+            self.second_try.discard(point.index)
+            attempt = 2
+        points = self.chain_from(point) if attempt == 1 and self.chain > 1 else [point]
+        jobs = [job or self.job_for(point)] + [self.job_for(p) for p in points[1:]]
+        if len(points) == 1:
+            future = self.backend.submit(self.solve, jobs[0])
+        else:
+            future = self.backend.submit(solve_chain, self.solve, tuple(jobs), self.warm_start)
+        self.in_flight[future] = (points, jobs, attempt)
+        return jobs[0]
 
     def finish(self, future) -> None:
-        """Store a finished point (or resubmit it once when its worker died or its solve raised)."""
-        point, job, attempts = self.in_flight.pop(future)
+        """Store a finished task's points (or resubmit them once, one by one, when the worker
+        died or the solve raised)."""
+        points, jobs, attempts = self.in_flight.pop(future)
         try:
-            answer = future.result()
+            answers = future.result()
         except Exception as exc:  # noqa: BLE001 - a dead worker or a bug in the solve: retry once
             status = "worker-died" if isinstance(exc, WorkerDied) else "error"
-            if attempts == 1:
-                self.counts["retried"] += 1
-                self.submit(point, job, 2)
+            if attempts == 1:                   # the head now; the rest when their parents finish
+                self.counts["retried"] += len(points)
+                self.second_try.update(p.index for p in points[1:])
+                self.submit(points[0], jobs[0], 2)
                 return
-            record = _failure(point, job, f"{status} twice: {exc}", status, attempts)
+            records = [_failure(p, j, f"{status} twice: {exc}", status, attempts) for p, j in zip(points, jobs)]
         else:
-            record = self._record(point, job, answer, attempts)
+            answers = [answers] if len(points) == 1 else answers
+            records = [self._record(p, j, a, attempts) for p, j, a in zip(points, jobs, answers)]
+        for point, record in zip(points, records):
+            self._store(point, record)
+        self.release(points[0].index)          # through the chain's (now done) points
+
+    def _store(self, point, record) -> None:
         self.store.add(record)
         self.done[point.index] = record
         self.counts["ok" if record.success else "failed"] += 1
         self.counts["now"] += 1
-        self.release(point.index)
         if self.progress is not None:
             c = self.counts
             self.progress(Progress(len(self.done), self.grid.size, c["ok"], c["failed"], len(self.in_flight),
@@ -249,22 +295,29 @@ class _Run:
 
 def run_sweep(case: SweepCase, grid: Grid, backend, store: SweepStore, *, resume: bool = False,
               warm_start: bool = True, solve: Callable = solve_point, progress: Callable | None = None,
-              max_in_flight: int | None = None, prepare: Callable | None = None) -> SweepResult:
+              max_in_flight: int | None = None, prepare: Callable | None = None,
+              chain: int | None = None) -> SweepResult:
     """Run (or resume) a sweep on an open back end and store (see the module docstring).
 
     ``solve``: the module-level function a worker calls with a :class:`PointJob` (default
     :func:`.sweep_point.solve_point`); ``progress``: called with a :class:`Progress` after
-    every finished point; ``max_in_flight``: points submitted at once (default: twice the
+    every finished point; ``max_in_flight``: tasks submitted at once (default: twice the
     back end's workers, so that a worker finds its next point waiting instead of a round
-    trip to the driver); ``prepare``: a function submitted with the centre point's job to
-    each other worker while the centre is solved (default :func:`.sweep_point.prepare_worker`
+    trip to the driver); ``chain``: points per task down the continuation tree (default: the
+    back end's ``chain``, 1 for the process pool, 4 for Dask; module docstring); ``prepare``:
+    a function submitted with the centre point's job to each other worker while the centre is solved (default :func:`.sweep_point.prepare_worker`
     with the default ``solve``), its result ignored.
     """
     store.start({"scene": case.scene.describe(), "task": case.task, "params": case.params,
                  "options": case.options, "grid": grid.to_dict(), "label": case.label, "units": case.units,
                  "shape": list(case.shape), "coordinates": list(case.coordinates),
                  "inputs": list(case.inputs)}, resume=resume)
-    run = _Run(case, grid, backend, store, resume=resume, warm_start=warm_start, solve=solve, progress=progress)
+    chain = getattr(backend, "chain", 1) if chain is None else chain
+    if not isinstance(chain, int) or isinstance(chain, bool) or chain < 1:
+        raise ProblemError([f"chain must be a whole number ≥ 1 of points per task, got {chain!r}"],
+                           title="invalid sweep")
+    run = _Run(case, grid, backend, store, resume=resume, warm_start=warm_start, solve=solve, progress=progress,
+               chain=chain)
     limit = max(1, int(max_in_flight or 2 * backend.workers))
     if prepare is None and solve is solve_point:
         prepare = prepare_worker
@@ -287,7 +340,7 @@ def run_sweep(case: SweepCase, grid: Grid, backend, store: SweepStore, *, resume
 
 def sweep(system, task=None, grid=(), *, out, overrides=(), params=None, scheduler: str | None = None,
           workers: int | None = None, backend=None, resume: bool = False, warm_start: bool = True,
-          options: dict | None = None, progress: Callable | None = None) -> SweepResult:
+          options: dict | None = None, progress: Callable | None = None, chain: int | None = None) -> SweepResult:
     """Sweep ``task`` on ``system`` over ``grid``, storing every point in ``out``.
 
     Parameters
@@ -306,6 +359,8 @@ def sweep(system, task=None, grid=(), *, out, overrides=(), params=None, schedul
     warm_start : continue from solved neighbours (False: every point cold, for comparison)
     options : planner options (``transcription``, ``solver``, ``jit``)
     progress : callback receiving a :class:`Progress` after each point
+    chain : points per back-end task down the continuation tree (None: the back end's choice;
+        1 for the local pool, 4 for Dask)
     """
     from .sweep_point import check_case, describe_case
     case = describe_case(system, task, overrides=overrides, params=params, options=options)
@@ -317,7 +372,7 @@ def sweep(system, task=None, grid=(), *, out, overrides=(), params=None, schedul
     try:
         with SweepStore(out) as store:
             return run_sweep(case, the_grid, backend, store, resume=resume, warm_start=warm_start,
-                             progress=progress)
+                             progress=progress, chain=chain)
     finally:
         if own:
             backend.close()

@@ -1,10 +1,14 @@
 """Where sweep points run: one small ``concurrent.futures``-style interface, three back ends.
 
 Every back end has ``submit(fn, *args) -> concurrent.futures.Future``, ``workers`` (how
-many points run at once), ``describe()`` and ``close()`` (also a context manager). ``fn`` and
+many points run at once), ``chain`` (how many points of a continuation chain one task should
+carry: 1 where a task costs nothing, 4 on Dask, whose fixed cost per task — scheduler, worker
+and client messages, several milliseconds on a small machine — is then shared by 4 solves),
+``describe()`` and ``close()`` (also a context manager). ``fn`` and
 ``args`` must be picklable with :mod:`pickle` (functions of an importable module, plain
-data): nothing live crosses a process boundary. A worker that dies fails the future of the point it was running — and only
-that one — with :class:`WorkerDied`; the sweep driver retries such a point once.
+data): nothing live crosses a process boundary. A worker that dies fails the future of the
+task it was running — and only that one — with :class:`WorkerDied`; the sweep driver retries
+that task's points once (a chain's points one by one).
 
 * :class:`SerialBackend` — in this process, one point at a time (debugging, tiny sweeps).
 * :class:`ProcessPool` — the default: one process per core (``os.process_cpu_count`` /
@@ -73,6 +77,7 @@ def dask_available() -> bool:
 
 
 class _Backend:
+    chain = 1
     workers = 1
 
     def __enter__(self):
@@ -258,6 +263,8 @@ class DaskBackend(_Backend):
     ``scheduler``: an address (``tcp://host:8786``) or ``local:N`` for a
     :class:`~distributed.LocalCluster` of N single-threaded worker processes on 127.0.0.1.
     """
+
+    chain = 4
 
     def __init__(self, scheduler: str):
         if not dask_available():

@@ -23,7 +23,7 @@ import math
 import os
 import socket
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Mapping
 
 
@@ -153,6 +153,28 @@ def solve_point(job: PointJob) -> dict:
     except ModelError as exc:
         return {"id": job.point_id, "input_error": str(exc), "worker": worker}
     return {"id": job.point_id, "worker": worker, "wall_time_s": time.perf_counter() - t0, **out}
+
+
+def solve_chain(solve, jobs, warm_start: bool = True) -> list:
+    """Solve a continuation chain (each job the child of the one before) in order, in one task.
+
+    A job after the first is warm-started from the previous point's solution when that one
+    succeeded, else from its own ``warm`` (the nearest solved ancestor's, set by the driver).
+    ``solve`` is the point solver (:func:`solve_point`). Returns the answers in order, each with
+    its ``warm_from``; stops after an answer with ``input_error``. One task for several points
+    divides a distributed back end's fixed cost per task among them.
+    """
+    answers, previous = [], None
+    for job in jobs:
+        if warm_start and previous is not None and previous.get("success") and previous.get("warm") is not None:
+            job = replace(job, warm=previous["warm"], warm_from=previous["id"])
+        answer = solve(job)
+        answer["warm_from"] = job.warm_from
+        answers.append(answer)
+        if "input_error" in answer:
+            break
+        previous = answer
+    return answers
 
 
 def _outcome(s, start: str) -> dict:

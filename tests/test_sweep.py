@@ -209,10 +209,51 @@ def test_a_raising_solve_is_retried_then_recorded(tmp_path):
     assert "a bug in the solve" in result.records[0].message
 
 
-def test_failed_points_do_not_warm_start_their_children(tmp_path):
+class Chaining(SerialBackend):
+    """A serial back end asking for chains of 3 points per task, counting its tasks."""
+
+    chain = 3
+
+    def __init__(self):
+        self.tasks = []
+
+    def submit(self, fn, *args):
+        self.tasks.append(len(args[1]) if fn.__name__ == "solve_chain" else 1)    # points in the task
+        return super().submit(fn, *args)
+
+
+@pytest.mark.parametrize("backend_kind", ["serial", "pool"])
+def test_chains_solve_several_points_per_task_each_warm_from_its_parent(tmp_path, backend_kind):
+    grid = parse_grid(["final.x=0.5:1.5:7", "horizon=2:4:3"])                  # rays of 3 along final.x
+    backend = Chaining() if backend_kind == "serial" else ProcessPool(2)
+    with backend, SweepStore(tmp_path) as store:
+        result = run_sweep(CASE, grid, backend, store, solve=fake_solve, chain=3)
+    _check_rows(result, grid)                  # warm_from: the previous point of the chain = the parent
+    if backend_kind == "serial":
+        assert sum(backend.tasks) == grid.size and max(backend.tasks) == 3
+        assert len(backend.tasks) <= grid.size / 2          # on average at least 2 points per task
+
+
+def test_a_dead_worker_in_a_chain_costs_its_points_one_retry_each(tmp_path):
+    grid = parse_grid(["final.x=0.5:1.5:5", "horizon=2:4:3"])
+    case = SweepCase(CASE.scene, {**CASE.task, "marker": str(tmp_path / "died")}, CASE.params)
+    with ProcessPool(2) as pool, SweepStore(tmp_path / "s") as store:
+        result = run_sweep(case, grid, pool, store, solve=dying_solve, chain=3)
+    assert (tmp_path / "died").exists() and result.complete and all(r.success for r in result.records)
+    retried = [r for r in result.records if r.attempts == 2]
+    assert "1-1" in {r.id for r in retried} and result.retried == len(retried) <= 3
+
+
+def test_chain_must_be_a_whole_number(tmp_path):
+    with SweepStore(tmp_path) as store, pytest.raises(ProblemError, match="chain must be a whole number"):
+        run_sweep(CASE, parse_grid(["final.x=0.5,1.0"]), SerialBackend(), store, solve=fake_solve, chain=0)
+
+
+@pytest.mark.parametrize("chain", [1, 3])
+def test_failed_points_do_not_warm_start_their_children(tmp_path, chain):
     grid = parse_grid(["final.x=-1.0:1.0:5"])                        # x < 0 fails in the fake
     with SweepStore(tmp_path) as store:
-        result = run_sweep(CASE, grid, SerialBackend(), store, solve=fake_solve)
+        result = run_sweep(CASE, grid, SerialBackend(), store, solve=fake_solve, chain=chain)
     rows = {r.idx[0]: r for r in result.records}
     assert [rows[i].success for i in range(5)] == [False, False, True, True, True]
     assert rows[1].warm_from == "2" and rows[0].warm_from == "2"    # skips the failed neighbour 1
