@@ -61,3 +61,16 @@ def test_a_matrix_singular_for_every_configuration_is_a_model_error():
     F = FracField([x], symbols=[x])
     with pytest.raises(ModelError, match="the test block is singular for every configuration"):
         F.inv(F.mat(sp.Matrix([[x, 2 * x], [1, 2]])), "test block")
+
+
+def test_factors_that_never_vanish_are_not_listed():
+    """The unicycle's Gram determinant of ω_s is (r² + 1)(…): r² + 1 > 0 for every real r, so
+    the stated set is J_φ + m r² = 0 alone; factors that can vanish are kept (square-free)."""
+    from nhgait.dynamics.reduction.model import _drop_positive_factors, _positive_everywhere
+    r, m, J, phi = sp.symbols("r m J_phi phi")
+    assert _positive_everywhere(r**2 + 1) and _positive_everywhere(sp.cos(phi)**2 + 2 * r**4 + 3)
+    for can_vanish in (r**2 - 1, r + 1, sp.cos(phi) + 1, J + m * r**2, r**2, sp.cos(phi)**2):
+        assert not _positive_everywhere(can_vanish), can_vanish
+    assert _drop_positive_factors(3 * (r**2 + 1) * (J + m * r**2) * sp.cos(phi)**2) == (J + m * r**2) * sp.cos(phi)
+    unicycle = derive("unicycle", "reduced")
+    assert [str(sp.expand(e)) for e in unicycle.singular_set] == ["J_phi + m*r**2"]   # model's own symbols

@@ -97,6 +97,32 @@ def _det(A: sp.Matrix):
     return sp.Determinant(sp.ImmutableMatrix(A))
 
 
+def _positive_everywhere(f) -> bool:
+    """True when the polynomial ``f`` is > 0 for every real value of its generators (symbols,
+    sin, cos): a positive constant term and only positive terms of even degree in each
+    generator (e.g. r² + 1, which the unicycle's Gram determinant carries)."""
+    gens = f.free_symbols | f.atoms(sp.sin, sp.cos)
+    try:
+        poly = sp.Poly(f, *sorted(gens, key=sp.default_sort_key))
+    except sp.PolynomialError:
+        return False
+    if any(not (g.is_Symbol or isinstance(g, (sp.sin, sp.cos))) for g in poly.gens):
+        return False
+    terms = poly.terms()
+    return (any(not any(m) and c > 0 for m, c in terms)
+            and all(c.is_real and c > 0 and all(d % 2 == 0 for d in m) for m, c in terms))
+
+
+def _drop_positive_factors(e):
+    """The square-free product of the factors of ``e`` that can vanish (the same zero set,
+    shorter to read: the singular set is stated, the numerics use the layout's matrices)."""
+    if isinstance(e, sp.Determinant) or e.is_Number:
+        return e
+    _, factors = sp.factor_list(e)
+    kept = [f for f, _ in factors if not _positive_everywhere(f)]
+    return sp.Mul(*kept) if kept else sp.Integer(1)
+
+
 def singular_set(lay) -> tuple:
     """Where a matrix the reduction inverts loses rank: the Gram determinant of ω_s (when
     rank ω_s = k), the pivot block B of ω (step 5) and K_Ω = NᵀM_ssN (the basis N, steps
@@ -114,6 +140,7 @@ def singular_set(lay) -> tuple:
         out.append(_det(tidy(lay.N.T * Ms * lay.N)))
     seen, result = set(), []
     for e in out:
+        e = _drop_positive_factors(e)
         if e.is_Number:
             continue
         key = sp.srepr(e)
