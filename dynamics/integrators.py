@@ -441,33 +441,67 @@ def integrate_sundials(loop, kind, segments, y0, lam0, seg_params, t_eval, rtol,
             except RuntimeError as err:
                 run.nfev += int(F.stats().get("nfevals", 0))
                 return _sundials_failure(run, kind, problem, opts, pv, p, t_cur, y, lam, b, err,
-                                         event, event_tol, max_steps)
+                                         event, event_tol, max_steps, (a, j, chunk, names))
             stats = F.stats()
             run.nfev += int(stats.get("nfevals", 0))
             run.njev += int(stats.get("n_call_jacF", stats.get("njevals", 0)))
             run.n_steps += int(stats.get("nsteps", 0))
             xf = np.asarray(out["xf"]).reshape(y.size, -1)
             zf = np.asarray(out["zf"]).reshape(lam.size, -1) if kind == "idas" else None
-            for col, gt in enumerate(chunk):
-                if gt not in names:
-                    continue
-                if event is not None:
-                    g = event(xf[:, col], p)
-                    if not (np.isfinite(g) and g >= event_tol):
-                        t_prev = run.t[-1] if run.t else a
-                        return run.fail(SINGULAR, names[gt], f"reached the singular set between "
-                                        f"t = {t_prev:.9g} and t = {names[gt]:.9g} (measure {g:.3g} "
-                                        f"< {event_tol:g} on the output grid)")
-                run.add(names[gt], left_of(b), j, xf[:, col], None if zf is None else zf[:, col])
+            if _record_outputs(run, (a, b, j, p), chunk, names, xf, zf, event, event_tol):
+                return run
             y, t_cur = xf[:, -1].copy(), chunk[-1]
             lam = None if zf is None else zf[:, -1].copy()
     return run
 
 
+def _record_outputs(run, where, chunk, names, xf, zf, event, event_tol) -> bool:
+    """Add the outputs of one integrator call (columns of ``xf``/``zf`` at ``chunk``) to
+    ``run``, checking the singular-set measure at each; True when it stopped the run there."""
+    a, b, j, p = where
+    for col, gt in enumerate(chunk):
+        if gt not in names:
+            continue
+        if event is not None:
+            g = event(xf[:, col], p)
+            if not (np.isfinite(g) and g >= event_tol):
+                t_prev = run.t[-1] if run.t else a
+                run.fail(SINGULAR, names[gt], f"reached the singular set between t = {t_prev:.9g} and "
+                         f"t = {names[gt]:.9g} (measure {g:.3g} < {event_tol:g} on the output grid)")
+                return True
+        run.add(names[gt], left_of(b), j, xf[:, col], None if zf is None else zf[:, col])
+    return False
+
+
+def _outputs_before(run, kind, problem, opts, pv, p, t, y, lam, t_ok, pending, event, event_tol) -> bool:
+    """After a failure: the outputs of the failed call that lie before ``t_ok`` (the last time
+    the bracketing reached), integrated again so that none is lost; True when one of them is
+    on the singular set (the run stopped there)."""
+    a, j, chunk, names = pending
+    before = [gt for gt in chunk if t < gt <= t_ok]
+    if not before:
+        return False
+    F = ca.integrator(f"{kind}_outputs", kind, problem, t, before, opts)
+    try:
+        out = F(**(dict(x0=y, p=pv) if lam is None else dict(x0=y, p=pv, z0=lam)))
+    except RuntimeError:
+        return False
+    xf = np.asarray(out["xf"]).reshape(np.size(y), -1)
+    zf = None if lam is None else np.asarray(out["zf"]).reshape(np.size(lam), -1)
+    return _record_outputs(run, (a, before[-1], j, p), before, names, xf, zf, event, event_tol)
+
+
 def _sundials_failure(run, kind, problem, opts, pv, p, t, y, lam, b, err, event, event_tol,
-                      max_steps) -> Run:
-    """Bracket a SUNDIALS failure after (t, y) and classify it (singular set, max_steps, other)."""
-    t_ok, y_ok, t_bad = _bracket_failure(kind, problem, opts, pv, t, y, lam, b)
+                      max_steps, pending) -> Run:
+    """Bracket a SUNDIALS failure after (t, y) and classify it (singular set, max_steps, other);
+    the failed call's outputs before the failure are kept (``pending``: its segment start,
+    index, output times and their names), and the last state reached ends the trajectory, as
+    on the other routes."""
+    t_ok, y_ok, lam_ok, t_bad = _bracket_failure(kind, problem, opts, pv, t, y, lam, b)
+    if _outputs_before(run, kind, problem, opts, pv, p, t, y, lam, t_ok, pending, event, event_tol):
+        return run
+    if t_ok > (run.t[-1] if run.t else -np.inf):
+        run.add(t_ok, left_of(b), pending[1], y_ok, lam_ok)
     run.y_fail, run.t_bad = y_ok, t_bad
     if event is not None and event(y_ok, p) < WATCH * event_tol:
         return run.fail(SINGULAR, t_ok, f"{kind.upper()} stopped between t = {t_ok:.9g} and "
@@ -482,8 +516,8 @@ def _sundials_failure(run, kind, problem, opts, pv, p, t, y, lam, b, err, event,
 
 
 def _bracket_failure(kind, problem, opts, pv, t, y, lam, b, levels=2, pieces=16):
-    """(last time reached, its state, first time not reached): the failed interval [t, b]
-    re-integrated piece by piece, twice refined (only on failure)."""
+    """(last time reached, its state and multipliers, first time not reached): the failed
+    interval [t, b] re-integrated piece by piece, twice refined (only on failure)."""
     for _ in range(levels):
         for t_next in np.linspace(t, b, pieces + 1)[1:]:
             F = ca.integrator(f"{kind}_bracket", kind, problem, t, [float(t_next)], opts)
@@ -498,8 +532,8 @@ def _bracket_failure(kind, problem, opts, pv, t, y, lam, b, levels=2, pieces=16)
             t, y = float(t_next), np.asarray(out["xf"]).ravel()
             lam = None if lam is None else np.asarray(out["zf"]).ravel()
         else:
-            return t, y, b
-    return t, y, b
+            return t, y, lam, b
+    return t, y, lam, b
 
 
 def _cvodes_problem(loop) -> dict:

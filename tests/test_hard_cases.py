@@ -137,6 +137,26 @@ def test_singular_set_crossing_stops_with_status(models):
     assert np.max(np.abs(traj.q[-1] - ref.y[:5, -1])) < 1e-6
 
 
+@pytest.mark.parametrize("form, method", [("lagrange", "CVODES"), ("hamilton", "CVODES"), ("lagrange", "IDAS")])
+def test_sundials_keep_every_output_before_a_failure(models, form, method):
+    """SUNDIALS routes integrate 16 outputs per call; when a call fails next to the singular set
+    the outputs it reached before the failure are kept (they were lost: the run ended at
+    t = 1.6 for a stop near 2.52). Reference: the compiled run of the same model at 1e-10."""
+    grid = np.linspace(0, 10, 101)
+    opts = dict(method="CVODES") if method == "CVODES" else dict(dae="idas")
+    traj = simulate(models["snakeboard"][form], (0.0, 10.0), SNAKE_Q0, SNAKE_QDOT0, controller=_crossing(),
+                    rtol=1e-8, atol=1e-10, t_eval=grid, **opts)
+    ref = simulate(models["snakeboard"][form], (0.0, 10.0), SNAKE_Q0, SNAKE_QDOT0, controller=_crossing(),
+                   method="compiled", rtol=1e-10, atol=1e-12, t_eval=grid)
+    assert not traj.success and traj.status == SINGULAR, traj.message
+    on_grid = traj.t[:-1] if traj.t[-1] not in grid else traj.t      # then the last state reached
+    n = len(on_grid)
+    assert grid[n - 1] > ref.t[-1] - 0.1 - 1e-9                       # every grid time before the stop
+    np.testing.assert_allclose(on_grid, grid[:n], rtol=0, atol=1e-12)
+    assert np.max(np.abs(traj.q[:n] - ref.q[:n])) < 1e-4               # ≈ 1e-6 where the set is near
+    assert traj.t[-1] <= ref.t[-1] + 1e-9 and np.all(np.isfinite(traj.q))
+
+
 def test_singular_event_off_runs_on_and_degrades(models):
     """Without the event the reduced run passes next to the set and loses accuracy — the reason
     the event is on by default."""
