@@ -13,7 +13,8 @@
    the same call in this process (also: one isolated round trip), for tasks of 1, 2 and 4
    points (a sweep's continuation chains, ``--chain``), against the median Ipopt time of a
    P2 (snakeboard forward) N = 50 solve (the planner's ``plan``). How many points a task
-   carries in a real sweep is counted on the grid of 3., swept on ``DaskBackend("local:2")``.
+   carries in a real sweep is counted on a 40-point P2 grid shaped like the issue's example
+   (10 distances × 4 horizons), swept on ``DaskBackend("local:2")``.
 3. Continuation: a P2 N = 50 grid (final.x × horizon) swept warm and cold (every point from
    the planner's guesses) on 2 workers; ratio of the Ipopt iterations summed over the points
    (every solve a point needed, failed candidates included).
@@ -139,7 +140,7 @@ def _pipelined(backend, payload, count: int, chain: int = 1) -> float:
 
 
 def dask_chains(axes, scene=("snakeboard", "forward")) -> dict:
-    """Points per task when the grid of 3. is swept on a 2-worker local Dask cluster."""
+    """Points per task when ``axes`` are swept on a 2-worker local Dask cluster."""
     from nhgait.gaits.sweep_backends import DaskBackend
     from nhgait.gaits.sweep_grid import parse_grid
     from nhgait.gaits.sweep_point import describe_case
@@ -191,11 +192,13 @@ def main(argv=None) -> int:
     from nhgait.dynamics.errors import ModelError
     if args.quick:
         p1_axes, p2_axes, samples, solves = ["final.y=0.45,0.55"], ["final.y=0.45,0.55"], 3, 1
-        p2 = ("unicycle", "parallel-park")
+        p2, dask_axes = ("unicycle", "parallel-park"), ["final.y=0.45,0.55"]
     else:
         p1_axes, p2_axes, samples, solves = ["final.y=0.3:0.75:10", "final.theta=-0.15:0.15:4"], \
             ["final.x=0.6:1.4:5", "horizon=5.5:7.0:3"], 50, 3
         p2 = ("snakeboard", "forward")
+        # the shape of the issue's example grid (10 distances × 4 horizons): rays of 4–5 points
+        dask_axes = ["final.x=0.6:1.5:10", "horizon=5.5:7.0:4"]
     report = {"note": "2 cores shared with other work: compare ratios measured in this run"}
     print("nhgait sweep benchmark (machine possibly shared: ratios are from this one run)")
     t = report["throughput"] = throughput(max(1, args.repeats), p1_axes)
@@ -220,14 +223,14 @@ def main(argv=None) -> int:
         for k in CHAINS:
             print(f"   tasks of {k} point{'s' if k > 1 else ' '}: {d['overhead_per_point_s_by_chain'][k] * 1e3:5.1f} ms per point "
                   f"= {100 * d['overhead_fraction_of_p2_solve_by_chain'][k]:4.1f} % of the solve")
-        ch = d["sweep"] = dask_chains(p2_axes, p2)
+        ch = d["sweep"] = dask_chains(dask_axes, p2)
         m = ch["points_per_task"]
         lo = max(k for k in CHAINS if k <= m)
         hi = min((k for k in CHAINS if k >= m), default=lo)
         f = d["overhead_fraction_of_p2_solve_by_chain"]
         est = f[lo] if hi == lo else f[lo] + (f[hi] - f[lo]) * (m - lo) / (hi - lo)
         d["overhead_fraction_in_sweep"] = est
-        print(f"   a Dask sweep of the grid of 3. (local:2, chain {ch['chain']}): {ch['points']} points in "
+        print(f"   a Dask sweep of {' × '.join(dask_axes)} (local:2, chain {ch['chain']}): {ch['points']} points in "
               f"{ch['tasks']} tasks = {m:.2f} points per task ({ch['solved']} solved) → overhead ≈ "
               f"{100 * est:.1f} % of a solve per point (target ≤ 10 %)")
     c = report["continuation"] = continuation(p2_axes, p2)

@@ -53,7 +53,12 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def import_modules(names=("nhgait.gaits.planner", "nhgait.gaits.sweep_point")) -> int:
+#: what a worker imports to solve and verify a point (the verification's scipy.integrate alone
+#: takes ≈ 0.5 s: a third of a cold centre point when it is not imported before)
+WORKER_MODULES = ("nhgait.gaits.planner", "nhgait.gaits.sweep_point", "scipy.integrate")
+
+
+def import_modules(names=WORKER_MODULES) -> int:
     """Import ``names`` in this process and return its id (run on each worker by :func:`warm_up`)."""
     import importlib
     for name in names:
@@ -61,7 +66,7 @@ def import_modules(names=("nhgait.gaits.planner", "nhgait.gaits.sweep_point")) -
     return os.getpid()
 
 
-def warm_up(backend, names=("nhgait.gaits.planner", "nhgait.gaits.sweep_point")) -> list:
+def warm_up(backend, names=WORKER_MODULES) -> list:
     """Have every worker import ``names`` (e.g. before timing a sweep); returns their process ids
     (a worker may answer twice on a back end that does not spread the calls)."""
     futures = [backend.submit(import_modules, tuple(names)) for _ in range(backend.workers)]

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import copy
 import hashlib
+import importlib
 import math
 import os
 import socket
@@ -313,6 +314,7 @@ def _solver_for(job: PointJob, *, warm: bool = False):
 def prepare_worker(job: PointJob) -> bool:
     """Build this worker's warm-start solver for ``job``'s structure (submitted by the driver
     to the other workers while the centre point is solved cold, so that they start at once)."""
+    importlib.import_module("scipy.integrate")     # the verification's integrator, imported now
     _solver_for(job, warm=True)
     return True
 

@@ -177,7 +177,7 @@ class SweepStore:
         rel = f"solutions/{point_id}.json"
         fd, tmp = tempfile.mkstemp(dir=self.directory / "solutions", prefix=".tmp-", suffix=".json")
         with os.fdopen(fd, "w") as fh:
-            json.dump(solution, fh)
+            fh.write(json.dumps(solution))       # one shot: the C encoder (json.dump streams in Python)
         os.replace(tmp, self.directory / rel)
         return rel
 
