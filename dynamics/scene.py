@@ -13,14 +13,10 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
-try:  # Python ≥ 3.11
-    import tomllib
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
-
 from .errors import ModelError
 from .expressions import number_problems
 from .system import TIME, System, _parse, jump_times
+from .tomldata import read_toml
 
 SYSTEM_KEYS = {"name", "coordinates", "lagrangian", "constraints", "forces", "parameters", "inputs",
                "fiber", "planar_frame", "description"}
@@ -346,14 +342,6 @@ def load_scene(path_or_name) -> Scene:
         text = p.read_text()
         source = str(p)
     return scene_from_text(text, source)
-
-
-def read_toml(text: str, source: str, error=ModelError) -> dict:
-    """A TOML document as a dict; a syntax error is one ``error`` naming ``source``."""
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise error([f"TOML syntax error: {exc}"], title=f"invalid file {source}") from None
 
 
 def scene_from_text(text: str, source: str = "<scene>") -> Scene:

@@ -56,7 +56,7 @@ def library(scene_name: str) -> dict | None:
         text = resources.files("nhgait.gaits").joinpath("library", f"{name}.toml").read_text()
     except (FileNotFoundError, OSError):
         return None
-    from nhgait.dynamics.scene import read_toml
+    from nhgait.dynamics.tomldata import read_toml
     data = read_toml(text, f"built-in task library {name}", ProblemError)
     unknown = set(data) - LIBRARY_KEYS
     tasks = data.get("tasks", {})

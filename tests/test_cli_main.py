@@ -56,3 +56,15 @@ class _Parser:
 
     def parse_args(self, argv):
         return self.args
+
+
+def test_building_the_parser_imports_no_symbolic_or_integrator_module():
+    """`nhgait --help` and the start of every command stay light: sympy and scipy.integrate
+    (≈ 0.3 s and 0.5 s to import) are imported by the commands that use them, not by the parser."""
+    import subprocess
+    import sys
+    code = ("import sys; from nhgait.gaits.cli import build_parser; build_parser(); "
+            "print(sorted(m for m in ('sympy', 'scipy.integrate', 'matplotlib') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]"
