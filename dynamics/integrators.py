@@ -473,7 +473,7 @@ def _record_outputs(run, where, chunk, names, xf, zf, event, event_tol) -> bool:
     return False
 
 
-def _outputs_before(run, kind, problem, opts, pv, p, t, y, lam, t_ok, pending, event, event_tol) -> bool:
+def _outputs_before(run, kind, problem, opts, pv, p, t, y, lam, b, t_ok, pending, event, event_tol) -> bool:
     """After a failure: the outputs of the failed call that lie before ``t_ok`` (the last time
     the bracketing reached), integrated again so that none is lost; True when one of them is
     on the singular set (the run stopped there)."""
@@ -488,7 +488,7 @@ def _outputs_before(run, kind, problem, opts, pv, p, t, y, lam, t_ok, pending, e
         return False
     xf = np.asarray(out["xf"]).reshape(np.size(y), -1)
     zf = None if lam is None else np.asarray(out["zf"]).reshape(np.size(lam), -1)
-    return _record_outputs(run, (a, before[-1], j, p), before, names, xf, zf, event, event_tol)
+    return _record_outputs(run, (a, b, j, p), before, names, xf, zf, event, event_tol)
 
 
 def _sundials_failure(run, kind, problem, opts, pv, p, t, y, lam, b, err, event, event_tol,
@@ -498,7 +498,7 @@ def _sundials_failure(run, kind, problem, opts, pv, p, t, y, lam, b, err, event,
     index, output times and their names), and the last state reached ends the trajectory, as
     on the other routes."""
     t_ok, y_ok, lam_ok, t_bad = _bracket_failure(kind, problem, opts, pv, t, y, lam, b)
-    if _outputs_before(run, kind, problem, opts, pv, p, t, y, lam, t_ok, pending, event, event_tol):
+    if _outputs_before(run, kind, problem, opts, pv, p, t, y, lam, b, t_ok, pending, event, event_tol):
         return run
     if t_ok > (run.t[-1] if run.t else -np.inf):
         run.add(t_ok, left_of(b), pending[1], y_ok, lam_ok)
