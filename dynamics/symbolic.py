@@ -302,6 +302,16 @@ class MatrixOps:
     def zeros(self, rows, cols):
         return [[self.ZERO for _ in range(cols)] for _ in range(rows)]
 
+    def block_diag(self, A, B):
+        """[[A, 0], [0, B]] of two square matrices (either may be empty)."""
+        a, b = len(A), len(B)
+        out = self.zeros(a + b, a + b)
+        for i in range(a):
+            out[i][:a] = A[i][:a]
+        for i in range(b):
+            out[a + i][a:] = B[i][:b]
+        return out
+
     def matmul(self, A, B, normal=True):
         n_ = len(B)
         cols = len(B[0]) if B else 0

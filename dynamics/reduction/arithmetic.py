@@ -16,7 +16,7 @@ Scalar methods: ``frac(expr)`` (sympy → element), ``expr(el)`` (element → sy
 ``add_many``, ``mul``, ``neg``, ``scale``, ``normal``, ``is_zero``, ``diff(el, symbol)``,
 ``subs(el, {generator index or symbol: element})``, ``linear_split(el, symbols)``,
 ``sym(symbol)`` (the element of a sympy symbol). Matrix methods (shared, :class:`MatrixOps`):
-``mat``, ``matmul``, ``T``, ``madd``, ``mneg``, ``inv``, ``show``, ``form``.
+``mat``, ``zeros``, ``block_diag``, ``matmul``, ``T``, ``madd``, ``mneg``, ``inv``, ``show``, ``form``.
 """
 from __future__ import annotations
 

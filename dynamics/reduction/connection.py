@@ -143,14 +143,7 @@ def constrained_lagrangian(F, lay, sy, con: Connection) -> Step:
     M = F.mat(lay.M)
     Xr = [[row[d + b] for b in range(m)] for row in con.X]
     K_r = F.matmul(F.matmul(F.T(Xr), M, normal=False), Xr) if m else []
-    K = F.zeros(d + m, d + m)
-    for i in range(d):
-        for j in range(d):
-            K[i][j] = con.K_nh[i][j]
-    for i in range(m):
-        for j in range(m):
-            K[d + i][d + j] = K_r[i][j]
-    con.K = K
+    con.K = K = F.block_diag(con.K_nh, K_r)
     l_c = F.quadratic(K, sy.v, half=True) - F.value(lay.V)
     return Step(8, "Reduced constrained Lagrangian l_c(r, ṙ, Ω)", "§3.2.2 (7), eqs. 3.17, 3.75",
                 {"l_c": l_c, "K": F.show(K, d + m, d + m)}, "l with ξ = −Aṙ + eΩ; no Ω–ṙ cross terms.",

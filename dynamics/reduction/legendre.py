@@ -21,13 +21,7 @@ def velocities(F, lay, sy, con) -> tuple[Step, list]:
     m = nP - d
     K_r = [[con.K[d + i][d + j] for j in range(m)] for i in range(m)]
     K_r_inv = F.inv(K_r, "shape metric K_r = X_rᵀMX_r") if m else []
-    Kinv = F.zeros(nP, nP)
-    for i in range(d):
-        for j in range(d):
-            Kinv[i][j] = con.K_nh_inv[i][j]
-    for i in range(m):
-        for j in range(m):
-            Kinv[d + i][d + j] = K_r_inv[i][j]
+    Kinv = F.block_diag(con.K_nh_inv, K_r_inv)
     v = [F.form([(Kinv[a][b], [sy.P[b]]) for b in range(nP)]) for a in range(nP)]
     return Step(10, "Velocities from momenta", "§3.2.3, eqs. 3.19, 3.78–3.79",
                 {"v": F.column(v)}, "v = K⁻¹P.",
