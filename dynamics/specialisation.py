@@ -24,8 +24,9 @@ values are bound into the functions. Two routes, chosen by the model's form:
   numerically inside ``model.numeric["rhs"]``, or when the symbolic result fails its check):
   the values are substituted into the CasADi functions (constants folded by CasADi).
 
-Every symbolic result is checked against the numeric route at 50 random states (relative
-error ≤ 1e-10); a result that fails is replaced by the numeric one.
+Every symbolic result is checked against the numeric route at 50 random states, inputs and
+times (relative error ≤ 1e-10; the forces may depend on t); a result that fails is replaced
+by the numeric one.
 
 Velocity coordinates
 --------------------
@@ -386,6 +387,7 @@ def _symbolic_velocity(model, params, names, quantities) -> dict:
     """The velocity-coordinate ODE in normal form (see the module docstring)."""
     import sympy as sp
     from .bridge import to_casadi
+    from .system import TIME
     system = model.system
     n, nv = system.n, len(model.state) - system.n
     subs = {s: _exact(float(v)) for s, v in zip(system.param_symbols, params)}
@@ -408,24 +410,32 @@ def _symbolic_velocity(model, params, names, quantities) -> dict:
     ydot = [_normal(e.xreplace(back)) for e in ydot]
     nz, nu, npar = n + nv, len(system.input_symbols), len(system.param_symbols)
     t, z, u, p = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", npar)
-    sx = [z[i] for i in range(nz)] + [u[i] for i in range(nu)]
-    out = to_casadi(qdot + ydot, q + list(ys) + list(system.input_symbols), sx)
+    sx = [t] + [z[i] for i in range(nz)] + [u[i] for i in range(nu)]
+    out = to_casadi(qdot + ydot, [TIME] + q + list(ys) + list(system.input_symbols), sx)
     fns = _numeric_velocity(model, params, names, quantities)   # state and momentum_state maps
     fns["rhs"] = ca.Function("rhs", [t, z, u, p], [ca.vertcat(*out)], ["t", "z", "u", "params"], ["zdot"])
     fns["qdot"] = ca.Function("qdot", [z, p], [ca.vertcat(*out[:n])], ["z", "params"], ["qdot"])
     return fns
 
 
+def _gap(a, b) -> float:
+    """max |a − b| / (1 + |b|); entries non-finite in both count as equal, in one only as ∞."""
+    a, b = np.asarray(a, float).ravel(), np.asarray(b, float).ravel()
+    fa, fb = np.isfinite(a), np.isfinite(b)
+    if np.any(fa != fb):
+        return np.inf
+    return float(np.max(np.abs(a[fb] - b[fb]) / (1.0 + np.abs(b[fb])), initial=0.0))
+
+
 def _agrees(fns: dict, ref: dict, nz: int, nu: int, params, tol: float) -> bool:
-    """``fns`` equals ``ref`` (rhs and q̇) at random states, relative to 1 + |ref|."""
+    """``fns`` equals ``ref`` (rhs and q̇) at random states, inputs and times t ∈ [0, 10]
+    (the forces may depend on t), relative to 1 + |ref|."""
     rng = np.random.default_rng(0)
     worst = 0.0
     for _ in range(_CHECK_SAMPLES):
-        z, u = rng.uniform(-1.2, 1.2, nz), rng.normal(size=nu)
-        for name, args in (("rhs", (0.3, z, u)), ("qdot", (z,))):
-            a = np.asarray(fns[name](*args, params)).ravel()
-            b = np.asarray(ref[name](*args, params)).ravel()
-            worst = max(worst, float(np.max(np.abs(a - b) / (1.0 + np.abs(b)), initial=0.0)))
+        t, z, u = rng.uniform(0.0, 10.0), rng.uniform(-1.2, 1.2, nz), rng.normal(size=nu)
+        for name, args in (("rhs", (t, z, u)), ("qdot", (z,))):
+            worst = max(worst, _gap(fns[name](*args, params), ref[name](*args, params)))
     return bool(worst <= tol)
 
 

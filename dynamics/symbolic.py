@@ -101,6 +101,17 @@ def _add_fractions(terms, zero, one):
     return (num, den)
 
 
+def _float_rational(x):
+    """The rational a Float stands for: for a double (a number written in a scene, 0.1) the
+    shortest decimal that rounds to it (1/10, which evaluates to the same double), otherwise
+    its exact binary value."""
+    if x._prec <= 53:
+        from fractions import Fraction
+        f = Fraction(repr(float(x)))
+        return sp.Rational(f.numerator, f.denominator)
+    return sp.Rational(x)
+
+
 def _walk_fraction(e, R, table: dict):
     """Evaluate the sympy expression ``e`` as a fraction (num, den) of the ring ``R``, where
     ``table`` maps every generator (symbol, sin/cos, opaque subexpression) to its fraction.
@@ -119,7 +130,7 @@ def _walk_fraction(e, R, table: dict):
         if x.is_Rational:
             out = (R(QQ(int(x.p), int(x.q))), one)
         elif x.is_Float:
-            r = sp.Rational(x)
+            r = _float_rational(x)
             out = (R(QQ(int(r.p), int(r.q))), one)
         elif x.is_Add:
             out = _add_fractions([ev(a) for a in x.args], R.zero, one)
@@ -164,15 +175,37 @@ def _to_field(e, extra):
     return R, num, den
 
 
+def independent_arguments(args) -> bool:
+    """True when sin a and cos a of every argument a in ``args`` can be generators of one
+    polynomial ring whose only relations are sin²a + cos²a = 1.
+
+    A symbol is such an argument; so is an expression that shares no symbol with any other
+    argument (sin(2.5t) next to sin φ, cos φ; sin(x²) next to sin θ): it is then transcendental
+    over the field of the other generators. Arguments that share a symbol (t and 2.5t, φ and
+    φ/2) are related in a way sin² = 1 − cos² does not capture (sin 2.5t is no polynomial in
+    sin t, cos t), and a constant argument (sin 1 next to sin ½) may be too: both are refused.
+    """
+    for a in args:
+        if a.is_Symbol:
+            continue
+        free = a.free_symbols
+        if not free or any(free & b.free_symbols for b in args if b != a):
+            return False
+    return True
+
+
 def trig_normal(expr):
     """Normal form of a rational expression in sines and cosines.
 
-    Trig functions are expanded to sin/cos of single symbols; sin(x) and cos(x) become
-    generators of a sparse polynomial ring over ℚ in which the expression is evaluated as a
-    fraction (walking the tree, one gcd at the end); sin(x)² is reduced to 1 − cos(x)². The
-    result is canonical (a zero expression always returns 0) and costs only sparse polynomial
-    arithmetic — orders of magnitude cheaper than ``trigsimp`` on the expressions of steps
-    15–19.
+    Trig functions are expanded to sin/cos of single symbols (``expand_trig``: sums and
+    integer multiples of arguments are split); sin(a) and cos(a) become generators of a sparse
+    polynomial ring over ℚ in which the expression is evaluated as a fraction (walking the
+    tree, one gcd at the end); sin(a)² is reduced to 1 − cos(a)². An argument that is not a
+    symbol after the expansion (sin(2.5t), sin(x²)) is kept as a generator when it is
+    independent of the others (:func:`independent_arguments`); otherwise ``trigsimp`` is used.
+    The result is canonical (a zero expression always returns 0) and costs only sparse
+    polynomial arithmetic — orders of magnitude cheaper than ``trigsimp`` on the expressions of
+    steps 15–19.
     """
     if not expr.free_symbols:
         return sp.nsimplify(expr) if expr.is_Float else sp.simplify(expr)
@@ -187,8 +220,8 @@ def trig_normal(expr):
             return sp.nsimplify(e) if e.is_Float else e
         atoms = e.atoms(sp.sin, sp.cos)
     args = sorted({a.args[0] for a in atoms}, key=sp.default_sort_key)
-    if any(not a.is_Symbol for a in args):
-        # arguments expand_trig could not split (e.g. sin(x**2)): fall back to trigsimp
+    if not independent_arguments(args):
+        # related arguments expand_trig could not split (sin(t) and sin(2.5*t)): trigsimp
         return sp.factor_terms(sp.trigsimp(expr))
     pairs_expr = [(sp.sin(a), sp.cos(a)) for a in args]
     try:
@@ -442,16 +475,29 @@ class FracField(MatrixOps):
     Intermediate quantities stay as ring fractions across steps (no round trips through sympy
     expressions); :meth:`normal` gives exactly the normal form of :func:`trig_normal` and
     :meth:`expr` its sympy expression. Raises ``_NotRational`` for anything it cannot represent
-    (the caller then falls back to the plain sympy derivation)."""
+    (the caller then falls back to the plain sympy derivation).
 
-    def __init__(self, exprs, symbols=(), angles=()):
+    ``symbols`` and ``angles`` are the field's *variables* (differentiated and substituted by
+    the steps); ``time`` names symbols the steps only carry along (the time t of the forces).
+    A *time factor* — a subexpression that involves a ``time`` symbol and no variable, such as
+    sin(2.5t), exp(−t) or sin(ωt) — is one more opaque generator: ∂/∂x of it is 0 for every
+    variable x and no substitution reaches into it. Time factors need not be independent of
+    one another (sin t and sin 2.5t may both appear): since the Lagrangian and the constraints
+    cannot depend on t they enter only through the forces, which the steps multiply and add
+    but never invert or test for a zero pivot, so a relation among them can leave a force term
+    unsimplified, never wrong. A sin/cos of any other non-symbol argument raises
+    ``_NotRational``."""
+
+    def __init__(self, exprs, symbols=(), angles=(), time=()):
         from sympy.polys.domains import QQ
         from sympy.polys.rings import ring as make_ring
         gens: dict = {}
+        variables = frozenset(symbols) | frozenset(angles)
+        time = frozenset(time)
         for e in exprs:
             for x in (e if isinstance(e, sp.MatrixBase) else [_basic(e)]):
                 x = tidy(x) if has_trig(x) else x
-                _check_trig(x)
+                _check_trig(x, variables, time)
                 _collect_generators(x, gens)
         for s in symbols:
             gens.setdefault(s, None)
@@ -671,9 +717,16 @@ def _basic(e):
     return sp.Integer(e) if isinstance(e, int) else sp.Float(e)
 
 
-def _check_trig(x):
+def _check_trig(x, variables=frozenset(), time=frozenset()):
+    """Raise ``_NotRational`` unless every trig function of ``x`` (a normal form, so only sin
+    and cos) is sin/cos of a symbol or a time factor: an argument that involves a ``time``
+    symbol and none of the ``variables`` (see :class:`FracField`)."""
     if x.has(sp.tan, sp.cot, sp.sec, sp.csc):
         raise _NotRational
     for a in x.atoms(sp.sin, sp.cos):
-        if not a.args[0].is_Symbol:
+        arg = a.args[0]
+        if arg.is_Symbol:
+            continue
+        free = arg.free_symbols
+        if not free & time or free & variables:
             raise _NotRational

@@ -87,10 +87,14 @@ def run_steps(F, lay: Layout) -> tuple[list, dict]:
 
 
 def _arithmetic(kind, lay):
+    """The back end ``kind`` for ``lay``: the steps' variables (q, q̇, momenta, inputs) and the
+    time t of the forces, which the steps carry along but never differentiate."""
+    from ..system import TIME
     s = lay.system
     sy = lay.symbols()
     syms = list(s.q) + list(s.q_dot) + sy.p + sy.P + sy.xi + sy.Om + sy.mu + list(s.input_symbols)
-    return make_arithmetic(kind, [lay.M, lay.W, s.L, lay.V, s.force_vector(), lay.N, lay.g], syms, s.q)
+    return make_arithmetic(kind, [lay.M, lay.W, s.L, lay.V, s.force_vector(), lay.N, lay.g], syms, s.q,
+                           time=(TIME,))
 
 
 def derive_reduced(system: System, version: str | None = None, form: str | None = None) -> ReducedODE:
@@ -110,9 +114,9 @@ def derive_reduced(system: System, version: str | None = None, form: str | None 
         raise ModelError([f"unknown form {form!r} (explicit or implicit)"], title="invalid request")
     lay, first = layout(system, version, form)
     if lay.form == "explicit":
-        F = _arithmetic("ring", lay)
-        F.budget = None if form == "explicit" else EXPLICIT_WORK_BUDGET
         try:
+            F = _arithmetic("ring", lay)
+            F.budget = None if form == "explicit" else EXPLICIT_WORK_BUDGET
             steps, out = run_steps(F, lay)
             return _explicit_model(lay, first, steps, out, t0)
         except _NotRational:

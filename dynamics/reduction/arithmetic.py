@@ -5,10 +5,11 @@ directly for their algebra: they combine *elements* (scalars) and *matrices* (li
 elements) through the methods below. A back end decides what an element is:
 
 * :class:`~nhgait.dynamics.symbolic.FracField` — exact fractions of one sparse polynomial ring
-  over ℚ (sin/cos of each angle as generators, sin² → 1 − cos²): the explicit form, canonical
-  and fast for rational trigonometric systems;
+  over ℚ (sin/cos of each angle as generators, sin² → 1 − cos²; time factors of the forces
+  such as sin(2.5t) or exp(−t) as further generators): the explicit form, canonical and fast
+  for rational trigonometric systems;
 * :class:`SympyArithmetic` — plain sympy expressions normalised by ``tidy``: the explicit form
-  for systems the ring cannot hold (√, exp of coordinates);
+  for systems the ring cannot hold (√, exp of coordinates, sin(t·φ) in a force);
 * :class:`CasadiArithmetic` — CasADi SX scalars, inverses as linear solves: the implicit form,
   whose cost grows gently with the system (no symbolic inverse, AD and CSE from CasADi).
 
@@ -290,10 +291,11 @@ def _prod(F, variables):
     return out
 
 
-def make_arithmetic(kind: str, exprs, symbols, angles):
-    """The back end ``kind`` ("ring", "sympy" or "casadi") for one derivation."""
+def make_arithmetic(kind: str, exprs, symbols, angles, time=()):
+    """The back end ``kind`` ("ring", "sympy" or "casadi") for one derivation; ``time``: the
+    symbols the steps carry along but never differentiate (t, see :class:`FracField`)."""
     if kind == "ring":
-        return FracField(exprs, symbols=symbols, angles=angles)
+        return FracField(exprs, symbols=symbols, angles=angles, time=time)
     if kind == "sympy":
         return SympyArithmetic()
     if kind == "casadi":
