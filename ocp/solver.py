@@ -1,106 +1,153 @@
 """Ipopt or FATROP on a transcribed problem, with compiled NLP functions cached on disk.
 
-* **Compiled by default** (``SolverOptions(jit=None)``: compile when a C compiler is found —
-  ``$CC``, else ``gcc``/``cc``): the NLP is *not* expanded (the MX graph keeps ``F.map(N)`` as
-  a loop over one RK4 kernel); the oracle ``nlp`` = (f, g) and every function the solver
-  builds from it (``nlp_grad_f``, ``nlp_jac_g``, ``nlp_hess_l``, …) are generated as one C
-  file, compiled once to
-  ``$NHGAIT_CACHE_DIR/jit/<sha256 of the C source, compiler, flags, CasADi version>.so`` and
-  loaded with ``casadi.external`` (the solver's ``factory`` calls find each function in the
-  library by name). The library's SHA-256 is recorded beside it
-  (``<key>.so.sha256``) and a cached library is loaded only through
-  :func:`nhgait.dynamics.cache.trusted_file` (directory 0700, not group/world-writable, owned
-  by the user, content hash unchanged); otherwise it is rebuilt. Boundary values live in the
-  bounds, not in the compiled code, so changing a target does not recompile.
-* **Fallback**: without a compiler, or when compiling fails, the solver is built the
-  interpreted way (``expand=True``: the MX graph expanded to SX, the fastest interpreted
-  evaluation) and ``settings["jit_fallback"]`` says why. ``jit=False`` asks for that directly.
-* **Solvers**: ``solver="ipopt"`` (MUMPS, exact Hessian; default) or ``solver="fatrop"``, the
-  structure-exploiting interior-point solver inside the CasADi wheel, on the stage-ordered
-  transcription (:class:`~nhgait.ocp.transcription.StageShooting`, chosen automatically).
+* **Derivatives from the stage.** For the shooting transcriptions the constraint Jacobian and
+  the Lagrangian Hessian are assembled from the stage function's own exact derivatives
+  (:mod:`.derivatives`, :mod:`.stage`) and handed to the solver through ``nlpsol``'s function
+  cache; CasADi differentiates only the small remaining rows. The NLP's code is the stage
+  functions plus O(1) glue: it does not grow with N.
+* **Hessians** (``SolverOptions.hessian``): ``"exact"`` (default), ``"gauss-newton"`` (the
+  stage curvature dropped; the effort objective's Gauss–Newton matrix) or
+  ``"limited-memory"`` (Ipopt's L-BFGS; not for FATROP).
+* **Compiled when worth it** (``jit=None``: when a C compiler is found): the oracle ``nlp``
+  and every function the solver builds from it are generated as one C file; its size decides
+  the optimisation level within :data:`COMPILE_BUDGET` (-O1 up to ``o1_bytes``, -O0 up to
+  ``o0_bytes``, interpreted above, so that a cold plan never spends minutes in a compiler
+  without saying so), then :func:`nhgait.dynamics.compiler.build_library` compiles it once
+  into the content-hash cache (trust rules, atomic, killed and cleaned up on interrupts) and
+  the solver is made from the external library. ``compile_report`` records the size, the
+  flags, the seconds and why. ``jit_flags`` forces the flags.
+* **Fallback**: without a compiler, when it fails, or above the budget, the solver runs the
+  functions interpreted (``expand=True``, i.e. SX, only for inline stages: an expanded
+  structured NLP would inline every call) and ``jit_fallback`` says why.
 * **Collocation and MUMPS scaling**: with Ipopt's default ``mumps_scaling`` (77, automatic)
   MUMPS factorises the collocation KKT matrix at a cost that grows super-linearly in N (P2:
   1.3 s per iteration at N = 100, 20 iterations) — the automatic choice scales the matrix in
   a way that defeats the band structure; an explicit scaling (``mumps_scaling = 8``) gives
   ~5 ms per iteration and 10 iterations. Collocation therefore sets it unless the caller does.
+* **Progress**: with a :class:`~nhgait.dynamics.progress.Progress`, the build, the compiler
+  and (Ipopt) every tenth iteration report on it; ``progress.verbose`` shows the solver's own
+  log instead.
 
 An Ipopt/FATROP failure (infeasible, iteration limit, …) is returned as
 ``Solution(success=False)``; only bad input raises.
 """
 from __future__ import annotations
 
-import hashlib
-import os
 import shutil
-import subprocess
-import tempfile
 import time
 import weakref
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
+from nhgait.dynamics.compiler import CompilerUnavailable, build_library, compiler_command
+from nhgait.dynamics.progress import Progress
+
+from .derivatives import nlp_functions
 from .problem import OptimalControlProblem, ProblemError
 from .solution import Solution
 from .transcription import Collocation, StageShooting, TranscribedNLP, get_transcription
 
-__all__ = ["SolverOptions", "OCPSolver", "solve", "InitialGuess", "jit_cache_dir", "find_compiler", "SOLVERS"]
+__all__ = ["SolverOptions", "OCPSolver", "solve", "InitialGuess", "SOLVERS", "HESSIANS", "CompileBudget",
+           "COMPILE_BUDGET", "CompileReport"]
 
 SOLVERS = ("ipopt", "fatrop")
+HESSIANS = ("exact", "gauss-newton", "limited-memory")
 #: MUMPS settings for collocation KKT matrices (see the module docstring)
 COLLOCATION_MUMPS = {"mumps_scaling": 8, "mumps_pivot_order": 0}
+#: FATROP's return flags (``stats["fatrop"]["return_flag"]``, fatrop's ``IpSolverReturnFlag``)
+#: by the names Ipopt uses for the same outcomes
+FATROP_FLAGS = {0: "Solve_Succeeded", 1: "Maximum_Iterations_Exceeded", 2: "Solved_To_Acceptable_Level",
+                3: "Infeasible_Problem_Detected", 4: "Line_Search_Failed", 5: "Error_In_Step_Computation",
+                6: "Unknown_Error"}
 
 
-def find_compiler() -> str | None:
-    """The C compiler used for compiled functions: ``$CC`` if set (None when it does not
-    exist), else ``gcc`` or ``cc`` on the PATH."""
-    env = os.environ.get("CC")
-    if env:
-        return shutil.which(env)
-    for name in ("gcc", "cc"):
-        found = shutil.which(name)
-        if found:
-            return found
-    return None
+@dataclass(frozen=True)
+class CompileBudget:
+    """Generated C size → optimisation level. Measured on the 2-core benchmark machine
+    (``experiments/bench_ocp.py --sections scale``): gcc -O1 compiles about 12 s per MB of
+    CasADi's straight-line code and -O0 about 1.5 s per MB; -O0 code runs 3–4× slower."""
+
+    o1_bytes: float = 2.5e6
+    o0_bytes: float = 20e6
+    o1_s_per_mb: float = 12.0
+    o0_s_per_mb: float = 1.5
+
+    def choose(self, c_bytes: int) -> tuple:
+        """(flags or None for interpreted, estimated seconds, reason)."""
+        mb = c_bytes / 1e6
+        if c_bytes <= self.o1_bytes:
+            return ("-O1",), mb * self.o1_s_per_mb, f"{mb:.2f} MB ≤ {self.o1_bytes / 1e6:g} MB: -O1"
+        if c_bytes <= self.o0_bytes:
+            return ("-O0",), mb * self.o0_s_per_mb, (f"{mb:.2f} MB > {self.o1_bytes / 1e6:g} MB: -O0 "
+                                                      f"(-O1 would take about {mb * self.o1_s_per_mb:.0f} s)")
+        return None, 0.0, f"{mb:.1f} MB > {self.o0_bytes / 1e6:g} MB: interpreted"
+
+
+COMPILE_BUDGET = CompileBudget()
+
+
+@dataclass(frozen=True)
+class CompileReport:
+    """What was compiled and why: C size, flags (None: interpreted), compiler seconds (0
+    when the library came from the cache), the estimate, the reason, the library path."""
+
+    c_bytes: int
+    flags: tuple | None
+    compile_s: float
+    estimate_s: float
+    cached: bool
+    reason: str
+    path: str | None = None
+
+    def describe(self) -> dict:
+        return {"c_bytes": self.c_bytes, "flags": list(self.flags) if self.flags else None,
+                "compile_s": round(self.compile_s, 3), "estimate_s": round(self.estimate_s, 1),
+                "cached": self.cached, "reason": self.reason}
 
 
 @dataclass(frozen=True)
 class SolverOptions:
     """Solver settings.
 
-    ``solver``: "ipopt" or "fatrop"; ``hessian``: "exact" or "limited-memory" (Ipopt);
-    ``jit``: compile the NLP functions (None: when a C compiler is found); ``jit_flags``:
-    compiler flags; ``expand``: None = ``not jit``; ``ipopt``/``fatrop``: extra options.
+    ``solver``: "ipopt" or "fatrop"; ``hessian``: one of :data:`HESSIANS`; ``jit``: compile
+    the NLP functions (None: when a C compiler is found); ``jit_flags``: compiler flags (None:
+    chosen by ``budget`` from the C size); ``expand``: None = SX for inline stages when
+    interpreted; ``ipopt``/``fatrop``: extra options.
     """
 
     max_iter: int = 3000
     tol: float = 1e-8
     hessian: str = "exact"
     jit: bool | None = None
-    jit_flags: tuple = ("-O1",)
+    jit_flags: tuple | None = None
     expand: bool | None = None
     print_level: int = 0
     linear_solver: str = "mumps"
     solver: str = "ipopt"
     ipopt: dict = field(default_factory=dict)
     fatrop: dict = field(default_factory=dict)
+    budget: CompileBudget = COMPILE_BUDGET
 
     def __post_init__(self):
+        problems = []
         if self.solver not in SOLVERS:
-            raise ProblemError([f"unknown solver {self.solver!r} (known: {', '.join(SOLVERS)})"])
+            problems.append(f"unknown solver {self.solver!r} (known: {', '.join(SOLVERS)})")
+        if self.hessian not in HESSIANS:
+            problems.append(f"unknown Hessian {self.hessian!r} (known: {', '.join(HESSIANS)})")
+        elif self.solver == "fatrop" and self.hessian == "limited-memory":
+            problems.append("FATROP has no limited-memory Hessian: use exact or gauss-newton, or Ipopt")
+        if problems:
+            raise ProblemError(problems)
 
     @property
     def compiled(self) -> bool:
         """Whether compiled functions are asked for (``jit``, or auto with a compiler)."""
-        return bool(self.jit) if self.jit is not None else find_compiler() is not None
+        return bool(self.jit) if self.jit is not None else compiler_command() is not None
 
-    def nlpsol_options(self, compiled: bool | None = None) -> dict:
-        compiled = self.compiled if compiled is None else compiled
-        expand = (not compiled) if self.expand is None else self.expand
-        opts = {"print_time": False, "record_time": True, "expand": bool(expand) and not compiled,
-                "error_on_fail": False}
+    def nlpsol_options(self, *, expand: bool = False) -> dict:
+        opts = {"print_time": False, "record_time": True, "expand": bool(expand), "error_on_fail": False}
         if self.solver == "fatrop":
             fopts = {"print_level": self.print_level, "max_iter": int(self.max_iter), "tol": float(self.tol)}
             fopts.update(self.fatrop)
@@ -108,15 +155,16 @@ class SolverOptions:
             return opts
         opts.update({"ipopt.print_level": self.print_level, "ipopt.sb": "yes",
                      "ipopt.max_iter": int(self.max_iter), "ipopt.tol": float(self.tol),
-                     "ipopt.hessian_approximation": self.hessian, "ipopt.linear_solver": self.linear_solver})
+                     "ipopt.hessian_approximation": "limited-memory" if self.hessian == "limited-memory" else "exact",
+                     "ipopt.linear_solver": self.linear_solver})
         opts.update({f"ipopt.{k}" if not k.startswith("ipopt.") else k: v for k, v in self.ipopt.items()})
         return opts
 
     def describe(self) -> dict:
         extra = dict(self.ipopt) if self.solver == "ipopt" else dict(self.fatrop)
         return {"solver": self.solver, "max_iter": self.max_iter, "tol": self.tol, "hessian": self.hessian,
-                "jit": self.jit, "jit_flags": list(self.jit_flags), "linear_solver": self.linear_solver,
-                "expand": self.expand, **extra}
+                "jit": self.jit, "jit_flags": list(self.jit_flags) if self.jit_flags else None,
+                "linear_solver": self.linear_solver, "expand": self.expand, **extra}
 
 
 @dataclass(frozen=True)
@@ -129,68 +177,41 @@ class InitialGuess:
     label: str = ""
 
 
-def jit_cache_dir() -> Path:
-    from nhgait.dynamics.cache import cache_dir
-    return cache_dir() / "jit"
+class _Iterations(ca.Callback):
+    """Ipopt's iteration callback: every ``every`` iterations one progress line (objective and
+    the largest constraint violation of the iterate)."""
 
+    def __init__(self, name, nlp, progress, every=10):
+        ca.Callback.__init__(self)
+        self.nlp, self.progress, self.every, self.count = nlp, progress, every, 0
+        self.n_x, self.n_g = int(nlp.w.shape[0]), int(nlp.g.shape[0])
+        self.construct(name, {"enable_fd": False})
 
-class CompileError(RuntimeError):
-    """The C compiler is missing or failed (the solver falls back to interpreted functions)."""
+    def get_n_in(self):
+        return ca.nlpsol_n_out()
 
+    def get_n_out(self):
+        return 1
 
-def _no_compiler() -> str:
-    cc = os.environ.get("CC")
-    return f"no C compiler found ({'$CC = ' + repr(cc) if cc else 'looked for gcc and cc'})"
+    def get_name_in(self, i):
+        return ca.nlpsol_out(i)
 
+    def get_name_out(self, i):
+        return "ret"
 
-def _compile(source: str, compiler: str, flags: tuple, folder: Path, key: str) -> Path:
-    with tempfile.TemporaryDirectory(dir=folder) as tmp:
-        c_file = Path(tmp) / f"{key}.c"
-        c_file.write_text(source)
-        tmp_so = Path(tmp) / f"{key}.so"
-        cmd = [compiler, *flags, "-fPIC", "-shared", str(c_file), "-o", str(tmp_so), "-lm"]
-        try:
-            proc = subprocess.run(cmd, capture_output=True, text=True)
-        except OSError as exc:
-            raise CompileError(f"cannot run the C compiler {compiler!r} ({exc.strerror})") from None
-        if proc.returncode != 0:
-            raise CompileError(f"compiling failed ({' '.join(cmd)}): {proc.stderr[-500:]}")
-        os.chmod(tmp_so, 0o700)
-        so = folder / f"{key}.so"
-        os.replace(tmp_so, so)  # atomic: a concurrent process sees all or nothing
-    return so
+    def get_sparsity_in(self, i):
+        n = ca.nlpsol_out(i)
+        size = {"f": 1, "lam_p": 0}.get(n, self.n_x if n in ("x", "lam_x") else self.n_g)
+        return ca.Sparsity.dense(size, 1)
 
-
-def _compile_cached(functions: list, flags: tuple) -> tuple[Path, bool, bool]:
-    """C code of ``functions`` compiled to ``jit/<sha256>.so``; returns (path, was_cached,
-    private).
-
-    The library is loaded from the cache only when :func:`~nhgait.dynamics.cache.trusted_file`
-    accepts it with the SHA-256 recorded when it was written; an untrusted cache directory
-    means a private temporary directory (``private`` True: the caller removes it).
-    """
-    from nhgait.dynamics import cache
-    cg = ca.CodeGenerator("nhgait_nlp.c", {"with_header": False})
-    for f in functions:
-        cg.add(f)
-    source = cg.dump()
-    compiler = find_compiler()
-    if compiler is None:
-        raise CompileError(_no_compiler())
-    key = hashlib.sha256("\0".join([source, os.path.basename(compiler), *flags, ca.__version__]).encode()).hexdigest()
-    folder = cache.trusted_dir(jit_cache_dir())
-    private = folder is None
-    if private:   # untrusted or unwritable cache: compile privately, do not share
-        folder = Path(tempfile.mkdtemp(prefix="nhgait-jit-"))
-    so, record = folder / f"{key}.so", folder / f"{key}.so.sha256"
-    if so.exists() and record.exists() and cache.trusted_file(so, record.read_text().strip()):
-        return so, True, private
-    so = _compile(source, compiler, flags, folder, key)
-    fd, tmp = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=".sha256")
-    with os.fdopen(fd, "w") as fh:
-        fh.write(cache.file_sha256(so))
-    os.replace(tmp, record)
-    return so, False, private
+    def eval(self, arg):
+        self.count += 1
+        if self.count % self.every == 0:
+            g = np.asarray(arg[ca.nlpsol_out().index("g")]).ravel()
+            viol = max(np.max(self.nlp.lbg - g, initial=0.0), np.max(g - self.nlp.ubg, initial=0.0))
+            self.progress.note(f"    iteration {self.count}: objective {float(arg[1]):.6g}, "
+                               f"constraint violation {viol:.2e}")
+        return [0]
 
 
 class OCPSolver:
@@ -201,14 +222,18 @@ class OCPSolver:
     nlp : TranscribedNLP
     setup_time_s : float — transcription + nlpsol construction (+ compile or load)
     compiled : bool — whether the NLP functions are compiled code
+    compile_report : CompileReport or None — the C size, flags, seconds and why
     jit_cached : bool or None — whether the compiled functions came from the cache
     jit_fallback : str or None — why compiled functions were asked for but not used
+    jit_path : the compiled library (or None)
     """
 
-    def __init__(self, problem: OptimalControlProblem, transcription=None, options: SolverOptions | None = None):
+    def __init__(self, problem: OptimalControlProblem, transcription=None, options: SolverOptions | None = None,
+                 *, progress: Progress | None = None):
         t0 = time.perf_counter()
         self.problem = problem
         self.options = options or SolverOptions()
+        self.progress = progress or Progress.silent()
         if self.options.solver == "fatrop" and transcription in (None, "multiple-shooting"):
             transcription = StageShooting()
         self.transcription = get_transcription(transcription)
@@ -218,47 +243,83 @@ class OCPSolver:
         if isinstance(self.transcription, Collocation) and self.options.solver == "ipopt":
             self.options = replace(self.options, ipopt={**COLLOCATION_MUMPS, **self.options.ipopt})
         self.nlp: TranscribedNLP = self.transcription.build(problem)
-        self.jit_cached, self.jit_fallback, self.compiled = None, None, False
-        if self.options.jit is None and find_compiler() is None:
-            self.jit_fallback = _no_compiler()
+        self.functions = ({} if self.options.hessian == "limited-memory" else
+                          nlp_functions(self.nlp, hessian=self.options.hessian, solver=self.options.solver))
+        self.jit_cached, self.jit_fallback, self.compiled, self.jit_path = None, None, False, None
+        self.compile_report = None
+        if self.options.jit is None and compiler_command() is None:
+            self.jit_fallback = "no C compiler found (looked for $NHGAIT_CC, $CC, gcc and cc)"
         elif self.options.jit is not False:
-            try:
-                self.solver, self.jit_cached, self.jit_path = self._jit_solver()
-                self.compiled = True
-            except CompileError as exc:
-                self.jit_fallback = str(exc)
+            self.solver = self._jit_solver()
         if not self.compiled:
-            self.solver = self._nlpsol("ocp", {"x": self.nlp.w, "f": self.nlp.f, "g": self.nlp.g},
-                                       self.options.nlpsol_options(compiled=False))
+            inline = self.nlp.layout is None or self.nlp.layout.stage.mode == "inline"
+            expand = inline if self.options.expand is None else self.options.expand
+            self.solver = self._nlpsol("ocp", self._oracle(), self.options.nlpsol_options(expand=expand))
         self.setup_time_s = time.perf_counter() - t0
 
     def nlp_structure_missing(self) -> bool:
         return not isinstance(self.transcription, StageShooting)
 
-    def _nlpsol(self, name, nlp, opts):
+    def _oracle(self) -> dict:
+        return {"x": self.nlp.w, "f": self.nlp.f, "g": self.nlp.g}
+
+    def _nlpsol(self, name, nlp, opts, *, talk: bool = True):
+        if self.functions and not isinstance(nlp, ca.Function):
+            opts = {**opts, "cache": self.functions}
         if self.options.solver == "fatrop":
             st = self.nlp.structure
             opts = {**opts, "structure_detection": "manual", "N": st["N"], "nx": st["nx"], "nu": st["nu"],
                     "ng": st["ng"]}
+        if talk and self.progress.enabled and self.options.solver == "ipopt" and not self.progress.verbose:
+            self._callback = _Iterations(f"{name}_iterations", self.nlp, self.progress)
+            opts = {**opts, "iteration_callback": self._callback}
+        if talk and self.progress.verbose:     # the solver's own log (on stdout)
+            opts = ({**opts, "fatrop": {**opts.get("fatrop", {}), "print_level": 10}}
+                    if self.options.solver == "fatrop" else {**opts, "ipopt.print_level": 5})
         return ca.nlpsol(name, self.options.solver, nlp, opts)
 
     def _jit_solver(self):
-        """The solver on compiled functions: every function the solver plugin builds from its
-        oracle (``nlp_f``, ``nlp_g``, ``nlp_grad_f``, ``nlp_jac_g``, ``nlp_hess_l``, …, read off
-        an uncompiled instance) and the oracle ``nlp`` itself are generated into one library;
-        the solver is then made from the external oracle, whose ``factory`` loads each
-        function from the library by name (Ipopt and FATROP alike)."""
-        opts = self.options.nlpsol_options(compiled=True)
-        plain = self._nlpsol("ocp_plain", {"x": self.nlp.w, "f": self.nlp.f, "g": self.nlp.g},
-                             {**opts, "expand": False})
+        """The solver on compiled functions, or None (``jit_fallback`` says why).
+
+        Every function the solver plugin builds from its oracle (``nlp_f``, ``nlp_g``,
+        ``nlp_grad_f``, ``nlp_jac_g``, ``nlp_hess_l``, …, read off an uncompiled instance) and
+        the oracle ``nlp`` itself are generated into one C file; :data:`COMPILE_BUDGET` (or
+        ``jit_flags``) picks the flags from its size; the solver is then made from the external
+        oracle, whose ``factory`` loads each function from the library by name."""
+        opts = self.options.nlpsol_options()
+        plain = self._nlpsol("ocp_plain", self._oracle(), opts, talk=False)
         x, p = ca.MX.sym("x", self.nlp.w.shape[0]), ca.MX.sym("p", 0)
         oracle = ca.Function("nlp", [x, p], [plain.get_function("nlp_f")(x, p), plain.get_function("nlp_g")(x, p)],
                              ["x", "p"], ["f", "g"])
-        functions = [oracle] + [plain.get_function(name) for name in plain.get_function()]
-        so, cached, private = _compile_cached(functions, tuple(self.options.jit_flags))
-        if private:   # the library stays loaded; its private folder goes with this solver
-            weakref.finalize(self, shutil.rmtree, so.parent, True)
-        return self._nlpsol("ocp", ca.external("nlp", str(so)), {**opts, "expand": False}), cached, so
+        cg = ca.CodeGenerator("nhgait_nlp.c", {"with_header": False})
+        for f in [oracle] + [plain.get_function(name) for name in plain.get_function()]:
+            cg.add(f)
+        source = cg.dump()
+        flags, estimate, reason = ((tuple(self.options.jit_flags), 0.0, "flags given")
+                                   if self.options.jit_flags else self.options.budget.choose(len(source)))
+        if flags is None:
+            self.jit_fallback = f"not compiled: {reason}"
+            self.compile_report = CompileReport(len(source), None, 0.0, 0.0, False, reason)
+            self.progress.note(f"NLP functions: {len(source) / 1e6:.1f} MB of C, over the compile budget: interpreted")
+            return None
+        label = f"compile {len(source) / 1e6:.2f} MB of C with {' '.join(flags)}"
+        try:
+            if self.progress.enabled:
+                self.progress.note(f"{label} (about {estimate:.0f} s unless cached) …")
+            lib = build_library(source, flags=flags, salt=f"nlp casadi {ca.__version__}", progress=self.progress,
+                                label=label)
+        except CompilerUnavailable as exc:
+            self.jit_fallback = str(exc)
+            return None
+        if lib.private:   # the library stays loaded; its private folder goes with this solver
+            weakref.finalize(self, shutil.rmtree, lib.path.parent, True)
+        if self.progress.enabled:
+            self.progress.note("  compiled library from the cache" if lib.cached else
+                               f"  compiled in {lib.compile_s:.1f} s (cached for the next run)")
+        self.compile_report = CompileReport(len(source), flags, lib.compile_s, estimate, lib.cached, reason,
+                                            str(lib.path))
+        self.compiled, self.jit_cached, self.jit_path = True, lib.cached, lib.path
+        return self._nlpsol("ocp", ca.external("nlp", str(lib.path)), opts)
 
     def with_problem(self, problem: OptimalControlProblem) -> "OCPSolver":
         """This solver for ``problem``, a problem of the same structure whose values (targets,
@@ -273,14 +334,32 @@ class OCPSolver:
         return other
 
     def settings(self) -> dict:
-        return {**self.transcription.settings(), **self.options.describe(),
+        stage = self.nlp.layout.stage.describe() if self.nlp.layout is not None else {}
+        return {**self.transcription.settings(), **self.options.describe(), **stage,
                 "jit": self.compiled, "jit_fallback": self.jit_fallback,
                 "intervals": self.problem.intervals, "horizon": float(self.problem.horizon),
                 "n_variables": self.nlp.n_w, "n_constraints": int(self.nlp.g.shape[0]),
-                "jit_cached": self.jit_cached}
+                "jit_cached": self.jit_cached,
+                "compile": self.compile_report.describe() if self.compile_report else None}
+
+    def _non_finite(self, w0) -> str | None:
+        """Why the solver must not start at ``w0`` (non-finite constraints: a guess on the
+        singular set of the model), or None. A solver started there may not recover (FATROP
+        stalls in its first iteration)."""
+        g = np.asarray(self.solver.get_function("nlp_g")(w0, [])).ravel()
+        rows = np.flatnonzero(~np.isfinite(g))
+        if rows.size == 0:
+            return None
+        where = ""
+        if self.nlp.layout is not None:
+            stages = np.flatnonzero(np.isin(self.nlp.layout.rows, rows).any(axis=0))
+            where = f" at intervals {', '.join(map(str, stages[:8]))}" + (" …" if stages.size > 8 else "")
+        return (f"the initial guess gives non-finite values in {rows.size} constraint rows{where} "
+                "(a configuration on the model's singular set?)")
 
     def solve(self, guess: InitialGuess) -> Solution:
-        """Run Ipopt from ``guess``; failures are returned as ``success=False``."""
+        """Run the solver from ``guess`` (projected into the bounds); failures are returned as
+        ``success=False``, a guess with non-finite dynamics without running the solver."""
         nlp, problem = self.nlp, self.problem
         states = np.asarray(guess.states, dtype=float)
         controls = np.asarray(guess.controls, dtype=float)
@@ -292,13 +371,17 @@ class OCPSolver:
             problems.append(f"guess controls have shape {controls.shape}, expected {(problem.n_controls, N)}")
         if problems:
             raise ProblemError(problems, title="invalid initial guess")
-        w0 = nlp.pack(states, controls, guess.horizon)
+        w0 = np.clip(nlp.pack(states, controls, guess.horizon), nlp.lbx, nlp.ubx)
         t0 = time.perf_counter()
-        try:
-            out = self.solver(x0=w0, lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg)
-            error = None
-        except RuntimeError as exc:  # evaluation errors (NaN in the oracle) and the like
-            out, error = None, exc
+        bad = self._non_finite(w0)
+        if bad:
+            out, error = None, RuntimeError(bad)
+        else:
+            try:
+                out = self.solver(x0=w0, lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg)
+                error = None
+            except RuntimeError as exc:  # evaluation errors (NaN in the oracle) and the like
+                out, error = None, exc
         wall = time.perf_counter() - t0
         stats = self.solver.stats()
         if out is not None:
@@ -312,11 +395,13 @@ class OCPSolver:
         Z, U, T = nlp.unpack(w)
         fn_time = sum(float(v) for k, v in stats.items() if k.startswith("t_wall_nlp_"))
         total = float(stats.get("t_wall_total", wall))
-        status = str(stats.get("return_status", "exception" if error else "unknown"))
+        status = ("Invalid_Initial_Point" if bad else
+                  str(stats.get("return_status", "exception" if error else "unknown")))
         if self.options.solver == "fatrop" and error is None:
             ok = bool(stats.get("success", False)) or _fatrop_converged(stats, viol, self.options.tol)
-            stats = {**stats, "success": ok}
-            status = "Solve_Succeeded" if ok else f"fatrop_return_flag_{status}"
+            flag = (stats.get("fatrop") or {}).get("return_flag") if isinstance(stats.get("fatrop"), dict) else None
+            stats = {**stats, "success": ok, "fatrop_return_flag": flag}
+            status = "Solve_Succeeded" if ok else FATROP_FLAGS.get(flag, f"FATROP return flag {flag}")
         success = bool(stats.get("success", False)) and error is None
         message = status if error is None else f"{status}: {error}"
         return Solution(success=success, status=status, message=message,

@@ -13,8 +13,11 @@ the dynamics (gaps or collocation equations), conditions on derived quantities a
 remaining periodicity conditions are rows of g.
 
 * :class:`MultipleShooting` — ``steps`` explicit RK4 sub-steps per interval (default 4) in
-  ONE CasADi SX Function ``F(z_k, u_k) -> z_{k+1}`` (``F(z, u, h)`` for a free horizon),
-  applied to all intervals by ``F.map(N)``.
+  one stage function ``F(z_k, u_k, T, k) -> z_{k+1}`` with its exact derivatives
+  (:mod:`.stage`), applied to all intervals by ``F.map(N)``: the NLP's code does not grow
+  with N. The NLP records where F sits (:class:`StageLayout`) so that the solver assembles
+  the constraint Jacobian and the Lagrangian Hessian from the stage derivatives
+  (:mod:`.derivatives`) instead of differentiating the whole graph.
 * :class:`Collocation` — Legendre (or Radau) collocation of degree d (default 3) on each
   interval, the collocation equations of one interval one Function mapped over N.
 """
@@ -27,8 +30,10 @@ import casadi as ca
 import numpy as np
 
 from .problem import OptimalControlProblem, ProblemError
+from .stage import StageFunctions, stage_functions
 
-__all__ = ["MultipleShooting", "Collocation", "TranscribedNLP", "TRANSCRIPTIONS", "get_transcription"]
+__all__ = ["MultipleShooting", "Collocation", "StageShooting", "TranscribedNLP", "StageLayout", "TRANSCRIPTIONS",
+           "get_transcription", "ode_function"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -54,6 +59,7 @@ class TranscribedNLP:
     kernel: ca.Function
     guess_filler: Any = field(default=None, repr=False)
     structure: dict | None = None        # stage structure (N, nx, nu, ng) for FATROP
+    layout: "StageLayout | None" = None  # where the stage function sits (shooting only)
 
     @property
     def n_w(self) -> int:
@@ -77,14 +83,66 @@ class TranscribedNLP:
         return w[self.node_index], w[self.control_index], T
 
 
-def _ode_function(problem: OptimalControlProblem) -> ca.Function:
-    """f(z, u) with the parameters substituted (constants folded) as one SX Function."""
+def ode_function(problem: OptimalControlProblem) -> ca.Function:
+    """f(t, z, u) with the parameter values substituted (constants folded), one SX Function."""
     nz, nu = problem.n_states, problem.n_controls
     z, u, t = ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("t")
     rhs = problem.model.numeric["rhs"](t, z, u, problem.params)
-    if ca.depends_on(rhs, t):
-        raise ProblemError(["time-varying dynamics (rhs depends on t) are not supported by the transcriptions"])
-    return ca.Function("ode", [z, u], [rhs], ["z", "u"], ["zdot"])
+    return ca.Function("ode", [t, z, u], [rhs], ["t", "z", "u"], ["zdot"])
+
+
+@dataclass(frozen=True, eq=False)
+class StageLayout:
+    """Where the stage function sits in an NLP::
+
+        g(w) = g_linear(w) + sign · Σ_k E_k F(x_k),   x_k = (z_k, u_k[, T]) = w[columns[:, k]],
+
+    with E_k placing F's nz outputs at the rows ``rows[:, k]`` of g. ``arguments`` are the
+    stage functions' inputs (Z, U, T row, k row), expressions of w, to call them mapped.
+    """
+
+    stage: StageFunctions
+    arguments: tuple
+    g_linear: ca.MX
+    rows: np.ndarray
+    columns: np.ndarray
+    sign: float
+
+
+def _stage_layout(stage, w, g_of, arguments) -> StageLayout:
+    """Build g with a placeholder for the stage outputs and read the placement off it.
+
+    ``g_of(Zend)`` builds g from the stage outputs (nz × N); the placeholder's Jacobian gives
+    the rows and the sign, the Jacobian of the stage inputs the columns (both constant).
+    """
+    nz, N = stage.n_states, int(arguments[0].shape[1])
+    P = ca.MX.sym("F", nz, N)
+    g_p = g_of(P)
+    x_in = ca.vertcat(*arguments[:2], arguments[2]) if stage.free_horizon else ca.vertcat(*arguments[:2])
+    sel = ca.Function("placement", [w, P], [ca.jacobian(g_p, ca.vec(P)), ca.jacobian(ca.vec(x_in), w)])
+    gp, xin = sel(np.zeros(w.shape[0]), np.zeros((nz, N)))
+    rows, signs = _single_entries(gp, by="column")
+    columns, _ = _single_entries(xin, by="row")
+    if not np.all(signs == signs[0]):   # pragma: no cover - guards the transcriptions below
+        raise ProblemError(["internal: the stage outputs enter g with mixed signs"])
+    g_linear = ca.substitute([g_p], [P], [ca.MX.zeros(nz, N)])[0]
+    g = ca.substitute([g_p], [P], [stage.step.map(N, "serial")(*arguments)])[0]
+    layout = StageLayout(stage, tuple(arguments), g_linear, rows.reshape((N, nz)).T,
+                         columns.reshape((N, stage.n_variables)).T, float(signs[0]))
+    return g, layout
+
+
+def _single_entries(M: ca.DM, by: str):
+    """For a constant selection matrix: the index of the single nonzero of each column (or
+    row) and its value."""
+    r, c = M.sparsity().get_triplet()
+    r, c, v = np.array(r), np.array(c), np.array(M.nonzeros())
+    key, other = (c, r) if by == "column" else (r, c)
+    n = M.shape[1] if by == "column" else M.shape[0]
+    if len(key) != n or len(set(key.tolist())) != n:   # pragma: no cover - internal invariant
+        raise ProblemError(["internal: the stage placement is not a selection"])
+    order = np.argsort(key)
+    return other[order], v[order]
 
 
 class _Builder:
@@ -170,12 +228,14 @@ class _Builder:
         return f
 
     def finish(self, transcription, w, f, lbx, ubx, node_index, control_index, horizon_index, kernel,
-               guess_filler=None, structure=None):
-        g = ca.vertcat(*self.g) if self.g else ca.MX(0, 1)
+               guess_filler=None, structure=None, g=None, layout=None):
+        if g is None:
+            g = ca.vertcat(*self.g) if self.g else ca.MX(0, 1)
         lbg = np.concatenate(self.lbg) if self.lbg else np.zeros(0)
         ubg = np.concatenate(self.ubg) if self.ubg else np.zeros(0)
         return TranscribedNLP(self.problem, transcription, w, f, g, lbx, ubx, lbg, ubg,
-                              node_index, control_index, horizon_index, kernel, guess_filler, structure)
+                              node_index, control_index, horizon_index, kernel, guess_filler, structure,
+                              layout)
 
     def horizon_variable(self):
         p = self.problem
@@ -188,30 +248,24 @@ class _Builder:
 
 @dataclass(frozen=True)
 class MultipleShooting:
-    """Direct multiple shooting with ``steps`` explicit RK4 sub-steps per interval."""
+    """Direct multiple shooting with ``steps`` explicit RK4 sub-steps per interval.
+
+    ``stage``: "auto", "inline" or "structured" (:func:`~nhgait.ocp.stage.stage_functions`).
+    """
 
     steps: int = 4
     map_mode: str = "serial"
+    stage: str = "auto"
     name = "multiple-shooting"
 
-    def step_function(self, problem: OptimalControlProblem, h: float | None) -> ca.Function:
-        """F(z, u) -> z after one interval of length h (h an input ``F(z, u, h)`` if None)."""
+    def stage_functions(self, problem: OptimalControlProblem) -> StageFunctions:
+        """The stage function of ``problem`` and its derivatives (:mod:`.stage`)."""
         if not (isinstance(self.steps, int) and self.steps >= 1):
             raise ProblemError([f"multiple shooting: steps = {self.steps!r} must be an integer ≥ 1"])
-        ode = _ode_function(problem)
-        z0, u = ca.SX.sym("z0", problem.n_states), ca.SX.sym("u", problem.n_controls)
-        hs = ca.SX.sym("h") if h is None else h
-        dt = hs / self.steps
-        z = z0
-        for _ in range(self.steps):
-            k1 = ode(z, u)
-            k2 = ode(z + dt / 2 * k1, u)
-            k3 = ode(z + dt / 2 * k2, u)
-            k4 = ode(z + dt * k3, u)
-            z = z + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        if h is None:
-            return ca.Function("rk4_step", [z0, u, hs], [z], ["z0", "u", "h"], ["zf"])
-        return ca.Function("rk4_step", [z0, u], [z], ["z0", "u"], ["zf"])
+        if self.stage not in ("auto", "inline", "structured"):
+            raise ProblemError([f"multiple shooting: stage = {self.stage!r} (auto, inline or structured)"])
+        return stage_functions(ode_function(problem), problem.intervals, steps=self.steps,
+                               free_horizon=problem.free_horizon is not None, mode=self.stage)
 
     def settings(self) -> dict:
         return {"transcription": self.name, "rk4_steps": self.steps, "map_mode": self.map_mode}
@@ -227,15 +281,17 @@ class MultipleShooting:
         Z = ca.horzcat(V[:nz, :], ZN)
         U = V[nz:, :]
         h = T / N
-        if Tsym is None:
-            F = self.step_function(problem, h)
-            Zend = F.map(N, self.map_mode)(Z[:, :N], U)
-        else:
-            F = self.step_function(problem, None)
-            Zend = F.map(N, self.map_mode)(Z[:, :N], U, ca.repmat(h, 1, N))
-        b.add_g(ca.vec(Zend - Z[:, 1:]), 0.0, 0.0)
+        stage = self.stage_functions(problem)
+        args = (Z[:, :N], U, ca.repmat(T, 1, N), ca.DM(np.arange(N, dtype=float)).T)
+
+        def g_of(Zend):
+            b.g, b.lbg, b.ubg = [], [], []
+            b.add_g(ca.vec(Zend - Z[:, 1:]), 0.0, 0.0)
+            b.derived_rows(Z, Z[:, 0], Z[:, N], periodic_g)
+            return ca.vertcat(*b.g)
+
         lo, hi, periodic_g = b.node_bounds()
-        b.derived_rows(Z, Z[:, 0], Z[:, N], periodic_g)
+        g, layout = _stage_layout(stage, w, g_of, args)
         f = b.objective(Z, U, h, T)
         ulo, uhi = problem.control_bound_vectors()
         # layout
@@ -250,7 +306,8 @@ class MultipleShooting:
         if Tsym is not None:
             horizon_index = n_w - 1
             lbx[horizon_index], ubx[horizon_index] = Tbounds
-        return b.finish(self, w, f, lbx, ubx, node_index, control_index, horizon_index, F)
+        return b.finish(self, w, f, lbx, ubx, node_index, control_index, horizon_index, stage.step,
+                        g=g, layout=layout)
 
 
 @dataclass(frozen=True)
@@ -283,26 +340,26 @@ class Collocation:
                 C[j, r] = dcoeff(tau[r])
         return tau, C, D
 
-    def interval_function(self, problem: OptimalControlProblem, h) -> ca.Function:
-        """Residuals of one interval: (z_k, Z_k, u_k[, h]) -> (collocation residuals, z_end)."""
+    def interval_function(self, problem: OptimalControlProblem) -> ca.Function:
+        """Residuals of one interval: (z_k, vec Z_k, u_k, h, t_k) -> (collocation residuals, z_end);
+        the collocation point j is at t_k + τ_j h."""
         if not (isinstance(self.degree, int) and self.degree >= 1):
             raise ProblemError([f"collocation: degree = {self.degree!r} must be an integer ≥ 1"])
         if self.scheme not in ("legendre", "radau"):
             raise ProblemError([f"collocation: unknown scheme {self.scheme!r} (legendre, radau)"])
-        ode = _ode_function(problem)
+        ode = ode_function(problem)
         nz, nu, d = problem.n_states, problem.n_controls, self.degree
         tau, C, D = self.coefficients()
-        zk, Zc, u = ca.SX.sym("zk", nz), ca.SX.sym("Zc", nz, d), ca.SX.sym("u", nu)
-        hs = ca.SX.sym("h") if h is None else h
-        pts = ca.horzcat(zk, Zc)
+        zk, zc, u = ca.SX.sym("zk", nz), ca.SX.sym("zc", nz * d), ca.SX.sym("u", nu)
+        hs, tk = ca.SX.sym("h"), ca.SX.sym("tk")
+        pts = ca.horzcat(zk, ca.reshape(zc, nz, d))
         res = []
         for j in range(1, d + 1):
             zp = ca.mtimes(pts, ca.DM(C[:, j]))
-            res.append(hs * ode(pts[:, j], u) - zp)
+            res.append(hs * ode(tk + tau[j] * hs, pts[:, j], u) - zp)
         zend = ca.mtimes(pts, ca.DM(D))
-        ins = [zk, Zc, u] + ([hs] if h is None else [])
-        names = ["zk", "Zc", "u"] + (["h"] if h is None else [])
-        return ca.Function("collocation_interval", ins, [ca.vertcat(*res), zend], names, ["residual", "zend"])
+        return ca.Function("collocation_interval", [zk, zc, u, hs, tk], [ca.vertcat(*res), zend],
+                           ["zk", "zc", "u", "h", "tk"], ["residual", "zend"])
 
     def build(self, problem: OptimalControlProblem) -> TranscribedNLP:
         nz, nu, N, d = problem.n_states, problem.n_controls, problem.intervals, self.degree
@@ -316,18 +373,9 @@ class Collocation:
         Zc = V[nz:nz + nz * d, :]                   # column k: vec(Z_k), nz*d
         U = V[nz + nz * d:, :]
         h = T / N
-        Fi = self.interval_function(problem, None if Tsym is not None else h)
-        # map over intervals: Zc column k reshaped to nz × d inside a wrapper
-        zk, zc, u = ca.MX.sym("zk", nz), ca.MX.sym("zc", nz * d), ca.MX.sym("u", nu)
-        if Tsym is None:
-            r, ze = Fi(zk, ca.reshape(zc, nz, d), u)
-            W = ca.Function("interval", [zk, zc, u], [r, ze])
-            R, Zend = W.map(N, self.map_mode)(Z[:, :N], Zc, U)
-        else:
-            hh = ca.MX.sym("h")
-            r, ze = Fi(zk, ca.reshape(zc, nz, d), u, hh)
-            W = ca.Function("interval", [zk, zc, u, hh], [r, ze])
-            R, Zend = W.map(N, self.map_mode)(Z[:, :N], Zc, U, ca.repmat(h, 1, N))
+        W = self.interval_function(problem)
+        R, Zend = W.map(N, self.map_mode)(Z[:, :N], Zc, U, ca.repmat(h, 1, N),
+                                          h * ca.DM(np.arange(N, dtype=float)).T)
         # interleave residuals and continuity per interval (banded Jacobian)
         b.add_g(ca.vec(ca.vertcat(R, Zend - Z[:, 1:])), 0.0, 0.0)
         lo, hi, periodic_g = b.node_bounds()
@@ -362,7 +410,7 @@ class Collocation:
                 s = tau[j + 1]
                 w0[coll_index[j * nz:(j + 1) * nz, :]] = (1 - s) * states[:, :-1] + s * states[:, 1:]
 
-        return b.finish(self, w, f, lbx, ubx, node_index, control_index, horizon_index, Fi, fill)
+        return b.finish(self, w, f, lbx, ubx, node_index, control_index, horizon_index, W, fill)
 
 
 @dataclass(frozen=True)
@@ -400,46 +448,48 @@ class StageShooting(MultipleShooting):
         w = ca.vertcat(ca.vec(V), XN)                  # (x̃_0, u_0, …, x̃_{N-1}, u_{N-1}, x̃_N)
         X, U = ca.horzcat(V[:nx, :], XN), V[nx:, :]
         Z = X[:nz, :]
-        if free:
-            h = X[nx - 1, :] / N
-            F = self.step_function(problem, None)
-            Zend = F.map(N, self.map_mode)(Z[:, :N], U, h[:, :N])
-        else:
-            h = float(problem.horizon) / N
-            F = self.step_function(problem, h)
-            Zend = F.map(N, self.map_mode)(Z[:, :N], U)
-        gaps = X[:, 1:] - ca.vertcat(Zend, X[nz:, :N])            # column k: gap of stage k
+        stage = self.stage_functions(problem)
+        Trow = X[nx - 1, :N] if free else ca.DM.ones(1, N) * float(problem.horizon)
+        h = Trow / N if free else float(problem.horizon) / N
+        args = (Z[:, :N], U, Trow, ca.DM(np.arange(N, dtype=float)).T)
         path = _StagePaths(problem, Z)                            # rows on every node
         first, last = _end_rows(problem, Z[:, 0], "initial"), _end_rows(problem, Z[:, N], "final")
         if nc:
             first.append((X[nz:nz + nc, 0] - yper(Z[:, 0]), 0.0, 0.0))
             last.append((yper(Z[:, N]) - X[nz:nz + nc, N], 0.0, 0.0))
-        # stage 0: gap, path rows, start rows; stages 1..N-1: (gap, path rows) column by column
-        b.add_g(gaps[:, 0], 0.0, 0.0)
-        path.add(b, 0)
-        for expr, a, c in first:
-            b.add_g(expr, a, c)
-        if N > 1:
-            body = ca.vertcat(gaps[:, 1:], path.matrix[:, 1:N]) if path.n else gaps[:, 1:]
-            b.add_g(ca.vec(body), np.tile(np.concatenate([np.zeros(nx), path.lo]), N - 1),
-                    np.tile(np.concatenate([np.zeros(nx), path.hi]), N - 1))
-        path.add(b, N)
-        for expr, a, c in last:
-            b.add_g(expr, a, c)
+
+        def g_of(Zend):
+            # stage 0: gap, path rows, start rows; stages 1..N-1: (gap, path rows) column by column
+            b.g, b.lbg, b.ubg = [], [], []
+            gaps = X[:, 1:] - ca.vertcat(Zend, X[nz:, :N])            # column k: gap of stage k
+            b.add_g(gaps[:, 0], 0.0, 0.0)
+            path.add(b, 0)
+            for expr, a, c in first:
+                b.add_g(expr, a, c)
+            if N > 1:
+                body = ca.vertcat(gaps[:, 1:], path.matrix[:, 1:N]) if path.n else gaps[:, 1:]
+                b.add_g(ca.vec(body), np.tile(np.concatenate([np.zeros(nx), path.lo]), N - 1),
+                        np.tile(np.concatenate([np.zeros(nx), path.hi]), N - 1))
+            path.add(b, N)
+            for expr, a, c in last:
+                b.add_g(expr, a, c)
+            return ca.vertcat(*b.g)
+
+        g, layout = _stage_layout(stage, w, g_of, args)
         counts = {k: path.n for k in range(N + 1)}
         counts[0] += sum(int(e.shape[0]) for e, _, _ in first)
         counts[N] += sum(int(e.shape[0]) for e, _, _ in last)
         wu = np.array([float(problem.control_weights.get(n, 1.0)) for n in problem.control_names])
-        hk = h[:, :N] if free else h                   # the step of each interval
+        hk = h                                         # the step of each interval
         f = ca.sum2(hk * ca.mtimes(ca.DM(wu).T, U ** 2))
         if problem.state_weights:
             wz = np.array([float(problem.state_weights.get(n, 0.0)) for n in problem.state_names])
             f = f + ca.sum2(hk * ca.mtimes(ca.DM(wz).T, Z[:, :N] ** 2))
         if problem.time_weight:
             f = f + float(problem.time_weight) * X[nx - 1, 0]
-        return self._layout(problem, b, w, f, lo, hi, nx, F, counts, yper, nc)
+        return self._layout(problem, b, w, f, lo, hi, nx, counts, yper, nc, g, layout)
 
-    def _layout(self, problem, b, w, f, lo, hi, nx, F, counts, yper, nc):
+    def _layout(self, problem, b, w, f, lo, hi, nx, counts, yper, nc, g, layout):
         nz, nu, N = problem.n_states, problem.n_controls, problem.intervals
         blk = nx + nu
         starts = np.arange(N + 1) * blk
@@ -470,7 +520,8 @@ class StageShooting(MultipleShooting):
                 for k in range(N + 1):
                     w0[starts[k] + nz:starts[k] + nx] = extra
 
-        return b.finish(self, w, f, lbx, ubx, node_index, control_index, horizon_index, F, fill, structure)
+        return b.finish(self, w, f, lbx, ubx, node_index, control_index, horizon_index, layout.stage.step, fill,
+                        structure, g=g, layout=layout)
 
 
 def _end_rows(problem, z, where) -> list:

@@ -154,7 +154,9 @@ def test_compiled_library_is_loaded_only_when_trusted(unicycle):
     problem = p1(unicycle, N=7)
     first = OCPSolver(problem, options=SolverOptions(jit=True))
     so = first.jit_path
-    assert (so.parent / (so.name + ".sha256")).read_text().strip()
+    import json
+    from nhgait.dynamics.cache import file_sha256
+    assert json.loads((so.parent / (so.stem + ".json")).read_text())["library_sha256"] == file_sha256(so)
     assert oct(so.parent.stat().st_mode & 0o777) == "0o700"
     with open(so, "ab") as fh:                          # tampered after it was written
         fh.write(b"\0")

@@ -167,14 +167,16 @@ def test_discontinuous_functions_only_in_forces():
 
 def test_no_module_evaluates_user_text():
     """eval/exec/sympify/parse_expr appear nowhere in the package (lambdify prints our own,
-    already validated expressions to code; it never sees user text)."""
+    already validated expressions to code; it never sees user text). A method *defined* as
+    ``eval`` (CasADi's Callback interface) is not a call."""
     banned = re.compile(r"\b(eval|exec|sympify|parse_expr|S)\s*\(|sympy_parser|__import__")
     offenders = []
     for folder in ("api", "dynamics", "ocp", "gaits"):
         for path in (ROOT / folder).rglob("*.py"):
             for number, line in enumerate(path.read_text().splitlines(), 1):
                 code = line.split("#")[0]
-                if banned.search(code.replace("._eval(", "").replace("self._eval(", "")):
+                code = code.replace("._eval(", "").replace("def eval(self", "")
+                if banned.search(code):
                     offenders.append(f"{path.relative_to(ROOT)}:{number}: {line.strip()}")
     assert not offenders, "\n".join(offenders)
 

@@ -1,0 +1,104 @@
+"""The NLP's constraint Jacobian and Lagrangian Hessian assembled from the stage derivatives.
+
+A shooting transcription records where its stage function F sits
+(:class:`~nhgait.ocp.transcription.StageLayout`)::
+
+    g(w) = g_lin(w) + σ Σ_k E_k F(x_k),   x_k = P_k w   (P_k, E_k selections, σ = ±1).
+
+Hence, with λ the multipliers of g and λ_f that of the objective f,
+
+    ∂g/∂w      = ∂g_lin/∂w + σ Σ_k E_k J_k P_k,            J_k = ∂F/∂x (x_k)
+    ∇²_w L     = ∇²_w (λ_f f + λᵀ g_lin) + Σ_k P_kᵀ H_k P_k,  H_k = ∇²_x (σ E_kᵀλ)ᵀ F (x_k)
+
+The stage terms come from the stage functions mapped over the N intervals (one call of
+``jacobian`` / ``hessian`` per interval, code independent of N); CasADi differentiates
+only g_lin and f (boundary rows, periodicity, path bounds on derived quantities, the
+objective), which are small. The blocks are placed by a constant sparse scatter.
+
+Hessians (``hessian``):
+
+* ``"exact"`` — as above;
+* ``"gauss-newton"`` — the stage terms dropped: ∇²(λ_f f + λᵀ g_lin) only. For an effort
+  objective Σ h w u² this is the Gauss–Newton matrix of the residuals √(h w) u, plus the exact
+  curvature of the (cheap) boundary rows.
+
+:func:`nlp_functions` returns the functions in the form each solver's plugin asks for:
+Ipopt ``nlp_hess_l(x, p, lam_f, lam_g) -> triu(H)``, FATROP
+``nlp_hess_l(x, p, lam_f, lam_g) -> (∇_w L, H)``; both ``nlp_jac_g(x, p) -> (g, ∂g/∂w)``.
+They are handed to ``casadi.nlpsol`` through its function cache (option ``cache``).
+"""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+__all__ = ["nlp_functions", "HESSIANS"]
+
+HESSIANS = ("exact", "gauss-newton")
+
+
+def _scatter(n_rows: int, n_cols: int, rows: np.ndarray, cols: np.ndarray, values: ca.MX) -> ca.MX:
+    """The sparse n_rows × n_cols matrix with ``values[t]`` added at (rows[t], cols[t])
+    (repeated positions are summed), as one constant sparse product."""
+    rows, cols = np.asarray(rows, dtype=np.int64).ravel(), np.asarray(cols, dtype=np.int64).ravel()
+    linear = rows + cols * n_rows
+    unique, position = np.unique(linear, return_inverse=True)
+    sp = ca.Sparsity.triplet(n_rows, n_cols, (unique % n_rows).tolist(), (unique // n_rows).tolist())
+    nz_of = np.array(sp.get_nz(unique.tolist()), dtype=np.int64)
+    gather = ca.DM(ca.Sparsity.triplet(sp.nnz(), len(rows), nz_of[position].tolist(), list(range(len(rows)))),
+                   1.0)
+    return ca.MX(sp, ca.mtimes(gather, values))
+
+
+def _jacobian(nlp, w) -> tuple:
+    """(g, ∂g/∂w), F evaluated once by the mapped stage Jacobian."""
+    lay = nlp.layout
+    st, (nz, N), nx = lay.stage, lay.rows.shape, lay.stage.n_variables
+    F, J = st.jacobian.map(N, "serial")(*lay.arguments)            # nz × N, nz × (nx N)
+    n_g = int(nlp.g.shape[0])
+    place = ca.DM(ca.Sparsity.triplet(n_g, nz * N, lay.rows.T.ravel().tolist(), list(range(nz * N))), lay.sign)
+    g = lay.g_linear + ca.mtimes(place, ca.vec(F))
+    # entry (i, k nx + j) of J: row rows[i, k], column columns[j, k]
+    i, k, j = np.meshgrid(np.arange(nz), np.arange(N), np.arange(nx), indexing="ij")
+    values = ca.vec(J)[(((k * nx + j) * nz) + i).ravel().tolist()]
+    stage = _scatter(n_g, nlp.n_w, lay.rows[i, k], lay.columns[j, k], lay.sign * values)
+    return g, ca.jacobian(lay.g_linear, w) + stage
+
+
+def _stage_hessian(nlp, lam_g, upper: bool) -> ca.MX:
+    lay = nlp.layout
+    st, (nz, N), nx = lay.stage, lay.rows.shape, lay.stage.n_variables
+    Lam = lay.sign * ca.reshape(lam_g[lay.rows.T.ravel().tolist()], nz, N)
+    H = st.hessian.map(N, "serial")(*lay.arguments, Lam)            # nx × (nx N)
+    a, k, b = np.meshgrid(np.arange(nx), np.arange(N), np.arange(nx), indexing="ij")
+    ra, rb = lay.columns[a, k], lay.columns[b, k]
+    keep = (ra <= rb) if upper else np.ones_like(ra, dtype=bool)
+    values = ca.vec(H)[(((k * nx + b) * nx) + a)[keep].tolist()]
+    return _scatter(nlp.n_w, nlp.n_w, ra[keep], rb[keep], values)
+
+
+def nlp_functions(nlp, *, hessian: str = "exact", solver: str = "ipopt") -> dict:
+    """``nlp_jac_g`` and ``nlp_hess_l`` of a shooting NLP (see the module docstring), or {}
+    when ``nlp`` has no stage layout (collocation: CasADi differentiates the whole graph)."""
+    if nlp.layout is None:
+        return {}
+    if hessian not in HESSIANS:
+        from .problem import ProblemError
+        raise ProblemError([f"unknown Hessian {hessian!r} (known: {', '.join(HESSIANS)}, limited-memory)"])
+    w, p = nlp.w, ca.MX.sym("p", 0)
+    lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", nlp.g.shape[0])
+    g, jac = _jacobian(nlp, w)
+    out = {"nlp_jac_g": ca.Function("nlp_jac_g", [w, p], [g, jac], ["x", "p"], ["g", "jac_g_x"])}
+    rest = lam_f * nlp.f + ca.dot(lam_g, nlp.layout.g_linear)
+    upper = solver == "ipopt"
+    H = ca.hessian(rest, w)[0]
+    H = ca.triu(H) if upper else H
+    if hessian == "exact":
+        H = H + _stage_hessian(nlp, lam_g, upper)
+    ins, names = [w, p, lam_f, lam_g], ["x", "p", "lam_f", "lam_g"]
+    if upper:
+        out["nlp_hess_l"] = ca.Function("nlp_hess_l", ins, [H], names, ["triu_hess_gamma_x_x"])
+    else:
+        grad = ca.gradient(lam_f * nlp.f, w) + ca.mtimes(jac.T, lam_g)
+        out["nlp_hess_l"] = ca.Function("nlp_hess_l", ins, [grad, H], names, ["grad_gamma_x", "hess_gamma_x_x"])
+    return out

@@ -1,0 +1,198 @@
+"""The stage function of multiple shooting and its exact derivatives, built once per problem.
+
+One shooting interval k of a problem with N intervals on [0, T]: the model's ODE
+ż = f(t, z, u) is integrated in *scaled time* s ∈ [0, 1] per interval,
+
+    dz/ds = g(z, u, T, τ) = h f(τ h, z, u),      h = T / N,  τ = k + s,
+
+by RK4 with M equal sub-steps (Butcher tableau a, b, c; ds = 1/M)::
+
+    y_ij = z_i + ds Σ_l a_jl κ_il,   κ_ij = g(y_ij, u, T, k + (i + c_j)/M),
+    z_{i+1} = z_i + ds Σ_j b_j κ_ij,   i = 0 … M−1,   F = z_M.
+
+The scaling makes every relation but the g-evaluations linear with constant coefficients, so
+with the stage variables x = (z, u) — and T when the horizon is free — the exact derivatives
+are (forward sensitivities and second-order adjoints, as in acados' explicit integrators):
+
+    J = ∂F/∂x = Σ_ij ds b_j ∂κ_ij/∂x + ∂z_0/∂x,   ∂κ_ij/∂x = G_ij L_ij,
+    L_ij = ∂(y_ij, u, T)/∂x,  G_ij = ∂g/∂(y, u, T) at point ij,
+    ∇²_x (λᵀF) = Σ_ij L_ijᵀ ∇²_(y,u,T)(ν_ijᵀ g)(point ij) L_ij,
+
+with ν_ij = ∂(λᵀF)/∂κ_ij the adjoint of each evaluation (one backward sweep through the
+tableau with the stored G_ij). Only g, its Jacobian and its weighted Hessian are nonlinear.
+
+Two realisations of the same three functions ``step``, ``jacobian``, ``hessian``:
+
+* ``"inline"``: the M sub-steps written out in one SX expression and differentiated by
+  CasADi (the fastest evaluation for small ODEs; its code grows like 4M · nx · ops(f));
+* ``"structured"``: MX glue that calls three small SX functions — ``g``, ``g_jac`` (value and
+  Jacobian) and ``g_hess`` (weighted Hessian) — at every RK point. The generated code is
+  those three functions plus O(M) calls: independent of N and of M, about
+  (1 + 6 + 19) · ops(f) for the velocity-coordinate models measured in
+  ``experiments/bench_ocp.py``.
+
+:func:`stage_functions` chooses by an estimate of the inline code (``mode="auto"``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+__all__ = ["StageFunctions", "stage_functions", "INLINE_LIMIT", "RK4"]
+
+#: RK4 tableau (a lower triangular, b weights, c nodes)
+RK4 = (((), (0.5,), (0.0, 0.5), (0.0, 0.0, 1.0)), (1 / 6, 1 / 3, 1 / 3, 1 / 6), (0.0, 0.5, 0.5, 1.0))
+#: the inline realisation is used while 4 M · nx · ops(f) stays below this (its Hessian code
+#: is about that size; measured crossover in experiments/bench_ocp.py --sections scale)
+INLINE_LIMIT = 60_000
+
+
+@dataclass(frozen=True, eq=False)
+class StageFunctions:
+    """F, ∂F/∂x and ∇²_x(λᵀF) of one shooting interval (see the module docstring).
+
+    Every function takes ``(z, u, T, k)``: node state (nz), control (nu), horizon (scalar; a
+    constant for a fixed horizon) and the interval index k (a constant); ``hessian`` also
+    ``lam`` (nz). ``jacobian`` returns (F, J) with J of shape nz × nx; ``hessian`` returns
+    the dense symmetric nx × nx matrix. x = (z, u) or (z, u, T) when ``free_horizon``.
+    """
+
+    step: ca.Function
+    jacobian: ca.Function
+    hessian: ca.Function
+    mode: str
+    n_states: int
+    n_controls: int
+    free_horizon: bool
+    steps: int
+    ode_operations: int
+    code_operations: int
+
+    @property
+    def n_variables(self) -> int:
+        return self.n_states + self.n_controls + (1 if self.free_horizon else 0)
+
+    def describe(self) -> dict:
+        """Sizes for reports: operations of f and of the SX code the stage functions hold."""
+        return {"stage": self.mode, "rk4_steps": self.steps, "ode_operations": self.ode_operations,
+                "stage_code_operations": self.code_operations}
+
+
+def stage_functions(ode: ca.Function, intervals: int, *, steps: int = 4, free_horizon: bool = False,
+                    mode: str = "auto") -> StageFunctions:
+    """The stage functions of ``ode`` (an SX Function ``(t, z, u) -> ż`` with the parameter
+    values bound) for ``intervals`` = N intervals, ``steps`` = M RK4 sub-steps each.
+
+    ``mode``: "inline", "structured" or "auto" (inline while 4 M · nx · ops(f) ≤
+    :data:`INLINE_LIMIT`).
+    """
+    nz, nu = int(ode.size1_in(1)), int(ode.size1_in(2))
+    ops = int(ode.n_instructions())
+    nx = nz + nu + (1 if free_horizon else 0)
+    if mode == "auto":
+        mode = "inline" if 4 * steps * nx * ops <= INLINE_LIMIT else "structured"
+    g = _scaled_ode(ode, intervals)
+    build = {"inline": _inline, "structured": _structured}[mode]
+    step, jac, hess, code = build(g, nz, nu, steps, free_horizon)
+    return StageFunctions(step, jac, hess, mode, nz, nu, free_horizon, steps, ops, code)
+
+
+def _scaled_ode(ode: ca.Function, intervals: int) -> ca.Function:
+    """g(z, u, T, τ) = h f(τ h, z, u), h = T/N (module docstring)."""
+    nz, nu = int(ode.size1_in(1)), int(ode.size1_in(2))
+    z, u, T, tau = ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("T"), ca.SX.sym("tau")
+    h = T / intervals
+    return ca.Function("g", [z, u, T, tau], [h * ode(tau * h, z, u)], ["z", "u", "T", "tau"], ["dzds"])
+
+
+def _symbols(sym, nz, nu):
+    return sym.sym("z", nz), sym.sym("u", nu), sym.sym("T"), sym.sym("k"), sym.sym("lam", nz)
+
+
+def _rk4_points(steps: int):
+    """(sub-step i, stage j, fraction of the interval where g is evaluated)."""
+    _, _, c = RK4
+    return [(i, j, (i + c[j]) / steps) for i in range(steps) for j in range(4)]
+
+
+def _inline(g, nz, nu, steps, free):
+    """One SX expression of the M sub-steps, differentiated by CasADi."""
+    z, u, T, k, lam = _symbols(ca.SX, nz, nu)
+    a, b, _ = RK4
+    ds = 1.0 / steps
+    zi = z
+    for i in range(steps):
+        kap = []
+        for j in range(4):
+            y = zi + ds * sum((a[j][l] * kap[l] for l in range(j)), ca.SX.zeros(nz))
+            kap.append(g(y, u, T, k + (i + RK4[2][j]) / steps))
+        zi = zi + ds * sum(b[j] * kap[j] for j in range(4))
+    x = ca.vertcat(z, u, T) if free else ca.vertcat(z, u)
+    ins, names = [z, u, T, k], ["z", "u", "T", "k"]
+    step = ca.Function("stage", ins, [zi], names, ["z_end"])
+    jac = ca.Function("stage_jac", ins, [zi, ca.jacobian(zi, x)], names, ["z_end", "J"])
+    hess = ca.Function("stage_hess", ins + [lam], [ca.hessian(ca.dot(lam, zi), x)[0]], names + ["lam"], ["H"])
+    return step, jac, hess, sum(int(f.n_instructions()) for f in (step, jac, hess))
+
+
+def _structured(g, nz, nu, steps, free):
+    """MX glue over g, g_jac, g_hess (module docstring): code independent of N and M."""
+    zs, us, Ts, taus, nus = ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("T"), ca.SX.sym("tau"), ca.SX.sym("nu", nz)
+    val = g(zs, us, Ts, taus)
+    local = ca.vertcat(zs, us, Ts) if free else ca.vertcat(zs, us)
+    g_jac = ca.Function("g_jac", [zs, us, Ts, taus], [val, ca.jacobian(val, local)])
+    g_hess = ca.Function("g_hess", [zs, us, Ts, taus, nus], [ca.hessian(ca.dot(nus, val), local)[0]])
+    z, u, T, k, lam = _symbols(ca.MX, nz, nu)
+    nx = nz + nu + (1 if free else 0)
+    # ∂(u[, T])/∂x: constant rows below the sensitivity of y
+    E = ca.DM(np.hstack([np.zeros((nx - nz, nz)), np.eye(nx - nz)]))
+    a, b, _ = RK4
+    ds = 1.0 / steps
+    zi, Zi = z, ca.DM(np.hstack([np.eye(nz), np.zeros((nz, nx - nz))]))
+    record = []                       # per sub-step: (points (y, L), G of each point)
+    for i in range(steps):
+        kap, K, pts, Gs = [], [], [], []
+        for j in range(4):
+            y = zi + ds * sum((a[j][l] * kap[l] for l in range(j)), ca.MX.zeros(nz))
+            Y = Zi + ds * sum((a[j][l] * K[l] for l in range(j)), ca.MX.zeros(nz, nx))
+            L = ca.vertcat(Y, E)
+            kj, G = g_jac(y, u, T, k + (i + RK4[2][j]) / steps)
+            kap.append(kj)
+            K.append(ca.mtimes(G, L))
+            pts.append((y, L))
+            Gs.append(G)
+        zi = zi + ds * sum(b[j] * kap[j] for j in range(4))
+        Zi = Zi + ds * sum(b[j] * K[j] for j in range(4))
+        record.append((pts, Gs))
+    ins, names = [z, u, T, k], ["z", "u", "T", "k"]
+    step = ca.Function("stage", ins, [zi], names, ["z_end"])
+    jac = ca.Function("stage_jac", ins, [zi, Zi], names, ["z_end", "J"])
+    H = _second_order_adjoint(record, g_hess, lam, u, T, k, steps, nz, nx)
+    hess = ca.Function("stage_hess", ins + [lam], [H], names + ["lam"], ["H"])
+    return step, jac, hess, sum(int(f.n_instructions()) for f in (g, g_jac, g_hess))
+
+
+def _second_order_adjoint(record, g_hess, lam, u, T, k, steps, nz, nx):
+    """Σ L_ijᵀ ∇²(ν_ijᵀ g) L_ij with the adjoints ν_ij of a backward sweep (module docstring)."""
+    a, b, _ = RK4
+    ds = 1.0 / steps
+    lz = lam                                        # adjoint of z_{i+1}
+    H = ca.MX.zeros(nx, nx)
+    for i in reversed(range(steps)):
+        pts, Gs = record[i]
+        nus, ybar = [None] * 4, [None] * 4
+        for j in reversed(range(4)):
+            v = ds * b[j] * lz
+            for jj in range(j + 1, 4):
+                if a[jj][j]:
+                    v = v + ds * a[jj][j] * ybar[jj]
+            nus[j] = v
+            ybar[j] = ca.mtimes(Gs[j][:, :nz].T, v)  # adjoint of y_ij
+        lz = lz + sum(ybar)
+        for j in range(4):
+            y, L = pts[j]
+            Hj = g_hess(y, u, T, k + (i + RK4[2][j]) / steps, nus[j])
+            H = H + ca.mtimes([L.T, Hj, L])
+    return H
