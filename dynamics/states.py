@@ -79,10 +79,12 @@ def to_state(model, q, qdot, params=None, *, tol: float = CONSTRAINT_TOL) -> np.
         res = constraint_residual(model, q, qdot, params)
         scale = max(1.0, float(np.linalg.norm(qdot)))
         if np.max(np.abs(res)) > tol * scale:
-            raise ModelError([f"the initial state violates the constraints: ω(q)q̇ = "
-                              f"{np.array2string(res, precision=3)} (tolerance {tol:g}·max(1, |q̇|)); "
-                              "give velocities in the constraint distribution D_q"],
-                             title="inconsistent initial state")
+            raise ModelError([f"the state violates the constraints ω(q)q̇ = 0 (tolerance {tol:g}·max(1, |q̇|)); "
+                              "give velocities in the constraint distribution D_q, or only some of them (the "
+                              "others follow from ω(q)q̇ = 0)"]
+                             + [f"constraint {i + 1} ({expr} = 0): residual {r:.6g} at this configuration"
+                                for i, (expr, r) in enumerate(zip(system.constraint_exprs, res)) if abs(r) > tol * scale],
+                             title="inconsistent state")
     if model.formulation == "reduced":
         return np.asarray(num.call("state", q, qdot, pv), dtype=float).ravel()
     return _raw_state(model, q, qdot, pv)

@@ -52,7 +52,8 @@ class Ours:
 
     def __init__(self, key, N, *, solver=None, transcription=None, jit=None, guess_label=None):
         from nhgait.gaits.guesses import candidates
-        from nhgait.gaits.planner import prepare, solve_from_guesses
+        from nhgait.gaits.planner import prepare
+        from nhgait.gaits.search import solve_from_guesses
         from nhgait.gaits.tasks import resolve
         from nhgait.ocp import OCPSolver, SolverOptions
 
@@ -60,12 +61,12 @@ class Ours:
         solver = solver or solver_order("auto", transcription)[0]
         system, gait = PROBLEMS[key]
         t0 = time.perf_counter()
-        _, _, problem = prepare(resolve(system, gait, overrides=[f"intervals={N}"]))
+        problem = prepare(resolve(system, gait, overrides=[f"intervals={N}"])).problem
         self.model_time = time.perf_counter() - t0
         self.solver = OCPSolver(problem, transcription, SolverOptions(jit=jit, solver=solver, max_iter=500))
         guesses = candidates(problem)
         if guess_label is None:
-            _, _, guess_label = solve_from_guesses(self.solver, guesses)
+            guess_label = solve_from_guesses(self.solver, guesses).won
         self.guess = next(g for g in guesses if g.label == guess_label)
         self.runs = []
 

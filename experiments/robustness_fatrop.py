@@ -38,7 +38,7 @@ def main(argv=None) -> int:
     for scene, gait in TASKS:
         for N in [int(n) for n in args.N.split(",")]:
             the_plan = resolve(scene, gait, overrides=[f"intervals={N}"])
-            _, _, problem = prepare(the_plan)
+            problem = prepare(the_plan).problem
             solvers = {s: OCPSolver(problem, None, SolverOptions(jit=False, solver=s, max_iter=500))
                        for s in ("ipopt", "fatrop")}
             for guess in candidates(problem)[:args.candidates]:

@@ -40,20 +40,10 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["plan", "PlanResult", "Attempt", "prepare", "solve_from_guesses", "continuation",
-           "to_momentum_coordinates", "known_names", "warm_start", "read_solution"]
+from .search import Attempt, Search, continuation, solve_from_guesses, solve_with_fallbacks  # noqa: F401
 
-
-@dataclass(frozen=True)
-class Attempt:
-    """One candidate tried: its label, the solver and its verdict."""
-
-    label: str
-    status: str
-    success: bool
-    iterations: int
-    objective: float
-    solver: str = ""
+__all__ = ["plan", "PlanResult", "prepare", "Prepared", "state_problem", "to_momentum_coordinates", "known_names",
+           "warm_start", "read_solution", "summary_lines", "HESSIAN_AUTO_LIMIT"]
 
 
 def solver_order(solver: str, transcription=None) -> tuple:
@@ -75,8 +65,11 @@ class PlanResult:
     Attributes
     ----------
     label : "<system>/<task>"; task : the Task as solved; solution : the verified Solution
-    (momentum coordinates); guess : label of the winning candidate; attempts : every
-    candidate tried; files : written files; timings : seconds per step; plan : the Plan.
+    (momentum coordinates) — for a failure, the closest point found; guess : label of the
+    winning candidate; attempts : every candidate tried; files : written files; timings :
+    seconds per step; plan : the Plan; conditions : what was dropped from the task's
+    conditions and why (:class:`~nhgait.ocp.conditions.ConditionReport`); diagnosis : why a
+    failure failed and what to change (:func:`~nhgait.gaits.diagnosis.diagnose`).
     """
 
     label: str
@@ -88,10 +81,14 @@ class PlanResult:
     timings: dict = field(default_factory=dict)
     plan: Any = None
     model: Any = None
+    conditions: Any = None
+    diagnosis: tuple = ()
 
     @property
     def success(self) -> bool:
-        return bool(self.solution.success)
+        """Converged and verified: ``Solution.verified`` turns a converged solution whose
+        re-simulation misses the task into a failure (only ``plan(verify=False)`` skips it)."""
+        return bool(self.solution is not None and self.solution.success)
 
 
 def known_names(model, quantities) -> tuple:
@@ -109,113 +106,78 @@ def quantity_objects(model, scene):
     return scene_quantities(model, quantity_function(model.system, scene.quantities))
 
 
-def prepare(the_plan, *, params=None):
-    """(derived model, specialised model, problem) of a :class:`~nhgait.gaits.tasks.Plan`."""
-    from nhgait.dynamics import derive
-    from nhgait.dynamics.specialisation import choose_velocities, specialise
-    from .task import check_names, to_problem
+@dataclass(frozen=True, eq=False)
+class Prepared:
+    """What :func:`prepare` makes of a plan.
 
+    ``model``: the derived reduced ODE (momentum coordinates); ``fast``: the specialised model
+    the NLP is stated on; ``problem``: the statement with independent conditions (what is
+    solved); ``stated``: the statement as the task gives it (what the verification checks);
+    ``conditions``: what :func:`~nhgait.ocp.conditions.normalise` dropped or solved, and why.
+    """
+
+    model: Any
+    fast: Any
+    problem: Any
+    stated: Any
+    conditions: Any
+
+
+def state_problem(task, fast, scene, *, params=None, name: str = ""):
+    """(stated problem, problem with independent conditions, ConditionReport) of ``task`` on
+    the specialised model ``fast``: an end that gives every coordinate and velocity is checked
+    against ω(q)q̇ = 0 first (the error names each violated constraint)."""
+    from nhgait.ocp.conditions import normalise
+    from .task import to_problem
+    _check_full_states(task, fast.base, params)
+    stated = to_problem(task, fast, quantities=quantity_objects(fast, scene), params=params, name=name)
+    problem, report = normalise(stated)
+    return stated, problem, report
+
+
+def _check_full_states(task, model, params) -> None:
+    """A full (q, q̇) at an end must satisfy the constraints (:func:`nhgait.dynamics.states.to_state`)."""
+    from nhgait.dynamics.errors import ModelError
+    from nhgait.dynamics.states import to_state
+    from nhgait.ocp import ProblemError
+    coords = tuple(model.system.coordinates)
+    problems = []
+    for where in ("initial", "final"):
+        mapping = getattr(task, where)
+        values = {k: v for k, v in mapping.items() if not isinstance(v, tuple)}
+        if all(c in values and f"{c}_dot" in values for c in coords):
+            try:
+                to_state(model, [values[c] for c in coords], [values[f"{c}_dot"] for c in coords], params)
+            except ModelError as exc:
+                problems += [f"[task].{where}: {p}" for p in exc.problems]
+    if problems:
+        raise ProblemError(problems, title="inconsistent boundary conditions")
+
+
+def prepare(the_plan, *, params=None, progress=None) -> Prepared:
+    """The :class:`Prepared` model and problems of a :class:`~nhgait.gaits.tasks.Plan`."""
+    from nhgait.dynamics import derive
+    from nhgait.dynamics.progress import Progress
+    from nhgait.dynamics.specialisation import choose_velocities, specialise
+    from .task import check_names
+
+    progress = progress or Progress.silent()
     task, scene = the_plan.task, the_plan.scene
-    model = derive(scene.system, "reduced")
+    with progress.phase(f"derive the reduced equations of {scene.system.name}"):
+        model = derive(scene.system, "reduced")
+    prov = getattr(model, "provenance", None)
+    progress.note(f"  n = {model.system.n} coordinates, {len(model.state_names)} states, {model.form} form"
+                  + (" (from the cache)" if prov is not None and prov.cache_hit else ""))
     n = len(model.system.coordinates)
     check_names(task, known_names(model, scene.quantities), tuple(model.system.inputs),
-                n_states=len(model.state_names), n_velocities=len(model.state_names) - n)
+                n_velocities=len(model.state_names) - n)
     velocities = task.velocities or choose_velocities(model, task.names, scene.quantities, params)
-    fast = specialise(model, params, velocities=velocities, quantities=scene.quantities)
-    problem = to_problem(task, fast, quantities=quantity_objects(fast, scene), params=params,
-                         name=the_plan.label)
-    return model, fast, problem
-
-
-# ----------------------------------------------------------------------------- candidates
-_BATCH: tuple = ()
-
-
-def _solve_index(i):
-    """Worker of a forked process: solve candidate i of the batch set up by the parent."""
-    solver, guesses = _BATCH
-    return replace(solver.solve(guesses[i]), problem=None)
-
-
-def _solve_batch(solver, guesses, workers: int) -> list:
-    """Solutions of ``guesses`` (in order), in ``workers`` forked processes when possible."""
-    import multiprocessing as mp
-    if workers > 1 and len(guesses) > 1 and "fork" in mp.get_all_start_methods():
-        global _BATCH
-        _BATCH = (solver, guesses)
-        try:
-            with mp.get_context("fork").Pool(min(workers, len(guesses))) as pool:
-                sols = pool.map(_solve_index, range(len(guesses)))
-            return [replace(s, problem=solver.problem) for s in sols]
-        except (OSError, RuntimeError):   # no fork here (sandbox, resources): solve in turn
-            pass
-        finally:
-            _BATCH = ()
-    return [solver.solve(g) for g in guesses]
-
-
-def solve_from_guesses(solver, guesses, *, workers: int = 1):
-    """Try ``guesses`` in batches of ``workers``; the best success of the first batch with one.
-
-    Returns (solution or None, attempts, winning label or None).
-    """
-    attempts = []
-    workers = max(1, int(workers))
-    for start in range(0, len(guesses), workers):
-        batch = guesses[start:start + workers]
-        sols = _solve_batch(solver, batch, workers)
-        for g, s in zip(batch, sols):
-            attempts.append(Attempt(g.label, s.status, bool(s.success), int(s.iterations), float(s.objective)))
-        good = [(s.objective, i) for i, s in enumerate(sols) if s.success]
-        if good:
-            _, i = min(good)
-            return sols[i], tuple(attempts), batch[i].label
-    return None, tuple(attempts), None
-
-
-def solve_with_fallbacks(solver, guesses, *, workers: int = 1):
-    """The guesses in order (:func:`solve_from_guesses`), then :func:`continuation` from the
-    first one. Returns (solution or None, attempts, winning label or None)."""
-    solution, tried, won = solve_from_guesses(solver, guesses, workers=workers)
-    if solution is None:
-        solution, more = continuation(solver, guesses[0])
-        tried += more
-        won = more[-1].label if solution is not None else None
-    return solution, tried, won
-
-
-def _moved(problem, alpha):
-    """``problem`` with every end value fixed at both ends moved a fraction ``alpha`` of the way."""
-    final = {}
-    for name, value in problem.final.items():
-        lo, hi = problem.bounds(problem.final, name)
-        if name in problem.initial and lo == hi:
-            a0, b0 = problem.bounds(problem.initial, name)
-            if a0 == b0:
-                final[name] = a0 + alpha * (lo - a0)
-                continue
-        final[name] = value
-    return problem.replace(final=final)
-
-
-def continuation(solver, guess, steps=(0.25, 0.5, 0.75, 1.0)):
-    """Grow an easier problem into ``solver.problem`` (see the module docstring, step 4).
-
-    Returns (solution or None, attempts).
-    """
-    from nhgait.ocp import InitialGuess
-    attempts, current = [], guess
-    solution = None
-    for alpha in steps:
-        sub = solver.with_problem(_moved(solver.problem, alpha))
-        solution = sub.solve(current)
-        label = f"continuation {alpha:g} from {guess.label}"
-        attempts.append(Attempt(label, solution.status, bool(solution.success), int(solution.iterations),
-                                float(solution.objective)))
-        if not solution.success:
-            return None, tuple(attempts)
-        current = InitialGuess(solution.states, solution.controls, solution.horizon, label)
-    return replace(solution, problem=solver.problem), tuple(attempts)
+    with progress.phase(f"specialise: parameter values bound, velocity states ({', '.join(velocities)})"):
+        fast = specialise(model, params, velocities=velocities, quantities=scene.quantities)
+    stated, problem, report = state_problem(task, fast, scene, params=params, name=the_plan.label)
+    for line in report.lines():
+        progress.note(f"  conditions: {line}")
+    return Prepared(model, fast, problem, stated, report)
 
 
 # ----------------------------------------------------------------------------- warm start
@@ -266,9 +228,18 @@ def _default_workers() -> int:
     return max(1, min(2, (os.cpu_count() or 1)))
 
 
+#: the Hessian ``hessian="auto"`` uses (see :func:`choose_hessian`)
+HESSIAN_AUTO_LIMIT = 10**9
+
+
+def choose_hessian(hessian: str, problem) -> str:
+    """``hessian`` unless "auto": the exact Hessian (measured default, docs/gait-planning.md)."""
+    return "exact" if hessian == "auto" else hessian
+
+
 def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", transcription=None,
          jit=None, workers=1, params=None, max_iter=500, guess=None, out_dir=None, animate=False,
-         verify=True) -> PlanResult:
+         verify=True, hessian="auto", max_guesses=12, progress=None) -> PlanResult:
     """Plan a gait: see the module docstring.
 
     Parameters
@@ -280,56 +251,88 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     solver : "auto" (default: FATROP, then Ipopt when FATROP finds no solution), "fatrop" or
         "ipopt"
     transcription : None (multiple shooting; stage-ordered for FATROP) or "collocation"
-    jit : compile the NLP functions (None: when a C compiler is found)
+    jit : compile the NLP functions (None: when a C compiler is found, within the compile budget)
     workers : candidates tried at once (separate processes); "auto" for up to 2 per machine
     params : parameter values overriding the scene's (mapping)
     max_iter : iteration limit of each candidate's solve
     guess : a previous result to start from (Solution, PlanResult, solution.json dict or path,
         InitialGuess), tried before the planner's own candidates (:func:`warm_start`)
     out_dir : write solution.json and the figures there (``animate``: also motion.gif)
+    hessian : "auto", "exact", "gauss-newton" or "limited-memory" (Ipopt)
+    max_guesses : guesses tried per solver before the continuation
+    progress : a :class:`~nhgait.dynamics.progress.Progress` (None: silent)
     """
-    from nhgait.ocp import OCPSolver, SolverOptions
+    from nhgait.dynamics.progress import Progress
+    from .diagnosis import diagnose
     from .guesses import candidates
     from .tasks import resolve
 
+    progress = progress or Progress.silent()
     timings = {}
     t0 = time.perf_counter()
     if intervals is not None:
         overrides = [*overrides, f"intervals={int(intervals)}"]
     the_plan = resolve(system, task, overrides=overrides)
-    model, fast, problem = prepare(the_plan, params=params)
+    prepared = prepare(the_plan, params=params, progress=progress)
+    problem = prepared.problem
     timings["prepare_s"] = time.perf_counter() - t0
     workers = _default_workers() if workers in (None, "auto") else int(workers)
     guesses = candidates(problem)
     if guess is not None:
         guesses = guesses.with_first(warm_start(guess, problem))
     t0 = time.perf_counter()
-    solution, attempts, won = None, (), None
-    for name in solver_order(solver, transcription):
-        t1 = time.perf_counter()
-        ocp_solver = OCPSolver(problem, transcription, SolverOptions(jit=jit, solver=name, max_iter=max_iter))
-        timings["setup_s"] = timings.get("setup_s", 0.0) + time.perf_counter() - t1
-        solution, tried, won = solve_with_fallbacks(ocp_solver, guesses, workers=workers)
-        attempts += tuple(replace(a, solver=name) for a in tried)
-        if solution is not None:
-            break
-    if solution is None:   # report the first candidate's failure
-        solution = ocp_solver.solve(guesses[0])
+    search, timings["setup_s"] = _search(problem, guesses, solver=solver, transcription=transcription, jit=jit,
+                                         hessian=choose_hessian(hessian, problem), max_iter=max_iter,
+                                         workers=workers, limit=max_guesses, progress=progress)
     timings["solve_s"] = time.perf_counter() - t0 - timings["setup_s"]
-    momentum = momentum_problem(model, problem, the_plan, params)
-    solution = to_momentum_coordinates(solution, momentum)
-    if verify:
-        t0 = time.perf_counter()
-        solution = solution.verified()
-        timings["verify_s"] = time.perf_counter() - t0
+    solution = _verified(search, prepared, the_plan, params, verify, timings, progress)
     solution = replace(solution, settings={**solution.settings, "system": the_plan.label,
-                                           "velocities": list(fast.velocities), "specialisation": fast.route,
-                                           "workers": workers, **{k: round(v, 6) for k, v in timings.items()}})
+                                           "velocities": list(prepared.fast.velocities),
+                                           "specialisation": prepared.fast.route, "workers": workers,
+                                           "conditions": prepared.conditions.lines(),
+                                           **{k: round(v, 6) for k, v in timings.items()}})
     result = PlanResult(the_plan.label, the_plan.task.replace(intervals=problem.intervals), solution,
-                        won or "none", attempts, (), timings, the_plan, model)
+                        search.won or "none", search.attempts, (), timings, the_plan, prepared.model,
+                        prepared.conditions)
+    result = replace(result, diagnosis=diagnose(result))
     if out_dir is not None:
-        result = replace(result, files=tuple(write_outputs(result, Path(out_dir), animate=animate)))
+        result = replace(result, files=tuple(write_outputs(result, Path(out_dir), animate=animate,
+                                                           progress=progress)))
     return result
+
+
+def _search(problem, guesses, *, solver, transcription, jit, hessian, max_iter, workers, limit, progress):
+    """(:class:`~nhgait.gaits.search.Search`, set-up seconds): the solvers of
+    :func:`solver_order` in turn until one converges."""
+    from nhgait.ocp import OCPSolver, SolverOptions
+    search, setup = Search(None, (), None), 0.0
+    for name in solver_order(solver, transcription):
+        t0 = time.perf_counter()
+        with progress.phase(f"build the NLP for {name} ({problem.intervals} intervals, {hessian} Hessian)"):
+            ocp = OCPSolver(problem, transcription, SolverOptions(jit=jit, solver=name, max_iter=max_iter,
+                                                                 hessian=hessian), progress=progress)
+        setup += time.perf_counter() - t0
+        with progress.phase(f"solve with {name} from up to {min(limit, len(guesses))} guesses"):
+            search = search.then(solve_with_fallbacks(ocp, guesses, workers=workers, limit=limit, progress=progress))
+        if search.solution is not None:
+            break
+    return search, setup
+
+
+def _verified(search, prepared, the_plan, params, verify, timings, progress):
+    """The winning solution in momentum coordinates, verified (or the closest failure)."""
+    solution = search.solution if search.solution is not None else search.closest
+    momentum = momentum_problem(prepared.model, prepared.stated, the_plan, params)
+    solution = to_momentum_coordinates(solution, momentum)
+    if verify and search.solution is not None:
+        t0 = time.perf_counter()
+        with progress.phase("verify: re-simulate the optimal inputs on the general model (DOP853, rtol 1e-10)"):
+            solution = solution.verified(tolerance=the_plan.task.verify_tolerance)
+        v = solution.verification
+        progress.note(f"  {'passed' if v.passed else 'FAILED'}: nodes met to {v.max_error:.2e}, conditions to "
+                      f"{v.max_condition_error:.2e} (tolerance {v.tolerance:g})")
+        timings["verify_s"] = time.perf_counter() - t0
+    return solution
 
 
 def momentum_problem(model, problem, the_plan, params):
@@ -356,15 +359,23 @@ def to_momentum_coordinates(solution, momentum):
 
 
 # ----------------------------------------------------------------------------- outputs
-def write_outputs(result: PlanResult, out: Path, *, animate: bool = True) -> list:
-    """solution.json (with ``task`` and ``guess``) and the figures; returns the paths."""
+def write_outputs(result: PlanResult, out: Path, *, animate: bool = True, progress=None) -> list:
+    """solution.json (with ``task``, ``guess``, ``success`` and ``diagnosis``) and the figures;
+    a failed plan's figures are titled FAILED and it gets no animation. Returns the paths."""
+    from nhgait.dynamics.progress import Progress
     from . import plots
+    progress = progress or Progress.silent()
     out.mkdir(parents=True, exist_ok=True)
-    extra = {"task": result.task.to_dict(), "system": result.label,
+    extra = {"task": result.task.to_dict(), "system": result.label, "success": result.success,
+             "diagnosis": list(result.diagnosis),
              "guess": {"won": result.guess, "tried": [a.__dict__ for a in result.attempts]}}
     files = [result.solution.to_json(out / "solution.json", extra=extra)]
-    files.extend(plots.write_figures(result.solution, out, units=result.plan.units,
-                                     drawing=result.plan.drawing, model=result.model, animate=animate))
+    failed = None if result.success else (result.diagnosis[0] if result.diagnosis else result.solution.status)
+    animate = animate and result.success
+    with progress.phase("write solution.json and the figures" + (" and the animation (the longest part)"
+                                                                   if animate else "")):
+        files.extend(plots.write_figures(result.solution, out, units=result.plan.units, drawing=result.plan.drawing,
+                                         model=result.model, animate=animate, failed=failed))
     return files
 
 
@@ -372,24 +383,35 @@ def summary_lines(result: PlanResult) -> list:
     """The lines ``nhgait plan`` prints."""
     s = result.solution
     v = s.verification
-    lines = [f"nhgait plan {result.label}: {'SUCCESS' if s.success else 'FAILED'} ({s.status})",
+    lines = [f"nhgait plan {result.label}: {'SUCCESS' if result.success else 'FAILED'} ({s.status})",
              f"  objective          J = {s.objective:.6f}",
              f"  iterations         {s.iterations}  (guess: {result.guess}; tried {len(result.attempts)})",
              f"  solve time         {s.solve_time_s * 1e3:.1f} ms  (functions {s.function_time_s * 1e3:.1f} ms, "
              f"solver {s.solver_time_s * 1e3:.1f} ms); set-up {s.setup_time_s * 1e3:.1f} ms"]
     if v is not None:
-        lines.append(f"  verification       max state error {v.max_error:.2e}, conditions met to "
-                     f"{v.max_condition_error:.2e} (DOP853, rtol {v.rtol:g})")
+        lines.append(f"  verification       {'passed' if v.passed else 'FAILED'}: max state error {v.max_error:.2e}, "
+                     f"conditions met to {v.max_condition_error:.2e} (tolerance {v.tolerance:g}; DOP853, "
+                     f"rtol {v.rtol:g})")
     else:
         lines.append("  verification       not run")
     st = s.settings
-    jit = "compiled" + (" (cached)" if st.get("jit_cached") else "") if st.get("jit") else "interpreted"
-    if st.get("jit_fallback"):
-        jit += f" (no compiled code: {st['jit_fallback']})"
     lines.append(f"  N = {st.get('intervals')}, T = {s.horizon:.4f} s, {st.get('transcription')}, "
-                 f"{st.get('solver')}, {jit}, states ({', '.join(st.get('transcribed_in', s.state_names))})")
+                 f"{st.get('solver')}, {st.get('hessian', 'exact')} Hessian, {_compiled_text(st)}, "
+                 f"states ({', '.join(st.get('transcribed_in', s.state_names))})")
+    lines += [f"  conditions         {line}" for line in (result.conditions.lines() if result.conditions else ())]
+    if result.diagnosis:
+        lines.append("  why:")
+        lines.extend(f"    {line}" for line in result.diagnosis)
     if result.files:
         lines.append("  files:")
         lines.extend(f"    {f}" for f in result.files)
     return lines
 
+
+def _compiled_text(settings) -> str:
+    if not settings.get("jit"):
+        reason = settings.get("jit_fallback")
+        return "interpreted" + (f" ({reason})" if reason else "")
+    c = settings.get("compile") or {}
+    size = f"{c.get('c_bytes', 0) / 1e6:.2f} MB of C, {' '.join(c.get('flags') or [])}"
+    return f"compiled ({size}" + (", cached)" if settings.get("jit_cached") else f", {c.get('compile_s', 0):.1f} s)")

@@ -180,7 +180,7 @@ def solve_chain(solve, jobs, warm_start: bool = True) -> list:
 
 def _outcome(s, start: str) -> dict:
     """The plain-data answer of a verified solution (success needs the verification too)."""
-    verified = s.verification is not None and s.verification.success
+    verified = s.verification is not None and s.verification.passed
     return {"success": bool(s.success) and verified, "status": str(s.status), "message": str(s.message),
             "objective": _nan(s.objective), "iterations": int(s.iterations), "solve_time_s": _nan(s.solve_time_s),
             "verification_error": _nan(s.verification_error),
@@ -283,12 +283,11 @@ WARM_IPOPT = {"mu_init": 1e-6, "bound_push": 1e-8, "bound_frac": 1e-8}
 
 
 def _solver_for(job: PointJob, *, warm: bool = False):
-    """(derived model, problem, OCPSolver, plan) of ``job``, reusing this process's solver of the
-    same structure (``OCPSolver.with_problem``: same NLP functions, new bounds); ``warm``: the
-    solver with :data:`WARM_IPOPT` (Ipopt only)."""
+    """(derived model, (stated problem, problem solved), OCPSolver, plan) of ``job``, reusing
+    this process's solver of the same structure (``OCPSolver.with_problem``: same NLP
+    functions, new bounds); ``warm``: the solver with :data:`WARM_IPOPT` (Ipopt only)."""
     from nhgait.ocp import OCPSolver, SolverOptions
-    from .planner import quantity_objects, prepare
-    from .task import to_problem
+    from .planner import prepare, state_problem
     from .tasks import resolve
     case = job.case
     the_plan = resolve(_scene(case.scene), job.task)
@@ -298,17 +297,18 @@ def _solver_for(job: PointJob, *, warm: bool = False):
     if key in _MEMO:
         model, fast, solver = _MEMO.pop(key)
         _MEMO[key] = (model, fast, solver)
-        problem = to_problem(the_plan.task, fast, quantities=quantity_objects(fast, the_plan.scene),
-                             params=job.params, name=the_plan.label)
-        return model, problem, solver.with_problem(problem), the_plan
-    model, fast, problem = prepare(the_plan, params=job.params)
+        stated, problem, _ = state_problem(the_plan.task, fast, the_plan.scene, params=job.params,
+                                           name=the_plan.label)
+        return model, (stated, problem), solver.with_problem(problem), the_plan
+    prepared = prepare(the_plan, params=job.params)
+    model, fast, problem = prepared.model, prepared.fast, prepared.problem
     solver = OCPSolver(problem, case.options.get("transcription"),
                        SolverOptions(jit=case.options.get("jit"), solver=case.options.get("solver", "ipopt"),
                                      ipopt=dict(WARM_IPOPT) if warm else {}))
     _MEMO[key] = (model, fast, solver)
     while len(_MEMO) > _MEMO_SIZE:
         _MEMO.pop(next(iter(_MEMO)))
-    return model, problem, solver, the_plan
+    return model, (prepared.stated, problem), solver, the_plan
 
 
 def prepare_worker(job: PointJob) -> bool:
@@ -323,21 +323,20 @@ def _plan_point(job: PointJob) -> dict:
     """Warm start from the parent when there is one; else (or when it fails) the planner's own
     guesses and continuation; then the planner's verification in momentum coordinates."""
     from .guesses import candidates
-    from .planner import momentum_problem, solve_with_fallbacks, to_momentum_coordinates, warm_start
+    from .planner import momentum_problem, to_momentum_coordinates, warm_start
+    from .search import solve_with_fallbacks
     solution, start = None, "cold"
     if job.warm is not None:
-        model, problem, solver, the_plan = _solver_for(job, warm=True)
+        model, (stated, problem), solver, the_plan = _solver_for(job, warm=True)
         solution = solver.solve(warm_start(job.warm, problem, f"warm start from point {job.warm_from}"))
         start = "warm" if solution.success else "cold after warm failed"
     spent = int(solution.iterations) if solution is not None else 0
     if solution is None or not solution.success:
-        model, problem, solver, the_plan = _solver_for(job)
-        guesses = candidates(problem)
-        solution, attempts, _ = solve_with_fallbacks(solver, guesses)
-        spent += sum(a.iterations for a in attempts)
-        if solution is None:   # record the first candidate's failure
-            solution = solver.solve(guesses[0])
-            spent += int(solution.iterations)
-    momentum = momentum_problem(model, problem, the_plan, job.params)
-    out = _outcome(to_momentum_coordinates(solution, momentum).verified(), start)
+        model, (stated, problem), solver, the_plan = _solver_for(job)
+        search = solve_with_fallbacks(solver, candidates(problem))
+        spent += sum(a.iterations for a in search.attempts)
+        solution = search.solution if search.solution is not None else search.closest
+    momentum = momentum_problem(model, stated, the_plan, job.params)
+    out = _outcome(to_momentum_coordinates(solution, momentum).verified(tolerance=the_plan.task.verify_tolerance),
+                   start)
     return {**out, "warm": warm_data(out["solution"]) if out["success"] else None, "total_iterations": spent}

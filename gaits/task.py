@@ -9,19 +9,23 @@ Format (docs/gait-planning.md)::
     intervals = 50                       # N control intervals (piecewise-constant inputs)
     initial = {x = 0.0, theta = 0.0, forward_velocity = 0.0}   # t = 0
     final = {x = 1.0, theta = 0.0}                              # t = T
+    rest = ["final"]                     # at rest (every velocity zero) at these ends
     periodic = ["psi", "phi", "psi_dot", "phi_dot"]             # y(T) = y(0)
     bounds = {phi = [-1.0, 1.0]}                                # at every node
     control_bounds = {tau_psi = [-10.0, 10.0]}                  # or one number b: |u| ≤ b
     objective = "effort"                 # ∫|u|² dt; "time" (free horizon); or weights
                                          #   {effort = 1.0, time = 0.1, tau_psi = 2.0}
     velocities = ["forward_velocity", "psi_dot", "phi_dot"]     # optional: velocity states
+    verify_tolerance = 1e-6              # re-simulation must meet every condition to this
 
 Names are the system's coordinates, ``<coordinate>_dot``, the scene's named quantities
 (``[quantities]``) and, for a planar frame (x, y, θ), ``forward_velocity`` and
 ``lateral_velocity``. A value is a number, a constant expression such as ``"pi/2"`` (parsed
 by :func:`nhgait.dynamics.expressions.number_problems`, never evaluated as code), or
-``[lo, hi]`` for a range (``"inf"``/``"-inf"`` for one-sided). Every problem found — unknown
-keys and names, wrong types, contradictory values, impossible counts — is listed in one
+``[lo, hi]`` for a range (``"inf"``/``"-inf"`` for one-sided). Conditions may be redundant
+(a full consistent state, "fibre at rest" as ẋ = ẏ = θ̇ = 0): the planner drops the dependent
+ones and refuses an inconsistent set (:func:`nhgait.ocp.conditions.normalise`). Every problem
+found — unknown keys and names, wrong types, contradictory values — is listed in one
 :class:`~nhgait.ocp.ProblemError`.
 
 :func:`parse_task` checks the form (no model needed), :func:`check_names` the names against
@@ -36,11 +40,12 @@ from typing import Any
 
 from nhgait.ocp import OptimalControlProblem, ProblemError, Quantity
 
-__all__ = ["Task", "FrozenMap", "parse_task", "apply_overrides", "check_names", "task_names", "to_problem",
+__all__ = ["Task", "FrozenMap", "parse_task", "apply_overrides", "check_names", "task_names", "to_problem", "at_rest",
            "TASK_KEYS"]
 
-TASK_KEYS = ("name", "description", "horizon", "intervals", "initial", "final", "periodic", "bounds",
-             "control_bounds", "objective", "velocities")
+TASK_KEYS = ("name", "description", "horizon", "intervals", "initial", "final", "rest", "periodic", "bounds",
+             "control_bounds", "objective", "velocities", "verify_tolerance")
+ENDS = ("initial", "final")
 OBJECTIVES = ("effort", "time")
 
 
@@ -96,6 +101,8 @@ class Task:
     velocities: tuple = ()
     name: str = "task"
     description: str = ""
+    rest: tuple = ()
+    verify_tolerance: float = 1e-6
 
     def __post_init__(self):
         for key in ("initial", "final", "bounds", "objective"):
@@ -104,6 +111,7 @@ class Task:
             object.__setattr__(self, "control_bounds", FrozenMap(self.control_bounds))
         object.__setattr__(self, "periodic", tuple(self.periodic))
         object.__setattr__(self, "velocities", tuple(self.velocities))
+        object.__setattr__(self, "rest", tuple(self.rest))
 
     @property
     def names(self) -> tuple:
@@ -129,6 +137,8 @@ class Task:
         out["control_bounds"] = ({k: list(v) for k, v in cb.items()} if isinstance(cb, Mapping) else cb)
         out["objective"] = dict(self.objective)
         out["velocities"] = list(self.velocities)
+        out["rest"] = list(self.rest)
+        out["verify_tolerance"] = self.verify_tolerance
         return out
 
 
@@ -266,6 +276,13 @@ def parse_task(data, *, where: str = "[task]", system=None, quantities=()) -> Ta
     bounds = _table(data, "bounds", problems)
     periodic = _names_list(data, "periodic", problems)
     velocities = _names_list(data, "velocities", problems)
+    rest = _names_list(data, "rest", problems)
+    for end in rest:
+        if end not in ENDS:
+            problems.append(f"{where}.rest: {end!r} is not an end (use [\"initial\"], [\"final\"] or both)")
+    tolerance = _number(data.get("verify_tolerance", 1e-6), f"{where}.verify_tolerance", problems)
+    if not tolerance > 0:
+        problems.append(f"{where}.verify_tolerance = {data.get('verify_tolerance')!r} must be positive")
     objective = _objective(data.get("objective", "effort"), problems)
     if "time" in objective and objective["time"] > 0 and bounds_T is None:
         problems.append(f"{where}.objective: a time objective needs a free horizon (horizon = [min, max])")
@@ -283,7 +300,7 @@ def parse_task(data, *, where: str = "[task]", system=None, quantities=()) -> Ta
     return Task(horizon=T, intervals=N, initial=initial, final=final, periodic=periodic, bounds=bounds,
                 control_bounds=control_bounds, objective=objective, horizon_bounds=bounds_T,
                 velocities=velocities, name=str(data.get("name", "task")),
-                description=str(data.get("description", "")))
+                description=str(data.get("description", "")), rest=rest, verify_tolerance=tolerance)
 
 
 def _range(v):
@@ -331,7 +348,7 @@ def apply_overrides(data, assignments) -> dict:
         if value.startswith("[") and value.endswith("]"):
             value = value[1:-1]
         items = [v.strip() for v in value.split(",")]
-        if parts[0] in ("periodic", "velocities"):
+        if parts[0] in ("periodic", "velocities", "rest"):
             parsed = [v for v in items if v]
         elif parts[0] in ("name", "description") or (parts[0] == "objective" and len(parts) == 1):
             parsed = value
@@ -365,7 +382,7 @@ def task_names(system, quantities=()) -> tuple:
             + tuple(n for n in quantities if n not in coords))
 
 
-def _name_problems(parts: dict, known, inputs, n_states, n_velocities) -> list:
+def _name_problems(parts: dict, known, inputs, n_velocities) -> list:
     """Unknown names and impossible counts of a task's parts on a system."""
     problems = []
     for where in ("initial", "final", "periodic", "bounds"):
@@ -379,11 +396,6 @@ def _name_problems(parts: dict, known, inputs, n_states, n_velocities) -> list:
     for name in parts["objective"]:
         if name not in OBJECTIVES and name not in inputs:
             problems.append(f"[task].objective: unknown weight {name!r} (effort, time or an input: {', '.join(inputs)})")
-    for where in ("initial", "final"):
-        fixed = [n for n, v in parts[where].items() if not isinstance(v, tuple)]
-        if len(fixed) > n_states:
-            problems.append(f"[task].{where} fixes {len(fixed)} values but the state has only {n_states} "
-                            f"({', '.join(fixed)})")
     if parts["velocities"] and len(parts["velocities"]) != n_velocities:
         problems.append(f"[task].velocities: the system needs {n_velocities} velocity states, got "
                         f"{len(parts['velocities'])} ({', '.join(parts['velocities'])})")
@@ -394,14 +406,14 @@ def _name_problems(parts: dict, known, inputs, n_states, n_velocities) -> list:
 
 def _system_problems(parts: dict, system, quantities) -> list:
     n, k = system.n, len(system.constraint_exprs)
-    return _name_problems(parts, task_names(system, quantities), tuple(system.inputs), 2 * n - k, n - k)
+    return _name_problems(parts, task_names(system, quantities), tuple(system.inputs), n - k)
 
 
-def check_names(task: Task, known: tuple, inputs: tuple, *, n_states: int, n_velocities: int):
+def check_names(task: Task, known: tuple, inputs: tuple, *, n_velocities: int):
     """Unknown names and impossible counts of ``task`` on a model (one ProblemError)."""
     parts = {key: getattr(task, key) for key in ("initial", "final", "periodic", "bounds", "control_bounds",
                                                  "objective", "velocities")}
-    problems = _name_problems(parts, known, inputs, n_states, n_velocities)
+    problems = _name_problems(parts, known, inputs, n_velocities)
     if problems:
         raise ProblemError(problems, title="invalid task")
 
@@ -438,11 +450,30 @@ def control_weights(objective: Mapping, inputs: tuple) -> dict:
     return {u: effort * float(objective.get(u, 1.0)) for u in inputs}
 
 
+def at_rest(task: Task, model) -> dict:
+    """``initial`` and ``final`` with ``rest`` applied: every velocity state of ``model`` (the
+    states after the coordinates: velocity quantities or momenta, zero exactly when q̇ = 0) is 0
+    at a resting end. A value the task gives that excludes 0 is a ProblemError."""
+    n = len(model.system.coordinates)
+    ends, problems = {"initial": dict(task.initial), "final": dict(task.final)}, []
+    for where in task.rest:
+        for name in model.state_names[n:]:
+            value = ends[where].get(name, 0.0)
+            lo, hi = value if isinstance(value, tuple) else (value, value)
+            if not lo <= 0.0 <= hi:
+                problems.append(f"[task].{where}.{name} = {value} contradicts rest = [\"{where}\"] (every velocity 0)")
+            ends[where][name] = 0.0
+    if problems:
+        raise ProblemError(problems, title="invalid task")
+    return ends
+
+
 def to_problem(task: Task, model, *, quantities=None, params=None, name: str = "") -> OptimalControlProblem:
     """The :class:`OptimalControlProblem` of ``task`` on ``model`` (states, quantities, inputs)."""
     weights = control_weights(task.objective, tuple(model.system.inputs))
+    ends = at_rest(task, model)
     return OptimalControlProblem(
-        model, horizon=task.horizon, intervals=task.intervals, initial=dict(task.initial), final=dict(task.final),
+        model, horizon=task.horizon, intervals=task.intervals, initial=ends["initial"], final=ends["final"],
         periodic=task.periodic, state_bounds=dict(task.bounds),
         control_bounds=(dict(task.control_bounds) if isinstance(task.control_bounds, Mapping) else task.control_bounds),
         control_weights=weights, time_weight=float(task.objective.get("time", 0.0)),

@@ -113,8 +113,12 @@ def test_unknown_fiber_coordinate():
 
 def test_initial_state_violating_the_constraints(models):
     model = models["unicycle"]["reduced"]
-    with pytest.raises(ModelError, match=r"violates the constraints: ω\(q\)q̇ ="):
+    with pytest.raises(ModelError, match=r"violates the constraints ω\(q\)q̇ = 0") as info:
         to_state(model, [0, 0, 0, 0], [1.0, 0, 0, 0])
+    # ẋ = 1 with φ̇ = 0 at θ = 0 breaks the rolling constraint ẋ = r cos θ φ̇ by exactly 1 (and
+    # nothing else: ẏ = r sin θ φ̇ holds); the message names it with its residual
+    lines = [p for p in info.value.problems if p.startswith("constraint")]
+    assert len(lines) == 1 and "x_dot" in lines[0] and lines[0].endswith("residual 1 at this configuration")
 
 
 @pytest.mark.parametrize("phi", [math.pi / 2, -math.pi / 2])

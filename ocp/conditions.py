@@ -1,0 +1,272 @@
+"""Boundary conditions as users write them: redundant ones dropped, inconsistent ones refused.
+
+People write "at rest" as every coordinate *and every velocity* zero, "fibre at rest" as
+ẋ = ẏ = θ̇ = 0 and "joints periodic" as every joint angle and rate periodic — more conditions
+than the reduced state (2n − k components) can take independently. Imposed literally they make
+the NLP's constraint Jacobian rank-deficient (Ipopt then crawls or stops at a wrong point).
+:func:`normalise` states the same set of trajectories with independent conditions:
+
+* **At one end** (t = 0 or t = T), with F the state components the end fixes by value and
+  c_j(z) = a_j the equality conditions on derived quantities: at sample states z with
+  z_F fixed, condition j is *dependent* when the gradient of c_j with respect to the free
+  components lies in the span of the conditions kept before it (rank test at every sample).
+  A dependent condition is checked at a point where the kept conditions hold (found by
+  Gauss–Newton from the samples): satisfied there it is dropped ("implied by …"); violated it
+  is an inconsistent set, reported with the residual (one ProblemError). When the fixed values
+  and the kept conditions determine the whole state and the kept conditions are linear in
+  the free components (velocities at a fixed configuration), the end state is solved for and
+  fixed by value (bounds on the node, no rows at all).
+* **Periodicity** y(T) = y(0) of a derived quantity: when the values an end fixes make y
+  constant there (rest at both ends and "rates periodic"), the condition is a value at the
+  other end (y(T) = y(0) = c becomes ``final.y = c``) or, constant at both ends, implied
+  (equal values) or contradictory (different ones). Otherwise, a periodic quantity whose
+  gradient lies in the span of the periodic states' and of the periodic quantities kept
+  before it is implied (locally a function of them) and dropped.
+* **Counts** need no rule of their own: a condition is kept only when it raises the rank in
+  the free components, so at most the state's size are kept; every further one is implied or
+  contradicts the others (an error naming both).
+
+Ranges (lo < hi) are kept as they are. Samples are drawn from a seeded generator (the result is
+reproducible); a sample where the model is not finite (the singular set) is skipped.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from .problem import OptimalControlProblem, ProblemError
+
+__all__ = ["normalise", "ConditionReport"]
+
+SAMPLES = 6
+RANK_TOL = 1e-8            # singular values below this fraction of the largest are zero
+RESIDUAL_TOL = 1e-8        # a condition holds when |c(z) − a| ≤ RESIDUAL_TOL (1 + |a|)
+
+
+@dataclass(frozen=True)
+class ConditionReport:
+    """What :func:`normalise` changed: ``dropped`` (where, name, reason) and ``solved``
+    (where → the end state fixed by value, or absent)."""
+
+    dropped: tuple = ()
+    solved: tuple = ()
+
+    def lines(self) -> list:
+        out = [f"{where}.{name}: dropped, {reason}" for where, name, reason in self.dropped]
+        out += [f"{where}: the conditions determine the whole state; fixed to ({', '.join(f'{v:.6g}' for v in z)})"
+                for where, z in self.solved]
+        return out
+
+
+def _fixed(problem, mapping) -> dict:
+    """State index → value of the states an end fixes by value."""
+    out = {}
+    for name in mapping:
+        if problem.is_state(name):
+            lo, hi = problem.bounds(mapping, name)
+            if lo == hi:
+                out[problem.state_names.index(name)] = lo
+    return out
+
+
+def _equalities(problem, mapping) -> list:
+    """(name, value) of the derived quantities an end fixes by value, in order."""
+    out = []
+    for name in mapping:
+        if not problem.is_state(name):
+            lo, hi = problem.bounds(mapping, name)
+            if lo == hi:
+                out.append((name, lo))
+    return out
+
+
+def _samples(problem, fixed: dict, rng, count: int) -> np.ndarray:
+    """States (count × nz) with the fixed components set, the others random within bounds."""
+    nz = problem.n_states
+    Z = rng.uniform(-0.8, 0.8, (count, nz))
+    for name in problem.state_bounds:
+        if problem.is_state(name):
+            i = problem.state_names.index(name)
+            lo, hi = problem.bounds(problem.state_bounds, name)
+            a, b = max(lo, -1.0 if hi > -1.0 else lo), min(hi, 1.0 if lo < 1.0 else hi)
+            Z[:, i] = rng.uniform(a, b, count) if np.isfinite(a) and np.isfinite(b) else Z[:, i]
+    for i, v in fixed.items():
+        Z[:, i] = v
+    return Z
+
+
+def _rank(M: np.ndarray) -> int:
+    if M.size == 0:
+        return 0
+    s = np.linalg.svd(M, compute_uv=False)
+    return int(np.sum(s > RANK_TOL * max(s[0], 1.0)))
+
+
+class _End:
+    """The derived equality conditions of one end as one CasADi function c(z) and its Jacobian."""
+
+    def __init__(self, problem, names):
+        z = ca.SX.sym("z", problem.n_states)
+        c = ca.vertcat(*[problem.quantity(n, z) for n in names]) if names else ca.SX(0, 1)
+        self.f = ca.Function("c", [z], [c, ca.jacobian(c, z)])
+
+    def __call__(self, z):
+        c, J = self.f(z)
+        return np.asarray(c, float).ravel(), np.asarray(J, float).reshape(-1, len(z))
+
+
+def _point_on(end: _End, kept: list, values: np.ndarray, z0: np.ndarray, free: np.ndarray):
+    """A state near ``z0`` (free components moved) where the kept conditions hold, or None."""
+    z = z0.copy()
+    for _ in range(30):
+        c, J = end(z)
+        r = c[kept] - values[kept]
+        if not np.all(np.isfinite(r)):
+            return None
+        if np.max(np.abs(r), initial=0.0) <= RESIDUAL_TOL * 1e-2 * (1 + np.max(np.abs(values[kept]), initial=0.0)):
+            return z
+        step = np.linalg.lstsq(J[np.ix_(kept, free)], -r, rcond=None)[0]
+        z[free] += step
+    return None
+
+
+def _end(problem, where: str, rng):
+    """(new mapping, dropped [(name, reason)], solved state or None) of one end."""
+    mapping = problem.initial if where == "initial" else problem.final
+    fixed = _fixed(problem, mapping)
+    eqs = _equalities(problem, mapping)
+    if not eqs:
+        return dict(mapping), [], None
+    names = [n for n, _ in eqs]
+    values = np.array([v for _, v in eqs])
+    end = _End(problem, names)
+    free = np.array([i for i in range(problem.n_states) if i not in fixed], dtype=int)
+    Z = [z for z in _samples(problem, fixed, rng, 4 * SAMPLES) if np.all(np.isfinite(end(z)[1]))][:SAMPLES]
+    if not Z:
+        return dict(mapping), [], None
+    jac = [end(z)[1][:, free] for z in Z]
+    anywhere = [end(z)[1] for z in _samples(problem, {}, rng, SAMPLES)]     # which states a condition uses
+    kept, dropped, problems = [], [], []
+    for j, name in enumerate(names):
+        if all(_rank(J[kept + [j]]) > _rank(J[kept]) for J in jac):
+            kept.append(j)
+            continue
+        uses = [i for i in fixed if any(abs(J[j, i]) > RANK_TOL * (1 + np.abs(J[j]).max()) for J in anywhere)]
+        implied_by = ", ".join([f"{problem.state_names[i]} = {fixed[i]:g}" for i in uses]
+                               + [f"{names[k]} = {values[k]:g}" for k in kept])
+        z = _point_on(end, kept, values, Z[0], free) if kept else Z[0]
+        residual = None if z is None else float(end(z)[0][j] - values[j])
+        if residual is None or abs(residual) <= RESIDUAL_TOL * (1 + abs(values[j])):
+            dropped.append((name, f"implied by {implied_by or 'the other conditions'}"))
+        else:
+            problems.append(f"[task].{where}: {name} = {values[j]:g} contradicts {implied_by}: where those hold, "
+                            f"{name} = {values[j] + residual:.6g} (residual {residual:.3g})")
+    if problems:
+        raise ProblemError(problems, title="inconsistent boundary conditions")
+    independent = len(fixed) + len(kept)          # ≤ nz: a kept condition raises the rank in the free part
+    out = {k: v for k, v in mapping.items() if k not in {n for n, _ in dropped}}
+    linear = all(np.allclose(J[kept], jac[0][kept], rtol=1e-9, atol=1e-12) for J in jac)
+    if independent == problem.n_states and linear:
+        z = _point_on(end, kept, values, Z[0], free) if kept else Z[0]
+        if z is not None:
+            return out, dropped, z
+    return out, dropped, None
+
+
+def _constant(problem, fixed: dict, name: str, rng):
+    """The value of quantity ``name`` where the fixed components hold, when it does not depend
+    on the others there (None otherwise)."""
+    end = _End(problem, [name])
+    free = np.array([i for i in range(problem.n_states) if i not in fixed], dtype=int)
+    values = []
+    for z in _samples(problem, fixed, rng, 4 * SAMPLES):
+        c, J = end(z)
+        if not (np.all(np.isfinite(c)) and np.all(np.isfinite(J))):
+            continue
+        if np.max(np.abs(J[0, free]), initial=0.0) > RANK_TOL * (1 + np.max(np.abs(J), initial=0.0)):
+            return None
+        values.append(float(c[0]))
+        if len(values) == SAMPLES:
+            break
+    if not values or max(values) - min(values) > RESIDUAL_TOL * (1 + abs(values[0])):
+        return None
+    return values[0]
+
+
+def _periodic_at_fixed_ends(problem, rng) -> tuple:
+    """Periodic derived quantities that an end makes constant, turned into end values (module
+    docstring). Returns (initial, final, periodic, dropped [(name, reason)])."""
+    initial, final, periodic, dropped, problems = dict(problem.initial), dict(problem.final), [], [], []
+    fixed0, fixedN = _fixed(problem, problem.initial), _fixed(problem, problem.final)
+    for name in problem.periodic:
+        if problem.is_state(name):
+            periodic.append(name)
+            continue
+        c0, cN = _constant(problem, fixed0, name, rng), _constant(problem, fixedN, name, rng)
+        if c0 is not None and cN is not None:
+            if abs(c0 - cN) > RESIDUAL_TOL * (1 + abs(c0)):
+                problems.append(f"[task].periodic: {name} is {c0:.6g} at t = 0 and {cN:.6g} at t = T by the "
+                                "values the task fixes there; it cannot be periodic")
+            dropped.append((name, f"fixed to {c0:.6g} at both ends by the task's values"))
+        elif c0 is not None or cN is not None:
+            value, target = (c0, final) if c0 is not None else (cN, initial)
+            other = "final" if c0 is not None else "initial"
+            if name in target:
+                lo, hi = problem.bounds(target, name)
+                if not lo - RESIDUAL_TOL <= value <= hi + RESIDUAL_TOL:
+                    problems.append(f"[task]: {name} is periodic and {value:.6g} at the other end, but "
+                                    f"{other}.{name} = {target[name]}")
+            else:
+                target[name] = value
+            dropped.append((name, f"the task's values fix it to {value:.6g} at one end: {other}.{name} = "
+                                  f"{value:.6g} instead"))
+        else:
+            periodic.append(name)
+    if problems:
+        raise ProblemError(problems, title="inconsistent boundary conditions")
+    return initial, final, tuple(periodic), dropped
+
+
+def _periodic(problem, rng) -> tuple:
+    """(kept names, dropped [(name, reason)]) of the periodicity conditions."""
+    states = [n for n in problem.periodic if problem.is_state(n)]
+    derived = [n for n in problem.periodic if not problem.is_state(n)]
+    if not derived:
+        return tuple(problem.periodic), []
+    end = _End(problem, derived)
+    unit = np.eye(problem.n_states)[[problem.state_names.index(n) for n in states]]
+    Z = [z for z in _samples(problem, {}, rng, 4 * SAMPLES) if np.all(np.isfinite(end(z)[1]))][:SAMPLES]
+    jac = [end(z)[1] for z in Z]
+    kept, dropped = [], []
+    for j, name in enumerate(derived):
+        if Z and all(_rank(np.vstack([unit, J[kept + [j]]])) == _rank(np.vstack([unit, J[kept]])) for J in jac):
+            dropped.append((name, "implied by the periodicity of " + ", ".join(states + [derived[k] for k in kept])))
+        else:
+            kept.append(j)
+    return tuple(states + [derived[k] for k in kept]), dropped
+
+
+def normalise(problem: OptimalControlProblem, *, seed: int = 0) -> tuple:
+    """``problem`` with independent boundary and periodicity conditions (module docstring),
+    and a :class:`ConditionReport`. Raises ProblemError for an inconsistent set."""
+    rng = np.random.default_rng(seed)
+    initial, final, periodic, moved = _periodic_at_fixed_ends(problem, rng)
+    dropped = [("periodic", n, r) for n, r in moved]
+    current = problem.replace(initial=initial, final=final, periodic=periodic) if moved else problem
+    changes, solved = {}, []
+    for where in ("initial", "final"):
+        mapping, gone, z = _end(current, where, rng)
+        dropped += [(where, n, r) for n, r in gone]
+        if z is not None:
+            ranges = {k: v for k, v in mapping.items()
+                      if not current.is_state(k) and current.bounds(mapping, k)[0] != current.bounds(mapping, k)[1]}
+            mapping = {**ranges, **dict(zip(current.state_names, map(float, z)))}
+            solved.append((where, tuple(map(float, z))))
+        changes[where] = mapping
+    periodic, gone = _periodic(current, rng)
+    dropped += [("periodic", n, r) for n, r in gone]
+    if not dropped and not solved:
+        return problem, ConditionReport()
+    return current.replace(periodic=periodic, **changes), ConditionReport(tuple(dropped), tuple(solved))
