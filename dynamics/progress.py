@@ -63,8 +63,9 @@ class Progress:
         self.note(f"  done in {time.perf_counter() - start:.1f} s")
 
     def heartbeat(self, text: str, elapsed: float) -> None:
-        """A 'still working' line, at most every ``interval`` seconds."""
+        """A 'still working' line once ``elapsed`` passes ``interval`` seconds, then at most every
+        ``interval`` seconds."""
         now = time.perf_counter()
-        if now - self._last_beat >= self.interval:
+        if elapsed >= self.interval and now - self._last_beat >= self.interval:
             self._last_beat = now
             self.note(f"  … {text} ({elapsed:.0f} s)")

@@ -6,9 +6,13 @@
     nhgait plan <system> ... --out DIR             (gaits/cli_plan.py)
 
 Exit status: 0 success; 1 the job ran but did not succeed (an integration that stopped early,
-an optimisation that did not converge); 2 bad input — one message listing every problem, no
-traceback; 3 an internal error (a bug: one line naming it; ``NHGAIT_DEBUG=1`` shows the
-traceback).
+an optimisation that did not converge or was not verified); 2 bad input — one message listing
+every problem, no traceback; 3 an internal error (a bug: one line naming it; ``NHGAIT_DEBUG=1``
+shows the traceback); 130 interrupted (Ctrl-C), 143 terminated (SIGTERM, e.g. ``timeout``).
+
+Interrupts clean up: SIGTERM is turned into an exception like Ctrl-C, so that a running C
+compiler is killed and its temporary files removed (:mod:`nhgait.dynamics.compiler`), worker
+processes are stopped and no half-written cache entry is left.
 """
 from __future__ import annotations
 
@@ -38,12 +42,28 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(BaseException):
+    """SIGTERM received: unwinds like KeyboardInterrupt (cleanup runs), exit status 143."""
+
+
+def _terminate(signum, frame):
+    raise Terminated()
+
+
 def main(argv=None) -> int:
+    import signal
     from nhgait.dynamics.errors import ModelError
     parser = build_parser()
     args = parser.parse_args(argv)
+    previous = signal.signal(signal.SIGTERM, _terminate) if _main_thread() else None
     try:
         return int(args.func(args) or 0)
+    except KeyboardInterrupt:
+        print("nhgait: interrupted", file=sys.stderr)
+        return 130
+    except Terminated:
+        print("nhgait: terminated", file=sys.stderr)
+        return 143
     except ModelError as exc:            # bad input (ProblemError and BridgeError included)
         print(f"nhgait: {exc}", file=sys.stderr)
         return 2
@@ -53,6 +73,14 @@ def main(argv=None) -> int:
         print(f"nhgait: internal error ({type(exc).__name__}: {exc}); this is a bug in nhgait — "
               "rerun with NHGAIT_DEBUG=1 for the traceback and please report it", file=sys.stderr)
         return 3
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _main_thread() -> bool:
+    import threading
+    return threading.current_thread() is threading.main_thread()
 
 
 if __name__ == "__main__":  # pragma: no cover

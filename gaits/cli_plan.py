@@ -37,17 +37,28 @@ def add_plan_parser(subparsers) -> argparse.ArgumentParser:
     jit.add_argument("--no-jit", dest="jit", action="store_false", help="interpreted NLP functions")
     p.add_argument("--workers", default="1", help="initial guesses tried at once, in separate processes "
                                                  "(a number or 'auto'; default 1)")
-    p.add_argument("--no-gif", action="store_true", help="skip the animation")
+    p.add_argument("--hessian", choices=["auto", "exact", "gauss-newton", "limited-memory"], default="auto",
+                   help="Lagrangian Hessian: exact (auto), Gauss-Newton (the stage curvature dropped) or "
+                        "limited-memory (Ipopt's L-BFGS)")
+    p.add_argument("--max-guesses", type=int, default=12,
+                   help="initial guesses tried per solver before the continuation (default 12)")
+    p.add_argument("--no-gif", action="store_true", help="skip the animation (the longest part of the output)")
+    talk = p.add_mutually_exclusive_group()
+    talk.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    talk.add_argument("--verbose", action="store_true", help="the solver's own iteration log as well")
     p.add_argument("--out", required=True, help="output directory")
     p.set_defaults(func=run)
     return p
 
 
 def run(args) -> int:
+    from nhgait.dynamics.progress import Progress
     from .planner import plan, summary_lines
     workers = args.workers if args.workers == "auto" else int(args.workers)
+    progress = Progress.silent() if args.quiet else Progress.to_stderr(verbose=args.verbose)
     result = plan(args.system, args.gait, overrides=args.overrides, intervals=args.intervals,
                   solver=args.solver, transcription=args.transcription, jit=args.jit, workers=workers,
-                  out_dir=args.out, animate=not args.no_gif)
+                  out_dir=args.out, animate=not args.no_gif, hessian=args.hessian,
+                  max_guesses=args.max_guesses, progress=progress)
     print("\n".join(summary_lines(result)))
     return 0 if result.success else 1

@@ -339,8 +339,14 @@ def _basis_momentum_unit(ctx, j) -> str:
 
 
 # ----------------------------------------------------------------------------- files
-def write_figures(solution, out: Path, *, units=None, drawing=None, model=None, animate=True) -> list:
-    """path.png, shape.png, histories.png, momentum.png (and motion.gif) in ``out``."""
+def _short(text: str, width: int = 90) -> str:
+    return text if len(text) <= width else text[:width - 1] + "…"
+
+
+def write_figures(solution, out: Path, *, units=None, drawing=None, model=None, animate=True,
+                  failed: str | None = None) -> list:
+    """path.png, shape.png, histories.png, momentum.png (and motion.gif) in ``out``; with
+    ``failed`` (the reason) every figure is titled "FAILED — not a verified gait"."""
     from matplotlib.figure import Figure
 
     model = model if model is not None else solution.problem.model
@@ -355,6 +361,8 @@ def write_figures(solution, out: Path, *, units=None, drawing=None, model=None, 
         fig = Figure(figsize=size)          # no pyplot state: nothing global is touched
         axes = fig.subplots(rows, 1, sharex=rows > 1, squeeze=False)[:, 0]
         fn(solution, ctx, axes[0] if rows == 1 else axes)
+        if failed:
+            fig.suptitle(f"FAILED — not a verified gait\n{_short(failed)}", color="tab:red", fontsize="medium")
         fig.savefig(out / name, dpi=110, bbox_inches="tight")
         files.append(out / name)
     if animate:

@@ -47,11 +47,31 @@ class Verification:
     success: bool = True
     time_s: float = 0.0
     condition_errors: dict = field(default_factory=dict)
+    tolerance: float = 1e-6
 
     @property
     def max_condition_error(self) -> float:
         """Largest violation of a boundary or periodicity condition by the re-simulation."""
         return max(self.condition_errors.values(), default=0.0)
+
+    @property
+    def passed(self) -> bool:
+        """The re-simulation ran through and meets the solution's nodes and every condition to
+        ``tolerance`` (absolute, in the units of each quantity)."""
+        return bool(self.success and self.max_error <= self.tolerance
+                    and self.max_condition_error <= self.tolerance)
+
+    def failures(self) -> list:
+        """One sentence per miss (empty when :attr:`passed`), worst first."""
+        out = [] if self.success else ["the re-simulation stopped early (the integrator failed)"]
+        if self.max_error > self.tolerance:
+            worst = max(self.state_errors, key=self.state_errors.get)
+            out.append(f"the re-simulated states leave the planned ones by up to {self.max_error:.3g} "
+                       f"({worst}; tolerance {self.tolerance:g})")
+        for name, err in sorted(self.condition_errors.items(), key=lambda kv: -kv[1]):
+            if err > self.tolerance:
+                out.append(f"{name} missed by {err:.3g} (tolerance {self.tolerance:g})")
+        return out
 
 
 def simulate_piecewise_constant(model, params, t, z0, controls, *, rtol=1e-10, atol=1e-12,
@@ -143,6 +163,22 @@ class Solution:
     problem: Any = field(default=None, repr=False)
     constraint_violation: float = math.nan
     verification: Verification | None = None
+    violations: dict = field(default_factory=dict)
+
+    def saturation(self, tol: float = 1e-6) -> dict:
+        """Input name → fraction of the intervals where it sits at a bound of the problem."""
+        if self.problem is None:
+            return {}
+        lo, hi = self.problem.control_bound_vectors()
+        out = {}
+        for i, name in enumerate(self.control_names):
+            u = self.controls[i]
+            at = np.zeros(u.shape, dtype=bool)
+            for b in (lo[i], hi[i]):
+                if np.isfinite(b):
+                    at |= np.abs(u - b) <= tol * max(1.0, abs(b))
+            out[name] = float(at.mean()) if u.size else 0.0
+        return out
 
     # ---------------------------------------------------------------- access
     def state(self, name: str) -> np.ndarray:
@@ -164,8 +200,10 @@ class Solution:
                                 for k in range(self.states.shape[1])])
 
     # ---------------------------------------------------------------- checks
-    def verify(self, rtol: float = 1e-10, atol: float = 1e-12, method: str = "DOP853") -> Verification:
-        """Re-simulate the optimal controls from z(0) with an independent integrator."""
+    def verify(self, rtol: float = 1e-10, atol: float = 1e-12, method: str = "DOP853",
+               tolerance: float = 1e-6) -> Verification:
+        """Re-simulate the optimal controls from z(0) with an independent integrator; the
+        verification passes when nodes and conditions are met to ``tolerance``."""
         import time
         if self.problem is None:
             raise ValueError("this solution has no problem attached; cannot re-simulate")
@@ -177,11 +215,19 @@ class Solution:
         return Verification(max_error=float(err.max()),
                             state_errors={n: float(e) for n, e in zip(self.state_names, err.max(axis=1))},
                             states=sim, method=method, rtol=rtol, atol=atol, success=ok,
-                            time_s=time.perf_counter() - t0, condition_errors=condition_errors(self.problem, sim))
+                            time_s=time.perf_counter() - t0, condition_errors=condition_errors(self.problem, sim),
+                            tolerance=float(tolerance))
 
     def verified(self, **kwargs) -> "Solution":
-        """A copy of this solution carrying :meth:`verify`'s result."""
-        return replace(self, verification=self.verify(**kwargs))
+        """A copy of this solution carrying :meth:`verify`'s result. Success means verified: a
+        converged solution whose verification fails has ``success`` False, status
+        ``Verification_Failed`` and a message listing the misses (the solver's own status is
+        kept in ``stats["return_status"]``)."""
+        v = self.verify(**kwargs)
+        if not self.success or v.passed:
+            return replace(self, verification=v)
+        return replace(self, verification=v, success=False, status="Verification_Failed",
+                       message=f"{self.status}, but the verification failed: " + "; ".join(v.failures()))
 
     # ---------------------------------------------------------------- output
     def to_dict(self) -> dict:
@@ -191,11 +237,12 @@ class Solution:
             "objective": self.objective, "iterations": int(self.iterations),
             "solve_time_s": self.solve_time_s, "setup_time_s": self.setup_time_s,
             "function_time_s": self.function_time_s, "solver_time_s": self.solver_time_s,
-            "constraint_violation": self.constraint_violation,
+            "constraint_violation": self.constraint_violation, "violations": self.violations,
             "verification_error": v.max_error if v is not None else None,
             "verification": None if v is None else {
                 "max_error": v.max_error, "state_errors": v.state_errors, "method": v.method,
-                "rtol": v.rtol, "atol": v.atol, "success": v.success,
+                "rtol": v.rtol, "atol": v.atol, "success": v.success, "tolerance": v.tolerance,
+                "passed": v.passed, "failures": v.failures(),
                 "condition_errors": v.condition_errors, "max_condition_error": v.max_condition_error},
             "settings": self.settings,
             "problem": self.problem.describe() if self.problem is not None else None,

@@ -390,8 +390,9 @@ class OCPSolver:
             g = np.asarray(out["g"]).ravel()
             viol = float(max(np.max(np.maximum(nlp.lbg - g, 0), initial=0.0),
                              np.max(np.maximum(g - nlp.ubg, 0), initial=0.0)))
+            violated = nlp.violations(g, tol=max(1e-6, 10 * self.options.tol))
         else:
-            w, objective, viol = w0, float("nan"), float("nan")
+            w, objective, viol, violated = w0, float("nan"), float("nan"), {}
         Z, U, T = nlp.unpack(w)
         fn_time = sum(float(v) for k, v in stats.items() if k.startswith("t_wall_nlp_"))
         total = float(stats.get("t_wall_total", wall))
@@ -413,7 +414,7 @@ class OCPSolver:
                         stats={k: (v if isinstance(v, (int, float, str, bool)) else str(v))
                                for k, v in stats.items() if not isinstance(v, dict)},
                         settings={**self.settings(), "guess": guess.label}, problem=problem,
-                        constraint_violation=viol)
+                        constraint_violation=viol, violations=violated)
 
 
 def _fatrop_converged(stats, violation, tol) -> bool:

@@ -60,6 +60,18 @@ class TranscribedNLP:
     guess_filler: Any = field(default=None, repr=False)
     structure: dict | None = None        # stage structure (N, nx, nu, ng) for FATROP
     layout: "StageLayout | None" = None  # where the stage function sits (shooting only)
+    row_labels: tuple = ()               # the condition each row of g states (see _Builder.add_g)
+
+    def violations(self, g: np.ndarray, tol: float = 1e-6) -> dict:
+        """Label → largest violation (> ``tol``) of the rows of g at a point ("dynamics",
+        "initial.x", "periodic.psi", "bounds.forward_velocity", …; the bounds on w hold at every
+        iterate of an interior-point solver)."""
+        out = {}
+        viol = np.maximum(np.maximum(self.lbg - g, g - self.ubg), 0.0)
+        for label, v in zip(self.row_labels, viol):
+            if v > tol:
+                out[label] = max(out.get(label, 0.0), float(v))
+        return out
 
     @property
     def n_w(self) -> int:
@@ -150,13 +162,20 @@ class _Builder:
 
     def __init__(self, problem: OptimalControlProblem):
         self.problem = problem
-        self.g, self.lbg, self.ubg = [], [], []
+        self.g, self.lbg, self.ubg, self.labels = [], [], [], []
 
-    def add_g(self, expr, lo, hi):
+    def reset(self):
+        self.g, self.lbg, self.ubg, self.labels = [], [], [], []
+
+    def add_g(self, expr, lo, hi, label):
+        """Rows ``lo ≤ expr ≤ hi`` of g; ``label`` (one string, or one per row) names the
+        condition they state: "dynamics", "initial.<name>", "final.<name>",
+        "periodic.<name>", "bounds.<name>" (reports say which conditions a point violates)."""
         n = int(expr.shape[0])
         self.g.append(expr)
         self.lbg.append(np.broadcast_to(np.asarray(lo, float), (n,)))
         self.ubg.append(np.broadcast_to(np.asarray(hi, float), (n,)))
+        self.labels.extend([label] * n if isinstance(label, str) else list(label))
 
     def node_bounds(self) -> tuple[np.ndarray, np.ndarray, list]:
         """Bounds (nz × (N+1)) on the node states and the periodic states left for g."""
@@ -204,14 +223,14 @@ class _Builder:
             for name in mapping:
                 if not p.is_state(name):
                     a, b = p.bounds(mapping, name)
-                    self.add_g(qfun(name)(zc), a, b)
+                    self.add_g(qfun(name)(zc), a, b, f"{'initial' if col == 0 else 'final'}.{name}")
         for name in periodic_g:
             f = qfun(name)
-            self.add_g(f(Zlast) - f(Zfirst), 0.0, 0.0)
+            self.add_g(f(Zlast) - f(Zfirst), 0.0, 0.0, f"periodic.{name}")
         for name in p.state_bounds:
             if not p.is_state(name):
                 a, b = p.bounds(p.state_bounds, name)
-                self.add_g(ca.vec(qfun(name).map(N + 1)(Z)), a, b)
+                self.add_g(ca.vec(qfun(name).map(N + 1)(Z)), a, b, f"bounds.{name}")
 
     def objective(self, Z, U, h, T):
         p = self.problem
@@ -235,7 +254,7 @@ class _Builder:
         ubg = np.concatenate(self.ubg) if self.ubg else np.zeros(0)
         return TranscribedNLP(self.problem, transcription, w, f, g, lbx, ubx, lbg, ubg,
                               node_index, control_index, horizon_index, kernel, guess_filler, structure,
-                              layout)
+                              layout, tuple(self.labels))
 
     def horizon_variable(self):
         p = self.problem
@@ -285,8 +304,8 @@ class MultipleShooting:
         args = (Z[:, :N], U, ca.repmat(T, 1, N), ca.DM(np.arange(N, dtype=float)).T)
 
         def g_of(Zend):
-            b.g, b.lbg, b.ubg = [], [], []
-            b.add_g(ca.vec(Zend - Z[:, 1:]), 0.0, 0.0)
+            b.reset()
+            b.add_g(ca.vec(Zend - Z[:, 1:]), 0.0, 0.0, "dynamics")
             b.derived_rows(Z, Z[:, 0], Z[:, N], periodic_g)
             return ca.vertcat(*b.g)
 
@@ -377,7 +396,7 @@ class Collocation:
         R, Zend = W.map(N, self.map_mode)(Z[:, :N], Zc, U, ca.repmat(h, 1, N),
                                           h * ca.DM(np.arange(N, dtype=float)).T)
         # interleave residuals and continuity per interval (banded Jacobian)
-        b.add_g(ca.vec(ca.vertcat(R, Zend - Z[:, 1:])), 0.0, 0.0)
+        b.add_g(ca.vec(ca.vertcat(R, Zend - Z[:, 1:])), 0.0, 0.0, "dynamics")
         lo, hi, periodic_g = b.node_bounds()
         b.derived_rows(Z, Z[:, 0], Z[:, N], periodic_g)
         f = b.objective(Z, U, h, T)
@@ -455,30 +474,32 @@ class StageShooting(MultipleShooting):
         path = _StagePaths(problem, Z)                            # rows on every node
         first, last = _end_rows(problem, Z[:, 0], "initial"), _end_rows(problem, Z[:, N], "final")
         if nc:
-            first.append((X[nz:nz + nc, 0] - yper(Z[:, 0]), 0.0, 0.0))
-            last.append((yper(Z[:, N]) - X[nz:nz + nc, N], 0.0, 0.0))
+            labels = [f"periodic.{n}" for n in periodic_g]
+            first.append((X[nz:nz + nc, 0] - yper(Z[:, 0]), 0.0, 0.0, labels))
+            last.append((yper(Z[:, N]) - X[nz:nz + nc, N], 0.0, 0.0, labels))
 
         def g_of(Zend):
             # stage 0: gap, path rows, start rows; stages 1..N-1: (gap, path rows) column by column
-            b.g, b.lbg, b.ubg = [], [], []
+            b.reset()
             gaps = X[:, 1:] - ca.vertcat(Zend, X[nz:, :N])            # column k: gap of stage k
-            b.add_g(gaps[:, 0], 0.0, 0.0)
+            b.add_g(gaps[:, 0], 0.0, 0.0, "dynamics")
             path.add(b, 0)
-            for expr, a, c in first:
-                b.add_g(expr, a, c)
+            for expr, a, c, label in first:
+                b.add_g(expr, a, c, label)
             if N > 1:
                 body = ca.vertcat(gaps[:, 1:], path.matrix[:, 1:N]) if path.n else gaps[:, 1:]
                 b.add_g(ca.vec(body), np.tile(np.concatenate([np.zeros(nx), path.lo]), N - 1),
-                        np.tile(np.concatenate([np.zeros(nx), path.hi]), N - 1))
+                        np.tile(np.concatenate([np.zeros(nx), path.hi]), N - 1),
+                        (["dynamics"] * nx + path.labels) * (N - 1))
             path.add(b, N)
-            for expr, a, c in last:
-                b.add_g(expr, a, c)
+            for expr, a, c, label in last:
+                b.add_g(expr, a, c, label)
             return ca.vertcat(*b.g)
 
         g, layout = _stage_layout(stage, w, g_of, args)
         counts = {k: path.n for k in range(N + 1)}
-        counts[0] += sum(int(e.shape[0]) for e, _, _ in first)
-        counts[N] += sum(int(e.shape[0]) for e, _, _ in last)
+        counts[0] += sum(int(e.shape[0]) for e, *_ in first)
+        counts[N] += sum(int(e.shape[0]) for e, *_ in last)
         wu = np.array([float(problem.control_weights.get(n, 1.0)) for n in problem.control_names])
         hk = h                                         # the step of each interval
         f = ca.sum2(hk * ca.mtimes(ca.DM(wu).T, U ** 2))
@@ -527,7 +548,8 @@ class StageShooting(MultipleShooting):
 def _end_rows(problem, z, where) -> list:
     """(expression, lo, hi) of the conditions on derived quantities at one end."""
     mapping = problem.initial if where == "initial" else problem.final
-    return [(problem.quantity(n, z), *problem.bounds(mapping, n)) for n in mapping if not problem.is_state(n)]
+    return [(problem.quantity(n, z), *problem.bounds(mapping, n), f"{where}.{n}")
+            for n in mapping if not problem.is_state(n)]
 
 
 class _StagePaths:
@@ -537,6 +559,7 @@ class _StagePaths:
         names = [n for n in problem.state_bounds if not problem.is_state(n)]
         zs = ca.SX.sym("z", problem.n_states)
         self.n = len(names)
+        self.labels = [f"bounds.{n}" for n in names]
         bounds = [problem.bounds(problem.state_bounds, n) for n in names]
         self.lo = np.array([a for a, _ in bounds])
         self.hi = np.array([c for _, c in bounds])
@@ -548,7 +571,7 @@ class _StagePaths:
 
     def add(self, b, k):
         if self.n:
-            b.add_g(self.matrix[:, k], self.lo, self.hi)
+            b.add_g(self.matrix[:, k], self.lo, self.hi, self.labels)
 
 
 TRANSCRIPTIONS = {"multiple-shooting": MultipleShooting, "collocation": Collocation,
