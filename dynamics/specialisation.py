@@ -69,6 +69,9 @@ __all__ = ["specialise", "SpecialisedModel", "body_velocity", "BODY_VELOCITIES",
 BODY_VELOCITIES = ("forward_velocity", "lateral_velocity")
 
 _CHECK_SAMPLES = 50
+#: a velocity candidate whose row of B shrinks below this fraction of its largest norm somewhere
+#: is placed after the others (:func:`choose_velocities`)
+DEGENERATE_SPREAD = 0.05
 _CHOP = 1e-13            # coefficients below this fraction of the largest are round-off
 _RATIONAL = 1e-14        # relative distance within which a coefficient is snapped to p/q
 
@@ -233,17 +236,22 @@ def _momentum_basis(model, params) -> ca.Function:
 def choose_velocities(model, preferred=(), quantities=None, params=None) -> tuple:
     """n − k velocity quantities that parametrise the allowed velocities, ``preferred`` first.
 
-    Candidates in order: ``preferred`` (names a task uses), the shape velocities, the fiber
-    velocities, the planar body velocities. A candidate is taken when it raises the rank of
-    B = Y Q at three random configurations (smallest singular value > 1e-8 of the largest).
+    Candidates: ``preferred`` (names a task uses), the shape velocities, the planar body
+    velocities, the fiber velocities. A candidate whose row of B = Y Q (q̇ = Q P) nearly
+    vanishes somewhere — its norm over configurations spread over every angle varies by more
+    than :data:`DEGENERATE_SPREAD` — comes after the others: a state built on it is singular
+    wherever the row vanishes (ẋ of a unicycle is r cos θ φ̇, zero for every φ̇ at θ = ±π/2,
+    where (ẋ, θ̇) stop determining the motion). Within each group the order above is kept. A
+    candidate is taken when it raises the rank of B at three random configurations (smallest
+    singular value > 1e-8 of the largest).
     """
     system = model.system
     quantities = dict(quantities or {})
     params = np.asarray(model.numeric.params(params), dtype=float)
     n, nv = system.n, len(model.state_names) - system.n
     candidates = []
-    for name in list(preferred) + [f"{c}_dot" for c in tuple(model.shape) + tuple(model.fiber)] + list(
-            BODY_VELOCITIES if _planar_frame(system) else ()):
+    for name in list(preferred) + [f"{c}_dot" for c in tuple(model.shape)] + list(
+            BODY_VELOCITIES if _planar_frame(system) else ()) + [f"{c}_dot" for c in tuple(model.fiber)]:
         if name not in candidates and not _row_problems(system, [name], quantities):
             try:
                 velocity_rows(system, [name], quantities)
@@ -254,21 +262,38 @@ def choose_velocities(model, preferred=(), quantities=None, params=None) -> tupl
     rng = np.random.default_rng(7)
     samples = [rng.uniform(-0.7, 0.7, n) for _ in range(3)]
     Yf = _row_function(model, candidates, quantities) if candidates else None
-    rows = {name: i for i, name in enumerate(candidates)}
     B_all = [np.asarray(Yf(qq, params)) @ np.asarray(Q(qq)) for qq in samples] if Yf else []
+    degenerate = _degenerate_rows(model, Yf, Q, params, len(candidates), rng) if Yf else []
+    order = sorted(range(len(candidates)), key=lambda i: (degenerate[i], i))
     chosen = []
-    for name in candidates:
-        trial = chosen + [name]
+    for i in order:
+        trial = chosen + [i]
         ok = True
         for B in B_all:
-            s = np.linalg.svd(B[[rows[c] for c in trial]], compute_uv=False)
+            s = np.linalg.svd(B[trial], compute_uv=False)
             ok &= s[-1] > 1e-8 * max(s[0], 1.0)
         if ok:
             chosen = trial
         if len(chosen) == nv:
-            return tuple(chosen)
+            return tuple(candidates[i] for i in sorted(chosen))
     raise ModelError([f"no {nv} velocity quantities among {', '.join(candidates)} parametrise the "
                       f"allowed velocities of {system.name}"], title="invalid velocity coordinates")
+
+
+def _degenerate_rows(model, Yf, Q, params, count, rng, samples: int = 64) -> list:
+    """Per candidate: does its row of B = Y Q nearly vanish at some configuration (every
+    coordinate in [−π, π])? See :func:`choose_velocities`."""
+    n = model.system.n
+    lo, hi = np.full(count, np.inf), np.zeros(count)
+    for _ in range(samples):
+        q = rng.uniform(-np.pi, np.pi, n)
+        with np.errstate(all="ignore"):
+            B = np.asarray(Yf(q, params)) @ np.asarray(Q(q))
+        if not np.all(np.isfinite(B)):
+            continue
+        norms = np.linalg.norm(B, axis=1)
+        lo, hi = np.minimum(lo, norms), np.maximum(hi, norms)
+    return list(lo < DEGENERATE_SPREAD * hi)
 
 
 # ----------------------------------------------------------------------------- numeric route

@@ -7,7 +7,8 @@ classical gaits (snakeboard rotor:wheel frequency ratios 1:1 drive, 2:1 rotate, 
 * for every pair (a, b) of shape variables (``model.shape``) and every frequency ratio
   k_a:k_b in 1:1, 2:1, 1:2, 3:2, 2:3, and a few amplitudes and signs,
   a(t) = a₀(t) + A sin(k_a ω t),  b(t) = b₀(t) + B sin(k_b ω t + π/2),  ω = 2π/T,
-  where a₀(t), b₀(t) run linearly from the task's initial to its final value (0 when free);
+  where a₀(t), b₀(t) run linearly from the task's initial to its final value (when free: 0,
+  or the middle of the variable's bounds when they exclude 0);
   a variable fixed at t = 0 takes the phase 0 (the sine), so that it starts at its value;
 * a single shape variable oscillates alone (k = 1, 2);
 * the fiber coordinates (``model.fiber``) ramp linearly from their initial to their final
@@ -67,6 +68,16 @@ def _fixed(problem, mapping, name):
     return None
 
 
+def _centre(problem, name) -> float:
+    """Where a coordinate free at both ends sits: the middle of its bounds (0 when unbounded or
+    when 0 is inside them)."""
+    if name in problem.state_bounds:
+        lo, hi = problem.bounds(problem.state_bounds, name)
+        if math.isfinite(lo) and math.isfinite(hi) and not lo <= 0.0 <= hi:
+            return (lo + hi) / 2
+    return 0.0
+
+
 def _ends(problem, name):
     """(value at t = 0, value at t = T) of a coordinate's ramp."""
     a = _fixed(problem, problem.initial, name)
@@ -74,7 +85,7 @@ def _ends(problem, name):
     if name in problem.periodic:
         b = a if b is None else b
         a = b if a is None else a
-    a = 0.0 if a is None else a
+    a = _centre(problem, name) if a is None else a
     return a, (a if b is None else b)
 
 

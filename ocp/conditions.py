@@ -7,12 +7,14 @@ the NLP's constraint Jacobian rank-deficient (Ipopt then crawls or stops at a wr
 :func:`normalise` states the same set of trajectories with independent conditions:
 
 * **At one end** (t = 0 or t = T), with F the state components the end fixes by value and
-  c_j(z) = a_j the equality conditions on derived quantities: at sample states z with
-  z_F fixed, condition j is *dependent* when the gradient of c_j with respect to the free
-  components lies in the span of the conditions kept before it (rank test at every sample).
-  A dependent condition is checked at a point where the kept conditions hold (found by
-  Gauss–Newton from the samples): satisfied there it is dropped ("implied by …"); violated it
-  is an inconsistent set, reported with the residual (one ProblemError). When the fixed values
+  c_j(z) = a_j the equality conditions on derived quantities: at sample states z with z_F
+  fixed, moved (Gauss–Newton in the free components) onto the set where the conditions kept
+  before j hold, condition j is *dependent* when the gradient of c_j with respect to the free
+  components lies in the span of the kept ones' (rank test at every such point). A dependent
+  condition satisfied at those points is dropped ("implied by …"); violated it is an
+  inconsistent set, reported with the residual (one ProblemError). (Testing away from that
+  set would miss dependence that holds only on it: a snakeboard's θ̇ = v tan φ / r is
+  independent of ẋ = v cos θ in general, but zero wherever ẋ = 0 at θ = 0.) When the fixed values
   and the kept conditions determine the whole state and the kept conditions are linear in
   the free components (velocities at a fixed configuration), the end state is solved for and
   fixed by value (bounds on the node, no rows at all).
@@ -146,33 +148,42 @@ def _end(problem, where: str, rng):
     Z = [z for z in _samples(problem, fixed, rng, 4 * SAMPLES) if np.all(np.isfinite(end(z)[1]))][:SAMPLES]
     if not Z:
         return dict(mapping), [], None
-    jac = [end(z)[1][:, free] for z in Z]
     anywhere = [end(z)[1] for z in _samples(problem, {}, rng, SAMPLES)]     # which states a condition uses
     kept, dropped, problems = [], [], []
     for j, name in enumerate(names):
-        if all(_rank(J[kept + [j]]) > _rank(J[kept]) for J in jac):
+        points = _feasible(end, kept, values, Z, free)
+        jac = [end(z)[1][:, free] for z in points]
+        if not points or all(_rank(J[kept + [j]]) > _rank(J[kept]) for J in jac):
             kept.append(j)
             continue
         uses = [i for i in fixed if any(abs(J[j, i]) > RANK_TOL * (1 + np.abs(J[j]).max()) for J in anywhere)]
         implied_by = ", ".join([f"{problem.state_names[i]} = {fixed[i]:g}" for i in uses]
                                + [f"{names[k]} = {values[k]:g}" for k in kept])
-        z = _point_on(end, kept, values, Z[0], free) if kept else Z[0]
-        residual = None if z is None else float(end(z)[0][j] - values[j])
-        if residual is None or abs(residual) <= RESIDUAL_TOL * (1 + abs(values[j])):
+        residuals = [float(end(z)[0][j] - values[j]) for z in points]
+        worst = max(residuals, key=abs)
+        if abs(worst) <= RESIDUAL_TOL * (1 + abs(values[j])):
             dropped.append((name, f"implied by {implied_by or 'the other conditions'}"))
         else:
             problems.append(f"[task].{where}: {name} = {values[j]:g} contradicts {implied_by}: where those hold, "
-                            f"{name} = {values[j] + residual:.6g} (residual {residual:.3g})")
+                            f"{name} = {values[j] + worst:.6g} (residual {worst:.3g})")
     if problems:
         raise ProblemError(problems, title="inconsistent boundary conditions")
     independent = len(fixed) + len(kept)          # ≤ nz: a kept condition raises the rank in the free part
     out = {k: v for k, v in mapping.items() if k not in {n for n, _ in dropped}}
-    linear = all(np.allclose(J[kept], jac[0][kept], rtol=1e-9, atol=1e-12) for J in jac)
+    points = _feasible(end, kept, values, Z, free)
+    jac = [end(z)[1][:, free] for z in points]
+    linear = bool(points) and all(np.allclose(J[kept], jac[0][kept], rtol=1e-9, atol=1e-12) for J in jac)
     if independent == problem.n_states and linear:
-        z = _point_on(end, kept, values, Z[0], free) if kept else Z[0]
-        if z is not None:
-            return out, dropped, z
+        return out, dropped, points[0]
     return out, dropped, None
+
+
+def _feasible(end: _End, kept: list, values, Z, free) -> list:
+    """The samples moved onto the set where the kept conditions hold (those that get there)."""
+    if not kept:
+        return list(Z)
+    points = [_point_on(end, kept, values, z, free) for z in Z]
+    return [z for z in points if z is not None and np.all(np.isfinite(end(z)[1]))]
 
 
 def _constant(problem, fixed: dict, name: str, rng):
