@@ -74,7 +74,7 @@ def _relax(result, s, saturated) -> list:
 
 def _not_verified(result) -> list:
     s, v = result.solution, result.solution.verification
-    lines = [f"the solver converged ({s.stats.get('return_status', 'Solve_Succeeded')}, J = {s.objective:.6g}) "
+    lines = [f"the solver converged ({s.stats.get('solver_status', 'Solve_Succeeded')}, J = {s.objective:.6g}) "
              f"but the independent re-simulation (DOP853, rtol {v.rtol:g}) does not meet the task to "
              f"{v.tolerance:g}:"]
     lines += [f"  {x}" for x in v.failures()[:8]]

@@ -327,7 +327,7 @@ def _basis_momentum_unit(ctx, j) -> str:
     """Unit of the j-th momentum P_j = Σ_i X_ij (∂L/∂q̇_i): the unit of the momentum conjugate to a
     coordinate q_i whose basis entry X_ij is a pure number (no parameter in it); "" if none is."""
     X = getattr(ctx.model, "X", None)
-    if X is None:
+    if X is None or not hasattr(X, "free_symbols"):     # the implicit form holds X as CasADi text
         return ""
     params = set(ctx.system.param_symbols)
     coords = tuple(ctx.system.coordinates)

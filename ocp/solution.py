@@ -222,7 +222,7 @@ class Solution:
         """A copy of this solution carrying :meth:`verify`'s result. Success means verified: a
         converged solution whose verification fails has ``success`` False, status
         ``Verification_Failed`` and a message listing the misses (the solver's own status is
-        kept in ``stats["return_status"]``)."""
+        kept in ``stats["solver_status"]``)."""
         v = self.verify(**kwargs)
         if not self.success or v.passed:
             return replace(self, verification=v)

@@ -178,14 +178,19 @@ class InitialGuess:
 
 
 class _Iterations(ca.Callback):
-    """Ipopt's iteration callback: every ``every`` iterations one progress line (objective and
-    the largest constraint violation of the iterate)."""
+    """Ipopt's iteration callback: a progress line (iteration, objective, largest constraint
+    violation of the iterate) every ``every`` iterations, at most once per ``seconds`` — a fast
+    solve prints nothing, a long one talks. :meth:`start` resets it for a new solve."""
 
-    def __init__(self, name, nlp, progress, every=10):
+    def __init__(self, name, nlp, progress, every=10, seconds=1.0):
         ca.Callback.__init__(self)
-        self.nlp, self.progress, self.every, self.count = nlp, progress, every, 0
+        self.nlp, self.progress, self.every, self.seconds = nlp, progress, every, seconds
         self.n_x, self.n_g = int(nlp.w.shape[0]), int(nlp.g.shape[0])
+        self.start()
         self.construct(name, {"enable_fd": False})
+
+    def start(self):
+        self.count, self.last = 0, time.perf_counter()
 
     def get_n_in(self):
         return ca.nlpsol_n_out()
@@ -206,7 +211,9 @@ class _Iterations(ca.Callback):
 
     def eval(self, arg):
         self.count += 1
-        if self.count % self.every == 0:
+        now = time.perf_counter()
+        if self.count % self.every == 0 and now - self.last >= self.seconds:
+            self.last = now
             g = np.asarray(arg[ca.nlpsol_out().index("g")]).ravel()
             viol = max(np.max(self.nlp.lbg - g, initial=0.0), np.max(g - self.nlp.ubg, initial=0.0))
             self.progress.note(f"    iteration {self.count}: objective {float(arg[1]):.6g}, "
@@ -372,6 +379,8 @@ class OCPSolver:
         if problems:
             raise ProblemError(problems, title="invalid initial guess")
         w0 = np.clip(nlp.pack(states, controls, guess.horizon), nlp.lbx, nlp.ubx)
+        if getattr(self, "_callback", None) is not None:
+            self._callback.start()
         t0 = time.perf_counter()
         bad = self._non_finite(w0)
         if bad:
@@ -389,8 +398,10 @@ class OCPSolver:
             objective = float(out["f"])
             g = np.asarray(out["g"]).ravel()
             viol = float(max(np.max(np.maximum(nlp.lbg - g, 0), initial=0.0),
-                             np.max(np.maximum(g - nlp.ubg, 0), initial=0.0)))
-            violated = nlp.violations(g, tol=max(1e-6, 10 * self.options.tol))
+                             np.max(np.maximum(g - nlp.ubg, 0), initial=0.0),
+                             np.max(np.maximum(nlp.lbx - w, 0), initial=0.0),
+                             np.max(np.maximum(w - nlp.ubx, 0), initial=0.0)))
+            violated = nlp.violations(g, w, tol=max(1e-6, 10 * self.options.tol))
         else:
             w, objective, viol, violated = w0, float("nan"), float("nan"), {}
         Z, U, T = nlp.unpack(w)
@@ -405,6 +416,7 @@ class OCPSolver:
             status = "Solve_Succeeded" if ok else FATROP_FLAGS.get(flag, f"FATROP return flag {flag}")
         success = bool(stats.get("success", False)) and error is None
         message = status if error is None else f"{status}: {error}"
+        stats = {**stats, "solver_status": status}
         return Solution(success=success, status=status, message=message,
                         iterations=int(stats.get("iter_count", 0)), objective=objective,
                         t=np.linspace(0.0, T, N + 1), states=Z, controls=U,

@@ -62,16 +62,37 @@ class TranscribedNLP:
     layout: "StageLayout | None" = None  # where the stage function sits (shooting only)
     row_labels: tuple = ()               # the condition each row of g states (see _Builder.add_g)
 
-    def violations(self, g: np.ndarray, tol: float = 1e-6) -> dict:
-        """Label → largest violation (> ``tol``) of the rows of g at a point ("dynamics",
-        "initial.x", "periodic.psi", "bounds.forward_velocity", …; the bounds on w hold at every
-        iterate of an interior-point solver)."""
+    def violations(self, g: np.ndarray, w: np.ndarray, tol: float = 1e-6) -> dict:
+        """Label → largest violation (> ``tol``) of the rows of g and of the bounds on w at a
+        point ("dynamics", "initial.x", "final.y", "periodic.psi", "bounds.phi",
+        "control_bounds.tau", "horizon"). A solver that fails may return a point outside the
+        bounds (FATROP relaxes fixed ones), so both are checked."""
         out = {}
-        viol = np.maximum(np.maximum(self.lbg - g, g - self.ubg), 0.0)
-        for label, v in zip(self.row_labels, viol):
-            if v > tol:
-                out[label] = max(out.get(label, 0.0), float(v))
+        for labels, lo, hi, value in ((self.row_labels, self.lbg, self.ubg, g), (self.w_labels(), self.lbx, self.ubx, w)):
+            viol = np.maximum(np.maximum(lo - value, value - hi), 0.0)
+            for label, v in zip(labels, viol):
+                if v > tol:
+                    out[label] = max(out.get(label, 0.0), float(v))
         return out
+
+    def w_labels(self) -> list:
+        """The condition each bound on w states: "initial.<state>" / "final.<state>" at the end
+        nodes where the problem fixes that state, "bounds.<state>" on the other nodes,
+        "control_bounds.<input>", "horizon"; "" for unbounded entries."""
+        p = self.problem
+        labels = [""] * self.n_w
+        N = p.intervals
+        for i, name in enumerate(p.state_names):
+            for k in range(N + 1):
+                end = "initial" if k == 0 else "final" if k == N else None
+                mapping = p.initial if end == "initial" else p.final if end == "final" else {}
+                labels[int(self.node_index[i, k])] = f"{end}.{name}" if name in mapping else f"bounds.{name}"
+        for j, name in enumerate(p.control_names):
+            for k in range(N):
+                labels[int(self.control_index[j, k])] = f"control_bounds.{name}"
+        if self.horizon_index is not None:
+            labels[self.horizon_index] = "horizon"
+        return labels
 
     @property
     def n_w(self) -> int:
