@@ -122,8 +122,9 @@ class ClosedLoop:
         """The loop as a compiled library (:func:`.compiled.build`; with ``projection`` every
         step is projected onto the constraints), built once per compiler command; raises
         :class:`~.compiled.CompilerUnavailable`."""
-        from .compiled import build, compiler_command
-        key = (tuple(compiler_command()), projection)
+        from .compiled import build
+        from .compiler import compiler_command
+        key = (tuple(compiler_command() or ()), projection)
         if key not in self._compiled:
             self._compiled[key] = build(self.rhs, self.outputs, self.event,
                                         self.project if projection else None)

@@ -10,41 +10,39 @@ non-finite value. The whole run is one C call per interval; Python only sets it 
 
 Compilation and trust
 ---------------------
-The library is compiled once with the system C compiler (``$NHGAIT_CC``, else ``$CC``, else
-``cc``; flags :data:`CFLAGS`) and cached in ``<cache dir>/jit`` under the SHA-256 of the
-generated C source, the compiler command and the flags. Next to it a record holds the
-SHA-256 of the library file; a cached library is loaded only if that hash matches and neither
-the directory nor the files are writable by group/others, links or owned by another user
-(:func:`~.cache.trusted_dir`, :func:`~.cache.trusted_file`) — otherwise it is refused with a
-warning and rebuilt. Within a process, loaded libraries are kept by key.
-Without a working compiler :func:`build` raises :class:`CompilerUnavailable` (the caller falls
-back to scipy).
+The library is built by :func:`.compiler.build_library`, the one compiler path of nhgait
+(compiler ``$NHGAIT_CC``, else ``$CC``, else gcc, else cc; flags :data:`CFLAGS`): cached in
+``<cache dir>/jit`` under the SHA-256 of the generated C source, the compiler command and the
+flags, with a record of the library's SHA-256; a cached library is loaded only if that hash
+matches and neither the directory nor the files are writable by group/others, links or owned
+by another user (:func:`~.cache.trusted_dir`, :func:`~.cache.trusted_file`) — otherwise it is
+refused with a warning and rebuilt. An interrupted build kills the compiler and removes its
+build folder. Within a process, loaded libraries are kept by key. Without a working compiler
+:func:`build` raises :class:`CompilerUnavailable` (the caller falls back to scipy).
 """
 from __future__ import annotations
 
 import ctypes
-import hashlib
-import json
-import os
-import shlex
 import shutil
-import subprocess
-import tempfile
-import time
 from dataclasses import dataclass
 from importlib import resources
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
+from .compiler import CompilerUnavailable, Library, build_library, library_key
 from .rk_tableaus import tableau
 
-__all__ = ["CompiledLoop", "CompilerUnavailable", "build", "compiler_command", "CFLAGS",
+__all__ = ["CompiledLoop", "CompilerUnavailable", "build", "CFLAGS",
            "METHODS", "RunState", "STATUS"]
 
-#: compiler flags (no -march=native: a cached library must run on any machine sharing the cache)
-CFLAGS = ("-O2", "-fPIC", "-shared", "-std=c99")
+#: compiler flags (:func:`.compiler.build_library` adds ``-fPIC -shared``; no -march=native: a
+#: cached library must run on any machine sharing the cache)
+CFLAGS = ("-O2", "-std=c99")
+#: the key's salt: these libraries apart from other C nhgait compiles
+_SALT = "compiled closed loop"
+#: seconds after which the compiler is stopped (the route then falls back to scipy)
+_COMPILE_TIMEOUT_S = 300.0
 #: method name → index in the C template
 METHODS = {"DOP853": 0, "DOPRI5": 1}
 #: return codes of ``nhg_run``
@@ -59,16 +57,6 @@ _N = dict(nfev=0, accepted=1, rejected=2, max_steps=3, i_eval=4, n_out=5, stiff=
 
 #: key → loaded ctypes library (a library is loaded once per process)
 _LOADED: dict = {}
-
-
-class CompilerUnavailable(RuntimeError):
-    """No working C compiler (the message says why)."""
-
-
-def compiler_command() -> list:
-    """The C compiler command: ``$NHGAIT_CC``, else ``$CC``, else ``cc``."""
-    text = os.environ.get("NHGAIT_CC") or os.environ.get("CC") or "cc"
-    return shlex.split(text)
 
 
 # --------------------------------------------------------------------------------------------
@@ -129,85 +117,44 @@ def c_source(rhs: ca.Function, outputs: ca.Function, event: ca.Function | None,
 
 
 # --------------------------------------------------------------------------------------------
-# cache with trust rules (nhgait.dynamics.cache)
+# building and loading (nhgait.dynamics.compiler)
 # --------------------------------------------------------------------------------------------
-def _load_cached(directory: Path, key: str):
-    """The cached library for ``key`` if present and trusted (directory and files pass the
-    trust rules, the library matches the SHA-256 in its record), else None; a refused entry
-    warns (:class:`~.cache.UntrustedCacheWarning`)."""
-    from .cache import trusted_file
-    so, record = directory / f"{key}.so", directory / f"{key}.json"
-    if not (so.exists() and record.exists()) or not trusted_file(record):
-        return None
-    try:
-        recorded = json.loads(record.read_text())["library_sha256"]
-    except (OSError, ValueError, KeyError, TypeError):
-        return None
-    if not trusted_file(so, recorded):
-        return None
-    return ctypes.CDLL(str(so))
-
-
-def _compile(source: str, directory: Path, key: str, command: list) -> float:
-    """Compile ``source`` into ``directory/key.so`` (atomically) with a record of its SHA-256."""
-    from .cache import file_sha256
-    if shutil.which(command[0]) is None:
-        raise CompilerUnavailable(f"C compiler {command[0]!r} not found")
-    start = time.perf_counter()
-    with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:
-        c_file, so_tmp = Path(tmp) / f"{key}.c", Path(tmp) / f"{key}.so"
-        c_file.write_text(source)
-        try:
-            proc = subprocess.run(command + list(CFLAGS) + ["-o", str(so_tmp), str(c_file), "-lm"],
-                                  capture_output=True, text=True, timeout=300)
-        except (OSError, subprocess.TimeoutExpired) as exc:
-            raise CompilerUnavailable(f"C compiler {' '.join(command)!r} failed to run ({exc})") from exc
-        if proc.returncode != 0 or not so_tmp.exists():
-            tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
-            raise CompilerUnavailable(f"C compiler {' '.join(command)!r} failed: " + " | ".join(tail))
-        os.chmod(so_tmp, 0o700)
-        record_tmp = Path(tmp) / f"{key}.json"
-        record_tmp.write_text(json.dumps({"library_sha256": file_sha256(so_tmp), "source_sha256": key,
-                                          "compiler": command, "flags": list(CFLAGS),
-                                          "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}))
-        os.chmod(record_tmp, 0o600)
-        os.replace(so_tmp, directory / f"{key}.so")
-        os.replace(record_tmp, directory / f"{key}.json")
-    return time.perf_counter() - start
-
-
 def build(rhs: ca.Function, outputs: ca.Function, event: ca.Function | None = None,
           project: ca.Function | None = None) -> "CompiledLoop":
     """Compile (or load from the cache) the closed loop ``rhs(t, t_c, y, p)``,
     ``outputs(t, t_c, y, p)``, ``event(y, ydot, p) → (s, ṡ)`` and ``project(y, params)``
-    (optional). Raises
-    :class:`CompilerUnavailable`.
+    (optional). Raises :class:`CompilerUnavailable`.
 
     The library lives in ``<cache dir>/jit``; if that directory is refused by the trust rules,
-    it is compiled into a private temporary directory instead (and not kept)."""
-    from .cache import cache_dir, trusted_dir
+    it is compiled into a private temporary directory instead, removed once it is loaded."""
     source = c_source(rhs, outputs, event, project)
-    command = compiler_command()
-    key = hashlib.sha256("\0".join([source, " ".join(command), " ".join(CFLAGS)]).encode()).hexdigest()
+    key = library_key(source, flags=CFLAGS, salt=_SALT)
     lib, compile_time = _LOADED.get(key), 0.0
     if lib is None:
-        directory = trusted_dir(cache_dir() / "jit")
-        lib = None if directory is None else _load_cached(directory, key)
-        if lib is None:
-            if directory is None:
-                directory = Path(tempfile.mkdtemp(prefix="nhgait-jit-"))
-            compile_time = _compile(source, directory, key, command)
-            lib = _load_cached(directory, key)
-            if lib is None:
-                raise CompilerUnavailable("the freshly compiled library could not be verified")
-        _declare(lib)
-        if lib.nhg_abi_version() != _ABI:
-            raise CompilerUnavailable("compiled library has a different ABI version")
+        built = build_library(source, flags=CFLAGS, salt=_SALT, label="compiling the closed loop",
+                              timeout=_COMPILE_TIMEOUT_S)
+        lib, compile_time = _load(built), built.compile_s
         _LOADED[key] = lib
     dims = [lib.nhg_dims(i) for i in range(4)]
     return CompiledLoop(key=key, library=lib, ny=dims[0], np=dims[1], nout=dims[2],
                         has_event=bool(dims[3]), compile_time_s=compile_time,
                         out_sizes=tuple(outputs.nnz_out(i) for i in range(outputs.n_out())))
+
+
+def _load(built: Library):
+    """The library loaded with ctypes, its functions declared and its ABI checked; a private
+    build folder is removed once the library is loaded (its mapping stays valid)."""
+    try:
+        lib = ctypes.CDLL(str(built.path))
+    except OSError as exc:
+        raise CompilerUnavailable(f"cannot load the compiled library {built.path} ({exc})") from exc
+    finally:
+        if built.private:
+            shutil.rmtree(built.path.parent, ignore_errors=True)
+    _declare(lib)
+    if lib.nhg_abi_version() != _ABI:
+        raise CompilerUnavailable("compiled library has a different ABI version")
+    return lib
 
 
 def _declare(lib) -> None:

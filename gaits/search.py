@@ -80,7 +80,13 @@ _WORKER: dict = {}   # set by the pool initializer, in forked worker processes o
 
 
 def _receive(solver, guesses):
-    """Pool initializer: the batch, inherited through fork (nothing is pickled)."""
+    """Pool initializer: the batch, inherited through fork (nothing is pickled). A worker dies
+    at once on SIGTERM (``pool.terminate()``, even inside the solver) and leaves Ctrl-C to the
+    parent, which terminates the pool (inheriting the CLI's handlers, workers raised inside the
+    solver and deadlocked the pool)."""
+    import signal
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     _WORKER["batch"] = (solver, guesses)
 
 

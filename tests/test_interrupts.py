@@ -1,0 +1,356 @@
+"""Interrupts clean up (issue 19, item 8).
+
+A SIGTERM or a Ctrl-C while the C compiler runs, or while forked workers solve, leaves no
+process and no temporary file behind, exits 143 or 130, and the next run compiles cleanly; a
+half-written cache entry is never read.
+
+The compiler is a wrapper script (``$NHGAIT_CC``) that runs the real compiler as its child
+and, while ``<tmp>/slow`` exists, sleeps 30 s before waiting for it: the tests control the
+timing and never need a long compile. Processes are read from /proc. Each ``nhgait`` run is
+started in a session of its own, which every process it starts shares (the compiler's own
+process group included), so "no process left" means no live process in that session; a
+zombie (exited, not yet reaped by init) counts as gone.
+"""
+from __future__ import annotations
+
+import _thread
+import json
+import os
+import pickle
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.skipif(
+    not (hasattr(os, "killpg") and hasattr(os, "fork") and Path("/proc/self/stat").exists()),
+    reason="needs POSIX process groups, fork and /proc")
+
+REAL_CC = shutil.which("gcc") or shutil.which("cc")
+needs_cc = pytest.mark.skipif(REAL_CC is None, reason="no C compiler")
+
+#: a C source that compiles in a few milliseconds
+SOURCE = "int nhgait_answer(void) { return 42; }\n"
+#: a plan whose NLP compiles in about a second (0.2 MB of C)
+PLAN = ["plan", "unicycle", "--gait", "parallel-park", "--intervals", "10", "--no-gif"]
+#: a plan that solves its first two guesses in two forked workers (about half a second)
+PLAN_WORKERS = ["plan", "snakeboard", "--gait", "forward", "--no-jit", "--workers", "2", "--no-gif"]
+#: the nhgait command line with Ctrl-C raising KeyboardInterrupt, as in a terminal (a test
+#: runner may have started us with SIGINT ignored, which a child would inherit)
+LAUNCHER = ("import signal, sys\n"
+            "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
+            "from nhgait.gaits.cli import main\n"
+            "sys.exit(main())\n")
+#: what a run that exits cleanly needs after the signal (seconds)
+EXIT_S = 15.0
+
+
+# ----------------------------------------------------------------------------- processes
+@dataclass(frozen=True)
+class Proc:
+    """One live process as /proc/<pid>/stat tells it."""
+
+    pid: int
+    name: str
+    ppid: int
+    pgrp: int
+    session: int
+
+
+def _processes() -> list[Proc]:
+    """Every live process (zombies excluded)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            text = (entry / "stat").read_text()
+        except OSError:          # exited while we looked
+            continue
+        head, tail = text.rsplit(")", 1)
+        state, ppid, pgrp, session = tail.split()[:4]
+        if state not in ("Z", "X"):
+            found.append(Proc(int(entry.name), head.split("(", 1)[1], int(ppid), int(pgrp), int(session)))
+    return found
+
+
+def _live(*, session: int | None = None, pgrp: int | None = None, ppid: int | None = None) -> list[Proc]:
+    """The live processes of a session, a process group or a parent."""
+    return [p for p in _processes() if (session is None or p.session == session)
+            and (pgrp is None or p.pgrp == pgrp) and (ppid is None or p.ppid == ppid)]
+
+
+def _wait_until(predicate, timeout: float, what: str):
+    """The first true value of ``predicate()``, polled every 10 ms; fails after ``timeout`` s."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(0.01)
+    pytest.fail(f"timed out after {timeout:.0f} s waiting for {what}")
+
+
+def _kill_session(session: int) -> None:
+    """SIGKILL every live process of ``session`` (processes this test started)."""
+    for proc in _live(session=session):
+        try:
+            os.kill(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:   # exited meanwhile
+            continue
+
+
+# ----------------------------------------------------------------------------- the compiler
+@dataclass(frozen=True)
+class SlowCompiler:
+    """The wrapper compiler in ``folder``: slow while ``folder/slow`` exists; each run appends
+    its pid (= its process group, nhgait starts it in a group of its own) to ``folder/started``."""
+
+    folder: Path
+
+    @property
+    def script(self) -> Path:
+        return self.folder / "slowcc.sh"
+
+    def slow(self, on: bool) -> None:
+        flag = self.folder / "slow"
+        if on:
+            flag.touch()
+        else:
+            flag.unlink(missing_ok=True)
+
+    def runs(self) -> list[int]:
+        started = self.folder / "started"
+        return [int(line) for line in started.read_text().split()] if started.exists() else []
+
+    def group(self, *names: str) -> list[Proc] | None:
+        """The live processes of the first run's process group once processes of all these
+        names run in it, else None."""
+        runs = self.runs()
+        group = _live(pgrp=runs[0]) if runs else []
+        return group if set(names) <= {p.name for p in group} else None
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch) -> Path:
+    """A private cache directory for this test (and the nhgait processes it starts)."""
+    folder = tmp_path / "cache"
+    monkeypatch.setenv("NHGAIT_CACHE_DIR", str(folder))
+    return folder
+
+
+@pytest.fixture
+def slow_cc(tmp_path, monkeypatch, cache) -> SlowCompiler:
+    """``$NHGAIT_CC`` = the wrapper around the real compiler (see :class:`SlowCompiler`)."""
+    compiler = SlowCompiler(tmp_path / "cc")
+    compiler.folder.mkdir()
+    compiler.script.write_text(
+        "#!/bin/sh\n"
+        f"echo $$ >> '{compiler.folder}/started'\n"
+        f"'{REAL_CC}' \"$@\" &\n"
+        "compiler=$!\n"
+        f"if [ -e '{compiler.folder}/slow' ]; then sleep 30; fi\n"
+        "wait $compiler\n")
+    compiler.script.chmod(0o700)
+    monkeypatch.setenv("NHGAIT_CC", str(compiler.script))
+    monkeypatch.delenv("CC", raising=False)
+    return compiler
+
+
+# ----------------------------------------------------------------------------- nhgait runs
+def _start(args: list, tmp_path: Path) -> subprocess.Popen:
+    """``nhgait <args> --out <tmp>/out`` in a new session, its stderr in ``tmp/stderr.txt``."""
+    with open(tmp_path / "stderr.txt", "w") as err:
+        return subprocess.Popen([sys.executable, "-c", LAUNCHER, *args, "--out", str(tmp_path / "out")],
+                                stdout=subprocess.DEVNULL, stderr=err, start_new_session=True)
+
+
+def _signal_and_wait(proc: subprocess.Popen, signame: str, to_group: bool, timeout: float = EXIT_S) -> int:
+    """Send ``signame`` to the process (SIGTERM as ``kill`` does) or to its process group (as
+    Ctrl-C in a terminal does) and return its exit status; fails, after killing what is left,
+    when it does not exit within ``timeout`` s."""
+    sig = getattr(signal, signame)
+    (os.killpg if to_group else os.kill)(proc.pid, sig)
+    try:
+        return proc.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        _kill_session(proc.pid)
+        proc.wait()
+        pytest.fail(f"nhgait did not exit within {timeout:.0f} s of {signame}")
+
+
+def _assert_no_process_left(session: int) -> None:
+    _wait_until(lambda: not _live(session=session), 5.0, f"every process of session {session} to exit")
+
+
+SIGNALS = [pytest.param("SIGTERM", 143, False, "terminated", id="SIGTERM"),
+           pytest.param("SIGINT", 130, True, "interrupted", id="Ctrl-C")]
+
+
+@needs_cc
+@pytest.mark.parametrize("signame, status, to_group, said", SIGNALS)
+def test_plan_stopped_while_compiling_leaves_nothing_and_the_next_run_compiles(
+        slow_cc, cache, tmp_path, signame, status, to_group, said):
+    """SIGTERM (exit 143) or Ctrl-C (130) while cc1 runs: the compiler's whole process group
+    (the wrapper, gcc, cc1, the wrapper's sleep) is gone, the jit folder is empty (no build
+    folder, no .c, .so or record), and the next run compiles again and leaves one library
+    with a record that matches it."""
+    slow_cc.slow(True)
+    proc = _start(PLAN, tmp_path)
+    try:
+        group = _wait_until(lambda: slow_cc.group("cc1", "sleep"), 60.0, "gcc to compile")
+    except BaseException:
+        _kill_session(proc.pid)
+        raise
+    assert {"slowcc.sh", "gcc", "cc1", "sleep"} <= {p.name for p in group}
+    assert _signal_and_wait(proc, signame, to_group) == status
+    assert f"nhgait: {said}" in (tmp_path / "stderr.txt").read_text()
+    _assert_no_process_left(proc.pid)                    # gcc, cc1, the wrapper and its sleep
+    jit = cache / "jit"
+    assert sorted(p.name for p in jit.iterdir()) == []   # no .build-*, no .c, .so or record
+
+    slow_cc.slow(False)                                  # the next run: the same key, clean
+    again = subprocess.run([sys.executable, "-c", LAUNCHER, *PLAN, "--out", str(tmp_path / "again")],
+                           capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert len(slow_cc.runs()) == 2                      # compiled, not taken from the cache
+    names = sorted(p.name for p in jit.iterdir())
+    assert len(names) == 2 and names[0].endswith(".json") and names[1].endswith(".so")
+    from nhgait.dynamics.cache import file_sha256
+    assert json.loads((jit / names[0]).read_text())["library_sha256"] == file_sha256(jit / names[1])
+
+
+@pytest.mark.parametrize("signame, status, to_group, said", SIGNALS)
+def test_plan_stopped_while_workers_solve_leaves_no_worker(cache, tmp_path, signame, status, to_group, said):
+    """SIGTERM or Ctrl-C while two forked workers solve: exit 143 or 130 within seconds, no
+    worker left."""
+    proc = _start(PLAN_WORKERS, tmp_path)
+    try:
+        workers = _wait_until(lambda: len(_live(ppid=proc.pid)) >= 2, 120.0, "two workers")
+    except BaseException:
+        _kill_session(proc.pid)
+        raise
+    assert workers
+    assert _signal_and_wait(proc, signame, to_group, timeout=8.0) == status
+    assert f"nhgait: {said}" in (tmp_path / "stderr.txt").read_text()
+    _assert_no_process_left(proc.pid)
+
+
+# ----------------------------------------------------------------------------- build_library
+@needs_cc
+def test_keyboard_interrupt_kills_the_compiler_and_removes_its_build_folder(slow_cc, cache):
+    """build_library interrupted (KeyboardInterrupt in the waiting thread) while the compiler
+    runs: the exception propagates, the wrapper and its children are gone, nothing is left in
+    the jit folder."""
+    from nhgait.dynamics.compiler import build_library
+    slow_cc.slow(True)
+    seen = []
+
+    def interrupt_once_compiling():
+        deadline = time.monotonic() + 20.0
+        while time.monotonic() < deadline and not seen:
+            group = slow_cc.group("sleep")          # the tiny source may be compiled by then
+            if group:
+                seen.extend(group)
+                _thread.interrupt_main()          # KeyboardInterrupt in the waiting main thread
+            time.sleep(0.01)
+
+    timer = threading.Thread(target=interrupt_once_compiling, daemon=True)
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        build_library(SOURCE, timeout=25.0)
+    timer.join()
+    assert {"slowcc.sh", "sleep"} <= {p.name for p in seen}
+    assert _live(pgrp=slow_cc.runs()[0]) == []            # the wrapper and its children
+    assert sorted(p.name for p in (cache / "jit").iterdir()) == []
+
+
+@needs_cc
+def test_a_compiler_over_its_time_limit_is_killed(slow_cc, cache):
+    """A timeout is one more exception while waiting: CompilerUnavailable, the group killed,
+    no build folder."""
+    from nhgait.dynamics.compiler import CompilerUnavailable, build_library
+    slow_cc.slow(True)
+    with pytest.raises(CompilerUnavailable, match="took more than 1 s"):
+        build_library(SOURCE, timeout=1.0)
+    assert _live(pgrp=slow_cc.runs()[0]) == []
+    assert sorted(p.name for p in (cache / "jit").iterdir()) == []
+
+
+@needs_cc
+def test_stale_build_folders_are_removed_and_fresh_ones_kept(cache):
+    """A build folder older than STALE_BUILD_S (left by a process killed with SIGKILL) goes
+    with the next build; a younger one may belong to a build running now and stays."""
+    from nhgait.dynamics.cache import trusted_dir
+    from nhgait.dynamics.compiler import STALE_BUILD_S, build_library, jit_dir
+    jit = trusted_dir(jit_dir())
+    stale, fresh = jit / ".build-stale", jit / ".build-fresh"
+    for folder in (stale, fresh):
+        folder.mkdir()
+        (folder / "half.c").write_text(SOURCE)
+    old = time.time() - STALE_BUILD_S - 60.0
+    os.utime(stale, (old, old))
+    lib = build_library(SOURCE)
+    assert not lib.cached and not stale.exists() and fresh.exists()
+
+
+@needs_cc
+def test_a_library_without_its_record_is_never_loaded(cache):
+    """A library whose record is missing (a writer killed between its two moves), here also
+    half-written, is rebuilt rather than loaded; the rebuilt one is trusted again."""
+    import ctypes
+    from nhgait.dynamics.cache import file_sha256
+    from nhgait.dynamics.compiler import build_library
+    first = build_library(SOURCE)
+    record = first.path.with_suffix(".json")
+    assert build_library(SOURCE).cached
+    record.unlink()                                       # a writer killed between the moves
+    first.path.write_bytes(b"\x7fELF, half of it")        # ... or while writing the library
+    again = build_library(SOURCE)
+    assert not again.cached and again.path == first.path
+    assert json.loads(record.read_text())["library_sha256"] == file_sha256(again.path)
+    assert ctypes.CDLL(str(again.path)).nhgait_answer() == 42
+    assert build_library(SOURCE).cached
+
+
+# ----------------------------------------------------------------------------- model cache
+def test_a_half_written_cache_entry_is_never_read(cache, monkeypatch):
+    """A model-cache write interrupted mid-way leaves no file; a complete entry still under
+    its .tmp-* name (writer killed before os.replace) is not read; a truncated entry under the
+    final name is refused with a warning; a whole entry is read."""
+    from nhgait.dynamics import cache as entries
+    key = entries.make_key("test_interrupts", "half-written")
+    dump = pickle.dump
+
+    def header_then_interrupt(obj, fh, protocol=None):
+        if isinstance(obj, dict) and obj.get("format"):
+            return dump(obj, fh, protocol=protocol)
+        fh.write(b"\x80\x05 half of an object")
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as patch:                  # Ctrl-C in the middle of store()
+        patch.setattr(entries.pickle, "dump", header_then_interrupt)
+        with pytest.raises(KeyboardInterrupt):
+            entries.store(key, {"answer": 42})
+    assert sorted(p.name for p in cache.iterdir()) == []  # the temporary file is removed
+    assert entries.load(key, dict) is None
+
+    entries.store(key, {"answer": 42})                    # a writer killed before its os.replace:
+    os.replace(entries.path_for(key), cache / ".tmp-killed.pkl")   # a complete .tmp-* file
+    assert entries.load(key, dict) is None
+
+    whole = (cache / ".tmp-killed.pkl").read_bytes()      # a non-atomic writer killed mid-way
+    entries.path_for(key).write_bytes(whole[: len(whole) // 2])
+    with pytest.warns(entries.UntrustedCacheWarning, match="unreadable cache entry"):
+        assert entries.load(key, dict) is None
+    entries.store(key, {"answer": 42})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert entries.load(key, dict) == {"answer": 42}
