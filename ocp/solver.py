@@ -250,8 +250,7 @@ class OCPSolver:
         if isinstance(self.transcription, Collocation) and self.options.solver == "ipopt":
             self.options = replace(self.options, ipopt={**COLLOCATION_MUMPS, **self.options.ipopt})
         self.nlp: TranscribedNLP = self.transcription.build(problem)
-        self.functions = ({} if self.options.hessian == "limited-memory" else
-                          nlp_functions(self.nlp, hessian=self.options.hessian, solver=self.options.solver))
+        self.functions = nlp_functions(self.nlp, hessian=self.options.hessian, solver=self.options.solver)
         self.jit_cached, self.jit_fallback, self.compiled, self.jit_path = None, None, False, None
         self.compile_report = None
         if self.options.jit is None and compiler_command() is None:
@@ -392,7 +391,7 @@ class OCPSolver:
             except RuntimeError as exc:  # evaluation errors (NaN in the oracle) and the like
                 out, error = None, exc
         wall = time.perf_counter() - t0
-        stats = self.solver.stats()
+        stats = {} if bad else self.solver.stats()     # a refused guess never ran the solver
         if out is not None:
             w = np.asarray(out["x"]).ravel()
             objective = float(out["f"])

@@ -77,8 +77,10 @@ class TranscribedNLP:
 
     def w_labels(self) -> list:
         """The condition each bound on w states: "initial.<state>" / "final.<state>" at the end
-        nodes where the problem fixes that state, "bounds.<state>" on the other nodes,
-        "control_bounds.<input>", "horizon"; "" for unbounded entries."""
+        nodes where the problem fixes that state, "periodic.<state>" at an end node fixed by
+        periodicity (the state fixed at the other end), "bounds.<state>" on the other nodes,
+        "control_bounds.<input>", "horizon" (every carried copy of T in the stage order);
+        "" for entries that are never bounded (the carried periodic values)."""
         p = self.problem
         labels = [""] * self.n_w
         N = p.intervals
@@ -86,12 +88,22 @@ class TranscribedNLP:
             for k in range(N + 1):
                 end = "initial" if k == 0 else "final" if k == N else None
                 mapping = p.initial if end == "initial" else p.final if end == "final" else {}
-                labels[int(self.node_index[i, k])] = f"{end}.{name}" if name in mapping else f"bounds.{name}"
+                j = int(self.node_index[i, k])
+                if name in mapping:
+                    labels[j] = f"{end}.{name}"
+                elif end and name in p.periodic and self.lbx[j] == self.ubx[j]:   # see _Builder.node_bounds
+                    labels[j] = f"periodic.{name}"
+                else:
+                    labels[j] = f"bounds.{name}"
         for j, name in enumerate(p.control_names):
             for k in range(N):
                 labels[int(self.control_index[j, k])] = f"control_bounds.{name}"
         if self.horizon_index is not None:
             labels[self.horizon_index] = "horizon"
+            if self.structure is not None:   # stage order: x̃_k = (z_k, c_k, T_k) on every stage
+                block = self.structure["nx"][0] + self.structure["nu"][0]
+                for k in range(N + 1):
+                    labels[self.horizon_index + k * block] = "horizon"
         return labels
 
     @property
