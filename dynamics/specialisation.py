@@ -22,7 +22,10 @@ values are bound into the functions. Two routes, chosen by the model's form:
   of 313.
 * **numeric** (``model.form == "implicit"``, where ``model.rhs`` is None and ż is solved
   numerically inside ``model.numeric["rhs"]``, or when the symbolic result fails its check):
-  the values are substituted into the CasADi functions (constants folded by CasADi).
+  the values are substituted into the CasADi functions (constants folded by CasADi), and —
+  when the check confirms the model is invariant under its symmetry group, forces included —
+  evaluated at the group's identity and moved back (:func:`_at_identity`: ṡ = g(s)ṡ|_{s=0}),
+  which folds every trigonometric function of the heading.
 
 Every symbolic result is checked against the numeric route at 50 random states, inputs and
 times (relative error ≤ 1e-10; the forces may depend on t); a result that fails is replaced
@@ -233,12 +236,13 @@ def _momentum_basis(model, params) -> ca.Function:
     return ca.Function("Q", [q], [Q])
 
 
-def choose_velocities(model, preferred=(), quantities=None, params=None) -> tuple:
+def choose_velocities(model, preferred=(), quantities=None, params=None, bounds=None) -> tuple:
     """n − k velocity quantities that parametrise the allowed velocities, ``preferred`` first.
 
     Candidates: ``preferred`` (names a task uses), the shape velocities, the planar body
     velocities, the fiber velocities. A candidate whose row of B = Y Q (q̇ = Q P) nearly
-    vanishes somewhere — its norm over configurations spread over every angle varies by more
+    vanishes somewhere — its norm over configurations within ``bounds`` (name → (lo, hi); other
+    coordinates over [−π, π]; samples near the model's singular set skipped) varies by more
     than :data:`DEGENERATE_SPREAD` — comes after the others: a state built on it is singular
     wherever the row vanishes (ẋ of a unicycle is r cos θ φ̇, zero for every φ̇ at θ = ±π/2,
     where (ẋ, θ̇) stop determining the motion). Within each group the order above is kept. A
@@ -263,7 +267,7 @@ def choose_velocities(model, preferred=(), quantities=None, params=None) -> tupl
     samples = [rng.uniform(-0.7, 0.7, n) for _ in range(3)]
     Yf = _row_function(model, candidates, quantities) if candidates else None
     B_all = [np.asarray(Yf(qq, params)) @ np.asarray(Q(qq)) for qq in samples] if Yf else []
-    degenerate = _degenerate_rows(model, Yf, Q, params, len(candidates), rng) if Yf else []
+    degenerate = _degenerate_rows(model, Yf, Q, params, len(candidates), rng, bounds or {}) if Yf else []
     order = sorted(range(len(candidates)), key=lambda i: (degenerate[i], i))
     chosen = []
     for i in order:
@@ -280,20 +284,28 @@ def choose_velocities(model, preferred=(), quantities=None, params=None) -> tupl
                       f"allowed velocities of {system.name}"], title="invalid velocity coordinates")
 
 
-def _degenerate_rows(model, Yf, Q, params, count, rng, samples: int = 64) -> list:
-    """Per candidate: does its row of B = Y Q nearly vanish at some configuration (every
-    coordinate in [−π, π])? See :func:`choose_velocities`."""
-    n = model.system.n
-    lo, hi = np.full(count, np.inf), np.zeros(count)
-    for _ in range(samples):
-        q = rng.uniform(-np.pi, np.pi, n)
+def _degenerate_rows(model, Yf, Q, params, count, rng, bounds, samples: int = 64) -> list:
+    """Per candidate: does its row of B = Y Q nearly vanish at some configuration within
+    ``bounds``? See :func:`choose_velocities`."""
+    coords = tuple(model.system.coordinates)
+    lo = np.array([bounds.get(c, (-np.pi, np.pi))[0] for c in coords], dtype=float)
+    hi = np.array([bounds.get(c, (-np.pi, np.pi))[1] for c in coords], dtype=float)
+    lo, hi = np.where(np.isfinite(lo), lo, -np.pi), np.where(np.isfinite(hi), hi, np.pi)
+    singular = model.numeric.functions.get("singular")
+    qs = [rng.uniform(lo, hi) for _ in range(samples)]
+    with np.errstate(all="ignore"):
+        measure = np.array([float(singular(q, params)) if singular is not None else 1.0 for q in qs])
+    keep = np.isfinite(measure) & (measure > 1e-2 * np.median(measure[np.isfinite(measure)] if
+                                                               np.isfinite(measure).any() else [1.0]))
+    small, large = np.full(count, np.inf), np.zeros(count)
+    for q in (q for q, ok in zip(qs, keep) if ok):      # near the model's singular set every row degrades
         with np.errstate(all="ignore"):
             B = np.asarray(Yf(q, params)) @ np.asarray(Q(q))
         if not np.all(np.isfinite(B)):
             continue
         norms = np.linalg.norm(B, axis=1)
-        lo, hi = np.minimum(lo, norms), np.maximum(hi, norms)
-    return list(lo < DEGENERATE_SPREAD * hi)
+        small, large = np.minimum(small, norms), np.maximum(large, norms)
+    return list(small < DEGENERATE_SPREAD * large)
 
 
 # ----------------------------------------------------------------------------- numeric route
@@ -335,6 +347,83 @@ def _numeric_velocity(model, params, names, quantities) -> dict:
                              ["q", "qdot", "params"], ["z"]),
         "momentum_state": ca.Function("momentum_state", [z, p], [zP], ["z", "params"], ["z_momentum"]),
     }
+
+
+# ----------------------------------------------------------------------------- Maggi route
+def _maggi_velocity(model, params, names, quantities) -> dict:
+    """Functions of z = (q, y) from Maggi's form of the same reduced equations (any model form).
+
+    With X(q) a basis of the allowed velocities (q̇ = X v, v the quasi-velocities; here
+    :func:`_body_basis`),
+    p(q, v) = ∂L/∂q̇ at q̇ = X v, the Lagrange–d'Alembert principle projected on X reads
+
+        K v̇ = Xᵀ (τ + ∂L/∂q − (∂p/∂q) q̇),   K = Xᵀ ∂p/∂v = XᵀMX,
+
+    the equations of steps 18–19 in the quasi-velocities v = K⁻¹P (the thesis: the reduced
+    constrained Hamiltonian equations equal the Hamel/Maggi equations). Every derivative is
+    automatic differentiation of the scalar L — no symbolic inverse, no brackets, no ∂h/∂q
+    through K⁻¹ — so the expression is several times smaller than the 20 steps' graph
+    (the velocity states y = B_v v, B_v = Y X: ẏ = (∂(B_v v)/∂q) q̇ + B_v v̇). The result is used
+    only when it agrees with the 20-step functions at random states (:func:`_build`).
+    """
+    from .bridge import to_casadi
+    from .linsolve import solve_general, solve_spd
+    from .system import TIME
+    system = model.system
+    n, nz = system.n, len(model.state_names)
+    nu = len(model.numeric.input_names)
+    t, z, u, p = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", len(params))
+    qs, qds = ca.SX.sym("q", n), ca.SX.sym("qdot", n)
+    subs = {s: float(v) for s, v in zip(system.param_symbols, params)}
+    syms = [TIME] + list(system.q) + list(system.q_dot) + list(system.input_symbols)
+    sx = [t] + [qs[i] for i in range(n)] + [qds[i] for i in range(n)] + [u[i] for i in range(nu)]
+    L = to_casadi([system.L.xreplace(subs)], syms, sx)[0]
+    tau = ca.vertcat(*to_casadi(list(system.force_vector().xreplace(subs)), syms, sx)) if n else ca.SX(0, 1)
+    Yf = _row_function(model, names, quantities)
+    q, y = z[:n], z[n:]
+    X = _body_basis(model, params, q)
+    Bv = ca.mtimes(Yf(q, params), X)
+    v = solve_general(Bv, y)
+    qdot = ca.mtimes(X, v)
+    vs = ca.SX.sym("v", nz - n)
+    at = lambda e: ca.substitute(ca.substitute(e, qs, q), qds, ca.mtimes(X, vs))  # noqa: E731  (q̇ = X v)
+    mom = at(ca.gradient(L, qds))                                   # p(q, v)
+    K = ca.mtimes(X.T, ca.jacobian(mom, vs))
+    force = ca.mtimes(X.T, at(tau) + at(ca.gradient(L, qs)) - ca.jtimes(mom, q, ca.mtimes(X, vs)))
+    vdot = ca.substitute(solve_spd(K, force), vs, v)                  # K = XᵀMX: LDLᵀ
+    ydot = ca.substitute(ca.jtimes(ca.mtimes(Bv, vs), q, ca.mtimes(X, vs)), vs, v) + ca.mtimes(Bv, vdot)
+    rhs = ca.cse(ca.vertcat(qdot, ydot))
+    fns = _numeric_velocity(model, params, names, quantities)   # state and momentum_state maps
+    fns["rhs"] = ca.Function("rhs", [t, z, u, p], [rhs], ["t", "z", "u", "params"], ["zdot"])
+    fns["qdot"] = ca.Function("qdot", [z, p], [ca.cse(qdot)], ["z", "params"], ["qdot"])
+    return fns
+
+
+def _body_basis(model, params, q):
+    """X(q) = diag(g(s), I) X_b(r): a basis of ker ω(q) from the body-frame constraints
+    ω_b = (ω_s g, ω_r) of step 5 (``layout.Wb``, a function of the shape alone for a symmetric
+    system), with the reduction's pivots: X_b[free] = I, X_b[pivots] = −ω_b,piv⁻¹ ω_b,free
+    (:func:`~nhgait.dynamics.linsolve.solve_general`: constant pivots first). Built from the
+    k×n matrix ω_b instead of the 20 steps' graph, it stays small for chains of many links."""
+    from .bridge import to_casadi
+    from .linsolve import solve_general
+    lay, system = model.layout, model.system
+    n, k = system.n, system.k
+    subs = {s: float(v) for s, v in zip(system.param_symbols, params)}
+    qs = [q[i] for i in range(n)]
+    pivots = list(lay.pivots)
+    free = [i for i in range(n) if i not in pivots]
+    Xb = ca.SX(n, n - k)
+    for j, i in enumerate(free):
+        Xb[i, j] = 1
+    if k:
+        Wb = ca.reshape(ca.vertcat(*to_casadi(list(lay.Wb.xreplace(subs).T), list(system.q), qs)), k, n)
+        Xb[pivots, :] = -solve_general(Wb[:, pivots], Wb[:, free])
+    G = ca.SX.eye(n)
+    if lay.version == "B":
+        g = ca.reshape(ca.vertcat(*to_casadi(list(lay.g.T), list(system.q), qs)), len(lay.si), len(lay.si))
+        G[list(lay.si), list(lay.si)] = g
+    return ca.mtimes(G, Xb)
 
 
 # ----------------------------------------------------------------------------- symbolic route
@@ -443,6 +532,44 @@ def _symbolic_velocity(model, params, names, quantities) -> dict:
     return fns
 
 
+def _at_identity(model, fns: dict) -> dict | None:
+    """rhs and q̇ evaluated at the identity of the symmetry group (fiber coordinates s = 0) and
+    moved back by it: ṡ = g(s) ṡ|_{s=0}, everything else as at s = 0.
+
+    For a model whose L, ω and forces are invariant under the group acting on the fiber (the
+    reduction's symmetry, thesis §3.2.1; version A translations, version B the planar
+    rotation g(θ) of eqs. 3.34/3.70), the reduced dynamics depend on the shape r and the
+    momenta only, and ξ = g⁻¹ṡ does too. Setting s = 0 before evaluating lets CasADi fold every
+    sin θ, cos θ of the heading (snake_3: 1931 → ~1050 operations). Forces that break the
+    symmetry (a world-frame force) make the result differ: :func:`_agrees` then keeps the
+    general functions. None when the model has no group layout.
+    """
+    from .bridge import to_casadi
+    lay = getattr(model, "layout", None)
+    if lay is None or not lay.fiber:
+        return None
+    system = model.system
+    n, nz = system.n, len(model.state_names)
+    si = [system.coordinates.index(c) for c in lay.fiber]
+    rhs, qdot = fns["rhs"], fns["qdot"]
+    t, z, u = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", rhs.size1_in(2))
+    p = ca.SX.sym("params", rhs.size1_in(3))
+    at_e = ca.vertcat(*[0 if i in si else z[i] for i in range(nz)])
+    G = ca.reshape(ca.vertcat(*to_casadi(list(lay.g.T), list(system.q), [z[i] for i in range(n)])),
+                   len(si), len(si)) if lay.version == "B" else ca.SX.eye(len(si))
+
+    def moved(v):
+        out = [v[i] for i in range(v.shape[0])]
+        s_rates = ca.mtimes(G, ca.vertcat(*[v[i] for i in si]))
+        for j, i in enumerate(si):
+            out[i] = s_rates[j]
+        return ca.cse(ca.vertcat(*out))
+    out = dict(fns)
+    out["rhs"] = ca.Function("rhs", [t, z, u, p], [moved(rhs(t, at_e, u, p))], ["t", "z", "u", "params"], ["zdot"])
+    out["qdot"] = ca.Function("qdot", [z, p], [moved(qdot(at_e, p))], ["z", "params"], ["qdot"])
+    return out
+
+
 def _gap(a, b) -> float:
     """max |a − b| / (1 + |b|); entries non-finite in both count as equal, in one only as ∞."""
     a, b = np.asarray(a, float).ravel(), np.asarray(b, float).ravel()
@@ -452,15 +579,22 @@ def _gap(a, b) -> float:
     return float(np.max(np.abs(a[fb] - b[fb]) / (1.0 + np.abs(b[fb])), initial=0.0))
 
 
-def _agrees(fns: dict, ref: dict, nz: int, nu: int, params, tol: float) -> bool:
+def _agrees(fns: dict, ref: dict, nz: int, nu: int, params, tol: float, singular=None) -> bool:
     """``fns`` equals ``ref`` (rhs and q̇) at random states, inputs and times t ∈ [0, 10]
-    (the forces may depend on t), relative to 1 + |ref|."""
+    (the forces may depend on t), relative to 1 + |ref|. With ``singular`` (the model's measure
+    of its singular set, a function of (q, params)), states within 1e-3 of that set are not
+    used: both sides are ill-conditioned there and their round-off says nothing."""
     rng = np.random.default_rng(0)
-    worst = 0.0
-    for _ in range(_CHECK_SAMPLES):
+    worst, used = 0.0, 0
+    for _ in range(4 * _CHECK_SAMPLES):
         t, z, u = rng.uniform(0.0, 10.0), rng.uniform(-1.2, 1.2, nz), rng.normal(size=nu)
+        if singular is not None and not float(singular(z[:singular.size1_in(0)], params)) > 1e-3:
+            continue
         for name, args in (("rhs", (t, z, u)), ("qdot", (z,))):
             worst = max(worst, _gap(fns[name](*args, params), ref[name](*args, params)))
+        used += 1
+        if used == _CHECK_SAMPLES:
+            break
     return bool(worst <= tol)
 
 
@@ -470,14 +604,17 @@ def _build(model, params, velocities, quantities) -> _Entry:
     reference = (_numeric_velocity(model, params, velocities, quantities) if velocities
                  else _numeric_bound(model, params))
     route, fns = "numeric", reference
+    singular = model.numeric.functions.get("singular")
     if model_form(model) == "explicit":
         try:
             candidate = (_symbolic_velocity(model, params, velocities, quantities) if velocities
                          else _symbolic_momentum(model, params))
         except (ZeroDivisionError, ArithmeticError, ValueError):
             candidate = None
-        if candidate is not None and _agrees(candidate, reference, nz, nu, params, 1e-10):
+        if candidate is not None and _agrees(candidate, reference, nz, nu, params, 1e-10, singular):
             route, fns = "symbolic", candidate
+    if route == "numeric":
+        route, fns = _cheapest(model, params, velocities, quantities, reference, singular)
     from .numeric import NumericModel
     old = model.numeric
     state_names = (tuple(model.system.coordinates) + tuple(velocities)) if velocities else tuple(old.state_names)
@@ -486,6 +623,29 @@ def _build(model, params, velocities, quantities) -> _Entry:
                            param_names=old.param_names, param_defaults=tuple(float(v) for v in params),
                            functions=fns, n_coordinates=n)
     return _Entry(numeric, route)
+
+
+def _operations(fns: dict) -> int:
+    return int(fns["rhs"].n_instructions())
+
+
+def _cheapest(model, params, velocities, quantities, reference, singular) -> tuple:
+    """(route, functions): the cheapest evaluation of the reference's equations among the
+    20-step graph with values bound, Maggi's form (velocity states only) and either evaluated
+    at the group identity — each checked against the reference at random states."""
+    nz, nu = len(model.state_names), len(model.numeric.input_names)
+    options = [("numeric", reference)]
+    if velocities and "basis" in model.numeric.functions:
+        options.append(("Maggi", _maggi_velocity(model, params, velocities, quantities)))
+    for name, fns in list(options):
+        reduced = _at_identity(model, fns)
+        if reduced is not None:
+            options.append((f"{name} at the group identity", reduced))
+    options.sort(key=lambda item: _operations(item[1]))
+    for name, fns in options:
+        if fns is reference or _agrees(fns, reference, nz, nu, params, 1e-10, singular):
+            return name, fns
+    return "numeric", reference
 
 
 def _key(model, params, velocities, quantities) -> str:

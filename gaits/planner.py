@@ -171,7 +171,8 @@ def prepare(the_plan, *, params=None, progress=None) -> Prepared:
     n = len(model.system.coordinates)
     check_names(task, known_names(model, scene.quantities), tuple(model.system.inputs),
                 n_velocities=len(model.state_names) - n)
-    velocities = task.velocities or choose_velocities(model, task.names, scene.quantities, params)
+    bounds = {k: v for k, v in task.bounds.items() if isinstance(v, tuple)}
+    velocities = task.velocities or choose_velocities(model, task.names, scene.quantities, params, bounds)
     with progress.phase(f"specialise: parameter values bound, velocity states ({', '.join(velocities)})"):
         fast = specialise(model, params, velocities=velocities, quantities=scene.quantities)
     stated, problem, report = state_problem(task, fast, scene, params=params, name=the_plan.label)
