@@ -582,16 +582,21 @@ def _gap(a, b) -> float:
 def _agrees(fns: dict, ref: dict, nz: int, nu: int, params, tol: float, singular=None) -> bool:
     """``fns`` equals ``ref`` (rhs and q̇) at random states, inputs and times t ∈ [0, 10]
     (the forces may depend on t), relative to 1 + |ref|. With ``singular`` (the model's measure
-    of its singular set, a function of (q, params)), states within 1e-3 of that set are not
-    used: both sides are ill-conditioned there and their round-off says nothing."""
+    of its singular set, a function of (q, params), in [0, 1]), states within 1e-3 of that set
+    are not used, and within 0.1 the tolerance grows as 0.1/measure: both sides solve the same
+    ill-conditioned systems there, and their round-off grows with the condition number
+    (snake_4: gaps of 6e-10 at measure 1.5e-3 between two correct evaluations, against O(1)
+    for a wrong formula)."""
     rng = np.random.default_rng(0)
     worst, used = 0.0, 0
     for _ in range(4 * _CHECK_SAMPLES):
         t, z, u = rng.uniform(0.0, 10.0), rng.uniform(-1.2, 1.2, nz), rng.normal(size=nu)
-        if singular is not None and not float(singular(z[:singular.size1_in(0)], params)) > 1e-3:
+        measure = 1.0 if singular is None else float(singular(z[:singular.size1_in(0)], params))
+        if not measure > 1e-3:
             continue
+        scale = max(1.0, 0.1 / measure)
         for name, args in (("rhs", (t, z, u)), ("qdot", (z,))):
-            worst = max(worst, _gap(fns[name](*args, params), ref[name](*args, params)))
+            worst = max(worst, _gap(fns[name](*args, params), ref[name](*args, params)) / scale)
         used += 1
         if used == _CHECK_SAMPLES:
             break

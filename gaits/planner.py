@@ -11,7 +11,8 @@ Steps
 -----
 1. :func:`~nhgait.gaits.tasks.resolve`: the scene and the parsed task (one ProblemError for
    every problem of the task's form).
-2. ``derive(system, "reduced")`` (cached) and :func:`~nhgait.dynamics.specialisation.specialise`:
+2. ``derive(system, "reduced")`` (cached; in a chart whose singular set misses the task's
+   fixed end configurations, :mod:`.charts`) and :func:`~nhgait.dynamics.specialisation.specialise`:
    parameter values bound, the state in velocity coordinates z = (q, y) with y the task's own
    velocity quantities when they parametrise the allowed velocities (else chosen by
    :func:`~nhgait.dynamics.specialisation.choose_velocities`). Conditions on velocities are
@@ -156,15 +157,14 @@ def _check_full_states(task, model, params) -> None:
 
 def prepare(the_plan, *, params=None, progress=None) -> Prepared:
     """The :class:`Prepared` model and problems of a :class:`~nhgait.gaits.tasks.Plan`."""
-    from nhgait.dynamics import derive
     from nhgait.dynamics.progress import Progress
     from nhgait.dynamics.specialisation import choose_velocities, specialise
+    from .charts import derive_for_task
     from .task import check_names
 
     progress = progress or Progress.silent()
     task, scene = the_plan.task, the_plan.scene
-    with progress.phase(f"derive the reduced equations of {scene.system.name}"):
-        model = derive(scene.system, "reduced")
+    model = derive_for_task(scene.system, task, params, progress)
     prov = getattr(model, "provenance", None)
     progress.note(f"  n = {model.system.n} coordinates, {len(model.state_names)} states, {model.form} form"
                   + (" (from the cache)" if prov is not None and prov.cache_hit else ""))

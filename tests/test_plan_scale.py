@@ -61,3 +61,25 @@ def test_task_holds_on_the_plan(planned):
         i = names.index(c)
         assert q[-1, i] == pytest.approx(q[0, i], abs=1e-6) and qdot[-1, i] == pytest.approx(qdot[0, i], abs=1e-6)
     assert np.all(np.abs(q[:, [names.index("phi_f"), names.index("phi_b")]]) <= 1.0 + 1e-8)
+
+
+def test_a_chart_that_covers_the_ends_is_chosen():
+    """A cart with two on-axle trailers, straight at rest at both ends (n = 6, k = 4). The
+    default fiber (x, y, θ, φ) carries all four constraints, and at β = 0 their columns of ω on
+    that fiber have rank 3 (rows: cart no-slip, rolling, two trailer no-slips; the last three
+    act on (y, θ) only) — evaluated here from the scene's ω, not by the reduction. The planner
+    takes fiber (x, y, θ) instead and reaches the independent transcription's optimum."""
+    import sympy as sp
+    from nhgait.dynamics.scene import scene_from_text
+    member = "cart_trailers_2"
+    scene = scene_from_text(scale_tasks.scene_with_task(member), member)
+    system = scene.system
+    omega = system.omega().xreplace({**{q: 0 for q in system.q},
+                                               **{s: v for s, v in zip(system.param_symbols, system.param_values)}})
+    fiber = [system.coordinates.index(c) for c in ("x", "y", "theta", "phi")]
+    assert np.linalg.matrix_rank(np.array(omega[:, fiber], dtype=float)) == 3
+    result = plan(scene, intervals=N, jit=False)
+    assert result.success, result.diagnosis
+    assert tuple(result.model.layout.fiber) == ("x", "y", "theta")
+    hand = reference.build(member, N=N, jit=False, expand=False).solve()
+    assert hand["success"] and result.solution.objective == pytest.approx(hand["objective"], rel=1e-6)
