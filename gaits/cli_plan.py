@@ -28,8 +28,9 @@ def add_plan_parser(subparsers) -> argparse.ArgumentParser:
                    help="override a task value, e.g. final.x=2.0, horizon=6.0, bounds.phi=-1,1 (repeatable)")
     p.add_argument("--intervals", type=int, default=None, help="control intervals N (default: the task's)")
     p.add_argument("--solver", choices=["auto", "fatrop", "ipopt"], default="auto",
-                   help="NLP solver: auto (default) = FATROP on the stage-ordered transcription, then "
-                        "Ipopt if FATROP finds no solution; or one of them alone")
+                   help="NLP solver: auto (default) = FATROP (stage-ordered) then Ipopt for small ODEs, "
+                        "Ipopt then FATROP for larger ones, the second when the first finds no solution; "
+                        "or one of them alone")
     p.add_argument("--transcription", choices=["multiple-shooting", "collocation"], default=None)
     jit = p.add_mutually_exclusive_group()
     jit.add_argument("--jit", dest="jit", action="store_true", default=None,

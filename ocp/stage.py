@@ -40,13 +40,16 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-__all__ = ["StageFunctions", "stage_functions", "INLINE_LIMIT", "RK4"]
+__all__ = ["StageFunctions", "stage_functions", "stage_mode", "INLINE_LIMIT", "RK4"]
 
 #: RK4 tableau (a lower triangular, b weights, c nodes)
 RK4 = (((), (0.5,), (0.0, 0.5), (0.0, 0.0, 1.0)), (1 / 6, 1 / 3, 1 / 3, 1 / 6), (0.0, 0.5, 0.5, 1.0))
-#: the inline realisation is used while 4 M · nx · ops(f) stays below this (its Hessian code
-#: is about that size; measured crossover in experiments/bench_ocp.py --sections scale)
-INLINE_LIMIT = 60_000
+#: the inline realisation is used while 4 M · nx · ops(f) stays below this. Measured (warm
+#: Ipopt solves, same guess, both compiled): the thesis snakeboard (8 states, 54 operations:
+#: 6 912) is fastest inline; the two-steering snakeboard (27 840) took 435 ms inline (5.1 MB
+#: of C, compiled at -O0 by the budget) against 250 ms structured (0.9 MB), the 3-link
+#: snake (39 760) 539 ms against 149 ms (7.5 against 0.7 MB).
+INLINE_LIMIT = 12_000
 
 
 @dataclass(frozen=True, eq=False)
@@ -80,6 +83,12 @@ class StageFunctions:
                 "stage_code_operations": self.code_operations}
 
 
+def stage_mode(ode: ca.Function, *, steps: int = 4, free_horizon: bool = False) -> str:
+    """"inline" while 4 M · nx · ops(f) ≤ :data:`INLINE_LIMIT`, else "structured"."""
+    nx = int(ode.size1_in(1)) + int(ode.size1_in(2)) + (1 if free_horizon else 0)
+    return "inline" if 4 * steps * nx * int(ode.n_instructions()) <= INLINE_LIMIT else "structured"
+
+
 def stage_functions(ode: ca.Function, intervals: int, *, steps: int = 4, free_horizon: bool = False,
                     mode: str = "auto") -> StageFunctions:
     """The stage functions of ``ode`` (an SX Function ``(t, z, u) -> ż`` with the parameter
@@ -92,7 +101,7 @@ def stage_functions(ode: ca.Function, intervals: int, *, steps: int = 4, free_ho
     ops = int(ode.n_instructions())
     nx = nz + nu + (1 if free_horizon else 0)
     if mode == "auto":
-        mode = "inline" if 4 * steps * nx * ops <= INLINE_LIMIT else "structured"
+        mode = stage_mode(ode, steps=steps, free_horizon=free_horizon)
     g = _scaled_ode(ode, intervals)
     build = {"inline": _inline, "structured": _structured}[mode]
     step, jac, hess, code = build(g, nz, nu, steps, free_horizon)
