@@ -20,7 +20,7 @@ Writes ``out/bench_scale.json``; prints one table. Ratios are measured in one ru
 machine; compare ratios, not absolute times.
 
 Usage: python experiments/bench_scale.py [--members snake_3,cart_trailers_1] [--repeats 5]
-       [--hessians] [--no-reference] [--timeout 600]
+       [--hessians] [--no-reference] [--timeout 600] [--intervals N] [--no-jit]
 """
 from __future__ import annotations
 
@@ -35,6 +35,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+import numpy as np
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -59,13 +61,14 @@ def _nhgait() -> list:
     return [str(exe)] if exe.exists() else [sys.executable, "-m", "nhgait.gaits.cli"]
 
 
-def cold(member: str, folder: Path, cache: Path, timeout: float) -> dict:
-    """``nhgait plan`` in a fresh process with the empty cache ``cache`` (module docstring)."""
+def cold(member: str, folder: Path, cache: Path, timeout: float, extra: tuple = ()) -> dict:
+    """``nhgait plan`` in a fresh process with the empty cache ``cache`` (module docstring);
+    ``extra``: more command-line options (``--intervals``, ``--no-jit``)."""
     scene = folder / f"{member}.toml"
     scene.write_text(_load("scale_tasks").scene_with_task(member))
     out = folder / f"{member}_out"
     env = {**os.environ, "NHGAIT_CACHE_DIR": str(cache)}
-    cmd = [sys.executable, "-c", _WRAPPER, *_nhgait(), "plan", str(scene), "--no-gif", "--out", str(out)]
+    cmd = [sys.executable, "-c", _WRAPPER, *_nhgait(), "plan", str(scene), "--no-gif", "--out", str(out), *extra]
     t0 = time.monotonic()
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     stamps, lines, peak = [t0], [], 0
@@ -104,17 +107,20 @@ class Ours:
     """The planner's NLP of a member, built from the warm cache; :meth:`run` solves it from the
     guess the cold run won with."""
 
-    def __init__(self, member, guess_label, solver, hessian):
+    def __init__(self, member, guess_label, solver, hessian, intervals=None, jit=None, reference=None):
         from nhgait.dynamics.scene import scene_from_text
         from nhgait.gaits.guesses import candidates
         from nhgait.gaits.planner import prepare
         from nhgait.gaits.tasks import resolve
         from nhgait.ocp import OCPSolver, SolverOptions
         scene = scene_from_text(_load("scale_tasks").scene_with_task(member), member)
-        problem = prepare(resolve(scene)).problem
-        self.solver = OCPSolver(problem, None, SolverOptions(solver=solver, hessian=hessian, max_iter=500))
+        overrides = [f"intervals={intervals}"] if intervals else []
+        problem = prepare(resolve(scene, overrides=overrides)).problem
+        self.solver = OCPSolver(problem, None, SolverOptions(solver=solver, hessian=hessian, max_iter=500, jit=jit))
         guesses = candidates(problem)
         self.guess = next((g for g in guesses if g.label == guess_label), guesses[0])
+        if reference is not None:                 # the reference's own guess, when the states agree
+            self.guess = _reference_guess(reference.ref, problem)
         self.runs = []
 
     def run(self):
@@ -128,9 +134,20 @@ class Ours:
                 "status": last.status, "setup_s": self.solver.setup_time_s, "compiled": self.solver.compiled}
 
 
+def _reference_guess(ref, problem):
+    """The hand-written reference's initial guess as an InitialGuess of ``problem``: the same
+    states when the planner chose the same velocity states (q, u_ind), else ValueError."""
+    from nhgait.ocp.solver import InitialGuess
+    names = list(ref.ode.coordinates) + [f"{s}_dot" for s in ref.ode.independent]   # u_s = ṡ
+    if names != list(problem.state_names):
+        raise ValueError(f"states differ: reference {names}, planner {list(problem.state_names)}")
+    Z, U = ref._unpack(ref.w0)
+    return InitialGuess(np.asarray(Z, float), np.asarray(U, float), label="reference's guess")
+
+
 class Reference:
-    def __init__(self, member):
-        self.ref = _load("reference_scale_ocp").build(member, jit=True)
+    def __init__(self, member, intervals=None, jit=True):
+        self.ref = _load("reference_scale_ocp").build(member, N=intervals, jit=jit)
         self.runs = []
 
     def run(self):
@@ -151,22 +168,33 @@ def interleaved(runners, repeats) -> list:
     return [r.result() for r in runners]
 
 
-def warm(row: dict, repeats: int, reference: bool, hessians: bool) -> dict:
+def warm(row: dict, repeats: int, reference: bool, hessians: bool, intervals=None, jit=True) -> dict:
     """The warm-cache solves of one member (module docstring)."""
     member = row["member"]
-    runners = {"ours": Ours(member, row.get("guess"), row.get("solver") or "ipopt", row.get("hessian") or "exact")}
+    ours = dict(intervals=intervals, jit=None if jit else False)
+    runners = {"ours": Ours(member, row.get("guess"), row.get("solver") or "ipopt", row.get("hessian") or "exact",
+                            **ours)}
     if reference:
-        runners["reference"] = Reference(member)
+        runners["reference"] = Reference(member, intervals, jit)
+        try:
+            runners["ours, reference's guess"] = Ours(member, None, row.get("solver") or "ipopt",
+                                                      row.get("hessian") or "exact", reference=runners["reference"],
+                                                      **ours)
+        except ValueError as exc:
+            print(f"# {member}: no same-guess run ({exc})", file=sys.stderr)
     if hessians:
         for solver, hessian in (("ipopt", "exact"), ("ipopt", "gauss-newton"), ("ipopt", "limited-memory"),
                                 ("fatrop", "exact"), ("fatrop", "gauss-newton")):
-            runners[f"{solver}/{hessian}"] = Ours(member, row.get("guess"), solver, hessian)
+            runners[f"{solver}/{hessian}"] = Ours(member, row.get("guess"), solver, hessian, **ours)
     results = dict(zip(runners, interleaved(list(runners.values()), repeats)))
     out = {"warm": results["ours"]}
     if reference:
         r = results["reference"]
         out.update(reference=r, ratio=results["ours"]["solve_ms"] / r["solve_ms"],
                    rel_objective=(row.get("objective", float("nan")) - r["objective"]) / abs(r["objective"]))
+        same = results.get("ours, reference's guess")
+        if same is not None:
+            out.update(same_guess=same, same_guess_ratio=same["solve_ms"] / r["solve_ms"])
     if hessians:
         out["hessians"] = {k: v for k, v in results.items() if "/" in k}
     return out
@@ -180,13 +208,15 @@ def _line(r: dict) -> str:
             f"{r['c_bytes'] / 1e6:5.2f} {ref.get('c_bytes', 0) / 1e6:5.2f} {r['compile_s']:6.1f} "
             f"{ref.get('setup_s', float('nan')):6.1f} {w.get('solve_ms', float('nan')):8.1f} "
             f"{ref.get('solve_ms', float('nan')):8.1f} {r.get('ratio', float('nan')):5.2f} "
+            f"{r.get('same_guess', {}).get('iterations', -1):4d} {r.get('same_guess_ratio', float('nan')):5.2f} "
             f"{w.get('iterations', -1):4d} {ref.get('iterations', -1):4d} {r['objective']:10.6f} "
             f"{r.get('rel_objective', float('nan')):9.1e} {r.get('verification_error') or float('nan'):8.1e} "
             f"{r['solver']}/{r['hessian']} {r['status']}")
 
 
 HEADER = (f"{'member':24s} {'cold s':>6s} {'silent':>6s} {'RSS MB':>6s} {'C MB':>5s} {'ref C':>5s} "
-          f"{'cc s':>6s} {'ref su':>6s} {'warm ms':>8s} {'ref ms':>8s} {'ratio':>5s} {'it':>4s} {'r it':>4s} "
+          f"{'cc s':>6s} {'ref su':>6s} {'warm ms':>8s} {'ref ms':>8s} {'ratio':>5s} {'sg it':>4s} {'sg r':>5s} "
+          f"{'it':>4s} {'r it':>4s} "
           f"{'objective':>10s} {'rel J':>9s} {'verify':>8s} solver/hessian status")
 
 
@@ -197,20 +227,24 @@ def main(argv=None) -> int:
     ap.add_argument("--timeout", type=float, default=600.0, help="seconds for one cold run")
     ap.add_argument("--hessians", action="store_true", help="also every Hessian and solver, warm")
     ap.add_argument("--no-reference", action="store_true", help="skip the hand-written reference")
+    ap.add_argument("--intervals", type=int, default=None, help="N for every member (default: the task's)")
+    ap.add_argument("--no-jit", action="store_true", help="interpreted NLPs, ours and the reference (smoke test)")
     ap.add_argument("--out", default="out/bench_scale.json")
     args = ap.parse_args(argv)
+    extra = ((f"--intervals={args.intervals}",) if args.intervals else ()) + (("--no-jit",) if args.no_jit else ())
     rows = []
     print(HEADER, flush=True)
     with tempfile.TemporaryDirectory(prefix="bench-scale-") as tmp:
         for member in [m.strip() for m in args.members.split(",") if m.strip()]:
             cache = Path(tmp) / f"cache-{member}"
             print(f"# {member}: cold nhgait plan …", file=sys.stderr, flush=True)
-            row = cold(member, Path(tmp), cache, args.timeout)
+            row = cold(member, Path(tmp), cache, args.timeout, extra)
             if "objective" in row:
                 os.environ["NHGAIT_CACHE_DIR"] = str(cache)
                 print(f"# {member}: warm solves{'' if args.no_reference else ' and the reference'} …",
                       file=sys.stderr, flush=True)
-                row.update(warm(row, args.repeats, not args.no_reference, args.hessians))
+                row.update(warm(row, args.repeats, not args.no_reference, args.hessians, args.intervals,
+                                not args.no_jit))
             rows.append(row)
             print(_line(row), flush=True)
     out = Path(args.out)

@@ -187,6 +187,9 @@ def _order(guesses: list, n_pairs: int) -> list:
 
 def guess_from_shape(problem, shape: ShapeGuess, coordinates: tuple) -> InitialGuess:
     """The state guess (nz × (N+1)) of one candidate; zero controls."""
+    if shape.label == FITTED.label:
+        from .fitted import fitted_guess
+        return fitted_guess(problem, coordinates, [_ends(problem, c)[0] for c in coordinates])
     if shape.rates:
         return _rollout(problem, shape, coordinates)
     t = problem.grid()
@@ -255,6 +258,10 @@ def _rate_states(model, shape: tuple) -> tuple:
     return tuple(v for v in model.state_names[n:] if v not in {f"{c}_dot" for c in shape})
 
 
+#: the fitted roll-out (:mod:`.fitted`), built by :func:`guess_from_shape` like the others
+FITTED = ShapeGuess("fitted roll-out", ())
+
+
 class Candidates(Sequence):
     """The planner's initial guesses in order of preference, each built when first used (a
     rollout integrates the kinematics, so building all of them up front would delay the
@@ -295,4 +302,9 @@ def candidates(problem, *, shape=None) -> Candidates:
     n_pairs = len(shape) * (len(shape) - 1) // 2
     loops = _order(shape_guesses(problem, shape), n_pairs)
     rollouts = rollout_guesses(problem, shape, _rate_states(model, shape))
-    return Candidates(problem, _interleave(loops[:-1], rollouts) + loops[-1:], coords)
+    from .fitted import applies, leads
+    ordered = _interleave(loops[:-1], rollouts) + loops[-1:]
+    if applies(problem):
+        at = 0 if leads(problem, shape) else 1
+        ordered = ordered[:at] + [FITTED] + ordered[at:]
+    return Candidates(problem, ordered, coords)

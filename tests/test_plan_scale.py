@@ -83,3 +83,25 @@ def test_a_chart_that_covers_the_ends_is_chosen():
     assert tuple(result.model.layout.fiber) == ("x", "y", "theta")
     hand = reference.build(member, N=N, jit=False, expand=False).solve()
     assert hand["success"] and result.solution.objective == pytest.approx(hand["objective"], rel=1e-6)
+
+
+def test_fitted_roll_out_ends_where_the_task_ends():
+    """The cart with one trailer (velocity states θ̇, φ̇ driven by the inputs): the first guess
+    is the kinematic roll-out fitted to the task, and its last node is the task's final
+    configuration (x = 3, y = 0.3, θ = β₁ = 0) to 1e-3 (the fit trades the last digits for a
+    gentler motion, module ``nhgait.gaits.fitted``; the ends are 3 m apart); for the 3-link snake (states are shape rates) a shape loop stays first."""
+    from nhgait.dynamics.scene import scene_from_text
+    from nhgait.gaits.guesses import candidates
+    from nhgait.gaits.planner import prepare
+    from nhgait.gaits.tasks import resolve
+    cart = prepare(resolve(scene_from_text(scale_tasks.scene_with_task("cart_trailers_1"), "c"))).problem
+    first = candidates(cart)[0]
+    assert first.label == "fitted roll-out"
+    names = list(cart.model.system.coordinates)
+    end = first.states[:len(names), -1]
+    target = {"x": 3.0, "y": 0.3, "theta": 0.0, "beta1": 0.0}
+    np.testing.assert_allclose([end[names.index(k)] for k in target], list(target.values()), atol=1e-3)
+    np.testing.assert_allclose(first.states[:len(names), 0], 0.0, atol=0)      # starts at the task's start
+    snake = prepare(resolve(scene_from_text(scale_tasks.scene_with_task("snake_3"), "s"))).problem
+    assert candidates(snake)[0].label != "fitted roll-out"
+    assert candidates(snake)[1].label == "fitted roll-out"
