@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 
 from .errors import ModelError
+from .suggestions import known_names
 from .system import System
 
 BUILTIN_NAMES = ("unicycle", "snakeboard", "chaplygin_sleigh", "knife_edge_incline")
@@ -30,7 +31,7 @@ def _from_scene(name: str, parameters: dict) -> System:
         return system
     unknown = sorted(set(parameters) - set(system.parameters))
     if unknown:
-        raise ModelError([f"unknown parameter {k!r} of {name} (parameters: {', '.join(system.parameters)})"
+        raise ModelError([f"unknown parameter {k!r} of {name}{known_names(k, system.parameters, label='parameters')}"
                           for k in unknown], title="invalid parameters")
     return dataclasses.replace(system, parameters={**system.parameters, **parameters})
 
