@@ -373,10 +373,14 @@ def write_outputs(result: PlanResult, out: Path, *, animate: bool = True, progre
     files = [result.solution.to_json(out / "solution.json", extra=extra)]
     failed = None if result.success else (result.diagnosis[0] if result.diagnosis else result.solution.status)
     animate = animate and result.success
-    with progress.phase("write solution.json and the figures" + (" and the animation (the longest part)"
-                                                                   if animate else "")):
+    with progress.phase("write solution.json and the figures"):
         files.extend(plots.write_figures(result.solution, out, units=result.plan.units, drawing=result.plan.drawing,
-                                         model=result.model, animate=animate, failed=failed))
+                                         model=result.model, animate=False, failed=failed))
+    if animate:
+        from .animation import animate_solution
+        with progress.phase("write the animation motion.gif (60 frames; the longest part of the output)"):
+            ctx = plots.figure_context(result.solution, result.model, result.plan.units, result.plan.drawing)
+            files.append(animate_solution(result.solution, ctx, out / "motion.gif"))
     return files
 
 
@@ -406,6 +410,9 @@ def summary_lines(result: PlanResult) -> list:
     if result.files:
         lines.append("  files:")
         lines.extend(f"    {f}" for f in result.files)
+        if result.success and not any(str(f).endswith(".gif") for f in result.files):
+            lines.append("  animation          not written: it is the longest part of the output (60 frames, "
+                         "about 5 s for the snakeboard); add --gif (plan(..., animate=True)) to write motion.gif")
     return lines
 
 

@@ -19,7 +19,7 @@ SLEIGH = str(ROOT / "examples" / "rotor_sleigh.toml")
 
 def test_plan_a_scene_file_with_an_override(tmp_path, capsys):
     out = tmp_path / "sleigh"
-    code = main(["plan", SLEIGH, "--set", "final.x=0.8", "--intervals", "50", "--no-jit", "--out", str(out)])
+    code = main(["plan", SLEIGH, "--set", "final.x=0.8", "--intervals", "50", "--no-jit", "--gif", "--out", str(out)])
     text = capsys.readouterr().out
     assert code == 0, text
     assert "SUCCESS" in text and "conditions met to" in text and "rotor_sleigh/forward-1m" in text
@@ -34,8 +34,11 @@ def test_plan_a_scene_file_with_an_override(tmp_path, capsys):
 
 def test_builtin_gait_as_in_make_demo(tmp_path, capsys):
     out = tmp_path / "demo"
-    assert main(["plan", "snakeboard", "--gait", "forward", "--intervals", "25", "--no-jit", "--no-gif",
+    assert main(["plan", "snakeboard", "--gait", "forward", "--intervals", "25", "--no-jit",
                  "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    # the GIF is made on request only (make demo stays fast), and the summary says so
+    assert not (out / "motion.gif").exists() and "add --gif" in text
     data = json.loads((out / "solution.json").read_text())
     assert data["objective"] == pytest.approx(0.110252, rel=1e-4)       # hand-written reference, N = 25
     assert data["settings"]["solver"] == "fatrop" and data["guess"]["won"]       # the default: auto
