@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .plots import _with_unit, figure_context, label, plot_path, unit
-from .plot_style import series_styles
+from nhgait.gaits.plot_style import series_styles
+from nhgait.gaits.plots import _with_unit, figure_context, label, plot_path, unit
 
 __all__ = ["TrajectoryView", "plot_time_series", "write_trajectory_figures"]
 
