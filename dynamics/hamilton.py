@@ -17,6 +17,7 @@ from functools import cached_property
 
 import sympy as sp
 
+from .cse_text import equation_lines
 from .symbolic import tidy
 from .system import System
 
@@ -64,11 +65,12 @@ class HamiltonianDAE:
         eqs += [sp.Eq(c, 0) for c in self.omega * self.dH_dp]
         return eqs
 
-    def to_text(self) -> str:
-        lines = [f"Hamilton's equations with multipliers of {self.system.name} (index-{self.differentiation_index} DAE)",
-                 f"  H = {sp.sstr(self.H)}"]
-        lines += [f"  {sp.sstr(e.lhs)} = {sp.sstr(e.rhs)}" for e in self.equations()]
-        return "\n".join(lines)
+    def to_text(self, cse: bool | None = None) -> str:
+        """The equations as text; ``cse``: name repeated sub-expressions once (None: when long)."""
+        lines = [f"Hamilton's equations with multipliers of {self.system.name} (index-{self.differentiation_index} DAE)"]
+        eqs = self.equations()
+        return "\n".join(lines + equation_lines([sp.Symbol("H"), *(e.lhs for e in eqs)],
+                                                 [self.H, *(e.rhs for e in eqs)], cse))
 
     @cached_property
     def numeric(self):

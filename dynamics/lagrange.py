@@ -17,6 +17,7 @@ from functools import cached_property
 
 import sympy as sp
 
+from .cse_text import equation_lines
 from .system import System
 
 
@@ -60,10 +61,11 @@ class LagrangianDAE:
         eqs += [sp.Eq(c, 0) for c in self.omega * sp.Matrix(self.system.q_dot)]
         return eqs
 
-    def to_text(self) -> str:
+    def to_text(self, cse: bool | None = None) -> str:
+        """The equations as text; ``cse``: name repeated sub-expressions once (None: when long)."""
         lines = [f"Euler–Lagrange equations with multipliers of {self.system.name} (index-{self.differentiation_index} DAE)"]
-        lines += [f"  {sp.sstr(e.lhs)} = {sp.sstr(e.rhs)}" for e in self.equations()]
-        return "\n".join(lines)
+        eqs = self.equations()
+        return "\n".join(lines + equation_lines([e.lhs for e in eqs], [e.rhs for e in eqs], cse))
 
     @cached_property
     def numeric(self):

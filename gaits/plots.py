@@ -284,7 +284,7 @@ def plot_histories(solution, ctx: FigureContext, axes=None):
     shape_units = sorted({unit(ctx, c) for c in shape})
     for c in shape:
         axes[0].plot(solution.t, _series(solution, c), lw=2, label=_with_unit(ctx, c))
-    axes[0].set_ylabel(f"shape [{', '.join(u for u in shape_units if u)}]")
+    axes[0].set_ylabel(f"shape {', '.join(label(c) for c in shape)} [{', '.join(u for u in shape_units if u)}]")
     axes[0].legend(fontsize="small")
     axes[0].set_title("shape coordinates and inputs (inputs constant on each interval)")
     for ax, u in zip(axes[1:], units):

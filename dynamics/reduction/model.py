@@ -7,6 +7,8 @@ from functools import cached_property
 
 import sympy as sp
 
+from ..cse_text import cse_lines, wants_cse
+from ..notation import symmetry_choice_lines
 from ..steps import DISPLAY_OPS, Steps, default_symbol_names, text_of
 from ..symbolic import tidy
 from ..symmetry import SymmetryTest
@@ -231,11 +233,13 @@ class ReducedODE:
         small, large ones left in normal form (printing stays within a budget)."""
         return [_pretty(e, list(self.momenta) + list(self.system.input_symbols)) for e in self.rhs]
 
-    def to_text(self, pretty: bool = True) -> str:
+    def to_text(self, pretty: bool = True, cse: bool | None = None) -> str:
+        """The equations as text; ``cse``: name repeated sub-expressions once (None: when the
+        plain text is long, :func:`~nhgait.dynamics.cse_text.wants_cse`)."""
         lines = [f"Reduced constrained Hamiltonian equations of {self.system.name} "
                  f"({self.dimension} = 2n − k first-order ODEs, {self.form} form, version {self.version}, "
-                 f"fiber s = ({', '.join(self.fiber)}), shape r = ({', '.join(self.shape)}), "
                  f"{self.classification})",
+                 *symmetry_choice_lines(self.symmetry, self.fiber, self.shape),
                  f"  state z = ({', '.join(self.state_names)})"]
         if self.rhs is None:
             lines.append("  q̇ = X(q) v,  K(q) v = (" + ", ".join(map(str, self.momenta)) +
@@ -244,9 +248,12 @@ class ReducedODE:
             lines.append(f"  pivot velocities ({', '.join(self.implicit.pivots)}) from B = ω[:, pivots]; "
                          f"K: {self.K!r}; ż: {self.numeric['rhs'].n_instructions()} CasADi operations")
             return "\n".join(lines)
-        for nm, e in zip(self.state_names, self.pretty_rhs() if pretty else self.rhs):
-            lines.append(f"  d{nm}/dt = {text_of(e)}")
-        return "\n".join(lines)
+        rhs = self.pretty_rhs() if pretty else self.rhs
+        plain = [f"  d{nm}/dt = {text_of(e)}" for nm, e in zip(self.state_names, rhs)]
+        if cse or (cse is None and wants_cse(plain)):
+            return "\n".join(lines + [f"  {line}" for line in
+                                       cse_lines([f"d{nm}/dt" for nm in self.state_names], rhs)])
+        return "\n".join(lines + plain)
 
     def checks_text(self) -> str:
         """The ``nhgait derive --checks`` report: Jacobi/holonomy test, Table 2.1 class, the
