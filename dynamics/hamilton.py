@@ -18,6 +18,7 @@ from functools import cached_property
 import sympy as sp
 
 from .cse_text import equation_lines
+from .notation import method_name, system_names
 from .symbolic import tidy
 from .system import System
 
@@ -47,6 +48,14 @@ class HamiltonianDAE:
 
     formulation = "hamilton"
     differentiation_index = 2
+
+    def __repr__(self) -> str:
+        from .reprs import model_repr
+        return model_repr(self)
+
+    def _repr_markdown_(self) -> str:
+        from .reprs import model_markdown
+        return model_markdown(self)
 
     @property
     def dimension(self) -> int:
@@ -94,7 +103,8 @@ def derive_hamiltonian(system: System) -> HamiltonianDAE:
     """Derive the Hamiltonian DAE (eqs. 2.19–2.24) of ``system``."""
     t0 = time.perf_counter()
     q = sp.Matrix(system.q)
-    p = sp.Matrix([sp.Symbol(f"p_{c}", real=True) for c in system.coordinates])
+    taken = system_names(system)           # a user's p_x or lambda1 never meets the method's
+    p = sp.Matrix([sp.Symbol(method_name(f"p_{c}", taken), real=True) for c in system.coordinates])
     M = system.mass_matrix()
     Minv = _inverse_metric(M) if any(e.free_symbols & set(system.q) for e in M) else tidy(M.inv())
     V = system.potential()
@@ -102,7 +112,7 @@ def derive_hamiltonian(system: System) -> HamiltonianDAE:
     dH_dp = Minv * p
     dH_dq = sp.Matrix([sp.diff(H, x) for x in q])
     tau = system.force_vector().xreplace({v: dH_dp[i] for i, v in enumerate(system.q_dot)})
-    lam = tuple(sp.Symbol(f"lambda{i + 1}", real=True) for i in range(system.k))
+    lam = tuple(sp.Symbol(method_name(f"lambda{i + 1}", taken), real=True) for i in range(system.k))
     names = tuple(system.coordinates) + tuple(s.name for s in p)
     return HamiltonianDAE(system=system, H=H, Minv=Minv, dH_dq=dH_dq, dH_dp=dH_dp,
                           omega=system.omega(), tau=tau, state=tuple(q) + tuple(p),

@@ -18,6 +18,7 @@ from functools import cached_property
 import sympy as sp
 
 from .cse_text import equation_lines
+from .notation import method_name, system_names
 from .system import System
 
 
@@ -46,6 +47,14 @@ class LagrangianDAE:
 
     formulation = "lagrange"
     differentiation_index = 2
+
+    def __repr__(self) -> str:
+        from .reprs import model_repr
+        return model_repr(self)
+
+    def _repr_markdown_(self) -> str:
+        from .reprs import model_markdown
+        return model_markdown(self)
 
     @property
     def dimension(self) -> int:
@@ -86,7 +95,7 @@ def derive_lagrangian(system: System) -> LagrangianDAE:
     Wdot_qd = (W * qd).jacobian(q) * qd if k else sp.zeros(0, 1)
     T = (qd.T * M * qd)[0, 0] / 2
     energy = sp.expand(T + system.potential())
-    lam = tuple(sp.Symbol(f"lambda{i + 1}", real=True) for i in range(k))
+    lam = tuple(sp.Symbol(method_name(f"lambda{i + 1}", system_names(system)), real=True) for i in range(k))
     names = tuple(system.coordinates) + tuple(v.name for v in system.q_dot)
     return LagrangianDAE(system=system, M=M, F=F.applyfunc(sp.expand), omega=W,
                          omega_dot_qdot=Wdot_qd.applyfunc(sp.expand), tau=system.force_vector(),

@@ -84,6 +84,10 @@ class PlanResult:
     conditions: Any = None
     diagnosis: tuple = ()
 
+    def __repr__(self) -> str:
+        from nhgait.dynamics.reprs import plan_repr
+        return plan_repr(self)
+
     @property
     def success(self) -> bool:
         """Converged and verified: ``Solution.verified`` turns a converged solution whose

@@ -222,6 +222,10 @@ class ReducedODE:
         return (f"ReducedODE({self.system.name}, {self.form}, {self.dimension} ODEs in z = "
                 f"({', '.join(self.state_names)}), fiber ({', '.join(self.fiber)}), {self.classification})")
 
+    def _repr_markdown_(self) -> str:
+        from ..reprs import model_markdown
+        return model_markdown(self)
+
     def equations(self) -> list:
         """ż = f as sympy Eq objects (``<z>_dot``); explicit form only."""
         if self.rhs is None:
@@ -260,8 +264,9 @@ class ReducedODE:
         (q, q̇) → state map and the singular set."""
         from ..analysis import jacobi_test
         res = jacobi_test(self)
-        out = [f"Jacobi identity of the reduced bracket: {'holds' if res.jacobi_holds else 'fails'} "
-               f"(max relative Jacobiator {res.jacobiator:.2g}); constraints "
+        bracket = ("a Poisson bracket (the Jacobi identity holds" if res.jacobi_holds else
+                   "almost-Poisson (the Jacobi identity does not hold, as expected of a nonholonomic bracket")
+        out = [f"reduced bracket: {bracket}; max relative Jacobiator {res.jacobiator:.2g}); constraints "
                f"{'holonomic' if res.holonomic else 'nonholonomic'} (max |ω[X_a, X_b]| {res.holonomy:.2g}); "
                f"thesis §2.2.2 (Jacobi ⇔ holonomic): {'consistent' if res.consistent else 'INCONSISTENT'}",
                f"classification (thesis Table 2.1): {self.classification}",
