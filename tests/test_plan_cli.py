@@ -79,7 +79,7 @@ def test_plots_use_the_scene_units_and_leave_global_state(car_solution):
     fig, axes = plt.subplots(3, 1)
     plots.plot_histories(car_solution.solution, ctx, axes=axes)
     ylabels = [ax.get_ylabel() for ax in axes]
-    assert ylabels[0] == "shape [rad]" and "input [N]" in ylabels and "input [N·m]" in ylabels
+    assert ylabels[0] == "shape φ [rad]" and "input [N]" in ylabels and "input [N·m]" in ylabels
     fig2, ax = plt.subplots()
     plots.plot_path(car_solution.solution, ctx, ax=ax)
     assert ax.get_xlabel() == "x [m]" and ax.get_ylabel() == "y [m]"
