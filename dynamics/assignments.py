@@ -17,8 +17,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from nhgait.dynamics.suggestions import known_names
+
 from .errors import ModelError
-from .suggestions import known_names
 
 __all__ = ["Assignment", "parse_assignment", "apply_simulation_overrides", "SIMULATION_SET_KEYS"]
 

@@ -41,7 +41,7 @@ def _fresh_names(taken: set, prefix: str = "w"):
 def named_subexpressions(exprs) -> tuple:
     """(definitions [(name, expr)], exprs rewritten in the names): :func:`sympy.cse` with the
     short sub-expressions put back and the names renumbered w1, w2 … in order of use."""
-    exprs = [sp.sympify(e) for e in exprs]
+    exprs = list(exprs)                      # sympy expressions of the models (no user text)
     taken = {s.name for e in exprs for s in e.free_symbols}
     replacements, reduced = sp.cse(exprs, symbols=_fresh_names(taken), order="none")
     kept, back = [], {}

@@ -17,8 +17,9 @@ from functools import cached_property
 
 import sympy as sp
 
-from .cse_text import equation_lines
-from .notation import method_name, system_names
+from nhgait.dynamics.cse_text import equation_lines
+from nhgait.dynamics.notation import method_name, system_names
+
 from .system import System
 
 
@@ -49,11 +50,11 @@ class LagrangianDAE:
     differentiation_index = 2
 
     def __repr__(self) -> str:
-        from .reprs import model_repr
+        from nhgait.dynamics.reprs import model_repr
         return model_repr(self)
 
     def _repr_markdown_(self) -> str:
-        from .reprs import model_markdown
+        from nhgait.dynamics.reprs import model_markdown
         return model_markdown(self)
 
     @property

@@ -16,8 +16,9 @@ from __future__ import annotations
 
 import dataclasses
 
+from nhgait.dynamics.suggestions import known_names
+
 from .errors import ModelError
-from .suggestions import known_names
 from .system import System
 
 BUILTIN_NAMES = ("unicycle", "snakeboard", "chaplygin_sleigh", "knife_edge_incline")

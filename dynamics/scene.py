@@ -13,9 +13,10 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
+from nhgait.dynamics.suggestions import known_names
+
 from .errors import ModelError
 from .expressions import number_problems
-from .suggestions import known_names
 from .system import TIME, System, _parse, jump_times
 from .tomldata import read_toml
 
@@ -355,5 +356,5 @@ def load_scene(path_or_name, overrides=()) -> Scene:
 
 def scene_from_text(text: str, source: str = "<scene>", overrides=()) -> Scene:
     """A :class:`Scene` from the text of a scene file (``source`` names it in errors)."""
-    from .assignments import apply_simulation_overrides
+    from nhgait.dynamics.assignments import apply_simulation_overrides
     return parse_scene(apply_simulation_overrides(read_toml(text, source), overrides), source)

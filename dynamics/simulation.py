@@ -142,7 +142,7 @@ class Trajectory:
     outputs: dict = field(default_factory=dict)
 
     def __repr__(self) -> str:
-        from .reprs import trajectory_repr
+        from nhgait.dynamics.reprs import trajectory_repr
         return trajectory_repr(self)
 
     def columns(self, columns: str = "q") -> tuple:

@@ -27,8 +27,9 @@ from typing import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
+from nhgait.dynamics.suggestions import known_names
+
 from .errors import ModelError
-from .suggestions import known_names
 from .expressions import CONSTANTS, FUNCTIONS, expression_problems, number_problems
 
 TIME = sp.Symbol("t", real=True)

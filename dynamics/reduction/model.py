@@ -7,8 +7,9 @@ from functools import cached_property
 
 import sympy as sp
 
-from ..cse_text import cse_lines, wants_cse
-from ..notation import symmetry_choice_lines
+from nhgait.dynamics.cse_text import cse_lines, wants_cse
+from nhgait.dynamics.notation import symmetry_choice_lines
+
 from ..steps import DISPLAY_OPS, Steps, default_symbol_names, text_of
 from ..symbolic import tidy
 from ..symmetry import SymmetryTest
@@ -223,7 +224,7 @@ class ReducedODE:
                 f"({', '.join(self.state_names)}), fiber ({', '.join(self.fiber)}), {self.classification})")
 
     def _repr_markdown_(self) -> str:
-        from ..reprs import model_markdown
+        from nhgait.dynamics.reprs import model_markdown
         return model_markdown(self)
 
     def equations(self) -> list:

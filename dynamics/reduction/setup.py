@@ -14,7 +14,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import sympy as sp
 
-from ..notation import method_name, system_names
+from nhgait.dynamics.notation import method_name, system_names
+
 from ..steps import Step
 from ..symbolic import numeric_pivots, strip_factors, tidy
 from ..symmetry import SymmetryTest, group_transform, symmetry_test
