@@ -141,8 +141,9 @@ def distribution_and_group(system: System, sym: SymmetryTest, N: sp.Matrix, si, 
     s3 = Step(3, "Full symmetry group", "§3.2.2, Table 3.1, eqs. 3.5–3.8, 3.65–3.68", {
         "table": sym, "s": ", ".join(cand.fiber), "r": ", ".join(names[i] for i in ri),
         "G": cand.group, "xi_Q": xi_Q, "xi": N, "chosen_by": sym.chosen_by},
-        "Candidates T_q Orb = span{∂/∂s}; S_q = D_q ∩ T_q Orb; the full candidate of smallest l.",
-        labels={"s": "s (fiber)", "r": "r (shape)", "xi_Q": "xi_Q^q (columns)",
+        "Candidates: every set of fibre coordinates, T_q Orb = their span; S_q = D_q ∩ T_q Orb; chosen "
+        "by the selection rule of docs/reduction.md.",
+        labels={"s": "fibre coordinates (step.s)", "r": "shape coordinates (step.r)", "xi_Q": "xi_Q^q (columns)",
                 "xi": "xi (Lie algebra element)", "chosen_by": "chosen by"})
     return s2, s3
 
