@@ -3,6 +3,7 @@ for any robot (units from the scene, legends, no global matplotlib state, the [d
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -39,6 +40,8 @@ def test_builtin_gait_as_in_make_demo(tmp_path, capsys):
     text = capsys.readouterr().out
     # the GIF is made on request only (make demo stays fast), and the summary says so
     assert not (out / "motion.gif").exists() and "add --gif" in text
+    wall = re.search(r"wall time +([0-9.]+) s in all: model ([0-9.]+) s, .* verification ([0-9.]+) s", text)
+    assert wall and float(wall.group(1)) >= float(wall.group(2)) + float(wall.group(3)) - 0.1   # parts of the whole
     data = json.loads((out / "solution.json").read_text())
     assert data["objective"] == pytest.approx(0.110252, rel=1e-4)       # hand-written reference, N = 25
     assert data["settings"]["solver"] == "fatrop" and data["guess"]["won"]       # the default: auto
