@@ -23,9 +23,13 @@ SLIDER = str(ROOT / "tests" / "scenes" / "sleigh_slider.toml")
 
 
 @pytest.fixture(scope="module")
-def figures(tmp_path_factory):
-    """name → Figure for every PNG written by the four commands."""
-    out = tmp_path_factory.mktemp("figures")
+def out(tmp_path_factory):
+    return tmp_path_factory.mktemp("figures")
+
+
+@pytest.fixture(scope="module")
+def figures(out):
+    """name → Figure for every PNG written by the four commands (their files in ``out``)."""
     caught = {}
     original = Figure.savefig
 
@@ -153,3 +157,20 @@ def test_eighteen_series_get_eighteen_styles():
         for b in styles[i + 1:]:                                  # in both marker and line style
             if a[0] == b[0]:
                 assert a[1] != b[1] and a[2] != b[2], (a, b)
+
+
+def test_result_reprs_are_short_and_say_where_the_arrays_are(figures, out):
+    """PlanResult, Solution and SweepResult of this robot print a few lines (issue 18: a
+    trajectory's repr was 4 194 characters of arrays)."""
+    from nhgait.gaits.planner import plan
+    from nhgait.gaits.sweep import load_sweep
+    text = repr(load_sweep(out / "sweep"))
+    assert text.startswith("<SweepResult sleigh_slider/sidestep: 4 of 4 points solved and verified, grid (2, 2)")
+    assert "result.objectives()" in text and len(text) < 400
+    result = plan(SLIDER, jit=False)
+    text = repr(result)
+    assert text.startswith("<PlanResult sleigh_slider/sidestep: SUCCESS") and len(text) < 600
+    assert "states (7, 21) rows (x, y, theta, s, p, pt_theta, pt_s)" in text and "controls (2, 20)" in text
+    assert "verified to" in text and "t = 0 … 4 s (21 samples)" in text
+    md = result.solution._repr_markdown_()
+    assert "| verification | passed" in md and "`solution.states` (7, 21)" in md
