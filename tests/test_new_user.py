@@ -167,6 +167,17 @@ def test_compile_time_reported_apart_from_run_time(tmp_path, monkeypatch, capsys
     assert re.search(r"evaluations, run \d+\.\d{3} s\)", second) and "compiling" not in second
 
 
+def test_bench_says_how_many_points_and_how_long_is_left(tmp_path, capsys):
+    assert main(["bench", "precision", SLIDER, "--tols", "1e-4,1e-6", "--methods", "DOP853",
+                 "--formulations", "reduced", "--no-idas", "--repeats", "1", "--out", str(tmp_path)]) == 0
+    captured = capsys.readouterr()
+    err = captured.err
+    assert "measuring 1 formulation/method set-ups × 2 tolerances = 2 points" in err
+    assert re.search(r"1/2 points: reduced/DOP853 .* — about \d+ s left", err)
+    assert re.search(r"2/2 points: reduced/DOP853 .* — done", err)
+    assert "precision.md (2 points in" in captured.out
+
+
 def test_countdown_estimate():
     import io
     import time
