@@ -408,6 +408,11 @@ def summary_lines(result: PlanResult) -> list:
                  f"{st.get('solver')}, {st.get('hessian', 'exact')} Hessian, {_compiled_text(st)}, "
                  f"states ({', '.join(st.get('transcribed_in', s.state_names))})")
     lines += [f"  conditions         {line}" for line in (result.conditions.lines() if result.conditions else ())]
+    symmetry = getattr(result.model, "symmetry", None)
+    if symmetry is not None:
+        lines.append(f"  symmetry           {symmetry.chosen.group} moves the fibre ({', '.join(result.model.fiber)}); "
+                     f"the guesses loop the shape ({', '.join(result.model.shape)}); why, and the other choices "
+                     "(fiber = [...] in [system]): nhgait derive")
     if result.diagnosis:
         lines.append("  why:")
         lines.extend(f"    {line}" for line in result.diagnosis)

@@ -172,5 +172,8 @@ def test_result_reprs_are_short_and_say_where_the_arrays_are(figures, out):
     assert text.startswith("<PlanResult sleigh_slider/sidestep: SUCCESS") and len(text) < 600
     assert "states (7, 21) rows (x, y, theta, s, p, pt_theta, pt_s)" in text and "controls (2, 20)" in text
     assert "verified to" in text and "t = 0 … 4 s (21 samples)" in text
+    from nhgait.gaits.planner import summary_lines
+    assert any("R^2 (x, y) moves the fibre (x, y); the guesses loop the shape (theta, s)" in line
+               for line in summary_lines(result))
     md = result.solution._repr_markdown_()
     assert "| verification | passed" in md and "`solution.states` (7, 21)" in md
