@@ -77,7 +77,11 @@ def apply_simulation_overrides(document: dict, assignments) -> dict:
         if a is None:
             continue
         head = a.parts[0]
-        if head not in SIMULATION_SET_KEYS or len(a.parts) > 2 or (head in _TABLES) != (len(a.parts) == 2):
+        if head in SIMULATION_SET_KEYS and len(a.parts) <= 2 and (head in _TABLES) != (len(a.parts) == 2):
+            problems.append(f"--set {a.text!r}: " + (f"{head} needs a name: {head}.<name>=value, e.g. {head}.x=0.5" if head in _TABLES
+                                                      else f"{head} takes no .<name>: {head}=value"))
+            continue
+        if head not in SIMULATION_SET_KEYS or len(a.parts) > 2:
             problems.append(f"--set {a.text!r}: unknown key {a.key!r}"
                             f"{known_names(head, SIMULATION_SET_KEYS, label='allowed')[:-1]}; "
                             "q0, qdot0, inputs and params take .<name>, e.g. q0.x=0.5)")

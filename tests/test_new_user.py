@@ -139,6 +139,9 @@ def test_every_unknown_name_gets_did_you_mean_and_the_known_names(tmp_path, caps
     assert "3 problem(s)" in err and "did you mean 't_final'?" in err
     assert "'tht' is not a coordinate: did you mean 'theta'? (coordinates: x, y, theta, s)" in err
     assert "unknown parameter 'mm': did you mean 'm'?" in err
+    assert main(["simulate", SLIDER, "--set", "q0=1", "--set", "t_final.x=2", "--out", str(tmp_path / "t.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "q0 needs a name: q0.<name>=value" in err and "t_final takes no .<name>" in err
     scene = tmp_path / "typo.toml"
     scene.write_text(Path(SLIDER).read_text().replace("I_c*theta_dot**2/2", "I_c*thetadot**2/2"))
     assert main(["derive", str(scene)]) == 2
