@@ -78,8 +78,9 @@ def apply_simulation_overrides(document: dict, assignments) -> dict:
             continue
         head = a.parts[0]
         if head in SIMULATION_SET_KEYS and len(a.parts) <= 2 and (head in _TABLES) != (len(a.parts) == 2):
-            problems.append(f"--set {a.text!r}: " + (f"{head} needs a name: {head}.<name>=value, e.g. {head}.x=0.5" if head in _TABLES
-                                                      else f"{head} takes no .<name>: {head}=value"))
+            form = (f"{head} needs a name: {head}.<name>=value, e.g. {head}.x=0.5" if head in _TABLES
+                    else f"{head} takes no .<name>: {head}=value")
+            problems.append(f"--set {a.text!r}: {form}")
             continue
         if head not in SIMULATION_SET_KEYS or len(a.parts) > 2:
             problems.append(f"--set {a.text!r}: unknown key {a.key!r}"

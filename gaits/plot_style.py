@@ -24,7 +24,9 @@ def series_styles(count: int, *, markers: bool = False) -> list:
     for i in range(count):
         block = i // len(COLORS)
         style = {"color": COLORS[i % len(COLORS)], "linestyle": LINESTYLES[block % len(LINESTYLES)]}
-        if markers or block:
-            style["marker"] = MARKERS[(i % len(COLORS) + block * 3) % len(MARKERS)] if markers else MARKERS[block % len(MARKERS)]
+        if markers:                       # a marker per series; a colour's repeats shift it by 3
+            style["marker"] = MARKERS[(i % len(COLORS) + block * 3) % len(MARKERS)]
+        elif block:                       # lines: markers from the eleventh series on
+            style["marker"] = MARKERS[block % len(MARKERS)]
         styles.append(style)
     return styles

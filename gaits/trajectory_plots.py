@@ -97,8 +97,8 @@ def write_trajectory_figures(traj, model, out, *, units=None, drawing=None, para
     fig = Figure(figsize=(7.5, 2.3 * rows + 0.6), layout="constrained")
     axes = fig.subplots(rows, 1, sharex=True, squeeze=False)[:, 0]
     plot_time_series(traj, ctx, axes)
-    fig.suptitle(f"{name}: simulated {traj.formulation} model, {traj.method}, t = {traj.t[0]:.3g} … {traj.t[-1]:.3g} s"
-                 + ("" if traj.success else " — STOPPED"))
+    span = f"t = {traj.t[0]:.3g} … {traj.t[-1]:.3g} s" + ("" if traj.success else " — STOPPED")
+    fig.suptitle(f"{name}: simulated {traj.formulation} model, {traj.method}, {span}")
     files = [out / "time_series.png"]
     fig.savefig(files[-1], dpi=110)
     fig = Figure(figsize=(7, 5), layout="constrained")

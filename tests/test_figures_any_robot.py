@@ -11,7 +11,6 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import matplotlib
-import numpy as np
 import pytest
 from matplotlib.figure import Figure
 
