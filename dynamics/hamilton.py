@@ -17,6 +17,9 @@ from functools import cached_property
 
 import sympy as sp
 
+from nhgait.dynamics.cse_text import equation_lines
+from nhgait.dynamics.notation import method_name, system_names
+
 from .symbolic import tidy
 from .system import System
 
@@ -47,6 +50,14 @@ class HamiltonianDAE:
     formulation = "hamilton"
     differentiation_index = 2
 
+    def __repr__(self) -> str:
+        from nhgait.dynamics.reprs import model_repr
+        return model_repr(self)
+
+    def _repr_markdown_(self) -> str:
+        from nhgait.dynamics.reprs import model_markdown
+        return model_markdown(self)
+
     @property
     def dimension(self) -> int:
         return len(self.state)
@@ -64,11 +75,12 @@ class HamiltonianDAE:
         eqs += [sp.Eq(c, 0) for c in self.omega * self.dH_dp]
         return eqs
 
-    def to_text(self) -> str:
-        lines = [f"Hamilton's equations with multipliers of {self.system.name} (index-{self.differentiation_index} DAE)",
-                 f"  H = {sp.sstr(self.H)}"]
-        lines += [f"  {sp.sstr(e.lhs)} = {sp.sstr(e.rhs)}" for e in self.equations()]
-        return "\n".join(lines)
+    def to_text(self, cse: bool | None = None) -> str:
+        """The equations as text; ``cse``: name repeated sub-expressions once (None: when long)."""
+        lines = [f"Hamilton's equations with multipliers of {self.system.name} (index-{self.differentiation_index} DAE)"]
+        eqs = self.equations()
+        return "\n".join(lines + equation_lines([sp.Symbol("H"), *(e.lhs for e in eqs)],
+                                                 [self.H, *(e.rhs for e in eqs)], cse))
 
     @cached_property
     def numeric(self):
@@ -92,7 +104,8 @@ def derive_hamiltonian(system: System) -> HamiltonianDAE:
     """Derive the Hamiltonian DAE (eqs. 2.19–2.24) of ``system``."""
     t0 = time.perf_counter()
     q = sp.Matrix(system.q)
-    p = sp.Matrix([sp.Symbol(f"p_{c}", real=True) for c in system.coordinates])
+    taken = system_names(system)           # a user's p_x or lambda1 never meets the method's
+    p = sp.Matrix([sp.Symbol(method_name(f"p_{c}", taken), real=True) for c in system.coordinates])
     M = system.mass_matrix()
     Minv = _inverse_metric(M) if any(e.free_symbols & set(system.q) for e in M) else tidy(M.inv())
     V = system.potential()
@@ -100,7 +113,7 @@ def derive_hamiltonian(system: System) -> HamiltonianDAE:
     dH_dp = Minv * p
     dH_dq = sp.Matrix([sp.diff(H, x) for x in q])
     tau = system.force_vector().xreplace({v: dH_dp[i] for i, v in enumerate(system.q_dot)})
-    lam = tuple(sp.Symbol(f"lambda{i + 1}", real=True) for i in range(system.k))
+    lam = tuple(sp.Symbol(method_name(f"lambda{i + 1}", taken), real=True) for i in range(system.k))
     names = tuple(system.coordinates) + tuple(s.name for s in p)
     return HamiltonianDAE(system=system, H=H, Minv=Minv, dH_dq=dH_dq, dH_dp=dH_dp,
                           omega=system.omega(), tau=tau, state=tuple(q) + tuple(p),

@@ -17,6 +17,9 @@ from functools import cached_property
 
 import sympy as sp
 
+from nhgait.dynamics.cse_text import equation_lines
+from nhgait.dynamics.notation import method_name, system_names
+
 from .system import System
 
 
@@ -46,6 +49,14 @@ class LagrangianDAE:
     formulation = "lagrange"
     differentiation_index = 2
 
+    def __repr__(self) -> str:
+        from nhgait.dynamics.reprs import model_repr
+        return model_repr(self)
+
+    def _repr_markdown_(self) -> str:
+        from nhgait.dynamics.reprs import model_markdown
+        return model_markdown(self)
+
     @property
     def dimension(self) -> int:
         return len(self.state)
@@ -60,10 +71,11 @@ class LagrangianDAE:
         eqs += [sp.Eq(c, 0) for c in self.omega * sp.Matrix(self.system.q_dot)]
         return eqs
 
-    def to_text(self) -> str:
+    def to_text(self, cse: bool | None = None) -> str:
+        """The equations as text; ``cse``: name repeated sub-expressions once (None: when long)."""
         lines = [f"Euler–Lagrange equations with multipliers of {self.system.name} (index-{self.differentiation_index} DAE)"]
-        lines += [f"  {sp.sstr(e.lhs)} = {sp.sstr(e.rhs)}" for e in self.equations()]
-        return "\n".join(lines)
+        eqs = self.equations()
+        return "\n".join(lines + equation_lines([e.lhs for e in eqs], [e.rhs for e in eqs], cse))
 
     @cached_property
     def numeric(self):
@@ -84,7 +96,7 @@ def derive_lagrangian(system: System) -> LagrangianDAE:
     Wdot_qd = (W * qd).jacobian(q) * qd if k else sp.zeros(0, 1)
     T = (qd.T * M * qd)[0, 0] / 2
     energy = sp.expand(T + system.potential())
-    lam = tuple(sp.Symbol(f"lambda{i + 1}", real=True) for i in range(k))
+    lam = tuple(sp.Symbol(method_name(f"lambda{i + 1}", system_names(system)), real=True) for i in range(k))
     names = tuple(system.coordinates) + tuple(v.name for v in system.q_dot)
     return LagrangianDAE(system=system, M=M, F=F.applyfunc(sp.expand), omega=W,
                          omega_dot_qdot=Wdot_qd.applyfunc(sp.expand), tau=system.force_vector(),

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import dataclasses
 
+from nhgait.dynamics.suggestions import known_names
+
 from .errors import ModelError
 from .system import System
 
@@ -30,7 +32,7 @@ def _from_scene(name: str, parameters: dict) -> System:
         return system
     unknown = sorted(set(parameters) - set(system.parameters))
     if unknown:
-        raise ModelError([f"unknown parameter {k!r} of {name} (parameters: {', '.join(system.parameters)})"
+        raise ModelError([f"unknown parameter {k!r} of {name}{known_names(k, system.parameters, label='parameters')}"
                           for k in unknown], title="invalid parameters")
     return dataclasses.replace(system, parameters={**system.parameters, **parameters})
 

@@ -60,7 +60,8 @@ class NumericModel:
             for k, v in values.items():
                 if k not in self.param_names:
                     from .errors import ModelError
-                    raise ModelError([f"unknown parameter {k!r} (parameters: {', '.join(self.param_names)})"])
+                    from nhgait.dynamics.suggestions import known_names
+                    raise ModelError([f"unknown parameter {k!r}{known_names(k, self.param_names, label='parameters')}"])
                 vec[self.param_names.index(k)] = float(v)
             return vec
         arr = np.asarray(values, dtype=float).ravel()

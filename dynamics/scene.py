@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
+from nhgait.dynamics.suggestions import known_names
+
 from .errors import ModelError
 from .expressions import number_problems
 from .system import TIME, System, _parse, jump_times
@@ -139,7 +141,8 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
     problems: list = []
     unknown = set(data) - TOP_KEYS
     if unknown:
-        problems.append(f"unknown top-level table(s) {sorted(unknown)} (allowed: {', '.join(sorted(TOP_KEYS))})")
+        problems.append(f"unknown top-level table(s) {sorted(unknown)}"
+                        f"{known_names(sorted(unknown)[0], sorted(TOP_KEYS), label='allowed')}")
     system = _system(data.get("system"), source, problems)
     spec = None
     if data.get("simulation") is not None:
@@ -167,7 +170,8 @@ def _system(sysd, source, problems) -> System | None:
         return None
     unknown = set(sysd) - SYSTEM_KEYS
     if unknown:
-        problems.append(f"[system]: unknown key(s) {sorted(unknown)} (allowed: {', '.join(sorted(SYSTEM_KEYS))})")
+        problems.append(f"[system]: unknown key(s) {sorted(unknown)}"
+                        f"{known_names(sorted(unknown)[0], sorted(SYSTEM_KEYS), label='allowed')}")
     missing = [key for key in ("coordinates", "lagrangian") if key not in sysd]
     problems.extend(f"[system]: missing key {key!r}" for key in missing)
     name = sysd.get("name", Path(source).stem or "system")
@@ -194,7 +198,8 @@ def _simulation(sim, system, problems) -> SimulationSpec | None:
     start = len(problems)
     unknown = set(sim) - SIMULATION_KEYS
     if unknown:
-        problems.append(f"[simulation]: unknown key(s) {sorted(unknown)} (allowed: {', '.join(sorted(SIMULATION_KEYS))})")
+        problems.append(f"[simulation]: unknown key(s) {sorted(unknown)}"
+                        f"{known_names(sorted(unknown)[0], sorted(SIMULATION_KEYS), label='allowed')}")
     for key in ("q0", "qdot0", "t_final", "samples"):
         if key not in sim:
             problems.append(f"[simulation]: missing key {key!r}")
@@ -224,7 +229,8 @@ def _simulation(sim, system, problems) -> SimulationSpec | None:
         return None
     bad = [k for k in sim_params if k not in system.parameters]
     if bad:
-        problems.append(f"[simulation].parameters: unknown parameter(s) {bad}")
+        problems.append(f"[simulation].parameters: unknown parameter(s) {bad}"
+                        f"{known_names(bad[0], system.parameters, label='parameters')}")
     elif sim_params and len(problems) == start:
         problems.extend(system.parameter_problems(sim_params, label="the [simulation] parameters"))
     qd0 = _initial_velocities(sim.get("qdot0"), system, q0, sim_params, problems) if "qdot0" in sim else None
@@ -267,7 +273,8 @@ def _input_laws(inputs, system, params, problems):
     if missing:
         problems.append(f"[simulation].inputs: no law for input(s) {missing} (write 0 for none)")
     if extra:
-        problems.append(f"[simulation].inputs: {extra} are not inputs of the system ({', '.join(system.inputs)})")
+        problems.append(f"[simulation].inputs: {extra} are not inputs of the system"
+                        f"{known_names(extra[0], system.inputs, label='inputs')}")
     if missing or extra:
         return None
     names = {s.name: s for s in system.q + system.q_dot + system.param_symbols}
@@ -281,8 +288,8 @@ def _input_laws(inputs, system, params, problems):
             continue
         bad_syms = sorted(s.name for s in e.free_symbols if s.name not in names)
         if bad_syms:
-            problems.append(f"[simulation].inputs.{u}: unknown symbol(s) {bad_syms} (allowed: t, "
-                            "coordinates, velocities, parameters)")
+            problems.append(f"[simulation].inputs.{u}: unknown symbol(s) {bad_syms}"
+                            f"{known_names(bad_syms[0], list(names), label='allowed: t, coordinates, velocities, parameters')}")
             ok = False
         exprs.append(e)
     return ExpressionController(system, tuple(exprs), params) if ok else None
@@ -317,14 +324,17 @@ def _quantities(system, table, problems) -> dict:
             continue
         bad = sorted(s.name for s in e.free_symbols if s.name not in names)
         if bad:
-            problems.append(f"{where}: unknown symbol(s) {bad} (allowed: coordinates, velocities, parameters)")
+            problems.append(f"{where}: unknown symbol(s) {bad}"
+                            f"{known_names(bad[0], list(names), label='allowed: coordinates, velocities, parameters')}")
             continue
         out[key] = e
     return out
 
 
-def load_scene(path_or_name) -> Scene:
-    """Read a scene file, or a built-in scene by name ("unicycle", "snakeboard", ...)."""
+def load_scene(path_or_name, overrides=()) -> Scene:
+    """Read a scene file, or a built-in scene by name ("unicycle", "snakeboard", ...);
+    ``overrides``: ``--set`` assignments to its ``[simulation]`` table
+    (:func:`~nhgait.dynamics.assignments.apply_simulation_overrides`)."""
     p = Path(str(path_or_name))
     if not p.exists() and p.suffix != ".toml":
         name = str(path_or_name).replace("-", "_")
@@ -333,17 +343,18 @@ def load_scene(path_or_name) -> Scene:
         except (FileNotFoundError, OSError):
             available = sorted(f.name[:-5] for f in resources.files("nhgait.dynamics").joinpath("scenes").iterdir()
                                if f.name.endswith(".toml"))
-            raise ModelError([f"{path_or_name!r} is neither a scene file nor a built-in scene "
-                              f"(built-ins: {', '.join(available)})"], title="unknown scene") from None
+            raise ModelError([f"{path_or_name!r} is neither a scene file nor a built-in scene"
+                              f"{known_names(name, available, label='built-ins')}"], title="unknown scene") from None
         source = f"built-in scene {name}"
     else:
         if not p.exists():
             raise ModelError([f"scene file {p} does not exist"], title="unknown scene")
         text = p.read_text()
         source = str(p)
-    return scene_from_text(text, source)
+    return scene_from_text(text, source, overrides)
 
 
-def scene_from_text(text: str, source: str = "<scene>") -> Scene:
+def scene_from_text(text: str, source: str = "<scene>", overrides=()) -> Scene:
     """A :class:`Scene` from the text of a scene file (``source`` names it in errors)."""
-    return parse_scene(read_toml(text, source), source)
+    from nhgait.dynamics.assignments import apply_simulation_overrides
+    return parse_scene(apply_simulation_overrides(read_toml(text, source), overrides), source)

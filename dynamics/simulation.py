@@ -141,6 +141,10 @@ class Trajectory:
     diagnostics: dict = field(default_factory=dict)
     outputs: dict = field(default_factory=dict)
 
+    def __repr__(self) -> str:
+        from nhgait.dynamics.reprs import trajectory_repr
+        return trajectory_repr(self)
+
     def columns(self, columns: str = "q") -> tuple:
         """(names, (N, c) table) for ``columns`` (see :meth:`to_csv`)."""
         if columns not in CSV_COLUMNS:

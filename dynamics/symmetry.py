@@ -111,7 +111,7 @@ class SymmetryTest:
 
     def table_markdown(self) -> str:
         """The table as Markdown (thesis Table 3.1 generated for this system)."""
-        rows = ["| s | G | T_q Orb(q) | rank ω_s | invariant | S_q | ξ | verdict |",
+        rows = ["| fibre coordinates | group G | T_q Orb(q) | rank ω_fibre | invariant | S_q | ξ | verdict |",
                 "|---|---|---|---|---|---|---|---|"]
         for c in self.candidates:
             sq = "—" if c.S_q is None else ("{0}" if c.S_q.shape[1] == 0 else
@@ -177,7 +177,7 @@ def _invariance(system: System, fiber: tuple[str, ...], free: set) -> tuple[bool
     dep = sorted((s.name for s in s_syms & free))
     label = f"R^{len(fiber)} ({', '.join(fiber)})"
     if not dep:
-        return True, label, "L and ω do not depend on s"
+        return True, label, f"L and ω do not depend on {', '.join(fiber)}"
     pf = system.planar_frame
     if pf is None or not set(pf) <= set(fiber):
         return False, label, f"L or ω depends on {', '.join(dep)}"

@@ -27,6 +27,8 @@ from typing import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
+from nhgait.dynamics.suggestions import known_names
+
 from .errors import ModelError
 from .expressions import CONSTANTS, FUNCTIONS, expression_problems, number_problems
 
@@ -275,7 +277,8 @@ class System:
                 continue
             if kname not in coord_names:
                 if check_symbols:
-                    problems.append(f"forces: {kname!r} is not a coordinate (coordinates: {', '.join(coord_names)})")
+                    problems.append(f"forces: {kname!r} is not a coordinate"
+                                    f"{known_names(kname, coord_names, label='coordinates')}")
                 continue
             e = _parse(val, names, f"force on {kname}", problems)
             if e is not None:
@@ -367,7 +370,7 @@ class System:
             elif velocity_name(s.name) in names:
                 hint = ""
             problems.append(f"unknown symbol {s.name!r} in {where}: not a coordinate, velocity"
-                            f" or parameter{hint}")
+                            f" or parameter{hint}{known_names(s.name, [n for n, k in names.items() if k in known and k != TIME], sep='; ')}")
         for f in expr.atoms(sp.Function):
             if isinstance(f, sp.core.function.AppliedUndef):
                 problems.append(f"unknown function {f.func.__name__!r} in {where}")
@@ -411,7 +414,7 @@ class System:
         if values:
             unknown = [k for k in values if k not in vals]
             if unknown:
-                raise ModelError([f"unknown parameter {k!r} (parameters: {', '.join(vals)})"
+                raise ModelError([f"unknown parameter {k!r}{known_names(k, vals, label='parameters')}"
                                   for k in unknown])
             vals.update({k: float(v) for k, v in values.items()})
         return {s: vals[s.name] for s in self.param_symbols}
@@ -448,7 +451,8 @@ class System:
             pv = self.param_vector()
         elif isinstance(values, Mapping):
             unknown = [k for k in values if k not in self.parameters]
-            problems += [f"unknown parameter {k!r} (parameters: {', '.join(self.parameters)})" for k in unknown]
+            problems += [f"unknown parameter {k!r}{known_names(k, self.parameters, label='parameters')}"
+                         for k in unknown]
             merged = dict(self.parameters)
             merged.update({k: number_problems(v, f"parameter {k!r}", problems) for k, v in values.items()
                            if k in self.parameters})

@@ -8,11 +8,16 @@ rtol 1e-13, atol 1e-15 — a different formulation and implementation than the c
 SUNDIALS rows; its own error is estimated against the reduced ODE with the compiled DOP853 at
 the same tolerance and printed. (``experiments/work_precision.py`` uses the independent
 KanesMethod oracle instead, for the thesis robots.) Writes ``precision.csv``,
-``precision.png`` and ``precision.md`` into ``--out``.
+``precision.png`` and ``precision.md`` into ``--out``. Progress goes to stderr (``--quiet``
+silences it): the number of points first, then one line per point with the count and an
+estimate of the time left (:class:`nhgait.dynamics.countdown.Countdown`).
 """
 from __future__ import annotations
 
+import sys
 from pathlib import Path
+
+from nhgait.dynamics.countdown import Countdown, duration
 
 __all__ = ["add_bench_parser", "cmd_bench_precision"]
 
@@ -38,6 +43,10 @@ def cmd_bench_precision(args) -> int:
     if spec.t0 != 0.0:
         raise ModelError(["bench precision needs [simulation].t0 = 0"], title="invalid request")
     common = dict(controller=spec.controller, params=spec.parameters or None, t_eval=list(span))
+    stream = None if args.quiet else sys.stderr
+    if stream is not None:
+        print("reference runs at rtol 1e-13 (Lagrangian DAE + DOP853, reduced ODE + compiled DOP853) …",
+              file=stream, flush=True)
     ref = simulate(models["lagrange"], span, spec.q0, spec.qdot0, method="DOP853", rtol=1e-13,
                    atol=1e-15, **common)
     check = simulate(models["reduced"], span, spec.q0, spec.qdot0, method="compiled", rtol=1e-13,
@@ -53,7 +62,12 @@ def cmd_bench_precision(args) -> int:
                    reference_label=label, params=spec.parameters or None, outputs=spec.outputs,
                    description=f"{scene.system.name}, t ∈ [0, {spec.t_final:.4g}] s")
     setups = wp.default_setups(formulations, methods, idas=not args.no_idas)
-    rows = wp.measure(case, setups, tolerances, repeats=args.repeats, progress=_progress)
+    countdown = Countdown(len(setups) * len(tolerances), stream=stream, what="points")
+    if stream is not None:
+        print(f"measuring {len(setups)} formulation/method set-ups × {len(tolerances)} tolerances = "
+              f"{countdown.total} points, {args.repeats} timed runs each (median)", file=stream, flush=True)
+    rows = wp.measure(case, setups, tolerances, repeats=args.repeats,
+                      progress=lambda row: countdown.step(_point(row)))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     wp.write_csv(rows, out / "precision.csv")
@@ -67,13 +81,14 @@ def cmd_bench_precision(args) -> int:
     plt.close(fig)
     (out / "precision.md").write_text(f"{case.description}; reference {label} (spread {spread:.2g})\n\n"
                                       + wp.markdown_table(rows) + "\n")
-    print(f"wrote {out}/precision.csv, precision.png, precision.md")
+    print(f"wrote {out}/precision.csv, precision.png, precision.md ({countdown.total} points in "
+          f"{duration(countdown.elapsed())})")
     return 0
 
 
-def _progress(r):
-    print(f"  {r.label:30s} rtol {r.rtol:7.0e}  error {r.error:9.2e}  {r.wall_s * 1e3:10.3f} ms  "
-          f"nfev {r.nfev:8d}  states {r.states}  {r.note[:60]}", flush=True)
+def _point(r) -> str:
+    return (f"{r.label:30s} rtol {r.rtol:7.0e}  error {r.error:9.2e}  {r.wall_s * 1e3:10.3f} ms  "
+            f"nfev {r.nfev:8d}  states {r.states}  {r.note[:60]}").rstrip()
 
 
 def _floats(text, where):
@@ -101,5 +116,6 @@ def add_bench_parser(subparsers):
     q.add_argument("--no-idas", action="store_true", help="skip the IDAS route of the DAE forms")
     q.add_argument("--repeats", type=int, default=5, help="timed runs per point (median)")
     q.add_argument("--out", default="out/bench", help="output folder (default out/bench)")
+    q.add_argument("--quiet", action="store_true", help="no progress on stderr")
     q.set_defaults(func=cmd_bench_precision)
     return p

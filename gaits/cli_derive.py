@@ -18,7 +18,7 @@ def cmd_derive(args) -> int:
         t0 = time.perf_counter()
         model = derive(system, form, version=args.version, use_cache=not args.no_cache)
         dt = time.perf_counter() - t0
-        print(model.to_text())
+        print(model.to_text(cse=args.cse))
         print(f"  ({form}: {dt:.3f} s{', no cache' if args.no_cache else ''})\n")
         if form == "reduced":
             if args.table:
@@ -44,6 +44,10 @@ def add_derive_parser(subparsers):
     p.add_argument("--checks", action="store_true",
                    help="Jacobi/holonomy test, Table 2.1 class, the (q, q̇) → state map and the singular set")
     p.add_argument("--version", choices=["A", "B"], help="g = identity (A) or SE(2)-type (B)")
+    cse = p.add_mutually_exclusive_group()
+    cse.add_argument("--cse", dest="cse", action="store_true", default=None,
+                     help="name repeated sub-expressions once (w1 = …; the default for long equations)")
+    cse.add_argument("--no-cse", dest="cse", action="store_false", help="print every equation in full")
     p.add_argument("--no-cache", action="store_true", help="derive afresh; do not read or write the cache")
     p.set_defaults(func=cmd_derive)
     return p

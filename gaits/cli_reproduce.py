@@ -20,6 +20,7 @@ def add_reproduce_parser(subparsers):
     parser.add_argument("--columns", choices=["q", "qdot", "all"], default=None,
                         help="also write every run as <case>_<run>.csv: q (coordinates), qdot (and velocities) "
                              "or all (and inputs, multipliers, energy, work)")
+    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
     parser.set_defaults(func=run)
     return parser
 
@@ -28,7 +29,9 @@ def run(args) -> int:
     """Run the reproduction; print a summary table; 0 when every run reached the end."""
     from .reproduction import reproduce
 
-    summary = reproduce(args.out, rtol=args.rtol, idas=not args.no_idas, columns=getattr(args, "columns", None))
+    import sys
+    summary = reproduce(args.out, rtol=args.rtol, idas=not args.no_idas, columns=getattr(args, "columns", None),
+                        progress=None if getattr(args, "quiet", False) else sys.stderr)
     print_summary(summary)
     n_csv = sum(len(summary[c].get("csv", [])) for c in ("unicycle", "snakeboard"))
     print(f"wrote {args.out}/summary.json and {sum(len(summary[c].get('figures', [])) for c in ('unicycle', 'snakeboard'))} figures"

@@ -5,7 +5,14 @@ Integrates the scene's ``[simulation]`` table and writes a CSV whose header name
 unit (``t [s]``, ``x [m]`` …: from the scene's ``[units]`` table, "SI" where it names none).
 When the scene states ``[simulation].outputs``, only the states those outputs depend on are
 integrated (``--all-states`` integrates everything) and the CSV holds t and the outputs. The
-summary line gives the number of states integrated.
+summary line gives the number of states integrated, and the run time apart from the one-off
+compilation of the integrator (``method="compiled"``: the first run of a model compiles C code,
+later runs load it from the cache).
+
+``--set KEY=VALUE`` changes the ``[simulation]`` table without editing the file (``t_final=20``,
+``q0.x=0.5``, ``qdot0.theta=1``, ``inputs.F=0.2*sin(t)``, ``params.m=2``; the parser of
+:mod:`nhgait.dynamics.assignments`, shared with ``plan`` and ``sweep``). ``--plot DIR`` writes
+``time_series.png`` and ``path.png`` (:mod:`nhgait.gaits.trajectory_plots`).
 """
 from __future__ import annotations
 
@@ -24,9 +31,12 @@ def cmd_simulate(args) -> int:
     from nhgait.dynamics.errors import ModelError
     from nhgait.dynamics.simulation import METHODS
     if args.method is not None and args.method not in METHODS:
-        raise ModelError([f"--method {args.method!r} is not one of {', '.join(METHODS)}"],
+        from nhgait.dynamics.suggestions import known_names
+        raise ModelError([f"--method {args.method!r} is not a method{known_names(args.method, METHODS, label='methods')}"],
                          title="invalid simulation request")
-    scene = load_scene(args.scene)
+    if args.out is None and args.plot is None:
+        raise ModelError(["give --out FILE.csv, --plot DIR or both"], title="invalid simulation request")
+    scene = load_scene(args.scene, overrides=args.overrides)
     spec = scene.simulation
     if spec is None:
         raise ModelError([f"{scene.source} has no [simulation] table (q0, qdot0, t_final, samples)"],
@@ -46,13 +56,14 @@ def cmd_simulate(args) -> int:
     if columns == "outputs" and not traj.outputs:
         raise ModelError(["--columns outputs needs [simulation].outputs in the scene"],
                          title="invalid request")
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    traj.to_csv(out, columns=columns, units=dict(scene.units or {}))
+    if args.out is not None:
+        out = Path(args.out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        traj.to_csv(out, columns=columns, units=dict(scene.units or {}))
     status = "" if traj.success else " — STOPPED"
     print(f"{scene.system.name}: {form} formulation, {traj.method}, {used} of {total} states "
           f"integrated ({', '.join(traj.state_names)}), {len(traj.t)} samples to "
-          f"t = {traj.t[-1]:.6g} s ({traj.nfev} evaluations, {traj.wall_time_s:.3f} s){status}")
+          f"t = {traj.t[-1]:.6g} s ({traj.nfev} evaluations, {_timing(traj)}){status}")
     if "fallback" in traj.settings:
         print(f"  note: {traj.settings['fallback']}")
     if "auto" in traj.settings:
@@ -65,11 +76,26 @@ def cmd_simulate(args) -> int:
               f"max |energy balance| = {np.nanmax(np.abs(traj.energy_balance)):.3g}")
     if "recommendation" in traj.diagnostics:
         print(f"  {traj.diagnostics['recommendation']}")
-    print(f"  wrote {out} (columns: {columns})")
+    if args.out is not None:
+        print(f"  wrote {out} (columns: {columns})")
+    if args.plot is not None:
+        from .trajectory_plots import write_trajectory_figures
+        files = write_trajectory_figures(traj, model, args.plot, units=dict(scene.units or {}),
+                                         drawing=scene.drawing, params=spec.parameters)
+        print(f"  wrote {', '.join(str(f) for f in files)}")
     if not traj.success:
         print(f"simulation stopped: {traj.message}", file=sys.stderr)
         return 1
     return 0
+
+
+def _timing(traj) -> str:
+    """"run 0.087 s" or "run 0.087 s + compiling the integrator 1.07 s (once per model; cached)"."""
+    compile_s = float(traj.diagnostics.get("compile_time_s") or 0.0)
+    run = f"run {traj.wall_time_s - compile_s:.3f} s"
+    if compile_s <= 0:
+        return run
+    return f"{run} + compiling the integrator {compile_s:.3f} s (once per model; cached for the next run)"
 
 
 def add_simulate_parser(subparsers):
@@ -92,7 +118,13 @@ def add_simulate_parser(subparsers):
                         "(default when the scene states [simulation].outputs)")
     p.add_argument("--all-states", action="store_true",
                    help="integrate every state even when the scene states its outputs")
-    p.add_argument("--out", required=True, help="CSV path, e.g. out/traj.csv")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="change the scene's [simulation] (repeatable): t_final=20, samples=401, q0.x=0.5, "
+                        "qdot0.theta=1, inputs.F=0.2*sin(t), params.m=2, rtol=1e-10, method=compiled")
+    p.add_argument("--out", default=None, help="CSV path, e.g. out/traj.csv")
+    p.add_argument("--plot", default=None, metavar="DIR",
+                   help="write time_series.png (coordinates and inputs with units) and path.png (x-y path "
+                        "with the scene's [drawing]) into DIR")
     p.add_argument("--no-cache", action="store_true")
     p.set_defaults(func=cmd_simulate)
     return p

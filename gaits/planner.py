@@ -98,6 +98,10 @@ class PlanResult:
     conditions: Any = None
     diagnosis: tuple = ()
 
+    def __repr__(self) -> str:
+        from nhgait.dynamics.reprs import plan_repr
+        return plan_repr(self)
+
     @property
     def success(self) -> bool:
         """Converged and verified: ``Solution.verified`` turns a converged solution whose
@@ -386,10 +390,14 @@ def write_outputs(result: PlanResult, out: Path, *, animate: bool = True, progre
     files = [result.solution.to_json(out / "solution.json", extra=extra)]
     failed = None if result.success else (result.diagnosis[0] if result.diagnosis else result.solution.status)
     animate = animate and result.success
-    with progress.phase("write solution.json and the figures" + (" and the animation (the longest part)"
-                                                                   if animate else "")):
+    with progress.phase("write solution.json and the figures"):
         files.extend(plots.write_figures(result.solution, out, units=result.plan.units, drawing=result.plan.drawing,
-                                         model=result.model, animate=animate, failed=failed))
+                                         model=result.model, animate=False, failed=failed))
+    if animate:
+        from .animation import animate_solution
+        with progress.phase("write the animation motion.gif (60 frames; the longest part of the output)"):
+            ctx = plots.figure_context(result.solution, result.model, result.plan.units, result.plan.drawing)
+            files.append(animate_solution(result.solution, ctx, out / "motion.gif"))
     return files
 
 
@@ -413,12 +421,20 @@ def summary_lines(result: PlanResult) -> list:
                  f"{st.get('solver')}, {st.get('hessian', 'exact')} Hessian, {_compiled_text(st)}, "
                  f"states ({', '.join(st.get('transcribed_in', s.state_names))})")
     lines += [f"  conditions         {line}" for line in (result.conditions.lines() if result.conditions else ())]
+    symmetry = getattr(result.model, "symmetry", None)
+    if symmetry is not None:
+        lines.append(f"  symmetry           {symmetry.chosen.group} moves the fibre ({', '.join(result.model.fiber)}); "
+                     f"the guesses loop the shape ({', '.join(result.model.shape)}); why, and the other choices "
+                     "(fiber = [...] in [system]): nhgait derive")
     if result.diagnosis:
         lines.append("  why:")
         lines.extend(f"    {line}" for line in result.diagnosis)
     if result.files:
         lines.append("  files:")
         lines.extend(f"    {f}" for f in result.files)
+        if result.success and not any(str(f).endswith(".gif") for f in result.files):
+            lines.append("  animation          not written: it is the longest part of the output (60 frames, "
+                         "about 5 s for the snakeboard); add --gif (plan(..., animate=True)) to write motion.gif")
     return lines
 
 

@@ -281,10 +281,10 @@ def plot_histories(solution, ctx: FigureContext, axes=None):
         _, axes = plt.subplots(1 + len(units), 1, sharex=True, figsize=(7, 2.4 * (1 + len(units))))
     axes = list(np.atleast_1d(axes))
     shape = [c for c in ctx.shape if c in solution.state_names] or list(ctx.system.coordinates)
-    shape_units = sorted({unit(ctx, c) for c in shape})
+    shape_units = list(dict.fromkeys(unit(ctx, c) for c in shape))      # in the order of the names
     for c in shape:
         axes[0].plot(solution.t, _series(solution, c), lw=2, label=_with_unit(ctx, c))
-    axes[0].set_ylabel(f"shape [{', '.join(u for u in shape_units if u)}]")
+    axes[0].set_ylabel(f"shape {', '.join(label(c) for c in shape)} [{', '.join(u for u in shape_units if u)}]")
     axes[0].legend(fontsize="small")
     axes[0].set_title("shape coordinates and inputs (inputs constant on each interval)")
     for ax, u in zip(axes[1:], units):

@@ -187,7 +187,7 @@ def write_csv(name, case, out_dir, columns) -> list:
 
 
 def reproduce(out_dir, *, rtol=1e-10, formulations=FORMULATIONS, idas=True, reference=None,
-              figures=True, columns=None) -> dict:
+              figures=True, columns=None, progress=None) -> dict:
     """Run both thesis cases, write ``summary.json`` and the figures into ``out_dir``.
 
     Parameters
@@ -203,6 +203,8 @@ def reproduce(out_dir, *, rtol=1e-10, formulations=FORMULATIONS, idas=True, refe
     figures : write the PNG figures.
     columns : None, or "q" / "qdot" / "all": also write every run as ``<case>_<run>.csv`` with
         those columns (:meth:`~nhgait.dynamics.simulation.Trajectory.to_csv`).
+    progress : a text stream (stderr) for one line per finished case with an estimate of the
+        time left (:class:`~nhgait.dynamics.countdown.Countdown`); None: silent.
 
     Returns
     -------
@@ -212,6 +214,8 @@ def reproduce(out_dir, *, rtol=1e-10, formulations=FORMULATIONS, idas=True, refe
     out_dir.mkdir(parents=True, exist_ok=True)
     summary = {"settings": {"rtol": rtol, "atol": rtol * 1e-2, "formulations": list(formulations),
                             "idas": bool(idas), "scipy_method": "DOP853"}}
+    from nhgait.dynamics.countdown import Countdown
+    countdown = Countdown(len(CASES), stream=progress, what="cases")
     for name in CASES:
         case = run_case(name, rtol=rtol, formulations=formulations, idas=idas)
         references = {}
@@ -224,6 +228,7 @@ def reproduce(out_dir, *, rtol=1e-10, formulations=FORMULATIONS, idas=True, refe
             summary[name]["figures"] = write_figures(name, case, out_dir, references)
         if columns is not None:
             summary[name]["csv"] = write_csv(name, case, out_dir, columns)
+        countdown.step(f"{name} ({len(summary[name]['runs'])} runs{', figures' if figures else ''})")
     with open(out_dir / "summary.json", "w") as fh:
         json.dump(summary, fh, indent=2)
     return summary

@@ -94,6 +94,10 @@ class SweepResult:
     backend: str = ""
     units: dict = field(default_factory=dict)
 
+    def __repr__(self) -> str:
+        from nhgait.dynamics.reprs import sweep_repr
+        return sweep_repr(self)
+
     def record(self, index) -> PointRecord | None:
         key = "-".join(str(int(i)) for i in index)
         return next((r for r in self.records if r.id == key), None)

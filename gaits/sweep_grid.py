@@ -31,6 +31,7 @@ from typing import Iterator, Mapping
 
 import numpy as np
 
+from nhgait.dynamics.suggestions import known_names
 from nhgait.ocp import ProblemError
 
 __all__ = ["Axis", "Grid", "GridPoint", "parse_axis", "parse_grid", "TASK_AXES", "TABLE_AXES"]
@@ -232,8 +233,8 @@ def parse_grid(axes, *, parameters: tuple | None = None) -> Grid:
     if parameters is not None:
         for a in parsed:
             if a is not None and a.is_parameter and a.key not in parameters:
-                problems.append(f"--grid {a.name}: unknown parameter {a.key!r} "
-                                f"(parameters: {', '.join(parameters) or 'none'})")
+                problems.append(f"--grid {a.name}: unknown parameter {a.key!r}"
+                                f"{known_names(a.key, parameters, label='parameters')}")
     size = math.prod(len(a) for a in parsed if a is not None)
     if size > _MAX_POINTS:
         problems.append(f"the grid has {size} points, more than {_MAX_POINTS}")

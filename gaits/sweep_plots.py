@@ -180,7 +180,7 @@ def plot_shape_loops(result, axis: str, *, shape=None, fixed=None, axes=None):
     values = grid.axis(axis).values
     if axes is None:
         from matplotlib.figure import Figure
-        fig = Figure(figsize=(2.4 * len(values) + 0.6, 2.8))
+        fig = Figure(figsize=(2.4 * len(values) + 0.6, 3.0), layout="constrained")   # room for the suptitle
         axes = fig.subplots(1, len(values), sharex=True, sharey=True, squeeze=False)[0]
     units = result.units
     for i, (value, ax) in enumerate(zip(values, axes)):

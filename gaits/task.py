@@ -38,6 +38,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+from nhgait.dynamics.assignments import parse_assignment
+from nhgait.dynamics.suggestions import known_names
 from nhgait.ocp import OptimalControlProblem, ProblemError, Quantity
 
 __all__ = ["Task", "FrozenMap", "parse_task", "apply_overrides", "check_names", "task_names", "to_problem", "at_rest",
@@ -267,7 +269,7 @@ def parse_task(data, *, where: str = "[task]", system=None, quantities=()) -> Ta
     problems: list = []
     unknown = sorted(set(data) - set(TASK_KEYS))
     if unknown:
-        problems.append(f"{where}: unknown key(s) {unknown} (allowed: {', '.join(TASK_KEYS)})")
+        problems.append(f"{where}: unknown key(s) {unknown}{known_names(unknown[0], TASK_KEYS, label='allowed')}")
     T, bounds_T = _horizon(data, problems)
     N = data.get("intervals", 50)
     if isinstance(N, bool) or not isinstance(N, int) or N < 1:
@@ -335,15 +337,13 @@ def apply_overrides(data, assignments) -> dict:
     out = {k: (dict(v) if isinstance(v, Mapping) else v) for k, v in dict(data or {}).items()}
     problems = []
     for text in assignments or ():
-        key, sep, value = str(text).partition("=")
-        key, value = key.strip(), value.strip()
-        if not sep or not key or not value:
-            problems.append(f"--set {text!r}: expected key=value, e.g. final.x=2.0")
+        assignment = parse_assignment(text, problems, example="final.x=2.0")
+        if assignment is None:
             continue
-        parts = key.split(".")
+        key, value, parts = assignment.key, assignment.value, list(assignment.parts)
         if parts[0] not in TASK_KEYS or len(parts) > 2:
-            problems.append(f"--set {text!r}: unknown key {key!r} (allowed: {', '.join(TASK_KEYS)}, "
-                            "or table.name such as final.x)")
+            problems.append(f"--set {text!r}: unknown key {key!r}"
+                            f"{known_names(parts[0], TASK_KEYS, label='allowed')[:-1]}, or table.name such as final.x)")
             continue
         if value.startswith("[") and value.endswith("]"):
             value = value[1:-1]
@@ -388,14 +388,15 @@ def _name_problems(parts: dict, known, inputs, n_velocities) -> list:
     for where in ("initial", "final", "periodic", "bounds"):
         for name in parts[where]:
             if name not in known:
-                problems.append(f"[task].{where}: unknown name {name!r} (known: {', '.join(known)})")
+                problems.append(f"[task].{where}: unknown name {name!r}{known_names(name, known)}")
     if isinstance(parts["control_bounds"], Mapping):
         for name in parts["control_bounds"]:
             if name not in inputs:
-                problems.append(f"[task].control_bounds: unknown input {name!r} (inputs: {', '.join(inputs)})")
+                problems.append(f"[task].control_bounds: unknown input {name!r}{known_names(name, inputs, label='inputs')}")
     for name in parts["objective"]:
         if name not in OBJECTIVES and name not in inputs:
-            problems.append(f"[task].objective: unknown weight {name!r} (effort, time or an input: {', '.join(inputs)})")
+            problems.append(f"[task].objective: unknown weight {name!r}"
+                            f"{known_names(name, (*OBJECTIVES, *inputs), label='effort, time or an input')}")
     if parts["velocities"] and len(parts["velocities"]) != n_velocities:
         problems.append(f"[task].velocities: the system needs {n_velocities} velocity states, got "
                         f"{len(parts['velocities'])} ({', '.join(parts['velocities'])})")

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from importlib import resources
 from typing import Any, Mapping
 
+from nhgait.dynamics.suggestions import did_you_mean
 from nhgait.ocp import ProblemError
 
 from .task import Task, apply_overrides, parse_task
@@ -87,9 +88,11 @@ def get_task(scene_name: str, name: str) -> Task:
     data = library(scene_name)
     tasks = (data or {}).get("tasks", {})
     if name not in tasks:
+        here = [n for s, n in TASKS if s == scene_name] or [n for _, n in TASKS]
         known = ", ".join(f"{s} {n}" for s, n in TASKS)
-        raise ProblemError([f"unknown gait {name!r} for system {scene_name!r} (known: {known}; a scene "
-                            "file plans its own [task])"], title="invalid gait task")
+        hint = did_you_mean(name, here)
+        raise ProblemError([f"unknown gait {name!r} for system {scene_name!r}{': ' + hint if hint else ''} "
+                            f"(known: {known}; a scene file plans its own [task])"], title="invalid gait task")
     return parse_task({"name": name, **tasks[name]}, where=f"[tasks.{name}]")
 
 

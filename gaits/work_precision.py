@@ -235,15 +235,15 @@ def plot_case(rows, ax=None, *, title: str = "", anchor=None):
     if ax is None:
         import matplotlib.pyplot as plt
         _, ax = plt.subplots(figsize=(7.5, 5.5))
+    from nhgait.gaits.plot_style import series_styles
     labels = list(dict.fromkeys(r.label for r in rows))
-    markers = "osD^v<>phX*"
+    styles = series_styles(len(labels), markers=True)      # distinct colour/marker/line per series
     for i, label in enumerate(labels):
         pts = [r for r in rows if r.label == label and r.success and np.isfinite(r.error) and r.error > 0]
         if not pts:
             continue
         pts.sort(key=lambda r: r.rtol, reverse=True)
-        ax.loglog([r.wall_s for r in pts], [r.error for r in pts], marker=markers[i % len(markers)],
-                  ms=4, lw=1, label=label)
+        ax.loglog([r.wall_s for r in pts], [r.error for r in pts], ms=4, lw=1, label=label, **styles[i])
     pts = sorted([r for r in anchor or () if r.success and r.error > 0], key=lambda r: r.rtol, reverse=True)
     if pts:
         ax.loglog([r.wall_s for r in pts], [r.error for r in pts], "k--*", ms=9, lw=1,

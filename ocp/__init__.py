@@ -4,7 +4,8 @@ Layers (each imports only the ones before it; none imports sympy):
 
 * :mod:`.problem` — :class:`OptimalControlProblem` (what to solve);
 * :mod:`.transcription` — :class:`MultipleShooting` (RK4, default), :class:`Collocation`;
-* :mod:`.solver` — :class:`OCPSolver` / :func:`solve` (Ipopt; optional cached jit);
+* :mod:`.solver` — :class:`OCPSolver` / :func:`solve` (Ipopt by default here, FATROP on a stage-ordered
+  transcription; optional cached jit — ``nhgait.gaits.planner.plan`` tries FATROP first);
 * :mod:`.solution` — :class:`Solution` (data, with ``verify()`` and ``to_json()``).
 
 Example::

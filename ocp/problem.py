@@ -35,6 +35,7 @@ import casadi as ca
 import numpy as np
 
 from nhgait.dynamics.errors import ModelError
+from nhgait.dynamics.suggestions import known_names
 
 __all__ = ["OptimalControlProblem", "Quantity", "ProblemError"]
 
@@ -211,22 +212,23 @@ class OptimalControlProblem:
                                ("state_bounds", self.state_bounds)):
             for name, value in mapping.items():
                 if name not in known:
-                    problems.append(f"{where}: unknown quantity {name!r} (known: {', '.join(known)})")
+                    problems.append(f"{where}: unknown quantity {name!r}{known_names(name, known)}")
                 _interval(value, f"{where}[{name!r}]", problems)
         for name in self.periodic:
             if name not in known:
-                problems.append(f"periodic: unknown quantity {name!r} (known: {', '.join(known)})")
+                problems.append(f"periodic: unknown quantity {name!r}{known_names(name, known)}")
         if len(set(self.periodic)) != len(self.periodic):
             problems.append(f"periodic: repeated names in {self.periodic}")
         for name, value in self.control_bounds.items():
             if name not in self.control_names:
-                problems.append(f"control_bounds: unknown input {name!r} (inputs: {', '.join(self.control_names)})")
+                problems.append(f"control_bounds: unknown input {name!r}"
+                                f"{known_names(name, self.control_names, label='inputs')}")
             _interval(value, f"control_bounds[{name!r}]", problems)
         for where, mapping, names in (("control_weights", self.control_weights, self.control_names),
                                       ("state_weights", self.state_weights, self.state_names)):
             for name, w in mapping.items():
                 if name not in names:
-                    problems.append(f"{where}: unknown name {name!r} (known: {', '.join(names)})")
+                    problems.append(f"{where}: unknown name {name!r}{known_names(name, names)}")
                 elif not (float(w) >= 0):
                     problems.append(f"{where}[{name!r}] = {w!r} must be ≥ 0")
         for name, q in self.quantities.items():

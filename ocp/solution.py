@@ -165,6 +165,14 @@ class Solution:
     verification: Verification | None = None
     violations: dict = field(default_factory=dict)
 
+    def __repr__(self) -> str:
+        from nhgait.dynamics.reprs import solution_repr
+        return solution_repr(self)
+
+    def _repr_markdown_(self) -> str:
+        from nhgait.dynamics.reprs import solution_markdown
+        return solution_markdown(self)
+
     def saturation(self, tol: float = 1e-6) -> dict:
         """Input name → fraction of the intervals where it sits at a bound of the problem."""
         if self.problem is None:

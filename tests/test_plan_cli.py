@@ -3,6 +3,7 @@ for any robot (units from the scene, legends, no global matplotlib state, the [d
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -19,7 +20,7 @@ SLEIGH = str(ROOT / "examples" / "rotor_sleigh.toml")
 
 def test_plan_a_scene_file_with_an_override(tmp_path, capsys):
     out = tmp_path / "sleigh"
-    code = main(["plan", SLEIGH, "--set", "final.x=0.8", "--intervals", "50", "--no-jit", "--out", str(out)])
+    code = main(["plan", SLEIGH, "--set", "final.x=0.8", "--intervals", "50", "--no-jit", "--gif", "--out", str(out)])
     text = capsys.readouterr().out
     assert code == 0, text
     assert "SUCCESS" in text and "conditions met to" in text and "rotor_sleigh/forward-1m" in text
@@ -34,8 +35,13 @@ def test_plan_a_scene_file_with_an_override(tmp_path, capsys):
 
 def test_builtin_gait_as_in_make_demo(tmp_path, capsys):
     out = tmp_path / "demo"
-    assert main(["plan", "snakeboard", "--gait", "forward", "--intervals", "25", "--no-jit", "--no-gif",
+    assert main(["plan", "snakeboard", "--gait", "forward", "--intervals", "25", "--no-jit",
                  "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    # the GIF is made on request only (make demo stays fast), and the summary says so
+    assert not (out / "motion.gif").exists() and "add --gif" in text
+    wall = re.search(r"wall time +([0-9.]+) s in all: model ([0-9.]+) s, .* verification ([0-9.]+) s", text)
+    assert wall and float(wall.group(1)) >= float(wall.group(2)) + float(wall.group(3)) - 0.1   # parts of the whole
     data = json.loads((out / "solution.json").read_text())
     assert data["objective"] == pytest.approx(0.110252, rel=1e-4)       # hand-written reference, N = 25
     assert data["settings"]["solver"] == "fatrop" and data["guess"]["won"]       # the default: auto
@@ -76,7 +82,7 @@ def test_plots_use_the_scene_units_and_leave_global_state(car_solution):
     fig, axes = plt.subplots(3, 1)
     plots.plot_histories(car_solution.solution, ctx, axes=axes)
     ylabels = [ax.get_ylabel() for ax in axes]
-    assert ylabels[0] == "shape [rad]" and "input [N]" in ylabels and "input [N·m]" in ylabels
+    assert ylabels[0] == "shape φ [rad]" and "input [N]" in ylabels and "input [N·m]" in ylabels
     fig2, ax = plt.subplots()
     plots.plot_path(car_solution.solution, ctx, ax=ax)
     assert ax.get_xlabel() == "x [m]" and ax.get_ylabel() == "y [m]"

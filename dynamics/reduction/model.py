@@ -7,6 +7,9 @@ from functools import cached_property
 
 import sympy as sp
 
+from nhgait.dynamics.cse_text import cse_lines, wants_cse
+from nhgait.dynamics.notation import symmetry_choice_lines
+
 from ..steps import DISPLAY_OPS, Steps, default_symbol_names, text_of
 from ..symbolic import tidy
 from ..symmetry import SymmetryTest
@@ -220,6 +223,10 @@ class ReducedODE:
         return (f"ReducedODE({self.system.name}, {self.form}, {self.dimension} ODEs in z = "
                 f"({', '.join(self.state_names)}), fiber ({', '.join(self.fiber)}), {self.classification})")
 
+    def _repr_markdown_(self) -> str:
+        from nhgait.dynamics.reprs import model_markdown
+        return model_markdown(self)
+
     def equations(self) -> list:
         """ż = f as sympy Eq objects (``<z>_dot``); explicit form only."""
         if self.rhs is None:
@@ -231,11 +238,13 @@ class ReducedODE:
         small, large ones left in normal form (printing stays within a budget)."""
         return [_pretty(e, list(self.momenta) + list(self.system.input_symbols)) for e in self.rhs]
 
-    def to_text(self, pretty: bool = True) -> str:
+    def to_text(self, pretty: bool = True, cse: bool | None = None) -> str:
+        """The equations as text; ``cse``: name repeated sub-expressions once (None: when the
+        plain text is long, :func:`~nhgait.dynamics.cse_text.wants_cse`)."""
         lines = [f"Reduced constrained Hamiltonian equations of {self.system.name} "
                  f"({self.dimension} = 2n − k first-order ODEs, {self.form} form, version {self.version}, "
-                 f"fiber s = ({', '.join(self.fiber)}), shape r = ({', '.join(self.shape)}), "
                  f"{self.classification})",
+                 *symmetry_choice_lines(self.symmetry, self.fiber, self.shape),
                  f"  state z = ({', '.join(self.state_names)})"]
         if self.rhs is None:
             lines.append("  q̇ = X(q) v,  K(q) v = (" + ", ".join(map(str, self.momenta)) +
@@ -244,17 +253,21 @@ class ReducedODE:
             lines.append(f"  pivot velocities ({', '.join(self.implicit.pivots)}) from B = ω[:, pivots]; "
                          f"K: {self.K!r}; ż: {self.numeric['rhs'].n_instructions()} CasADi operations")
             return "\n".join(lines)
-        for nm, e in zip(self.state_names, self.pretty_rhs() if pretty else self.rhs):
-            lines.append(f"  d{nm}/dt = {text_of(e)}")
-        return "\n".join(lines)
+        rhs = self.pretty_rhs() if pretty else self.rhs
+        plain = [f"  d{nm}/dt = {text_of(e)}" for nm, e in zip(self.state_names, rhs)]
+        if cse or (cse is None and wants_cse(plain)):
+            return "\n".join(lines + [f"  {line}" for line in
+                                       cse_lines([f"d{nm}/dt" for nm in self.state_names], rhs)])
+        return "\n".join(lines + plain)
 
     def checks_text(self) -> str:
         """The ``nhgait derive --checks`` report: Jacobi/holonomy test, Table 2.1 class, the
         (q, q̇) → state map and the singular set."""
         from ..analysis import jacobi_test
         res = jacobi_test(self)
-        out = [f"Jacobi identity of the reduced bracket: {'holds' if res.jacobi_holds else 'fails'} "
-               f"(max relative Jacobiator {res.jacobiator:.2g}); constraints "
+        bracket = ("a Poisson bracket (the Jacobi identity holds" if res.jacobi_holds else
+                   "almost-Poisson (the Jacobi identity does not hold, as expected of a nonholonomic bracket")
+        out = [f"reduced bracket: {bracket}; max relative Jacobiator {res.jacobiator:.2g}); constraints "
                f"{'holonomic' if res.holonomic else 'nonholonomic'} (max |ω[X_a, X_b]| {res.holonomy:.2g}); "
                f"thesis §2.2.2 (Jacobi ⇔ holonomic): {'consistent' if res.consistent else 'INCONSISTENT'}",
                f"classification (thesis Table 2.1): {self.classification}",

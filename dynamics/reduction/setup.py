@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import sympy as sp
 
+from nhgait.dynamics.notation import method_name, system_names
+
 from ..steps import Step
 from ..symbolic import numeric_pivots, strip_factors, tidy
 from ..symmetry import SymmetryTest, group_transform, symmetry_test
@@ -89,12 +91,16 @@ class Layout:
         shape), ξ, Ω, μ, and v = (Ω, ṙ_free)."""
         names, q_dot = self.system.coordinates, self.system.q_dot
         d, l = self.d, len(self.si)
-        P_nh = [_sym("p")] if d == 1 else [_sym(f"p{i + 1}") for i in range(d)]
-        Om = [_sym("Omega")] if d == 1 else [_sym(f"Omega{i + 1}") for i in range(d)]
-        Pt = [_sym(f"pt_{names[i]}") for i in self.free]
-        return _Symbols(p=[_sym(f"p_{c}") for c in names], P_nh=P_nh, Pt=Pt, P=P_nh + Pt,
-                        xi=[_sym(f"xi{i + 1}") for i in range(l)], Om=Om,
-                        mu=[_sym(f"mu{i + 1}") for i in range(l)],
+        taken = system_names(self.system)      # a user's p, Omega, xi1 … never meets the method's
+
+        def sym(name):
+            return _sym(method_name(name, taken))
+        P_nh = [sym("p")] if d == 1 else [sym(f"p{i + 1}") for i in range(d)]
+        Om = [sym("Omega")] if d == 1 else [sym(f"Omega{i + 1}") for i in range(d)]
+        Pt = [sym(f"pt_{names[i]}") for i in self.free]
+        return _Symbols(p=[sym(f"p_{c}") for c in names], P_nh=P_nh, Pt=Pt, P=P_nh + Pt,
+                        xi=[sym(f"xi{i + 1}") for i in range(l)], Om=Om,
+                        mu=[sym(f"mu{i + 1}") for i in range(l)],
                         v=Om + [q_dot[i] for i in self.free])
 
 
@@ -135,8 +141,9 @@ def distribution_and_group(system: System, sym: SymmetryTest, N: sp.Matrix, si, 
     s3 = Step(3, "Full symmetry group", "§3.2.2, Table 3.1, eqs. 3.5–3.8, 3.65–3.68", {
         "table": sym, "s": ", ".join(cand.fiber), "r": ", ".join(names[i] for i in ri),
         "G": cand.group, "xi_Q": xi_Q, "xi": N, "chosen_by": sym.chosen_by},
-        "Candidates T_q Orb = span{∂/∂s}; S_q = D_q ∩ T_q Orb; the full candidate of smallest l.",
-        labels={"s": "s (fiber)", "r": "r (shape)", "xi_Q": "xi_Q^q (columns)",
+        "Candidates: every set of fibre coordinates, T_q Orb = their span; S_q = D_q ∩ T_q Orb; chosen "
+        "by the selection rule of docs/reduction.md.",
+        labels={"s": "fibre coordinates (step.s)", "r": "shape coordinates (step.r)", "xi_Q": "xi_Q^q (columns)",
                 "xi": "xi (Lie algebra element)", "chosen_by": "chosen by"})
     return s2, s3
 
