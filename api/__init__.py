@@ -3,9 +3,10 @@
 From the coordinates q, a Lagrangian L(q, q̇), Pfaffian constraints ω(q)q̇ = 0, generalized
 forces τ and parameters, nhgait derives the equations of motion three ways (Euler–Lagrange and
 Hamilton with multipliers, and the reduced constrained Hamiltonian of the 20-step method),
-simulates them, and plans gaits with CasADi — FATROP on a stage-ordered multiple-shooting
-transcription by default, Ipopt when FATROP finds no solution (``solver="ipopt"`` or
-``"fatrop"`` for one of them) — each optimum verified by an independent simulation.
+simulates them, and plans gaits with CasADi — by default FATROP on a stage-ordered
+multiple-shooting transcription for small ODEs and Ipopt for larger ones, the other when the
+first finds no solution (``solver="ipopt"`` or ``"fatrop"`` for one of them) — each optimum
+verified by an independent simulation.
 
 Sub-packages (each imports only the ones before it; ``import nhgait`` loads none of them):
 
