@@ -13,14 +13,17 @@ from __future__ import annotations
 import importlib
 
 _EXPORTS = {
-    "System": "system", "ModelError": "errors", "SingularConfigurationError": "errors",
-    "unicycle": "models", "snakeboard": "models", "chaplygin_sleigh": "models",
-    "knife_edge_incline": "models", "builtin": "models",
-    "derive": "derivation", "FORMULATIONS": "derivation",
-    "ReducedODE": "reduction", "LagrangianDAE": "lagrange", "HamiltonianDAE": "hamilton",
-    "load_scene": "scene", "Scene": "scene",
-    "simulate": "simulation", "Trajectory": "simulation",
-    "jacobi_test": "analysis", "to_state": "states", "from_state": "states",
+    "System": "derivation.system", "ModelError": "errors", "SingularConfigurationError": "errors",
+    "unicycle": "derivation.models", "snakeboard": "derivation.models",
+    "chaplygin_sleigh": "derivation.models", "knife_edge_incline": "derivation.models",
+    "builtin": "derivation.models",
+    "derive": "derivation.formulations", "FORMULATIONS": "derivation.formulations",
+    "ReducedODE": "derivation.reduction", "LagrangianDAE": "derivation.lagrange",
+    "HamiltonianDAE": "derivation.hamilton",
+    "load_scene": "derivation.scene", "Scene": "derivation.scene",
+    "simulate": "simulation.driver", "Trajectory": "simulation.driver",
+    "jacobi_test": "derivation.analysis", "to_state": "derivation.states",
+    "from_state": "derivation.states",
 }
 
 __all__ = sorted(_EXPORTS)

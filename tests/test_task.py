@@ -7,7 +7,7 @@ import math
 import pytest
 
 from nhgait.gaits.task import Task, apply_overrides, parse_task
-from nhgait.gaits.tasks import TASKS, get_task, resolve
+from nhgait.gaits.task_library import TASKS, get_task, resolve
 from nhgait.ocp import ProblemError
 
 P2 = {"horizon": "2*pi", "intervals": 50,
