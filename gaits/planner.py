@@ -376,7 +376,11 @@ def write_outputs(result: PlanResult, out: Path, *, animate: bool = True, progre
     with progress.phase("write solution.json and the figures" + (" and the animation (the longest part)"
                                                                    if animate else "")):
         files.extend(plots.write_figures(result.solution, out, units=result.plan.units, drawing=result.plan.drawing,
-                                         model=result.model, animate=animate, failed=failed))
+                                         model=result.model, failed=failed))
+        if animate:
+            from .animation import animate_solution
+            ctx = plots.figure_context(result.solution, result.model, result.plan.units, result.plan.drawing)
+            files.append(animate_solution(result.solution, ctx, out / "motion.gif"))
     return files
 
 

@@ -15,7 +15,7 @@ import sympy as sp
 
 from ..errors import ModelError
 from .expressions import number_problems
-from .system import TIME, System, _parse, jump_times
+from .system import TIME, System, parse_field, jump_times
 from .tomldata import read_toml
 
 SYSTEM_KEYS = {"name", "coordinates", "lagrangian", "constraints", "forces", "parameters", "inputs",
@@ -275,7 +275,7 @@ def _input_laws(inputs, system, params, problems):
     exprs, ok = [], True
     for u in system.inputs:
         value = inputs[u]
-        e = _parse(value if isinstance(value, str) else value, names, f"[simulation].inputs.{u}", problems)
+        e = parse_field(value if isinstance(value, str) else value, names, f"[simulation].inputs.{u}", problems)
         if e is None:
             ok = False
             continue
@@ -312,7 +312,7 @@ def _quantities(system, table, problems) -> dict:
         if not isinstance(text, str):
             problems.append(f"{where}: must be an expression string, got {text!r}")
             continue
-        e = _parse(text, names, where, problems)
+        e = parse_field(text, names, where, problems)
         if e is None:
             continue
         bad = sorted(s.name for s in e.free_symbols if s.name not in names)

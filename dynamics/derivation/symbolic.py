@@ -48,8 +48,9 @@ def _reduce_poly(poly, pairs):
     return out
 
 
-class _NotRational(Exception):
-    pass
+class NotRational(Exception):
+    """An expression the exact rational back end cannot represent (a trig function of a
+    non-angle, a power with a symbolic exponent, ...): the sympy back end takes over."""
 
 
 class WorkBudgetExceeded(Exception):
@@ -115,7 +116,7 @@ def _float_rational(x):
 def _walk_fraction(e, R, table: dict):
     """Evaluate the sympy expression ``e`` as a fraction (num, den) of the ring ``R``, where
     ``table`` maps every generator (symbol, sin/cos, opaque subexpression) to its fraction.
-    No gcd is taken on the way; raises ``_NotRational`` for a node it cannot represent."""
+    No gcd is taken on the way; raises ``NotRational`` for a node it cannot represent."""
     from sympy.polys.domains import QQ
     one = R.one
     memo: dict = {}
@@ -150,7 +151,7 @@ def _walk_fraction(e, R, table: dict):
             else:
                 out = (bn ** k, bd ** k)
         else:
-            raise _NotRational
+            raise NotRational
         memo[x] = out
         return out
 
@@ -169,7 +170,7 @@ def _to_field(e, extra):
         gens.setdefault(x, None)
     order = sorted(gens, key=sp.default_sort_key)
     if not order:
-        raise _NotRational
+        raise NotRational
     R, *g = make_ring(order, QQ)
     num, den = _walk_fraction(e, R, {k: (v, R.one) for k, v in zip(order, g)})
     return R, num, den
@@ -226,7 +227,7 @@ def trig_normal(expr):
     pairs_expr = [(sp.sin(a), sp.cos(a)) for a in args]
     try:
         R, num, den = _to_field(e, [x for pair in pairs_expr for x in pair])
-    except _NotRational:
+    except NotRational:
         return sp.factor_terms(sp.cancel(e))
     syms = list(R.symbols)
     pairs = [(syms.index(S), syms.index(C)) for S, C in pairs_expr]
@@ -474,7 +475,7 @@ class FracField(MatrixOps):
 
     Intermediate quantities stay as ring fractions across steps (no round trips through sympy
     expressions); :meth:`normal` gives exactly the normal form of :func:`trig_normal` and
-    :meth:`expr` its sympy expression. Raises ``_NotRational`` for anything it cannot represent
+    :meth:`expr` its sympy expression. Raises ``NotRational`` for anything it cannot represent
     (the caller then falls back to the plain sympy derivation).
 
     ``symbols`` and ``angles`` are the field's *variables* (differentiated and substituted by
@@ -486,7 +487,7 @@ class FracField(MatrixOps):
     cannot depend on t they enter only through the forces, which the steps multiply and add
     but never invert or test for a zero pivot, so a relation among them can leave a force term
     unsimplified, never wrong. A sin/cos of any other non-symbol argument raises
-    ``_NotRational``."""
+    ``NotRational``."""
 
     def __init__(self, exprs, symbols=(), angles=(), time=()):
         from sympy.polys.domains import QQ
@@ -495,7 +496,7 @@ class FracField(MatrixOps):
         variables = frozenset(symbols) | frozenset(angles)
         time = frozenset(time)
         for e in exprs:
-            for x in (e if isinstance(e, sp.MatrixBase) else [_basic(e)]):
+            for x in (e if isinstance(e, sp.MatrixBase) else [as_sympy(e)]):
                 x = tidy(x) if has_trig(x) else x
                 _check_trig(x, variables, time)
                 _collect_generators(x, gens)
@@ -529,10 +530,10 @@ class FracField(MatrixOps):
 
     # -- conversion ------------------------------------------------------------------------
     def frac(self, e, normal=False):
-        e = _basic(e)
+        e = as_sympy(e)
         try:
             out = self._walk(e)
-        except (_NotRational, KeyError):
+        except (NotRational, KeyError):
             e2 = tidy(e)
             out = self._walk(e2)
             normal = False
@@ -644,7 +645,7 @@ class FracField(MatrixOps):
             return f
         for o in self.opaque:
             if x in o.free_symbols:
-                raise _NotRational
+                raise NotRational
         gens = self.gens
 
         def dp(p):
@@ -665,15 +666,15 @@ class FracField(MatrixOps):
     def subs(self, f, sub):
         """Substitute generators (index -> fraction) in f = (num, den); den must not contain them
         and no opaque generator (e.g. sign(φ̇)) may depend on them — the substitution could not
-        reach inside it, so the plain sympy back end takes over (``_NotRational``)."""
+        reach inside it, so the plain sympy back end takes over (``NotRational``)."""
         num, den = f
         for m in den.itermonoms():
             if any(m[i] for i in sub):
-                raise _NotRational
+                raise NotRational
         targets = {self.order[i] for i in sub}
         used = {i for m in num.itermonoms() for i, k in enumerate(m) if k}
         if any(self.order[i] in self.opaque and self.order[i].free_symbols & targets for i in used):
-            raise _NotRational
+            raise NotRational
         terms = []
         idx = list(sub)
         for m, c in num.items():
@@ -696,7 +697,7 @@ class FracField(MatrixOps):
         vi = [self.index[v] for v in variables]
         for m in den.itermonoms():
             if any(m[i] for i in vi):
-                raise _NotRational
+                raise NotRational
         const = {}
         coefs = [{} for _ in vi]
         for m, c in num.items():
@@ -710,7 +711,7 @@ class FracField(MatrixOps):
         return (self.normal((self.R(const), den)), [self.normal((self.R(cd), den)) for cd in coefs])
 
 
-def _basic(e):
+def as_sympy(e):
     """A sympy object for an internal value (sympy objects pass through; numbers convert)."""
     if isinstance(e, sp.Basic):
         return e
@@ -718,15 +719,15 @@ def _basic(e):
 
 
 def _check_trig(x, variables=frozenset(), time=frozenset()):
-    """Raise ``_NotRational`` unless every trig function of ``x`` (a normal form, so only sin
+    """Raise ``NotRational`` unless every trig function of ``x`` (a normal form, so only sin
     and cos) is sin/cos of a symbol or a time factor: an argument that involves a ``time``
     symbol and none of the ``variables`` (see :class:`FracField`)."""
     if x.has(sp.tan, sp.cot, sp.sec, sp.csc):
-        raise _NotRational
+        raise NotRational
     for a in x.atoms(sp.sin, sp.cos):
         arg = a.args[0]
         if arg.is_Symbol:
             continue
         free = arg.free_symbols
         if not free & time or free & variables:
-            raise _NotRational
+            raise NotRational

@@ -110,7 +110,7 @@ def _from_sympy(expr, names: dict, where: str, problems: list):
     return expr
 
 
-def _parse(value, names: dict, where: str, problems: list):
+def parse_field(value, names: dict, where: str, problems: list):
     """One field's expression: a string (parsed by :mod:`.expressions`, never evaluated), a
     number or a sympy expression. Unknown identifiers become plain symbols, reported by the
     caller with a hint; problems are appended to ``problems``, None is returned."""
@@ -255,13 +255,13 @@ class System:
 
     def _expressions(self, coord_names, names, declared_inputs, known, problems, check_symbols=True):
         """Parse L, the constraints and the forces; find or check the inputs."""
-        L = _parse(self.lagrangian, names, "lagrangian", problems)
+        L = parse_field(self.lagrangian, names, "lagrangian", problems)
         raw = self.constraints if self.constraints is not None else ()
         if isinstance(raw, (str, sp.Expr)):
             problems.append("constraints: expected a list of expressions, got a single "
                             f"{'string' if isinstance(raw, str) else 'expression'} (write constraints = [\"...\"])")
             raw = ()
-        cons = [_parse(c, names, f"constraint {i + 1}", problems) for i, c in enumerate(raw)]
+        cons = [parse_field(c, names, f"constraint {i + 1}", problems) for i, c in enumerate(raw)]
         tau = [sp.Integer(0)] * len(coord_names)
         forces = self.forces if self.forces is not None else {}
         if not isinstance(forces, Mapping):
@@ -277,7 +277,7 @@ class System:
                 if check_symbols:
                     problems.append(f"forces: {kname!r} is not a coordinate (coordinates: {', '.join(coord_names)})")
                 continue
-            e = _parse(val, names, f"force on {kname}", problems)
+            e = parse_field(val, names, f"force on {kname}", problems)
             if e is not None:
                 tau[coord_names.index(kname)] = e
         if not check_symbols:

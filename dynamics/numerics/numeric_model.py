@@ -26,6 +26,7 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
+from ..derivation.system import TIME as TIME_SYM
 from .bridge import to_casadi
 
 
@@ -203,15 +204,18 @@ def _reduced_functions(model, t, z, u, p, qv, qdv, rhs, qdot, h, P_of_v, X, J_z,
     }
 
 
-def compile_reduced(model) -> NumericModel:
+def compile_reduced(model, casadi_steps: dict | None = None) -> NumericModel:
     """CasADi functions of a :class:`~nhgait.dynamics.derivation.reduction.ReducedODE` (either form).
 
+    The explicit form is converted from its sympy expressions; the implicit form needs
+    ``casadi_steps``, the outputs of steps 4–20 run on CasADi SX
+    (:func:`~nhgait.dynamics.derivation.reduction.pipeline.run_steps`).
     Besides the functions of the module docstring: ``basis(z, params)`` → X(q) and
     ``structure(z, params)`` → J_z (used by :func:`~nhgait.dynamics.derivation.analysis.jacobi_test`)."""
     if model.form == "implicit":
-        from ..derivation.reduction import _arithmetic, run_steps
-        _, out = run_steps(_arithmetic("casadi", model.layout), model.layout)
-        return compile_reduced_from(model, out)
+        if casadi_steps is None:
+            raise ValueError("the implicit form is compiled from the CasADi run of its steps (casadi_steps)")
+        return _implicit_functions(model, casadi_steps)
     system = model.system
     n, nz = system.n, len(model.state)
     t, u, p = _syms(system)
@@ -230,9 +234,9 @@ def compile_reduced(model) -> NumericModel:
     return _base(system, "reduced", model.state_names, fns)
 
 
-def compile_reduced_from(model, out) -> NumericModel:
+def _implicit_functions(model, out) -> NumericModel:
     """The implicit form's functions from the CasADi run of the steps (``out`` of
-    :func:`~nhgait.dynamics.derivation.reduction.run_steps` on :class:`CasadiArithmetic`)."""
+    :func:`~nhgait.dynamics.derivation.reduction.pipeline.run_steps` on :class:`CasadiArithmetic`)."""
     system, F = model.system, out["F"]
     sym_of = F.sym
     t = sym_of(TIME_SYM)
@@ -354,4 +358,3 @@ def compile_hamilton(model) -> NumericModel:
     return _base(system, "hamilton", model.state_names, fns, k)
 
 
-from ..derivation.system import TIME as TIME_SYM  # noqa: E402  (kept at the end to avoid a cycle in docs)

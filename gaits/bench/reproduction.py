@@ -27,12 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-# functions first through the package's lazy exports: loading a submodule that shares a
-# function's name (derive, simulate) any other way leaves the package attribute bound to the module
-from nhgait.dynamics import builtin, derive, simulate  # isort: skip
-from nhgait.dynamics.simulation.controllers import snakeboard_pd, unicycle_pd
 from nhgait.dynamics.derivation.formulations import FORMULATIONS
 from nhgait.dynamics.derivation.states import constraint_residual
+from nhgait.dynamics.simulation.controllers import snakeboard_pd, unicycle_pd
 
 #: name → (controller factory, final time, number of output points)
 CASES = {
@@ -74,6 +71,7 @@ def run_case(name, *, rtol=1e-10, formulations=FORMULATIONS, idas=True, params=N
     dict with ``t_eval`` (N,), ``q0``, ``qdot0`` (n,), ``controller`` and ``runs``
     (label → :class:`~nhgait.dynamics.simulation.driver.Trajectory`).
     """
+    from nhgait.dynamics import builtin, derive, simulate     # the derivations: loaded when a case runs
     factory, t_final, n_points = CASES[name]
     controller = factory()
     system = builtin(name)

@@ -23,7 +23,8 @@ mechanics, which is why it can be checked against KanesMethod.
 
 Modules: :mod:`.setup` (steps 1–3 and the layout), :mod:`.connection` (4–8),
 :mod:`.legendre` (9–11), :mod:`.poisson` (12–17), :mod:`.equations` (18–20), written once
-against :mod:`.arithmetic`; :mod:`.model` holds the result type :class:`ReducedODE`.
+against :mod:`.arithmetic` and run in order by :mod:`.pipeline`; :mod:`.model` holds the result
+type :class:`ReducedODE`.
 
 Two forms (``model.form``):
 
@@ -41,60 +42,19 @@ from __future__ import annotations
 import dataclasses
 import time
 
-from ..symbolic import WorkBudgetExceeded, _NotRational
+from ..symbolic import NotRational, WorkBudgetExceeded
 from ..system import System
-from . import connection, equations, legendre, poisson
-from .arithmetic import make_arithmetic
 from .model import ImplicitForm, ReducedODE, casadi_text, classify, singular_set
+from .pipeline import arithmetic_for, run_steps
 from .setup import Layout, layout
 
-__all__ = ["ReducedODE", "derive_reduced", "Layout", "run_steps"]
+__all__ = ["ReducedODE", "derive_reduced", "Layout"]
 
 FORMS = ("explicit", "implicit")
 #: work budget of the explicit form's exact arithmetic (Σ terms(num)·terms(den) over all
 #: normalisations; snakeboard ≈ 1.2e4, a 2-link snake with a rotor ≈ 1.9e6): beyond it the
 #: implicit form is used (deterministic, unlike a time limit)
 EXPLICIT_WORK_BUDGET = 60_000
-
-
-def run_steps(F, lay: Layout) -> tuple[list, dict]:
-    """Steps 4–20 on the arithmetic back end ``F``; returns (steps, outputs) with outputs
-    ``qdot``, ``Pdot`` (lists of display values), ``X``, ``K``, ``h``, ``J_z``,
-    ``momenta_of_velocity``, ``A``."""
-    sy = lay.symbols()
-    steps = [connection.momentum(F, lay, sy)]
-    s5, con = connection.reconstruction(F, lay, sy)
-    steps += [s5, connection.body_basis(F, lay, sy, con), connection.reduced_lagrangian(F, lay, sy, con),
-              connection.constrained_lagrangian(F, lay, sy, con)]
-    s10, Kinv = legendre.velocities(F, lay, sy, con)
-    s11, h = legendre.hamiltonian(F, lay, sy, Kinv)
-    steps += [legendre.legendre_transform(F, lay, sy, con), s10, s11]
-    s12, _ = poisson.canonical_momenta(F, lay, sy, con)
-    lie = poisson.lie_brackets(F, lay, con)
-    s16, br = poisson.restricted_brackets(F, lay, sy, con, Kinv, lie)
-    s17, J_z = poisson.structure(F, lay, sy, con, br["C"])
-    steps += [s12, poisson.body_momentum(F, lay, sy, con), poisson.momenta_in_mu(F, lay, sy, con),
-              poisson.brackets_in_mu(F, lay, sy, lie), s16, s17]
-    s18, grad = equations.gradient(F, lay, sy, con, Kinv)
-    s19, eqs = equations.equations(F, lay, sy, con, Kinv, br, grad)
-    steps += [s18, s19, equations.fiber_velocities(F, lay, sy, eqs)]
-    nP = len(sy.P)
-    out = {"qdot": eqs["qdot"], "Pdot": eqs["Pdot"], "X": F.show(con.X, lay.n, nP),
-           "K": F.show(con.K, nP, nP), "h": h, "J_z": J_z, "symbols": sy,
-           "A_zero": all(F.is_zero(e) for r in con.A for e in r),
-           "momenta_of_velocity": equations.momenta_of_velocity(F, lay, sy, con), "F": F}
-    return steps, out
-
-
-def _arithmetic(kind, lay):
-    """The back end ``kind`` for ``lay``: the steps' variables (q, q̇, momenta, inputs) and the
-    time t of the forces, which the steps carry along but never differentiate."""
-    from ..system import TIME
-    s = lay.system
-    sy = lay.symbols()
-    syms = list(s.q) + list(s.q_dot) + sy.p + sy.P + sy.xi + sy.Om + sy.mu + list(s.input_symbols)
-    return make_arithmetic(kind, [lay.M, lay.W, s.L, lay.V, s.force_vector(), lay.N, lay.g], syms, s.q,
-                           time=(TIME,))
 
 
 def derive_reduced(system: System, version: str | None = None, form: str | None = None) -> ReducedODE:
@@ -115,16 +75,16 @@ def derive_reduced(system: System, version: str | None = None, form: str | None 
     lay, first = layout(system, version, form)
     if lay.form == "explicit":
         try:
-            F = _arithmetic("ring", lay)
+            F = arithmetic_for("ring", lay)
             F.budget = None if form == "explicit" else EXPLICIT_WORK_BUDGET
             steps, out = run_steps(F, lay)
             return _explicit_model(lay, first, steps, out, t0)
-        except _NotRational:
-            steps, out = run_steps(_arithmetic("sympy", lay), lay)
+        except NotRational:
+            steps, out = run_steps(arithmetic_for("sympy", lay), lay)
             return _explicit_model(lay, first, steps, out, t0)
         except WorkBudgetExceeded:
             lay = dataclasses.replace(lay, form="implicit")
-    steps, out = run_steps(_arithmetic("casadi", lay), lay)
+    steps, out = run_steps(arithmetic_for("casadi", lay), lay)
     return _implicit_model(lay, first, steps, out, t0)
 
 
@@ -163,8 +123,8 @@ def _implicit_model(lay, first, steps, out, t0) -> ReducedODE:
                        classification=classify(lay, out["A_zero"]),
                        steps=_steps(first, shown, names), implicit=ImplicitForm.of(lay),
                        derive_time_s=0.0, symbol_names=names)
-    from ...numerics.numeric_model import compile_reduced_from
-    model.__dict__["numeric"] = compile_reduced_from(model, out)
+    from ...numerics.numeric_model import compile_reduced
+    model.__dict__["numeric"] = compile_reduced(model, out)
     object.__setattr__(model, "derive_time_s", time.perf_counter() - t0)
     return model
 

@@ -24,7 +24,7 @@ from __future__ import annotations
 import sympy as sp
 
 from ...errors import ModelError
-from ..symbolic import FracField, MatrixOps, _basic, tidy
+from ..symbolic import FracField, MatrixOps, as_sympy, tidy
 
 
 class SympyArithmetic(MatrixOps):
@@ -37,7 +37,7 @@ class SympyArithmetic(MatrixOps):
         self.one = self.ONE = sp.Integer(1)
 
     def frac(self, e, normal=False):
-        e = _basic(e)
+        e = as_sympy(e)
         return tidy(e) if normal else e
 
     def sym(self, s):
@@ -106,7 +106,7 @@ class CasadiArithmetic(MatrixOps):
 
     def frac(self, e, normal=False):
         from ...numerics.bridge import to_casadi
-        e = _basic(e)
+        e = as_sympy(e)
         for s in e.free_symbols:
             self.sym(s)
         syms = list(self.table)

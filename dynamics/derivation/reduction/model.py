@@ -269,8 +269,13 @@ class ReducedODE:
 
     @cached_property
     def numeric(self):
-        """CasADi/numpy functions of this model (see :mod:`nhgait.dynamics.numerics.numeric_model`)."""
+        """CasADi/numpy functions of this model (see :mod:`nhgait.dynamics.numerics.numeric_model`);
+        the implicit form's functions come from the CasADi run of steps 4–20."""
         from ...numerics.numeric_model import compile_reduced
+        if self.form == "implicit":
+            from .pipeline import arithmetic_for, run_steps
+            _, out = run_steps(arithmetic_for("casadi", self.layout), self.layout)
+            return compile_reduced(self, out)
         return compile_reduced(self)
 
 
