@@ -21,7 +21,7 @@ from nhgait.ocp import ProblemError
 
 from .task import Task, apply_overrides, parse_task
 
-__all__ = ["Plan", "resolve", "library", "library_tasks", "get_task", "TASKS"]
+__all__ = ["Plan", "resolve", "library", "library_tasks", "library_task_names", "get_task"]
 
 LIBRARY_KEYS = {"scene", "units", "drawing", "tasks"}
 
@@ -79,7 +79,9 @@ def library_tasks() -> dict:
     return out
 
 
-TASKS = tuple(sorted(library_tasks()))
+def library_task_names() -> tuple:
+    """(scene, task name) of every built-in task, sorted (the library files read now)."""
+    return tuple(sorted(library_tasks()))
 
 
 def get_task(scene_name: str, name: str) -> Task:
@@ -87,7 +89,7 @@ def get_task(scene_name: str, name: str) -> Task:
     data = library(scene_name)
     tasks = (data or {}).get("tasks", {})
     if name not in tasks:
-        known = ", ".join(f"{s} {n}" for s, n in TASKS)
+        known = ", ".join(f"{s} {n}" for s, n in library_task_names())
         raise ProblemError([f"unknown gait {name!r} for system {scene_name!r} (known: {known}; a scene "
                             "file plans its own [task])"], title="invalid gait task")
     return parse_task({"name": name, **tasks[name]}, where=f"[tasks.{name}]")
@@ -135,7 +137,7 @@ def resolve(system, task=None, *, overrides=()) -> Plan:
         table, where = {"name": task, **tasks[task]}, f"[tasks.{task}]"
     elif task is None:
         if scene.task is None:
-            known = [n for s, n in TASKS if s == name]
+            known = [n for s, n in library_task_names() if s == name]
             hint = (f" or choose a built-in gait with --gait ({', '.join(known)})" if known else "")
             raise ProblemError([f"{scene.source} has no [task] table: add one (docs/gait-planning.md){hint}"],
                                title="nothing to plan")

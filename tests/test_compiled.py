@@ -145,7 +145,7 @@ def _fresh_build(model, controller):
     """Build the loop's library ignoring every in-process memo (as a new process would)."""
     from nhgait.dynamics.simulation import compiled
     from nhgait.dynamics.simulation.closed_loop import closed_loop
-    compiled._LOADED.clear()
+    compiled.LOADED_LIBRARIES.clear()
     loop = closed_loop(model, controller)
     return compiled.build(loop.rhs, loop.outputs, loop.event)
 

@@ -271,10 +271,10 @@ def null_basis_adjugate(A: sp.Matrix, pivots: list[int]) -> sp.Matrix:
         # remove a common constant/polynomial factor, fix the sign of the free entry
         try:
             g = sp.gcd(list(v))
-            if g not in (0, 1) and g.is_Number:
-                v = tidy(v / g)
         except (sp.PolynomialError, sp.GeneratorsNeeded, TypeError):
-            pass
+            g = None          # no gcd of these entries: v is a basis vector as it is
+        if g is not None and g not in (0, 1) and g.is_Number:
+            v = tidy(v / g)
         if v[j].could_extract_minus_sign():
             v = -v
         cols.append(v)

@@ -34,25 +34,25 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import weakref
 from dataclasses import dataclass
 from functools import cached_property
 
 import casadi as ca
 import numpy as np
 
-from .closure import closure
 from ..errors import ModelError
+from ..memo import OwnerMemo
+from .closure import closure
 
 __all__ = ["ClosedLoop", "closed_loop", "controller_key", "OUTPUT_NAMES"]
 
 #: the blocks of ``ClosedLoop.outputs``, in order
 OUTPUT_NAMES = ("q", "qdot", "lam", "g", "energy", "u_applied", "measure", "metric", "gram")
 
-#: per model.numeric object: key → ClosedLoop (dropped with the model)
-_MEMO: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
-#: content keys of frozen (immutable) controller objects
-_KEYS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+#: per compiled model (model.numeric, dropped with it): (controller key, options) → ClosedLoop
+CLOSED_LOOPS = OwnerMemo("closed loops per compiled model, controller and options")
+#: content keys of frozen (immutable) controller objects, dropped with the controller
+CONTROLLER_KEYS = OwnerMemo("content keys of frozen controllers")
 
 
 def _is_open_loop(controller) -> bool:
@@ -64,18 +64,9 @@ def controller_key(controller) -> str:
     """A content key of the controller's law as it enters the closed loop (remembered for
     frozen dataclass controllers, which cannot change)."""
     frozen = dataclasses.is_dataclass(controller) and controller.__dataclass_params__.frozen
-    if frozen:
-        try:
-            return _KEYS[controller]
-        except (KeyError, TypeError):
-            pass
-    key = _controller_key(controller)
-    if frozen:
-        try:
-            _KEYS[controller] = key
-        except TypeError:
-            pass
-    return key
+    if not frozen:
+        return _controller_key(controller)
+    return CONTROLLER_KEYS.get(controller, "law", lambda: _controller_key(controller))
 
 
 def _controller_key(controller) -> str:
@@ -208,12 +199,7 @@ def closed_loop(model, controller, *, stabilization=None, baumgarte=(1.0, 0.0),
     key = (controller_key(controller), stabilization,
            tuple(float(v) for v in baumgarte) if stabilization == "baumgarte" else None,
            None if seeds is None else tuple(sorted(set(int(s) for s in seeds))))
-    per_model = _MEMO.setdefault(model.numeric, {})
-    loop = per_model.get(key)
-    if loop is None:
-        loop = _build(model, controller, stabilization, baumgarte, key[3])
-        per_model[key] = loop
-    return loop
+    return CLOSED_LOOPS.get(model.numeric, key, lambda: _build(model, controller, stabilization, baumgarte, key[3]))
 
 
 def _invariant_entries(expr, x, params, candidates, param_values, samples=6) -> list:

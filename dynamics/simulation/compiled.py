@@ -30,6 +30,7 @@ from importlib import resources
 import casadi as ca
 import numpy as np
 
+from ..memo import LruMemo
 from ..numerics.compiler import CompilerUnavailable, Library, build_library, library_key
 from .rk_tableaus import tableau
 
@@ -55,8 +56,9 @@ _C = dict(t=0, h=1, rtol=2, atol=3, hmax=4, evtol=5, err_old=6, t_stiff=7, t_fai
 _N = dict(nfev=0, accepted=1, rejected=2, max_steps=3, i_eval=4, n_out=5, stiff=6, nonstiff=7,
           bad=8)
 
-#: key → loaded ctypes library (a library is loaded once per process)
-_LOADED: dict = {}
+#: library key → loaded ctypes library, for the life of the process (a loaded library is never
+#: unloaded; the memo only spares the cache lookup and the ctypes declarations)
+LOADED_LIBRARIES = LruMemo("compiled closed loops loaded in this process, by library key", size=1024)
 
 
 # --------------------------------------------------------------------------------------------
@@ -129,12 +131,15 @@ def build(rhs: ca.Function, outputs: ca.Function, event: ca.Function | None = No
     it is compiled into a private temporary directory instead, removed once it is loaded."""
     source = c_source(rhs, outputs, event, project)
     key = library_key(source, flags=CFLAGS, salt=_SALT)
-    lib, compile_time = _LOADED.get(key), 0.0
-    if lib is None:
+    compile_time = 0.0
+
+    def build_and_load():
+        nonlocal compile_time
         built = build_library(source, flags=CFLAGS, salt=_SALT, label="compiling the closed loop",
                               timeout=_COMPILE_TIMEOUT_S)
-        lib, compile_time = _load(built), built.compile_s
-        _LOADED[key] = lib
+        compile_time = built.compile_s
+        return _load(built)
+    lib = LOADED_LIBRARIES.get(key, build_and_load)
     dims = [lib.nhg_dims(i) for i in range(4)]
     return CompiledLoop(key=key, library=lib, ny=dims[0], np=dims[1], nout=dims[2],
                         has_event=bool(dims[3]), compile_time_s=compile_time,

@@ -57,18 +57,18 @@ import csv
 import dataclasses
 import time
 import warnings
-import weakref
 from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
 
-from .closed_loop import closed_loop
+from ..derivation.states import to_state
 from ..errors import ModelError
+from ..memo import OwnerMemo
+from .closed_loop import closed_loop
 from .integrators import (FAILED, FINISHED, MAX_STEPS, NONFINITE, SCIPY_METHODS,
                           SINGULAR, integrate_compiled, integrate_scipy, integrate_sundials,
                           left_of)
-from ..derivation.states import to_state
 
 __all__ = ["simulate", "Trajectory", "METHODS", "FINISHED", "FAILED", "MAX_STEPS", "NONFINITE",
            "SINGULAR", "SINGULAR_EVENT_TOL"]
@@ -287,25 +287,23 @@ def _check_controller(system, controller, t0, tf, dae, method):
     return problems
 
 
-_PARAMS_CHECKED: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+#: the problems of each parameter vector given to simulate, per system (dropped with the system)
+CHECKED_PARAMETERS = OwnerMemo("parameter problems per system and parameter vector", limit=256)
 
 
 def _parameter_problems(model, params) -> list:
     """``System.parameter_problems`` for ``simulate(params=...)`` (remembered per system and
-    parameter vector): non-finite values, a singular or indefinite kinetic metric, dependent
-    constraints."""
+    parameter vector, :data:`CHECKED_PARAMETERS`): non-finite values, a singular or indefinite
+    kinetic metric, dependent constraints."""
     system = model.system
+
+    def check():
+        return tuple(system.parameter_problems(params, label="the given params"))
     try:
         key = model.numeric.params(params).tobytes()
-    except (ModelError, TypeError, ValueError):
-        key = None
-    memo = _PARAMS_CHECKED.setdefault(system, {})
-    if key is not None and key in memo:
-        return list(memo[key])
-    problems = system.parameter_problems(params, label="the given params")
-    if key is not None and len(memo) < 256:
-        memo[key] = tuple(problems)
-    return problems
+    except (ModelError, TypeError, ValueError):   # malformed params: parameter_problems names them
+        return list(check())
+    return list(CHECKED_PARAMETERS.get(system, key, check))
 
 
 def _segments(t0, tf, controller, system=None, params=None):
@@ -418,8 +416,9 @@ def simulate(model, t_span, q0, qdot0, *, controller=None, params=None, method: 
                      settings, extra, resolved, quantities, pv, singular_tol, with_initial)
 
 
-#: model.numeric → {parameter values: (specialised view, route)}, dropped with the model
-_SPECIALISED: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+#: per compiled model (model.numeric, dropped with it): parameter values → (the model
+#: specialised to them, the route taken)
+SPECIALISED = OwnerMemo("reduced models specialised to parameter values, per compiled model")
 
 
 def _integration_model(model, pv, settings):
@@ -431,15 +430,14 @@ def _integration_model(model, pv, settings):
     which route was taken."""
     if model.formulation != "reduced":
         return model
-    per_model = _SPECIALISED.setdefault(model.numeric, {})
-    key = tuple(float(v) for v in pv)
-    if key not in per_model:          # one view per model and values: its closed loop is reused
+
+    def specialised_view():           # one view per model and values: its closed loop is reused
         from ..numerics.specialisation import specialise
-        fast = specialise(model, pv)
+        specialised = specialise(model, pv)
         view = dataclasses.replace(model)
-        view.__dict__["numeric"] = fast.numeric
-        per_model[key] = (view, fast.route)
-    view, route = per_model[key]
+        view.__dict__["numeric"] = specialised.numeric
+        return view, specialised.route
+    view, route = SPECIALISED.get(model.numeric, tuple(float(v) for v in pv), specialised_view)
     settings["specialised"] = route
     return view
 

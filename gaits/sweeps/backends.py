@@ -247,7 +247,7 @@ class ProcessPool(_Backend):
             try:
                 slot.conn.send(None)
             except OSError:
-                pass
+                continue          # the worker has exited (its end of the pipe is closed): joined below
         for slot in self._slots:
             slot.process.join(timeout=5)
             if slot.process.is_alive():

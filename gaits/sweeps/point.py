@@ -28,6 +28,7 @@ from dataclasses import dataclass, field, replace
 from typing import Mapping
 
 
+from nhgait.dynamics.memo import LruMemo
 from nhgait.ocp import ProblemError
 
 from .grid import GridPoint
@@ -252,10 +253,10 @@ def check_case(case: SweepCase, job: PointJob) -> None:
     prepare(resolve(_scene(case.scene), job.task), params=job.params)
 
 
-#: per worker process: built solvers by structure (scene, parameters, task shape, options),
-#: least recently used dropped beyond _MEMO_SIZE — a cache, never a source of results
-_MEMO: dict = {}
-_MEMO_SIZE = 8
+#: this worker process's built solvers by structure (scene, parameters, task shape, options):
+#: (derived model, specialised model, OCPSolver), the least recently used dropped beyond 8 —
+#: a cache, never a source of results
+SOLVERS = LruMemo("built NLP solvers of this worker by structure", size=8)
 
 
 def _structure(task: Mapping) -> str:
@@ -290,25 +291,21 @@ def _solver_for(job: PointJob, *, warm: bool = False):
     from ..planner import prepare, state_problem
     from ..task_library import resolve
     case = job.case
-    the_plan = resolve(_scene(case.scene), job.task)
+    resolved = resolve(_scene(case.scene), job.task)
     warm = warm and case.options.get("solver", "ipopt") == "ipopt"
     key = (case.scene.sha256, tuple(sorted(job.params.items())), _structure(job.task),
            tuple(sorted(case.options.items())), warm)
-    if key in _MEMO:
-        model, fast, solver = _MEMO.pop(key)
-        _MEMO[key] = (model, fast, solver)
-        stated, problem, _ = state_problem(the_plan.task, fast, the_plan.scene, params=job.params,
-                                           name=the_plan.label)
-        return model, (stated, problem), solver.with_problem(problem), the_plan
-    prepared = prepare(the_plan, params=job.params)
-    model, fast, problem = prepared.model, prepared.fast, prepared.problem
-    solver = OCPSolver(problem, case.options.get("transcription"),
+    if key in SOLVERS:
+        model, specialised, solver = SOLVERS.get(key, None)
+        stated, problem, _ = state_problem(resolved.task, specialised, resolved.scene, params=job.params,
+                                           name=resolved.label)
+        return model, (stated, problem), solver.with_problem(problem), resolved
+    prepared = prepare(resolved, params=job.params)
+    solver = OCPSolver(prepared.problem, case.options.get("transcription"),
                        SolverOptions(jit=case.options.get("jit"), solver=case.options.get("solver", "ipopt"),
                                      ipopt=dict(WARM_IPOPT) if warm else {}))
-    _MEMO[key] = (model, fast, solver)
-    while len(_MEMO) > _MEMO_SIZE:
-        _MEMO.pop(next(iter(_MEMO)))
-    return model, (prepared.stated, problem), solver, the_plan
+    SOLVERS.get(key, lambda: (prepared.model, prepared.fast, solver))
+    return prepared.model, (prepared.stated, prepared.problem), solver, resolved
 
 
 def prepare_worker(job: PointJob) -> bool:
