@@ -49,13 +49,11 @@ def _derive(system, formulation: str, version):
 
 def bind(model, system, provenance=None):
     """``model`` with ``system`` (the same structure: names, L, ω, τ) as its system: the
-    caller's name and parameter values, the compiled functions shared, defaults rebound."""
-    bound = dataclasses.replace(model, system=system)
-    numeric = model.__dict__.get("numeric")
-    if numeric is not None:
-        bound.__dict__["numeric"] = numeric.with_defaults(system.param_values)
-    bound.__dict__["provenance"] = provenance
-    return bound
+    caller's name and parameter values, the compiled functions shared (when ``model`` has
+    them: given, or compiled and kept by ``model.numeric``), defaults rebound."""
+    numeric = model.compiled if model.compiled is not None else model.__dict__.get("numeric")
+    return dataclasses.replace(model, system=system, provenance=provenance,
+                               compiled=None if numeric is None else numeric.with_defaults(system.param_values))
 
 
 def derive(system, formulation: str = "reduced", *, version: str | None = None,

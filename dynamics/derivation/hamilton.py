@@ -12,7 +12,7 @@ p = M q̇, which cannot change the index.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import sympy as sp
@@ -43,6 +43,8 @@ class HamiltonianDAE:
     state_names: tuple
     multipliers: tuple
     derive_time_s: float = 0.0
+    compiled: object = field(default=None, repr=False)
+    provenance: object = field(default=None, repr=False)
 
     formulation = "hamilton"
     differentiation_index = 2
@@ -72,6 +74,9 @@ class HamiltonianDAE:
 
     @cached_property
     def numeric(self):
+        """CasADi/numpy functions of this model (:func:`~nhgait.dynamics.numerics.numeric_model.compile_hamilton`)."""
+        if self.compiled is not None:
+            return self.compiled
         from ..numerics.numeric_model import compile_hamilton
         return compile_hamilton(self)
 

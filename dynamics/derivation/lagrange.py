@@ -12,7 +12,7 @@ and keeps ω q̇ = 0 as an invariant.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import sympy as sp
@@ -42,6 +42,8 @@ class LagrangianDAE:
     state_names: tuple
     multipliers: tuple
     derive_time_s: float = 0.0
+    compiled: object = field(default=None, repr=False)
+    provenance: object = field(default=None, repr=False)
 
     formulation = "lagrange"
     differentiation_index = 2
@@ -67,6 +69,9 @@ class LagrangianDAE:
 
     @cached_property
     def numeric(self):
+        """CasADi/numpy functions of this model (:func:`~nhgait.dynamics.numerics.numeric_model.compile_lagrange`)."""
+        if self.compiled is not None:
+            return self.compiled
         from ..numerics.numeric_model import compile_lagrange
         return compile_lagrange(self)
 

@@ -19,7 +19,6 @@ import dataclasses
 from ..errors import ModelError
 from .system import System
 
-BUILTIN_NAMES = ("unicycle", "snakeboard", "chaplygin_sleigh", "knife_edge_incline")
 
 
 def _from_scene(name: str, parameters: dict) -> System:

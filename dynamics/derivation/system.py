@@ -18,7 +18,6 @@ Conventions
 """
 from __future__ import annotations
 
-import hashlib
 import keyword
 import math
 from dataclasses import dataclass, field
@@ -525,10 +524,6 @@ class System:
             "planar_frame=" + (",".join(self.planar_frame) if self.planar_frame else "none"),
         ]
         return "\n".join(parts)
-
-    def content_hash(self) -> str:
-        """SHA-256 of :meth:`canonical_text`."""
-        return hashlib.sha256(self.canonical_text().encode()).hexdigest()
 
     def __repr__(self) -> str:
         return (f"System(name={self.name!r}, coordinates={self.coordinates}, k={self.k}, "

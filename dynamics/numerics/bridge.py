@@ -105,30 +105,3 @@ def to_casadi(exprs, symbols, sx_args):
     for sym, sub in reps:
         table[sym] = conv(sub)
     return [conv(e) for e in reduced]
-
-
-def sx_function(name, inputs, outputs, symbols_per_input, input_names, output_names):
-    """Build a CasADi Function from sympy outputs.
-
-    ``inputs`` are lists of sympy symbols (one list per SX vector input); ``outputs`` are lists
-    (or sympy Matrices) of expressions. Returns ``casadi.Function`` (SX, so already expanded).
-    """
-    sx_inputs = [ca.SX.sym(nm, len(syms)) for nm, syms in zip(input_names, symbols_per_input)]
-    flat_syms, flat_sx = [], []
-    for syms, sx in zip(symbols_per_input, sx_inputs):
-        for i, s in enumerate(syms):
-            flat_syms.append(s)
-            flat_sx.append(sx[i])
-    sizes, flat_exprs, shapes = [], [], []
-    for out in outputs:
-        M = sp.Matrix(out) if not isinstance(out, sp.MatrixBase) else out
-        shapes.append(M.shape)
-        flat_exprs.extend(list(M.T))  # column-major for casadi reshape
-        sizes.append(len(M))
-    conv = to_casadi(flat_exprs, flat_syms, flat_sx)
-    sx_outs, pos = [], 0
-    for (r, c), size in zip(shapes, sizes):
-        chunk = conv[pos:pos + size]
-        pos += size
-        sx_outs.append(ca.reshape(ca.vertcat(*chunk), r, c) if size else ca.SX(r, c))
-    return ca.Function(name, sx_inputs, sx_outs, input_names, output_names)

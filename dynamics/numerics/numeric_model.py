@@ -101,11 +101,12 @@ def _to_numpy(o):
     return a
 
 
-def _syms(system):
+def _time_inputs_params(system):
+    """CasADi symbols of the time t, the inputs u and the parameters (``System.param_symbols``)."""
     t = ca.SX.sym("t")
     u = ca.SX.sym("u", len(system.input_symbols))
-    p = ca.SX.sym("params", len(system.param_symbols))
-    return t, u, p
+    params = ca.SX.sym("params", len(system.param_symbols))
+    return t, u, params
 
 
 def _conv(exprs, sym_list, sx_list):
@@ -180,31 +181,31 @@ def _matrix_converter(syms, sx):
     return conv
 
 
-def _reduced_functions(model, t, z, u, p, qv, qdv, rhs, qdot, h, P_of_v, X, J_z, sing, tau_z):
+def _reduced_functions(model, t, z, u, params, qv, qdv, rhs, qdot, h, P_of_v, X, J_z, sing, tau_z):
     """The Function table shared by both forms (names and signatures of the module docstring)."""
     system = model.system
     qddot = ca.jtimes(qdot, z, rhs)
     W = system.omega()
     map_syms = list(system.q) + list(system.q_dot) + list(system.param_symbols)
-    map_sx = [qv[i] for i in range(system.n)] + [qdv[i] for i in range(system.n)] + [p[i] for i in range(p.shape[0])]
+    map_sx = [qv[i] for i in range(system.n)] + [qdv[i] for i in range(system.n)] + [params[i] for i in range(params.shape[0])]
     cons = ca.vertcat(*_conv(list(W * sp.Matrix(system.q_dot)), map_syms, map_sx)) if system.k else ca.SX(0, 1)
     return {
-        "rhs": ca.Function("rhs", [t, z, u, p], [rhs], ["t", "z", "u", "params"], ["zdot"]),
-        "jacobian": ca.Function("rhs_jacobian", [t, z, u, p], [ca.jacobian(rhs, z), ca.jacobian(rhs, u)],
+        "rhs": ca.Function("rhs", [t, z, u, params], [rhs], ["t", "z", "u", "params"], ["zdot"]),
+        "jacobian": ca.Function("rhs_jacobian", [t, z, u, params], [ca.jacobian(rhs, z), ca.jacobian(rhs, u)],
                                 ["t", "z", "u", "params"], ["dfdz", "dfdu"]),
-        "qdot": ca.Function("qdot", [z, p], [qdot], ["z", "params"], ["qdot"]),
-        "qddot": ca.Function("qddot", [t, z, u, p], [qddot], ["t", "z", "u", "params"], ["qddot"]),
-        "energy": ca.Function("energy", [z, p], [h], ["z", "params"], ["h"]),
-        "state": ca.Function("state", [qv, qdv, p], [ca.vertcat(qv, P_of_v)], ["q", "qdot", "params"], ["z"]),
-        "constraint": ca.Function("constraint", [qv, qdv, p], [cons], ["q", "qdot", "params"], ["residual"]),
-        "singular": ca.Function("singular", [qv, p], [sing], ["q", "params"], ["gram"]),
-        "power": ca.Function("power", [t, z, u, p], [ca.dot(tau_z, qdot)], ["t", "z", "u", "params"], ["power"]),
-        "basis": ca.Function("basis", [z, p], [X], ["z", "params"], ["X"]),
-        "structure": ca.Function("structure", [z, p], [J_z], ["z", "params"], ["J_z"]),
+        "qdot": ca.Function("qdot", [z, params], [qdot], ["z", "params"], ["qdot"]),
+        "qddot": ca.Function("qddot", [t, z, u, params], [qddot], ["t", "z", "u", "params"], ["qddot"]),
+        "energy": ca.Function("energy", [z, params], [h], ["z", "params"], ["h"]),
+        "state": ca.Function("state", [qv, qdv, params], [ca.vertcat(qv, P_of_v)], ["q", "qdot", "params"], ["z"]),
+        "constraint": ca.Function("constraint", [qv, qdv, params], [cons], ["q", "qdot", "params"], ["residual"]),
+        "singular": ca.Function("singular", [qv, params], [sing], ["q", "params"], ["gram"]),
+        "power": ca.Function("power", [t, z, u, params], [ca.dot(tau_z, qdot)], ["t", "z", "u", "params"], ["power"]),
+        "basis": ca.Function("basis", [z, params], [X], ["z", "params"], ["X"]),
+        "structure": ca.Function("structure", [z, params], [J_z], ["z", "params"], ["J_z"]),
     }
 
 
-def compile_reduced(model, casadi_steps: dict | None = None) -> NumericModel:
+def compile_reduced(model, casadi_steps=None) -> NumericModel:
     """CasADi functions of a :class:`~nhgait.dynamics.derivation.reduction.ReducedODE` (either form).
 
     The explicit form is converted from its sympy expressions; the implicit form needs
@@ -218,17 +219,17 @@ def compile_reduced(model, casadi_steps: dict | None = None) -> NumericModel:
         return _implicit_functions(model, casadi_steps)
     system = model.system
     n, nz = system.n, len(model.state)
-    t, u, p = _syms(system)
+    t, u, params = _time_inputs_params(system)
     z = ca.SX.sym("z", nz)
     base_syms = [TIME_SYM] + list(model.state) + list(system.input_symbols) + list(system.param_symbols)
-    base_sx = [t] + [z[i] for i in range(nz)] + [u[i] for i in range(u.shape[0])] + [p[i] for i in range(p.shape[0])]
+    base_sx = [t] + [z[i] for i in range(nz)] + [u[i] for i in range(u.shape[0])] + [params[i] for i in range(params.shape[0])]
     conv_z = _matrix_converter(base_syms, base_sx)
     qv, qdv = ca.SX.sym("q", n), ca.SX.sym("qdot", n)
     map_syms = list(system.q) + list(system.q_dot) + list(system.param_symbols)
-    map_sx = [qv[i] for i in range(n)] + [qdv[i] for i in range(n)] + [p[i] for i in range(p.shape[0])]
+    map_sx = [qv[i] for i in range(n)] + [qdv[i] for i in range(n)] + [params[i] for i in range(params.shape[0])]
     conv_q = _matrix_converter(map_syms, map_sx)
     tau_z = conv_z(system.force_vector().xreplace({v: model.qdot[i] for i, v in enumerate(system.q_dot)}))
-    fns = _reduced_functions(model, t, z, u, p, qv, qdv, conv_z(model.rhs), conv_z(model.qdot),
+    fns = _reduced_functions(model, t, z, u, params, qv, qdv, conv_z(model.rhs), conv_z(model.qdot),
                              conv_z(sp.Matrix([model.hamiltonian]))[0], conv_q(model.momenta_of_velocity),
                              conv_z(model.X), conv_z(model.structure), singular_measure(model.layout, conv_q), tau_z)
     return _base(system, "reduced", model.state_names, fns)
@@ -237,27 +238,27 @@ def compile_reduced(model, casadi_steps: dict | None = None) -> NumericModel:
 def _implicit_functions(model, out) -> NumericModel:
     """The implicit form's functions from the CasADi run of the steps (``out`` of
     :func:`~nhgait.dynamics.derivation.reduction.pipeline.run_steps` on :class:`CasadiArithmetic`)."""
-    system, F = model.system, out["F"]
-    sym_of = F.sym
+    system, arithmetic = model.system, out.arithmetic
+    sym_of = arithmetic.sym
     t = sym_of(TIME_SYM)
     q = ca.vertcat(*[sym_of(s) for s in system.q])
     P = ca.vertcat(*[sym_of(s) for s in model.momenta]) if model.momenta else ca.SX(0, 1)
     z = ca.vertcat(q, P)
     qd = ca.vertcat(*[sym_of(s) for s in system.q_dot])
     u = ca.vertcat(*[sym_of(s) for s in system.input_symbols]) if system.input_symbols else ca.SX(0, 1)
-    p = ca.vertcat(*[sym_of(s) for s in system.param_symbols]) if system.param_symbols else ca.SX(0, 1)
-    qdot = ca.vertcat(*out["qdot"])
-    rhs = ca.vertcat(qdot, *out["Pdot"]) if out["Pdot"] else qdot
+    params = ca.vertcat(*[sym_of(s) for s in system.param_symbols]) if system.param_symbols else ca.SX(0, 1)
+    qdot = ca.vertcat(*out.qdot)
+    rhs = ca.vertcat(qdot, *out.Pdot) if out.Pdot else qdot
     rhs, qdot = ca.cse(rhs), ca.cse(qdot)
-    P_of_v = ca.vertcat(*out["momenta_of_velocity"]) if out["momenta_of_velocity"] else ca.SX(0, 1)
-    tau = ca.vertcat(*[F.frac(e) for e in system.force_vector()])
+    P_of_v = ca.vertcat(*out.momenta_of_velocity) if out.momenta_of_velocity else ca.SX(0, 1)
+    tau = ca.vertcat(*[arithmetic.frac(e) for e in system.force_vector()])
     tau_z = ca.substitute(tau, qd, qdot)
 
     def conv(A):
         if A.shape[0] == 0 or A.shape[1] == 0:
             return ca.SX(A.shape[0], A.shape[1])
-        return ca.reshape(ca.vertcat(*[F.frac(e) for e in A.T]), A.shape[0], A.shape[1])
-    fns = _reduced_functions(model, t, z, u, p, q, qd, rhs, qdot, out["h"], P_of_v, out["X"], out["J_z"],
+        return ca.reshape(ca.vertcat(*[arithmetic.frac(e) for e in A.T]), A.shape[0], A.shape[1])
+    fns = _reduced_functions(model, t, z, u, params, q, qd, rhs, qdot, out.h, P_of_v, out.X, out.J_z,
                              singular_measure(model.layout, conv), tau_z)
     return _base(system, "reduced", model.state_names, fns)
 
@@ -266,11 +267,11 @@ def compile_lagrange(model) -> NumericModel:
     """CasADi functions of a :class:`~nhgait.dynamics.derivation.lagrange.LagrangianDAE`."""
     system = model.system
     n, k = system.n, system.k
-    t, u, p = _syms(system)
+    t, u, params = _time_inputs_params(system)
     x = ca.SX.sym("x", 2 * n)
     lam = ca.SX.sym("lam", k)
     syms = [TIME_SYM] + list(model.state) + list(system.input_symbols) + list(system.param_symbols)
-    sx = [t] + [x[i] for i in range(2 * n)] + [u[i] for i in range(u.shape[0])] + [p[i] for i in range(p.shape[0])]
+    sx = [t] + [x[i] for i in range(2 * n)] + [u[i] for i in range(u.shape[0])] + [params[i] for i in range(params.shape[0])]
     M = ca.reshape(ca.vertcat(*_conv(list(model.M.T), syms, sx)), n, n)
     F = ca.vertcat(*_conv(model.F, syms, sx))
     tau = ca.vertcat(*_conv(model.tau, syms, sx))
@@ -295,16 +296,16 @@ def compile_lagrange(model) -> NumericModel:
         cons = ca.SX(0, 1)
     xdot = ca.vertcat(qd, qdd)
     fns = {
-        "ode": ca.Function("ode", [t, x, u, p], [xdot, lam_sol], ["t", "x", "u", "params"], ["xdot", "lam"]),
-        "jacobian": ca.Function("rhs_jacobian", [t, x, u, p], [ca.jacobian(xdot, x), ca.jacobian(xdot, u)],
+        "ode": ca.Function("ode", [t, x, u, params], [xdot, lam_sol], ["t", "x", "u", "params"], ["xdot", "lam"]),
+        "jacobian": ca.Function("rhs_jacobian", [t, x, u, params], [ca.jacobian(xdot, x), ca.jacobian(xdot, u)],
                            ["t", "x", "u", "params"], ["dfdx", "dfdu"]),
-        "dae_f": ca.Function("dae_f", [t, x, lam, u, p], [ca.vertcat(qd, qdd_dae)], ["t", "x", "lam", "u", "params"], ["xdot"]),
-        "dae_g": ca.Function("dae_g", [t, x, lam, u, p], [g_alg], ["t", "x", "lam", "u", "params"], ["g"]),
-        "energy": ca.Function("energy", [x, p], [E], ["x", "params"], ["E"]),
-        "constraint": ca.Function("constraint", [x, p], [cons], ["x", "params"], ["residual"]),
-        "qdot": ca.Function("qdot", [x, p], [qd], ["x", "params"], ["qdot"]),
-        "mass": ca.Function("mass", [x, p], [M], ["x", "params"], ["M"]),
-        "power": ca.Function("power", [t, x, u, p], [ca.dot(tau, qd)], ["t", "x", "u", "params"], ["power"]),
+        "dae_f": ca.Function("dae_f", [t, x, lam, u, params], [ca.vertcat(qd, qdd_dae)], ["t", "x", "lam", "u", "params"], ["xdot"]),
+        "dae_g": ca.Function("dae_g", [t, x, lam, u, params], [g_alg], ["t", "x", "lam", "u", "params"], ["g"]),
+        "energy": ca.Function("energy", [x, params], [E], ["x", "params"], ["E"]),
+        "constraint": ca.Function("constraint", [x, params], [cons], ["x", "params"], ["residual"]),
+        "qdot": ca.Function("qdot", [x, params], [qd], ["x", "params"], ["qdot"]),
+        "mass": ca.Function("mass", [x, params], [M], ["x", "params"], ["M"]),
+        "power": ca.Function("power", [t, x, u, params], [ca.dot(tau, qd)], ["t", "x", "u", "params"], ["power"]),
     }
     return _base(system, "lagrange", model.state_names, fns, k)
 
@@ -313,11 +314,11 @@ def compile_hamilton(model) -> NumericModel:
     """CasADi functions of a :class:`~nhgait.dynamics.derivation.hamilton.HamiltonianDAE`."""
     system = model.system
     n, k = system.n, system.k
-    t, u, p = _syms(system)
+    t, u, params = _time_inputs_params(system)
     x = ca.SX.sym("x", 2 * n)
     lam = ca.SX.sym("lam", k)
     syms = [TIME_SYM] + list(model.state) + list(system.input_symbols) + list(system.param_symbols)
-    sx = [t] + [x[i] for i in range(2 * n)] + [u[i] for i in range(u.shape[0])] + [p[i] for i in range(p.shape[0])]
+    sx = [t] + [x[i] for i in range(2 * n)] + [u[i] for i in range(u.shape[0])] + [params[i] for i in range(params.shape[0])]
     dHdp = ca.vertcat(*_conv(model.dH_dp, syms, sx))
     dHdq = ca.vertcat(*_conv(model.dH_dq, syms, sx))
     tau = ca.vertcat(*_conv(model.tau, syms, sx))
@@ -343,16 +344,16 @@ def compile_hamilton(model) -> NumericModel:
         cons = ca.SX(0, 1)
     xdot = ca.vertcat(dHdp, pdot)
     fns = {
-        "ode": ca.Function("ode", [t, x, u, p], [xdot, lam_sol], ["t", "x", "u", "params"], ["xdot", "lam"]),
-        "jacobian": ca.Function("rhs_jacobian", [t, x, u, p], [ca.jacobian(xdot, x), ca.jacobian(xdot, u)],
+        "ode": ca.Function("ode", [t, x, u, params], [xdot, lam_sol], ["t", "x", "u", "params"], ["xdot", "lam"]),
+        "jacobian": ca.Function("rhs_jacobian", [t, x, u, params], [ca.jacobian(xdot, x), ca.jacobian(xdot, u)],
                            ["t", "x", "u", "params"], ["dfdx", "dfdu"]),
-        "dae_f": ca.Function("dae_f", [t, x, lam, u, p], [ca.vertcat(dHdp, pdot_dae)], ["t", "x", "lam", "u", "params"], ["xdot"]),
-        "dae_g": ca.Function("dae_g", [t, x, lam, u, p], [g_alg], ["t", "x", "lam", "u", "params"], ["g"]),
-        "energy": ca.Function("energy", [x, p], [H], ["x", "params"], ["E"]),
-        "constraint": ca.Function("constraint", [x, p], [cons], ["x", "params"], ["residual"]),
-        "qdot": ca.Function("qdot", [x, p], [dHdp], ["x", "params"], ["qdot"]),
-        "power": ca.Function("power", [t, x, u, p], [ca.dot(tau, dHdp)], ["t", "x", "u", "params"], ["power"]),
-        "mass": ca.Function("mass", [x, p], [ca.reshape(ca.vertcat(*_conv(list(system.mass_matrix().T), syms, sx)), n, n)],
+        "dae_f": ca.Function("dae_f", [t, x, lam, u, params], [ca.vertcat(dHdp, pdot_dae)], ["t", "x", "lam", "u", "params"], ["xdot"]),
+        "dae_g": ca.Function("dae_g", [t, x, lam, u, params], [g_alg], ["t", "x", "lam", "u", "params"], ["g"]),
+        "energy": ca.Function("energy", [x, params], [H], ["x", "params"], ["E"]),
+        "constraint": ca.Function("constraint", [x, params], [cons], ["x", "params"], ["residual"]),
+        "qdot": ca.Function("qdot", [x, params], [dHdp], ["x", "params"], ["qdot"]),
+        "power": ca.Function("power", [t, x, u, params], [ca.dot(tau, dHdp)], ["t", "x", "u", "params"], ["power"]),
+        "mass": ca.Function("mass", [x, params], [ca.reshape(ca.vertcat(*_conv(list(system.mass_matrix().T), syms, sx)), n, n)],
                             ["x", "params"], ["M"]),
     }
     return _base(system, "hamilton", model.state_names, fns, k)

@@ -141,10 +141,6 @@ class SpecialisedModel:
     def shape(self) -> tuple:
         return tuple(self.base.shape)
 
-    @property
-    def simplified(self) -> bool:
-        return self.route == "symbolic"
-
 
 @dataclass(frozen=True)
 class _Entry:

@@ -434,9 +434,7 @@ def _integration_model(model, pv, settings):
     def specialised_view():           # one view per model and values: its closed loop is reused
         from ..numerics.specialisation import specialise
         specialised = specialise(model, pv)
-        view = dataclasses.replace(model)
-        view.__dict__["numeric"] = specialised.numeric
-        return view, specialised.route
+        return dataclasses.replace(model, compiled=specialised.numeric), specialised.route
     view, route = SPECIALISED.get(model.numeric, tuple(float(v) for v in pv), specialised_view)
     settings["specialised"] = route
     return view

@@ -221,28 +221,28 @@ def describe_case(system, task=None, *, overrides=(), params=None, options=None)
     from nhgait.dynamics import derive
     from ..task_library import resolve
     data = _scene_data(system)
-    the_plan = resolve(_scene(data), task, overrides=overrides)
-    sys_ = the_plan.scene.system
+    resolved = resolve(_scene(data), task, overrides=overrides)
+    sys_ = resolved.scene.system
     problems = sys_.parameter_problems(dict(params), label="params") if params else []
     if problems:
         raise ProblemError(problems, title="invalid sweep parameters")
     values = {**dict(sys_.parameters), **{k: float(v) for k, v in dict(params or {}).items()}}
     model = derive(sys_, "reduced")
     opts = {"jit": False, **dict(options or {})}
-    return SweepCase(data, the_plan.task.to_dict(), values, label=the_plan.label, units=_units(the_plan, model),
+    return SweepCase(data, resolved.task.to_dict(), values, label=resolved.label, units=_units(resolved, model),
                      shape=(tuple(model.shape) + tuple(reversed(model.fiber)))[:2], coordinates=tuple(sys_.coordinates), inputs=tuple(sys_.inputs),
                      options=opts)
 
 
-def _units(the_plan, model) -> dict:
+def _units(resolved, model) -> dict:
     """Units of the coordinates, their rates and the inputs by the planner's plot rules (the
     scene's ``[units]`` first, then rad/m from the model), and every ``[units]`` entry."""
     from ..plots import FigureContext, unit
     sys_ = model.system
-    ctx = FigureContext(sys_, dict(the_plan.units), None, None, tuple(model.fiber), tuple(model.shape))
+    ctx = FigureContext(sys_, dict(resolved.units), None, None, tuple(model.fiber), tuple(model.shape))
     names = [*sys_.coordinates, *(f"{c}_dot" for c in sys_.coordinates), *sys_.inputs]
     found = {name: unit(ctx, name) for name in names}
-    return {**{k: str(v) for k, v in the_plan.units.items()}, **{k: v for k, v in found.items() if v}}
+    return {**{k: str(v) for k, v in resolved.units.items()}, **{k: v for k, v in found.items() if v}}
 
 
 def check_case(case: SweepCase, job: PointJob) -> None:
@@ -324,16 +324,16 @@ def _plan_point(job: PointJob) -> dict:
     from ..search import solve_with_fallbacks
     solution, start = None, "cold"
     if job.warm is not None:
-        model, (stated, problem), solver, the_plan = _solver_for(job, warm=True)
+        model, (stated, problem), solver, resolved = _solver_for(job, warm=True)
         solution = solver.solve(warm_start(job.warm, problem, f"warm start from point {job.warm_from}"))
         start = "warm" if solution.success else "cold after warm failed"
     spent = int(solution.iterations) if solution is not None else 0
     if solution is None or not solution.success:
-        model, (stated, problem), solver, the_plan = _solver_for(job)
+        model, (stated, problem), solver, resolved = _solver_for(job)
         search = solve_with_fallbacks(solver, candidates(problem))
         spent += sum(a.iterations for a in search.attempts)
         solution = search.solution if search.solution is not None else search.closest
-    momentum = momentum_problem(model, stated, the_plan, job.params)
-    out = _outcome(to_momentum_coordinates(solution, momentum).verified(tolerance=the_plan.task.verify_tolerance),
+    momentum = momentum_problem(model, stated, resolved, job.params)
+    out = _outcome(to_momentum_coordinates(solution, momentum).verified(tolerance=resolved.task.verify_tolerance),
                    start)
     return {**out, "warm": warm_data(out["solution"]) if out["success"] else None, "total_iterations": spent}

@@ -45,8 +45,8 @@ import time
 from ..symbolic import NotRational, WorkBudgetExceeded
 from ..system import System
 from .model import ImplicitForm, ReducedODE, casadi_text, classify, singular_set
-from .pipeline import arithmetic_for, run_steps
-from .setup import Layout, layout
+from .pipeline import StepsRun, arithmetic_for, run_steps
+from .setup import Layout, choose_layout
 
 __all__ = ["ReducedODE", "derive_reduced", "Layout"]
 
@@ -72,63 +72,51 @@ def derive_reduced(system: System, version: str | None = None, form: str | None 
     if form not in (None, *FORMS):
         from ...errors import ModelError
         raise ModelError([f"unknown form {form!r} (explicit or implicit)"], title="invalid request")
-    lay, first = layout(system, version, form)
-    if lay.form == "explicit":
+    layout, first = choose_layout(system, version, form)
+    if layout.form == "explicit":
         try:
-            F = arithmetic_for("ring", lay)
+            F = arithmetic_for("ring", layout)
             F.budget = None if form == "explicit" else EXPLICIT_WORK_BUDGET
-            steps, out = run_steps(F, lay)
-            return _explicit_model(lay, first, steps, out, t0)
+            return _model(layout, first, run_steps(F, layout), t0)
         except NotRational:
-            steps, out = run_steps(arithmetic_for("sympy", lay), lay)
-            return _explicit_model(lay, first, steps, out, t0)
+            return _model(layout, first, run_steps(arithmetic_for("sympy", layout), layout), t0)
         except WorkBudgetExceeded:
-            lay = dataclasses.replace(lay, form="implicit")
-    steps, out = run_steps(arithmetic_for("casadi", lay), lay)
-    return _implicit_model(lay, first, steps, out, t0)
+            layout = dataclasses.replace(layout, form="implicit")
+    return _model(layout, first, run_steps(arithmetic_for("casadi", layout), layout), t0)
 
 
-def _common(lay, out):
-    s, sy = lay.system, out["symbols"]
-    state = tuple(s.q) + tuple(sy.P)
-    return dict(system=s, version=lay.version, fiber=lay.fiber, shape=lay.shape, state=state,
-                state_names=tuple(s.coordinates) + tuple(str(p) for p in sy.P), momenta=tuple(sy.P),
-                singular_set=singular_set(lay), symmetry=lay.symmetry, layout=lay, form=lay.form)
-
-
-def _explicit_model(lay, first, steps, out, t0) -> ReducedODE:
+def _model(layout, first, run: StepsRun, t0) -> ReducedODE:
+    """The one constructor of a :class:`ReducedODE` from the steps 1–3 (``first``) and a run of
+    steps 4–20: the explicit form holds sympy matrices; the implicit form holds CasADi text
+    and the functions compiled from the run."""
     import sympy as sp
+    from ..steps import Step, Steps
     from .model import symbol_names_for
-    qdot = sp.Matrix(out["qdot"])
-    rhs = sp.Matrix.vstack(qdot, sp.Matrix(out["Pdot"])) if out["Pdot"] else qdot
-    names = symbol_names_for(lay)
-    return ReducedODE(**_common(lay, out), rhs=rhs, X=out["X"], K=out["K"], hamiltonian=out["h"],
-                      structure=out["J_z"], qdot=qdot,
-                      momenta_of_velocity=sp.Matrix(out["momenta_of_velocity"]) if out["momenta_of_velocity"] else sp.zeros(0, 1),
-                      classification=classify(lay, out["A_zero"]),
-                      steps=_steps(first, steps, names), implicit=None,
-                      derive_time_s=time.perf_counter() - t0, symbol_names=names)
-
-
-def _implicit_model(lay, first, steps, out, t0) -> ReducedODE:
-    from ..steps import Step
-    from .model import symbol_names_for
-    shown = [Step(s.number, s.title, s.thesis, {k: casadi_text(v) for k, v in s.items.items()},
-                  s.note, s.labels) for s in steps]
-    names = symbol_names_for(lay)
-    model = ReducedODE(**_common(lay, out), rhs=None, X=casadi_text(out["X"]), K=casadi_text(out["K"]),
-                       hamiltonian=casadi_text(out["h"]), structure=casadi_text(out["J_z"]),
-                       qdot=casadi_text(out["qdot"]),
-                       momenta_of_velocity=casadi_text(out["momenta_of_velocity"]),
-                       classification=classify(lay, out["A_zero"]),
-                       steps=_steps(first, shown, names), implicit=ImplicitForm.of(lay),
-                       derive_time_s=0.0, symbol_names=names)
-    from ...numerics.numeric_model import compile_reduced
-    model.__dict__["numeric"] = compile_reduced(model, out)
-    object.__setattr__(model, "derive_time_s", time.perf_counter() - t0)
+    system, symbols = layout.system, run.symbols
+    names = symbol_names_for(layout)
+    if layout.form == "explicit":
+        qdot = sp.Matrix(run.qdot)
+        equations = dict(rhs=sp.Matrix.vstack(qdot, sp.Matrix(run.Pdot)) if run.Pdot else qdot,
+                         X=run.X, K=run.K, hamiltonian=run.h, structure=run.J_z, qdot=qdot,
+                         momenta_of_velocity=(sp.Matrix(run.momenta_of_velocity) if run.momenta_of_velocity
+                                              else sp.zeros(0, 1)))
+        later, implicit = run.steps, None
+    else:
+        equations = dict(rhs=None, X=casadi_text(run.X), K=casadi_text(run.K), hamiltonian=casadi_text(run.h),
+                         structure=casadi_text(run.J_z), qdot=casadi_text(run.qdot),
+                         momenta_of_velocity=casadi_text(run.momenta_of_velocity))
+        later = [Step(s.number, s.title, s.thesis, {k: casadi_text(v) for k, v in s.items.items()}, s.note, s.labels)
+                 for s in run.steps]
+        implicit = ImplicitForm.of(layout)
+    model = ReducedODE(system=system, version=layout.version, fiber=layout.fiber, shape=layout.shape,
+                       state=tuple(system.q) + tuple(symbols.P),
+                       state_names=tuple(system.coordinates) + tuple(str(p) for p in symbols.P),
+                       momenta=tuple(symbols.P), singular_set=singular_set(layout), symmetry=layout.symmetry,
+                       layout=layout, form=layout.form, **equations,
+                       classification=classify(layout, run.A_zero), steps=Steps(list(first) + list(later), names),
+                       implicit=implicit, derive_time_s=time.perf_counter() - t0, symbol_names=names)
+    if layout.form == "implicit":
+        from ...numerics.numeric_model import compile_reduced
+        model = dataclasses.replace(model, compiled=compile_reduced(model, run),
+                                    derive_time_s=time.perf_counter() - t0)
     return model
-
-
-def _steps(first, later, names):
-    from ..steps import Steps
-    return Steps(list(first) + list(later), names)

@@ -75,16 +75,16 @@ class ImplicitForm:
     pivots: tuple
 
     @classmethod
-    def of(cls, lay):
-        B = lay.Wb.extract(list(range(lay.k)), list(lay.pivots)) if lay.k else sp.zeros(0, 0)
-        return cls(B=B, N=lay.N, M=lay.M, omega=lay.W, pivots=tuple(lay.system.coordinates[i] for i in lay.pivots))
+    def of(cls, layout):
+        B = layout.Wb.extract(list(range(layout.k)), list(layout.pivots)) if layout.k else sp.zeros(0, 0)
+        return cls(B=B, N=layout.N, M=layout.M, omega=layout.W, pivots=tuple(layout.system.coordinates[i] for i in layout.pivots))
 
 
-def classify(lay, A_zero: bool) -> str:
+def classify(layout, A_zero: bool) -> str:
     """Thesis Table 2.1 (``A_zero``: the local connection A(r) vanishes)."""
-    if lay.k == 0:
+    if layout.k == 0:
         return PURELY_MECHANICAL
-    if lay.d == 0:
+    if layout.d == 0:
         return PRINCIPALLY_KINEMATIC
     if A_zero:
         return PURELY_DYNAMIC
@@ -123,21 +123,21 @@ def _drop_positive_factors(e):
     return sp.Mul(*kept) if kept else sp.Integer(1)
 
 
-def singular_set(lay) -> tuple:
+def singular_set(layout) -> tuple:
     """Where a matrix the reduction inverts loses rank: the Gram determinant of ω_s (when
     rank ω_s = k), the pivot block B of ω (step 5) and K_Ω = NᵀM_ssN (the basis N, steps
     3/6). Each expression vanishes exactly there (constant ones are dropped)."""
     out = []
-    k, si = lay.k, list(lay.si)
+    k, si = layout.k, list(layout.si)
     if k:
-        Ws = lay.W.extract(list(range(k)), si)
-        if not lay.dependent and k <= SINGULAR_DET_MAX:
+        Ws = layout.W.extract(list(range(k)), si)
+        if not layout.dependent and k <= SINGULAR_DET_MAX:
             out.append(_det(Ws * Ws.T))
-        if lay.uses_pivot_block:
-            out.append(_det(lay.Wb.extract(list(range(k)), list(lay.pivots))))
-    if lay.d:
-        Ms = lay.M.extract(si, si)
-        out.append(_det(tidy(lay.N.T * Ms * lay.N)))
+        if layout.uses_pivot_block:
+            out.append(_det(layout.Wb.extract(list(range(k)), list(layout.pivots))))
+    if layout.d:
+        Ms = layout.M.extract(si, si)
+        out.append(_det(tidy(layout.N.T * Ms * layout.N)))
     seen, result = set(), []
     for e in out:
         e = _drop_positive_factors(e)
@@ -150,10 +150,10 @@ def singular_set(lay) -> tuple:
     return tuple(result)
 
 
-def symbol_names_for(lay) -> dict:
+def symbol_names_for(layout) -> dict:
     """LaTeX names of every symbol that appears in the steps (q̇ as \\dot{q}, P̃ as \\tilde{p})."""
-    sy = lay.symbols()
-    return default_symbol_names(list(lay.system.q_dot) + sy.Pt + sy.p)
+    symbols = layout.symbols()
+    return default_symbol_names(list(layout.system.q_dot) + symbols.Pt + symbols.p)
 
 
 @dataclass(frozen=True, eq=False)
@@ -184,6 +184,10 @@ class ReducedODE:
     steps : the 20 steps by number and identifier (``steps[5].A``, ``steps[17].J``).
     symmetry : the symmetry test (Table 3.1 for this system).
     layout : the choices of steps 1–3 (fiber/shape indices, pivots, basis, g).
+    compiled : the numeric functions when given at construction (the implicit form's, from
+        its CasADi run; a bound or specialised copy's); None: ``numeric`` compiles them on first use.
+    provenance : where a model from :func:`~nhgait.dynamics.derive` came from
+        (:class:`~nhgait.dynamics.numerics.cache.Provenance`); None for a model derived directly.
     """
 
     system: System
@@ -209,6 +213,8 @@ class ReducedODE:
     implicit: ImplicitForm | None = field(default=None, repr=False)
     derive_time_s: float = 0.0
     symbol_names: dict = field(default_factory=dict, repr=False)
+    compiled: object = field(default=None, repr=False)
+    provenance: object = field(default=None, repr=False)
 
     formulation = "reduced"
 
@@ -271,11 +277,12 @@ class ReducedODE:
     def numeric(self):
         """CasADi/numpy functions of this model (see :mod:`nhgait.dynamics.numerics.numeric_model`);
         the implicit form's functions come from the CasADi run of steps 4–20."""
+        if self.compiled is not None:
+            return self.compiled
         from ...numerics.numeric_model import compile_reduced
         if self.form == "implicit":
             from .pipeline import arithmetic_for, run_steps
-            _, out = run_steps(arithmetic_for("casadi", self.layout), self.layout)
-            return compile_reduced(self, out)
+            return compile_reduced(self, run_steps(arithmetic_for("casadi", self.layout), self.layout))
         return compile_reduced(self)
 
 

@@ -194,7 +194,7 @@ def choose_form(k: int, d: int, m: int, dependent: int) -> str:
     return "explicit"
 
 
-def layout(system: System, version: str | None = None, form: str | None = None) -> tuple[Layout, list]:
+def choose_layout(system: System, version: str | None = None, form: str | None = None) -> tuple[Layout, list]:
     """Steps 1–3 and the choices of the reconstruction; returns (layout, [steps 1, 2, 3])."""
     names = system.coordinates
     M = system.mass_matrix()
