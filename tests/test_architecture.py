@@ -21,7 +21,7 @@ FOLDERS = {"api": "nhgait", "dynamics": "nhgait.dynamics", "ocp": "nhgait.ocp", 
 #: derived models compile themselves, the compiler reads the derivation's symbols.
 LAYERS = (
     ("nhgait",),
-    ("nhgait.dynamics",),                                   # errors, progress
+    ("nhgait.dynamics",),                                   # errors, progress, memo
     ("nhgait.dynamics.derivation", "nhgait.dynamics.numerics"),
     ("nhgait.dynamics.simulation",),
     ("nhgait.ocp",),
@@ -188,3 +188,25 @@ print("exports ok")
                          timeout=300)
     assert out.returncode == 0, out.stderr
     assert out.stdout.split()[-2:] == ["exports", "ok"]
+
+
+def test_derivation_results_are_frozen():
+    """Every dataclass of the derivation (systems, the steps' results, the models) is frozen:
+    no step fills in an object another step made."""
+    code = """
+import dataclasses, importlib, inspect, pkgutil
+import nhgait.dynamics.derivation as package
+found, mutable = 0, []
+for info in pkgutil.walk_packages(package.__path__, package.__name__ + "."):
+    module = importlib.import_module(info.name)
+    for name, cls in vars(module).items():
+        if inspect.isclass(cls) and dataclasses.is_dataclass(cls) and cls.__module__ == module.__name__:
+            found += 1
+            if not cls.__dataclass_params__.frozen:
+                mutable.append(f"{module.__name__}.{name}")
+print(found, mutable)
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    found, _, mutable = out.stdout.strip().partition(" ")
+    assert int(found) >= 15 and mutable == "[]", out.stdout

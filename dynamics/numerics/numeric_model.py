@@ -263,6 +263,41 @@ def _implicit_functions(model, out) -> NumericModel:
     return _base(system, "reduced", model.state_names, fns)
 
 
+@dataclass(frozen=True, eq=False)
+class _DAEExpressions:
+    """The CasADi expressions of a DAE form (Lagrange or Hamilton), in (t, x, λ, u, params):
+    ẋ with λ solved (index reduction) and λ; ẋ with λ free and the index-1 algebraic equation g;
+    the energy, the constraint residual, q̇, the mass matrix M(q) and the input power τ·q̇."""
+
+    xdot: object
+    lam: object
+    xdot_dae: object
+    g: object
+    energy: object
+    constraint: object
+    qdot: object
+    mass: object
+    power: object
+
+
+def _dae_functions(symbols, e: _DAEExpressions) -> dict:
+    """The Function table of both DAE forms (names and signatures of the module docstring);
+    ``symbols`` = (t, x, λ, u, params)."""
+    t, x, lam, u, params = symbols
+    return {
+        "ode": ca.Function("ode", [t, x, u, params], [e.xdot, e.lam], ["t", "x", "u", "params"], ["xdot", "lam"]),
+        "jacobian": ca.Function("rhs_jacobian", [t, x, u, params], [ca.jacobian(e.xdot, x), ca.jacobian(e.xdot, u)],
+                                ["t", "x", "u", "params"], ["dfdx", "dfdu"]),
+        "dae_f": ca.Function("dae_f", [t, x, lam, u, params], [e.xdot_dae], ["t", "x", "lam", "u", "params"], ["xdot"]),
+        "dae_g": ca.Function("dae_g", [t, x, lam, u, params], [e.g], ["t", "x", "lam", "u", "params"], ["g"]),
+        "energy": ca.Function("energy", [x, params], [e.energy], ["x", "params"], ["E"]),
+        "constraint": ca.Function("constraint", [x, params], [e.constraint], ["x", "params"], ["residual"]),
+        "qdot": ca.Function("qdot", [x, params], [e.qdot], ["x", "params"], ["qdot"]),
+        "mass": ca.Function("mass", [x, params], [e.mass], ["x", "params"], ["M"]),
+        "power": ca.Function("power", [t, x, u, params], [e.power], ["t", "x", "u", "params"], ["power"]),
+    }
+
+
 def compile_lagrange(model) -> NumericModel:
     """CasADi functions of a :class:`~nhgait.dynamics.derivation.lagrange.LagrangianDAE`."""
     system = model.system
@@ -295,18 +330,9 @@ def compile_lagrange(model) -> NumericModel:
         g_alg = ca.SX(0, 1)
         cons = ca.SX(0, 1)
     xdot = ca.vertcat(qd, qdd)
-    fns = {
-        "ode": ca.Function("ode", [t, x, u, params], [xdot, lam_sol], ["t", "x", "u", "params"], ["xdot", "lam"]),
-        "jacobian": ca.Function("rhs_jacobian", [t, x, u, params], [ca.jacobian(xdot, x), ca.jacobian(xdot, u)],
-                           ["t", "x", "u", "params"], ["dfdx", "dfdu"]),
-        "dae_f": ca.Function("dae_f", [t, x, lam, u, params], [ca.vertcat(qd, qdd_dae)], ["t", "x", "lam", "u", "params"], ["xdot"]),
-        "dae_g": ca.Function("dae_g", [t, x, lam, u, params], [g_alg], ["t", "x", "lam", "u", "params"], ["g"]),
-        "energy": ca.Function("energy", [x, params], [E], ["x", "params"], ["E"]),
-        "constraint": ca.Function("constraint", [x, params], [cons], ["x", "params"], ["residual"]),
-        "qdot": ca.Function("qdot", [x, params], [qd], ["x", "params"], ["qdot"]),
-        "mass": ca.Function("mass", [x, params], [M], ["x", "params"], ["M"]),
-        "power": ca.Function("power", [t, x, u, params], [ca.dot(tau, qd)], ["t", "x", "u", "params"], ["power"]),
-    }
+    fns = _dae_functions((t, x, lam, u, params), _DAEExpressions(
+        xdot=xdot, lam=lam_sol, xdot_dae=ca.vertcat(qd, qdd_dae), g=g_alg, energy=E, constraint=cons,
+        qdot=qd, mass=M, power=ca.dot(tau, qd)))
     return _base(system, "lagrange", model.state_names, fns, k)
 
 
@@ -343,19 +369,10 @@ def compile_hamilton(model) -> NumericModel:
         g_alg = ca.SX(0, 1)
         cons = ca.SX(0, 1)
     xdot = ca.vertcat(dHdp, pdot)
-    fns = {
-        "ode": ca.Function("ode", [t, x, u, params], [xdot, lam_sol], ["t", "x", "u", "params"], ["xdot", "lam"]),
-        "jacobian": ca.Function("rhs_jacobian", [t, x, u, params], [ca.jacobian(xdot, x), ca.jacobian(xdot, u)],
-                           ["t", "x", "u", "params"], ["dfdx", "dfdu"]),
-        "dae_f": ca.Function("dae_f", [t, x, lam, u, params], [ca.vertcat(dHdp, pdot_dae)], ["t", "x", "lam", "u", "params"], ["xdot"]),
-        "dae_g": ca.Function("dae_g", [t, x, lam, u, params], [g_alg], ["t", "x", "lam", "u", "params"], ["g"]),
-        "energy": ca.Function("energy", [x, params], [H], ["x", "params"], ["E"]),
-        "constraint": ca.Function("constraint", [x, params], [cons], ["x", "params"], ["residual"]),
-        "qdot": ca.Function("qdot", [x, params], [dHdp], ["x", "params"], ["qdot"]),
-        "power": ca.Function("power", [t, x, u, params], [ca.dot(tau, dHdp)], ["t", "x", "u", "params"], ["power"]),
-        "mass": ca.Function("mass", [x, params], [ca.reshape(ca.vertcat(*_conv(list(system.mass_matrix().T), syms, sx)), n, n)],
-                            ["x", "params"], ["M"]),
-    }
+    fns = _dae_functions((t, x, lam, u, params), _DAEExpressions(
+        xdot=xdot, lam=lam_sol, xdot_dae=ca.vertcat(dHdp, pdot_dae), g=g_alg, energy=H, constraint=cons,
+        qdot=dHdp, power=ca.dot(tau, dHdp),
+        mass=ca.reshape(ca.vertcat(*_conv(list(system.mass_matrix().T), syms, sx)), n, n)))
     return _base(system, "hamilton", model.state_names, fns, k)
 
 

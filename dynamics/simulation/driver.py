@@ -67,8 +67,8 @@ from ..errors import ModelError
 from ..memo import OwnerMemo
 from .closed_loop import closed_loop
 from .integrators import (FAILED, FINISHED, MAX_STEPS, NONFINITE, SCIPY_METHODS,
-                          SINGULAR, integrate_compiled, integrate_scipy, integrate_sundials,
-                          left_of)
+                          SINGULAR, RunRequest, integrate_compiled, integrate_scipy,
+                          integrate_sundials, left_of)
 
 __all__ = ["simulate", "Trajectory", "METHODS", "FINISHED", "FAILED", "MAX_STEPS", "NONFINITE",
            "SINGULAR", "SINGULAR_EVENT_TOL"]
@@ -407,13 +407,14 @@ def simulate(model, t_span, q0, qdot0, *, controller=None, params=None, method: 
     y0 = np.r_[x0[list(loop.state_index)], [0.0] * loop.has_work, np.zeros(loop.n_int)]
 
     seg_params = [loop.segment_params(pv, controller, a) for a, _ in segments]
-    run, method_name, extra = _run_route(model, loop, controller, method, dae, segments, y0,
-                                         seg_params, t_eval, rtol, atol, max_step, max_steps,
-                                         singular_tol, stabilization, baumgarte, settings)
+    request = RunRequest(loop, controller, segments, y0, seg_params, t_eval, rtol, atol, max_step, max_steps,
+                         singular_tol, stabilization, baumgarte)
+    route = "IDAS" if dae == "idas" and model.formulation != "reduced" else method
+    run, method_name, extra = ROUTES[route](request, route, settings)
     te = None if t_eval is None else np.asarray(t_eval, dtype=float)
     with_initial = te is None or abs(te[0] - t0) <= 1e-12 * max(1.0, abs(t0))
-    return _assemble(model, loop, controller, run, method_name, seg_params, segments, y0, start,
-                     settings, extra, resolved, quantities, pv, singular_tol, with_initial)
+    return _assemble(model, request, run, method_name, start, settings, extra, resolved, quantities, pv,
+                     with_initial)
 
 
 #: per compiled model (model.numeric, dropped with it): parameter values → (the model
@@ -440,65 +441,65 @@ def _integration_model(model, pv, settings):
     return view
 
 
-def _run_route(model, loop, controller, method, dae, segments, y0, seg_params, t_eval, rtol,
-               atol, max_step, max_steps, singular_tol, stabilization, baumgarte, settings):
-    """Pick and run the integration route; returns (Run, method name, extra diagnostics)."""
+# --------------------------------------------------------------------------------------------
+# routes: one function per integration route, all fed by one RunRequest
+# --------------------------------------------------------------------------------------------
+def _route_scipy(request: RunRequest, method: str, settings: dict) -> tuple:
+    run = integrate_scipy(request, method, projection=request.stabilization == "projection")
+    return run, method, {}
+
+
+def _route_cvodes(request: RunRequest, method: str, settings: dict) -> tuple:
+    return integrate_sundials(request, "cvodes"), "CVODES", {}
+
+
+def _route_idas(request: RunRequest, method: str, settings: dict) -> tuple:
+    t0 = request.segments[0][0]
+    lam0 = _outputs(request.loop, request.controller, None, [t0], [t0], [request.y0], [0],
+                    request.seg_params)["lam"][0]
+    return integrate_sundials(request, "idas", lam0), "IDAS", {}
+
+
+def _route_compiled(request: RunRequest, method: str, settings: dict) -> tuple:
+    """The compiled explicit Runge–Kutta route ("compiled", "compiled-DOPRI5"; "auto" stops on
+    stiffness and switches to an implicit method); scipy DOP853 when no library can be built."""
     extra = {}
-    explicit_u = controller is not None and not (loop.symbolic_u or loop.segment_u)
-    if dae == "idas" and model.formulation != "reduced":
-        lam0 = _outputs(loop, controller, None, [segments[0][0]], [segments[0][0]], [y0], [0],
-                        seg_params)["lam"][0]
-        run = integrate_sundials(loop, "idas", segments, y0, lam0, seg_params, t_eval, rtol, atol,
-                                 max_steps, singular_tol, stabilization, baumgarte)
-        return run, "IDAS", extra
-    if method == "CVODES":
-        run = integrate_sundials(loop, "cvodes", segments, y0, None, seg_params, t_eval, rtol,
-                                 atol, max_steps, singular_tol)
-        return run, "CVODES", extra
-    if method in COMPILED_METHODS or method == "auto":
-        scheme = COMPILED_METHODS.get(method, "DOP853")
-        library, reason = _library(loop, explicit_u, stabilization == "projection")
-        if library is None:
-            settings["fallback"] = f"{reason}; integrated with scipy DOP853"
-            if "compiler" in reason:
-                warnings.warn(f"method={method!r}: {settings['fallback']}", stacklevel=3)
-        else:
-            extra["library"] = library
-            extra["compile_time_s"] = library.compile_time_s
-            run = integrate_compiled(library, scheme, segments, y0, seg_params, t_eval, rtol, atol,
-                                     max_step, max_steps, singular_tol, stop_on_stiff=method == "auto")
-            if method == "auto" and run.message == "stiff":
-                extra.pop("library")
-                return _switch_to_implicit(loop, controller, run, explicit_u, segments, y0,
-                                           seg_params, t_eval, rtol, atol, max_step, max_steps,
-                                           singular_tol, settings, extra)
-            return run, f"compiled {scheme}", extra
-        auto, method = method == "auto", "DOP853"
-        if auto:
-            run = integrate_scipy(loop, controller, segments, y0, seg_params, t_eval, method, rtol,
-                                  atol, max_step, max_steps, singular_tol, stop_on_stiff=True)
-            if run.message == "stiff":
-                return _switch_to_implicit(loop, controller, run, explicit_u, segments, y0,
-                                           seg_params, t_eval, rtol, atol, max_step, max_steps,
-                                           singular_tol, settings, extra)
-            return run, method, extra
-    run = integrate_scipy(loop, controller, segments, y0, seg_params, t_eval, method, rtol, atol,
-                          max_step, max_steps, singular_tol, projection=stabilization == "projection")
-    return run, method, extra
+    scheme = COMPILED_METHODS.get(method, "DOP853")
+    library, reason = _library(request.loop, request.python_inputs, request.stabilization == "projection")
+    auto = method == "auto"
+    if library is None:
+        settings["fallback"] = f"{reason}; integrated with scipy DOP853"
+        if "compiler" in reason:
+            warnings.warn(f"method={method!r}: {settings['fallback']}", stacklevel=3)
+        if not auto:
+            return integrate_scipy(request, "DOP853", projection=request.stabilization == "projection"), "DOP853", extra
+        run = integrate_scipy(request, "DOP853", stop_on_stiff=True)
+        if run.message == "stiff":
+            return _switch_to_implicit(request, run, settings, extra)
+        return run, "DOP853", extra
+    extra["library"] = library
+    extra["compile_time_s"] = library.compile_time_s
+    run = integrate_compiled(request, library, scheme, stop_on_stiff=auto)
+    if auto and run.message == "stiff":
+        extra.pop("library")
+        return _switch_to_implicit(request, run, settings, extra)
+    return run, f"compiled {scheme}", extra
 
 
-def _switch_to_implicit(loop, controller, run, explicit_u, segments, y0, seg_params, t_eval,
-                        rtol, atol, max_step, max_steps, singular_tol, settings, extra):
-    implicit = "Radau" if explicit_u else "CVODES"
+#: route name → route(request, method, settings) → (Run, method name, extra diagnostics)
+ROUTES = {**{name: _route_scipy for name in SCIPY_METHODS}, "CVODES": _route_cvodes, "IDAS": _route_idas,
+          **{name: _route_compiled for name in COMPILED_METHODS}, "auto": _route_compiled}
+
+
+def _switch_to_implicit(request: RunRequest, run, settings: dict, extra: dict) -> tuple:
+    implicit = "Radau" if request.python_inputs else "CVODES"
     settings["auto"] = (f"DOP853 detected stiffness at t = {run.t_stiff:.6g} (h|λ| "
                         f"up to {run.h_lambda:.3g} for 15 steps: the step is set by stability) "
                         f"after {run.nfev} evaluations; redone with {implicit}")
     if implicit == "CVODES":
-        new = integrate_sundials(loop, "cvodes", segments, y0, None, seg_params, t_eval, rtol,
-                                 atol, max_steps, singular_tol)
+        new = integrate_sundials(request, "cvodes")
     else:
-        new = integrate_scipy(loop, controller, segments, y0, seg_params, t_eval, "Radau", rtol,
-                              atol, max_step, max_steps, singular_tol)
+        new = integrate_scipy(request, "Radau")
     new.nfev += run.nfev
     new.t_stiff, new.h_lambda = run.t_stiff, run.h_lambda
     return new, implicit, extra
@@ -553,9 +554,12 @@ def _first_nonfinite_row(out: dict, modelled: dict) -> int | None:
     return min(rows) if rows else None
 
 
-def _assemble(model, loop, controller, run, method_name, seg_params, segments, y0, start,
-              settings, extra, resolved, quantities, pv, singular_tol, with_initial) -> Trajectory:
+def _assemble(model, request: RunRequest, run, method_name, start, settings, extra, resolved, quantities, pv,
+              with_initial) -> Trajectory:
     """Outputs, diagnosis of a failure, diagnostics → :class:`Trajectory`."""
+    loop, controller, seg_params, segments, y0 = (request.loop, request.controller, request.seg_params,
+                                                  request.segments, request.y0)
+    singular_tol = request.event_tol
     system, t0 = model.system, segments[0][0]
     library = extra.pop("library", None)
     # outputs at the initial state first: E(t0) and which columns the run models at all

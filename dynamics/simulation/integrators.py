@@ -39,6 +39,39 @@ STIFF_LIMIT = {"RK45": 1.2, "DOP853": 3.0}
 _EVALS_PER_STEP = 100
 
 
+@dataclass(frozen=True, eq=False)
+class RunRequest:
+    """One integration of a closed loop, as every route sees it (built once by ``simulate``).
+
+    loop : the :class:`~.closed_loop.ClosedLoop`; controller : the user's controller or None;
+    segments : [(a, b)] intervals between the controller's switch times; y0 : (n_y,) start;
+    seg_params : the loop's parameter vector of each segment; t_eval : output times or None
+    (every accepted step); rtol, atol, max_step, max_steps : the solver settings; event_tol :
+    the singular-set threshold (None or 0: no event); stabilization, baumgarte : the DAE's
+    constraint stabilisation.
+    """
+
+    loop: object
+    controller: object
+    segments: list
+    y0: np.ndarray
+    seg_params: list
+    t_eval: object
+    rtol: float
+    atol: float
+    max_step: float
+    max_steps: int
+    event_tol: float | None
+    stabilization: str | None = None
+    baumgarte: tuple = (1.0, 0.0)
+
+    @property
+    def python_inputs(self) -> bool:
+        """The inputs come from a Python controller called at every evaluation (it has no
+        CasADi form and is not piecewise given): no compiled route, no symbolic Jacobian in u."""
+        return self.controller is not None and not (self.loop.symbolic_u or self.loop.segment_u)
+
+
 @dataclass
 class Run:
     """What a route produced: output times, controller times, segment indices and states."""
@@ -68,6 +101,14 @@ class Run:
         self.y.append(np.array(y, dtype=float))
         if lam is not None:
             self.lam.append(np.array(lam, dtype=float))
+
+    def add_block(self, t, t_hi, seg, Y):
+        """:meth:`add` for N points at once: ``t`` (N,), ``Y`` (N, n_y) (copied)."""
+        t = np.asarray(t, dtype=float)
+        self.t.extend(t.tolist())
+        self.t_c.extend(np.minimum(t, t_hi).tolist())
+        self.seg.extend([seg] * t.size)
+        self.y.extend(np.array(Y, dtype=float))
 
     def fail(self, status, t, message, bad=None):
         self.status, self.t_fail, self.message, self.bad = status, float(t), message, bad
@@ -226,11 +267,14 @@ def _event_in_step(solver, event, params, t_old, t_new, y_new, f_new, old, tol):
     return None, (g_new, rate_new)
 
 
-def integrate_scipy(loop, controller, segments, y0, seg_params, t_eval, method, rtol, atol, max_step,
-                    max_steps, event_tol, projection=False, stop_on_stiff=False) -> Run:
+def integrate_scipy(request: RunRequest, method: str, *, projection=False, stop_on_stiff=False) -> Run:
     """Integrate with a scipy OdeSolver, one step at a time (see the module docstring);
     ``projection``: project the velocities onto the constraints after every step;
     ``stop_on_stiff``: end (message "stiff") when stiffness is detected."""
+    loop, controller, segments, y0, seg_params, t_eval = (request.loop, request.controller, request.segments,
+                                                          request.y0, request.seg_params, request.t_eval)
+    rtol, atol, max_step, max_steps = request.rtol, request.atol, request.max_step, request.max_steps
+    event_tol = request.event_tol
     cls = SCIPY_METHODS[method]
     run = Run()
     te = None if t_eval is None else np.asarray(t_eval, dtype=float)
@@ -403,13 +447,16 @@ def _next_step(solver):
 _CHUNK = 16
 
 
-def integrate_sundials(loop, kind, segments, y0, lam0, seg_params, t_eval, rtol, atol, max_steps,
-                       event_tol, stabilization=None, baumgarte=(1.0, 0.0)) -> Run:
-    """CVODES (``kind="cvodes"``, BDF with Newton) on the ODE or IDAS (``kind="idas"``) on the
-    index-1 DAE; outputs at ``t_eval`` (or the interval ends), :data:`_CHUNK` output points per
-    call; the event is checked at the outputs. For CVODES a step size below 10⁻¹³·max(1, |t|) is
-    a failure (it would otherwise spend ``max_steps`` steps going nowhere next to a
-    singularity)."""
+def integrate_sundials(request: RunRequest, kind: str, lam0=None) -> Run:
+    """CVODES (``kind="cvodes"``, BDF with Newton) on the ODE or IDAS (``kind="idas"``, from the
+    multipliers ``lam0``) on the index-1 DAE; outputs at ``t_eval`` (or the interval ends),
+    :data:`_CHUNK` output points per call; the event is checked at the outputs. For CVODES a
+    step size below 10⁻¹³·max(1, |t|) is a failure (it would otherwise spend ``max_steps``
+    steps going nowhere next to a singularity)."""
+    loop, segments, y0, seg_params, t_eval = (request.loop, request.segments, request.y0, request.seg_params,
+                                              request.t_eval)
+    rtol, atol, max_steps, event_tol = request.rtol, request.atol, request.max_steps, request.event_tol
+    stabilization, baumgarte = request.stabilization, request.baumgarte
     te = None if t_eval is None else np.asarray(t_eval, dtype=float)
     run = Run(lam=[] if kind == "idas" else None)
     y, lam = np.array(y0, dtype=float), None if lam0 is None else np.array(lam0, dtype=float)
@@ -550,9 +597,12 @@ def _cvodes_problem(loop) -> dict:
 _C_STATUS = {-1: FAILED, -2: MAX_STEPS, -3: NONFINITE, -4: NONFINITE, -5: SINGULAR}
 
 
-def integrate_compiled(library, scheme, segments, y0, seg_params, t_eval, rtol, atol, max_step,
-                       max_steps, event_tol, stop_on_stiff=False) -> Run:
-    """Run the compiled integrator (:mod:`.compiled`) interval by interval."""
+def integrate_compiled(request: RunRequest, library, scheme: str, *, stop_on_stiff=False) -> Run:
+    """Run the compiled integrator (:mod:`.compiled`, the closed loop's ``library``) interval by
+    interval with the explicit Runge–Kutta ``scheme`` ("DOP853" or "DOPRI5")."""
+    segments, y0, seg_params, t_eval = request.segments, request.y0, request.seg_params, request.t_eval
+    rtol, atol, max_step, max_steps = request.rtol, request.atol, request.max_step, request.max_steps
+    event_tol = request.event_tol
     from .compiled import RunState
     run = Run()
     te = None if t_eval is None else np.ascontiguousarray(t_eval, dtype=float)
@@ -572,14 +622,12 @@ def integrate_compiled(library, scheme, segments, y0, seg_params, t_eval, rtol, 
         while True:
             code = library.run(scheme, state, b, t_hi, y, p, te, y_eval, t_steps, y_steps)
             if te is None:
-                for i in range(state["n_out"]):
-                    run.add(t_steps[i], t_hi, j, y_steps[i])
+                run.add_block(t_steps[:state["n_out"]], t_hi, j, y_steps[:state["n_out"]])
             if code != 1:
                 break
             t_steps, y_steps = np.zeros(2 * t_steps.size - 1), np.zeros((2 * t_steps.size - 1, library.ny))
         if te is not None:
-            for i in range(first, state["i_eval"]):
-                run.add(te[i], t_hi, j, y_eval[i])
+            run.add_block(te[first:state["i_eval"]], t_hi, j, y_eval[first:state["i_eval"]])
         if code != 0:
             break
     run.nfev, run.n_steps, run.n_rejected = state["nfev"], state["accepted"], state["rejected"]
