@@ -10,7 +10,7 @@ Entry points (imported lazily, so ``import nhgait.dynamics`` does no symbolic wo
 """
 from __future__ import annotations
 
-import importlib
+from nhgait.lazy import lazy_getattr
 
 _EXPORTS = {
     "System": "derivation.system", "ModelError": "errors", "SingularConfigurationError": "errors",
@@ -28,12 +28,4 @@ _EXPORTS = {
 
 __all__ = sorted(_EXPORTS)
 
-
-def __getattr__(name):
-    try:
-        module = _EXPORTS[name]
-    except KeyError:
-        raise AttributeError(f"module 'nhgait.dynamics' has no attribute {name!r}") from None
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value
-    return value
+__getattr__ = lazy_getattr(__name__, _EXPORTS)

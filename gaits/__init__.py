@@ -4,18 +4,10 @@ Entry points (imported lazily): :func:`plan` (:mod:`.planner`), :func:`sweep` (:
 """
 from __future__ import annotations
 
-import importlib
+from nhgait.lazy import lazy_getattr
 
 _EXPORTS = {"plan": "planner", "sweep": "sweeps.driver", "load_sweep": "sweeps.driver"}
 
 __all__ = sorted(_EXPORTS)
 
-
-def __getattr__(name):
-    try:
-        module = _EXPORTS[name]
-    except KeyError:
-        raise AttributeError(f"module 'nhgait.gaits' has no attribute {name!r}") from None
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value
-    return value
+__getattr__ = lazy_getattr(__name__, _EXPORTS)
