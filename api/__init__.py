@@ -14,7 +14,7 @@ Sub-packages (each imports only the ones before it; ``import nhgait`` loads none
   (``System``, ``load_scene``, ``derive``, ``simulate``, ``Trajectory``);
 * :mod:`nhgait.ocp` — optimal-control problems, transcriptions, solvers, solutions (no sympy);
 * :mod:`nhgait.gaits` — gait tasks, guesses, the planner (``nhgait.gaits.planner.plan``),
-  sweeps (``nhgait.gaits.sweep.sweep``), plots and the ``nhgait`` command line.
+  sweeps (``nhgait.gaits.sweep``), plots and the ``nhgait`` command line.
 
 The five things a user does first::
 

@@ -10,27 +10,22 @@ Entry points (imported lazily, so ``import nhgait.dynamics`` does no symbolic wo
 """
 from __future__ import annotations
 
-import importlib
+from nhgait.lazy import lazy_getattr
 
 _EXPORTS = {
-    "System": "system", "ModelError": "errors", "SingularConfigurationError": "errors",
-    "unicycle": "models", "snakeboard": "models", "chaplygin_sleigh": "models",
-    "knife_edge_incline": "models", "builtin": "models",
-    "derive": "derivation", "FORMULATIONS": "derivation",
-    "ReducedODE": "reduction", "LagrangianDAE": "lagrange", "HamiltonianDAE": "hamilton",
-    "load_scene": "scene", "Scene": "scene",
-    "simulate": "simulation", "Trajectory": "simulation",
-    "jacobi_test": "analysis", "to_state": "states", "from_state": "states",
+    "System": "derivation.system", "ModelError": "errors", "SingularConfigurationError": "errors",
+    "unicycle": "derivation.models", "snakeboard": "derivation.models",
+    "chaplygin_sleigh": "derivation.models", "knife_edge_incline": "derivation.models",
+    "builtin": "derivation.models",
+    "derive": "derivation.formulations", "FORMULATIONS": "derivation.formulations",
+    "ReducedODE": "derivation.reduction", "LagrangianDAE": "derivation.lagrange",
+    "HamiltonianDAE": "derivation.hamilton",
+    "load_scene": "derivation.scene", "Scene": "derivation.scene",
+    "simulate": "simulation.driver", "Trajectory": "simulation.driver",
+    "jacobi_test": "derivation.analysis", "to_state": "derivation.states",
+    "from_state": "derivation.states",
 }
 
 __all__ = sorted(_EXPORTS)
 
-
-def __getattr__(name):
-    try:
-        module = _EXPORTS[name]
-    except KeyError:
-        raise AttributeError(f"module 'nhgait.dynamics' has no attribute {name!r}") from None
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value
-    return value
+__getattr__ = lazy_getattr(__name__, _EXPORTS)

@@ -28,7 +28,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 def _fresh():
     from sympy.core.cache import clear_cache
-    from nhgait.dynamics import symbolic
+    from nhgait.dynamics.derivation import symbolic
     clear_cache()
     symbolic._tidy_scalar.cache_clear()
 
@@ -53,9 +53,9 @@ def _lagrange(name):
 def _ours(formulation):
     def run(name):
         from nhgait.dynamics import builtin
-        from nhgait.dynamics.hamilton import derive_hamiltonian
-        from nhgait.dynamics.lagrange import derive_lagrangian
-        from nhgait.dynamics.reduction import derive_reduced
+        from nhgait.dynamics.derivation.hamilton import derive_hamiltonian
+        from nhgait.dynamics.derivation.lagrange import derive_lagrangian
+        from nhgait.dynamics.derivation.reduction import derive_reduced
         system = builtin(name)
         return {"reduced": derive_reduced, "lagrange": derive_lagrangian,
                 "hamilton": derive_hamiltonian}[formulation](system)

@@ -54,7 +54,7 @@ class Ours:
         from nhgait.gaits.guesses import candidates
         from nhgait.gaits.planner import prepare
         from nhgait.gaits.search import solve_from_guesses
-        from nhgait.gaits.tasks import resolve
+        from nhgait.gaits.task_library import resolve
         from nhgait.ocp import OCPSolver, SolverOptions
 
         from nhgait.gaits.planner import solver_order

@@ -58,7 +58,7 @@ def _load(name: str):
 
 def _nhgait() -> list:
     exe = Path(sys.executable).with_name("nhgait")
-    return [str(exe)] if exe.exists() else [sys.executable, "-m", "nhgait.gaits.cli"]
+    return [str(exe)] if exe.exists() else [sys.executable, "-m", "nhgait.gaits.cli.main"]
 
 
 def cold(member: str, folder: Path, cache: Path, timeout: float, extra: tuple = ()) -> dict:
@@ -108,10 +108,10 @@ class Ours:
     guess the cold run won with."""
 
     def __init__(self, member, guess_label, solver, hessian, intervals=None, jit=None, reference=None):
-        from nhgait.dynamics.scene import scene_from_text
+        from nhgait.dynamics.derivation.scene import scene_from_text
         from nhgait.gaits.guesses import candidates
         from nhgait.gaits.planner import prepare
-        from nhgait.gaits.tasks import resolve
+        from nhgait.gaits.task_library import resolve
         from nhgait.ocp import OCPSolver, SolverOptions
         scene = scene_from_text(_load("scale_tasks").scene_with_task(member), member)
         overrides = [f"intervals={intervals}"] if intervals else []

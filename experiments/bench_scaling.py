@@ -42,7 +42,7 @@ BUILTINS = ("unicycle", "snakeboard")
 
 def _fresh():
     from sympy.core.cache import clear_cache
-    from nhgait.dynamics import symbolic
+    from nhgait.dynamics.derivation import symbolic
     clear_cache()
     symbolic._tidy_scalar.cache_clear()
 
@@ -89,7 +89,7 @@ def _system(name):
 
 def _scene_text(name):
     if name in BUILTINS:
-        return (ROOT / "dynamics" / "scenes" / f"{name}.toml").read_text()
+        return (ROOT / "dynamics" / "derivation" / "scenes" / f"{name}.toml").read_text()
     import scaling_systems
     return scaling_systems.scene_text(name)
 
@@ -117,7 +117,7 @@ def _cli_time(name, repeats, cap):
         scene = Path(tmp) / f"{name}.toml"
         scene.write_text(_scene_text(name))
         env = dict(os.environ, NHGAIT_CACHE_DIR=str(Path(tmp) / "cache"))
-        exe = [sys.executable, "-m", "nhgait.gaits.cli"] if not _has_script() else [_script()]
+        exe = [sys.executable, "-m", "nhgait.gaits.cli.main"] if not _has_script() else [_script()]
         times = []
         for _ in range(repeats):
             t0 = time.perf_counter()

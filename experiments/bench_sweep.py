@@ -46,13 +46,13 @@ CHAINS = (1, 2, 4)
 
 def _warm_up(backend) -> None:
     """Import nhgait's planner in every worker (not part of a sweep's timing)."""
-    from nhgait.gaits.sweep_backends import warm_up
+    from nhgait.gaits.sweeps.backends import warm_up
     warm_up(backend)
 
 
 def timed_sweep(case, grid, backend, *, warm_start=True):
-    from nhgait.gaits.sweep import run_sweep
-    from nhgait.gaits.sweep_store import SweepStore
+    from nhgait.gaits.sweeps.driver import run_sweep
+    from nhgait.gaits.sweeps.store import SweepStore
     with tempfile.TemporaryDirectory() as tmp, SweepStore(tmp) as store:
         t0 = time.perf_counter()
         result = run_sweep(case, grid, backend, store, warm_start=warm_start)  # prepares the other workers
@@ -60,9 +60,9 @@ def timed_sweep(case, grid, backend, *, warm_start=True):
 
 
 def throughput(repeats: int, axes) -> dict:
-    from nhgait.gaits.sweep_backends import ProcessPool
-    from nhgait.gaits.sweep_grid import parse_grid
-    from nhgait.gaits.sweep_point import describe_case
+    from nhgait.gaits.sweeps.backends import ProcessPool
+    from nhgait.gaits.sweeps.grid import parse_grid
+    from nhgait.gaits.sweeps.point import describe_case
     case = describe_case("unicycle", "parallel-park", overrides=["intervals=50"])
     grid = parse_grid(axes)
     times = {1: [], 2: []}
@@ -83,8 +83,8 @@ def throughput(repeats: int, axes) -> dict:
 
 def dask_overhead(samples: int, solves: int, scene=("snakeboard", "forward")) -> dict:
     from nhgait.gaits.planner import plan
-    from nhgait.gaits.sweep_backends import DaskBackend
-    from nhgait.gaits.sweep_point import PointJob, describe_case, warm_data
+    from nhgait.gaits.sweeps.backends import DaskBackend
+    from nhgait.gaits.sweeps.point import PointJob, describe_case, warm_data
     p2 = [plan(*scene, overrides=["intervals=50"], animate=False, jit=False) for _ in range(solves)]
     solve_s = statistics.median(r.solution.solve_time_s for r in p2)
     case = describe_case(*scene, overrides=["intervals=50"])
@@ -121,7 +121,7 @@ def _pipelined(backend, payload, count: int, chain: int = 1) -> float:
     """Seconds per point for ``count`` tasks of ``chain`` points each, kept 2 per worker in
     flight as the sweep driver does."""
     import concurrent.futures as cf
-    from nhgait.gaits.sweep_point import solve_chain
+    from nhgait.gaits.sweeps.point import solve_chain
     t0 = time.perf_counter()
     in_flight, sent = set(), 0
     while sent < count or in_flight:
@@ -141,9 +141,9 @@ def _pipelined(backend, payload, count: int, chain: int = 1) -> float:
 
 def dask_chains(axes, scene=("snakeboard", "forward")) -> dict:
     """Points per task when ``axes`` are swept on a 2-worker local Dask cluster."""
-    from nhgait.gaits.sweep_backends import DaskBackend
-    from nhgait.gaits.sweep_grid import parse_grid
-    from nhgait.gaits.sweep_point import describe_case
+    from nhgait.gaits.sweeps.backends import DaskBackend
+    from nhgait.gaits.sweeps.grid import parse_grid
+    from nhgait.gaits.sweeps.point import describe_case
     case = describe_case(*scene, overrides=["intervals=50"])
     grid = parse_grid(axes)
     sizes = []
@@ -165,9 +165,9 @@ def dask_chains(axes, scene=("snakeboard", "forward")) -> dict:
 
 
 def continuation(axes, scene=("snakeboard", "forward")) -> dict:
-    from nhgait.gaits.sweep_backends import ProcessPool
-    from nhgait.gaits.sweep_grid import parse_grid
-    from nhgait.gaits.sweep_point import describe_case
+    from nhgait.gaits.sweeps.backends import ProcessPool
+    from nhgait.gaits.sweeps.grid import parse_grid
+    from nhgait.gaits.sweeps.point import describe_case
     case = describe_case(*scene, overrides=["intervals=50"])
     grid = parse_grid(axes)
     out = {"grid": list(axes), "points": grid.size}

@@ -47,7 +47,7 @@ def kane_reference(name, t_eval, q0, qdot0, controller, params=None):
     -------
     ("kane", q (N, n), info) with info = {"wall_time_s", "nfev", "success", "message", "method"}.
     """
-    from nhgait.dynamics.models import builtin
+    from nhgait.dynamics.derivation.models import builtin
 
     system = builtin(name)
     values = dict(zip((s.name for s in system.param_symbols), system.param_values))
@@ -78,8 +78,8 @@ def main(argv=None) -> int:
     parser.add_argument("--no-idas", action="store_true", help="skip the IDAS runs")
     args = parser.parse_args(argv)
 
-    from nhgait.gaits.cli_reproduce import print_summary
-    from nhgait.gaits.reproduction import reproduce
+    from nhgait.gaits.cli.reproduce import print_summary
+    from nhgait.gaits.bench.reproduction import reproduce
 
     summary = reproduce(args.out, rtol=args.rtol, idas=not args.no_idas, reference=kane_reference)
     print_summary(summary)

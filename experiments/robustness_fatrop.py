@@ -25,7 +25,7 @@ TASKS = [("unicycle", "parallel-park"), ("snakeboard", "forward"), ("snakeboard"
 def main(argv=None) -> int:
     from nhgait.gaits.guesses import candidates
     from nhgait.gaits.planner import prepare
-    from nhgait.gaits.tasks import resolve
+    from nhgait.gaits.task_library import resolve
     from nhgait.ocp import OCPSolver, SolverOptions
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -52,10 +52,10 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 
-# functions through the package's lazy exports first (see gaits/reproduction.py)
+# functions through the package's lazy exports first (see gaits/bench/reproduction.py)
 from nhgait.dynamics import builtin, derive, simulate  # noqa: E402  isort: skip
-from nhgait.dynamics.controllers import PDTracking, Sinusoid, snakeboard_pd, unicycle_pd  # noqa: E402
-from nhgait.gaits import work_precision as wp  # noqa: E402
+from nhgait.dynamics.simulation.controllers import PDTracking, Sinusoid, snakeboard_pd, unicycle_pd  # noqa: E402
+from nhgait.gaits.bench import work_precision as wp  # noqa: E402
 
 FORMULATIONS = ("reduced", "lagrange", "hamilton")
 METHODS = ("RK45", "DOP853", "Radau", "LSODA", "CVODES", "compiled")
@@ -166,7 +166,7 @@ def stiff_controller(kp=1e4, kd=200.0):
 
 
 def make_case(name, t_scale=1.0, formulations=FORMULATIONS, log=print):
-    """A :class:`~nhgait.gaits.work_precision.Case` with its reference."""
+    """A :class:`~nhgait.gaits.bench.work_precision.Case` with its reference."""
     if name in ("snakeboard", "stiff", "long", "shape"):
         system, q0, qdot0 = "snakeboard", SNAKE_Q0, SNAKE_QDOT0
         controller = stiff_controller() if name == "stiff" else snakeboard_pd()
@@ -292,7 +292,7 @@ def hard_cases(log=print) -> list:
 
 
 def _status(tr) -> str:
-    from nhgait.dynamics.simulation import STATUS_NAMES
+    from nhgait.dynamics.simulation.driver import STATUS_NAMES
     return f"{'ok' if tr.success else 'stopped'} ({STATUS_NAMES.get(tr.status, tr.status)})"
 
 
@@ -301,10 +301,10 @@ def _status(tr) -> str:
 # ------------------------------------------------------------------------------------------
 def per_evaluation_costs(log=print) -> dict:
     """Nanoseconds per closed-loop right-hand side evaluation of the snakeboard PD run."""
-    from nhgait.dynamics.closed_loop import closed_loop
-    from nhgait.dynamics.integrators import Fast
-    from nhgait.dynamics.states import to_state
-    from nhgait.dynamics.simulation import _integration_model
+    from nhgait.dynamics.simulation.closed_loop import closed_loop
+    from nhgait.dynamics.simulation.integrators import Fast
+    from nhgait.dynamics.derivation.states import to_state
+    from nhgait.dynamics.simulation.driver import _integration_model
     out = {}
     general = derive("snakeboard", "reduced")
     pv = general.numeric.params(None)

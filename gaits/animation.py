@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .plots import body_segments, label, series, with_unit
+
 __all__ = ["animate_solution"]
 
 
@@ -28,13 +30,12 @@ def animate_solution(solution, ctx, path, *, fps: int = 15, frames: int = 60) ->
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from .plots import _series, _with_unit, body_segments, label
 
     if ctx.frame is None:   # no planar frame: animate the fiber path only
         fx, fy = (list(ctx.fiber) + list(solution.state_names))[:2]
     else:
         fx, fy = ctx.frame[:2]
-    x, y = _series(solution, fx), _series(solution, fy)
+    x, y = series(solution, fx), series(solution, fy)
     segs = [body_segments(solution, ctx, k) if ctx.frame is not None else [] for k in range(len(x))]
     allx = np.concatenate([x] + [np.ravel(s[0]) for ss in segs for s in ss])
     ally = np.concatenate([y] + [np.ravel(s[1]) for ss in segs for s in ss])
@@ -47,8 +48,8 @@ def animate_solution(solution, ctx, path, *, fps: int = 15, frames: int = 60) ->
     ax.set_xlim(allx.min() - pad, allx.max() + pad)
     ax.set_ylim(ally.min() - pad, ally.max() + pad)
     ax.set_aspect("equal")
-    ax.set_xlabel(_with_unit(ctx, fx))
-    ax.set_ylabel(_with_unit(ctx, fy))
+    ax.set_xlabel(with_unit(ctx, fx))
+    ax.set_ylabel(with_unit(ctx, fy))
     ax.grid(True, alpha=0.3)
     trace, = ax.plot([], [], "-", color="C0", lw=1.5, label="path so far")
     n_seg = len(segs[0])

@@ -37,7 +37,7 @@ def fixed_configurations(task, coordinates) -> list:
 def _singular_ends(model, ends, params) -> list:
     """The ends whose configuration is on ``model``'s singular set."""
     from nhgait.dynamics.errors import SingularConfigurationError
-    from nhgait.dynamics.states import check_configuration
+    from nhgait.dynamics.derivation.states import check_configuration
     bad = []
     for end, q in ends:
         try:

@@ -12,7 +12,7 @@ Format (docs/gait-planning.md)::
 
 A point (px, py) of the body frame is drawn at (x + px cos θ − py sin θ, y + px sin θ +
 py cos θ). Expressions may use the coordinates (a wheel steered by φ, a trailer at angle β)
-and the parameters; they are parsed by :mod:`nhgait.dynamics.expressions` (data, never code).
+and the parameters; they are parsed by :mod:`nhgait.dynamics.derivation.expressions` (data, never code).
 Without a drawing the path plot shows the frame's point and an arrow along its heading.
 """
 from __future__ import annotations
@@ -62,8 +62,8 @@ def parse_drawing(table, system, *, where: str = "[drawing]") -> Drawing | None:
     """
     if table is None:
         return None
-    from nhgait.dynamics.expressions import expression_problems
-    from nhgait.dynamics.quantities import quantity_function
+    from nhgait.dynamics.derivation.expressions import expression_problems
+    from nhgait.dynamics.derivation.quantities import quantity_function
 
     problems = []
     if not isinstance(table, dict):
@@ -124,7 +124,7 @@ def _placed(exprs, frame, system, n):
 
 def _trig(theta):
     """cos θ, sin θ as expressions of the symbol θ, built by the safe parser of the dynamics layer."""
-    from nhgait.dynamics.expressions import parse_expression
+    from nhgait.dynamics.derivation.expressions import parse_expression
     names = {theta.name: theta}
     return (parse_expression(f"cos({theta.name})", names, "drawing frame"),
             parse_expression(f"sin({theta.name})", names, "drawing frame"))

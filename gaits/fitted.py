@@ -27,8 +27,6 @@ import numpy as np
 
 from nhgait.ocp import InitialGuess
 
-from .guesses import fixed_value
-
 __all__ = ["fitted_guess", "applies", "leads", "LABEL"]
 
 LABEL = "fitted roll-out"
@@ -71,7 +69,7 @@ def leads(problem, shape: tuple) -> bool:
 
 
 def _targets(problem, coords) -> list:
-    return [(i, v) for i, c in enumerate(coords) if (v := fixed_value(problem, problem.final, c)) is not None]
+    return [(i, v) for i, c in enumerate(coords) if (v := problem.fixed_value(problem.final, c)) is not None]
 
 
 def _basis(t: np.ndarray, T: float) -> np.ndarray:
@@ -86,7 +84,7 @@ def _rollout_function(problem, n: int, nv: int):
     h = T / (N * STEPS)
     fine = np.linspace(0.0, T, 2 * N * STEPS + 1)                 # t, t + h/2, t + h of every sub-step
     names = tuple(problem.model.state_names)
-    ends = [(fixed_value(problem, problem.initial, v) or 0.0, fixed_value(problem, problem.final, v) or 0.0)
+    ends = [(problem.fixed_value(problem.initial, v) or 0.0, problem.fixed_value(problem.final, v) or 0.0)
             for v in names[n:]]
     Y0 = np.array([a + (b - a) * fine / T for a, b in ends]).reshape(nv, -1)
     Phi = _basis(fine, T)

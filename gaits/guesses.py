@@ -38,7 +38,7 @@ import numpy as np
 
 from nhgait.ocp import InitialGuess
 
-__all__ = ["fixed_value", "ShapeGuess", "shape_guesses", "rollout_guesses", "guess_from_shape", "candidates", "Candidates",
+__all__ = ["ShapeGuess", "shape_guesses", "rollout_guesses", "guess_from_shape", "candidates", "Candidates",
            "RATIOS", "AMPLITUDES"]
 
 RATIOS = ((1, 1), (2, 1), (1, 2), (3, 2), (2, 3))
@@ -60,15 +60,6 @@ class ShapeGuess:
     rates: tuple = ()       # ((velocity state, mean, amplitude, k, phase), ...)
 
 
-def fixed_value(problem, mapping, name):
-    """The value of ``name`` in the conditions ``mapping`` when it is fixed (lo = hi), else None."""
-    if name in mapping:
-        lo, hi = problem.bounds(mapping, name)
-        if lo == hi:
-            return lo
-    return None
-
-
 def _centre(problem, name) -> float:
     """Where a coordinate free at both ends sits: the middle of its bounds (0 when unbounded or
     when 0 is inside them)."""
@@ -81,8 +72,8 @@ def _centre(problem, name) -> float:
 
 def _ends(problem, name):
     """(value at t = 0, value at t = T) of a coordinate's ramp."""
-    a = fixed_value(problem, problem.initial, name)
-    b = fixed_value(problem, problem.final, name)
+    a = problem.fixed_value(problem.initial, name)
+    b = problem.fixed_value(problem.final, name)
     if name in problem.periodic:
         b = a if b is None else b
         a = b if a is None else a
@@ -104,7 +95,7 @@ def _amplitude(problem, name) -> float:
 def shape_guesses(problem, shape: tuple) -> list:
     """The shape-loop candidates (see the module docstring), in order of preference."""
     out = []
-    fixed0 = {n for n in shape if fixed_value(problem, problem.initial, n) is not None}
+    fixed0 = {n for n in shape if problem.fixed_value(problem.initial, n) is not None}
     for a, b in combinations(shape, 2):
         amp_a, amp_b = _amplitude(problem, a), _amplitude(problem, b)
         # the variable fixed at t = 0 carries the sine (phase 0), the other the cosine
@@ -131,7 +122,7 @@ def rollout_guesses(problem, shape: tuple, rates: tuple) -> list:
     w = 2 * math.pi / T
     mean = _mean_speed(problem)
     out = []
-    fixed0 = {n for n in shape if fixed_value(problem, problem.initial, n) is not None}
+    fixed0 = {n for n in shape if problem.fixed_value(problem.initial, n) is not None}
     for v in rates:
         reach = max(abs(mean) * T, _span(problem), 0.25)
         for b in shape or (None,):
@@ -150,7 +141,7 @@ def _span(problem) -> float:
     """Largest change of a coordinate fixed at both ends."""
     d = 0.0
     for name in problem.final:
-        a, b = fixed_value(problem, problem.initial, name), fixed_value(problem, problem.final, name)
+        a, b = problem.fixed_value(problem.initial, name), problem.fixed_value(problem.final, name)
         if a is not None and b is not None and name in problem.model.system.coordinates:
             d = max(d, abs(b - a))
     return d
@@ -161,9 +152,9 @@ def _mean_speed(problem) -> float:
     frame = getattr(problem.model.system, "planar_frame", None)
     if not frame:
         return 0.0
-    x0, y0 = (fixed_value(problem, problem.initial, c) or 0.0 for c in frame[:2])
-    x1, y1 = (fixed_value(problem, problem.final, c) for c in frame[:2])
-    h0 = fixed_value(problem, problem.initial, frame[2]) or 0.0
+    x0, y0 = (problem.fixed_value(problem.initial, c) or 0.0 for c in frame[:2])
+    x1, y1 = (problem.fixed_value(problem.final, c) for c in frame[:2])
+    h0 = problem.fixed_value(problem.initial, frame[2]) or 0.0
     x1, y1 = (x0 if x1 is None else x1), (y0 if y1 is None else y1)
     return ((x1 - x0) * math.cos(h0) + (y1 - y0) * math.sin(h0)) / float(problem.horizon)
 

@@ -9,13 +9,13 @@ scene file take the same path::
 
 Steps
 -----
-1. :func:`~nhgait.gaits.tasks.resolve`: the scene and the parsed task (one ProblemError for
+1. :func:`~nhgait.gaits.task_library.resolve`: the scene and the parsed task (one ProblemError for
    every problem of the task's form).
 2. ``derive(system, "reduced")`` (cached; in a chart whose singular set misses the task's
-   fixed end configurations, :mod:`.charts`) and :func:`~nhgait.dynamics.specialisation.specialise`:
+   fixed end configurations, :mod:`.charts`) and :func:`~nhgait.dynamics.numerics.specialisation.specialise`:
    parameter values bound, the state in velocity coordinates z = (q, y) with y the task's own
    velocity quantities when they parametrise the allowed velocities (else chosen by
-   :func:`~nhgait.dynamics.specialisation.choose_velocities`). Conditions on velocities are
+   :func:`~nhgait.dynamics.numerics.specialisation.choose_velocities`). Conditions on velocities are
    then bounds or linear rows.
 3. :func:`~nhgait.gaits.task.to_problem`: the :class:`~nhgait.ocp.OptimalControlProblem`
    (unknown names and impossible counts are one ProblemError).
@@ -117,7 +117,7 @@ def known_names(model, quantities) -> tuple:
 
 def quantity_objects(model, scene):
     """The scene's named quantities as :class:`~nhgait.ocp.Quantity` objects on ``model``."""
-    from nhgait.dynamics.quantities import quantity_function
+    from nhgait.dynamics.derivation.quantities import quantity_function
     from .task import scene_quantities
     if not scene.quantities:
         return {}
@@ -154,9 +154,9 @@ def state_problem(task, fast, scene, *, params=None, name: str = ""):
 
 
 def _check_full_states(task, model, params) -> None:
-    """A full (q, q̇) at an end must satisfy the constraints (:func:`nhgait.dynamics.states.to_state`)."""
+    """A full (q, q̇) at an end must satisfy the constraints (:func:`nhgait.dynamics.derivation.states.to_state`)."""
     from nhgait.dynamics.errors import ModelError
-    from nhgait.dynamics.states import to_state
+    from nhgait.dynamics.derivation.states import to_state
     from nhgait.ocp import ProblemError
     coords = tuple(model.system.coordinates)
     problems = []
@@ -173,9 +173,9 @@ def _check_full_states(task, model, params) -> None:
 
 
 def prepare(the_plan, *, params=None, progress=None) -> Prepared:
-    """The :class:`Prepared` model and problems of a :class:`~nhgait.gaits.tasks.Plan`."""
+    """The :class:`Prepared` model and problems of a :class:`~nhgait.gaits.task_library.Plan`."""
     from nhgait.dynamics.progress import Progress
-    from nhgait.dynamics.specialisation import choose_velocities, specialise
+    from nhgait.dynamics.numerics.specialisation import choose_velocities, specialise
     from .charts import derive_for_task
     from .task import check_names
 
@@ -283,7 +283,7 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     from nhgait.dynamics.progress import Progress
     from .diagnosis import diagnose
     from .guesses import candidates
-    from .tasks import resolve
+    from .task_library import resolve
 
     progress = progress or Progress.silent()
     timings = {}
@@ -392,7 +392,7 @@ def write_outputs(result: PlanResult, out: Path, *, animate: bool = True, progre
     animate = animate and result.success
     with progress.phase("write solution.json and the figures"):
         files.extend(plots.write_figures(result.solution, out, units=result.plan.units, drawing=result.plan.drawing,
-                                         model=result.model, animate=False, failed=failed))
+                                         model=result.model, failed=failed))
     if animate:
         from .animation import animate_solution
         with progress.phase("write the animation motion.gif (60 frames; the longest part of the output)"):

@@ -122,7 +122,8 @@ def _coordinate_unit(ctx, name) -> str:
     return "m"
 
 
-def _with_unit(ctx, name) -> str:
+def with_unit(ctx, name) -> str:
+    """The axis label of ``name``: its readable label and unit in brackets."""
     u = unit(ctx, name)
     return f"{label(name)} [{u}]" if u else label(name)
 
@@ -143,7 +144,8 @@ def _axes(ax, **kw):
     return ax
 
 
-def _series(solution, name):
+def series(solution, name):
+    """The history of state ``name`` at the nodes."""
     return solution.states[list(solution.state_names).index(name)]
 
 
@@ -157,13 +159,13 @@ def body_segments(solution, ctx, k) -> list:
     """Segments [(xs, ys), …] of the body at node k (drawing, or point + heading arrow)."""
     if ctx.drawing is not None:
         return ctx.drawing.segments(_q(solution, k), solution.problem.params)
-    x, y, th = (_series(solution, c)[k] for c in ctx.frame)
+    x, y, th = (series(solution, c)[k] for c in ctx.frame)
     size = _scale(solution, ctx)
     return [([x, x + 0.15 * size * np.cos(th)], [y, y + 0.15 * size * np.sin(th)])]
 
 
 def _scale(solution, ctx) -> float:
-    x, y = _series(solution, ctx.frame[0]), _series(solution, ctx.frame[1])
+    x, y = series(solution, ctx.frame[0]), series(solution, ctx.frame[1])
     return max(float(np.ptp(x)), float(np.ptp(y)), 0.2)
 
 
@@ -173,7 +175,7 @@ def plot_path(solution, ctx: FigureContext, ax=None, *, bodies: int = 7):
     if ctx.frame is None:
         return _plot_fiber(solution, ctx, ax)
     fx, fy, fh = ctx.frame
-    x, y = _series(solution, fx), _series(solution, fy)
+    x, y = series(solution, fx), series(solution, fy)
     nodes = np.linspace(0, len(x) - 1, bodies).round().astype(int)
     t = solution.t
     for j, k in enumerate(nodes):
@@ -188,8 +190,8 @@ def plot_path(solution, ctx: FigureContext, ax=None, *, bodies: int = 7):
     ax.plot(x, y, "-", color="C0", lw=2.0, label=f"path of the frame point ({label(fx)}, {label(fy)})", zorder=3)
     ax.plot(x[0], y[0], "o", color="C2", ms=8, label="start (t = 0)", zorder=4)
     ax.plot(x[-1], y[-1], "s", color="C3", ms=8, label=f"end (t = {t[-1]:.3g} s)", zorder=4)
-    ax.set_xlabel(_with_unit(ctx, fx))
-    ax.set_ylabel(_with_unit(ctx, fy))
+    ax.set_xlabel(with_unit(ctx, fx))
+    ax.set_ylabel(with_unit(ctx, fy))
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize="small")
@@ -200,16 +202,16 @@ def plot_path(solution, ctx: FigureContext, ax=None, *, bodies: int = 7):
 def _plot_fiber(solution, ctx, ax):
     fiber = [c for c in ctx.fiber if c in solution.state_names] or list(solution.state_names[:1])
     if len(fiber) >= 2:
-        a, b = _series(solution, fiber[0]), _series(solution, fiber[1])
+        a, b = series(solution, fiber[0]), series(solution, fiber[1])
         ax.plot(a, b, "-", color="C0", lw=2, label="fiber path")
         ax.plot(a[0], b[0], "o", color="C2", label="start (t = 0)")
         ax.plot(a[-1], b[-1], "s", color="C3", label=f"end (t = {solution.t[-1]:.3g} s)")
-        ax.set_xlabel(_with_unit(ctx, fiber[0]))
-        ax.set_ylabel(_with_unit(ctx, fiber[1]))
+        ax.set_xlabel(with_unit(ctx, fiber[0]))
+        ax.set_ylabel(with_unit(ctx, fiber[1]))
     else:
-        ax.plot(solution.t, _series(solution, fiber[0]), "-", color="C0", lw=2, label=label(fiber[0]))
+        ax.plot(solution.t, series(solution, fiber[0]), "-", color="C0", lw=2, label=label(fiber[0]))
         ax.set_xlabel("t [s]")
-        ax.set_ylabel(_with_unit(ctx, fiber[0]))
+        ax.set_ylabel(with_unit(ctx, fiber[0]))
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize="small")
     ax.set_title("fiber path")
@@ -225,14 +227,14 @@ def plot_shape_loop(solution, ctx: FigureContext, ax=None):
         return _parallel_coordinates(solution, ctx, shape, ax)
     if len(shape) == 2:
         a, b = shape
-        u, v = _series(solution, a), _series(solution, b)
-        xl, yl = _with_unit(ctx, a), _with_unit(ctx, b)
+        u, v = series(solution, a), series(solution, b)
+        xl, yl = with_unit(ctx, a), with_unit(ctx, b)
         title = "shape loop"
     else:
         a = shape[0] if shape else solution.state_names[0]
-        u = _series(solution, a)
+        u = series(solution, a)
         v = np.asarray(solution.velocities())[list(ctx.system.coordinates).index(a)]
-        xl, yl = _with_unit(ctx, a), _with_unit(ctx, f"{a}_dot")
+        xl, yl = with_unit(ctx, a), with_unit(ctx, f"{a}_dot")
         title = f"shape motion: {label(a)} against its rate"
     ax.plot(u, v, "-", color="C0", lw=2, label="shape trajectory")
     ax.plot(u[0], v[0], "o", color="C2", ms=7, label="start (t = 0)")
@@ -252,14 +254,14 @@ def plot_shape_loop(solution, ctx: FigureContext, ax=None):
 def _parallel_coordinates(solution, ctx, shape, ax):
     """One vertical axis per shape variable; each node a polyline coloured by time."""
     import matplotlib.cm as cm
-    data = np.vstack([_series(solution, c) for c in shape])
+    data = np.vstack([series(solution, c) for c in shape])
     lo, hi = data.min(axis=1, keepdims=True), data.max(axis=1, keepdims=True)
     scaled = (data - lo) / np.where(hi > lo, hi - lo, 1.0)
     colors = cm.viridis(np.linspace(0, 1, data.shape[1]))
     for k in range(data.shape[1]):
         ax.plot(range(len(shape)), scaled[:, k], "-", color=colors[k], lw=0.8, alpha=0.7)
     ax.set_xticks(range(len(shape)))
-    ax.set_xticklabels([f"{_with_unit(ctx, c)}\n[{lo[i, 0]:.2g}, {hi[i, 0]:.2g}]" for i, c in enumerate(shape)])
+    ax.set_xticklabels([f"{with_unit(ctx, c)}\n[{lo[i, 0]:.2g}, {hi[i, 0]:.2g}]" for i, c in enumerate(shape)])
     ax.set_ylabel("value scaled to its range [min, max] (1 = max)")
     ax.plot([], [], color=colors[0], label="t = 0")
     ax.plot([], [], color=colors[-1], label=f"t = {solution.t[-1]:.3g} s")
@@ -283,7 +285,7 @@ def plot_histories(solution, ctx: FigureContext, axes=None):
     shape = [c for c in ctx.shape if c in solution.state_names] or list(ctx.system.coordinates)
     shape_units = list(dict.fromkeys(unit(ctx, c) for c in shape))      # in the order of the names
     for c in shape:
-        axes[0].plot(solution.t, _series(solution, c), lw=2, label=_with_unit(ctx, c))
+        axes[0].plot(solution.t, series(solution, c), lw=2, label=with_unit(ctx, c))
     axes[0].set_ylabel(f"shape {', '.join(label(c) for c in shape)} [{', '.join(u for u in shape_units if u)}]")
     axes[0].legend(fontsize="small")
     axes[0].set_title("shape coordinates and inputs (inputs constant on each interval)")
@@ -291,7 +293,7 @@ def plot_histories(solution, ctx: FigureContext, axes=None):
         for i, n in enumerate(solution.control_names):
             if unit(ctx, n) == u:
                 ax.step(solution.t, np.append(solution.controls[i], solution.controls[i, -1]), where="post",
-                        lw=1.5, label=_with_unit(ctx, n))
+                        lw=1.5, label=with_unit(ctx, n))
         ax.set_ylabel(f"input [{u}]" if u else "input")
         ax.legend(fontsize="small")
     for ax in axes:
@@ -309,7 +311,7 @@ def plot_momentum(solution, ctx: FigureContext, axes=None):
         _, axes = plt.subplots(len(names), 1, sharex=True, figsize=(7, 1.9 * max(1, len(names))))
     axes = list(np.atleast_1d(axes))
     for ax, name in zip(axes, names):
-        ax.plot(solution.t, _series(solution, name), lw=2, color="C0")
+        ax.plot(solution.t, series(solution, name), lw=2, color="C0")
         if name.startswith("pt_"):
             ax.set_ylabel(f"{label(name)} [{unit(ctx, name)}]")
             ax.set_title(f"{label(name)}: shape momentum conjugate to {label(name[3:])}", fontsize="small")
@@ -343,10 +345,11 @@ def _short(text: str, width: int = 90) -> str:
     return text if len(text) <= width else text[:width - 1] + "…"
 
 
-def write_figures(solution, out: Path, *, units=None, drawing=None, model=None, animate=True,
+def write_figures(solution, out: Path, *, units=None, drawing=None, model=None,
                   failed: str | None = None) -> list:
-    """path.png, shape.png, histories.png, momentum.png (and motion.gif) in ``out``; with
-    ``failed`` (the reason) every figure is titled "FAILED — not a verified gait"."""
+    """path.png, shape.png, histories.png, momentum.png in ``out``; with ``failed`` (the reason)
+    every figure is titled "FAILED — not a verified gait". The animation is
+    :func:`nhgait.gaits.animation.animate_solution`."""
     from matplotlib.figure import Figure
 
     model = model if model is not None else solution.problem.model
@@ -365,7 +368,4 @@ def write_figures(solution, out: Path, *, units=None, drawing=None, model=None, 
             fig.suptitle(f"FAILED — not a verified gait\n{_short(failed)}", color="tab:red", fontsize="medium")
         fig.savefig(out / name, dpi=110, bbox_inches="tight")
         files.append(out / name)
-    if animate:
-        from .animation import animate_solution
-        files.append(animate_solution(solution, ctx, out / "motion.gif"))
     return files

@@ -21,7 +21,7 @@ Format (docs/gait-planning.md)::
 Names are the system's coordinates, ``<coordinate>_dot``, the scene's named quantities
 (``[quantities]``) and, for a planar frame (x, y, θ), ``forward_velocity`` and
 ``lateral_velocity``. A value is a number, a constant expression such as ``"pi/2"`` (parsed
-by :func:`nhgait.dynamics.expressions.number_problems`, never evaluated as code), or
+by :func:`nhgait.dynamics.derivation.expressions.number_problems`, never evaluated as code), or
 ``[lo, hi]`` for a range (``"inf"``/``"-inf"`` for one-sided). Conditions may be redundant
 (a full consistent state, "fibre at rest" as ẋ = ẏ = θ̇ = 0): the planner drops the dependent
 ones and refuses an inconsistent set (:func:`nhgait.ocp.conditions.normalise`). Every problem
@@ -38,7 +38,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from nhgait.dynamics.assignments import parse_assignment
+from nhgait.dynamics.derivation.assignments import parse_assignment
 from nhgait.dynamics.suggestions import known_names
 from nhgait.ocp import OptimalControlProblem, ProblemError, Quantity
 
@@ -146,7 +146,7 @@ class Task:
 
 # ----------------------------------------------------------------------------- parsing
 def _number(value, where, problems, *, allow_inf=False) -> float:
-    from nhgait.dynamics.expressions import number_problems
+    from nhgait.dynamics.derivation.expressions import number_problems
     if allow_inf and (value in ("inf", "+inf", "-inf") or (isinstance(value, float) and math.isinf(value))):
         return float(value)
     return number_problems(value, where, problems)
@@ -375,7 +375,7 @@ def apply_overrides(data, assignments) -> dict:
 def task_names(system, quantities=()) -> tuple:
     """The names a task may use on ``system``: coordinates, ``<coordinate>_dot``, the planar
     body velocities (with a planar frame) and the scene's quantities."""
-    from nhgait.dynamics.specialisation import BODY_VELOCITIES
+    from nhgait.dynamics.numerics.specialisation import BODY_VELOCITIES
     coords = tuple(system.coordinates)
     frame = getattr(system, "planar_frame", None)
     return (coords + tuple(f"{c}_dot" for c in coords) + (BODY_VELOCITIES if frame else ())
@@ -423,7 +423,7 @@ def scene_quantities(model, quantity_function) -> dict:
     """The scene's named quantities as OCP :class:`Quantity` objects of the state z.
 
     ``quantity_function`` is the CasADi Function (q, q̇, params) → y of
-    :func:`nhgait.dynamics.quantities.quantity_function`; q is the first n entries of z and q̇
+    :func:`nhgait.dynamics.derivation.quantities.quantity_function`; q is the first n entries of z and q̇
     the model's ``qdot(z)``.
     """
     if quantity_function is None:

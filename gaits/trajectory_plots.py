@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from nhgait.gaits.plot_style import series_styles
-from nhgait.gaits.plots import _with_unit, figure_context, label, plot_path, unit
+from nhgait.gaits.plots import with_unit, figure_context, label, plot_path, unit
 
 __all__ = ["TrajectoryView", "plot_time_series", "write_trajectory_figures"]
 
@@ -71,7 +71,7 @@ def plot_time_series(traj, ctx, axes):
         styles = series_styles(len(names))
         for name, style in zip(names, styles):
             ax.plot(traj.t, np.asarray(source)[:, list(order).index(name)], lw=1.8,
-                    label=_with_unit(ctx, name), **style)
+                    label=with_unit(ctx, name), **style)
         what = "coordinates" if kind == "coordinate" else "inputs"
         ax.set_ylabel(f"{what} [{u}]" if u else what)
         ax.legend(fontsize="small", loc="best")

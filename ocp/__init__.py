@@ -19,7 +19,7 @@ Example::
 """
 from __future__ import annotations
 
-import importlib
+from nhgait.lazy import lazy_getattr
 
 _EXPORTS = {
     "OptimalControlProblem": "problem", "Quantity": "problem", "ProblemError": "problem",
@@ -31,12 +31,4 @@ _EXPORTS = {
 
 __all__ = sorted(_EXPORTS)
 
-
-def __getattr__(name):
-    try:
-        module = _EXPORTS[name]
-    except KeyError:
-        raise AttributeError(f"module 'nhgait.ocp' has no attribute {name!r}") from None
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value
-    return value
+__getattr__ = lazy_getattr(__name__, _EXPORTS)

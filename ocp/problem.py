@@ -22,7 +22,7 @@ T ≤ 0, N < 1, a fixed value outside its bounds …) is listed in one :class:`P
 
 This module imports only casadi and numpy; the model is anything with ``numeric`` (CasADi
 Functions ``rhs(t, z, u, params)`` and ``qdot(z, params)``, ``params()``), ``state_names`` and
-``system.inputs`` / ``system.coordinates`` — a :class:`~nhgait.dynamics.reduction.ReducedODE`.
+``system.inputs`` / ``system.coordinates`` — a :class:`~nhgait.dynamics.derivation.reduction.ReducedODE`.
 """
 from __future__ import annotations
 
@@ -72,8 +72,8 @@ def _coordinates(model) -> tuple:
 def builtin_quantities(model) -> dict:
     """Derived quantities every model offers: ``<q>_dot`` and, for a planar frame (x, y, θ)
     (``system.planar_frame``), the body velocities of
-    :func:`nhgait.dynamics.specialisation.body_velocity` (the one definition)."""
-    from nhgait.dynamics.specialisation import BODY_VELOCITIES, body_velocity
+    :func:`nhgait.dynamics.numerics.specialisation.body_velocity` (the one definition)."""
+    from nhgait.dynamics.numerics.specialisation import BODY_VELOCITIES, body_velocity
     coords = _coordinates(model)
     qdot = model.numeric["qdot"]
     out = {}
@@ -297,6 +297,14 @@ class OptimalControlProblem:
 
     def bounds(self, mapping: Mapping, name: str) -> tuple[float, float]:
         return _interval(mapping[name], name, [])
+
+    def fixed_value(self, mapping: Mapping, name: str) -> float | None:
+        """The value of ``name`` in the conditions ``mapping`` when it is fixed (lo = hi), else None."""
+        if name in mapping:
+            lo, hi = self.bounds(mapping, name)
+            if lo == hi:
+                return lo
+        return None
 
     def control_bound_vectors(self) -> tuple[np.ndarray, np.ndarray]:
         lo = np.full(self.n_controls, -np.inf)

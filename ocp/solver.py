@@ -12,7 +12,7 @@
   and every function the solver builds from it are generated as one C file; its size decides
   the optimisation level within :data:`COMPILE_BUDGET` (-O1 up to ``o1_bytes``, -O0 up to
   ``o0_bytes``, interpreted above, so that a cold plan never spends minutes in a compiler
-  without saying so), then :func:`nhgait.dynamics.compiler.build_library` compiles it once
+  without saying so), then :func:`nhgait.dynamics.numerics.compiler.build_library` compiles it once
   into the content-hash cache (trust rules, atomic, killed and cleaned up on interrupts) and
   the solver is made from the external library. ``compile_report`` records the size, the
   flags, the seconds and why. ``jit_flags`` forces the flags.
@@ -41,7 +41,7 @@ from dataclasses import dataclass, field, replace
 import casadi as ca
 import numpy as np
 
-from nhgait.dynamics.compiler import CompilerUnavailable, build_library, compiler_command
+from nhgait.dynamics.numerics.compiler import CompilerUnavailable, build_library, compiler_command
 from nhgait.dynamics.progress import Progress
 
 from .derivatives import nlp_functions

@@ -120,12 +120,6 @@ def _symbols(sym, nz, nu):
     return sym.sym("z", nz), sym.sym("u", nu), sym.sym("T"), sym.sym("k"), sym.sym("lam", nz)
 
 
-def _rk4_points(steps: int):
-    """(sub-step i, stage j, fraction of the interval where g is evaluated)."""
-    _, _, c = RK4
-    return [(i, j, (i + c[j]) / steps) for i in range(steps) for j in range(4)]
-
-
 def _inline(g, nz, nu, steps, free):
     """One SX expression of the M sub-steps, differentiated by CasADi."""
     z, u, T, k, lam = _symbols(ca.SX, nz, nu)

@@ -4,7 +4,7 @@ from importlib import metadata
 import pytest
 
 import nhgait
-from nhgait.gaits import cli
+from nhgait.gaits.cli import main as cli
 
 
 def test_version_is_single_sourced(capsys):
@@ -26,7 +26,7 @@ def _boom(exc):
 
 
 def test_bad_input_exits_2_without_traceback(capsys, monkeypatch):
-    from nhgait.dynamics.bridge import BridgeError
+    from nhgait.dynamics.numerics.bridge import BridgeError
     parser = cli.build_parser()
     args = parser.parse_args(["derive", "unicycle"])
     monkeypatch.setattr(cli, "build_parser", lambda: _Parser(args, _boom(BridgeError(["cannot convert Foo"]))))
@@ -63,7 +63,7 @@ def test_building_the_parser_imports_no_symbolic_or_integrator_module():
     (≈ 0.3 s and 0.5 s to import) are imported by the commands that use them, not by the parser."""
     import subprocess
     import sys
-    code = ("import sys; from nhgait.gaits.cli import build_parser; build_parser(); "
+    code = ("import sys; from nhgait.gaits.cli.main import build_parser; build_parser(); "
             "print(sorted(m for m in ('sympy', 'scipy.integrate', 'matplotlib') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from nhgait.dynamics import simulate  # the function (lazy export), before any submodule import
-from nhgait.dynamics.closure import closure, resolve_outputs
-from nhgait.dynamics.controllers import snakeboard_pd
+from nhgait.dynamics.simulation.closure import closure, resolve_outputs
+from nhgait.dynamics.simulation.controllers import snakeboard_pd
 from nhgait.dynamics.errors import ModelError
 
 SNAKE_Q0, SNAKE_QDOT0 = np.array([0, 0, 0, 0, 1.0]), np.array([0, 0, 0, 1.0, 0])
@@ -91,8 +91,8 @@ def test_python_controller_reads_everything(models):
 
 def test_cli_prints_the_state_count_and_writes_the_outputs(tmp_path, capsys):
     from importlib import resources
-    from nhgait.gaits.cli import main
-    text = resources.files("nhgait.dynamics").joinpath("scenes", "snakeboard.toml").read_text()
+    from nhgait.gaits.cli.main import main
+    text = resources.files("nhgait.dynamics.derivation").joinpath("scenes", "snakeboard.toml").read_text()
     scene = tmp_path / "shape.toml"
     scene.write_text(text.replace("samples = 501", 'samples = 51\noutputs = ["shape", "momenta"]'))
     out = tmp_path / "out" / "shape.csv"

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from nhgait.dynamics import simulate  # the function (lazy export), before any submodule import
-from nhgait.dynamics.controllers import OpenLoop, snakeboard_pd
+from nhgait.dynamics.simulation.controllers import OpenLoop, snakeboard_pd
 
 M, R, J_PHI, J_THETA = 0.5, 0.1, 0.2, 0.3            # unicycle defaults
 TAU_THETA, TAU_PHI = 0.9, 0.4
@@ -110,7 +110,7 @@ def test_open_loop_segments_are_exact(models):
 
 def test_per_evaluation_cost_and_compile_once(models):
     """The compiled right-hand side equals CasADi's; the library is built once per model."""
-    from nhgait.dynamics.closed_loop import closed_loop
+    from nhgait.dynamics.simulation.closed_loop import closed_loop
     model = models["snakeboard"]["reduced"]
     loop = closed_loop(model, snakeboard_pd())
     lib = loop.compiled()
@@ -143,15 +143,15 @@ def test_missing_compiler_falls_back_to_scipy(models, monkeypatch):
 
 def _fresh_build(model, controller):
     """Build the loop's library ignoring every in-process memo (as a new process would)."""
-    from nhgait.dynamics import compiled
-    from nhgait.dynamics.closed_loop import closed_loop
-    compiled._LOADED.clear()
+    from nhgait.dynamics.simulation import compiled
+    from nhgait.dynamics.simulation.closed_loop import closed_loop
+    compiled.LOADED_LIBRARIES.clear()
     loop = closed_loop(model, controller)
     return compiled.build(loop.rhs, loop.outputs, loop.event)
 
 
 def test_tampered_library_is_refused_and_rebuilt(models, monkeypatch, tmp_path):
-    from nhgait.dynamics.cache import UntrustedCacheWarning, file_sha256
+    from nhgait.dynamics.numerics.cache import UntrustedCacheWarning, file_sha256
     monkeypatch.setenv("NHGAIT_CACHE_DIR", str(tmp_path))
     model = models["unicycle"]["reduced"]
     first = _fresh_build(model, _torques(1.0))
@@ -172,7 +172,7 @@ def test_tampered_library_is_refused_and_rebuilt(models, monkeypatch, tmp_path):
 
 @pytest.mark.skipif(not hasattr(os, "getuid"), reason="POSIX permissions")
 def test_world_writable_jit_directory_is_refused(models, monkeypatch, tmp_path):
-    from nhgait.dynamics.cache import UntrustedCacheWarning
+    from nhgait.dynamics.numerics.cache import UntrustedCacheWarning
     monkeypatch.setenv("NHGAIT_CACHE_DIR", str(tmp_path))
     jit = tmp_path / "jit"
     jit.mkdir(mode=0o700)
@@ -192,7 +192,7 @@ def test_world_writable_jit_directory_is_refused(models, monkeypatch, tmp_path):
 def test_auto_without_compiler_still_switches_when_stiff(models, monkeypatch):
     """method="auto" on scipy DOP853 (no compiler) detects the stiff gains and switches."""
     import math
-    from nhgait.dynamics.controllers import PDTracking, Sinusoid
+    from nhgait.dynamics.simulation.controllers import PDTracking, Sinusoid
     monkeypatch.setenv("NHGAIT_CC", "/nonexistent/bin/cc")
     stiff = PDTracking(coordinates=("psi", "phi"),
                        desired={"psi": Sinusoid(), "phi": Sinusoid(phase=math.pi / 2)},
@@ -211,7 +211,7 @@ def test_one_constraint_systems(models, name):
     """Systems with k = 1: compiled and CVODES against scipy DOP853 at 1e-12 and the energy
     balance E(t) − E(0) = W(t). (The torque keeps the heading below π/2, where the knife edge's
     reduction is singular.)"""
-    from nhgait.dynamics.controllers import OpenLoop
+    from nhgait.dynamics.simulation.controllers import OpenLoop
     model = models[name]["reduced"]
     n, m = model.system.n, len(model.system.inputs)
     q0 = np.zeros(n)

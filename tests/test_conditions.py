@@ -11,7 +11,7 @@ import pytest
 
 import experiment_scripts
 from nhgait.gaits.planner import plan, prepare
-from nhgait.gaits.tasks import resolve
+from nhgait.gaits.task_library import resolve
 from nhgait.ocp import ProblemError
 
 P1 = {"horizon": 4.0, "intervals": 20, "control_bounds": 5.0,
@@ -98,7 +98,7 @@ def test_periodic_joint_rates_of_a_four_link_snake_are_implied():
     joint angle periodic, "α̇₃ periodic" follows (α̇₃ is a function of the joint angles and
     (α̇₁, α̇₂)) and is dropped instead of making the constraint Jacobian rank-deficient."""
     scaling = experiment_scripts.load("scaling_systems")
-    from nhgait.dynamics.scene import scene_from_text
+    from nhgait.dynamics.derivation.scene import scene_from_text
     scene = scene_from_text(scaling.snake(4), "<snake_4>")
     joints = ["alpha1", "alpha2", "alpha3"]
     task = {"horizon": 6.0, "intervals": 10, "control_bounds": 5.0, "velocities": ["alpha1_dot", "alpha2_dot"],

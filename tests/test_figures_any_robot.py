@@ -14,7 +14,7 @@ import matplotlib
 import pytest
 from matplotlib.figure import Figure
 
-from nhgait.gaits.cli import main
+from nhgait.gaits.cli.main import main
 
 matplotlib.use("Agg")
 ROOT = Path(__file__).resolve().parents[1]
@@ -144,7 +144,7 @@ def test_precision_figure_series_are_distinct(figures):
 def test_eighteen_series_get_eighteen_styles():
     """The issue's precision.png had 18 series and reused colours: every series now differs in
     colour, marker or line style from every other."""
-    from nhgait.gaits import work_precision as wp
+    from nhgait.gaits.bench import work_precision as wp
     rows = [SimpleNamespace(label=f"form{i // 6}/method{i % 6}", success=True, error=10.0 ** -(i % 7 + 2),
                             rtol=tol, wall_s=1e-3 * (i + 1) * tol ** -0.1)
             for i in range(18) for tol in (1e-4, 1e-8)]
@@ -162,7 +162,7 @@ def test_result_reprs_are_short_and_say_where_the_arrays_are(figures, out):
     """PlanResult, Solution and SweepResult of this robot print a few lines (issue 18: a
     trajectory's repr was 4 194 characters of arrays)."""
     from nhgait.gaits.planner import plan
-    from nhgait.gaits.sweep import load_sweep
+    from nhgait.gaits.sweeps.driver import load_sweep
     text = repr(load_sweep(out / "sweep"))
     assert text.startswith("<SweepResult sleigh_slider/sidestep: 4 of 4 points solved and verified, grid (2, 2)")
     assert "result.objectives()" in text and len(text) < 400

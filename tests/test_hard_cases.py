@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 
 from nhgait.dynamics import simulate  # the function (lazy export), before any submodule import
-from nhgait.dynamics.controllers import PDTracking, Sinusoid, snakeboard_pd, unicycle_pd
+from nhgait.dynamics.simulation.controllers import PDTracking, Sinusoid, snakeboard_pd, unicycle_pd
 from nhgait.dynamics.errors import ModelError
-from nhgait.dynamics.simulation import MAX_STEPS, NONFINITE, SINGULAR
+from nhgait.dynamics.simulation.driver import MAX_STEPS, NONFINITE, SINGULAR
 
 SNAKE = ("x", "y", "theta", "psi", "phi")
 SNAKE_Q0, SNAKE_QDOT0 = np.array([0, 0, 0, 0, 1.0]), np.array([0, 0, 0, 1.0, 0])
@@ -171,7 +171,7 @@ def test_issue7_basis_singularity_stops_the_run():
     adapted basis loses rank at φ = 0. Under τ_φ = −1 from rest at φ = 1, φ(t) = 1 − t²
     (J = 1/2) crosses 0 at t = 1."""
     from nhgait.dynamics import System, derive
-    from nhgait.dynamics.controllers import OpenLoop
+    from nhgait.dynamics.simulation.controllers import OpenLoop
     system = System(name="issue7", coordinates=["x", "y", "z", "phi"],
                     lagrangian="m*(x_dot**2 + y_dot**2 + z_dot**2)/2 + J*phi_dot**2/2",
                     constraints=["sin(phi)*x_dot + cos(phi)*y_dot + z_dot"], forces={"phi": "tau"},

@@ -46,7 +46,7 @@ PLAN_WORKERS = ["plan", "snakeboard", "--gait", "forward", "--no-jit", "--worker
 #: runner may have started us with SIGINT ignored, which a child would inherit)
 LAUNCHER = ("import signal, sys\n"
             "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
-            "from nhgait.gaits.cli import main\n"
+            "from nhgait.gaits.cli.main import main\n"
             "sys.exit(main())\n")
 #: what a run that exits cleanly needs after the signal (seconds)
 EXIT_S = 15.0
@@ -223,7 +223,7 @@ def test_plan_stopped_while_compiling_leaves_nothing_and_the_next_run_compiles(
     assert len(slow_cc.runs()) == 2                      # compiled, not taken from the cache
     names = sorted(p.name for p in jit.iterdir())
     assert len(names) == 2 and names[0].endswith(".json") and names[1].endswith(".so")
-    from nhgait.dynamics.cache import file_sha256
+    from nhgait.dynamics.numerics.cache import file_sha256
     assert json.loads((jit / names[0]).read_text())["library_sha256"] == file_sha256(jit / names[1])
 
 
@@ -249,7 +249,7 @@ def test_keyboard_interrupt_kills_the_compiler_and_removes_its_build_folder(slow
     """build_library interrupted (KeyboardInterrupt in the waiting thread) while the compiler
     runs: the exception propagates, the wrapper and its children are gone, nothing is left in
     the jit folder."""
-    from nhgait.dynamics.compiler import build_library
+    from nhgait.dynamics.numerics.compiler import build_library
     slow_cc.slow(True)
     seen = []
 
@@ -276,7 +276,7 @@ def test_keyboard_interrupt_kills_the_compiler_and_removes_its_build_folder(slow
 def test_a_compiler_over_its_time_limit_is_killed(slow_cc, cache):
     """A timeout is one more exception while waiting: CompilerUnavailable, the group killed,
     no build folder."""
-    from nhgait.dynamics.compiler import CompilerUnavailable, build_library
+    from nhgait.dynamics.numerics.compiler import CompilerUnavailable, build_library
     slow_cc.slow(True)
     with pytest.raises(CompilerUnavailable, match="took more than 1 s"):
         build_library(SOURCE, timeout=1.0)
@@ -288,8 +288,8 @@ def test_a_compiler_over_its_time_limit_is_killed(slow_cc, cache):
 def test_stale_build_folders_are_removed_and_fresh_ones_kept(cache):
     """A build folder older than STALE_BUILD_S (left by a process killed with SIGKILL) goes
     with the next build; a younger one may belong to a build running now and stays."""
-    from nhgait.dynamics.cache import trusted_dir
-    from nhgait.dynamics.compiler import STALE_BUILD_S, build_library, jit_dir
+    from nhgait.dynamics.numerics.cache import trusted_dir
+    from nhgait.dynamics.numerics.compiler import STALE_BUILD_S, build_library, jit_dir
     jit = trusted_dir(jit_dir())
     stale, fresh = jit / ".build-stale", jit / ".build-fresh"
     for folder in (stale, fresh):
@@ -306,8 +306,8 @@ def test_a_library_without_its_record_is_never_loaded(cache):
     """A library whose record is missing (a writer killed between its two moves), here also
     half-written, is rebuilt rather than loaded; the rebuilt one is trusted again."""
     import ctypes
-    from nhgait.dynamics.cache import file_sha256
-    from nhgait.dynamics.compiler import build_library
+    from nhgait.dynamics.numerics.cache import file_sha256
+    from nhgait.dynamics.numerics.compiler import build_library
     first = build_library(SOURCE)
     record = first.path.with_suffix(".json")
     assert build_library(SOURCE).cached
@@ -325,7 +325,7 @@ def test_a_half_written_cache_entry_is_never_read(cache, monkeypatch):
     """A model-cache write interrupted mid-way leaves no file; a complete entry still under
     its .tmp-* name (writer killed before os.replace) is not read; a truncated entry under the
     final name is refused with a warning; a whole entry is read."""
-    from nhgait.dynamics import cache as entries
+    from nhgait.dynamics.numerics import cache as entries
     key = entries.make_key("test_interrupts", "half-written")
     dump = pickle.dump
 

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from nhgait.gaits.cli import main
+from nhgait.gaits.cli.main import main
 
 matplotlib.use("Agg")
 ROOT = Path(__file__).resolve().parents[1]
@@ -83,7 +83,7 @@ def test_method_symbols_never_capture_a_users_name():
 
 
 def test_named_subexpressions_are_the_plain_equations(slider):
-    from nhgait.dynamics.cse_text import named_subexpressions
+    from nhgait.dynamics.derivation.cse_text import named_subexpressions
     _, model = slider
     rhs = list(model.pretty_rhs())
     definitions, reduced = named_subexpressions(rhs)
@@ -112,8 +112,8 @@ def test_simulate_set_against_an_independent_run(tmp_path, capsys):
     equals the Lagrange DAE (another formulation) integrated by scipy DOP853 at rtol 1e-12 with
     the same values given through the Python API."""
     from nhgait.dynamics import derive, load_scene, simulate
-    from nhgait.dynamics.scene import ExpressionController
-    from nhgait.dynamics.expressions import parse_expression
+    from nhgait.dynamics.derivation.scene import ExpressionController
+    from nhgait.dynamics.derivation.expressions import parse_expression
     out = tmp_path / "t.csv"
     assert main(["simulate", SLIDER, "--set", "t_final=3", "--set", "params.m_s=0.8", "--set", "q0.theta=0.2",
                  "--set", "inputs.f_s=0.5*cos(3*t)", "--set", "qdot0.x=0.7", "--rtol", "1e-10",
@@ -155,12 +155,12 @@ def test_every_unknown_name_gets_did_you_mean_and_the_known_names(tmp_path, caps
 
 
 def test_compile_time_reported_apart_from_run_time(tmp_path, monkeypatch, capsys):
-    from nhgait.dynamics import compiled
-    from nhgait.dynamics.compiler import compiler_command
+    from nhgait.dynamics.numerics.compiler import compiler_command
+    from nhgait.dynamics.simulation import compiled
     if compiler_command() is None:
         pytest.skip("no C compiler")
     monkeypatch.setenv("NHGAIT_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.setattr(compiled, "_LOADED", {})
+    compiled.LOADED_LIBRARIES.clear()                       # a fresh process: nothing loaded yet
     args = ["simulate", SLIDER, "--method", "compiled", "--out", str(tmp_path / "t.csv")]
     assert main(args) == 0
     first = capsys.readouterr().out
@@ -232,7 +232,7 @@ def test_readme_snippet_reproduces_the_number_the_readme_quotes(capsys):
     number in the README's reproduction table, and so does an independent computation (the
     Lagrange DAE integrated by scipy DOP853 at rtol 1e-12, tighter than the snippet's 1e-10)."""
     from nhgait.dynamics import derive, simulate
-    from nhgait.dynamics.controllers import snakeboard_pd
+    from nhgait.dynamics.simulation.controllers import snakeboard_pd
     readme = (ROOT / "README.md").read_text()
     code = re.search(r"```python\n(.*?)```", readme, re.S).group(1)
     quoted = float(re.search(r"\| snakeboard \(T = 10π\) \| ([0-9.]+) \|", readme).group(1))

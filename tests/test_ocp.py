@@ -23,13 +23,13 @@ REF_25 = {"P1": 1.543703, "P2": 0.110252, "P3": 2.162582}
 
 @pytest.fixture(scope="module")
 def unicycle(models):
-    from nhgait.dynamics.specialisation import specialise
+    from nhgait.dynamics.numerics.specialisation import specialise
     return specialise(models["unicycle"]["reduced"])
 
 
 @pytest.fixture(scope="module")
 def snakeboard(models):
-    from nhgait.dynamics.specialisation import specialise
+    from nhgait.dynamics.numerics.specialisation import specialise
     return specialise(models["snakeboard"]["reduced"], velocities=("forward_velocity", "psi_dot", "phi_dot"))
 
 
@@ -46,7 +46,7 @@ def p1_guess(problem):
 
 def p2(model, N=25, **kw):
     from nhgait.gaits.task import to_problem
-    from nhgait.gaits.tasks import get_task
+    from nhgait.gaits.task_library import get_task
     return to_problem(get_task("snakeboard", "forward").replace(intervals=N, **kw), model)
 
 
@@ -150,12 +150,12 @@ def test_compiled_is_the_default_and_falls_back_without_a_compiler(unicycle, mon
 def test_compiled_library_is_loaded_only_when_trusted(unicycle):
     import os
     import warnings
-    from nhgait.dynamics.cache import UntrustedCacheWarning
+    from nhgait.dynamics.numerics.cache import UntrustedCacheWarning
     problem = p1(unicycle, N=7)
     first = OCPSolver(problem, options=SolverOptions(jit=True))
     so = first.jit_path
     import json
-    from nhgait.dynamics.cache import file_sha256
+    from nhgait.dynamics.numerics.cache import file_sha256
     assert json.loads((so.parent / (so.stem + ".json")).read_text())["library_sha256"] == file_sha256(so)
     assert oct(so.parent.stat().st_mode & 0o777) == "0o700"
     with open(so, "ab") as fh:                          # tampered after it was written

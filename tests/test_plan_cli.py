@@ -11,7 +11,7 @@ import matplotlib
 import numpy as np
 import pytest
 
-from nhgait.gaits.cli import main
+from nhgait.gaits.cli.main import main
 
 matplotlib.use("Agg")
 ROOT = Path(__file__).resolve().parents[1]

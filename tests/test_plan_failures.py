@@ -13,7 +13,7 @@ import json
 
 import pytest
 
-from nhgait.gaits.cli import main
+from nhgait.gaits.cli.main import main
 from nhgait.gaits.planner import plan
 
 P1 = {"horizon": 4.0, "intervals": 4, "control_bounds": 5.0,
@@ -48,7 +48,7 @@ control_bounds = 5.0
 
 def _scene(tmp_path, task_text):
     from importlib import resources
-    text = resources.files("nhgait.dynamics").joinpath("scenes", "unicycle.toml").read_text()
+    text = resources.files("nhgait.dynamics.derivation").joinpath("scenes", "unicycle.toml").read_text()
     path = tmp_path / "unicycle_task.toml"
     path.write_text(text + task_text)
     return path

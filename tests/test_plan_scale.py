@@ -70,7 +70,7 @@ def test_a_chart_that_covers_the_ends_is_chosen():
     act on (y, θ) only) — evaluated here from the scene's ω, not by the reduction. The planner
     takes fiber (x, y, θ) instead and reaches the independent transcription's optimum."""
     import sympy as sp
-    from nhgait.dynamics.scene import scene_from_text
+    from nhgait.dynamics.derivation.scene import scene_from_text
     member = "cart_trailers_2"
     scene = scene_from_text(scale_tasks.scene_with_task(member), member)
     system = scene.system
@@ -90,10 +90,10 @@ def test_fitted_roll_out_ends_where_the_task_ends():
     is the kinematic roll-out fitted to the task, and its last node is the task's final
     configuration (x = 3, y = 0.3, θ = β₁ = 0) to 1e-3 (the fit trades the last digits for a
     gentler motion, module ``nhgait.gaits.fitted``; the ends are 3 m apart); for the 3-link snake (states are shape rates) a shape loop stays first."""
-    from nhgait.dynamics.scene import scene_from_text
+    from nhgait.dynamics.derivation.scene import scene_from_text
     from nhgait.gaits.guesses import candidates
     from nhgait.gaits.planner import prepare
-    from nhgait.gaits.tasks import resolve
+    from nhgait.gaits.task_library import resolve
     cart = prepare(resolve(scene_from_text(scale_tasks.scene_with_task("cart_trailers_1"), "c"))).problem
     first = candidates(cart)[0]
     assert first.label == "fitted roll-out"

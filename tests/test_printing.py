@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from nhgait.dynamics.steps import latex_document, tex_text
+from nhgait.dynamics.derivation.steps import latex_document, tex_text
 
 import experiment_scripts
 
@@ -76,7 +76,7 @@ def test_repr_is_one_line_and_text_of_the_implicit_form(trailer, models):
 
 
 def test_cli_derive_scene_file_with_checks_and_steps(tmp_path, capsys):
-    from nhgait.gaits.cli import main
+    from nhgait.gaits.cli.main import main
     mod = experiment_scripts.load("scaling_systems")
     scene = tmp_path / "trailer.toml"
     scene.write_text(mod.cart_trailer_absolute())

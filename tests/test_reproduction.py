@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from nhgait.gaits.reproduction import reproduce
+from nhgait.gaits.bench.reproduction import reproduce
 
 import experiment_scripts
 
@@ -107,7 +107,7 @@ def test_csv_columns(reproduction):
 
 def test_cli_parser_registers_reproduce():
     import argparse
-    from nhgait.gaits.cli_reproduce import add_reproduce_parser, run
+    from nhgait.gaits.cli.reproduce import add_reproduce_parser, run
     parser = argparse.ArgumentParser()
     add_reproduce_parser(parser.add_subparsers())
     args = parser.parse_args(["reproduce", "--out", "x", "--rtol", "1e-8", "--no-idas", "--columns", "qdot"])

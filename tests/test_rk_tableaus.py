@@ -13,7 +13,7 @@ from fractions import Fraction as F
 import numpy as np
 import pytest
 
-from nhgait.dynamics.rk_tableaus import exact_tableau, tableau
+from nhgait.dynamics.simulation.rk_tableaus import exact_tableau, tableau
 
 
 def _trees(order: int) -> list:

@@ -43,7 +43,7 @@ def test_family_member_equals_kane(name):
 
 
 def test_implicit_form_forced_on_the_snakeboard(systems):
-    from nhgait.dynamics.reduction import derive_reduced
+    from nhgait.dynamics.derivation.reduction import derive_reduced
     model = derive_reduced(systems["snakeboard"], form="implicit")
     assert model.form == "implicit" and model.rhs is None and model.implicit.pivots
     assert agreement(systems["snakeboard"], model, oracle("snakeboard")) < RTOL
@@ -52,7 +52,7 @@ def test_implicit_form_forced_on_the_snakeboard(systems):
 def test_explicit_and_implicit_forms_give_the_same_vector_field(systems):
     """Both forms of the snakeboard at the same states: ż agrees to 1e-12 (the same Hamel
     equations computed by exact fractions and by CasADi linear solves)."""
-    from nhgait.dynamics.reduction import derive_reduced
+    from nhgait.dynamics.derivation.reduction import derive_reduced
     ex = derive_reduced(systems["snakeboard"], form="explicit").numeric
     im = derive_reduced(systems["snakeboard"], form="implicit").numeric
     rng = np.random.default_rng(4)

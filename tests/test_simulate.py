@@ -1,4 +1,4 @@
-"""Tests of nhgait.dynamics.simulation and nhgait.dynamics.controllers.
+"""Tests of nhgait.dynamics.simulation.driver and nhgait.dynamics.simulation.controllers.
 
 Reference numbers come from independent sources: the analytic solution of the unicycle's
 decoupled heading equation J_θ θ̈ = τ_θ, and the KanesMethod oracle (tests/oracles.py).
@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from nhgait.dynamics import simulate  # the function (lazy export), before any submodule import
-from nhgait.dynamics.controllers import OpenLoop, PDTracking, Sinusoid, snakeboard_pd, unicycle_pd
+from nhgait.dynamics.simulation.controllers import OpenLoop, PDTracking, Sinusoid, snakeboard_pd, unicycle_pd
 from nhgait.dynamics.errors import ModelError
-from nhgait.dynamics.simulation import NONFINITE
+from nhgait.dynamics.simulation.driver import NONFINITE
 
 SNAKE_Q0 = np.array([0.0, 0.0, 0.0, 0.0, 1.0])      # Table 3.3: psi_d(0) = 0, phi_d(0) = 1
 SNAKE_QDOT0 = np.array([0.0, 0.0, 0.0, 1.0, 0.0])   # psi_dot_d(0) = 1, phi_dot_d(0) = 0

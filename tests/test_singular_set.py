@@ -56,7 +56,7 @@ def test_singular_measure_is_normalised(tilted):
 
 
 def test_a_matrix_singular_for_every_configuration_is_a_model_error():
-    from nhgait.dynamics.symbolic import FracField
+    from nhgait.dynamics.derivation.symbolic import FracField
     x = sp.Symbol("x", real=True)
     F = FracField([x], symbols=[x])
     with pytest.raises(ModelError, match="the test block is singular for every configuration"):
@@ -66,7 +66,7 @@ def test_a_matrix_singular_for_every_configuration_is_a_model_error():
 def test_factors_that_never_vanish_are_not_listed():
     """The unicycle's Gram determinant of ω_s is (r² + 1)(…): r² + 1 > 0 for every real r, so
     the stated set is J_φ + m r² = 0 alone; factors that can vanish are kept (square-free)."""
-    from nhgait.dynamics.reduction.model import _drop_positive_factors, _positive_everywhere
+    from nhgait.dynamics.derivation.reduction.model import _drop_positive_factors, _positive_everywhere
     r, m, J, phi = sp.symbols("r m J_phi phi")
     assert _positive_everywhere(r**2 + 1) and _positive_everywhere(sp.cos(phi)**2 + 2 * r**4 + 3)
     for can_vanish in (r**2 - 1, r + 1, sp.cos(phi) + 1, J + m * r**2, r**2, sp.cos(phi)**2):

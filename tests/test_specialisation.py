@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from nhgait.dynamics.errors import ModelError
-from nhgait.dynamics.specialisation import choose_velocities, specialise
+from nhgait.dynamics.numerics.specialisation import choose_velocities, specialise
 
 SNAKEBOARD_V = ("forward_velocity", "psi_dot", "phi_dot")
 
@@ -113,7 +113,7 @@ def test_a_force_that_breaks_the_symmetry_keeps_the_general_functions():
                                  " + I_c*theta_dot**2/2",
                       constraints=["-sin(theta)*x_dot + cos(theta)*y_dot"], forces=forces,
                       parameters={"m": 1.0, "I_c": 0.2, "a": 0.3}, fiber=["x", "y", "theta"], name="sleigh")
-    from nhgait.dynamics.specialisation import _agrees, _at_identity, _numeric_bound
+    from nhgait.dynamics.numerics.specialisation import _agrees, _at_identity, _numeric_bound
     world = derive(sleigh({"x": "F", "theta": "tau"}), "reduced")
     plain = specialise(_Implicit(world), use_cache=False)
     assert plain.route == "numeric"

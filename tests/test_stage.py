@@ -44,7 +44,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from nhgait.dynamics.numeric import NumericModel
+from nhgait.dynamics.numerics.numeric_model import NumericModel
 from nhgait.ocp import InitialGuess, OCPSolver, OptimalControlProblem, Quantity, SolverOptions
 from nhgait.ocp.derivatives import nlp_functions
 from nhgait.ocp.stage import stage_functions

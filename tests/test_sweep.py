@@ -11,11 +11,11 @@ import time
 import numpy as np
 import pytest
 
-from nhgait.gaits.sweep import Progress, load_sweep, run_sweep
-from nhgait.gaits.sweep_backends import ProcessPool, SerialBackend, WorkerDied, make_backend
-from nhgait.gaits.sweep_grid import Grid, parse_grid
-from nhgait.gaits.sweep_point import PointJob, SceneData, SweepCase, point_task
-from nhgait.gaits.sweep_store import SweepStore
+from nhgait.gaits.sweeps.driver import Progress, load_sweep, run_sweep
+from nhgait.gaits.sweeps.backends import ProcessPool, SerialBackend, WorkerDied, make_backend
+from nhgait.gaits.sweeps.grid import Grid, parse_grid
+from nhgait.gaits.sweeps.point import PointJob, SceneData, SweepCase, point_task
+from nhgait.gaits.sweeps.store import SweepStore
 from nhgait.ocp import ProblemError
 import experiment_scripts
 
@@ -290,7 +290,7 @@ def test_pool_reports_a_dead_worker_as_worker_died():
 
 # ----------------------------------------------------------------------------- plots
 def test_landscape_shows_the_closed_form_and_marks_failures(tmp_path):
-    from nhgait.gaits import sweep_plots
+    from nhgait.gaits.sweeps import plots as sweep_plots
     grid = parse_grid(["final.x=-0.5:1.5:5", "horizon=2:4:3", "params.J_r=0.1,0.2"])
     case = SweepCase(CASE.scene, CASE.task, CASE.params, label="fake/task", units={"x": "m", "J_r": "kg*m^2"},
                      inputs=("u",), shape=("q0", "q1"))
@@ -313,7 +313,7 @@ def test_landscape_shows_the_closed_form_and_marks_failures(tmp_path):
 
 
 def test_plots_reject_unknown_axes(tmp_path):
-    from nhgait.gaits import sweep_plots
+    from nhgait.gaits.sweeps import plots as sweep_plots
     grid = parse_grid(["final.x=0.5:1.5:3"])
     with SweepStore(tmp_path) as store:
         result = run_sweep(CASE, grid, SerialBackend(), store, solve=fake_solve)

@@ -12,8 +12,8 @@ import time
 
 import pytest
 
-from nhgait.gaits.cli import main
-from nhgait.gaits.sweep import load_sweep, sweep
+from nhgait.gaits.cli.main import main
+from nhgait.gaits.sweeps.driver import load_sweep, sweep
 from nhgait.ocp import ProblemError
 
 GRID = ["final.y=0.4:0.6:3", "horizon=3.5:4.5:3"]
@@ -78,7 +78,7 @@ def test_killed_sweep_resumes_where_it_stopped(tmp_path, capsys):
     out = tmp_path / "sweep"
     args = ["sweep", "unicycle", "--task", "parallel-park", "--grid", GRID[0], "--grid", GRID[1],
             "--set", SET[0], "--out", str(out), "--workers", "1", "--no-plots"]
-    proc = subprocess.Popen([sys.executable, "-m", "nhgait.gaits.cli", *args], start_new_session=True,
+    proc = subprocess.Popen([sys.executable, "-m", "nhgait.gaits.cli.main", *args], start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 240
@@ -121,7 +121,7 @@ def test_cli_writes_store_table_and_plots(tmp_path, capsys):
 @pytest.fixture(scope="module")
 def dask_backend():
     pytest.importorskip("distributed", reason="Dask distributed is not installed (pip install 'nhgait[dask]')")
-    from nhgait.gaits.sweep_backends import DaskBackend
+    from nhgait.gaits.sweeps.backends import DaskBackend
     backend = DaskBackend("local:2")
     yield backend
     backend.close()

@@ -23,9 +23,9 @@ import pytest
 from scipy.integrate import cumulative_simpson, solve_ivp
 
 from nhgait.dynamics import System, derive, load_scene, simulate
-from nhgait.dynamics.controllers import OpenLoop
-from nhgait.dynamics.reduction import derive_reduced
-from nhgait.dynamics.states import consistent_velocities, to_state
+from nhgait.dynamics.simulation.controllers import OpenLoop
+from nhgait.dynamics.derivation.reduction import derive_reduced
+from nhgait.dynamics.derivation.states import consistent_velocities, to_state
 
 SCENE = Path(__file__).resolve().parents[1] / "examples" / "roller_racer.toml"
 #: the scene's parameter values, restated (kg, kg m², m)
@@ -288,7 +288,7 @@ def test_lagrange_run_is_the_yardstick_of_every_route(scene, roller):
 
 
 def _has_compiler():
-    from nhgait.dynamics.compiler import compiler_command
+    from nhgait.dynamics.numerics.compiler import compiler_command
     return compiler_command() is not None
 
 
@@ -429,7 +429,7 @@ def test_time_expression_compiled_on_the_unicycle():
 def test_specialised_velocity_coordinates_keep_t(roller):
     """specialise(explicit, velocities=(forward_velocity, phi_dot)) takes the symbolic route and
     its ż = (q̇, ẏ) equals the Kane model's: ẏ = d/dt (Y(q) q̇) = Ẏ q̇ + Y q̈ (relative 1e-9)."""
-    from nhgait.dynamics.specialisation import specialise
+    from nhgait.dynamics.numerics.specialisation import specialise
     fast = specialise(roller["reduced-explicit"], velocities=("forward_velocity", "phi_dot"), use_cache=False)
     assert fast.route == "symbolic"
     qddot = _kane()["qddot"]
@@ -446,7 +446,7 @@ def test_specialised_velocity_coordinates_keep_t(roller):
 def test_specialised_momentum_coordinates_keep_t(roller):
     """specialise(explicit) (momentum coordinates) is symbolic and equals the unbound model's
     ż at 4 times, which was checked against Kane above (relative 1e-10)."""
-    from nhgait.dynamics.specialisation import specialise
+    from nhgait.dynamics.numerics.specialisation import specialise
     model = roller["reduced-explicit"]
     fast = specialise(model, use_cache=False)
     assert fast.route == "symbolic"
@@ -461,7 +461,7 @@ def test_specialised_momentum_coordinates_keep_t(roller):
 def test_agreement_check_samples_time(roller):
     """The specialisation's check rejects a candidate that evaluates the forces at one fixed t."""
     import casadi as ca
-    from nhgait.dynamics.specialisation import _agrees, _numeric_bound
+    from nhgait.dynamics.numerics.specialisation import _agrees, _numeric_bound
     model = roller["reduced-explicit"]
     pv = model.numeric.params()
     ref = _numeric_bound(model, pv)
@@ -475,7 +475,7 @@ def test_agreement_check_samples_time(roller):
 # command line
 # ------------------------------------------------------------------------------------------
 def test_cli_derive_and_simulate_the_example(tmp_path, capsys):
-    from nhgait.gaits.cli import main
+    from nhgait.gaits.cli.main import main
     assert main(["derive", str(SCENE), "--formulation", "all"]) == 0
     out = capsys.readouterr().out
     assert "6 = 2n − k first-order ODEs" in out and "0.6*sin(2.5*t)" in out

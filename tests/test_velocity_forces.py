@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from nhgait.dynamics import System, derive
-from nhgait.dynamics.reduction import derive_reduced
-from nhgait.dynamics.states import consistent_velocities, to_state
+from nhgait.dynamics.derivation.reduction import derive_reduced
+from nhgait.dynamics.derivation.states import consistent_velocities, to_state
 
 FORCES = {
     "quadratic drag": {"theta": "u1 - c*theta_dot*Abs(theta_dot)", "phi": "u2 - c*phi_dot**2"},

@@ -42,7 +42,7 @@ def test_work_precision_smoke(tmp_path, capsys):
 
 
 def test_bench_precision_cli_smoke(tmp_path, capsys):
-    from nhgait.gaits.cli import main
+    from nhgait.gaits.cli.main import main
     out = tmp_path / "bench"
     assert main(["bench", "precision", "unicycle", "--tols", "1e-4,1e-8", "--methods", "DOP853,compiled",
                  "--formulations", "reduced,hamilton", "--no-idas", "--repeats", "1", "--out", str(out)]) == 0

@@ -1,0 +1,108 @@
+"""The one entry point for equations of motion: :func:`derive`.
+
+Derivations are cached once per system *structure* (parameters stay symbolic); the caller's
+system — its name and parameter values — is bound to the loaded object on every call, so a
+cached model always reports this input's values (see :mod:`.cache`).
+"""
+from __future__ import annotations
+
+import dataclasses
+import time
+
+from ..numerics import cache as _cache
+from ..errors import ModelError
+
+FORMULATIONS = ("reduced", "lagrange", "hamilton")
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Entry:
+    """What the cache stores for one derivation: the model (with its compiled functions) and
+    when and how fast it was derived."""
+
+    model: object
+    created: str
+    derive_time_s: float
+
+
+def _model_type(formulation: str) -> type:
+    if formulation == "reduced":
+        from .reduction import ReducedODE
+        return ReducedODE
+    if formulation == "lagrange":
+        from .lagrange import LagrangianDAE
+        return LagrangianDAE
+    from .hamilton import HamiltonianDAE
+    return HamiltonianDAE
+
+
+def _derive(system, formulation: str, version):
+    if formulation == "reduced":
+        from .reduction import derive_reduced
+        return derive_reduced(system, version=version)
+    if formulation == "lagrange":
+        from .lagrange import derive_lagrangian
+        return derive_lagrangian(system)
+    from .hamilton import derive_hamiltonian
+    return derive_hamiltonian(system)
+
+
+def bind(model, system, provenance=None):
+    """``model`` with ``system`` (the same structure: names, L, ω, τ) as its system: the
+    caller's name and parameter values, the compiled functions shared (when ``model`` has
+    them: given, or compiled and kept by ``model.numeric``), defaults rebound."""
+    numeric = model.compiled if model.compiled is not None else model.__dict__.get("numeric")
+    return dataclasses.replace(model, system=system, provenance=provenance,
+                               compiled=None if numeric is None else numeric.with_defaults(system.param_values))
+
+
+def derive(system, formulation: str = "reduced", *, version: str | None = None,
+           use_cache: bool = True, compile: bool = True):
+    """Derive (or load from the cache) one formulation of ``system``.
+
+    Parameters
+    ----------
+    system : System or str
+        A :class:`~nhgait.dynamics.derivation.system.System` or a built-in name ("unicycle", "snakeboard",
+        "chaplygin_sleigh", "knife_edge_incline").
+    formulation : {"reduced", "lagrange", "hamilton"}
+        :class:`ReducedODE` (20-step method), :class:`LagrangianDAE` (eq. 2.8) or
+        :class:`HamiltonianDAE` (eqs. 2.19–2.24). Only the requested formulation is derived.
+    version : {"A", "B", None}
+        Reduced ODE only: choice of g in the reconstruction (None: B when a planar frame
+        with x, y in the fiber exists).
+    use_cache : bool
+        Read/write the on-disk cache (``$NHGAIT_CACHE_DIR``). False derives afresh.
+    compile : bool
+        Also build the CasADi functions (``model.numeric``) before caching.
+
+    Returns
+    -------
+    The model, whose ``system`` is the ``system`` given here and whose ``provenance``
+    (:class:`~nhgait.dynamics.numerics.cache.Provenance`) says whether it came from the cache, its key,
+    when the equations were derived and how long that took.
+    """
+    if isinstance(system, str):
+        from .models import builtin
+        system = builtin(system)
+    if formulation not in FORMULATIONS:
+        raise ModelError([f"unknown formulation {formulation!r} (choose from {', '.join(FORMULATIONS)})"],
+                         title="invalid request")
+    if version not in (None, "A", "B"):
+        raise ModelError([f"unknown reconstruction version {version!r} (A or B)"], title="invalid request")
+    key = _cache.cache_key(system, formulation, f"version={version};compile={bool(compile)}")
+    if use_cache:
+        start = time.perf_counter()
+        entry = _cache.load(key, _Entry)
+        if entry is not None and isinstance(entry.model, _model_type(formulation)):
+            provenance = _cache.Provenance(key, entry.created, entry.derive_time_s, True,
+                                           time.perf_counter() - start, _cache.versions())
+            return bind(entry.model, system, provenance)
+    created, start = _cache.now(), time.perf_counter()
+    model = _derive(system, formulation, version)
+    if compile:
+        model.numeric  # noqa: B018 - build and keep the compiled functions
+    elapsed = time.perf_counter() - start
+    if use_cache:
+        _cache.store(key, _Entry(model, created, elapsed))
+    return bind(model, system, _cache.Provenance(key, created, elapsed, False, 0.0, _cache.versions()))

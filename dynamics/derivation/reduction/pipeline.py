@@ -1,0 +1,82 @@
+"""Steps 4–20 run in order on one arithmetic back end (:mod:`.arithmetic`): the part of the
+20-step method shared by both forms of :class:`~.model.ReducedODE` (the explicit form on exact
+rational functions or sympy, the implicit form on CasADi SX)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..system import TIME
+from . import connection as steps_4_8
+from . import equations as steps_18_20
+from . import legendre as steps_9_11
+from . import poisson as steps_12_17
+from .arithmetic import make_arithmetic
+from .setup import Layout
+
+
+@dataclass(frozen=True, eq=False)
+class StepsRun:
+    """Steps 4–20 run on one back end: the :class:`~nhgait.dynamics.derivation.steps.Step`
+    records and what the models are assembled from.
+
+    qdot, Pdot : q̇ (n) and Ṗ (nP) as display values of the back end; X, K : the basis and
+    K = XᵀMX shown; h : the Hamiltonian; J_z : the structure matrix in z = (q, P);
+    momenta_of_velocity : P = XᵀM(q)q̇ (nP values linear in q̇); A_zero : the local connection
+    vanishes; symbols : the steps' symbols; arithmetic : the back end (its ``sym`` map for the
+    CasADi form).
+    """
+
+    steps: tuple
+    qdot: list
+    Pdot: list
+    X: object
+    K: object
+    h: object
+    J_z: object
+    momenta_of_velocity: list
+    A_zero: bool
+    symbols: object
+    arithmetic: object
+
+
+def run_steps(F, layout: Layout) -> StepsRun:
+    """Steps 4–20 on the arithmetic back end ``F`` (see :class:`StepsRun`)."""
+    symbols = layout.symbols()
+    step4 = steps_4_8.momentum(F, layout, symbols)
+    step5, reconstruction = steps_4_8.reconstruction(F, layout, symbols)
+    step6, xi_c = steps_4_8.body_basis(F, layout, symbols, reconstruction)
+    step7, l_red = steps_4_8.reduced_lagrangian(F, layout, symbols)
+    step8, K = steps_4_8.constrained_lagrangian(F, layout, symbols, reconstruction)
+    connection = steps_4_8.Connection.of(reconstruction, xi_c=xi_c, l_red=l_red, K=K)
+    step10, Kinv = steps_9_11.velocities(F, layout, symbols, connection)
+    step11, h = steps_9_11.hamiltonian(F, layout, symbols, Kinv)
+    step9 = steps_9_11.legendre_transform(F, layout, symbols, connection)
+    step12, _ = steps_12_17.canonical_momenta(F, layout, symbols, connection)
+    lie = steps_12_17.lie_brackets(F, layout, connection)
+    step16, brackets = steps_12_17.restricted_brackets(F, layout, symbols, connection, Kinv, lie)
+    step17, J_z = steps_12_17.structure(F, layout, symbols, connection, brackets.C)
+    step13 = steps_12_17.body_momentum(F, layout, symbols, connection)
+    step14 = steps_12_17.momenta_in_mu(F, layout, symbols, connection)
+    step15 = steps_12_17.brackets_in_mu(F, layout, symbols, lie)
+    step18, grad = steps_18_20.gradient(F, layout, symbols, connection, Kinv)
+    step19, eqs = steps_18_20.equations(F, layout, symbols, connection, Kinv, brackets, grad)
+    step20 = steps_18_20.fiber_velocities(F, layout, symbols, eqs)
+    nP = len(symbols.P)
+    X_shown, K_shown = F.show(connection.X, layout.n, nP), F.show(connection.K, nP, nP)
+    A_zero = all(F.is_zero(e) for r in connection.A for e in r)
+    momenta_of_velocity = steps_18_20.momenta_of_velocity(F, layout, symbols, connection)
+    return StepsRun(
+        steps=(step4, step5, step6, step7, step8, step9, step10, step11, step12, step13, step14, step15,
+               step16, step17, step18, step19, step20),
+        qdot=eqs.qdot, Pdot=eqs.Pdot, X=X_shown, K=K_shown, h=h, J_z=J_z,
+        momenta_of_velocity=momenta_of_velocity, A_zero=A_zero, symbols=symbols, arithmetic=F)
+
+
+def arithmetic_for(kind, layout):
+    """The back end ``kind`` for ``layout``: the steps' variables (q, q̇, momenta, inputs) and the
+    time t of the forces, which the steps carry along but never differentiate."""
+    s = layout.system
+    symbols = layout.symbols()
+    syms = list(s.q) + list(s.q_dot) + symbols.p + symbols.P + symbols.xi + symbols.Om + symbols.mu + list(s.input_symbols)
+    return make_arithmetic(kind, [layout.M, layout.W, s.L, layout.V, s.force_vector(), layout.N, layout.g], syms, s.q,
+                           time=(TIME,))

@@ -1,0 +1,259 @@
+"""The C compiler: generated C into a cached, trusted shared library, killable and clean.
+
+:func:`build_library` is the one way nhgait compiles C (the compiled integrator of
+:mod:`.compiled` and the NLP functions of :mod:`nhgait.ocp.solver`)::
+
+    lib = build_library(source, flags=("-O1",), salt="nlp", progress=progress)
+    lib.path, lib.cached, lib.compile_s, lib.c_bytes
+
+* **Cache with trust rules.** The library lives in ``<cache dir>/jit/<key>.so`` with
+  ``key`` = :func:`library_key`, the SHA-256 of the source, the compiler command, the flags,
+  the libraries and ``salt``; a record ``<key>.json`` holds the library's SHA-256. A cached
+  library is used only when :func:`~.cache.trusted_file` accepts both (directory 0700, owned
+  by the user, not group/world-writable, content hash unchanged); otherwise it is rebuilt. An
+  untrusted cache directory means a private temporary directory (``Library.private``; the
+  caller removes it once the library is loaded).
+* **Atomic.** Compilation happens in ``jit/.build-<random>/``; the library and then its record
+  are moved into place with ``os.replace``, so no reader ever sees half a library, and a
+  library without its record is never loaded.
+* **Interrupts clean up.** The compiler runs as a child in its own process group. Any
+  exception while waiting — KeyboardInterrupt (Ctrl-C), the ``Terminated`` exception the CLI
+  raises on SIGTERM (:mod:`nhgait.gaits.cli.main`), a timeout — kills the whole group (a wrapper
+  script named by ``$NHGAIT_CC`` and everything it started: gcc, cc1, as) and removes the
+  build folder. On Linux the compiler also gets SIGKILL if the thread that started it dies
+  without cleaning up (``PR_SET_PDEATHSIG``), and build folders left by such a death are
+  removed by the next build once they are :data:`STALE_BUILD_S` old.
+* **Talks.** Compiling takes seconds to minutes: a :class:`~.progress.Progress` gets a
+  heartbeat while the compiler runs.
+
+Compiler: ``$NHGAIT_CC``, else ``$CC``, else ``gcc``, else ``cc`` (:func:`compiler_command`;
+either variable may hold a command with arguments); none found raises
+:class:`CompilerUnavailable` (callers fall back to interpreted code).
+"""
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import shlex
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+__all__ = ["Library", "CompilerUnavailable", "build_library", "compiler_command", "library_key",
+           "jit_dir", "STALE_BUILD_S"]
+
+#: a build folder older than this (seconds) is left over from a process that died: removed
+STALE_BUILD_S = 3600.0
+#: Linux prctl option: signal the child when the thread that forked it dies
+_PR_SET_PDEATHSIG = 1
+
+
+class CompilerUnavailable(RuntimeError):
+    """No working C compiler, or it failed (the message says why)."""
+
+
+@dataclass(frozen=True)
+class Library:
+    """A compiled shared library: ``path``; ``key`` its :func:`library_key`; ``cached`` when it
+    came from the cache; ``compile_s`` the compiler's wall time (0 when cached); ``c_bytes``
+    the source size; ``private`` when it lives in a private temporary folder the caller must
+    remove."""
+
+    path: Path
+    key: str
+    cached: bool
+    compile_s: float
+    c_bytes: int
+    flags: tuple
+    private: bool = False
+
+
+def _compiler_setting() -> tuple[str, str] | None:
+    """(variable name, value) of the compiler chosen by the environment, or None."""
+    for name in ("NHGAIT_CC", "CC"):
+        if os.environ.get(name):
+            return name, os.environ[name]
+    return None
+
+
+def compiler_command() -> list | None:
+    """The C compiler command (``$NHGAIT_CC``, else ``$CC``, else gcc, else cc), or None when
+    none is found. A variable that is set is final: its program missing means None."""
+    setting = _compiler_setting()
+    if setting is not None:
+        command = shlex.split(setting[1])
+        return command if command and shutil.which(command[0]) else None
+    for name in ("gcc", "cc"):
+        if shutil.which(name):
+            return [name]
+    return None
+
+
+def _command() -> list:
+    """:func:`compiler_command`, or :class:`CompilerUnavailable` saying what was looked for."""
+    command = compiler_command()
+    if command is not None:
+        return command
+    setting = _compiler_setting()
+    if setting is None:
+        where = "looked for gcc and cc"
+    else:
+        name, text = setting
+        where = f"${name} = {text!r}: {(shlex.split(text) or [''])[0]!r} not found"
+    raise CompilerUnavailable(f"no C compiler found ({where})")
+
+
+def jit_dir() -> Path:
+    """``<cache dir>/jit``, where compiled libraries are kept (not created)."""
+    from .cache import cache_dir
+    return cache_dir() / "jit"
+
+
+def library_key(source: str, *, flags: tuple = ("-O1",), salt: str = "", libs: tuple = ("-lm",)) -> str:
+    """The cache key of ``source`` built by :func:`build_library` with these arguments and the
+    current compiler: SHA-256 of all of them. Raises :class:`CompilerUnavailable`."""
+    parts = [source, _command(), list(flags), list(libs), salt]
+    return hashlib.sha256(json.dumps(parts).encode()).hexdigest()
+
+
+def _cached(directory: Path, key: str) -> Path | None:
+    """``directory/key.so`` when it and its record pass the trust rules, else None."""
+    from .cache import trusted_file
+    so, record = directory / f"{key}.so", directory / f"{key}.json"
+    if not (so.exists() and record.exists()) or not trusted_file(record):
+        return None
+    try:
+        recorded = json.loads(record.read_text())["library_sha256"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return so if trusted_file(so, recorded) else None
+
+
+def _remove_stale_builds(directory: Path) -> None:
+    """Remove ``.build-*`` folders older than :data:`STALE_BUILD_S` (left by a process that
+    died); younger ones may belong to a build running now and are kept."""
+    now = time.time()
+    for entry in directory.glob(".build-*"):
+        try:
+            age = now - entry.stat().st_mtime
+        except FileNotFoundError:       # removed meanwhile by its own build
+            continue
+        if age > STALE_BUILD_S:
+            shutil.rmtree(entry, ignore_errors=True)
+
+
+def _child_setup():
+    """The preexec function of the compiler: its own process group and, on Linux, SIGKILL when
+    the parent thread dies (exit at once if the parent died before). ``prctl`` is looked up
+    here, in the parent: the forked child only calls it."""
+    parent = os.getpid()
+    prctl = None
+    if sys.platform.startswith("linux"):
+        import ctypes
+        prctl = ctypes.CDLL(None).prctl
+
+    def setup() -> None:  # pragma: no cover - runs in the child
+        os.setpgrp()
+        if prctl is not None:
+            prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+            if os.getppid() != parent:
+                os._exit(1)
+    return setup
+
+
+def _run(cmd: list, progress, label: str, timeout: float | None) -> subprocess.CompletedProcess:
+    """Run the compiler, killing its process group on any exception (see the module docstring)."""
+    start = time.perf_counter()
+    with subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                          preexec_fn=_child_setup() if os.name == "posix" else None) as proc:
+        try:
+            return _wait(proc, cmd, start, progress, label, timeout)
+        except BaseException:
+            _kill(proc)
+            raise
+
+
+def _wait(proc, cmd, start, progress, label, timeout) -> subprocess.CompletedProcess:
+    """The compiler's result, with a heartbeat every second while it runs; a ``timeout`` raises
+    :class:`CompilerUnavailable` (the caller kills the compiler)."""
+    while True:
+        try:
+            out, _ = proc.communicate(timeout=1.0)
+            return subprocess.CompletedProcess(cmd, proc.returncode, out, "")
+        except subprocess.TimeoutExpired:
+            elapsed = time.perf_counter() - start
+            if timeout is not None and elapsed > timeout:
+                raise CompilerUnavailable(f"the C compiler took more than {timeout:.0f} s ({label})") from None
+            if progress is not None:
+                progress.heartbeat(label, elapsed)
+
+
+def _kill(proc: subprocess.Popen) -> None:
+    """SIGKILL the compiler's process group (the compiler and every process it started), then
+    reap the compiler."""
+    if os.name == "posix":
+        # the group may be gone already (ProcessLookupError), or hold only zombies (EPERM on macOS)
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(proc.pid, signal.SIGKILL)
+    else:  # pragma: no cover
+        proc.kill()
+    proc.wait()
+
+
+def _compile(source: str, command: list, flags: tuple, libs: tuple, salt: str, key: str,
+             directory: Path, progress, label: str, timeout: float | None) -> Library:
+    """Compile ``source`` in a ``.build-*`` folder of ``directory`` (removed whatever happens)
+    and move the library, then its record, to ``directory/key.so`` and ``key.json``."""
+    from .cache import file_sha256
+    start = time.perf_counter()
+    with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:
+        c_file, so_tmp, record = Path(tmp) / f"{key}.c", Path(tmp) / f"{key}.so", Path(tmp) / f"{key}.json"
+        c_file.write_text(source)
+        cmd = [*command, *flags, "-fPIC", "-shared", str(c_file), "-o", str(so_tmp), *libs]
+        try:
+            proc = _run(cmd, progress, label, timeout)
+        except OSError as exc:
+            raise CompilerUnavailable(f"cannot run the C compiler {command[0]!r} ({exc.strerror})") from None
+        if proc.returncode != 0 or not so_tmp.exists():
+            tail = " | ".join((proc.stdout or "").strip().splitlines()[-3:])
+            raise CompilerUnavailable(f"the C compiler failed ({' '.join(command + list(flags))}): {tail}")
+        os.chmod(so_tmp, 0o700)
+        record.write_text(json.dumps({"library_sha256": file_sha256(so_tmp), "compiler": command,
+                                      "flags": list(flags), "libs": list(libs), "salt": salt,
+                                      "c_bytes": len(source), "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}))
+        os.chmod(record, 0o600)
+        os.replace(so_tmp, directory / f"{key}.so")
+        os.replace(record, directory / f"{key}.json")
+    return Library(directory / f"{key}.so", key, False, time.perf_counter() - start, len(source), flags)
+
+
+def build_library(source: str, *, flags: tuple = ("-O1",), salt: str = "", libs: tuple = ("-lm",),
+                  progress=None, label: str = "compiling", timeout: float | None = None) -> Library:
+    """Compile ``source`` (or load it from the cache): see the module docstring. ``flags`` go
+    before ``-fPIC -shared``, ``libs`` after the source; ``salt`` only changes the key.
+    Raises :class:`CompilerUnavailable`."""
+    from .cache import trusted_dir
+    command, flags, libs = _command(), tuple(flags), tuple(libs)
+    key = library_key(source, flags=flags, salt=salt, libs=libs)
+    job = dict(source=source, command=command, flags=flags, libs=libs, salt=salt, key=key,
+               progress=progress, label=label, timeout=timeout)
+    directory = trusted_dir(jit_dir())
+    if directory is not None:
+        found = _cached(directory, key)
+        if found is not None:
+            return Library(found, key, True, 0.0, len(source), flags)
+        _remove_stale_builds(directory)
+        return _compile(directory=directory, **job)
+    private = Path(tempfile.mkdtemp(prefix="nhgait-jit-"))
+    try:
+        return replace(_compile(directory=private, **job), private=True)
+    except BaseException:
+        shutil.rmtree(private, ignore_errors=True)
+        raise

@@ -1,0 +1,356 @@
+"""The closed-loop system of one simulation as CasADi functions: :func:`closed_loop`.
+
+Extended state (documented order)
+---------------------------------
+y = (x_S, W, ∫g), where
+
+* x_S are the integrated entries of the formulation's state x (``model.state_names``): all of
+  them, or — when a run names its outputs — the dependency closure S of the outputs
+  (:mod:`.closure`), in the order of x;
+* W = ∫ τ·q̇ dt, the work of the forces (a quadrature, present when its integrand depends on
+  x_S only);
+* ∫g, the integrals of the constraint residual g = ω(q)q̇ (Baumgarte stabilisation with β ≠ 0).
+
+Entries of x outside S are not modelled: they are NaN in every output that needs them.
+
+Functions (SX unless the model's functions are MX)
+--------------------------------------------------
+``rhs(t, t_c, y, p[, u]) → ẏ``; ``outputs(t, t_c, y, p[, u]) → (q, q̇, λ, g, E, u, s, W_v, S)``
+with s the singular-set measure (1 away from it, 0 on it), W_v the kinetic metric of the
+velocity part of x (∂²E/∂v², column-major) and S = ω M⁻¹ ωᵀ (DAE forms; column-major);
+``event(y, ẏ, p) → (s, ṡ)`` (the rate ṡ = ∇s·ẏ tells the integrators when a step may hide a
+crossing); ``qdot(y, p) → q̇``. ``t_c`` is t clamped to the current interval
+[a, b) (see :func:`~.simulation.simulate`): the controller *and* the model's time-dependent
+forces are evaluated at t_c, so a jump at a breakpoint b is seen from the left up to b and from
+the right after it, however the integrator places its stages. ``p = (params, u₀, u₁, t_a)`` for an
+open-loop input integrated by segments (u = u₀ + u₁(t_c − t_a) on a segment), else ``params``.
+``u`` is an explicit input only for a controller without a CasADi form.
+
+The singular-set measure s: the reduced ODE's ``numeric["singular"]`` (the engine's measure,
+0 where any matrix the reduction inverts loses rank); for the DAE forms the Hadamard ratio
+det S / Π Sᵢᵢ of the matrix ω M⁻¹ ωᵀ that the multipliers are solved with.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+from dataclasses import dataclass
+from functools import cached_property
+
+import casadi as ca
+import numpy as np
+
+from ..errors import ModelError
+from ..memo import OwnerMemo
+from .closure import closure
+
+__all__ = ["ClosedLoop", "closed_loop", "controller_key", "OUTPUT_NAMES"]
+
+#: the blocks of ``ClosedLoop.outputs``, in order
+OUTPUT_NAMES = ("q", "qdot", "lam", "g", "energy", "u_applied", "measure", "metric", "gram")
+
+#: per compiled model (model.numeric, dropped with it): (controller key, options) → ClosedLoop
+CLOSED_LOOPS = OwnerMemo("closed loops per compiled model, controller and options")
+#: content keys of frozen (immutable) controller objects, dropped with the controller
+CONTROLLER_KEYS = OwnerMemo("content keys of frozen controllers")
+
+
+def _is_open_loop(controller) -> bool:
+    from .controllers import OpenLoop
+    return isinstance(controller, OpenLoop)
+
+
+def controller_key(controller) -> str:
+    """A content key of the controller's law as it enters the closed loop (remembered for
+    frozen dataclass controllers, which cannot change)."""
+    frozen = dataclasses.is_dataclass(controller) and controller.__dataclass_params__.frozen
+    if not frozen:
+        return _controller_key(controller)
+    return CONTROLLER_KEYS.get(controller, "law", lambda: _controller_key(controller))
+
+
+def _controller_key(controller) -> str:
+    if controller is None:
+        return "none"
+    if _is_open_loop(controller):
+        return f"open-loop/{controller.values.shape[1]}"
+    if not hasattr(controller, "casadi"):
+        return "python"
+    n = len(getattr(controller, "system_coordinates", ()) or ()) or None
+    t, q, qd = ca.SX.sym("t"), ca.SX.sym("q", n or 64), ca.SX.sym("qdot", n or 64)
+    try:
+        u = ca.vertcat(controller.casadi(t, q, qd))
+    except Exception as exc:  # the law could not be traced symbolically: refuse, with the cause
+        raise ModelError([f"controller.casadi failed on symbolic arguments "
+                          f"({type(exc).__name__}: {exc})"], title="invalid controller") from exc
+    text = ca.Function("u", [t, q, qd], [u]).serialize()
+    return "casadi/" + hashlib.sha256(text.encode()).hexdigest()
+
+
+@dataclass(frozen=True, eq=False)
+class ClosedLoop:
+    """CasADi functions of one closed loop (see the module docstring)."""
+
+    formulation: str
+    n_q: int
+    n_x: int
+    n_y: int
+    n_params: int
+    n_u: int
+    state_index: tuple          # entries of x integrated, in the order of x
+    has_work: bool
+    n_int: int                  # number of ∫g states
+    symbolic_u: bool
+    segment_u: bool
+    rhs: ca.Function
+    outputs: ca.Function
+    event: ca.Function | None
+    qdot: ca.Function
+    _pieces: dict
+    _compiled: dict = dataclasses.field(default_factory=dict)
+
+    def compiled(self, projection: bool = False):
+        """The loop as a compiled library (:func:`.compiled.build`; with ``projection`` every
+        step is projected onto the constraints), built once per compiler command; raises
+        :class:`~.compiled.CompilerUnavailable`."""
+        from .compiled import build
+        from ..numerics.compiler import compiler_command
+        key = (tuple(compiler_command() or ()), projection)
+        if key not in self._compiled:
+            self._compiled[key] = build(self.rhs, self.outputs, self.event,
+                                        self.project if projection else None)
+        return self._compiled[key]
+
+    @property
+    def n_p(self) -> int:
+        """Length of the parameter vector p of the functions."""
+        return self.n_params + (2 * self.n_u + 1 if self.segment_u else 0)
+
+    @property
+    def complete(self) -> bool:
+        """True when every entry of x is integrated."""
+        return len(self.state_index) == self.n_x
+
+    @cached_property
+    def jac(self) -> ca.Function:
+        """∂ẏ/∂y with the arguments of ``rhs`` (implicit scipy methods)."""
+        pc = self._pieces
+        return ca.Function("closed_loop_jac", pc["args"], [ca.densify(ca.jacobian(pc["ydot"], pc["y"]))],
+                           pc["names"], ["dydot_dy"])
+
+    @cached_property
+    def project(self) -> ca.Function | None:
+        """y ↦ y with the velocity part projected onto {g = 0} in the kinetic metric."""
+        pc = self._pieces
+        if self.formulation == "reduced" or not self.complete:
+            return None
+        y = pc["y"]
+        x, g, energy, n = pc["x"], pc["g"], pc["energy"], self.n_q
+        v = x[n:]
+        Jv = ca.jacobian(g, v)                         # g is linear in v (q̇ or p)
+        W = ca.hessian(energy, v)[0]                   # kinetic metric in v (M or M⁻¹)
+        WinvJt = ca.solve(W, Jv.T)
+        dv = -ca.mtimes(WinvJt, ca.solve(ca.mtimes(Jv, WinvJt), g))
+        return ca.Function("project", [y, pc["params"]],
+                           [ca.densify(ca.vertcat(x[:n], v + dv, y[self.n_x:]))], ["y", "params"],
+                           ["y_projected"])
+
+    def dae(self, stabilization, baumgarte) -> dict:
+        """The semi-explicit index-1 DAE for IDAS: ``{"t", "x", "z", "p", "ode", "alg"}`` with
+        p = (p of ``rhs``, t_hi) and λ the algebraic variable."""
+        pc = self._pieces
+        num, t, y, x = pc["num"], pc["t"], pc["y"], pc["x"]
+        k = num.n_multipliers
+        t_hi = ca.SX.sym("t_hi")
+        z = ca.SX.sym("lam", k)
+        u_d = ca.substitute(pc["u"], pc["t_c"], ca.fmin(t, t_hi)) if (self.symbolic_u or self.segment_u) else pc["u"]
+        xp = pc["params"]
+        t_d = ca.fmin(t, t_hi)
+        res = num["dae_g"](t_d, x, z, u_d, xp)
+        alpha, beta = pc["alpha"], pc["beta"]
+        if stabilization == "baumgarte":
+            res = res + 2 * alpha * pc["g"] + (beta ** 2 * pc["g_int"] if self.n_int else 0)
+        ode = ca.vertcat(num["dae_f"](t_d, x, z, u_d, xp), num["power"](t_d, x, u_d, xp),
+                         pc["g"] if self.n_int else ca.SX(0, 1))
+        return {"t": t, "x": y, "z": z, "p": ca.vertcat(pc["p"], t_hi), "ode": ode, "alg": res}
+
+    def segment_params(self, params: np.ndarray, controller, a: float) -> np.ndarray:
+        """p on the interval starting at ``a``: params, and for an open-loop input (u₀, u₁, a)."""
+        if not self.segment_u:
+            return params
+        times, values = controller.times, controller.values
+        j = int(np.clip(np.searchsorted(times, a, side="right") - 1, 0, values.shape[0] - 1))
+        if controller.kind == "zoh":
+            u0, u1 = values[j], np.zeros(values.shape[1])
+        else:
+            j = min(j, times.size - 2)
+            u1 = (values[j + 1] - values[j]) / (times[j + 1] - times[j])
+            u0 = values[j] + u1 * (a - times[j])
+        return np.r_[params, u0, u1, a]
+
+
+def closed_loop(model, controller, *, stabilization=None, baumgarte=(1.0, 0.0),
+                seeds=None) -> ClosedLoop:
+    """The closed loop of ``model`` under ``controller`` (memoised per model and content).
+
+    ``seeds``: indices of x that the run must report (None: all); the loop integrates their
+    dependency closure.
+    """
+    key = (controller_key(controller), stabilization,
+           tuple(float(v) for v in baumgarte) if stabilization == "baumgarte" else None,
+           None if seeds is None else tuple(sorted(set(int(s) for s in seeds))))
+    return CLOSED_LOOPS.get(model.numeric, key, lambda: _build(model, controller, stabilization, baumgarte, key[3]))
+
+
+def _invariant_entries(expr, x, params, candidates, param_values, samples=6) -> list:
+    """Entries of x that ``expr`` reads only structurally: ∂expr/∂x_i vanishes (to 1e-12
+    relative) at ``samples`` random states. The singular-set measure of a reduced model is
+    invariant under the symmetry group, yet its expression contains the fiber coordinates."""
+    if not candidates:
+        return []
+    grad = ca.Function("grad", [x, params], [ca.jacobian(expr, x[candidates]), expr])
+    rng = np.random.default_rng(7)
+    pv = np.asarray(param_values, dtype=float)
+    free = np.ones(len(candidates), dtype=bool)
+    for _ in range(samples):
+        with np.errstate(all="ignore"):
+            d, value = grad(rng.uniform(-1.2, 1.2, x.shape[0]), pv)
+        d = np.abs(np.asarray(d, dtype=float)).ravel()
+        free &= np.isfinite(d) & (d <= 1e-12 * (1.0 + abs(float(value))))
+    return [i for i, f in zip(candidates, free) if f]
+
+
+def _event_function(measure, y, p) -> ca.Function:
+    """``event(y, ẏ, p) → (s, ṡ)``: the singular-set measure and its rate along ẏ."""
+    ydot = ca.SX.sym("ydot", y.shape[0])
+    return ca.Function("event", [y, ydot, p], [measure, ca.jtimes(measure, y, ydot)],
+                       ["y", "ydot", "p"], ["measure", "rate"])
+
+
+def _velocity_metric(energy, v):
+    return ca.hessian(energy, v)[0]
+
+
+def _constraint_gram(model, num, x, params, n):
+    """S = ω M⁻¹ ωᵀ from the documented functions ``constraint`` and ``mass``."""
+    g = num["constraint"](x, params)
+    M = num["mass"](x, params)
+    B = ca.jacobian(g, x[n:])                          # ω (lagrange) or ω M⁻¹ (hamilton)
+    if model.formulation == "lagrange":
+        return ca.mtimes(B, ca.solve(M, B.T))
+    return ca.mtimes(ca.mtimes(B, M), B.T)
+
+
+def _hadamard_ratio(S, k):
+    diag = 1
+    for i in range(k):
+        diag = diag * S[i, i]
+    return ca.det(S) / (diag + 1e-300)
+
+
+def _input(controller, m, t_c, q, qdot, params):
+    """(u, explicit u arguments, p, symbolic, by segments): the input as the closed loop sees it."""
+    if controller is None:
+        return ca.SX.zeros(m), [], params, False, False
+    if _is_open_loop(controller):                 # u = u₀ + u₁(t_c − a) on each segment
+        u0, u1, t_a = ca.SX.sym("u0", m), ca.SX.sym("u1", m), ca.SX.sym("t_a")
+        return u0 + u1 * (t_c - t_a), [], ca.vertcat(params, u0, u1, t_a), False, True
+    if hasattr(controller, "casadi"):
+        u = ca.vertcat(controller.casadi(t_c, q, qdot))
+        if u.shape != (m, 1):
+            raise ModelError([f"controller.casadi returned shape {u.shape}, expected ({m}, 1)"],
+                             title="invalid controller")
+        return u, [], params, True, False
+    u = ca.SX.sym("u", m)
+    return u, [u], params, False, False
+
+
+def _dynamics(model, stabilization, alpha, beta, t_c, x, u, params, g_int):
+    """(ẋ, λ, g, singular-set measure, vec S) of the formulation at (t_c, x, u)."""
+    num, system = model.numeric, model.system
+    n = system.n
+    if model.formulation == "reduced":
+        q, qdot = x[:n], num["qdot"](x, params)
+        measure = num["singular"](q, params) if system.k else ca.SX(1)
+        return (num["rhs"](t_c, x, u, params), ca.SX(0, 1), num["constraint"](q, qdot, params),
+                measure, ca.SX(0, 1))
+    k = num.n_multipliers
+    g = num["constraint"](x, params)
+    if stabilization == "baumgarte":              # ġ + 2αg + β²∫g = 0 solved for λ
+        lam_sym = ca.SX.sym("lam", k)
+        res = num["dae_g"](t_c, x, lam_sym, u, params) + 2 * alpha * g
+        if g_int.shape[0]:
+            res = res + beta ** 2 * g_int
+        S_lam = ca.jacobian(res, lam_sym)
+        lam = -ca.solve(S_lam, ca.substitute(res, lam_sym, ca.SX.zeros(k)))
+        xdot = num["dae_f"](t_c, x, lam, u, params)
+    else:
+        xdot, lam = num["ode"](t_c, x, u, params)
+    S = _constraint_gram(model, num, x, params, n) if k else ca.SX(0, 0)
+    return xdot, lam, g, (_hadamard_ratio(S, k) if k else ca.SX(1)), ca.vec(S)
+
+
+def _integrated(model, seeds, x, params, xdot, measure, qdot, g, power, n_int, opaque_u):
+    """(indices of x to integrate, measure, whether W is integrated): the closure of the seeds
+    plus what the event, ∫g and an opaque controller read (see :mod:`.closure`)."""
+    nx, n = x.shape[0], model.system.n
+    if seeds is None:
+        return tuple(range(nx)), measure, True
+
+    def reads(expr):
+        return [i for i in range(nx) if ca.depends_on(expr, x[i])]
+    dep = np.array(ca.DM(ca.jacobian_sparsity(xdot, x), 1)).astype(bool)
+    free = _invariant_entries(measure, x, params, reads(measure), model.numeric.param_defaults)
+    measure = ca.substitute(measure, x[free], ca.SX.zeros(len(free))) if free else measure
+    opaque = list(range(n)) + reads(qdot) if opaque_u else []   # a Python law may read anything
+    index = closure(dep, list(seeds) + reads(measure) + (reads(g) if n_int else []) + opaque)
+    return index, measure, set(reads(power)) <= set(index)
+
+
+def _build(model, controller, stabilization, baumgarte, seeds) -> ClosedLoop:
+    num, system = model.numeric, model.system
+    n, nx, m = system.n, len(model.state_names), len(system.inputs)
+    k = 0 if model.formulation == "reduced" else num.n_multipliers
+    alpha, beta = (float(v) for v in baumgarte) if stabilization == "baumgarte" else (0.0, 0.0)
+    n_int = k if (stabilization == "baumgarte" and beta != 0.0) else 0
+    t, t_c = ca.SX.sym("t"), ca.SX.sym("t_c")
+    params = ca.SX.sym("params", len(num.param_names))
+    x, work, g_int = ca.SX.sym("x", nx), ca.SX.sym("work"), ca.SX.sym("g_int", n_int)
+    q, qdot = x[:n], num["qdot"](x, params)
+    u, u_args, p, symbolic_u, segment_u = _input(controller, m, t_c, q, qdot, params)
+    xdot, lam, g, measure, gram = _dynamics(model, stabilization, alpha, beta, t_c, x, u, params, g_int)
+    power = num["power"](t_c, x, u, params)
+    energy = num["energy"](x, params)
+    metric = ca.vec(_velocity_metric(energy, x[n:]))
+    index, measure, has_work = _integrated(model, seeds, x, params, xdot, measure, qdot, g, power,
+                                           n_int, bool(u_args))
+    if len(index) == nx:
+        x_s = x
+
+        def restrict(expr):
+            return expr
+    else:                                         # entries not integrated are NaN constants
+        x_s = ca.SX.sym("x_s", len(index))
+        entries = [ca.SX(np.nan)] * nx
+        for j, i in enumerate(index):
+            entries[i] = x_s[j]
+        x_full = ca.vertcat(*entries)
+
+        def restrict(expr):
+            return ca.substitute(expr, x, x_full)
+    y = ca.vertcat(x_s, work if has_work else ca.SX(0, 1), g_int)
+    ydot = restrict(ca.vertcat(xdot[list(index)], power if has_work else ca.SX(0, 1),
+                               g if n_int else ca.SX(0, 1)))
+    ydot = ca.cse(ca.densify(ydot))               # the model's functions share subexpressions
+    args, names = [t, t_c, y] + u_args + [p], ["t", "t_c", "y"] + ["u"] * bool(u_args) + ["p"]
+    outs = [ca.densify(restrict(o)) for o in (q, qdot, lam, g, energy, u, measure, metric, gram)]
+    return ClosedLoop(
+        formulation=model.formulation, n_q=n, n_x=nx, n_y=int(y.shape[0]),
+        n_params=len(num.param_names), n_u=m, state_index=tuple(index), has_work=has_work,
+        n_int=n_int, symbolic_u=symbolic_u, segment_u=segment_u,
+        rhs=ca.Function("closed_loop", args, [ydot], names, ["ydot"]),
+        outputs=ca.Function("outputs", args, outs, names, list(OUTPUT_NAMES)),
+        event=_event_function(restrict(measure), y, p) if system.k else None,
+        qdot=ca.Function("qdot", [y, p], [ca.densify(restrict(qdot))], ["y", "p"], ["qdot"]),
+        _pieces=dict(args=args, names=names, ydot=ydot, y=y, x=x, g=g, energy=energy, num=num, t=t,
+                     t_c=t_c, u=u, p=p, params=params, g_int=g_int, alpha=alpha, beta=beta))

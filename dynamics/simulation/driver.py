@@ -1,0 +1,782 @@
+"""Forward simulation of any formulation: :func:`simulate` → :class:`Trajectory`.
+
+What is integrated
+------------------
+The formulation's own state x (``model.state_names``: reduced z = (q, P, P̃), Lagrangian
+(q, q̇), Hamiltonian (q, p = M q̇)), extended by the work W = ∫ τ·q̇ dt as a quadrature state,
+so the energy balance E(t) − E(t₀) − W(t) is an accuracy check of the run (see
+:mod:`.closed_loop` for the extended state and its order).
+
+* Reduced ODE: ż = f(t, z, u); no multipliers.
+* DAE forms, ``dae="index1"``: λ is solved from the differentiated constraint (the
+  acceleration-level equation d/dt(ω q̇) = 0, resp. d/dt(ω ∂H/∂p) = 0) and the resulting ODE is
+  integrated; λ(t) is reported from the same solve.
+* DAE forms, ``dae="idas"``: CasADi IDAS (variable-order BDF) on the semi-explicit index-1 DAE
+  ẋ = f(t, x, λ, u), 0 = g₁(t, x, λ, u) with λ an algebraic variable; λ(t) is IDAS's own.
+
+Methods (``method``)
+--------------------
+* scipy: ``"RK23"``, ``"RK45"``, ``"DOP853"`` (default), ``"Radau"``, ``"BDF"``, ``"LSODA"``;
+* ``"CVODES"``: CasADi's CVODES (BDF, Newton with the exact Jacobian) on the same right-hand side;
+* ``"compiled"`` / ``"compiled-DOPRI5"``: the closed loop compiled to C and integrated there by
+  Dormand–Prince 8(5,3) / 5(4) (:mod:`.compiled`). Needs the controller as CasADi (PD laws,
+  :class:`~.controllers.OpenLoop`, scene input laws, any ``casadi(t, q, q̇)``); a plain Python
+  controller runs on scipy DOP853 instead, and without a C compiler it warns and does the same
+  (``Trajectory.settings["fallback"]`` says why);
+* ``"auto"``: ``"compiled"`` with stiffness detection; when the explicit method's step size is
+  limited by stability (h|λ| above :data:`~.integrators.STIFF_LIMIT` for 15 steps) the run is redone with
+  ``"CVODES"`` (``"Radau"`` for a Python controller) and ``settings["auto"]`` says so.
+  The explicit methods always report the detection (``diagnostics["stiff_at"]`` and a
+  recommendation) — with ``"auto"`` the switch is automatic.
+
+Both DAE routes integrate the *index-reduced* system: the velocity constraint ω(q)q̇ = 0 itself
+is only an invariant and drifts at the level of the integration error. Stabilisation is off by
+default and recorded in ``Trajectory.settings`` when on: ``"baumgarte"`` (ġ + 2αg + β²∫g = 0)
+and ``"projection"`` (scipy and compiled methods: after every accepted step the velocities are
+projected onto {g = 0} in the kinetic-energy metric and the integration restarts from there).
+
+Failure is data, never a hang
+-----------------------------
+A non-finite right-hand side, input or state stops the run at once: ``success=False``,
+``status=NONFINITE`` and a message naming the time and the quantity (the controller's input,
+the force τ_i and its expression, or the state entry). ``max_steps`` caps the accepted steps of
+every method (scipy: also 100·max_steps evaluations; SUNDIALS: steps per output interval).
+Reaching the singular set (the measure of :mod:`.closed_loop` below ``singular_tol``) stops the
+run with ``status=SINGULAR`` at the located crossing time. Bad input raises :class:`ModelError`
+listing every problem. Angles are never wrapped.
+
+Model only what a run needs
+---------------------------
+``outputs=("psi", "phi", "p", …)`` integrates only the dependency closure of those outputs
+(:mod:`.closure`); the other entries of x are not modelled and are NaN in ``q``/``qdot``/``state``
+columns that need them; ``Trajectory.outputs`` holds the requested columns.
+"""
+from __future__ import annotations
+
+import csv
+import dataclasses
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from ..derivation.states import to_state
+from ..errors import ModelError
+from ..memo import OwnerMemo
+from .closed_loop import closed_loop
+from .integrators import (FAILED, FINISHED, MAX_STEPS, NONFINITE, SCIPY_METHODS,
+                          SINGULAR, RunRequest, integrate_compiled, integrate_scipy,
+                          integrate_sundials, left_of)
+
+__all__ = ["simulate", "Trajectory", "METHODS", "FINISHED", "FAILED", "MAX_STEPS", "NONFINITE",
+           "SINGULAR", "SINGULAR_EVENT_TOL"]
+
+COMPILED_METHODS = {"compiled": "DOP853", "compiled-DOPRI5": "DOPRI5"}
+METHODS = tuple(SCIPY_METHODS) + ("CVODES",) + tuple(COMPILED_METHODS) + ("auto",)
+DAE_FORMS = ("index1", "idas")
+STABILIZATIONS = (None, "baumgarte", "projection")
+CSV_COLUMNS = ("q", "qdot", "state", "all", "outputs")
+#: default threshold of the singular-set event (the measure is 1 far from the set, 0 on it)
+SINGULAR_EVENT_TOL = 1e-6
+STATUS_NAMES = {FINISHED: "finished", FAILED: "failed", MAX_STEPS: "max_steps",
+                NONFINITE: "non-finite", SINGULAR: "singular set"}
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """A simulated trajectory sampled at N times.
+
+    Attributes
+    ----------
+    t : (N,) times [s].
+    q, qdot : (N, n) coordinates and velocities in ``coordinates`` order (angles unwrapped).
+    state : (N, d) the integrated entries of the formulation's state (``state_names``).
+    u : (N, m) inputs applied (at a switch time: the left limit).
+    lam : (N, k) Lagrange multipliers, or None for the reduced ODE.
+    constraint_residual : (N, k) ω(q) q̇.
+    energy : (N,) E (Lagrangian energy, H or h).
+    work : (N,) ∫ τ·q̇ dt from t₀, integrated as a quadrature state.
+    energy_balance : (N,) E − E(t₀) − work (E(t₀) at the initial state even if t_eval starts later).
+    nfev, njev, n_steps : right-hand-side / Jacobian evaluations and accepted steps.
+    wall_time_s : wall time of the integration and evaluation of the outputs (a compilation in
+        this call is included and also reported as ``diagnostics["compile_time_s"]``).
+    success, status, message : status 0 = reached the end; −1 integrator failure, −2 max_steps,
+        −3 non-finite value, −4 singular set reached (module constants). The points reached are
+        kept; the message names the time and the cause.
+    formulation, method : "reduced" | "lagrange" | "hamilton"; the method that ran.
+    coordinates, state_names, input_names : names of the columns.
+    settings : every option the run used (tolerances, DAE form, stabilisation, fallbacks …).
+    diagnostics : what the run measured about itself: ``min_singular_measure``,
+        ``max_cond_metric`` (kinetic metric of the velocity part), ``max_cond_gram`` (DAE forms:
+        ω M⁻¹ ωᵀ), ``stiff_at``/``h_lambda_max``/``recommendation`` (explicit methods),
+        ``integrated_states``, ``t_event``, ``compile_time_s``.
+    outputs : name → (N,) for the run's requested outputs (empty without ``outputs``).
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    qdot: np.ndarray
+    state: np.ndarray
+    u: np.ndarray
+    lam: np.ndarray | None
+    constraint_residual: np.ndarray
+    energy: np.ndarray
+    work: np.ndarray
+    energy_balance: np.ndarray
+    nfev: int
+    njev: int
+    n_steps: int
+    wall_time_s: float
+    success: bool
+    status: int
+    message: str
+    formulation: str
+    method: str
+    coordinates: tuple
+    state_names: tuple
+    input_names: tuple
+    settings: dict = field(default_factory=dict)
+    diagnostics: dict = field(default_factory=dict)
+    outputs: dict = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        from nhgait.dynamics.reprs import trajectory_repr
+        return trajectory_repr(self)
+
+    def columns(self, columns: str = "q") -> tuple:
+        """(names, (N, c) table) for ``columns`` (see :meth:`to_csv`)."""
+        if columns not in CSV_COLUMNS:
+            raise ModelError([f"unknown columns {columns!r} (choose from {', '.join(CSV_COLUMNS)})"],
+                             title="invalid request")
+        names, blocks = ["t"], [self.t[:, None]]
+        if columns == "outputs":
+            names += list(self.outputs)
+            blocks += [np.asarray(v)[:, None] for v in self.outputs.values()]
+        elif columns == "state":
+            names += list(self.state_names)
+            blocks.append(self.state)
+        else:
+            names += list(self.coordinates)
+            blocks.append(self.q)
+        if columns in ("qdot", "all"):
+            names += [f"{c}_dot" for c in self.coordinates]
+            blocks.append(self.qdot)
+        if columns == "all":
+            names += list(self.input_names)
+            blocks.append(self.u)
+            if self.lam is not None:
+                names += [f"lambda{i + 1}" for i in range(self.lam.shape[1])]
+                blocks.append(self.lam)
+            names += [f"constraint{i + 1}" for i in range(self.constraint_residual.shape[1])]
+            blocks.append(self.constraint_residual)
+            names += ["energy", "work", "energy_balance"]
+            blocks += [self.energy[:, None], self.work[:, None], self.energy_balance[:, None]]
+        return tuple(names), np.hstack(blocks)
+
+    def to_csv(self, path, columns: str = "q", units: dict | None = None) -> None:
+        """Write column ``t`` and then, per ``columns``:
+
+        * ``"q"``: one column per coordinate, named as in the system (``x``, ``y``, ``theta`` …);
+        * ``"qdot"``: q then ``<name>_dot`` velocities;
+        * ``"state"``: the formulation's integrated state (``state_names``);
+        * ``"all"``: q, velocities, inputs, multipliers (``lambda1`` …), constraint residuals
+          (``constraint1`` …), ``energy``, ``work``, ``energy_balance``;
+        * ``"outputs"``: the run's requested outputs.
+
+        ``units``: optional mapping name → unit (e.g. a scene's ``[units]``). When given, every
+        header cell reads ``name [unit]``: t in s, energies in J, a velocity in its coordinate's
+        unit per second, and "SI" for a name the mapping does not cover.
+        """
+        names, table = self.columns(columns)
+        if units is not None:
+            names = [f"{nm} [{_unit(nm, units, self)}]" for nm in names]
+        with open(path, "w", newline="") as fh:
+            writer = csv.writer(fh)
+            writer.writerow(names)
+            writer.writerows([[repr(float(v)) for v in row] for row in table])
+
+
+def _unit(name: str, units: dict, traj) -> str:
+    if name in units:
+        return str(units[name])
+    if name == "t":
+        return "s"
+    if name in ("energy", "work", "energy_balance"):
+        return "J"
+    if name.endswith("_dot") and name[:-4] in units:
+        return f"{units[name[:-4]]}/s"
+    return "SI"
+
+
+# --------------------------------------------------------------------------------------------
+# input checks
+# --------------------------------------------------------------------------------------------
+def _check_request(model, t_span, t_eval, controller, method, dae, stabilization, baumgarte,
+                   rtol, atol, max_steps, singular_tol):
+    """Every problem with the request, as a list of sentences."""
+    system = model.system
+    problems = []
+    try:
+        t0, tf = (float(v) for v in t_span)
+        if not (np.isfinite(t0) and np.isfinite(tf) and tf > t0):
+            problems.append(f"t_span must be increasing and finite, got ({t0:g}, {tf:g})")
+    except (TypeError, ValueError):
+        problems.append(f"t_span must be a pair (t0, tf), got {t_span!r}")
+        t0 = tf = None
+    if method not in METHODS:
+        problems.append(f"unknown method {method!r} (choose from {', '.join(METHODS)})")
+    if dae not in DAE_FORMS:
+        problems.append(f"unknown dae form {dae!r} (choose from {', '.join(DAE_FORMS)})")
+    if stabilization not in STABILIZATIONS:
+        problems.append(f"unknown stabilization {stabilization!r} (None, 'baumgarte' or 'projection')")
+    if model.formulation == "reduced":
+        if dae == "idas":
+            problems.append("dae='idas' applies to the DAE forms (lagrange, hamilton); the reduced "
+                            "form is an ODE")
+        if stabilization is not None:
+            problems.append("stabilization applies to the DAE forms; the reduced ODE satisfies the "
+                            "constraints by construction")
+    if stabilization == "projection" and (dae == "idas" or method in ("CVODES", "auto")):
+        problems.append("stabilization='projection' needs dae='index1' and a scipy or compiled "
+                        "method (the state is projected after every step)")
+    if stabilization == "baumgarte":
+        try:
+            alpha, beta = (float(v) for v in baumgarte)
+            if not (alpha >= 0 and beta >= 0 and np.isfinite(alpha + beta)):
+                problems.append(f"baumgarte = (alpha, beta) must be finite and ≥ 0, got {baumgarte!r}")
+        except (TypeError, ValueError):
+            problems.append(f"baumgarte must be a pair (alpha, beta), got {baumgarte!r}")
+    if not (isinstance(max_steps, (int, np.integer)) and max_steps > 0):
+        problems.append(f"max_steps must be a positive integer, got {max_steps!r}")
+    if not (rtol > 0 and atol > 0):
+        problems.append(f"rtol and atol must be positive, got rtol={rtol!r}, atol={atol!r}")
+    if singular_tol is not None and not (0 <= singular_tol < 1):
+        problems.append(f"singular_tol must be in [0, 1) or None, got {singular_tol!r}")
+    if t_eval is not None and t0 is not None:
+        te = np.asarray(t_eval, dtype=float)
+        span = max(abs(t0), abs(tf), 1.0) * 1e-12
+        if te.ndim != 1 or te.size == 0:
+            problems.append("t_eval must be a non-empty 1-D array")
+        elif not np.all(np.isfinite(te)) or np.any(np.diff(te) <= 0):
+            problems.append("t_eval must be finite and strictly increasing")
+        elif te[0] < t0 - span or te[-1] > tf + span:
+            problems.append(f"t_eval must lie in t_span [{t0:g}, {tf:g}], got [{te[0]:g}, {te[-1]:g}]")
+    if controller is not None:
+        problems += _check_controller(system, controller, t0, tf, dae, method)
+    return problems
+
+
+def _check_controller(system, controller, t0, tf, dae, method):
+    problems = []
+    if not callable(controller):
+        problems.append("controller must be callable as controller(t, q, qdot) -> u")
+    coords = getattr(controller, "system_coordinates", None)
+    if coords is not None and tuple(coords) != tuple(system.coordinates):
+        problems.append(f"controller indexes q as {tuple(coords)}, the system's coordinates "
+                        f"are {tuple(system.coordinates)}")
+    names = getattr(controller, "inputs", None)
+    if names is not None and tuple(names) != tuple(system.inputs):
+        problems.append(f"controller outputs {tuple(names)}, the system's inputs are "
+                        f"{tuple(system.inputs)}")
+    domain = getattr(controller, "domain", None)
+    if domain is not None and t0 is not None and (t0 < domain[0] or tf > domain[1]):
+        problems.append(f"t_span [{t0:g}, {tf:g}] exceeds the controller's domain "
+                        f"[{domain[0]:g}, {domain[1]:g}]")
+    if (dae == "idas" or method == "CVODES") and not hasattr(controller, "casadi"):
+        problems.append(f"{'dae=' + repr(dae) if dae == 'idas' else 'method=' + repr(method)} needs "
+                        "a controller with a casadi(t, q, qdot) method (SUNDIALS evaluates u as a "
+                        "CasADi expression of the state)")
+    return problems
+
+
+#: the problems of each parameter vector given to simulate, per system (dropped with the system)
+CHECKED_PARAMETERS = OwnerMemo("parameter problems per system and parameter vector", limit=256)
+
+
+def _parameter_problems(model, params) -> list:
+    """``System.parameter_problems`` for ``simulate(params=...)`` (remembered per system and
+    parameter vector, :data:`CHECKED_PARAMETERS`): non-finite values, a singular or indefinite
+    kinetic metric, dependent constraints."""
+    system = model.system
+
+    def check():
+        return tuple(system.parameter_problems(params, label="the given params"))
+    try:
+        key = model.numeric.params(params).tobytes()
+    except (ModelError, TypeError, ValueError):   # malformed params: parameter_problems names them
+        return list(check())
+    return list(CHECKED_PARAMETERS.get(system, key, check))
+
+
+def _segments(t0, tf, controller, system=None, params=None):
+    """Integration intervals [(a, b)] split at the controller's breakpoints and at the times a
+    force jumps (``System.force_jump_times``) inside (t0, tf)."""
+    cuts = set()
+    if controller is not None and getattr(controller, "breakpoints", None) is not None:
+        cuts.update(float(b) for b in np.asarray(controller.breakpoints, dtype=float).ravel())
+    if system is not None and hasattr(system, "force_jump_times"):
+        cuts.update(system.force_jump_times(params))
+    points = [t0] + sorted(b for b in cuts if t0 < b < tf) + [tf]
+    return list(zip(points[:-1], points[1:]))
+
+
+# --------------------------------------------------------------------------------------------
+# the driver
+# --------------------------------------------------------------------------------------------
+def simulate(model, t_span, q0, qdot0, *, controller=None, params=None, method: str = "DOP853",
+             rtol: float = 1e-8, atol: float = 1e-10, t_eval=None, dae: str = "index1",
+             stabilization: str | None = None, baumgarte=(1.0, 0.0),
+             max_step: float = np.inf, max_steps: int = 1_000_000,
+             singular_tol: float | None = SINGULAR_EVENT_TOL, outputs=None,
+             quantities: dict | None = None) -> Trajectory:
+    """Simulate a derived formulation from a consistent physical state (q0, q̇0).
+
+    Parameters
+    ----------
+    model : ReducedODE, LagrangianDAE or HamiltonianDAE
+        From :func:`~nhgait.dynamics.derivation.formulations.derive`.
+    t_span : (t0, tf) with tf > t0.
+    q0, qdot0 : (n,) initial coordinates and velocities; q̇0 must satisfy ω(q0)q̇0 = 0 (it is
+        mapped to the formulation's state by :func:`~nhgait.dynamics.derivation.states.to_state`, which
+        raises for an inconsistent or singular state).
+    controller : callable (t, q, q̇) → u (m,), optional
+        See :mod:`.controllers`. None applies u = 0.
+    params : dict or (n_params,) array, optional
+        Parameter values overriding the system's defaults; checked like the defaults (finite,
+        positive-definite kinetic metric).
+    method : one of :data:`METHODS` (see the module docstring); ignored with ``dae="idas"``.
+    rtol, atol : integrator tolerances (SUNDIALS: reltol, abstol).
+    t_eval : (N,) output times in t_span, optional; None reports every accepted step (SUNDIALS:
+        the interval ends).
+    dae : {"index1", "idas"} — how a DAE form is integrated (see the module docstring).
+    stabilization : {None, "baumgarte", "projection"} — constraint stabilisation of the DAE forms.
+    baumgarte : (alpha, beta) — ġ + 2αg + β²∫g = 0 when ``stabilization="baumgarte"``.
+    max_step : largest step of the scipy and compiled solvers.
+    max_steps : cap on accepted steps (SUNDIALS: per output interval); reaching it ends the run
+        with status −2.
+    singular_tol : the run stops (status −4) where the singular-set measure falls below this;
+        None disables the event.
+    outputs : sequence of names, optional — integrate only what they depend on (:mod:`.closure`).
+    quantities : mapping name → sympy expression of (q, q̇, parameters), optional — named
+        quantities that ``outputs`` may refer to (a scene's ``[quantities]``).
+
+    Returns
+    -------
+    Trajectory
+    """
+    problems = _check_request(model, t_span, t_eval, controller, method, dae, stabilization,
+                              baumgarte, rtol, atol, max_steps, singular_tol)
+    resolved = None
+    if outputs is not None and not problems:
+        from .closure import resolve_outputs
+        try:
+            resolved = resolve_outputs(model, tuple(outputs), quantities)
+        except ModelError as err:
+            problems += list(err.problems)
+    if not problems and params is not None:
+        problems += _parameter_problems(model, params)
+    if problems:
+        raise ModelError(problems, title="invalid simulation request")
+    system, num = model.system, model.numeric
+    pv = num.params(params)
+    t0, tf = float(t_span[0]), float(t_span[1])
+    x0 = to_state(model, q0, qdot0, params)
+    segments = _segments(t0, tf, controller, system, dict(zip(num.param_names, pv.tolist())))
+    if controller is not None:
+        with np.errstate(all="ignore"):
+            u0 = np.asarray(controller(t0, np.asarray(q0, float), np.asarray(qdot0, float)), float).ravel()
+        if u0.shape != (len(system.inputs),):
+            raise ModelError([f"controller returned {u0.size} inputs, the system has "
+                              f"{len(system.inputs)} ({', '.join(system.inputs)})"],
+                             title="invalid simulation request")
+
+    start = time.perf_counter()
+    settings = {"method": method, "dae": dae if model.formulation != "reduced" else None,
+                "rtol": rtol, "atol": atol, "stabilization": stabilization,
+                "baumgarte": tuple(float(v) for v in baumgarte) if stabilization == "baumgarte" else None,
+                "max_step": max_step, "max_steps": max_steps, "t_span": (t0, tf),
+                "segments": len(segments), "params": dict(zip(num.param_names, pv.tolist())),
+                "controller": None if controller is None else type(controller).__name__,
+                "singular_tol": singular_tol, "outputs": None if outputs is None else tuple(outputs)}
+    seeds = None
+    if resolved is not None:
+        if dae == "idas" or stabilization == "projection":
+            settings["outputs_note"] = "the dependency closure needs the ODE route; every state integrated"
+        else:
+            seeds = resolved.seeds
+    loop = closed_loop(_integration_model(model, pv, settings), controller, stabilization=stabilization,
+                       baumgarte=baumgarte, seeds=seeds)
+    y0 = np.r_[x0[list(loop.state_index)], [0.0] * loop.has_work, np.zeros(loop.n_int)]
+
+    seg_params = [loop.segment_params(pv, controller, a) for a, _ in segments]
+    request = RunRequest(loop, controller, segments, y0, seg_params, t_eval, rtol, atol, max_step, max_steps,
+                         singular_tol, stabilization, baumgarte)
+    route = "IDAS" if dae == "idas" and model.formulation != "reduced" else method
+    run, method_name, extra = ROUTES[route](request, route, settings)
+    te = None if t_eval is None else np.asarray(t_eval, dtype=float)
+    with_initial = te is None or abs(te[0] - t0) <= 1e-12 * max(1.0, abs(t0))
+    return _assemble(model, request, run, method_name, start, settings, extra, resolved, quantities, pv,
+                     with_initial)
+
+
+#: per compiled model (model.numeric, dropped with it): parameter values → (the model
+#: specialised to them, the route taken)
+SPECIALISED = OwnerMemo("reduced models specialised to parameter values, per compiled model")
+
+
+def _integration_model(model, pv, settings):
+    """The model whose functions the run integrates. The reduced ODE is specialised to these
+    parameter values (:func:`~nhgait.dynamics.numerics.specialisation.specialise`: the values
+    substituted, the trigonometric normal form taken, checked against the general functions,
+    cached on disk), which leaves far fewer operations per evaluation (the snakeboard's ż: 108
+    instead of 313); the DAE forms are integrated as derived. ``settings["specialised"]`` says
+    which route was taken."""
+    if model.formulation != "reduced":
+        return model
+
+    def specialised_view():           # one view per model and values: its closed loop is reused
+        from ..numerics.specialisation import specialise
+        specialised = specialise(model, pv)
+        return dataclasses.replace(model, compiled=specialised.numeric), specialised.route
+    view, route = SPECIALISED.get(model.numeric, tuple(float(v) for v in pv), specialised_view)
+    settings["specialised"] = route
+    return view
+
+
+# --------------------------------------------------------------------------------------------
+# routes: one function per integration route, all fed by one RunRequest
+# --------------------------------------------------------------------------------------------
+def _route_scipy(request: RunRequest, method: str, settings: dict) -> tuple:
+    run = integrate_scipy(request, method, projection=request.stabilization == "projection")
+    return run, method, {}
+
+
+def _route_cvodes(request: RunRequest, method: str, settings: dict) -> tuple:
+    return integrate_sundials(request, "cvodes"), "CVODES", {}
+
+
+def _route_idas(request: RunRequest, method: str, settings: dict) -> tuple:
+    t0 = request.segments[0][0]
+    lam0 = _outputs(request.loop, request.controller, None, [t0], [t0], [request.y0], [0],
+                    request.seg_params)["lam"][0]
+    return integrate_sundials(request, "idas", lam0), "IDAS", {}
+
+
+def _route_compiled(request: RunRequest, method: str, settings: dict) -> tuple:
+    """The compiled explicit Runge–Kutta route ("compiled", "compiled-DOPRI5"; "auto" stops on
+    stiffness and switches to an implicit method); scipy DOP853 when no library can be built."""
+    extra = {}
+    scheme = COMPILED_METHODS.get(method, "DOP853")
+    library, reason = _library(request.loop, request.python_inputs, request.stabilization == "projection")
+    auto = method == "auto"
+    if library is None:
+        settings["fallback"] = f"{reason}; integrated with scipy DOP853"
+        if "compiler" in reason:
+            warnings.warn(f"method={method!r}: {settings['fallback']}", stacklevel=3)
+        if not auto:
+            return integrate_scipy(request, "DOP853", projection=request.stabilization == "projection"), "DOP853", extra
+        run = integrate_scipy(request, "DOP853", stop_on_stiff=True)
+        if run.message == "stiff":
+            return _switch_to_implicit(request, run, settings, extra)
+        return run, "DOP853", extra
+    extra["library"] = library
+    extra["compile_time_s"] = library.compile_time_s
+    run = integrate_compiled(request, library, scheme, stop_on_stiff=auto)
+    if auto and run.message == "stiff":
+        extra.pop("library")
+        return _switch_to_implicit(request, run, settings, extra)
+    return run, f"compiled {scheme}", extra
+
+
+#: route name → route(request, method, settings) → (Run, method name, extra diagnostics)
+ROUTES = {**{name: _route_scipy for name in SCIPY_METHODS}, "CVODES": _route_cvodes, "IDAS": _route_idas,
+          **{name: _route_compiled for name in COMPILED_METHODS}, "auto": _route_compiled}
+
+
+def _switch_to_implicit(request: RunRequest, run, settings: dict, extra: dict) -> tuple:
+    implicit = "Radau" if request.python_inputs else "CVODES"
+    settings["auto"] = (f"DOP853 detected stiffness at t = {run.t_stiff:.6g} (h|λ| "
+                        f"up to {run.h_lambda:.3g} for 15 steps: the step is set by stability) "
+                        f"after {run.nfev} evaluations; redone with {implicit}")
+    if implicit == "CVODES":
+        new = integrate_sundials(request, "cvodes")
+    else:
+        new = integrate_scipy(request, "Radau")
+    new.nfev += run.nfev
+    new.t_stiff, new.h_lambda = run.t_stiff, run.h_lambda
+    return new, implicit, extra
+
+
+def _library(loop, explicit_u, projection=False):
+    """(CompiledLoop, None) or (None, the reason the compiled route cannot run)."""
+    if explicit_u:
+        return None, ("the controller has no casadi(t, q, qdot) method, so it cannot be compiled "
+                      "into the closed loop")
+    from .compiled import CompilerUnavailable
+    try:
+        return loop.compiled(projection), None
+    except CompilerUnavailable as exc:
+        return None, f"no usable C compiler ({exc})"
+
+
+# --------------------------------------------------------------------------------------------
+# outputs
+# --------------------------------------------------------------------------------------------
+_BLOCKS = ("q", "qdot", "lam", "g", "energy", "u", "measure", "metric", "gram")
+
+
+def _outputs(loop, controller, library, t, t_c, y, seg, seg_params) -> dict:
+    """The output blocks of the closed loop at N points, each (N, size)."""
+    N = len(t)
+    Y = np.array(y, dtype=float).reshape(N, loop.n_y)
+    P = np.array([seg_params[j] for j in seg], dtype=float).reshape(N, loop.n_p)
+    if library is not None:
+        return dict(zip(_BLOCKS, library.outputs(t, t_c, Y, P)))
+    T, Tc = np.array(t, float)[None, :], np.array(t_c, float)[None, :]
+    if controller is not None and not (loop.symbolic_u or loop.segment_u):
+        qdot = np.asarray(loop.qdot.map(N)(Y.T, P.T)).reshape(-1, N)
+        with np.errstate(all="ignore"):
+            U = np.array([np.asarray(controller(tc, Y[i, :loop.n_q], qdot[:, i]), float).ravel()
+                          for i, tc in enumerate(t_c)]).T
+        res = loop.outputs.map(N)(T, Tc, Y.T, U, P.T)
+    else:
+        res = loop.outputs.map(N)(T, Tc, Y.T, P.T)
+    return {k: np.asarray(v).T.reshape(N, -1) for k, v in zip(_BLOCKS, res)}
+
+
+def _first_nonfinite_row(out: dict, modelled: dict) -> int | None:
+    """First output row with a non-finite value in a column that is modelled."""
+    rows = []
+    for key in ("q", "qdot", "lam", "g", "energy", "u"):
+        block = out[key]
+        if block.size:
+            bad = (~np.isfinite(block[:, modelled[key]])).any(axis=1)
+            if bad.any():
+                rows.append(int(np.flatnonzero(bad)[0]))
+    return min(rows) if rows else None
+
+
+def _assemble(model, request: RunRequest, run, method_name, start, settings, extra, resolved, quantities, pv,
+              with_initial) -> Trajectory:
+    """Outputs, diagnosis of a failure, diagnostics → :class:`Trajectory`."""
+    loop, controller, seg_params, segments, y0 = (request.loop, request.controller, request.seg_params,
+                                                  request.segments, request.y0)
+    singular_tol = request.event_tol
+    system, t0 = model.system, segments[0][0]
+    library = extra.pop("library", None)
+    # outputs at the initial state first: E(t0) and which columns the run models at all
+    pts_t = [t0] + run.t
+    pts_tc = [min(t0, left_of(segments[0][1]))] + run.t_c
+    out = _outputs(loop, controller, library, pts_t, pts_tc, [y0] + run.y, [0] + run.seg, seg_params)
+    modelled = {k: np.isfinite(v[0]) for k, v in out.items()}
+    if run.status == FINISHED:
+        row = _first_nonfinite_row({k: v[1:] for k, v in out.items()}, modelled)
+        if row is not None:
+            run.fail(NONFINITE, run.t[row], "")
+            run.t, run.t_c, run.seg, run.y = run.t[:row], run.t_c[:row], run.seg[:row], run.y[:row]
+            out = {k: v[:row + 1] for k, v in out.items()}
+    if run.status in (FAILED, MAX_STEPS, NONFINITE):
+        _diagnose(model, loop, controller, run, seg_params, segments, y0)
+    if run.status == SINGULAR:
+        run.message = (f"reached the singular set at t = {run.t_fail:.9g}: singular-set measure "
+                       f"below {singular_tol:g} ({_singular_text(model)})"
+                       + (f"; {run.message}" if run.message else ""))
+    energy0 = float(out["energy"][0, 0])
+    if with_initial:
+        run.t, run.t_c, run.seg, run.y = pts_t[:1] + run.t, pts_tc[:1] + run.t_c, [0] + run.seg, [y0] + run.y
+        if run.lam is not None:
+            run.lam = [out["lam"][0]] + run.lam
+    else:
+        out = {k: v[1:] for k, v in out.items()}
+    wall = time.perf_counter() - start
+    N = len(run.t)
+    Y = np.array(run.y, dtype=float).reshape(N, loop.n_y)
+    n_xs = len(loop.state_index)
+    work = Y[:, n_xs] if loop.has_work else np.full(N, np.nan)
+    energy = out["energy"].ravel()
+    lam = None
+    if model.formulation != "reduced":
+        lam = np.array(run.lam).reshape(N, -1) if run.lam is not None else out["lam"]
+    diagnostics = _diagnostics(model, loop, run, out, extra)
+    traj_outputs = _named_outputs(model, loop, resolved, quantities, out, Y, pv)
+    arrays = dict(t=np.array(run.t, dtype=float), q=out["q"], qdot=out["qdot"], state=Y[:, :n_xs],
+                  u=out["u"], lam=lam, constraint_residual=out["g"], energy=energy, work=work,
+                  energy_balance=energy - energy0 - work)
+    for a in list(arrays.values()) + list(traj_outputs.values()):
+        if a is not None:
+            a.setflags(write=False)
+    settings["method"] = method_name
+    return Trajectory(**arrays, nfev=run.nfev, njev=run.njev, n_steps=run.n_steps,
+                      wall_time_s=wall, success=run.status == FINISHED, status=run.status,
+                      message=run.message, formulation=model.formulation, method=method_name,
+                      coordinates=tuple(system.coordinates),
+                      state_names=tuple(model.state_names[i] for i in loop.state_index),
+                      input_names=tuple(system.inputs), settings=settings,
+                      diagnostics=diagnostics, outputs=traj_outputs)
+
+
+def _singular_text(model) -> str:
+    sset = getattr(model, "singular_set", None)
+    if model.formulation == "reduced" and sset:
+        return "singular set: " + " or ".join(f"{e} = 0" for e in sset)
+    if model.formulation != "reduced":
+        return "ω M⁻¹ ωᵀ loses rank: the constraints become dependent"
+    return "the reduction is singular there"
+
+
+def _diagnostics(model, loop, run, out, extra) -> dict:
+    d = dict(extra)
+    d["integrated_states"] = tuple(model.state_names[i] for i in loop.state_index)
+    d["state_count"] = (len(loop.state_index), loop.n_x)
+    if out["measure"].size:
+        d["min_singular_measure"] = float(np.nanmin(out["measure"])) if np.isfinite(out["measure"]).any() else None
+    d["max_cond_metric"] = _max_cond(out["metric"])
+    if model.formulation != "reduced" and out["gram"].size:
+        d["max_cond_gram"] = _max_cond(out["gram"])
+    if run.status == SINGULAR:
+        d["t_event"] = run.t_fail
+    if run.h_lambda:
+        d["h_lambda_max"] = run.h_lambda
+    if run.t_stiff is not None:
+        d["stiff_at"] = run.t_stiff
+        d["recommendation"] = (f"stiffness detected at t = {run.t_stiff:.6g} (h|λ| up to "
+                               f"{run.h_lambda:.3g}): the explicit method's step is limited by "
+                               "stability, not accuracy; use method='CVODES', 'Radau' or 'BDF' "
+                               "(or method='auto', which switches by itself)")
+    return d
+
+
+def _max_cond(block) -> float | None:
+    """Largest 2-norm condition number of the (k, k) matrices stored column-major per row."""
+    if not block.size:
+        return None
+    k = int(round(np.sqrt(block.shape[1])))
+    rows = block[np.all(np.isfinite(block), axis=1)]
+    if not rows.size:
+        return None
+    with np.errstate(all="ignore"):
+        return float(np.max(np.linalg.cond(rows.reshape(-1, k, k).transpose(0, 2, 1))))
+
+
+def _named_outputs(model, loop, resolved, quantities, out, Y, pv) -> dict:
+    if resolved is None:
+        return {}
+    from .closure import expand_outputs
+    coords = list(model.system.coordinates)
+    names_x = list(model.state_names)
+    result = {}
+    for name in expand_outputs(model, resolved.names):
+        if name in names_x and names_x.index(name) in loop.state_index:
+            result[name] = Y[:, loop.state_index.index(names_x.index(name))].copy()
+        elif name in coords:
+            result[name] = out["q"][:, coords.index(name)].copy()
+        elif name.endswith("_dot") and name[:-4] in coords:
+            result[name] = out["qdot"][:, coords.index(name[:-4])].copy()
+        elif quantities and name in quantities:
+            from ..derivation.quantities import quantity_function
+            f = quantity_function(model.system, quantities)
+            N = out["q"].shape[0]
+            values = np.asarray(f.map(N)(out["q"].T, out["qdot"].T, np.repeat(pv[:, None], N, 1)))
+            result[name] = values[list(quantities).index(name)].copy()
+    return result
+
+
+# --------------------------------------------------------------------------------------------
+# what produced a non-finite value
+# --------------------------------------------------------------------------------------------
+def _diagnose(model, loop, controller, run, seg_params, segments, y0) -> None:
+    """Name the time and the quantity behind a failure; a failure caused by a non-finite value
+    becomes status NONFINITE."""
+    t = run.t_fail if run.t_fail is not None else (run.t[-1] if run.t else segments[0][0])
+    j = run.seg[-1] if run.seg else 0
+    y = run.y_fail if run.y_fail is not None else (run.y[-1] if run.y else y0)
+    if run.y_fail is not None and run.t_bad is not None:
+        j = int(np.searchsorted([b for _, b in segments], run.t_bad))
+        j = min(j, len(segments) - 1)
+    found = None
+    probes = [t, np.nextafter(t, np.inf), t + 1e-9 * max(1.0, abs(t)), t + 1e-6 * max(1.0, abs(t))]
+    probes += [] if run.t_bad is None else [run.t_bad]
+    for tt in probes:
+        if tt > segments[-1][1]:
+            break
+        found = _nonfinite_source(model, loop, controller, float(tt), y, seg_params[j],
+                                  left_of(segments[j][1]), run.bad)
+        if found:
+            break
+    if found:
+        run.status = NONFINITE
+        run.message = f"stopped at t = {t:.9g}: {found}"
+    elif not run.message:
+        run.message = f"integration failed at t = {t:.9g}"
+
+
+def _nonfinite_source(model, loop, controller, t, y, p, t_hi, bad) -> str | None:
+    """A sentence naming the first non-finite quantity at (t, y), or None."""
+    system = model.system
+    if _bad(y) is not None:
+        return f"the state entry {_y_name(model, loop, _bad(y))} is non-finite"
+    tc = min(t, t_hi)
+    qdot = np.asarray(loop.qdot(y, p)).ravel()
+    q = _full_q(model, loop, y)
+    with np.errstate(all="ignore"):
+        if controller is not None:
+            if loop.symbolic_u or loop.segment_u:
+                u = np.asarray(loop.outputs(t, tc, y, p)[5]).ravel()
+            else:
+                u = np.asarray(controller(tc, q, qdot), dtype=float).ravel()
+            if _bad(u) is not None:
+                name = system.inputs[_bad(u)]
+                return (f"the controller {type(controller).__name__} returned a non-finite input "
+                        f"{name} = {u[_bad(u)]} at t = {t:.9g}")
+        else:
+            u = np.zeros(len(system.inputs))
+        tau = _force_values(system, t, q, qdot, u, p[:loop.n_params])
+    if tau is not None and _bad(tau) is not None:
+        i = _bad(tau)
+        return (f"the force on {system.coordinates[i]}, τ = {system.tau[i]}, is {tau[i]} at "
+                f"t = {t:.9g}")
+    args = [t, tc, y] + ([u] if controller is not None and not (loop.symbolic_u or loop.segment_u) else []) + [p]
+    with np.errstate(all="ignore"):
+        ydot = np.asarray(loop.rhs(*args)).ravel()
+    if _bad(ydot) is not None or bad is not None:
+        i = _bad(ydot) if _bad(ydot) is not None else bad
+        return (f"the right-hand side d/dt {_y_name(model, loop, i)} is non-finite at t = {t:.9g}"
+                + (" (the state is near the singular set)" if loop.event is not None and
+                   float(np.asarray(loop.event(y, np.zeros_like(y), p)[0]).ravel()[0]) < 1e-6
+                   else ""))
+    return None
+
+
+def _bad(v) -> int | None:
+    bad = np.flatnonzero(~np.isfinite(np.asarray(v, dtype=float).ravel()))
+    return int(bad[0]) if bad.size else None
+
+
+def _y_name(model, loop, i) -> str:
+    names = [model.state_names[k] for k in loop.state_index] + ["work"] * loop.has_work
+    names += [f"integral of constraint {k + 1}" for k in range(loop.n_int)]
+    return names[i] if i < len(names) else f"y[{i}]"
+
+
+def _full_q(model, loop, y) -> np.ndarray:
+    q = np.full(loop.n_q, np.nan)
+    for j, i in enumerate(loop.state_index):
+        if i < loop.n_q:
+            q[i] = y[j]
+    return q
+
+
+def _force_values(system, t, q, qdot, u, params):
+    """τ(t, q, q̇, u) from the system's force expressions (evaluated only to explain a failure)."""
+    from ..numerics.bridge import to_casadi
+    from ..derivation.system import TIME
+    syms = [TIME] + list(system.q) + list(system.q_dot) + list(system.input_symbols) + list(system.param_symbols)
+    values = [t] + list(q) + list(qdot) + list(u) + list(params)
+    try:
+        sx = [ca.SX.sym(f"a{i}") for i in range(len(syms))]
+        f = ca.Function("tau", sx, to_casadi(list(system.tau), syms, sx))
+        return np.array([float(v) for v in f(*values)])
+    except Exception:  # a diagnostic must never replace the run's own message
+        return None

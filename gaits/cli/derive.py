@@ -1,0 +1,53 @@
+"""``nhgait derive <scene.toml | built-in> ...``: print the equations of motion (registered by
+:mod:`nhgait.gaits.cli.main`). No symbolic work here: the models print themselves."""
+from __future__ import annotations
+
+import time
+
+__all__ = ["add_derive_parser", "cmd_derive"]
+
+
+def cmd_derive(args) -> int:
+    from nhgait.dynamics import derive
+    from nhgait.dynamics.derivation.scene import load_scene
+    from nhgait.dynamics.derivation.symmetry import symmetry_test
+    scene = load_scene(args.scene)
+    system = scene.system
+    forms = ["reduced", "lagrange", "hamilton"] if args.formulation == "all" else [args.formulation]
+    for form in forms:
+        t0 = time.perf_counter()
+        model = derive(system, form, version=args.version, use_cache=not args.no_cache)
+        dt = time.perf_counter() - t0
+        print(model.to_text(cse=args.cse))
+        print(f"  ({form}: {dt:.3f} s{', no cache' if args.no_cache else ''})\n")
+        if form == "reduced":
+            if args.table:
+                print(model.symmetry.table_markdown() + "\n")
+            if args.checks:
+                print(model.checks_text())
+            if args.steps == "markdown":
+                print(model.steps.to_markdown())
+            elif args.steps == "latex":
+                print(model.steps.to_latex())
+    if args.table and "reduced" not in forms:
+        print(symmetry_test(system).table_markdown())
+    return 0
+
+
+def add_derive_parser(subparsers):
+    """Add the ``derive`` subcommand to an argparse ``subparsers`` object."""
+    p = subparsers.add_parser("derive", help="derive and print the equations of motion")
+    p.add_argument("scene", help="scene file (.toml) or built-in name (unicycle, snakeboard, ...)")
+    p.add_argument("--formulation", choices=["reduced", "lagrange", "hamilton", "all"], default="reduced")
+    p.add_argument("--steps", choices=["latex", "markdown"], help="also print every step of the 20-step method")
+    p.add_argument("--table", action="store_true", help="print the full-symmetry-group table (thesis Table 3.1)")
+    p.add_argument("--checks", action="store_true",
+                   help="Jacobi/holonomy test, Table 2.1 class, the (q, q̇) → state map and the singular set")
+    p.add_argument("--version", choices=["A", "B"], help="g = identity (A) or SE(2)-type (B)")
+    cse = p.add_mutually_exclusive_group()
+    cse.add_argument("--cse", dest="cse", action="store_true", default=None,
+                     help="name repeated sub-expressions once (w1 = …; the default for long equations)")
+    cse.add_argument("--no-cse", dest="cse", action="store_false", help="print every equation in full")
+    p.add_argument("--no-cache", action="store_true", help="derive afresh; do not read or write the cache")
+    p.set_defaults(func=cmd_derive)
+    return p

@@ -1,0 +1,212 @@
+"""The package's shape: every module imports, imports only downward, the module import graph
+has no cycle, no module imports another's private names, and the ocp and gaits layers load no
+sympy. The graph is read from the source with ``ast`` (imports inside functions count too: a
+lazy import is still a dependency), so these tests fail on the first edge that breaks a rule,
+naming it."""
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+#: source folder → package name (pyproject's package-dir)
+FOLDERS = {"api": "nhgait", "dynamics": "nhgait.dynamics", "ocp": "nhgait.ocp", "gaits": "nhgait.gaits"}
+
+#: layers, lowest first: a module may import its own layer's modules (the module graph stays
+#: acyclic) and any lower layer, never a higher one. Derivation and numerics share a layer:
+#: derived models compile themselves, the compiler reads the derivation's symbols.
+LAYERS = (
+    ("nhgait",),
+    ("nhgait.dynamics",),                                   # errors, progress, memo
+    ("nhgait.dynamics.derivation", "nhgait.dynamics.numerics"),
+    ("nhgait.dynamics.simulation",),
+    ("nhgait.ocp",),
+    ("nhgait.gaits",),
+    ("nhgait.gaits.sweeps", "nhgait.gaits.bench"),
+    ("nhgait.gaits.cli",),
+)
+
+
+def modules(folders: dict = FOLDERS, root: Path = ROOT) -> dict:
+    """Module name → source path of every module under ``folders``."""
+    found = {}
+    for folder, package in folders.items():
+        for path in (root / folder).rglob("*.py"):
+            parts = path.relative_to(root / folder).with_suffix("").parts
+            name = ".".join([package, *parts])
+            found[name.removesuffix(".__init__")] = path
+    return found
+
+
+def import_edges(found: dict) -> tuple[dict, list]:
+    """(module → set of modules it imports, [(module, imported module, private name)]).
+
+    ``from package import submodule`` is an edge to the submodule; any other name imported
+    from a module is an edge to that module."""
+    edges, private = {}, []
+    for name, path in found.items():
+        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        targets = set()
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                    source = ".".join(base + ([node.module] if node.module else []))
+                else:
+                    source = node.module or ""
+                for alias in node.names:
+                    if f"{source}.{alias.name}" in found:
+                        targets.add(f"{source}.{alias.name}")
+                    elif source in found:
+                        targets.add(source)
+                        if alias.name.startswith("_") and not alias.name.startswith("__"):
+                            private.append((name, source, alias.name))
+            elif isinstance(node, ast.Import):
+                targets.update(alias.name for alias in node.names if alias.name in found)
+        targets.discard(name)
+        edges[name] = targets
+    return edges, private
+
+
+def cycles(edges: dict) -> list:
+    """The strongly connected components with more than one module (Tarjan), each sorted."""
+    index, low, stack, on_stack, found = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(edges.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in sorted(edges):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def layer_of(module: str) -> tuple[int, str]:
+    """(layer index, package) of ``module``: the longest package of :data:`LAYERS` it is in."""
+    best = None
+    for rank, packages in enumerate(LAYERS):
+        for package in packages:
+            if module == package or module.startswith(package + "."):
+                if best is None or len(package) > len(best[1]):
+                    best = (rank, package)
+    return best
+
+
+def upward_edges(edges: dict) -> list:
+    return sorted((a, b) for a, targets in edges.items() for b in targets if layer_of(b)[0] > layer_of(a)[0])
+
+
+@pytest.fixture(scope="module")
+def graph():
+    return import_edges(modules())
+
+
+def test_the_module_graph_has_no_cycle(graph):
+    edges, _ = graph
+    assert len(edges) > 70                      # every module was read
+    assert cycles(edges) == []
+
+
+def test_layers_import_downward(graph):
+    edges, _ = graph
+    assert upward_edges(edges) == []
+
+
+def test_no_module_imports_another_modules_private_names(graph):
+    _, private = graph
+    assert private == []
+
+
+def test_the_checks_find_a_cycle_an_upward_import_and_a_private_name(tmp_path):
+    """The checkers on a small package with one of each defect: each is found and named."""
+    pkg = tmp_path / "gaits"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("from .b import helper\n")
+    (pkg / "b.py").write_text("def helper():\n    from .a import _x\n")
+    (pkg / "c.py").write_text("def f():\n    from nhgait.gaits.cli import main\n")
+    found = modules({"gaits": "nhgait.gaits"}, tmp_path)
+    found["nhgait.gaits.cli"] = pkg / "__init__.py"          # a module of the top layer
+    edges, private = import_edges(found)
+    assert cycles(edges) == [["nhgait.gaits.a", "nhgait.gaits.b"]]
+    assert private == [("nhgait.gaits.b", "nhgait.gaits.a", "_x")]
+    assert upward_edges(edges) == [("nhgait.gaits.c", "nhgait.gaits.cli")]
+
+
+_IMPORT_ALL = """
+import importlib, sys
+names = sys.argv[1:]
+first_sympy = None
+for name in names:
+    importlib.import_module(name)
+    if first_sympy is None and "sympy" in sys.modules:
+        first_sympy = name
+print(first_sympy)
+"""
+
+
+def test_ocp_and_gaits_modules_import_without_sympy():
+    """Every module of ocp and gaits, imported in one fresh process: none loads sympy."""
+    names = sorted(m for m in modules() if m.startswith(("nhgait.ocp", "nhgait.gaits")))
+    out = subprocess.run([sys.executable, "-c", _IMPORT_ALL, *names], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "None", f"{out.stdout.strip()} loads sympy at import"
+
+
+def test_every_module_and_public_name_imports():
+    """Every module imports, and every lazily exported public name resolves."""
+    code = _IMPORT_ALL + """
+for package in ("nhgait.dynamics", "nhgait.ocp", "nhgait.gaits"):
+    module = importlib.import_module(package)
+    for name in module.__all__:
+        getattr(module, name)
+print("exports ok")
+"""
+    out = subprocess.run([sys.executable, "-c", code, *sorted(modules())], capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split()[-2:] == ["exports", "ok"]
+
+
+def test_derivation_results_are_frozen():
+    """Every dataclass of the derivation (systems, the steps' results, the models) is frozen:
+    no step fills in an object another step made."""
+    code = """
+import dataclasses, importlib, inspect, pkgutil
+import nhgait.dynamics.derivation as package
+found, mutable = 0, []
+for info in pkgutil.walk_packages(package.__path__, package.__name__ + "."):
+    module = importlib.import_module(info.name)
+    for name, cls in vars(module).items():
+        if inspect.isclass(cls) and dataclasses.is_dataclass(cls) and cls.__module__ == module.__name__:
+            found += 1
+            if not cls.__dataclass_params__.frozen:
+                mutable.append(f"{module.__name__}.{name}")
+print(found, mutable)
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    found, _, mutable = out.stdout.strip().partition(" ")
+    assert int(found) >= 15 and mutable == "[]", out.stdout
