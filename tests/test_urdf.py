@@ -18,14 +18,6 @@ from nhgait.dynamics.scene import load_scene, scene_from_text
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
-def _numeric(system):
-    args = [system.q, system.q_dot]
-    return (sp.lambdify([system.q], system.mass_matrix(), "numpy"),
-            sp.lambdify([system.q], system.potential(), "numpy"),
-            sp.lambdify([system.q], system.omega(), "numpy"),
-            sp.lambdify([sp.Symbol("t", real=True), *args, system.input_symbols], list(system.tau), "numpy"))
-
-
 def _subs(system):
     return {s: v for s, v in system.param_subs().items()}
 
@@ -171,3 +163,52 @@ def test_urdf_scene_text_resolves_relative_to_its_source():
     text = (EXAMPLES / "roller_racer_urdf.toml").read_text()
     scene = scene_from_text(text, str(EXAMPLES / "roller_racer_urdf.toml"))
     assert scene.system.coordinates == ("x", "y", "theta", "phi")
+
+
+# ------------------------------------------------------------------ TIAGo (example-robot-data)
+def _tiago_scene(name):
+    scene_path = EXAMPLES / name
+    from nhgait.dynamics.urdf.builder import resolve_path
+    if not resolve_path("example-robot-data:tiago_description/robots/tiago.urdf", EXAMPLES).is_file():
+        pytest.skip("example-robot-data is not installed (pip install 'nhgait[pinocchio]')")
+    return scene_path
+
+
+def test_tiago_parallel_park_is_planned_within_its_limits(tmp_path, capsys):
+    from nhgait.gaits.cli import main
+    out = tmp_path / "tiago"
+    code = main(["plan", str(_tiago_scene("tiago_park.toml")), "--intervals", "30", "--no-jit", "--no-gif",
+                 "--quiet", "--out", str(out)])
+    assert code == 0, capsys.readouterr().out
+    import json
+    data = json.loads((out / "solution.json").read_text())
+    trajectory = data["trajectory"]
+    q, q_dot = np.array(trajectory["q"]), np.array(trajectory["qdot"])
+    np.testing.assert_allclose(q[-1, :3], [0.0, 0.5, 0.0], atol=1e-7)
+    np.testing.assert_allclose(q_dot[[0, -1]], 0.0, atol=1e-7)
+    for values in trajectory["controls"].values():           # TIAGo's URDF: effort="6.0"
+        assert np.max(np.abs(values)) <= 6.0 + 1e-6
+    # the wheels roll (TIAGo's URDF: wheels at y = ±0.2022 m, radius 0.0985 m): at every node
+    # u ∓ 0.2022 θ̇ = 0.0985 φ̇ and the base does not slip sideways
+    theta = q[:, 2]
+    u = np.cos(theta) * q_dot[:, 0] + np.sin(theta) * q_dot[:, 1]
+    w = -np.sin(theta) * q_dot[:, 0] + np.cos(theta) * q_dot[:, 1]
+    np.testing.assert_allclose(u - 0.2022 * q_dot[:, 2], 0.0985 * q_dot[:, 3], atol=1e-9)
+    np.testing.assert_allclose(u + 0.2022 * q_dot[:, 2], 0.0985 * q_dot[:, 4], atol=1e-9)
+    np.testing.assert_allclose(w, 0.0, atol=1e-9)
+
+
+def test_tiago_arm_swing_reduced_against_lagrange_dae():
+    """The shoulder swings, the free wheels let the base turn and roll: the reduced ODE and the
+    Lagrange DAE (a second formulation, integrated at tighter tolerance) give the same run."""
+    scene = load_scene(_tiago_scene("tiago_arm.toml"))
+    spec = scene.simulation
+    runs = {}
+    for form, rtol in (("reduced", 1e-10), ("lagrange", 1e-12)):
+        traj = simulate(derive(scene.system, form), (spec.t0, spec.t_final), spec.q0, spec.qdot0,
+                        controller=spec.controller, rtol=rtol, atol=rtol * 1e-2, t_eval=spec.t_eval)
+        assert traj.success, traj.message
+        runs[form] = traj
+    assert (scene.system.n, scene.system.k) == (6, 3)
+    np.testing.assert_allclose(runs["reduced"].q, runs["lagrange"].q, rtol=0, atol=1e-9)
+    assert abs(runs["reduced"].q[-1, 2]) > 0.1 and np.hypot(*runs["reduced"].q[-1, :2]) > 0.1  # the base moved
