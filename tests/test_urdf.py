@@ -212,3 +212,17 @@ def test_tiago_arm_swing_reduced_against_lagrange_dae():
     assert (scene.system.n, scene.system.k) == (6, 3)
     np.testing.assert_allclose(runs["reduced"].q, runs["lagrange"].q, rtol=0, atol=1e-9)
     assert abs(runs["reduced"].q[-1, 2]) > 0.1 and np.hypot(*runs["reduced"].q[-1, :2]) > 0.1  # the base moved
+
+
+def test_canonical_trig_form_applies_the_identities():
+    from nhgait.dynamics.urdf.fourier import canonical_trig
+    a, b, s = sp.symbols("a b s", real=True)
+    assert canonical_trig(sp.sin(a) ** 2 + sp.cos(a) ** 2) == 1
+    assert canonical_trig(sp.sin(a) * sp.cos(b) + sp.cos(a) * sp.sin(b)) == sp.sin(a + b)
+    assert canonical_trig(2 * s * sp.sin(a) * sp.cos(a)) == s * sp.sin(2 * a)
+    assert canonical_trig(sp.cos(a - b) - sp.cos(b - a)) == 0
+    rng = np.random.default_rng(1)
+    expr = (sp.cos(a) + 0.3 * s * sp.sin(2 * b - a)) ** 3 * sp.sin(a + 0.5)
+    f, g = (sp.lambdify([a, b, s], e) for e in (expr, canonical_trig(expr)))
+    for values in rng.uniform(-3, 3, (10, 3)):
+        assert g(*values) == pytest.approx(f(*values), abs=1e-13)

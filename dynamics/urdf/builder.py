@@ -191,9 +191,14 @@ def _build(robot, root, spec, table, problems, source) -> UrdfSystem:
     coordinates = {name: i for i, name in enumerate(spec["joints"])}
     bodies = build_bodies(robot, root, coordinates, spec["locked"])
     kin = energy.body_kinematics(bodies, q[3:])
-    K = energy.metric_in_nu(bodies, kin)
-    M = energy.metric_in_qdot(K, q[2], sum(b.mass for b in bodies))
     V = energy.potential(bodies, kin, float(table.get("gravity", 9.81)))
+    if energy.expansion_size(kin) <= energy.EXPANSION_BUDGET:
+        K = energy.metric_in_nu(bodies, kin)
+        L = energy.lagrangian(energy.metric_in_qdot(K, q[2], sum(b.mass for b in bodies)), V, q_dot)
+    else:
+        c, s = sp.cos(q[2]), sp.sin(q[2])
+        nu = [c * q_dot[0] + s * q_dot[1], -s * q_dot[0] + c * q_dot[1]] + q_dot[2:]
+        L = energy.nested_kinetic_energy(bodies, kin, nu) - V
     rows = _wheel_rows(robot, bodies, kin, spec, q, problems)
     if problems:
         raise ModelError(problems, title=f"invalid scene {source}")
@@ -206,7 +211,7 @@ def _build(robot, root, spec, table, problems, source) -> UrdfSystem:
         forces[name] = value if name not in forces else f"{forces[name]} + ({value})"
     from ..system import System
     try:
-        system = System(coordinates=names, lagrangian=energy.lagrangian(M, V, q_dot),
+        system = System(coordinates=names, lagrangian=L,
                         constraints=[exprs[i] for i in kept], forces=forces,
                         parameters=table.get("parameters", {}),
                         inputs=list(spec["inputs"].values()) if spec["inputs"] or "forces" not in table else None,

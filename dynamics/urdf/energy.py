@@ -19,7 +19,8 @@ The uu and ww entries of K are the total mass and the uw entry is 0 (a rotation 
 |v_root|²), so in q̇ the metric is M = Bᵀ K B with B(θ) the map q̇ → ν, and its xx, yy entries
 are the total mass exactly. V = g Σ_b m_b z_b with z_b the height of body b's centre of mass
 above the root frame's z = 0 plane (the ground). Every entry is simplified on its own
-(expanded, terms below 1e-13 of the largest coefficient dropped, ``trigsimp``).
+(in the canonical form of :mod:`.fourier`: products of sines and cosines written as sums,
+terms below 1e-13 of the largest coefficient dropped).
 """
 from __future__ import annotations
 
@@ -28,10 +29,15 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
+from .fourier import canonical_trig
+
 #: relative size below which a numeric coefficient is rounding noise (dropped or snapped)
 NOISE = 1e-13
 #: entries of constant rotation matrices this close to 0 or ±1 are taken as exact
 SNAP = 1e-10
+#: expand the metric entry by entry up to this :func:`expansion_size` (about 2 s); larger trees
+#: keep T as a sum over bodies of squared velocity components
+EXPANSION_BUDGET = 10_000
 
 
 @dataclass(frozen=True)
@@ -77,17 +83,9 @@ def skew(a) -> sp.Matrix:
 
 
 def clean(expr):
-    """Expand, drop numeric terms below NOISE of the largest coefficient, ``trigsimp``."""
-    expr = sp.expand(expr)
-    if expr == 0:
-        return expr
-    terms = sp.Add.make_args(expr)
-    sizes = [abs(float(t.as_coeff_Mul()[0])) for t in terms]
-    biggest = max(sizes)
-    kept = sp.Add(*[t for t, size in zip(terms, sizes) if size >= NOISE * biggest])
-    if kept.has(sp.sin, sp.cos):
-        kept = sp.trigsimp(kept)
-    return kept
+    """The canonical trigonometric form of :func:`.fourier.canonical_trig` (terms below NOISE
+    of the largest coefficient dropped)."""
+    return canonical_trig(expr, NOISE)
 
 
 def body_kinematics(bodies, joint_symbols) -> list:
@@ -121,6 +119,32 @@ def body_kinematics(bodies, joint_symbols) -> list:
         out.append(BodyKinematics(rotation.applyfunc(clean), origin.applyfunc(clean),
                                   v.applyfunc(clean), w.applyfunc(clean)))
     return out
+
+
+def expansion_size(kinematics) -> int:
+    """Σ over bodies and velocity components of (terms of the component)²: the number of products
+    that expanding K(s) = Σ J_vᵀ m J_v + ... costs, the measure of :data:`EXPANSION_BUDGET`."""
+    size = 0
+    for kin in kinematics:
+        for J in (kin.Jv, kin.Jw):
+            for i in range(3):
+                terms = sum(len(sp.Add.make_args(e)) for e in J[i, :])
+                size += terms * terms
+    return size
+
+
+def nested_kinetic_energy(bodies, kinematics, nu) -> sp.Expr:
+    """T = Σ_b ½ m |v_b + ω_b × c|² + ½ ω_bᵀ I_c ω_b with v_b = J_v ν, ω_b = J_ω ν left as sums
+    (not expanded): the form for trees whose expanded metric exceeds :data:`EXPANSION_BUDGET`."""
+    nu = sp.Matrix(nu)
+    total = sp.Integer(0)
+    for body, kin in zip(bodies, kinematics):
+        if body.mass == 0 and not np.any(body.inertia):
+            continue
+        w = kin.Jw * nu
+        v = kin.Jv * nu + w.cross(snapped(body.com))
+        total += sp.Float(body.mass) * (v.T * v)[0] / 2 + (w.T * snapped(body.inertia) * w)[0] / 2
+    return total
 
 
 def metric_in_nu(bodies, kinematics) -> sp.Matrix:
