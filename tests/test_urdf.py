@@ -116,6 +116,9 @@ def test_a_differential_drive_from_urdf(tmp_path):
 @pytest.mark.parametrize("urdf, keys, expected", [
     (_robot(BODY, WHEEL.format(name="left", y=0.2)), 'joints = ["left_joint", "nope"]\n',
      ["unknown joint 'nope'"]),
+    (_robot(BODY, "<link name='arm'/><joint name='lift' type='prismatic'><parent link='body'/><child link='arm'/>"
+            "<axis xyz='0 0 1'/><limit lower='0' upper='0.3' effort='100' velocity='1'/></joint>"),
+     'locked = {lift = 0.5}\n', ["locked.lift = 0.5 is outside the joint's limits [0, 0.3]"]),
     (_robot(BODY, WHEEL.format(name="left", y=0.2).replace("<collision>", "<visual>").replace("</collision>", "</visual>")),
      'joints = ["left_joint"]\nrolling = ["left_joint"]\n', ["has no collision cylinder; give radius"]),
     (_robot(BODY, WHEEL.format(name="left", y=0.2).replace('rpy="-1.5707963267948966 0 0"', 'rpy="0 0 0"')),
@@ -226,3 +229,12 @@ def test_canonical_trig_form_applies_the_identities():
     f, g = (sp.lambdify([a, b, s], e) for e in (expr, canonical_trig(expr)))
     for values in rng.uniform(-3, 3, (10, 3)):
         assert g(*values) == pytest.approx(f(*values), abs=1e-13)
+
+
+def test_derive_shows_the_generated_system(capsys):
+    from nhgait.gaits.cli import main
+    assert main(["derive", str(EXAMPLES / "snakeboard_urdf.toml")]) == 0
+    text = capsys.readouterr().out
+    assert "from the URDF" in text and "n = 5 coordinates" in text and "k = 2 constraints" in text
+    assert "0.35*theta_dot**2" in text            # (J + J_r + 2 J_w)/2: the written scene's θ̇² term
+    assert "Reduced constrained Hamiltonian equations of snakeboard" in text

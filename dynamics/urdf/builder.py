@@ -40,6 +40,20 @@ class UrdfSystem:
     control_bounds: dict = field(default_factory=dict)
     bounds: dict = field(default_factory=dict)
     notes: tuple = ()
+    source: str = ""
+
+    def to_text(self) -> str:
+        """The generated system: L = T − V, the constraints ω(q)q̇ = 0, the forces, the limits."""
+        s = self.system
+        lines = [f"System {s.name} from the URDF {self.source}: n = {s.n} coordinates "
+                 f"({', '.join(s.coordinates)}), k = {s.k} constraints",
+                 f"  L = {sp.sstr(s.L)}"]
+        lines += [f"  0 = {sp.sstr(c)}" for c in s.constraint_exprs]
+        lines += [f"  force on {c}: {sp.sstr(f)}" for c, f in zip(s.coordinates, s.tau) if f != 0]
+        lines += [f"  {name} in [{lo:g}, {hi:g}] (URDF limit)" for name, (lo, hi) in
+                  {**self.control_bounds, **self.bounds}.items()]
+        lines += [f"  note: {note}" for note in self.notes]
+        return "\n".join(lines)
 
 
 def resolve_path(text: str, base_dir: Path) -> Path:
@@ -111,9 +125,16 @@ def _joint_problems(robot, spec, problems):
     for name in spec["joints"]:
         if check(name, "joints") and joints[name].mimic:
             problems.append(f"[system].joints: joint {name!r} mimics {joints[name].mimic[0]!r}; keep that one")
-    for name in spec["locked"]:
-        if check(name, "locked") and name in spec["joints"]:
+    for name, value in spec["locked"].items():
+        if not check(name, "locked"):
+            continue
+        joint = joints[name]
+        if name in spec["joints"]:
             problems.append(f"[system].locked: joint {name!r} is also a coordinate")
+        elif joint.type != "continuous" and joint.lower is not None and joint.upper is not None \
+                and not joint.lower <= value <= joint.upper:
+            problems.append(f"[system].locked.{name} = {value:g} is outside the joint's limits "
+                            f"[{joint.lower:g}, {joint.upper:g}]")
     for key in ("rolling", "skates"):
         for name in spec[key]:
             if check(name, key) and joints[name].type == "prismatic":
@@ -220,7 +241,7 @@ def _build(robot, root, spec, table, problems, source) -> UrdfSystem:
     except ModelError as exc:
         raise ModelError(list(exc.problems), title=f"invalid scene {source}") from None
     return UrdfSystem(system=system, control_bounds=_effort_bounds(robot, spec),
-                      bounds=_limit_bounds(robot, spec), notes=notes)
+                      bounds=_limit_bounds(robot, spec), notes=notes, source=robot.source)
 
 
 def _wheel_rows(robot, bodies, kin, spec, q, problems) -> list:
