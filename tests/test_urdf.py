@@ -238,3 +238,8 @@ def test_derive_shows_the_generated_system(capsys):
     assert "from the URDF" in text and "n = 5 coordinates" in text and "k = 2 constraints" in text
     assert "0.35*theta_dot**2" in text            # (J + J_r + 2 J_w)/2: the written scene's θ̇² term
     assert "Reduced constrained Hamiltonian equations of snakeboard" in text
+
+
+def test_a_malformed_urdf_and_bad_scene_keys_are_listed_together(tmp_path):
+    problems = _problems(_scene(tmp_path, _robot(BODY, "<link name='broken'>"), 'colour = "red"\n'))
+    assert any("malformed XML" in p for p in problems) and any("['colour']" in p for p in problems)

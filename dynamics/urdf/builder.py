@@ -103,6 +103,9 @@ def _check_keys(table, problems):
     if table.get("base", "planar") != "planar":
         problems.append(f"[system].base = {table.get('base')!r}: only \"planar\" (the root link moves in SE(2) "
                         "on the ground plane) is supported")
+    for key in ("forces", "parameters"):
+        if not isinstance(table.get(key, {}), dict):
+            problems.append(f"[system].{key} must be a table, got {table.get(key)!r}")
     gravity = table.get("gravity", 9.81)
     if isinstance(gravity, bool) or not isinstance(gravity, (int, float)) or not math.isfinite(gravity):
         problems.append(f"[system].gravity must be a number (m/s²), got {gravity!r}")
@@ -188,41 +191,59 @@ def urdf_system(table: dict, base_dir: Path, source: str = "<scene>") -> UrdfSys
     problems: list = []
     _check_keys(table, problems)
     spec = _spec(table, problems)
-    text = table.get("urdf")
-    if not isinstance(text, str):
-        problems.append(f"[system].urdf must be a file name, got {text!r}")
-        raise ModelError(problems, title=f"invalid scene {source}")
-    path = resolve_path(text, base_dir)
-    if not path.is_file():
-        problems.append(f"[system].urdf: file {path} does not exist")
-        raise ModelError(problems, title=f"invalid scene {source}")
-    robot = read_urdf(path.read_text(), str(path))
-    tree, root = tree_problems(robot)
-    problems.extend(tree)
-    _joint_problems(robot, spec, problems)
+    robot = _robot(table.get("urdf"), base_dir, problems)
+    root = None
+    if robot is not None:
+        tree, root = tree_problems(robot)
+        problems.extend(tree)
+        _joint_problems(robot, spec, problems)
     if problems:
         raise ModelError(problems, title=f"invalid scene {source}")
-    return _build(robot, root, spec, table, problems, source)
+    return _build(robot, root, spec, table, source)
 
 
-def _build(robot, root, spec, table, problems, source) -> UrdfSystem:
+def _robot(text, base_dir, problems):
+    """The parsed URDF named by ``urdf = ...`` (None after recording its problems)."""
+    if not isinstance(text, str):
+        problems.append(f"[system].urdf must be a file name, got {text!r}")
+        return None
+    try:
+        path = resolve_path(text, base_dir)
+    except ModelError as exc:
+        problems.extend(exc.problems)
+        return None
+    if not path.is_file():
+        problems.append(f"[system].urdf: file {path} does not exist")
+        return None
+    try:
+        return read_urdf(path.read_text(), str(path))
+    except ModelError as exc:
+        problems.extend(exc.problems)
+        return None
+
+
+def _lagrangian(bodies, kin, q, q_dot, gravity):
+    """L = T − V: T expanded entry by entry within the budget, else a sum over bodies."""
+    V = energy.potential(bodies, kin, gravity)
+    if energy.expansion_size(kin) <= energy.EXPANSION_BUDGET:
+        K = energy.metric_in_nu(bodies, kin)
+        return energy.lagrangian(energy.metric_in_qdot(K, q[2], sum(b.mass for b in bodies)), V, q_dot)
+    c, s = sp.cos(q[2]), sp.sin(q[2])
+    nu = [c * q_dot[0] + s * q_dot[1], -s * q_dot[0] + c * q_dot[1]] + q_dot[2:]
+    return energy.nested_kinetic_energy(bodies, kin, nu) - V
+
+
+def _build(robot, root, spec, table, source) -> UrdfSystem:
     names = list(BASE_COORDINATES) + spec["joints"]
     q = [sp.Symbol(n, real=True) for n in names]
     q_dot = [sp.Symbol(f"{n}_dot", real=True) for n in names]
-    coordinates = {name: i for i, name in enumerate(spec["joints"])}
-    bodies = build_bodies(robot, root, coordinates, spec["locked"])
+    bodies = build_bodies(robot, root, {name: i for i, name in enumerate(spec["joints"])}, spec["locked"])
     kin = energy.body_kinematics(bodies, q[3:])
-    V = energy.potential(bodies, kin, float(table.get("gravity", 9.81)))
-    if energy.expansion_size(kin) <= energy.EXPANSION_BUDGET:
-        K = energy.metric_in_nu(bodies, kin)
-        L = energy.lagrangian(energy.metric_in_qdot(K, q[2], sum(b.mass for b in bodies)), V, q_dot)
-    else:
-        c, s = sp.cos(q[2]), sp.sin(q[2])
-        nu = [c * q_dot[0] + s * q_dot[1], -s * q_dot[0] + c * q_dot[1]] + q_dot[2:]
-        L = energy.nested_kinetic_energy(bodies, kin, nu) - V
+    problems: list = []
     rows = _wheel_rows(robot, bodies, kin, spec, q, problems)
     if problems:
         raise ModelError(problems, title=f"invalid scene {source}")
+    L = _lagrangian(bodies, kin, q, q_dot, float(table.get("gravity", 9.81)))
     exprs = [wheels.in_qdot(r, q[2], q_dot) for r in rows]
     kept = wheels.independent_rows(exprs, (q[2:], q_dot)) if exprs else []
     notes = tuple(f"constraint {i + 1} of the wheels dropped: a combination of the others" for i in
@@ -230,12 +251,11 @@ def _build(robot, root, spec, table, problems, source) -> UrdfSystem:
     forces = {name: sp.Symbol(symbol, real=True) for name, symbol in spec["inputs"].items()}
     for name, value in table.get("forces", {}).items():
         forces[name] = value if name not in forces else f"{forces[name]} + ({value})"
+    declared = list(spec["inputs"].values()) if spec["inputs"] or "forces" not in table else None
     from ..system import System
     try:
-        system = System(coordinates=names, lagrangian=L,
-                        constraints=[exprs[i] for i in kept], forces=forces,
-                        parameters=table.get("parameters", {}),
-                        inputs=list(spec["inputs"].values()) if spec["inputs"] or "forces" not in table else None,
+        system = System(coordinates=names, lagrangian=L, constraints=[exprs[i] for i in kept], forces=forces,
+                        parameters=table.get("parameters", {}), inputs=declared,
                         name=table.get("name", robot.name), fiber=table.get("fiber"),
                         planar_frame=table.get("planar_frame", "auto"))
     except ModelError as exc:
