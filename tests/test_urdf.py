@@ -243,3 +243,10 @@ def test_derive_shows_the_generated_system(capsys):
 def test_a_malformed_urdf_and_bad_scene_keys_are_listed_together(tmp_path):
     problems = _problems(_scene(tmp_path, _robot(BODY, "<link name='broken'>"), 'colour = "red"\n'))
     assert any("malformed XML" in p for p in problems) and any("['colour']" in p for p in problems)
+
+
+def test_bench_urdf_smoke(capsys):
+    import experiment_scripts
+    result = experiment_scripts.load("bench_urdf").main(["--robots", "snakeboard", "--repeats", "1", "--no-plan"])
+    assert result["robots"][0]["n"] == 5 and result["robots"][0]["k"] == 2
+    assert "| snakeboard | 5 | 2 |" in capsys.readouterr().out
