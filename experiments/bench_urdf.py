@@ -25,13 +25,14 @@ ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
 TIAGO = "example-robot-data:tiago_description/robots/tiago.urdf"
 WHEELS = ["wheel_left_joint", "wheel_right_joint"]
+#: tiago_3 is the 8-coordinate TIAGo of tests/test_urdf_pinocchio.py
 ROBOTS = {
     "snakeboard": {"urdf": "snakeboard.urdf", "joints": ["psi", "phi"], "skates": ["back_wheels", "front_wheels"]},
     "roller_racer": {"urdf": "roller_racer.urdf", "joints": ["phi"], "skates": ["front_axle", "rear_axle"]},
     "tiago_base": {"urdf": TIAGO, "joints": WHEELS, "rolling": WHEELS},
     "tiago_shoulder": {"urdf": TIAGO, "joints": WHEELS + ["arm_1_joint"], "rolling": WHEELS},
-    "tiago_3": {"urdf": TIAGO, "joints": WHEELS + ["arm_1_joint", "arm_2_joint", "torso_lift_joint"],
-                "rolling": WHEELS},
+    "tiago_3": {"urdf": TIAGO, "joints": WHEELS + ["arm_2_joint", "torso_lift_joint", "arm_4_joint"],
+                "rolling": WHEELS, "locked": {"arm_1_joint": 0.2, "head_2_joint": -0.3, "arm_6_joint": 0.7}},
     "tiago_5": {"urdf": TIAGO, "joints": WHEELS + ["arm_1_joint", "arm_2_joint", "arm_3_joint", "arm_4_joint",
                                                    "torso_lift_joint"], "rolling": WHEELS},
 }
