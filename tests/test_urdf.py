@@ -101,8 +101,10 @@ def test_a_differential_drive_from_urdf(tmp_path):
     scene = load_scene(_scene(tmp_path, urdf, 'joints = ["left_joint", "right_joint"]\n'
                               'rolling = ["left_joint", "right_joint"]\n'
                               'inputs = {left_joint = "tau_l", right_joint = "tau_r"}\n'
+                              'names = {left_joint = "phi_l"}\n'
                               '[task]\nhorizon = 2.0\nfinal = {x = 1.0}\n'))
     system = scene.system
+    assert system.coordinates == ("x", "y", "theta", "phi_l", "right_joint")
     assert (system.n, system.k) == (5, 3)         # the second side-slip row is dropped
     # each wheel: u ∓ 0.2 θ̇ = 0.1 φ̇ (rolling), w = 0 (no side slip): ω q̇ = 0 for this q̇
     theta, u, rate = 0.3, 0.5, 0.7
@@ -110,7 +112,8 @@ def test_a_differential_drive_from_urdf(tmp_path):
     W = np.array(sp.lambdify([system.q], system.omega())([0, 0, theta, 0, 0]), dtype=float)
     np.testing.assert_allclose(W @ q_dot, 0, atol=1e-14)
     assert scene.task["control_bounds"] == {"tau_l": [-3.0, 3.0], "tau_r": [-3.0, 3.0]}  # effort limits
-    assert scene.task["bounds"]["left_joint_dot"] == [-9.0, 9.0]                          # velocity limits
+    assert scene.task["bounds"]["phi_l_dot"] == [-9.0, 9.0]                               # velocity limits
+    assert system.tau[3] == sp.Symbol("tau_l", real=True)
 
 
 @pytest.mark.parametrize("urdf, keys, expected", [
@@ -151,9 +154,11 @@ def test_bad_urdf_is_one_error_naming_the_problem(tmp_path, urdf, keys, expected
 def test_every_problem_is_listed_at_once(tmp_path):
     urdf = _robot(BODY, WHEEL.format(name="left", y=0.2), WHEEL.format(name="right", y=-0.2))
     problems = _problems(_scene(tmp_path, urdf, 'joints = ["left_joint", "ghost"]\nrolling = ["right_joint"]\n'
-                                'inputs = {left = "u"}\nbase = "floating"\ncolour = "red"\n'))
+                                'inputs = {left = "u"}\nbase = "floating"\ncolour = "red"\n'
+                                'names = {left_joint = "2x"}\n'))
     for text in ("unknown key(s) ['colour']", 'only "planar"', "unknown joint 'ghost'",
-                 "wheel 'right_joint' must be a coordinate", "'left' is not a joint kept as a coordinate"):
+                 "wheel 'right_joint' must be a coordinate", "'left' is not a joint kept as a coordinate",
+                 "names.left_joint must be an identifier"):
         assert any(text in p for p in problems), (text, problems)
 
 

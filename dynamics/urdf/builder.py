@@ -23,7 +23,7 @@ from . import energy, wheels
 from .reader import read_urdf
 from .tree import MOVING, build_bodies, tree_problems
 
-KEYS = {"urdf", "base", "joints", "locked", "rolling", "skates", "radius", "inputs", "gravity",
+KEYS = {"urdf", "base", "joints", "names", "locked", "rolling", "skates", "radius", "inputs", "gravity",
         "name", "description", "forces", "parameters", "fiber", "planar_frame"}
 BASE_COORDINATES = ("x", "y", "theta")
 #: ``urdf = "example-robot-data:<path>"`` names a file of the installed example-robot-data package
@@ -150,6 +150,11 @@ def _joint_problems(robot, spec, problems):
     for name in spec["radius"]:
         if name not in spec["rolling"]:
             problems.append(f"[system].radius: {name!r} is not a rolling wheel")
+    for name, alias in spec["names"].items():
+        if name not in spec["joints"]:
+            problems.append(f"[system].names: {name!r} is not a joint kept as a coordinate")
+        if not isinstance(alias, str) or not alias.isidentifier():
+            problems.append(f"[system].names.{name} must be an identifier, got {alias!r}")
     for name, symbol in spec["inputs"].items():
         if name not in spec["joints"]:
             problems.append(f"[system].inputs: {name!r} is not a joint kept as a coordinate")
@@ -181,7 +186,13 @@ def _spec(table, problems) -> dict:
     return {"joints": _names(table, "joints", problems), "locked": _numbers(table, "locked", problems),
             "rolling": _names(table, "rolling", problems), "skates": _names(table, "skates", problems),
             "radius": _numbers(table, "radius", problems),
-            "inputs": _mapping(table, "inputs", problems, "input name")}
+            "inputs": _mapping(table, "inputs", problems, "input name"),
+            "names": _mapping(table, "names", problems, "coordinate name")}
+
+
+def coordinate_name(spec, joint: str) -> str:
+    """The coordinate of a joint: its ``names = {...}`` entry, else the joint's own name."""
+    return spec["names"].get(joint, joint)
 
 
 def urdf_system(table: dict, base_dir: Path, source: str = "<scene>") -> UrdfSystem:
@@ -234,7 +245,7 @@ def _lagrangian(bodies, kin, q, q_dot, gravity):
 
 
 def _build(robot, root, spec, table, source) -> UrdfSystem:
-    names = list(BASE_COORDINATES) + spec["joints"]
+    names = list(BASE_COORDINATES) + [coordinate_name(spec, j) for j in spec["joints"]]
     q = [sp.Symbol(n, real=True) for n in names]
     q_dot = [sp.Symbol(f"{n}_dot", real=True) for n in names]
     bodies = build_bodies(robot, root, {name: i for i, name in enumerate(spec["joints"])}, spec["locked"])
@@ -248,7 +259,7 @@ def _build(robot, root, spec, table, source) -> UrdfSystem:
     kept = wheels.independent_rows(exprs, (q[2:], q_dot)) if exprs else []
     notes = tuple(f"constraint {i + 1} of the wheels dropped: a combination of the others" for i in
                   range(len(exprs)) if i not in kept)
-    forces = {name: sp.Symbol(symbol, real=True) for name, symbol in spec["inputs"].items()}
+    forces = {coordinate_name(spec, j): sp.Symbol(symbol, real=True) for j, symbol in spec["inputs"].items()}
     for name, value in table.get("forces", {}).items():
         forces[name] = value if name not in forces else f"{forces[name]} + ({value})"
     declared = list(spec["inputs"].values()) if spec["inputs"] or "forces" not in table else None
@@ -302,8 +313,8 @@ def _effort_bounds(robot, spec) -> dict:
 
 def _limit_bounds(robot, spec) -> dict:
     out = {}
-    for name in spec["joints"]:
-        joint = robot.joints[name]
+    for joint_name in spec["joints"]:
+        joint, name = robot.joints[joint_name], coordinate_name(spec, joint_name)
         if joint.type != "continuous" and joint.lower is not None and joint.upper is not None \
                 and joint.lower < joint.upper:
             out[name] = (joint.lower, joint.upper)
