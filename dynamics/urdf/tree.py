@@ -110,7 +110,8 @@ def build_bodies(robot: Robot, root: str, coordinates: dict, locked: dict) -> li
     coordinate joint moves its child as ``multiplier * q + offset``.
     """
     children = _children(robot)
-    bodies: list = []
+    placed: list = []        # per body: its placement (Body fields but the mass properties)
+    frames: list = []        # per body: link → (rotation, translation) in the body frame
 
     def value_of(joint):
         if joint.mimic and joint.mimic[0] not in coordinates:
@@ -128,9 +129,13 @@ def build_bodies(robot: Robot, root: str, coordinates: dict, locked: dict) -> li
             return coordinates[joint.mimic[0]], joint.mimic[1], joint.mimic[2]
         return None
 
+    def add_body(**placement):
+        placed.append(placement)
+        frames.append({})
+        return len(placed) - 1
+
     def visit(link, body_index, rotation, translation):
-        body = bodies[body_index]
-        body.frames[link] = (rotation, translation)
+        frames[body_index][link] = (rotation, translation)
         for joint in children.get(link, ()):
             origin_r = rotation @ joint.rotation
             origin_t = translation + rotation @ joint.translation
@@ -139,23 +144,23 @@ def build_bodies(robot: Robot, root: str, coordinates: dict, locked: dict) -> li
                 r, t = joint_motion(joint, value_of(joint))
                 visit(joint.child, body_index, origin_r @ r, origin_t + origin_r @ t)
             else:
-                bodies.append(Body(link=joint.child, joint=joint, parent=body_index, rotation=origin_r,
-                                   translation=origin_t, coordinate=motion[0], multiplier=motion[1],
-                                   offset=motion[2], mass=0.0, com=np.zeros(3), inertia=np.zeros((3, 3)),
-                                   frames={}))
-                visit(joint.child, len(bodies) - 1, np.eye(3), np.zeros(3))
+                index = add_body(link=joint.child, joint=joint, parent=body_index, rotation=origin_r,
+                                 translation=origin_t, coordinate=motion[0], multiplier=motion[1],
+                                 offset=motion[2])
+                visit(joint.child, index, np.eye(3), np.zeros(3))
 
-    bodies.append(Body(link=root, joint=None, parent=None, rotation=np.eye(3), translation=np.zeros(3),
-                       coordinate=None, multiplier=1.0, offset=0.0, mass=0.0, com=np.zeros(3),
-                       inertia=np.zeros((3, 3)), frames={}))
+    add_body(link=root, joint=None, parent=None, rotation=np.eye(3), translation=np.zeros(3),
+             coordinate=None, multiplier=1.0, offset=0.0)
     visit(root, 0, np.eye(3), np.zeros(3))
-    return [_merged(body, robot) for body in bodies]
+    return [Body(**placement, **_mass_properties(body_frames, robot), frames=body_frames)
+            for placement, body_frames in zip(placed, frames)]
 
 
-def _merged(body: Body, robot: Robot) -> Body:
-    """``body`` with the mass properties of all its links summed (parallel-axis theorem)."""
+def _mass_properties(frames: dict, robot: Robot) -> dict:
+    """Mass, centre of mass and inertia (about it) of the links in ``frames``, in the body frame
+    (parallel-axis theorem)."""
     parts = []
-    for link_name, (rotation, translation) in body.frames.items():
+    for link_name, (rotation, translation) in frames.items():
         inertial = robot.links[link_name].inertial
         if inertial is None or (inertial.mass == 0 and not np.any(inertial.inertia)):
             continue
@@ -167,4 +172,4 @@ def _merged(body: Body, robot: Robot) -> Body:
     for m, c, tensor in parts:
         d = c - com
         inertia += tensor + m * (d @ d * np.eye(3) - np.outer(d, d))
-    return Body(**{**body.__dict__, "mass": mass, "com": com, "inertia": inertia})
+    return {"mass": mass, "com": com, "inertia": inertia}
