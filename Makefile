@@ -12,7 +12,7 @@ $(STAMP): pyproject.toml
 	@echo "setting up $(VENV) (log: $(LOG))"
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	@$(PY) -m pip install --upgrade pip > $(LOG) 2>&1 || (cat $(LOG); exit 1)
-	@$(PY) -m pip install -e ".[test,dask]" >> $(LOG) 2>&1 || (cat $(LOG); exit 1)
+	@$(PY) -m pip install -e ".[test,dask,pinocchio]" >> $(LOG) 2>&1 || (cat $(LOG); exit 1)
 	@touch $(STAMP)
 
 demo: $(STAMP)

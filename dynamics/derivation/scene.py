@@ -102,6 +102,7 @@ class Scene:
     units: dict = field(default_factory=dict)
     drawing: dict | None = None
     quantities: dict = field(default_factory=dict)
+    urdf: object = None          # the UrdfSystem of a scene with [system] urdf = "..." (else None)
 
 
 def _number(value, where, problems):
@@ -143,7 +144,11 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
     if unknown:
         problems.append(f"unknown top-level table(s) {sorted(unknown)}"
                         f"{known_names(sorted(unknown)[0], sorted(TOP_KEYS), label='allowed')}")
-    system = _system(data.get("system"), source, problems)
+    urdf = None
+    if isinstance(data.get("system"), dict) and "urdf" in data["system"]:
+        urdf, system = _urdf_system(data["system"], source, problems)
+    else:
+        system = _system(data.get("system"), source, problems)
     spec = None
     if data.get("simulation") is not None:
         spec = _simulation(data["simulation"], system, problems)
@@ -160,7 +165,34 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
     quantities = _quantities(system, extra.pop("quantities", {}), problems) if system else {}
     if problems:
         raise ModelError(problems, title=f"invalid scene {source}")
-    return Scene(system=system, simulation=spec, source=source, quantities=quantities, **extra)
+    if urdf is not None and "task" in extra:
+        extra["task"] = _urdf_task_defaults(extra["task"], urdf)
+    return Scene(system=system, simulation=spec, source=source, quantities=quantities, urdf=urdf, **extra)
+
+
+def _urdf_system(sysd, source, problems):
+    """(UrdfSystem, System) of a ``[system]`` table with ``urdf = ...`` (a path relative to the
+    scene file's folder), or (None, None) after recording its problems."""
+    from .urdf import urdf_system
+    try:
+        built = urdf_system(sysd, Path(source).parent, source)
+    except ModelError as exc:
+        problems.extend(exc.problems)
+        return None, None
+    return built, built.system
+
+
+def _urdf_task_defaults(task: dict, urdf) -> dict:
+    """``[task]`` with the URDF's limits where the scene states none: effort limits as
+    ``control_bounds``, joint position and velocity limits as ``bounds``."""
+    task = dict(task)
+    controls = task.get("control_bounds")
+    if controls is None or isinstance(controls, dict):
+        task["control_bounds"] = {**{k: list(v) for k, v in urdf.control_bounds.items()}, **(controls or {})}
+    bounds = task.get("bounds")
+    if bounds is None or isinstance(bounds, dict):
+        task["bounds"] = {**{k: list(v) for k, v in urdf.bounds.items()}, **(bounds or {})}
+    return task
 
 
 def _system(sysd, source, problems) -> System | None:

@@ -13,6 +13,8 @@ def cmd_derive(args) -> int:
     from nhgait.dynamics.derivation.symmetry import symmetry_test
     scene = load_scene(args.scene)
     system = scene.system
+    if scene.urdf is not None:                 # show what was generated from the URDF
+        print(scene.urdf.to_text() + "\n")
     forms = ["reduced", "lagrange", "hamilton"] if args.formulation == "all" else [args.formulation]
     for form in forms:
         t0 = time.perf_counter()
