@@ -144,7 +144,10 @@ def fitted_guess(problem, coordinates: tuple, initial_configuration) -> InitialG
     best = None
     for start in range(STARTS):
         c0 = np.zeros(nv * BASIS) if start == 0 else rng.normal(0.0, scale, nv * BASIS)
-        trial = fit(c0, SMALL_WEIGHT)
+        try:
+            trial = fit(c0, SMALL_WEIGHT)
+        except ValueError:                       # a start whose roll-out crosses the singular set
+            continue
         if np.isfinite(trial.cost) and (best is None or trial.cost < best.cost):
             best = trial
     c = best.x if best is not None else np.zeros(nv * BASIS)

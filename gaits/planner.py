@@ -176,7 +176,7 @@ def prepare(the_plan, *, params=None, progress=None) -> Prepared:
     """The :class:`Prepared` model and problems of a :class:`~nhgait.gaits.task_library.Plan`."""
     from nhgait.dynamics.progress import Progress
     from nhgait.dynamics.numerics.specialisation import choose_velocities, specialise
-    from .charts import derive_for_task
+    from .charts import derive_for_task, fixed_configurations
     from .task import check_names
 
     progress = progress or Progress.silent()
@@ -189,7 +189,8 @@ def prepare(the_plan, *, params=None, progress=None) -> Prepared:
     check_names(task, known_names(model, scene.quantities), tuple(model.system.inputs),
                 n_velocities=len(model.state_names) - n)
     bounds = {k: v for k, v in task.bounds.items() if isinstance(v, tuple)}
-    velocities = task.velocities or choose_velocities(model, task.names, scene.quantities, params, bounds)
+    ends = [q for _, q in fixed_configurations(task, tuple(model.system.coordinates))]
+    velocities = task.velocities or choose_velocities(model, task.names, scene.quantities, params, bounds, ends)
     with progress.phase(f"specialise: parameter values bound, velocity states ({', '.join(velocities)})"):
         fast = specialise(model, params, velocities=velocities, quantities=scene.quantities)
     stated, problem, report = state_problem(task, fast, scene, params=params, name=the_plan.label)

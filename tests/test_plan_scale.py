@@ -105,3 +105,19 @@ def test_fitted_roll_out_ends_where_the_task_ends():
     snake = prepare(resolve(scene_from_text(scale_tasks.scene_with_task("snake_3"), "s"))).problem
     assert candidates(snake)[0].label != "fitted roll-out"
     assert candidates(snake)[1].label == "fitted roll-out"
+
+
+def test_a_chart_whose_reconstruction_fails_at_the_ends_is_replaced():
+    """The cart with three trailers, straight at both ends: the default chart's q̇(q, P) is not
+    finite at q = 0 (the pivot block on (x, y, θ, φ) loses rank there, as for two trailers)
+    even where its sampled singular measure misses it; the planner's chart is regular there
+    and its reconstruction finite."""
+    from nhgait.dynamics.progress import Progress
+    from nhgait.dynamics.derivation.scene import scene_from_text
+    from nhgait.gaits.charts import derive_for_task
+    from nhgait.gaits.task_library import resolve
+    scene = scene_from_text(scale_tasks.scene_with_task("cart_trailers_3"), "c3")
+    model = derive_for_task(scene.system, resolve(scene).task, None, Progress.silent())
+    assert tuple(model.layout.fiber) == ("x", "y", "theta")
+    z = np.concatenate([np.zeros(7), [0.4, 0.6]])
+    assert np.all(np.isfinite(np.asarray(model.numeric["qdot"](z, model.numeric.params(None)))))

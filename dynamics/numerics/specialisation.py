@@ -232,7 +232,7 @@ def _momentum_basis(model, params) -> ca.Function:
     return ca.Function("Q", [q], [Q])
 
 
-def choose_velocities(model, preferred=(), quantities=None, params=None, bounds=None) -> tuple:
+def choose_velocities(model, preferred=(), quantities=None, params=None, bounds=None, points=()) -> tuple:
     """n − k velocity quantities that parametrise the allowed velocities, ``preferred`` first.
 
     Candidates: ``preferred`` (names a task uses), the shape velocities, the planar body
@@ -242,8 +242,10 @@ def choose_velocities(model, preferred=(), quantities=None, params=None, bounds=
     than :data:`DEGENERATE_SPREAD` — comes after the others: a state built on it is singular
     wherever the row vanishes (ẋ of a unicycle is r cos θ φ̇, zero for every φ̇ at θ = ±π/2,
     where (ẋ, θ̇) stop determining the motion). Within each group the order above is kept. A
-    candidate is taken when it raises the rank of B at three random configurations (smallest
-    singular value > 1e-8 of the largest).
+    candidate is taken when it raises the rank of B at three random configurations and at
+    ``points`` (configurations the task fixes, where the state must be regular: a cart with
+    three trailers starting straight has θ̇ and β̇₁ dependent there, β̇₁ = −θ̇), the smallest
+    singular value > 1e-8 of the largest.
     """
     system = model.system
     quantities = dict(quantities or {})
@@ -260,9 +262,11 @@ def choose_velocities(model, preferred=(), quantities=None, params=None, bounds=
             candidates.append(name)
     Q = _momentum_basis(model, params)
     rng = np.random.default_rng(7)
-    samples = [rng.uniform(-0.7, 0.7, n) for _ in range(3)]
+    samples = [rng.uniform(-0.7, 0.7, n) for _ in range(3)] + [np.asarray(p, float) for p in points]
     Yf = _row_function(model, candidates, quantities) if candidates else None
-    B_all = [np.asarray(Yf(qq, params)) @ np.asarray(Q(qq)) for qq in samples] if Yf else []
+    with np.errstate(all="ignore"):
+        B_all = [np.asarray(Yf(qq, params)) @ np.asarray(Q(qq)) for qq in samples] if Yf else []
+    B_all = [B for B in B_all if np.all(np.isfinite(B))]      # a point on the chart's singular set
     degenerate = _degenerate_rows(model, Yf, Q, params, len(candidates), rng, bounds or {}) if Yf else []
     order = sorted(range(len(candidates)), key=lambda i: (degenerate[i], i))
     chosen = []
@@ -585,9 +589,14 @@ def _agrees(fns: dict, ref: dict, nz: int, nu: int, params, tol: float, singular
     for a wrong formula)."""
     rng = np.random.default_rng(0)
     worst, used = 0.0, 0
-    for _ in range(4 * _CHECK_SAMPLES):
+    n = singular.size1_in(0) if singular is not None else nz
+    # first the configuration q = 0 (where tasks start: straight chains, zero angles), at which a
+    # symbolic QR may divide 0 by 0 although the matrix it factorises is regular
+    special = [np.zeros(nz), np.concatenate([np.zeros(n), rng.uniform(-1.2, 1.2, nz - n)])]
+    for k in range(4 * _CHECK_SAMPLES):
         t, z, u = rng.uniform(0.0, 10.0), rng.uniform(-1.2, 1.2, nz), rng.normal(size=nu)
-        measure = 1.0 if singular is None else float(singular(z[:singular.size1_in(0)], params))
+        z = special[k] if k < len(special) else z
+        measure = 1.0 if singular is None else float(singular(z[:n], params))
         if not measure > 1e-3:
             continue
         scale = max(1.0, 0.1 / measure)
