@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["shape_of", "arrays_text", "trajectory_repr", "model_repr", "model_markdown",
+__all__ = ["ModelDisplay", "shape_of", "arrays_text", "trajectory_repr", "model_repr", "model_markdown",
            "solution_repr", "solution_markdown", "plan_repr", "sweep_repr"]
 
 
@@ -104,3 +104,20 @@ def sweep_repr(result) -> str:
     return (f"<SweepResult {result.case.get('label', '')}: {solved} of {int(np.prod(result.grid.shape))} points "
             f"solved and verified, grid {shape_of(np.empty(result.grid.shape))} over {axes}; "
             f"{result.directory}; result.objectives() is the grid of costs>")
+
+
+class ModelDisplay:
+    """``dimension``, ``repr`` and notebook Markdown shared by the derived models (Lagrange and
+    Hamilton DAEs, the reduced ODE): their dataclasses say ``repr=False`` so these are used."""
+
+    __slots__ = ()
+
+    @property
+    def dimension(self) -> int:
+        return len(self.state)
+
+    def __repr__(self) -> str:
+        return model_repr(self)
+
+    def _repr_markdown_(self) -> str:
+        return model_markdown(self)

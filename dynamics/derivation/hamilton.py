@@ -19,13 +19,14 @@ import sympy as sp
 
 from nhgait.dynamics.derivation.cse_text import equation_lines
 from nhgait.dynamics.derivation.notation import method_name, system_names
+from nhgait.dynamics.reprs import ModelDisplay
 
 from .symbolic import tidy
 from .system import System
 
 
-@dataclass(frozen=True, eq=False)
-class HamiltonianDAE:
+@dataclass(frozen=True, eq=False, repr=False)
+class HamiltonianDAE(ModelDisplay):
     """q̇ = ∂H/∂p, ṗ = −∂H/∂q + ωᵀλ + τ, ω∂H/∂p = 0 (eqs. 2.20, 2.24).
 
     State ordering (``state_names``): x = (q_1 … q_n, p_1 … p_n) — coordinates then canonical
@@ -52,17 +53,6 @@ class HamiltonianDAE:
     formulation = "hamilton"
     differentiation_index = 2
 
-    def __repr__(self) -> str:
-        from nhgait.dynamics.reprs import model_repr
-        return model_repr(self)
-
-    def _repr_markdown_(self) -> str:
-        from nhgait.dynamics.reprs import model_markdown
-        return model_markdown(self)
-
-    @property
-    def dimension(self) -> int:
-        return len(self.state)
 
     @property
     def momenta(self) -> tuple:

@@ -19,12 +19,13 @@ import sympy as sp
 
 from nhgait.dynamics.derivation.cse_text import equation_lines
 from nhgait.dynamics.derivation.notation import method_name, system_names
+from nhgait.dynamics.reprs import ModelDisplay
 
 from .system import System
 
 
-@dataclass(frozen=True, eq=False)
-class LagrangianDAE:
+@dataclass(frozen=True, eq=False, repr=False)
+class LagrangianDAE(ModelDisplay):
     """M(q)q̈ = F(q, q̇) + ωᵀλ + τ, ωq̇ = 0 (eq. 2.8).
 
     State ordering (``state_names``): x = (q_1 … q_n, q̇_1 … q̇_n) — coordinates then velocities
@@ -51,17 +52,6 @@ class LagrangianDAE:
     formulation = "lagrange"
     differentiation_index = 2
 
-    def __repr__(self) -> str:
-        from nhgait.dynamics.reprs import model_repr
-        return model_repr(self)
-
-    def _repr_markdown_(self) -> str:
-        from nhgait.dynamics.reprs import model_markdown
-        return model_markdown(self)
-
-    @property
-    def dimension(self) -> int:
-        return len(self.state)
 
     def equations(self) -> list:
         """The n dynamic equations and k constraints as sympy Eq objects."""

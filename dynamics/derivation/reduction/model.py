@@ -9,6 +9,7 @@ import sympy as sp
 
 from nhgait.dynamics.derivation.cse_text import cse_lines, wants_cse
 from nhgait.dynamics.derivation.notation import symmetry_choice_lines
+from nhgait.dynamics.reprs import ModelDisplay
 
 from ..steps import DISPLAY_OPS, Steps, default_symbol_names, text_of
 from ..symbolic import tidy
@@ -160,7 +161,7 @@ def symbol_names_for(layout) -> dict:
 
 
 @dataclass(frozen=True, eq=False)
-class ReducedODE:
+class ReducedODE(ModelDisplay):
     """Reduced constrained Hamiltonian equations ż = f(t, z, u), 2n − k first-order ODEs.
 
     State ordering (``state_names``): z = (q_1 … q_n in the system's coordinate order,
@@ -221,17 +222,9 @@ class ReducedODE:
 
     formulation = "reduced"
 
-    @property
-    def dimension(self) -> int:
-        return len(self.state)
-
     def __repr__(self) -> str:
         return (f"ReducedODE({self.system.name}, {self.form}, {self.dimension} ODEs in z = "
                 f"({', '.join(self.state_names)}), fiber ({', '.join(self.fiber)}), {self.classification})")
-
-    def _repr_markdown_(self) -> str:
-        from nhgait.dynamics.reprs import model_markdown
-        return model_markdown(self)
 
     def equations(self) -> list:
         """ż = f as sympy Eq objects (``<z>_dot``); explicit form only."""
