@@ -78,6 +78,9 @@ def test_a_chart_that_covers_the_ends_is_chosen():
                                                **{s: v for s, v in zip(system.param_symbols, system.param_values)}})
     fiber = [system.coordinates.index(c) for c in ("x", "y", "theta", "phi")]
     assert np.linalg.matrix_rank(np.array(omega[:, fiber], dtype=float)) == 3
+    from nhgait.dynamics import derive
+    default = derive(system, "reduced")                       # fiber (x, y, theta, phi)
+    assert float(default.numeric["singular"](np.zeros(6), default.numeric.params(None))) == 0.0
     result = plan(scene, intervals=N, jit=False)
     assert result.success, result.diagnosis
     assert tuple(result.model.layout.fiber) == ("x", "y", "theta")

@@ -169,8 +169,9 @@ def singular_measure(layout, conv):
             norm = norm * G[i, i]
         parts.append(_absdet(G) / (norm + 1e-300))
     out = ca.SX(1)
-    for part in parts:
-        out = ca.fmin(out, part)
+    for part in parts:                  # a part that is not finite (0/0 of a factorisation at
+        defined = ca.fabs(part) <= 1.0e300   # an exactly singular point) counts as singular:
+        out = ca.fmin(out, ca.if_else(defined, part, 0.0))   # fmin alone would drop a NaN
     return out
 
 
