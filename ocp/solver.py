@@ -65,17 +65,16 @@ FATROP_FLAGS = {0: "Solve_Succeeded", 1: "Maximum_Iterations_Exceeded", 2: "Solv
 
 @dataclass(frozen=True)
 class CompileBudget:
-    """Generated C size → optimisation level. Measured on the 2-core benchmark machine
-    (``experiments/bench_scale.py``): gcc -O1 compiles about 12 s per MB of CasADi's
-    straight-line code (17 s under load) and -O0 about 1.5–5 s per MB; -O0 code runs 3–4×
-    slower (the 6-link snake's 2.56 MB at -O0: 14.8 s per solve against 3.4 s for the
-    reference at -O1; the 7-link snake's 4.07 MB 10.5 s against 3.9 s), so -O1 is kept up to
-    8 MB (up to about 100 s of compiling, announced with its estimate, once per task structure;
-    the robots of n ≤ 8 coordinates measured stay under 3 MB, a cold plan within a minute)."""
+    """Generated C size → optimisation level, from ``experiments/bench_scale.py`` on the 2-core
+    machine (loaded): gcc -O1 took 34.7 s for 2.56 MB, 63.4 s for 4.07 MB and 250 s for 7.02 MB
+    of CasADi's straight-line code (superlinear: register allocation in huge functions); -O0
+    takes 1.5–5 s per MB but its code runs 3–4× slower (the 8-link snake's NLP solved in 4.3 s
+    compiled at -O1, 16.7 s at -O0). -O1 is kept up to 5 MB (about a minute, announced with its
+    estimate, once per task structure), -O0 up to 20 MB, then the NLP is interpreted."""
 
-    o1_bytes: float = 8e6
+    o1_bytes: float = 5e6
     o0_bytes: float = 20e6
-    o1_s_per_mb: float = 12.0
+    o1_s_per_mb: float = 15.0
     o0_s_per_mb: float = 1.5
 
     def choose(self, c_bytes: int) -> tuple:
