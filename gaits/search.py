@@ -79,14 +79,23 @@ def _report(progress, index, total, label, s) -> None:
 _WORKER: dict = {}   # set by the pool initializer, in forked worker processes only
 
 
-def _receive(solver, guesses):
+def _receive(solver, guesses, parent):
     """Pool initializer: the batch, inherited through fork (nothing is pickled). A worker dies
     at once on SIGTERM (``pool.terminate()``, even inside the solver) and leaves Ctrl-C to the
     parent, which terminates the pool (inheriting the CLI's handlers, workers raised inside the
-    solver and deadlocked the pool)."""
+    solver and deadlocked the pool). On Linux it is also killed when the thread that forked it
+    ends (``PR_SET_PDEATHSIG``): the pool's handler thread can fork a replacement while the
+    pool is being terminated, and that worker outlived the planner, waiting on the task queue."""
+    import os
     import signal
+    import sys
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if sys.platform.startswith("linux"):
+        import ctypes
+        ctypes.CDLL(None).prctl(1, signal.SIGKILL)          # PR_SET_PDEATHSIG
+        if os.getppid() != parent:                          # the parent ended before that
+            os._exit(1)
     _WORKER["batch"] = (solver, guesses)
 
 
@@ -99,10 +108,11 @@ def _solve_index(i):
 def _solve_batch(solver, guesses, workers: int, progress) -> list:
     """Solutions of ``guesses`` (in order), in ``workers`` forked processes when possible."""
     import multiprocessing as mp
+    import os
     if workers > 1 and len(guesses) > 1 and "fork" in mp.get_all_start_methods():
         try:
             with mp.get_context("fork").Pool(min(workers, len(guesses)), initializer=_receive,
-                                             initargs=(solver, guesses)) as pool:
+                                             initargs=(solver, guesses, os.getpid())) as pool:
                 sols = pool.map(_solve_index, range(len(guesses)))
             return [replace(s, problem=solver.problem) for s in sols]
         except (OSError, RuntimeError) as exc:   # no fork here (sandbox, resources)
