@@ -300,23 +300,31 @@ def _dae_functions(symbols, e: _DAEExpressions) -> dict:
     }
 
 
+def _dae_symbols(model):
+    """(t, x, λ, u, params, conv) of a DAE model: x = (q, q̇) or (q, p) (2n), λ (k), and
+    ``conv`` mapping the model's sympy expressions (of t, its state, inputs, parameters) to SX."""
+    system = model.system
+    t, u, params = _time_inputs_params(system)
+    x = ca.SX.sym("x", 2 * system.n)
+    lam = ca.SX.sym("lam", system.k)
+    syms = [TIME_SYM] + list(model.state) + list(system.input_symbols) + list(system.param_symbols)
+    sx = [t] + [x[i] for i in range(x.shape[0])] + [u[i] for i in range(u.shape[0])] + [params[i] for i in range(params.shape[0])]
+    return t, x, lam, u, params, lambda exprs: _conv(exprs, syms, sx)
+
+
 def compile_lagrange(model) -> NumericModel:
     """CasADi functions of a :class:`~nhgait.dynamics.derivation.lagrange.LagrangianDAE`."""
     system = model.system
     n, k = system.n, system.k
-    t, u, params = _time_inputs_params(system)
-    x = ca.SX.sym("x", 2 * n)
-    lam = ca.SX.sym("lam", k)
-    syms = [TIME_SYM] + list(model.state) + list(system.input_symbols) + list(system.param_symbols)
-    sx = [t] + [x[i] for i in range(2 * n)] + [u[i] for i in range(u.shape[0])] + [params[i] for i in range(params.shape[0])]
-    M = ca.reshape(ca.vertcat(*_conv(list(model.M.T), syms, sx)), n, n)
-    F = ca.vertcat(*_conv(model.F, syms, sx))
-    tau = ca.vertcat(*_conv(model.tau, syms, sx))
-    E = _conv([model.energy], syms, sx)[0]
+    t, x, lam, u, params, conv = _dae_symbols(model)
+    M = ca.reshape(ca.vertcat(*conv(list(model.M.T))), n, n)
+    F = ca.vertcat(*conv(model.F))
+    tau = ca.vertcat(*conv(model.tau))
+    E = conv([model.energy])[0]
     qd = x[n:]
     if k:
-        W = ca.reshape(ca.vertcat(*_conv(list(model.omega.T), syms, sx)), k, n)
-        Wdq = ca.vertcat(*_conv(model.omega_dot_qdot, syms, sx))
+        W = ca.reshape(ca.vertcat(*conv(list(model.omega.T))), k, n)
+        Wdq = ca.vertcat(*conv(model.omega_dot_qdot))
         Minv_f = ca.solve(M, F + tau)
         Minv_Wt = ca.solve(M, W.T)
         S = ca.mtimes(W, Minv_Wt)
@@ -342,19 +350,15 @@ def compile_hamilton(model) -> NumericModel:
     """CasADi functions of a :class:`~nhgait.dynamics.derivation.hamilton.HamiltonianDAE`."""
     system = model.system
     n, k = system.n, system.k
-    t, u, params = _time_inputs_params(system)
-    x = ca.SX.sym("x", 2 * n)
-    lam = ca.SX.sym("lam", k)
-    syms = [TIME_SYM] + list(model.state) + list(system.input_symbols) + list(system.param_symbols)
-    sx = [t] + [x[i] for i in range(2 * n)] + [u[i] for i in range(u.shape[0])] + [params[i] for i in range(params.shape[0])]
-    dHdp = ca.vertcat(*_conv(model.dH_dp, syms, sx))
-    dHdq = ca.vertcat(*_conv(model.dH_dq, syms, sx))
-    tau = ca.vertcat(*_conv(model.tau, syms, sx))
-    H = _conv([model.H], syms, sx)[0]
-    Minv = ca.reshape(ca.vertcat(*_conv(list(model.Minv.T), syms, sx)), n, n)
+    t, x, lam, u, params, conv = _dae_symbols(model)
+    dHdp = ca.vertcat(*conv(model.dH_dp))
+    dHdq = ca.vertcat(*conv(model.dH_dq))
+    tau = ca.vertcat(*conv(model.tau))
+    H = conv([model.H])[0]
+    Minv = ca.reshape(ca.vertcat(*conv(list(model.Minv.T))), n, n)
     q_sx = x[:n]
     if k:
-        W = ca.reshape(ca.vertcat(*_conv(list(model.omega.T), syms, sx)), k, n)
+        W = ca.reshape(ca.vertcat(*conv(list(model.omega.T))), k, n)
         G = ca.mtimes(W, dHdp)                         # constraint ω ∂H/∂p
         dG_dq = ca.jacobian(G, q_sx)
         WMinv = ca.mtimes(W, Minv)                     # ∂G/∂p
@@ -374,7 +378,7 @@ def compile_hamilton(model) -> NumericModel:
     fns = _dae_functions((t, x, lam, u, params), _DAEExpressions(
         xdot=xdot, lam=lam_sol, xdot_dae=ca.vertcat(dHdp, pdot_dae), g=g_alg, energy=H, constraint=cons,
         qdot=dHdp, power=ca.dot(tau, dHdp),
-        mass=ca.reshape(ca.vertcat(*_conv(list(system.mass_matrix().T), syms, sx)), n, n)))
+        mass=ca.reshape(ca.vertcat(*conv(list(system.mass_matrix().T))), n, n)))
     return _base(system, "hamilton", model.state_names, fns, k)
 
 
