@@ -112,9 +112,9 @@ def test_fitted_roll_out_ends_where_the_task_ends():
 
 def test_a_chart_whose_reconstruction_fails_at_the_ends_is_replaced():
     """The cart with three trailers, straight at both ends: the default chart's q̇(q, P) is not
-    finite at q = 0 (the pivot block on (x, y, θ, φ) loses rank there, as for two trailers)
-    even where its sampled singular measure misses it; the planner's chart is regular there
-    and its reconstruction finite."""
+    finite at q = 0 (the pivot block on (x, y, θ, φ) loses rank there, as for two trailers;
+    its singular measure once reported 1.0 there by dropping a NaN); the planner's chart is
+    regular there and its reconstruction finite."""
     from nhgait.dynamics.progress import Progress
     from nhgait.dynamics.derivation.scene import scene_from_text
     from nhgait.gaits.charts import derive_for_task
