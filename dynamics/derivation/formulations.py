@@ -11,8 +11,10 @@ import time
 
 from ..numerics import cache as _cache
 from ..errors import ModelError
+from .formulation_protocol import PROTOCOLS, protocol_named
 
-FORMULATIONS = ("reduced", "lagrange", "hamilton")
+#: the formulation names, each with its protocol in :data:`~.formulation_protocol.PROTOCOLS`
+FORMULATIONS = tuple(PROTOCOLS)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -23,28 +25,6 @@ class _Entry:
     model: object
     created: str
     derive_time_s: float
-
-
-def _model_type(formulation: str) -> type:
-    if formulation == "reduced":
-        from .reduction import ReducedODE
-        return ReducedODE
-    if formulation == "lagrange":
-        from .lagrange import LagrangianDAE
-        return LagrangianDAE
-    from .hamilton import HamiltonianDAE
-    return HamiltonianDAE
-
-
-def _derive(system, formulation: str, version):
-    if formulation == "reduced":
-        from .reduction import derive_reduced
-        return derive_reduced(system, version=version)
-    if formulation == "lagrange":
-        from .lagrange import derive_lagrangian
-        return derive_lagrangian(system)
-    from .hamilton import derive_hamiltonian
-    return derive_hamiltonian(system)
 
 
 def bind(model, system, provenance=None):
@@ -85,21 +65,19 @@ def derive(system, formulation: str = "reduced", *, version: str | None = None,
     if isinstance(system, str):
         from .models import builtin
         system = builtin(system)
-    if formulation not in FORMULATIONS:
-        raise ModelError([f"unknown formulation {formulation!r} (choose from {', '.join(FORMULATIONS)})"],
-                         title="invalid request")
+    protocol = protocol_named(formulation)
     if version not in (None, "A", "B"):
         raise ModelError([f"unknown reconstruction version {version!r} (A or B)"], title="invalid request")
     key = _cache.cache_key(system, formulation, f"version={version};compile={bool(compile)}")
     if use_cache:
         start = time.perf_counter()
         entry = _cache.load(key, _Entry)
-        if entry is not None and isinstance(entry.model, _model_type(formulation)):
+        if entry is not None and isinstance(entry.model, protocol.model_type):
             provenance = _cache.Provenance(key, entry.created, entry.derive_time_s, True,
                                            time.perf_counter() - start, _cache.versions())
             return bind(entry.model, system, provenance)
     created, start = _cache.now(), time.perf_counter()
-    model = _derive(system, formulation, version)
+    model = protocol.derive(system, version)
     if compile:
         model.numeric  # noqa: B018 - build and keep the compiled functions
     elapsed = time.perf_counter() - start

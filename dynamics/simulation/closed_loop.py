@@ -40,6 +40,7 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
+from ..derivation.formulation_protocol import LoopPoint, Stabilisation, protocol_named, protocol_of
 from ..errors import ModelError
 from ..memo import OwnerMemo
 from .closure import closure
@@ -122,6 +123,11 @@ class ClosedLoop:
         return self._compiled[key]
 
     @property
+    def protocol(self):
+        """The protocol of the loop's formulation (:mod:`~nhgait.dynamics.derivation.formulation_protocol`)."""
+        return protocol_named(self.formulation)
+
+    @property
     def n_p(self) -> int:
         """Length of the parameter vector p of the functions."""
         return self.n_params + (2 * self.n_u + 1 if self.segment_u else 0)
@@ -142,7 +148,7 @@ class ClosedLoop:
     def project(self) -> ca.Function | None:
         """y ↦ y with the velocity part projected onto {g = 0} in the kinetic metric."""
         pc = self._pieces
-        if self.formulation == "reduced" or not self.complete:
+        if not self.protocol.dae_options_apply or not self.complete:
             return None
         y = pc["y"]
         x, g, energy, n = pc["x"], pc["g"], pc["energy"], self.n_q
@@ -231,23 +237,6 @@ def _velocity_metric(energy, v):
     return ca.hessian(energy, v)[0]
 
 
-def _constraint_gram(model, num, x, params, n):
-    """S = ω M⁻¹ ωᵀ from the documented functions ``constraint`` and ``mass``."""
-    g = num["constraint"](x, params)
-    M = num["mass"](x, params)
-    B = ca.jacobian(g, x[n:])                          # ω (lagrange) or ω M⁻¹ (hamilton)
-    if model.formulation == "lagrange":
-        return ca.mtimes(B, ca.solve(M, B.T))
-    return ca.mtimes(ca.mtimes(B, M), B.T)
-
-
-def _hadamard_ratio(S, k):
-    diag = 1
-    for i in range(k):
-        diag = diag * S[i, i]
-    return ca.det(S) / (diag + 1e-300)
-
-
 def _input(controller, m, t_c, q, qdot, params):
     """(u, explicit u arguments, p, symbolic, by segments): the input as the closed loop sees it."""
     if controller is None:
@@ -263,31 +252,6 @@ def _input(controller, m, t_c, q, qdot, params):
         return u, [], params, True, False
     u = ca.SX.sym("u", m)
     return u, [u], params, False, False
-
-
-def _dynamics(model, stabilization, alpha, beta, t_c, x, u, params, g_int):
-    """(ẋ, λ, g, singular-set measure, vec S) of the formulation at (t_c, x, u)."""
-    num, system = model.numeric, model.system
-    n = system.n
-    if model.formulation == "reduced":
-        q, qdot = x[:n], num["qdot"](x, params)
-        measure = num["singular"](q, params) if system.k else ca.SX(1)
-        return (num["rhs"](t_c, x, u, params), ca.SX(0, 1), num["constraint"](q, qdot, params),
-                measure, ca.SX(0, 1))
-    k = num.n_multipliers
-    g = num["constraint"](x, params)
-    if stabilization == "baumgarte":              # ġ + 2αg + β²∫g = 0 solved for λ
-        lam_sym = ca.SX.sym("lam", k)
-        res = num["dae_g"](t_c, x, lam_sym, u, params) + 2 * alpha * g
-        if g_int.shape[0]:
-            res = res + beta ** 2 * g_int
-        S_lam = ca.jacobian(res, lam_sym)
-        lam = -ca.solve(S_lam, ca.substitute(res, lam_sym, ca.SX.zeros(k)))
-        xdot = num["dae_f"](t_c, x, lam, u, params)
-    else:
-        xdot, lam = num["ode"](t_c, x, u, params)
-    S = _constraint_gram(model, num, x, params, n) if k else ca.SX(0, 0)
-    return xdot, lam, g, (_hadamard_ratio(S, k) if k else ca.SX(1)), ca.vec(S)
 
 
 def _integrated(model, seeds, x, params, xdot, measure, qdot, g, power, n_int, opaque_u):
@@ -310,7 +274,8 @@ def _integrated(model, seeds, x, params, xdot, measure, qdot, g, power, n_int, o
 def _build(model, controller, stabilization, baumgarte, seeds) -> ClosedLoop:
     num, system = model.numeric, model.system
     n, nx, m = system.n, len(model.state_names), len(system.inputs)
-    k = 0 if model.formulation == "reduced" else num.n_multipliers
+    protocol = protocol_of(model)
+    k = protocol.multiplier_count(model)
     alpha, beta = (float(v) for v in baumgarte) if stabilization == "baumgarte" else (0.0, 0.0)
     n_int = k if (stabilization == "baumgarte" and beta != 0.0) else 0
     t, t_c = ca.SX.sym("t"), ca.SX.sym("t_c")
@@ -318,7 +283,9 @@ def _build(model, controller, stabilization, baumgarte, seeds) -> ClosedLoop:
     x, work, g_int = ca.SX.sym("x", nx), ca.SX.sym("work"), ca.SX.sym("g_int", n_int)
     q, qdot = x[:n], num["qdot"](x, params)
     u, u_args, p, symbolic_u, segment_u = _input(controller, m, t_c, q, qdot, params)
-    xdot, lam, g, measure, gram = _dynamics(model, stabilization, alpha, beta, t_c, x, u, params, g_int)
+    dynamics = protocol.loop_dynamics(model, LoopPoint(t_c=t_c, x=x, u=u, params=params, g_int=g_int),
+                                      Stabilisation(kind=stabilization, alpha=alpha, beta=beta))
+    xdot, lam, g, measure, gram = dynamics.xdot, dynamics.lam, dynamics.g, dynamics.measure, dynamics.gram
     power = num["power"](t_c, x, u, params)
     energy = num["energy"](x, params)
     metric = ca.vec(_velocity_metric(energy, x[n:]))
