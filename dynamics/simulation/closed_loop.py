@@ -26,6 +26,8 @@ the right after it, however the integrator places its stages. ``p = (params, u�
 open-loop input integrated by segments (u = u₀ + u₁(t_c − t_a) on a segment), else ``params``.
 ``u`` is an explicit input only for a controller without a CasADi form.
 
+ẋ, λ, g, s and S come from the formulation's protocol
+(:meth:`~nhgait.dynamics.derivation.formulation_protocol.FormulationProtocol.loop_dynamics`).
 The singular-set measure s: the reduced ODE's ``numeric["singular"]`` (the engine's measure,
 0 where any matrix the reduction inverts loses rank); for the DAE forms the Hadamard ratio
 det S / Π Sᵢᵢ of the matrix ω M⁻¹ ωᵀ that the multipliers are solved with.
