@@ -237,11 +237,19 @@ class ReducedProtocol(FormulationProtocol):
         return problems
 
 
+@dataclass(frozen=True, repr=False)
 class DAEProtocol(FormulationProtocol):
     """What both DAE forms share: x = (q, v) with 2n entries, k multipliers λ solved from the
     differentiated constraint (index reduction, or Baumgarte's ġ + 2αg + β²∫g = 0), and the
     singular-set measure det S / Π Sᵢᵢ (Hadamard ratio) of S = ω M⁻¹ ωᵀ, the matrix λ is
     solved with."""
+
+    name: str = ""
+    velocity_part: str = ""
+    has_multipliers: bool = True
+    dae_options_apply: bool = True
+    has_constraint_gram: bool = True
+    specialised_for_integration: bool = False
 
     def multiplier_count(self, model) -> int:
         return len(model.multipliers)
@@ -291,10 +299,6 @@ class LagrangeProtocol(DAEProtocol):
 
     name: str = "lagrange"
     velocity_part: str = "velocities q̇"
-    has_multipliers: bool = True
-    dae_options_apply: bool = True
-    has_constraint_gram: bool = True
-    specialised_for_integration: bool = False
 
     @property
     def model_type(self) -> type:
@@ -321,10 +325,6 @@ class HamiltonProtocol(DAEProtocol):
 
     name: str = "hamilton"
     velocity_part: str = "canonical momenta p = M(q) q̇"
-    has_multipliers: bool = True
-    dae_options_apply: bool = True
-    has_constraint_gram: bool = True
-    specialised_for_integration: bool = False
 
     @property
     def model_type(self) -> type:
