@@ -57,23 +57,34 @@ OBJECTIVES = ("effort", "time")
 TASK_FIELD_NAMES = {"state_bounds": "bounds", "free_horizon": "horizon_bounds"}
 
 
+_NEED_MIN_MAX = "[task].horizon: need 0 < min ≤ max, got [{lo:g}, {hi:g}]"
+#: the statement's checks (:class:`~nhgait.ocp.statement.Wording`) as a ``[task]`` table says
+#: them; ``{where}`` is where the table was found; None: said by the parser already
+_TASK_TEMPLATES = {
+    "place": "[task].{field}.{name}",
+    "field_names": {"state_bounds": "bounds", "free_horizon": "horizon"},
+    "horizon": "[task].horizon = {value!r} must be positive",
+    "horizon_not_number": None,
+    "free_horizon_guess": None,
+    "intervals": "{where}.intervals = {value!r} must be an integer ≥ 1",
+    "free_horizon_lower": _NEED_MIN_MAX,
+    "free_horizon_any": _NEED_MIN_MAX,
+    "time_without_free_horizon": "{where}.objective: a time objective needs a free horizon (horizon = [min, max])",
+    "not_a_bound": None,
+    "nan_bound": None,
+    "contradictory": "{place}: contradictory range, lower bound {lo:g} > upper bound {hi:g}",
+    "outside_bounds": "{place} = {value} lies outside bounds.{name} = [{lo:g}, {hi:g}]",
+    "periodic_unequal": "[task]: {name} is periodic but initial {initial} and final {final} cannot be equal",
+    "repeated": "[task].{field}: repeated names in {names_list}",
+    "unknown_quantity": "[task].{field}: unknown name {name!r}{hint}",
+    "unknown_input": "[task].{field}: unknown input {name!r}{hint}",
+}
+
+
 def task_words(where: str = "[task]") -> Wording:
     """The statement's validators in the words of a ``[task]`` table found at ``where``."""
-    need = "[task].horizon: need 0 < min ≤ max, got [{lo:g}, {hi:g}]"
-    return Wording(
-        place="[task].{field}.{name}", field_names={"state_bounds": "bounds", "free_horizon": "horizon"},
-        horizon="[task].horizon = {value!r} must be positive", horizon_not_number=None, free_horizon_guess=None,
-        intervals=where + ".intervals = {value!r} must be an integer ≥ 1",
-        free_horizon_lower=need, free_horizon_any=need,
-        time_without_free_horizon=f"{where}.objective: a time objective needs a free horizon (horizon = [min, max])",
-        not_a_bound=None, nan_bound=None,
-        contradictory="{place}: contradictory range, lower bound {lo:g} > upper bound {hi:g}",
-        outside_bounds="{place} = {value} lies outside bounds.{name} = [{lo:g}, {hi:g}]",
-        periodic_unequal="[task]: {name} is periodic but initial {initial} and final {final} cannot be equal",
-        repeated="[task].{field}: repeated names in {names_list}",
-        unknown_quantity="[task].{field}: unknown name {name!r}{hint}",
-        unknown_input="[task].{field}: unknown input {name!r}{hint}",
-    )
+    return Wording(**{key: (text.replace("{where}", where) if isinstance(text, str) else text)
+                      for key, text in _TASK_TEMPLATES.items()})
 
 
 TASK_WORDS = task_words()
