@@ -51,11 +51,11 @@ def _warm_up(backend) -> None:
 
 
 def timed_sweep(case, grid, backend, *, warm_start=True):
-    from nhgait.gaits.sweeps.driver import run_sweep
+    from nhgait.gaits.sweeps.driver import RunOptions, run_sweep
     from nhgait.gaits.sweeps.store import SweepStore
     with tempfile.TemporaryDirectory() as tmp, SweepStore(tmp) as store:
         t0 = time.perf_counter()
-        result = run_sweep(case, grid, backend, store, warm_start=warm_start)  # prepares the other workers
+        result = run_sweep(case, grid, backend, store, RunOptions(warm_start=warm_start))  # prepares the other workers
         return time.perf_counter() - t0, result
 
 

@@ -299,11 +299,12 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     if guess is not None:
         guesses = guesses.with_first(warm_start(guess, problem))
     t0 = time.perf_counter()
-    search, timings["setup_s"] = _search(problem, guesses, solver=solver, transcription=transcription, jit=jit,
-                                         hessian=choose_hessian(hessian), max_iter=max_iter,
-                                         workers=workers, limit=max_guesses, progress=progress)
+    settings = SearchSettings(solver, transcription, jit, choose_hessian(hessian), max_iter, workers, max_guesses)
+    search, timings["setup_s"] = _search(problem, guesses, settings, progress)
     timings["solve_s"] = time.perf_counter() - t0 - timings["setup_s"]
-    solution = _verified(search, prepared, the_plan, params, verify, timings, progress)
+    solution, verify_s = _verified(search, prepared, the_plan, params, verify, progress)
+    if verify_s is not None:
+        timings["verify_s"] = verify_s
     solution = replace(solution, settings={**solution.settings, "system": the_plan.label,
                                            "velocities": list(prepared.fast.velocities),
                                            "specialisation": prepared.fast.route, "workers": workers,
@@ -319,26 +320,44 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     return result
 
 
-def _search(problem, guesses, *, solver, transcription, jit, hessian, max_iter, workers, limit, progress):
+@dataclass(frozen=True)
+class SearchSettings:
+    """How :func:`plan` searches: the ``solver`` choice (:func:`solver_order`), the
+    ``transcription``, ``jit``, the ``hessian`` (already chosen), ``max_iter`` per solve,
+    ``workers`` (candidates at once) and ``limit`` (guesses per solver before the continuation)."""
+
+    solver: str
+    transcription: Any
+    jit: Any
+    hessian: str
+    max_iter: int
+    workers: int
+    limit: int
+
+
+def _search(problem, guesses, settings: SearchSettings, progress):
     """(:class:`~nhgait.gaits.search.Search`, set-up seconds): the solvers of
     :func:`solver_order` in turn until one converges."""
     from nhgait.ocp import OCPSolver, SolverOptions
+    s = settings
     search, setup = Search(None, (), None), 0.0
-    for name in solver_order(solver, transcription, problem):
+    for name in solver_order(s.solver, s.transcription, problem):
         t0 = time.perf_counter()
-        with progress.phase(f"build the NLP for {name} ({problem.intervals} intervals, {hessian} Hessian)"):
-            ocp = OCPSolver(problem, transcription, SolverOptions(jit=jit, solver=name, max_iter=max_iter,
-                                                                 hessian=hessian), progress=progress)
+        with progress.phase(f"build the NLP for {name} ({problem.intervals} intervals, {s.hessian} Hessian)"):
+            ocp = OCPSolver(problem, s.transcription, SolverOptions(jit=s.jit, solver=name, max_iter=s.max_iter,
+                                                                   hessian=s.hessian), progress=progress)
         setup += time.perf_counter() - t0
-        with progress.phase(f"solve with {name} from up to {min(limit, len(guesses))} guesses"):
-            search = search.then(solve_with_fallbacks(ocp, guesses, workers=workers, limit=limit, progress=progress))
+        with progress.phase(f"solve with {name} from up to {min(s.limit, len(guesses))} guesses"):
+            search = search.then(solve_with_fallbacks(ocp, guesses, workers=s.workers, limit=s.limit,
+                                                      progress=progress))
         if search.solution is not None:
             break
     return search, setup
 
 
-def _verified(search, prepared, the_plan, params, verify, timings, progress):
-    """The winning solution in momentum coordinates, verified (or the closest failure)."""
+def _verified(search, prepared, the_plan, params, verify, progress) -> tuple:
+    """(the winning solution in momentum coordinates, verified (or the closest failure),
+    seconds the verification took or None)."""
     solution = search.solution if search.solution is not None else search.closest
     momentum = momentum_problem(prepared.model, prepared.stated, the_plan, params)
     solution = to_momentum_coordinates(solution, momentum)
@@ -349,8 +368,8 @@ def _verified(search, prepared, the_plan, params, verify, timings, progress):
         v = solution.verification
         progress.note(f"  {'passed' if v.passed else 'FAILED'}: nodes met to {v.max_error:.2e}, conditions to "
                       f"{v.max_condition_error:.2e} (tolerance {v.tolerance:g})")
-        timings["verify_s"] = time.perf_counter() - t0
-    return solution
+        return solution, time.perf_counter() - t0
+    return solution, None
 
 
 def momentum_problem(model, problem, the_plan, params):

@@ -28,78 +28,83 @@ ones and refuses an inconsistent set (:func:`nhgait.ocp.conditions.normalise`). 
 found — unknown keys and names, wrong types, contradictory values — is listed in one
 :class:`~nhgait.ocp.ProblemError`.
 
-:func:`parse_task` checks the form (no model needed), :func:`check_names` the names against
-a model, :func:`to_problem` states the :class:`~nhgait.ocp.OptimalControlProblem`.
+:func:`parse_task` parses the table into the problem's own field types — a
+:class:`~nhgait.ocp.statement.ProblemStatement` with no model yet, checked by the statement's
+own validators in the words of the table (:data:`TASK_WORDS`) — and keeps what only a task
+says (the objective in words, ends at rest, velocity states, the verification tolerance).
+:func:`check_names` checks the names against a model, :func:`to_problem` binds the statement
+to it: the :class:`~nhgait.ocp.OptimalControlProblem`.
 """
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from typing import Any
 
 from nhgait.dynamics.derivation.assignments import parse_assignment
 from nhgait.dynamics.suggestions import known_names
 from nhgait.ocp import OptimalControlProblem, ProblemError, Quantity
+from nhgait.ocp.statement import FrozenMap, ProblemStatement, Wording
 
 __all__ = ["Task", "FrozenMap", "parse_task", "apply_overrides", "check_names", "task_names", "to_problem", "at_rest",
-           "TASK_KEYS"]
+           "TASK_KEYS", "TASK_WORDS", "task_words"]
 
 TASK_KEYS = ("name", "description", "horizon", "intervals", "initial", "final", "rest", "periodic", "bounds",
              "control_bounds", "objective", "velocities", "verify_tolerance")
 ENDS = ("initial", "final")
 OBJECTIVES = ("effort", "time")
+#: a task's name of a statement field (the others are the same)
+TASK_FIELD_NAMES = {"state_bounds": "bounds", "free_horizon": "horizon_bounds"}
 
 
-class FrozenMap(Mapping):
-    """A read-only mapping that pickles (tasks travel to worker processes) and compares equal
-    to any mapping with the same items."""
+_NEED_MIN_MAX = "[task].horizon: need 0 < min ≤ max, got [{lo:g}, {hi:g}]"
+#: the statement's checks (:class:`~nhgait.ocp.statement.Wording`) as a ``[task]`` table says
+#: them; ``{where}`` is where the table was found; None: said by the parser already
+_TASK_TEMPLATES = {
+    "place": "[task].{field}.{name}",
+    "field_names": {"state_bounds": "bounds", "free_horizon": "horizon"},
+    "horizon": "[task].horizon = {value!r} must be positive",
+    "horizon_not_number": None,
+    "free_horizon_guess": None,
+    "intervals": "{where}.intervals = {value!r} must be an integer ≥ 1",
+    "free_horizon_lower": _NEED_MIN_MAX,
+    "free_horizon_any": _NEED_MIN_MAX,
+    "time_without_free_horizon": "{where}.objective: a time objective needs a free horizon (horizon = [min, max])",
+    "not_a_bound": None,
+    "nan_bound": None,
+    "contradictory": "{place}: contradictory range, lower bound {lo:g} > upper bound {hi:g}",
+    "outside_bounds": "{place} = {value} lies outside bounds.{name} = [{lo:g}, {hi:g}]",
+    "periodic_unequal": "[task]: {name} is periodic but initial {initial} and final {final} cannot be equal",
+    "repeated": "[task].{field}: repeated names in {names_list}",
+    "unknown_quantity": "[task].{field}: unknown name {name!r}{hint}",
+    "unknown_input": "[task].{field}: unknown input {name!r}{hint}",
+}
 
-    __slots__ = ("_data",)
 
-    def __init__(self, data=()):
-        object.__setattr__(self, "_data", dict(data))
+def task_words(where: str = "[task]") -> Wording:
+    """The statement's validators in the words of a ``[task]`` table found at ``where``."""
+    return Wording(**{key: (text.replace("{where}", where) if isinstance(text, str) else text)
+                      for key, text in _TASK_TEMPLATES.items()})
 
-    def __getitem__(self, key):
-        return self._data[key]
 
-    def __iter__(self):
-        return iter(self._data)
-
-    def __len__(self) -> int:
-        return len(self._data)
-
-    def __setattr__(self, name, value):
-        raise AttributeError("FrozenMap is read-only")
-
-    def __reduce__(self):
-        return (FrozenMap, (self._data,))
-
-    def __repr__(self) -> str:
-        return f"FrozenMap({self._data!r})"
-
-    def __hash__(self):
-        return hash(tuple(sorted(self._data.items(), key=lambda kv: str(kv[0]))))
+TASK_WORDS = task_words()
 
 
 @dataclass(frozen=True)
 class Task:
-    """A gait task (see the module docstring). Values are floats, ranges (lo, hi) tuples.
+    """A gait task (see the module docstring): the problem ``statement`` it parses into (no
+    model yet) and what only a task says. Values are floats, ranges (lo, hi) tuples.
 
-    ``horizon_bounds`` is None for a fixed horizon; otherwise the horizon is free in
-    [lo, hi] and ``horizon`` is its initial guess. ``objective`` maps "effort" (weight of
-    ∫|u|²), "time" (weight of T) and input names (weights of each u_j², default 1) to weights.
+    The statement's fields read in the task's words: ``horizon``, ``intervals``, ``initial``,
+    ``final``, ``periodic``, ``bounds`` (the statement's ``state_bounds``), ``control_bounds``
+    and ``horizon_bounds`` (``free_horizon``: None for a fixed horizon; otherwise the horizon
+    is free in [lo, hi] and ``horizon`` is its initial guess). ``objective`` maps "effort"
+    (weight of ∫|u|²), "time" (weight of T) and input names (weights of each u_j², default 1)
+    to weights.
     """
 
-    horizon: float
-    intervals: int = 50
-    initial: Mapping = field(default_factory=dict)
-    final: Mapping = field(default_factory=dict)
-    periodic: tuple = ()
-    bounds: Mapping = field(default_factory=dict)
-    control_bounds: Any = field(default_factory=dict)
+    statement: ProblemStatement
     objective: Mapping = field(default_factory=lambda: {"effort": 1.0})
-    horizon_bounds: tuple | None = None
     velocities: tuple = ()
     name: str = "task"
     description: str = ""
@@ -107,31 +112,36 @@ class Task:
     verify_tolerance: float = 1e-6
 
     def __post_init__(self):
-        for key in ("initial", "final", "bounds", "objective"):
-            object.__setattr__(self, key, FrozenMap(getattr(self, key)))
-        if isinstance(self.control_bounds, Mapping):
-            object.__setattr__(self, "control_bounds", FrozenMap(self.control_bounds))
-        object.__setattr__(self, "periodic", tuple(self.periodic))
-        object.__setattr__(self, "velocities", tuple(self.velocities))
-        object.__setattr__(self, "rest", tuple(self.rest))
+        object.__setattr__(self, "objective", FrozenMap(self.objective))
+        for key in ("velocities", "rest"):
+            object.__setattr__(self, key, tuple(getattr(self, key)))
+
+    horizon = property(lambda self: self.statement.horizon)
+    intervals = property(lambda self: self.statement.intervals)
+    initial = property(lambda self: self.statement.initial)
+    final = property(lambda self: self.statement.final)
+    periodic = property(lambda self: self.statement.periodic)
+    bounds = property(lambda self: self.statement.state_bounds)
+    control_bounds = property(lambda self: self.statement.control_bounds)
+    horizon_bounds = property(lambda self: self.statement.free_horizon)
 
     @property
     def names(self) -> tuple:
         """Every quantity name the task uses, in order of appearance."""
-        out = []
-        for name in (*self.initial, *self.final, *self.periodic, *self.bounds):
-            if name not in out:
-                out.append(name)
-        return tuple(out)
+        return tuple(dict.fromkeys((*self.initial, *self.final, *self.periodic, *self.bounds)))
 
     def replace(self, **changes) -> "Task":
-        return replace(self, **changes)
+        """A copy with some fields changed, named as the task names them (``intervals=60``)."""
+        statement_fields = set(self.statement.statement_fields()) | set(TASK_FIELD_NAMES.values())
+        own = {k: v for k, v in changes.items() if k not in statement_fields}
+        stated = {_STATEMENT_NAMES.get(k, k): v for k, v in changes.items() if k in statement_fields}
+        return replace(self, statement=replace(self.statement, **stated), **own)
 
     def to_dict(self) -> dict:
         """The task as a ``[task]`` table (JSON/TOML-friendly)."""
+        bounds = self.horizon_bounds
         out = {"name": self.name, "description": self.description, "intervals": self.intervals,
-               "horizon": ({"initial": self.horizon, "min": self.horizon_bounds[0], "max": self.horizon_bounds[1]}
-                           if self.horizon_bounds else self.horizon)}
+               "horizon": {"initial": self.horizon, "min": bounds[0], "max": bounds[1]} if bounds else self.horizon}
         for key in ("initial", "final", "bounds"):
             out[key] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in getattr(self, key).items()}
         out["periodic"] = list(self.periodic)
@@ -144,6 +154,10 @@ class Task:
         return out
 
 
+#: a task's name → the statement's (``bounds`` → ``state_bounds``, ``horizon_bounds`` → ``free_horizon``)
+_STATEMENT_NAMES = {task: stated for stated, task in TASK_FIELD_NAMES.items()}
+
+
 # ----------------------------------------------------------------------------- parsing
 def _number(value, where, problems, *, allow_inf=False) -> float:
     from nhgait.dynamics.derivation.expressions import number_problems
@@ -153,16 +167,13 @@ def _number(value, where, problems, *, allow_inf=False) -> float:
 
 
 def _value(value, where, problems):
-    """A number or a [lo, hi] range."""
+    """A number or a [lo, hi] range (its order is the statement's to check)."""
     if isinstance(value, (list, tuple)):
         if len(value) != 2:
             problems.append(f"{where}: a range is [lo, hi], got {len(value)} entries")
             return (-math.inf, math.inf)
-        lo = _number(value[0], f"{where} lower bound", problems, allow_inf=True)
-        hi = _number(value[1], f"{where} upper bound", problems, allow_inf=True)
-        if lo > hi:
-            problems.append(f"{where}: contradictory range, lower bound {lo:g} > upper bound {hi:g}")
-        return (lo, hi)
+        return (_number(value[0], f"{where} lower bound", problems, allow_inf=True),
+                _number(value[1], f"{where} upper bound", problems, allow_inf=True))
     return _number(value, where, problems)
 
 
@@ -179,48 +190,44 @@ def _table(data, key, problems) -> dict:
     return out
 
 
-def _names_list(data, key, problems) -> tuple:
+def _names_list(data, key, problems, *, repeats: bool = True) -> tuple:
     value = data.get(key, [])
     if isinstance(value, str) or not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
         problems.append(f"[task].{key} must be a list of names such as [\"psi\", \"phi_dot\"], got {value!r}")
         return ()
-    if len(set(value)) != len(value):
+    if repeats and len(set(value)) != len(value):
         problems.append(f"[task].{key}: repeated names in {list(value)}")
     return tuple(value)
 
 
 def _horizon(data, problems):
-    """(T, bounds or None) from ``horizon``."""
+    """(T, bounds or None) from ``horizon`` (None for T when it is missing); the bounds' order
+    is the statement's to check."""
     if "horizon" not in data:
         problems.append("[task]: missing key 'horizon' (a number of seconds, or [min, max] for a free horizon)")
-        return math.nan, None
+        return None, None
     value = data["horizon"]
     if isinstance(value, Mapping):
         unknown = set(value) - {"initial", "min", "max"}
         if unknown or not {"min", "max"} <= set(value):
             problems.append("[task].horizon as a table needs min and max (and optionally initial), "
                             f"got keys {sorted(value)}")
-            return math.nan, None
+            return None, None
         lo = _number(value["min"], "[task].horizon.min", problems)
         hi = _number(value["max"], "[task].horizon.max", problems)
         T = _number(value.get("initial", (lo + hi) / 2), "[task].horizon.initial", problems)
-    elif isinstance(value, (list, tuple)):
+        if 0 < lo <= hi and not lo <= T <= hi:
+            problems.append(f"[task].horizon: initial {T:g} outside [{lo:g}, {hi:g}]")
+        return T, (lo, hi)
+    if isinstance(value, (list, tuple)):
         if len(value) != 2:
             problems.append(f"[task].horizon: a free horizon is [min, max], got {len(value)} entries")
-            return math.nan, None
+            return None, None
         lo = _number(value[0], "[task].horizon min", problems)
         hi = _number(value[1], "[task].horizon max", problems)
-        T = (lo + hi) / 2
-    else:
-        T = _number(value, "[task].horizon", problems)
-        if not T > 0:
-            problems.append(f"[task].horizon = {value!r} must be positive")
-        return T, None
-    if not 0 < lo <= hi:
-        problems.append(f"[task].horizon: need 0 < min ≤ max, got [{lo:g}, {hi:g}]")
-    elif not lo <= T <= hi:
-        problems.append(f"[task].horizon: initial {T:g} outside [{lo:g}, {hi:g}]")
-    return T, (lo, hi)
+        return (lo + hi) / 2, (lo, hi)
+    T = _number(value, "[task].horizon", problems)
+    return (None if math.isnan(T) else T), None         # a value that is no number is reported once
 
 
 def _objective(value, problems) -> dict:
@@ -256,6 +263,35 @@ def _control_bounds(data, problems):
     return abs(b)
 
 
+def _statement(data, problems) -> tuple:
+    """(The ``[task]`` table's problem statement (no model), its objective), the problems of
+    what it parses appended; the statement's own validators run after."""
+    horizon, free_horizon = _horizon(data, problems)
+    objective = _objective(data.get("objective", "effort"), problems)
+    return ProblemStatement(
+        None, horizon=horizon, intervals=data.get("intervals", 50), initial=_table(data, "initial", problems),
+        final=_table(data, "final", problems), periodic=_names_list(data, "periodic", problems, repeats=False),
+        state_bounds=_table(data, "bounds", problems), control_bounds=_control_bounds(data, problems),
+        time_weight=max(0.0, objective.get("time", 0.0)),     # a negative weight: the objective's own check
+        free_horizon=free_horizon), objective
+
+
+def _task_fields(data, where, problems) -> dict:
+    """What only a task says (not the statement's): velocities, rest, tolerance, name, description."""
+    rest = _names_list(data, "rest", problems)
+    for end in rest:
+        if end not in ENDS:
+            problems.append(f"{where}.rest: {end!r} is not an end (use [\"initial\"], [\"final\"] or both)")
+    tolerance = _number(data.get("verify_tolerance", 1e-6), f"{where}.verify_tolerance", problems)
+    if not tolerance > 0:
+        problems.append(f"{where}.verify_tolerance = {data.get('verify_tolerance')!r} must be positive")
+    for key in ("name", "description"):
+        if key in data and not isinstance(data[key], str):
+            problems.append(f"{where}.{key} must be a string")
+    return {"velocities": _names_list(data, "velocities", problems), "rest": rest, "verify_tolerance": tolerance,
+            "name": str(data.get("name", "task")), "description": str(data.get("description", ""))}
+
+
 def parse_task(data, *, where: str = "[task]", system=None, quantities=()) -> Task:
     """A :class:`Task` from a ``[task]`` table (dict); every problem in one ProblemError.
 
@@ -270,60 +306,16 @@ def parse_task(data, *, where: str = "[task]", system=None, quantities=()) -> Ta
     unknown = sorted(set(data) - set(TASK_KEYS))
     if unknown:
         problems.append(f"{where}: unknown key(s) {unknown}{known_names(unknown[0], TASK_KEYS, label='allowed')}")
-    T, bounds_T = _horizon(data, problems)
-    N = data.get("intervals", 50)
-    if isinstance(N, bool) or not isinstance(N, int) or N < 1:
-        problems.append(f"{where}.intervals = {N!r} must be an integer ≥ 1")
-    initial, final = _table(data, "initial", problems), _table(data, "final", problems)
-    bounds = _table(data, "bounds", problems)
-    periodic = _names_list(data, "periodic", problems)
-    velocities = _names_list(data, "velocities", problems)
-    rest = _names_list(data, "rest", problems)
-    for end in rest:
-        if end not in ENDS:
-            problems.append(f"{where}.rest: {end!r} is not an end (use [\"initial\"], [\"final\"] or both)")
-    tolerance = _number(data.get("verify_tolerance", 1e-6), f"{where}.verify_tolerance", problems)
-    if not tolerance > 0:
-        problems.append(f"{where}.verify_tolerance = {data.get('verify_tolerance')!r} must be positive")
-    objective = _objective(data.get("objective", "effort"), problems)
-    if "time" in objective and objective["time"] > 0 and bounds_T is None:
-        problems.append(f"{where}.objective: a time objective needs a free horizon (horizon = [min, max])")
-    control_bounds = _control_bounds(data, problems)
-    _contradictions(initial, final, periodic, bounds, problems)
-    for key in ("name", "description"):
-        if key in data and not isinstance(data[key], str):
-            problems.append(f"{where}.{key} must be a string")
-    if system is not None:
-        parts = {"initial": initial, "final": final, "periodic": periodic, "bounds": bounds,
-                 "control_bounds": control_bounds, "objective": objective, "velocities": velocities}
-        problems += _system_problems(parts, system, quantities)
+    statement, objective = _statement(data, problems)
+    task = Task(statement, objective, **_task_fields(data, where, problems))
+    if system is None:
+        problems += statement.problems(task_words(where))
+    else:
+        n, k = system.n, len(system.constraint_exprs)
+        problems += _name_problems(task, task_names(system, quantities), tuple(system.inputs), n - k, where)
     if problems:
         raise ProblemError(problems, title="invalid task")
-    return Task(horizon=T, intervals=N, initial=initial, final=final, periodic=periodic, bounds=bounds,
-                control_bounds=control_bounds, objective=objective, horizon_bounds=bounds_T,
-                velocities=velocities, name=str(data.get("name", "task")),
-                description=str(data.get("description", "")), rest=rest, verify_tolerance=tolerance)
-
-
-def _range(v):
-    return v if isinstance(v, tuple) else (v, v)
-
-
-def _contradictions(initial, final, periodic, bounds, problems):
-    """Values that cannot hold together: outside a path bound, periodic with unequal ends."""
-    for where, table in (("initial", initial), ("final", final)):
-        for name, v in table.items():
-            if name in bounds and bounds[name][0] <= bounds[name][1]:   # (lo > hi is reported once)
-                lo, hi = _range(v)
-                blo, bhi = bounds[name]
-                if hi < blo or lo > bhi:
-                    problems.append(f"[task].{where}.{name} = {v} lies outside bounds.{name} = [{blo:g}, {bhi:g}]")
-    for name in periodic:
-        if name in initial and name in final:
-            a, b = _range(initial[name]), _range(final[name])
-            if max(a[0], b[0]) > min(a[1], b[1]):
-                problems.append(f"[task]: {name} is periodic but initial {initial[name]} and final "
-                                f"{final[name]} cannot be equal")
+    return task
 
 
 # ----------------------------------------------------------------------------- overrides
@@ -382,39 +374,25 @@ def task_names(system, quantities=()) -> tuple:
             + tuple(n for n in quantities if n not in coords))
 
 
-def _name_problems(parts: dict, known, inputs, n_velocities) -> list:
-    """Unknown names and impossible counts of a task's parts on a system."""
-    problems = []
-    for where in ("initial", "final", "periodic", "bounds"):
-        for name in parts[where]:
-            if name not in known:
-                problems.append(f"[task].{where}: unknown name {name!r}{known_names(name, known)}")
-    if isinstance(parts["control_bounds"], Mapping):
-        for name in parts["control_bounds"]:
-            if name not in inputs:
-                problems.append(f"[task].control_bounds: unknown input {name!r}{known_names(name, inputs, label='inputs')}")
-    for name in parts["objective"]:
+def _name_problems(task: Task, known, inputs, n_velocities, where: str = "[task]") -> list:
+    """The statement's problems with its names checked against ``known`` and ``inputs``, then
+    the task's own: unknown objective weights, the count of velocity states, no inputs."""
+    problems = task.statement.problems(task_words(where), known, inputs)
+    for name in task.objective:
         if name not in OBJECTIVES and name not in inputs:
             problems.append(f"[task].objective: unknown weight {name!r}"
                             f"{known_names(name, (*OBJECTIVES, *inputs), label='effort, time or an input')}")
-    if parts["velocities"] and len(parts["velocities"]) != n_velocities:
+    if task.velocities and len(task.velocities) != n_velocities:
         problems.append(f"[task].velocities: the system needs {n_velocities} velocity states, got "
-                        f"{len(parts['velocities'])} ({', '.join(parts['velocities'])})")
+                        f"{len(task.velocities)} ({', '.join(task.velocities)})")
     if not inputs:
         problems.append("the system has no inputs: there is nothing to plan")
     return problems
 
 
-def _system_problems(parts: dict, system, quantities) -> list:
-    n, k = system.n, len(system.constraint_exprs)
-    return _name_problems(parts, task_names(system, quantities), tuple(system.inputs), n - k)
-
-
 def check_names(task: Task, known: tuple, inputs: tuple, *, n_velocities: int):
     """Unknown names and impossible counts of ``task`` on a model (one ProblemError)."""
-    parts = {key: getattr(task, key) for key in ("initial", "final", "periodic", "bounds", "control_bounds",
-                                                 "objective", "velocities")}
-    problems = _name_problems(parts, known, inputs, n_velocities)
+    problems = _name_problems(task, known, inputs, n_velocities)
     if problems:
         raise ProblemError(problems, title="invalid task")
 
@@ -471,12 +449,8 @@ def at_rest(task: Task, model) -> dict:
 
 def to_problem(task: Task, model, *, quantities=None, params=None, name: str = "") -> OptimalControlProblem:
     """The :class:`OptimalControlProblem` of ``task`` on ``model`` (states, quantities, inputs)."""
-    weights = control_weights(task.objective, tuple(model.system.inputs))
     ends = at_rest(task, model)
-    return OptimalControlProblem(
-        model, horizon=task.horizon, intervals=task.intervals, initial=ends["initial"], final=ends["final"],
-        periodic=task.periodic, state_bounds=dict(task.bounds),
-        control_bounds=(dict(task.control_bounds) if isinstance(task.control_bounds, Mapping) else task.control_bounds),
-        control_weights=weights, time_weight=float(task.objective.get("time", 0.0)),
-        free_horizon=task.horizon_bounds, quantities=dict(quantities or {}), params=params,
-        name=name or task.name)
+    return OptimalControlProblem.from_statement(
+        task.statement, model, initial=ends["initial"], final=ends["final"],
+        control_weights=control_weights(task.objective, tuple(model.system.inputs)),
+        quantities=dict(quantities or {}), params=params, name=name or task.name)

@@ -2,7 +2,8 @@
 
 Layers (each imports only the ones before it; none imports sympy):
 
-* :mod:`.problem` — :class:`OptimalControlProblem` (what to solve);
+* :mod:`.statement` — :class:`ProblemStatement`: the fields of a problem and their validators, no model;
+* :mod:`.problem` — :class:`OptimalControlProblem` (what to solve: a statement bound to a model);
 * :mod:`.transcription` — :class:`MultipleShooting` (RK4, default), :class:`Collocation`;
 * :mod:`.solver` — :class:`OCPSolver` / :func:`solve` (Ipopt by default here, FATROP on a stage-ordered
   transcription; optional cached jit — ``nhgait.gaits.planner.plan`` tries FATROP first);
@@ -23,6 +24,7 @@ from nhgait.lazy import lazy_getattr
 
 _EXPORTS = {
     "OptimalControlProblem": "problem", "Quantity": "problem", "ProblemError": "problem",
+    "ProblemStatement": "statement",
     "MultipleShooting": "transcription", "Collocation": "transcription", "TranscribedNLP": "transcription",
     "get_transcription": "transcription",
     "SolverOptions": "solver", "OCPSolver": "solver", "solve": "solver", "InitialGuess": "solver",

@@ -26,25 +26,17 @@ Functions ``rhs(t, z, u, params)`` and ``qdot(z, params)``, ``params()``), ``sta
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
-from types import MappingProxyType
 from typing import Any, Callable, Mapping
 
 import casadi as ca
 import numpy as np
 
-from nhgait.dynamics.errors import ModelError
 from nhgait.dynamics.suggestions import known_names
 
+from .statement import OCP_WORDS, FrozenMap, ProblemError, ProblemStatement, interval
+
 __all__ = ["OptimalControlProblem", "Quantity", "ProblemError"]
-
-
-class ProblemError(ModelError):
-    """An optimal control problem that cannot be transcribed (all problems listed)."""
-
-    def __init__(self, problems, *, title: str = "invalid optimal control problem"):
-        super().__init__(problems, title=title)
 
 
 @dataclass(frozen=True)
@@ -58,6 +50,12 @@ class Quantity:
     name: str
     function: Callable[[Any, Any], Any]
     description: str = ""
+
+
+def _require_model(model) -> None:
+    missing = [attr for attr in ("numeric", "state_names") if not hasattr(model, attr)]
+    if missing:
+        raise ProblemError([f"model has no attribute {attr!r} (expected a derived ReducedODE)" for attr in missing])
 
 
 def _coordinates(model) -> tuple:
@@ -93,137 +91,63 @@ def builtin_quantities(model) -> dict:
     return out
 
 
-def _interval(value, where: str, problems: list) -> tuple[float, float]:
-    """A bound given as a number (equality) or (lo, hi) with None for unbounded."""
-    try:
-        if isinstance(value, (tuple, list)):
-            if len(value) != 2:
-                raise TypeError
-            lo = -math.inf if value[0] is None else float(value[0])
-            hi = math.inf if value[1] is None else float(value[1])
-        else:
-            lo = hi = float(value)
-    except (TypeError, ValueError):
-        problems.append(f"{where}: expected a number or a (lo, hi) pair, got {value!r}")
-        return -math.inf, math.inf
-    if math.isnan(lo) or math.isnan(hi):
-        problems.append(f"{where}: NaN bound {value!r}")
-    elif lo > hi:
-        problems.append(f"{where}: contradictory bounds lo = {lo:g} > hi = {hi:g}")
-    return lo, hi
-
-
-def _frozen(mapping) -> Mapping:
-    return MappingProxyType(dict(mapping or {}))
-
-
 @dataclass(frozen=True, eq=False)
-class OptimalControlProblem:
-    """One optimal control problem on a reduced ODE (see the module docstring for the maths).
+class OptimalControlProblem(ProblemStatement):
+    """One optimal control problem on a reduced ODE (see the module docstring for the maths):
+    a :class:`~nhgait.ocp.statement.ProblemStatement` (``horizon``, ``intervals``, ``initial``,
+    ``final``, ``periodic``, ``state_bounds``, ``control_bounds``, ``control_weights``,
+    ``state_weights``, ``time_weight``, ``free_horizon``: the parameters are documented there)
+    bound to a model.
 
     Parameters
     ----------
     model : ReducedODE or alike
-    horizon : float
-        T > 0 (the initial value of T when ``free_horizon`` is given).
-    intervals : int
-        N ≥ 1 control intervals of length h = T / N.
-    initial, final : mapping name → value or (lo, hi)
-        Boundary conditions on quantities at t = 0 and t = T.
-    periodic : sequence of names
-        Quantities with y(T) = y(0).
-    state_bounds : mapping name → (lo, hi)
-        Bounds on quantities at every node t_0 … t_N.
-    control_bounds : mapping name → (lo, hi), or a number b meaning |u_j| ≤ b for every input
-    control_weights : mapping input name → w ≥ 0 (default 1)
-    state_weights : mapping name → c ≥ 0, adds Σ_k h c z_i(t_k)²
-    time_weight : float, adds c_T T (free horizon only)
-    free_horizon : (T_min, T_max) or None
     quantities : mapping name → Quantity, extra derived quantities
     params : parameter vector or mapping (default: the model's defaults)
     name : a label for reports
+
+    Problems are compared by identity (a model is not a value).
     """
 
-    model: Any
-    horizon: float
-    intervals: int = 50
-    initial: Mapping = field(default_factory=dict)
-    final: Mapping = field(default_factory=dict)
-    periodic: tuple = ()
-    state_bounds: Mapping = field(default_factory=dict)
-    control_bounds: Any = field(default_factory=dict)
-    control_weights: Mapping = field(default_factory=dict)
-    state_weights: Mapping = field(default_factory=dict)
-    time_weight: float = 0.0
-    free_horizon: tuple | None = None
     quantities: Mapping = field(default_factory=dict)
     params: Any = None
     name: str = ""
 
+    __eq__ = object.__eq__
+    __hash__ = object.__hash__
+
     def __post_init__(self):
-        problems: list[str] = []
-        model = self.model
-        for attr in ("numeric", "state_names"):
-            if not hasattr(model, attr):
-                problems.append(f"model has no attribute {attr!r} (expected a derived ReducedODE)")
+        _require_model(self.model)
+        super().__post_init__()
+        object.__setattr__(self, "quantities", FrozenMap(self.quantities))
+        problems = self._bind_control_bounds() + self._bind_params()
+        problems += self.problems(OCP_WORDS, known=self.quantity_names, inputs=self.control_names)
+        problems += self._weight_problems() + self._quantity_problems()
         if problems:
             raise ProblemError(problems)
-        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731  (frozen dataclass)
-        set_("initial", _frozen(self.initial))
-        set_("final", _frozen(self.final))
-        set_("state_bounds", _frozen(self.state_bounds))
-        set_("control_weights", _frozen(self.control_weights))
-        set_("state_weights", _frozen(self.state_weights))
-        set_("quantities", _frozen(self.quantities))
-        set_("periodic", tuple(self.periodic))
-        if not isinstance(self.control_bounds, Mapping):
-            try:
-                b = abs(float(self.control_bounds))
-                set_("control_bounds", _frozen({u: (-b, b) for u in self.control_names}))
-            except (TypeError, ValueError):
-                problems.append(f"control_bounds: expected a mapping or a number, got {self.control_bounds!r}")
-                set_("control_bounds", _frozen({}))
-        else:
-            set_("control_bounds", _frozen(self.control_bounds))
-        try:
-            set_("params", np.asarray(model.numeric.params(self.params), dtype=float))
-        except ValueError as exc:
-            problems.append(f"params: {exc}")
 
-        # horizon and grid
+    def _bind_control_bounds(self) -> list:
+        """A number b is |u_j| ≤ b for every input."""
+        if isinstance(self.control_bounds, Mapping):
+            return []
         try:
-            T = float(self.horizon)
-            if not (T > 0 and math.isfinite(T)):
-                problems.append(f"horizon T = {self.horizon!r} must be positive and finite")
+            b = abs(float(self.control_bounds))
         except (TypeError, ValueError):
-            problems.append(f"horizon T = {self.horizon!r} is not a number")
-        if isinstance(self.intervals, bool) or not isinstance(self.intervals, (int, np.integer)) or self.intervals < 1:
-            problems.append(f"intervals N = {self.intervals!r} must be an integer ≥ 1")
-        if self.free_horizon is not None:
-            lo, hi = _interval(self.free_horizon, "free_horizon", problems)
-            if lo <= 0:
-                problems.append(f"free_horizon: lower bound {lo:g} must be positive")
-        elif self.time_weight:
-            problems.append("time_weight is only meaningful with free_horizon")
+            problem = f"control_bounds: expected a mapping or a number, got {self.control_bounds!r}"
+            object.__setattr__(self, "control_bounds", FrozenMap())
+            return [problem]
+        object.__setattr__(self, "control_bounds", FrozenMap({u: (-b, b) for u in self.control_names}))
+        return []
 
-        # names
-        known = self.quantity_names
-        for where, mapping in (("initial", self.initial), ("final", self.final),
-                               ("state_bounds", self.state_bounds)):
-            for name, value in mapping.items():
-                if name not in known:
-                    problems.append(f"{where}: unknown quantity {name!r}{known_names(name, known)}")
-                _interval(value, f"{where}[{name!r}]", problems)
-        for name in self.periodic:
-            if name not in known:
-                problems.append(f"periodic: unknown quantity {name!r}{known_names(name, known)}")
-        if len(set(self.periodic)) != len(self.periodic):
-            problems.append(f"periodic: repeated names in {self.periodic}")
-        for name, value in self.control_bounds.items():
-            if name not in self.control_names:
-                problems.append(f"control_bounds: unknown input {name!r}"
-                                f"{known_names(name, self.control_names, label='inputs')}")
-            _interval(value, f"control_bounds[{name!r}]", problems)
+    def _bind_params(self) -> list:
+        try:
+            object.__setattr__(self, "params", np.asarray(self.model.numeric.params(self.params), dtype=float))
+        except ValueError as exc:
+            return [f"params: {exc}"]
+        return []
+
+    def _weight_problems(self) -> list:
+        problems = []
         for where, mapping, names in (("control_weights", self.control_weights, self.control_names),
                                       ("state_weights", self.state_weights, self.state_names)):
             for name, w in mapping.items():
@@ -231,28 +155,11 @@ class OptimalControlProblem:
                     problems.append(f"{where}: unknown name {name!r}{known_names(name, names)}")
                 elif not (float(w) >= 0):
                     problems.append(f"{where}[{name!r}] = {w!r} must be ≥ 0")
-        for name, q in self.quantities.items():
-            if not isinstance(q, Quantity) or not callable(q.function):
-                problems.append(f"quantities[{name!r}]: expected a Quantity with a callable function")
+        return problems
 
-        # consistency of fixed values with path bounds and periodicity
-        for where, mapping in (("initial", self.initial), ("final", self.final)):
-            for name, value in mapping.items():
-                if name in self.state_bounds and name in known:
-                    lo, hi = _interval(value, "", [])
-                    plo, phi = _interval(self.state_bounds[name], "", [])
-                    if hi < plo or lo > phi:
-                        problems.append(f"{where}[{name!r}] = {value!r} lies outside state_bounds "
-                                        f"[{plo:g}, {phi:g}]")
-        for name in self.periodic:
-            if name in self.initial and name in self.final:
-                a = _interval(self.initial[name], "", [])
-                b = _interval(self.final[name], "", [])
-                if max(a[0], b[0]) > min(a[1], b[1]):
-                    problems.append(f"periodic {name!r}: initial {self.initial[name]!r} and final "
-                                    f"{self.final[name]!r} cannot be equal")
-        if problems:
-            raise ProblemError(problems)
+    def _quantity_problems(self) -> list:
+        return [f"quantities[{name!r}]: expected a Quantity with a callable function"
+                for name, q in self.quantities.items() if not isinstance(q, Quantity) or not callable(q.function)]
 
     # ------------------------------------------------------------------ names
     @property
@@ -279,7 +186,7 @@ class OptimalControlProblem:
         """Derived (non-state) quantities: the built-in ones and the user's."""
         out = builtin_quantities(self.model)
         out.update(self.quantities)
-        return MappingProxyType(out)
+        return FrozenMap(out)
 
     @property
     def quantity_names(self) -> tuple:
@@ -296,7 +203,7 @@ class OptimalControlProblem:
         return self.derived_quantities[name].function(z, params)
 
     def bounds(self, mapping: Mapping, name: str) -> tuple[float, float]:
-        return _interval(mapping[name], name, [])
+        return interval(mapping[name])
 
     def fixed_value(self, mapping: Mapping, name: str) -> float | None:
         """The value of ``name`` in the conditions ``mapping`` when it is fixed (lo = hi), else None."""
@@ -311,7 +218,7 @@ class OptimalControlProblem:
         hi = np.full(self.n_controls, np.inf)
         for name, value in self.control_bounds.items():
             i = self.control_names.index(name)
-            lo[i], hi[i] = _interval(value, name, [])
+            lo[i], hi[i] = interval(value)
         return lo, hi
 
     def grid(self, horizon: float | None = None) -> np.ndarray:
@@ -323,6 +230,11 @@ class OptimalControlProblem:
         """A copy with some fields changed (validated again)."""
         from dataclasses import replace
         return replace(self, **changes)
+
+    @classmethod
+    def from_statement(cls, statement: ProblemStatement, model, **changes) -> "OptimalControlProblem":
+        """``statement`` bound to ``model`` (``changes``: other fields, e.g. ``quantities``)."""
+        return cls(model, **{**statement.statement_fields(), **changes})
 
     def describe(self) -> dict:
         """A JSON-friendly statement (for solution files)."""

@@ -19,7 +19,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-__all__ = ["Solution", "Verification", "simulate_piecewise_constant", "condition_errors"]
+__all__ = ["Solution", "Verification", "Integrator", "simulate_piecewise_constant", "condition_errors"]
 
 
 @dataclass(frozen=True)
@@ -74,14 +74,23 @@ class Verification:
         return out
 
 
-def simulate_piecewise_constant(model, params, t, z0, controls, *, rtol=1e-10, atol=1e-12,
-                                method="DOP853"):
+@dataclass(frozen=True)
+class Integrator:
+    """The settings of scipy's ``solve_ivp`` for a re-simulation: ``method``, ``rtol``, ``atol``."""
+
+    method: str = "DOP853"
+    rtol: float = 1e-10
+    atol: float = 1e-12
+
+
+def simulate_piecewise_constant(model, params, t, z0, controls, integrator: Integrator = Integrator()):
     """Integrate ż = rhs(t, z, u_k, params) interval by interval with scipy ``solve_ivp``.
 
     Returns the states at the grid ``t`` (nz × len(t)) and whether all intervals succeeded.
     """
     from scipy.integrate import solve_ivp
 
+    method, rtol, atol = integrator.method, integrator.rtol, integrator.atol
     rhs = model.numeric["rhs"]
     nz = len(z0)
     ts, zs, us = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", controls.shape[0])
@@ -217,8 +226,7 @@ class Solution:
             raise ValueError("this solution has no problem attached; cannot re-simulate")
         t0 = time.perf_counter()
         sim, ok = simulate_piecewise_constant(self.problem.model, self.problem.params, self.t,
-                                              self.states[:, 0], self.controls, rtol=rtol, atol=atol,
-                                              method=method)
+                                              self.states[:, 0], self.controls, Integrator(method, rtol, atol))
         err = np.abs(sim - self.states)
         return Verification(max_error=float(err.max()),
                             state_errors={n: float(e) for n, e in zip(self.state_names, err.max(axis=1))},

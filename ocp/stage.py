@@ -172,14 +172,16 @@ def _structured(g, nz, nu, steps, free):
     ins, names = [z, u, T, k], ["z", "u", "T", "k"]
     step = ca.Function("stage", ins, [zi], names, ["z_end"])
     jac = ca.Function("stage_jac", ins, [zi, Zi], names, ["z_end", "J"])
-    H = _second_order_adjoint(record, g_hess, lam, u, T, k, steps, nz, nx)
+    H = _second_order_adjoint(record, g_hess, lam, u, T, k)
     hess = ca.Function("stage_hess", ins + [lam], [H], names + ["lam"], ["H"])
     return step, jac, hess, sum(int(f.n_instructions()) for f in (g, g_jac, g_hess))
 
 
-def _second_order_adjoint(record, g_hess, lam, u, T, k, steps, nz, nx):
-    """Σ L_ijᵀ ∇²(ν_ijᵀ g) L_ij with the adjoints ν_ij of a backward sweep (module docstring)."""
+def _second_order_adjoint(record, g_hess, lam, u, T, k):
+    """Σ L_ijᵀ ∇²(ν_ijᵀ g) L_ij with the adjoints ν_ij of a backward sweep (module docstring);
+    ``record`` holds one entry per sub-step, each point's L is nx × nx, λ has the nz entries of z."""
     a, b, _ = RK4
+    steps, nz, nx = len(record), int(lam.shape[0]), int(record[0][0][0][1].shape[1])
     ds = 1.0 / steps
     lz = lam                                        # adjoint of z_{i+1}
     H = ca.MX.zeros(nx, nx)

@@ -32,8 +32,35 @@ import numpy as np
 from .problem import OptimalControlProblem, ProblemError
 from .stage import StageFunctions, stage_functions
 
-__all__ = ["MultipleShooting", "Collocation", "StageShooting", "TranscribedNLP", "StageLayout", "TRANSCRIPTIONS",
+__all__ = ["MultipleShooting", "Collocation", "StageShooting", "TranscribedNLP", "Decisions", "Assembly", "StageLayout",
+           "TRANSCRIPTIONS",
            "get_transcription", "ode_function"]
+
+
+@dataclass(frozen=True, eq=False)
+class Decisions:
+    """The decision vector w, its bounds and where z_k (``node_index``, nz × (N+1)), u_k
+    (``control_index``, nu × N) and T (``horizon_index``, None for a fixed horizon) sit in it."""
+
+    w: ca.MX
+    lbx: np.ndarray
+    ubx: np.ndarray
+    node_index: np.ndarray
+    control_index: np.ndarray
+    horizon_index: int | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Assembly:
+    """What a transcription adds to its decisions and objective: ``kernel`` (the function
+    applied on every interval), ``g`` (its own constraint expression; None: the builder's
+    rows), the stage ``layout``, a ``guess_filler`` and the FATROP ``structure``."""
+
+    kernel: ca.Function
+    g: Any = None
+    layout: "StageLayout | None" = None
+    guess_filler: Any = None
+    structure: dict | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -279,15 +306,17 @@ class _Builder:
             f = f + float(p.time_weight) * T
         return f
 
-    def finish(self, transcription, w, f, lbx, ubx, node_index, control_index, horizon_index, kernel,
-               guess_filler=None, structure=None, g=None, layout=None):
+    def finish(self, transcription, decisions: Decisions, f, assembly: Assembly) -> TranscribedNLP:
+        """The NLP: ``decisions``, objective ``f``, the rows added (or ``assembly.g``)."""
+        g = assembly.g
         if g is None:
             g = ca.vertcat(*self.g) if self.g else ca.MX(0, 1)
         lbg = np.concatenate(self.lbg) if self.lbg else np.zeros(0)
         ubg = np.concatenate(self.ubg) if self.ubg else np.zeros(0)
-        return TranscribedNLP(self.problem, transcription, w, f, g, lbx, ubx, lbg, ubg,
-                              node_index, control_index, horizon_index, kernel, guess_filler, structure,
-                              layout, tuple(self.labels))
+        d = decisions
+        return TranscribedNLP(self.problem, transcription, d.w, f, g, d.lbx, d.ubx, lbg, ubg,
+                              d.node_index, d.control_index, d.horizon_index, assembly.kernel, assembly.guess_filler,
+                              assembly.structure, assembly.layout, tuple(self.labels))
 
     def horizon_variable(self):
         p = self.problem
@@ -358,8 +387,8 @@ class MultipleShooting:
         if Tsym is not None:
             horizon_index = n_w - 1
             lbx[horizon_index], ubx[horizon_index] = Tbounds
-        return b.finish(self, w, f, lbx, ubx, node_index, control_index, horizon_index, stage.step,
-                        g=g, layout=layout)
+        return b.finish(self, Decisions(w, lbx, ubx, node_index, control_index, horizon_index), f,
+                        Assembly(stage.step, g=g, layout=layout))
 
 
 @dataclass(frozen=True)
@@ -462,7 +491,8 @@ class Collocation:
                 s = tau[j + 1]
                 w0[coll_index[j * nz:(j + 1) * nz, :]] = (1 - s) * states[:, :-1] + s * states[:, 1:]
 
-        return b.finish(self, w, f, lbx, ubx, node_index, control_index, horizon_index, W, fill)
+        return b.finish(self, Decisions(w, lbx, ubx, node_index, control_index, horizon_index), f,
+                        Assembly(W, guess_filler=fill))
 
 
 @dataclass(frozen=True)
@@ -541,9 +571,13 @@ class StageShooting(MultipleShooting):
             f = f + ca.sum2(hk * ca.mtimes(ca.DM(wz).T, Z[:, :N] ** 2))
         if problem.time_weight:
             f = f + float(problem.time_weight) * X[nx - 1, 0]
-        return self._layout(problem, b, w, f, lo, hi, nx, counts, yper, nc, g, layout)
+        return self._layout(b, _StageVector(w, lo, hi, nx, nc, yper, counts), f, g, layout)
 
-    def _layout(self, problem, b, w, f, lo, hi, nx, counts, yper, nc, g, layout):
+    def _layout(self, b, vector: "_StageVector", f, g, layout):
+        """The NLP in stage order: bounds on w, the FATROP structure and the guess filler."""
+        problem = b.problem
+        w, lo, hi, nx, nc, yper, counts = (vector.w, vector.lo, vector.hi, vector.nx, vector.nc, vector.yper,
+                                           vector.counts)
         nz, nu, N = problem.n_states, problem.n_controls, problem.intervals
         blk = nx + nu
         starts = np.arange(N + 1) * blk
@@ -574,8 +608,23 @@ class StageShooting(MultipleShooting):
                 for k in range(N + 1):
                     w0[starts[k] + nz:starts[k] + nx] = extra
 
-        return b.finish(self, w, f, lbx, ubx, node_index, control_index, horizon_index, layout.stage.step, fill,
-                        structure, g=g, layout=layout)
+        return b.finish(self, Decisions(w, lbx, ubx, node_index, control_index, horizon_index), f,
+                        Assembly(layout.stage.step, g=g, layout=layout, guess_filler=fill, structure=structure))
+
+
+@dataclass(frozen=True, eq=False)
+class _StageVector:
+    """The stage-ordered decision vector of :class:`StageShooting`: ``w``, the node bounds
+    ``lo``/``hi`` (nz × (N+1)), ``nx`` (a stage's state with its carried copies), ``nc`` (the
+    carried periodic values, ``yper`` their function of z_0) and ``counts`` (rows per stage)."""
+
+    w: Any
+    lo: np.ndarray
+    hi: np.ndarray
+    nx: int
+    nc: int
+    yper: Any
+    counts: dict
 
 
 def _end_rows(problem, z, where) -> list:

@@ -11,7 +11,7 @@ import time
 import numpy as np
 import pytest
 
-from nhgait.gaits.sweeps.driver import Progress, load_sweep, run_sweep
+from nhgait.gaits.sweeps.driver import Progress, RunOptions, load_sweep, run_sweep
 from nhgait.gaits.sweeps.backends import ProcessPool, SerialBackend, WorkerDied, make_backend
 from nhgait.gaits.sweeps.grid import Grid, parse_grid
 from nhgait.gaits.sweeps.point import PointJob, SceneData, SweepCase, point_task
@@ -130,7 +130,7 @@ def test_fake_sweep_stores_every_point(tmp_path, backend_kind):
     backend = SerialBackend() if backend_kind == "serial" else ProcessPool(2)
     seen = []
     with backend, SweepStore(tmp_path) as store:
-        result = run_sweep(CASE, grid, backend, store, solve=fake_solve, progress=seen.append)
+        result = run_sweep(CASE, grid, backend, store, RunOptions(solve=fake_solve, progress=seen.append))
     _check_rows(result, grid)
     assert [p.finished for p in seen] == list(range(1, 7)) and isinstance(seen[-1], Progress)
     assert "[6/6] 100%" in seen[-1].line()
@@ -156,15 +156,15 @@ def test_resume_solves_only_missing_points(tmp_path):
             if progress.finished == 4:
                 raise Stop
         with pytest.raises(Stop):
-            run_sweep(CASE, grid, Counting(), store, solve=fake_solve, progress=stop_after_four)
+            run_sweep(CASE, grid, Counting(), store, RunOptions(solve=fake_solve, progress=stop_after_four))
     with SweepStore(tmp_path) as store:
         first = store.done_ids()
     assert len(first) == 4 and len(calls) >= 4          # a point in flight at the stop is not stored
     calls.clear()
     with SweepStore(tmp_path) as store:
         with pytest.raises(ProblemError, match="already holds a sweep with 4 finished points"):
-            run_sweep(CASE, grid, Counting(), store, solve=fake_solve)
-        result = run_sweep(CASE, grid, Counting(), store, solve=fake_solve, resume=True)
+            run_sweep(CASE, grid, Counting(), store, RunOptions(solve=fake_solve))
+        result = run_sweep(CASE, grid, Counting(), store, RunOptions(solve=fake_solve, resume=True))
     assert sorted(calls) == sorted(set(p.id for p in grid.points()) - set(first))
     _check_rows(result, grid)
     assert result.solved_now == 5
@@ -173,17 +173,17 @@ def test_resume_solves_only_missing_points(tmp_path):
 def test_resume_refuses_another_sweep(tmp_path):
     grid = parse_grid(["final.x=0.5:1.5:3"])
     with SweepStore(tmp_path) as store:
-        run_sweep(CASE, grid, SerialBackend(), store, solve=fake_solve)
+        run_sweep(CASE, grid, SerialBackend(), store, RunOptions(solve=fake_solve))
         other = parse_grid(["final.x=0.5:1.5:4"])
         with pytest.raises(ProblemError, match="the grid differs"):
-            run_sweep(CASE, other, SerialBackend(), store, solve=fake_solve, resume=True)
+            run_sweep(CASE, other, SerialBackend(), store, RunOptions(solve=fake_solve, resume=True))
 
 
 def test_a_dead_pool_worker_loses_only_its_point(tmp_path):
     grid = parse_grid(["final.x=0.5:1.5:3", "horizon=2:4:3"])
     case = SweepCase(CASE.scene, {**CASE.task, "marker": str(tmp_path / "died")}, CASE.params)
     with ProcessPool(2) as pool, SweepStore(tmp_path / "s") as store:
-        result = run_sweep(case, grid, pool, store, solve=dying_solve)
+        result = run_sweep(case, grid, pool, store, RunOptions(solve=dying_solve))
     assert (tmp_path / "died").exists()
     assert result.complete and result.retried == 1
     attempts = {r.id: r.attempts for r in result.records}
@@ -194,7 +194,7 @@ def test_a_dead_pool_worker_loses_only_its_point(tmp_path):
 def test_a_point_that_kills_its_worker_twice_is_recorded_failed(tmp_path):
     grid = parse_grid(["final.x=0.5:1.5:3"])
     with ProcessPool(2) as pool, SweepStore(tmp_path) as store:
-        result = run_sweep(CASE, grid, pool, store, solve=always_dying_solve)
+        result = run_sweep(CASE, grid, pool, store, RunOptions(solve=always_dying_solve))
     bad = result.record((0,))
     assert not bad.success and bad.status == "worker-died" and bad.attempts == 2
     assert "died" in bad.message and "exit code" in bad.message
@@ -204,7 +204,7 @@ def test_a_point_that_kills_its_worker_twice_is_recorded_failed(tmp_path):
 def test_a_raising_solve_is_retried_then_recorded(tmp_path):
     grid = parse_grid(["final.x=0.5,1.0"])
     with SweepStore(tmp_path) as store:
-        result = run_sweep(CASE, grid, SerialBackend(), store, solve=raising_solve)
+        result = run_sweep(CASE, grid, SerialBackend(), store, RunOptions(solve=raising_solve))
     assert [(r.status, r.attempts) for r in result.records] == [("error", 2), ("error", 2)]
     assert "a bug in the solve" in result.records[0].message
 
@@ -227,7 +227,7 @@ def test_chains_solve_several_points_per_task_each_warm_from_its_parent(tmp_path
     grid = parse_grid(["final.x=0.5:1.5:7", "horizon=2:4:3"])                  # rays of 3 along final.x
     backend = Chaining() if backend_kind == "serial" else ProcessPool(2)
     with backend, SweepStore(tmp_path) as store:
-        result = run_sweep(CASE, grid, backend, store, solve=fake_solve, chain=3)
+        result = run_sweep(CASE, grid, backend, store, RunOptions(solve=fake_solve, chain=3))
     _check_rows(result, grid)                  # warm_from: the previous point of the chain = the parent
     if backend_kind == "serial":
         assert sum(backend.tasks) == grid.size and max(backend.tasks) == 3
@@ -238,7 +238,7 @@ def test_a_dead_worker_in_a_chain_costs_its_points_one_retry_each(tmp_path):
     grid = parse_grid(["final.x=0.5:1.5:5", "horizon=2:4:3"])
     case = SweepCase(CASE.scene, {**CASE.task, "marker": str(tmp_path / "died")}, CASE.params)
     with ProcessPool(2) as pool, SweepStore(tmp_path / "s") as store:
-        result = run_sweep(case, grid, pool, store, solve=dying_solve, chain=3)
+        result = run_sweep(case, grid, pool, store, RunOptions(solve=dying_solve, chain=3))
     assert (tmp_path / "died").exists() and result.complete and all(r.success for r in result.records)
     retried = [r for r in result.records if r.attempts == 2]
     assert "1-1" in {r.id for r in retried} and result.retried == len(retried) <= 3
@@ -246,14 +246,14 @@ def test_a_dead_worker_in_a_chain_costs_its_points_one_retry_each(tmp_path):
 
 def test_chain_must_be_a_whole_number(tmp_path):
     with SweepStore(tmp_path) as store, pytest.raises(ProblemError, match="chain must be a whole number"):
-        run_sweep(CASE, parse_grid(["final.x=0.5,1.0"]), SerialBackend(), store, solve=fake_solve, chain=0)
+        run_sweep(CASE, parse_grid(["final.x=0.5,1.0"]), SerialBackend(), store, RunOptions(solve=fake_solve, chain=0))
 
 
 @pytest.mark.parametrize("chain", [1, 3])
 def test_failed_points_do_not_warm_start_their_children(tmp_path, chain):
     grid = parse_grid(["final.x=-1.0:1.0:5"])                        # x < 0 fails in the fake
     with SweepStore(tmp_path) as store:
-        result = run_sweep(CASE, grid, SerialBackend(), store, solve=fake_solve, chain=chain)
+        result = run_sweep(CASE, grid, SerialBackend(), store, RunOptions(solve=fake_solve, chain=chain))
     rows = {r.idx[0]: r for r in result.records}
     assert [rows[i].success for i in range(5)] == [False, False, True, True, True]
     assert rows[1].warm_from == "2" and rows[0].warm_from == "2"    # skips the failed neighbour 1
@@ -267,7 +267,7 @@ def test_store_rows_survive_without_the_driver(tmp_path):
         def look(progress):
             with sqlite3.connect(tmp_path / "sweep.sqlite") as other:
                 counts.append(other.execute("SELECT COUNT(*) FROM points").fetchone()[0])
-        run_sweep(CASE, grid, SerialBackend(), store, solve=fake_solve, progress=look)
+        run_sweep(CASE, grid, SerialBackend(), store, RunOptions(solve=fake_solve, progress=look))
     assert counts == [1, 2, 3]
 
 
@@ -295,7 +295,7 @@ def test_landscape_shows_the_closed_form_and_marks_failures(tmp_path):
     case = SweepCase(CASE.scene, CASE.task, CASE.params, label="fake/task", units={"x": "m", "J_r": "kg*m^2"},
                      inputs=("u",), shape=("q0", "q1"))
     with SweepStore(tmp_path) as store:
-        result = run_sweep(case, grid, SerialBackend(), store, solve=fake_solve)
+        result = run_sweep(case, grid, SerialBackend(), store, RunOptions(solve=fake_solve))
     ax = sweep_plots.plot_landscape(result, "final.x", "horizon", fixed={"params.J_r": 0.2})
     mesh = ax.collections[0].get_array()                 # rows: horizon, columns: final.x
     xs, Ts = np.array(grid.axis("final.x").values), np.array(grid.axis("horizon").values)
@@ -316,7 +316,7 @@ def test_plots_reject_unknown_axes(tmp_path):
     from nhgait.gaits.sweeps import plots as sweep_plots
     grid = parse_grid(["final.x=0.5:1.5:3"])
     with SweepStore(tmp_path) as store:
-        result = run_sweep(CASE, grid, SerialBackend(), store, solve=fake_solve)
+        result = run_sweep(CASE, grid, SerialBackend(), store, RunOptions(solve=fake_solve))
     with pytest.raises(ProblemError, match="no grid axis 'horizon'"):
         sweep_plots.plot_landscape(result, "final.x", "horizon")
 

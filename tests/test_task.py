@@ -92,3 +92,19 @@ def test_resolve_names_the_missing_task(tmp_path):
         resolve(str(scene))
     the_plan = resolve(str(scene), {"horizon": 1.0, "final": {"x": 1.0}})
     assert isinstance(the_plan.task, Task) and the_plan.label == "robot/task"
+
+
+def test_a_task_is_the_problem_statement_in_the_tables_words():
+    """The task parses into the ocp statement (no model yet); one validator speaks to both readers."""
+    from dataclasses import replace
+    from nhgait.gaits.task import TASK_WORDS
+    from nhgait.ocp import ProblemStatement
+    task = parse_task(P2)
+    assert isinstance(task.statement, ProblemStatement) and task.statement.model is None
+    assert task.bounds == {"phi": (-1.0, 1.0)} and task.statement.state_bounds == task.bounds
+    assert task.statement.time_weight == 0.0 and task.horizon_bounds is None
+    assert task.replace(intervals=30, bounds={"phi": (-0.5, 0.5)}).to_dict() == {
+        **task.to_dict(), "intervals": 30, "bounds": {"phi": [-0.5, 0.5]}}
+    bad = replace(task.statement, state_bounds={"phi": (1.0, -1.0)})
+    assert bad.problems() == ["state_bounds['phi']: contradictory bounds lo = 1 > hi = -1"]
+    assert bad.problems(TASK_WORDS) == ["[task].bounds.phi: contradictory range, lower bound 1 > upper bound -1"]

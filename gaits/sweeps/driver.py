@@ -31,7 +31,7 @@ import concurrent.futures as cf
 import math
 import time
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
 import numpy as np
@@ -43,7 +43,7 @@ from .grid import Grid, parse_grid
 from .point import PointJob, SweepCase, point_task, prepare_worker, solve_chain, solve_point
 from .store import PointRecord, SweepStore
 
-__all__ = ["sweep", "run_sweep", "load_sweep", "SweepResult", "Progress"]
+__all__ = ["sweep", "run_sweep", "RunOptions", "load_sweep", "SweepResult", "Progress"]
 
 _RESULT_KEYS = ("success", "status", "message", "objective", "iterations", "total_iterations", "solve_time_s", "wall_time_s",
                 "verification_error", "constraint_violation", "start", "worker")
@@ -181,20 +181,45 @@ def _load_warm(store: SweepStore, record: PointRecord):
         return None
 
 
+@dataclass(frozen=True)
+class RunOptions:
+    """How :func:`run_sweep` runs a sweep.
+
+    ``resume``: continue the stored sweep (solve only its missing points); ``warm_start``:
+    continue from solved neighbours; ``solve``: the module-level function a worker calls with a
+    :class:`PointJob` (default :func:`.point.solve_point`); ``progress``: called with a
+    :class:`Progress` after every finished point; ``max_in_flight``: tasks submitted at once
+    (default: twice the back end's workers, so that a worker finds its next point waiting
+    instead of a round trip to the driver); ``prepare``: a function submitted with the centre
+    point's job to each other worker while the centre is solved (default
+    :func:`.point.prepare_worker` with the default ``solve``), its result ignored; ``chain``:
+    points per task down the continuation tree (default: the back end's ``chain``, 1 for the
+    process pool, 4 for Dask; module docstring).
+    """
+
+    resume: bool = False
+    warm_start: bool = True
+    solve: Callable = solve_point
+    progress: Callable | None = None
+    max_in_flight: int | None = None
+    prepare: Callable | None = None
+    chain: int | None = None
+
+
 class _Run:
     """The driver's state for one call of :func:`run_sweep`: the continuation tree, the stored
-    rows, the points ready to run and those in flight."""
+    rows, the points ready to run and those in flight (``options.chain`` already chosen)."""
 
-    def __init__(self, case, grid, backend, store, *, resume, warm_start, solve, progress, chain=1):
+    def __init__(self, case, grid, backend, store, options: RunOptions):
         self.case, self.grid, self.backend, self.store = case, grid, backend, store
-        self.chain = max(1, int(chain))
+        self.chain = max(1, int(options.chain))
         self.second_try: set = set()   # points of a failed chain after its head: alone, attempt 2
-        self.warm_start, self.solve, self.progress = warm_start, solve, progress
+        self.warm_start, self.solve, self.progress = options.warm_start, options.solve, options.progress
         self.t_start = time.perf_counter()
         self.tree = _Tree(grid)
-        self.done = {r.idx: r for r in store.records()} if resume else {}
+        self.done = {r.idx: r for r in store.records()} if options.resume else {}
         for idx, r in self.done.items():
-            if r.success and warm_start:
+            if r.success and self.warm_start:
                 self.tree.warm[idx] = ("file", r)
         self.counts = {"ok": sum(r.success for r in self.done.values()),
                        "failed": sum(not r.success for r in self.done.values()), "now": 0, "retried": 0}
@@ -297,36 +322,25 @@ class _Run:
         return record
 
 
-def run_sweep(case: SweepCase, grid: Grid, backend, store: SweepStore, *, resume: bool = False,
-              warm_start: bool = True, solve: Callable = solve_point, progress: Callable | None = None,
-              max_in_flight: int | None = None, prepare: Callable | None = None,
-              chain: int | None = None) -> SweepResult:
-    """Run (or resume) a sweep on an open back end and store (see the module docstring).
-
-    ``solve``: the module-level function a worker calls with a :class:`PointJob` (default
-    :func:`.sweep_point.solve_point`); ``progress``: called with a :class:`Progress` after
-    every finished point; ``max_in_flight``: tasks submitted at once (default: twice the
-    back end's workers, so that a worker finds its next point waiting instead of a round
-    trip to the driver); ``chain``: points per task down the continuation tree (default: the
-    back end's ``chain``, 1 for the process pool, 4 for Dask; module docstring); ``prepare``:
-    a function submitted with the centre point's job to each other worker while the centre is solved (default :func:`.sweep_point.prepare_worker`
-    with the default ``solve``), its result ignored.
-    """
+def run_sweep(case: SweepCase, grid: Grid, backend, store: SweepStore,
+              options: RunOptions = RunOptions()) -> SweepResult:
+    """Run (or resume) a sweep on an open back end and store (see the module docstring and
+    :class:`RunOptions`)."""
     store.start({"scene": case.scene.describe(), "task": case.task, "params": case.params,
                  "options": case.options, "grid": grid.to_dict(), "label": case.label, "units": case.units,
                  "shape": list(case.shape), "coordinates": list(case.coordinates),
-                 "inputs": list(case.inputs)}, resume=resume)
-    chain = getattr(backend, "chain", 1) if chain is None else chain
+                 "inputs": list(case.inputs)}, resume=options.resume)
+    chain = getattr(backend, "chain", 1) if options.chain is None else options.chain
     if not isinstance(chain, int) or isinstance(chain, bool) or chain < 1:
         raise ProblemError([f"chain must be a whole number ≥ 1 of points per task, got {chain!r}"],
                            title="invalid sweep")
-    run = _Run(case, grid, backend, store, resume=resume, warm_start=warm_start, solve=solve, progress=progress,
-               chain=chain)
-    limit = max(1, int(max_in_flight or 2 * backend.workers))
-    if prepare is None and solve is solve_point:
+    run = _Run(case, grid, backend, store, replace(options, chain=chain))
+    limit = max(1, int(options.max_in_flight or 2 * backend.workers))
+    prepare = options.prepare
+    if prepare is None and options.solve is solve_point:
         prepare = prepare_worker
     warming = []
-    if prepare is not None and warm_start and backend.workers > 1 and run.ready and run.ready[0] is run.root:
+    if prepare is not None and options.warm_start and backend.workers > 1 and run.ready and run.ready[0] is run.root:
         job = run.submit(run.ready.popleft())
         warming = [backend.submit(prepare, job) for _ in range(backend.workers - 1)]
     while run.ready or run.in_flight:
@@ -375,8 +389,8 @@ def sweep(system, task=None, grid=(), *, out, overrides=(), params=None, schedul
     backend = make_backend(scheduler, workers) if own else backend
     try:
         with SweepStore(out) as store:
-            return run_sweep(case, the_grid, backend, store, resume=resume, warm_start=warm_start,
-                             progress=progress, chain=chain)
+            return run_sweep(case, the_grid, backend, store,
+                             RunOptions(resume=resume, warm_start=warm_start, progress=progress, chain=chain))
     finally:
         if own:
             backend.close()

@@ -10,11 +10,12 @@ nearest grid value is used) and defaults to the axis's middle value.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["plot_landscape", "plot_feasibility", "plot_shape_loops", "axis_label", "grid_slice"]
+__all__ = ["plot_landscape", "LandscapeView", "plot_feasibility", "plot_shape_loops", "axis_label", "grid_slice"]
 
 
 def axis_label(name: str, units=None) -> str:
@@ -106,12 +107,24 @@ def _slice_title(result, keep, fixed) -> str:
     return f" ({', '.join(rest)})" if rest else ""
 
 
-def plot_landscape(result, x: str, y: str, *, column: str = "objective", fixed=None, ax=None,
-                   contours: bool = True, cmap: str = "viridis", log: bool | None = None):
-    """Heat map of ``column`` (solved points) over axes ``x`` and ``y``, with contour lines;
-    failed points crossed out (red ×), points not yet solved left blank. ``log``: a
-    logarithmic colour scale (None: when the values are positive and span more than 20×)."""
+@dataclass(frozen=True)
+class LandscapeView:
+    """What :func:`plot_landscape` shows and how: the record ``column``, ``contours`` lines,
+    the colour map ``cmap``, a logarithmic colour scale ``log`` (None: when the values are
+    positive and span more than 20×)."""
+
+    column: str = "objective"
+    contours: bool = True
+    cmap: str = "viridis"
+    log: bool | None = None
+
+
+def plot_landscape(result, x: str, y: str, *, fixed=None, ax=None, view: LandscapeView = LandscapeView()):
+    """Heat map of ``view.column`` (solved points) over axes ``x`` and ``y`` (the other axes
+    at ``fixed``), with contour lines; failed points crossed out (red ×), points not yet
+    solved left blank."""
     from matplotlib.colors import LogNorm
+    column, contours, cmap, log = view.column, view.contours, view.cmap, view.log
     ax = _new_ax(ax)
     units = result.units
     xs, ys, Z = _plane(result, x, y, result.values(column), fixed)
