@@ -46,8 +46,10 @@ import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from ..memo import LruMemo
+
 __all__ = ["Library", "CompilerUnavailable", "build_library", "compiler_command", "library_key",
-           "jit_dir", "STALE_BUILD_S"]
+           "jit_dir", "STALE_BUILD_S", "COMPILER_COMMANDS"]
 
 #: a build folder older than this (seconds) is left over from a process that died: removed
 STALE_BUILD_S = 3600.0
@@ -83,16 +85,31 @@ def _compiler_setting() -> tuple[str, str] | None:
     return None
 
 
+#: the compiler command found per environment: ($NHGAIT_CC, $CC, $PATH) → the command or None.
+#: Looking it up walks $PATH (~50 µs); a simulation asks on every call. An entry lives until 16
+#: other environments were seen, in practice for the process: a compiler installed into a
+#: folder already on an unchanged $PATH after the first look-up is seen after ``clear()``.
+COMPILER_COMMANDS = LruMemo("C compiler command per ($NHGAIT_CC, $CC, $PATH)", size=16)
+
+
 def compiler_command() -> list | None:
     """The C compiler command (``$NHGAIT_CC``, else ``$CC``, else gcc, else cc), or None when
-    none is found. A variable that is set is final: its program missing means None."""
+    none is found (remembered per environment, :data:`COMPILER_COMMANDS`). A variable that is
+    set is final: its program missing means None."""
+    environ = os.environ
+    key = (environ.get("NHGAIT_CC"), environ.get("CC"), environ.get("PATH"))
+    command = COMPILER_COMMANDS.get(key, _find_compiler)
+    return None if command is None else list(command)
+
+
+def _find_compiler() -> tuple | None:
     setting = _compiler_setting()
     if setting is not None:
         command = shlex.split(setting[1])
-        return command if command and shutil.which(command[0]) else None
+        return tuple(command) if command and shutil.which(command[0]) else None
     for name in ("gcc", "cc"):
         if shutil.which(name):
-            return [name]
+            return (name,)
     return None
 
 
