@@ -12,7 +12,7 @@ method, DAE route, stabilisation). :func:`measure` runs every setup at every tol
   report the final state only (after one untimed warm-up call, so a one-time compilation is
   not counted; it is reported as ``compile_s``);
 * ``constraint``, ``energy_drift``: max |ω(q)q̇| and max |E − E(0) − W| on an untimed run with
-  the same settings on a grid of ``grid`` points;
+  the same settings on a grid of ``Limits.grid`` points;
 * ``nfev``, ``n_steps``, ``status``.
 
 The plots take an optional ``ax`` and never change global matplotlib state.
@@ -27,7 +27,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-__all__ = ["Case", "Setup", "Row", "measure", "time_call", "write_csv", "read_csv", "plot_case",
+__all__ = ["Case", "Setup", "Row", "Limits", "measure", "time_call", "write_csv", "read_csv", "plot_case",
            "markdown_table", "time_at_error", "TOLERANCES", "default_setups"]
 
 #: tolerances of the full report
@@ -136,11 +136,22 @@ def _final_error(traj, reference) -> float:
     return float(err.max())
 
 
-def measure(case: Case, setups, tolerances=TOLERANCES, repeats: int = 5, grid: int = 201,
-            max_wall_s: float = 20.0, progress=None) -> list:
+@dataclass(frozen=True)
+class Limits:
+    """How :func:`measure` spends its time: ``grid`` points of the untimed run that measures the
+    constraint and energy drift; a setup whose run took longer than ``max_wall_s`` is not run at
+    tighter tolerances."""
+
+    grid: int = 201
+    max_wall_s: float = 20.0
+
+
+def measure(case: Case, setups, tolerances=TOLERANCES, repeats: int = 5, progress=None,
+            limits: Limits = Limits()) -> list:
     """Run every setup at every tolerance (loosest first); a setup whose run took longer than
-    ``max_wall_s`` is not run at tighter tolerances (noted in the row)."""
+    ``limits.max_wall_s`` is not run at tighter tolerances (noted in the row)."""
     from nhgait.dynamics import simulate
+    grid, max_wall_s = limits.grid, limits.max_wall_s
     rows = []
     span = (0.0, float(case.t_final))
     for setup in setups:
