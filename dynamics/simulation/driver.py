@@ -71,7 +71,7 @@ from .integrators import (FAILED, FINISHED, MAX_STEPS, NONFINITE, SCIPY_METHODS,
                           SINGULAR, RunRequest, Samples, integrate_compiled, integrate_scipy,
                           integrate_sundials, left_of)
 
-__all__ = ["simulate", "Trajectory", "METHODS", "FINISHED", "FAILED", "MAX_STEPS", "NONFINITE",
+__all__ = ["simulate", "Trajectory", "Diagnostics", "METHODS", "FINISHED", "FAILED", "MAX_STEPS", "NONFINITE",
            "SINGULAR", "SINGULAR_EVENT_TOL"]
 
 COMPILED_METHODS = {"compiled": "DOP853", "compiled-DOPRI5": "DOPRI5"}
@@ -109,10 +109,11 @@ class Trajectory:
     formulation, method : "reduced" | "lagrange" | "hamilton"; the method that ran.
     coordinates, state_names, input_names : names of the columns.
     settings : every option the run used (tolerances, DAE form, stabilisation, fallbacks …).
-    diagnostics : what the run measured about itself: ``min_singular_measure``,
-        ``max_cond_metric`` (kinetic metric of the velocity part), ``max_cond_gram`` (DAE forms:
-        ω M⁻¹ ωᵀ), ``stiff_at``/``h_lambda_max``/``recommendation`` (explicit methods),
-        ``integrated_states``, ``t_event``, ``compile_time_s``.
+    diagnostics : what the run measured about itself (a read-only :class:`Diagnostics`
+        mapping): ``min_singular_measure``, ``max_cond_metric`` (kinetic metric of the velocity
+        part), ``max_cond_gram`` (DAE forms: ω M⁻¹ ωᵀ) — both computed when first read —,
+        ``stiff_at``/``h_lambda_max``/``recommendation`` (explicit methods),
+        ``integrated_states``, ``state_count``, ``t_event``, ``compile_time_s``.
     outputs : name → (N,) for the run's requested outputs (empty without ``outputs``).
     """
 
