@@ -39,7 +39,6 @@ Writes ``work_precision.csv``, one ``<case>.png`` per case and ``work_precision.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import dataclasses
 import math
 import os
@@ -359,26 +358,6 @@ def _nhgait_run(case, row):
                             rtol=row.rtol, atol=row.rtol * 1e-2, **setup.options())
 
 
-@contextlib.contextmanager
-def c_integrator_timer():
-    """Within the block, every call of the compiled integrator's C core (``CompiledLoop.run``)
-    is timed: yields the list its wall times are appended to (clear it before each call)."""
-    from nhgait.dynamics.simulation import compiled
-    original, times = compiled.CompiledLoop.run, []
-
-    def timed(self, *args, **kwargs):
-        start = time.perf_counter()
-        try:
-            return original(self, *args, **kwargs)
-        finally:
-            times.append(time.perf_counter() - start)
-    compiled.CompiledLoop.run = timed
-    try:
-        yield times
-    finally:
-        compiled.CompiledLoop.run = original
-
-
 def _loglog_time(anchors, level):
     """The anchor's time at error ``level``: log-log interpolation between the two anchor runs
     whose errors bracket it (None if none do)."""
@@ -421,7 +400,7 @@ def targets(case, rows, anchors, repeats=15) -> list:
         for fn in runs.values():
             fn()                                              # warm-up
         times, cores = {k: [] for k in runs}, {k: [] for k in cands}
-        with c_integrator_timer() as core:
+        with wp.c_integrator_timer() as core:
             for _ in range(repeats):
                 for k, fn in runs.items():
                     core.clear()

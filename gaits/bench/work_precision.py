@@ -19,6 +19,7 @@ The plots take an optional ``ax`` and never change global matplotlib state.
 """
 from __future__ import annotations
 
+import contextlib
 import csv
 import math
 import statistics
@@ -28,7 +29,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 __all__ = ["Case", "Setup", "Row", "Limits", "measure", "time_call", "write_csv", "read_csv", "plot_case",
-           "markdown_table", "time_at_error", "TOLERANCES", "default_setups"]
+           "markdown_table", "time_at_error", "TOLERANCES", "default_setups", "c_integrator_timer"]
 
 #: tolerances of the full report
 TOLERANCES = tuple(10.0 ** -k for k in range(4, 13))
@@ -124,6 +125,27 @@ def time_call(fn, repeats: int):
         result = fn()
         times.append(time.perf_counter() - start)
     return statistics.median(times), tuple(times), result
+
+
+@contextlib.contextmanager
+def c_integrator_timer():
+    """Within the block, every call of the compiled integrator's C core
+    (:meth:`~nhgait.dynamics.simulation.compiled.CompiledLoop.run`) is timed: yields the list its
+    wall times are appended to (clear it before each ``simulate`` call)."""
+    from nhgait.dynamics.simulation import compiled
+    original, times = compiled.CompiledLoop.run, []
+
+    def timed(self, *args, **kwargs):
+        start = time.perf_counter()
+        try:
+            return original(self, *args, **kwargs)
+        finally:
+            times.append(time.perf_counter() - start)
+    compiled.CompiledLoop.run = timed
+    try:
+        yield times
+    finally:
+        compiled.CompiledLoop.run = original
 
 
 def _final_error(traj, reference) -> float:
