@@ -630,10 +630,11 @@ def _first_nonfinite_row(out: dict, modelled: dict) -> int | None:
     rows = []
     for key in _CHECKED_BLOCKS:
         block = out[key]
-        if block.size and not np.isfinite(block).all():     # else nothing to look for
-            bad = (~np.isfinite(block[:, modelled[key]])).any(axis=1)
-            if bad.any():
-                rows.append(int(np.argmax(bad)))
+        if not block.size or np.isfinite(block.sum()):      # NaN and ±inf reach the sum
+            continue
+        bad = (~np.isfinite(block[:, modelled[key]])).any(axis=1)
+        if bad.any():
+            rows.append(int(np.argmax(bad)))
     return min(rows) if rows else None
 
 
@@ -647,14 +648,15 @@ def _assemble(call: _Call, request: RunRequest, routed: tuple, prepared: _Prepar
     t0 = segments[0][0]
     initial = Samples.point(t0, min(t0, left_of(segments[0][1])), 0, request.y0)
     samples = run.samples(loop.n_y, model.numeric.n_multipliers if run.with_lam else 0)
-    out = _outputs(loop, request.controller, library, Samples.join([initial, samples]), request.seg_params)
+    points = Samples.join([initial, samples.with_lam(None)])
+    out = _outputs(loop, request.controller, library, points, request.seg_params)
     modelled = {k: np.isfinite(out[k][0]) for k in _CHECKED_BLOCKS}
     if run.status == FINISHED:
         row = _first_nonfinite_row({k: out[k][1:] for k in _CHECKED_BLOCKS}, modelled)
         if row is not None:
             run.fail(NONFINITE, samples.t[row], "")
             run.keep_first(row)
-            samples = samples.head(row)
+            samples, points = samples.rows(0, row), points.rows(0, row + 1)
             out = {k: v[:row + 1] for k, v in out.items()}
     if run.status in (FAILED, MAX_STEPS, NONFINITE):
         _diagnose(model, request, run)
@@ -663,9 +665,8 @@ def _assemble(call: _Call, request: RunRequest, routed: tuple, prepared: _Prepar
                        f"below {request.event_tol:g} ({_singular_text(model)})"
                        + (f"; {run.message}" if run.message else ""))
     energy0 = float(out["energy"][0, 0])
-    if prepared.with_initial:
-        lam0 = None if samples.lam is None else out["lam"][:1]
-        samples = Samples.join([Samples(initial.t, initial.t_c, initial.seg, initial.y, lam0), samples])
+    if prepared.with_initial:          # the points the outputs were evaluated at
+        samples = points if samples.lam is None else points.with_lam(np.concatenate([out["lam"][:1], samples.lam]))
     else:
         out = {k: v[1:] for k, v in out.items()}
     wall = time.perf_counter() - prepared.start

@@ -109,10 +109,15 @@ class Samples:
     def __len__(self) -> int:
         return self.t.size
 
-    def head(self, rows: int) -> "Samples":
-        """The first ``rows`` points."""
-        return Samples(self.t[:rows], self.t_c[:rows], self.seg[:rows], self.y[:rows],
-                       None if self.lam is None else self.lam[:rows])
+    def rows(self, start: int = 0, stop: int | None = None) -> "Samples":
+        """The points ``start:stop`` (views)."""
+        part = slice(start, stop)
+        return Samples(self.t[part], self.t_c[part], self.seg[part], self.y[part],
+                       None if self.lam is None else self.lam[part])
+
+    def with_lam(self, lam) -> "Samples":
+        """These points with the multipliers ``lam`` (N, k)."""
+        return Samples(self.t, self.t_c, self.seg, self.y, lam)
 
     @classmethod
     def join(cls, parts) -> "Samples":
@@ -186,7 +191,7 @@ class Run:
         """Drop every point after the first ``rows``."""
         self._flush()
         if self._blocks:
-            self._blocks = [self.samples(0).head(rows)]
+            self._blocks = [self.samples(0).rows(0, rows)]
 
     def last(self) -> tuple | None:
         """(t, segment index, y) of the last point added, or None."""
