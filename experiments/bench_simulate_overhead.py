@@ -30,23 +30,14 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
 
     from nhgait.dynamics import builtin, derive, simulate
-    from nhgait.dynamics.simulation import compiled
     from nhgait.dynamics.simulation.controllers import snakeboard_pd
     from nhgait.gaits.bench.reproduction import thesis_initial_state
+    from nhgait.gaits.bench.work_precision import c_integrator_timer
 
     model = derive(builtin("snakeboard"), "reduced")
     controller = snakeboard_pd()
     q0, qdot0 = thesis_initial_state(model, controller, None)
     t_final = 10 * math.pi
-    core = []
-    original = compiled.CompiledLoop.run
-
-    def timed_run(self, *a, **k):
-        start = time.perf_counter()
-        try:
-            return original(self, *a, **k)
-        finally:
-            core.append(time.perf_counter() - start)
 
     def call(t_eval):
         return simulate(model, (0.0, t_final), q0, qdot0, controller=controller, method="compiled",
@@ -58,8 +49,7 @@ def main(argv=None) -> int:
     wall = {k: [] for k in rows}
     inner = {k: [] for k in rows}
     n_out = {}
-    compiled.CompiledLoop.run = timed_run
-    try:
+    with c_integrator_timer() as core:
         for _ in range(args.repeats):
             for name, t_eval in rows.items():
                 core.clear()
@@ -68,8 +58,6 @@ def main(argv=None) -> int:
                 wall[name].append(time.perf_counter() - start)
                 inner[name].append(sum(core))
                 n_out[name] = len(tr.t)
-    finally:
-        compiled.CompiledLoop.run = original
 
     result = {}
     print(f"snakeboard PD, 10π s, compiled DOP853, rtol {args.rtol:g}; medians of {args.repeats} "

@@ -29,9 +29,14 @@ import sympy as sp
 from nhgait.dynamics.suggestions import known_names
 
 from ..errors import ModelError
+from ..memo import OwnerMemo
 from .expressions import CONSTANTS, FUNCTIONS, expression_problems, number_problems
 
 TIME = sp.Symbol("t", real=True)
+
+#: the force jump times of a system per parameter values (sympy walks the forces: ~20 µs a
+#: call, and every simulation asks); dropped with the system
+FORCE_JUMP_TIMES = OwnerMemo("force jump times per system and parameter values", limit=256)
 
 #: functions that make L or ω non-smooth: their derivatives (DiracDelta) are not functions
 _NON_SMOOTH = (sp.Heaviside, sp.sign, sp.Min, sp.Max)
@@ -400,8 +405,10 @@ class System:
         return sp.Matrix([[sp.diff(c, v) for v in self.q_dot] for c in self.constraint_exprs])
 
     def force_jump_times(self, values=None) -> tuple:
-        """Times at which a force jumps (Heaviside/sign of a·t + b): integration breakpoints."""
-        return jump_times(self.tau, self.param_subs(values))
+        """Times at which a force jumps (Heaviside/sign of a·t + b): integration breakpoints
+        (remembered per system and parameter values, :data:`FORCE_JUMP_TIMES`)."""
+        key = tuple(sorted((name, float(v)) for name, v in values.items())) if values else ()
+        return FORCE_JUMP_TIMES.get(self, key, lambda: jump_times(self.tau, self.param_subs(values)))
 
     def force_vector(self) -> sp.Matrix:
         """Generalized forces τ(t, q, q̇, u), n×1."""

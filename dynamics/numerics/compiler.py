@@ -46,8 +46,10 @@ import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from ..memo import LruMemo
+
 __all__ = ["Library", "CompilerUnavailable", "build_library", "compiler_command", "library_key",
-           "jit_dir", "STALE_BUILD_S"]
+           "jit_dir", "STALE_BUILD_S", "COMPILER_COMMANDS"]
 
 #: a build folder older than this (seconds) is left over from a process that died: removed
 STALE_BUILD_S = 3600.0
@@ -83,16 +85,31 @@ def _compiler_setting() -> tuple[str, str] | None:
     return None
 
 
+#: the compiler command found per environment: ($NHGAIT_CC, $CC, $PATH) → the command or None.
+#: Looking it up walks $PATH (~50 µs); a simulation asks on every call. An entry lives until 16
+#: other environments were seen, in practice for the process: a compiler installed into a
+#: folder already on an unchanged $PATH after the first look-up is seen after ``clear()``.
+COMPILER_COMMANDS = LruMemo("C compiler command per ($NHGAIT_CC, $CC, $PATH)", size=16)
+
+
 def compiler_command() -> list | None:
     """The C compiler command (``$NHGAIT_CC``, else ``$CC``, else gcc, else cc), or None when
-    none is found. A variable that is set is final: its program missing means None."""
+    none is found (remembered per environment, :data:`COMPILER_COMMANDS`). A variable that is
+    set is final: its program missing means None."""
+    environ = os.environ
+    key = (environ.get("NHGAIT_CC"), environ.get("CC"), environ.get("PATH"))
+    command = COMPILER_COMMANDS.get(key, _find_compiler)
+    return None if command is None else list(command)
+
+
+def _find_compiler() -> tuple | None:
     setting = _compiler_setting()
     if setting is not None:
         command = shlex.split(setting[1])
-        return command if command and shutil.which(command[0]) else None
+        return tuple(command) if command and shutil.which(command[0]) else None
     for name in ("gcc", "cc"):
         if shutil.which(name):
-            return [name]
+            return (name,)
     return None
 
 
@@ -207,18 +224,35 @@ def _kill(proc: subprocess.Popen) -> None:
     proc.wait()
 
 
-def _compile(source: str, command: list, flags: tuple, libs: tuple, salt: str, key: str,
-             directory: Path, progress, label: str, timeout: float | None) -> Library:
-    """Compile ``source`` in a ``.build-*`` folder of ``directory`` (removed whatever happens)
-    and move the library, then its record, to ``directory/key.so`` and ``key.json``."""
+@dataclass(frozen=True)
+class _Job:
+    """One compilation: the C ``source``, the compiler ``command``, ``flags`` (before the
+    source), ``libs`` (after it), the key's ``salt`` and the ``key`` itself; ``progress``,
+    ``label`` and ``timeout`` for the waiting."""
+
+    source: str
+    command: list
+    flags: tuple
+    libs: tuple
+    salt: str
+    key: str
+    progress: object = None
+    label: str = "compiling"
+    timeout: float | None = None
+
+
+def _compile(job: _Job, directory: Path) -> Library:
+    """Compile ``job.source`` in a ``.build-*`` folder of ``directory`` (removed whatever
+    happens) and move the library, then its record, to ``directory/key.so`` and ``key.json``."""
     from .cache import file_sha256
     start = time.perf_counter()
+    key, command, flags, libs = job.key, job.command, job.flags, job.libs
     with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:
         c_file, so_tmp, record = Path(tmp) / f"{key}.c", Path(tmp) / f"{key}.so", Path(tmp) / f"{key}.json"
-        c_file.write_text(source)
+        c_file.write_text(job.source)
         cmd = [*command, *flags, "-fPIC", "-shared", str(c_file), "-o", str(so_tmp), *libs]
         try:
-            proc = _run(cmd, progress, label, timeout)
+            proc = _run(cmd, job.progress, job.label, job.timeout)
         except OSError as exc:
             raise CompilerUnavailable(f"cannot run the C compiler {command[0]!r} ({exc.strerror})") from None
         if proc.returncode != 0 or not so_tmp.exists():
@@ -226,12 +260,12 @@ def _compile(source: str, command: list, flags: tuple, libs: tuple, salt: str, k
             raise CompilerUnavailable(f"the C compiler failed ({' '.join(command + list(flags))}): {tail}")
         os.chmod(so_tmp, 0o700)
         record.write_text(json.dumps({"library_sha256": file_sha256(so_tmp), "compiler": command,
-                                      "flags": list(flags), "libs": list(libs), "salt": salt,
-                                      "c_bytes": len(source), "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}))
+                                      "flags": list(flags), "libs": list(libs), "salt": job.salt,
+                                      "c_bytes": len(job.source), "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}))
         os.chmod(record, 0o600)
         os.replace(so_tmp, directory / f"{key}.so")
         os.replace(record, directory / f"{key}.json")
-    return Library(directory / f"{key}.so", key, False, time.perf_counter() - start, len(source), flags)
+    return Library(directory / f"{key}.so", key, False, time.perf_counter() - start, len(job.source), flags)
 
 
 def build_library(source: str, *, flags: tuple = ("-O1",), salt: str = "", libs: tuple = ("-lm",),
@@ -242,7 +276,7 @@ def build_library(source: str, *, flags: tuple = ("-O1",), salt: str = "", libs:
     from .cache import trusted_dir
     command, flags, libs = _command(), tuple(flags), tuple(libs)
     key = library_key(source, flags=flags, salt=salt, libs=libs)
-    job = dict(source=source, command=command, flags=flags, libs=libs, salt=salt, key=key,
+    job = _Job(source=source, command=command, flags=flags, libs=libs, salt=salt, key=key,
                progress=progress, label=label, timeout=timeout)
     directory = trusted_dir(jit_dir())
     if directory is not None:
@@ -250,10 +284,10 @@ def build_library(source: str, *, flags: tuple = ("-O1",), salt: str = "", libs:
         if found is not None:
             return Library(found, key, True, 0.0, len(source), flags)
         _remove_stale_builds(directory)
-        return _compile(directory=directory, **job)
+        return _compile(job, directory)
     private = Path(tempfile.mkdtemp(prefix="nhgait-jit-"))
     try:
-        return replace(_compile(directory=private, **job), private=True)
+        return replace(_compile(job, private), private=True)
     except BaseException:
         shutil.rmtree(private, ignore_errors=True)
         raise

@@ -35,7 +35,7 @@ from ..numerics.compiler import CompilerUnavailable, Library, build_library, lib
 from .rk_tableaus import tableau
 
 __all__ = ["CompiledLoop", "CompilerUnavailable", "build", "CFLAGS",
-           "METHODS", "RunState", "STATUS"]
+           "METHODS", "OutputBuffers", "RunState", "STATUS"]
 
 #: compiler flags (:func:`.compiler.build_library` adds ``-fPIC -shared``; no -march=native: a
 #: cached library must run on any machine sharing the cache)
@@ -185,7 +185,10 @@ class RunState:
     cnt: np.ndarray
 
     @classmethod
-    def start(cls, t0, rtol, atol, h_max, max_steps, event_tol, stop_on_stiff=False) -> "RunState":
+    def start(cls, t0, tolerances, step_limits, event_tol, stop_on_stiff=False) -> "RunState":
+        """From ``t0`` with ``tolerances`` = (rtol, atol), ``step_limits`` = (largest step,
+        max_steps), the event threshold (0: none) and whether stiffness stops the run."""
+        (rtol, atol), (h_max, max_steps) = tolerances, step_limits
         ctl = np.zeros(_NCTL)
         ctl[[_C["t"], _C["rtol"], _C["atol"], _C["hmax"], _C["evtol"], _C["err_old"]]] = \
             [t0, rtol, atol, h_max, event_tol, 1e-4]
@@ -205,6 +208,31 @@ class RunState:
             self.cnt[_N[name]] = value
 
 
+@dataclass(frozen=True, eq=False)
+class OutputBuffers:
+    """Where ``nhg_run`` writes its outputs: on the grid ``t_eval`` into the rows of ``y_eval``
+    (``RunState["i_eval"]`` is the next grid index), or — without a grid — every accepted step
+    into ``t_steps``/``y_steps`` (``RunState["n_out"]`` rows; the call pauses when they are
+    full and :meth:`grown` gives room for twice as many). The arrays are written in place."""
+
+    t_eval: np.ndarray | None = None
+    y_eval: np.ndarray | None = None
+    t_steps: np.ndarray | None = None
+    y_steps: np.ndarray | None = None
+
+    @classmethod
+    def for_grid(cls, t_eval: np.ndarray, ny: int) -> "OutputBuffers":
+        return cls(t_eval=t_eval, y_eval=np.zeros((t_eval.size, ny)))
+
+    @classmethod
+    def for_steps(cls, ny: int, rows: int = 1025) -> "OutputBuffers":
+        return cls(t_steps=np.zeros(rows), y_steps=np.zeros((rows, ny)))
+
+    def grown(self) -> "OutputBuffers":
+        """Empty step buffers with room for about twice as many rows."""
+        return OutputBuffers.for_steps(self.y_steps.shape[1], 2 * self.t_steps.size - 1)
+
+
 def _ptr(a):
     return None if a is None else a.ctypes.data
 
@@ -222,15 +250,19 @@ class CompiledLoop:
     compile_time_s: float
     out_sizes: tuple
 
-    def run(self, method: str, state: RunState, t_end: float, t_hi: float, y: np.ndarray,
-            p: np.ndarray, t_eval=None, y_eval=None, t_steps=None, y_steps=None) -> int:
-        """One call of the C integrator from ``state['t']`` towards ``t_end``; ``y`` is updated
-        in place. Returns the C status (see :data:`STATUS`)."""
-        cap = 0 if t_steps is None else t_steps.size - 1
-        n_eval = 0 if t_eval is None else t_eval.size
+    def run(self, method: str, state: RunState, span: tuple, y: np.ndarray, p: np.ndarray,
+            buffers: OutputBuffers | None = None) -> int:
+        """One call of the C integrator from ``state['t']`` towards ``span`` = (t_end, t_hi):
+        the end of the call and the last time of its segment (the controller's and the forces'
+        clamp); ``y`` is updated in place, outputs go to ``buffers`` (None: only the final
+        state). Returns the C status (see :data:`STATUS`)."""
+        t_end, t_hi = span
+        out = buffers or OutputBuffers()
+        cap = 0 if out.t_steps is None else out.t_steps.size - 1
+        n_eval = 0 if out.t_eval is None else out.t_eval.size
         return self.library.nhg_run(METHODS[method], float(t_end), float(t_hi), _ptr(y), _ptr(p),
-                                    _ptr(state.ctl), _ptr(state.cnt), _ptr(t_eval), n_eval,
-                                    _ptr(y_eval), _ptr(t_steps), _ptr(y_steps), cap)
+                                    _ptr(state.ctl), _ptr(state.cnt), _ptr(out.t_eval), n_eval,
+                                    _ptr(out.y_eval), _ptr(out.t_steps), _ptr(out.y_steps), cap)
 
     def outputs(self, t, t_c, Y, P) -> list:
         """The output blocks at N points (each (N, size)); t, t_c (N,), Y (N, ny), P (N, np)."""

@@ -57,6 +57,7 @@ import csv
 import dataclasses
 import time
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import casadi as ca
@@ -67,10 +68,10 @@ from ..errors import ModelError
 from ..memo import OwnerMemo
 from .closed_loop import closed_loop
 from .integrators import (FAILED, FINISHED, MAX_STEPS, NONFINITE, SCIPY_METHODS,
-                          SINGULAR, RunRequest, integrate_compiled, integrate_scipy,
+                          SINGULAR, RunRequest, Samples, integrate_compiled, integrate_scipy,
                           integrate_sundials, left_of)
 
-__all__ = ["simulate", "Trajectory", "METHODS", "FINISHED", "FAILED", "MAX_STEPS", "NONFINITE",
+__all__ = ["simulate", "Trajectory", "Diagnostics", "METHODS", "FINISHED", "FAILED", "MAX_STEPS", "NONFINITE",
            "SINGULAR", "SINGULAR_EVENT_TOL"]
 
 COMPILED_METHODS = {"compiled": "DOP853", "compiled-DOPRI5": "DOPRI5"}
@@ -108,10 +109,11 @@ class Trajectory:
     formulation, method : "reduced" | "lagrange" | "hamilton"; the method that ran.
     coordinates, state_names, input_names : names of the columns.
     settings : every option the run used (tolerances, DAE form, stabilisation, fallbacks …).
-    diagnostics : what the run measured about itself: ``min_singular_measure``,
-        ``max_cond_metric`` (kinetic metric of the velocity part), ``max_cond_gram`` (DAE forms:
-        ω M⁻¹ ωᵀ), ``stiff_at``/``h_lambda_max``/``recommendation`` (explicit methods),
-        ``integrated_states``, ``t_event``, ``compile_time_s``.
+    diagnostics : what the run measured about itself (a read-only :class:`Diagnostics`
+        mapping): ``min_singular_measure``, ``max_cond_metric`` (kinetic metric of the velocity
+        part), ``max_cond_gram`` (DAE forms: ω M⁻¹ ωᵀ) — both computed when first read —,
+        ``stiff_at``/``h_lambda_max``/``recommendation`` (explicit methods),
+        ``integrated_states``, ``state_count``, ``t_event``, ``compile_time_s``.
     outputs : name → (N,) for the run's requested outputs (empty without ``outputs``).
     """
 
@@ -213,25 +215,65 @@ def _unit(name: str, units: dict, traj) -> str:
 # --------------------------------------------------------------------------------------------
 # input checks
 # --------------------------------------------------------------------------------------------
-def _check_request(model, t_span, t_eval, controller, method, dae, stabilization, baumgarte,
-                   rtol, atol, max_steps, singular_tol):
+@dataclass(frozen=True, eq=False)
+class _Call:
+    """One :func:`simulate` call as the user stated it (every argument, unchecked)."""
+
+    model: object
+    t_span: object
+    q0: object
+    qdot0: object
+    controller: object
+    params: object
+    method: str
+    rtol: float
+    atol: float
+    t_eval: object
+    dae: str
+    stabilization: str | None
+    baumgarte: object
+    max_step: float
+    max_steps: int
+    singular_tol: float | None
+    outputs: object
+    quantities: dict | None
+
+
+def _check_request(call: _Call) -> list:
     """Every problem with the request, as a list of sentences."""
-    system = model.system
     problems = []
     try:
-        t0, tf = (float(v) for v in t_span)
+        t0, tf = (float(v) for v in call.t_span)
         if not (np.isfinite(t0) and np.isfinite(tf) and tf > t0):
             problems.append(f"t_span must be increasing and finite, got ({t0:g}, {tf:g})")
     except (TypeError, ValueError):
-        problems.append(f"t_span must be a pair (t0, tf), got {t_span!r}")
+        problems.append(f"t_span must be a pair (t0, tf), got {call.t_span!r}")
         t0 = tf = None
+    problems += _option_problems(call)
+    if not (isinstance(call.max_steps, (int, np.integer)) and call.max_steps > 0):
+        problems.append(f"max_steps must be a positive integer, got {call.max_steps!r}")
+    if not (call.rtol > 0 and call.atol > 0):
+        problems.append(f"rtol and atol must be positive, got rtol={call.rtol!r}, atol={call.atol!r}")
+    if call.singular_tol is not None and not (0 <= call.singular_tol < 1):
+        problems.append(f"singular_tol must be in [0, 1) or None, got {call.singular_tol!r}")
+    if call.t_eval is not None and t0 is not None:
+        problems += _t_eval_problems(call.t_eval, t0, tf)
+    if call.controller is not None:
+        problems += _check_controller(call, t0, tf)
+    return problems
+
+
+def _option_problems(call: _Call) -> list:
+    """The method, DAE form and stabilisation problems of the request."""
+    method, dae, stabilization = call.method, call.dae, call.stabilization
+    problems = []
     if method not in METHODS:
         problems.append(f"unknown method {method!r} (choose from {', '.join(METHODS)})")
     if dae not in DAE_FORMS:
         problems.append(f"unknown dae form {dae!r} (choose from {', '.join(DAE_FORMS)})")
     if stabilization not in STABILIZATIONS:
         problems.append(f"unknown stabilization {stabilization!r} (None, 'baumgarte' or 'projection')")
-    if model.formulation == "reduced":
+    if call.model.formulation == "reduced":
         if dae == "idas":
             problems.append("dae='idas' applies to the DAE forms (lagrange, hamilton); the reduced "
                             "form is an ODE")
@@ -243,32 +285,28 @@ def _check_request(model, t_span, t_eval, controller, method, dae, stabilization
                         "method (the state is projected after every step)")
     if stabilization == "baumgarte":
         try:
-            alpha, beta = (float(v) for v in baumgarte)
+            alpha, beta = (float(v) for v in call.baumgarte)
             if not (alpha >= 0 and beta >= 0 and np.isfinite(alpha + beta)):
-                problems.append(f"baumgarte = (alpha, beta) must be finite and ≥ 0, got {baumgarte!r}")
+                problems.append(f"baumgarte = (alpha, beta) must be finite and ≥ 0, got {call.baumgarte!r}")
         except (TypeError, ValueError):
-            problems.append(f"baumgarte must be a pair (alpha, beta), got {baumgarte!r}")
-    if not (isinstance(max_steps, (int, np.integer)) and max_steps > 0):
-        problems.append(f"max_steps must be a positive integer, got {max_steps!r}")
-    if not (rtol > 0 and atol > 0):
-        problems.append(f"rtol and atol must be positive, got rtol={rtol!r}, atol={atol!r}")
-    if singular_tol is not None and not (0 <= singular_tol < 1):
-        problems.append(f"singular_tol must be in [0, 1) or None, got {singular_tol!r}")
-    if t_eval is not None and t0 is not None:
-        te = np.asarray(t_eval, dtype=float)
-        span = max(abs(t0), abs(tf), 1.0) * 1e-12
-        if te.ndim != 1 or te.size == 0:
-            problems.append("t_eval must be a non-empty 1-D array")
-        elif not np.all(np.isfinite(te)) or np.any(np.diff(te) <= 0):
-            problems.append("t_eval must be finite and strictly increasing")
-        elif te[0] < t0 - span or te[-1] > tf + span:
-            problems.append(f"t_eval must lie in t_span [{t0:g}, {tf:g}], got [{te[0]:g}, {te[-1]:g}]")
-    if controller is not None:
-        problems += _check_controller(system, controller, t0, tf, dae, method)
+            problems.append(f"baumgarte must be a pair (alpha, beta), got {call.baumgarte!r}")
     return problems
 
 
-def _check_controller(system, controller, t0, tf, dae, method):
+def _t_eval_problems(t_eval, t0: float, tf: float) -> list:
+    te = np.asarray(t_eval, dtype=float)
+    span = max(abs(t0), abs(tf), 1.0) * 1e-12
+    if te.ndim != 1 or te.size == 0:
+        return ["t_eval must be a non-empty 1-D array"]
+    if not np.all(np.isfinite(te)) or np.any(np.diff(te) <= 0):
+        return ["t_eval must be finite and strictly increasing"]
+    if te[0] < t0 - span or te[-1] > tf + span:
+        return [f"t_eval must lie in t_span [{t0:g}, {tf:g}], got [{te[0]:g}, {te[-1]:g}]"]
+    return []
+
+
+def _check_controller(call: _Call, t0, tf) -> list:
+    system, controller, dae, method = call.model.system, call.controller, call.dae, call.method
     problems = []
     if not callable(controller):
         problems.append("controller must be callable as controller(t, q, qdot) -> u")
@@ -366,59 +404,98 @@ def simulate(model, t_span, q0, qdot0, *, controller=None, params=None, method: 
     -------
     Trajectory
     """
-    problems = _check_request(model, t_span, t_eval, controller, method, dae, stabilization,
-                              baumgarte, rtol, atol, max_steps, singular_tol)
+    call = _Call(model, t_span, q0, qdot0, controller, params, method, rtol, atol, t_eval, dae,
+                 stabilization, baumgarte, max_step, max_steps, singular_tol, outputs, quantities)
+    resolved = _checked_outputs(call)
+    prepared, request = _prepare(call, resolved)
+    route = "IDAS" if dae == "idas" and model.formulation != "reduced" else method
+    return _assemble(call, request, ROUTES[route](request, route, prepared.settings), prepared)
+
+
+@dataclass(frozen=True, eq=False)
+class _Prepared:
+    """What :func:`simulate` settled before integrating: the parameter vector ``pv``, the
+    resolved ``outputs`` (or None), the ``settings`` reported (the route adds to them), the
+    ``start`` of the wall time and whether the initial point is an output (``with_initial``)."""
+
+    pv: np.ndarray
+    resolved: object
+    settings: dict
+    start: float
+    with_initial: bool
+
+
+def _checked_outputs(call: _Call):
+    """The resolved ``outputs`` (or None) of a valid request; :class:`ModelError` listing every
+    problem otherwise."""
+    problems = _check_request(call)
     resolved = None
-    if outputs is not None and not problems:
+    if call.outputs is not None and not problems:
         from .closure import resolve_outputs
         try:
-            resolved = resolve_outputs(model, tuple(outputs), quantities)
+            resolved = resolve_outputs(call.model, tuple(call.outputs), call.quantities)
         except ModelError as err:
             problems += list(err.problems)
-    if not problems and params is not None:
-        problems += _parameter_problems(model, params)
+    if not problems and call.params is not None:
+        problems += _parameter_problems(call.model, call.params)
     if problems:
         raise ModelError(problems, title="invalid simulation request")
-    system, num = model.system, model.numeric
-    pv = num.params(params)
-    t0, tf = float(t_span[0]), float(t_span[1])
-    x0 = to_state(model, q0, qdot0, params)
-    segments = _segments(t0, tf, controller, system, dict(zip(num.param_names, pv.tolist())))
-    if controller is not None:
-        with np.errstate(all="ignore"):
-            u0 = np.asarray(controller(t0, np.asarray(q0, float), np.asarray(qdot0, float)), float).ravel()
-        if u0.shape != (len(system.inputs),):
-            raise ModelError([f"controller returned {u0.size} inputs, the system has "
-                              f"{len(system.inputs)} ({', '.join(system.inputs)})"],
-                             title="invalid simulation request")
+    return resolved
 
+
+def _prepare(call: _Call, resolved) -> tuple:
+    """(:class:`_Prepared`, :class:`RunRequest`): the initial state, the segments, the closed
+    loop and the settings of a checked request."""
+    model, controller = call.model, call.controller
+    system, num = model.system, model.numeric
+    pv = num.params(call.params)
+    t0, tf = float(call.t_span[0]), float(call.t_span[1])
+    x0 = to_state(model, call.q0, call.qdot0, call.params)
+    named_params = dict(zip(num.param_names, pv.tolist()))
+    segments = _segments(t0, tf, controller, system, named_params)
+    if controller is not None:
+        _check_first_input(call, t0)
     start = time.perf_counter()
-    settings = {"method": method, "dae": dae if model.formulation != "reduced" else None,
-                "rtol": rtol, "atol": atol, "stabilization": stabilization,
-                "baumgarte": tuple(float(v) for v in baumgarte) if stabilization == "baumgarte" else None,
-                "max_step": max_step, "max_steps": max_steps, "t_span": (t0, tf),
-                "segments": len(segments), "params": dict(zip(num.param_names, pv.tolist())),
-                "controller": None if controller is None else type(controller).__name__,
-                "singular_tol": singular_tol, "outputs": None if outputs is None else tuple(outputs)}
+    settings = _settings(call, (t0, tf), len(segments), named_params)
     seeds = None
     if resolved is not None:
-        if dae == "idas" or stabilization == "projection":
+        if call.dae == "idas" or call.stabilization == "projection":
             settings["outputs_note"] = "the dependency closure needs the ODE route; every state integrated"
         else:
             seeds = resolved.seeds
-    loop = closed_loop(_integration_model(model, pv, settings), controller, stabilization=stabilization,
-                       baumgarte=baumgarte, seeds=seeds)
+    loop = closed_loop(_integration_model(model, pv, settings), controller, stabilization=call.stabilization,
+                       baumgarte=call.baumgarte, seeds=seeds)
     y0 = np.r_[x0[list(loop.state_index)], [0.0] * loop.has_work, np.zeros(loop.n_int)]
-
     seg_params = [loop.segment_params(pv, controller, a) for a, _ in segments]
-    request = RunRequest(loop, controller, segments, y0, seg_params, t_eval, rtol, atol, max_step, max_steps,
-                         singular_tol, stabilization, baumgarte)
-    route = "IDAS" if dae == "idas" and model.formulation != "reduced" else method
-    run, method_name, extra = ROUTES[route](request, route, settings)
-    te = None if t_eval is None else np.asarray(t_eval, dtype=float)
+    request = RunRequest(loop, controller, segments, y0, seg_params, call.t_eval, call.rtol, call.atol,
+                         call.max_step, call.max_steps, call.singular_tol, call.stabilization, call.baumgarte)
+    te = None if call.t_eval is None else np.asarray(call.t_eval, dtype=float)
     with_initial = te is None or abs(te[0] - t0) <= 1e-12 * max(1.0, abs(t0))
-    return _assemble(model, request, run, method_name, start, settings, extra, resolved, quantities, pv,
-                     with_initial)
+    return _Prepared(pv, resolved, settings, start, with_initial), request
+
+
+def _check_first_input(call: _Call, t0: float) -> None:
+    """The controller's input at the initial state has one entry per system input."""
+    system = call.model.system
+    with np.errstate(all="ignore"):
+        u0 = np.asarray(call.controller(t0, np.asarray(call.q0, float), np.asarray(call.qdot0, float)),
+                        float).ravel()
+    if u0.shape != (len(system.inputs),):
+        raise ModelError([f"controller returned {u0.size} inputs, the system has "
+                          f"{len(system.inputs)} ({', '.join(system.inputs)})"],
+                         title="invalid simulation request")
+
+
+def _settings(call: _Call, t_span: tuple, n_segments: int, named_params: dict) -> dict:
+    """Every option the run uses, as ``Trajectory.settings`` reports them."""
+    stabilization = call.stabilization
+    return {"method": call.method, "dae": call.dae if call.model.formulation != "reduced" else None,
+            "rtol": call.rtol, "atol": call.atol, "stabilization": stabilization,
+            "baumgarte": tuple(float(v) for v in call.baumgarte) if stabilization == "baumgarte" else None,
+            "max_step": call.max_step, "max_steps": call.max_steps, "t_span": t_span,
+            "segments": n_segments, "params": named_params,
+            "controller": None if call.controller is None else type(call.controller).__name__,
+            "singular_tol": call.singular_tol, "outputs": None if call.outputs is None else tuple(call.outputs)}
 
 
 #: per compiled model (model.numeric, dropped with it): parameter values → (the model
@@ -459,7 +536,7 @@ def _route_cvodes(request: RunRequest, method: str, settings: dict) -> tuple:
 
 def _route_idas(request: RunRequest, method: str, settings: dict) -> tuple:
     t0 = request.segments[0][0]
-    lam0 = _outputs(request.loop, request.controller, None, [t0], [t0], [request.y0], [0],
+    lam0 = _outputs(request.loop, request.controller, None, Samples.point(t0, t0, 0, request.y0),
                     request.seg_params)["lam"][0]
     return integrate_sundials(request, "idas", lam0), "IDAS", {}
 
@@ -525,21 +602,23 @@ def _library(loop, explicit_u, projection=False):
 # outputs
 # --------------------------------------------------------------------------------------------
 _BLOCKS = ("q", "qdot", "lam", "g", "energy", "u", "measure", "metric", "gram")
+#: the blocks whose non-finite values stop a run
+_CHECKED_BLOCKS = ("q", "qdot", "lam", "g", "energy", "u")
 
 
-def _outputs(loop, controller, library, t, t_c, y, seg, seg_params) -> dict:
-    """The output blocks of the closed loop at N points, each (N, size)."""
-    N = len(t)
-    Y = np.array(y, dtype=float).reshape(N, loop.n_y)
-    P = np.array([seg_params[j] for j in seg], dtype=float).reshape(N, loop.n_p)
+def _outputs(loop, controller, library, points: Samples, seg_params) -> dict:
+    """The output blocks of the closed loop at the N ``points``, each (N, size)."""
+    N = len(points)
+    Y = points.y.reshape(N, loop.n_y)
+    P = np.asarray(seg_params, dtype=float).reshape(len(seg_params), loop.n_p)[points.seg]
     if library is not None:
-        return dict(zip(_BLOCKS, library.outputs(t, t_c, Y, P)))
-    T, Tc = np.array(t, float)[None, :], np.array(t_c, float)[None, :]
+        return dict(zip(_BLOCKS, library.outputs(points.t, points.t_c, Y, P)))
+    T, Tc = points.t[None, :], points.t_c[None, :]
     if controller is not None and not (loop.symbolic_u or loop.segment_u):
         qdot = np.asarray(loop.qdot.map(N)(Y.T, P.T)).reshape(-1, N)
         with np.errstate(all="ignore"):
             U = np.array([np.asarray(controller(tc, Y[i, :loop.n_q], qdot[:, i]), float).ravel()
-                          for i, tc in enumerate(t_c)]).T
+                          for i, tc in enumerate(points.t_c)]).T
         res = loop.outputs.map(N)(T, Tc, Y.T, U, P.T)
     else:
         res = loop.outputs.map(N)(T, Tc, Y.T, P.T)
@@ -549,64 +628,73 @@ def _outputs(loop, controller, library, t, t_c, y, seg, seg_params) -> dict:
 def _first_nonfinite_row(out: dict, modelled: dict) -> int | None:
     """First output row with a non-finite value in a column that is modelled."""
     rows = []
-    for key in ("q", "qdot", "lam", "g", "energy", "u"):
+    for key in _CHECKED_BLOCKS:
         block = out[key]
-        if block.size:
-            bad = (~np.isfinite(block[:, modelled[key]])).any(axis=1)
-            if bad.any():
-                rows.append(int(np.flatnonzero(bad)[0]))
+        if not block.size or np.isfinite(block.sum()):      # NaN and ±inf reach the sum
+            continue
+        bad = (~np.isfinite(block[:, modelled[key]])).any(axis=1)
+        if bad.any():
+            rows.append(int(np.argmax(bad)))
     return min(rows) if rows else None
 
 
-def _assemble(model, request: RunRequest, run, method_name, start, settings, extra, resolved, quantities, pv,
-              with_initial) -> Trajectory:
-    """Outputs, diagnosis of a failure, diagnostics → :class:`Trajectory`."""
-    loop, controller, seg_params, segments, y0 = (request.loop, request.controller, request.seg_params,
-                                                  request.segments, request.y0)
-    singular_tol = request.event_tol
-    system, t0 = model.system, segments[0][0]
+def _assemble(call: _Call, request: RunRequest, routed: tuple, prepared: _Prepared) -> Trajectory:
+    """Outputs, diagnosis of a failure, diagnostics → :class:`Trajectory` (``routed``: what the
+    route returned, (Run, method name, extra diagnostics))."""
+    run, method_name, extra = routed
+    model, loop, segments = call.model, request.loop, request.segments
     library = extra.pop("library", None)
     # outputs at the initial state first: E(t0) and which columns the run models at all
-    pts_t = [t0] + run.t
-    pts_tc = [min(t0, left_of(segments[0][1]))] + run.t_c
-    out = _outputs(loop, controller, library, pts_t, pts_tc, [y0] + run.y, [0] + run.seg, seg_params)
-    modelled = {k: np.isfinite(v[0]) for k, v in out.items()}
+    t0 = segments[0][0]
+    initial = Samples.point(t0, min(t0, left_of(segments[0][1])), 0, request.y0)
+    samples = run.samples(loop.n_y, model.numeric.n_multipliers if run.with_lam else 0)
+    points = Samples.join([initial, samples.with_lam(None)])
+    out = _outputs(loop, request.controller, library, points, request.seg_params)
+    modelled = {k: np.isfinite(out[k][0]) for k in _CHECKED_BLOCKS}
     if run.status == FINISHED:
-        row = _first_nonfinite_row({k: v[1:] for k, v in out.items()}, modelled)
+        row = _first_nonfinite_row({k: out[k][1:] for k in _CHECKED_BLOCKS}, modelled)
         if row is not None:
-            run.fail(NONFINITE, run.t[row], "")
-            run.t, run.t_c, run.seg, run.y = run.t[:row], run.t_c[:row], run.seg[:row], run.y[:row]
+            run.fail(NONFINITE, samples.t[row], "")
+            run.keep_first(row)
+            samples, points = samples.rows(0, row), points.rows(0, row + 1)
             out = {k: v[:row + 1] for k, v in out.items()}
     if run.status in (FAILED, MAX_STEPS, NONFINITE):
-        _diagnose(model, loop, controller, run, seg_params, segments, y0)
+        _diagnose(model, request, run)
     if run.status == SINGULAR:
         run.message = (f"reached the singular set at t = {run.t_fail:.9g}: singular-set measure "
-                       f"below {singular_tol:g} ({_singular_text(model)})"
+                       f"below {request.event_tol:g} ({_singular_text(model)})"
                        + (f"; {run.message}" if run.message else ""))
     energy0 = float(out["energy"][0, 0])
-    if with_initial:
-        run.t, run.t_c, run.seg, run.y = pts_t[:1] + run.t, pts_tc[:1] + run.t_c, [0] + run.seg, [y0] + run.y
-        if run.lam is not None:
-            run.lam = [out["lam"][0]] + run.lam
+    if prepared.with_initial:          # the points the outputs were evaluated at
+        samples = points if samples.lam is None else points.with_lam(np.concatenate([out["lam"][:1], samples.lam]))
     else:
         out = {k: v[1:] for k, v in out.items()}
-    wall = time.perf_counter() - start
-    N = len(run.t)
-    Y = np.array(run.y, dtype=float).reshape(N, loop.n_y)
+    wall = time.perf_counter() - prepared.start
+    return _trajectory(call, loop, (run, samples, out, energy0), (method_name, extra, wall), prepared)
+
+
+def _trajectory(call: _Call, loop, results: tuple, route: tuple, prepared: _Prepared) -> Trajectory:
+    """The :class:`Trajectory` of ``results`` = (Run, its samples, the output blocks, E(t₀))
+    and ``route`` = (method name, extra diagnostics, wall time)."""
+    model, system = call.model, call.model.system
+    run, samples, out, energy0 = results
+    method_name, extra, wall = route
+    N = len(samples)
+    Y = samples.y.reshape(N, loop.n_y)
     n_xs = len(loop.state_index)
     work = Y[:, n_xs] if loop.has_work else np.full(N, np.nan)
     energy = out["energy"].ravel()
     lam = None
     if model.formulation != "reduced":
-        lam = np.array(run.lam).reshape(N, -1) if run.lam is not None else out["lam"]
-    diagnostics = _diagnostics(model, loop, run, out, extra)
-    traj_outputs = _named_outputs(model, loop, resolved, quantities, out, Y, pv)
-    arrays = dict(t=np.array(run.t, dtype=float), q=out["q"], qdot=out["qdot"], state=Y[:, :n_xs],
-                  u=out["u"], lam=lam, constraint_residual=out["g"], energy=energy, work=work,
+        lam = samples.lam.reshape(N, -1) if samples.lam is not None else out["lam"]
+    traj_outputs = _named_outputs(call, prepared, loop, out, Y)
+    arrays = dict(t=samples.t, q=out["q"], qdot=out["qdot"], state=Y[:, :n_xs], u=out["u"], lam=lam,
+                  constraint_residual=out["g"], energy=energy, work=work,
                   energy_balance=energy - energy0 - work)
     for a in list(arrays.values()) + list(traj_outputs.values()):
         if a is not None:
             a.setflags(write=False)
+    settings = prepared.settings
     settings["method"] = method_name
     return Trajectory(**arrays, nfev=run.nfev, njev=run.njev, n_steps=run.n_steps,
                       wall_time_s=wall, success=run.status == FINISHED, status=run.status,
@@ -614,7 +702,7 @@ def _assemble(model, request: RunRequest, run, method_name, start, settings, ext
                       coordinates=tuple(system.coordinates),
                       state_names=tuple(model.state_names[i] for i in loop.state_index),
                       input_names=tuple(system.inputs), settings=settings,
-                      diagnostics=diagnostics, outputs=traj_outputs)
+                      diagnostics=_diagnostics(model, loop, run, out, extra), outputs=traj_outputs)
 
 
 def _singular_text(model) -> str:
@@ -626,15 +714,53 @@ def _singular_text(model) -> str:
     return "the reduction is singular there"
 
 
-def _diagnostics(model, loop, run, out, extra) -> dict:
+class Diagnostics(Mapping):
+    """``Trajectory.diagnostics``: what a run measured about itself, a read-only mapping.
+
+    The condition numbers ``max_cond_metric`` and ``max_cond_gram`` take an SVD of the matrix
+    at every output point — for a thousand points about as long as the integration itself —
+    so they are computed the first time they are read (``d["max_cond_metric"]``, ``dict(d)``,
+    ``repr``) and then kept: a run that never reads them does not pay for them. Every other
+    entry is stored by the run. The values live as long as the trajectory."""
+
+    def __init__(self, entries: dict):
+        self._entries = dict(entries)
+
+    def __getitem__(self, key):
+        value = self._entries[key]
+        if isinstance(value, _MaxCondition):
+            value = self._entries[key] = value.compute()
+        return value
+
+    def __iter__(self):
+        return iter(self._entries)
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    def __repr__(self) -> str:
+        return repr(dict(self))
+
+
+@dataclass(frozen=True, eq=False)
+class _MaxCondition:
+    """A condition number not yet computed: the (N, k·k) matrices, column-major per row."""
+
+    matrices: np.ndarray
+
+    def compute(self) -> float | None:
+        return _max_cond(self.matrices)
+
+
+def _diagnostics(model, loop, run, out, extra) -> Diagnostics:
     d = dict(extra)
     d["integrated_states"] = tuple(model.state_names[i] for i in loop.state_index)
     d["state_count"] = (len(loop.state_index), loop.n_x)
     if out["measure"].size:
         d["min_singular_measure"] = float(np.nanmin(out["measure"])) if np.isfinite(out["measure"]).any() else None
-    d["max_cond_metric"] = _max_cond(out["metric"])
+    d["max_cond_metric"] = _MaxCondition(out["metric"])
     if model.formulation != "reduced" and out["gram"].size:
-        d["max_cond_gram"] = _max_cond(out["gram"])
+        d["max_cond_gram"] = _MaxCondition(out["gram"])
     if run.status == SINGULAR:
         d["t_event"] = run.t_fail
     if run.h_lambda:
@@ -645,7 +771,7 @@ def _diagnostics(model, loop, run, out, extra) -> dict:
                                f"{run.h_lambda:.3g}): the explicit method's step is limited by "
                                "stability, not accuracy; use method='CVODES', 'Radau' or 'BDF' "
                                "(or method='auto', which switches by itself)")
-    return d
+    return Diagnostics(d)
 
 
 def _max_cond(block) -> float | None:
@@ -660,7 +786,8 @@ def _max_cond(block) -> float | None:
         return float(np.max(np.linalg.cond(rows.reshape(-1, k, k).transpose(0, 2, 1))))
 
 
-def _named_outputs(model, loop, resolved, quantities, out, Y, pv) -> dict:
+def _named_outputs(call: _Call, prepared: _Prepared, loop, out, Y) -> dict:
+    resolved, quantities, model = prepared.resolved, call.quantities, call.model
     if resolved is None:
         return {}
     from .closure import expand_outputs
@@ -678,7 +805,7 @@ def _named_outputs(model, loop, resolved, quantities, out, Y, pv) -> dict:
             from ..derivation.quantities import quantity_function
             f = quantity_function(model.system, quantities)
             N = out["q"].shape[0]
-            values = np.asarray(f.map(N)(out["q"].T, out["qdot"].T, np.repeat(pv[:, None], N, 1)))
+            values = np.asarray(f.map(N)(out["q"].T, out["qdot"].T, np.repeat(prepared.pv[:, None], N, 1)))
             result[name] = values[list(quantities).index(name)].copy()
     return result
 
@@ -686,12 +813,14 @@ def _named_outputs(model, loop, resolved, quantities, out, Y, pv) -> dict:
 # --------------------------------------------------------------------------------------------
 # what produced a non-finite value
 # --------------------------------------------------------------------------------------------
-def _diagnose(model, loop, controller, run, seg_params, segments, y0) -> None:
+def _diagnose(model, request: RunRequest, run) -> None:
     """Name the time and the quantity behind a failure; a failure caused by a non-finite value
     becomes status NONFINITE."""
-    t = run.t_fail if run.t_fail is not None else (run.t[-1] if run.t else segments[0][0])
-    j = run.seg[-1] if run.seg else 0
-    y = run.y_fail if run.y_fail is not None else (run.y[-1] if run.y else y0)
+    segments = request.segments
+    last = run.last()
+    t = run.t_fail if run.t_fail is not None else (last[0] if last else segments[0][0])
+    j = last[1] if last else 0
+    y = run.y_fail if run.y_fail is not None else (last[2] if last else request.y0)
     if run.y_fail is not None and run.t_bad is not None:
         j = int(np.searchsorted([b for _, b in segments], run.t_bad))
         j = min(j, len(segments) - 1)
@@ -701,8 +830,7 @@ def _diagnose(model, loop, controller, run, seg_params, segments, y0) -> None:
     for tt in probes:
         if tt > segments[-1][1]:
             break
-        found = _nonfinite_source(model, loop, controller, float(tt), y, seg_params[j],
-                                  left_of(segments[j][1]), run.bad)
+        found = _nonfinite_source(model, request, (float(tt), y, j), run.bad)
         if found:
             break
     if found:
@@ -712,9 +840,12 @@ def _diagnose(model, loop, controller, run, seg_params, segments, y0) -> None:
         run.message = f"integration failed at t = {t:.9g}"
 
 
-def _nonfinite_source(model, loop, controller, t, y, p, t_hi, bad) -> str | None:
-    """A sentence naming the first non-finite quantity at (t, y), or None."""
-    system = model.system
+def _nonfinite_source(model, request: RunRequest, point: tuple, bad) -> str | None:
+    """A sentence naming the first non-finite quantity at ``point`` = (t, y, segment index),
+    or None (``bad``: the index of a non-finite entry of ẏ the integrator reported, if any)."""
+    system, loop, controller = model.system, request.loop, request.controller
+    t, y, j = point
+    p, t_hi = request.seg_params[j], left_of(request.segments[j][1])
     if _bad(y) is not None:
         return f"the state entry {_y_name(model, loop, _bad(y))} is non-finite"
     tc = min(t, t_hi)
@@ -732,12 +863,12 @@ def _nonfinite_source(model, loop, controller, t, y, p, t_hi, bad) -> str | None
                         f"{name} = {u[_bad(u)]} at t = {t:.9g}")
         else:
             u = np.zeros(len(system.inputs))
-        tau = _force_values(system, t, q, qdot, u, p[:loop.n_params])
+        tau = _force_values(system, (t, q, qdot, u), p[:loop.n_params])
     if tau is not None and _bad(tau) is not None:
         i = _bad(tau)
         return (f"the force on {system.coordinates[i]}, τ = {system.tau[i]}, is {tau[i]} at "
                 f"t = {t:.9g}")
-    args = [t, tc, y] + ([u] if controller is not None and not (loop.symbolic_u or loop.segment_u) else []) + [p]
+    args = [t, tc, y] + ([u] if request.python_inputs else []) + [p]
     with np.errstate(all="ignore"):
         ydot = np.asarray(loop.rhs(*args)).ravel()
     if _bad(ydot) is not None or bad is not None:
@@ -768,8 +899,10 @@ def _full_q(model, loop, y) -> np.ndarray:
     return q
 
 
-def _force_values(system, t, q, qdot, u, params):
-    """τ(t, q, q̇, u) from the system's force expressions (evaluated only to explain a failure)."""
+def _force_values(system, point: tuple, params):
+    """τ(t, q, q̇, u) at ``point`` = (t, q, q̇, u) from the system's force expressions
+    (evaluated only to explain a failure)."""
+    t, q, qdot, u = point
     from ..numerics.bridge import to_casadi
     from ..derivation.system import TIME
     syms = [TIME] + list(system.q) + list(system.q_dot) + list(system.input_symbols) + list(system.param_symbols)

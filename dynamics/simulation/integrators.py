@@ -21,6 +21,7 @@ dense output of the explicit methods, to the output grid for SUNDIALS).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -37,6 +38,22 @@ IMPLICIT_METHODS = ("Radau", "BDF", "LSODA")
 STIFF_LIMIT = {"RK45": 1.2, "DOP853": 3.0}
 #: evaluations allowed per permitted step: a backstop against a solver that never returns
 _EVALS_PER_STEP = 100
+
+
+@dataclass(frozen=True, eq=False)
+class Segment:
+    """One integration interval [start, end] between the controller's switch times: its
+    ``index``, its ends and ``params``, the closed loop's parameter vector p on it."""
+
+    index: int
+    start: float
+    end: float
+    params: np.ndarray
+
+    @property
+    def t_hi(self) -> float:
+        """The last time before ``end``: where the controller's and the forces' time is clamped."""
+        return left_of(self.end)
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,16 +88,60 @@ class RunRequest:
         CasADi form and is not piecewise given): no compiled route, no symbolic Jacobian in u."""
         return self.controller is not None and not (self.loop.symbolic_u or self.loop.segment_u)
 
+    def intervals(self) -> list:
+        """The integration intervals as :class:`Segment` values, in time order."""
+        return [Segment(j, float(a), float(b), np.asarray(self.seg_params[j], dtype=float))
+                for j, (a, b) in enumerate(self.segments)]
+
+
+@dataclass(frozen=True, eq=False)
+class Samples:
+    """Output points as arrays: ``t`` (N,) times, ``t_c`` (N,) the times the controller and the
+    forces see (t clamped to its segment), ``seg`` (N,) segment indices, ``y`` (N, n_y) states,
+    ``lam`` (N, k) multipliers (IDAS) or None."""
+
+    t: np.ndarray
+    t_c: np.ndarray
+    seg: np.ndarray
+    y: np.ndarray
+    lam: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return self.t.size
+
+    def rows(self, start: int = 0, stop: int | None = None) -> "Samples":
+        """The points ``start:stop`` (views)."""
+        part = slice(start, stop)
+        return Samples(self.t[part], self.t_c[part], self.seg[part], self.y[part],
+                       None if self.lam is None else self.lam[part])
+
+    def with_lam(self, lam) -> "Samples":
+        """These points with the multipliers ``lam`` (N, k)."""
+        return Samples(self.t, self.t_c, self.seg, self.y, lam)
+
+    @classmethod
+    def join(cls, parts) -> "Samples":
+        """The points of ``parts`` one after the other (multipliers only if all have them)."""
+        lams = [part.lam for part in parts]
+        return cls(*(np.concatenate([getattr(part, name) for part in parts]) for name in ("t", "t_c", "seg", "y")),
+                   None if any(lam is None for lam in lams) else np.concatenate(lams))
+
+    @classmethod
+    def point(cls, t: float, t_c: float, seg: int, y, lam=None) -> "Samples":
+        """One point."""
+        return cls(np.array([float(t)]), np.array([float(t_c)]), np.array([seg], dtype=np.intp),
+                   np.array(y, dtype=float).reshape(1, -1),
+                   None if lam is None else np.array(lam, dtype=float).reshape(1, -1))
+
 
 @dataclass
 class Run:
-    """What a route produced: output times, controller times, segment indices and states."""
+    """What a route produced: the output points (:meth:`samples`), counters and a status.
 
-    t: list = field(default_factory=list)
-    t_c: list = field(default_factory=list)
-    seg: list = field(default_factory=list)
-    y: list = field(default_factory=list)
-    lam: list | None = None
+    A route adds points one at a time (:meth:`add`) or as arrays (:meth:`add_block`, the
+    compiled route's blocks, kept as arrays); :meth:`samples` joins them once, at the end."""
+
+    with_lam: bool = False                # points carry multipliers (IDAS)
     nfev: int = 0
     njev: int = 0
     n_steps: int = 0
@@ -93,22 +154,54 @@ class Run:
     t_bad: float | None = None            # a time the failed step could not reach
     t_stiff: float | None = None          # first time stiffness was detected
     h_lambda: float = 0.0                 # largest h|λ| estimate (explicit methods)
+    _rows: list = field(default_factory=list, repr=False)      # points added one by one
+    _blocks: list = field(default_factory=list, repr=False)    # Samples, in time order
 
     def add(self, t, t_hi, seg, y, lam=None):
-        self.t.append(float(t))
-        self.t_c.append(min(float(t), t_hi))
-        self.seg.append(seg)
-        self.y.append(np.array(y, dtype=float))
-        if lam is not None:
-            self.lam.append(np.array(lam, dtype=float))
+        t = float(t)
+        self._rows.append((t, min(t, t_hi), seg, np.array(y, dtype=float),
+                           None if lam is None else np.array(lam, dtype=float)))
 
     def add_block(self, t, t_hi, seg, Y):
         """:meth:`add` for N points at once: ``t`` (N,), ``Y`` (N, n_y) (copied)."""
-        t = np.asarray(t, dtype=float)
-        self.t.extend(t.tolist())
-        self.t_c.extend(np.minimum(t, t_hi).tolist())
-        self.seg.extend([seg] * t.size)
-        self.y.extend(np.array(Y, dtype=float))
+        self._flush()
+        t, Y = np.array(t, dtype=float), np.array(Y, dtype=float)
+        if t.size:
+            self._blocks.append(Samples(t, np.minimum(t, t_hi), np.full(t.size, seg, dtype=np.intp),
+                                        Y.reshape(t.size, -1)))
+
+    def _flush(self) -> None:
+        if self._rows:
+            t, t_c, seg, y, lam = zip(*self._rows)
+            self._blocks.append(Samples(np.array(t), np.array(t_c), np.array(seg, dtype=np.intp),
+                                        np.array(y), np.array(lam) if self.with_lam else None))
+            self._rows = []
+
+    def samples(self, n_y: int, n_lam: int = 0) -> Samples:
+        """Every point added, as arrays (``lam`` (N, n_lam) when the points carry multipliers)."""
+        self._flush()
+        if not self._blocks:
+            return Samples(np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.intp), np.zeros((0, n_y)),
+                           np.zeros((0, n_lam)) if self.with_lam else None)
+        if len(self._blocks) > 1:
+            self._blocks = [Samples.join(self._blocks)]
+        return self._blocks[0]
+
+    def keep_first(self, rows: int) -> None:
+        """Drop every point after the first ``rows``."""
+        self._flush()
+        if self._blocks:
+            self._blocks = [self.samples(0).rows(0, rows)]
+
+    def last(self) -> tuple | None:
+        """(t, segment index, y) of the last point added, or None."""
+        if self._rows:
+            t, _, seg, y, _ = self._rows[-1]
+            return t, seg, y
+        if self._blocks and len(self._blocks[-1]):
+            block = self._blocks[-1]
+            return float(block.t[-1]), int(block.seg[-1]), block.y[-1]
+        return None
 
     def fail(self, status, t, message, bad=None):
         self.status, self.t_fail, self.message, self.bad = status, float(t), message, bad
@@ -162,6 +255,26 @@ class Measure:
         return self._fast.scalars(y, ydot, p)
 
 
+@dataclass(frozen=True, eq=False)
+class EventWatch:
+    """The singular-set event on one segment: the ``measure``, the segment's parameter vector
+    ``params`` and the threshold ``tol`` (the run stops where s < tol)."""
+
+    measure: Measure
+    params: np.ndarray
+    tol: float
+
+    def __call__(self, y) -> float:
+        return self.measure(y, self.params)
+
+    def with_rate(self, y, ydot) -> tuple:
+        return self.measure.with_rate(y, ydot, self.params)
+
+    def clear(self, value) -> bool:
+        """The measure ``value`` is finite and at or above the threshold."""
+        return bool(np.isfinite(value) and value >= self.tol)
+
+
 class _Budget(Exception):
     """Raised inside the right-hand side when the evaluation budget is spent."""
 
@@ -169,6 +282,19 @@ class _Budget(Exception):
 def _first_bad(v) -> int | None:
     bad = np.flatnonzero(~np.isfinite(np.asarray(v, dtype=float)))
     return int(bad[0]) if bad.size else None
+
+
+class _Grid:
+    """The output times ``te`` (or None: every accepted step) and the index of the next one
+    still to be recorded (the one cursor a route moves along the grid)."""
+
+    def __init__(self, t_eval, t0: float):
+        self.te = None if t_eval is None else np.asarray(t_eval, dtype=float)
+        self.next = _grid_start(self.te, t0)
+
+    def due(self, t: float) -> bool:
+        """The next output time exists and lies at or before ``t`` (to 1e-12 relative)."""
+        return self.next < self.te.size and self.te[self.next] <= t + 1e-12 * max(1.0, abs(t))
 
 
 def _grid_start(te, t0):
@@ -198,42 +324,52 @@ def _stiffness(solver, method) -> float | None:
 WATCH = 1e4
 
 
-def _locate(dense, event, params, t_lo, t_hi, tol):
-    """Bisection for the first time in (t_lo, t_hi] where event(dense(t)) < tol."""
+def _locate(dense, watch: EventWatch, t_lo, t_hi):
+    """Bisection for the first time in (t_lo, t_hi] where the measure on ``dense(t)`` falls
+    below the threshold."""
     lo, hi = t_lo, t_hi
     for _ in range(80):
         if hi - lo <= 4 * np.finfo(float).eps * max(abs(hi), 1.0):
             break
         mid = 0.5 * (lo + hi)
-        g = event(dense(mid), params)
-        if np.isfinite(g) and g >= tol:
+        if watch.clear(watch(dense(mid))):
             lo = mid
         else:
             hi = mid
     return hi, dense(hi)
 
 
-def _golden(dense, event, params, lo, hi):
+def _golden(dense, watch: EventWatch, lo, hi):
     """(t, s) at the minimum of s(dense(t)) on [lo, hi] (golden-section search)."""
     r = 0.6180339887498949
     a, b = hi - r * (hi - lo), lo + r * (hi - lo)
-    ga, gb = event(dense(a), params), event(dense(b), params)
+    ga, gb = watch(dense(a)), watch(dense(b))
     for _ in range(60):
         if hi - lo <= 1e-13 * max(1.0, abs(hi)):
             break
         if not ga >= gb:
             hi, b, gb = b, a, ga
             a = hi - r * (hi - lo)
-            ga = event(dense(a), params)
+            ga = watch(dense(a))
         else:
             lo, a, ga = a, b, gb
             b = lo + r * (hi - lo)
-            gb = event(dense(b), params)
+            gb = watch(dense(b))
     return (a, ga) if ga < gb else (b, gb)
 
 
-def _event_in_step(solver, event, params, t_old, t_new, y_new, f_new, old, tol):
-    """(t, y) of the first point of the step with measure < tol, or None; and (s, ṡ) at the end.
+class _Step(NamedTuple):
+    """An accepted step from ``t_old`` to ``t_new``, its end state and ẏ there."""
+
+    t_old: float
+    t_new: float
+    y_new: np.ndarray
+    f_new: np.ndarray
+
+
+def _event_in_step(solver, watch: EventWatch, step: _Step, old: tuple):
+    """(t, y) of the first point of the step with measure < tol, or None; and (s, ṡ) at the
+    end (``old``: (s, ṡ) at the start).
 
     The measure is a squared quantity: it touches 0 and rises again where a trajectory crosses
     the set, so a step can jump over a crossing its end points do not show. Near the set (an end
@@ -241,19 +377,19 @@ def _event_in_step(solver, event, params, t_old, t_new, y_new, f_new, old, tol):
     (h|ṡ| > s/2 at an end), 7 interior points of the dense output are sampled and every local
     minimum of the samples (and one next to an end where the end rate says so) is refined by
     golden-section search (the same rule as the compiled integrator)."""
-    g_new, rate_new = event.with_rate(y_new, f_new, params)
+    g_new, rate_new = watch.with_rate(step.y_new, step.f_new)
     g_old, rate_old = old
     gmin = min(g_old, g_new)
-    h = abs(t_new - t_old)
-    if (np.isfinite(g_new) and g_new >= tol and gmin >= WATCH * tol
+    h = abs(step.t_new - step.t_old)
+    if (watch.clear(g_new) and gmin >= WATCH * watch.tol
             and h * max(abs(rate_old), abs(rate_new)) <= 0.5 * gmin):
         return None, (g_new, rate_new)
     dense = solver.dense_output()
-    ts = t_old + (t_new - t_old) * np.arange(9) / 8.0
-    gs = [g_old] + [event(dense(tt), params) for tt in ts[1:8]] + [g_new]
+    ts = step.t_old + (step.t_new - step.t_old) * np.arange(9) / 8.0
+    gs = [g_old] + [watch(dense(tt)) for tt in ts[1:8]] + [g_new]
     for j in range(9):
-        if j > 0 and not (np.isfinite(gs[j]) and gs[j] >= tol):
-            return _locate(dense, event, params, ts[j - 1], ts[j], tol), (g_new, rate_new)
+        if j > 0 and not watch.clear(gs[j]):
+            return _locate(dense, watch, ts[j - 1], ts[j]), (g_new, rate_new)
         if j == 0:
             dip, a, b = rate_old < 0 and gs[1] > gs[0], ts[0], ts[1]
         elif j < 8:
@@ -261,68 +397,97 @@ def _event_in_step(solver, event, params, t_old, t_new, y_new, f_new, old, tol):
         else:
             dip, a, b = rate_new > 0 and gs[7] > gs[8], ts[7], ts[8]
         if dip:
-            t_min, g = _golden(dense, event, params, a, b)
-            if not (np.isfinite(g) and g >= tol):
-                return _locate(dense, event, params, a, t_min, tol), (g_new, rate_new)
+            t_min, g = _golden(dense, watch, a, b)
+            if not watch.clear(g):
+                return _locate(dense, watch, a, t_min), (g_new, rate_new)
     return None, (g_new, rate_new)
+
+
+@dataclass(frozen=True, eq=False)
+class _ScipyTools:
+    """What the scipy route evaluates: ``rhs`` and ``qdot`` (FunctionBuffers), ``jac`` (implicit
+    methods with a symbolic input), ``project`` (projection), ``measure`` (the event), the
+    solver class and the evaluation ``budget`` (a one-entry dict counting down)."""
+
+    rhs: Fast
+    qdot: Fast
+    jac: Fast | None
+    project: Fast | None
+    measure: Measure | None
+    solver_class: type
+    budget: dict
+
+    @classmethod
+    def build(cls, request: RunRequest, method: str, projection: bool) -> "_ScipyTools":
+        loop = request.loop
+        implicit = method in IMPLICIT_METHODS and not request.python_inputs
+        return cls(rhs=Fast(loop.rhs), qdot=Fast(loop.qdot), jac=Fast(loop.jac) if implicit else None,
+                   project=Fast(loop.project) if projection else None,
+                   measure=Measure(loop.event) if (loop.event is not None and request.event_tol) else None,
+                   solver_class=SCIPY_METHODS[method],
+                   budget={"left": _EVALS_PER_STEP * request.max_steps + 1000})
+
+    def projector(self, segment: Segment, n_params: int):
+        """y ↦ y projected onto the constraints on ``segment``, or None without projection."""
+        if self.project is None:
+            return None
+        params = segment.params[:n_params]
+        return lambda y: self.project(y, params)
+
+    def solver_maker(self, request: RunRequest, segment: Segment, fun):
+        """make(t_start, y_start, h) → a scipy solver on ``segment`` from (t_start, y_start),
+        first step ``h`` (None: scipy's choice)."""
+        t_hi, p, jac = segment.t_hi, segment.params, self.jac
+
+        def make(t_start, y_start, h):
+            opts = dict(rtol=request.rtol, atol=request.atol, max_step=request.max_step)
+            if h is not None:
+                opts["first_step"] = min(h, segment.end - t_start)
+            if jac is not None:
+                opts["jac"] = lambda t, yy: jac(t, min(t, t_hi), yy, p)
+            return self.solver_class(fun, t_start, y_start, segment.end, **opts)
+        return make
 
 
 def integrate_scipy(request: RunRequest, method: str, *, projection=False, stop_on_stiff=False) -> Run:
     """Integrate with a scipy OdeSolver, one step at a time (see the module docstring);
     ``projection``: project the velocities onto the constraints after every step;
     ``stop_on_stiff``: end (message "stiff") when stiffness is detected."""
-    loop, controller, segments, y0, seg_params, t_eval = (request.loop, request.controller, request.segments,
-                                                          request.y0, request.seg_params, request.t_eval)
-    rtol, atol, max_step, max_steps = request.rtol, request.atol, request.max_step, request.max_steps
-    event_tol = request.event_tol
-    cls = SCIPY_METHODS[method]
+    loop, segments = request.loop, request.segments
+    tools = _ScipyTools.build(request, method, projection)
     run = Run()
-    te = None if t_eval is None else np.asarray(t_eval, dtype=float)
-    i_eval = _grid_start(te, segments[0][0])
-    y = np.array(y0, dtype=float)
-    rhs, qdot_fn = Fast(loop.rhs), Fast(loop.qdot)
-    jac_fn = Fast(loop.jac) if method in IMPLICIT_METHODS and not _explicit_u(loop, controller) else None
-    project = Fast(loop.project) if projection else None
-    event = Measure(loop.event) if (loop.event is not None and event_tol) else None
-    budget = {"left": _EVALS_PER_STEP * max_steps + 1000}
+    grid = _Grid(request.t_eval, segments[0][0])
+    y = np.array(request.y0, dtype=float)
     last_h, stiff = None, {"count": 0}
-    for j, (a, b) in enumerate(segments):
-        t_hi, p = left_of(b), seg_params[j]
-        fun = _scipy_fun(rhs, qdot_fn, loop, controller, t_hi, p, budget)
-        f0 = fun(a, y)
+    for segment in request.intervals():
+        j, p, t_hi = segment.index, segment.params, segment.t_hi
+        fun = _scipy_fun(request, tools, segment)
+        f0 = fun(segment.start, y)
         if _first_bad(f0) is not None:
-            return run.fail(NONFINITE, a, "", bad=_first_bad(f0))
-
-        def make(t_start, y_start, h, t_hi=t_hi, p=p, b=b, fun=fun):
-            opts = dict(rtol=rtol, atol=atol, max_step=max_step)
-            if h is not None:
-                opts["first_step"] = min(h, b - t_start)
-            if jac_fn is not None:
-                opts["jac"] = lambda t, yy: jac_fn(t, min(t, t_hi), yy, p)
-            return cls(fun, t_start, y_start, b, **opts)
-
-        solver, counted = make(a, y, last_h), 0
-        g_old = event.with_rate(y, f0, p) if event is not None else None
+            return run.fail(NONFINITE, segment.start, "", bad=_first_bad(f0))
+        make = tools.solver_maker(request, segment, fun)
+        project = tools.projector(segment, loop.n_params)
+        watch = None if tools.measure is None else EventWatch(tools.measure, p, request.event_tol)
+        solver, counted = make(segment.start, y, last_h), 0
+        g_old = watch.with_rate(y, f0) if watch is not None else None
         while solver.status == "running":
             t_old = solver.t
-            ok, counted = _advance(solver, run, method, b, counted)
+            ok, counted = _advance(solver, run, method, segment.end, counted)
             if not ok:
                 return run
             t_new, y_new = solver.t, solver.y.copy()
             if _watch_stiffness(solver, method, run, stiff) and stop_on_stiff:
                 return run.fail(FAILED, t_new, "stiff")
             if project is not None:
-                y_new = project(y_new, p[:loop.n_params])
+                y_new = project(y_new)
             found = None
-            if event is not None:
+            if watch is not None:
                 f_new = getattr(solver, "f", None)
                 if f_new is None:                     # BDF, LSODA keep no f(t_new, y_new)
                     f_new, run.nfev = fun(t_new, y_new), run.nfev + 1
-                found, g_old = _event_in_step(solver, event, p, t_old, t_new, y_new, f_new, g_old,
-                                              event_tol)
+                found, g_old = _event_in_step(solver, watch, _Step(t_old, t_new, y_new, f_new), g_old)
             t_stop = t_new if found is None else found[0]
-            i_eval = _record_step(run, solver, te, i_eval, t_stop, y_new, project, p[:loop.n_params],
-                                  t_hi, j)
+            _record_step(run, solver, grid, segment, (t_stop, y_new), project)
             if found is not None:
                 run.add(found[0], t_hi, j, found[1])
                 run.njev += getattr(solver, "njev", 0)
@@ -330,8 +495,8 @@ def integrate_scipy(request: RunRequest, method: str, *, projection=False, stop_
             f_new = getattr(solver, "f", None)        # f(t_new, y_new) of the RK and Radau solvers
             if f_new is not None and _first_bad(f_new) is not None:
                 return run.fail(NONFINITE, t_new, "", bad=_first_bad(f_new))
-            if run.n_steps >= max_steps and (solver.status == "running" or j < len(segments) - 1):
-                return run.fail(MAX_STEPS, t_new, f"max_steps = {max_steps} reached at t = {t_new:.9g}")
+            if run.n_steps >= request.max_steps and (solver.status == "running" or j < len(segments) - 1):
+                return run.fail(MAX_STEPS, t_new, f"max_steps = {request.max_steps} reached at t = {t_new:.9g}")
             if project is not None and solver.status == "running":
                 run.njev += getattr(solver, "njev", 0)
                 last_h = _next_step(solver)
@@ -382,40 +547,39 @@ def _watch_stiffness(solver, method, run, stiff) -> bool:
     return False
 
 
-def _record_step(run, solver, te, i_eval, t_stop, y_new, project, params, t_hi, j) -> int:
-    """Record the step's output points up to ``t_stop`` (the step's end, or an event inside it);
-    returns the next index into ``te``."""
-    t_new = solver.t
-    if te is None:
+def _record_step(run, solver, grid: _Grid, segment: Segment, stop: tuple, project) -> None:
+    """Record the step's output points up to ``stop`` = (t_stop, y_new): the step's end and
+    its (projected) state, or an event inside it; ``project`` (or None) projects dense output."""
+    t_stop, y_new = stop
+    t_new, t_hi, j = solver.t, segment.t_hi, segment.index
+    if grid.te is None:
         if t_stop == t_new:
             run.add(t_new, t_hi, j, y_new)
-        return i_eval
+        return
     dense = None
-    while i_eval < te.size and te[i_eval] <= t_stop + 1e-12 * max(1.0, abs(t_stop)):
-        tt = float(te[i_eval])
+    while grid.due(t_stop):
+        tt = float(grid.te[grid.next])
         if tt >= t_new:
             yy = y_new
         else:
             dense = dense or solver.dense_output()
-            yy = dense(tt) if project is None else project(dense(tt), params)
+            yy = dense(tt) if project is None else project(dense(tt))
         run.add(tt, t_hi, j, yy)
-        i_eval += 1
-    return i_eval
+        grid.next += 1
 
 
-def _explicit_u(loop, controller) -> bool:
-    return controller is not None and not (loop.symbolic_u or loop.segment_u)
-
-
-def _scipy_fun(rhs, qdot_fn, loop, controller, t_hi, p, budget):
-    """f(t, y) for scipy, with the evaluation budget."""
-    if not _explicit_u(loop, controller):
+def _scipy_fun(request: RunRequest, tools: _ScipyTools, segment: Segment):
+    """f(t, y) for scipy on ``segment``, counting down the evaluation budget."""
+    rhs, qdot_fn, budget, loop = tools.rhs, tools.qdot, tools.budget, request.loop
+    t_hi, p = segment.t_hi, segment.params
+    if not request.python_inputs:
         def fun(t, yy):
             budget["left"] -= 1
             if budget["left"] < 0:
                 raise _Budget()
             return rhs(t, min(t, t_hi), yy, p)
         return fun
+    controller = request.controller
 
     def fun(t, yy):
         budget["left"] -= 1
@@ -447,140 +611,179 @@ def _next_step(solver):
 _CHUNK = 16
 
 
+class _Start(NamedTuple):
+    """Where a SUNDIALS call starts: time, state, multipliers (IDAS) or None."""
+
+    t: float
+    y: np.ndarray
+    lam: np.ndarray | None
+
+
+@dataclass(frozen=True, eq=False)
+class _SundialsCall:
+    """One SUNDIALS problem on one segment: ``kind`` ("cvodes" or "idas"), the CasADi
+    ``problem`` and ``opts``, ``pv`` = (p, t_hi) its parameter vector, the ``segment``, the
+    event ``watch`` (or None) and ``max_steps`` (named in a failure message)."""
+
+    kind: str
+    problem: dict
+    opts: dict
+    pv: np.ndarray
+    segment: Segment
+    watch: EventWatch | None
+    max_steps: int
+
+    def integrator(self, name: str, t0: float, grid: list) -> ca.Function:
+        """The CasADi integrator from ``t0`` to the times of ``grid``."""
+        return ca.integrator(f"{self.kind}_{name}", self.kind, self.problem, t0, grid, self.opts)
+
+    def arguments(self, start: _Start) -> dict:
+        args = dict(x0=start.y, p=self.pv)
+        if start.lam is not None:
+            args["z0"] = start.lam
+        return args
+
+    def integrate(self, name: str, start: _Start, grid: list) -> dict:
+        """The integrator's outputs (``xf``, ``zf``) from ``start`` to the times of ``grid``
+        (a SUNDIALS failure raises RuntimeError)."""
+        return self.integrator(name, start.t, grid)(**self.arguments(start))
+
+
 def integrate_sundials(request: RunRequest, kind: str, lam0=None) -> Run:
     """CVODES (``kind="cvodes"``, BDF with Newton) on the ODE or IDAS (``kind="idas"``, from the
     multipliers ``lam0``) on the index-1 DAE; outputs at ``t_eval`` (or the interval ends),
     :data:`_CHUNK` output points per call; the event is checked at the outputs. For CVODES a
     step size below 10⁻¹³·max(1, |t|) is a failure (it would otherwise spend ``max_steps``
     steps going nowhere next to a singularity)."""
-    loop, segments, y0, seg_params, t_eval = (request.loop, request.segments, request.y0, request.seg_params,
-                                              request.t_eval)
-    rtol, atol, max_steps, event_tol = request.rtol, request.atol, request.max_steps, request.event_tol
-    stabilization, baumgarte = request.stabilization, request.baumgarte
-    te = None if t_eval is None else np.asarray(t_eval, dtype=float)
-    run = Run(lam=[] if kind == "idas" else None)
-    y, lam = np.array(y0, dtype=float), None if lam0 is None else np.array(lam0, dtype=float)
+    loop, segments = request.loop, request.segments
+    te = None if request.t_eval is None else np.asarray(request.t_eval, dtype=float)
+    run = Run(with_lam=kind == "idas")
+    y, lam = np.array(request.y0, dtype=float), None if lam0 is None else np.array(lam0, dtype=float)
     t_max = max(abs(segments[0][0]), abs(segments[-1][1]), 1.0)
-    opts = {"abstol": atol, "reltol": rtol, "max_num_steps": int(max_steps), "print_stats": False,
-            "show_eval_warnings": False, "disable_internal_warnings": True}
+    opts = {"abstol": request.atol, "reltol": request.rtol, "max_num_steps": int(request.max_steps),
+            "print_stats": False, "show_eval_warnings": False, "disable_internal_warnings": True}
     if kind == "idas":
         opts.update(calc_ic=True, suppress_algebraic=True)
-        problem = loop.dae(stabilization, baumgarte)
+        problem = loop.dae(request.stabilization, request.baumgarte)
     else:
         opts["min_step_size"] = 1e-13 * t_max        # CVODES only (IDAS has no such option)
         problem = _cvodes_problem(loop)
-    event = Measure(loop.event) if (loop.event is not None and event_tol) else None
-    for j, (a, b) in enumerate(segments):
+    measure = Measure(loop.event) if (loop.event is not None and request.event_tol) else None
+    for segment in request.intervals():
+        a, b = segment.start, segment.end
         tol = 1e-12 * max(1.0, abs(b))
         wanted = [] if te is None else [float(tt) for tt in te if a + 1e-12 * max(1.0, abs(a)) < tt <= b + tol]
         grid = [min(tt, b) for tt in wanted]
         if not grid or grid[-1] < b:
             grid.append(b)
         names = dict(zip(grid, wanted)) if te is not None else {b: b}
-        p, t_cur = seg_params[j], a
-        pv = np.r_[p, left_of(b)]
+        watch = None if measure is None else EventWatch(measure, segment.params, request.event_tol)
+        call = _SundialsCall(kind, problem, opts, np.r_[segment.params, segment.t_hi], segment, watch,
+                             request.max_steps)
+        start = _Start(a, y, lam)
         for c in range(0, len(grid), _CHUNK):
             chunk = grid[c:c + _CHUNK]
-            F = ca.integrator(f"{kind}_segment_{j}", kind, problem, t_cur, chunk, opts)
-            args = dict(x0=y, p=pv) if kind != "idas" else dict(x0=y, p=pv, z0=lam)
+            F = call.integrator(f"segment_{segment.index}", start.t, chunk)
             try:
-                out = F(**args)
+                out = F(**call.arguments(start))
             except RuntimeError as err:
                 run.nfev += int(F.stats().get("nfevals", 0))
-                return _sundials_failure(run, kind, problem, opts, pv, p, t_cur, y, lam, b, err,
-                                         event, event_tol, max_steps, (a, j, chunk, names))
+                return _sundials_failure(run, call, start, err, (chunk, names))
             stats = F.stats()
             run.nfev += int(stats.get("nfevals", 0))
             run.njev += int(stats.get("n_call_jacF", stats.get("njevals", 0)))
             run.n_steps += int(stats.get("nsteps", 0))
             xf = np.asarray(out["xf"]).reshape(y.size, -1)
             zf = np.asarray(out["zf"]).reshape(lam.size, -1) if kind == "idas" else None
-            if _record_outputs(run, (a, b, j, p), chunk, names, xf, zf, event, event_tol):
+            if _record_outputs(run, call, (chunk, names), xf, zf):
                 return run
-            y, t_cur = xf[:, -1].copy(), chunk[-1]
-            lam = None if zf is None else zf[:, -1].copy()
+            start = _Start(chunk[-1], xf[:, -1].copy(), None if zf is None else zf[:, -1].copy())
+        y, lam = start.y, start.lam
     return run
 
 
-def _record_outputs(run, where, chunk, names, xf, zf, event, event_tol) -> bool:
-    """Add the outputs of one integrator call (columns of ``xf``/``zf`` at ``chunk``) to
-    ``run``, checking the singular-set measure at each; True when it stopped the run there."""
-    a, b, j, p = where
+def _record_outputs(run, call: _SundialsCall, outputs: tuple, xf, zf) -> bool:
+    """Add the outputs of one integrator call (columns of ``xf``/``zf`` at the times of
+    ``outputs`` = (grid, names of the grid times)) to ``run``, checking the singular-set
+    measure at each; True when it stopped the run there."""
+    chunk, names = outputs
+    segment, watch = call.segment, call.watch
     for col, gt in enumerate(chunk):
         if gt not in names:
             continue
-        if event is not None:
-            g = event(xf[:, col], p)
-            if not (np.isfinite(g) and g >= event_tol):
-                t_prev = run.t[-1] if run.t else a
+        if watch is not None:
+            g = watch(xf[:, col])
+            if not watch.clear(g):
+                last = run.last()
+                t_prev = last[0] if last is not None else segment.start
                 run.fail(SINGULAR, names[gt], f"reached the singular set between t = {t_prev:.9g} and "
-                         f"t = {names[gt]:.9g} (measure {g:.3g} < {event_tol:g} on the output grid)")
+                         f"t = {names[gt]:.9g} (measure {g:.3g} < {watch.tol:g} on the output grid)")
                 return True
-        run.add(names[gt], left_of(b), j, xf[:, col], None if zf is None else zf[:, col])
+        run.add(names[gt], segment.t_hi, segment.index, xf[:, col], None if zf is None else zf[:, col])
     return False
 
 
-def _outputs_before(run, kind, problem, opts, pv, p, t, y, lam, b, t_ok, pending, event, event_tol) -> bool:
-    """After a failure: the outputs of the failed call that lie before ``t_ok`` (the last time
-    the bracketing reached), integrated again so that none is lost; True when one of them is
-    on the singular set (the run stopped there)."""
-    a, j, chunk, names = pending
-    before = [gt for gt in chunk if t < gt <= t_ok]
+def _outputs_before(run, call: _SundialsCall, start: _Start, t_ok: float, pending: tuple) -> bool:
+    """After a failure: the outputs of the failed call (``pending`` = (its grid, the names of
+    the grid times)) that lie before ``t_ok`` (the last time the bracketing reached),
+    integrated again so that none is lost; True when one of them is on the singular set (the
+    run stopped there)."""
+    chunk, names = pending
+    before = [gt for gt in chunk if start.t < gt <= t_ok]
     if not before:
         return False
-    F = ca.integrator(f"{kind}_outputs", kind, problem, t, before, opts)
     try:
-        out = F(**(dict(x0=y, p=pv) if lam is None else dict(x0=y, p=pv, z0=lam)))
+        out = call.integrate("outputs", start, before)
     except RuntimeError:
         return False
-    xf = np.asarray(out["xf"]).reshape(np.size(y), -1)
-    zf = None if lam is None else np.asarray(out["zf"]).reshape(np.size(lam), -1)
-    return _record_outputs(run, (a, b, j, p), before, names, xf, zf, event, event_tol)
+    xf = np.asarray(out["xf"]).reshape(np.size(start.y), -1)
+    zf = None if start.lam is None else np.asarray(out["zf"]).reshape(np.size(start.lam), -1)
+    return _record_outputs(run, call, (before, names), xf, zf)
 
 
-def _sundials_failure(run, kind, problem, opts, pv, p, t, y, lam, b, err, event, event_tol,
-                      max_steps, pending) -> Run:
-    """Bracket a SUNDIALS failure after (t, y) and classify it (singular set, max_steps, other);
-    the failed call's outputs before the failure are kept (``pending``: its segment start,
-    index, output times and their names), and the last state reached ends the trajectory, as
-    on the other routes."""
-    t_ok, y_ok, lam_ok, t_bad = _bracket_failure(kind, problem, opts, pv, t, y, lam, b)
-    if _outputs_before(run, kind, problem, opts, pv, p, t, y, lam, b, t_ok, pending, event, event_tol):
+def _sundials_failure(run, call: _SundialsCall, start: _Start, err, pending: tuple) -> Run:
+    """Bracket a SUNDIALS failure after ``start`` and classify it (singular set, max_steps,
+    other); the failed call's outputs before the failure are kept (``pending``: its output
+    times and their names), and the last state reached ends the trajectory, as on the other
+    routes."""
+    kind, watch = call.kind.upper(), call.watch
+    reached, t_bad = _bracket_failure(call, start)
+    if _outputs_before(run, call, start, reached.t, pending):
         return run
-    if t_ok > (run.t[-1] if run.t else -np.inf):
-        run.add(t_ok, left_of(b), pending[1], y_ok, lam_ok)
-    run.y_fail, run.t_bad = y_ok, t_bad
-    if event is not None and event(y_ok, p) < WATCH * event_tol:
-        return run.fail(SINGULAR, t_ok, f"{kind.upper()} stopped between t = {t_ok:.9g} and "
+    last = run.last()
+    if reached.t > (last[0] if last is not None else -np.inf):
+        run.add(reached.t, call.segment.t_hi, call.segment.index, reached.y, reached.lam)
+    run.y_fail, run.t_bad = reached.y, t_bad
+    t_ok = reached.t
+    if watch is not None and watch(reached.y) < WATCH * watch.tol:
+        return run.fail(SINGULAR, t_ok, f"{kind} stopped between t = {t_ok:.9g} and "
                         f"t = {t_bad:.9g}, next to the singular set (measure "
-                        f"{event(y_ok, p):.3g} at t = {t_ok:.9g})")
+                        f"{watch(reached.y):.3g} at t = {t_ok:.9g})")
     reason = str(err).splitlines()[-1].split(": ")[-1]
     if "TOO_MUCH_WORK" in reason:
-        return run.fail(MAX_STEPS, t_ok, f"max_steps = {max_steps} (per output interval) reached "
+        return run.fail(MAX_STEPS, t_ok, f"max_steps = {call.max_steps} (per output interval) reached "
                         f"between t = {t_ok:.9g} and t = {t_bad:.9g}")
-    return run.fail(FAILED, t_ok, f"{kind.upper()} failed between t = {t_ok:.9g} and "
+    return run.fail(FAILED, t_ok, f"{kind} failed between t = {t_ok:.9g} and "
                     f"t = {t_bad:.9g}: {reason}")
 
 
-def _bracket_failure(kind, problem, opts, pv, t, y, lam, b, levels=2, pieces=16):
-    """(last time reached, its state and multipliers, first time not reached): the failed
-    interval [t, b] re-integrated piece by piece, twice refined (only on failure)."""
+def _bracket_failure(call: _SundialsCall, start: _Start, levels=2, pieces=16) -> tuple:
+    """(the last point reached as a :class:`_Start`, the first time not reached): the failed
+    interval [start.t, segment end] re-integrated piece by piece, twice refined (only on
+    failure)."""
+    b = call.segment.end
     for _ in range(levels):
-        for t_next in np.linspace(t, b, pieces + 1)[1:]:
-            F = ca.integrator(f"{kind}_bracket", kind, problem, t, [float(t_next)], opts)
-            args = dict(x0=y, p=pv)
-            if lam is not None:
-                args["z0"] = lam
+        for t_next in np.linspace(start.t, b, pieces + 1)[1:]:
             try:
-                out = F(**args)
+                out = call.integrate("bracket", start, [float(t_next)])
             except RuntimeError:
                 b = float(t_next)
                 break
-            t, y = float(t_next), np.asarray(out["xf"]).ravel()
-            lam = None if lam is None else np.asarray(out["zf"]).ravel()
+            start = _Start(float(t_next), np.asarray(out["xf"]).ravel(),
+                           None if start.lam is None else np.asarray(out["zf"]).ravel())
         else:
-            return t, y, lam, b
-    return t, y, lam, b
+            return start, b
+    return start, b
 
 
 def _cvodes_problem(loop) -> dict:
@@ -599,51 +802,59 @@ _C_STATUS = {-1: FAILED, -2: MAX_STEPS, -3: NONFINITE, -4: NONFINITE, -5: SINGUL
 
 def integrate_compiled(request: RunRequest, library, scheme: str, *, stop_on_stiff=False) -> Run:
     """Run the compiled integrator (:mod:`.compiled`, the closed loop's ``library``) interval by
-    interval with the explicit Runge–Kutta ``scheme`` ("DOP853" or "DOPRI5")."""
-    segments, y0, seg_params, t_eval = request.segments, request.y0, request.seg_params, request.t_eval
-    rtol, atol, max_step, max_steps = request.rtol, request.atol, request.max_step, request.max_steps
-    event_tol = request.event_tol
-    from .compiled import RunState
+    interval with the explicit Runge–Kutta ``scheme`` ("DOP853" or "DOPRI5"); the outputs of
+    each C call are kept as arrays (no per-step Python)."""
+    from .compiled import OutputBuffers, RunState
+    segments, event_tol = request.segments, request.event_tol
     run = Run()
-    te = None if t_eval is None else np.ascontiguousarray(t_eval, dtype=float)
-    state = RunState.start(segments[0][0], rtol, atol, max_step, max_steps,
+    te = None if request.t_eval is None else np.ascontiguousarray(request.t_eval, dtype=float)
+    state = RunState.start(segments[0][0], (request.rtol, request.atol), (request.max_step, request.max_steps),
                            event_tol if (event_tol and library.has_event) else 0.0, stop_on_stiff)
     state.set("i_eval", _grid_start(te, segments[0][0]))
-    y = np.ascontiguousarray(y0, dtype=float).copy()
-    y_eval = None if te is None else np.zeros((te.size, library.ny))
-    t_steps = y_steps = None
-    if te is None:
-        t_steps, y_steps = np.zeros(1025), np.zeros((1025, library.ny))
+    y = np.ascontiguousarray(request.y0, dtype=float).copy()
+    buffers = OutputBuffers.for_steps(library.ny) if te is None else OutputBuffers.for_grid(te, library.ny)
     code = 0
-    for j, (a, b) in enumerate(segments):
-        t_hi, p = left_of(b), np.ascontiguousarray(seg_params[j], dtype=float)
-        state.set("t", a)
+    for segment in request.intervals():
+        t_hi, j = segment.t_hi, segment.index
+        p = np.ascontiguousarray(segment.params, dtype=float)
+        state.set("t", segment.start)
         first = state["i_eval"]
         while True:
-            code = library.run(scheme, state, b, t_hi, y, p, te, y_eval, t_steps, y_steps)
+            code = library.run(scheme, state, (segment.end, t_hi), y, p, buffers)
             if te is None:
-                run.add_block(t_steps[:state["n_out"]], t_hi, j, y_steps[:state["n_out"]])
+                run.add_block(buffers.t_steps[:state["n_out"]], t_hi, j, buffers.y_steps[:state["n_out"]])
             if code != 1:
                 break
-            t_steps, y_steps = np.zeros(2 * t_steps.size - 1), np.zeros((2 * t_steps.size - 1, library.ny))
+            buffers = buffers.grown()
         if te is not None:
-            run.add_block(te[first:state["i_eval"]], t_hi, j, y_eval[first:state["i_eval"]])
+            run.add_block(te[first:state["i_eval"]], t_hi, j, buffers.y_eval[first:state["i_eval"]])
         if code != 0:
             break
+    _count_compiled(run, state)
+    return _compiled_outcome(run, state, code, (te, segment, y), request.max_steps)
+
+
+def _count_compiled(run: Run, state) -> None:
     run.nfev, run.n_steps, run.n_rejected = state["nfev"], state["accepted"], state["rejected"]
     run.h_lambda = float(state["h_lambda"])
     if not np.isnan(state["t_stiff"]):
         run.t_stiff = float(state["t_stiff"])
+
+
+def _compiled_outcome(run: Run, state, code: int, end: tuple, max_steps: int) -> Run:
+    """The run's status from the C return ``code``; ``end`` = (output grid or None, the last
+    segment, the last state) closes the output at an event."""
+    te, segment, y = end
     if code == -6:
         return run.fail(FAILED, state["t"], "stiff")
-    if code in _C_STATUS:
-        t_fail = float(state["t_fail"])
-        if code == -5 and te is not None:        # the event point itself closes the output
-            run.add(t_fail, left_of(segments[j][1]), j, y)
-        if code == -2:
-            return run.fail(MAX_STEPS, t_fail, f"max_steps = {max_steps} reached at t = {t_fail:.9g}")
-        if code == -1:
-            return run.fail(FAILED, t_fail, f"integration failed at t = {t_fail:.9g}: required step "
-                            "size is less than 16 ulp of t")
-        return run.fail(_C_STATUS[code], t_fail, "", bad=int(state["bad"]) if code == -3 else None)
-    return run
+    if code not in _C_STATUS:
+        return run
+    t_fail = float(state["t_fail"])
+    if code == -5 and te is not None:        # the event point itself closes the output
+        run.add(t_fail, segment.t_hi, segment.index, y)
+    if code == -2:
+        return run.fail(MAX_STEPS, t_fail, f"max_steps = {max_steps} reached at t = {t_fail:.9g}")
+    if code == -1:
+        return run.fail(FAILED, t_fail, f"integration failed at t = {t_fail:.9g}: required step "
+                        "size is less than 16 ulp of t")
+    return run.fail(_C_STATUS[code], t_fail, "", bad=int(state["bad"]) if code == -3 else None)

@@ -12,13 +12,14 @@ method, DAE route, stabilisation). :func:`measure` runs every setup at every tol
   report the final state only (after one untimed warm-up call, so a one-time compilation is
   not counted; it is reported as ``compile_s``);
 * ``constraint``, ``energy_drift``: max |ω(q)q̇| and max |E − E(0) − W| on an untimed run with
-  the same settings on a grid of ``grid`` points;
+  the same settings on a grid of ``Limits.grid`` points;
 * ``nfev``, ``n_steps``, ``status``.
 
 The plots take an optional ``ax`` and never change global matplotlib state.
 """
 from __future__ import annotations
 
+import contextlib
 import csv
 import math
 import statistics
@@ -27,8 +28,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-__all__ = ["Case", "Setup", "Row", "measure", "time_call", "write_csv", "read_csv", "plot_case",
-           "markdown_table", "time_at_error", "TOLERANCES", "default_setups"]
+__all__ = ["Case", "Setup", "Row", "Limits", "measure", "time_call", "write_csv", "read_csv", "plot_case",
+           "markdown_table", "time_at_error", "TOLERANCES", "default_setups", "c_integrator_timer"]
 
 #: tolerances of the full report
 TOLERANCES = tuple(10.0 ** -k for k in range(4, 13))
@@ -126,6 +127,27 @@ def time_call(fn, repeats: int):
     return statistics.median(times), tuple(times), result
 
 
+@contextlib.contextmanager
+def c_integrator_timer():
+    """Within the block, every call of the compiled integrator's C core
+    (:meth:`~nhgait.dynamics.simulation.compiled.CompiledLoop.run`) is timed: yields the list its
+    wall times are appended to (clear it before each ``simulate`` call)."""
+    from nhgait.dynamics.simulation import compiled
+    original, times = compiled.CompiledLoop.run, []
+
+    def timed(self, *args, **kwargs):
+        start = time.perf_counter()
+        try:
+            return original(self, *args, **kwargs)
+        finally:
+            times.append(time.perf_counter() - start)
+    compiled.CompiledLoop.run = timed
+    try:
+        yield times
+    finally:
+        compiled.CompiledLoop.run = original
+
+
 def _final_error(traj, reference) -> float:
     if not traj.success or not reference:
         return math.nan
@@ -136,11 +158,22 @@ def _final_error(traj, reference) -> float:
     return float(err.max())
 
 
-def measure(case: Case, setups, tolerances=TOLERANCES, repeats: int = 5, grid: int = 201,
-            max_wall_s: float = 20.0, progress=None) -> list:
+@dataclass(frozen=True)
+class Limits:
+    """How :func:`measure` spends its time: ``grid`` points of the untimed run that measures the
+    constraint and energy drift; a setup whose run took longer than ``max_wall_s`` is not run at
+    tighter tolerances."""
+
+    grid: int = 201
+    max_wall_s: float = 20.0
+
+
+def measure(case: Case, setups, tolerances=TOLERANCES, repeats: int = 5, progress=None,
+            limits: Limits = Limits()) -> list:
     """Run every setup at every tolerance (loosest first); a setup whose run took longer than
-    ``max_wall_s`` is not run at tighter tolerances (noted in the row)."""
+    ``limits.max_wall_s`` is not run at tighter tolerances (noted in the row)."""
     from nhgait.dynamics import simulate
+    grid, max_wall_s = limits.grid, limits.max_wall_s
     rows = []
     span = (0.0, float(case.t_final))
     for setup in setups:
