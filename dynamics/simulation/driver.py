@@ -63,6 +63,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
+from ..derivation.formulation_protocol import protocol_of
 from ..derivation.states import to_state
 from ..errors import ModelError
 from ..memo import OwnerMemo
@@ -273,13 +274,7 @@ def _option_problems(call: _Call) -> list:
         problems.append(f"unknown dae form {dae!r} (choose from {', '.join(DAE_FORMS)})")
     if stabilization not in STABILIZATIONS:
         problems.append(f"unknown stabilization {stabilization!r} (None, 'baumgarte' or 'projection')")
-    if call.model.formulation == "reduced":
-        if dae == "idas":
-            problems.append("dae='idas' applies to the DAE forms (lagrange, hamilton); the reduced "
-                            "form is an ODE")
-        if stabilization is not None:
-            problems.append("stabilization applies to the DAE forms; the reduced ODE satisfies the "
-                            "constraints by construction")
+    problems += protocol_of(call.model).dae_option_problems(dae, stabilization)
     if stabilization == "projection" and (dae == "idas" or method in ("CVODES", "auto")):
         problems.append("stabilization='projection' needs dae='index1' and a scipy or compiled "
                         "method (the state is projected after every step)")
@@ -408,7 +403,7 @@ def simulate(model, t_span, q0, qdot0, *, controller=None, params=None, method: 
                  stabilization, baumgarte, max_step, max_steps, singular_tol, outputs, quantities)
     resolved = _checked_outputs(call)
     prepared, request = _prepare(call, resolved)
-    route = "IDAS" if dae == "idas" and model.formulation != "reduced" else method
+    route = "IDAS" if dae == "idas" and protocol_of(model).dae_options_apply else method
     return _assemble(call, request, ROUTES[route](request, route, prepared.settings), prepared)
 
 
@@ -489,7 +484,7 @@ def _check_first_input(call: _Call, t0: float) -> None:
 def _settings(call: _Call, t_span: tuple, n_segments: int, named_params: dict) -> dict:
     """Every option the run uses, as ``Trajectory.settings`` reports them."""
     stabilization = call.stabilization
-    return {"method": call.method, "dae": call.dae if call.model.formulation != "reduced" else None,
+    return {"method": call.method, "dae": call.dae if protocol_of(call.model).dae_options_apply else None,
             "rtol": call.rtol, "atol": call.atol, "stabilization": stabilization,
             "baumgarte": tuple(float(v) for v in call.baumgarte) if stabilization == "baumgarte" else None,
             "max_step": call.max_step, "max_steps": call.max_steps, "t_span": t_span,
@@ -510,7 +505,7 @@ def _integration_model(model, pv, settings):
     cached on disk), which leaves far fewer operations per evaluation (the snakeboard's ż: 108
     instead of 313); the DAE forms are integrated as derived. ``settings["specialised"]`` says
     which route was taken."""
-    if model.formulation != "reduced":
+    if not protocol_of(model).specialised_for_integration:
         return model
 
     def specialised_view():           # one view per model and values: its closed loop is reused
@@ -685,7 +680,7 @@ def _trajectory(call: _Call, loop, results: tuple, route: tuple, prepared: _Prep
     work = Y[:, n_xs] if loop.has_work else np.full(N, np.nan)
     energy = out["energy"].ravel()
     lam = None
-    if model.formulation != "reduced":
+    if protocol_of(model).has_multipliers:
         lam = samples.lam.reshape(N, -1) if samples.lam is not None else out["lam"]
     traj_outputs = _named_outputs(call, prepared, loop, out, Y)
     arrays = dict(t=samples.t, q=out["q"], qdot=out["qdot"], state=Y[:, :n_xs], u=out["u"], lam=lam,
@@ -706,12 +701,7 @@ def _trajectory(call: _Call, loop, results: tuple, route: tuple, prepared: _Prep
 
 
 def _singular_text(model) -> str:
-    sset = getattr(model, "singular_set", None)
-    if model.formulation == "reduced" and sset:
-        return "singular set: " + " or ".join(f"{e} = 0" for e in sset)
-    if model.formulation != "reduced":
-        return "ω M⁻¹ ωᵀ loses rank: the constraints become dependent"
-    return "the reduction is singular there"
+    return protocol_of(model).singular_set_text(model)
 
 
 class Diagnostics(Mapping):
@@ -759,7 +749,7 @@ def _diagnostics(model, loop, run, out, extra) -> Diagnostics:
     if out["measure"].size:
         d["min_singular_measure"] = float(np.nanmin(out["measure"])) if np.isfinite(out["measure"]).any() else None
     d["max_cond_metric"] = _MaxCondition(out["metric"])
-    if model.formulation != "reduced" and out["gram"].size:
+    if protocol_of(model).has_constraint_gram and out["gram"].size:
         d["max_cond_gram"] = _MaxCondition(out["gram"])
     if run.status == SINGULAR:
         d["t_event"] = run.t_fail

@@ -52,8 +52,9 @@ class Setup:
         return f"{self.formulation}/{route}{extra}"
 
     def options(self) -> dict:
+        from nhgait.dynamics.derivation.formulation_protocol import protocol_named
         opts = {"method": self.method}
-        if self.formulation != "reduced":
+        if protocol_named(self.formulation).dae_options_apply:
             opts["dae"] = self.dae
             if self.stabilization:
                 opts["stabilization"] = self.stabilization
@@ -111,9 +112,11 @@ def default_setups(formulations=("reduced", "lagrange", "hamilton"),
                    methods=("RK45", "DOP853", "Radau", "LSODA", "CVODES", "compiled"),
                    idas=True) -> list:
     """Every formulation × method, plus IDAS for the DAE forms."""
+    from nhgait.dynamics.derivation.formulation_protocol import protocol_named
     setups = [Setup(f, m) for f in formulations for m in methods]
     if idas:
-        setups += [Setup(f, "DOP853", dae="idas") for f in formulations if f != "reduced"]
+        setups += [Setup(f, "DOP853", dae="idas") for f in formulations
+                   if protocol_named(f).dae_options_apply]
     return setups
 
 

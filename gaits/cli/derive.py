@@ -8,14 +8,14 @@ __all__ = ["add_derive_parser", "cmd_derive"]
 
 
 def cmd_derive(args) -> int:
-    from nhgait.dynamics import derive
+    from nhgait.dynamics import FORMULATIONS, derive
     from nhgait.dynamics.derivation.scene import load_scene
     from nhgait.dynamics.derivation.symmetry import symmetry_test
     scene = load_scene(args.scene)
     system = scene.system
     if scene.urdf is not None:                 # show what was generated from the URDF
         print(scene.urdf.to_text() + "\n")
-    forms = ["reduced", "lagrange", "hamilton"] if args.formulation == "all" else [args.formulation]
+    forms = list(FORMULATIONS) if args.formulation == "all" else [args.formulation]
     for form in forms:
         t0 = time.perf_counter()
         model = derive(system, form, version=args.version, use_cache=not args.no_cache)
