@@ -152,7 +152,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import functools
-import importlib.util
 import json
 import math
 import os
@@ -168,29 +167,17 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parent
+import sibling  # experiments/sibling.py: the other scripts, loaded by file path
 
-
-def _load(name: str, path: Path):
-    """A module by file path, registered in ``sys.modules`` (reused when already loaded from
-    that file: the oracle's cache is then shared with the tests)."""
-    mod = sys.modules.get(name)
-    if mod is not None and getattr(mod, "__file__", None) == str(path):
-        return mod
-    spec = importlib.util.spec_from_file_location(name, path)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[name] = mod
-    spec.loader.exec_module(mod)
-    return mod
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _oracles():
-    return _load("oracles", ROOT / "tests" / "oracles.py")
+    return sibling.oracles()
 
 
 def _scale_tasks():
-    return _load("scale_tasks", HERE / "scale_tasks.py")
+    return sibling.load("scale_tasks")
 
 
 def _progress(msg: str) -> None:
