@@ -215,12 +215,12 @@ def _row_function(model, names, quantities) -> ca.Function:
     system = model.system
     Y = velocity_rows(system, names, quantities)
     n, npar = system.n, len(system.param_symbols)
-    q, p = ca.SX.sym("q", n), ca.SX.sym("params", npar)
+    q, params = ca.SX.sym("q", n), ca.SX.sym("params", npar)
     syms = list(system.q) + list(system.param_symbols)
-    sx = [q[i] for i in range(n)] + [p[i] for i in range(npar)]
+    sx = [q[i] for i in range(n)] + [params[i] for i in range(npar)]
     entries = to_casadi(list(Y.T), syms, sx) if Y.rows else []
     Ysx = ca.reshape(ca.vertcat(*entries), len(names), n) if entries else ca.SX(0, n)
-    return ca.Function("Y", [q, p], [Ysx], ["q", "params"], ["Y"])
+    return ca.Function("Y", [q, params], [Ysx], ["q", "params"], ["Y"])
 
 
 def _momentum_basis(model, params) -> ca.Function:
@@ -230,6 +230,23 @@ def _momentum_basis(model, params) -> ca.Function:
     qdot = model.numeric["qdot"](ca.vertcat(q, P), params)
     Q = ca.substitute(ca.jacobian(qdot, P), P, ca.DM.zeros(nz - n))
     return ca.Function("Q", [q], [Q])
+
+
+@dataclass(frozen=True, eq=False)
+class _CandidateRows:
+    """B(q) = Y(q) Q(q): one row per candidate velocity, in the momenta (q̇ = Q(q) P, ``Q``; the
+    candidates' rows in q̇, ``Y``), at the parameter values ``params``."""
+
+    Y: ca.Function
+    Q: ca.Function
+    params: np.ndarray
+
+    @property
+    def count(self) -> int:
+        return self.Y.size1_out(0)
+
+    def at(self, q) -> np.ndarray:
+        return np.asarray(self.Y(q, self.params)) @ np.asarray(self.Q(q))
 
 
 def choose_velocities(model, preferred=(), quantities=None, params=None, bounds=None, points=()) -> tuple:
@@ -262,12 +279,12 @@ def choose_velocities(model, preferred=(), quantities=None, params=None, bounds=
             candidates.append(name)
     Q = _momentum_basis(model, params)
     rng = np.random.default_rng(7)
-    samples = [rng.uniform(-0.7, 0.7, n) for _ in range(3)] + [np.asarray(p, float) for p in points]
-    Yf = _row_function(model, candidates, quantities) if candidates else None
+    samples = [rng.uniform(-0.7, 0.7, n) for _ in range(3)] + [np.asarray(point, float) for point in points]
+    rows = _CandidateRows(_row_function(model, candidates, quantities), Q, params) if candidates else None
     with np.errstate(all="ignore"):
-        B_all = [np.asarray(Yf(qq, params)) @ np.asarray(Q(qq)) for qq in samples] if Yf else []
+        B_all = [rows.at(q) for q in samples] if rows else []
     B_all = [B for B in B_all if np.all(np.isfinite(B))]      # a point on the chart's singular set
-    degenerate = _degenerate_rows(model, Yf, Q, params, len(candidates), rng, bounds or {}) if Yf else []
+    degenerate = _degenerate_rows(model, rows, rng, bounds or {}) if rows else []
     order = sorted(range(len(candidates)), key=lambda i: (degenerate[i], i))
     chosen = []
     for i in order:
@@ -284,9 +301,10 @@ def choose_velocities(model, preferred=(), quantities=None, params=None, bounds=
                       f"allowed velocities of {system.name}"], title="invalid velocity coordinates")
 
 
-def _degenerate_rows(model, Yf, Q, params, count, rng, bounds, samples: int = 64) -> list:
+def _degenerate_rows(model, rows: _CandidateRows, rng, bounds, samples: int = 64) -> list:
     """Per candidate: does its row of B = Y Q nearly vanish at some configuration within
     ``bounds``? See :func:`choose_velocities`."""
+    params, count = rows.params, rows.count
     coords = tuple(model.system.coordinates)
     lo = np.array([bounds.get(c, (-np.pi, np.pi))[0] for c in coords], dtype=float)
     hi = np.array([bounds.get(c, (-np.pi, np.pi))[1] for c in coords], dtype=float)
@@ -300,7 +318,7 @@ def _degenerate_rows(model, Yf, Q, params, count, rng, bounds, samples: int = 64
     small, large = np.full(count, np.inf), np.zeros(count)
     for q in (q for q, ok in zip(qs, keep) if ok):      # near the model's singular set every row degrades
         with np.errstate(all="ignore"):
-            B = np.asarray(Yf(q, params)) @ np.asarray(Q(q))
+            B = rows.at(q)
         if not np.all(np.isfinite(B)):
             continue
         norms = np.linalg.norm(B, axis=1)
@@ -579,14 +597,29 @@ def _gap(a, b) -> float:
     return float(np.max(np.abs(a[fb] - b[fb]) / (1.0 + np.abs(b[fb])), initial=0.0))
 
 
-def _agrees(fns: dict, ref: dict, nz: int, nu: int, params, tol: float, singular=None) -> bool:
-    """``fns`` equals ``ref`` (rhs and q̇) at random states, inputs and times t ∈ [0, 10]
-    (the forces may depend on t), relative to 1 + |ref|. With ``singular`` (the model's measure
-    of its singular set, a function of (q, params), in [0, 1]), states within 1e-3 of that set
-    are not used, and within 0.1 the tolerance grows as 0.1/measure: both sides solve the same
-    ill-conditioned systems there, and their round-off grows with the condition number
-    (snake_4: gaps of 6e-10 at measure 1.5e-3 between two correct evaluations, against O(1)
-    for a wrong formula)."""
+@dataclass(frozen=True, eq=False)
+class _Reference:
+    """What every specialisation must reproduce: ``functions`` (rhs and qdot with the values
+    bound, the 20-step graph), the sizes of the state and the inputs, the parameter values and
+    the model's measure of its singular set (a function of (q, params) in [0, 1]; None when the
+    model has none)."""
+
+    functions: dict
+    n_state: int
+    n_inputs: int
+    params: np.ndarray
+    singular: object = None
+
+
+def _agrees(fns: dict, reference: _Reference, tol: float = 1e-10) -> bool:
+    """``fns`` equals the reference (rhs and q̇) at random states, inputs and times t ∈ [0, 10]
+    (the forces may depend on t), relative to 1 + |reference|. With the singular-set measure,
+    states within 1e-3 of that set are not used, and within 0.1 the tolerance grows as
+    0.1/measure: both sides solve the same ill-conditioned systems there, and their round-off
+    grows with the condition number (snake_4: gaps of 6e-10 at measure 1.5e-3 between two
+    correct evaluations, against O(1) for a wrong formula)."""
+    ref, nz, nu = reference.functions, reference.n_state, reference.n_inputs
+    params, singular = reference.params, reference.singular
     rng = np.random.default_rng(0)
     worst, used = 0.0, 0
     n = singular.size1_in(0) if singular is not None else nz
@@ -613,21 +646,22 @@ def _agrees(fns: dict, ref: dict, nz: int, nu: int, params, tol: float, singular
 
 # ----------------------------------------------------------------------------- entry point
 def _build(model, params, velocities, quantities) -> _Entry:
-    n, nz, nu = model.system.n, len(model.state_names), len(model.numeric.input_names)
-    reference = (_numeric_velocity(model, params, velocities, quantities) if velocities
-                 else _numeric_bound(model, params))
-    route, fns = "numeric", reference
-    singular = model.numeric.functions.get("singular")
+    n = model.system.n
+    graph = (_numeric_velocity(model, params, velocities, quantities) if velocities
+             else _numeric_bound(model, params))
+    reference = _Reference(graph, len(model.state_names), len(model.numeric.input_names), params,
+                           model.numeric.functions.get("singular"))
+    route, fns = "numeric", graph
     if model_form(model) == "explicit":
         try:
             candidate = (_symbolic_velocity(model, params, velocities, quantities) if velocities
                          else _symbolic_momentum(model, params))
         except (ZeroDivisionError, ArithmeticError, ValueError):
             candidate = None
-        if candidate is not None and _agrees(candidate, reference, nz, nu, params, 1e-10, singular):
+        if candidate is not None and _agrees(candidate, reference):
             route, fns = "symbolic", candidate
     if route == "numeric":
-        route, fns = _cheapest(model, params, velocities, quantities, reference, singular)
+        route, fns = _cheapest(model, velocities, quantities, reference)
     from .numeric_model import NumericModel
     old = model.numeric
     state_names = (tuple(model.system.coordinates) + tuple(velocities)) if velocities else tuple(old.state_names)
@@ -642,23 +676,22 @@ def _operations(fns: dict) -> int:
     return int(fns["rhs"].n_instructions())
 
 
-def _cheapest(model, params, velocities, quantities, reference, singular) -> tuple:
+def _cheapest(model, velocities, quantities, reference: _Reference) -> tuple:
     """(route, functions): the cheapest evaluation of the reference's equations among the
     20-step graph with values bound, Maggi's form (velocity states only) and either evaluated
     at the group identity — each checked against the reference at random states."""
-    nz, nu = len(model.state_names), len(model.numeric.input_names)
-    options = [("numeric", reference)]
+    options = [("numeric", reference.functions)]
     if velocities and "basis" in model.numeric.functions:
-        options.append(("Maggi", _maggi_velocity(model, params, velocities, quantities)))
+        options.append(("Maggi", _maggi_velocity(model, reference.params, velocities, quantities)))
     for name, fns in list(options):
         reduced = _at_identity(model, fns)
         if reduced is not None:
             options.append((f"{name} at the group identity", reduced))
     options.sort(key=lambda item: _operations(item[1]))
     for name, fns in options:
-        if fns is reference or _agrees(fns, reference, nz, nu, params, 1e-10, singular):
+        if fns is reference.functions or _agrees(fns, reference):
             return name, fns
-    return "numeric", reference
+    return "numeric", reference.functions
 
 
 def _key(model, params, velocities, quantities) -> str:
