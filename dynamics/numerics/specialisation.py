@@ -348,7 +348,7 @@ def _numeric_velocity(model, params, names, quantities) -> dict:
     nu = len(model.numeric.input_names)
     Yf = _row_function(model, names, quantities)
     Qf = _momentum_basis(model, params)
-    t, z, u, p = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", len(params))
+    t, z, u, params_sx = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", len(params))
     q, y = z[:n], z[n:]
     P = ca.solve(ca.mtimes(Yf(q, params), Qf(q)), y)
     zP = ca.vertcat(q, P)
@@ -359,11 +359,11 @@ def _numeric_velocity(model, params, names, quantities) -> dict:
     qdot = model.numeric["qdot"](zP, params)
     qs, qd = ca.SX.sym("q", n), ca.SX.sym("qdot", n)
     return {
-        "rhs": ca.Function("rhs", [t, z, u, p], [ca.vertcat(qdot, ydot)], ["t", "z", "u", "params"], ["zdot"]),
-        "qdot": ca.Function("qdot", [z, p], [qdot], ["z", "params"], ["qdot"]),
-        "state": ca.Function("state", [qs, qd, p], [ca.vertcat(qs, ca.mtimes(Yf(qs, params), qd))],
+        "rhs": ca.Function("rhs", [t, z, u, params_sx], [ca.vertcat(qdot, ydot)], ["t", "z", "u", "params"], ["zdot"]),
+        "qdot": ca.Function("qdot", [z, params_sx], [qdot], ["z", "params"], ["qdot"]),
+        "state": ca.Function("state", [qs, qd, params_sx], [ca.vertcat(qs, ca.mtimes(Yf(qs, params), qd))],
                              ["q", "qdot", "params"], ["z"]),
-        "momentum_state": ca.Function("momentum_state", [z, p], [zP], ["z", "params"], ["z_momentum"]),
+        "momentum_state": ca.Function("momentum_state", [z, params_sx], [zP], ["z", "params"], ["z_momentum"]),
     }
 
 
@@ -390,7 +390,7 @@ def _maggi_velocity(model, params, names, quantities) -> dict:
     system = model.system
     n, nz = system.n, len(model.state_names)
     nu = len(model.numeric.input_names)
-    t, z, u, p = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", len(params))
+    t, z, u, params_sx = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", len(params))
     qs, qds = ca.SX.sym("q", n), ca.SX.sym("qdot", n)
     subs = {s: float(v) for s, v in zip(system.param_symbols, params)}
     syms = [TIME] + list(system.q) + list(system.q_dot) + list(system.input_symbols)
@@ -412,8 +412,8 @@ def _maggi_velocity(model, params, names, quantities) -> dict:
     ydot = ca.substitute(ca.jtimes(ca.mtimes(Bv, vs), q, ca.mtimes(X, vs)), vs, v) + ca.mtimes(Bv, vdot)
     rhs = ca.cse(ca.vertcat(qdot, ydot))
     fns = _numeric_velocity(model, params, names, quantities)   # state and momentum_state maps
-    fns["rhs"] = ca.Function("rhs", [t, z, u, p], [rhs], ["t", "z", "u", "params"], ["zdot"])
-    fns["qdot"] = ca.Function("qdot", [z, p], [ca.cse(qdot)], ["z", "params"], ["qdot"])
+    fns["rhs"] = ca.Function("rhs", [t, z, u, params_sx], [rhs], ["t", "z", "u", "params"], ["zdot"])
+    fns["qdot"] = ca.Function("qdot", [z, params_sx], [ca.cse(qdot)], ["z", "params"], ["qdot"])
     return fns
 
 
@@ -425,22 +425,22 @@ def _body_basis(model, params, q):
     k×n matrix ω_b instead of the 20 steps' graph, it stays small for chains of many links."""
     from .bridge import to_casadi
     from .linsolve import solve_general
-    lay, system = model.layout, model.system
+    layout, system = model.layout, model.system
     n, k = system.n, system.k
     subs = {s: float(v) for s, v in zip(system.param_symbols, params)}
     qs = [q[i] for i in range(n)]
-    pivots = list(lay.pivots)
+    pivots = list(layout.pivots)
     free = [i for i in range(n) if i not in pivots]
     Xb = ca.SX(n, n - k)
     for j, i in enumerate(free):
         Xb[i, j] = 1
     if k:
-        Wb = ca.reshape(ca.vertcat(*to_casadi(list(lay.Wb.xreplace(subs).T), list(system.q), qs)), k, n)
+        Wb = ca.reshape(ca.vertcat(*to_casadi(list(layout.Wb.xreplace(subs).T), list(system.q), qs)), k, n)
         Xb[pivots, :] = -solve_general(Wb[:, pivots], Wb[:, free])
     G = ca.SX.eye(n)
-    if lay.version == "B":
-        g = ca.reshape(ca.vertcat(*to_casadi(list(lay.g.T), list(system.q), qs)), len(lay.si), len(lay.si))
-        G[list(lay.si), list(lay.si)] = g
+    if layout.version == "B":
+        g = ca.reshape(ca.vertcat(*to_casadi(list(layout.g.T), list(system.q), qs)), len(layout.si), len(layout.si))
+        G[list(layout.si), list(layout.si)] = g
     return ca.mtimes(G, Xb)
 
 
@@ -505,13 +505,13 @@ def _symbolic_momentum(model, params) -> dict:
     rhs = [_normal(e.xreplace(subs)) for e in model.rhs]
     qdot = [_normal(e.xreplace(subs)) for e in model.qdot]
     nz, nu, npar = len(model.state), len(system.input_symbols), len(system.param_symbols)
-    t, z, u, p = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", npar)
+    t, z, u, params_sx = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", npar)
     syms = [TIME] + list(model.state) + list(system.input_symbols)
     sx = [t] + [z[i] for i in range(nz)] + [u[i] for i in range(nu)]
     fns = _numeric_bound(model, params)
-    fns["rhs"] = ca.Function("rhs", [t, z, u, p], [ca.vertcat(*to_casadi(rhs, syms, sx))],
+    fns["rhs"] = ca.Function("rhs", [t, z, u, params_sx], [ca.vertcat(*to_casadi(rhs, syms, sx))],
                              ["t", "z", "u", "params"], ["zdot"])
-    fns["qdot"] = ca.Function("qdot", [z, p], [ca.vertcat(*to_casadi(qdot, syms, sx))], ["z", "params"], ["qdot"])
+    fns["qdot"] = ca.Function("qdot", [z, params_sx], [ca.vertcat(*to_casadi(qdot, syms, sx))], ["z", "params"], ["qdot"])
     return fns
 
 
@@ -541,12 +541,12 @@ def _symbolic_velocity(model, params, names, quantities) -> dict:
     qdot = [_normal(e.xreplace(back)) for e in qdot_v]
     ydot = [_normal(e.xreplace(back)) for e in ydot]
     nz, nu, npar = n + nv, len(system.input_symbols), len(system.param_symbols)
-    t, z, u, p = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", npar)
+    t, z, u, params_sx = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", npar)
     sx = [t] + [z[i] for i in range(nz)] + [u[i] for i in range(nu)]
     out = to_casadi(qdot + ydot, [TIME] + q + list(ys) + list(system.input_symbols), sx)
     fns = _numeric_velocity(model, params, names, quantities)   # state and momentum_state maps
-    fns["rhs"] = ca.Function("rhs", [t, z, u, p], [ca.vertcat(*out)], ["t", "z", "u", "params"], ["zdot"])
-    fns["qdot"] = ca.Function("qdot", [z, p], [ca.vertcat(*out[:n])], ["z", "params"], ["qdot"])
+    fns["rhs"] = ca.Function("rhs", [t, z, u, params_sx], [ca.vertcat(*out)], ["t", "z", "u", "params"], ["zdot"])
+    fns["qdot"] = ca.Function("qdot", [z, params_sx], [ca.vertcat(*out[:n])], ["z", "params"], ["qdot"])
     return fns
 
 
@@ -563,18 +563,18 @@ def _at_identity(model, fns: dict) -> dict | None:
     general functions. None when the model has no group layout.
     """
     from .bridge import to_casadi
-    lay = getattr(model, "layout", None)
-    if lay is None or not lay.fiber:
+    layout = getattr(model, "layout", None)
+    if layout is None or not layout.fiber:
         return None
     system = model.system
     n, nz = system.n, len(model.state_names)
-    si = [system.coordinates.index(c) for c in lay.fiber]
+    si = [system.coordinates.index(c) for c in layout.fiber]
     rhs, qdot = fns["rhs"], fns["qdot"]
     t, z, u = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", rhs.size1_in(2))
-    p = ca.SX.sym("params", rhs.size1_in(3))
+    params_sx = ca.SX.sym("params", rhs.size1_in(3))
     at_e = ca.vertcat(*[0 if i in si else z[i] for i in range(nz)])
-    G = ca.reshape(ca.vertcat(*to_casadi(list(lay.g.T), list(system.q), [z[i] for i in range(n)])),
-                   len(si), len(si)) if lay.version == "B" else ca.SX.eye(len(si))
+    G = ca.reshape(ca.vertcat(*to_casadi(list(layout.g.T), list(system.q), [z[i] for i in range(n)])),
+                   len(si), len(si)) if layout.version == "B" else ca.SX.eye(len(si))
 
     def moved(v):
         out = [v[i] for i in range(v.shape[0])]
@@ -583,8 +583,8 @@ def _at_identity(model, fns: dict) -> dict | None:
             out[i] = s_rates[j]
         return ca.cse(ca.vertcat(*out))
     out = dict(fns)
-    out["rhs"] = ca.Function("rhs", [t, z, u, p], [moved(rhs(t, at_e, u, p))], ["t", "z", "u", "params"], ["zdot"])
-    out["qdot"] = ca.Function("qdot", [z, p], [moved(qdot(at_e, p))], ["z", "params"], ["qdot"])
+    out["rhs"] = ca.Function("rhs", [t, z, u, params_sx], [moved(rhs(t, at_e, u, params_sx))], ["t", "z", "u", "params"], ["zdot"])
+    out["qdot"] = ca.Function("qdot", [z, params_sx], [moved(qdot(at_e, params_sx))], ["z", "params"], ["qdot"])
     return out
 
 
