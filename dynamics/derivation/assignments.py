@@ -58,7 +58,7 @@ def _scalar(value: str):
         try:
             return kind(value)
         except ValueError:
-            pass
+            continue        # not this kind of number: the next kind, else the text itself
     return value
 
 
