@@ -25,6 +25,7 @@ Usage: python experiments/bench_scale.py [--members snake_3,cart_trailers_1] [--
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import re
@@ -92,20 +93,32 @@ def cold(member: str, folder: Path, cache: Path, timeout: float, extra: tuple = 
     return row
 
 
+@dataclasses.dataclass(frozen=True)
+class Settings:
+    """How the planner's NLP is solved: ``solver`` and ``hessian`` (SolverOptions), ``intervals``
+    (None: the task's) and ``jit`` (None: the solver's default)."""
+
+    solver: str = "ipopt"
+    hessian: str = "exact"
+    intervals: int | None = None
+    jit: bool | None = None
+
+
 class Ours:
     """The planner's NLP of a member, built from the warm cache; :meth:`run` solves it from the
     guess the cold run won with."""
 
-    def __init__(self, member, guess_label, solver, hessian, intervals=None, jit=None, reference=None):
+    def __init__(self, member, guess_label, settings: Settings, reference=None):
         from nhgait.dynamics.derivation.scene import scene_from_text
         from nhgait.gaits.guesses import candidates
         from nhgait.gaits.planner import prepare
         from nhgait.gaits.task_library import resolve
         from nhgait.ocp import OCPSolver, SolverOptions
         scene = scene_from_text(sibling.load("scale_tasks").scene_with_task(member), member)
-        overrides = [f"intervals={intervals}"] if intervals else []
+        overrides = [f"intervals={settings.intervals}"] if settings.intervals else []
         problem = prepare(resolve(scene, overrides=overrides)).problem
-        self.solver = OCPSolver(problem, None, SolverOptions(solver=solver, hessian=hessian, max_iter=500, jit=jit))
+        self.solver = OCPSolver(problem, None, SolverOptions(solver=settings.solver, hessian=settings.hessian,
+                                                             max_iter=500, jit=settings.jit))
         guesses = candidates(problem)
         self.guess = next((g for g in guesses if g.label == guess_label), guesses[0])
         if reference is not None:                 # the reference's own guess, when the states agree
@@ -160,21 +173,19 @@ def interleaved(runners, repeats) -> list:
 def warm(row: dict, repeats: int, reference: bool, hessians: bool, intervals=None, jit=True) -> dict:
     """The warm-cache solves of one member (module docstring)."""
     member = row["member"]
-    ours = dict(intervals=intervals, jit=None if jit else False)
-    runners = {"ours": Ours(member, row.get("guess"), row.get("solver") or "ipopt", row.get("hessian") or "exact",
-                            **ours)}
+    cold = Settings(row.get("solver") or "ipopt", row.get("hessian") or "exact", intervals, None if jit else False)
+    runners = {"ours": Ours(member, row.get("guess"), cold)}
     if reference:
         runners["reference"] = Reference(member, intervals, jit)
         try:
-            runners["ours, reference's guess"] = Ours(member, None, row.get("solver") or "ipopt",
-                                                      row.get("hessian") or "exact", reference=runners["reference"],
-                                                      **ours)
+            runners["ours, reference's guess"] = Ours(member, None, cold, reference=runners["reference"])
         except ValueError as exc:
             print(f"# {member}: no same-guess run ({exc})", file=sys.stderr)
     if hessians:
         for solver, hessian in (("ipopt", "exact"), ("ipopt", "gauss-newton"), ("ipopt", "limited-memory"),
                                 ("fatrop", "exact"), ("fatrop", "gauss-newton")):
-            runners[f"{solver}/{hessian}"] = Ours(member, row.get("guess"), solver, hessian, **ours)
+            runners[f"{solver}/{hessian}"] = Ours(member, row.get("guess"),
+                                                  dataclasses.replace(cold, solver=solver, hessian=hessian))
     results = dict(zip(runners, interleaved(list(runners.values()), repeats)))
     out = {"warm": results["ours"]}
     if reference:

@@ -772,28 +772,43 @@ def _ipopt_options(jit: bool, expand: bool | None = None, mu_strategy: str = "mo
     return opts
 
 
+@dataclass(frozen=True)
+class Options:
+    """How the reference NLP is built: ``N`` intervals (None: the task's), compiled (``jit``),
+    RK4 sub-``steps`` per interval, the ODE's ``linear`` solves ("symbolic" or "numeric"), the RK4
+    ``stage`` ("MX", "step", "SX"), ``expand`` (None: Ipopt options' default) and Ipopt's
+    ``mu_strategy``."""
+
+    N: int | None = None
+    jit: bool = True
+    steps: int = 4
+    linear: str = "symbolic"
+    stage: str = "MX"
+    expand: bool | None = None
+    mu_strategy: str = "monotone"
+
+
 class Reference:
     """The hand-written multiple-shooting NLP of one member (built once, solved many times)."""
 
-    def __init__(self, member: str, N: int | None = None, jit: bool = True, steps: int = 4,
-                 linear: str = "symbolic", task: dict | None = None, stage: str = "MX",
-                 expand: bool | None = None, mu_strategy: str = "monotone"):
+    def __init__(self, member: str, options: Options = Options(), task: dict | None = None):
         t0 = time.perf_counter()
+        jit, expand, mu_strategy = options.jit, options.expand, options.mu_strategy
         self.member = member
         self.task = dict(task if task is not None else _scale_tasks().task(member))
-        self.ode = ode = reduced_ode(member, linear)
+        self.ode = ode = reduced_ode(member, options.linear)
         self.derive_s = ode.derive_s
-        self.tr = tr = transcribe(ode, self.task, N)
-        self.N, self.T, self.jit, self.steps = tr.N, tr.T, jit, steps
+        self.tr = tr = transcribe(ode, self.task, options.N)
+        self.N, self.T, self.jit, self.steps = tr.N, tr.T, jit, options.steps
         nx, nu, N = ode.nx, ode.nu, tr.N
         self.n_states = nx
-        self.stage = F = rk4_stage(ode, tr.T / N, steps, stage)
-        Fmap = F.map(N, "serial")
+        self.stage = step = rk4_stage(ode, tr.T / N, options.steps, options.stage)
+        step_map = step.map(N, "serial")
         V = ca.MX.sym("V", nx + nu, N)
         zN = ca.MX.sym("zN", nx)
         w = ca.vertcat(ca.vec(V), zN)
         Zs, Us = V[:nx, :], V[nx:, :]
-        gaps = Fmap(Zs, Us) - ca.horzcat(Zs[:, 1:], zN)
+        gaps = step_map(Zs, Us) - ca.horzcat(Zs[:, 1:], zN)
         g = ca.vertcat(ca.vec(gaps), *[zN[i] - Zs[i, 0] for i in tr.periodic])
         J = (tr.T / N) * ca.sumsqr(Us)
         t1 = time.perf_counter()
@@ -867,9 +882,10 @@ class Reference:
         }
 
 
-def build(member: str, N: int | None = None, jit: bool = True, **kwargs) -> Reference:
-    """The reference NLP of ``member`` (compiled when ``jit``); ``N`` overrides the task's."""
-    return Reference(member, N=N, jit=jit, **kwargs)
+def build(member: str, N: int | None = None, jit: bool = True, task: dict | None = None, **options) -> Reference:
+    """The reference NLP of ``member`` (compiled when ``jit``); ``N`` overrides the task's;
+    ``options``: the other fields of :class:`Options`."""
+    return Reference(member, Options(N=N, jit=jit, **options), task)
 
 
 # --------------------------------------------------------------------------- #
@@ -1038,11 +1054,11 @@ def _peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0   # Linux: kB
 
 
-def run_member(member: str, *, N=None, jit=True, repeats=5, linear="symbolic", stage="MX",
-               mu_strategy="monotone", check=False, verify=True) -> dict:
+def run_member(member: str, options: Options, *, repeats=5, check=False, verify=True) -> dict:
     """Build, solve ``repeats`` times (median), re-simulate and (optionally) check one member."""
+    jit, linear, stage, mu_strategy = options.jit, options.linear, options.stage, options.mu_strategy
     _progress(f"[{member}] building (jit={jit}, linear={linear}, stage={stage}) ...")
-    ref = build(member, N=N, jit=jit, linear=linear, stage=stage, mu_strategy=mu_strategy)
+    ref = Reference(member, options)
     _progress(f"[{member}] set-up {ref.setup_s:.1f} s (derivation {ref.derive_s:.1f} s, "
               f"compile {ref.compile_s:.1f} s, C {ref.c_bytes / 1e6:.2f} MB); solving ...")
     runs = [ref.solve() for _ in range(max(1, repeats))]
@@ -1150,28 +1166,42 @@ def main(argv=None) -> int:
     for m in members:
         _family(m)
     if args.check_only:
-        ok = True
-        for m in members:
-            _progress(f"[{m}] checking the reduced ODE ({args.linear}) ...")
-            c = check_model(m, linear=args.linear)
-            ok &= c["vs_oracle"] < 1e-9 and c["vs_multiplier_dae"] < 1e-9
-            print(f"{m:24s} vs oracle {c['vs_oracle']:.1e}  vs multiplier DAE "
-                  f"{c['vs_multiplier_dae']:.1e}  constraint residual {c['constraint_residual']:.1e}"
-                  f"  (oracle build {c['oracle_build_s']:.1f} s, {c['states']} states)", flush=True)
-        return 0 if ok else 1
+        return _check_only(members, args.linear)
+    options = Options(N=args.N, jit=not args.no_jit, linear=args.linear, stage=args.stage,
+                      mu_strategy=args.mu_strategy)
     rows = []
     for m in members:
         if args.in_process or len(members) == 1:
-            rows.append(run_member(m, N=args.N, jit=not args.no_jit, repeats=args.repeats,
-                                   linear=args.linear, stage=args.stage,
-                                   mu_strategy=args.mu_strategy, check=args.check,
-                                   verify=not args.no_verify))
+            rows.append(run_member(m, options, repeats=args.repeats, check=args.check, verify=not args.no_verify))
         else:
             rows.append(_run_isolated(m, args))
         r = rows[-1]
         if not args.quiet:
             _progress(f"[{m}] done: {r.get('status')}, J = {r.get('objective')}, "
                       f"{r.get('solve_ms', float('nan')):.1f} ms, resim {r.get('resim_error')}")
+    _write_and_print(args, rows)
+    ok = all(r.get("success") for r in rows)
+    if args.check:
+        ok &= all(r["check"]["vs_multiplier_dae"] < 1e-9 and
+                  (r["check"]["vs_oracle"] is None or r["check"]["vs_oracle"] < 1e-9) for r in rows)
+    return 0 if ok else 1
+
+
+def _check_only(members, linear) -> int:
+    """``--check-only``: each member's reduced ODE against the oracle and the multiplier DAE."""
+    ok = True
+    for m in members:
+        _progress(f"[{m}] checking the reduced ODE ({linear}) ...")
+        c = check_model(m, linear=linear)
+        ok &= c["vs_oracle"] < 1e-9 and c["vs_multiplier_dae"] < 1e-9
+        print(f"{m:24s} vs oracle {c['vs_oracle']:.1e}  vs multiplier DAE "
+              f"{c['vs_multiplier_dae']:.1e}  constraint residual {c['constraint_residual']:.1e}"
+              f"  (oracle build {c['oracle_build_s']:.1f} s, {c['states']} states)", flush=True)
+    return 0 if ok else 1
+
+
+def _write_and_print(args, rows) -> None:
+    """The JSON file of the run (``--out``) and, unless ``--quiet``, its table and checks."""
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     meta = {"casadi": ca.__version__, "python": sys.version.split()[0], "cpus": os.cpu_count(),
@@ -1188,11 +1218,6 @@ def main(argv=None) -> int:
                 c = r["check"]
                 print(f"check {r['member']}: vs oracle {c['vs_oracle']}, vs multiplier DAE "
                       f"{c['vs_multiplier_dae']:.1e}, constraint residual {c['constraint_residual']}")
-    ok = all(r.get("success") for r in rows)
-    if args.check:
-        ok &= all(r["check"]["vs_multiplier_dae"] < 1e-9 and
-                  (r["check"]["vs_oracle"] is None or r["check"]["vs_oracle"] < 1e-9) for r in rows)
-    return 0 if ok else 1
 
 
 if __name__ == "__main__":
