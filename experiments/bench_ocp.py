@@ -26,24 +26,20 @@ Usage: python experiments/bench_ocp.py [--quick] [--N 25,50] [--problems P1,P2]
 from __future__ import annotations
 
 import argparse
-import importlib.util
+import dataclasses
 import json
+import re
 import statistics
 import sys
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
+import sibling  # experiments/sibling.py: the other scripts, loaded by file path
 PROBLEMS = {"P1": ("unicycle", "parallel-park"), "P2": ("snakeboard", "forward"), "P3": ("snakeboard", "rotate")}
-SECTIONS = ("default", "fatrop", "collocation")
 
 
 def _reference():
-    spec = importlib.util.spec_from_file_location("reference_casadi_ocp", HERE / "reference_casadi_ocp.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod
-    spec.loader.exec_module(mod)
-    return mod
+    return sibling.load("reference_casadi_ocp")
 
 
 class Ours:
@@ -113,8 +109,91 @@ def interleaved(runners, repeats) -> list:
     return [r.result() for r in runners]
 
 
-def _ms(x):
-    return f"{x * 1e3:8.1f}"
+@dataclasses.dataclass(frozen=True)
+class Section:
+    """One comparison of the benchmark: its heading, its printed columns ((title, format) pairs)
+    and ``measure(ref, key, N, repeats)`` → (JSON row, passed, the columns' values) for one
+    problem and N."""
+
+    heading: str
+    columns: tuple
+    measure: object
+
+    def header(self) -> str:
+        return " ".join(f"{title:>{_width(spec)}s}" for title, spec in self.columns)
+
+    def line(self, values) -> str:
+        return " ".join(format(value, spec) for (_, spec), value in zip(self.columns, values))
+
+
+def _width(spec: str) -> int:
+    digits = re.match(r"\d*", spec).group()
+    return int(digits) if digits else 0
+
+
+def _default_row(ref, key, N, repeats):
+    default = Ours(key, N)
+    o, i, r = interleaved([default, Ours(key, N, solver="ipopt", guess_label=default.guess.label),
+                           Reference(ref, key, N)], repeats)
+    rel = abs(o["objective"] - ref.REFERENCE[key][N]) / ref.REFERENCE[key][N] if N in ref.REFERENCE[key] \
+        else abs(o["objective"] - r["objective"]) / abs(r["objective"])
+    ratio = o["solve_time_s"] / r["solve_time_s"]
+    ratio_i = i["solve_time_s"] / r["solve_time_s"]
+    row = {"section": "default", "problem": key, "N": N, "ours": o, "ours_ipopt": i,
+           "reference": r, "rel_error": rel, "time_ratio": ratio, "ipopt_time_ratio": ratio_i}
+    values = [key, N, o["objective"], rel, o["iterations"], r["iterations"], o["solve_time_s"] * 1e3,
+              r["solve_time_s"] * 1e3, ratio, i["solve_time_s"] * 1e3, ratio_i, o["setup_time_s"] * 1e3,
+              r["setup_time_s"] * 1e3, o["verification_error"], " " + o["guess"]]
+    return row, o["success"] and rel < 1e-4, values
+
+
+def _fatrop_row(ref, key, N, repeats):
+    ipopt = Ours(key, N, solver="ipopt")
+    fatrop = Ours(key, N, solver="fatrop", guess_label=ipopt.guess.label)
+    i, f, r = interleaved([ipopt, fatrop, Reference(ref, key, N)], repeats)
+    rel = abs(f["objective"] - i["objective"]) / abs(i["objective"])
+    row = {"section": "fatrop", "problem": key, "N": N, "fatrop": f, "ipopt": i, "reference": r,
+           "rel_diff": rel, "speedup_vs_reference": r["solve_time_s"] / f["solve_time_s"],
+           "speedup_vs_ipopt": i["solve_time_s"] / f["solve_time_s"]}
+    values = [key, N, f["objective"], rel, f["iterations"], i["iterations"]]
+    values += [x[name] * 1e3 for x in (f, i) for name in ("solve_time_s", "function_time_s", "solver_time_s")]
+    values += [r["solve_time_s"] * 1e3, r["solve_time_s"] / f["solve_time_s"], i["solve_time_s"] / f["solve_time_s"]]
+    return row, f["success"] and rel < 1e-6, values
+
+
+def _collocation_row(ref, key, N, repeats):
+    shooting = Ours(key, N, solver="ipopt")
+    colloc = Ours(key, N, solver="ipopt", transcription="collocation", guess_label=shooting.guess.label)
+    m, c = interleaved([shooting, colloc], repeats)
+    ratio = c["solve_time_s"] / m["solve_time_s"]
+    row = {"section": "collocation", "problem": key, "N": N, "shooting": m, "collocation": c, "time_ratio": ratio}
+    values = [key, N, m["objective"], c["objective"], m["iterations"], c["iterations"], m["solve_time_s"] * 1e3,
+              c["solve_time_s"] * 1e3, ratio, c["setup_time_s"] * 1e3]
+    return row, c["success"], values
+
+
+_PROBLEM = (("prob", "4s"), ("N", "4d"))
+_MS = "8.1f"
+SECTIONS = {
+    "default": Section(
+        "default nhgait plan (auto = FATROP, compiled, own guess) and our Ipopt path (compiled) vs the "
+        "hand-written reference (Ipopt, compiled, its guess)",
+        _PROBLEM + (("objective", "10.6f"), ("rel err", "8.1e"), ("it", "3d"), ("ref it", "6d"), ("ours ms", _MS),
+                    ("ref ms", _MS), ("ratio", "5.2f"), ("ipopt ms", _MS), ("ratio", "5.2f"), ("setup ms", _MS),
+                    ("ref setup", "9.1f"), ("verify", "8.1e"), (" guess", "")),
+        _default_row),
+    "fatrop": Section(
+        "FATROP (stage-ordered, compiled) vs our Ipopt (compiled) vs the reference's Ipopt (compiled); same guess",
+        _PROBLEM + (("J fatrop", "10.6f"), ("rel diff", "8.1e"), ("it F", "4d"), ("it I", "4d"), ("fatrop ms", "9.1f"),
+                    ("(fun", "6.1f"), ("solver)", "7.1f"), ("ipopt ms", _MS), ("(fun", "6.1f"), ("solver)", "7.1f"),
+                    ("ref ms", _MS), ("ref/F", "5.2f"), ("ipopt/F", "7.2f")),
+        _fatrop_row),
+    "collocation": Section(
+        "collocation (Legendre, degree 3) vs multiple shooting, both ours compiled, same guess",
+        _PROBLEM + (("J shooting", "10.6f"), ("J colloc", "10.6f"), ("it MS", "5d"), ("it C", "4d"), ("MS ms", _MS),
+                    ("coll ms", _MS), ("ratio", "5.2f"), ("coll setup ms", "13.1f")),
+        _collocation_row),
+}
 
 
 def main(argv=None) -> int:
@@ -131,66 +210,20 @@ def main(argv=None) -> int:
     ref = _reference()
     keys = [p.strip() for p in args.problems.split(",") if p.strip()]
     Ns = [int(n) for n in args.N.split(",") if n.strip()]
-    sections = [s.strip() for s in args.sections.split(",") if s.strip()]
+    chosen = [s.strip() for s in args.sections.split(",") if s.strip()]
     rows, ok = [], True
-    if "default" in sections:
-        print("\n# default nhgait plan (auto = FATROP, compiled, own guess) and our Ipopt path (compiled) vs the "
-              "hand-written reference (Ipopt, compiled, its guess)")
-        print(f"{'prob':4s} {'N':>4s} {'objective':>10s} {'rel err':>8s} {'it':>3s} {'ref it':>6s} {'ours ms':>8s} "
-              f"{'ref ms':>8s} {'ratio':>5s} {'ipopt ms':>8s} {'ratio':>5s} {'setup ms':>8s} {'ref setup':>9s} "
-              f"{'verify':>8s}  guess")
+    for name in SECTIONS:                   # the sections in their own order, as before
+        if name not in chosen:
+            continue
+        section = SECTIONS[name]
+        print(f"\n# {section.heading}")
+        print(section.header())
         for key in keys:
             for N in Ns:
-                default = Ours(key, N)
-                o, i, r = interleaved([default, Ours(key, N, solver="ipopt", guess_label=default.guess.label),
-                                       Reference(ref, key, N)], args.repeats)
-                rel = abs(o["objective"] - ref.REFERENCE[key][N]) / ref.REFERENCE[key][N] if N in ref.REFERENCE[key] \
-                    else abs(o["objective"] - r["objective"]) / abs(r["objective"])
-                ratio = o["solve_time_s"] / r["solve_time_s"]
-                ok &= o["success"] and rel < 1e-4
-                ratio_i = i["solve_time_s"] / r["solve_time_s"]
-                rows.append({"section": "default", "problem": key, "N": N, "ours": o, "ours_ipopt": i,
-                             "reference": r, "rel_error": rel, "time_ratio": ratio, "ipopt_time_ratio": ratio_i})
-                print(f"{key:4s} {N:4d} {o['objective']:10.6f} {rel:8.1e} {o['iterations']:3d} {r['iterations']:6d} "
-                      f"{_ms(o['solve_time_s'])} {_ms(r['solve_time_s'])} {ratio:5.2f} {_ms(i['solve_time_s'])} "
-                      f"{ratio_i:5.2f} {_ms(o['setup_time_s'])} {r['setup_time_s'] * 1e3:9.1f} "
-                      f"{o['verification_error']:8.1e}  {o['guess']}", flush=True)
-    if "fatrop" in sections:
-        print("\n# FATROP (stage-ordered, compiled) vs our Ipopt (compiled) vs the reference's Ipopt (compiled); same guess")
-        print(f"{'prob':4s} {'N':>4s} {'J fatrop':>10s} {'rel diff':>8s} {'it F':>4s} {'it I':>4s} {'fatrop ms':>9s} "
-              f"{'(fun':>6s} {'solver)':>7s} {'ipopt ms':>8s} {'(fun':>6s} {'solver)':>7s} {'ref ms':>8s} "
-              f"{'ref/F':>5s} {'ipopt/F':>7s}")
-        for key in keys:
-            for N in Ns:
-                ipopt = Ours(key, N, solver="ipopt")
-                fatrop = Ours(key, N, solver="fatrop", guess_label=ipopt.guess.label)
-                i, f, r = interleaved([ipopt, fatrop, Reference(ref, key, N)], args.repeats)
-                rel = abs(f["objective"] - i["objective"]) / abs(i["objective"])
-                ok &= f["success"] and rel < 1e-6
-                rows.append({"section": "fatrop", "problem": key, "N": N, "fatrop": f, "ipopt": i, "reference": r,
-                             "rel_diff": rel, "speedup_vs_reference": r["solve_time_s"] / f["solve_time_s"],
-                             "speedup_vs_ipopt": i["solve_time_s"] / f["solve_time_s"]})
-                print(f"{key:4s} {N:4d} {f['objective']:10.6f} {rel:8.1e} {f['iterations']:4d} {i['iterations']:4d} "
-                      f"{f['solve_time_s'] * 1e3:9.1f} {f['function_time_s'] * 1e3:6.1f} {f['solver_time_s'] * 1e3:7.1f} "
-                      f"{_ms(i['solve_time_s'])} {i['function_time_s'] * 1e3:6.1f} {i['solver_time_s'] * 1e3:7.1f} "
-                      f"{_ms(r['solve_time_s'])} {r['solve_time_s'] / f['solve_time_s']:5.2f} "
-                      f"{i['solve_time_s'] / f['solve_time_s']:7.2f}", flush=True)
-    if "collocation" in sections:
-        print("\n# collocation (Legendre, degree 3) vs multiple shooting, both ours compiled, same guess")
-        print(f"{'prob':4s} {'N':>4s} {'J shooting':>10s} {'J colloc':>10s} {'it MS':>5s} {'it C':>4s} "
-              f"{'MS ms':>8s} {'coll ms':>8s} {'ratio':>5s} {'coll setup ms':>13s}")
-        for key in keys:
-            for N in Ns:
-                shooting = Ours(key, N, solver="ipopt")
-                colloc = Ours(key, N, solver="ipopt", transcription="collocation", guess_label=shooting.guess.label)
-                m, c = interleaved([shooting, colloc], args.repeats)
-                ratio = c["solve_time_s"] / m["solve_time_s"]
-                ok &= c["success"]
-                rows.append({"section": "collocation", "problem": key, "N": N, "shooting": m, "collocation": c,
-                             "time_ratio": ratio})
-                print(f"{key:4s} {N:4d} {m['objective']:10.6f} {c['objective']:10.6f} {m['iterations']:5d} "
-                      f"{c['iterations']:4d} {_ms(m['solve_time_s'])} {_ms(c['solve_time_s'])} {ratio:5.2f} "
-                      f"{c['setup_time_s'] * 1e3:13.1f}", flush=True)
+                row, passed, values = section.measure(ref, key, N, args.repeats)
+                rows.append(row)
+                ok &= passed
+                print(section.line(values), flush=True)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps({"rows": rows, "repeats": args.repeats}, indent=1, default=float))

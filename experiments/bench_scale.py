@@ -25,7 +25,7 @@ Usage: python experiments/bench_scale.py [--members snake_3,cart_trailers_1] [--
 from __future__ import annotations
 
 import argparse
-import importlib.util
+import dataclasses
 import json
 import os
 import re
@@ -38,22 +38,12 @@ from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parent
+import sibling  # experiments/sibling.py: the other scripts, loaded by file path
+
 #: prints the peak RSS (kB) of every process the command started (RUSAGE_CHILDREN)
 _WRAPPER = ("import resource, subprocess, sys; rc = subprocess.call(sys.argv[1:]); "
             "print('PEAK_RSS_KB', resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, file=sys.stderr); "
             "sys.exit(rc)")
-
-
-def _load(name: str):
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, HERE / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[name] = mod
-    spec.loader.exec_module(mod)
-    return mod
 
 
 def _nhgait() -> list:
@@ -65,7 +55,7 @@ def cold(member: str, folder: Path, cache: Path, timeout: float, extra: tuple = 
     """``nhgait plan`` in a fresh process with the empty cache ``cache`` (module docstring);
     ``extra``: more command-line options (``--intervals``, ``--no-jit``)."""
     scene = folder / f"{member}.toml"
-    scene.write_text(_load("scale_tasks").scene_with_task(member))
+    scene.write_text(sibling.load("scale_tasks").scene_with_task(member))
     out = folder / f"{member}_out"
     env = {**os.environ, "NHGAIT_CACHE_DIR": str(cache)}
     cmd = [sys.executable, "-c", _WRAPPER, *_nhgait(), "plan", str(scene), "--no-gif", "--out", str(out), *extra]
@@ -103,20 +93,32 @@ def cold(member: str, folder: Path, cache: Path, timeout: float, extra: tuple = 
     return row
 
 
+@dataclasses.dataclass(frozen=True)
+class Settings:
+    """How the planner's NLP is solved: ``solver`` and ``hessian`` (SolverOptions), ``intervals``
+    (None: the task's) and ``jit`` (None: the solver's default)."""
+
+    solver: str = "ipopt"
+    hessian: str = "exact"
+    intervals: int | None = None
+    jit: bool | None = None
+
+
 class Ours:
     """The planner's NLP of a member, built from the warm cache; :meth:`run` solves it from the
     guess the cold run won with."""
 
-    def __init__(self, member, guess_label, solver, hessian, intervals=None, jit=None, reference=None):
+    def __init__(self, member, guess_label, settings: Settings, reference=None):
         from nhgait.dynamics.derivation.scene import scene_from_text
         from nhgait.gaits.guesses import candidates
         from nhgait.gaits.planner import prepare
         from nhgait.gaits.task_library import resolve
         from nhgait.ocp import OCPSolver, SolverOptions
-        scene = scene_from_text(_load("scale_tasks").scene_with_task(member), member)
-        overrides = [f"intervals={intervals}"] if intervals else []
+        scene = scene_from_text(sibling.load("scale_tasks").scene_with_task(member), member)
+        overrides = [f"intervals={settings.intervals}"] if settings.intervals else []
         problem = prepare(resolve(scene, overrides=overrides)).problem
-        self.solver = OCPSolver(problem, None, SolverOptions(solver=solver, hessian=hessian, max_iter=500, jit=jit))
+        self.solver = OCPSolver(problem, None, SolverOptions(solver=settings.solver, hessian=settings.hessian,
+                                                             max_iter=500, jit=settings.jit))
         guesses = candidates(problem)
         self.guess = next((g for g in guesses if g.label == guess_label), guesses[0])
         if reference is not None:                 # the reference's own guess, when the states agree
@@ -147,7 +149,7 @@ def _reference_guess(ref, problem):
 
 class Reference:
     def __init__(self, member, intervals=None, jit=True):
-        self.ref = _load("reference_scale_ocp").build(member, N=intervals, jit=jit)
+        self.ref = sibling.load("reference_scale_ocp").build(member, N=intervals, jit=jit)
         self.runs = []
 
     def run(self):
@@ -171,21 +173,19 @@ def interleaved(runners, repeats) -> list:
 def warm(row: dict, repeats: int, reference: bool, hessians: bool, intervals=None, jit=True) -> dict:
     """The warm-cache solves of one member (module docstring)."""
     member = row["member"]
-    ours = dict(intervals=intervals, jit=None if jit else False)
-    runners = {"ours": Ours(member, row.get("guess"), row.get("solver") or "ipopt", row.get("hessian") or "exact",
-                            **ours)}
+    cold = Settings(row.get("solver") or "ipopt", row.get("hessian") or "exact", intervals, None if jit else False)
+    runners = {"ours": Ours(member, row.get("guess"), cold)}
     if reference:
         runners["reference"] = Reference(member, intervals, jit)
         try:
-            runners["ours, reference's guess"] = Ours(member, None, row.get("solver") or "ipopt",
-                                                      row.get("hessian") or "exact", reference=runners["reference"],
-                                                      **ours)
+            runners["ours, reference's guess"] = Ours(member, None, cold, reference=runners["reference"])
         except ValueError as exc:
             print(f"# {member}: no same-guess run ({exc})", file=sys.stderr)
     if hessians:
         for solver, hessian in (("ipopt", "exact"), ("ipopt", "gauss-newton"), ("ipopt", "limited-memory"),
                                 ("fatrop", "exact"), ("fatrop", "gauss-newton")):
-            runners[f"{solver}/{hessian}"] = Ours(member, row.get("guess"), solver, hessian, **ours)
+            runners[f"{solver}/{hessian}"] = Ours(member, row.get("guess"),
+                                                  dataclasses.replace(cold, solver=solver, hessian=hessian))
     results = dict(zip(runners, interleaved(list(runners.values()), repeats)))
     out = {"warm": results["ours"]}
     if reference:
@@ -222,7 +222,7 @@ HEADER = (f"{'member':24s} {'cold s':>6s} {'silent':>6s} {'RSS MB':>6s} {'C MB':
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--members", default=",".join(_load("scale_tasks").MEMBERS))
+    ap.add_argument("--members", default=",".join(sibling.load("scale_tasks").MEMBERS))
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--timeout", type=float, default=600.0, help="seconds for one cold run")
     ap.add_argument("--hessians", action="store_true", help="also every Hessian and solver, warm")

@@ -183,32 +183,22 @@ def continuation(axes, scene=("snakeboard", "forward")) -> dict:
     return out
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="tiny sizes, P1 only (smoke test)")
-    ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--out", default="out/bench_sweep.json")
-    args = ap.parse_args(argv)
-    from nhgait.dynamics.errors import ModelError
-    if args.quick:
-        p1_axes, p2_axes, samples, solves = ["final.y=0.45,0.55"], ["final.y=0.45,0.55"], 3, 1
-        p2, dask_axes = ("unicycle", "parallel-park"), ["final.y=0.45,0.55"]
-    else:
-        p1_axes, p2_axes, samples, solves = ["final.y=0.3:0.75:10", "final.theta=-0.15:0.15:4"], \
-            ["final.x=0.6:1.4:5", "horizon=5.5:7.0:3"], 50, 3
-        p2 = ("snakeboard", "forward")
-        # the shape of the issue's example grid (10 distances × 4 horizons): rays of 4–5 points
-        dask_axes = ["final.x=0.6:1.5:10", "horizon=5.5:7.0:4"]
-    report = {"note": "2 cores shared with other work: compare ratios measured in this run"}
-    print("nhgait sweep benchmark (machine possibly shared: ratios are from this one run)")
-    t = report["throughput"] = throughput(max(1, args.repeats), p1_axes)
-    print(f"1. throughput, P1 N=50, {t['points']} points ({' × '.join(p1_axes)}), {args.repeats} runs each:")
+def _throughput_section(report: dict, repeats: int, p1_axes) -> None:
+    """Section 1 (printed, and added to ``report``): the sweep's throughput with 1 and 2 workers."""
+    t = report["throughput"] = throughput(max(1, repeats), p1_axes)
+    print(f"1. throughput, P1 N=50, {t['points']} points ({' × '.join(p1_axes)}), {repeats} runs each:")
     print(f"   1 worker  median {t['median_s'][1]:.2f} s  runs {[round(x, 2) for x in t['times_s'][1]]}")
     print(f"   2 workers median {t['median_s'][2]:.2f} s  runs {[round(x, 2) for x in t['times_s'][2]]}")
     print(f"   speed-up 2 workers / 1 worker = {t['speedup_2_over_1']:.2f}  (target ≥ 1.7); solved {t['solved']}")
     print(f"   points running at once (Σ point wall / sweep wall, median): 1 worker {t['concurrency'][1]:.2f}, "
           f"2 workers {t['concurrency'][2]:.2f} — below 2 while the centre is solved cold and when the "
           f"cores are shared")
+
+
+def _dask_section(report: dict, samples: int, solves: int, p2, dask_axes) -> None:
+    """Section 2 (printed, and added to ``report``): Dask's per-point overhead (skipped when Dask
+    is not installed)."""
+    from nhgait.dynamics.errors import ModelError
     try:
         d = report["dask"] = dask_overhead(samples, solves, p2)
     except ModelError as exc:  # pragma: no cover - Dask not installed
@@ -233,6 +223,10 @@ def main(argv=None) -> int:
         print(f"   a Dask sweep of {' × '.join(dask_axes)} (local:2, chain {ch['chain']}): {ch['points']} points in "
               f"{ch['tasks']} tasks = {m:.2f} points per task ({ch['solved']} solved) → overhead ≈ "
               f"{100 * est:.1f} % of a solve per point (target ≤ 10 %)")
+
+
+def _continuation_section(report: dict, p2_axes, p2) -> None:
+    """Section 3 (printed, and added to ``report``): warm against cold starts along the grid."""
     c = report["continuation"] = continuation(p2_axes, p2)
     print(f"3. continuation, {'/'.join(p2)} N=50, {c['points']} points ({' × '.join(p2_axes)}), 2 workers:")
     print(f"   warm: {c['warm']['iterations']} Ipopt iterations, {c['warm']['solved']} solved, {c['warm']['wall_s']:.1f} s")
@@ -243,6 +237,28 @@ def main(argv=None) -> int:
         report["dask"]["overhead_fraction_of_warm_point"] = report["dask"]["dask_overhead_s"] / point
         print(f"   a warm point in its worker (set-up reuse, solve, re-simulation): median {point * 1e3:.0f} ms → "
               f"Dask overhead {100 * report['dask']['overhead_fraction_of_warm_point']:.1f} % of a whole point")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="tiny sizes, P1 only (smoke test)")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--out", default="out/bench_sweep.json")
+    args = ap.parse_args(argv)
+    if args.quick:
+        p1_axes, p2_axes, samples, solves = ["final.y=0.45,0.55"], ["final.y=0.45,0.55"], 3, 1
+        p2, dask_axes = ("unicycle", "parallel-park"), ["final.y=0.45,0.55"]
+    else:
+        p1_axes, p2_axes, samples, solves = ["final.y=0.3:0.75:10", "final.theta=-0.15:0.15:4"], \
+            ["final.x=0.6:1.4:5", "horizon=5.5:7.0:3"], 50, 3
+        p2 = ("snakeboard", "forward")
+        # the shape of the issue's example grid (10 distances × 4 horizons): rays of 4–5 points
+        dask_axes = ["final.x=0.6:1.5:10", "horizon=5.5:7.0:4"]
+    report = {"note": "2 cores shared with other work: compare ratios measured in this run"}
+    print("nhgait sweep benchmark (machine possibly shared: ratios are from this one run)")
+    _throughput_section(report, args.repeats, p1_axes)
+    _dask_section(report, samples, solves, p2, dask_axes)
+    _continuation_section(report, p2_axes, p2)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(report, indent=1, default=float))

@@ -94,6 +94,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import functools
 import math
 import os
@@ -302,30 +303,49 @@ def _scratch_cwd():
             os.chdir(old)
 
 
-def _map(F: ca.Function, N: int, mode: str) -> ca.Function:
-    """F.map(N) evaluated 'serial' (loop) or 'thread' (one thread per core)."""
+def _map(step: ca.Function, N: int, mode: str) -> ca.Function:
+    """step.map(N) evaluated 'serial' (loop) or 'thread' (one thread per core)."""
     if mode == "thread":
-        return F.map(N, "thread", os.cpu_count() or 1)
-    return F.map(N, mode)
+        return step.map(N, "thread", os.cpu_count() or 1)
+    return step.map(N, mode)
 
 
-class _NlpsolOCP:
-    """Flat-vector nlpsol multiple-shooting formulation."""
+def _shooting(problem, N, M, map_mode):
+    """The problem's spec and its RK4 step (``M`` sub-steps over T/N) mapped over the N
+    intervals."""
+    spec = problem_spec(problem)
+    return spec, _map(rk4_function(spec["model"], spec["T"] / N, M), N, map_mode)
+
+
+class _ShootingOCP:
+    """Multiple shooting of one problem with N intervals: the sizes and the RK4 step mapped
+    over the intervals are set up here; a formulation states the NLP (``_formulate``) and may
+    book a warm-up solve's non-Ipopt time as setup time (``_warm_up``)."""
 
     def __init__(self, problem, N, M, jit, map_mode="serial", expand=True):
         t0 = time.perf_counter()
-        spec = problem_spec(problem)
-        nx, nu, T = spec["nx"], spec["nu"], spec["T"]
-        self.nx, self.nu, self.N = nx, nu, N
-        F = rk4_function(spec["model"], T / N, M)
-        Fmap = _map(F, N, map_mode)
+        spec, step_map = _shooting(problem, N, M, map_mode)
+        self.nx, self.nu, self.N = spec["nx"], spec["nu"], N
+        self._formulate(spec, step_map, jit, expand)
+        build = time.perf_counter() - t0
+        self.setup_time = build + self._warm_up(problem)
+
+    def _warm_up(self, problem) -> float:
+        return 0.0
+
+
+class _NlpsolOCP(_ShootingOCP):
+    """Flat-vector nlpsol multiple-shooting formulation."""
+
+    def _formulate(self, spec, step_map, jit, expand):
+        nx, nu, N, T = self.nx, self.nu, self.N, spec["T"]
         # decision vector, interval-stacked: V[:, k] = (x_k, u_k), plus x_N
         V = ca.MX.sym("V", nx + nu, N)
         XN = ca.MX.sym("XN", nx)
         w = ca.vertcat(ca.vec(V), XN)
         Xs, Us = V[:nx, :], V[nx:, :]
         Xnext = ca.horzcat(Xs[:, 1:], XN)
-        gaps = Fmap(Xs, Us) - Xnext
+        gaps = step_map(Xs, Us) - Xnext
         g = [ca.vec(gaps)]
         for i in spec["periodic"]:
             g.append(XN[i] - Xs[i, 0])
@@ -344,7 +364,6 @@ class _NlpsolOCP:
         lbV[nx:, :], ubV[nx:, :] = -spec["umax"], spec["umax"]
         self.lbx = np.concatenate([lbV.ravel(order="F"), np.maximum(spec["xN_lb"], spec["path_lb"])])
         self.ubx = np.concatenate([ubV.ravel(order="F"), np.minimum(spec["xN_ub"], spec["path_ub"])])
-        self.setup_time = time.perf_counter() - t0
 
     def solve(self, X0, U0):
         nx, nu, N = self.nx, self.nu, self.N
@@ -361,16 +380,11 @@ class _NlpsolOCP:
                     success=bool(st["success"]), status=st["return_status"], X=X, U=V[nx:])
 
 
-class _OptiOCP:
+class _OptiOCP(_ShootingOCP):
     """Same NLP with casadi.Opti (simple bounds detected and moved to lbx/ubx)."""
 
-    def __init__(self, problem, N, M, jit, map_mode="serial", expand=True):
-        t0 = time.perf_counter()
-        spec = problem_spec(problem)
-        nx, nu, T = spec["nx"], spec["nu"], spec["T"]
-        self.nx, self.nu, self.N = nx, nu, N
-        F = rk4_function(spec["model"], T / N, M)
-        Fmap = _map(F, N, map_mode)
+    def _formulate(self, spec, step_map, jit, expand):
+        nx, nu, N, T = self.nx, self.nu, self.N, spec["T"]
         opti = ca.Opti()
         # declare interval-wise (x_0, u_0, x_1, ...) so the variable order matches _NlpsolOCP
         xs, us = [], []
@@ -380,7 +394,7 @@ class _OptiOCP:
         xs.append(opti.variable(nx))
         Xv, Uv = ca.horzcat(*xs), ca.horzcat(*us)
         opti.minimize((T / N) * ca.sumsqr(Uv))
-        opti.subject_to(Fmap(Xv[:, :N], Uv) == Xv[:, 1:])
+        opti.subject_to(step_map(Xv[:, :N], Uv) == Xv[:, 1:])
         for i in spec["periodic"]:
             opti.subject_to(Xv[i, N] == Xv[i, 0])
 
@@ -401,12 +415,13 @@ class _OptiOCP:
         opts["detect_simple_bounds"] = True
         opti.solver("ipopt", opts)
         self.opti, self.Xv, self.Uv = opti, Xv, Uv
-        # Opti constructs nlpsol (expand / JIT) lazily inside the first solve(): do one
-        # warm-up solve and book its non-Ipopt part as setup time.
-        t_build = time.perf_counter() - t0
+
+    def _warm_up(self, problem) -> float:
+        """Opti constructs nlpsol (expand / JIT) lazily inside the first solve(): one warm-up
+        solve, whose non-Ipopt part is setup time."""
         with _scratch_cwd():
-            warm = self.solve(*initial_guess(problem, N))
-        self.setup_time = t_build + warm["solve_time_s"] - warm["ipopt_time_s"]
+            warm = self.solve(*initial_guess(problem, self.N))
+        return warm["solve_time_s"] - warm["ipopt_time_s"]
 
     def solve(self, X0, U0):
         opti = self.opti
@@ -431,9 +446,22 @@ class _OptiOCP:
 _FORMULATIONS = {"nlpsol": _NlpsolOCP, "opti": _OptiOCP}
 
 
+@dataclasses.dataclass(frozen=True)
+class _Build:
+    """One configuration of the NLP (see :func:`solve`); the key of the built solvers."""
+
+    problem: str
+    N: int
+    M: int
+    jit: bool
+    formulation: str
+    map_mode: str
+    expand: bool
+
+
 @functools.lru_cache(maxsize=None)
-def _build(problem, N, M, jit, formulation, map_mode, expand):
-    return _FORMULATIONS[formulation](problem, N, M, jit, map_mode, expand)
+def _build(build: _Build):
+    return _FORMULATIONS[build.formulation](build.problem, build.N, build.M, build.jit, build.map_mode, build.expand)
 
 
 def solve(problem: str, N: int, *, jit: bool = False, M: int = 4,
@@ -450,7 +478,7 @@ def solve(problem: str, N: int, *, jit: bool = False, M: int = 4,
     """
     if expand is None:
         expand = not jit
-    ocp = _build(problem, N, M, jit, formulation, map_mode, expand)
+    ocp = _build(_Build(problem, N, M, jit, formulation, map_mode, expand))
     X0, U0 = initial_guess(problem, N)
     res = ocp.solve(X0, U0)
     res.update(problem=problem, N=N, setup_time_s=ocp.setup_time)
@@ -502,55 +530,59 @@ def _kkt_accel(Mq, A, Adot_qd, tau, qd):
     return np.concatenate([qd, sol[:n]])
 
 
-def check_models(t_end: float = 3.0, tol: float = 1e-8, verbose: bool = True) -> bool:
-    """Integrate each reduced ODE and the independent multiplier DAE under the same
-    PD-type state feedback; compare the reduced states along the trajectory."""
+#: the integrator settings of the model check
+_CHECK_IVP = dict(method="DOP853", rtol=1e-11, atol=1e-12, dense_output=True)
+
+
+def _check_unicycle(t_end, tol, verbose) -> bool:
+    """The unicycle's reduced ODE against its multiplier DAE (see :func:`check_models`)."""
     from scipy.integrate import solve_ivp
 
-    ivp = dict(method="DOP853", rtol=1e-11, atol=1e-12, dense_output=True)
-    ts = np.linspace(0.0, t_end, 61)
-    ok_all = True
-
-    # --- unicycle ------------------------------------------------------------
     def pd_uni(t, q, qd):      # q = (x, y, theta, phi)
         return (2.0 * (0.8 * np.sin(1.3 * t) - q[2]) - 0.5 * qd[2],
                 1.5 * (2.0 * np.sin(0.7 * t) - q[3]) - 0.3 * qd[3])
 
-    f = ode_function("unicycle")
+    rhs = ode_function("unicycle")
     r = UNI["r"]
     Xi = np.array([0.1, -0.2, 0.3, 0.0, 0.4, 1.5])   # (x, y, theta, phi, thetadot, phidot)
 
     def uni_qd(X):
         return np.array([r * np.cos(X[2]) * X[5], r * np.sin(X[2]) * X[5], X[4], X[5]])
 
-    ode = solve_ivp(lambda t, X: np.asarray(f(X, pd_uni(t, X[:4], uni_qd(X)))).ravel(),
-                    (0, t_end), Xi, **ivp)
+    ts = np.linspace(0.0, t_end, 61)
+    ode = solve_ivp(lambda t, X: np.asarray(rhs(X, pd_uni(t, X[:4], uni_qd(X)))).ravel(),
+                    (0, t_end), Xi, **_CHECK_IVP)
     qd0 = uni_qd(Xi)
-    dae = solve_ivp(_dae_unicycle, (0, t_end), np.concatenate([Xi[:4], qd0]), args=(pd_uni,), **ivp)
+    dae = solve_ivp(_dae_unicycle, (0, t_end), np.concatenate([Xi[:4], qd0]), args=(pd_uni,), **_CHECK_IVP)
     Zo, Zd = ode.sol(ts), dae.sol(ts)
     err = np.max(np.abs(Zo - Zd[[0, 1, 2, 3, 6, 7]]))
-    ok_all &= err < tol
     if verbose:
         print(f"unicycle   ODE vs DAE: max |dX| = {err:.2e}  ({'ok' if err < tol else 'FAIL'})")
+    return err < tol
 
-    # --- snakeboard ----------------------------------------------------------
+
+def _check_snakeboard(t_end, tol, verbose) -> bool:
+    """The snakeboard's reduced ODE against its multiplier DAE (see :func:`check_models`)."""
+    from scipy.integrate import solve_ivp
+
     def pd_sb(t, q, qd):       # q = (x, y, theta, psi, phi)
         return (2.0 * (0.8 * np.sin(2.0 * t) - q[3]) - 0.5 * qd[3],
                 0.5 * (0.6 * np.sin(1.0 * t + 0.3) - q[4]) - 0.2 * qd[4])
 
-    f = ode_function("snakeboard")
+    rhs = ode_function("snakeboard")
     Xi = np.array([0.1, -0.2, 0.3, 0.1, 0.2, 0.3, 0.2, -0.1])   # (x, y, th, psi, phi, v, psid, phid)
     rs = SB["r"]
 
     def sb_rhs(t, X):
         th, ph, v = X[2], X[4], X[5]
         qd = np.array([v * np.cos(th), v * np.sin(th), v * np.tan(ph) / rs, X[6], X[7]])
-        return np.asarray(f(X, pd_sb(t, X[:5], qd))).ravel()
+        return np.asarray(rhs(X, pd_sb(t, X[:5], qd))).ravel()
 
-    ode = solve_ivp(sb_rhs, (0, t_end), Xi, **ivp)
+    ts = np.linspace(0.0, t_end, 61)
+    ode = solve_ivp(sb_rhs, (0, t_end), Xi, **_CHECK_IVP)
     th, ph, v = Xi[2], Xi[4], Xi[5]
     qd0 = np.array([v * np.cos(th), v * np.sin(th), v * np.tan(ph) / rs, Xi[6], Xi[7]])
-    dae = solve_ivp(_dae_snakeboard, (0, t_end), np.concatenate([Xi[:5], qd0]), args=(pd_sb,), **ivp)
+    dae = solve_ivp(_dae_snakeboard, (0, t_end), np.concatenate([Xi[:5], qd0]), args=(pd_sb,), **_CHECK_IVP)
     Zo, Zd = ode.sol(ts), dae.sol(ts)
     v_dae = Zd[5] * np.cos(Zd[2]) + Zd[6] * np.sin(Zd[2])
     lat = -Zd[5] * np.sin(Zd[2]) + Zd[6] * np.cos(Zd[2])
@@ -558,11 +590,18 @@ def check_models(t_end: float = 3.0, tol: float = 1e-8, verbose: bool = True) ->
     err = np.max(np.abs(Zo - Zd_red))
     err_kin = np.max(np.abs(Zd[7] - v_dae * np.tan(Zd[4]) / rs)) + np.max(np.abs(lat))
     ok = err < tol and err_kin < tol
-    ok_all &= ok
     if verbose:
         print(f"snakeboard ODE vs DAE: max |dX| = {err:.2e}, DAE constraint drift = {err_kin:.2e}"
               f"  ({'ok' if ok else 'FAIL'}); |x(T)-x(0)| = {np.hypot(*(Zo[:2, -1] - Zo[:2, 0])):.3f}")
-    return bool(ok_all)
+    return ok
+
+
+def check_models(t_end: float = 3.0, tol: float = 1e-8, verbose: bool = True) -> bool:
+    """Integrate each reduced ODE and the independent multiplier DAE under the same
+    PD-type state feedback; compare the reduced states along the trajectory."""
+    unicycle = _check_unicycle(t_end, tol, verbose)
+    snakeboard = _check_snakeboard(t_end, tol, verbose)
+    return bool(unicycle and snakeboard)
 
 
 # ----------------------------------------------------------------------------

@@ -152,7 +152,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import functools
-import importlib.util
 import json
 import math
 import os
@@ -168,29 +167,17 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parent
+import sibling  # experiments/sibling.py: the other scripts, loaded by file path
 
-
-def _load(name: str, path: Path):
-    """A module by file path, registered in ``sys.modules`` (reused when already loaded from
-    that file: the oracle's cache is then shared with the tests)."""
-    mod = sys.modules.get(name)
-    if mod is not None and getattr(mod, "__file__", None) == str(path):
-        return mod
-    spec = importlib.util.spec_from_file_location(name, path)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[name] = mod
-    spec.loader.exec_module(mod)
-    return mod
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _oracles():
-    return _load("oracles", ROOT / "tests" / "oracles.py")
+    return sibling.oracles()
 
 
 def _scale_tasks():
-    return _load("scale_tasks", HERE / "scale_tasks.py")
+    return sibling.load("scale_tasks")
 
 
 def _progress(msg: str) -> None:
@@ -411,11 +398,73 @@ class ReducedODE:
         return self.coordinates + tuple(f"u_{s}" for s in self.independent)
 
 
+def _speeds_numeric(kb: KaneBody, ind, dep, z, tau) -> tuple:
+    """(u, u̇_ind) with the linear solves in the SX graph (``linear="numeric"``)."""
+    n = len(kb.coordinates)
+    q_env = {s: z[i] for i, s in enumerate(kb.q_syms)}
+    tau_env = {s: tau[i] for i, s in enumerate(kb.tau_syms)}
+    u_ind = z[n:]
+    pr = _SXPrinter({**q_env, **tau_env})
+    A = pr.matrix(list(kb.A), kb.A.shape)
+    A_dep, A_ind = A[:, dep], A[:, ind]
+    B = ca.solve(A_dep, -A_ind)                       # k x (n-k)
+    u_full = ca.SX.zeros(n)
+    u_full[ind] = u_ind
+    u_full[dep] = ca.mtimes(B, u_ind)
+    pr2 = _SXPrinter({**q_env, **tau_env, **{s: u_full[i] for i, s in enumerate(kb.u_syms)}})
+    rows = list(kb.M) + list(kb.F) + list(kb.h)
+    allm = pr2.matrix(rows, (len(rows), 1))
+    Mm = ca.reshape(allm[:n * n], n, n).T
+    Fv = allm[n * n:n * n + n]
+    hv = allm[n * n + n:]
+    d = ca.solve(A_dep, -hv)
+    S = ca.SX.zeros(n, len(ind))
+    S[ind, :] = ca.SX.eye(len(ind))
+    S[dep, :] = B
+    Mr = ca.mtimes([S.T, Mm, S])
+    rhs = ca.mtimes(S.T, Fv - ca.mtimes(Mm[:, dep], d))
+    return u_full, ca.solve(Mr, rhs)
+
+
+def _speeds_symbolic(kb: KaneBody, ind, dep, z, tau) -> tuple:
+    """(u, u̇_ind) with the linear solves eliminated in sympy (``linear="symbolic"``)."""
+    import sympy as sp
+    n = len(kb.coordinates)
+    q_env = {s: z[i] for i, s in enumerate(kb.q_syms)}
+    tau_env = {s: tau[i] for i, s in enumerate(kb.tau_syms)}
+    u_ind = z[n:]
+    M, F, A, h = kb.M, kb.F, kb.A, kb.h
+    A_dep, A_ind = A[:, dep], A[:, ind]
+    B = A_dep.LUsolve(-A_ind)
+    ui = sp.Matrix([kb.u_syms[i] for i in ind])
+    sub = {kb.u_syms[i]: (B[j, :] * ui)[0] for j, i in enumerate(dep)}
+    d = A_dep.LUsolve(-h.xreplace(sub))
+    S = sp.zeros(n, len(ind))
+    for j, i in enumerate(ind):
+        S[i, j] = 1
+    for j, i in enumerate(dep):
+        S[i, :] = B[j, :]
+    Mr = S.T * M * S
+    rhs = S.T * (F.xreplace(sub) - M[:, dep] * d)
+    acc = Mr.LUsolve(rhs)
+    pr = _SXPrinter({**q_env, **tau_env, **{s: u_ind[j] for j, s in enumerate(ui)}})
+    allm = pr.matrix(list(acc) + list(B), (len(acc) + B.shape[0] * B.shape[1], 1))
+    Bsx = ca.reshape(allm[len(acc):], B.shape[1], B.shape[0]).T
+    u_full = ca.SX.zeros(n)
+    u_full[ind] = u_ind
+    u_full[dep] = ca.mtimes(Bsx, u_ind)
+    return u_full, allm[:len(acc)]
+
+
+_SPEEDS = {"numeric": _speeds_numeric, "symbolic": _speeds_symbolic}
+
+
 @functools.lru_cache(maxsize=None)
 def reduced_ode(member: str, linear: str = "symbolic") -> ReducedODE:
     """The reduced ODE of ``member`` (see the module docstring); ``linear`` = "numeric" (solves
     in the SX graph) or "symbolic" (eliminated in sympy before printing)."""
-    import sympy as sp
+    if linear not in _SPEEDS:
+        raise ValueError(f"linear must be 'numeric' or 'symbolic', got {linear!r}")
     kb = kane_body(member)
     t0 = time.perf_counter()
     n, k = len(kb.coordinates), kb.A.shape[0]
@@ -426,56 +475,7 @@ def reduced_ode(member: str, linear: str = "symbolic") -> ReducedODE:
         raise RuntimeError(f"{member}: {len(ind)} independent speeds for n - k = {n - k}")
     z = ca.SX.sym("z", n + len(ind))
     tau = ca.SX.sym("tau", len(kb.inputs))
-    q_env = {s: z[i] for i, s in enumerate(kb.q_syms)}
-    tau_env = {s: tau[i] for i, s in enumerate(kb.tau_syms)}
-    u_ind = z[n:]
-
-    if linear == "numeric":
-        pr = _SXPrinter({**q_env, **tau_env})
-        A = pr.matrix(list(kb.A), kb.A.shape)
-        A_dep, A_ind = A[:, dep], A[:, ind]
-        B = ca.solve(A_dep, -A_ind)                       # k x (n-k)
-        u_full = ca.SX.zeros(n)
-        u_full[ind] = u_ind
-        u_full[dep] = ca.mtimes(B, u_ind)
-        pr2 = _SXPrinter({**q_env, **tau_env, **{s: u_full[i] for i, s in enumerate(kb.u_syms)}})
-        rows = list(kb.M) + list(kb.F) + list(kb.h)
-        allm = pr2.matrix(rows, (len(rows), 1))
-        Mm = ca.reshape(allm[:n * n], n, n).T
-        Fv = allm[n * n:n * n + n]
-        hv = allm[n * n + n:]
-        d = ca.solve(A_dep, -hv)
-        S = ca.SX.zeros(n, len(ind))
-        S[ind, :] = ca.SX.eye(len(ind))
-        S[dep, :] = B
-        Mr = ca.mtimes([S.T, Mm, S])
-        rhs = ca.mtimes(S.T, Fv - ca.mtimes(Mm[:, dep], d))
-        u_ind_dot = ca.solve(Mr, rhs)
-    elif linear == "symbolic":
-        M, F, A, h = kb.M, kb.F, kb.A, kb.h
-        A_dep, A_ind = A[:, dep], A[:, ind]
-        B = A_dep.LUsolve(-A_ind)
-        ui = sp.Matrix([kb.u_syms[i] for i in ind])
-        sub = {kb.u_syms[i]: (B[j, :] * ui)[0] for j, i in enumerate(dep)}
-        d = A_dep.LUsolve(-h.xreplace(sub))
-        S = sp.zeros(n, len(ind))
-        for j, i in enumerate(ind):
-            S[i, j] = 1
-        for j, i in enumerate(dep):
-            S[i, :] = B[j, :]
-        Mr = S.T * M * S
-        rhs = S.T * (F.xreplace(sub) - M[:, dep] * d)
-        acc = Mr.LUsolve(rhs)
-        pr = _SXPrinter({**q_env, **tau_env, **{s: u_ind[j] for j, s in enumerate(ui)}})
-        allm = pr.matrix(list(acc) + list(B), (len(acc) + B.shape[0] * B.shape[1], 1))
-        u_ind_dot = allm[:len(acc)]
-        Bsx = ca.reshape(allm[len(acc):], B.shape[1], B.shape[0]).T
-        u_full = ca.SX.zeros(n)
-        u_full[ind] = u_ind
-        u_full[dep] = ca.mtimes(Bsx, u_ind)
-    else:
-        raise ValueError(f"linear must be 'numeric' or 'symbolic', got {linear!r}")
-
+    u_full, u_ind_dot = _SPEEDS[linear](kb, ind, dep, z, tau)
     th = z[2]
     qdot = ca.vertcat(u_full[0] * ca.cos(th) - u_full[1] * ca.sin(th),
                       u_full[0] * ca.sin(th) + u_full[1] * ca.cos(th),
@@ -485,7 +485,7 @@ def reduced_ode(member: str, linear: str = "symbolic") -> ReducedODE:
     fq = ca.Function(f"qdot_{member}", [z], [qdot], ["z"], ["qdot"])
     qdd = ca.jtimes(qdot, z, zdot)
     fqdd = ca.Function(f"qddot_{member}", [z, tau], [qdd], ["z", "tau"], ["qddot"])
-    R = ca.jacobian(qdot, u_ind)
+    R = ca.jacobian(qdot, z[n:])
     fR = ca.Function(f"R_{member}", [z[:n]], [ca.substitute(R, z[n:], ca.DM.zeros(len(ind)))],
                      ["q"], ["R"])
     return ReducedODE(member, kb.coordinates, ind_names, kb.inputs, n, k, f, fq, fqdd, fR,
@@ -530,6 +530,98 @@ def _sample_configurations(ode: ReducedODE, lo: np.ndarray, hi: np.ndarray, coun
     return rng.uniform(lo, hi, (count, ode.n))
 
 
+def _range(value) -> tuple:
+    """(lo, hi) of a task value: a number (lo = hi) or a [lo, hi] pair."""
+    if isinstance(value, (list, tuple)):
+        return float(value[0]), float(value[1])
+    return float(value), float(value)
+
+
+@dataclass(frozen=True)
+class _StateIndex:
+    """Where a task name sits in z = (q, u_ind): the coordinates, and the state rates (``<s>_dot``
+    of an independent speed, ``forward_velocity`` for v)."""
+
+    coord: dict
+    state_rate: dict
+
+    @classmethod
+    def of(cls, ode: ReducedODE) -> "_StateIndex":
+        return cls({c: i for i, c in enumerate(ode.coordinates)},
+                   {f"{s}_dot" if s != "v" else "forward_velocity": ode.n + j for j, s in enumerate(ode.independent)})
+
+    def get(self, name):
+        """The index of ``name`` in z, None when it is not a state."""
+        return self.coord.get(name, self.state_rate.get(name))
+
+
+def _end_bounds(ode: ReducedODE, task: dict, index: _StateIndex, path: tuple, notes: list) -> tuple:
+    """The node bounds ((lb, ub) at t = 0, (lb, ub) at t = T): the path bounds
+    narrowed by the task's values; rates that are not states may only be held at 0, through
+    the independent speeds that carry them (a note says which)."""
+    lbz, ubz = path
+    ends = []
+    for end in ("initial", "final"):
+        lb, ub = lbz.copy(), ubz.copy()
+        rates = {}
+        for name, value in task.get(end, {}).items():
+            lo, hi = _range(value)
+            i = index.get(name)
+            if i is not None:
+                lb[i], ub[i] = max(lb[i], lo), min(ub[i], hi)
+            else:
+                rates[name] = (lo, hi)
+        if rates:
+            if any(v != (0.0, 0.0) for v in rates.values()):
+                raise ValueError(f"{end}: nonzero values of rates that are not states: {rates}")
+            J = _zero_rate_subspace(ode, list(rates), lbz, ubz)
+            for j in J:
+                lb[ode.n + j] = ub[ode.n + j] = 0.0
+            notes.append(f"{end}: {', '.join(sorted(rates))} = 0  <=>  "
+                         f"{', '.join('u_' + ode.independent[j] for j in J)} = 0")
+        ends.append((lb, ub))
+    return tuple(ends)
+
+
+def _periodic_rows(ode: ReducedODE, task: dict, index: _StateIndex, path: tuple, ends: tuple, notes: list) -> list:
+    """The periodic states kept as rows z_N[i] = z_0[i]; a periodic state fixed at one end is
+    fixed at the other instead (``ends`` narrowed), a periodic rate that is not a state must be
+    implied by the periodic states (checked, dropped)."""
+    per = list(task.get("periodic", []))
+    per_states = [index.get(p) for p in per if index.get(p) is not None]
+    others = [p for p in per if index.get(p) is None]
+    if others:
+        _periodic_implied(ode, others, per_states, *path)
+        notes.append(f"periodic {', '.join(others)}: implied by the periodic states (dropped)")
+    (lb0, ub0), (lbN, ubN) = ends
+    periodic = []
+    for i in per_states:
+        if lb0[i] == ub0[i] and lbN[i] == -_INF and ubN[i] == _INF or \
+                (lb0[i] == ub0[i] and lbN[i] <= lb0[i] <= ubN[i]):
+            lbN[i] = ubN[i] = lb0[i]
+            notes.append(f"periodic {ode.state_names[i]}: fixed at t = 0, so fixed at t = T")
+        elif lbN[i] == ubN[i] and lb0[i] <= lbN[i] <= ub0[i]:
+            lb0[i] = ub0[i] = lbN[i]
+            notes.append(f"periodic {ode.state_names[i]}: fixed at t = T, so fixed at t = 0")
+        else:
+            periodic.append(i)
+    return periodic
+
+
+def _control_bounds(ode: ReducedODE, task: dict) -> tuple:
+    """(lbu, ubu) of ``control_bounds``: none, one bound for every input, or per input."""
+    cb = task.get("control_bounds")
+    if cb is None:
+        return np.full(ode.nu, -_INF), np.full(ode.nu, _INF)
+    if isinstance(cb, (int, float)):
+        return np.full(ode.nu, -float(cb)), np.full(ode.nu, float(cb))
+    lbu, ubu = np.full(ode.nu, -_INF), np.full(ode.nu, _INF)
+    for name, value in cb.items():
+        j = ode.inputs.index(name)
+        lbu[j], ubu[j] = (-float(value), float(value)) if not isinstance(value, (list, tuple)) else _range(value)
+    return lbu, ubu
+
+
 def transcribe(ode: ReducedODE, task: dict, N: int | None = None) -> Transcribed:
     """The task (a ``[task]`` dict) as bounds and rows in z = (q, u_ind) (module docstring)."""
     allowed = {"name", "description", "horizon", "intervals", "initial", "final", "periodic",
@@ -541,72 +633,18 @@ def transcribe(ode: ReducedODE, task: dict, N: int | None = None) -> Transcribed
         raise ValueError("the reference solves the effort objective only")
     T = _scale_tasks().horizon(task)
     N = int(N if N is not None else task.get("intervals", 50))
-    n, nx = ode.n, ode.nx
-    coord = {c: i for i, c in enumerate(ode.coordinates)}
-    state_rate = {f"{s}_dot" if s != "v" else "forward_velocity": n + j
-                  for j, s in enumerate(ode.independent)}
+    index = _StateIndex.of(ode)
     notes = []
-
-    def rng_of(value):
-        if isinstance(value, (list, tuple)):
-            return float(value[0]), float(value[1])
-        return float(value), float(value)
-
-    lbz, ubz = np.full(nx, -_INF), np.full(nx, _INF)
+    lbz, ubz = np.full(ode.nx, -_INF), np.full(ode.nx, _INF)
     for name, value in task.get("bounds", {}).items():
-        if name not in coord and name not in state_rate:
+        i = index.get(name)
+        if i is None:
             raise ValueError(f"path bound on {name!r}: only coordinates and state rates")
-        i = coord.get(name, state_rate.get(name))
-        lbz[i], ubz[i] = rng_of(value)
-    ends = {}
-    for end in ("initial", "final"):
-        lb, ub = lbz.copy(), ubz.copy()
-        rates = {}
-        for name, value in task.get(end, {}).items():
-            lo, hi = rng_of(value)
-            if name in coord or name in state_rate:
-                i = coord.get(name, state_rate.get(name))
-                lb[i], ub[i] = max(lb[i], lo), min(ub[i], hi)
-            else:
-                rates[name] = (lo, hi)
-        if rates:
-            if any(v != (0.0, 0.0) for v in rates.values()):
-                raise ValueError(f"{end}: nonzero values of rates that are not states: {rates}")
-            J = _zero_rate_subspace(ode, list(rates), lbz, ubz)
-            for j in J:
-                lb[n + j] = ub[n + j] = 0.0
-            notes.append(f"{end}: {', '.join(sorted(rates))} = 0  <=>  "
-                         f"{', '.join('u_' + ode.independent[j] for j in J)} = 0")
-        ends[end] = (lb, ub)
-    periodic = []
-    per = list(task.get("periodic", []))
-    per_states = [coord.get(p, state_rate.get(p)) for p in per if p in coord or p in state_rate]
-    others = [p for p in per if p not in coord and p not in state_rate]
-    if others:
-        _periodic_implied(ode, others, per_states, lbz, ubz)
-        notes.append(f"periodic {', '.join(others)}: implied by the periodic states (dropped)")
-    (lb0, ub0), (lbN, ubN) = ends["initial"], ends["final"]
-    for i in per_states:
-        if lb0[i] == ub0[i] and lbN[i] == -_INF and ubN[i] == _INF or \
-                (lb0[i] == ub0[i] and lbN[i] <= lb0[i] <= ubN[i]):
-            lbN[i] = ubN[i] = lb0[i]
-            notes.append(f"periodic {ode.state_names[i]}: fixed at t = 0, so fixed at t = T")
-        elif lbN[i] == ubN[i] and lb0[i] <= lbN[i] <= ub0[i]:
-            lb0[i] = ub0[i] = lbN[i]
-            notes.append(f"periodic {ode.state_names[i]}: fixed at t = T, so fixed at t = 0")
-        else:
-            periodic.append(i)
-    cb = task.get("control_bounds")
-    if cb is None:
-        lbu, ubu = np.full(ode.nu, -_INF), np.full(ode.nu, _INF)
-    elif isinstance(cb, (int, float)):
-        lbu, ubu = np.full(ode.nu, -float(cb)), np.full(ode.nu, float(cb))
-    else:
-        lbu, ubu = np.full(ode.nu, -_INF), np.full(ode.nu, _INF)
-        for name, value in cb.items():
-            j = ode.inputs.index(name)
-            lbu[j], ubu[j] = (-float(value), float(value)) if not isinstance(value, (list, tuple)) \
-                else rng_of(value)
+        lbz[i], ubz[i] = _range(value)
+    ends = _end_bounds(ode, task, index, (lbz, ubz), notes)
+    periodic = _periodic_rows(ode, task, index, (lbz, ubz), ends, notes)
+    (lb0, ub0), (lbN, ubN) = ends
+    lbu, ubu = _control_bounds(ode, task)
     return Transcribed(T, N, lb0, ub0, lbN, ubN, lbz, ubz, periodic, lbu, ubu, notes)
 
 
@@ -785,28 +823,43 @@ def _ipopt_options(jit: bool, expand: bool | None = None, mu_strategy: str = "mo
     return opts
 
 
+@dataclass(frozen=True)
+class Options:
+    """How the reference NLP is built: ``N`` intervals (None: the task's), compiled (``jit``),
+    RK4 sub-``steps`` per interval, the ODE's ``linear`` solves ("symbolic" or "numeric"), the RK4
+    ``stage`` ("MX", "step", "SX"), ``expand`` (None: Ipopt options' default) and Ipopt's
+    ``mu_strategy``."""
+
+    N: int | None = None
+    jit: bool = True
+    steps: int = 4
+    linear: str = "symbolic"
+    stage: str = "MX"
+    expand: bool | None = None
+    mu_strategy: str = "monotone"
+
+
 class Reference:
     """The hand-written multiple-shooting NLP of one member (built once, solved many times)."""
 
-    def __init__(self, member: str, N: int | None = None, jit: bool = True, steps: int = 4,
-                 linear: str = "symbolic", task: dict | None = None, stage: str = "MX",
-                 expand: bool | None = None, mu_strategy: str = "monotone"):
+    def __init__(self, member: str, options: Options = Options(), task: dict | None = None):
         t0 = time.perf_counter()
+        jit, expand, mu_strategy = options.jit, options.expand, options.mu_strategy
         self.member = member
         self.task = dict(task if task is not None else _scale_tasks().task(member))
-        self.ode = ode = reduced_ode(member, linear)
+        self.ode = ode = reduced_ode(member, options.linear)
         self.derive_s = ode.derive_s
-        self.tr = tr = transcribe(ode, self.task, N)
-        self.N, self.T, self.jit, self.steps = tr.N, tr.T, jit, steps
+        self.tr = tr = transcribe(ode, self.task, options.N)
+        self.N, self.T, self.jit, self.steps = tr.N, tr.T, jit, options.steps
         nx, nu, N = ode.nx, ode.nu, tr.N
         self.n_states = nx
-        self.stage = F = rk4_stage(ode, tr.T / N, steps, stage)
-        Fmap = F.map(N, "serial")
+        self.stage = step = rk4_stage(ode, tr.T / N, options.steps, options.stage)
+        step_map = step.map(N, "serial")
         V = ca.MX.sym("V", nx + nu, N)
         zN = ca.MX.sym("zN", nx)
         w = ca.vertcat(ca.vec(V), zN)
         Zs, Us = V[:nx, :], V[nx:, :]
-        gaps = Fmap(Zs, Us) - ca.horzcat(Zs[:, 1:], zN)
+        gaps = step_map(Zs, Us) - ca.horzcat(Zs[:, 1:], zN)
         g = ca.vertcat(ca.vec(gaps), *[zN[i] - Zs[i, 0] for i in tr.periodic])
         J = (tr.T / N) * ca.sumsqr(Us)
         t1 = time.perf_counter()
@@ -880,9 +933,10 @@ class Reference:
         }
 
 
-def build(member: str, N: int | None = None, jit: bool = True, **kwargs) -> Reference:
-    """The reference NLP of ``member`` (compiled when ``jit``); ``N`` overrides the task's."""
-    return Reference(member, N=N, jit=jit, **kwargs)
+def build(member: str, N: int | None = None, jit: bool = True, task: dict | None = None, **options) -> Reference:
+    """The reference NLP of ``member`` (compiled when ``jit``); ``N`` overrides the task's;
+    ``options``: the other fields of :class:`Options`."""
+    return Reference(member, Options(N=N, jit=jit, **options), task)
 
 
 # --------------------------------------------------------------------------- #
@@ -1051,11 +1105,11 @@ def _peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0   # Linux: kB
 
 
-def run_member(member: str, *, N=None, jit=True, repeats=5, linear="symbolic", stage="MX",
-               mu_strategy="monotone", check=False, verify=True) -> dict:
+def run_member(member: str, options: Options, *, repeats=5, check=False, verify=True) -> dict:
     """Build, solve ``repeats`` times (median), re-simulate and (optionally) check one member."""
+    jit, linear, stage, mu_strategy = options.jit, options.linear, options.stage, options.mu_strategy
     _progress(f"[{member}] building (jit={jit}, linear={linear}, stage={stage}) ...")
-    ref = build(member, N=N, jit=jit, linear=linear, stage=stage, mu_strategy=mu_strategy)
+    ref = Reference(member, options)
     _progress(f"[{member}] set-up {ref.setup_s:.1f} s (derivation {ref.derive_s:.1f} s, "
               f"compile {ref.compile_s:.1f} s, C {ref.c_bytes / 1e6:.2f} MB); solving ...")
     runs = [ref.solve() for _ in range(max(1, repeats))]
@@ -1163,28 +1217,42 @@ def main(argv=None) -> int:
     for m in members:
         _family(m)
     if args.check_only:
-        ok = True
-        for m in members:
-            _progress(f"[{m}] checking the reduced ODE ({args.linear}) ...")
-            c = check_model(m, linear=args.linear)
-            ok &= c["vs_oracle"] < 1e-9 and c["vs_multiplier_dae"] < 1e-9
-            print(f"{m:24s} vs oracle {c['vs_oracle']:.1e}  vs multiplier DAE "
-                  f"{c['vs_multiplier_dae']:.1e}  constraint residual {c['constraint_residual']:.1e}"
-                  f"  (oracle build {c['oracle_build_s']:.1f} s, {c['states']} states)", flush=True)
-        return 0 if ok else 1
+        return _check_only(members, args.linear)
+    options = Options(N=args.N, jit=not args.no_jit, linear=args.linear, stage=args.stage,
+                      mu_strategy=args.mu_strategy)
     rows = []
     for m in members:
         if args.in_process or len(members) == 1:
-            rows.append(run_member(m, N=args.N, jit=not args.no_jit, repeats=args.repeats,
-                                   linear=args.linear, stage=args.stage,
-                                   mu_strategy=args.mu_strategy, check=args.check,
-                                   verify=not args.no_verify))
+            rows.append(run_member(m, options, repeats=args.repeats, check=args.check, verify=not args.no_verify))
         else:
             rows.append(_run_isolated(m, args))
         r = rows[-1]
         if not args.quiet:
             _progress(f"[{m}] done: {r.get('status')}, J = {r.get('objective')}, "
                       f"{r.get('solve_ms', float('nan')):.1f} ms, resim {r.get('resim_error')}")
+    _write_and_print(args, rows)
+    ok = all(r.get("success") for r in rows)
+    if args.check:
+        ok &= all(r["check"]["vs_multiplier_dae"] < 1e-9 and
+                  (r["check"]["vs_oracle"] is None or r["check"]["vs_oracle"] < 1e-9) for r in rows)
+    return 0 if ok else 1
+
+
+def _check_only(members, linear) -> int:
+    """``--check-only``: each member's reduced ODE against the oracle and the multiplier DAE."""
+    ok = True
+    for m in members:
+        _progress(f"[{m}] checking the reduced ODE ({linear}) ...")
+        c = check_model(m, linear=linear)
+        ok &= c["vs_oracle"] < 1e-9 and c["vs_multiplier_dae"] < 1e-9
+        print(f"{m:24s} vs oracle {c['vs_oracle']:.1e}  vs multiplier DAE "
+              f"{c['vs_multiplier_dae']:.1e}  constraint residual {c['constraint_residual']:.1e}"
+              f"  (oracle build {c['oracle_build_s']:.1f} s, {c['states']} states)", flush=True)
+    return 0 if ok else 1
+
+
+def _write_and_print(args, rows) -> None:
+    """The JSON file of the run (``--out``) and, unless ``--quiet``, its table and checks."""
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     meta = {"casadi": ca.__version__, "python": sys.version.split()[0], "cpus": os.cpu_count(),
@@ -1201,11 +1269,6 @@ def main(argv=None) -> int:
                 c = r["check"]
                 print(f"check {r['member']}: vs oracle {c['vs_oracle']}, vs multiplier DAE "
                       f"{c['vs_multiplier_dae']:.1e}, constraint residual {c['constraint_residual']}")
-    ok = all(r.get("success") for r in rows)
-    if args.check:
-        ok &= all(r["check"]["vs_multiplier_dae"] < 1e-9 and
-                  (r["check"]["vs_oracle"] is None or r["check"]["vs_oracle"] < 1e-9) for r in rows)
-    return 0 if ok else 1
 
 
 if __name__ == "__main__":

@@ -50,12 +50,10 @@ Changes from the brief (measured with ``experiments/reference_scale_ocp.py``, ji
 from __future__ import annotations
 
 import copy
-import importlib.util
 import math
 import sys
-from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
+import sibling  # experiments/sibling.py: the other scripts, loaded by file path
 
 SNAKE_LINKS = tuple(range(3, 9))
 CART_TRAILERS = tuple(range(1, 7))
@@ -66,15 +64,7 @@ MEMBERS = ([f"snake_{N}" for N in SNAKE_LINKS] + [f"cart_trailers_{k}" for k in 
 
 def _scaling_systems():
     """``experiments/scaling_systems.py`` (loaded by file path; it only produces scene text)."""
-    name = "scaling_systems"
-    mod = sys.modules.get(name)
-    if mod is not None and getattr(mod, "__file__", None) == str(HERE / f"{name}.py"):
-        return mod
-    spec = importlib.util.spec_from_file_location(name, HERE / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[name] = mod
-    spec.loader.exec_module(mod)
-    return mod
+    return sibling.load("scaling_systems")
 
 
 def _snake_task(N: int) -> dict:

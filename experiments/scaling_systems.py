@@ -27,6 +27,8 @@ Families
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import sympy as sp
 
 CART = {"m": 2.0, "I": 0.3, "a": 0.15, "rho": 0.1, "J_w": 0.02}
@@ -89,16 +91,32 @@ def _tidy_form(expr, coords):
                     for mon, c in poly.terms()])
 
 
-def _toml(name, coords, L, constraints, forces, params, inputs, description):
-    constraints = [_tidy_form(c, coords) for c in constraints]
-    lines = [f"# {description}", "[system]", f'name = "{name}"',
-             "coordinates = [" + ", ".join(f'"{c}"' for c in coords) + "]",
-             f'lagrangian = "{sp.sstr(L)}"', "constraints = ["]
-    lines += [f'  "{sp.sstr(c)}",' for c in constraints]
-    lines += ["]", "inputs = [" + ", ".join(f'"{u}"' for u in inputs) + "]", "", "[system.forces]"]
-    lines += [f'{c} = "{f}"' for c, f in forces.items()]
-    lines += ["", "[system.parameters]"] + [f"{k} = {v!r}" for k, v in params.items()]
-    return "\n".join(lines) + "\n"
+@dataclass(frozen=True)
+class _Member:
+    """One member of a family: its name and the comment line of its scene, the coordinates, the
+    Lagrangian L (here the kinetic energy), the constraints, the forces (coordinate → input
+    name; the inputs are these names, in this order) and the parameter values."""
+
+    name: str
+    description: str
+    coords: list
+    L: object
+    constraints: list
+    forces: dict
+    params: dict
+
+    def toml(self) -> str:
+        """The member's scene text."""
+        constraints = [_tidy_form(c, self.coords) for c in self.constraints]
+        lines = [f"# {self.description}", "[system]", f'name = "{self.name}"',
+                 "coordinates = [" + ", ".join(f'"{c}"' for c in self.coords) + "]",
+                 f'lagrangian = "{sp.sstr(self.L)}"', "constraints = ["]
+        lines += [f'  "{sp.sstr(c)}",' for c in constraints]
+        lines += ["]", "inputs = [" + ", ".join(f'"{u}"' for u in self.forces.values()) + "]", "",
+                  "[system.forces]"]
+        lines += [f'{c} = "{f}"' for c, f in self.forces.items()]
+        lines += ["", "[system.parameters]"] + [f"{k} = {v!r}" for k, v in self.params.items()]
+        return "\n".join(lines) + "\n"
 
 
 def _cart_chain(coords, headings, k, d):
@@ -130,9 +148,9 @@ def cart_trailers(k: int) -> str:
         headings.append(headings[-1] + qs[4 + i])
     T, cons = _cart_chain(coords, headings, k, d)
     params = {**CART, **(TRAILER if k else {})}
-    return _toml(f"cart_trailers_{k}", coords, T, cons, {"theta": "tau_theta", "phi": "tau_phi"},
-                 params, ["tau_theta", "tau_phi"],
-                 f"Cart with {k} trailer(s), relative hitch angles (experiments/scaling_systems.py).")
+    return _Member(f"cart_trailers_{k}",
+                   f"Cart with {k} trailer(s), relative hitch angles (experiments/scaling_systems.py).",
+                   coords, T, cons, {"theta": "tau_theta", "phi": "tau_phi"}, params).toml()
 
 
 def cart_trailer_absolute() -> str:
@@ -140,9 +158,8 @@ def cart_trailer_absolute() -> str:
     coords = ["x", "y", "theta0", "theta1", "phi"]
     qs, d = _velocity_text(coords)
     T, cons = _cart_chain(coords, [qs[2], qs[3]], 1, d)
-    return _toml("cart_trailer_absolute", coords, T, cons, {"theta0": "tau_theta", "phi": "tau_phi"},
-                 {**CART, **TRAILER}, ["tau_theta", "tau_phi"],
-                 "Cart with one trailer, absolute headings (issue 8 reproduction).")
+    return _Member("cart_trailer_absolute", "Cart with one trailer, absolute headings (issue 8 reproduction).",
+                   coords, T, cons, {"theta0": "tau_theta", "phi": "tau_phi"}, {**CART, **TRAILER}).toml()
 
 
 def snake(N: int, rotor: bool = False) -> str:
@@ -172,9 +189,8 @@ def snake(N: int, rotor: bool = False) -> str:
         forces = {"psi": "tau_psi", **forces}
     params = {**SNAKE, **(ROTOR if rotor else {})}
     name = f"snake_{N}" + ("_rotor" if rotor else "")
-    return _toml(name, coords, T, cons, forces, params,
-                 [f"tau_{c}" for c in forces],
-                 f"Wheeled {N}-link snake{' with a head rotor' if rotor else ''} (experiments/scaling_systems.py).")
+    return _Member(name, f"Wheeled {N}-link snake{' with a head rotor' if rotor else ''} "
+                         "(experiments/scaling_systems.py).", coords, T, cons, forces, params).toml()
 
 
 def snakeboard_two_steering() -> str:
@@ -189,10 +205,8 @@ def snakeboard_two_steering() -> str:
     front = centre + P["r"] * _e(th)
     back = centre - P["r"] * _e(th)
     cons = [_n(th + pb).dot(back.applyfunc(d)), _n(th + pf).dot(front.applyfunc(d))]
-    return _toml("snakeboard_two_steering", coords, T, cons,
-                 {"psi": "tau_psi", "phi_f": "tau_f", "phi_b": "tau_b"}, BOARD,
-                 ["tau_psi", "tau_f", "tau_b"],
-                 "Snakeboard with independently steered wheels (issue 8 reproduction).")
+    return _Member("snakeboard_two_steering", "Snakeboard with independently steered wheels (issue 8 reproduction).",
+                   coords, T, cons, {"psi": "tau_psi", "phi_f": "tau_f", "phi_b": "tau_b"}, BOARD).toml()
 
 
 def scene_text(name: str) -> str:

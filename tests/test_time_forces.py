@@ -461,14 +461,14 @@ def test_specialised_momentum_coordinates_keep_t(roller):
 def test_agreement_check_samples_time(roller):
     """The specialisation's check rejects a candidate that evaluates the forces at one fixed t."""
     import casadi as ca
-    from nhgait.dynamics.numerics.specialisation import _agrees, _numeric_bound
+    from nhgait.dynamics.numerics.specialisation import _agrees, _numeric_bound, _Reference
     model = roller["reduced-explicit"]
     pv = model.numeric.params()
     ref = _numeric_bound(model, pv)
     t, z, u, p = ca.SX.sym("t"), ca.SX.sym("z", 6), ca.SX.sym("u", 0), ca.SX.sym("params", len(pv))
     frozen = dict(ref, rhs=ca.Function("rhs", [t, z, u, p], [ref["rhs"](0.3, z, u, p)]))
-    assert _agrees(ref, ref, 6, 0, pv, 1e-10)
-    assert not _agrees(frozen, ref, 6, 0, pv, 1e-10)
+    assert _agrees(ref, _Reference(ref, 6, 0, pv), 1e-10)
+    assert not _agrees(frozen, _Reference(ref, 6, 0, pv), 1e-10)
 
 
 # ------------------------------------------------------------------------------------------

@@ -58,7 +58,7 @@ def _scalar(value: str):
         try:
             return kind(value)
         except ValueError:
-            pass
+            continue        # not this kind of number: the next kind, else the text itself
     return value
 
 
@@ -73,48 +73,48 @@ def apply_simulation_overrides(document: dict, assignments) -> dict:
     coordinates = [str(c) for c in system.get("coordinates", []) or []]
     sim = dict(document.get("simulation") or {})
     for text in assignments:
-        a = parse_assignment(text, problems, example="t_final=20 or q0.x=0.5")
-        if a is None:
+        assignment = parse_assignment(text, problems, example="t_final=20 or q0.x=0.5")
+        if assignment is None:
             continue
-        head = a.parts[0]
-        if head in SIMULATION_SET_KEYS and len(a.parts) <= 2 and (head in _TABLES) != (len(a.parts) == 2):
+        head, depth = assignment.parts[0], len(assignment.parts)
+        if head in SIMULATION_SET_KEYS and depth <= 2 and (head in _TABLES) != (depth == 2):
             form = (f"{head} needs a name: {head}.<name>=value, e.g. {head}.x=0.5" if head in _TABLES
                     else f"{head} takes no .<name>: {head}=value")
-            problems.append(f"--set {a.text!r}: {form}")
+            problems.append(f"--set {assignment.text!r}: {form}")
             continue
-        if head not in SIMULATION_SET_KEYS or len(a.parts) > 2:
-            problems.append(f"--set {a.text!r}: unknown key {a.key!r}"
+        if head not in SIMULATION_SET_KEYS or len(assignment.parts) > 2:
+            problems.append(f"--set {assignment.text!r}: unknown key {assignment.key!r}"
                             f"{known_names(head, SIMULATION_SET_KEYS, label='allowed')[:-1]}; "
                             "q0, qdot0, inputs and params take .<name>, e.g. q0.x=0.5)")
             continue
-        if len(a.parts) == 1:
-            sim[head] = a.value if head in _WORDS else _scalar(a.value)
+        if len(assignment.parts) == 1:
+            sim[head] = assignment.value if head in _WORDS else _scalar(assignment.value)
         elif head in ("q0", "qdot0"):
-            _set_initial(sim, a, coordinates, problems)
+            _set_initial(sim, assignment, coordinates, problems)
         else:
             table = "parameters" if head == "params" else head
             known = (system.get("parameters") or {}) if table == "parameters" else (system.get("inputs") or [])
-            if known and a.parts[1] not in known:
-                problems.append(f"--set {a.text!r}: unknown {'parameter' if table == 'parameters' else 'input'} "
-                                f"{a.parts[1]!r}{known_names(a.parts[1], list(known))}")
+            if known and assignment.parts[1] not in known:
+                problems.append(f"--set {assignment.text!r}: unknown {'parameter' if table == 'parameters' else 'input'} "
+                                f"{assignment.parts[1]!r}{known_names(assignment.parts[1], list(known))}")
                 continue
-            value = a.value if table == "inputs" else _scalar(a.value)
-            sim[table] = {**dict(sim.get(table) or {}), a.parts[1]: value}
+            value = assignment.value if table == "inputs" else _scalar(assignment.value)
+            sim[table] = {**dict(sim.get(table) or {}), assignment.parts[1]: value}
     if problems:
         raise ModelError(problems, title="invalid --set")
     return {**document, "simulation": sim}
 
 
-def _set_initial(sim: dict, a: Assignment, coordinates: list, problems: list) -> None:
+def _set_initial(sim: dict, assignment: Assignment, coordinates: list, problems: list) -> None:
     """``q0.<c>`` / ``qdot0.<c>``: one entry of the list (coordinate order) or of the table."""
-    head, name = a.parts
+    head, name = assignment.parts
     coordinate = name[:-4] if head == "qdot0" and name.endswith("_dot") else name
     if coordinate not in coordinates:
-        problems.append(f"--set {a.text!r}: {coordinate!r} is not a coordinate"
+        problems.append(f"--set {assignment.text!r}: {coordinate!r} is not a coordinate"
                         f"{known_names(coordinate, coordinates, label='coordinates')}")
         return
     current = sim.get(head)
-    value = _scalar(a.value)
+    value = _scalar(assignment.value)
     if isinstance(current, list) and len(current) == len(coordinates):
         current = list(current)
         current[coordinates.index(coordinate)] = value
@@ -123,8 +123,8 @@ def _set_initial(sim: dict, a: Assignment, coordinates: list, problems: list) ->
         table = {k: v for k, v in dict(current or {}).items() if k not in (coordinate, f"{coordinate}_dot")}
         key = f"{coordinate}_dot" if head == "qdot0" else coordinate
         if head == "q0":
-            problems.append(f"--set {a.text!r}: [simulation].q0 must be a full list to change one entry")
+            problems.append(f"--set {assignment.text!r}: [simulation].q0 must be a full list to change one entry")
             return
         sim[head] = {**table, key: value}
     else:
-        problems.append(f"--set {a.text!r}: [simulation].{head} is not a list of {len(coordinates)} values")
+        problems.append(f"--set {assignment.text!r}: [simulation].{head} is not a list of {len(coordinates)} values")

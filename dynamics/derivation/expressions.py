@@ -30,7 +30,7 @@ import sympy as sp
 
 from ..errors import ModelError
 
-__all__ = ["FUNCTIONS", "CONSTANTS", "parse_expression", "parse_number", "expression_problems",
+__all__ = ["FUNCTIONS", "CONSTANTS", "parse_expression", "parse_number", "expression_problems", "finite_or_nan",
            "MAX_LENGTH", "MAX_NODES", "MAX_DEPTH", "MAX_EXPONENT"]
 
 #: function name → (sympy function, allowed argument counts; None = two or more)
@@ -322,6 +322,16 @@ def parse_expression(text: str, names: dict, where: str, *, allow_unknown: bool 
     return expr
 
 
+def finite_or_nan(value) -> float:
+    """``float(value)``, or nan when that is not a finite number (a string that is not a number,
+    an integer too large for a float, ±inf, nan)."""
+    try:
+        out = float(value)
+    except (ValueError, OverflowError):
+        return math.nan
+    return out if math.isfinite(out) else math.nan
+
+
 def number_problems(value, where: str, problems: list, names: dict | None = None) -> float:
     """A finite real number from a TOML/JSON value: a number, or a constant expression such as
     ``"sqrt((0.3 + 0.2 + 2*0.1)/0.5)"`` or ``"10*pi"``. Returns nan after appending a problem."""
@@ -329,13 +339,9 @@ def number_problems(value, where: str, problems: list, names: dict | None = None
         problems.append(f"{where}: expected a number, got {value!r}")
         return math.nan
     if isinstance(value, (int, float)):
-        try:
-            out = float(value)
-        except OverflowError:
-            out = math.inf
-        if not math.isfinite(out):
+        out = finite_or_nan(value)
+        if math.isnan(out):
             problems.append(f"{where}: {value!r} is not finite")
-            return math.nan
         return out
     if not isinstance(value, str):
         problems.append(f"{where}: expected a number or a constant expression, got "

@@ -12,21 +12,21 @@ p = M q̇, which cannot change the index.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 
 import sympy as sp
 
 from nhgait.dynamics.derivation.cse_text import equation_lines
 from nhgait.dynamics.derivation.notation import method_name, system_names
-from nhgait.dynamics.reprs import ModelDisplay
+from .dae_model import DAEModel
 
 from .symbolic import tidy
 from .system import System
 
 
 @dataclass(frozen=True, eq=False, repr=False)
-class HamiltonianDAE(ModelDisplay):
+class HamiltonianDAE(DAEModel):
     """q̇ = ∂H/∂p, ṗ = −∂H/∂q + ωᵀλ + τ, ω∂H/∂p = 0 (eqs. 2.20, 2.24).
 
     State ordering (``state_names``): x = (q_1 … q_n, p_1 … p_n) — coordinates then canonical
@@ -36,22 +36,13 @@ class HamiltonianDAE(ModelDisplay):
     ``tau`` (n×1, in (t, q, p, u): velocities replaced by ∂H/∂p).
     """
 
-    system: System
     H: sp.Expr
     Minv: sp.Matrix
     dH_dq: sp.Matrix
     dH_dp: sp.Matrix
     omega: sp.Matrix
     tau: sp.Matrix
-    state: tuple
-    state_names: tuple
-    multipliers: tuple
-    derive_time_s: float = 0.0
-    compiled: object = field(default=None, repr=False)
-    provenance: object = field(default=None, repr=False)
-
     formulation = "hamilton"
-    differentiation_index = 2
 
 
     @property

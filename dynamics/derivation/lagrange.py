@@ -12,20 +12,20 @@ and keeps ω q̇ = 0 as an invariant.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 
 import sympy as sp
 
 from nhgait.dynamics.derivation.cse_text import equation_lines
 from nhgait.dynamics.derivation.notation import method_name, system_names
-from nhgait.dynamics.reprs import ModelDisplay
+from .dae_model import DAEModel
 
 from .system import System
 
 
 @dataclass(frozen=True, eq=False, repr=False)
-class LagrangianDAE(ModelDisplay):
+class LagrangianDAE(DAEModel):
     """M(q)q̈ = F(q, q̇) + ωᵀλ + τ, ωq̇ = 0 (eq. 2.8).
 
     State ordering (``state_names``): x = (q_1 … q_n, q̇_1 … q̇_n) — coordinates then velocities
@@ -35,22 +35,13 @@ class LagrangianDAE(ModelDisplay):
     ``tau`` (n×1), ``energy`` = T + V.
     """
 
-    system: System
     M: sp.Matrix
     F: sp.Matrix
     omega: sp.Matrix
     omega_dot_qdot: sp.Matrix
     tau: sp.Matrix
     energy: sp.Expr
-    state: tuple
-    state_names: tuple
-    multipliers: tuple
-    derive_time_s: float = 0.0
-    compiled: object = field(default=None, repr=False)
-    provenance: object = field(default=None, repr=False)
-
     formulation = "lagrange"
-    differentiation_index = 2
 
 
     def equations(self) -> list:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from importlib import resources
 from pathlib import Path
 
@@ -41,13 +42,16 @@ class ExpressionController:
     expressions: tuple
     params: dict = field(default_factory=dict)
 
-    def __post_init__(self):
-        s = self.system
-        subs = s.param_subs(self.params)
-        exprs = [e.xreplace(subs) for e in self.expressions]
-        f = sp.lambdify([TIME, s.q, s.q_dot], exprs, "numpy")
-        object.__setattr__(self, "_f", f)
-        object.__setattr__(self, "_exprs_num", exprs)
+    @cached_property
+    def _exprs_num(self) -> list:
+        """The laws with the parameter values substituted."""
+        subs = self.system.param_subs(self.params)
+        return [e.xreplace(subs) for e in self.expressions]
+
+    @cached_property
+    def _law(self):
+        """The laws as one numpy function of (t, q, q̇)."""
+        return sp.lambdify([TIME, self.system.q, self.system.q_dot], self._exprs_num, "numpy")
 
     @property
     def breakpoints(self):
@@ -57,7 +61,7 @@ class ExpressionController:
         return np.array(times) if times else None
 
     def __call__(self, t, q, qdot):
-        return np.array(self._f(float(t), np.asarray(q, float), np.asarray(qdot, float)), dtype=float).ravel()
+        return np.array(self._law(float(t), np.asarray(q, float), np.asarray(qdot, float)), dtype=float).ravel()
 
     def casadi(self, t, q, qdot):
         """The same law as CasADi SX (for DAE solvers that need u symbolically)."""

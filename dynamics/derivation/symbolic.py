@@ -487,9 +487,10 @@ class FracField(MatrixOps):
     cannot depend on t they enter only through the forces, which the steps multiply and add
     but never invert or test for a zero pivot, so a relation among them can leave a force term
     unsimplified, never wrong. A sin/cos of any other non-symbol argument raises
-    ``NotRational``."""
+    ``NotRational``. ``budget``: the most work (Σ terms of num × terms of den over all
+    normalisations) before ``WorkBudgetExceeded``; None, no limit."""
 
-    def __init__(self, exprs, symbols=(), angles=(), time=()):
+    def __init__(self, exprs, symbols=(), angles=(), time=(), budget=None):
         from sympy.polys.domains import QQ
         from sympy.polys.rings import ring as make_ring
         gens: dict = {}
@@ -513,7 +514,7 @@ class FracField(MatrixOps):
         self.one, self.zero = self.R.one, self.R.zero
         self.ZERO, self.ONE = (self.zero, self.one), (self.one, self.one)
         self.work = 0
-        self.budget = None     # max Σ (terms of num × terms of den) over all normalisations
+        self.budget = budget
         self.table = {x: (v, self.one) for x, v in zip(order, g)}
         self.gens = g
         self.angle = {}

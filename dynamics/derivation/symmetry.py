@@ -216,58 +216,69 @@ def _invariance(system: System, fiber: tuple[str, ...], free: set) -> tuple[bool
     return True, label, "L and ω are SE(2)-invariant (checked at random points)"
 
 
-def symmetry_test(system: System, M: sp.Matrix | None = None) -> SymmetryTest:
-    """Steps 2–3: D_q, the candidate table over all fiber sets, and the chosen fiber.
+@dataclass(frozen=True, eq=False)
+class _TestInputs:
+    """What every candidate fiber set is tested against: the system, ω (sympy), ω at three
+    sample configurations (numeric, ``omega_samples``) and the free symbols of M, ω and V."""
 
-    Raises :class:`ModelError` (with the table) when no candidate is admissible or when the
-    user's fiber choice is not.
-    """
-    n, k = system.n, system.k
-    W = system.omega()
-    M = system.mass_matrix() if M is None else M
-    V = system.potential()
-    free = set().union(M.free_symbols, W.free_symbols, V.free_symbols)
-    Wn = omega_samples(system, 3, seed=5) if k else [np.zeros((0, n))] * 3
-    candidates = []
-    names = system.coordinates
-    for size in range(1, n + 1):
-        for idx in itertools.combinations(range(n), size):
-            fiber = tuple(names[i] for i in idx)
-            rank = min(np.linalg.matrix_rank(w[:, idx], tol=1e-9 * max(1, np.abs(w).max())) if k else 0
-                       for w in Wn)
-            inv, group, why_inv = _invariance(system, fiber, free)
-            Ws = W[:, list(idx)] if k else sp.zeros(0, size)
-            rows = None
-            if k and rank < k:   # the other k − rank constraints restrict the shape velocities
-                rows = tuple(numeric_pivots(Wn[0][:, idx].T))
-            piv = numeric_pivots(Wn[0][np.ix_(list(rows), list(idx))] if rows is not None else Wn[0][:, idx]) if k and rank else []
-            d = size - rank
-            # which fiber coordinates never move within S_q (numeric null spaces at 3 points)
-            if d:
-                locked = list(fiber)
-                for w in Wn:
-                    ws = w[:, idx] if k else np.zeros((0, size))
-                    _, sv, vt = np.linalg.svd(ws) if k else (None, np.zeros(0), np.eye(size))
-                    nullv = vt[rank:].T if k else np.eye(size)
-                    moving = np.abs(nullv).max(axis=1) > 1e-10 if nullv.size else np.zeros(size, bool)
-                    locked = [f for a, f in enumerate(fiber) if f in locked and not moving[a]]
-            else:
-                locked = list(fiber)
-            if not inv:
-                verdict, reason = "not a symmetry", why_inv
-            elif d == 0:
-                verdict, reason = KINEMATIC, f"l = rank ω_s = {rank}: no nonholonomic momentum, ξ = −A(r)ṙ"
-            elif locked:
-                verdict = "not full"
-                reason = f"ξ vanishes along {', '.join(locked)}: no motion allowed there"
-            else:
-                verdict, reason = FULL, why_inv
-            if verdict in (FULL, KINEMATIC) and rank < k:
-                reason += f"; {k - rank} constraint(s) restrict the shape velocities"
-            candidates.append(Candidate(fiber, group, fiber, rank, inv, verdict, reason,
-                                        omega_s=Ws, pivots=tuple(piv), indices=tuple(idx), n=n,
-                                        rows=rows))
+    system: System
+    W: sp.Matrix
+    W_samples: list
+    free: set
 
+
+def _locked(inputs: _TestInputs, idx, fiber, rank) -> list:
+    """The fiber coordinates that never move within S_q (numeric null spaces of ω_s at the
+    three sample configurations)."""
+    k, size = inputs.system.k, len(idx)
+    locked = list(fiber)
+    if size == rank:
+        return locked
+    for w in inputs.W_samples:
+        ws = w[:, idx] if k else np.zeros((0, size))
+        _, sv, vt = np.linalg.svd(ws) if k else (None, np.zeros(0), np.eye(size))
+        nullv = vt[rank:].T if k else np.eye(size)
+        moving = np.abs(nullv).max(axis=1) > 1e-10 if nullv.size else np.zeros(size, bool)
+        locked = [f for a, f in enumerate(fiber) if f in locked and not moving[a]]
+    return locked
+
+
+def _candidate(inputs: _TestInputs, idx) -> Candidate:
+    """The candidate of the fiber coordinates with indices ``idx``: its rank, invariance,
+    pivots and verdict (step 2's table row)."""
+    system, W, Wn = inputs.system, inputs.W, inputs.W_samples
+    n, k, size = system.n, system.k, len(idx)
+    fiber = tuple(system.coordinates[i] for i in idx)
+    rank = min(np.linalg.matrix_rank(w[:, idx], tol=1e-9 * max(1, np.abs(w).max())) if k else 0
+               for w in Wn)
+    inv, group, why_inv = _invariance(system, fiber, inputs.free)
+    Ws = W[:, list(idx)] if k else sp.zeros(0, size)
+    rows = None
+    if k and rank < k:   # the other k − rank constraints restrict the shape velocities
+        rows = tuple(numeric_pivots(Wn[0][:, idx].T))
+    piv = numeric_pivots(Wn[0][np.ix_(list(rows), list(idx))] if rows is not None else Wn[0][:, idx]) if k and rank else []
+    d = size - rank
+    locked = _locked(inputs, idx, fiber, rank)
+    if not inv:
+        verdict, reason = "not a symmetry", why_inv
+    elif d == 0:
+        verdict, reason = KINEMATIC, f"l = rank ω_s = {rank}: no nonholonomic momentum, ξ = −A(r)ṙ"
+    elif locked:
+        verdict = "not full"
+        reason = f"ξ vanishes along {', '.join(locked)}: no motion allowed there"
+    else:
+        verdict, reason = FULL, why_inv
+    if verdict in (FULL, KINEMATIC) and rank < k:
+        reason += f"; {k - rank} constraint(s) restrict the shape velocities"
+    return Candidate(fiber, group, fiber, rank, inv, verdict, reason, omega_s=Ws, pivots=tuple(piv),
+                     indices=tuple(idx), n=n, rows=rows)
+
+
+def _choose(system: System, candidates: list) -> SymmetryTest:
+    """Step 3: the user's fiber (refused when not admissible) or the best admissible candidate:
+    most constraints in the fiber, full before kinematic, fewest fiber coordinates, fewest
+    forced fiber coordinates, then the coordinates' order."""
+    names, k = system.coordinates, system.k
     forced = {c for c, f in zip(names, system.tau) if f != 0}
 
     def key(c):
@@ -290,3 +301,20 @@ def symmetry_test(system: System, M: sp.Matrix | None = None) -> SymmetryTest:
                           "(and none is principally kinematic); the symmetry table:\n" + table],
                          title="no full symmetry group")
     return SymmetryTest(system, tuple(candidates), full[0], "test")
+
+
+def symmetry_test(system: System, M: sp.Matrix | None = None) -> SymmetryTest:
+    """Steps 2–3: D_q, the candidate table over all fiber sets, and the chosen fiber.
+
+    Raises :class:`ModelError` (with the table) when no candidate is admissible or when the
+    user's fiber choice is not.
+    """
+    n, k = system.n, system.k
+    W = system.omega()
+    M = system.mass_matrix() if M is None else M
+    V = system.potential()
+    inputs = _TestInputs(system, W, omega_samples(system, 3, seed=5) if k else [np.zeros((0, n))] * 3,
+                         set().union(M.free_symbols, W.free_symbols, V.free_symbols))
+    candidates = [_candidate(inputs, idx) for size in range(1, n + 1)
+                  for idx in itertools.combinations(range(n), size)]
+    return _choose(system, candidates)

@@ -21,6 +21,7 @@ from __future__ import annotations
 import keyword
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -438,14 +439,14 @@ class System:
     def numeric_functions(self):
         """(M(q, params), ω(q, params) or None, V(q, params)) as numpy callables, lambdified once
         per system and shared by the input checks and the symmetry test (not pickled)."""
-        cache = self.__dict__.get("_nhgait_lambdified")
-        if cache is None:
-            args = [self.q, self.param_symbols]
-            cache = (sp.lambdify(args, self.mass_matrix(), "numpy"),
-                     sp.lambdify(args, self.omega(), "numpy") if self.k else None,
-                     sp.lambdify(args, self.potential(), "numpy"))
-            object.__setattr__(self, "_nhgait_lambdified", cache)
-        return cache
+        return self._nhgait_lambdified
+
+    @cached_property
+    def _nhgait_lambdified(self) -> tuple:
+        args = [self.q, self.param_symbols]
+        return (sp.lambdify(args, self.mass_matrix(), "numpy"),
+                sp.lambdify(args, self.omega(), "numpy") if self.k else None,
+                sp.lambdify(args, self.potential(), "numpy"))
 
     def parameter_problems(self, values=None, *, label: str = "the default parameters") -> list:
         """Every problem with a parameter set (``values`` overriding the defaults; a mapping

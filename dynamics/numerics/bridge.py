@@ -1,6 +1,6 @@
 """The one bridge from sympy to numbers: sympy expressions → CasADi SX graphs.
 
-Only this module (and :mod:`.numeric`) touches CasADi inside ``nhgait.dynamics``. Common
+Every sympy expression that becomes a CasADi graph goes through :func:`to_casadi`. Common
 subexpressions are shared through ``sympy.cse`` so the SX graph stays small.
 """
 from __future__ import annotations
@@ -40,68 +40,77 @@ def to_casadi(exprs, symbols, sx_args):
     -------
     list of SX
     """
-    table = {s: x for s, x in zip(symbols, sx_args)}
     reps, reduced = sp.cse(list(exprs), optimizations=None, order="none")
-    memo: dict = {}
+    convert = _Converter({s: x for s, x in zip(symbols, sx_args)})
+    for sym, sub in reps:
+        convert.table[sym] = convert(sub)
+    return [convert(e) for e in reduced]
 
-    def conv(e):
-        if e in table:
-            return table[e]
-        got = memo.get(e)
+
+class _Converter:
+    """sympy → SX for one :func:`to_casadi` call: ``table`` maps the arguments (and the cse
+    symbols, as they are converted) to SX; each converted subexpression is kept once."""
+
+    def __init__(self, table: dict):
+        self.table = table
+        self.memo: dict = {}
+
+    def __call__(self, e):
+        if e in self.table:
+            return self.table[e]
+        got = self.memo.get(e)
         if got is not None:
             return got
-        if e.is_Integer or e.is_Rational or e.is_Float:
-            out = float(e)
-        elif e is sp.pi:
-            out = float(sp.pi)
-        elif e.is_NumberSymbol:
-            out = float(e)
-        elif e.is_Add:
-            out = 0
-            for a in e.args:
-                out = out + conv(a)
-        elif e.is_Mul:
-            out = 1
-            for a in e.args:
-                out = out * conv(a)
-        elif e.is_Pow:
-            b, x = e.args
-            if x == sp.Rational(1, 2):
-                out = ca.sqrt(conv(b))
-            elif x == -1:
-                out = 1 / conv(b)
-            elif x.is_Integer and abs(int(x)) <= 4:
-                base = conv(b)
-                out = base
-                for _ in range(abs(int(x)) - 1):
-                    out = out * base
-                if int(x) < 0:
-                    out = 1 / out
-            else:
-                out = conv(b) ** conv(x)
-        elif isinstance(e, sp.DiracDelta):
-            # the derivative of a jump (Heaviside, sign) is taken as 0 away from the jump: the
-            # equations hold almost everywhere and the integrator steps over the jump itself
-            out = 0.0
-        elif e.func in _UNARY:
-            out = _UNARY[e.func](conv(e.args[0]))
-        elif e.func is sp.atan2:
-            out = ca.atan2(conv(e.args[0]), conv(e.args[1]))
-        elif e.func is sp.Min:
-            out = conv(e.args[0])
-            for a in e.args[1:]:
-                out = ca.fmin(out, conv(a))
-        elif e.func is sp.Max:
-            out = conv(e.args[0])
-            for a in e.args[1:]:
-                out = ca.fmax(out, conv(a))
-        elif e.is_Symbol:
-            raise BridgeError(f"symbol {e} has no numeric value (not an argument of the function)")
-        else:
-            raise BridgeError(f"cannot convert {type(e).__name__} ({e}) to CasADi")
-        memo[e] = out
+        out = self._convert(e)
+        self.memo[e] = out
         return out
 
-    for sym, sub in reps:
-        table[sym] = conv(sub)
-    return [conv(e) for e in reduced]
+    def _convert(self, e):
+        if e.is_Integer or e.is_Rational or e.is_Float or e.is_NumberSymbol:
+            return float(e)
+        if e.is_Add:
+            out = 0
+            for a in e.args:
+                out = out + self(a)
+            return out
+        if e.is_Mul:
+            out = 1
+            for a in e.args:
+                out = out * self(a)
+            return out
+        if e.is_Pow:
+            return self._power(*e.args)
+        if e.is_Symbol:
+            raise BridgeError(f"symbol {e} has no numeric value (not an argument of the function)")
+        return self._function(e)
+
+    def _power(self, base, exponent):
+        """base**exponent: square roots and inverses as such, small integer powers as products."""
+        if exponent == sp.Rational(1, 2):
+            return ca.sqrt(self(base))
+        if exponent == -1:
+            return 1 / self(base)
+        if exponent.is_Integer and abs(int(exponent)) <= 4:
+            factor = self(base)
+            out = factor
+            for _ in range(abs(int(exponent)) - 1):
+                out = out * factor
+            return 1 / out if int(exponent) < 0 else out
+        return self(base) ** self(exponent)
+
+    def _function(self, e):
+        if isinstance(e, sp.DiracDelta):
+            # the derivative of a jump (Heaviside, sign) is taken as 0 away from the jump: the
+            # equations hold almost everywhere and the integrator steps over the jump itself
+            return 0.0
+        if e.func in _UNARY:
+            return _UNARY[e.func](self(e.args[0]))
+        if e.func is sp.atan2:
+            return ca.atan2(self(e.args[0]), self(e.args[1]))
+        if e.func in (sp.Min, sp.Max):
+            pick = ca.fmin if e.func is sp.Min else ca.fmax
+            out = self(e.args[0])
+            for a in e.args[1:]:
+                out = pick(out, self(a))
+            return out
+        raise BridgeError(f"cannot convert {type(e).__name__} ({e}) to CasADi")

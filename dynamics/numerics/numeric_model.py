@@ -110,10 +110,6 @@ def _time_inputs_params(system):
     return t, u, params
 
 
-def _conv(exprs, sym_list, sx_list):
-    return to_casadi(list(exprs), sym_list, sx_list)
-
-
 def _base(system, formulation, state_names, functions, n_mult=0):
     return NumericModel(formulation=formulation, state_names=tuple(state_names),
                         input_names=tuple(system.inputs),
@@ -179,31 +175,62 @@ def _matrix_converter(syms, sx):
     def conv(A):
         if A.shape[0] == 0 or A.shape[1] == 0:
             return ca.SX(A.shape[0], A.shape[1])
-        return ca.reshape(ca.vertcat(*_conv(list(A.T), syms, sx)), A.shape[0], A.shape[1])
+        return ca.reshape(ca.vertcat(*to_casadi(list(A.T), syms, sx)), A.shape[0], A.shape[1])
     return conv
 
 
-def _reduced_functions(model, t, z, u, params, qv, qdv, rhs, qdot, h, P_of_v, X, J_z, sing, tau_z):
+@dataclass(frozen=True, eq=False)
+class _ReducedSymbols:
+    """The CasADi symbols of the reduced functions: time ``t``, state ``z`` = (q, P), inputs
+    ``u``, parameters ``params``, and ``q``, ``q_dot`` of the maps from (q, q̇)."""
+
+    t: ca.SX
+    z: ca.SX
+    u: ca.SX
+    params: ca.SX
+    q: ca.SX
+    q_dot: ca.SX
+
+
+@dataclass(frozen=True, eq=False)
+class _ReducedExpressions:
+    """The CasADi expressions of the reduced form: in (t, z, u, params) ż (``rhs``), q̇, the
+    Hamiltonian h, the basis X, the structure J_z and the forces τ (velocities replaced by q̇);
+    in (q, q̇, params) the momenta P = XᵀMq̇; in (q, params) the singular measure."""
+
+    rhs: ca.SX
+    qdot: ca.SX
+    hamiltonian: ca.SX
+    momenta_of_velocity: ca.SX
+    basis: ca.SX
+    structure: ca.SX
+    singular: ca.SX
+    tau: ca.SX
+
+
+def _reduced_functions(system, symbols: _ReducedSymbols, e: _ReducedExpressions) -> dict:
     """The Function table shared by both forms (names and signatures of the module docstring)."""
-    system = model.system
-    qddot = ca.jtimes(qdot, z, rhs)
+    t, z, u, params, q, q_dot = symbols.t, symbols.z, symbols.u, symbols.params, symbols.q, symbols.q_dot
+    qddot = ca.jtimes(e.qdot, z, e.rhs)
     W = system.omega()
     map_syms = list(system.q) + list(system.q_dot) + list(system.param_symbols)
-    map_sx = [qv[i] for i in range(system.n)] + [qdv[i] for i in range(system.n)] + [params[i] for i in range(params.shape[0])]
-    cons = ca.vertcat(*_conv(list(W * sp.Matrix(system.q_dot)), map_syms, map_sx)) if system.k else ca.SX(0, 1)
+    map_sx = [q[i] for i in range(system.n)] + [q_dot[i] for i in range(system.n)] + [params[i] for i in range(params.shape[0])]
+    constraint = (ca.vertcat(*to_casadi(list(W * sp.Matrix(system.q_dot)), map_syms, map_sx)) if system.k
+                  else ca.SX(0, 1))
     return {
-        "rhs": ca.Function("rhs", [t, z, u, params], [rhs], ["t", "z", "u", "params"], ["zdot"]),
-        "jacobian": ca.Function("rhs_jacobian", [t, z, u, params], [ca.jacobian(rhs, z), ca.jacobian(rhs, u)],
+        "rhs": ca.Function("rhs", [t, z, u, params], [e.rhs], ["t", "z", "u", "params"], ["zdot"]),
+        "jacobian": ca.Function("rhs_jacobian", [t, z, u, params], [ca.jacobian(e.rhs, z), ca.jacobian(e.rhs, u)],
                                 ["t", "z", "u", "params"], ["dfdz", "dfdu"]),
-        "qdot": ca.Function("qdot", [z, params], [qdot], ["z", "params"], ["qdot"]),
+        "qdot": ca.Function("qdot", [z, params], [e.qdot], ["z", "params"], ["qdot"]),
         "qddot": ca.Function("qddot", [t, z, u, params], [qddot], ["t", "z", "u", "params"], ["qddot"]),
-        "energy": ca.Function("energy", [z, params], [h], ["z", "params"], ["h"]),
-        "state": ca.Function("state", [qv, qdv, params], [ca.vertcat(qv, P_of_v)], ["q", "qdot", "params"], ["z"]),
-        "constraint": ca.Function("constraint", [qv, qdv, params], [cons], ["q", "qdot", "params"], ["residual"]),
-        "singular": ca.Function("singular", [qv, params], [sing], ["q", "params"], ["gram"]),
-        "power": ca.Function("power", [t, z, u, params], [ca.dot(tau_z, qdot)], ["t", "z", "u", "params"], ["power"]),
-        "basis": ca.Function("basis", [z, params], [X], ["z", "params"], ["X"]),
-        "structure": ca.Function("structure", [z, params], [J_z], ["z", "params"], ["J_z"]),
+        "energy": ca.Function("energy", [z, params], [e.hamiltonian], ["z", "params"], ["h"]),
+        "state": ca.Function("state", [q, q_dot, params], [ca.vertcat(q, e.momenta_of_velocity)],
+                             ["q", "qdot", "params"], ["z"]),
+        "constraint": ca.Function("constraint", [q, q_dot, params], [constraint], ["q", "qdot", "params"], ["residual"]),
+        "singular": ca.Function("singular", [q, params], [e.singular], ["q", "params"], ["gram"]),
+        "power": ca.Function("power", [t, z, u, params], [ca.dot(e.tau, e.qdot)], ["t", "z", "u", "params"], ["power"]),
+        "basis": ca.Function("basis", [z, params], [e.basis], ["z", "params"], ["X"]),
+        "structure": ca.Function("structure", [z, params], [e.structure], ["z", "params"], ["J_z"]),
     }
 
 
@@ -223,46 +250,49 @@ def compile_reduced(model, casadi_steps=None) -> NumericModel:
     n, nz = system.n, len(model.state)
     t, u, params = _time_inputs_params(system)
     z = ca.SX.sym("z", nz)
-    base_syms = [TIME_SYM] + list(model.state) + list(system.input_symbols) + list(system.param_symbols)
-    base_sx = [t] + [z[i] for i in range(nz)] + [u[i] for i in range(u.shape[0])] + [params[i] for i in range(params.shape[0])]
-    conv_z = _matrix_converter(base_syms, base_sx)
-    qv, qdv = ca.SX.sym("q", n), ca.SX.sym("qdot", n)
+    state_syms = [TIME_SYM] + list(model.state) + list(system.input_symbols) + list(system.param_symbols)
+    state_sx = [t] + [z[i] for i in range(nz)] + [u[i] for i in range(u.shape[0])] + [params[i] for i in range(params.shape[0])]
+    of_state = _matrix_converter(state_syms, state_sx)
+    q, q_dot = ca.SX.sym("q", n), ca.SX.sym("qdot", n)
     map_syms = list(system.q) + list(system.q_dot) + list(system.param_symbols)
-    map_sx = [qv[i] for i in range(n)] + [qdv[i] for i in range(n)] + [params[i] for i in range(params.shape[0])]
-    conv_q = _matrix_converter(map_syms, map_sx)
-    tau_z = conv_z(system.force_vector().xreplace({v: model.qdot[i] for i, v in enumerate(system.q_dot)}))
-    fns = _reduced_functions(model, t, z, u, params, qv, qdv, conv_z(model.rhs), conv_z(model.qdot),
-                             conv_z(sp.Matrix([model.hamiltonian]))[0], conv_q(model.momenta_of_velocity),
-                             conv_z(model.X), conv_z(model.structure), singular_measure(model.layout, conv_q), tau_z)
-    return _base(system, "reduced", model.state_names, fns)
+    map_sx = [q[i] for i in range(n)] + [q_dot[i] for i in range(n)] + [params[i] for i in range(params.shape[0])]
+    of_velocity = _matrix_converter(map_syms, map_sx)
+    tau = of_state(system.force_vector().xreplace({v: model.qdot[i] for i, v in enumerate(system.q_dot)}))
+    expressions = _ReducedExpressions(
+        rhs=of_state(model.rhs), qdot=of_state(model.qdot), hamiltonian=of_state(sp.Matrix([model.hamiltonian]))[0],
+        momenta_of_velocity=of_velocity(model.momenta_of_velocity), basis=of_state(model.X),
+        structure=of_state(model.structure), singular=singular_measure(model.layout, of_velocity), tau=tau)
+    functions = _reduced_functions(system, _ReducedSymbols(t, z, u, params, q, q_dot), expressions)
+    return _base(system, "reduced", model.state_names, functions)
 
 
-def _implicit_functions(model, out) -> NumericModel:
-    """The implicit form's functions from the CasADi run of the steps (``out`` of
+def _implicit_functions(model, run) -> NumericModel:
+    """The implicit form's functions from the CasADi run of the steps (``run`` of
     :func:`~nhgait.dynamics.derivation.reduction.pipeline.run_steps` on :class:`CasadiArithmetic`)."""
-    system, arithmetic = model.system, out.arithmetic
+    system, arithmetic = model.system, run.arithmetic
     sym_of = arithmetic.sym
     t = sym_of(TIME_SYM)
     q = ca.vertcat(*[sym_of(s) for s in system.q])
     P = ca.vertcat(*[sym_of(s) for s in model.momenta]) if model.momenta else ca.SX(0, 1)
     z = ca.vertcat(q, P)
-    qd = ca.vertcat(*[sym_of(s) for s in system.q_dot])
+    q_dot = ca.vertcat(*[sym_of(s) for s in system.q_dot])
     u = ca.vertcat(*[sym_of(s) for s in system.input_symbols]) if system.input_symbols else ca.SX(0, 1)
     params = ca.vertcat(*[sym_of(s) for s in system.param_symbols]) if system.param_symbols else ca.SX(0, 1)
-    qdot = ca.vertcat(*out.qdot)
-    rhs = ca.vertcat(qdot, *out.Pdot) if out.Pdot else qdot
+    qdot = ca.vertcat(*run.qdot)
+    rhs = ca.vertcat(qdot, *run.Pdot) if run.Pdot else qdot
     rhs, qdot = ca.cse(rhs), ca.cse(qdot)
-    P_of_v = ca.vertcat(*out.momenta_of_velocity) if out.momenta_of_velocity else ca.SX(0, 1)
+    P_of_v = ca.vertcat(*run.momenta_of_velocity) if run.momenta_of_velocity else ca.SX(0, 1)
     tau = ca.vertcat(*[arithmetic.frac(e) for e in system.force_vector()])
-    tau_z = ca.substitute(tau, qd, qdot)
 
-    def conv(A):
+    def of_variables(A):
         if A.shape[0] == 0 or A.shape[1] == 0:
             return ca.SX(A.shape[0], A.shape[1])
         return ca.reshape(ca.vertcat(*[arithmetic.frac(e) for e in A.T]), A.shape[0], A.shape[1])
-    fns = _reduced_functions(model, t, z, u, params, q, qd, rhs, qdot, out.h, P_of_v, out.X, out.J_z,
-                             singular_measure(model.layout, conv), tau_z)
-    return _base(system, "reduced", model.state_names, fns)
+    expressions = _ReducedExpressions(
+        rhs=rhs, qdot=qdot, hamiltonian=run.h, momenta_of_velocity=P_of_v, basis=run.X, structure=run.J_z,
+        singular=singular_measure(model.layout, of_variables), tau=ca.substitute(tau, q_dot, qdot))
+    functions = _reduced_functions(system, _ReducedSymbols(t, z, u, params, q, q_dot), expressions)
+    return _base(system, "reduced", model.state_names, functions)
 
 
 @dataclass(frozen=True, eq=False)
@@ -309,7 +339,7 @@ def _dae_symbols(model):
     lam = ca.SX.sym("lam", system.k)
     syms = [TIME_SYM] + list(model.state) + list(system.input_symbols) + list(system.param_symbols)
     sx = [t] + [x[i] for i in range(x.shape[0])] + [u[i] for i in range(u.shape[0])] + [params[i] for i in range(params.shape[0])]
-    return t, x, lam, u, params, lambda exprs: _conv(exprs, syms, sx)
+    return t, x, lam, u, params, lambda exprs: to_casadi(list(exprs), syms, sx)
 
 
 def compile_lagrange(model) -> NumericModel:
@@ -318,32 +348,28 @@ def compile_lagrange(model) -> NumericModel:
     n, k = system.n, system.k
     t, x, lam, u, params, conv = _dae_symbols(model)
     M = ca.reshape(ca.vertcat(*conv(list(model.M.T))), n, n)
-    F = ca.vertcat(*conv(model.F))
+    forces = ca.vertcat(*conv(model.F))         # F = ∂L/∂q − (∂²L/∂q̇∂q)q̇ (eq. 2.8)
     tau = ca.vertcat(*conv(model.tau))
-    E = conv([model.energy])[0]
+    energy = conv([model.energy])[0]
     qd = x[n:]
     if k:
         W = ca.reshape(ca.vertcat(*conv(list(model.omega.T))), k, n)
         Wdq = ca.vertcat(*conv(model.omega_dot_qdot))
-        Minv_f = ca.solve(M, F + tau)
+        Minv_f = ca.solve(M, forces + tau)
         Minv_Wt = ca.solve(M, W.T)
         S = ca.mtimes(W, Minv_Wt)
         lam_sol = -ca.solve(S, ca.mtimes(W, Minv_f) + Wdq)
         qdd = Minv_f + ca.mtimes(Minv_Wt, lam_sol)
-        qdd_dae = ca.solve(M, F + tau + ca.mtimes(W.T, lam))
+        qdd_dae = ca.solve(M, forces + tau + ca.mtimes(W.T, lam))
         g_alg = ca.mtimes(W, qdd_dae) + Wdq
         cons = ca.mtimes(W, qd)
     else:
-        lam_sol = ca.SX(0, 1)
-        qdd = ca.solve(M, F + tau)
-        qdd_dae = qdd
-        g_alg = ca.SX(0, 1)
-        cons = ca.SX(0, 1)
-    xdot = ca.vertcat(qd, qdd)
-    fns = _dae_functions((t, x, lam, u, params), _DAEExpressions(
-        xdot=xdot, lam=lam_sol, xdot_dae=ca.vertcat(qd, qdd_dae), g=g_alg, energy=E, constraint=cons,
-        qdot=qd, mass=M, power=ca.dot(tau, qd)))
-    return _base(system, "lagrange", model.state_names, fns, k)
+        qdd = qdd_dae = ca.solve(M, forces + tau)
+        lam_sol = g_alg = cons = ca.SX(0, 1)
+    functions = _dae_functions((t, x, lam, u, params), _DAEExpressions(
+        xdot=ca.vertcat(qd, qdd), lam=lam_sol, xdot_dae=ca.vertcat(qd, qdd_dae), g=g_alg, energy=energy,
+        constraint=cons, qdot=qd, mass=M, power=ca.dot(tau, qd)))
+    return _base(system, "lagrange", model.state_names, functions, k)
 
 
 def compile_hamilton(model) -> NumericModel:
@@ -369,16 +395,12 @@ def compile_hamilton(model) -> NumericModel:
         g_alg = ca.mtimes(dG_dq, dHdp) + ca.mtimes(WMinv, pdot_dae)
         cons = G
     else:
-        lam_sol = ca.SX(0, 1)
-        pdot = -dHdq + tau
-        pdot_dae = pdot
-        g_alg = ca.SX(0, 1)
-        cons = ca.SX(0, 1)
-    xdot = ca.vertcat(dHdp, pdot)
-    fns = _dae_functions((t, x, lam, u, params), _DAEExpressions(
-        xdot=xdot, lam=lam_sol, xdot_dae=ca.vertcat(dHdp, pdot_dae), g=g_alg, energy=H, constraint=cons,
-        qdot=dHdp, power=ca.dot(tau, dHdp),
+        pdot = pdot_dae = -dHdq + tau
+        lam_sol = g_alg = cons = ca.SX(0, 1)
+    functions = _dae_functions((t, x, lam, u, params), _DAEExpressions(
+        xdot=ca.vertcat(dHdp, pdot), lam=lam_sol, xdot_dae=ca.vertcat(dHdp, pdot_dae), g=g_alg, energy=H,
+        constraint=cons, qdot=dHdp, power=ca.dot(tau, dHdp),
         mass=ca.reshape(ca.vertcat(*conv(list(system.mass_matrix().T))), n, n)))
-    return _base(system, "hamilton", model.state_names, fns, k)
+    return _base(system, "hamilton", model.state_names, functions, k)
 
 

@@ -215,12 +215,12 @@ def _row_function(model, names, quantities) -> ca.Function:
     system = model.system
     Y = velocity_rows(system, names, quantities)
     n, npar = system.n, len(system.param_symbols)
-    q, p = ca.SX.sym("q", n), ca.SX.sym("params", npar)
+    q, params = ca.SX.sym("q", n), ca.SX.sym("params", npar)
     syms = list(system.q) + list(system.param_symbols)
-    sx = [q[i] for i in range(n)] + [p[i] for i in range(npar)]
+    sx = [q[i] for i in range(n)] + [params[i] for i in range(npar)]
     entries = to_casadi(list(Y.T), syms, sx) if Y.rows else []
     Ysx = ca.reshape(ca.vertcat(*entries), len(names), n) if entries else ca.SX(0, n)
-    return ca.Function("Y", [q, p], [Ysx], ["q", "params"], ["Y"])
+    return ca.Function("Y", [q, params], [Ysx], ["q", "params"], ["Y"])
 
 
 def _momentum_basis(model, params) -> ca.Function:
@@ -230,6 +230,23 @@ def _momentum_basis(model, params) -> ca.Function:
     qdot = model.numeric["qdot"](ca.vertcat(q, P), params)
     Q = ca.substitute(ca.jacobian(qdot, P), P, ca.DM.zeros(nz - n))
     return ca.Function("Q", [q], [Q])
+
+
+@dataclass(frozen=True, eq=False)
+class _CandidateRows:
+    """B(q) = Y(q) Q(q): one row per candidate velocity, in the momenta (q̇ = Q(q) P, ``Q``; the
+    candidates' rows in q̇, ``Y``), at the parameter values ``params``."""
+
+    Y: ca.Function
+    Q: ca.Function
+    params: np.ndarray
+
+    @property
+    def count(self) -> int:
+        return self.Y.size1_out(0)
+
+    def at(self, q) -> np.ndarray:
+        return np.asarray(self.Y(q, self.params)) @ np.asarray(self.Q(q))
 
 
 def choose_velocities(model, preferred=(), quantities=None, params=None, bounds=None, points=()) -> tuple:
@@ -262,12 +279,12 @@ def choose_velocities(model, preferred=(), quantities=None, params=None, bounds=
             candidates.append(name)
     Q = _momentum_basis(model, params)
     rng = np.random.default_rng(7)
-    samples = [rng.uniform(-0.7, 0.7, n) for _ in range(3)] + [np.asarray(p, float) for p in points]
-    Yf = _row_function(model, candidates, quantities) if candidates else None
+    samples = [rng.uniform(-0.7, 0.7, n) for _ in range(3)] + [np.asarray(point, float) for point in points]
+    rows = _CandidateRows(_row_function(model, candidates, quantities), Q, params) if candidates else None
     with np.errstate(all="ignore"):
-        B_all = [np.asarray(Yf(qq, params)) @ np.asarray(Q(qq)) for qq in samples] if Yf else []
+        B_all = [rows.at(q) for q in samples] if rows else []
     B_all = [B for B in B_all if np.all(np.isfinite(B))]      # a point on the chart's singular set
-    degenerate = _degenerate_rows(model, Yf, Q, params, len(candidates), rng, bounds or {}) if Yf else []
+    degenerate = _degenerate_rows(model, rows, rng, bounds or {}) if rows else []
     order = sorted(range(len(candidates)), key=lambda i: (degenerate[i], i))
     chosen = []
     for i in order:
@@ -284,9 +301,10 @@ def choose_velocities(model, preferred=(), quantities=None, params=None, bounds=
                       f"allowed velocities of {system.name}"], title="invalid velocity coordinates")
 
 
-def _degenerate_rows(model, Yf, Q, params, count, rng, bounds, samples: int = 64) -> list:
+def _degenerate_rows(model, rows: _CandidateRows, rng, bounds, samples: int = 64) -> list:
     """Per candidate: does its row of B = Y Q nearly vanish at some configuration within
     ``bounds``? See :func:`choose_velocities`."""
+    params, count = rows.params, rows.count
     coords = tuple(model.system.coordinates)
     lo = np.array([bounds.get(c, (-np.pi, np.pi))[0] for c in coords], dtype=float)
     hi = np.array([bounds.get(c, (-np.pi, np.pi))[1] for c in coords], dtype=float)
@@ -300,7 +318,7 @@ def _degenerate_rows(model, Yf, Q, params, count, rng, bounds, samples: int = 64
     small, large = np.full(count, np.inf), np.zeros(count)
     for q in (q for q, ok in zip(qs, keep) if ok):      # near the model's singular set every row degrades
         with np.errstate(all="ignore"):
-            B = np.asarray(Yf(q, params)) @ np.asarray(Q(q))
+            B = rows.at(q)
         if not np.all(np.isfinite(B)):
             continue
         norms = np.linalg.norm(B, axis=1)
@@ -330,7 +348,7 @@ def _numeric_velocity(model, params, names, quantities) -> dict:
     nu = len(model.numeric.input_names)
     Yf = _row_function(model, names, quantities)
     Qf = _momentum_basis(model, params)
-    t, z, u, p = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", len(params))
+    t, z, u, params_sx = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", len(params))
     q, y = z[:n], z[n:]
     P = ca.solve(ca.mtimes(Yf(q, params), Qf(q)), y)
     zP = ca.vertcat(q, P)
@@ -341,11 +359,11 @@ def _numeric_velocity(model, params, names, quantities) -> dict:
     qdot = model.numeric["qdot"](zP, params)
     qs, qd = ca.SX.sym("q", n), ca.SX.sym("qdot", n)
     return {
-        "rhs": ca.Function("rhs", [t, z, u, p], [ca.vertcat(qdot, ydot)], ["t", "z", "u", "params"], ["zdot"]),
-        "qdot": ca.Function("qdot", [z, p], [qdot], ["z", "params"], ["qdot"]),
-        "state": ca.Function("state", [qs, qd, p], [ca.vertcat(qs, ca.mtimes(Yf(qs, params), qd))],
+        "rhs": ca.Function("rhs", [t, z, u, params_sx], [ca.vertcat(qdot, ydot)], ["t", "z", "u", "params"], ["zdot"]),
+        "qdot": ca.Function("qdot", [z, params_sx], [qdot], ["z", "params"], ["qdot"]),
+        "state": ca.Function("state", [qs, qd, params_sx], [ca.vertcat(qs, ca.mtimes(Yf(qs, params), qd))],
                              ["q", "qdot", "params"], ["z"]),
-        "momentum_state": ca.Function("momentum_state", [z, p], [zP], ["z", "params"], ["z_momentum"]),
+        "momentum_state": ca.Function("momentum_state", [z, params_sx], [zP], ["z", "params"], ["z_momentum"]),
     }
 
 
@@ -372,7 +390,7 @@ def _maggi_velocity(model, params, names, quantities) -> dict:
     system = model.system
     n, nz = system.n, len(model.state_names)
     nu = len(model.numeric.input_names)
-    t, z, u, p = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", len(params))
+    t, z, u, params_sx = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", len(params))
     qs, qds = ca.SX.sym("q", n), ca.SX.sym("qdot", n)
     subs = {s: float(v) for s, v in zip(system.param_symbols, params)}
     syms = [TIME] + list(system.q) + list(system.q_dot) + list(system.input_symbols)
@@ -394,8 +412,8 @@ def _maggi_velocity(model, params, names, quantities) -> dict:
     ydot = ca.substitute(ca.jtimes(ca.mtimes(Bv, vs), q, ca.mtimes(X, vs)), vs, v) + ca.mtimes(Bv, vdot)
     rhs = ca.cse(ca.vertcat(qdot, ydot))
     fns = _numeric_velocity(model, params, names, quantities)   # state and momentum_state maps
-    fns["rhs"] = ca.Function("rhs", [t, z, u, p], [rhs], ["t", "z", "u", "params"], ["zdot"])
-    fns["qdot"] = ca.Function("qdot", [z, p], [ca.cse(qdot)], ["z", "params"], ["qdot"])
+    fns["rhs"] = ca.Function("rhs", [t, z, u, params_sx], [rhs], ["t", "z", "u", "params"], ["zdot"])
+    fns["qdot"] = ca.Function("qdot", [z, params_sx], [ca.cse(qdot)], ["z", "params"], ["qdot"])
     return fns
 
 
@@ -407,22 +425,22 @@ def _body_basis(model, params, q):
     k×n matrix ω_b instead of the 20 steps' graph, it stays small for chains of many links."""
     from .bridge import to_casadi
     from .linsolve import solve_general
-    lay, system = model.layout, model.system
+    layout, system = model.layout, model.system
     n, k = system.n, system.k
     subs = {s: float(v) for s, v in zip(system.param_symbols, params)}
     qs = [q[i] for i in range(n)]
-    pivots = list(lay.pivots)
+    pivots = list(layout.pivots)
     free = [i for i in range(n) if i not in pivots]
     Xb = ca.SX(n, n - k)
     for j, i in enumerate(free):
         Xb[i, j] = 1
     if k:
-        Wb = ca.reshape(ca.vertcat(*to_casadi(list(lay.Wb.xreplace(subs).T), list(system.q), qs)), k, n)
+        Wb = ca.reshape(ca.vertcat(*to_casadi(list(layout.Wb.xreplace(subs).T), list(system.q), qs)), k, n)
         Xb[pivots, :] = -solve_general(Wb[:, pivots], Wb[:, free])
     G = ca.SX.eye(n)
-    if lay.version == "B":
-        g = ca.reshape(ca.vertcat(*to_casadi(list(lay.g.T), list(system.q), qs)), len(lay.si), len(lay.si))
-        G[list(lay.si), list(lay.si)] = g
+    if layout.version == "B":
+        g = ca.reshape(ca.vertcat(*to_casadi(list(layout.g.T), list(system.q), qs)), len(layout.si), len(layout.si))
+        G[list(layout.si), list(layout.si)] = g
     return ca.mtimes(G, Xb)
 
 
@@ -487,13 +505,13 @@ def _symbolic_momentum(model, params) -> dict:
     rhs = [_normal(e.xreplace(subs)) for e in model.rhs]
     qdot = [_normal(e.xreplace(subs)) for e in model.qdot]
     nz, nu, npar = len(model.state), len(system.input_symbols), len(system.param_symbols)
-    t, z, u, p = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", npar)
+    t, z, u, params_sx = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", npar)
     syms = [TIME] + list(model.state) + list(system.input_symbols)
     sx = [t] + [z[i] for i in range(nz)] + [u[i] for i in range(nu)]
     fns = _numeric_bound(model, params)
-    fns["rhs"] = ca.Function("rhs", [t, z, u, p], [ca.vertcat(*to_casadi(rhs, syms, sx))],
+    fns["rhs"] = ca.Function("rhs", [t, z, u, params_sx], [ca.vertcat(*to_casadi(rhs, syms, sx))],
                              ["t", "z", "u", "params"], ["zdot"])
-    fns["qdot"] = ca.Function("qdot", [z, p], [ca.vertcat(*to_casadi(qdot, syms, sx))], ["z", "params"], ["qdot"])
+    fns["qdot"] = ca.Function("qdot", [z, params_sx], [ca.vertcat(*to_casadi(qdot, syms, sx))], ["z", "params"], ["qdot"])
     return fns
 
 
@@ -523,12 +541,12 @@ def _symbolic_velocity(model, params, names, quantities) -> dict:
     qdot = [_normal(e.xreplace(back)) for e in qdot_v]
     ydot = [_normal(e.xreplace(back)) for e in ydot]
     nz, nu, npar = n + nv, len(system.input_symbols), len(system.param_symbols)
-    t, z, u, p = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", npar)
+    t, z, u, params_sx = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", npar)
     sx = [t] + [z[i] for i in range(nz)] + [u[i] for i in range(nu)]
     out = to_casadi(qdot + ydot, [TIME] + q + list(ys) + list(system.input_symbols), sx)
     fns = _numeric_velocity(model, params, names, quantities)   # state and momentum_state maps
-    fns["rhs"] = ca.Function("rhs", [t, z, u, p], [ca.vertcat(*out)], ["t", "z", "u", "params"], ["zdot"])
-    fns["qdot"] = ca.Function("qdot", [z, p], [ca.vertcat(*out[:n])], ["z", "params"], ["qdot"])
+    fns["rhs"] = ca.Function("rhs", [t, z, u, params_sx], [ca.vertcat(*out)], ["t", "z", "u", "params"], ["zdot"])
+    fns["qdot"] = ca.Function("qdot", [z, params_sx], [ca.vertcat(*out[:n])], ["z", "params"], ["qdot"])
     return fns
 
 
@@ -545,18 +563,18 @@ def _at_identity(model, fns: dict) -> dict | None:
     general functions. None when the model has no group layout.
     """
     from .bridge import to_casadi
-    lay = getattr(model, "layout", None)
-    if lay is None or not lay.fiber:
+    layout = getattr(model, "layout", None)
+    if layout is None or not layout.fiber:
         return None
     system = model.system
     n, nz = system.n, len(model.state_names)
-    si = [system.coordinates.index(c) for c in lay.fiber]
+    si = [system.coordinates.index(c) for c in layout.fiber]
     rhs, qdot = fns["rhs"], fns["qdot"]
     t, z, u = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", rhs.size1_in(2))
-    p = ca.SX.sym("params", rhs.size1_in(3))
+    params_sx = ca.SX.sym("params", rhs.size1_in(3))
     at_e = ca.vertcat(*[0 if i in si else z[i] for i in range(nz)])
-    G = ca.reshape(ca.vertcat(*to_casadi(list(lay.g.T), list(system.q), [z[i] for i in range(n)])),
-                   len(si), len(si)) if lay.version == "B" else ca.SX.eye(len(si))
+    G = ca.reshape(ca.vertcat(*to_casadi(list(layout.g.T), list(system.q), [z[i] for i in range(n)])),
+                   len(si), len(si)) if layout.version == "B" else ca.SX.eye(len(si))
 
     def moved(v):
         out = [v[i] for i in range(v.shape[0])]
@@ -565,8 +583,8 @@ def _at_identity(model, fns: dict) -> dict | None:
             out[i] = s_rates[j]
         return ca.cse(ca.vertcat(*out))
     out = dict(fns)
-    out["rhs"] = ca.Function("rhs", [t, z, u, p], [moved(rhs(t, at_e, u, p))], ["t", "z", "u", "params"], ["zdot"])
-    out["qdot"] = ca.Function("qdot", [z, p], [moved(qdot(at_e, p))], ["z", "params"], ["qdot"])
+    out["rhs"] = ca.Function("rhs", [t, z, u, params_sx], [moved(rhs(t, at_e, u, params_sx))], ["t", "z", "u", "params"], ["zdot"])
+    out["qdot"] = ca.Function("qdot", [z, params_sx], [moved(qdot(at_e, params_sx))], ["z", "params"], ["qdot"])
     return out
 
 
@@ -579,14 +597,29 @@ def _gap(a, b) -> float:
     return float(np.max(np.abs(a[fb] - b[fb]) / (1.0 + np.abs(b[fb])), initial=0.0))
 
 
-def _agrees(fns: dict, ref: dict, nz: int, nu: int, params, tol: float, singular=None) -> bool:
-    """``fns`` equals ``ref`` (rhs and q̇) at random states, inputs and times t ∈ [0, 10]
-    (the forces may depend on t), relative to 1 + |ref|. With ``singular`` (the model's measure
-    of its singular set, a function of (q, params), in [0, 1]), states within 1e-3 of that set
-    are not used, and within 0.1 the tolerance grows as 0.1/measure: both sides solve the same
-    ill-conditioned systems there, and their round-off grows with the condition number
-    (snake_4: gaps of 6e-10 at measure 1.5e-3 between two correct evaluations, against O(1)
-    for a wrong formula)."""
+@dataclass(frozen=True, eq=False)
+class _Reference:
+    """What every specialisation must reproduce: ``functions`` (rhs and qdot with the values
+    bound, the 20-step graph), the sizes of the state and the inputs, the parameter values and
+    the model's measure of its singular set (a function of (q, params) in [0, 1]; None when the
+    model has none)."""
+
+    functions: dict
+    n_state: int
+    n_inputs: int
+    params: np.ndarray
+    singular: object = None
+
+
+def _agrees(fns: dict, reference: _Reference, tol: float = 1e-10) -> bool:
+    """``fns`` equals the reference (rhs and q̇) at random states, inputs and times t ∈ [0, 10]
+    (the forces may depend on t), relative to 1 + |reference|. With the singular-set measure,
+    states within 1e-3 of that set are not used, and within 0.1 the tolerance grows as
+    0.1/measure: both sides solve the same ill-conditioned systems there, and their round-off
+    grows with the condition number (snake_4: gaps of 6e-10 at measure 1.5e-3 between two
+    correct evaluations, against O(1) for a wrong formula)."""
+    ref, nz, nu = reference.functions, reference.n_state, reference.n_inputs
+    params, singular = reference.params, reference.singular
     rng = np.random.default_rng(0)
     worst, used = 0.0, 0
     n = singular.size1_in(0) if singular is not None else nz
@@ -613,21 +646,22 @@ def _agrees(fns: dict, ref: dict, nz: int, nu: int, params, tol: float, singular
 
 # ----------------------------------------------------------------------------- entry point
 def _build(model, params, velocities, quantities) -> _Entry:
-    n, nz, nu = model.system.n, len(model.state_names), len(model.numeric.input_names)
-    reference = (_numeric_velocity(model, params, velocities, quantities) if velocities
-                 else _numeric_bound(model, params))
-    route, fns = "numeric", reference
-    singular = model.numeric.functions.get("singular")
+    n = model.system.n
+    graph = (_numeric_velocity(model, params, velocities, quantities) if velocities
+             else _numeric_bound(model, params))
+    reference = _Reference(graph, len(model.state_names), len(model.numeric.input_names), params,
+                           model.numeric.functions.get("singular"))
+    route, fns = "numeric", graph
     if model_form(model) == "explicit":
         try:
             candidate = (_symbolic_velocity(model, params, velocities, quantities) if velocities
                          else _symbolic_momentum(model, params))
         except (ZeroDivisionError, ArithmeticError, ValueError):
             candidate = None
-        if candidate is not None and _agrees(candidate, reference, nz, nu, params, 1e-10, singular):
+        if candidate is not None and _agrees(candidate, reference):
             route, fns = "symbolic", candidate
     if route == "numeric":
-        route, fns = _cheapest(model, params, velocities, quantities, reference, singular)
+        route, fns = _cheapest(model, velocities, quantities, reference)
     from .numeric_model import NumericModel
     old = model.numeric
     state_names = (tuple(model.system.coordinates) + tuple(velocities)) if velocities else tuple(old.state_names)
@@ -642,23 +676,22 @@ def _operations(fns: dict) -> int:
     return int(fns["rhs"].n_instructions())
 
 
-def _cheapest(model, params, velocities, quantities, reference, singular) -> tuple:
+def _cheapest(model, velocities, quantities, reference: _Reference) -> tuple:
     """(route, functions): the cheapest evaluation of the reference's equations among the
     20-step graph with values bound, Maggi's form (velocity states only) and either evaluated
     at the group identity — each checked against the reference at random states."""
-    nz, nu = len(model.state_names), len(model.numeric.input_names)
-    options = [("numeric", reference)]
+    options = [("numeric", reference.functions)]
     if velocities and "basis" in model.numeric.functions:
-        options.append(("Maggi", _maggi_velocity(model, params, velocities, quantities)))
+        options.append(("Maggi", _maggi_velocity(model, reference.params, velocities, quantities)))
     for name, fns in list(options):
         reduced = _at_identity(model, fns)
         if reduced is not None:
             options.append((f"{name} at the group identity", reduced))
     options.sort(key=lambda item: _operations(item[1]))
     for name, fns in options:
-        if fns is reference or _agrees(fns, reference, nz, nu, params, 1e-10, singular):
+        if fns is reference.functions or _agrees(fns, reference):
             return name, fns
-    return "numeric", reference
+    return "numeric", reference.functions
 
 
 def _key(model, params, velocities, quantities) -> str:

@@ -75,9 +75,8 @@ def derive_reduced(system: System, version: str | None = None, form: str | None 
     layout, first = choose_layout(system, version, form)
     if layout.form == "explicit":
         try:
-            F = arithmetic_for("ring", layout)
-            F.budget = None if form == "explicit" else EXPLICIT_WORK_BUDGET
-            return _model(layout, first, run_steps(F, layout), t0)
+            ring = arithmetic_for("ring", layout, budget=None if form == "explicit" else EXPLICIT_WORK_BUDGET)
+            return _model(layout, first, run_steps(ring, layout), t0)
         except NotRational:
             return _model(layout, first, run_steps(arithmetic_for("sympy", layout), layout), t0)
         except WorkBudgetExceeded:

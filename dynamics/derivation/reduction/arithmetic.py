@@ -284,18 +284,19 @@ class CasadiArithmetic(MatrixOps):
         return self.ca.vertcat(*values) if values else self.ca.SX(0, 1)
 
 
-def _prod(F, variables):
-    out = F.one
+def _prod(arith, variables):
+    out = arith.one
     for v in variables:
-        out = out * F.sym(v)
+        out = out * arith.sym(v)
     return out
 
 
-def make_arithmetic(kind: str, exprs, symbols, angles, time=()):
+def make_arithmetic(kind: str, exprs, symbols, angles, time=(), budget=None):
     """The back end ``kind`` ("ring", "sympy" or "casadi") for one derivation; ``time``: the
-    symbols the steps carry along but never differentiate (t, see :class:`FracField`)."""
+    symbols the steps carry along but never differentiate (t, see :class:`FracField`);
+    ``budget``: the ring's work budget (None: no limit)."""
     if kind == "ring":
-        return FracField(exprs, symbols=symbols, angles=angles, time=time)
+        return FracField(exprs, symbols=symbols, angles=angles, time=time, budget=budget)
     if kind == "sympy":
         return SympyArithmetic()
     if kind == "casadi":

@@ -6,7 +6,7 @@ Momentum equations (Hamel form, what ż = J_z∇h + (0, Xᵀτ) says row by row)
     Ṗ_a = Σ_b {P_a, P_b}|_M̄ v_b − X_aᵀ ∂h/∂q + X_aᵀτ,   v = K⁻¹P,
     ∂h/∂q_i = ½ Pᵀ(∂K⁻¹/∂q_i)P + ∂V/∂q_i = −½ vᵀ(∂K/∂q_i)v + ∂V/∂q_i,
 
-(``F.diff_inverse``: the exact back ends differentiate K⁻¹ entry by entry, the CasADi back
+(``arith.diff_inverse``: the exact back ends differentiate K⁻¹ entry by entry, the CasADi back
 end uses −K⁻¹K_qK⁻¹, so no inverse is differentiated),
 
 zero along the fiber by symmetry. Each Ṗ_a is assembled as a quadratic form in P with normal
@@ -39,126 +39,145 @@ class MomentumEquations:
     xi_coef: list
 
 
-def gradient(F, layout, symbols, connection, Kinv) -> tuple[Step, HamiltonianGradient]:
+def gradient(arith, layout, symbols, connection, Kinv) -> tuple[Step, HamiltonianGradient]:
     """Step 18 (eqs. 3.32, 3.49, 3.92): ∇h = (0, ∂h/∂P, ∂h/∂r, ∂h/∂P̃); ∂h/∂s = 0 by symmetry
     (checked exactly by the explicit back ends)."""
     q, nP = layout.system.q, len(symbols.P)
-    V = F.frac(layout.V)
-    if F.kind != "casadi":
+    V = arith.frac(layout.V)
+    if arith.kind != "casadi":
         for i in layout.si:
-            if any(not F.is_zero(F.normal(F.diff(e, q[i]))) for r in connection.K for e in r) or \
-                    not F.is_zero(F.normal(F.diff(V, q[i]))):
+            if any(not arith.is_zero(arith.normal(arith.diff(e, q[i]))) for r in connection.K for e in r) or \
+                    not arith.is_zero(arith.normal(arith.diff(V, q[i]))):
                 raise ModelError(["h depends on the fiber coordinates: the chosen group is not a symmetry"])
     quad = {}                      # i -> ∂K⁻¹/∂q_i (i ∈ r): ∂h/∂q_i = ½Pᵀ(∂K⁻¹/∂q_i)P + ∂V/∂q_i
     dV = {}
     for i in layout.ri:
-        dKinv = F.diff_inverse(Kinv, connection.K, q[i])
-        if any(not F.is_zero(e) for r in dKinv for e in r):
+        dKinv = arith.diff_inverse(Kinv, connection.K, q[i])
+        if any(not arith.is_zero(e) for r in dKinv for e in r):
             quad[i] = dKinv
-        dV[i] = F.normal(F.diff(V, q[i]))
-    shown = [F.quadratic(quad[i], symbols.P, half=True) + F.expr(dV[i]) if i in quad else F.expr(dV[i])
+        dV[i] = arith.normal(arith.diff(V, q[i]))
+    shown = [arith.quadratic(quad[i], symbols.P, half=True) + arith.expr(dV[i]) if i in quad else arith.expr(dV[i])
              for i in layout.ri]
-    dh_dP = [F.form([(Kinv[a][b], [symbols.P[b]]) for b in range(nP)]) for a in range(nP)]
+    dh_dP = [arith.form([(Kinv[a][b], [symbols.P[b]]) for b in range(nP)]) for a in range(nP)]
     return Step(18, "Gradient of h", "§3.2.5, eqs. 3.32, 3.49, 3.92",
-                {"dh_dP": F.column(dh_dP), "dh_dr": F.column(shown)}, "∂h/∂s = 0 by symmetry.",
+                {"dh_dP": arith.column(dh_dP), "dh_dr": arith.column(shown)}, "∂h/∂s = 0 by symmetry.",
                 labels={"dh_dP": "dh/d(" + ", ".join(map(str, symbols.P)) + ")",
                         "dh_dr": "dh/d(" + ", ".join(layout.shape) + ")"}), HamiltonianGradient(quad=quad, dV=dV)
 
 
-def _momentum_rate(F, layout, symbols, connection, Kinv, coef, grad, forces, a):
-    """Ṗ_a as Σ_{j≤l} c_jl P_j P_l − X_aᵀ∂V/∂q + (Xᵀτ)_a (−X_aᵀ∂h/∂q through the derivative
-    of K⁻¹ along X_a)."""
-    nP = len(symbols.P)
-    T = [[[] for _ in range(nP)] for _ in range(nP)]
+@dataclass(frozen=True, eq=False)
+class MomentumInputs:
+    """What step 19 reads from the earlier steps: the :class:`~.connection.Connection`
+    (steps 5–8), K⁻¹ (step 10), the restricted brackets (step 16) and the gradient of h
+    (step 18)."""
+
+    connection: object
+    Kinv: list
+    brackets: object
+    gradient: HamiltonianGradient
+
+
+def _bracket_products(arith, inputs: MomentumInputs, a):
+    """The bracket part Σ_b {P_a, P_b}|_M̄ v_b of Ṗ_a as a table ``products[j][l]`` of the
+    coefficient terms of P_j P_l (before they are summed)."""
+    Kinv, nP = inputs.Kinv, len(inputs.Kinv)
+    products = [[[] for _ in range(nP)] for _ in range(nP)]
     for b in range(nP):
-        cab = coef.get((a, b))
+        cab = inputs.brackets.coef.get((a, b))
         if cab is None:
             continue
         for j in range(nP):
-            if not F.is_zero(cab[j]):
+            if not arith.is_zero(cab[j]):
                 for l_ in range(nP):
-                    if not F.is_zero(Kinv[b][l_]):
-                        T[j][l_].append(F.mul(cab[j], Kinv[b][l_]))
-    extra = []
+                    if not arith.is_zero(Kinv[b][l_]):
+                        products[j][l_].append(arith.mul(cab[j], Kinv[b][l_]))
+    return products
+
+
+def _momentum_rate(arith, layout, symbols, inputs: MomentumInputs, forces, a):
+    """Ṗ_a as Σ_{j≤l} c_jl P_j P_l − X_aᵀ∂V/∂q + (Xᵀτ)_a (−X_aᵀ∂h/∂q through the derivative
+    of K⁻¹ along X_a)."""
+    nP = len(symbols.P)
+    connection, grad = inputs.connection, inputs.gradient
+    products = _bracket_products(arith, inputs, a)
     Xa = [connection.X[i][a] for i in range(layout.n)]
-    Q = F.directional_inverse(Kinv, connection.K, layout.system.q, Xa, grad.quad)
+    Q = arith.directional_inverse(inputs.Kinv, connection.K, layout.system.q, Xa, grad.quad)
     for j in range(nP):                    # −X_aᵀ∂h/∂q = −½ Pᵀ(D_{X_a}K⁻¹)P − X_aᵀ∇V
         for l_ in range(nP):
-            if not F.is_zero(Q[j][l_]):
-                T[j][l_].append(F.neg(F.scale(Q[j][l_], 1, 2)))
-    for i, dv in grad.dV.items():
-        if not F.is_zero(dv) and not F.is_zero(connection.X[i][a]):
-            extra.append(F.neg(F.mul(connection.X[i][a], dv)))
+            if not arith.is_zero(Q[j][l_]):
+                products[j][l_].append(arith.neg(arith.scale(Q[j][l_], 1, 2)))
+    potential = [arith.neg(arith.mul(connection.X[i][a], dv)) for i, dv in grad.dV.items()
+                 if not arith.is_zero(dv) and not arith.is_zero(connection.X[i][a])]
     terms = []
     for j in range(nP):
         for l_ in range(j, nP):
-            raw = T[j][j] if j == l_ else T[j][l_] + T[l_][j]
+            raw = products[j][j] if j == l_ else products[j][l_] + products[l_][j]
             if raw:
-                terms.append((F.normal(F.add_many(raw)), [symbols.P[j], symbols.P[l_]]))
-    if extra:
-        terms.append((F.normal(F.add_many(extra)), []))
-    return F.form(terms) + forces[a]
+                terms.append((arith.normal(arith.add_many(raw)), [symbols.P[j], symbols.P[l_]]))
+    if potential:
+        terms.append((arith.normal(arith.add_many(potential)), []))
+    return arith.form(terms) + forces[a]
 
 
-def _forces(F, layout, symbols, connection, XKinv):
+def _forces(arith, layout, symbols, connection, XKinv):
     """Xᵀτ(t, q, q̇ = XK⁻¹P, u): coefficients of the affine part in P normalised, and any
     remainder (forces nonlinear in the velocities) as one more term."""
     nP = len(symbols.P)
     qd = layout.system.q_dot
-    qdot = F.matmul(XKinv, F.vec(symbols.P), normal=False)
-    tau = [[F.subs(F.frac(e), {F.sub_key(v): qdot[j][0] for j, v in enumerate(qd)})]
+    qdot = arith.matmul(XKinv, arith.vec(symbols.P), normal=False)
+    tau = [[arith.subs(arith.frac(e), {arith.sub_key(v): qdot[j][0] for j, v in enumerate(qd)})]
            for e in layout.system.force_vector()]
-    XtT = F.matmul(F.T(connection.X), tau, normal=False) if nP else []
+    XtT = arith.matmul(arith.T(connection.X), tau, normal=False) if nP else []
     out = []
     for a in range(nP):
         total = XtT[a][0]
-        c0, cs = F.linear_split(total, symbols.P)
+        c0, cs = arith.linear_split(total, symbols.P)
         terms = [(c0, [])] + [(c, [v]) for c, v in zip(cs, symbols.P)]
         # a force need not be affine in the momenta (drag −c q̇², friction sign(q̇)): what the
         # affine split does not hold is kept as its own term, never dropped
-        affine = F.add_many([c0] + [F.mul(c, F.sym(v)) for c, v in zip(cs, symbols.P)])
-        rest = F.normal(F.add_many([total, F.neg(affine)]))
-        if not F.is_zero(rest):
+        affine = arith.add_many([c0] + [arith.mul(c, arith.sym(v)) for c, v in zip(cs, symbols.P)])
+        rest = arith.normal(arith.add_many([total, arith.neg(affine)]))
+        if not arith.is_zero(rest):
             terms.append((rest, []))
-        out.append(F.form(terms))
+        out.append(arith.form(terms))
     return out
 
 
-def equations(F, layout, symbols, connection, Kinv, brackets, grad) -> tuple[Step, MomentumEquations]:
+def equations(arith, layout, symbols, inputs: MomentumInputs) -> tuple[Step, MomentumEquations]:
     """Step 19 (eqs. 3.33, 3.50, 3.93): (ξ, Ṗ, ṙ, dP̃/dt) = J∇h + (0, Xᵀτ); the forces enter
     through the constraint-adapted basis X, never by hand."""
     nP, d, l = len(symbols.P), layout.d, len(layout.si)
     m = nP - d
-    XKinv = brackets.XKinv
-    forces = _forces(F, layout, symbols, connection, XKinv)
-    Pdot = [_momentum_rate(F, layout, symbols, connection, Kinv, brackets.coef, grad, forces, a) for a in range(nP)]
-    eA = [list(r1) + list(r2) for r1, r2 in zip(connection.e or [[] for _ in range(l)], F.mneg(connection.A) if m else [[] for _ in range(l)])]
-    xi_coef = F.matmul(eA, Kinv) if l and nP else F.zeros(l, nP)
-    xi = [F.form([(xi_coef[i][j], [symbols.P[j]]) for j in range(nP)]) for i in range(l)]
-    qdot = [F.form([(XKinv[i][j], [symbols.P[j]]) for j in range(nP)]) for i in range(layout.n)]
+    connection, Kinv, XKinv = inputs.connection, inputs.Kinv, inputs.brackets.XKinv
+    forces = _forces(arith, layout, symbols, connection, XKinv)
+    Pdot = [_momentum_rate(arith, layout, symbols, inputs, forces, a) for a in range(nP)]
+    eA = [list(r1) + list(r2) for r1, r2 in zip(connection.e or [[] for _ in range(l)], arith.mneg(connection.A) if m else [[] for _ in range(l)])]
+    xi_coef = arith.matmul(eA, Kinv) if l and nP else arith.zeros(l, nP)
+    xi = [arith.form([(xi_coef[i][j], [symbols.P[j]]) for j in range(nP)]) for i in range(l)]
+    qdot = [arith.form([(XKinv[i][j], [symbols.P[j]]) for j in range(nP)]) for i in range(layout.n)]
     step = Step(19, "Reduced constrained Hamiltonian equations", "§3.2.5, eqs. 3.33, 3.50, 3.93", {
-        "xi": F.column(xi), "P_dot": F.column(Pdot[:d]), "r_dot": F.column([qdot[i] for i in layout.ri]),
-        "Pt_dot": F.column(Pdot[d:]), "F": F.column(forces)},
+        "xi": arith.column(xi), "P_dot": arith.column(Pdot[:d]), "r_dot": arith.column([qdot[i] for i in layout.ri]),
+        "Pt_dot": arith.column(Pdot[d:]), "F": arith.column(forces)},
         "(ξ, Ṗ, ṙ, dP̃/dt) = J∇h + (0, Xᵀτ).", labels={"F": "forces X^T tau"})
     return step, MomentumEquations(Pdot=Pdot, qdot=qdot, xi_coef=xi_coef)
 
 
-def fiber_velocities(F, layout, symbols, eqs) -> Step:
+def fiber_velocities(arith, layout, symbols, eqs) -> Step:
     """Step 20 (eqs. 3.51, 3.94): ṡ = gξ."""
     nP = len(symbols.P)
-    coef = F.matmul(F.mat(layout.g), eqs.xi_coef) if layout.si and nP else F.zeros(len(layout.si), nP)
-    sdot = [F.form([(coef[i][j], [symbols.P[j]]) for j in range(nP)]) for i in range(len(layout.si))]
+    coef = arith.matmul(arith.mat(layout.g), eqs.xi_coef) if layout.si and nP else arith.zeros(len(layout.si), nP)
+    sdot = [arith.form([(coef[i][j], [symbols.P[j]]) for j in range(nP)]) for i in range(len(layout.si))]
     return Step(20, "Reconstruction of the fiber velocities", "§3.2.5, eqs. 3.51, 3.94",
-                {"s_dot": F.column(sdot)}, "ṡ = gξ.", labels={"s_dot": "s_dot = g xi"})
+                {"s_dot": arith.column(sdot)}, "ṡ = gξ.", labels={"s_dot": "s_dot = g xi"})
 
 
-def momenta_of_velocity(F, layout, symbols, connection) -> list:
+def momenta_of_velocity(arith, layout, symbols, connection) -> list:
     """P = XᵀM(q)q̇ (Tables 3.2–3.3), linear in q̇ with normal coefficients."""
     qd = layout.system.q_dot
     nP = len(symbols.P)
-    XTMq = F.matmul(F.matmul(F.T(connection.X), F.mat(layout.M), normal=False), F.vec(qd), normal=False) if nP else []
+    XTMq = arith.matmul(arith.matmul(arith.T(connection.X), arith.mat(layout.M), normal=False), arith.vec(qd), normal=False) if nP else []
     out = []
     for a in range(nP):
-        c0, cs = F.linear_split(XTMq[a][0], list(qd))
-        out.append(F.form([(c, [v]) for c, v in zip(cs, qd)]))
+        c0, cs = arith.linear_split(XTMq[a][0], list(qd))
+        out.append(arith.form([(c, [v]) for c, v in zip(cs, qd)]))
     return out

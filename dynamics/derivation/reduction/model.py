@@ -263,12 +263,12 @@ class ReducedODE(ModelDisplay):
         """The ``nhgait derive --checks`` report: Jacobi/holonomy test, Table 2.1 class, the
         (q, q̇) → state map and the singular set."""
         from ..analysis import jacobi_test
-        res = jacobi_test(self)
-        bracket = ("a Poisson bracket (the Jacobi identity holds" if res.jacobi_holds else
+        jacobi = jacobi_test(self)
+        bracket = ("a Poisson bracket (the Jacobi identity holds" if jacobi.jacobi_holds else
                    "almost-Poisson (the Jacobi identity does not hold, as expected of a nonholonomic bracket")
-        out = [f"reduced bracket: {bracket}; max relative Jacobiator {res.jacobiator:.2g}); constraints "
-               f"{'holonomic' if res.holonomic else 'nonholonomic'} (max |ω[X_a, X_b]| {res.holonomy:.2g}); "
-               f"thesis §2.2.2 (Jacobi ⇔ holonomic): {'consistent' if res.consistent else 'INCONSISTENT'}",
+        out = [f"reduced bracket: {bracket}; max relative Jacobiator {jacobi.jacobiator:.2g}); constraints "
+               f"{'holonomic' if jacobi.holonomic else 'nonholonomic'} (max |ω[X_a, X_b]| {jacobi.holonomy:.2g}); "
+               f"thesis §2.2.2 (Jacobi ⇔ holonomic): {'consistent' if jacobi.consistent else 'INCONSISTENT'}",
                f"classification (thesis Table 2.1): {self.classification}",
                "initial-state map (Tables 3.2–3.3), P = Xᵀ M(q) q̇ on ω(q)q̇ = 0:"]
         if self.rhs is None:

@@ -126,26 +126,26 @@ def set_up(system: System, M: sp.Matrix) -> Step:
         labels={"omega": "omega (k x n)", "tau": "tau"})
 
 
-def distribution_and_group(system: System, sym: SymmetryTest, N: sp.Matrix, si, ri) -> tuple[Step, Step]:
+def distribution_and_group(system: System, symmetry: SymmetryTest, N: sp.Matrix, si, ri) -> tuple[Step, Step]:
     """Steps 2–3 (§3.2.2, eqs. 3.3–3.8, 3.62–3.68, Table 3.1): D_q = null ω and the chosen
     full symmetry group with its Lie algebra element ξ (N, no spurious factor in s)."""
-    n, cand = system.n, sym.chosen
+    n, chosen = system.n, symmetry.chosen
     xi_Q = sp.zeros(n, N.shape[1])
     for a, i in enumerate(si):
         xi_Q[i, :] = N[a, :]
     names = system.coordinates
-    s2 = Step(2, "Constraint distribution D_q = null ω(q)", "§3.2.2, eqs. 3.3–3.4, 3.62–3.64",
-              {"D": sym.distribution},
-              "Basis vectors are k×k minors of ω, so they vanish only where rank ω < k.",
-              labels={"D": "D_q (columns)"})
-    s3 = Step(3, "Full symmetry group", "§3.2.2, Table 3.1, eqs. 3.5–3.8, 3.65–3.68", {
-        "table": sym, "s": ", ".join(cand.fiber), "r": ", ".join(names[i] for i in ri),
-        "G": cand.group, "xi_Q": xi_Q, "xi": N, "chosen_by": sym.chosen_by},
+    step2 = Step(2, "Constraint distribution D_q = null ω(q)", "§3.2.2, eqs. 3.3–3.4, 3.62–3.64",
+                 {"D": symmetry.distribution},
+                 "Basis vectors are k×k minors of ω, so they vanish only where rank ω < k.",
+                 labels={"D": "D_q (columns)"})
+    step3 = Step(3, "Full symmetry group", "§3.2.2, Table 3.1, eqs. 3.5–3.8, 3.65–3.68", {
+        "table": symmetry, "s": ", ".join(chosen.fiber), "r": ", ".join(names[i] for i in ri),
+        "G": chosen.group, "xi_Q": xi_Q, "xi": N, "chosen_by": symmetry.chosen_by},
         "Candidates: every set of fibre coordinates, T_q Orb = their span; S_q = D_q ∩ T_q Orb; chosen "
         "by the selection rule of docs/reduction.md.",
         labels={"s": "fibre coordinates (step.s)", "r": "shape coordinates (step.r)", "xi_Q": "xi_Q^q (columns)",
                 "xi": "xi (Lie algebra element)", "chosen_by": "chosen by"})
-    return s2, s3
+    return step2, step3
 
 
 def body_omega(W: sp.Matrix, g: sp.Matrix, si) -> sp.Matrix:
@@ -205,12 +205,12 @@ def choose_layout(system: System, version: str | None = None, form: str | None =
     """Steps 1–3 and the choices of the reconstruction; returns (layout, [steps 1, 2, 3])."""
     names = system.coordinates
     M = system.mass_matrix()
-    sym = symmetry_test(system, M)
-    fiber = sym.chosen.fiber
+    symmetry = symmetry_test(system, M)
+    fiber = symmetry.chosen.fiber
     si = tuple(names.index(c) for c in fiber)
     ri = tuple(i for i in range(system.n) if i not in si)
-    N = strip_factors(sym.chosen.xi, [system.q[i] for i in si])
-    steps = [set_up(system, M), *distribution_and_group(system, sym, N, si, ri)]
+    N = strip_factors(symmetry.chosen.xi, [system.q[i] for i in si])
+    steps = [set_up(system, M), *distribution_and_group(system, symmetry, N, si, ri)]
     if version is None:
         pf = system.planar_frame
         version = "B" if pf is not None and pf[0] in fiber and pf[1] in fiber else "A"
@@ -226,5 +226,5 @@ def choose_layout(system: System, version: str | None = None, form: str | None =
     return Layout(system=system, version=version, fiber=fiber, shape=tuple(names[i] for i in ri),
                   si=si, ri=ri, pivots=pivots, free=free, N=N, g=g, ginv=ginv,
                   M=M, V=system.potential(), W=W, Wb=Wb, form=form,
-                  symmetry=sym), steps
+                  symmetry=symmetry), steps
 

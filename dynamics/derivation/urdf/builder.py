@@ -125,38 +125,38 @@ def _joint_problems(robot, spec, problems):
             return False
         return True
 
-    for name in spec["joints"]:
+    for name in spec.joints:
         if check(name, "joints") and joints[name].mimic:
             problems.append(f"[system].joints: joint {name!r} mimics {joints[name].mimic[0]!r}; keep that one")
-    for name, value in spec["locked"].items():
+    for name, value in spec.locked.items():
         if not check(name, "locked"):
             continue
         joint = joints[name]
-        if name in spec["joints"]:
+        if name in spec.joints:
             problems.append(f"[system].locked: joint {name!r} is also a coordinate")
         elif joint.type != "continuous" and joint.lower is not None and joint.upper is not None \
                 and not joint.lower <= value <= joint.upper:
             problems.append(f"[system].locked.{name} = {value:g} is outside the joint's limits "
                             f"[{joint.lower:g}, {joint.upper:g}]")
     for key in ("rolling", "skates"):
-        for name in spec[key]:
+        for name in spec.wheels(key):
             if check(name, key) and joints[name].type == "prismatic":
                 problems.append(f"[system].{key}: joint {name!r} is prismatic; a wheel turns about its axle")
-    for name in spec["rolling"]:
-        if name in joints and name not in spec["joints"]:
+    for name in spec.rolling:
+        if name in joints and name not in spec.joints:
             problems.append(f"[system].rolling: wheel {name!r} must be a coordinate (list it in joints)")
-    for name in set(spec["rolling"]) & set(spec["skates"]):
+    for name in set(spec.rolling) & set(spec.skates):
         problems.append(f"[system]: joint {name!r} is both rolling and a skate")
-    for name in spec["radius"]:
-        if name not in spec["rolling"]:
+    for name in spec.radius:
+        if name not in spec.rolling:
             problems.append(f"[system].radius: {name!r} is not a rolling wheel")
-    for name, alias in spec["names"].items():
-        if name not in spec["joints"]:
+    for name, alias in spec.names.items():
+        if name not in spec.joints:
             problems.append(f"[system].names: {name!r} is not a joint kept as a coordinate")
         if not isinstance(alias, str) or not alias.isidentifier():
             problems.append(f"[system].names.{name} must be an identifier, got {alias!r}")
-    for name, symbol in spec["inputs"].items():
-        if name not in spec["joints"]:
+    for name, symbol in spec.inputs.items():
+        if name not in spec.joints:
             problems.append(f"[system].inputs: {name!r} is not a joint kept as a coordinate")
         if not isinstance(symbol, str) or not symbol.isidentifier():
             problems.append(f"[system].inputs.{name} must be the input's name, got {symbol!r}")
@@ -182,17 +182,36 @@ def wheel_radius(robot, joint, given, problems):
     return radius
 
 
-def _spec(table, problems) -> dict:
-    return {"joints": _names(table, "joints", problems), "locked": _numbers(table, "locked", problems),
-            "rolling": _names(table, "rolling", problems), "skates": _names(table, "skates", problems),
-            "radius": _numbers(table, "radius", problems),
-            "inputs": _mapping(table, "inputs", problems, "input name"),
-            "names": _mapping(table, "names", problems, "coordinate name")}
+@dataclass(frozen=True)
+class _Spec:
+    """The URDF keys of a scene's ``[system]`` table: the joints kept as coordinates, the locked
+    joints (name → value), the rolling wheels and skates, the given wheel radii, the inputs
+    (joint → input name) and the coordinate names (joint → name)."""
+
+    joints: list
+    locked: dict
+    rolling: list
+    skates: list
+    radius: dict
+    inputs: dict
+    names: dict
+
+    def wheels(self, key: str) -> list:
+        """The joints listed under ``key`` ("rolling" or "skates")."""
+        return self.rolling if key == "rolling" else self.skates
+
+
+def _spec(table, problems) -> _Spec:
+    return _Spec(joints=_names(table, "joints", problems), locked=_numbers(table, "locked", problems),
+                 rolling=_names(table, "rolling", problems), skates=_names(table, "skates", problems),
+                 radius=_numbers(table, "radius", problems),
+                 inputs=_mapping(table, "inputs", problems, "input name"),
+                 names=_mapping(table, "names", problems, "coordinate name"))
 
 
 def coordinate_name(spec, joint: str) -> str:
     """The coordinate of a joint: its ``names = {...}`` entry, else the joint's own name."""
-    return spec["names"].get(joint, joint)
+    return spec.names.get(joint, joint)
 
 
 def urdf_system(table: dict, base_dir: Path, source: str = "<scene>") -> UrdfSystem:
@@ -245,10 +264,10 @@ def _lagrangian(bodies, kin, q, q_dot, gravity):
 
 
 def _build(robot, root, spec, table, source) -> UrdfSystem:
-    names = list(BASE_COORDINATES) + [coordinate_name(spec, j) for j in spec["joints"]]
+    names = list(BASE_COORDINATES) + [coordinate_name(spec, j) for j in spec.joints]
     q = [sp.Symbol(n, real=True) for n in names]
     q_dot = [sp.Symbol(f"{n}_dot", real=True) for n in names]
-    bodies = build_bodies(robot, root, {name: i for i, name in enumerate(spec["joints"])}, spec["locked"])
+    bodies = build_bodies(robot, root, {name: i for i, name in enumerate(spec.joints)}, spec.locked)
     kin = energy.body_kinematics(bodies, q[3:])
     problems: list = []
     rows = _wheel_rows(robot, bodies, kin, spec, q, problems)
@@ -259,10 +278,10 @@ def _build(robot, root, spec, table, source) -> UrdfSystem:
     kept = wheels.independent_rows(exprs, (q[2:], q_dot)) if exprs else []
     notes = tuple(f"constraint {i + 1} of the wheels dropped: a combination of the others" for i in
                   range(len(exprs)) if i not in kept)
-    forces = {coordinate_name(spec, j): sp.Symbol(symbol, real=True) for j, symbol in spec["inputs"].items()}
+    forces = {coordinate_name(spec, j): sp.Symbol(symbol, real=True) for j, symbol in spec.inputs.items()}
     for name, value in table.get("forces", {}).items():
         forces[name] = value if name not in forces else f"{forces[name]} + ({value})"
-    declared = list(spec["inputs"].values()) if spec["inputs"] or "forces" not in table else None
+    declared = list(spec.inputs.values()) if spec.inputs or "forces" not in table else None
     from ..system import System
     try:
         system = System(coordinates=names, lagrangian=L, constraints=[exprs[i] for i in kept], forces=forces,
@@ -280,10 +299,10 @@ def _wheel_rows(robot, bodies, kin, spec, q, problems) -> list:
     samples = np.random.default_rng(5).uniform(-1.2, 1.2, (4, len(q) - 3))
     rows = []
     for key in ("rolling", "skates"):
-        for name in spec[key]:
+        for name in spec.wheels(key):
             joint = robot.joints[name]
             index, rotation, translation = wheels.wheel_frame(bodies, joint.child)
-            radius = wheel_radius(robot, joint, spec["radius"], problems) if key == "rolling" else None
+            radius = wheel_radius(robot, joint, spec.radius, problems) if key == "rolling" else None
             if key == "rolling" and radius is None:
                 continue
             tilt = wheels.axle_tilt(kin[index], rotation, joint.axis, q[3:], samples)
@@ -304,7 +323,7 @@ def _wheel_rows(robot, bodies, kin, spec, q, problems) -> list:
 
 def _effort_bounds(robot, spec) -> dict:
     out = {}
-    for name, symbol in spec["inputs"].items():
+    for name, symbol in spec.inputs.items():
         effort = robot.joints[name].effort
         if effort is not None and effort > 0:
             out[symbol] = (-effort, effort)
@@ -313,7 +332,7 @@ def _effort_bounds(robot, spec) -> dict:
 
 def _limit_bounds(robot, spec) -> dict:
     out = {}
-    for joint_name in spec["joints"]:
+    for joint_name in spec.joints:
         joint, name = robot.joints[joint_name], coordinate_name(spec, joint_name)
         if joint.type != "continuous" and joint.lower is not None and joint.upper is not None \
                 and joint.lower < joint.upper:

@@ -22,6 +22,7 @@ from xml.parsers import expat
 import numpy as np
 
 from ...errors import ModelError
+from ..expressions import finite_or_nan
 
 #: joint types of the URDF specification
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
@@ -132,11 +133,8 @@ def _number(element, key, where, problems, default=None):
     text = element.get(key) if element is not None else None
     if text is None:
         return default
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not math.isfinite(value):
+    value = finite_or_nan(text)
+    if math.isnan(value):
         problems.append(f"{where}: {key} = {text!r} is not a finite number")
         return default
     return value
@@ -220,31 +218,34 @@ def _joint(element, where, problems):
                  velocity=_number(limit, "velocity", f"{where} <limit>", problems), mimic=mimic)
 
 
+def _link(element, where, problems) -> Link:
+    return Link(element.get("name"), _inertial(element, where, problems), _cylinders(element, where, problems))
+
+
+def _named_elements(root, tag, read, problems) -> dict:
+    """The ``<tag>`` elements of ``root`` by name, each read by ``read(element, where,
+    problems)``; a missing or repeated name is a problem."""
+    out = {}
+    for element in root.findall(tag):
+        name = element.get("name")
+        where = f"{tag} {name!r}"
+        if not name:
+            problems.append(f"a <{tag}> has no name")
+        elif name in out:
+            problems.append(f"{where} is defined twice")
+        else:
+            out[name] = read(element, where, problems)
+    return out
+
+
 def read_urdf(text: str, source: str = "<urdf>") -> Robot:
     """The links and joints of a URDF document; every problem in one :class:`ModelError`."""
     root = parse_xml(text, source)
     problems: list = []
     if root.tag != "robot":
         raise ModelError([f"{source}: the root element is <{root.tag}>, not <robot>"], title="invalid URDF")
-    links, joints = {}, {}
-    for element in root.findall("link"):
-        name = element.get("name")
-        where = f"link {name!r}"
-        if not name:
-            problems.append("a <link> has no name")
-        elif name in links:
-            problems.append(f"{where} is defined twice")
-        else:
-            links[name] = Link(name, _inertial(element, where, problems), _cylinders(element, where, problems))
-    for element in root.findall("joint"):
-        name = element.get("name")
-        where = f"joint {name!r}"
-        if not name:
-            problems.append("a <joint> has no name")
-        elif name in joints:
-            problems.append(f"{where} is defined twice")
-        else:
-            joints[name] = _joint(element, where, problems)
+    links = _named_elements(root, "link", _link, problems)
+    joints = _named_elements(root, "joint", _joint, problems)
     if not links:
         problems.append(f"{source}: no <link>")
     if problems:

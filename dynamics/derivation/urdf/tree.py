@@ -152,12 +152,15 @@ def build_bodies(robot: Robot, root: str, coordinates: dict, locked: dict) -> li
     add_body(link=root, joint=None, parent=None, rotation=np.eye(3), translation=np.zeros(3),
              coordinate=None, multiplier=1.0, offset=0.0)
     visit(root, 0, np.eye(3), np.zeros(3))
-    return [Body(**placement, **_mass_properties(body_frames, robot), frames=body_frames)
-            for placement, body_frames in zip(placed, frames)]
+    bodies = []
+    for placement, body_frames in zip(placed, frames):
+        mass, com, inertia = _mass_properties(body_frames, robot)
+        bodies.append(Body(**placement, mass=mass, com=com, inertia=inertia, frames=body_frames))
+    return bodies
 
 
-def _mass_properties(frames: dict, robot: Robot) -> dict:
-    """Mass, centre of mass and inertia (about it) of the links in ``frames``, in the body frame
+def _mass_properties(frames: dict, robot: Robot) -> tuple:
+    """(mass, centre of mass, inertia about it) of the links in ``frames``, in the body frame
     (parallel-axis theorem)."""
     parts = []
     for link_name, (rotation, translation) in frames.items():
@@ -172,4 +175,4 @@ def _mass_properties(frames: dict, robot: Robot) -> dict:
     for m, c, tensor in parts:
         d = c - com
         inertia += tensor + m * (d @ d * np.eye(3) - np.outer(d, d))
-    return {"mass": mass, "com": com, "inertia": inertia}
+    return mass, com, inertia
