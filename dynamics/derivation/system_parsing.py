@@ -1,0 +1,379 @@
+"""Reading a system statement: names, expressions and the structural checks of a
+:class:`~.system.System` (thesis §3: q, L(q, q̇), ω(q)q̇ = 0, τ and the parameters).
+
+:func:`parse_system` turns the fields a user wrote (strings, numbers or sympy expressions)
+into a frozen :class:`ParsedSystem` — the real symbols q, q̇, the parameters and inputs, L, the
+constraint expressions and τ — and lists every problem it finds, in one pass:
+
+1. the names (:func:`_declare`): coordinates, velocities ``<q>_dot``, parameters, inputs and
+   ``t`` distinct valid identifiers; the parameter values finite numbers;
+2. the expressions (:func:`_expressions`): L, the constraints and the forces parsed by
+   :mod:`.expressions` (never evaluated as code); every symbol known; the inputs found in the
+   forces when not declared;
+3. the structure (:func:`_check_structure`): L = ½q̇ᵀM(q)q̇ − V(q) (eq. 2.6) and smooth, each
+   constraint linear in q̇ with no velocity-free term (Pfaffian, eq. 2.11);
+4. the frames (:func:`_frames`): the fiber coordinates and the planar frame (x, y, heading).
+
+A problem in one field never hides one in another; a check that needs an earlier result runs
+on whatever is valid. The numeric checks of the parameter values (a positive-definite M(q),
+independent constraints) are :mod:`.parameter_checks`.
+"""
+from __future__ import annotations
+
+import keyword
+import math
+from dataclasses import dataclass
+from typing import Mapping
+
+import sympy as sp
+
+from nhgait.dynamics.suggestions import known_names
+
+from .expressions import CONSTANTS, FUNCTIONS, expression_problems, number_problems
+
+__all__ = ["TIME", "ParsedSystem", "parse_system", "parse_field", "velocity_name", "name_of", "names_of",
+           "from_sympy", "NON_SMOOTH"]
+
+#: the time symbol t of forces and input laws
+TIME = sp.Symbol("t", real=True)
+
+#: functions that make L or ω non-smooth: their derivatives (DiracDelta) are not functions
+NON_SMOOTH = (sp.Heaviside, sp.sign, sp.Min, sp.Max)
+
+
+def velocity_name(coordinate: str) -> str:
+    """Name of the velocity symbol of ``coordinate`` (``x`` → ``x_dot``)."""
+    return f"{coordinate}_dot"
+
+
+def name_of(obj) -> str:
+    if isinstance(obj, str):
+        return obj.strip()
+    if isinstance(obj, sp.Symbol):
+        return obj.name
+    if isinstance(obj, sp.Expr) and obj.is_Function and not obj.args[1:] and obj.args == (TIME,):
+        return type(obj).__name__  # dynamicsymbols('x') -> 'x'
+    raise TypeError(f"expected a name or a sympy Symbol, got {type(obj).__name__} {obj!r:.60}")
+
+
+def names_of(value, field_name: str, problems: list, *, required: bool = False) -> list:
+    """A list of names from a sequence of str/Symbol; a string where a list belongs, or a
+    wrong element type, is one problem for the whole field."""
+    if value is None:
+        return []
+    if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
+        kind = "a string" if isinstance(value, str) else type(value).__name__
+        hint = f' (write {field_name} = ["{value.split()[0]}", ...])' if isinstance(value, str) and value.split() else ""
+        problems.append(f"{field_name}: expected a list of names, got {kind}{hint}")
+        return []
+    out = []
+    for item in value:
+        try:
+            out.append(name_of(item))
+        except TypeError as exc:
+            problems.append(f"{field_name}: {exc}")
+    if required and not out and value is not None:
+        problems.append(f"{field_name}: at least one is required")
+    return out
+
+
+def from_sympy(expr, names: dict, where: str, problems: list):
+    """A sympy expression given through the API: dynamicsymbols x(t) → x, x(t)' → x_dot and
+    every symbol mapped onto the system's real symbol of the same name."""
+    reps = {}
+    for d in expr.atoms(sp.Derivative):
+        if d.expr.is_Function and len(d.variables) == 1 and d.variables[0].name == "t":
+            nm = velocity_name(type(d.expr).__name__)
+            reps[d] = names.get(nm, sp.Symbol(nm, real=True))
+    expr = expr.xreplace(reps) if reps else expr
+    reps = {f: names[type(f).__name__] for f in expr.atoms(sp.Function)
+            if len(f.args) == 1 and isinstance(f.args[0], sp.Symbol) and f.args[0].name == "t"
+            and type(f).__name__ in names}
+    expr = expr.xreplace(reps) if reps else expr
+    reps = {s: names[s.name] for s in expr.free_symbols if s.name in names and s != names[s.name]}
+    expr = expr.xreplace(reps) if reps else expr
+    if expr.has(sp.I, sp.zoo, sp.nan, sp.oo):
+        problems.append(f"{where}: {expr} is not a finite real expression")
+        return None
+    return expr
+
+
+def parse_field(value, names: dict, where: str, problems: list):
+    """One field's expression: a string (parsed by :mod:`.expressions`, never evaluated), a
+    number or a sympy expression. Unknown identifiers become plain symbols, reported by the
+    caller with a hint; problems are appended to ``problems``, None is returned."""
+    if isinstance(value, bool):
+        problems.append(f"{where}: expected an expression, got {value!r}")
+        return None
+    if isinstance(value, (int, float)):
+        if not math.isfinite(value):
+            problems.append(f"{where}: {value!r} is not finite")
+            return None
+        return sp.Integer(value) if isinstance(value, int) else sp.Float(repr(value))
+    if isinstance(value, str):
+        expr = expression_problems(value, names, where, problems, allow_unknown=True)
+        if expr is not None and isinstance(expr, sp.Equality):  # pragma: no cover - ast has no '='
+            expr = expr.lhs - expr.rhs
+        return expr
+    if isinstance(value, sp.Equality):
+        value = value.lhs - value.rhs
+    if isinstance(value, sp.Expr):
+        return from_sympy(value, names, where, problems)
+    problems.append(f"{where}: expected an expression string or a sympy expression, got "
+                    f"{type(value).__name__}")
+    return None
+
+
+@dataclass(frozen=True)
+class ParsedSystem:
+    """A system statement read: the normalised fields of :class:`~.system.System` and every
+    problem found.
+
+    Attributes
+    ----------
+    coordinates, parameters, inputs : the names (a tuple, a dict name → value, a tuple).
+    q, q_dot : (n,) real symbols of the coordinates and their velocities ``<q>_dot``.
+    L : the Lagrangian (None when it could not be read).
+    constraint_exprs : (k,) the constraints that could be read, each meaning ``expr = 0``.
+    tau : (n,) the generalized forces (0 for a coordinate without one).
+    param_symbols, param_values : the parameters' symbols and default values (NaN when invalid).
+    input_symbols : the input symbols of the forces.
+    fiber : the fiber coordinates given, or None (chosen by the symmetry test).
+    planar_frame : (x, y, heading) names or None.
+    problems : every problem found, as sentences.
+    complete : every field read and every structural check passed (the numeric checks of the
+        parameters can run).
+    """
+
+    coordinates: tuple
+    parameters: dict
+    inputs: tuple
+    q: tuple
+    q_dot: tuple
+    L: object
+    constraint_exprs: tuple
+    tau: tuple
+    param_symbols: tuple
+    param_values: tuple
+    input_symbols: tuple
+    fiber: tuple | None
+    planar_frame: tuple | None
+    problems: tuple
+    complete: bool
+
+
+@dataclass(frozen=True)
+class _Declared:
+    """Step 1's names: coordinates, parameters (with values, NaN when invalid), the declared
+    inputs (None: found in the forces) and whether every name is valid."""
+
+    coordinates: list
+    parameters: list
+    values: list
+    inputs: list | None
+    names_ok: bool
+
+
+@dataclass(frozen=True)
+class _Symbols:
+    """The real symbols of the declared names; ``names`` maps a name (and ``t``) to its
+    symbol, ``known`` is the set of q, q̇ and the parameters."""
+
+    q: tuple
+    q_dot: tuple
+    params: tuple
+    names: dict
+    known: frozenset
+
+
+def parse_system(statement) -> ParsedSystem:
+    """Read a system statement (any object with the fields of :class:`~.system.System`:
+    coordinates, lagrangian, constraints, forces, parameters, inputs, fiber, planar_frame)."""
+    problems: list[str] = []
+    declared = _declare(statement, problems)
+    symbols = _symbols(declared)
+    L, cons, tau, inputs = _expressions(statement, declared, symbols, problems)
+    complete = declared.names_ok and L is not None and None not in cons and not problems
+    if declared.names_ok:
+        _check_structure(L, cons, symbols.q_dot, problems)
+    fiber, planar_frame = _frames(statement, declared.coordinates, problems)
+    return ParsedSystem(
+        coordinates=tuple(declared.coordinates), parameters=dict(zip(declared.parameters, declared.values)),
+        inputs=tuple(u.name for u in inputs), q=symbols.q, q_dot=symbols.q_dot, L=L,
+        constraint_exprs=tuple(c for c in cons if c is not None), tau=tuple(tau),
+        param_symbols=symbols.params, param_values=tuple(declared.values), input_symbols=tuple(inputs),
+        fiber=fiber, planar_frame=planar_frame, problems=tuple(problems), complete=complete)
+
+
+def _declare(statement, problems: list) -> _Declared:
+    """Step 1: names of coordinates, parameters and inputs; parameter values (NaN when
+    invalid); whether the names are valid."""
+    coord_names = names_of(statement.coordinates, "coordinates", problems)
+    if not coord_names and not any(p.startswith("coordinates") for p in problems):
+        problems.append("coordinates: at least one coordinate is required")
+    params = statement.parameters if statement.parameters is not None else {}
+    if not isinstance(params, Mapping):
+        problems.append(f"parameters: expected a table of name = value, got {type(params).__name__}")
+        params = {}
+    param_names = names_of(list(params), "parameters", problems)
+    declared = None if statement.inputs is None else names_of(statement.inputs, "inputs", problems)
+    all_names = coord_names + [velocity_name(c) for c in coord_names] + param_names + (declared or [])
+    seen = set()
+    for nm in all_names + ["t"]:
+        if not nm.isidentifier() or keyword.iskeyword(nm) or nm.startswith("_"):
+            problems.append(f"name {nm!r} is not a valid identifier (letters, digits and _; "
+                            "not starting with _ or a digit)")
+        elif nm in FUNCTIONS or nm in CONSTANTS:
+            problems.append(f"name {nm!r} clashes with the function/constant of that name")
+        elif nm in seen:
+            problems.append(f"name {nm!r} is used twice (coordinates, velocities, parameters,"
+                            " inputs and t must be distinct)")
+        seen.add(nm)
+    names_ok = not problems
+    values = [number_problems(v, f"parameter {nm!r}", problems) for nm, v in zip(param_names, params.values())]
+    return _Declared(coord_names, param_names, values, declared, names_ok)
+
+
+def _symbols(declared: _Declared) -> _Symbols:
+    """The real symbols of step 1's names. Symbol checks use only valid names (no cascade of
+    "unknown symbol" after a bad coordinates field)."""
+    q = tuple(sp.Symbol(c, real=True) for c in declared.coordinates)
+    q_dot = tuple(sp.Symbol(velocity_name(c), real=True) for c in declared.coordinates)
+    params = tuple(sp.Symbol(p, real=True) for p in declared.parameters)
+    names = {s.name: s for s in q + q_dot + params}
+    names["t"] = TIME
+    for u in declared.inputs or ():
+        names[u] = sp.Symbol(u, real=True)
+    return _Symbols(q, q_dot, params, names, frozenset(q + q_dot + params))
+
+
+def _expressions(statement, declared: _Declared, symbols: _Symbols, problems: list) -> tuple:
+    """Step 2: (L, constraints, τ, inputs) parsed; the symbols checked and the inputs found or
+    checked when the names are valid."""
+    names = symbols.names
+    L = parse_field(statement.lagrangian, names, "lagrangian", problems)
+    raw = statement.constraints if statement.constraints is not None else ()
+    if isinstance(raw, (str, sp.Expr)):
+        problems.append("constraints: expected a list of expressions, got a single "
+                        f"{'string' if isinstance(raw, str) else 'expression'} (write constraints = [\"...\"])")
+        raw = ()
+    cons = [parse_field(c, names, f"constraint {i + 1}", problems) for i, c in enumerate(raw)]
+    tau = _forces(statement, declared, names, problems)
+    if not declared.names_ok:
+        return L, cons, tau, ()
+    known = symbols.known
+    if L is not None:
+        _check_symbols(L, "the Lagrangian", known, names, problems)
+    for i, c in enumerate(cons):
+        if c is not None:
+            _check_symbols(c, f"constraint {i + 1}", known, names, problems)
+    if declared.inputs is None:
+        found = []
+        for e in tau:
+            for s in sorted(e.free_symbols, key=lambda s: s.name):
+                if s not in known and s != TIME and s not in found:
+                    found.append(s)
+        inputs = tuple(sp.Symbol(s.name, real=True) for s in found)   # API symbols may lack real=True
+        return L, cons, [e.xreplace(dict(zip(found, inputs))) for e in tau], inputs
+    inputs = tuple(names[u] for u in declared.inputs)
+    for cname, e in zip(declared.coordinates, tau):
+        _check_symbols(e, f"the force on {cname}", known | set(inputs) | {TIME}, names, problems)
+    return L, cons, tau, inputs
+
+
+def _forces(statement, declared: _Declared, names: dict, problems: list) -> list:
+    """τ_i per coordinate from the ``forces`` table (0 where none is given)."""
+    coord_names = declared.coordinates
+    tau = [sp.Integer(0)] * len(coord_names)
+    forces = statement.forces if statement.forces is not None else {}
+    if not isinstance(forces, Mapping):
+        problems.append(f"forces: expected a table of coordinate = expression, got {type(forces).__name__}")
+        forces = {}
+    for key, val in forces.items():
+        try:
+            kname = name_of(key)
+        except TypeError as exc:
+            problems.append(f"forces: {exc}")
+            continue
+        if kname not in coord_names:
+            if declared.names_ok:
+                problems.append(f"forces: {kname!r} is not a coordinate"
+                                f"{known_names(kname, coord_names, label='coordinates')}")
+            continue
+        e = parse_field(val, names, f"force on {kname}", problems)
+        if e is not None:
+            tau[coord_names.index(kname)] = e
+    return tau
+
+
+def _check_structure(L, cons, qd, problems: list) -> None:
+    """Step 3: a natural mechanical Lagrangian, smooth; constraints linear in the velocities."""
+    zero_v = {v: 0 for v in qd}
+    for i, c in enumerate(cons):
+        if c is None:
+            continue
+        if c.has(*NON_SMOOTH):
+            problems.append(f"constraint {i + 1} uses a discontinuous function (Heaviside, sign, "
+                            "Min, Max): constraints must be smooth")
+        elif any(sp.diff(c, a, b) != 0 for a in qd for b in qd):
+            problems.append(f"constraint {i + 1} ({c} = 0) is not linear in the velocities")
+        elif sp.expand(c.xreplace(zero_v)) != 0:
+            problems.append(f"constraint {i + 1} ({c} = 0) has a term without velocities "
+                            "(only Pfaffian constraints ω(q)q̇ = 0 are supported)")
+        elif all(sp.diff(c, v) == 0 for v in qd):
+            problems.append(f"constraint {i + 1} ({c} = 0) contains no velocity")
+    if L is None:
+        return
+    if L.has(*NON_SMOOTH):
+        problems.append("the Lagrangian uses a discontinuous function (Heaviside, sign, Min, Max): "
+                        "L must be twice differentiable (use such functions in forces)")
+        return
+    grad = [sp.diff(L, v) for v in qd]
+    if any(sp.diff(g, v) != 0 for g in [sp.diff(gg, w) for gg in grad for w in qd] for v in qd):
+        problems.append("the Lagrangian is not quadratic in the velocities (need L = ½q̇ᵀMq̇ − V)")
+    elif any(sp.expand(g.xreplace(zero_v)) != 0 for g in grad):
+        problems.append("the Lagrangian has terms linear in the velocities (gyroscopic terms "
+                        "are not supported; need L = ½q̇ᵀM(q)q̇ − V(q))")
+
+
+def _frames(statement, coord_names: list, problems: list) -> tuple:
+    """Step 4: (fiber, planar_frame) checked and normalised (``"auto"``: x, y, theta when the
+    system has coordinates of those names)."""
+    fiber = statement.fiber
+    if fiber is not None:
+        fiber = tuple(names_of(fiber, "fiber", problems))
+        bad = [f for f in fiber if f not in coord_names]
+        if bad:
+            problems.append(f"fiber: {', '.join(bad)} not coordinates")
+        if len(set(fiber)) != len(fiber):
+            problems.append("fiber: repeated coordinate")
+    frame = statement.planar_frame
+    if frame == "auto":
+        frame = ("x", "y", "theta") if {"x", "y", "theta"} <= set(coord_names) else None
+    elif frame is not None:
+        frame = tuple(names_of(frame, "planar_frame", problems))
+        if len(frame) != 3 or any(c not in coord_names for c in frame):
+            problems.append(f"planar_frame: need three coordinate names (x, y, heading), got {frame}")
+    return fiber, frame
+
+
+def _check_symbols(expr, where: str, known, names: dict, problems: list) -> None:
+    """Every symbol of ``expr`` known (with the close names as a hint); no time dependence, no
+    undefined function."""
+    for s in sorted(expr.free_symbols, key=lambda s: s.name):
+        if s in known:
+            continue
+        if s == TIME:
+            problems.append(f"{where} depends explicitly on time t (only autonomous "
+                            "Lagrangians and constraints are supported)")
+            continue
+        hint = ""
+        if s.name.endswith("_dot"):
+            hint = f" (no coordinate named {s.name[:-4]!r})"
+        elif velocity_name(s.name) in names:
+            hint = ""
+        problems.append(f"unknown symbol {s.name!r} in {where}: not a coordinate, velocity"
+                        f" or parameter{hint}{known_names(s.name, [n for n, k in names.items() if k in known and k != TIME], sep='; ')}")
+    for f in expr.atoms(sp.Function):
+        if isinstance(f, sp.core.function.AppliedUndef):
+            problems.append(f"unknown function {f.func.__name__!r} in {where}")
