@@ -23,9 +23,9 @@ __all__ = ["add_bench_parser", "cmd_bench_precision"]
 
 
 def cmd_bench_precision(args) -> int:
-    import numpy as np
-
-    from nhgait.dynamics import derive, load_scene, simulate
+    """The work-precision report of one scene: the reference run, then every formulation ×
+    method × tolerance, written as CSV, PNG and Markdown into ``--out``."""
+    from nhgait.dynamics import derive, load_scene
     from nhgait.dynamics.errors import ModelError
     from nhgait.gaits.bench import work_precision as wp
     scene = load_scene(args.scene)
@@ -34,31 +34,15 @@ def cmd_bench_precision(args) -> int:
         raise ModelError([f"{scene.source} has no [simulation] table"], title="cannot benchmark")
     tolerances = _floats(args.tols, "--tols")
     methods = [m for m in args.methods.split(",") if m]
-    formulations = [f for f in args.formulations.split(",") if f]
-    bad = [f for f in formulations if f not in ("reduced", "lagrange", "hamilton")]
-    if bad:
-        raise ModelError([f"unknown formulation(s) {bad}"], title="invalid request")
-    models = {f: derive(scene.system, f) for f in set(formulations) | {"lagrange", "reduced"}}
-    span = (spec.t0, spec.t_final)
+    formulations = _formulations(args.formulations)
     if spec.t0 != 0.0:
         raise ModelError(["bench precision needs [simulation].t0 = 0"], title="invalid request")
-    common = dict(controller=spec.controller, params=spec.parameters or None, t_eval=list(span))
+    models = {f: derive(scene.system, f) for f in set(formulations) | {"lagrange", "reduced"}}
     stream = None if args.quiet else sys.stderr
-    if stream is not None:
-        print("reference runs at rtol 1e-13 (Lagrangian DAE + DOP853, reduced ODE + compiled DOP853) …",
-              file=stream, flush=True)
-    ref = simulate(models["lagrange"], span, spec.q0, spec.qdot0, method="DOP853", rtol=1e-13,
-                   atol=1e-15, **common)
-    check = simulate(models["reduced"], span, spec.q0, spec.qdot0, method="compiled", rtol=1e-13,
-                     atol=1e-15, **common)
-    if not (ref.success and check.success):
-        raise ModelError([f"the reference run failed: {ref.message if not ref.success else check.message}"],
-                         title="cannot benchmark")
-    spread = float(np.max(np.abs(np.r_[ref.q[-1] - check.q[-1], ref.qdot[-1] - check.qdot[-1]])))
-    label = "Lagrangian DAE (index 1) + scipy DOP853, rtol 1e-13, atol 1e-15"
+    reference, label, spread = _reference(spec, models, stream)
     print(f"reference: {label}; differs from the reduced ODE + compiled DOP853 (rtol 1e-13) by {spread:.2g}")
     case = wp.Case(name=scene.system.name, models=models, controller=spec.controller, q0=spec.q0,
-                   qdot0=spec.qdot0, t_final=spec.t_final, reference=(ref.q[-1], ref.qdot[-1]),
+                   qdot0=spec.qdot0, t_final=spec.t_final, reference=reference,
                    reference_label=label, params=spec.parameters or None, outputs=spec.outputs,
                    description=f"{scene.system.name}, t ∈ [0, {spec.t_final:.4g}] s")
     setups = wp.default_setups(formulations, methods, idas=not args.no_idas)
@@ -69,21 +53,63 @@ def cmd_bench_precision(args) -> int:
     rows = wp.measure(case, setups, tolerances, repeats=args.repeats,
                       progress=lambda row: countdown.step(_point(row)))
     out = Path(args.out)
+    _write_report(rows, case, f"{label} (spread {spread:.2g})", out)
+    print(f"wrote {out}/precision.csv, precision.png, precision.md ({countdown.total} points in "
+          f"{duration(countdown.elapsed())})")
+    return 0
+
+
+def _formulations(text: str) -> list:
+    """The comma-separated formulations, each one of ``FORMULATIONS``."""
+    from nhgait.dynamics import FORMULATIONS
+    from nhgait.dynamics.errors import ModelError
+    formulations = [f for f in text.split(",") if f]
+    bad = [f for f in formulations if f not in FORMULATIONS]
+    if bad:
+        raise ModelError([f"unknown formulation(s) {bad} (choose from {', '.join(FORMULATIONS)})"],
+                         title="invalid request")
+    return formulations
+
+
+def _reference(spec, models: dict, stream) -> tuple:
+    """((q, q̇) at t_final, its label, its spread): the Lagrangian DAE by scipy DOP853 at rtol
+    1e-13, and the largest difference to the reduced ODE by the compiled DOP853 at the same
+    tolerance — two formulations, two implementations."""
+    import numpy as np
+
+    from nhgait.dynamics import simulate
+    from nhgait.dynamics.errors import ModelError
+    span = (spec.t0, spec.t_final)
+    common = dict(controller=spec.controller, params=spec.parameters or None, t_eval=list(span),
+                  rtol=1e-13, atol=1e-15)
+    if stream is not None:
+        print("reference runs at rtol 1e-13 (Lagrangian DAE + DOP853, reduced ODE + compiled DOP853) …",
+              file=stream, flush=True)
+    ref = simulate(models["lagrange"], span, spec.q0, spec.qdot0, method="DOP853", **common)
+    check = simulate(models["reduced"], span, spec.q0, spec.qdot0, method="compiled", **common)
+    if not (ref.success and check.success):
+        raise ModelError([f"the reference run failed: {ref.message if not ref.success else check.message}"],
+                         title="cannot benchmark")
+    spread = float(np.max(np.abs(np.r_[ref.q[-1] - check.q[-1], ref.qdot[-1] - check.qdot[-1]])))
+    label = "Lagrangian DAE (index 1) + scipy DOP853, rtol 1e-13, atol 1e-15"
+    return (ref.q[-1], ref.qdot[-1]), label, spread
+
+
+def _write_report(rows, case, reference: str, out: Path) -> None:
+    """precision.csv, precision.png (error against wall time, named axes) and precision.md."""
+    from nhgait.gaits.bench import work_precision as wp
     out.mkdir(parents=True, exist_ok=True)
     wp.write_csv(rows, out / "precision.csv")
     import matplotlib
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(8, 6))
-    wp.plot_case(rows, ax, title=f"{case.description}; error against {label}")
+    wp.plot_case(rows, ax, title=f"{case.description}; error against {case.reference_label}")
     fig.tight_layout()
     fig.savefig(out / "precision.png", dpi=110)
     plt.close(fig)
-    (out / "precision.md").write_text(f"{case.description}; reference {label} (spread {spread:.2g})\n\n"
+    (out / "precision.md").write_text(f"{case.description}; reference {reference}\n\n"
                                       + wp.markdown_table(rows) + "\n")
-    print(f"wrote {out}/precision.csv, precision.png, precision.md ({countdown.total} points in "
-          f"{duration(countdown.elapsed())})")
-    return 0
 
 
 def _point(r) -> str:

@@ -25,9 +25,38 @@ COLUMNS = ("q", "qdot", "all", "state", "outputs")
 
 
 def cmd_simulate(args) -> int:
-    import numpy as np
+    """Run the scene's [simulation] (with the command line's overrides), write the CSV and the
+    figures asked for, print a summary; exit status 1 when the run stopped early."""
+    from nhgait.dynamics import load_scene
+    _check_arguments(args)
+    scene = load_scene(args.scene, overrides=args.overrides)
+    model, traj, outputs = _run(args, scene)
+    columns = args.columns or ("outputs" if outputs else "q")
+    if columns == "outputs" and not traj.outputs:
+        from nhgait.dynamics.errors import ModelError
+        raise ModelError(["--columns outputs needs [simulation].outputs in the scene"],
+                         title="invalid request")
+    out = None
+    if args.out is not None:
+        out = Path(args.out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        traj.to_csv(out, columns=columns, units=dict(scene.units or {}))
+    _print_summary(scene, traj)
+    if out is not None:
+        print(f"  wrote {out} (columns: {columns})")
+    if args.plot is not None:
+        from ..trajectory_plots import write_trajectory_figures
+        files = write_trajectory_figures(traj, model, args.plot, units=dict(scene.units or {}),
+                                         drawing=scene.drawing, params=scene.simulation.parameters)
+        print(f"  wrote {', '.join(str(f) for f in files)}")
+    if not traj.success:
+        print(f"simulation stopped: {traj.message}", file=sys.stderr)
+        return 1
+    return 0
 
-    from nhgait.dynamics import derive, load_scene, simulate  # functions via the lazy exports
+
+def _check_arguments(args) -> None:
+    """A known --method and somewhere to write (--out or --plot)."""
     from nhgait.dynamics.errors import ModelError
     from nhgait.dynamics.simulation.driver import METHODS
     if args.method is not None and args.method not in METHODS:
@@ -36,7 +65,14 @@ def cmd_simulate(args) -> int:
                          title="invalid simulation request")
     if args.out is None and args.plot is None:
         raise ModelError(["give --out FILE.csv, --plot DIR or both"], title="invalid simulation request")
-    scene = load_scene(args.scene, overrides=args.overrides)
+
+
+def _run(args, scene) -> tuple:
+    """(model, Trajectory, the outputs asked for) of the scene's [simulation], the command
+    line's options first."""
+    from nhgait.dynamics import derive, simulate  # functions via the lazy exports
+    from nhgait.dynamics.derivation.formulation_protocol import protocol_named
+    from nhgait.dynamics.errors import ModelError
     spec = scene.simulation
     if spec is None:
         raise ModelError([f"{scene.source} has no [simulation] table (q0, qdot0, t_final, samples)"],
@@ -46,22 +82,20 @@ def cmd_simulate(args) -> int:
     rtol = args.rtol if args.rtol is not None else (spec.rtol or 1e-8)
     atol = args.atol if args.atol is not None else (spec.atol or rtol * 1e-2)
     outputs = None if args.all_states else spec.outputs
-    kwargs = {"dae": args.dae} if form != "reduced" else {}
+    kwargs = {"dae": args.dae} if protocol_named(form).dae_options_apply else {}
     traj = simulate(model, (spec.t0, spec.t_final), spec.q0, spec.qdot0, controller=spec.controller,
                     params=spec.parameters or None, method=args.method or spec.method or "DOP853",
                     rtol=rtol, atol=atol, t_eval=spec.t_eval, outputs=outputs,
                     quantities=scene.quantities or None, **kwargs)
+    return model, traj, outputs
+
+
+def _print_summary(scene, traj) -> None:
+    """What ran, how far, at what cost; the end state and the run's own checks."""
+    import numpy as np
     used, total = traj.diagnostics["state_count"]
-    columns = args.columns or ("outputs" if outputs else "q")
-    if columns == "outputs" and not traj.outputs:
-        raise ModelError(["--columns outputs needs [simulation].outputs in the scene"],
-                         title="invalid request")
-    if args.out is not None:
-        out = Path(args.out)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        traj.to_csv(out, columns=columns, units=dict(scene.units or {}))
     status = "" if traj.success else " — STOPPED"
-    print(f"{scene.system.name}: {form} formulation, {traj.method}, {used} of {total} states "
+    print(f"{scene.system.name}: {traj.formulation} formulation, {traj.method}, {used} of {total} states "
           f"integrated ({', '.join(traj.state_names)}), {len(traj.t)} samples to "
           f"t = {traj.t[-1]:.6g} s ({traj.nfev} evaluations, {_timing(traj)}){status}")
     if "fallback" in traj.settings:
@@ -76,17 +110,6 @@ def cmd_simulate(args) -> int:
               f"max |energy balance| = {np.nanmax(np.abs(traj.energy_balance)):.3g}")
     if "recommendation" in traj.diagnostics:
         print(f"  {traj.diagnostics['recommendation']}")
-    if args.out is not None:
-        print(f"  wrote {out} (columns: {columns})")
-    if args.plot is not None:
-        from ..trajectory_plots import write_trajectory_figures
-        files = write_trajectory_figures(traj, model, args.plot, units=dict(scene.units or {}),
-                                         drawing=scene.drawing, params=spec.parameters)
-        print(f"  wrote {', '.join(str(f) for f in files)}")
-    if not traj.success:
-        print(f"simulation stopped: {traj.message}", file=sys.stderr)
-        return 1
-    return 0
 
 
 def _timing(traj) -> str:
