@@ -370,58 +370,20 @@ class OCPSolver:
         """Run the solver from ``guess`` (projected into the bounds); failures are returned as
         ``success=False``, a guess with non-finite dynamics without running the solver."""
         nlp, problem = self.nlp, self.problem
-        states = np.asarray(guess.states, dtype=float)
-        controls = np.asarray(guess.controls, dtype=float)
-        N = problem.intervals
-        problems = []
-        if states.shape != (problem.n_states, N + 1):
-            problems.append(f"guess states have shape {states.shape}, expected {(problem.n_states, N + 1)}")
-        if controls.shape != (problem.n_controls, N):
-            problems.append(f"guess controls have shape {controls.shape}, expected {(problem.n_controls, N)}")
-        if problems:
-            raise ProblemError(problems, title="invalid initial guess")
-        w0 = np.clip(nlp.pack(states, controls, guess.horizon), nlp.lbx, nlp.ubx)
+        w0 = self._start(guess)
         if getattr(self, "_callback", None) is not None:
             self._callback.start()
-        t0 = time.perf_counter()
-        bad = self._non_finite(w0)
-        if bad:
-            out, error = None, RuntimeError(bad)
-        else:
-            try:
-                out = self.solver(x0=w0, lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg)
-                error = None
-            except RuntimeError as exc:  # evaluation errors (NaN in the oracle) and the like
-                out, error = None, exc
-        wall = time.perf_counter() - t0
-        stats = {} if bad else self.solver.stats()     # a refused guess never ran the solver
-        if out is not None:
-            w = np.asarray(out["x"]).ravel()
-            objective = float(out["f"])
-            g = np.asarray(out["g"]).ravel()
-            viol = float(max(np.max(np.maximum(nlp.lbg - g, 0), initial=0.0),
-                             np.max(np.maximum(g - nlp.ubg, 0), initial=0.0),
-                             np.max(np.maximum(nlp.lbx - w, 0), initial=0.0),
-                             np.max(np.maximum(w - nlp.ubx, 0), initial=0.0)))
-            violated = nlp.violations(g, w, tol=max(1e-6, 10 * self.options.tol))
-        else:
-            w, objective, viol, violated = w0, float("nan"), float("nan"), {}
+        out, error, refused, wall = self._run(w0)
+        stats = {} if refused else self.solver.stats()     # a refused guess never ran the solver
+        w, objective, viol, violated = self._outcome(out, w0)
         Z, U, T = nlp.unpack(w)
         fn_time = sum(float(v) for k, v in stats.items() if k.startswith("t_wall_nlp_"))
         total = float(stats.get("t_wall_total", wall))
-        status = ("Invalid_Initial_Point" if bad else
-                  str(stats.get("return_status", "exception" if error else "unknown")))
-        if self.options.solver == "fatrop" and error is None:
-            ok = bool(stats.get("success", False)) or _fatrop_converged(stats, viol, self.options.tol)
-            flag = (stats.get("fatrop") or {}).get("return_flag") if isinstance(stats.get("fatrop"), dict) else None
-            stats = {**stats, "success": ok, "fatrop_return_flag": flag}
-            status = "Solve_Succeeded" if ok else FATROP_FLAGS.get(flag, f"FATROP return flag {flag}")
-        success = bool(stats.get("success", False)) and error is None
-        message = status if error is None else f"{status}: {error}"
-        stats = {**stats, "solver_status": status}
-        return Solution(success=success, status=status, message=message,
+        success, status, stats = self._verdict(stats, error, refused, viol)
+        return Solution(success=success, status=status,
+                        message=status if error is None else f"{status}: {error}",
                         iterations=int(stats.get("iter_count", 0)), objective=objective,
-                        t=np.linspace(0.0, T, N + 1), states=Z, controls=U,
+                        t=np.linspace(0.0, T, problem.intervals + 1), states=Z, controls=U,
                         state_names=problem.state_names, control_names=problem.control_names,
                         horizon=T, solve_time_s=wall, setup_time_s=self.setup_time_s,
                         function_time_s=fn_time, solver_time_s=max(total - fn_time, 0.0),
@@ -429,6 +391,62 @@ class OCPSolver:
                                for k, v in stats.items() if not isinstance(v, dict)},
                         settings={**self.settings(), "guess": guess.label}, problem=problem,
                         constraint_violation=viol, violations=violated)
+
+    def _start(self, guess: InitialGuess) -> np.ndarray:
+        """The guess packed into the decision vector and clipped into its bounds
+        (:class:`ProblemError` for arrays of the wrong shape)."""
+        problem, N = self.problem, self.problem.intervals
+        states = np.asarray(guess.states, dtype=float)
+        controls = np.asarray(guess.controls, dtype=float)
+        problems = []
+        if states.shape != (problem.n_states, N + 1):
+            problems.append(f"guess states have shape {states.shape}, expected {(problem.n_states, N + 1)}")
+        if controls.shape != (problem.n_controls, N):
+            problems.append(f"guess controls have shape {controls.shape}, expected {(problem.n_controls, N)}")
+        if problems:
+            raise ProblemError(problems, title="invalid initial guess")
+        return np.clip(self.nlp.pack(states, controls, guess.horizon), self.nlp.lbx, self.nlp.ubx)
+
+    def _run(self, w0: np.ndarray) -> tuple:
+        """(solver output or None, the error or None, whether the start was refused for
+        non-finite dynamics, wall time [s])."""
+        nlp = self.nlp
+        start = time.perf_counter()
+        refused = self._non_finite(w0)
+        out, error = None, (RuntimeError(refused) if refused else None)
+        if not refused:
+            try:
+                out = self.solver(x0=w0, lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg)
+            except RuntimeError as exc:  # evaluation errors (NaN in the oracle) and the like
+                error = exc
+        return out, error, bool(refused), time.perf_counter() - start
+
+    def _outcome(self, out, w0: np.ndarray) -> tuple:
+        """(decision vector, objective, largest bound/constraint violation, the violated
+        constraints by name) of a solver output; the start and NaNs without one."""
+        nlp = self.nlp
+        if out is None:
+            return w0, float("nan"), float("nan"), {}
+        w = np.asarray(out["x"]).ravel()
+        g = np.asarray(out["g"]).ravel()
+        viol = float(max(np.max(np.maximum(nlp.lbg - g, 0), initial=0.0),
+                         np.max(np.maximum(g - nlp.ubg, 0), initial=0.0),
+                         np.max(np.maximum(nlp.lbx - w, 0), initial=0.0),
+                         np.max(np.maximum(w - nlp.ubx, 0), initial=0.0)))
+        return w, float(out["f"]), viol, nlp.violations(g, w, tol=max(1e-6, 10 * self.options.tol))
+
+    def _verdict(self, stats: dict, error, refused: bool, violation: float) -> tuple:
+        """(success, status, stats with ``solver_status``): Ipopt's return status; FATROP's
+        return flag, or convergence read from its own measures (:func:`_fatrop_converged`)."""
+        status = ("Invalid_Initial_Point" if refused else
+                  str(stats.get("return_status", "exception" if error else "unknown")))
+        if self.options.solver == "fatrop" and error is None:
+            ok = bool(stats.get("success", False)) or _fatrop_converged(stats, violation, self.options.tol)
+            flag = (stats.get("fatrop") or {}).get("return_flag") if isinstance(stats.get("fatrop"), dict) else None
+            stats = {**stats, "success": ok, "fatrop_return_flag": flag}
+            status = "Solve_Succeeded" if ok else FATROP_FLAGS.get(flag, f"FATROP return flag {flag}")
+        success = bool(stats.get("success", False)) and error is None
+        return success, status, {**stats, "solver_status": status}
 
 
 def _fatrop_converged(stats, violation, tol) -> bool:
