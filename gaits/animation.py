@@ -26,17 +26,36 @@ def _nice(length: float) -> float:
 
 
 def animate_solution(solution, ctx, path, *, fps: int = 15, frames: int = 60) -> Path:
-    """Write the motion to ``path`` as a GIF; returns the path."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-
+    """Write the motion to ``path`` as a GIF (the path so far, the body at each frame, a scale
+    bar, the time in the title); returns the path."""
     if ctx.frame is None:   # no planar frame: animate the fiber path only
         fx, fy = (list(ctx.fiber) + list(solution.state_names))[:2]
     else:
         fx, fy = ctx.frame[:2]
     x, y = series(solution, fx), series(solution, fy)
     segs = [body_segments(solution, ctx, k) if ctx.frame is not None else [] for k in range(len(x))]
+    fig, artists = _animation_figure(ctx, (fx, fy), (x, y), segs)
+    trace, lines, title = artists
+
+    def update(k):
+        trace.set_data(x[:k + 1], y[:k + 1])
+        for line, (xs, ys) in zip(lines, segs[k]):
+            line.set_data(xs, ys)
+        title.set_text(f"t = {solution.t[k]:.2f} s of {solution.t[-1]:.2f} s")
+
+    nodes = np.linspace(0, len(x) - 1, min(frames, len(x))).round().astype(int)
+    images = _frames(fig, update, nodes)
+    path = Path(path)
+    images[0].save(path, save_all=True, append_images=images[1:], duration=round(1000 / fps), loop=0)
+    return path
+
+
+def _animation_figure(ctx, names: tuple, path_xy: tuple, segs: list) -> tuple:
+    """(figure, (path line, body lines, title)): axes fitted to the whole motion with equal
+    scales, named axes with units, a legend and a scale bar."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    (fx, fy), (x, y) = names, path_xy
     allx = np.concatenate([x] + [np.ravel(s[0]) for ss in segs for s in ss])
     ally = np.concatenate([y] + [np.ravel(s[1]) for ss in segs for s in ss])
     span = max(np.ptp(allx), np.ptp(ally), 0.2)
@@ -61,18 +80,13 @@ def animate_solution(solution, ctx, path, *, fps: int = 15, frames: int = 60) ->
     x0, y0 = allx.min() - 0.6 * pad, ally.min() - 0.6 * pad
     ax.plot([x0, x0 + bar], [y0, y0], "-", color="k", lw=3, label=f"scale bar {bar:g} m")
     fig.legend(loc="outside lower center", ncol=3, fontsize="small", frameon=False)
-    title = ax.set_title("")
-    nodes = np.linspace(0, len(x) - 1, min(frames, len(x))).round().astype(int)
+    return fig, (trace, lines, ax.set_title(""))
 
-    def update(k):
-        trace.set_data(x[:k + 1], y[:k + 1])
-        for line, (xs, ys) in zip(lines, segs[k]):
-            line.set_data(xs, ys)
-        title.set_text(f"t = {solution.t[k]:.2f} s of {solution.t[-1]:.2f} s")
-        return [trace, *lines, title]
 
-    # one draw per frame: the layout is computed once (constrained layout per frame and
-    # matplotlib's animation writer drew every frame three times: 13 s for 60 frames, now ≈ 3 s)
+def _frames(fig, update, nodes) -> list:
+    """One RGB image per node. One draw per frame: the layout is computed once (constrained
+    layout per frame and matplotlib's animation writer drew every frame three times: 13 s for
+    60 frames, now ≈ 3 s)."""
     from PIL import Image
     canvas = fig.canvas
     update(nodes[0])
@@ -83,6 +97,4 @@ def animate_solution(solution, ctx, path, *, fps: int = 15, frames: int = 60) ->
         update(k)
         canvas.draw()
         images.append(Image.fromarray(np.asarray(canvas.buffer_rgba())[..., :3].copy()))
-    path = Path(path)
-    images[0].save(path, save_all=True, append_images=images[1:], duration=round(1000 / fps), loop=0)
-    return path
+    return images
