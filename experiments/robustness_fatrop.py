@@ -37,18 +37,18 @@ def main(argv=None) -> int:
     print(f"{'task':32s} {'N':>4s} {'guess':42s} {'ipopt':>22s} {'fatrop':>22s} same")
     for scene, gait in TASKS:
         for N in [int(n) for n in args.N.split(",")]:
-            the_plan = resolve(scene, gait, overrides=[f"intervals={N}"])
-            problem = prepare(the_plan).problem
+            to_plan = resolve(scene, gait, overrides=[f"intervals={N}"])
+            problem = prepare(to_plan).problem
             solvers = {s: OCPSolver(problem, None, SolverOptions(jit=False, solver=s, max_iter=500))
                        for s in ("ipopt", "fatrop")}
             for guess in candidates(problem)[:args.candidates]:
                 res = {s: S.solve(guess) for s, S in solvers.items()}
                 i, f = res["ipopt"], res["fatrop"]
                 same = i.success and f.success and abs(i.objective - f.objective) <= 1e-6 * abs(i.objective)
-                rows.append({"task": the_plan.label, "N": N, "guess": guess.label,
+                rows.append({"task": to_plan.label, "N": N, "guess": guess.label,
                              **{s: {"success": r.success, "iterations": r.iterations, "objective": r.objective,
                                     "status": r.status} for s, r in res.items()}, "same_optimum": same})
-                print(f"{the_plan.label:32s} {N:4d} {guess.label[:42]:42s} "
+                print(f"{to_plan.label:32s} {N:4d} {guess.label[:42]:42s} "
                       f"{str(i.success):>5s} {i.iterations:4d} {i.objective:11.6f} "
                       f"{str(f.success):>5s} {f.iterations:4d} {f.objective:11.6f} {same}", flush=True)
     summary = {s: sum(r[s]["success"] for r in rows) for s in ("ipopt", "fatrop")}

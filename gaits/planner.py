@@ -128,27 +128,28 @@ def quantity_objects(model, scene):
 class Prepared:
     """What :func:`prepare` makes of a plan.
 
-    ``model``: the derived reduced ODE (momentum coordinates); ``fast``: the specialised model
-    the NLP is stated on; ``problem``: the statement with independent conditions (what is
-    solved); ``stated``: the statement as the task gives it (what the verification checks);
-    ``conditions``: what :func:`~nhgait.ocp.conditions.normalise` dropped or solved, and why.
+    ``model``: the derived reduced ODE (momentum coordinates); ``specialised``: the model
+    specialised to the parameter values, which the NLP is stated on; ``problem``: the statement
+    with independent conditions (what is solved); ``stated``: the statement as the task gives it
+    (what the verification checks); ``conditions``: what :func:`~nhgait.ocp.conditions.normalise` dropped or solved, and why.
     """
 
     model: Any
-    fast: Any
+    specialised: Any
     problem: Any
     stated: Any
     conditions: Any
 
 
-def state_problem(task, fast, scene, *, params=None, name: str = ""):
+def state_problem(task, specialised, scene, *, params=None, name: str = ""):
     """(stated problem, problem with independent conditions, ConditionReport) of ``task`` on
-    the specialised model ``fast``: an end that gives every coordinate and velocity is checked
+    the specialised model: an end that gives every coordinate and velocity is checked
     against ω(q)q̇ = 0 first (the error names each violated constraint)."""
     from nhgait.ocp.conditions import normalise
     from .task import to_problem
-    _check_full_states(task, fast.base, params)
-    stated = to_problem(task, fast, quantities=quantity_objects(fast, scene), params=params, name=name)
+    _check_full_states(task, specialised.base, params)
+    stated = to_problem(task, specialised, quantities=quantity_objects(specialised, scene), params=params,
+                        name=name)
     problem, report = normalise(stated)
     return stated, problem, report
 
@@ -172,7 +173,7 @@ def _check_full_states(task, model, params) -> None:
         raise ProblemError(problems, title="inconsistent boundary conditions")
 
 
-def prepare(the_plan, *, params=None, progress=None) -> Prepared:
+def prepare(to_plan, *, params=None, progress=None) -> Prepared:
     """The :class:`Prepared` model and problems of a :class:`~nhgait.gaits.task_library.Plan`."""
     from nhgait.dynamics.progress import Progress
     from nhgait.dynamics.numerics.specialisation import choose_velocities, specialise
@@ -180,7 +181,7 @@ def prepare(the_plan, *, params=None, progress=None) -> Prepared:
     from .task import check_names
 
     progress = progress or Progress.silent()
-    task, scene = the_plan.task, the_plan.scene
+    task, scene = to_plan.task, to_plan.scene
     model = derive_for_task(scene.system, task, params, progress)
     prov = getattr(model, "provenance", None)
     progress.note(f"  n = {model.system.n} coordinates, {len(model.state_names)} states, {model.form} form"
@@ -192,11 +193,11 @@ def prepare(the_plan, *, params=None, progress=None) -> Prepared:
     ends = [q for _, q in fixed_configurations(task, tuple(model.system.coordinates))]
     velocities = task.velocities or choose_velocities(model, task.names, scene.quantities, params, bounds, ends)
     with progress.phase(f"specialise: parameter values bound, velocity states ({', '.join(velocities)})"):
-        fast = specialise(model, params, velocities=velocities, quantities=scene.quantities)
-    stated, problem, report = state_problem(task, fast, scene, params=params, name=the_plan.label)
+        specialised = specialise(model, params, velocities=velocities, quantities=scene.quantities)
+    stated, problem, report = state_problem(task, specialised, scene, params=params, name=to_plan.label)
     for line in report.lines():
         progress.note(f"  conditions: {line}")
-    return Prepared(model, fast, problem, stated, report)
+    return Prepared(model, specialised, problem, stated, report)
 
 
 # ----------------------------------------------------------------------------- warm start
@@ -290,8 +291,8 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     t0 = time.perf_counter()
     if intervals is not None:
         overrides = [*overrides, f"intervals={int(intervals)}"]
-    the_plan = resolve(system, task, overrides=overrides)
-    prepared = prepare(the_plan, params=params, progress=progress)
+    to_plan = resolve(system, task, overrides=overrides)
+    prepared = prepare(to_plan, params=params, progress=progress)
     problem = prepared.problem
     timings["prepare_s"] = time.perf_counter() - t0
     workers = _default_workers() if workers in (None, "auto") else int(workers)
@@ -302,16 +303,16 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     settings = SearchSettings(solver, transcription, jit, choose_hessian(hessian), max_iter, workers, max_guesses)
     search, timings["setup_s"] = _search(problem, guesses, settings, progress)
     timings["solve_s"] = time.perf_counter() - t0 - timings["setup_s"]
-    solution, verify_s = _verified(search, prepared, the_plan, params, verify, progress)
+    solution, verify_s = _verified(search, prepared, to_plan, params, verify, progress)
     if verify_s is not None:
         timings["verify_s"] = verify_s
-    solution = replace(solution, settings={**solution.settings, "system": the_plan.label,
-                                           "velocities": list(prepared.fast.velocities),
-                                           "specialisation": prepared.fast.route, "workers": workers,
+    solution = replace(solution, settings={**solution.settings, "system": to_plan.label,
+                                           "velocities": list(prepared.specialised.velocities),
+                                           "specialisation": prepared.specialised.route, "workers": workers,
                                            "conditions": prepared.conditions.lines(),
                                            **{k: round(v, 6) for k, v in timings.items()}})
-    result = PlanResult(the_plan.label, the_plan.task.replace(intervals=problem.intervals), solution,
-                        search.won or "none", search.attempts, (), timings, the_plan, prepared.model,
+    result = PlanResult(to_plan.label, to_plan.task.replace(intervals=problem.intervals), solution,
+                        search.won or "none", search.attempts, (), timings, to_plan, prepared.model,
                         prepared.conditions)
     result = replace(result, diagnosis=diagnose(result))
     if out_dir is not None:
@@ -355,16 +356,16 @@ def _search(problem, guesses, settings: SearchSettings, progress):
     return search, setup
 
 
-def _verified(search, prepared, the_plan, params, verify, progress) -> tuple:
+def _verified(search, prepared, to_plan, params, verify, progress) -> tuple:
     """(the winning solution in momentum coordinates, verified (or the closest failure),
     seconds the verification took or None)."""
     solution = search.solution if search.solution is not None else search.closest
-    momentum = momentum_problem(prepared.model, prepared.stated, the_plan, params)
+    momentum = momentum_problem(prepared.model, prepared.stated, to_plan, params)
     solution = to_momentum_coordinates(solution, momentum)
     if verify and search.solution is not None:
         t0 = time.perf_counter()
         with progress.phase("verify: re-simulate the optimal inputs on the general model (DOP853, rtol 1e-10)"):
-            solution = solution.verified(tolerance=the_plan.task.verify_tolerance)
+            solution = solution.verified(tolerance=to_plan.task.verify_tolerance)
         v = solution.verification
         progress.note(f"  {'passed' if v.passed else 'FAILED'}: nodes met to {v.max_error:.2e}, conditions to "
                       f"{v.max_condition_error:.2e} (tolerance {v.tolerance:g})")
@@ -372,9 +373,9 @@ def _verified(search, prepared, the_plan, params, verify, progress) -> tuple:
     return solution, None
 
 
-def momentum_problem(model, problem, the_plan, params):
+def momentum_problem(model, problem, to_plan, params):
     """The same statement on the derived (momentum-coordinate, unspecialised) model."""
-    return problem.replace(model=model, quantities=quantity_objects(model, the_plan.scene), params=params)
+    return problem.replace(model=model, quantities=quantity_objects(model, to_plan.scene), params=params)
 
 
 def to_momentum_coordinates(solution, momentum):

@@ -90,8 +90,8 @@ def test_resolve_names_the_missing_task(tmp_path):
                      '[system.forces]\nx = "F"\n[system.parameters]\nm = 1.0\n')
     with pytest.raises(ProblemError, match=r"robot.toml has no \[task\] table"):
         resolve(str(scene))
-    the_plan = resolve(str(scene), {"horizon": 1.0, "final": {"x": 1.0}})
-    assert isinstance(the_plan.task, Task) and the_plan.label == "robot/task"
+    to_plan = resolve(str(scene), {"horizon": 1.0, "final": {"x": 1.0}})
+    assert isinstance(to_plan.task, Task) and to_plan.label == "robot/task"
 
 
 def test_a_task_is_the_problem_statement_in_the_tables_words():

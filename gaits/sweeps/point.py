@@ -304,7 +304,7 @@ def _solver_for(job: PointJob, *, warm: bool = False):
     solver = OCPSolver(prepared.problem, case.options.get("transcription"),
                        SolverOptions(jit=case.options.get("jit"), solver=case.options.get("solver", "ipopt"),
                                      ipopt=dict(WARM_IPOPT) if warm else {}))
-    SOLVERS.get(key, lambda: (prepared.model, prepared.fast, solver))
+    SOLVERS.get(key, lambda: (prepared.model, prepared.specialised, solver))
     return prepared.model, (prepared.stated, prepared.problem), solver, resolved
 
 
