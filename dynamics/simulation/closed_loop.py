@@ -47,13 +47,10 @@ from ..errors import ModelError
 from ..memo import OwnerMemo
 from .closure import closure
 
-__all__ = ["ClosedLoop", "closed_loop", "controller_key", "OUTPUT_NAMES", "DIAGNOSTIC_OUTPUTS"]
+__all__ = ["ClosedLoop", "closed_loop", "controller_key", "OUTPUT_NAMES"]
 
 #: the blocks of ``ClosedLoop.outputs``, in order
 OUTPUT_NAMES = ("q", "qdot", "lam", "g", "energy", "u_applied", "measure", "metric", "gram")
-#: the blocks of ``outputs`` that only the run's diagnostics read (the compiled route evaluates
-#: them when a diagnostic is first read)
-DIAGNOSTIC_OUTPUTS = ("measure", "metric", "gram")
 
 #: per compiled model (model.numeric, dropped with it): (controller key, options) → ClosedLoop
 CLOSED_LOOPS = OwnerMemo("closed loops per compiled model, controller and options")

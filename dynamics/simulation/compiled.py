@@ -32,10 +32,9 @@ import numpy as np
 
 from ..memo import LruMemo
 from ..numerics.compiler import CompilerUnavailable, Library, build_library, library_key
-from .closed_loop import DIAGNOSTIC_OUTPUTS
 from .rk_tableaus import tableau
 
-__all__ = ["CompiledLoop", "CompilerUnavailable", "build", "CFLAGS",
+__all__ = ["CompiledLoop", "CompilerUnavailable", "build", "CFLAGS", "DIAGNOSTIC_OUTPUTS",
            "METHODS", "OutputBuffers", "RunState", "STATUS"]
 
 #: compiler flags (:func:`.compiler.build_library` adds ``-fPIC -shared``; no -march=native: a
@@ -45,6 +44,9 @@ CFLAGS = ("-O2", "-std=c99")
 _SALT = "compiled closed loop"
 #: seconds after which the compiler is stopped (the route then falls back to scipy)
 _COMPILE_TIMEOUT_S = 300.0
+#: the blocks of the closed loop's outputs (``ClosedLoop.outputs``) that only a run's diagnostics
+#: read: compiled into their own C function, evaluated when a diagnostic is first read
+DIAGNOSTIC_OUTPUTS = ("measure", "metric", "gram")
 #: method name → index in the C template
 METHODS = {"DOP853": 0, "DOPRI5": 1}
 #: return codes of ``nhg_run``
@@ -91,6 +93,11 @@ def _renamed(function: ca.Function, name: str) -> ca.Function:
     return ca.Function(name, args, function.call(args), function.name_in(), function.name_out())
 
 
+def _shared(expr):
+    """``expr`` with equal subexpressions evaluated once (SX; an MX expression as it is)."""
+    return ca.cse(expr) if isinstance(expr, ca.SX) else expr
+
+
 def c_source(rhs: ca.Function, outputs: ca.Function, event: ca.Function | None,
              project: ca.Function | None = None) -> str:
     """The complete C translation unit for one closed loop (with ``project``: projection of
@@ -99,8 +106,8 @@ def c_source(rhs: ca.Function, outputs: ca.Function, event: ca.Function | None,
     blocks = outputs.call(args)
     main = [ca.vec(o) for o, name in zip(blocks, outputs.name_out()) if name not in DIAGNOSTIC_OUTPUTS]
     diag = [ca.vec(o) for o, name in zip(blocks, outputs.name_out()) if name in DIAGNOSTIC_OUTPUTS]
-    out = ca.Function("nhg_out", args, [ca.vertcat(*main)])
-    functions = [_renamed(rhs, "nhg_rhs"), out, ca.Function("nhg_diag", args, [ca.vertcat(*diag)])]
+    out = ca.Function("nhg_out", args, [_shared(ca.vertcat(*main))])
+    functions = [_renamed(rhs, "nhg_rhs"), out, ca.Function("nhg_diag", args, [_shared(ca.vertcat(*diag))])]
     if event is not None:
         functions.append(_renamed(event, "nhg_event"))
     if project is not None:
@@ -172,9 +179,9 @@ def _declare(lib) -> None:
     vp, ll, dbl = ctypes.c_void_p, ctypes.c_longlong, ctypes.c_double
     lib.nhg_run.argtypes = [ctypes.c_int, dbl, dbl, vp, vp, vp, vp, vp, ll, vp, vp, vp, ll]
     lib.nhg_run.restype = ctypes.c_int
-    lib.nhg_outputs.argtypes = [ll, vp, vp, vp, vp, vp]
+    lib.nhg_outputs.argtypes = [ll, vp, vp, vp, vp, vp, vp]
     lib.nhg_outputs.restype = None
-    lib.nhg_diagnostics.argtypes = [ll, vp, vp, vp, vp, vp]
+    lib.nhg_diagnostics.argtypes = [ll, vp, vp, vp, vp, vp, vp]
     lib.nhg_diagnostics.restype = None
     lib.nhg_eval_rhs.argtypes = [dbl, dbl, vp, vp, vp, ll]
     lib.nhg_eval_rhs.restype = None
@@ -198,10 +205,9 @@ class RunState:
         max_steps), the event threshold (0: none) and whether stiffness stops the run."""
         (rtol, atol), (h_max, max_steps) = tolerances, step_limits
         ctl = np.zeros(_NCTL)
-        ctl[[_C["t"], _C["rtol"], _C["atol"], _C["hmax"], _C["evtol"], _C["err_old"]]] = \
-            [t0, rtol, atol, h_max, event_tol, 1e-4]
-        ctl[_C["t_stiff"]] = np.nan
-        ctl[_C["stop_stiff"]] = float(stop_on_stiff)
+        for name, value in (("t", t0), ("rtol", rtol), ("atol", atol), ("hmax", h_max), ("evtol", event_tol),
+                            ("err_old", 1e-4), ("t_stiff", np.nan), ("stop_stiff", float(stop_on_stiff))):
+            ctl[_C[name]] = value
         cnt = np.zeros(_NCNT, dtype=np.longlong)
         cnt[_N["max_steps"]] = max_steps
         return cls(ctl=ctl, cnt=cnt)
@@ -230,11 +236,11 @@ class OutputBuffers:
 
     @classmethod
     def for_grid(cls, t_eval: np.ndarray, ny: int) -> "OutputBuffers":
-        return cls(t_eval=t_eval, y_eval=np.zeros((t_eval.size, ny)))
+        return cls(t_eval=t_eval, y_eval=np.empty((t_eval.size, ny)))      # rows written before read
 
     @classmethod
     def for_steps(cls, ny: int, rows: int = 1025) -> "OutputBuffers":
-        return cls(t_steps=np.zeros(rows), y_steps=np.zeros((rows, ny)))
+        return cls(t_steps=np.empty(rows), y_steps=np.empty((rows, ny)))    # rows written before read
 
     def grown(self) -> "OutputBuffers":
         """Empty step buffers with room for about twice as many rows."""
@@ -250,7 +256,7 @@ class CompiledLoop:
     """A loaded library of one closed loop. ``out_sizes``: sizes of the output blocks of
     :meth:`outputs` (the blocks of ``ClosedLoop.outputs`` but the diagnostic ones);
     ``diag_sizes``: sizes of the blocks of :meth:`diagnostic_outputs`
-    (:data:`~.closed_loop.DIAGNOSTIC_OUTPUTS`), ``n_diag`` their total."""
+    (:data:`DIAGNOSTIC_OUTPUTS`), ``n_diag`` their total."""
 
     key: str
     library: object
@@ -277,13 +283,14 @@ class CompiledLoop:
                                     _ptr(state.ctl), _ptr(state.cnt), _ptr(out.t_eval), n_eval,
                                     _ptr(out.y_eval), _ptr(out.t_steps), _ptr(out.y_steps), cap)
 
-    def outputs(self, t, t_c, Y, P) -> list:
-        """The output blocks at N points (each (N, size)); t, t_c (N,), Y (N, ny), P (N, np)."""
-        return self.blocks(self.output_table(t, t_c, Y, P))
+    def outputs(self, t, t_c, Y, P, seg=None) -> list:
+        """The output blocks at N points (each (N, size)); t, t_c (N,), Y (N, ny); P (N, np) the
+        parameter vector at each point, or with ``seg`` (N,) the rows of P each point takes."""
+        return self.blocks(self.output_table(t, t_c, Y, P, seg))
 
-    def output_table(self, t, t_c, Y, P) -> np.ndarray:
+    def output_table(self, t, t_c, Y, P, seg=None) -> np.ndarray:
         """The outputs at N points as one (N, nout) table, the blocks side by side (:meth:`blocks`)."""
-        return self._evaluate(self.library.nhg_outputs, (t, t_c, Y, P), self.nout)
+        return self._evaluate(self.library.nhg_outputs, (t, t_c, Y, P, seg), self.nout)
 
     def blocks(self, table: np.ndarray, sizes: tuple | None = None) -> list:
         """The column blocks of ``table`` (views) of ``sizes`` (default: :attr:`out_sizes`)."""
@@ -293,21 +300,25 @@ class CompiledLoop:
             start += size
         return blocks
 
-    def diagnostic_outputs(self, t, t_c, Y, P) -> list:
-        """The blocks :data:`~.closed_loop.DIAGNOSTIC_OUTPUTS` at N points (arguments as
+    def diagnostic_outputs(self, t, t_c, Y, P, seg=None) -> list:
+        """The blocks :data:`DIAGNOSTIC_OUTPUTS` at N points (arguments as
         :meth:`outputs`): only what the diagnostics read, evaluated when they are read."""
-        table = self._evaluate(self.library.nhg_diagnostics, (t, t_c, Y, P), self.n_diag)
+        table = self._evaluate(self.library.nhg_diagnostics, (t, t_c, Y, P, seg), self.n_diag)
         return self.blocks(table, self.diag_sizes)
 
     def _evaluate(self, c_function, points: tuple, width: int) -> np.ndarray:
-        t, t_c, Y, P = points
+        t, t_c, Y, P, seg = points
         N = len(t)
-        out = np.zeros((N, width))
+        out = np.empty((N, width))          # the C function writes every entry
         T, TC = np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(t_c, dtype=float)
         Y = np.ascontiguousarray(Y, dtype=float).reshape(N, self.ny)
-        P = np.ascontiguousarray(P, dtype=float).reshape(N, self.np)
+        P = np.ascontiguousarray(P, dtype=float).reshape(-1, self.np)
+        seg = np.arange(N, dtype=np.longlong) if seg is None else np.ascontiguousarray(seg, dtype=np.longlong)
+        if seg.shape != (N,) or (N and not 0 <= seg.min() <= seg.max() < len(P)):
+            raise ValueError(f"seg must hold N = {N} row indices of P ({len(P)} rows)")
         if N:
-            c_function(N, T.ctypes.data, TC.ctypes.data, Y.ctypes.data, P.ctypes.data, out.ctypes.data)
+            c_function(N, T.ctypes.data, TC.ctypes.data, Y.ctypes.data, seg.ctypes.data, P.ctypes.data,
+                       out.ctypes.data)
         return out
 
     def rhs(self, t, t_hi, y, p, repeat: int = 1) -> np.ndarray:

@@ -460,7 +460,8 @@ def _prepare(call: _Call, resolved) -> tuple:
             seeds = resolved.seeds
     loop = closed_loop(_integration_model(model, pv, settings), controller, stabilization=call.stabilization,
                        baumgarte=call.baumgarte, seeds=seeds)
-    y0 = np.r_[x0[list(loop.state_index)], [0.0] * loop.has_work, np.zeros(loop.n_int)]
+    y0 = np.zeros(loop.n_y)              # (x_S, W = 0, ∫g = 0)
+    y0[:len(loop.state_index)] = x0[list(loop.state_index)]
     seg_params = [loop.segment_params(pv, controller, a) for a, _ in segments]
     request = RunRequest(loop, controller, segments, y0, seg_params, call.t_eval, call.rtol, call.atol,
                          call.max_step, call.max_steps, call.singular_tol, call.stabilization, call.baumgarte)
@@ -608,12 +609,13 @@ def _outputs(loop, controller, library, points: Samples, seg_params) -> dict:
     library also ``"table"``, the checked blocks side by side (N, Σ sizes)."""
     N = len(points)
     Y = points.y.reshape(N, loop.n_y)
-    P = np.asarray(seg_params, dtype=float).reshape(len(seg_params), loop.n_p)[points.seg]
+    P = np.asarray(seg_params, dtype=float).reshape(len(seg_params), loop.n_p)
     if library is not None:
-        table = library.output_table(points.t, points.t_c, Y, P)
+        table = library.output_table(points.t, points.t_c, Y, P, points.seg)
         out = dict(zip(_CHECKED_BLOCKS, library.blocks(table)), table=table)
-        out["diagnostic"] = _DiagnosticBlocks(library, (points.t, points.t_c, Y, P))
+        out["diagnostic"] = _DiagnosticBlocks(library, (points.t, points.t_c, Y, P, points.seg))
         return out
+    P = P[points.seg]
     T, Tc = points.t[None, :], points.t_c[None, :]
     if controller is not None and not (loop.symbolic_u or loop.segment_u):
         qdot = np.asarray(loop.qdot.map(N)(Y.T, P.T)).reshape(-1, N)
@@ -636,7 +638,8 @@ def _output_rows(out: dict, start: int, stop: int | None) -> dict:
 @dataclass(frozen=True, eq=False)
 class _DiagnosticBlocks:
     """The blocks measure, metric and gram at the output points: ``blocks`` as given, or — with
-    a compiled ``library`` — evaluated by it at ``points`` = (t, t_c, Y, P) on first use."""
+    a compiled ``library`` — evaluated by it at ``points`` = (t, t_c, Y, the segments'
+    parameter vectors, each point's segment) on first use."""
 
     library: object
     points: tuple | None
@@ -656,7 +659,8 @@ class _DiagnosticBlocks:
     def rows(self, start: int, stop: int | None) -> "_DiagnosticBlocks":
         part = slice(start, stop)
         if self.library is not None and not self.blocks:
-            return _DiagnosticBlocks(self.library, tuple(a[part] for a in self.points))
+            t, t_c, Y, P, seg = self.points
+            return _DiagnosticBlocks(self.library, (t[part], t_c[part], Y[part], P, seg[part]))
         return _DiagnosticBlocks(None, None, {k: self[k][part] for k in _BLOCKS[6:]})
 
 
@@ -714,7 +718,7 @@ def _assemble(call: _Call, request: RunRequest, routed: tuple, prepared: _Prepar
 def _trajectory(call: _Call, loop, results: tuple, route: tuple, prepared: _Prepared) -> Trajectory:
     """The :class:`Trajectory` of ``results`` = (Run, its samples, the output blocks, E(t₀))
     and ``route`` = (method name, extra diagnostics, wall time)."""
-    model, system = call.model, call.model.system
+    model = call.model
     run, samples, out, energy0 = results
     method_name, extra, wall = route
     N = len(samples)
@@ -734,13 +738,24 @@ def _trajectory(call: _Call, loop, results: tuple, route: tuple, prepared: _Prep
             a.setflags(write=False)
     settings = prepared.settings
     settings["method"] = method_name
+    names = _names(model, loop)
     return Trajectory(**arrays, nfev=run.nfev, njev=run.njev, n_steps=run.n_steps,
                       wall_time_s=wall, success=run.status == FINISHED, status=run.status,
                       message=run.message, formulation=model.formulation, method=method_name,
-                      coordinates=tuple(system.coordinates),
-                      state_names=tuple(model.state_names[i] for i in loop.state_index),
-                      input_names=tuple(system.inputs), settings=settings,
+                      **names, settings=settings,
                       diagnostics=_diagnostics(model, loop, run, out, extra), outputs=traj_outputs)
+
+
+#: per closed loop (dropped with it): the column names of its trajectories
+COLUMN_NAMES = OwnerMemo("trajectory column names per closed loop")
+
+
+def _names(model, loop) -> dict:
+    """``coordinates``, ``state_names`` (the integrated entries of x) and ``input_names``."""
+    system = model.system
+    return COLUMN_NAMES.get(loop, "names", lambda: dict(
+        coordinates=tuple(system.coordinates), state_names=tuple(model.state_names[i] for i in loop.state_index),
+        input_names=tuple(system.inputs)))
 
 
 def _singular_text(model) -> str:
@@ -791,7 +806,7 @@ class _OnRead:
 
 def _diagnostics(model, loop, run, out, extra) -> Diagnostics:
     d = dict(extra)
-    d["integrated_states"] = tuple(model.state_names[i] for i in loop.state_index)
+    d["integrated_states"] = _names(model, loop)["state_names"]
     d["state_count"] = (len(loop.state_index), loop.n_x)
     blocks = out["diagnostic"]
     if blocks.size("measure"):

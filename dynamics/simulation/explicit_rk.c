@@ -523,16 +523,18 @@ CASADI_SYMBOL_EXPORT int nhg_run(int method, double t_end, double t_hi, double *
   return NHG_DONE;
 }
 
-/* outputs at N points: t, t_c (N), Y (N x NHG_NY), P (N x NHG_NP) -> OUT (N x NHG_NOUT) */
+/* outputs at N points: t, t_c (N), Y (N x NHG_NY), seg (N) the segment of each point, P (segments x
+   NHG_NP) the parameter vector of each segment -> OUT (N x NHG_NOUT) */
 CASADI_SYMBOL_EXPORT void nhg_outputs(long long N, const double *t, const double *tc,
-                                      const double *Y, const double *P, double *OUT) {
+                                      const double *Y, const long long *seg, const double *P,
+                                      double *OUT) {
   nhg_ctx cx;
   long long i;
   for (i = 0; i < N; ++i) {
     cx.arg[0] = &t[i];
     cx.arg[1] = &tc[i];
     cx.arg[2] = &Y[i * NHG_NY];
-    cx.arg[3] = &P[i * NHG_NP];
+    cx.arg[3] = &P[seg[i] * NHG_NP];
     cx.res[0] = &OUT[i * NHG_NOUT];
     nhg_out(cx.arg, cx.res, cx.iw, cx.w, 0);
   }
@@ -540,14 +542,15 @@ CASADI_SYMBOL_EXPORT void nhg_outputs(long long N, const double *t, const double
 
 /* the diagnostic outputs at N points: arguments as nhg_outputs, OUT (N x NHG_NDIAG) */
 CASADI_SYMBOL_EXPORT void nhg_diagnostics(long long N, const double *t, const double *tc,
-                                          const double *Y, const double *P, double *OUT) {
+                                          const double *Y, const long long *seg, const double *P,
+                                          double *OUT) {
   nhg_ctx cx;
   long long i;
   for (i = 0; i < N; ++i) {
     cx.arg[0] = &t[i];
     cx.arg[1] = &tc[i];
     cx.arg[2] = &Y[i * NHG_NY];
-    cx.arg[3] = &P[i * NHG_NP];
+    cx.arg[3] = &P[seg[i] * NHG_NP];
     cx.res[0] = &OUT[i * NHG_NDIAG];
     nhg_diag(cx.arg, cx.res, cx.iw, cx.w, 0);
   }
