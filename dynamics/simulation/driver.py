@@ -55,6 +55,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import math
 import time
 import warnings
 from collections.abc import Mapping
@@ -245,7 +246,7 @@ def _check_request(call: _Call) -> list:
     problems = []
     try:
         t0, tf = (float(v) for v in call.t_span)
-        if not (np.isfinite(t0) and np.isfinite(tf) and tf > t0):
+        if not (math.isfinite(t0) and math.isfinite(tf) and tf > t0):
             problems.append(f"t_span must be increasing and finite, got ({t0:g}, {tf:g})")
     except (TypeError, ValueError):
         problems.append(f"t_span must be a pair (t0, tf), got {call.t_span!r}")

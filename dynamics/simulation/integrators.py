@@ -20,6 +20,8 @@ dense output of the explicit methods, to the output grid for SUNDIALS).
 """
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -209,7 +211,8 @@ class Run:
 
 
 def left_of(b: float) -> float:
-    return float(np.nextafter(b, -np.inf))
+    """The largest float below ``b``."""
+    return math.nextafter(float(b), -math.inf)
 
 
 class Fast:
