@@ -215,6 +215,11 @@ class RunState:
     def __getitem__(self, name):
         return self.ctl[_C[name]] if name in _C else int(self.cnt[_N[name]])
 
+    def values(self) -> dict:
+        """Every entry by name, as Python numbers (floats and ints)."""
+        ctl, cnt = self.ctl.tolist(), self.cnt.tolist()
+        return {**{name: ctl[i] for name, i in _C.items()}, **{name: cnt[i] for name, i in _N.items()}}
+
     def set(self, name, value):
         if name in _C:
             self.ctl[_C[name]] = value

@@ -838,10 +838,11 @@ def integrate_compiled(request: RunRequest, library, scheme: str, *, stop_on_sti
 
 
 def _count_compiled(run: Run, state) -> None:
-    run.nfev, run.n_steps, run.n_rejected = state["nfev"], state["accepted"], state["rejected"]
-    run.h_lambda = float(state["h_lambda"])
-    if not np.isnan(state["t_stiff"]):
-        run.t_stiff = float(state["t_stiff"])
+    values = state.values()
+    run.nfev, run.n_steps, run.n_rejected = values["nfev"], values["accepted"], values["rejected"]
+    run.h_lambda = values["h_lambda"]
+    if not math.isnan(values["t_stiff"]):
+        run.t_stiff = values["t_stiff"]
 
 
 def _compiled_outcome(run: Run, state, code: int, end: tuple, max_steps: int) -> Run:
