@@ -244,12 +244,16 @@ class OutputBuffers:
         return cls(t_eval=t_eval, y_eval=np.empty((t_eval.size, ny)))      # rows written before read
 
     @classmethod
-    def for_steps(cls, ny: int, rows: int = 1025) -> "OutputBuffers":
+    def for_steps(cls, ny: int, rows: int = 4097) -> "OutputBuffers":
         return cls(t_steps=np.empty(rows), y_steps=np.empty((rows, ny)))    # rows written before read
 
     def grown(self) -> "OutputBuffers":
         """Empty step buffers with room for about twice as many rows."""
         return OutputBuffers.for_steps(self.y_steps.shape[1], 2 * self.t_steps.size - 1)
+
+    def fresh(self) -> "OutputBuffers":
+        """Empty step buffers of the same size."""
+        return OutputBuffers.for_steps(self.y_steps.shape[1], self.t_steps.size)
 
 
 def _ptr(a):

@@ -164,10 +164,11 @@ class Run:
         self._rows.append((t, min(t, t_hi), seg, np.array(y, dtype=float),
                            None if lam is None else np.array(lam, dtype=float)))
 
-    def add_block(self, t, t_hi, seg, Y):
-        """:meth:`add` for N points at once: ``t`` (N,), ``Y`` (N, n_y) (copied)."""
+    def add_block(self, t, t_hi, seg, Y, copy: bool = True):
+        """:meth:`add` for N points at once: ``t`` (N,), ``Y`` (N, n_y) (copied; with
+        ``copy=False`` kept as they are: the caller hands them over and never writes them again)."""
         self._flush()
-        t, Y = np.array(t, dtype=float), np.array(Y, dtype=float)
+        t, Y = np.array(t, dtype=float, copy=copy or None), np.array(Y, dtype=float, copy=copy or None)
         if t.size:
             self._blocks.append(Samples(t, np.minimum(t, t_hi), np.full(t.size, seg, dtype=np.intp),
                                         Y.reshape(t.size, -1)))
@@ -816,16 +817,20 @@ def integrate_compiled(request: RunRequest, library, scheme: str, *, stop_on_sti
     state.set("i_eval", _grid_start(te, segments[0][0]))
     y = np.ascontiguousarray(request.y0, dtype=float).copy()
     buffers = OutputBuffers.for_steps(library.ny) if te is None else OutputBuffers.for_grid(te, library.ny)
-    code = 0
+    code, handed_over = 0, None
     for segment in request.intervals():
         t_hi, j = segment.t_hi, segment.index
         p = np.ascontiguousarray(segment.params, dtype=float)
         state.set("t", segment.start)
         first = state["i_eval"]
+        if handed_over is buffers:
+            buffers = buffers.fresh()
         while True:
             code = library.run(scheme, state, (segment.end, t_hi), y, p, buffers)
-            if te is None:
-                run.add_block(buffers.t_steps[:state["n_out"]], t_hi, j, buffers.y_steps[:state["n_out"]])
+            if te is None:        # the rows become the run's: no later call writes into them
+                n_out = state["n_out"]
+                run.add_block(buffers.t_steps[:n_out], t_hi, j, buffers.y_steps[:n_out], copy=False)
+                handed_over = buffers
             if code != 1:
                 break
             buffers = buffers.grown()
