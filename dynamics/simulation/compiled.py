@@ -294,7 +294,8 @@ class CompiledLoop:
 
     def outputs(self, t, t_c, Y, P, seg=None) -> list:
         """The output blocks at N points (each (N, size)); t, t_c (N,), Y (N, ny); P (N, np) the
-        parameter vector at each point, or with ``seg`` (N,) the rows of P each point takes."""
+        parameter vector at each point, or with ``seg`` (N,) the rows of P each point takes (the
+        points' segment indices, non-decreasing)."""
         return self.blocks(self.output_table(t, t_c, Y, P, seg))
 
     def output_table(self, t, t_c, Y, P, seg=None) -> np.ndarray:
@@ -323,8 +324,8 @@ class CompiledLoop:
         Y = np.ascontiguousarray(Y, dtype=float).reshape(N, self.ny)
         P = np.ascontiguousarray(P, dtype=float).reshape(-1, self.np)
         seg = np.arange(N, dtype=np.longlong) if seg is None else np.ascontiguousarray(seg, dtype=np.longlong)
-        if seg.shape != (N,) or (N and not 0 <= seg.min() <= seg.max() < len(P)):
-            raise ValueError(f"seg must hold N = {N} row indices of P ({len(P)} rows)")
+        if seg.shape != (N,) or (N and not 0 <= seg[0] <= seg[-1] < len(P)):     # seg is non-decreasing
+            raise ValueError(f"seg must hold N = {N} non-decreasing row indices of P ({len(P)} rows)")
         if N:
             c_function(N, T.ctypes.data, TC.ctypes.data, Y.ctypes.data, seg.ctypes.data, P.ctypes.data,
                        out.ctypes.data)

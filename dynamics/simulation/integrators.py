@@ -168,7 +168,8 @@ class Run:
         """:meth:`add` for N points at once: ``t`` (N,), ``Y`` (N, n_y) (copied; with
         ``copy=False`` kept as they are: the caller hands them over and never writes them again)."""
         self._flush()
-        t, Y = np.array(t, dtype=float, copy=copy or None), np.array(Y, dtype=float, copy=copy or None)
+        if copy:
+            t, Y = np.array(t, dtype=float), np.array(Y, dtype=float)
         if t.size:
             self._blocks.append(Samples(t, np.minimum(t, t_hi), np.full(t.size, seg, dtype=np.intp),
                                         Y.reshape(t.size, -1)))
