@@ -69,6 +69,7 @@ from ..derivation.states import to_state
 from ..errors import ModelError
 from ..memo import OwnerMemo
 from .closed_loop import closed_loop
+from .compiled import CompilerUnavailable
 from .integrators import (FAILED, FINISHED, MAX_STEPS, NONFINITE, SCIPY_METHODS,
                           SINGULAR, RunRequest, Samples, integrate_compiled, integrate_scipy,
                           integrate_sundials, left_of)
@@ -588,7 +589,6 @@ def _library(loop, explicit_u, projection=False):
     if explicit_u:
         return None, ("the controller has no casadi(t, q, qdot) method, so it cannot be compiled "
                       "into the closed loop")
-    from .compiled import CompilerUnavailable
     try:
         return loop.compiled(projection), None
     except CompilerUnavailable as exc:

@@ -29,6 +29,8 @@ import casadi as ca
 import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
 
+from .compiled import OutputBuffers, RunState
+
 FINISHED, FAILED, MAX_STEPS, NONFINITE, SINGULAR = 0, -1, -2, -3, -4
 SCIPY_METHODS = {"RK23": RK23, "RK45": RK45, "DOP853": DOP853, "Radau": Radau, "BDF": BDF,
                  "LSODA": LSODA}
@@ -809,7 +811,6 @@ def integrate_compiled(request: RunRequest, library, scheme: str, *, stop_on_sti
     """Run the compiled integrator (:mod:`.compiled`, the closed loop's ``library``) interval by
     interval with the explicit Runge–Kutta ``scheme`` ("DOP853" or "DOPRI5"); the outputs of
     each C call are kept as arrays (no per-step Python)."""
-    from .compiled import OutputBuffers, RunState
     segments, event_tol = request.segments, request.event_tol
     run = Run()
     te = None if request.t_eval is None else np.ascontiguousarray(request.t_eval, dtype=float)
