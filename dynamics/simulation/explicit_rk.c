@@ -523,11 +523,14 @@ CASADI_SYMBOL_EXPORT int nhg_run(int method, double t_end, double t_hi, double *
   return NHG_DONE;
 }
 
-/* outputs at N points: t, t_c (N), Y (N x NHG_NY), seg (N) the segment of each point, P (segments x
-   NHG_NP) the parameter vector of each segment -> OUT (N x NHG_NOUT) */
-CASADI_SYMBOL_EXPORT void nhg_outputs(long long N, const double *t, const double *tc,
-                                      const double *Y, const long long *seg, const double *P,
-                                      double *OUT) {
+/* a generated function of (t, t_c, y, p) at N points: t, t_c (N), Y (N x NHG_NY), seg (N) the
+   segment of each point, P (segments x NHG_NP) the parameter vector of each segment
+   -> OUT (N x width) */
+typedef int (*nhg_point_function)(const casadi_real **, casadi_real **, casadi_int *, casadi_real *, int);
+
+static void nhg_at_points(nhg_point_function f, long long width, long long N, const double *t,
+                          const double *tc, const double *Y, const long long *seg, const double *P,
+                          double *OUT) {
   nhg_ctx cx;
   long long i;
   for (i = 0; i < N; ++i) {
@@ -535,25 +538,23 @@ CASADI_SYMBOL_EXPORT void nhg_outputs(long long N, const double *t, const double
     cx.arg[1] = &tc[i];
     cx.arg[2] = &Y[i * NHG_NY];
     cx.arg[3] = &P[seg[i] * NHG_NP];
-    cx.res[0] = &OUT[i * NHG_NOUT];
-    nhg_out(cx.arg, cx.res, cx.iw, cx.w, 0);
+    cx.res[0] = &OUT[i * width];
+    f(cx.arg, cx.res, cx.iw, cx.w, 0);
   }
 }
 
-/* the diagnostic outputs at N points: arguments as nhg_outputs, OUT (N x NHG_NDIAG) */
+/* the outputs at N points (arguments as nhg_at_points) -> OUT (N x NHG_NOUT) */
+CASADI_SYMBOL_EXPORT void nhg_outputs(long long N, const double *t, const double *tc,
+                                      const double *Y, const long long *seg, const double *P,
+                                      double *OUT) {
+  nhg_at_points(nhg_out, NHG_NOUT, N, t, tc, Y, seg, P, OUT);
+}
+
+/* the diagnostic outputs at N points (arguments as nhg_at_points) -> OUT (N x NHG_NDIAG) */
 CASADI_SYMBOL_EXPORT void nhg_diagnostics(long long N, const double *t, const double *tc,
                                           const double *Y, const long long *seg, const double *P,
                                           double *OUT) {
-  nhg_ctx cx;
-  long long i;
-  for (i = 0; i < N; ++i) {
-    cx.arg[0] = &t[i];
-    cx.arg[1] = &tc[i];
-    cx.arg[2] = &Y[i * NHG_NY];
-    cx.arg[3] = &P[seg[i] * NHG_NP];
-    cx.res[0] = &OUT[i * NHG_NDIAG];
-    nhg_diag(cx.arg, cx.res, cx.iw, cx.w, 0);
-  }
+  nhg_at_points(nhg_diag, NHG_NDIAG, N, t, tc, Y, seg, P, OUT);
 }
 
 /* one right-hand-side evaluation (for tests and the per-evaluation benchmark): repeat times */
