@@ -81,11 +81,11 @@ def test_agrees_with_kane_oracle(models):
 
 
 def test_every_step_output_grows_the_buffer(models):
-    """Without t_eval every accepted step is reported (more than the first buffer of 1024)."""
+    """Without t_eval every accepted step is reported (more than the first buffer of 4096)."""
     T = 2.0
     traj = simulate(models["unicycle"]["reduced"], (0.0, T), np.zeros(4), np.zeros(4),
-                    controller=_torques(T), method="compiled", rtol=1e-13, atol=1e-15, max_step=1e-3)
-    assert traj.t.size == traj.n_steps + 1 > 1025
+                    controller=_torques(T), method="compiled", rtol=1e-13, atol=1e-15, max_step=4e-4)
+    assert traj.t.size == traj.n_steps + 1 > 4097
     assert np.all(np.diff(traj.t) > 0) and traj.t[-1] == T
     assert np.max(np.abs(traj.q - _closed_form(traj.t))) < 1e-10
 
@@ -106,6 +106,28 @@ def test_open_loop_segments_are_exact(models):
         assert traj.q[-1, 2] == pytest.approx(theta, abs=1e-10)
         assert traj.qdot[-1, 2] == pytest.approx(omega, abs=1e-10)
         assert traj.u[1, 0] == tau[0]                 # left limit at the switch t = 0.2
+
+
+def test_every_step_output_over_several_segments_keeps_each_segment(models):
+    """Every accepted step of a zero-order-hold run over 5 segments (one C call each, each
+    writing its own rows): θ(t) at every reported step is the piecewise quadratic."""
+    model = models["unicycle"]["reduced"]
+    times = np.linspace(0.0, 1.0, 6)
+    tau = np.array([0.3, -0.2, 0.5, 0.0, -0.4])
+    ctl = OpenLoop(times, np.c_[tau, np.zeros(5)], inputs=("tau_theta", "tau_phi"))
+    traj = simulate(model, (0.0, 1.0), np.zeros(4), np.zeros(4), controller=ctl, method="compiled",
+                    rtol=1e-12, atol=1e-14)
+    assert traj.success and traj.settings["segments"] == 5 and np.all(np.diff(traj.t) >= 0)
+    starts = [(0.0, 0.0)]                               # (θ, ω) at each switch time
+    for dt, a in zip(np.diff(times), tau / J_THETA):
+        theta, omega = starts[-1]
+        starts.append((theta + omega * dt + 0.5 * a * dt ** 2, omega + a * dt))
+    j = np.clip(np.searchsorted(times, traj.t, side="right") - 1, 0, 4)
+    j[traj.t == times[j]] = np.maximum(j[traj.t == times[j]] - 1, 0)   # a switch time: the left piece
+    dt = traj.t - times[j]
+    expected = np.array([starts[k][0] for k in j]) + np.array([starts[k][1] for k in j]) * dt \
+        + 0.5 * (tau / J_THETA)[j] * dt ** 2
+    assert np.max(np.abs(traj.q[:, 2] - expected)) < 1e-10
 
 
 def test_per_evaluation_cost_and_compile_once(models):

@@ -15,6 +15,9 @@ error, not silently projected) and, for the reduced ODE, that q is off the singu
 """
 from __future__ import annotations
 
+import math
+import threading
+
 import casadi as ca
 import numpy as np
 
@@ -37,7 +40,11 @@ def initial_state_map(model) -> ca.Function:
     """``initial_state(q, qdot, params) → (x, measure, residual)``: the formulation's state,
     the measure of :func:`check_configuration` (1 when the formulation has no check) and
     ω(q)q̇, compiled once per compiled model (:data:`INITIAL_STATE_MAPS`)."""
-    return INITIAL_STATE_MAPS.get(model.numeric, "initial_state", lambda: _build_initial_state_map(model))
+    return _state_map(model).function
+
+
+def _state_map(model) -> "_StateMap":
+    return INITIAL_STATE_MAPS.get(model.numeric, "initial_state", lambda: _StateMap(_build_initial_state_map(model)))
 
 
 def _build_initial_state_map(model) -> ca.Function:
@@ -50,24 +57,48 @@ def _build_initial_state_map(model) -> ca.Function:
                        ["q", "qdot", "params"], ["x", "measure", "residual"])
 
 
+class _StateMap:
+    """The initial-state map with one FunctionBuffer bound to its own numpy arrays (the three
+    arguments side by side in one array, the three results in another), made once per compiled
+    model: an evaluation copies the arguments in, runs the map and copies the results out (none
+    of CasADi's per-call conversions). The arrays are shared, so an evaluation holds the lock."""
+
+    def __init__(self, function: ca.Function):
+        self.function = function
+        self.sizes_in = tuple(function.nnz_in(i) for i in range(3))
+        self._n_x = function.nnz_out(0)
+        self._in = np.zeros(sum(self.sizes_in))
+        self._out = np.zeros(sum(function.nnz_out(i) for i in range(3)))
+        self._buffer, self._run = function.buffer()
+        for i, part in enumerate(_pieces(self._in, self.sizes_in)):
+            self._buffer.set_arg(i, memoryview(part))
+        for i, part in enumerate(_pieces(self._out, [function.nnz_out(i) for i in range(3)])):
+            self._buffer.set_res(i, memoryview(part))
+        self._lock = threading.Lock()
+
+    def __call__(self, args) -> tuple:
+        """(x, measure, residual) at ``args`` = (q, qdot, params), each a flat float array."""
+        for i, (a, size) in enumerate(zip(args, self.sizes_in)):
+            if a.size != size:
+                raise ModelError([f"{self.function.name_in(i)} has {a.size} entries, expected {size}"],
+                                 title="invalid state")
+        with self._lock:
+            np.concatenate(args, out=self._in)
+            self._run()
+            out = self._out.copy()
+        return out[:self._n_x], float(out[self._n_x]), out[self._n_x + 1:]
+
+
+def _pieces(array: np.ndarray, sizes) -> list:
+    """Consecutive views of ``array`` of the given sizes."""
+    ends = np.cumsum([0] + list(sizes))
+    return [array[a:b] for a, b in zip(ends[:-1], ends[1:])]
+
+
 def _evaluate(model, q, qdot, params) -> tuple:
-    """(x, measure, ω(q)q̇) from one evaluation of :func:`initial_state_map`, through a
-    FunctionBuffer made for this call (numpy in and out, none of CasADi's per-argument
-    conversions; nothing shared between calls)."""
-    function = initial_state_map(model)
-    args = [np.ascontiguousarray(a, dtype=float).ravel() for a in (q, qdot, model.numeric.params(params))]
-    for i, a in enumerate(args):
-        if a.size != function.nnz_in(i):
-            raise ModelError([f"{function.name_in(i)} has {a.size} entries, expected {function.nnz_in(i)}"],
-                             title="invalid state")
-    x, measure, residual = (np.empty(function.nnz_out(i)) for i in range(3))
-    buffer, evaluate = function.buffer()
-    for i, a in enumerate(args):
-        buffer.set_arg(i, memoryview(a))
-    for i, r in enumerate((x, measure, residual)):
-        buffer.set_res(i, memoryview(r))
-    evaluate()
-    return x, float(measure[0]), residual
+    """(x, measure, ω(q)q̇) from one evaluation of :func:`initial_state_map`."""
+    args = [np.asarray(a, dtype=float).ravel() for a in (q, qdot, model.numeric.params(params))]
+    return _state_map(model)(args)
 
 
 def constraint_residual(model, q, qdot, params=None) -> np.ndarray:
@@ -84,7 +115,7 @@ def check_configuration(model, q, params=None) -> None:
 def _check_measure(model, q, measure: float) -> None:
     """Raise for a configuration measure below :data:`SINGULAR_TOL` (only the reduced ODE has a
     measure other than 1, see :meth:`~.formulation_protocol.FormulationProtocol.configuration_measure`)."""
-    if not np.isfinite(measure) or measure < SINGULAR_TOL:
+    if not math.isfinite(measure) or measure < SINGULAR_TOL:
         names = model.system.coordinates
         where = ", ".join(f"{c} = {v:.6g}" for c, v in zip(names, q))
         raise SingularConfigurationError([
@@ -110,19 +141,21 @@ def to_state(model, q, qdot, params=None, *, tol: float = CONSTRAINT_TOL) -> np.
         problems.append(f"qdot has {qdot.size} entries, expected {system.n}")
     if problems:
         raise ModelError(problems, title="invalid state")
-    if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qdot))):
+    values = q.tolist() + qdot.tolist()               # scalar checks in Python: a few entries
+    if not all(map(math.isfinite, values)):
         raise ModelError(["q and qdot must be finite"], title="invalid state")
     with np.errstate(all="ignore"):
         x, measure, res = _evaluate(model, q, qdot, params)
     _check_measure(model, q, measure)
     if system.k:
-        scale = max(1.0, float(np.linalg.norm(qdot)))
-        if np.max(np.abs(res)) > tol * scale:
+        limit = tol * max(1.0, math.hypot(*values[system.n:]))
+        residuals = res.tolist()
+        if any(abs(r) > limit for r in residuals) and not any(math.isnan(r) for r in residuals):
             raise ModelError([f"the state violates the constraints ω(q)q̇ = 0 (tolerance {tol:g}·max(1, |q̇|)); "
                               "give velocities in the constraint distribution D_q, or only some of them (the "
                               "others follow from ω(q)q̇ = 0)"]
                              + [f"constraint {i + 1} ({expr} = 0): residual {r:.6g} at this configuration"
-                                for i, (expr, r) in enumerate(zip(system.constraint_exprs, res)) if abs(r) > tol * scale],
+                                for i, (expr, r) in enumerate(zip(system.constraint_exprs, residuals)) if abs(r) > limit],
                              title="inconsistent state")
     return x
 

@@ -45,7 +45,9 @@ import numpy as np
 from ..derivation.formulation_protocol import LoopPoint, Stabilisation, protocol_named, protocol_of
 from ..errors import ModelError
 from ..memo import OwnerMemo
+from ..numerics.compiler import compiler_command
 from .closure import closure
+from .compiled import build
 
 __all__ = ["ClosedLoop", "closed_loop", "controller_key", "OUTPUT_NAMES"]
 
@@ -116,8 +118,6 @@ class ClosedLoop:
         """The loop as a compiled library (:func:`.compiled.build`; with ``projection`` every
         step is projected onto the constraints), built once per compiler command; raises
         :class:`~.compiled.CompilerUnavailable`."""
-        from .compiled import build
-        from ..numerics.compiler import compiler_command
         key = (tuple(compiler_command() or ()), projection)
         if key not in self._compiled:
             self._compiled[key] = build(self.rhs, self.outputs, self.event,

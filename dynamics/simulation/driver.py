@@ -55,6 +55,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import math
 import time
 import warnings
 from collections.abc import Mapping
@@ -68,6 +69,7 @@ from ..derivation.states import to_state
 from ..errors import ModelError
 from ..memo import OwnerMemo
 from .closed_loop import closed_loop
+from .compiled import CompilerUnavailable
 from .integrators import (FAILED, FINISHED, MAX_STEPS, NONFINITE, SCIPY_METHODS,
                           SINGULAR, RunRequest, Samples, integrate_compiled, integrate_scipy,
                           integrate_sundials, left_of)
@@ -245,7 +247,7 @@ def _check_request(call: _Call) -> list:
     problems = []
     try:
         t0, tf = (float(v) for v in call.t_span)
-        if not (np.isfinite(t0) and np.isfinite(tf) and tf > t0):
+        if not (math.isfinite(t0) and math.isfinite(tf) and tf > t0):
             problems.append(f"t_span must be increasing and finite, got ({t0:g}, {tf:g})")
     except (TypeError, ValueError):
         problems.append(f"t_span must be a pair (t0, tf), got {call.t_span!r}")
@@ -460,7 +462,8 @@ def _prepare(call: _Call, resolved) -> tuple:
             seeds = resolved.seeds
     loop = closed_loop(_integration_model(model, pv, settings), controller, stabilization=call.stabilization,
                        baumgarte=call.baumgarte, seeds=seeds)
-    y0 = np.r_[x0[list(loop.state_index)], [0.0] * loop.has_work, np.zeros(loop.n_int)]
+    y0 = np.zeros(loop.n_y)              # (x_S, W = 0, ∫g = 0)
+    y0[:len(loop.state_index)] = x0[list(loop.state_index)]
     seg_params = [loop.segment_params(pv, controller, a) for a, _ in segments]
     request = RunRequest(loop, controller, segments, y0, seg_params, call.t_eval, call.rtol, call.atol,
                          call.max_step, call.max_steps, call.singular_tol, call.stabilization, call.baumgarte)
@@ -586,7 +589,6 @@ def _library(loop, explicit_u, projection=False):
     if explicit_u:
         return None, ("the controller has no casadi(t, q, qdot) method, so it cannot be compiled "
                       "into the closed loop")
-    from .compiled import CompilerUnavailable
     try:
         return loop.compiled(projection), None
     except CompilerUnavailable as exc:
@@ -602,12 +604,19 @@ _CHECKED_BLOCKS = ("q", "qdot", "lam", "g", "energy", "u")
 
 
 def _outputs(loop, controller, library, points: Samples, seg_params) -> dict:
-    """The output blocks of the closed loop at the N ``points``, each (N, size)."""
+    """The output blocks of the closed loop at the N ``points``, each (N, size); the diagnostic
+    blocks (measure, metric, gram) under the key ``"diagnostic"`` as :class:`_DiagnosticBlocks`
+    (the compiled library evaluates them only when a diagnostic is read); from the compiled
+    library also ``"table"``, the checked blocks side by side (N, Σ sizes)."""
     N = len(points)
     Y = points.y.reshape(N, loop.n_y)
-    P = np.asarray(seg_params, dtype=float).reshape(len(seg_params), loop.n_p)[points.seg]
+    P = np.asarray(seg_params, dtype=float).reshape(len(seg_params), loop.n_p)
     if library is not None:
-        return dict(zip(_BLOCKS, library.outputs(points.t, points.t_c, Y, P)))
+        table = library.output_table(points.t, points.t_c, Y, P, points.seg)
+        out = dict(zip(_CHECKED_BLOCKS, library.blocks(table)), table=table)
+        out["diagnostic"] = _DiagnosticBlocks(library, (points.t, points.t_c, Y, P, points.seg))
+        return out
+    P = P[points.seg]
     T, Tc = points.t[None, :], points.t_c[None, :]
     if controller is not None and not (loop.symbolic_u or loop.segment_u):
         qdot = np.asarray(loop.qdot.map(N)(Y.T, P.T)).reshape(-1, N)
@@ -617,17 +626,57 @@ def _outputs(loop, controller, library, points: Samples, seg_params) -> dict:
         res = loop.outputs.map(N)(T, Tc, Y.T, U, P.T)
     else:
         res = loop.outputs.map(N)(T, Tc, Y.T, P.T)
-    return {k: np.asarray(v).T.reshape(N, -1) for k, v in zip(_BLOCKS, res)}
+    out = {k: np.asarray(v).T.reshape(N, -1) for k, v in zip(_BLOCKS, res)}
+    out["diagnostic"] = _DiagnosticBlocks(None, None, {k: out.pop(k) for k in _BLOCKS[6:]})
+    return out
 
 
-def _first_nonfinite_row(out: dict, modelled: dict) -> int | None:
-    """First output row with a non-finite value in a column that is modelled."""
+def _output_rows(out: dict, start: int, stop: int | None) -> dict:
+    """The rows ``start:stop`` of every output block (views)."""
+    return {k: v.rows(start, stop) if k == "diagnostic" else v[start:stop] for k, v in out.items()}
+
+
+@dataclass(frozen=True, eq=False)
+class _DiagnosticBlocks:
+    """The blocks measure, metric and gram at the output points: ``blocks`` as given, or — with
+    a compiled ``library`` — evaluated by it at ``points`` = (t, t_c, Y, the segments'
+    parameter vectors, each point's segment) on first use."""
+
+    library: object
+    points: tuple | None
+    blocks: dict = field(default_factory=dict)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if not self.blocks:
+            self.blocks.update(zip(_BLOCKS[6:], self.library.diagnostic_outputs(*self.points)))
+        return self.blocks[name]
+
+    def size(self, name: str) -> int:
+        """Entries per point of block ``name`` (without evaluating it)."""
+        if self.library is not None:
+            return self.library.diag_sizes[_BLOCKS[6:].index(name)]
+        return self.blocks[name].shape[1]
+
+    def rows(self, start: int, stop: int | None) -> "_DiagnosticBlocks":
+        part = slice(start, stop)
+        if self.library is not None and not self.blocks:
+            t, t_c, Y, P, seg = self.points
+            return _DiagnosticBlocks(self.library, (t[part], t_c[part], Y[part], P, seg[part]))
+        return _DiagnosticBlocks(None, None, {k: self[k][part] for k in _BLOCKS[6:]})
+
+
+def _first_nonfinite_row(out: dict) -> int | None:
+    """First row after the initial one (counted from 0 after it) with a non-finite value in a
+    column that is modelled (finite at the initial point)."""
+    whole = out.get("table")                       # NaN and ±inf reach the sum
+    if np.isfinite(whole.sum()) if whole is not None else all(np.isfinite(out[k].sum()) for k in _CHECKED_BLOCKS):
+        return None
     rows = []
     for key in _CHECKED_BLOCKS:
-        block = out[key]
-        if not block.size or np.isfinite(block.sum()):      # NaN and ±inf reach the sum
+        block = out[key][1:]
+        if not block.size or np.isfinite(block.sum()):
             continue
-        bad = (~np.isfinite(block[:, modelled[key]])).any(axis=1)
+        bad = (~np.isfinite(block[:, np.isfinite(out[key][0])])).any(axis=1)
         if bad.any():
             rows.append(int(np.argmax(bad)))
     return min(rows) if rows else None
@@ -645,14 +694,13 @@ def _assemble(call: _Call, request: RunRequest, routed: tuple, prepared: _Prepar
     samples = run.samples(loop.n_y, model.numeric.n_multipliers if run.with_lam else 0)
     points = Samples.join([initial, samples.with_lam(None)])
     out = _outputs(loop, request.controller, library, points, request.seg_params)
-    modelled = {k: np.isfinite(out[k][0]) for k in _CHECKED_BLOCKS}
     if run.status == FINISHED:
-        row = _first_nonfinite_row({k: out[k][1:] for k in _CHECKED_BLOCKS}, modelled)
+        row = _first_nonfinite_row(out)
         if row is not None:
             run.fail(NONFINITE, samples.t[row], "")
             run.keep_first(row)
             samples, points = samples.rows(0, row), points.rows(0, row + 1)
-            out = {k: v[:row + 1] for k, v in out.items()}
+            out = _output_rows(out, 0, row + 1)
     if run.status in (FAILED, MAX_STEPS, NONFINITE):
         _diagnose(model, request, run)
     if run.status == SINGULAR:
@@ -663,7 +711,7 @@ def _assemble(call: _Call, request: RunRequest, routed: tuple, prepared: _Prepar
     if prepared.with_initial:          # the points the outputs were evaluated at
         samples = points if samples.lam is None else points.with_lam(np.concatenate([out["lam"][:1], samples.lam]))
     else:
-        out = {k: v[1:] for k, v in out.items()}
+        out = _output_rows(out, 1, None)
     wall = time.perf_counter() - prepared.start
     return _trajectory(call, loop, (run, samples, out, energy0), (method_name, extra, wall), prepared)
 
@@ -671,7 +719,7 @@ def _assemble(call: _Call, request: RunRequest, routed: tuple, prepared: _Prepar
 def _trajectory(call: _Call, loop, results: tuple, route: tuple, prepared: _Prepared) -> Trajectory:
     """The :class:`Trajectory` of ``results`` = (Run, its samples, the output blocks, E(t₀))
     and ``route`` = (method name, extra diagnostics, wall time)."""
-    model, system = call.model, call.model.system
+    model = call.model
     run, samples, out, energy0 = results
     method_name, extra, wall = route
     N = len(samples)
@@ -691,13 +739,24 @@ def _trajectory(call: _Call, loop, results: tuple, route: tuple, prepared: _Prep
             a.setflags(write=False)
     settings = prepared.settings
     settings["method"] = method_name
+    names = _names(model, loop)
     return Trajectory(**arrays, nfev=run.nfev, njev=run.njev, n_steps=run.n_steps,
                       wall_time_s=wall, success=run.status == FINISHED, status=run.status,
                       message=run.message, formulation=model.formulation, method=method_name,
-                      coordinates=tuple(system.coordinates),
-                      state_names=tuple(model.state_names[i] for i in loop.state_index),
-                      input_names=tuple(system.inputs), settings=settings,
+                      **names, settings=settings,
                       diagnostics=_diagnostics(model, loop, run, out, extra), outputs=traj_outputs)
+
+
+#: per closed loop (dropped with it): the column names of its trajectories
+COLUMN_NAMES = OwnerMemo("trajectory column names per closed loop")
+
+
+def _names(model, loop) -> dict:
+    """``coordinates``, ``state_names`` (the integrated entries of x) and ``input_names``."""
+    system = model.system
+    return COLUMN_NAMES.get(loop, "names", lambda: dict(
+        coordinates=tuple(system.coordinates), state_names=tuple(model.state_names[i] for i in loop.state_index),
+        input_names=tuple(system.inputs)))
 
 
 def _singular_text(model) -> str:
@@ -710,15 +769,17 @@ class Diagnostics(Mapping):
     The condition numbers ``max_cond_metric`` and ``max_cond_gram`` take an SVD of the matrix
     at every output point — for a thousand points about as long as the integration itself —
     so they are computed the first time they are read (``d["max_cond_metric"]``, ``dict(d)``,
-    ``repr``) and then kept: a run that never reads them does not pay for them. Every other
-    entry is stored by the run. The values live as long as the trajectory."""
+    ``repr``) and then kept: a run that never reads them does not pay for them. So is
+    ``min_singular_measure``; on the compiled route the matrices and the measure at the output
+    points are themselves evaluated then (one C pass, shared by the three). Every other entry is
+    stored by the run. The values live as long as the trajectory."""
 
     def __init__(self, entries: dict):
         self._entries = dict(entries)
 
     def __getitem__(self, key):
         value = self._entries[key]
-        if isinstance(value, _MaxCondition):
+        if isinstance(value, _OnRead):
             value = self._entries[key] = value.compute()
         return value
 
@@ -733,24 +794,27 @@ class Diagnostics(Mapping):
 
 
 @dataclass(frozen=True, eq=False)
-class _MaxCondition:
-    """A condition number not yet computed: the (N, k·k) matrices, column-major per row."""
+class _OnRead:
+    """A diagnostic not yet computed: ``measure(block)`` of the diagnostic block ``name``."""
 
-    matrices: np.ndarray
+    measure: object
+    blocks: _DiagnosticBlocks
+    name: str
 
-    def compute(self) -> float | None:
-        return _max_cond(self.matrices)
+    def compute(self):
+        return self.measure(self.blocks[self.name])
 
 
 def _diagnostics(model, loop, run, out, extra) -> Diagnostics:
     d = dict(extra)
-    d["integrated_states"] = tuple(model.state_names[i] for i in loop.state_index)
+    d["integrated_states"] = _names(model, loop)["state_names"]
     d["state_count"] = (len(loop.state_index), loop.n_x)
-    if out["measure"].size:
-        d["min_singular_measure"] = float(np.nanmin(out["measure"])) if np.isfinite(out["measure"]).any() else None
-    d["max_cond_metric"] = _MaxCondition(out["metric"])
-    if protocol_of(model).has_constraint_gram and out["gram"].size:
-        d["max_cond_gram"] = _MaxCondition(out["gram"])
+    blocks = out["diagnostic"]
+    if blocks.size("measure"):
+        d["min_singular_measure"] = _OnRead(_min_measure, blocks, "measure")
+    d["max_cond_metric"] = _OnRead(_max_cond, blocks, "metric")
+    if protocol_of(model).has_constraint_gram and blocks.size("gram"):
+        d["max_cond_gram"] = _OnRead(_max_cond, blocks, "gram")
     if run.status == SINGULAR:
         d["t_event"] = run.t_fail
     if run.h_lambda:
@@ -762,6 +826,11 @@ def _diagnostics(model, loop, run, out, extra) -> Diagnostics:
                                "stability, not accuracy; use method='CVODES', 'Radau' or 'BDF' "
                                "(or method='auto', which switches by itself)")
     return Diagnostics(d)
+
+
+def _min_measure(block) -> float | None:
+    """The smallest finite singular-set measure of the output points (None: none is finite)."""
+    return float(np.nanmin(block)) if np.isfinite(block).any() else None
 
 
 def _max_cond(block) -> float | None:

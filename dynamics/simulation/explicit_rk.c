@@ -5,7 +5,8 @@
  *   nhg_rhs(t, t_c, y, p) -> ydot        (closed loop; t_c = min(t, t_hi) is the controller time)
  *   nhg_event(y, ydot, p) -> (g, gdot)   (singular-set measure and its rate; if NHG_HAS_EVENT)
  *   nhg_out(t, t_c, y, p) -> outputs     (evaluated at the output points)
- * and the macros NHG_NY, NHG_NP, NHG_NOUT, NHG_HAS_EVENT, NHG_SZ_ARG, NHG_SZ_RES, NHG_SZ_IW,
+ *   nhg_diag(t, t_c, y, p) -> diagnostic outputs (the blocks only the diagnostics read)
+ * and the macros NHG_NY, NHG_NP, NHG_NOUT, NHG_NDIAG, NHG_HAS_EVENT, NHG_SZ_ARG, NHG_SZ_RES, NHG_SZ_IW,
  * NHG_SZ_W, and the tableau arrays of nhgait.dynamics.rk_tableaus (DOP853_*, DOPRI5_*); with
  * NHG_HAS_PROJECT also nhg_project(y, p) -> y (velocities projected onto the constraints), applied
  * to every accepted step and every output point (the next step restarts from the projected
@@ -352,9 +353,10 @@ static double nhg_event_in_step(nhg_ctx *cx, const nhg_method *m, double t, doub
   return -1.0;
 }
 
-CASADI_SYMBOL_EXPORT int nhg_abi_version(void) { return 1; }
+CASADI_SYMBOL_EXPORT int nhg_abi_version(void) { return 2; }
 CASADI_SYMBOL_EXPORT int nhg_dims(int which) {
-  return which == 0 ? NHG_NY : which == 1 ? NHG_NP : which == 2 ? NHG_NOUT : NHG_HAS_EVENT;
+  return which == 0 ? NHG_NY : which == 1 ? NHG_NP : which == 2 ? NHG_NOUT : which == 3 ? NHG_HAS_EVENT
+       : NHG_NDIAG;
 }
 
 /* Integrate from ctl[T] to t_end (the controller sees t clamped to t_hi). y: in/out (NHG_NY).
@@ -521,19 +523,38 @@ CASADI_SYMBOL_EXPORT int nhg_run(int method, double t_end, double t_hi, double *
   return NHG_DONE;
 }
 
-/* outputs at N points: t, t_c (N), Y (N x NHG_NY), P (N x NHG_NP) -> OUT (N x NHG_NOUT) */
-CASADI_SYMBOL_EXPORT void nhg_outputs(long long N, const double *t, const double *tc,
-                                      const double *Y, const double *P, double *OUT) {
+/* a generated function of (t, t_c, y, p) at N points: t, t_c (N), Y (N x NHG_NY), seg (N) the
+   segment of each point, P (segments x NHG_NP) the parameter vector of each segment
+   -> OUT (N x width) */
+typedef int (*nhg_point_function)(const casadi_real **, casadi_real **, casadi_int *, casadi_real *, int);
+
+static void nhg_at_points(nhg_point_function f, long long width, long long N, const double *t,
+                          const double *tc, const double *Y, const long long *seg, const double *P,
+                          double *OUT) {
   nhg_ctx cx;
   long long i;
   for (i = 0; i < N; ++i) {
     cx.arg[0] = &t[i];
     cx.arg[1] = &tc[i];
     cx.arg[2] = &Y[i * NHG_NY];
-    cx.arg[3] = &P[i * NHG_NP];
-    cx.res[0] = &OUT[i * NHG_NOUT];
-    nhg_out(cx.arg, cx.res, cx.iw, cx.w, 0);
+    cx.arg[3] = &P[seg[i] * NHG_NP];
+    cx.res[0] = &OUT[i * width];
+    f(cx.arg, cx.res, cx.iw, cx.w, 0);
   }
+}
+
+/* the outputs at N points (arguments as nhg_at_points) -> OUT (N x NHG_NOUT) */
+CASADI_SYMBOL_EXPORT void nhg_outputs(long long N, const double *t, const double *tc,
+                                      const double *Y, const long long *seg, const double *P,
+                                      double *OUT) {
+  nhg_at_points(nhg_out, NHG_NOUT, N, t, tc, Y, seg, P, OUT);
+}
+
+/* the diagnostic outputs at N points (arguments as nhg_at_points) -> OUT (N x NHG_NDIAG) */
+CASADI_SYMBOL_EXPORT void nhg_diagnostics(long long N, const double *t, const double *tc,
+                                          const double *Y, const long long *seg, const double *P,
+                                          double *OUT) {
+  nhg_at_points(nhg_diag, NHG_NDIAG, N, t, tc, Y, seg, P, OUT);
 }
 
 /* one right-hand-side evaluation (for tests and the per-evaluation benchmark): repeat times */

@@ -20,12 +20,16 @@ dense output of the explicit methods, to the output grid for SUNDIALS).
 """
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
+
+from .compiled import OutputBuffers, RunState
 
 FINISHED, FAILED, MAX_STEPS, NONFINITE, SINGULAR = 0, -1, -2, -3, -4
 SCIPY_METHODS = {"RK23": RK23, "RK45": RK45, "DOP853": DOP853, "Radau": Radau, "BDF": BDF,
@@ -162,10 +166,12 @@ class Run:
         self._rows.append((t, min(t, t_hi), seg, np.array(y, dtype=float),
                            None if lam is None else np.array(lam, dtype=float)))
 
-    def add_block(self, t, t_hi, seg, Y):
-        """:meth:`add` for N points at once: ``t`` (N,), ``Y`` (N, n_y) (copied)."""
+    def add_block(self, t, t_hi, seg, Y, copy: bool = True):
+        """:meth:`add` for N points at once: ``t`` (N,), ``Y`` (N, n_y) (copied; with
+        ``copy=False`` kept as they are: the caller hands them over and never writes them again)."""
         self._flush()
-        t, Y = np.array(t, dtype=float), np.array(Y, dtype=float)
+        if copy:
+            t, Y = np.array(t, dtype=float), np.array(Y, dtype=float)
         if t.size:
             self._blocks.append(Samples(t, np.minimum(t, t_hi), np.full(t.size, seg, dtype=np.intp),
                                         Y.reshape(t.size, -1)))
@@ -209,7 +215,8 @@ class Run:
 
 
 def left_of(b: float) -> float:
-    return float(np.nextafter(b, -np.inf))
+    """The largest float below ``b``."""
+    return math.nextafter(float(b), -math.inf)
 
 
 class Fast:
@@ -804,7 +811,6 @@ def integrate_compiled(request: RunRequest, library, scheme: str, *, stop_on_sti
     """Run the compiled integrator (:mod:`.compiled`, the closed loop's ``library``) interval by
     interval with the explicit Runge–Kutta ``scheme`` ("DOP853" or "DOPRI5"); the outputs of
     each C call are kept as arrays (no per-step Python)."""
-    from .compiled import OutputBuffers, RunState
     segments, event_tol = request.segments, request.event_tol
     run = Run()
     te = None if request.t_eval is None else np.ascontiguousarray(request.t_eval, dtype=float)
@@ -813,16 +819,20 @@ def integrate_compiled(request: RunRequest, library, scheme: str, *, stop_on_sti
     state.set("i_eval", _grid_start(te, segments[0][0]))
     y = np.ascontiguousarray(request.y0, dtype=float).copy()
     buffers = OutputBuffers.for_steps(library.ny) if te is None else OutputBuffers.for_grid(te, library.ny)
-    code = 0
+    code, handed_over = 0, None
     for segment in request.intervals():
         t_hi, j = segment.t_hi, segment.index
         p = np.ascontiguousarray(segment.params, dtype=float)
         state.set("t", segment.start)
         first = state["i_eval"]
+        if handed_over is buffers:
+            buffers = buffers.fresh()
         while True:
             code = library.run(scheme, state, (segment.end, t_hi), y, p, buffers)
-            if te is None:
-                run.add_block(buffers.t_steps[:state["n_out"]], t_hi, j, buffers.y_steps[:state["n_out"]])
+            if te is None:        # the rows become the run's: no later call writes into them
+                n_out = state["n_out"]
+                run.add_block(buffers.t_steps[:n_out], t_hi, j, buffers.y_steps[:n_out], copy=False)
+                handed_over = buffers
             if code != 1:
                 break
             buffers = buffers.grown()
@@ -835,10 +845,11 @@ def integrate_compiled(request: RunRequest, library, scheme: str, *, stop_on_sti
 
 
 def _count_compiled(run: Run, state) -> None:
-    run.nfev, run.n_steps, run.n_rejected = state["nfev"], state["accepted"], state["rejected"]
-    run.h_lambda = float(state["h_lambda"])
-    if not np.isnan(state["t_stiff"]):
-        run.t_stiff = float(state["t_stiff"])
+    values = state.values()
+    run.nfev, run.n_steps, run.n_rejected = values["nfev"], values["accepted"], values["rejected"]
+    run.h_lambda = values["h_lambda"]
+    if not math.isnan(values["t_stiff"]):
+        run.t_stiff = values["t_stiff"]
 
 
 def _compiled_outcome(run: Run, state, code: int, end: tuple, max_steps: int) -> Run:
