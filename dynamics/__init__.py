@@ -21,7 +21,7 @@ _EXPORTS = {
     "ReducedODE": "derivation.reduction", "LagrangianDAE": "derivation.lagrange",
     "HamiltonianDAE": "derivation.hamilton",
     "load_scene": "derivation.scene", "Scene": "derivation.scene",
-    "simulate": "simulation.driver", "Trajectory": "simulation.driver",
+    "simulate": "simulation.driver", "Trajectory": "simulation.trajectory",
     "jacobi_test": "derivation.analysis", "to_state": "derivation.states",
     "from_state": "derivation.states",
 }

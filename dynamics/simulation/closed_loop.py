@@ -256,9 +256,29 @@ def _input(controller, m, t_c, q, qdot, params):
     return u, [u], params, False, False
 
 
-def _integrated(model, seeds, x, params, xdot, measure, qdot, g, power, n_int, opaque_u):
+@dataclass(frozen=True)
+class _LoopExpressions:
+    """The CasADi expressions of the closed loop that decide what must be integrated: the state
+    ``x``, ``params``, ẋ, the singular-set ``measure``, q̇, the residual ``g``, the ``power``
+    τ·q̇, the number ``n_int`` of integrated residuals and whether the input law is opaque
+    (a Python controller, which may read any q and q̇)."""
+
+    x: object
+    params: object
+    xdot: object
+    measure: object
+    qdot: object
+    g: object
+    power: object
+    n_int: int
+    opaque_u: bool
+
+
+def _integrated(model, seeds, loop: _LoopExpressions):
     """(indices of x to integrate, measure, whether W is integrated): the closure of the seeds
     plus what the event, ∫g and an opaque controller read (see :mod:`.closure`)."""
+    x, params, xdot, measure, qdot, g, power, n_int, opaque_u = (
+        loop.x, loop.params, loop.xdot, loop.measure, loop.qdot, loop.g, loop.power, loop.n_int, loop.opaque_u)
     nx, n = x.shape[0], model.system.n
     if seeds is None:
         return tuple(range(nx)), measure, True
@@ -291,8 +311,8 @@ def _build(model, controller, stabilization, baumgarte, seeds) -> ClosedLoop:
     power = num["power"](t_c, x, u, params)
     energy = num["energy"](x, params)
     metric = ca.vec(_velocity_metric(energy, x[n:]))
-    index, measure, has_work = _integrated(model, seeds, x, params, xdot, measure, qdot, g, power,
-                                           n_int, bool(u_args))
+    index, measure, has_work = _integrated(model, seeds, _LoopExpressions(x, params, xdot, measure, qdot, g, power,
+                                                                          n_int, bool(u_args)))
     if len(index) == nx:
         x_s = x
 

@@ -53,15 +53,12 @@ columns that need them; ``Trajectory.outputs`` holds the requested columns.
 """
 from __future__ import annotations
 
-import csv
 import dataclasses
 import math
 import time
 import warnings
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-import casadi as ca
 import numpy as np
 
 from ..derivation.formulation_protocol import protocol_of
@@ -70,9 +67,11 @@ from ..errors import ModelError
 from ..memo import OwnerMemo
 from .closed_loop import closed_loop
 from .compiled import CompilerUnavailable
+from .failures import diagnose_failure
 from .integrators import (FAILED, FINISHED, MAX_STEPS, NONFINITE, SCIPY_METHODS,
                           SINGULAR, RunRequest, Samples, integrate_compiled, integrate_scipy,
                           integrate_sundials, left_of)
+from .trajectory import Diagnostics, OnRead, Trajectory, max_condition, min_measure
 
 __all__ = ["simulate", "Trajectory", "Diagnostics", "METHODS", "FINISHED", "FAILED", "MAX_STEPS", "NONFINITE",
            "SINGULAR", "SINGULAR_EVENT_TOL"]
@@ -81,138 +80,10 @@ COMPILED_METHODS = {"compiled": "DOP853", "compiled-DOPRI5": "DOPRI5"}
 METHODS = tuple(SCIPY_METHODS) + ("CVODES",) + tuple(COMPILED_METHODS) + ("auto",)
 DAE_FORMS = ("index1", "idas")
 STABILIZATIONS = (None, "baumgarte", "projection")
-CSV_COLUMNS = ("q", "qdot", "state", "all", "outputs")
 #: default threshold of the singular-set event (the measure is 1 far from the set, 0 on it)
 SINGULAR_EVENT_TOL = 1e-6
 STATUS_NAMES = {FINISHED: "finished", FAILED: "failed", MAX_STEPS: "max_steps",
                 NONFINITE: "non-finite", SINGULAR: "singular set"}
-
-
-@dataclass(frozen=True, eq=False)
-class Trajectory:
-    """A simulated trajectory sampled at N times.
-
-    Attributes
-    ----------
-    t : (N,) times [s].
-    q, qdot : (N, n) coordinates and velocities in ``coordinates`` order (angles unwrapped).
-    state : (N, d) the integrated entries of the formulation's state (``state_names``).
-    u : (N, m) inputs applied (at a switch time: the left limit).
-    lam : (N, k) Lagrange multipliers, or None for the reduced ODE.
-    constraint_residual : (N, k) ω(q) q̇.
-    energy : (N,) E (Lagrangian energy, H or h).
-    work : (N,) ∫ τ·q̇ dt from t₀, integrated as a quadrature state.
-    energy_balance : (N,) E − E(t₀) − work (E(t₀) at the initial state even if t_eval starts later).
-    nfev, njev, n_steps : right-hand-side / Jacobian evaluations and accepted steps.
-    wall_time_s : wall time of the integration and evaluation of the outputs (a compilation in
-        this call is included and also reported as ``diagnostics["compile_time_s"]``).
-    success, status, message : status 0 = reached the end; −1 integrator failure, −2 max_steps,
-        −3 non-finite value, −4 singular set reached (module constants). The points reached are
-        kept; the message names the time and the cause.
-    formulation, method : "reduced" | "lagrange" | "hamilton"; the method that ran.
-    coordinates, state_names, input_names : names of the columns.
-    settings : every option the run used (tolerances, DAE form, stabilisation, fallbacks …).
-    diagnostics : what the run measured about itself (a read-only :class:`Diagnostics`
-        mapping): ``min_singular_measure``, ``max_cond_metric`` (kinetic metric of the velocity
-        part), ``max_cond_gram`` (DAE forms: ω M⁻¹ ωᵀ) — both computed when first read —,
-        ``stiff_at``/``h_lambda_max``/``recommendation`` (explicit methods),
-        ``integrated_states``, ``state_count``, ``t_event``, ``compile_time_s``.
-    outputs : name → (N,) for the run's requested outputs (empty without ``outputs``).
-    """
-
-    t: np.ndarray
-    q: np.ndarray
-    qdot: np.ndarray
-    state: np.ndarray
-    u: np.ndarray
-    lam: np.ndarray | None
-    constraint_residual: np.ndarray
-    energy: np.ndarray
-    work: np.ndarray
-    energy_balance: np.ndarray
-    nfev: int
-    njev: int
-    n_steps: int
-    wall_time_s: float
-    success: bool
-    status: int
-    message: str
-    formulation: str
-    method: str
-    coordinates: tuple
-    state_names: tuple
-    input_names: tuple
-    settings: dict = field(default_factory=dict)
-    diagnostics: dict = field(default_factory=dict)
-    outputs: dict = field(default_factory=dict)
-
-    def __repr__(self) -> str:
-        from nhgait.dynamics.reprs import trajectory_repr
-        return trajectory_repr(self)
-
-    def columns(self, columns: str = "q") -> tuple:
-        """(names, (N, c) table) for ``columns`` (see :meth:`to_csv`)."""
-        if columns not in CSV_COLUMNS:
-            raise ModelError([f"unknown columns {columns!r} (choose from {', '.join(CSV_COLUMNS)})"],
-                             title="invalid request")
-        names, blocks = ["t"], [self.t[:, None]]
-        if columns == "outputs":
-            names += list(self.outputs)
-            blocks += [np.asarray(v)[:, None] for v in self.outputs.values()]
-        elif columns == "state":
-            names += list(self.state_names)
-            blocks.append(self.state)
-        else:
-            names += list(self.coordinates)
-            blocks.append(self.q)
-        if columns in ("qdot", "all"):
-            names += [f"{c}_dot" for c in self.coordinates]
-            blocks.append(self.qdot)
-        if columns == "all":
-            names += list(self.input_names)
-            blocks.append(self.u)
-            if self.lam is not None:
-                names += [f"lambda{i + 1}" for i in range(self.lam.shape[1])]
-                blocks.append(self.lam)
-            names += [f"constraint{i + 1}" for i in range(self.constraint_residual.shape[1])]
-            blocks.append(self.constraint_residual)
-            names += ["energy", "work", "energy_balance"]
-            blocks += [self.energy[:, None], self.work[:, None], self.energy_balance[:, None]]
-        return tuple(names), np.hstack(blocks)
-
-    def to_csv(self, path, columns: str = "q", units: dict | None = None) -> None:
-        """Write column ``t`` and then, per ``columns``:
-
-        * ``"q"``: one column per coordinate, named as in the system (``x``, ``y``, ``theta`` …);
-        * ``"qdot"``: q then ``<name>_dot`` velocities;
-        * ``"state"``: the formulation's integrated state (``state_names``);
-        * ``"all"``: q, velocities, inputs, multipliers (``lambda1`` …), constraint residuals
-          (``constraint1`` …), ``energy``, ``work``, ``energy_balance``;
-        * ``"outputs"``: the run's requested outputs.
-
-        ``units``: optional mapping name → unit (e.g. a scene's ``[units]``). When given, every
-        header cell reads ``name [unit]``: t in s, energies in J, a velocity in its coordinate's
-        unit per second, and "SI" for a name the mapping does not cover.
-        """
-        names, table = self.columns(columns)
-        if units is not None:
-            names = [f"{nm} [{_unit(nm, units, self)}]" for nm in names]
-        with open(path, "w", newline="") as fh:
-            writer = csv.writer(fh)
-            writer.writerow(names)
-            writer.writerows([[repr(float(v)) for v in row] for row in table])
-
-
-def _unit(name: str, units: dict, traj) -> str:
-    if name in units:
-        return str(units[name])
-    if name == "t":
-        return "s"
-    if name in ("energy", "work", "energy_balance"):
-        return "J"
-    if name.endswith("_dot") and name[:-4] in units:
-        return f"{units[name[:-4]]}/s"
-    return "SI"
 
 
 # --------------------------------------------------------------------------------------------
@@ -702,7 +573,7 @@ def _assemble(call: _Call, request: RunRequest, routed: tuple, prepared: _Prepar
             samples, points = samples.rows(0, row), points.rows(0, row + 1)
             out = _output_rows(out, 0, row + 1)
     if run.status in (FAILED, MAX_STEPS, NONFINITE):
-        _diagnose(model, request, run)
+        diagnose_failure(model, request, run)
     if run.status == SINGULAR:
         run.message = (f"reached the singular set at t = {run.t_fail:.9g}: singular-set measure "
                        f"below {request.event_tol:g} ({_singular_text(model)})"
@@ -763,58 +634,16 @@ def _singular_text(model) -> str:
     return protocol_of(model).singular_set_text(model)
 
 
-class Diagnostics(Mapping):
-    """``Trajectory.diagnostics``: what a run measured about itself, a read-only mapping.
-
-    The condition numbers ``max_cond_metric`` and ``max_cond_gram`` take an SVD of the matrix
-    at every output point — for a thousand points about as long as the integration itself —
-    so they are computed the first time they are read (``d["max_cond_metric"]``, ``dict(d)``,
-    ``repr``) and then kept: a run that never reads them does not pay for them. So is
-    ``min_singular_measure``; on the compiled route the matrices and the measure at the output
-    points are themselves evaluated then (one C pass, shared by the three). Every other entry is
-    stored by the run. The values live as long as the trajectory."""
-
-    def __init__(self, entries: dict):
-        self._entries = dict(entries)
-
-    def __getitem__(self, key):
-        value = self._entries[key]
-        if isinstance(value, _OnRead):
-            value = self._entries[key] = value.compute()
-        return value
-
-    def __iter__(self):
-        return iter(self._entries)
-
-    def __len__(self) -> int:
-        return len(self._entries)
-
-    def __repr__(self) -> str:
-        return repr(dict(self))
-
-
-@dataclass(frozen=True, eq=False)
-class _OnRead:
-    """A diagnostic not yet computed: ``measure(block)`` of the diagnostic block ``name``."""
-
-    measure: object
-    blocks: _DiagnosticBlocks
-    name: str
-
-    def compute(self):
-        return self.measure(self.blocks[self.name])
-
-
 def _diagnostics(model, loop, run, out, extra) -> Diagnostics:
     d = dict(extra)
     d["integrated_states"] = _names(model, loop)["state_names"]
     d["state_count"] = (len(loop.state_index), loop.n_x)
     blocks = out["diagnostic"]
     if blocks.size("measure"):
-        d["min_singular_measure"] = _OnRead(_min_measure, blocks, "measure")
-    d["max_cond_metric"] = _OnRead(_max_cond, blocks, "metric")
+        d["min_singular_measure"] = OnRead(min_measure, blocks, "measure")
+    d["max_cond_metric"] = OnRead(max_condition, blocks, "metric")
     if protocol_of(model).has_constraint_gram and blocks.size("gram"):
-        d["max_cond_gram"] = _OnRead(_max_cond, blocks, "gram")
+        d["max_cond_gram"] = OnRead(max_condition, blocks, "gram")
     if run.status == SINGULAR:
         d["t_event"] = run.t_fail
     if run.h_lambda:
@@ -826,23 +655,6 @@ def _diagnostics(model, loop, run, out, extra) -> Diagnostics:
                                "stability, not accuracy; use method='CVODES', 'Radau' or 'BDF' "
                                "(or method='auto', which switches by itself)")
     return Diagnostics(d)
-
-
-def _min_measure(block) -> float | None:
-    """The smallest finite singular-set measure of the output points (None: none is finite)."""
-    return float(np.nanmin(block)) if np.isfinite(block).any() else None
-
-
-def _max_cond(block) -> float | None:
-    """Largest 2-norm condition number of the (k, k) matrices stored column-major per row."""
-    if not block.size:
-        return None
-    k = int(round(np.sqrt(block.shape[1])))
-    rows = block[np.all(np.isfinite(block), axis=1)]
-    if not rows.size:
-        return None
-    with np.errstate(all="ignore"):
-        return float(np.max(np.linalg.cond(rows.reshape(-1, k, k).transpose(0, 2, 1))))
 
 
 def _named_outputs(call: _Call, prepared: _Prepared, loop, out, Y) -> dict:
@@ -867,108 +679,3 @@ def _named_outputs(call: _Call, prepared: _Prepared, loop, out, Y) -> dict:
             values = np.asarray(f.map(N)(out["q"].T, out["qdot"].T, np.repeat(prepared.pv[:, None], N, 1)))
             result[name] = values[list(quantities).index(name)].copy()
     return result
-
-
-# --------------------------------------------------------------------------------------------
-# what produced a non-finite value
-# --------------------------------------------------------------------------------------------
-def _diagnose(model, request: RunRequest, run) -> None:
-    """Name the time and the quantity behind a failure; a failure caused by a non-finite value
-    becomes status NONFINITE."""
-    segments = request.segments
-    last = run.last()
-    t = run.t_fail if run.t_fail is not None else (last[0] if last else segments[0][0])
-    j = last[1] if last else 0
-    y = run.y_fail if run.y_fail is not None else (last[2] if last else request.y0)
-    if run.y_fail is not None and run.t_bad is not None:
-        j = int(np.searchsorted([b for _, b in segments], run.t_bad))
-        j = min(j, len(segments) - 1)
-    found = None
-    probes = [t, np.nextafter(t, np.inf), t + 1e-9 * max(1.0, abs(t)), t + 1e-6 * max(1.0, abs(t))]
-    probes += [] if run.t_bad is None else [run.t_bad]
-    for tt in probes:
-        if tt > segments[-1][1]:
-            break
-        found = _nonfinite_source(model, request, (float(tt), y, j), run.bad)
-        if found:
-            break
-    if found:
-        run.status = NONFINITE
-        run.message = f"stopped at t = {t:.9g}: {found}"
-    elif not run.message:
-        run.message = f"integration failed at t = {t:.9g}"
-
-
-def _nonfinite_source(model, request: RunRequest, point: tuple, bad) -> str | None:
-    """A sentence naming the first non-finite quantity at ``point`` = (t, y, segment index),
-    or None (``bad``: the index of a non-finite entry of ẏ the integrator reported, if any)."""
-    system, loop, controller = model.system, request.loop, request.controller
-    t, y, j = point
-    p, t_hi = request.seg_params[j], left_of(request.segments[j][1])
-    if _bad(y) is not None:
-        return f"the state entry {_y_name(model, loop, _bad(y))} is non-finite"
-    tc = min(t, t_hi)
-    qdot = np.asarray(loop.qdot(y, p)).ravel()
-    q = _full_q(model, loop, y)
-    with np.errstate(all="ignore"):
-        if controller is not None:
-            if loop.symbolic_u or loop.segment_u:
-                u = np.asarray(loop.outputs(t, tc, y, p)[5]).ravel()
-            else:
-                u = np.asarray(controller(tc, q, qdot), dtype=float).ravel()
-            if _bad(u) is not None:
-                name = system.inputs[_bad(u)]
-                return (f"the controller {type(controller).__name__} returned a non-finite input "
-                        f"{name} = {u[_bad(u)]} at t = {t:.9g}")
-        else:
-            u = np.zeros(len(system.inputs))
-        tau = _force_values(system, (t, q, qdot, u), p[:loop.n_params])
-    if tau is not None and _bad(tau) is not None:
-        i = _bad(tau)
-        return (f"the force on {system.coordinates[i]}, τ = {system.tau[i]}, is {tau[i]} at "
-                f"t = {t:.9g}")
-    args = [t, tc, y] + ([u] if request.python_inputs else []) + [p]
-    with np.errstate(all="ignore"):
-        ydot = np.asarray(loop.rhs(*args)).ravel()
-    if _bad(ydot) is not None or bad is not None:
-        i = _bad(ydot) if _bad(ydot) is not None else bad
-        return (f"the right-hand side d/dt {_y_name(model, loop, i)} is non-finite at t = {t:.9g}"
-                + (" (the state is near the singular set)" if loop.event is not None and
-                   float(np.asarray(loop.event(y, np.zeros_like(y), p)[0]).ravel()[0]) < 1e-6
-                   else ""))
-    return None
-
-
-def _bad(v) -> int | None:
-    bad = np.flatnonzero(~np.isfinite(np.asarray(v, dtype=float).ravel()))
-    return int(bad[0]) if bad.size else None
-
-
-def _y_name(model, loop, i) -> str:
-    names = [model.state_names[k] for k in loop.state_index] + ["work"] * loop.has_work
-    names += [f"integral of constraint {k + 1}" for k in range(loop.n_int)]
-    return names[i] if i < len(names) else f"y[{i}]"
-
-
-def _full_q(model, loop, y) -> np.ndarray:
-    q = np.full(loop.n_q, np.nan)
-    for j, i in enumerate(loop.state_index):
-        if i < loop.n_q:
-            q[i] = y[j]
-    return q
-
-
-def _force_values(system, point: tuple, params):
-    """τ(t, q, q̇, u) at ``point`` = (t, q, q̇, u) from the system's force expressions
-    (evaluated only to explain a failure)."""
-    t, q, qdot, u = point
-    from ..numerics.bridge import to_casadi
-    from ..derivation.system import TIME
-    syms = [TIME] + list(system.q) + list(system.q_dot) + list(system.input_symbols) + list(system.param_symbols)
-    values = [t] + list(q) + list(qdot) + list(u) + list(params)
-    try:
-        sx = [ca.SX.sym(f"a{i}") for i in range(len(syms))]
-        f = ca.Function("tau", sx, to_casadi(list(system.tau), syms, sx))
-        return np.array([float(v) for v in f(*values)])
-    except Exception:  # a diagnostic must never replace the run's own message
-        return None
