@@ -2,7 +2,8 @@
 
 * :mod:`.driver` — :func:`simulate`; :mod:`.trajectory` — what it returns (:class:`Trajectory`,
   :class:`Diagnostics`); :mod:`.failures` — what produced a failure;
-* :mod:`.integrators` — the routes (scipy, SUNDIALS, compiled); :mod:`.compiled` and
+* :mod:`.integrators` — what the routes share and the scipy route; :mod:`.route_sundials`,
+  :mod:`.route_compiled` — the SUNDIALS and compiled routes; :mod:`.compiled` and
   ``explicit_rk.c`` — the compiled explicit Runge–Kutta integrator; :mod:`.rk_tableaus`;
 * :mod:`.closed_loop`, :mod:`.closure`, :mod:`.controllers` — inputs u(t, q, q̇).
 """

@@ -68,9 +68,10 @@ from ..memo import OwnerMemo
 from .closed_loop import closed_loop
 from .compiled import CompilerUnavailable
 from .failures import diagnose_failure
-from .integrators import (FAILED, FINISHED, MAX_STEPS, NONFINITE, SCIPY_METHODS,
-                          SINGULAR, RunRequest, Samples, integrate_compiled, integrate_scipy,
-                          integrate_sundials, left_of)
+from .integrators import (FAILED, FINISHED, MAX_STEPS, NONFINITE, SCIPY_METHODS, SINGULAR, RunRequest,
+                          Samples, integrate_scipy, left_of)
+from .route_compiled import integrate_compiled
+from .route_sundials import integrate_sundials
 from .trajectory import Diagnostics, OnRead, Trajectory, max_condition, min_measure
 
 __all__ = ["simulate", "Trajectory", "Diagnostics", "METHODS", "FINISHED", "FAILED", "MAX_STEPS", "NONFINITE",

@@ -1,4 +1,6 @@
-"""The integration routes behind :func:`~.simulation.simulate`, one function per route.
+"""The integration routes behind :func:`~.simulation.simulate`, one function per route, and
+what they share (the frozen :class:`RunRequest`, the :class:`Run` they return, the statuses);
+the scipy route lives here, the SUNDIALS and compiled routes in their own modules.
 
 Each route integrates the closed loop ẏ = f(t, t_c, y, p) of :mod:`.closed_loop` interval by
 interval (``segments``: the controller's switch times) and returns a :class:`Run` — the output
@@ -7,9 +9,9 @@ points reached, counters and a status — never raising for a numerical failure:
 * :func:`integrate_scipy`: scipy's step loop (RK23, RK45, DOP853, Radau, BDF, LSODA), driven one
   step at a time so that every accepted step is checked (non-finite values, the singular-set
   event, the step budget, stiffness) and projection can restart the solver;
-* :func:`integrate_sundials`: CasADi's CVODES (BDF) on the ODE, or IDAS on the index-1 DAE with
+* :func:`~.route_sundials.integrate_sundials` (:mod:`.route_sundials`): CasADi's CVODES (BDF) on the ODE, or IDAS on the index-1 DAE with
   λ algebraic, reporting on the output grid;
-* :func:`integrate_compiled`: the compiled Dormand–Prince integrator of :mod:`.compiled`, one C
+* :func:`~.route_compiled.integrate_compiled` (:mod:`.route_compiled`): the compiled Dormand–Prince integrator of :mod:`.compiled`, one C
   call per interval.
 
 Statuses (``Run.status``): :data:`FINISHED` 0, :data:`FAILED` −1 (the method gave up: step size
@@ -29,7 +31,6 @@ import casadi as ca
 import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
 
-from .compiled import OutputBuffers, RunState
 
 FINISHED, FAILED, MAX_STEPS, NONFINITE, SINGULAR = 0, -1, -2, -3, -4
 SCIPY_METHODS = {"RK23": RK23, "RK45": RK45, "DOP853": DOP853, "Radau": Radau, "BDF": BDF,
@@ -297,14 +298,14 @@ class _Grid:
 
     def __init__(self, t_eval, t0: float):
         self.te = None if t_eval is None else np.asarray(t_eval, dtype=float)
-        self.next = _grid_start(self.te, t0)
+        self.next = grid_start(self.te, t0)
 
     def due(self, t: float) -> bool:
         """The next output time exists and lies at or before ``t`` (to 1e-12 relative)."""
         return self.next < self.te.size and self.te[self.next] <= t + 1e-12 * max(1.0, abs(t))
 
 
-def _grid_start(te, t0):
+def grid_start(te, t0):
     """Index of the first output time after t0 (t0 itself is recorded by the caller)."""
     if te is None:
         return 0
@@ -609,263 +610,3 @@ def _next_step(solver):
     """The step the solver proposes next (RK/Radau/BDF keep it as ``h_abs``), else the last."""
     h = getattr(solver, "h_abs", None)
     return float(h) if h is not None and np.isfinite(h) and h > 0 else solver.step_size
-
-
-# --------------------------------------------------------------------------------------------
-# SUNDIALS through CasADi
-# --------------------------------------------------------------------------------------------
-#: output points per SUNDIALS call: a failure loses at most this many outputs
-_CHUNK = 16
-
-
-class _Start(NamedTuple):
-    """Where a SUNDIALS call starts: time, state, multipliers (IDAS) or None."""
-
-    t: float
-    y: np.ndarray
-    lam: np.ndarray | None
-
-
-@dataclass(frozen=True, eq=False)
-class _SundialsCall:
-    """One SUNDIALS problem on one segment: ``kind`` ("cvodes" or "idas"), the CasADi
-    ``problem`` and ``opts``, ``pv`` = (p, t_hi) its parameter vector, the ``segment``, the
-    event ``watch`` (or None) and ``max_steps`` (named in a failure message)."""
-
-    kind: str
-    problem: dict
-    opts: dict
-    pv: np.ndarray
-    segment: Segment
-    watch: EventWatch | None
-    max_steps: int
-
-    def integrator(self, name: str, t0: float, grid: list) -> ca.Function:
-        """The CasADi integrator from ``t0`` to the times of ``grid``."""
-        return ca.integrator(f"{self.kind}_{name}", self.kind, self.problem, t0, grid, self.opts)
-
-    def arguments(self, start: _Start) -> dict:
-        args = dict(x0=start.y, p=self.pv)
-        if start.lam is not None:
-            args["z0"] = start.lam
-        return args
-
-    def integrate(self, name: str, start: _Start, grid: list) -> dict:
-        """The integrator's outputs (``xf``, ``zf``) from ``start`` to the times of ``grid``
-        (a SUNDIALS failure raises RuntimeError)."""
-        return self.integrator(name, start.t, grid)(**self.arguments(start))
-
-
-def integrate_sundials(request: RunRequest, kind: str, lam0=None) -> Run:
-    """CVODES (``kind="cvodes"``, BDF with Newton) on the ODE or IDAS (``kind="idas"``, from the
-    multipliers ``lam0``) on the index-1 DAE; outputs at ``t_eval`` (or the interval ends),
-    :data:`_CHUNK` output points per call; the event is checked at the outputs. For CVODES a
-    step size below 10⁻¹³·max(1, |t|) is a failure (it would otherwise spend ``max_steps``
-    steps going nowhere next to a singularity)."""
-    loop, segments = request.loop, request.segments
-    te = None if request.t_eval is None else np.asarray(request.t_eval, dtype=float)
-    run = Run(with_lam=kind == "idas")
-    y, lam = np.array(request.y0, dtype=float), None if lam0 is None else np.array(lam0, dtype=float)
-    t_max = max(abs(segments[0][0]), abs(segments[-1][1]), 1.0)
-    opts = {"abstol": request.atol, "reltol": request.rtol, "max_num_steps": int(request.max_steps),
-            "print_stats": False, "show_eval_warnings": False, "disable_internal_warnings": True}
-    if kind == "idas":
-        opts.update(calc_ic=True, suppress_algebraic=True)
-        problem = loop.dae(request.stabilization, request.baumgarte)
-    else:
-        opts["min_step_size"] = 1e-13 * t_max        # CVODES only (IDAS has no such option)
-        problem = _cvodes_problem(loop)
-    measure = Measure(loop.event) if (loop.event is not None and request.event_tol) else None
-    for segment in request.intervals():
-        a, b = segment.start, segment.end
-        tol = 1e-12 * max(1.0, abs(b))
-        wanted = [] if te is None else [float(tt) for tt in te if a + 1e-12 * max(1.0, abs(a)) < tt <= b + tol]
-        grid = [min(tt, b) for tt in wanted]
-        if not grid or grid[-1] < b:
-            grid.append(b)
-        names = dict(zip(grid, wanted)) if te is not None else {b: b}
-        watch = None if measure is None else EventWatch(measure, segment.params, request.event_tol)
-        call = _SundialsCall(kind, problem, opts, np.r_[segment.params, segment.t_hi], segment, watch,
-                             request.max_steps)
-        start = _Start(a, y, lam)
-        for c in range(0, len(grid), _CHUNK):
-            chunk = grid[c:c + _CHUNK]
-            F = call.integrator(f"segment_{segment.index}", start.t, chunk)
-            try:
-                out = F(**call.arguments(start))
-            except RuntimeError as err:
-                run.nfev += int(F.stats().get("nfevals", 0))
-                return _sundials_failure(run, call, start, err, (chunk, names))
-            stats = F.stats()
-            run.nfev += int(stats.get("nfevals", 0))
-            run.njev += int(stats.get("n_call_jacF", stats.get("njevals", 0)))
-            run.n_steps += int(stats.get("nsteps", 0))
-            xf = np.asarray(out["xf"]).reshape(y.size, -1)
-            zf = np.asarray(out["zf"]).reshape(lam.size, -1) if kind == "idas" else None
-            if _record_outputs(run, call, (chunk, names), xf, zf):
-                return run
-            start = _Start(chunk[-1], xf[:, -1].copy(), None if zf is None else zf[:, -1].copy())
-        y, lam = start.y, start.lam
-    return run
-
-
-def _record_outputs(run, call: _SundialsCall, outputs: tuple, xf, zf) -> bool:
-    """Add the outputs of one integrator call (columns of ``xf``/``zf`` at the times of
-    ``outputs`` = (grid, names of the grid times)) to ``run``, checking the singular-set
-    measure at each; True when it stopped the run there."""
-    chunk, names = outputs
-    segment, watch = call.segment, call.watch
-    for col, gt in enumerate(chunk):
-        if gt not in names:
-            continue
-        if watch is not None:
-            g = watch(xf[:, col])
-            if not watch.clear(g):
-                last = run.last()
-                t_prev = last[0] if last is not None else segment.start
-                run.fail(SINGULAR, names[gt], f"reached the singular set between t = {t_prev:.9g} and "
-                         f"t = {names[gt]:.9g} (measure {g:.3g} < {watch.tol:g} on the output grid)")
-                return True
-        run.add(names[gt], segment.t_hi, segment.index, xf[:, col], None if zf is None else zf[:, col])
-    return False
-
-
-def _outputs_before(run, call: _SundialsCall, start: _Start, t_ok: float, pending: tuple) -> bool:
-    """After a failure: the outputs of the failed call (``pending`` = (its grid, the names of
-    the grid times)) that lie before ``t_ok`` (the last time the bracketing reached),
-    integrated again so that none is lost; True when one of them is on the singular set (the
-    run stopped there)."""
-    chunk, names = pending
-    before = [gt for gt in chunk if start.t < gt <= t_ok]
-    if not before:
-        return False
-    try:
-        out = call.integrate("outputs", start, before)
-    except RuntimeError:
-        return False
-    xf = np.asarray(out["xf"]).reshape(np.size(start.y), -1)
-    zf = None if start.lam is None else np.asarray(out["zf"]).reshape(np.size(start.lam), -1)
-    return _record_outputs(run, call, (before, names), xf, zf)
-
-
-def _sundials_failure(run, call: _SundialsCall, start: _Start, err, pending: tuple) -> Run:
-    """Bracket a SUNDIALS failure after ``start`` and classify it (singular set, max_steps,
-    other); the failed call's outputs before the failure are kept (``pending``: its output
-    times and their names), and the last state reached ends the trajectory, as on the other
-    routes."""
-    kind, watch = call.kind.upper(), call.watch
-    reached, t_bad = _bracket_failure(call, start)
-    if _outputs_before(run, call, start, reached.t, pending):
-        return run
-    last = run.last()
-    if reached.t > (last[0] if last is not None else -np.inf):
-        run.add(reached.t, call.segment.t_hi, call.segment.index, reached.y, reached.lam)
-    run.y_fail, run.t_bad = reached.y, t_bad
-    t_ok = reached.t
-    if watch is not None and watch(reached.y) < WATCH * watch.tol:
-        return run.fail(SINGULAR, t_ok, f"{kind} stopped between t = {t_ok:.9g} and "
-                        f"t = {t_bad:.9g}, next to the singular set (measure "
-                        f"{watch(reached.y):.3g} at t = {t_ok:.9g})")
-    reason = str(err).splitlines()[-1].split(": ")[-1]
-    if "TOO_MUCH_WORK" in reason:
-        return run.fail(MAX_STEPS, t_ok, f"max_steps = {call.max_steps} (per output interval) reached "
-                        f"between t = {t_ok:.9g} and t = {t_bad:.9g}")
-    return run.fail(FAILED, t_ok, f"{kind} failed between t = {t_ok:.9g} and "
-                    f"t = {t_bad:.9g}: {reason}")
-
-
-def _bracket_failure(call: _SundialsCall, start: _Start, levels=2, pieces=16) -> tuple:
-    """(the last point reached as a :class:`_Start`, the first time not reached): the failed
-    interval [start.t, segment end] re-integrated piece by piece, twice refined (only on
-    failure)."""
-    b = call.segment.end
-    for _ in range(levels):
-        for t_next in np.linspace(start.t, b, pieces + 1)[1:]:
-            try:
-                out = call.integrate("bracket", start, [float(t_next)])
-            except RuntimeError:
-                b = float(t_next)
-                break
-            start = _Start(float(t_next), np.asarray(out["xf"]).ravel(),
-                           None if start.lam is None else np.asarray(out["zf"]).ravel())
-        else:
-            return start, b
-    return start, b
-
-
-def _cvodes_problem(loop) -> dict:
-    pc = loop._pieces
-    t, y, p = pc["t"], pc["y"], pc["p"]
-    t_hi = ca.SX.sym("t_hi")
-    ydot = ca.substitute(pc["ydot"], pc["t_c"], ca.fmin(t, t_hi))
-    return {"t": t, "x": y, "p": ca.vertcat(p, t_hi), "ode": ydot}
-
-
-# --------------------------------------------------------------------------------------------
-# compiled
-# --------------------------------------------------------------------------------------------
-_C_STATUS = {-1: FAILED, -2: MAX_STEPS, -3: NONFINITE, -4: NONFINITE, -5: SINGULAR}
-
-
-def integrate_compiled(request: RunRequest, library, scheme: str, *, stop_on_stiff=False) -> Run:
-    """Run the compiled integrator (:mod:`.compiled`, the closed loop's ``library``) interval by
-    interval with the explicit Runge–Kutta ``scheme`` ("DOP853" or "DOPRI5"); the outputs of
-    each C call are kept as arrays (no per-step Python)."""
-    segments, event_tol = request.segments, request.event_tol
-    run = Run()
-    te = None if request.t_eval is None else np.ascontiguousarray(request.t_eval, dtype=float)
-    state = RunState.start(segments[0][0], (request.rtol, request.atol), (request.max_step, request.max_steps),
-                           event_tol if (event_tol and library.has_event) else 0.0, stop_on_stiff)
-    state.set("i_eval", _grid_start(te, segments[0][0]))
-    y = np.ascontiguousarray(request.y0, dtype=float).copy()
-    buffers = OutputBuffers.for_steps(library.ny) if te is None else OutputBuffers.for_grid(te, library.ny)
-    code, handed_over = 0, None
-    for segment in request.intervals():
-        t_hi, j = segment.t_hi, segment.index
-        p = np.ascontiguousarray(segment.params, dtype=float)
-        state.set("t", segment.start)
-        first = state["i_eval"]
-        if handed_over is buffers:
-            buffers = buffers.fresh()
-        while True:
-            code = library.run(scheme, state, (segment.end, t_hi), y, p, buffers)
-            if te is None:        # the rows become the run's: no later call writes into them
-                n_out = state["n_out"]
-                run.add_block(buffers.t_steps[:n_out], t_hi, j, buffers.y_steps[:n_out], copy=False)
-                handed_over = buffers
-            if code != 1:
-                break
-            buffers = buffers.grown()
-        if te is not None:
-            run.add_block(te[first:state["i_eval"]], t_hi, j, buffers.y_eval[first:state["i_eval"]])
-        if code != 0:
-            break
-    _count_compiled(run, state)
-    return _compiled_outcome(run, state, code, (te, segment, y), request.max_steps)
-
-
-def _count_compiled(run: Run, state) -> None:
-    values = state.values()
-    run.nfev, run.n_steps, run.n_rejected = values["nfev"], values["accepted"], values["rejected"]
-    run.h_lambda = values["h_lambda"]
-    if not math.isnan(values["t_stiff"]):
-        run.t_stiff = values["t_stiff"]
-
-
-def _compiled_outcome(run: Run, state, code: int, end: tuple, max_steps: int) -> Run:
-    """The run's status from the C return ``code``; ``end`` = (output grid or None, the last
-    segment, the last state) closes the output at an event."""
-    te, segment, y = end
-    if code == -6:
-        return run.fail(FAILED, state["t"], "stiff")
-    if code not in _C_STATUS:
-        return run
-    t_fail = float(state["t_fail"])
-    if code == -5 and te is not None:        # the event point itself closes the output
-        run.add(t_fail, segment.t_hi, segment.index, y)
-    if code == -2:
-        return run.fail(MAX_STEPS, t_fail, f"max_steps = {max_steps} reached at t = {t_fail:.9g}")
-    if code == -1:
-        return run.fail(FAILED, t_fail, f"integration failed at t = {t_fail:.9g}: required step "
-                        "size is less than 16 ulp of t")
-    return run.fail(_C_STATUS[code], t_fail, "", bad=int(state["bad"]) if code == -3 else None)
