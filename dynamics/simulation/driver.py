@@ -665,18 +665,21 @@ def _named_outputs(call: _Call, prepared: _Prepared, loop, out, Y) -> dict:
     from .closure import expand_outputs
     coords = list(model.system.coordinates)
     names_x = list(model.state_names)
+    names = expand_outputs(model, resolved.names)
+    quantity_values = None
+    if quantities and any(name in quantities for name in names):   # every quantity in one evaluation
+        from ..derivation.quantities import quantity_function
+        N = out["q"].shape[0]
+        f = quantity_function(model.system, quantities)
+        quantity_values = np.asarray(f.map(N)(out["q"].T, out["qdot"].T, np.repeat(prepared.pv[:, None], N, 1)))
     result = {}
-    for name in expand_outputs(model, resolved.names):
+    for name in names:
         if name in names_x and names_x.index(name) in loop.state_index:
             result[name] = Y[:, loop.state_index.index(names_x.index(name))].copy()
         elif name in coords:
             result[name] = out["q"][:, coords.index(name)].copy()
         elif name.endswith("_dot") and name[:-4] in coords:
             result[name] = out["qdot"][:, coords.index(name[:-4])].copy()
-        elif quantities and name in quantities:
-            from ..derivation.quantities import quantity_function
-            f = quantity_function(model.system, quantities)
-            N = out["q"].shape[0]
-            values = np.asarray(f.map(N)(out["q"].T, out["qdot"].T, np.repeat(prepared.pv[:, None], N, 1)))
-            result[name] = values[list(quantities).index(name)].copy()
+        elif quantity_values is not None and name in quantities:
+            result[name] = quantity_values[list(quantities).index(name)].copy()
     return result
