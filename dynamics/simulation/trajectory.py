@@ -173,6 +173,11 @@ class Diagnostics(Mapping):
     def __repr__(self) -> str:
         return repr(dict(self))
 
+    def __reduce__(self):
+        """Pickled with every value computed: the entries not yet read refer to the run's
+        compiled library, which does not pickle (a trajectory goes to a worker or a file)."""
+        return (Diagnostics, (dict(self),))
+
 
 @dataclass(frozen=True, eq=False)
 class OnRead:
