@@ -332,7 +332,8 @@ def car(rng, name: str) -> Robot:
             -1: "hitch angles relative (the body ahead minus the trailer)", 0: "absolute headings"}[convention]
     comment = (f"Car with {K} trailer(s) hitched behind the axle of the body ahead (off-axle): (x, y, {theta}) "
                f"the {'car' if b == 0 else 'last trailer'}'s {base if b == 0 else 'axle'} and heading, {conv}; "
-               f"front axle steered by {steer}; drive force F along the car at its rear axle, steering torque tau_s.")
+               f"front axle steered by {steer}; drive force F along the car at its rear axle, "
+               "steering torque tau_s.")
     return Robot(name, "car", comment, tuple(coords), ("x", "y", theta), tuple([steer] + hitch), tuple(frames),
                  tuple(points), tuple(bodies), tuple(wheels),
                  (Torque("tau_s", "steer", "car"),), (Push("F", "P0", "car"),), params,
@@ -394,7 +395,8 @@ def snakeboard(rng, name: str) -> Robot:
     bodies = [Body("board", "C", "board", "m", "J"), Body("rotor", "C", "rotor", None, "J_r"),
               Body("front", "F", "front", None, "J_w"), Body("back", "K", "back", None, "J_w")]
     torques = (Torque("tau_psi", "rotor", "board"), Torque("tau_phi", "front", "back", 0.5 * sign))
-    comment = (f"Snakeboard with random parameters: (x, y, theta) the board's {'back axle' if at_back else 'centre'} "
+    where = "back axle" if at_back else "centre"
+    comment = (f"Snakeboard with random parameters: (x, y, theta) the board's {where} "
                f"and heading; the front wheels steer by theta {'+' if sign > 0 else '-'} phi, the back wheels by "
                f"theta {'-' if sign > 0 else '+'} phi; rotor torque tau_psi, steering torque tau_phi.")
     return Robot(name, "snakeboard", comment, ("x", "y", "theta", "psi", "phi"), ("x", "y", "theta"),
@@ -615,8 +617,9 @@ def check_task(robot: Robot, task: dict) -> list:
         if a is not None and b is not None and a != b:
             problems.append(f"periodic {c}: fixed to {a} and {b}")
     fib = robot.base
-    move = math.hypot(task["final"][fib[0]] - task["initial"][fib[0]], task["final"][fib[1]] - task["initial"][fib[1]])
-    if move < 1e-3 and abs(task["final"][fib[2]] - task["initial"][fib[2]]) < 1e-3:
+    ini, fin = task["initial"], task["final"]
+    move = math.hypot(fin[fib[0]] - ini[fib[0]], fin[fib[1]] - ini[fib[1]])
+    if move < 1e-3 and abs(fin[fib[2]] - ini[fib[2]]) < 1e-3:
         problems.append("the target is the start")
     if not task["horizon"] > 0:
         problems.append("horizon not positive")

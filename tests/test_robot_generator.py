@@ -71,7 +71,8 @@ def _kane_description(robot):
             fixed.v2pt_theory(parent, N, F)                  # the body's point under the slider
             loads += [(points[push.point], inputs[push.input] * rail), (fixed, -inputs[push.input] * rail)]
         else:
-            loads.append((points[push.point], inputs[push.input] * (sp.cos(push.angle) * F.x + sp.sin(push.angle) * F.y)))
+            direction = sp.cos(push.angle) * F.x + sp.sin(push.angle) * F.y
+            loads.append((points[push.point], inputs[push.input] * direction))
     constraints = [points[pt].vel(N).dot(frames[fr].y) for pt, fr in robot.wheels]
     return N, [q[c] for c in robot.coordinates], par, inputs, bodies, loads, constraints
 
