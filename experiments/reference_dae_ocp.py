@@ -55,14 +55,10 @@ Usage: python experiments/reference_dae_ocp.py SEED INDEX [--guess solution.json
 from __future__ import annotations
 
 import argparse
-import contextlib
 import math
-import os
 import sys
-import tempfile
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -143,19 +139,6 @@ def rk4_interval(f, n_sub):
         k4 = rhs(z + h * k3)
         z = z + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
     return ca.Function("interval", [x, u, h], [z])
-
-
-@contextlib.contextmanager
-def _scratch_cwd():
-    """Run inside a temporary directory (CasADi's shell compiler writes its files into the
-    working directory), removed afterwards (the libraries are loaded by then); yields its path."""
-    old = os.getcwd()
-    with tempfile.TemporaryDirectory(prefix="reference-dae-jit-") as tmp:
-        os.chdir(tmp)
-        try:
-            yield Path(tmp)
-        finally:
-            os.chdir(old)
 
 
 # --------------------------------------------------------------------------- #
@@ -379,7 +362,7 @@ class ReferenceOCP:
         if self.jit:
             opts.update({"expand": False, "jit": True, "compiler": "shell", "jit_cleanup": False,
                          "jit_options": {"flags": self.flags, "cleanup": False, "verbose": False}})
-            with _scratch_cwd() as tmp:
+            with sibling.load("reference_scale_ocp").scratch_cwd() as tmp:
                 solver = ca.nlpsol("reference", "ipopt", self.nlp, opts)
                 self.c_bytes = sum(f.stat().st_size for f in tmp.glob("*.c"))
         else:

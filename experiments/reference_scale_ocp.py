@@ -799,9 +799,10 @@ def rk4_stage(ode: ReducedODE, dt: float, steps: int = 4, kind: str = "MX") -> c
 
 
 @contextlib.contextmanager
-def _scratch_cwd():
+def scratch_cwd():
     """Run inside a temporary directory (CasADi's shell compiler writes jit_tmp* files into
-    the working directory); yields its path; removed afterwards (libraries already loaded)."""
+    the working directory); yields its path; removed afterwards (libraries already loaded).
+    Also used by ``experiments/reference_dae_ocp.py``."""
     old = os.getcwd()
     with tempfile.TemporaryDirectory(prefix="reference-scale-jit-") as tmp:
         os.chdir(tmp)
@@ -865,7 +866,7 @@ class Reference:
         t1 = time.perf_counter()
         self.c_bytes = 0
         if jit:
-            with _scratch_cwd() as tmp:
+            with scratch_cwd() as tmp:
                 self.solver = ca.nlpsol("reference", "ipopt", {"x": w, "f": J, "g": g},
                                         _ipopt_options(True, mu_strategy=mu_strategy))
                 self.c_bytes = sum(p.stat().st_size for p in tmp.glob("*.c"))
