@@ -18,6 +18,7 @@ from nhgait.dynamics.suggestions import known_names
 
 from ..errors import ModelError
 from .expressions import number_problems
+from .textfiles import read_text_file
 from .system import TIME, System, parse_field, jump_times
 from .tomldata import read_toml
 
@@ -385,7 +386,7 @@ def load_scene(path_or_name, overrides=()) -> Scene:
     else:
         if not p.exists():
             raise ModelError([f"scene file {p} does not exist"], title="unknown scene")
-        text = p.read_text()
+        text = read_text_file(p, "scene file", title="cannot read the scene")
         source = str(p)
     return scene_from_text(text, source, overrides)
 

@@ -59,18 +59,24 @@ def add_plan_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
+    """Plan with ``--out`` checked and locked first (:mod:`nhgait.gaits.outputs`); exit 1 when
+    the plan failed or its files could not all be written (the summary says where the
+    solution went)."""
     from nhgait.dynamics.progress import Progress
+    from ..outputs import output_directory, output_lock
     from ..planner import plan, summary_lines
     started = time.perf_counter()
     workers = args.workers if args.workers == "auto" else int(args.workers)
     progress = Progress.silent() if args.quiet else Progress.to_stderr(verbose=args.verbose)
-    result = plan(args.system, args.gait, overrides=args.overrides, intervals=args.intervals,
-                  solver=args.solver, transcription=args.transcription, jit=args.jit, workers=workers,
-                  out_dir=args.out, animate=args.gif, hessian=args.hessian,
-                  max_guesses=args.max_guesses, progress=progress)
+    out = output_directory(args.out)
+    with output_lock(out, f"nhgait plan {args.system}"):
+        result = plan(args.system, args.gait, overrides=args.overrides, intervals=args.intervals,
+                      solver=args.solver, transcription=args.transcription, jit=args.jit, workers=workers,
+                      out_dir=out, animate=args.gif, hessian=args.hessian,
+                      max_guesses=args.max_guesses, progress=progress)
     print("\n".join(summary_lines(result)))
     print(f"  wall time          {_wall_text(time.perf_counter() - started, result.timings)}")
-    return 0 if result.success else 1
+    return 0 if result.success and not result.unwritten else 1
 
 
 def _wall_text(wall: float, timings: dict) -> str:

@@ -29,6 +29,7 @@ def cmd_simulate(args) -> int:
     figures asked for, print a summary; exit status 1 when the run stopped early."""
     from nhgait.dynamics import load_scene
     _check_arguments(args)
+    out, plot = _checked_outputs(args)
     scene = load_scene(args.scene, overrides=args.overrides)
     model, traj, outputs = _run(args, scene)
     columns = args.columns or ("outputs" if outputs else "q")
@@ -36,23 +37,60 @@ def cmd_simulate(args) -> int:
         from nhgait.dynamics.errors import ModelError
         raise ModelError(["--columns outputs needs [simulation].outputs in the scene"],
                          title="invalid request")
-    out = None
-    if args.out is not None:
-        out = Path(args.out)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        traj.to_csv(out, columns=columns, units=dict(scene.units or {}))
     _print_summary(scene, traj)
-    if out is not None:
-        print(f"  wrote {out} (columns: {columns})")
-    if args.plot is not None:
-        from ..trajectory_plots import write_trajectory_figures
-        files = write_trajectory_figures(traj, model, args.plot, units=dict(scene.units or {}),
-                                         drawing=scene.drawing, params=scene.simulation.parameters)
-        print(f"  wrote {', '.join(str(f) for f in files)}")
+    units = dict(scene.units or {})
+    written = _write_csv(traj, out, columns, units) if out is not None else True
+    if plot is not None and not _write_figures(traj, model, scene, plot):
+        if out is None:                       # the figures were the only output: keep the run
+            _write_csv(traj, None, columns, units)
+        written = False
     if not traj.success:
         print(f"simulation stopped: {traj.message}", file=sys.stderr)
         return 1
-    return 0
+    return 0 if written else 1
+
+
+def _checked_outputs(args) -> tuple:
+    """(the CSV path or None, the figure folder or None), checked before any derivation
+    (:mod:`nhgait.gaits.outputs`: exit 2 for a location that cannot be written)."""
+    from ..outputs import output_directory, output_file
+    out = output_file(args.out) if args.out is not None else None
+    plot = output_directory(args.plot, "--plot") if args.plot is not None else None
+    return out, plot
+
+
+def _write_csv(traj, out: Path | None, columns: str, units: dict) -> bool:
+    """Write the CSV to ``out``; a write that fails (or ``out`` None) saves it to a fallback it
+    names. True when written to ``out``."""
+    from ..outputs import rescue, write_failure
+
+    def write(path):
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        traj.to_csv(path, columns=columns, units=units)
+    if out is None:
+        print(f"  the run is kept: {rescue('trajectory.csv', write, 'trajectory')}")
+        return False
+    try:
+        write(out)
+    except OSError as exc:
+        print(f"  NOT WRITTEN: {write_failure(exc, out)}; {rescue(out.name, write, 'trajectory')}")
+        return False
+    print(f"  wrote {out} (columns: {columns})")
+    return True
+
+
+def _write_figures(traj, model, scene, plot: Path) -> bool:
+    """time_series.png and path.png into ``plot``; a failure is reported (the CSV holds the run)."""
+    from ..outputs import write_failure
+    from ..trajectory_plots import write_trajectory_figures
+    try:
+        files = write_trajectory_figures(traj, model, plot, units=dict(scene.units or {}),
+                                         drawing=scene.drawing, params=scene.simulation.parameters)
+    except OSError as exc:
+        print(f"  figures NOT WRITTEN: {write_failure(exc, plot)}")
+        return False
+    print(f"  wrote {', '.join(str(f) for f in files)}")
+    return True
 
 
 def _check_arguments(args) -> None:

@@ -200,7 +200,8 @@ def _scene_data(system) -> SceneData:
                           "(a sweep sends the scene to its workers as data)"], title="invalid sweep")
     path = Path(system)
     if path.exists():
-        return SceneData(str(path), text=path.read_text())
+        from nhgait.dynamics.derivation.textfiles import read_text_file
+        return SceneData(str(path), text=read_text_file(path, "scene file", title="cannot read the scene"))
     if path.suffix == ".toml":
         raise ModelError([f"scene file {path} does not exist"], title="unknown scene")
     return SceneData(f"built-in scene {system}", builtin=str(system))
