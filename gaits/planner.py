@@ -246,6 +246,20 @@ def warm_start(previous, problem, label: str = "warm start"):
 
 
 # ----------------------------------------------------------------------------- plan
+#: above this many intervals a plan says what it costs before it builds the NLP
+LARGE_INTERVALS = 1000
+
+
+def large_request_note(problem) -> str:
+    """What a plan of many intervals costs, said before the NLP is built: its size, and the
+    times measured for the 4-coordinate car at N = 2000 on a 2-core machine (both grow about
+    linearly with N and with the states)."""
+    N, nx, nu = problem.intervals, problem.n_states, problem.n_controls
+    return (f"N = {N} intervals is a large request: {(N + 1) * nx + N * nu} NLP variables and {N * nx} "
+            f"continuity constraints; expect minutes (the 4-coordinate car at N = 2000: 34 s to build the NLP, "
+            f"105 s to solve, on a 2-core machine; both grow about linearly with N)")
+
+
 def _default_workers() -> int:
     return max(1, min(2, (os.cpu_count() or 1)))
 
@@ -299,6 +313,8 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     to_plan = resolve(system, task, overrides=overrides)
     prepared = prepare(to_plan, params=params, progress=progress)
     problem = prepared.problem
+    if problem.intervals > LARGE_INTERVALS:
+        progress.note(large_request_note(problem))
     timings["prepare_s"] = time.perf_counter() - t0
     workers = _default_workers() if workers in (None, "auto") else int(workers)
     guesses = candidates(problem)

@@ -24,6 +24,8 @@ from .tomldata import read_toml
 
 SYSTEM_KEYS = {"name", "coordinates", "lagrangian", "constraints", "forces", "parameters", "inputs",
                "fiber", "planar_frame", "description"}
+#: the most output samples of a [simulation] (about 1.2 kB and 30–80 µs per sample for the unicycle's outputs)
+MAX_SAMPLES = 1_000_000
 SIMULATION_KEYS = {"q0", "qdot0", "t_final", "samples", "t0", "inputs", "parameters", "formulation",
                    "rtol", "atol", "method", "outputs"}
 #: top-level tables; ``task``, ``units`` and ``drawing`` are kept as data for the planner and
@@ -247,8 +249,9 @@ def _simulation(sim, system, problems) -> SimulationSpec | None:
     if math.isfinite(t0) and math.isfinite(tf) and not tf > t0:
         problems.append(f"[simulation]: t_final = {tf} must be greater than t0 = {t0}")
     samples = sim.get("samples", 2)
-    if isinstance(samples, bool) or not isinstance(samples, int) or not 2 <= samples <= 10_000_000:
-        problems.append(f"[simulation].samples must be an integer from 2 to 10⁷, got {samples!r}")
+    if isinstance(samples, bool) or not isinstance(samples, int) or not 2 <= samples <= MAX_SAMPLES:
+        problems.append(f"[simulation].samples must be an integer from 2 to 10⁶, got {samples!r} (10⁶ samples "
+                        "already take about a gigabyte and a minute to evaluate and write)")
     sim_params = {k: _number(v, f"[simulation].parameters.{k}", problems)
                   for k, v in _table(sim.get("parameters"), "[simulation].parameters", problems).items()}
     for key in ("rtol", "atol"):

@@ -169,13 +169,13 @@ def trusted_dir(path: Path | None = None, *, create: bool = True) -> Path | None
             path.mkdir(mode=0o700, parents=True, exist_ok=True)
         except OSError as exc:
             warnings.warn(f"cannot create the cache directory {path} ({exc.strerror}); "
-                          "results are not cached", UntrustedCacheWarning, stacklevel=3)
+                          "results are not cached", UntrustedCacheWarning, stacklevel=1)
             return None
     reason = _untrusted_reason(path)
     if reason:
         warnings.warn(f"refusing the cache directory {path}: it {reason}; results are recomputed "
                       "and not cached (fix with chmod 700 or set NHGAIT_CACHE_DIR)",
-                      UntrustedCacheWarning, stacklevel=3)
+                      UntrustedCacheWarning, stacklevel=1)
         return None
     return path
 
@@ -312,11 +312,11 @@ def store(key: str, obj, *, suffix: str = ".pkl") -> Path | None:
 
 
 def unwritable_warning(folder: Path, exc: OSError) -> None:
-    """One warning for a cache directory that could not be written: the same text for every
-    entry, so Python's default warning filter shows it once per run."""
+    """One warning for a cache directory that could not be written: the same text and place for
+    every entry (``stacklevel=1``), so Python's default warning filter shows it once per run."""
     warnings.warn(f"cannot write the cache directory {folder} ({exc.strerror or exc}); results "
                   "are not cached (free space, fix its permissions or set NHGAIT_CACHE_DIR)",
-                  UntrustedCacheWarning, stacklevel=3)
+                  UntrustedCacheWarning, stacklevel=1)
 
 
 # ------------------------------------------------------------------------------ temporaries

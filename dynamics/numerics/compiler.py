@@ -285,7 +285,7 @@ def build_library(source: str, *, flags: tuple = ("-O1",), salt: str = "", libs:
         try:
             return _compile(job, directory)
         except OSError as exc:        # the cache cannot be written (read-only, full): build privately
-            unwritable_warning(directory, exc)
+            unwritable_warning(directory.parent, exc)
     return _compile_privately(job)
 
 
