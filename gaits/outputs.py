@@ -48,8 +48,8 @@ except ImportError:  # pragma: no cover - Windows
 __all__ = ["output_directory", "output_file", "output_lock", "rescue", "write_failure", "LOCK_NAME",
            "PROBE_BYTES"]
 
-#: bytes written by the probe: a location that cannot take them cannot take a result either
-PROBE_BYTES = 64 * 1024
+#: bytes written by the probe (one block): a full, read-only or over-quota location cannot take them
+PROBE_BYTES = 4096
 #: the lock file a writer holds in its output directory
 LOCK_NAME = ".nhgait-lock"
 _TITLE = "invalid output location"
@@ -216,8 +216,8 @@ def _holder(fd: int) -> str:
 def rescue(name: str, content, what: str = "result") -> str:
     """Write ``content`` as ``name`` into the first fallback folder that takes it (see the
     module docstring); print it on standard output when none does. ``content`` is text, data
-    (written as JSON) or a function writing a file at the path it is given. Returns a sentence
-    for the summary saying where it went."""
+    (written as JSON) or a function writing the file at the path it is given. Returns a
+    sentence for the summary saying where it went."""
     if callable(content):
         write = content
     else:
@@ -234,14 +234,28 @@ def rescue(name: str, content, what: str = "result") -> str:
         except OSError:
             continue
         return f"the {what} was saved to {folder / name}"
-    sys.stdout.write(f"----- {name} -----\n")
-    sys.stdout.flush()
     try:
-        write(Path("/dev/stdout"))
+        text = _in_memory(write) if callable(content) else text
     except OSError:
-        return f"the {what} ({name}) could not be saved: no fallback folder and no standard output took it"
-    sys.stdout.write(f"\n----- end of {name} -----\n")
+        return f"the {what} ({name}) could not be saved: no fallback folder took it"
+    sys.stdout.write(f"----- {name} -----\n{text}\n----- end of {name} -----\n")
+    sys.stdout.flush()
     return f"the {what} ({name}) is printed above: no fallback folder could be written"
+
+
+def _in_memory(write) -> str:
+    """What ``write(path)`` writes, through an anonymous in-memory file (Linux ``memfd``; never
+    a file on a disk, never standard output reopened — that would truncate a redirected one)."""
+    if not hasattr(os, "memfd_create"):
+        raise OSError(errno.ENOSYS, "no in-memory file on this system")
+    fd = os.memfd_create("nhgait-rescue")
+    try:
+        write(Path(f"/proc/self/fd/{fd}"))
+        os.lseek(fd, 0, os.SEEK_SET)
+        with os.fdopen(os.dup(fd), "r") as fh:
+            return fh.read()
+    finally:
+        os.close(fd)
 
 
 def _plain(value):

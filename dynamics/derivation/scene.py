@@ -18,7 +18,7 @@ from nhgait.dynamics.suggestions import known_names
 
 from ..errors import ModelError
 from .expressions import number_problems
-from .textfiles import read_text_file
+from .textfiles import names_a_file, read_text_file
 from .system import TIME, System, parse_field, jump_times
 from .tomldata import read_toml
 
@@ -376,7 +376,7 @@ def load_scene(path_or_name, overrides=()) -> Scene:
     ``overrides``: ``--set`` assignments to its ``[simulation]`` table
     (:func:`~nhgait.dynamics.derivation.assignments.apply_simulation_overrides`)."""
     p = Path(str(path_or_name))
-    if not p.exists() and p.suffix != ".toml":
+    if not names_a_file(p) and p.suffix != ".toml":
         name = str(path_or_name).replace("-", "_")
         try:
             text = resources.files("nhgait.dynamics.derivation").joinpath("scenes", f"{name}.toml").read_text()
@@ -387,11 +387,10 @@ def load_scene(path_or_name, overrides=()) -> Scene:
                               f"{known_names(name, available, label='built-ins')}"], title="unknown scene") from None
         source = f"built-in scene {name}"
     else:
-        if not p.exists():
-            raise ModelError([f"scene file {p} does not exist"], title="unknown scene")
         text = read_text_file(p, "scene file", title="cannot read the scene")
         source = str(p)
     return scene_from_text(text, source, overrides)
+
 
 
 def scene_from_text(text: str, source: str = "<scene>", overrides=()) -> Scene:

@@ -25,7 +25,7 @@ from pathlib import Path
 
 from ..errors import ModelError
 
-__all__ = ["read_text_file", "MAX_TEXT_BYTES"]
+__all__ = ["read_text_file", "names_a_file", "decode_utf8", "MAX_TEXT_BYTES"]
 
 #: the largest scene or URDF file read (bytes)
 MAX_TEXT_BYTES = 4 * 1024 * 1024
@@ -43,18 +43,25 @@ def read_text_file(path, what: str = "file", *, limit: int = MAX_TEXT_BYTES, tit
     return decode_utf8(data, f"{what} {path}", title)
 
 
+def names_a_file(path) -> bool:
+    """Is there anything at ``path`` — a link too, even a broken one or a loop? A name the
+    system cannot take (too long) counts as a file's name, for the reader to refuse."""
+    try:
+        return os.path.lexists(path)
+    except (OSError, ValueError):
+        return True
+
+
 def _read_bytes(path: Path, what: str, limit: int, title: str) -> bytes:
     try:
+        _refuse_kind(os.stat(path).st_mode, path, what, title)     # a socket cannot even be opened
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
     except FileNotFoundError:
         raise ModelError([f"{what} {path} does not exist"], title=title) from None
-    except OSError as exc:
+    except (OSError, ValueError) as exc:
         raise ModelError([f"{what} {path} cannot be opened ({_reason(exc)})"], title=title) from None
     try:
-        mode = os.fstat(fd).st_mode
-        kind = next((label for test, label in _KINDS if test(mode)), None if stat.S_ISREG(mode) else "not a regular file")
-        if kind is not None:
-            raise ModelError([f"{what} {path} is {kind}, not a regular file"], title=title)
+        _refuse_kind(os.fstat(fd).st_mode, path, what, title)      # swapped since the stat: checked again
         chunks, size = [], 0
         while size <= limit:
             chunk = os.read(fd, min(1 << 20, limit + 1 - size))
@@ -73,7 +80,17 @@ def _read_bytes(path: Path, what: str, limit: int, title: str) -> bytes:
     return b"".join(chunks)
 
 
-def _reason(exc: OSError) -> str:
+def _refuse_kind(mode: int, path: Path, what: str, title: str) -> None:
+    """A ModelError unless ``mode`` is a regular file's."""
+    if stat.S_ISREG(mode):
+        return
+    kind = next((label for test, label in _KINDS if test(mode)), "not a regular file")
+    raise ModelError([f"{what} {path} is {kind}, not a regular file"], title=title)
+
+
+def _reason(exc: Exception) -> str:
+    if not isinstance(exc, OSError):
+        return str(exc)                     # e.g. a NUL character in the name
     return exc.strerror or errno.errorcode.get(exc.errno or 0, type(exc).__name__)
 
 

@@ -157,6 +157,18 @@ def _untrusted_reason(path: Path) -> str | None:
     return None
 
 
+def _file_reason(path: Path) -> str | None:
+    """Why the cache file ``path`` must not be read: the trust rules, or not a regular file (a
+    FIFO planted there would block the reader, a directory cannot be read)."""
+    reason = _untrusted_reason(path)
+    if reason is not None:
+        return reason
+    try:
+        return None if stat.S_ISREG(path.lstat().st_mode) else "is not a regular file"
+    except OSError as exc:               # removed meanwhile
+        return f"cannot be inspected ({exc.strerror})"
+
+
 def trusted_dir(path: Path | None = None, *, create: bool = True) -> Path | None:
     """The cache directory ``path`` (default :func:`cache_dir`) if it may be trusted: created
     with mode 0700 when missing, refused (warning, None) when it is group/world-writable, a
@@ -196,7 +208,7 @@ def trusted_file(path: Path, sha256: str | None = None) -> bool:
         return False
     if trusted_dir(path.parent, create=False) is None:
         return False
-    reason = _untrusted_reason(path)
+    reason = _file_reason(path)
     if reason is None and sha256 is not None and file_sha256(path) != sha256:
         reason = "does not match its recorded SHA-256 (modified after it was written)"
     if reason:
@@ -260,7 +272,7 @@ def load(key: str, expected_type: type | tuple, *, suffix: str = ".pkl"):
         return None
     if trusted_dir(path.parent, create=False) is None:
         return None
-    reason = _untrusted_reason(path)
+    reason = _file_reason(path)
     if reason:
         warnings.warn(f"refusing cache entry {path}: it {reason}; it is recomputed",
                       UntrustedCacheWarning, stacklevel=2)

@@ -29,6 +29,8 @@ def cmd_bench_precision(args) -> int:
     from nhgait.dynamics.errors import ModelError
     from nhgait.gaits.bench import work_precision as wp
     from nhgait.gaits.outputs import output_directory
+    if args.repeats < 1:
+        raise ModelError([f"--repeats {args.repeats}: at least 1 timed run per point"], title="invalid request")
     out = output_directory(args.out)        # before any derivation: exit 2 for a bad location
     scene = load_scene(args.scene)
     spec = scene.simulation
@@ -147,7 +149,7 @@ def add_bench_parser(subparsers):
     q.add_argument("--methods", default="RK45,DOP853,Radau,LSODA,CVODES,compiled")
     q.add_argument("--formulations", default="reduced,lagrange,hamilton")
     q.add_argument("--no-idas", action="store_true", help="skip the IDAS route of the DAE forms")
-    q.add_argument("--repeats", type=int, default=5, help="timed runs per point (median)")
+    q.add_argument("--repeats", type=int, default=5, help="timed runs per point (median; at least 1)")
     q.add_argument("--out", default="out/bench", help="output folder (default out/bench)")
     q.add_argument("--quiet", action="store_true", help="no progress on stderr")
     q.set_defaults(func=cmd_bench_precision)
