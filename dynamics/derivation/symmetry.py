@@ -312,7 +312,8 @@ def _choose(system: System, candidates: list, search: str = "") -> SymmetryTest:
         return SymmetryTest(system, tuple(candidates), chosen, "user", search)
     full = sorted((c for c in candidates if c.admissible), key=lambda c: _rank_key(system, c))
     if not full:
-        table = SymmetryTest(system, tuple(candidates), candidates[0], "test", search).table_markdown()
+        table = (SymmetryTest(system, tuple(candidates), candidates[0], "test", search).table_markdown()
+                 if candidates else f"(no subset can be a symmetry: L or ω depends on every coordinate) {search}")
         raise ModelError(["no candidate group of fiber coordinates gives a full Lie algebra element "
                           "(and none is principally kinematic); the symmetry table:\n" + table],
                          title="no full symmetry group")
