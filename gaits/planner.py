@@ -300,7 +300,9 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     from nhgait.dynamics.progress import Progress
     from .diagnosis import diagnose
     from .guesses import candidates
+    from nhgait.ocp import ProblemError
     from .outputs import output_directory
+    from .reachability import unreachable_targets
     from .task_library import resolve
 
     progress = progress or Progress.silent()
@@ -313,6 +315,9 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     to_plan = resolve(system, task, overrides=overrides)
     prepared = prepare(to_plan, params=params, progress=progress)
     problem = prepared.problem
+    unreachable = unreachable_targets(problem, prepared.model.system, params)
+    if unreachable:
+        raise ProblemError(unreachable, title="unreachable task")
     if problem.intervals > LARGE_INTERVALS:
         progress.note(large_request_note(problem))
     timings["prepare_s"] = time.perf_counter() - t0

@@ -182,3 +182,41 @@ def test_the_sweep_store_and_grid_accept_the_bound_itself(tmp_path):
     assert json.loads(json.dumps(grid.to_dict()))["axes"][0]["values"] == [-1e15, 0.0, 1e15]
     with pytest.raises(ProblemError, match=BOUND):
         parse_grid(["final.y=0:1.000001e15:3"])
+
+
+# ----------------------------------------------------------------------------- reachable targets
+@pytest.mark.parametrize("target, statuses, said", [
+    ("final.y=1e4", 2, r"final y is 10000 from initial y = 0, but starting at rest with \|F\| ≤ 5, \|tau_phi\| ≤ 1 "
+                       r"no input moves y more than 270 in T = 6 s"),
+    ("final.y=300", 2, r"no input moves y more than 270"),
+    ("final.x=-1e5", 2, r"final x is 100000 .* more than 270"),
+])
+def test_a_target_no_bounded_input_can_reach_is_refused_before_solving(target, statuses, said, sandbox):
+    """The car at |F| ≤ 5 N, |τ_φ| ≤ 1 N·m from rest for 6 s: y moves at most
+    √((M⁻¹)_yy)·(5·1 + 1·√(1/I_s))·T²/2 = 1·15·18 = 270 m (FATROP spun for minutes on 1e4)."""
+    answer(["plan", CAR, "--set", target, "--out", sandbox.out / "p"]).check(statuses, said, sandbox)
+
+
+def test_the_reach_bound_is_exact_for_a_pushed_mass():
+    """A knife edge of mass m pushed along its heading by |F| ≤ F̄ from rest: with θ = 0,
+    bang-bang reaches x = F̄T²/(2m), the bound's value for x (the bound is tight here)."""
+    from nhgait.dynamics import System
+    from nhgait.dynamics.derivation.reach import displacement_bounds
+    mass = System(coordinates=["x", "y", "theta"], lagrangian="m*(x_dot**2 + y_dot**2)/2 + I*theta_dot**2/2",
+                  constraints=["sin(theta)*x_dot - cos(theta)*y_dot"],
+                  forces={"x": "F*cos(theta)", "y": "F*sin(theta)"}, parameters={"m": 2.0, "I": 0.1})
+    bound = displacement_bounds(mass, {"F": (-3.0, 3.0)}, 4.0)
+    assert bound["x"] == pytest.approx(3.0 * 4.0 ** 2 / (2 * 2.0), rel=1e-12)
+
+
+@pytest.mark.parametrize("lagrangian, forces, why", [
+    ("m*(1 + x**2)*x_dot**2/2 + m*y_dot**2/2", {"x": "F"}, "M depends on x"),
+    ("m*(x_dot**2 + y_dot**2)/2 - m*9.81*y", {"x": "F"}, "a potential"),
+    ("m*(x_dot**2 + y_dot**2)/2", {"x": "F - 0.1*x_dot"}, "a force in the velocities"),
+    ("m*(x_dot**2 + y_dot**2)/2", {"x": "F*x"}, "an input coefficient unbounded in x"),
+])
+def test_the_reach_bound_claims_nothing_it_cannot_judge(lagrangian, forces, why):
+    from nhgait.dynamics import System
+    from nhgait.dynamics.derivation.reach import displacement_bounds
+    system = System(coordinates=["x", "y"], lagrangian=lagrangian, forces=forces, parameters={"m": 1.0})
+    assert displacement_bounds(system, {"F": (-1.0, 1.0)}, 2.0) is None, why
