@@ -17,7 +17,7 @@ compiler faults (``test_cache_faults.py``). :func:`answer` runs ``nhgait`` in th
   guard against minutes, not a timing (there are no timed tests).
 
 Cases that need a real process (signals, kill -9, resource limits) use :func:`run_process`,
-which runs ``python -m nhgait.gaits.cli.main`` with an address-space limit (:data:`MEMORY_LIMIT`),
+which runs the console script (:data:`LAUNCHER`) with an address-space limit (:data:`MEMORY_LIMIT`),
 so memory that grows without bound ends the run instead of the machine.
 """
 from __future__ import annotations
@@ -41,6 +41,10 @@ MEMORY_LIMIT = 3 << 30
 #: names of temporaries nhgait may create and must remove
 LEFTOVER = re.compile(r"^(\.tmp-|\.build-|nhgait-jit-|\.nhgait-probe-|\.nhgait-lock$|cc[A-Za-z0-9]{6}\.)")
 ROOT = Path(__file__).resolve().parents[1]
+#: the console script, with Ctrl-C's handler installed even when this test run was started with
+#: SIGINT ignored (a background job): Python installs it only where SIGINT is not ignored
+LAUNCHER = ("import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+            "from nhgait.gaits.cli.main import main; sys.exit(main(sys.argv[1:]))")
 CAR = str(ROOT / "examples" / "car.toml")
 
 
@@ -167,7 +171,7 @@ def start_process(argv, sandbox: Sandbox, *, env=None, file_size=None) -> subpro
     """``nhgait argv`` as a new process in its own session, with the sandbox's TMPDIR and
     cache, :data:`MEMORY_LIMIT` and optionally ``file_size`` (its output captured)."""
     environ = {**os.environ, "TMPDIR": str(sandbox.tmp), "NHGAIT_CACHE_DIR": str(sandbox.cache), **(env or {})}
-    return subprocess.Popen([sys.executable, "-m", "nhgait.gaits.cli.main", *map(str, argv)], env=environ,
+    return subprocess.Popen([sys.executable, "-c", LAUNCHER, *map(str, argv)], env=environ,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
                             preexec_fn=limited(file_size=file_size))
 
