@@ -83,7 +83,8 @@ class PlanResult:
     winning candidate; attempts : every candidate tried; files : written files; timings :
     seconds per step; plan : the Plan; conditions : what was dropped from the task's
     conditions and why (:class:`~nhgait.ocp.conditions.ConditionReport`); diagnosis : why a
-    failure failed and what to change (:func:`~nhgait.gaits.diagnosis.diagnose`).
+    failure failed and what to change (:func:`~nhgait.gaits.diagnosis.diagnose`); unwritten :
+    empty, or what could not be written to ``out_dir`` and where solution.json went instead.
     """
 
     label: str
@@ -97,6 +98,7 @@ class PlanResult:
     model: Any = None
     conditions: Any = None
     diagnosis: tuple = ()
+    unwritten: str = ""
 
     def __repr__(self) -> str:
         from nhgait.dynamics.reprs import plan_repr
@@ -244,6 +246,20 @@ def warm_start(previous, problem, label: str = "warm start"):
 
 
 # ----------------------------------------------------------------------------- plan
+#: above this many intervals a plan says what it costs before it builds the NLP
+LARGE_INTERVALS = 1000
+
+
+def large_request_note(problem) -> str:
+    """What a plan of many intervals costs, said before the NLP is built: its size, and the
+    times measured for the 4-coordinate car at N = 2000 on a 2-core machine (both grow about
+    linearly with N and with the states)."""
+    N, nx, nu = problem.intervals, problem.n_states, problem.n_controls
+    return (f"N = {N} intervals is a large request: {(N + 1) * nx + N * nu} NLP variables and {N * nx} "
+            f"continuity constraints; expect minutes (the 4-coordinate car at N = 2000: 34 s to build the NLP, "
+            f"105 s to solve, on a 2-core machine; both grow about linearly with N)")
+
+
 def _default_workers() -> int:
     return max(1, min(2, (os.cpu_count() or 1)))
 
@@ -284,16 +300,26 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     from nhgait.dynamics.progress import Progress
     from .diagnosis import diagnose
     from .guesses import candidates
+    from nhgait.ocp import ProblemError
+    from .outputs import output_directory
+    from .reachability import unreachable_targets
     from .task_library import resolve
 
     progress = progress or Progress.silent()
     timings = {}
     t0 = time.perf_counter()
+    if out_dir is not None:            # checked before any derivation (exit 2 for a bad location)
+        out_dir = output_directory(out_dir, "out_dir")
     if intervals is not None:
         overrides = [*overrides, f"intervals={int(intervals)}"]
     to_plan = resolve(system, task, overrides=overrides)
     prepared = prepare(to_plan, params=params, progress=progress)
     problem = prepared.problem
+    unreachable = unreachable_targets(problem, prepared.model.system, params)
+    if unreachable:
+        raise ProblemError(unreachable, title="unreachable task")
+    if problem.intervals > LARGE_INTERVALS:
+        progress.note(large_request_note(problem))
     timings["prepare_s"] = time.perf_counter() - t0
     workers = _default_workers() if workers in (None, "auto") else int(workers)
     guesses = candidates(problem)
@@ -316,8 +342,7 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
                         prepared.conditions)
     result = replace(result, diagnosis=diagnose(result))
     if out_dir is not None:
-        result = replace(result, files=tuple(write_outputs(result, Path(out_dir), animate=animate,
-                                                           progress=progress)))
+        result = written(result, out_dir, animate=animate, progress=progress)
     return result
 
 
@@ -397,6 +422,27 @@ def to_momentum_coordinates(solution, momentum):
 
 
 # ----------------------------------------------------------------------------- outputs
+def written(result: PlanResult, out: Path, *, animate: bool = True, progress=None) -> PlanResult:
+    """``result`` with its files written to ``out`` (:func:`write_outputs`). A write that fails
+    (disk full, folder removed or made read-only meanwhile) does not lose the plan: solution.json
+    goes to a fallback (:func:`nhgait.gaits.outputs.rescue`) and ``unwritten`` says what failed
+    and where the solution is."""
+    from .outputs import rescue, write_failure
+    try:
+        return replace(result, files=tuple(write_outputs(result, Path(out), animate=animate, progress=progress)))
+    except OSError as exc:
+        failed = write_failure(exc, getattr(exc, "filename", None) or out)
+    data = {**result.solution.to_dict(), **_solution_extra(result)}
+    return replace(result, unwritten=f"{failed}; {rescue('solution.json', data, 'solution')}")
+
+
+def _solution_extra(result: PlanResult) -> dict:
+    """What solution.json holds beyond the Solution: the task, the guess, success, diagnosis."""
+    return {"task": result.task.to_dict(), "system": result.label, "success": result.success,
+            "diagnosis": list(result.diagnosis),
+            "guess": {"won": result.guess, "tried": [a.__dict__ for a in result.attempts]}}
+
+
 def write_outputs(result: PlanResult, out: Path, *, animate: bool = True, progress=None) -> list:
     """solution.json (with ``task``, ``guess``, ``success`` and ``diagnosis``) and the figures;
     a failed plan's figures are titled FAILED and it gets no animation. Returns the paths."""
@@ -404,10 +450,7 @@ def write_outputs(result: PlanResult, out: Path, *, animate: bool = True, progre
     from . import plots
     progress = progress or Progress.silent()
     out.mkdir(parents=True, exist_ok=True)
-    extra = {"task": result.task.to_dict(), "system": result.label, "success": result.success,
-             "diagnosis": list(result.diagnosis),
-             "guess": {"won": result.guess, "tried": [a.__dict__ for a in result.attempts]}}
-    files = [result.solution.to_json(out / "solution.json", extra=extra)]
+    files = [result.solution.to_json(out / "solution.json", extra=_solution_extra(result))]
     failed = None if result.success else (result.diagnosis[0] if result.diagnosis else result.solution.status)
     animate = animate and result.success
     with progress.phase("write solution.json and the figures"):
@@ -449,6 +492,8 @@ def summary_lines(result: PlanResult) -> list:
     if result.diagnosis:
         lines.append("  why:")
         lines.extend(f"    {line}" for line in result.diagnosis)
+    if result.unwritten:
+        lines.append(f"  files              NOT WRITTEN: {result.unwritten}")
     if result.files:
         lines.append("  files:")
         lines.extend(f"    {f}" for f in result.files)

@@ -66,7 +66,8 @@ _TASK_TEMPLATES = {
     "horizon": "[task].horizon = {value!r} must be positive",
     "horizon_not_number": None,
     "free_horizon_guess": None,
-    "intervals": "{where}.intervals = {value!r} must be an integer ≥ 1",
+    "intervals": "{where}.intervals = {value!r} must be an integer from 1 to {max} (N = 5000 already takes "
+                 "minutes to build and to solve)",
     "free_horizon_lower": _NEED_MIN_MAX,
     "free_horizon_any": _NEED_MIN_MAX,
     "time_without_free_horizon": "{where}.objective: a time objective needs a free horizon (horizon = [min, max])",

@@ -327,18 +327,16 @@ def test_a_half_written_cache_entry_is_never_read(cache, monkeypatch):
     final name is refused with a warning; a whole entry is read."""
     from nhgait.dynamics.numerics import cache as entries
     key = entries.make_key("test_interrupts", "half-written")
-    dump = pickle.dump
+    replace = os.replace
 
-    def header_then_interrupt(obj, fh, protocol=None):
-        if isinstance(obj, dict) and obj.get("format"):
-            return dump(obj, fh, protocol=protocol)
-        fh.write(b"\x80\x05 half of an object")
+    def interrupt_before_the_rename(*args):
         raise KeyboardInterrupt
 
-    with monkeypatch.context() as patch:                  # Ctrl-C in the middle of store()
-        patch.setattr(entries.pickle, "dump", header_then_interrupt)
+    with monkeypatch.context() as patch:                  # Ctrl-C between the write and the rename
+        patch.setattr(entries.os, "replace", interrupt_before_the_rename)
         with pytest.raises(KeyboardInterrupt):
             entries.store(key, {"answer": 42})
+    assert entries.os.replace is replace
     assert sorted(p.name for p in cache.iterdir()) == []  # the temporary file is removed
     assert entries.load(key, dict) is None
 

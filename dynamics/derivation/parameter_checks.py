@@ -94,7 +94,10 @@ def _sampled_spectrum(system, pv) -> tuple:
             M = np.array(mass(qs, pv), dtype=float)
         if not np.all(np.isfinite(M)):
             continue
-        eigenvalues = np.linalg.eigvalsh(0.5 * (M + M.T))
+        try:                        # halves first: M + Mᵀ of entries near the largest double overflows
+            eigenvalues = np.linalg.eigvalsh(0.5 * M + 0.5 * M.T)
+        except np.linalg.LinAlgError:
+            continue
         largest = max(largest, abs(eigenvalues[-1]), abs(eigenvalues[0]))
         if worst is None or eigenvalues[0] < worst[0]:
             worst = (eigenvalues[0], qs)

@@ -127,8 +127,9 @@ def _check_request(call: _Call) -> list:
     problems += _option_problems(call)
     if not (isinstance(call.max_steps, (int, np.integer)) and call.max_steps > 0):
         problems.append(f"max_steps must be a positive integer, got {call.max_steps!r}")
-    if not (call.rtol > 0 and call.atol > 0):
-        problems.append(f"rtol and atol must be positive, got rtol={call.rtol!r}, atol={call.atol!r}")
+    if not (0 < call.rtol < 1 and 0 < call.atol < np.inf):   # rtol = inf allowed steps of any size: a hang
+        problems.append(f"rtol must lie in (0, 1) and atol be positive and finite, got rtol={call.rtol!r}, "
+                        f"atol={call.atol!r}")
     if call.singular_tol is not None and not (0 <= call.singular_tol < 1):
         problems.append(f"singular_tol must be in [0, 1) or None, got {call.singular_tol!r}")
     if call.t_eval is not None and t0 is not None:

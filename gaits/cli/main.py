@@ -20,6 +20,7 @@ import argparse
 import importlib
 import os
 import sys
+import warnings
 
 #: (module, function adding the subcommand), in the order of ``nhgait --help``
 SUBCOMMANDS = (
@@ -56,6 +57,7 @@ def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     previous = signal.signal(signal.SIGTERM, _terminate) if _main_thread() else None
+    formatter, warnings.formatwarning = warnings.formatwarning, _format_warning
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:
@@ -74,8 +76,14 @@ def main(argv=None) -> int:
               "rerun with NHGAIT_DEBUG=1 for the traceback and please report it", file=sys.stderr)
         return 3
     finally:
+        warnings.formatwarning = formatter
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+
+
+def _format_warning(message, category, filename, lineno, line=None) -> str:
+    """A warning as the command prints it: one line, no source location."""
+    return f"nhgait: warning: {message}\n"
 
 
 def _main_thread() -> bool:

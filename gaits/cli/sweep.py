@@ -98,10 +98,12 @@ def write_plots(result, out: Path, requested=None) -> list:
 
 
 def run(args) -> int:
+    from ..outputs import write_failure
     from ..sweeps.driver import load_sweep, sweep
+    from ..sweeps.store import StoreWriteError
     out = Path(args.out)
     try:
-        result = sweep(args.scene, args.task, args.grid, out=out, scheduler=args.scheduler, workers=args.workers,
+        result = sweep(args.scene, args.task, args.grid, out=args.out, scheduler=args.scheduler, workers=args.workers,
                        resume=args.resume, warm_start=not args.cold, overrides=args.overrides, chain=args.chain,
                        progress=None if args.quiet else _ProgressPrinter())
     except KeyboardInterrupt:
@@ -109,9 +111,16 @@ def run(args) -> int:
         print(f"\nnhgait sweep: interrupted; {stored} points are stored in {out} — continue with --resume",
               file=sys.stderr)
         return 130
+    except StoreWriteError as exc:
+        print(f"nhgait sweep: stopped: {exc}", file=sys.stderr)
+        return 1
     for line in result.summary_lines():
         print(line)
     if not args.no_plots:
-        files = write_plots(result, out, args.plot)
+        try:
+            files = write_plots(result, out, args.plot)
+        except OSError as exc:                 # the points are stored; only the pictures are missing
+            print(f"  plots NOT WRITTEN: {write_failure(exc, out)} (the points are stored in {out / 'sweep.sqlite'})")
+            return 1
         print("  files:  " + "  ".join(str(f) for f in [out / "sweep.sqlite", *files]))
     return 0 if all(r.success for r in result.records) and result.complete else 1

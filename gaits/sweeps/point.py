@@ -198,11 +198,10 @@ def _scene_data(system) -> SceneData:
     if not isinstance(system, (str, Path)):
         raise ModelError([f"a sweep's system is a scene file or a built-in scene name, got {type(system).__name__} "
                           "(a sweep sends the scene to its workers as data)"], title="invalid sweep")
+    from nhgait.dynamics.derivation.textfiles import names_a_file, read_text_file
     path = Path(system)
-    if path.exists():
-        return SceneData(str(path), text=path.read_text())
-    if path.suffix == ".toml":
-        raise ModelError([f"scene file {path} does not exist"], title="unknown scene")
+    if names_a_file(path) or path.suffix == ".toml":
+        return SceneData(str(path), text=read_text_file(path, "scene file", title="cannot read the scene"))
     return SceneData(f"built-in scene {system}", builtin=str(system))
 
 
