@@ -22,7 +22,7 @@ from .system import TIME, System, parse_field, jump_times
 from .tomldata import read_toml
 
 SYSTEM_KEYS = {"name", "coordinates", "lagrangian", "constraints", "forces", "parameters", "inputs",
-               "fiber", "planar_frame", "description"}
+               "fiber", "planar_frame", "description", "holonomic", "dependent"}
 SIMULATION_KEYS = {"q0", "qdot0", "t_final", "samples", "t0", "inputs", "parameters", "formulation",
                    "rtol", "atol", "method", "outputs"}
 #: top-level tables; ``task``, ``units`` and ``drawing`` are kept as data for the planner and
@@ -220,7 +220,8 @@ def _system(sysd, source, problems) -> System | None:
         return System(coordinates=sysd["coordinates"], lagrangian=sysd["lagrangian"],
                       constraints=sysd.get("constraints", []), forces=sysd.get("forces", {}),
                       parameters=sysd.get("parameters", {}), inputs=sysd.get("inputs"), name=name,
-                      fiber=sysd.get("fiber"), planar_frame=sysd.get("planar_frame", "auto"))
+                      fiber=sysd.get("fiber"), planar_frame=sysd.get("planar_frame", "auto"),
+                      holonomic=sysd.get("holonomic", ()), dependent=sysd.get("dependent"))
     except ModelError as exc:
         problems.extend(exc.problems)
         return None
@@ -241,6 +242,10 @@ def _simulation(sim, system, problems) -> SimulationSpec | None:
             problems.append(f"[simulation]: missing key {key!r}")
     n = system.n if system else None
     q0 = _vector(sim["q0"], "[simulation].q0", n, problems) if "q0" in sim else None
+    if q0 is None and system is not None and system.eliminated and "q0" in sim:
+        problems.append("the holonomic constraints eliminated " + ", ".join(
+            f"{c} (= {e})" for c, e in system.eliminated) + f": q0 lists the other coordinates "
+            f"({', '.join(system.coordinates)})")
     t0 = _number(sim.get("t0", 0.0), "[simulation].t0", problems)
     tf = _number(sim["t_final"], "[simulation].t_final", problems) if "t_final" in sim else math.nan
     if math.isfinite(t0) and math.isfinite(tf) and not tf > t0:
@@ -269,6 +274,8 @@ def _simulation(sim, system, problems) -> SimulationSpec | None:
                         f"{known_names(bad[0], system.parameters, label='parameters')}")
     elif sim_params and len(problems) == start:
         problems.extend(system.parameter_problems(sim_params, label="the [simulation] parameters"))
+    if q0 is not None and system.holonomic and len(problems) == start:
+        q0 = _consistent_q0(system, q0, sim_params, problems)
     qd0 = _initial_velocities(sim.get("qdot0"), system, q0, sim_params, problems) if "qdot0" in sim else None
     controller = _input_laws(sim.get("inputs", {}), system, sim_params, problems)
     if len(problems) > start:
@@ -276,6 +283,17 @@ def _simulation(sim, system, problems) -> SimulationSpec | None:
     return SimulationSpec(q0=q0, qdot0=qd0, t_final=tf, samples=samples, t0=t0, controller=controller,
                           parameters=sim_params, formulation=formulation, rtol=sim.get("rtol"),
                           atol=sim.get("atol"), method=sim.get("method"), outputs=outputs)
+
+
+def _consistent_q0(system, q0, params, problems):
+    """``q0`` with its dependent coordinates solved from the kept holonomic constraints (the
+    values written are Newton's starting point; :func:`~.holonomic.consistent_configuration`)."""
+    from .holonomic import consistent_configuration
+    try:
+        return consistent_configuration(system, q0, params=params)
+    except ModelError as exc:
+        problems.extend(f"[simulation].q0: {p}" for p in exc.problems)
+        return None
 
 
 def _initial_velocities(value, system, q0, params, problems):

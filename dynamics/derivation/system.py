@@ -84,6 +84,18 @@ class System:
     planar_frame : (x, y, heading) names, "auto" or None
         Coordinates of a planar pose used for the SE(2)-type choice of g (version B of the
         reconstruction). "auto" looks for coordinates named x, y and theta.
+    holonomic : sequence of str or expression, optional
+        Configuration constraints h(q) = 0 (coordinates and parameters only). Each is
+        eliminated when it is linear in a coordinate with a constant coefficient (the
+        coordinate is substituted everywhere and dropped from ``coordinates``; see
+        ``eliminated``), else kept: its velocity row ∇h·q̇ is appended to the constraints and
+        ``holonomic`` holds the kept h (:mod:`.holonomic`, docs/holonomic.md).
+    dependent : sequence of coordinate names, optional
+        The coordinate each holonomic constraint is solved for (eliminated, or the one a
+        consistent configuration adjusts); default: the last coordinate it can be solved for,
+        else the one with the largest |∂h/∂q| at q = 0. Normalised to the kept constraints'.
+    eliminated : sequence of (name, expression), optional
+        Set by the elimination: the coordinates removed and what they equal.
     """
 
     coordinates: Sequence
@@ -95,6 +107,9 @@ class System:
     name: str = "system"
     fiber: Sequence | None = None
     planar_frame: object = "auto"
+    holonomic: Sequence = ()
+    dependent: Sequence | None = None
+    eliminated: Sequence = ()
     # derived (read by __post_init__, system_parsing.parse_system)
     q: tuple = field(init=False, repr=False)
     q_dot: tuple = field(init=False, repr=False)
@@ -130,8 +145,21 @@ class System:
 
     @property
     def k(self) -> int:
-        """Number of constraints."""
+        """Number of constraints (the velocity rows of kept holonomic constraints included)."""
         return len(self.constraint_exprs)
+
+    @property
+    def holonomic_rows(self) -> tuple:
+        """Indices of the constraint rows that are velocity forms ∇h·q̇ of kept holonomic
+        constraints (the last ``len(holonomic)`` rows)."""
+        return tuple(range(self.k - len(self.holonomic), self.k))
+
+    def holonomic_lines(self) -> list:
+        """What the holonomic constraints became, one indented line each (empty without)."""
+        lines = [f"  holonomic: {c} = {sp.sstr(e)} (eliminated)" for c, e in self.eliminated]
+        lines += [f"  holonomic: {sp.sstr(h)} = 0 kept as constraint {row + 1} (its velocity form); "
+                  f"{c} follows the other coordinates" for h, c, row in zip(self.holonomic, self.dependent, self.holonomic_rows)]
+        return lines
 
     def mass_matrix(self) -> sp.Matrix:
         """Kinetic metric M(q) = ∂²L/∂q̇∂q̇ (eq. 2.5), n×n."""
@@ -204,6 +232,10 @@ class System:
             "fiber=" + (",".join(self.fiber) if self.fiber else "auto"),
             "planar_frame=" + (",".join(self.planar_frame) if self.planar_frame else "none"),
         ]
+        if self.holonomic or self.eliminated:
+            parts += ["holonomic=" + ";".join(sp.srepr(h) for h in self.holonomic),
+                      "dependent=" + ",".join(self.dependent),
+                      "eliminated=" + ";".join(f"{c}:{sp.srepr(e)}" for c, e in self.eliminated)]
         return "\n".join(parts)
 
     def __repr__(self) -> str:

@@ -219,6 +219,12 @@ def _restriction(model, ref, keep, A) -> tuple:
     states or None — item 3 —, the sentences saying what was removed)."""
     removed = []
     basis = np.eye(len(keep))
+    system = model.system
+    if system.holonomic:
+        basis = _tangent_basis(system, ref, keep)
+        removed.append(f"removed: λ = 0 of leaving the holonomic constraint surface "
+                       f"({'; '.join(f'{h} = 0' for h in system.holonomic)}; {', '.join(system.dependent)} "
+                       "follows the other coordinates)")
     family = None
     if ref.family is not None:
         d = ref.family[keep]
@@ -229,6 +235,28 @@ def _restriction(model, ref, keep, A) -> tuple:
         else:
             removed.append("kept: the direction of a neighbouring speed is not a null vector of A here")
     return basis, family, removed
+
+
+def _tangent_basis(system, ref, keep) -> np.ndarray:
+    """Orthonormal basis of ker ∇h in the kept states (the momenta are free). ∇h reads only
+    kept coordinates: h is a function of the shape, which the kept rates read."""
+    from ..derivation.holonomic import constraint_gradient
+    G = constraint_gradient(system, ref.q, ref.params)             # (c, n)
+    n = system.n
+    outside = [j for j in range(n) if j not in keep and np.any(G[:, j] != 0)]
+    if outside:
+        raise ModelError([f"the holonomic constraints read the cyclic coordinates "
+                          f"{', '.join(system.coordinates[j] for j in outside)}"], title="invalid linearisation request")
+    G_K = np.zeros((G.shape[0], len(keep)))
+    for col, state in enumerate(keep):
+        if state < n:
+            G_K[:, col] = G[:, state]
+    _, sv, vt = np.linalg.svd(G_K)
+    rank = int(np.sum(sv > 1e-12 * max(1.0, sv.max(initial=0.0))))
+    if rank < G.shape[0]:
+        raise ModelError(["the holonomic constraints are dependent at the reference configuration "
+                          f"(rank {rank} of {G.shape[0]})"], title="invalid linearisation request")
+    return vt[rank:].T
 
 
 def _reduced_eigen(A: np.ndarray, basis: np.ndarray, family) -> tuple:

@@ -76,7 +76,9 @@ def reference_motion(model, *, speed=None, configuration=None, inputs=None, para
     Parameters
     ----------
     speed : forward speed V (a straight steady motion) or None (an equilibrium at rest).
-    configuration : mapping coordinate → value (the others 0): q*.
+    configuration : mapping coordinate → value (the others 0): q*. With kept holonomic
+        constraints the dependent coordinates are solved from the others (a value given for
+        one is Newton's starting point).
     inputs : mapping input → constant value (the others 0): u*.
     params : mapping parameter → value overriding the defaults.
     """
@@ -93,6 +95,9 @@ def reference_motion(model, *, speed=None, configuration=None, inputs=None, para
                         "write planar_frame = [...] in [system], or linearise about an equilibrium (no --speed)")
     if problems:
         raise ModelError(problems, title="invalid linearisation request")
+    if system.holonomic:
+        from ..derivation.holonomic import consistent_configuration
+        q = consistent_configuration(system, q, params=params)
     pv = model.numeric.params(params)
     if speed is None:
         qdot = np.zeros(len(names))

@@ -244,6 +244,7 @@ class ReducedODE(ModelDisplay):
                  f"({self.dimension} = 2n − k first-order ODEs, {self.form} form, version {self.version}, "
                  f"{self.classification})",
                  *symmetry_choice_lines(self.symmetry, self.fiber, self.shape),
+                 *self.system.holonomic_lines(),
                  f"  state z = ({', '.join(self.state_names)})"]
         if self.rhs is None:
             lines.append("  q̇ = X(q) v,  K(q) v = (" + ", ".join(map(str, self.momenta)) +
