@@ -151,6 +151,8 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
     urdf = None
     if isinstance(data.get("system"), dict) and "urdf" in data["system"]:
         urdf, system = _urdf_system(data["system"], source, problems)
+    elif isinstance(data.get("system"), dict) and "bodies" in data["system"]:
+        system = _bodies_system(data["system"], source, problems)
     else:
         system = _system(data.get("system"), source, problems)
     spec = None
@@ -184,6 +186,17 @@ def _urdf_system(sysd, source, problems):
         problems.extend(exc.problems)
         return None, None
     return built, built.system
+
+
+def _bodies_system(sysd, source, problems):
+    """The System of a ``[system]`` table stated with ``bodies`` and ``wheels`` (docs/bodies.md),
+    or None after recording its problems."""
+    from .bodies import bodies_system
+    try:
+        return bodies_system(sysd, source)
+    except ModelError as exc:
+        problems.extend(exc.problems)
+        return None
 
 
 def _urdf_task_defaults(task: dict, urdf) -> dict:

@@ -29,9 +29,12 @@ from nhgait.dynamics.suggestions import known_names
 from ..errors import ModelError
 from ..memo import OwnerMemo
 from . import parameter_checks
-from .system_parsing import TIME, parse_field, parse_system, velocity_name
+from .system_parsing import TIME, linear_split, parse_field, parse_system, quadratic_split, velocity_name
 
 __all__ = ["System", "TIME", "jump_times", "parse_field", "velocity_name", "FORCE_JUMP_TIMES"]
+
+#: per system (dropped with it): M(q) and V(q), derived once (read off L or differentiated)
+METRICS = OwnerMemo("kinetic metric and potential per system")
 
 #: the force jump times of a system per parameter values (sympy walks the forces: ~20 µs a
 #: call, and every simulation asks); dropped with the system
@@ -162,18 +165,31 @@ class System:
         return lines
 
     def mass_matrix(self) -> sp.Matrix:
-        """Kinetic metric M(q) = ∂²L/∂q̇∂q̇ (eq. 2.5), n×n."""
-        return sp.hessian(self.L, self.q_dot)
+        """Kinetic metric M(q) = ∂²L/∂q̇∂q̇ (eq. 2.5), n×n: read off L term by term when L is
+        written as Σ c_ij q̇_i q̇_j − V (:func:`~.system_parsing.quadratic_split`), else
+        differentiated; computed once per system (:data:`METRICS`)."""
+        return METRICS.get(self, "M", lambda: self._split()[0])
 
     def potential(self) -> sp.Expr:
         """V(q) = −L(q, 0)."""
-        return -self.L.xreplace({v: 0 for v in self.q_dot})
+        return METRICS.get(self, "V", lambda: self._split()[1])
+
+    def _split(self) -> tuple:
+        split = quadratic_split(self.L, self.q_dot)
+        if split is not None:
+            return split
+        return sp.hessian(self.L, self.q_dot), -self.L.xreplace({v: 0 for v in self.q_dot})
 
     def omega(self) -> sp.Matrix:
-        """Pfaffian constraint matrix ω(q), k×n (eq. 2.11)."""
+        """Pfaffian constraint matrix ω(q), k×n (eq. 2.11): each row read off its constraint
+        when written as Σ ω_i q̇_i (:func:`~.system_parsing.linear_split`), else differentiated;
+        computed once per system (:data:`METRICS`)."""
         if not self.constraint_exprs:
             return sp.zeros(0, self.n)
-        return sp.Matrix([[sp.diff(c, v) for v in self.q_dot] for c in self.constraint_exprs])
+        return sp.Matrix(METRICS.get(self, "omega", self._omega_rows))
+
+    def _omega_rows(self) -> list:
+        return [linear_split(c, self.q_dot) or [sp.diff(c, v) for v in self.q_dot] for c in self.constraint_exprs]
 
     def force_jump_times(self, values=None) -> tuple:
         """Times at which a force jumps (Heaviside/sign of a·t + b): integration breakpoints
@@ -226,16 +242,16 @@ class System:
             "coordinates=" + ",".join(self.coordinates),
             "parameters=" + ",".join(s.name for s in self.param_symbols),
             "inputs=" + ",".join(self.inputs),
-            "L=" + sp.srepr(self.L),
-            "constraints=" + ";".join(sp.srepr(c) for c in self.constraint_exprs),
-            "forces=" + ";".join(sp.srepr(f) for f in self.tau),
+            "L=" + sp.srepr(self.L, order="none"),
+            "constraints=" + ";".join(sp.srepr(c, order="none") for c in self.constraint_exprs),
+            "forces=" + ";".join(sp.srepr(f, order="none") for f in self.tau),
             "fiber=" + (",".join(self.fiber) if self.fiber else "auto"),
             "planar_frame=" + (",".join(self.planar_frame) if self.planar_frame else "none"),
         ]
         if self.holonomic or self.eliminated:
-            parts += ["holonomic=" + ";".join(sp.srepr(h) for h in self.holonomic),
+            parts += ["holonomic=" + ";".join(sp.srepr(h, order="none") for h in self.holonomic),
                       "dependent=" + ",".join(self.dependent),
-                      "eliminated=" + ";".join(f"{c}:{sp.srepr(e)}" for c, e in self.eliminated)]
+                      "eliminated=" + ";".join(f"{c}:{sp.srepr(e, order='none')}" for c, e in self.eliminated)]
         return "\n".join(parts)
 
     def __repr__(self) -> str:

@@ -278,11 +278,14 @@ def _reduced_eigen(A: np.ndarray, basis: np.ndarray, family) -> tuple:
 
 
 def _family_first(basis: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """An orthonormal basis of span(basis) whose first vector is the family direction ``d``
-    (which lies in it: a neighbouring speed keeps the configuration)."""
+    """An orthonormal basis of span(basis) (orthonormal columns) whose first vector is the
+    family direction ``d`` (which lies in it: a neighbouring speed keeps the configuration):
+    d/|d|, then an orthonormal basis of the rest of span(basis) orthogonal to it."""
     d = basis @ (basis.T @ d)
-    Q, _ = np.linalg.qr(np.column_stack([d, basis]))
-    return Q[:, :basis.shape[1]]
+    d = d / np.linalg.norm(d)
+    rest = basis - np.outer(d, d @ basis)
+    u, sv, _ = np.linalg.svd(rest, full_matrices=False)
+    return np.column_stack([d, u[:, :basis.shape[1] - 1]])
 
 
 def _mode(lam, vector, names, n, keep, tolerance) -> Mode:
