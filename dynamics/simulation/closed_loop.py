@@ -235,14 +235,12 @@ def _scatter(cols, n) -> ca.DM:
     return ca.DM(E)
 
 
-def _holonomic_pieces(system, q, params):
+def _holonomic_pieces(model, q, params):
     """(h(q) as SX, dependent columns) of the kept holonomic constraints, or None."""
+    system = model.system
     if not system.holonomic:
         return None
-    from ..numerics.bridge import to_casadi
-    symbols = list(system.q) + list(system.param_symbols)
-    args = [q[i] for i in range(system.n)] + [params[j] for j in range(len(system.param_symbols))]
-    h = ca.vertcat(*to_casadi(list(system.holonomic), symbols, args))
+    h = model.numeric["holonomic"](q, params)
     return h, [list(system.coordinates).index(c) for c in system.dependent]
 
 
@@ -379,4 +377,4 @@ def _build(model, controller, stabilization, baumgarte, seeds) -> ClosedLoop:
         qdot=ca.Function("qdot", [y, p], [ca.densify(restrict(qdot))], ["y", "p"], ["qdot"]),
         _pieces=dict(args=args, names=names, ydot=ydot, y=y, x=x, g=g, energy=energy, num=num, t=t,
                      t_c=t_c, u=u, p=p, params=params, g_int=g_int, alpha=alpha, beta=beta,
-                     holonomic=_holonomic_pieces(system, q, params)))
+                     holonomic=_holonomic_pieces(model, q, params)))
