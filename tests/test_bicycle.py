@@ -1,6 +1,8 @@
 """The Whipple bicycle (built-in ``whipple_bicycle``, built from bodies and wheels, nothing typed
 from the papers' matrices) against the field's published truths:
 
+The numbers are in experiments/whipple_published.py (data only, shared with the benchmark):
+
 * Meijaard, Papadopoulos, Ruina, Schwab, Proc. R. Soc. A 463 (2007) 1955–1982, Table 2: the
   eigenvalues of the upright straight motion at 0, 1, …, 10 m/s (14 decimals), the weave and
   capsize speeds and, at the bifurcation speed where the two real unstable eigenvalues merge
@@ -9,33 +11,20 @@ from the papers' matrices) against the field's published truths:
 * Basu-Mandal, Chatterjee, Papadopoulos, Proc. R. Soc. A 463 (2007) 1983–2003, Table 1: the
   nonlinear accelerations at a state leaning 35.6° and steering 13°, 13–14 digits (the state
   and the outputs as shipped by ``dtk.bicycle.basu_table_one_input/output``; the conversions
-  ``basu_to_moore_input`` and ``moore_to_basu`` transcribed below).
+  ``basu_to_moore_input`` and ``moore_to_basu`` transcribed in whipple_published.py, with the
+  map between Moore's coordinates and nhgait's).
 """
-from math import cos, pi, sin
-
+import experiment_scripts
 import numpy as np
 import pytest
 
-from nhgait.dynamics import derive, load_scene, to_state
+from nhgait.dynamics import derive, load_scene
 from nhgait.dynamics.linearisation import linearise, stability_chart
 
-# Table 2 (b, c): eigenvalues at v = 0 … 10 m/s
-TABLE2 = {
-    0: [-5.53094371765393, -3.13164324790656, 3.13164324790656, 5.53094371765393],
-    1: [-7.11008014637442, -3.13423125066578, 3.52696170990070 - 0.80774027519930j, 3.52696170990070 + 0.80774027519930j],
-    2: [-8.67387984831735, -3.07158645641514, 2.68234517512745 - 1.68066296590675j, 2.68234517512745 + 1.68066296590675j],
-    3: [-10.35101467245920, -2.63366137253667, 1.70675605663975 - 2.31582447384325j, 1.70675605663975 + 2.31582447384325j],
-    4: [-12.15861426576450, -1.42944427361326, 0.41325331521125 - 3.07910818603206j, 0.41325331521125 + 3.07910818603206j],
-    5: [-14.07838969279820, -0.77534188219585 - 4.46486771378823j, -0.77534188219585 + 4.46486771378823j, -0.32286642900409],
-    6: [-16.08537123098030, -1.52644486584142 - 5.87673060598709j, -1.52644486584142 + 5.87673060598709j, -0.00406690076970],
-    7: [-18.15788466125262, -2.13875644258362 - 7.19525913329805j, -2.13875644258362 + 7.19525913329805j, 0.10268170574766],
-    8: [-20.27940894394569, -2.69348683581097 - 8.46037971396931j, -2.69348683581097 + 8.46037971396931j, 0.14327879765713],
-    9: [-22.43788559040858, -3.21675402252485 - 9.69377351531791j, -3.21675402252485 + 9.69377351531791j, 0.15790184030917],
-    10: [-24.62459635017404, -3.72016840437287 - 10.90681139476287j, -3.72016840437287 + 10.90681139476287j, 0.16105338653172],
-}
-WEAVE, CAPSIZE = 4.29238253634111, 6.02426201538837            # Table 2 (a)
-WEAVE_FREQUENCY = 3.43503384866144                               # |Im λ| of the weave pair at WEAVE
-BIFURCATION, DOUBLE = 0.68428307889246, 3.78290405129320
+PUBLISHED = experiment_scripts.load("whipple_published")      # the papers' numbers (data only)
+TABLE2, WEAVE, CAPSIZE = PUBLISHED.TABLE2, PUBLISHED.WEAVE, PUBLISHED.CAPSIZE
+WEAVE_FREQUENCY, BIFURCATION, DOUBLE = PUBLISHED.WEAVE_FREQUENCY, PUBLISHED.BIFURCATION, PUBLISHED.DOUBLE
+BASU_STATE, BASU_OUTPUT = PUBLISHED.BASU_STATE, PUBLISHED.BASU_OUTPUT
 TOL = 1e-10
 
 
@@ -86,53 +75,7 @@ def test_the_real_pair_merges_into_the_weave_at_the_bifurcation_speed(bicycle):
 
 
 # --------------------------------------------------------------------------- Basu-Mandal
-BASU_STATE = dict(x=0.0, y=0.0, z=0.2440472102925, theta=0.0, psi=0.9501292851472, phi=3.1257073014894,
-                  psif=0.2311385135743, betar=0.0, betaf=0.0, xd=-2.8069345714545, yd=-0.1480982396001,
-                  zd=0.1058778746261, thetad=0.7830033527065, psid=0.6068425835418, phid=-0.0119185528069,
-                  psifd=0.4859824687093, betard=8.9129896614890, betafd=8.0133620584155)
-BASU_OUTPUT = dict(xdd=-0.5041626315047, ydd=-0.3449706619454, zdd=-1.4604528332980, thetadd=0.8353281706379,
-                   psidd=-7.8555281128244, phidd=0.1205543897884, psifdd=-4.6198904039403,
-                   betardd=1.8472554144217, betafdd=2.4548072904550)
-
-
-def _basu_to_moore(b, rr, lam):
-    """dtk.bicycle.basu_to_moore_input: Moore's q1 … q8 and u1 … u8 (u = q̇)."""
-    st, ct, sp_, cp_ = sin(b["theta"]), cos(b["theta"]), sin(b["psi"]), cos(b["psi"])
-    q = [-rr * st * cp_ - b["x"], b["y"] - rr * ct * cp_, -b["theta"], pi / 2 - b["psi"], pi - b["phi"] + lam,
-         -b["betar"], -b["psif"], -b["betaf"]]
-    u = [rr * b["psid"] * st * sp_ - rr * b["thetad"] * ct * cp_ - b["xd"],
-         b["yd"] + rr * b["thetad"] * st * cp_ + rr * b["psid"] * ct * sp_,
-         -b["thetad"], -b["psid"], -b["phid"], -b["betard"], -b["psifd"], -b["betafd"]]
-    return q, u
-
-
-def _moore_to_basu_accelerations(q, u, up, rr):
-    """dtk.bicycle.moore_to_basu: Basu-Mandal's accelerations from Moore's q, u and u̇."""
-    s3, c3, s4, c4 = sin(q[2]), cos(q[2]), sin(q[3]), cos(q[3])
-    u3, u4 = u[2], u[3]
-    return dict(
-        xdd=rr * (-s3 * s4 * u3 ** 2 + 2 * c3 * c4 * u3 * u4 + c3 * s4 * up[2] - s3 * s4 * u4 ** 2 + s3 * c4 * up[3]) - up[0],
-        ydd=up[1] - rr * c3 * s4 * u3 ** 2 - 2 * rr * s3 * c4 * u3 * u4 - rr * s3 * s4 * up[2] - rr * c3 * s4 * u4 ** 2
-        + rr * c3 * c4 * up[3],
-        zdd=-rr * (up[3] * s4 + u4 ** 2 * c4), thetadd=-up[2], psidd=-up[3], phidd=-up[4], betardd=-up[5],
-        psifdd=-up[6], betafdd=-up[7])
-
-
 def test_nonlinear_accelerations_equal_basu_mandal_table_1(bicycle):
-    """Moore's coordinates → nhgait's: x = q1, y = −q2, yaw = −q3, lean = q4, pitch = λ − q5,
-    steer = −q7, rear = −q6, front = −q8 (nhgait: z up, y left, steer to the left positive)."""
-    num, system = bicycle.numeric, bicycle.system
-    rr, lam = system.parameters["rR"], system.parameters["lam"]
-    q_m, u_m = _basu_to_moore(BASU_STATE, rr, lam)
-    sign = np.array([1, -1, -1, 1, -1, -1, -1, -1])                 # ours = sign · Moore (+ λ on the pitch)
-    order = [0, 1, 2, 3, 4, 6, 5, 7]                                # ours: … pitch, steer, rear, front
-    q = sign * np.array(q_m)[order] + np.array([0, 0, 0, 0, lam, 0, 0, 0])
-    qdot = sign * np.array(u_m)[order]
-    pv = num.params()
-    z = to_state(bicycle, q, qdot)              # refuses a state off the constraints (1e-8): it is on them
-    qddot = num.call("qddot", 0.0, z, np.zeros(2), pv)
-    up = np.empty(8)
-    up[order] = sign * qddot                                        # Moore's u̇ from ours
-    got = _moore_to_basu_accelerations(q_m, u_m, up, rr)
+    got = PUBLISHED.basu_mandal_accelerations(bicycle)
     for name, value in BASU_OUTPUT.items():
         assert got[name] == pytest.approx(value, abs=1e-11), name

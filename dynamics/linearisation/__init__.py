@@ -1,7 +1,7 @@
 """Linearisation of a derived model about an equilibrium or a straight steady motion, and its
 eigenvalues against speed (docs/linearisation.md).
 
-* :func:`linearise` (:mod:`.linearise`) — A, B, the eigenvalues and their modes
+* :func:`linearise` (:mod:`.linearised`) — A, B, the eigenvalues and their modes
   (:class:`Linearisation`) of the reduced ODE about a :class:`ReferenceMotion`
   (:mod:`.reference`: an equilibrium, or straight steady motion at a forward speed);
 * :func:`stability_chart` (:mod:`.chart`) — the eigenvalues over a range of speeds and the
@@ -12,7 +12,7 @@ from __future__ import annotations
 from nhgait.lazy import lazy_getattr
 
 _EXPORTS = {
-    "linearise": "linearise", "Linearisation": "linearise", "Mode": "linearise",
+    "linearise": "linearised", "Linearisation": "linearised", "Mode": "linearised",
     "ReferenceMotion": "reference", "reference_motion": "reference",
     "stability_chart": "chart", "StabilityChart": "chart", "StabilityChange": "chart",
 }

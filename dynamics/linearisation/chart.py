@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ModelError
-from .linearise import STABLE, UNSTABLE, linearise
+from .linearised import STABLE, UNSTABLE, linearise
 
 __all__ = ["StabilityChart", "StabilityChange", "stability_chart", "parse_speeds"]
 

@@ -1,7 +1,7 @@
 """The motion a linearisation is taken about: an equilibrium, or a straight steady motion.
 
 * **Equilibrium**: a configuration q* at rest (q̇ = 0) with constant inputs u*, where the
-  non-cyclic part of the reduced ODE is at rest (checked by :mod:`.linearise`).
+  non-cyclic part of the reduced ODE is at rest (checked by :mod:`.linearised`).
 * **Straight steady motion at forward speed V** (a system with a planar frame (x, y, heading)):
   the shape held at q*, the planar frame moving along its heading at speed V without turning —
   ẋ = V cos ψ, ẏ = V sin ψ, ψ̇ = 0, every coordinate outside the fiber at rest — and the
@@ -10,7 +10,7 @@
 
 The reduced state z* = (q*, P*) follows from (q*, q̇*) by P = XᵀM(q*)q̇ (Tables 3.2–3.3); as
 q̇* is linear in V, so is P*, and ``family`` = ∂z*/∂V is the direction along the family of
-steady motions (a neutral direction of the linearisation, see :mod:`.linearise`).
+steady motions (a neutral direction of the linearisation, see :mod:`.linearised`).
 """
 from __future__ import annotations
 
