@@ -449,8 +449,14 @@ def at_rest(task: Task, model) -> dict:
 
 
 def to_problem(task: Task, model, *, quantities=None, params=None, name: str = "") -> OptimalControlProblem:
-    """The :class:`OptimalControlProblem` of ``task`` on ``model`` (states, quantities, inputs)."""
+    """The :class:`OptimalControlProblem` of ``task`` on ``model`` (states, quantities, inputs).
+    A model with kept holonomic constraints starts on them: ``holonomic<i> = 0`` at t = 0 (the
+    velocity form keeps h(q) = 0 after; without it the dependent coordinate — the bicycle's
+    pitch — would be free at t = 0)."""
+    from nhgait.ocp.problem import holonomic_quantities
     ends = at_rest(task, model)
+    for holonomic in holonomic_quantities(model):
+        ends["initial"].setdefault(holonomic, 0.0)
     return OptimalControlProblem.from_statement(
         task.statement, model, initial=ends["initial"], final=ends["final"],
         control_weights=control_weights(task.objective, tuple(model.system.inputs)),

@@ -29,10 +29,10 @@ LAMBDIFIED = OwnerMemo("lambdified M, ω and V per system")
 def numeric_functions(system) -> tuple:
     """(M(q, params), ω(q, params) or None, V(q, params)) as numpy callables (:data:`LAMBDIFIED`)."""
     def lambdify():
-        args = [system.q, system.param_symbols]
-        return (sp.lambdify(args, system.mass_matrix(), "numpy"),
-                sp.lambdify(args, system.omega(), "numpy") if system.k else None,
-                sp.lambdify(args, system.potential(), "numpy"))
+        args = [system.q, system.param_symbols]     # cse: a system built from bodies repeats much
+        return (sp.lambdify(args, system.mass_matrix(), "numpy", cse=True),
+                sp.lambdify(args, system.omega(), "numpy", cse=True) if system.k else None,
+                sp.lambdify(args, system.potential(), "numpy", cse=True))
     return LAMBDIFIED.get(system, None, lambdify)
 
 

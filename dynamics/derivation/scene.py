@@ -23,7 +23,7 @@ from .system import TIME, System, parse_field, jump_times
 from .tomldata import read_toml
 
 SYSTEM_KEYS = {"name", "coordinates", "lagrangian", "constraints", "forces", "parameters", "inputs",
-               "fiber", "planar_frame", "description"}
+               "fiber", "planar_frame", "description", "holonomic", "dependent"}
 #: the most output samples of a [simulation] (about 1.2 kB and 30–80 µs per sample for the unicycle's outputs)
 MAX_SAMPLES = 1_000_000
 SIMULATION_KEYS = {"q0", "qdot0", "t_final", "samples", "t0", "inputs", "parameters", "formulation",
@@ -154,6 +154,8 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
     urdf = None
     if isinstance(data.get("system"), dict) and "urdf" in data["system"]:
         urdf, system = _urdf_system(data["system"], source, problems)
+    elif isinstance(data.get("system"), dict) and "bodies" in data["system"]:
+        system = _bodies_system(data["system"], source, problems)
     else:
         system = _system(data.get("system"), source, problems)
     spec = None
@@ -187,6 +189,17 @@ def _urdf_system(sysd, source, problems):
         problems.extend(exc.problems)
         return None, None
     return built, built.system
+
+
+def _bodies_system(sysd, source, problems):
+    """The System of a ``[system]`` table stated with ``bodies`` and ``wheels`` (docs/bodies.md),
+    or None after recording its problems."""
+    from .bodies import bodies_system
+    try:
+        return bodies_system(sysd, source)
+    except ModelError as exc:
+        problems.extend(exc.problems)
+        return None
 
 
 def _urdf_task_defaults(task: dict, urdf) -> dict:
@@ -223,7 +236,8 @@ def _system(sysd, source, problems) -> System | None:
         return System(coordinates=sysd["coordinates"], lagrangian=sysd["lagrangian"],
                       constraints=sysd.get("constraints", []), forces=sysd.get("forces", {}),
                       parameters=sysd.get("parameters", {}), inputs=sysd.get("inputs"), name=name,
-                      fiber=sysd.get("fiber"), planar_frame=sysd.get("planar_frame", "auto"))
+                      fiber=sysd.get("fiber"), planar_frame=sysd.get("planar_frame", "auto"),
+                      holonomic=sysd.get("holonomic", ()), dependent=sysd.get("dependent"))
     except ModelError as exc:
         problems.extend(exc.problems)
         return None
@@ -244,6 +258,10 @@ def _simulation(sim, system, problems) -> SimulationSpec | None:
             problems.append(f"[simulation]: missing key {key!r}")
     n = system.n if system else None
     q0 = _vector(sim["q0"], "[simulation].q0", n, problems) if "q0" in sim else None
+    if q0 is None and system is not None and system.eliminated and "q0" in sim:
+        problems.append("the holonomic constraints eliminated " + ", ".join(
+            f"{c} (= {e})" for c, e in system.eliminated) + f": q0 lists the other coordinates "
+            f"({', '.join(system.coordinates)})")
     t0 = _number(sim.get("t0", 0.0), "[simulation].t0", problems)
     tf = _number(sim["t_final"], "[simulation].t_final", problems) if "t_final" in sim else math.nan
     if math.isfinite(t0) and math.isfinite(tf) and not tf > t0:
@@ -273,6 +291,8 @@ def _simulation(sim, system, problems) -> SimulationSpec | None:
                         f"{known_names(bad[0], system.parameters, label='parameters')}")
     elif sim_params and len(problems) == start:
         problems.extend(system.parameter_problems(sim_params, label="the [simulation] parameters"))
+    if q0 is not None and system.holonomic and len(problems) == start:
+        q0 = _consistent_q0(system, q0, sim_params, problems)
     qd0 = _initial_velocities(sim.get("qdot0"), system, q0, sim_params, problems) if "qdot0" in sim else None
     controller = _input_laws(sim.get("inputs", {}), system, sim_params, problems)
     if len(problems) > start:
@@ -280,6 +300,17 @@ def _simulation(sim, system, problems) -> SimulationSpec | None:
     return SimulationSpec(q0=q0, qdot0=qd0, t_final=tf, samples=samples, t0=t0, controller=controller,
                           parameters=sim_params, formulation=formulation, rtol=sim.get("rtol"),
                           atol=sim.get("atol"), method=sim.get("method"), outputs=outputs)
+
+
+def _consistent_q0(system, q0, params, problems):
+    """``q0`` with its dependent coordinates solved from the kept holonomic constraints (the
+    values written are Newton's starting point; :func:`~.holonomic.consistent_configuration`)."""
+    from .holonomic import consistent_configuration
+    try:
+        return consistent_configuration(system, q0, params=params)
+    except ModelError as exc:
+        problems.extend(f"[simulation].q0: {p}" for p in exc.problems)
+        return None
 
 
 def _initial_velocities(value, system, q0, params, problems):

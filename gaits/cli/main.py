@@ -30,6 +30,7 @@ SUBCOMMANDS = (
     ("nhgait.gaits.cli.reproduce", "add_reproduce_parser"),
     ("nhgait.gaits.cli.plan", "add_plan_parser"),
     ("nhgait.gaits.cli.sweep", "add_sweep_parser"),
+    ("nhgait.gaits.cli.linearize", "add_linearize_parser"),
 )
 
 

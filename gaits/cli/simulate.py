@@ -201,6 +201,9 @@ def _print_summary(scene, traj, compile_s: float = 0.0) -> None:
     if traj.constraint_residual.size and np.isfinite(traj.constraint_residual).all():
         print(f"  max |ω(q)q̇| = {np.abs(traj.constraint_residual).max():.3g}, "
               f"max |energy balance| = {np.nanmax(np.abs(traj.energy_balance)):.3g}")
+    if traj.holonomic_residual is not None and traj.holonomic_residual.size:
+        print(f"  max |h(q)| = {np.nanmax(np.abs(traj.holonomic_residual)):.3g} (drift from the holonomic "
+              "constraints kept)")
     if "recommendation" in traj.diagnostics:
         print(f"  {traj.diagnostics['recommendation']}")
 
