@@ -29,3 +29,9 @@ class SingularConfigurationError(ModelError):
 
     def __init__(self, problems, *, title: str = "configuration on the singular set"):
         super().__init__(problems, title=title)
+
+
+class Terminated(BaseException):
+    """SIGTERM received (the command line turns the signal into this exception): unwinds like
+    KeyboardInterrupt — every cleanup runs, child processes are killed — and ``nhgait`` exits
+    143. A ``BaseException``, so that no ``except Exception`` on the way swallows it."""

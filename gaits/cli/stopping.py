@@ -1,0 +1,120 @@
+"""How ``nhgait`` stops on SIGINT and SIGTERM: at once, in any phase, leaving nothing behind.
+
+:func:`stop_signals` is the context the command line runs each subcommand in:
+
+* **SIGTERM** raises :class:`~nhgait.dynamics.errors.Terminated` (exit 143), **SIGINT**
+  KeyboardInterrupt (exit 130; left ignored when the shell started us with it ignored, as a
+  background job): they unwind like any exception, so a running C compiler is killed and its
+  files removed (:mod:`nhgait.dynamics.numerics.compiler`), supervised solver processes are killed
+  (:mod:`nhgait.ocp.supervision`), a half-written cache entry or output file is removed.
+* **A watchdog** covers what a Python handler cannot: the main thread inside C code that does
+  not return (CasADi building a large NLP, a solver run in this process where there is no
+  fork), and a handler whose exception is swallowed because it ran where Python ignores
+  exceptions (an ``os.register_at_fork`` hook, a ``__del__``: "Exception ignored in ...").
+  Python's C-level handler writes each signal's number to a wakeup pipe
+  (``signal.set_wakeup_fd``) whatever the main thread is doing; a daemon thread reads it and,
+  if the process is still alive :data:`FORCE_AFTER_S` seconds later, writes the same message
+  and ends it with ``os._exit(128 + signal)``. A normal stop (kill the children, remove the
+  temporary files, print) takes milliseconds, so the watchdog only ever meets a process stuck
+  in C — where no temporary file is being written: every writer of one (the compiler's wait,
+  the cache, the outputs) is Python code in which the handler runs at once — and supervised
+  children and compilers are killed by the kernel when the main thread dies
+  (``PR_SET_PDEATHSIG``, Linux).
+"""
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import threading
+import time
+from contextlib import contextmanager
+
+from nhgait.dynamics.errors import Terminated
+
+__all__ = ["stop_signals", "exit_now", "FORCE_AFTER_S", "EXIT_STATUS", "MESSAGES"]
+
+#: how long after a stop signal the watchdog ends a process that is still running (s)
+FORCE_AFTER_S = 1.5
+#: exit status per signal (the shell's 128 + signal number)
+EXIT_STATUS = {signal.SIGINT: 130, signal.SIGTERM: 143}
+#: what ``nhgait`` says when it stops on a signal
+MESSAGES = {signal.SIGINT: "nhgait: interrupted", signal.SIGTERM: "nhgait: terminated"}
+
+
+@contextmanager
+def stop_signals():
+    """SIGTERM → Terminated, SIGINT → KeyboardInterrupt, with the watchdog (module docstring);
+    everything put back on leaving. Outside the main thread: nothing is changed."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = _install()
+    read, write = os.pipe()
+    os.set_blocking(write, False)
+    old_fd = signal.set_wakeup_fd(write, warn_on_full_buffer=False)
+    threading.Thread(target=_watch, args=(read, frozenset(previous)), name="nhgait-stop-watchdog",
+                     daemon=True).start()
+    try:
+        yield
+    finally:
+        signal.set_wakeup_fd(old_fd)
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        os.close(write)            # the watchdog reads the end of the pipe and leaves
+
+
+def _terminate(signum, frame):
+    raise Terminated()
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt()
+
+
+def _install() -> dict:
+    """Our handlers for SIGTERM (always) and SIGINT (unless ignored or someone else's); the
+    previous handlers by signal."""
+    previous = {signal.SIGTERM: signal.signal(signal.SIGTERM, _terminate)}
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        previous[signal.SIGINT] = signal.signal(signal.SIGINT, _interrupt)
+    return previous
+
+
+def _watch(read: int, ours: frozenset) -> None:
+    """The watchdog thread: the number of each signal caught arrives on the pipe ``read``."""
+    try:
+        while True:
+            data = os.read(read, 64)
+            if not data:
+                return
+            for signum in data:
+                if signum in ours:
+                    time.sleep(FORCE_AFTER_S)
+                    _force_exit(signum)
+    finally:
+        os.close(read)
+
+
+def exit_now(status: int) -> int:
+    """End the process with ``status`` once a stop's cleanup is done: the ``atexit`` handlers
+    run (``weakref.finalize`` objects, multiprocessing's), the streams are flushed, and the
+    interpreter's teardown — 0.6–1 s with CasADi, SciPy and matplotlib loaded, several seconds
+    on a loaded machine, nothing of which the stop needs — is skipped."""
+    import atexit
+    try:
+        atexit._run_exitfuncs()
+        sys.stdout.flush()
+        sys.stderr.flush()
+    finally:
+        os._exit(status)
+    return status  # pragma: no cover - never reached
+
+
+def _force_exit(signum: int) -> None:  # pragma: no cover - measured by tests/test_interrupts.py
+    """End the process now: it has not stopped by itself (module docstring)."""
+    try:
+        sys.stderr.write(f"{MESSAGES[signum]} (forced: still running {FORCE_AFTER_S:g} s after the signal)\n")
+        sys.stderr.flush()
+    finally:
+        os._exit(EXIT_STATUS[signum])
