@@ -12,7 +12,10 @@ Each kind is first run once to the end (its duration T); then ``--trials`` runs 
 each get SIGTERM at a moment drawn uniformly from [0, T] (seeded: ``--seed``). Every run starts
 in a session of its own with a private ``TMPDIR``. For each it records:
 
-* the **stop time** — from the signal to the process's exit — and the exit status (143 wanted);
+* the **stop time** — from the signal to the process's exit — and the exit status: 143, or
+  death by SIGTERM itself (status −15: the signal came before nhgait installed its handler, in
+  the interpreter's start-up, or after it had put the default back, in its teardown once the
+  plan was done) — both are what a shell reports as 143;
 * the **phase hit** — the innermost phase the progress output says was stopped (``…: stopped
   after``), else the last thing it said;
 * **what is left** — live processes of its session after its exit, temporary files anywhere it
@@ -106,12 +109,14 @@ def _run(scene: Path, work: Path, cache: Path, delay: float | None) -> dict:
     stderr = err_path.read_text()
     return {"delay": delay, "signalled": sent is not None, "status": status,
             "stop_s": (ended - sent) if sent is not None else None, "wall_s": ended - started,
-            "phase": _phase(stderr), "processes_left": left, **_leftovers(cache, out, tmp)}
+            "phase": _phase(stderr, status), "processes_left": left, **_leftovers(cache, out, tmp)}
 
 
-def _phase(stderr: str) -> str:
-    """The innermost phase stopped (the first ``…: stopped after`` line), else the last line."""
+def _phase(stderr: str, status) -> str:
+    """The innermost phase stopped (the first ``…: stopped after`` line), else where it was."""
     lines = [line for line in stderr.splitlines() if line.startswith("[")]
+    if status == -signal.SIGTERM:
+        return "teardown (the plan done)" if "nhgait plan" in stderr or lines else "start-up (importing)"
     for line in lines:
         m = re.match(r"\[\s*[\d.]+ s\]\s+(.*?): stopped after", line)
         if m:
@@ -119,7 +124,7 @@ def _phase(stderr: str) -> str:
     if not lines:
         return "start-up (before the first line)"
     last = re.sub(r"^\[\s*[\d.]+ s\]\s+", "", lines[-1])
-    return "after: " + re.sub(r"[\d.]+", "#", last)[:60]
+    return "between phases, after: " + re.sub(r"[\d.]+", "#", last)[:50]
 
 
 def _leftovers(cache: Path, out: Path, tmp: Path) -> dict:
@@ -142,7 +147,7 @@ def _leftovers(cache: Path, out: Path, tmp: Path) -> dict:
 def _passed(row: dict) -> bool:
     if not row["signalled"]:
         return row["status"] in (0, 1) and not row["processes_left"] and not row["temporary_left"]
-    return (row["status"] == 143 and row["stop_s"] < STOP_S and not row["processes_left"]
+    return (row["status"] in (143, -signal.SIGTERM) and row["stop_s"] < STOP_S and not row["processes_left"]
             and not row["temporary_left"] and not row["half_written"])
 
 
@@ -170,7 +175,7 @@ def trials(kind: str, scene: Path, folder: Path, n: int, rng: random.Random, pri
 
 def _why(row: dict) -> str:
     reasons = []
-    if row["status"] != 143:
+    if row["status"] not in (143, -signal.SIGTERM):
         reasons.append(f"exit {row['status']}")
     if row["stop_s"] is not None and row["stop_s"] >= STOP_S:
         reasons.append(f"stopped after {row['stop_s']:.2f} s")

@@ -45,7 +45,9 @@ import time
 from dataclasses import dataclass
 from typing import Any, Callable
 
-__all__ = ["Job", "supervise", "can_fork", "POLL_S", "HANDLER_PAUSE_S", "STOP_SIGNALS"]
+from nhgait.dynamics.errors import STOP_SIGNALS
+
+__all__ = ["Job", "supervise", "can_fork", "POLL_S", "HANDLER_PAUSE_S"]
 
 #: seconds between the parent's checks of limits (its signal handlers run at once regardless)
 POLL_S = 0.05
@@ -53,8 +55,6 @@ POLL_S = 0.05
 EXIT_POLL_S = 0.002
 #: after a child died of SIGTERM/SIGINT, how long the parent waits for its own handler to run
 HANDLER_PAUSE_S = 0.2
-#: the signals whose Python handlers end a plan (Ctrl-C, the CLI's SIGTERM, a budget's alarm)
-STOP_SIGNALS = frozenset(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGALRM") if hasattr(signal, name))
 #: Linux prctl option: signal the child when the thread that forked it dies
 _PR_SET_PDEATHSIG = 1
 

@@ -212,7 +212,12 @@ def _signal_and_wait(proc: subprocess.Popen, signame: str, to_group: bool, timeo
 
 
 def _assert_no_process_left(session: int) -> None:
-    _wait_until(lambda: not _live(session=session), 5.0, f"every process of session {session} to exit")
+    deadline = time.monotonic() + 5.0
+    while _live(session=session) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    left = _live(session=session)
+    _kill_session(session)
+    assert not left, f"processes of session {session} still running 5 s after it ended: {left}"
 
 
 SIGNALS = [pytest.param("SIGTERM", 143, False, "terminated", id="SIGTERM"),
@@ -338,6 +343,27 @@ def test_a_solver_process_killed_from_outside_is_a_failed_attempt(cache, tmp_pat
     _wait_until(lambda: "the solver's process died of SIGKILL" in err.read_text(), 30.0, "the failed attempt")
     _wait_until(lambda: [p for p in _live(ppid=proc.pid) if p.pid != first.pid], 30.0, "the next attempt")
     assert _signal_and_wait(proc, "SIGTERM", False) == 143
+    _assert_no_process_left(proc.pid)
+
+
+@pytest.mark.parametrize("signame, status, to_group, said", STOPS)
+def test_a_sweep_stopped_while_its_workers_solve_leaves_nothing(cache, tmp_path, signame, status, to_group, said):
+    """A sweep on the local pool (two workers, each point's attempts supervised children of a
+    worker), stopped once it has stored a point: 143 or 130 within 2 s, no worker and no
+    solver process left."""
+    out = tmp_path / "out"
+    proc = _start(["sweep", "unicycle", "--task", "parallel-park", "--grid", "final.y=0.3:0.7:21", "--set",
+                   "intervals=50", "--workers", "2"], tmp_path)
+    try:
+        _wait_until(lambda: len(_live(ppid=proc.pid)) >= 2 and (out / "solutions").exists()
+                    and any((out / "solutions").iterdir()), 240.0, "the first point stored")
+    except BaseException:
+        _kill_session(proc.pid)
+        raise
+    sent = time.monotonic()
+    assert _signal_and_wait(proc, signame, to_group, timeout=EXIT_S) == status
+    assert time.monotonic() - sent < STOP_S
+    assert "nhgait" in (tmp_path / "stderr.txt").read_text()
     _assert_no_process_left(proc.pid)
 
 

@@ -262,3 +262,17 @@ def test_the_task_time_limit_is_the_plans_budget():
     to_plan = resolve("unicycle", "parallel-park")
     n = len(to_plan.scene.system.coordinates)
     assert plan_budget(to_plan).seconds == default_plan_seconds(n) == 120.0 + 30.0 * n
+
+
+def test_a_sweep_point_out_of_time_is_a_failed_point_naming_the_budget(tmp_path):
+    """``nhgait sweep --time-limit``: each point gets its own budget; a point that runs out is
+    recorded failed (``Time_Limit_Exceeded``) with a message naming the budget and the option,
+    and the sweep completes."""
+    from nhgait.gaits.sweeps.driver import sweep
+    result = sweep("unicycle", "parallel-park", ["final.y=0.4,0.5"], out=tmp_path / "sweep", workers=0,
+                   overrides=["intervals=10"], options={"time_limit": 1e-3})
+    assert result.complete and len(result.records) == 2
+    for record in result.records:
+        assert not record.success and record.status == "Time_Limit_Exceeded"
+        assert "the time budget of 0.001 s (--time-limit per point) ran out during" in record.message
+        assert "--time-limit SECONDS (per point)" in record.message

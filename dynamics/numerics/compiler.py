@@ -18,7 +18,7 @@
   library without its record is never loaded.
 * **Interrupts clean up.** The compiler runs as a child in its own process group. Any
   exception while waiting — KeyboardInterrupt (Ctrl-C), the ``Terminated`` exception the CLI
-  raises on SIGTERM (:mod:`nhgait.gaits.cli.main`), a timeout — kills the whole group (a wrapper
+  raises on SIGTERM (:mod:`nhgait.gaits.cli.stopping`), a timeout — kills the whole group (a wrapper
   script named by ``$NHGAIT_CC`` and everything it started: gcc, cc1, as) and removes the
   build folder. On Linux the compiler also gets SIGKILL if the thread that started it dies
   without cleaning up (``PR_SET_PDEATHSIG``), and build folders left by such a death are
@@ -46,6 +46,7 @@ import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from ..errors import STOP_SIGNALS
 from ..memo import LruMemo
 
 __all__ = ["Library", "CompilerUnavailable", "build_library", "compiler_command", "library_key",
@@ -166,10 +167,11 @@ def _remove_stale_builds(directory: Path) -> None:
             shutil.rmtree(entry, ignore_errors=True)
 
 
-def _child_setup():
-    """The preexec function of the compiler: its own process group and, on Linux, SIGKILL when
-    the parent thread dies (exit at once if the parent died before). ``prctl`` is looked up
-    here, in the parent: the forked child only calls it."""
+def _child_setup(mask=None):
+    """The preexec function of the compiler: its own process group, the signal mask ``mask``
+    (the parent blocks the stop signals while it starts the compiler, :func:`_run`) and, on
+    Linux, SIGKILL when the parent thread dies (exit at once if the parent died before).
+    ``prctl`` is looked up here, in the parent: the forked child only calls it."""
     parent = os.getpid()
     prctl = None
     if sys.platform.startswith("linux"):
@@ -178,6 +180,8 @@ def _child_setup():
 
     def setup() -> None:  # pragma: no cover - runs in the child
         os.setpgrp()
+        if mask is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
         if prctl is not None:
             prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
             if os.getppid() != parent:
@@ -186,15 +190,29 @@ def _child_setup():
 
 
 def _run(cmd: list, progress, label: str, timeout: float | None) -> subprocess.CompletedProcess:
-    """Run the compiler, killing its process group on any exception (see the module docstring)."""
+    """Run the compiler, killing its process group on any exception (see the module docstring).
+    The stop signals are blocked until the compiler is started and their exception would kill it
+    (one raised inside ``Popen`` itself left the compiler's group running)."""
     start = time.perf_counter()
-    with subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                          preexec_fn=_child_setup() if os.name == "posix" else None) as proc:
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS) if os.name == "posix" else None
+    try:
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                preexec_fn=_child_setup(mask) if os.name == "posix" else None)
+    except BaseException:
+        _unblock(mask)
+        raise
+    with proc:
         try:
+            _unblock(mask)
             return _wait(proc, cmd, start, progress, label, timeout)
         except BaseException:
             _kill(proc)
             raise
+
+
+def _unblock(mask) -> None:
+    if mask is not None:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
 
 def _wait(proc, cmd, start, progress, label, timeout) -> subprocess.CompletedProcess:

@@ -139,11 +139,14 @@ def _worker_main(conn, parent: int | None = None) -> None:
 
 
 def _die_with(parent: int | None) -> None:
+    """Ctrl-C is the driver's to handle (it closes the pool); on Linux, SIGKILL when the
+    driver's thread that started this worker ends."""
+    import signal
     import sys
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     if parent is None or not sys.platform.startswith("linux"):
         return
     import ctypes
-    import signal
     ctypes.CDLL(None).prctl(1, signal.SIGKILL)          # PR_SET_PDEATHSIG
     if os.getppid() != parent:                          # the driver ended before that
         os._exit(1)
@@ -257,8 +260,10 @@ class ProcessPool(_Backend):
         self._wake_w.send(None)
         self._thread.join(timeout=10)
         for slot in self._slots:
-            if slot.future is not None:
+            if slot.future is not None:     # closed mid-point (an interrupt): its answer is not wanted
                 slot.future.cancel() or slot.future.set_exception(RuntimeError("the process pool was closed"))
+                slot.process.terminate()    # SIGTERM: it dies at once, its supervised solvers with it
+                continue
             try:
                 slot.conn.send(None)
             except OSError:
