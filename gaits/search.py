@@ -118,6 +118,19 @@ def _spent(budget) -> bool:
     return budget is not None and budget.spent()
 
 
+def _built(guesses, indices, budget) -> list | None:
+    """The guesses at ``indices`` (built now when lazy: a roll-out integrates the model), or
+    None when ``budget`` is spent before or while they are built."""
+    if budget is None:
+        return [guesses[i] for i in indices]
+    from nhgait.ocp.budget import BudgetSpent
+    try:
+        with budget.stage("the initial guesses"):
+            return [guesses[i] for i in indices]
+    except BudgetSpent:
+        return None
+
+
 # ----------------------------------------------------------------------------- the search
 def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None = None, progress=None,
                        budget=None) -> Search:
@@ -131,9 +144,9 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
     total = len(guesses) if limit is None else min(len(guesses), int(limit))
     attempts, closest = [], None
     for start in range(0, total, workers):
-        if _spent(budget):
+        batch = _built(guesses, range(start, min(start + workers, total)), budget)
+        if batch is None:
             break
-        batch = [guesses[i] for i in range(start, min(start + workers, total))]
         sols = solve_attempts(solver, batch, workers=workers, budget=budget, progress=progress)
         for k, (g, s) in enumerate(zip(batch, sols)):
             attempts.append(_attempt(g.label, s, name))

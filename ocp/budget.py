@@ -46,8 +46,9 @@ __all__ = ["Budget", "BudgetSpent", "Overrun", "default_plan_seconds", "default_
 PLAN_BASE_S = 120.0
 PLAN_PER_COORDINATE_S = 30.0
 #: one attempt's default limit: this many evaluations of the NLP functions per iteration allowed
-#: (an Ipopt iteration evaluates each about once plus its line-search trials, and factorises the
-#: KKT matrix; measured 1.2–2.2 evaluation times per iteration, docs/gait-planning.md) ...
+#: (an iteration evaluates each about once plus its line-search trials and factorises the KKT
+#: matrix; measured 0.45–0.98 evaluation times per iteration on the snakeboard P2, more only on
+#: solves so short that the floor applies, docs/gait-planning.md) ...
 EVALUATIONS_PER_ITERATION = 5.0
 #: ... never less than this (a process start, a loaded machine) nor more than this (seconds)
 ATTEMPT_FLOOR_S = 10.0

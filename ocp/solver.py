@@ -469,14 +469,15 @@ class OCPSolver:
     def evaluation_seconds(self, guess: InitialGuess | None = None) -> float:
         """Seconds of one evaluation of every NLP function the solver uses (objective,
         constraints, their derivatives, the Hessian of the Lagrangian) at ``guess`` (None: zero
-        clipped into the bounds), the faster of two: the cost of about one iteration, from
-        which :mod:`.budget` sets an attempt's default time limit."""
+        clipped into the bounds), each called once (a first call also allocates its work
+        memory: an over-estimate, never under): the cost of about one iteration, from which
+        :mod:`.budget` sets an attempt's default time limit."""
         w0 = np.clip(np.zeros(self.nlp.n_w), self.nlp.lbx, self.nlp.ubx) if guess is None else self._start(guess)
         total = 0.0
         for name in self.solver.get_function():
             f = self.solver.get_function(name)
             args = [w0 if f.name_in(i) == "x" else np.ones(f.size_in(i)) for i in range(f.n_in())]
-            total += min(_seconds(f, args) for _ in range(2))    # the first call allocates its memory
+            total += _seconds(f, args)
         return total
 
     def with_time_limit(self, seconds: float | None) -> "OCPSolver":

@@ -245,7 +245,7 @@ def test_a_plan_whose_budget_runs_out_fails_naming_the_phase(tmp_path):
     assert result.files == () and not (tmp_path / "out" / "solution.json").exists()
     text = "\n".join(summary_lines(result))
     assert "FAILED (time budget spent)" in text
-    assert "the time budget of 0.001 s (time_limit given) ran out during derivation" in text
+    assert "the time budget of 0.001 s (--time-limit / plan(time_limit=...)) ran out during derivation" in text
     assert "--time-limit SECONDS" in text
 
 
