@@ -18,7 +18,8 @@ in a session of its own with a private ``TMPDIR``. For each it records:
   plan was done) — both are what a shell reports as 143;
 * the **phase hit** — the innermost phase the progress output says was stopped (``…: stopped
   after``), else the last thing it said;
-* **what is left** — live processes of its session after its exit, temporary files anywhere it
+* **what is left** — live processes of its session half a second after its exit (a process
+  sent SIGKILL vanishes when the kernel next schedules it), temporary files anywhere it
   writes (``.tmp-*`` in the cache, ``jit/.build-*``, ``.writing-*`` in the output folder,
   ``nhgait-jit-*`` and anything else in its ``TMPDIR`` — gcc's own ``cc*.s``/``cc*.o`` among
   them, reported apart: where the compiler's temporaries go is issue 29's), half-written
@@ -52,6 +53,9 @@ import sibling  # experiments/sibling.py: the other scripts, loaded by file path
 
 #: a run must end this soon after SIGTERM (seconds)
 STOP_S = 2.0
+#: after the exit, how long a killed process of the session may take to vanish (a process sent
+#: SIGKILL dies when the kernel next schedules it: milliseconds, more on a loaded machine)
+VANISH_S = 0.5
 #: the compiler's own temporaries (gcc -save-temps off: cc*.s, cc*.o, cc*.res, cc*.ld)
 GCC_TEMPORARY = re.compile(r"^cc\w+\.(s|o|res|ld|c|i)$")
 
@@ -100,6 +104,9 @@ def _run(scene: Path, work: Path, cache: Path, delay: float | None) -> dict:
             os.killpg(proc.pid, signal.SIGKILL)
             status = proc.wait()
         ended = time.monotonic()
+    deadline = time.monotonic() + VANISH_S
+    while _session_alive(proc.pid) and time.monotonic() < deadline:
+        time.sleep(0.01)
     left = _session_alive(proc.pid)
     for pid, _ in left:                                     # nothing of ours outlives the trial
         try:
@@ -107,7 +114,9 @@ def _run(scene: Path, work: Path, cache: Path, delay: float | None) -> dict:
         except ProcessLookupError:
             pass
     stderr = err_path.read_text()
-    return {"delay": delay, "signalled": sent is not None, "status": status,
+    said = [line for line in stderr.splitlines() if line.startswith("nhgait:")]
+    return {"delay": delay, "signalled": sent is not None, "status": status, "said": said[-1] if said else "",
+            "stderr_tail": stderr.splitlines()[-12:] if status not in (143, -signal.SIGTERM) else [],
             "stop_s": (ended - sent) if sent is not None else None, "wall_s": ended - started,
             "phase": _phase(stderr, status), "processes_left": left, **_leftovers(cache, out, tmp)}
 
@@ -176,7 +185,7 @@ def trials(kind: str, scene: Path, folder: Path, n: int, rng: random.Random, pri
 def _why(row: dict) -> str:
     reasons = []
     if row["status"] not in (143, -signal.SIGTERM):
-        reasons.append(f"exit {row['status']}")
+        reasons.append(f"exit {row['status']} ({row['said']})")
     if row["stop_s"] is not None and row["stop_s"] >= STOP_S:
         reasons.append(f"stopped after {row['stop_s']:.2f} s")
     for key in ("processes_left", "temporary_left", "half_written"):

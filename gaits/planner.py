@@ -33,7 +33,7 @@ Steps
    then moved).
 7. **Time.** The whole plan runs within a wall-clock budget (:func:`plan_budget`:
    ``time_limit``, the task's ``time_limit`` or a default from the robot's size) and each
-   solver attempt within its own limit (:func:`attempt_limited`, at most the time left). Each
+   solver attempt within its own limit (:func:`~.time_limits.attempt_limited`, at most the time left). Each
    attempt runs in a supervised child process (:mod:`nhgait.ocp.supervision`), so that a solver
    looping in its C code is killed at its limit and an interrupt stops it at once. A budget
    that runs out — in the derivation, the compilation, the solves, the continuation or the
@@ -42,7 +42,6 @@ Steps
 """
 from __future__ import annotations
 
-import math
 import os
 import time
 from dataclasses import dataclass, field, replace
@@ -325,28 +324,10 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
 
 
 def plan_budget(to_plan, time_limit=None, *, started=None, progress=None):
-    """The :class:`~nhgait.ocp.budget.Budget` of a plan: ``time_limit`` seconds when given, else
-    the task's ``time_limit``, else :func:`~nhgait.ocp.budget.default_plan_seconds` of the
-    robot's coordinates; said on ``progress``. ``math.inf``: unlimited."""
-    from nhgait.ocp import ProblemError
-    from nhgait.ocp.budget import Budget, default_plan_seconds, PLAN_BASE_S, PLAN_PER_COORDINATE_S
-    n = len(to_plan.scene.system.coordinates)
-    if time_limit is not None:
-        seconds, source = time_limit, "--time-limit / plan(time_limit=...)"
-    elif to_plan.task.time_limit is not None:
-        seconds, source = to_plan.task.time_limit, "[task] time_limit"
-    else:
-        seconds = default_plan_seconds(n)
-        source = f"default: {PLAN_BASE_S:g} s + {PLAN_PER_COORDINATE_S:g} s per coordinate, n = {n}"
-    try:
-        seconds = float(seconds)
-    except (TypeError, ValueError):
-        seconds = math.nan
-    if not seconds > 0:
-        raise ProblemError([f"time_limit = {time_limit!r} must be a positive number of seconds (inf: unlimited)"],
-                           title="invalid time limit")
-    budget = Budget(None if math.isinf(seconds) else seconds, source,
-                    **({} if started is None else {"started": started}))
+    """The :class:`~nhgait.ocp.budget.Budget` of a plan (:func:`~nhgait.gaits.time_limits.budget_for`:
+    ``time_limit``, else the task's, else the default for the robot's size), said on ``progress``."""
+    from .time_limits import budget_for
+    budget = budget_for(len(to_plan.scene.system.coordinates), time_limit, to_plan.task.time_limit, started=started)
     if progress is not None:
         progress.note(f"time budget: {budget.describe()}; --time-limit SECONDS to change it")
     return budget
@@ -431,8 +412,9 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
     """The solvers of :func:`solver_order` in turn until one converges: the search so far in
     ``reached.search``, the set-up seconds in ``reached.timings["setup_s"]``. Building a solver
     is interrupted when the budget runs out; each attempt gets at most the time left
-    (:func:`attempt_limited`)."""
+    (:func:`~.time_limits.attempt_limited`)."""
     from nhgait.ocp import OCPSolver, SolverOptions
+    from .time_limits import attempt_limited
     s = settings
     reached.search = Search(None, (), None)
     for name in solver_order(s.solver, s.transcription, problem):
@@ -453,20 +435,6 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
                                                                           budget=budget))
         if reached.search.solution is not None:
             break
-
-
-def attempt_limited(ocp, guess=None, progress=None):
-    """``ocp`` with its default time limit per attempt (:func:`~nhgait.ocp.budget.default_attempt_seconds`
-    from one measured evaluation of its NLP functions at ``guess``, None: zero within the
-    bounds), said on ``progress``."""
-    from nhgait.ocp.budget import ATTEMPT_CAP_S, ATTEMPT_FLOOR_S, EVALUATIONS_PER_ITERATION, default_attempt_seconds
-    evaluation = ocp.evaluation_seconds(guess)
-    limit = default_attempt_seconds(evaluation, ocp.options.max_iter)
-    if progress is not None:
-        progress.note(f"  each attempt at most {limit:.0f} s ({ocp.options.max_iter} iterations × "
-                      f"{EVALUATIONS_PER_ITERATION:g} evaluations of the NLP functions, {evaluation * 1e3:.1f} ms each; "
-                      f"between {ATTEMPT_FLOOR_S:g} and {ATTEMPT_CAP_S:g} s)")
-    return ocp.with_time_limit(limit)
 
 
 def _in_momentum(search, prepared, to_plan, params):

@@ -276,3 +276,37 @@ def test_a_sweep_point_out_of_time_is_a_failed_point_naming_the_budget(tmp_path)
         assert not record.success and record.status == "Time_Limit_Exceeded"
         assert "the time budget of 0.001 s (--time-limit per point) ran out during" in record.message
         assert "--time-limit SECONDS (per point)" in record.message
+
+
+def test_a_stop_stays_a_stop_whatever_it_becomes_on_its_way_up(monkeypatch, capsys):
+    """SIGTERM whose Terminated is replaced on its way up (as SWIG's overload dispatch answers
+    a failed argument conversion with NotImplementedError) or dropped (by a ``__del__``): the
+    command still exits 143 saying "terminated" — not "internal error", not 0."""
+    from nhgait.dynamics.errors import Terminated
+    from nhgait.gaits.cli import main as cli
+    from nhgait.gaits.cli import plan as plan_command
+
+    def replaced(args):
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(5.0)                      # the handler raises here
+        except Terminated:
+            raise NotImplementedError("Wrong number or type of arguments for overloaded function") from None
+        return 0
+
+    def dropped(args):
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(5.0)
+        except Terminated:
+            pass
+        return 0
+
+    before = signal.getsignal(signal.SIGTERM)
+    for run in (replaced, dropped):
+        monkeypatch.setattr(plan_command, "run", run)
+        assert cli.main(["plan", "unicycle", "--out", "unused"]) == 143
+        err = capsys.readouterr().err
+        assert "nhgait: terminated" in err and "internal error" not in err
+    assert signal.getsignal(signal.SIGTERM) is before             # put back
+    time.sleep(2.0)                             # the watchdog, past its 1.5 s, has not ended this process

@@ -56,8 +56,16 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     stopped = (lambda status: status) if argv is not None else exit_now
     try:
-        with stop_signals():
-            return int(args.func(args) or 0)
+        with stop_signals() as stop:
+            try:
+                status = int(args.func(args) or 0)
+            except Exception:
+                if stop.signal is None:
+                    raise
+                raise stop.exception() from None    # the stop, whatever it became on its way up
+            if stop.signal is not None:             # its exception was dropped on the way (a __del__)
+                raise stop.exception()
+            return status
     except KeyboardInterrupt:
         print("nhgait: interrupted", file=sys.stderr)
         return stopped(130)

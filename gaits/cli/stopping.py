@@ -7,6 +7,11 @@
   background job): they unwind like any exception, so a running C compiler is killed and its
   files removed (:mod:`nhgait.dynamics.numerics.compiler`), supervised solver processes are killed
   (:mod:`nhgait.ocp.supervision`), a half-written cache entry or output file is removed.
+* **A stop is remembered** (:class:`Stop`): the handler's exception can be replaced on its
+  way up — raised inside CasADi's argument conversion, SWIG's overload dispatch answers
+  "Wrong number or type of arguments" (a ``NotImplementedError``) — so the command line turns
+  any exception that follows a stop signal back into the stop (exit 130/143, not "internal
+  error").
 * **A watchdog** covers what a Python handler cannot: the main thread inside C code that does
   not return (CasADi building a large NLP, a solver run in this process where there is no
   fork), and a handler whose exception is swallowed because it ran where Python ignores
@@ -27,12 +32,11 @@ import os
 import signal
 import sys
 import threading
-import time
 from contextlib import contextmanager
 
 from nhgait.dynamics.errors import Terminated
 
-__all__ = ["stop_signals", "exit_now", "FORCE_AFTER_S", "EXIT_STATUS", "MESSAGES"]
+__all__ = ["stop_signals", "Stop", "exit_now", "FORCE_AFTER_S", "EXIT_STATUS", "MESSAGES"]
 
 #: how long after a stop signal the watchdog ends a process that is still running (s)
 FORCE_AFTER_S = 1.5
@@ -42,55 +46,67 @@ EXIT_STATUS = {signal.SIGINT: 130, signal.SIGTERM: 143}
 MESSAGES = {signal.SIGINT: "nhgait: interrupted", signal.SIGTERM: "nhgait: terminated"}
 
 
+class Stop:
+    """The stop signal received while :func:`stop_signals` was in force (``signal``: None
+    until one comes)."""
+
+    def __init__(self):
+        self.signal: int | None = None
+
+    def exception(self) -> BaseException:
+        """The exception the signal stands for: Terminated (SIGTERM) or KeyboardInterrupt."""
+        return Terminated() if self.signal == signal.SIGTERM else KeyboardInterrupt()
+
+    def handler(self, signum, frame):
+        self.signal = signum
+        raise self.exception()
+
+
 @contextmanager
 def stop_signals():
     """SIGTERM → Terminated, SIGINT → KeyboardInterrupt, with the watchdog (module docstring);
-    everything put back on leaving. Outside the main thread: nothing is changed."""
+    yields the :class:`Stop`; everything put back on leaving. Outside the main thread nothing
+    is changed."""
+    stop = Stop()
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield stop
         return
-    previous = _install()
+    previous = _install(stop)
     read, write = os.pipe()
     os.set_blocking(write, False)
     old_fd = signal.set_wakeup_fd(write, warn_on_full_buffer=False)
-    threading.Thread(target=_watch, args=(read, frozenset(previous)), name="nhgait-stop-watchdog",
+    done = threading.Event()
+    threading.Thread(target=_watch, args=(read, frozenset(previous), done), name="nhgait-stop-watchdog",
                      daemon=True).start()
     try:
-        yield
+        yield stop
     finally:
+        done.set()                 # the stop came to its end here: nothing to force
         signal.set_wakeup_fd(old_fd)
         for signum, handler in previous.items():
             signal.signal(signum, handler)
         os.close(write)            # the watchdog reads the end of the pipe and leaves
 
 
-def _terminate(signum, frame):
-    raise Terminated()
-
-
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt()
-
-
-def _install() -> dict:
-    """Our handlers for SIGTERM (always) and SIGINT (unless ignored or someone else's); the
-    previous handlers by signal."""
-    previous = {signal.SIGTERM: signal.signal(signal.SIGTERM, _terminate)}
+def _install(stop: Stop) -> dict:
+    """The handlers of ``stop`` for SIGTERM (always) and SIGINT (unless ignored or someone
+    else's); the previous handlers by signal."""
+    previous = {signal.SIGTERM: signal.signal(signal.SIGTERM, stop.handler)}
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-        previous[signal.SIGINT] = signal.signal(signal.SIGINT, _interrupt)
+        previous[signal.SIGINT] = signal.signal(signal.SIGINT, stop.handler)
     return previous
 
 
-def _watch(read: int, ours: frozenset) -> None:
-    """The watchdog thread: the number of each signal caught arrives on the pipe ``read``."""
+def _watch(read: int, ours: frozenset, done: threading.Event) -> None:
+    """The watchdog thread: the number of each signal caught arrives on the pipe ``read``;
+    ``done`` is set when :func:`stop_signals` is left."""
     try:
         while True:
             data = os.read(read, 64)
             if not data:
                 return
             for signum in data:
-                if signum in ours:
-                    time.sleep(FORCE_AFTER_S)
+                if signum in ours and not done.wait(FORCE_AFTER_S):
                     _force_exit(signum)
     finally:
         os.close(read)

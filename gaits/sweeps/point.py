@@ -287,9 +287,10 @@ def _solver_for(job: PointJob, *, warm: bool = False):
     """(derived model, (stated problem, problem solved), OCPSolver, plan) of ``job``, reusing
     this process's solver of the same structure (``OCPSolver.with_problem``: same NLP
     functions, new bounds); ``warm``: the solver with :data:`WARM_IPOPT` (Ipopt only). A new
-    solver gets the planner's time limit per attempt (:func:`~nhgait.gaits.planner.attempt_limited`)."""
+    solver gets the planner's time limit per attempt (:func:`~nhgait.gaits.time_limits.attempt_limited`)."""
     from nhgait.ocp import OCPSolver, SolverOptions
-    from ..planner import attempt_limited, prepare, state_problem
+    from ..planner import prepare, state_problem
+    from ..time_limits import attempt_limited
     from ..task_library import resolve
     case = job.case
     resolved = resolve(_scene(case.scene), job.task)
@@ -318,21 +319,13 @@ def prepare_worker(job: PointJob) -> bool:
     return True
 
 
-def point_budget(job: PointJob, started: float | None = None):
-    """The time budget of one point (:class:`~nhgait.ocp.budget.Budget`): the sweep's
-    ``time_limit`` option (``--time-limit``), else the task's ``time_limit``, else the
-    planner's default for the robot's size."""
-    from nhgait.ocp.budget import Budget, default_plan_seconds
-    given, task_limit = job.case.options.get("time_limit"), job.task.get("time_limit")
-    if given is not None:
-        seconds, source = float(given), "--time-limit per point"
-    elif task_limit is not None:
-        seconds, source = float(task_limit), "[task] time_limit"
-    else:
-        n = len(job.case.coordinates)
-        seconds, source = default_plan_seconds(n), f"default for n = {n} coordinates"
-    return Budget(None if math.isinf(seconds) else seconds, source,
-                  **({} if started is None else {"started": started}))
+def point_budget(job: PointJob):
+    """The time budget of one point (:func:`~nhgait.gaits.time_limits.budget_for`): the sweep's
+    ``time_limit`` option (``--time-limit``), else the task's ``time_limit``, else the planner's
+    default for the robot's size."""
+    from ..time_limits import budget_for
+    return budget_for(len(job.case.coordinates), job.case.options.get("time_limit"), job.task.get("time_limit"),
+                      given_as="--time-limit per point")
 
 
 def _plan_point(job: PointJob) -> dict:
