@@ -21,10 +21,14 @@
   if the process is still alive :data:`FORCE_AFTER_S` seconds later, writes the same message
   and ends it with ``os._exit(128 + signal)``. A normal stop (kill the children, remove the
   temporary files, print) takes milliseconds, so the watchdog only ever meets a process stuck
-  in C — where no temporary file is being written: every writer of one (the compiler's wait,
-  the cache, the outputs) is Python code in which the handler runs at once — and supervised
-  children and compilers are killed by the kernel when the main thread dies
-  (``PR_SET_PDEATHSIG``, Linux).
+  in C — where no temporary file is being written: every writer of one (the cache, the
+  outputs) is Python code in which the handler runs at once. Before it ends the process it
+  kills every process descended from it (Linux ``/proc``): supervised children and compilers
+  die with the main thread anyway (``PR_SET_PDEATHSIG``), but the compiler's own helpers (cc1,
+  as) would not. The one thing a forced end can leave is a compiler's build folder when the
+  signal came while the compiler was being started (its stop signals blocked, on a machine so
+  loaded that starting it took 1.5 s: 1 of 54 runs of ``experiments/stress_sigterm.py``); the
+  next build removes it once it is stale.
 """
 from __future__ import annotations
 
@@ -112,6 +116,33 @@ def _watch(read: int, ours: frozenset, done: threading.Event) -> None:
         os.close(read)
 
 
+def _kill_descendants() -> None:
+    """SIGKILL every live process descended from this one (read from ``/proc``; elsewhere
+    nothing)."""
+    children: dict = {}
+    try:
+        entries = [e.name for e in os.scandir("/proc") if e.name.isdigit()]
+    except OSError:
+        return
+    for pid in entries:
+        try:
+            with open(f"/proc/{pid}/stat") as fh:
+                ppid = int(fh.read().rsplit(")", 1)[1].split()[1])
+        except (OSError, ValueError, IndexError):
+            continue
+        children.setdefault(ppid, []).append(int(pid))
+    stack, found = [os.getpid()], []
+    while stack:
+        for child in children.get(stack.pop(), ()):
+            found.append(child)
+            stack.append(child)
+    for pid in found:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except OSError:
+            continue
+
+
 def exit_now(status: int) -> int:
     """End the process with ``status`` once a stop's cleanup is done: the ``atexit`` handlers
     run (``weakref.finalize`` objects, multiprocessing's), the streams are flushed, and the
@@ -130,6 +161,7 @@ def exit_now(status: int) -> int:
 def _force_exit(signum: int) -> None:  # pragma: no cover - measured by tests/test_interrupts.py
     """End the process now: it has not stopped by itself (module docstring)."""
     try:
+        _kill_descendants()
         sys.stderr.write(f"{MESSAGES[signum]} (forced: still running {FORCE_AFTER_S:g} s after the signal)\n")
         sys.stderr.flush()
     finally:
