@@ -174,8 +174,7 @@ class _Child:
 
     @classmethod
     def start(cls, job: Job, mask) -> "_Child":
-        for stream in (sys.stdout, sys.stderr):      # nothing buffered is written twice
-            stream.flush()
+        _flush_python_streams()                      # nothing buffered is written twice
         parent = os.getpid()
         prctl = _prctl()
         read, write = os.pipe()
@@ -297,8 +296,10 @@ def _child(job: Job, write: int, parent: int, prctl, mask) -> None:  # pragma: n
     except BaseException:  # noqa: BLE001 - nothing may escape a forked child
         status = 1
     finally:
-        _flush_c_streams()
-        os._exit(status)
+        try:
+            _flush_c_streams()
+        finally:
+            os._exit(status)
 
 
 def _picklable(exc: BaseException) -> BaseException:
@@ -317,10 +318,17 @@ def _send(fd: int, data: bytes) -> None:
     os.close(fd)
 
 
+def _flush_python_streams() -> None:
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):       # closed, or a broken pipe: nothing to write twice
+            continue
+
+
 def _flush_c_streams() -> None:  # pragma: no cover - runs in the child
     """The solver's own log (C stdio, ``--verbose``) is not lost to ``os._exit``."""
-    sys.stdout.flush()
-    sys.stderr.flush()
+    _flush_python_streams()
     try:
         import ctypes
         ctypes.CDLL(None).fflush(None)
