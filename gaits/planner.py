@@ -296,7 +296,7 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     problem = prepared.problem
     timings["prepare_s"] = time.perf_counter() - t0
     workers = _default_workers() if workers in (None, "auto") else int(workers)
-    guesses = candidates(problem)
+    guesses = candidates(problem, progress=progress)
     if guess is not None:
         guesses = guesses.with_first(warm_start(guess, problem))
     t0 = time.perf_counter()
@@ -358,12 +358,16 @@ def _search(problem, guesses, settings: SearchSettings, progress):
 
 def _verified(search, prepared, to_plan, params, verify, progress) -> tuple:
     """(the winning solution in momentum coordinates, verified (or the closest failure),
-    seconds the verification took or None)."""
+    seconds the verification took or None). The momentum coordinates are those of a chart
+    regular along the gait (:func:`~nhgait.gaits.charts.verification_chart`)."""
+    from .charts import verification_chart
     solution = search.solution if search.solution is not None else search.closest
-    momentum = momentum_problem(prepared.model, prepared.stated, to_plan, params)
+    n = len(prepared.model.system.coordinates)
+    t0 = time.perf_counter()
+    model = verification_chart(to_plan.scene.system, prepared.model, solution.states[:n], params, progress)
+    momentum = momentum_problem(model, prepared.stated, to_plan, params)
     solution = to_momentum_coordinates(solution, momentum)
     if verify and search.solution is not None:
-        t0 = time.perf_counter()
         with progress.phase("verify: re-simulate the optimal inputs on the general model (DOP853, rtol 1e-10)"):
             solution = solution.verified(tolerance=to_plan.task.verify_tolerance)
         v = solution.verification
@@ -379,18 +383,23 @@ def momentum_problem(model, problem, to_plan, params):
 
 
 def to_momentum_coordinates(solution, momentum):
-    """A velocity-coordinate solution re-expressed on the problem ``momentum`` (z = (q, P)).
+    """A solution re-expressed on the problem ``momentum`` (z = (q, P), a chart of the derived model).
 
-    The statement is the same (tasks are coordinate-free); only the states change. Any
-    verification is dropped: verify the returned solution in momentum coordinates.
+    The statement is the same (tasks are coordinate-free); only the states change: q̇ from the
+    solution's model (``qdot``; regular along the gait in the planner's velocity coordinates),
+    then P = XᵀM(q)q̇ of the momentum model's chart (its ``state`` map), so the result does not
+    go through the chart of the model the solution was stated on. Any verification is dropped:
+    verify the returned solution in momentum coordinates.
     """
     model = solution.problem.model
-    if "momentum_state" not in model.numeric.functions:
+    if "momentum_state" not in model.numeric.functions and tuple(model.fiber) == tuple(momentum.model.fiber):
         return replace(solution, problem=momentum, verification=None)
-    to_p = model.numeric["momentum_state"]
-    params = solution.problem.params
-    states = np.column_stack([np.asarray(to_p(solution.states[:, k], params)).ravel()
-                              for k in range(solution.states.shape[1])])
+    n = len(model.system.coordinates)
+    state = momentum.model.numeric["state"]
+    K = solution.states.shape[1]
+    with np.errstate(all="ignore"):
+        states = np.asarray(state.map(K)(solution.states[:n], solution.velocities(),
+                                         momentum.model.numeric.params(momentum.params)))
     settings = {**solution.settings, "transcribed_in": list(solution.state_names)}
     return replace(solution, states=states, state_names=momentum.state_names,
                    problem=momentum, verification=None, settings=settings)
@@ -446,6 +455,10 @@ def summary_lines(result: PlanResult) -> list:
         lines.append(f"  symmetry           {symmetry.chosen.group} moves the fibre ({', '.join(result.model.fiber)}); "
                      f"the guesses loop the shape ({', '.join(result.model.shape)}); why, and the other choices "
                      "(fiber = [...] in [system]): nhgait derive")
+    checked = getattr(s.problem, "model", None)
+    if symmetry is not None and checked is not None and tuple(checked.fiber) != tuple(result.model.fiber):
+        lines.append(f"  verified in        the chart with fiber ({', '.join(checked.fiber)}): the gait crosses the "
+                     f"singular set of fiber ({', '.join(result.model.fiber)}), where its momenta are not defined")
     if result.diagnosis:
         lines.append("  why:")
         lines.extend(f"    {line}" for line in result.diagnosis)

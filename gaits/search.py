@@ -131,7 +131,9 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
     total = len(guesses) if limit is None else min(len(guesses), int(limit))
     attempts, closest = [], None
     for start in range(0, total, workers):
-        batch = [guesses[i] for i in range(start, min(start + workers, total))]
+        batch = _take(guesses, start, min(start + workers, total))
+        if not batch:
+            break
         sols = _solve_batch(solver, batch, workers, progress)
         for k, (g, s) in enumerate(zip(batch, sols)):
             attempts.append(_attempt(g.label, s, name))
@@ -145,15 +147,28 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
     return Search(None, tuple(attempts), None, closest)
 
 
+def _take(guesses, start: int, stop: int) -> list:
+    """guesses[start:stop], shorter when the sequence runs out (screened candidates skip the
+    ones that cannot be repaired, so their length is known only once they are built)."""
+    out = []
+    for i in range(start, stop):
+        try:
+            out.append(guesses[i])
+        except IndexError:
+            break
+    return out
+
+
 def solve_with_fallbacks(solver, guesses, *, workers: int = 1, limit: int | None = None, progress=None) -> Search:
     """The guesses in order (:func:`solve_from_guesses`), then :func:`continuation` from the
-    first one."""
+    first one (for screened candidates, the first that passed its screening: a regular guess)."""
     search = solve_from_guesses(solver, guesses, workers=workers, limit=limit, progress=progress)
-    if search.solution is None and len(guesses):
+    first = _take(guesses, 0, 1)
+    if search.solution is None and first:
         if progress is not None:
-            progress.note(f"  no guess converged: continuation from {guesses[0].label!r} (the task's end values "
+            progress.note(f"  no guess converged: continuation from {first[0].label!r} (the task's end values "
                           "approached in 4 steps)")
-        search = search.then(continuation(solver, guesses[0], progress=progress))
+        search = search.then(continuation(solver, first[0], progress=progress))
     return search
 
 
