@@ -37,11 +37,11 @@ from itertools import combinations
 
 import numpy as np
 
-from .screening import Check, Screen
+from .screening import RATIO, Check, Screen
 from .waves import FITTED_LABEL, ShapeGuess, amplitude, ends, free_start, guess_from_shape, repairs
 
 __all__ = ["ShapeGuess", "shape_guesses", "rollout_guesses", "guess_from_shape", "candidates", "Candidates",
-           "Screened", "RATIOS", "AMPLITUDES"]
+           "Screened", "screened_dict", "RATIOS", "AMPLITUDES"]
 
 RATIOS = ((1, 1), (2, 1), (1, 2), (3, 2), (2, 3))
 #: (A, B) as fractions of the largest allowed amplitude of each variable (1 rad when unbounded)
@@ -159,6 +159,13 @@ class Screened:
     repair: str = ""
 
 
+def screened_dict(record: Screened) -> dict:
+    """A :class:`Screened` record as plain data (solution.json)."""
+    c = record.check
+    return {"label": record.label, "action": record.action, "repair": record.repair, "what": c.what,
+            "t": c.t, "configuration": dict(zip(c.coordinates, c.q)), "measure": c.measure}
+
+
 class Candidates(Sequence):
     """The planner's initial guesses in order of preference, each built and screened when first
     used (a rollout integrates the kinematics, so building all of them up front would delay the
@@ -169,19 +176,21 @@ class Candidates(Sequence):
     (:func:`~.waves.repairs`) or, when no repair avoids it, skipped: item i is the i-th
     candidate that passed. ``len()`` counts the candidates not known to be skipped (it shrinks
     as skips are found); ``screened`` lists what was repaired or skipped, ``screen_seconds`` the
-    time the checks and repairs took. ``start`` is where the coordinates free at t = 0 start in
+    time the checks and repairs took, ``first_skipped`` the first skipped guess (as generated). ``start`` is where the coordinates free at t = 0 start in
     every candidate (off the singular set; empty when their centres are regular)."""
 
-    def __init__(self, problem, shapes, coordinates, first=(), *, screen=None, start=(), progress=None):
+    def __init__(self, problem, shapes, coordinates, first=(), *, screen=None, start=(), progress=None,
+                 blocked=None):
         from nhgait.dynamics.progress import Progress
         self._problem, self._shapes, self._coordinates = problem, tuple(shapes), tuple(coordinates)
         self._first = tuple(first)
-        self._screen, self.start = screen, tuple(start)
+        self._screen, self.start, self._blocked = screen, tuple(start), blocked
         self._progress = progress or Progress.silent()
         self._accepted: list = []
         self._next = 0
         self.screened: list = []
         self.screen_seconds = 0.0
+        self.first_skipped = None
 
     def __len__(self) -> int:
         return len(self._accepted) + len(self._first) + len(self._shapes) - self._next
@@ -201,6 +210,14 @@ class Candidates(Sequence):
         if self._next >= len(self._first) + len(self._shapes):
             return False
         j, self._next = self._next, self._next + 1
+        if self._blocked is not None and j >= len(self._first):
+            label = self._shapes[j - len(self._first)].label
+            self.screened.append(Screened(label, "skipped", self._blocked))
+            if j == len(self._first):
+                names = tuple(getattr(self._problem.model, "shape", ())) or None
+                self._progress.note(f"  every candidate skipped, not solved: {self._blocked.reason(names)}, where "
+                                    "every guess starts or ends (fixed by the task)")
+            return True
         if j < len(self._first):
             shape, guess = None, self._first[j]
         else:
@@ -232,13 +249,19 @@ class Candidates(Sequence):
                 self._progress.note(f"  guess {guess.label!r}: {check.reason(names)}; repaired ({what})")
                 return repaired
         self.screened.append(Screened(guess.label, "skipped", check))
+        self.first_skipped = self.first_skipped or guess
         self._progress.note(f"  guess {guess.label!r} skipped, not solved: {check.reason(names)}"
                             + (f"; none of {tried} repairs (phase, centre, amplitude) avoids it" if tried else ""))
         return None
 
+    def check(self, guess):
+        """The :class:`~.screening.Check` of any guess or solution on this problem's grid (None
+        when the candidates are not screened)."""
+        return None if self._screen is None else self._screen.check(guess)
+
     def with_first(self, guess) -> "Candidates":
         return Candidates(self._problem, self._shapes, self._coordinates, (guess, *self._first),
-                          screen=self._screen, start=self.start, progress=self._progress)
+                          screen=self._screen, start=self.start, progress=self._progress, blocked=self._blocked)
 
 
 def candidates(problem, *, shape=None, screen=True, progress=None) -> Candidates:
@@ -250,7 +273,7 @@ def candidates(problem, *, shape=None, screen=True, progress=None) -> Candidates
     coords = tuple(model.system.coordinates)
     shape = tuple(shape if shape is not None else getattr(model, "shape", ()))
     checks = Screen(problem) if screen else None
-    start = _regular_start(problem, checks, coords, shape, progress) if checks is not None else ()
+    start, moved = _regular_start(problem, checks, coords, shape, progress) if checks is not None else ((), None)
     n_pairs = len(shape) * (len(shape) - 1) // 2
     loops = _order(shape_guesses(problem, shape, start), n_pairs)
     rollouts = rollout_guesses(problem, shape, _rate_states(model, shape), start)
@@ -259,17 +282,37 @@ def candidates(problem, *, shape=None, screen=True, progress=None) -> Candidates
     if applies(problem):
         at = 0 if leads(problem, shape) else 1
         ordered = ordered[:at] + [ShapeGuess(FITTED_LABEL, (), start=start)] + ordered[at:]
-    return Candidates(problem, ordered, coords, screen=checks, start=start, progress=progress)
+    out = Candidates(problem, ordered, coords, screen=checks, start=start, progress=progress,
+                     blocked=_blocked_end(problem, checks, coords, start) if checks is not None else None)
+    if moved is not None:
+        out.screened.append(moved)
+    return out
+
+
+def _blocked_end(problem, checks, coords, start):
+    """The :class:`~.screening.Check` of an end configuration every candidate shares (the start,
+    or the end of the ramps) when it lies on the singular set — no repair can move it — else None."""
+    T = float(problem.horizon)
+    for j, t in ((0, 0.0), (1, T)):
+        q = np.array([ends(problem, c, start)[j] for c in coords])
+        m = float(checks.measure(q[:, None])[0])
+        if m < RATIO:
+            return Check(False, "singular", t, tuple(float(v) for v in q), coords, m)
+    return None
 
 
 def _regular_start(problem, checks, coords, shape, progress) -> tuple:
-    """Start values, off the singular set, for the shape coordinates free at t = 0 whose centres
-    (:func:`~.waves.centre`) are on it: ((name, value), ...), empty when the centres are regular."""
+    """(start, record): start values, off the singular set, for the shape coordinates free at
+    t = 0 whose centres (:func:`~.waves.centre`) are on it — ((name, value), ...), empty when
+    the centres are regular — and the :class:`Screened` record of the move (or None)."""
     free = {c: r for c, r in free_start(problem, coords).items() if c in shape}
     q0 = np.array([ends(problem, c)[0] for c in coords])
     moved = checks.regular_start(q0, free)
-    if moved and progress is not None:
-        was = ", ".join(f"{c} = {q0[coords.index(c)]:.3g}" for c in moved)
-        now = ", ".join(f"{c} = {v:.3g}" for c, v in moved.items())
+    if not moved:
+        return (), None
+    was = ", ".join(f"{c} = {q0[coords.index(c)]:.3g}" for c in moved)
+    now = ", ".join(f"{c} = {v:.3g}" for c, v in moved.items())
+    if progress is not None:
         progress.note(f"  the free start {was} is on the singular set of the equations: every guess starts at {now}")
-    return tuple(moved.items())
+    at = Check(False, "singular", 0.0, tuple(float(v) for v in q0), coords, float(checks.measure(q0[:, None])[0]))
+    return tuple(moved.items()), Screened("free start", "moved", at, now)

@@ -97,6 +97,7 @@ class PlanResult:
     model: Any = None
     conditions: Any = None
     diagnosis: tuple = ()
+    screening: tuple = ()
 
     def __repr__(self) -> str:
         from nhgait.dynamics.reprs import plan_repr
@@ -303,6 +304,7 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     settings = SearchSettings(solver, transcription, jit, choose_hessian(hessian), max_iter, workers, max_guesses)
     search, timings["setup_s"] = _search(problem, guesses, settings, progress)
     timings["solve_s"] = time.perf_counter() - t0 - timings["setup_s"]
+    search, screening = screening_report(guesses, search, problem)
     solution, verify_s = _verified(search, prepared, to_plan, params, verify, progress)
     if verify_s is not None:
         timings["verify_s"] = verify_s
@@ -313,7 +315,7 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
                                            **{k: round(v, 6) for k, v in timings.items()}})
     result = PlanResult(to_plan.label, to_plan.task.replace(intervals=problem.intervals), solution,
                         search.won or "none", search.attempts, (), timings, to_plan, prepared.model,
-                        prepared.conditions)
+                        prepared.conditions, screening=screening)
     result = replace(result, diagnosis=diagnose(result))
     if out_dir is not None:
         result = replace(result, files=tuple(write_outputs(result, Path(out_dir), animate=animate,
@@ -356,6 +358,37 @@ def _search(problem, guesses, settings: SearchSettings, progress):
     return search, setup
 
 
+def screening_report(guesses, search, problem) -> tuple:
+    """(search, report): what the screening of ``guesses`` repaired or skipped and, when no
+    guess converged, where the closest point met the singular set
+    (:class:`~nhgait.gaits.guesses.Screened`); a search in which every candidate was skipped
+    gets a closest point that says so (:func:`unsolved`)."""
+    from .guesses import Screened
+    report = tuple(getattr(guesses, "screened", ()))
+    if search.solution is None and search.closest is None:
+        search = replace(search, closest=unsolved(problem, getattr(guesses, "first_skipped", None)))
+    check = getattr(guesses, "check", None)
+    if search.solution is None and search.attempts and check is not None:
+        verdict = check(search.closest)
+        if verdict is not None and not verdict.ok:
+            report += (Screened(f"closest point ({search.closest.settings.get('guess', '?')})", "reached", verdict),)
+    return search, report
+
+
+def unsolved(problem, guess=None):
+    """A failed :class:`~nhgait.ocp.Solution` for a search that solved nothing (every candidate
+    skipped by its screening): status ``Not_Solved``, the states of ``guess`` (zeros without one)."""
+    from nhgait.ocp import Solution
+    t = problem.grid()
+    states = np.asarray(guess.states, float) if guess is not None else np.zeros((len(problem.state_names), t.size))
+    return Solution(False, "Not_Solved", "every candidate met the singular set of the equations and was skipped",
+                    0, float("nan"), t, states, np.zeros((problem.n_controls, problem.intervals)),
+                    tuple(problem.state_names), tuple(problem.control_names), float(problem.horizon),
+                    0.0, 0.0, 0.0, 0.0, problem=problem,
+                    settings={"guess": getattr(guess, "label", "none"), "intervals": problem.intervals,
+                              "transcription": "none", "solver": "none (no candidate solved)"})
+
+
 def _verified(search, prepared, to_plan, params, verify, progress) -> tuple:
     """(the winning solution in momentum coordinates, verified (or the closest failure),
     seconds the verification took or None). The momentum coordinates are those of a chart
@@ -364,7 +397,8 @@ def _verified(search, prepared, to_plan, params, verify, progress) -> tuple:
     solution = search.solution if search.solution is not None else search.closest
     n = len(prepared.model.system.coordinates)
     t0 = time.perf_counter()
-    model = verification_chart(to_plan.scene.system, prepared.model, solution.states[:n], params, progress)
+    model = (verification_chart(to_plan.scene.system, prepared.model, solution.states[:n], params, progress)
+             if search.solution is not None else prepared.model)
     momentum = momentum_problem(model, prepared.stated, to_plan, params)
     solution = to_momentum_coordinates(solution, momentum)
     if verify and search.solution is not None:
@@ -411,11 +445,13 @@ def write_outputs(result: PlanResult, out: Path, *, animate: bool = True, progre
     a failed plan's figures are titled FAILED and it gets no animation. Returns the paths."""
     from nhgait.dynamics.progress import Progress
     from . import plots
+    from .guesses import screened_dict
     progress = progress or Progress.silent()
     out.mkdir(parents=True, exist_ok=True)
     extra = {"task": result.task.to_dict(), "system": result.label, "success": result.success,
              "diagnosis": list(result.diagnosis),
-             "guess": {"won": result.guess, "tried": [a.__dict__ for a in result.attempts]}}
+             "guess": {"won": result.guess, "tried": [a.__dict__ for a in result.attempts],
+                       "screened": [screened_dict(x) for x in result.screening]}}
     files = [result.solution.to_json(out / "solution.json", extra=extra)]
     failed = None if result.success else (result.diagnosis[0] if result.diagnosis else result.solution.status)
     animate = animate and result.success
