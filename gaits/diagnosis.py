@@ -91,6 +91,14 @@ def _not_verified(result) -> list:
     lines += [f"  {x}" for x in v.failures()[:8]]
     sat, saturated = _saturation_line(s)
     N = result.task.intervals
+    crossed = next((x for x in getattr(result, "screening", ()) if x.action == "reached"), None)
+    if crossed is not None:
+        shape = tuple(getattr(result.model, "shape", ())) or None
+        velocities = ", ".join(s.settings.get("velocities", ()))
+        lines.append(f"likely cause: the gait passes through the singular set of the planner's equations at "
+                     f"{crossed.check.posture(shape)} (t = {crossed.check.t:.2f} s), where the velocity states "
+                     f"({velocities}) do not determine the motion: the transcription steps across it")
+        return lines + ["what to change:"] + [f"  {x}" for x in _away_from_singular(result, [crossed], shape)]
     if saturated:
         lines.append(f"likely cause: bang-bang inputs — {sat}; a switch inside an interval is not resolved by "
                      f"piecewise-constant inputs: increase intervals (now {N}, e.g. --set intervals={2 * N})")

@@ -359,8 +359,8 @@ def _search(problem, guesses, settings: SearchSettings, progress):
 
 
 def screening_report(guesses, search, problem) -> tuple:
-    """(search, report): what the screening of ``guesses`` repaired or skipped and, when no
-    guess converged, where the closest point met the singular set
+    """(search, report): what the screening of ``guesses`` repaired or skipped and where the
+    solution (or, when no guess converged, the closest point) met the singular set
     (:class:`~nhgait.gaits.guesses.Screened`); a search in which every candidate was skipped
     gets a closest point that says so (:func:`unsolved`)."""
     from .guesses import Screened
@@ -368,10 +368,11 @@ def screening_report(guesses, search, problem) -> tuple:
     if search.solution is None and search.closest is None:
         search = replace(search, closest=unsolved(problem, getattr(guesses, "first_skipped", None)))
     check = getattr(guesses, "check", None)
-    if search.solution is None and search.attempts and check is not None:
-        verdict = check(search.closest)
-        if verdict is not None and not verdict.ok:
-            report += (Screened(f"closest point ({search.closest.settings.get('guess', '?')})", "reached", verdict),)
+    point = search.solution if search.solution is not None else (search.closest if search.attempts else None)
+    verdict = check(point) if check is not None and point is not None else None
+    if verdict is not None and not verdict.ok:
+        which = "solution" if search.solution is not None else "closest point"
+        report += (Screened(f"{which} ({search.won or point.settings.get('guess', '?')})", "reached", verdict),)
     return search, report
 
 

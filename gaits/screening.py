@@ -18,7 +18,10 @@ evaluations:
 :meth:`Screen.check` returns a :class:`Check`: ``ok``, and otherwise where the guess met the
 set — the time and the posture in the user's coordinate names (:meth:`Check.posture`).
 :meth:`Screen.regular_start` moves the free initial values of the shape off the singular set.
-Measured on the 3-link snake (N = 50): 0.3 ms per check.
+Measured (N = 50–60, one process, a 2-core machine shared by several jobs): a check takes
+1.4 ms for the 3-link snake and the two-steering snakeboard, 4.8 ms for the cart with six
+trailers, 11–14 ms for the 5- and 8-link snakes (the 2N + 1 evaluations of ż dominate);
+building the :class:`Screen` 6–22 ms — against 0.1–3 s for one solve.
 """
 from __future__ import annotations
 
