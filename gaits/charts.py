@@ -23,7 +23,10 @@ are singular there. :func:`verification_chart` therefore measures the chart alon
 (:func:`singular_along`: the chart's measure at the nodes and between them) and, when the gait
 comes close to its singular set, derives the other admissible charts (the fibers ``nhgait
 derive`` lists) and verifies in the first one that stays regular along it (the snake: fiber
-(y), singular only where cos θ (1 + cos α₂) = 0).
+(y), singular only where cos θ (1 + cos α₂) = 0). When none does (a car with two off-axle
+trailers turning by π/2 meets the singular sets of (x, y, θ), (x) and (y)), the gait is
+verified on the Euler–Lagrange equations in their index-1 form (:func:`lagrange_ode`), which
+have no chart.
 """
 from __future__ import annotations
 
@@ -32,7 +35,8 @@ from itertools import combinations
 
 import numpy as np
 
-__all__ = ["derive_for_task", "fixed_configurations", "verification_chart", "singular_along", "CHART_MARGIN"]
+__all__ = ["derive_for_task", "fixed_configurations", "verification_chart", "lagrange_ode", "singular_along",
+           "CHART_MARGIN"]
 
 #: a chart whose measure along a gait falls below this fraction of its median along it counts as
 #: meeting its singular set there (:func:`verification_chart`)
@@ -126,15 +130,16 @@ def _regularity(model, q_nodes, params) -> float:
     return float(m.min() / median) if median > 0 else 0.0
 
 
-def verification_chart(system, model, q_nodes, params, progress):
-    """The model (a chart of the same system) to verify a gait through ``q_nodes`` in: ``model``
-    unless its measure along the gait falls below :data:`CHART_MARGIN` of its median there;
-    then the first other admissible chart (at most :data:`MAX_CHARTS` derived) that stays above
-    it, else the most regular one tried (module docstring)."""
+def verification_chart(system, model, q_nodes, params, progress) -> tuple:
+    """(model, regular): the chart of the same system to verify a gait through ``q_nodes`` in —
+    ``model`` unless its measure along the gait falls below :data:`CHART_MARGIN` of its median
+    there; then the first other admissible chart (at most :data:`MAX_CHARTS` derived) that stays
+    above it — and whether it does; when none does, the most regular one tried and False (verify
+    on :func:`lagrange_ode` then; module docstring)."""
     from nhgait.dynamics import derive
     best, score = model, _regularity(model, q_nodes, params)
     if score >= CHART_MARGIN:
-        return model
+        return model, True
     symmetry = getattr(model, "symmetry", None)
     others = [c for c in (symmetry.candidates if symmetry is not None else ())
               if c.admissible and tuple(c.fiber) != tuple(model.fiber)][:MAX_CHARTS]
@@ -148,7 +153,31 @@ def verification_chart(system, model, q_nodes, params, progress):
             best, score = other, mine
         if score >= CHART_MARGIN:
             break
-    if best is not model:
+    if score >= CHART_MARGIN:
         progress.note(f"  verifying in the chart with fiber ({', '.join(best.fiber)}), shape "
                       f"({', '.join(best.shape)}): regular along the gait")
-    return best
+        return best, True
+    progress.note("  no chart of the reduction is regular along the gait: verifying on the Euler–Lagrange "
+                  "equations (index-1 form, x = (q, q̇)), which have none")
+    return best, False
+
+
+def lagrange_ode(system):
+    """The Euler–Lagrange equations with multipliers of ``system`` (thesis eq. 2.8) in their
+    index-1 form as an ODE model x = (q, q̇) for the verification: ``numeric["rhs"](t, x, u,
+    params)`` (the multipliers solved), ``qdot`` and ``state(q, q̇, params) = (q, q̇)`` — regular
+    wherever ω has full rank, so a gait that crosses the singular set of every chart of the
+    reduction can still be re-simulated. The LagrangianDAE with these functions added."""
+    import casadi as ca
+    from nhgait.dynamics import derive
+    dae = derive(system, "lagrange")
+    numeric = dae.numeric
+    n = len(system.coordinates)
+    t, x = ca.SX.sym("t"), ca.SX.sym("x", 2 * n)
+    u, params = ca.SX.sym("u", len(numeric.input_names)), ca.SX.sym("params", len(numeric.param_names))
+    q, qd = ca.SX.sym("q", n), ca.SX.sym("qdot", n)
+    functions = {**numeric.functions,
+                 "rhs": ca.Function("rhs", [t, x, u, params], [numeric["ode"](t, x, u, params)[0]],
+                                    ["t", "z", "u", "params"], ["zdot"]),
+                 "state": ca.Function("state", [q, qd, params], [ca.vertcat(q, qd)], ["q", "qdot", "params"], ["z"])}
+    return replace(dae, compiled=replace(numeric, functions=functions))

@@ -393,13 +393,19 @@ def unsolved(problem, guess=None):
 def _verified(search, prepared, to_plan, params, verify, progress) -> tuple:
     """(the winning solution in momentum coordinates, verified (or the closest failure),
     seconds the verification took or None). The momentum coordinates are those of a chart
-    regular along the gait (:func:`~nhgait.gaits.charts.verification_chart`)."""
-    from .charts import verification_chart
+    regular along the gait (:func:`~nhgait.gaits.charts.verification_chart`); when no chart is,
+    the gait is verified — and returned — in x = (q, q̇) on the Euler–Lagrange equations
+    (:func:`~nhgait.gaits.charts.lagrange_ode`)."""
+    from .charts import lagrange_ode, verification_chart
     solution = search.solution if search.solution is not None else search.closest
     n = len(prepared.model.system.coordinates)
     t0 = time.perf_counter()
-    model = (verification_chart(to_plan.scene.system, prepared.model, solution.states[:n], params, progress)
-             if search.solution is not None else prepared.model)
+    model, regular = prepared.model, True
+    if search.solution is not None:
+        model, regular = verification_chart(to_plan.scene.system, prepared.model, solution.states[:n], params,
+                                             progress)
+        if not regular:
+            model = lagrange_ode(to_plan.scene.system)
     momentum = momentum_problem(model, prepared.stated, to_plan, params)
     solution = to_momentum_coordinates(solution, momentum)
     if verify and search.solution is not None:
@@ -427,7 +433,8 @@ def to_momentum_coordinates(solution, momentum):
     verify the returned solution in momentum coordinates.
     """
     model = solution.problem.model
-    if "momentum_state" not in model.numeric.functions and tuple(model.fiber) == tuple(momentum.model.fiber):
+    same_chart = tuple(model.fiber) == tuple(getattr(momentum.model, "fiber", ()))
+    if "momentum_state" not in model.numeric.functions and same_chart:
         return replace(solution, problem=momentum, verification=None)
     n = len(model.system.coordinates)
     state = momentum.model.numeric["state"]
@@ -493,7 +500,10 @@ def summary_lines(result: PlanResult) -> list:
                      f"the guesses loop the shape ({', '.join(result.model.shape)}); why, and the other choices "
                      "(fiber = [...] in [system]): nhgait derive")
     checked = getattr(s.problem, "model", None)
-    if symmetry is not None and checked is not None and tuple(checked.fiber) != tuple(result.model.fiber):
+    if symmetry is not None and checked is not None and not hasattr(checked, "fiber"):
+        lines.append(f"  verified in        x = (q, q̇) on the Euler–Lagrange equations: the gait crosses the singular "
+                     "set of every chart of the reduction tried")
+    elif symmetry is not None and checked is not None and tuple(checked.fiber) != tuple(result.model.fiber):
         lines.append(f"  verified in        the chart with fiber ({', '.join(checked.fiber)}): the gait crosses the "
                      f"singular set of fiber ({', '.join(result.model.fiber)}), where its momenta are not defined")
     if result.diagnosis:
