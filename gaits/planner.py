@@ -43,8 +43,8 @@ import numpy as np
 
 from .search import Attempt, Search, continuation, solve_from_guesses, solve_with_fallbacks  # noqa: F401
 
-__all__ = ["plan", "PlanResult", "prepare", "Prepared", "state_problem", "to_momentum_coordinates", "known_names",
-           "warm_start", "read_solution", "summary_lines"]
+__all__ = ["plan", "PlanResult", "prepare", "Prepared", "state_problem", "to_momentum_coordinates", "verified_gait",
+           "unsolved", "known_names", "warm_start", "read_solution", "summary_lines"]
 
 
 def solver_order(solver: str, transcription=None, problem=None) -> tuple:
@@ -392,30 +392,37 @@ def unsolved(problem, guess=None):
 
 def _verified(search, prepared, to_plan, params, verify, progress) -> tuple:
     """(the winning solution in momentum coordinates, verified (or the closest failure),
-    seconds the verification took or None). The momentum coordinates are those of a chart
-    regular along the gait (:func:`~nhgait.gaits.charts.verification_chart`); when no chart is,
-    the gait is verified — and returned — in x = (q, q̇) on the Euler–Lagrange equations
-    (:func:`~nhgait.gaits.charts.lagrange_ode`)."""
-    from .charts import lagrange_ode, verification_chart
+    seconds the verification took or None): :func:`verified_gait`."""
     solution = search.solution if search.solution is not None else search.closest
-    n = len(prepared.model.system.coordinates)
     t0 = time.perf_counter()
-    model, regular = prepared.model, True
-    if search.solution is not None:
-        model, regular = verification_chart(to_plan.scene.system, prepared.model, solution.states[:n], params,
-                                             progress)
+    out = verified_gait(solution, prepared.model, prepared.stated, to_plan, params,
+                        verify=verify and search.solution is not None, progress=progress)
+    return out, (time.perf_counter() - t0 if verify and search.solution is not None else None)
+
+
+def verified_gait(solution, model, stated, to_plan, params, *, verify=True, progress=None):
+    """``solution`` (velocity coordinates) in the momentum coordinates of a chart of ``model``
+    regular along it (:func:`~nhgait.gaits.charts.verification_chart`; a failed solution in
+    ``model``'s own) and, with ``verify``, verified there to the task's tolerance; when no
+    chart is regular along the gait, in x = (q, q̇) on the Euler–Lagrange equations
+    (:func:`~nhgait.gaits.charts.lagrange_ode`)."""
+    from nhgait.dynamics.progress import Progress
+    from .charts import lagrange_ode, verification_chart
+    progress = progress or Progress.silent()
+    n = len(model.system.coordinates)
+    if verify and solution.success:
+        model, regular = verification_chart(to_plan.scene.system, model, solution.states[:n], params, progress)
         if not regular:
             model = lagrange_ode(to_plan.scene.system)
-    momentum = momentum_problem(model, prepared.stated, to_plan, params)
-    solution = to_momentum_coordinates(solution, momentum)
-    if verify and search.solution is not None:
-        with progress.phase("verify: re-simulate the optimal inputs on the general model (DOP853, rtol 1e-10)"):
-            solution = solution.verified(tolerance=to_plan.task.verify_tolerance)
-        v = solution.verification
-        progress.note(f"  {'passed' if v.passed else 'FAILED'}: nodes met to {v.max_error:.2e}, conditions to "
-                      f"{v.max_condition_error:.2e} (tolerance {v.tolerance:g})")
-        return solution, time.perf_counter() - t0
-    return solution, None
+    solution = to_momentum_coordinates(solution, momentum_problem(model, stated, to_plan, params))
+    if not verify:
+        return solution
+    with progress.phase("verify: re-simulate the optimal inputs on the general model (DOP853, rtol 1e-10)"):
+        solution = solution.verified(tolerance=to_plan.task.verify_tolerance)
+    v = solution.verification
+    progress.note(f"  {'passed' if v.passed else 'FAILED'}: nodes met to {v.max_error:.2e}, conditions to "
+                  f"{v.max_condition_error:.2e} (tolerance {v.tolerance:g})")
+    return solution
 
 
 def momentum_problem(model, problem, to_plan, params):

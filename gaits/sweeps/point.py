@@ -11,7 +11,7 @@ its solver itself, the derivation coming from the content-hash cache
 Everything that knows the planner's API is in :func:`describe_case` (driver side: the scene
 and base task as data) and :func:`_plan_point` (worker side: one point, warm or cold). The
 worker uses the planner's building blocks (``prepare``, ``warm_start``, the guesses,
-``solve_from_guesses``, ``continuation``, ``to_momentum_coordinates``, ``Solution.verified``)
+``solve_from_guesses``, ``continuation``, ``verified_gait``)
 rather than ``plan(guess=...)`` itself, to keep one built solver per structure across points
 and to build the cold candidates only when a warm start fails.
 """
@@ -320,7 +320,7 @@ def _plan_point(job: PointJob) -> dict:
     """Warm start from the parent when there is one; else (or when it fails) the planner's own
     guesses and continuation; then the planner's verification in momentum coordinates."""
     from ..guesses import candidates
-    from ..planner import momentum_problem, to_momentum_coordinates, warm_start
+    from ..planner import unsolved, verified_gait, warm_start
     from ..search import solve_with_fallbacks
     solution, start = None, "cold"
     if job.warm is not None:
@@ -330,10 +330,10 @@ def _plan_point(job: PointJob) -> dict:
     spent = int(solution.iterations) if solution is not None else 0
     if solution is None or not solution.success:
         model, (stated, problem), solver, resolved = _solver_for(job)
-        search = solve_with_fallbacks(solver, candidates(problem))
+        guesses = candidates(problem)
+        search = solve_with_fallbacks(solver, guesses)
         spent += sum(a.iterations for a in search.attempts)
         solution = search.solution if search.solution is not None else search.closest
-    momentum = momentum_problem(model, stated, resolved, job.params)
-    out = _outcome(to_momentum_coordinates(solution, momentum).verified(tolerance=resolved.task.verify_tolerance),
-                   start)
+        solution = solution if solution is not None else unsolved(problem, guesses.first_skipped)
+    out = _outcome(verified_gait(solution, model, stated, resolved, job.params), start)
     return {**out, "warm": warm_data(out["solution"]) if out["success"] else None, "total_iterations": spent}
