@@ -172,3 +172,16 @@ def test_the_users_snake_is_planned_through_the_charts_singular_set_and_verified
     assert reference["status"] == "Solve_Succeeded"
     assert s.objective == pytest.approx(reference["objective"], rel=1e-3)
     assert s.objective <= 0.009992 * 1.01       # the hand-written reference of the issue: J = 0.009992
+    # the verification that needs no chart: the same gait in x = (q, q̇) on the Euler–Lagrange
+    # equations, whose right-hand side is the hand-written DAE's
+    from nhgait.gaits.charts import lagrange_ode
+    from nhgait.gaits.planner import momentum_problem, to_momentum_coordinates
+    lagrange = lagrange_ode(result.plan.scene.system)
+    x = np.concatenate([q[:, 7], s.velocities()[:, 7]])
+    u = np.array([0.3, -0.2])
+    assert np.asarray(lagrange.numeric["rhs"](0.0, x, u, lagrange.numeric.params())).ravel() == pytest.approx(
+        np.asarray(f(x, u)).ravel(), rel=1e-9, abs=1e-12)
+    prepared = prepare(resolve(SNAKE3))
+    in_x = to_momentum_coordinates(s, momentum_problem(lagrange, prepared.stated, result.plan, None)).verified()
+    assert in_x.state_names[5:] == ("x_dot", "y_dot", "theta_dot", "alpha1_dot", "alpha2_dot")
+    assert in_x.verification.passed and in_x.verification.max_error <= 1e-6
