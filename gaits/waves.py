@@ -13,7 +13,7 @@ Repairs (:func:`repairs`), tried in this order, each a new :class:`ShapeGuess` w
 what changed — the least change first:
 
 1. another relative phase of the loop's second wave (+π/2, +π: another ellipse through the
-   same centre);
+   same centre; only +π for a wave whose coordinate is fixed at t = 0, which keeps its start);
 2. another centre: the coordinates free at t = 0 moved by half the room to their bounds, one
    or both, each way (amplitudes clipped to the bounds around the new centre);
 3. amplitudes halved, then quartered, at each of those centres.
@@ -185,8 +185,8 @@ def repairs(problem, shape: ShapeGuess, free: dict):
     for scale, shift, phase in product(SCALES, _shifts(problem, shape, moved), PHASES):
         if scale == 1.0 and not shift and phase == 0.0:
             continue
-        if phase and len(shape.waves) < 2:
-            continue
+        if phase and (len(shape.waves) < 2 or (shape.waves[1][0] not in free and phase != math.pi)):
+            continue            # a wave fixed at t = 0 keeps sin(φ) = 0 there: only +π
         start = {**dict(shape.start), **shift}
         waves = []
         for i, (c, a, k, p) in enumerate(shape.waves):
