@@ -185,3 +185,24 @@ def test_the_users_snake_is_planned_through_the_charts_singular_set_and_verified
     in_x = to_momentum_coordinates(s, momentum_problem(lagrange, prepared.stated, result.plan, None)).verified()
     assert in_x.state_names[5:] == ("x_dot", "y_dot", "theta_dot", "alpha1_dot", "alpha2_dot")
     assert in_x.verification.passed and in_x.verification.max_error <= 1e-6
+
+
+def test_a_loop_through_the_snakes_singular_set_is_caught_between_nodes_and_moved_off_it():
+    """In the joint rates (α̇₁, α̇₂) the snake's equations are singular on α₁ = α₂; the first
+    loop, centred on the straight posture, crosses it — between nodes, where only the sign of
+    det A tells. What is handed out stays on one side of α₁ = α₂ at every node and midpoint
+    (the closed form, not the code's measure)."""
+    task = {**resolve(SNAKE3).task.to_dict(), "velocities": ["alpha1_dot", "alpha2_dot"]}
+    prepared = prepare(resolve(SNAKE3, task))
+    guesses = candidates(prepared.problem)
+    start = next(x for x in guesses.screened if x.action == "moved")          # (0, 0) is on α₁ = α₂
+    assert start.check.posture(("alpha1", "alpha2")) == "alpha1 = 0, alpha2 = 0"
+    first = guesses[0]
+    record = next(x for x in guesses.screened if x.action == "repaired")
+    assert first.label == f"{record.label} ({record.repair})"
+    a1, a2 = record.check.q[3], record.check.q[4]
+    assert abs(a1 - a2) < 0.05                          # caught where it crosses α₁ = α₂
+    gap = first.states[3] - first.states[4]
+    both = np.concatenate([gap, (gap[1:] + gap[:-1]) / 2])
+    assert np.all(both > 0) or np.all(both < 0)
+    assert np.all(np.isfinite(first.states))
