@@ -91,6 +91,13 @@ def _not_verified(result) -> list:
     lines += [f"  {x}" for x in v.failures()[:8]]
     sat, saturated = _saturation_line(s)
     N = result.task.intervals
+    dropped = _dropped_and_missed(result, v)
+    if dropped:
+        lines.append(f"likely cause: {', '.join(dropped)} missed: the planner dropped "
+                     f"{'them' if len(dropped) > 1 else 'it'} as implied by the task's other conditions, which "
+                     "hold in general but not at this gait's end posture, where the solver used the freedom "
+                     "(see 'conditions' above)")
+        return lines
     crossed = next((x for x in getattr(result, "screening", ()) if x.action == "reached"), None)
     if crossed is not None:
         shape = tuple(getattr(result.model, "shape", ())) or None
@@ -176,6 +183,14 @@ def _regular_velocities(result) -> tuple:
     except ModelError:
         return ()
     return chosen if set(chosen) != set(task.velocities) else ()
+
+
+def _dropped_and_missed(result, v) -> list:
+    """The conditions the normalisation dropped as implied that the re-simulation misses."""
+    report = getattr(result, "conditions", None)
+    implied = {f"{where}.{name}" for where, name, reason in getattr(report, "dropped", ())
+               if reason.startswith("implied")}
+    return [name for name, err in v.condition_errors.items() if err > v.tolerance and name in implied]
 
 
 def diagnose(result) -> tuple:
