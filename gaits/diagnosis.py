@@ -164,7 +164,8 @@ def _away_from_singular(result, met, shape) -> list:
                    "everywhere within the task's bounds")
     route = str(result.solution.settings.get("specialisation", "")) if result.solution is not None else ""
     if "velocity basis" not in route:
-        out.append("another chart: fiber = [...] in [system] (nhgait derive lists the choices and their singular sets)")
+        out.append("another chart: fiber = [...] in [system] (nhgait derive lists the choices and their "
+                   "singular sets)")
     return out
 
 

@@ -26,6 +26,12 @@ Amplitudes respect the task's bounds (at most 90 % of the distance to the nearer
 Configurations q(t) and their rates q̇(t) (ramps included) are mapped to the model's state
 by its ``state(q, q̇)`` map; the controls are zero. :func:`candidates` returns them in order;
 the planner tries them (several at once when cores allow) and reports which one won.
+
+Each candidate is checked along its whole length before it is handed out
+(:class:`~.screening.Screen`: ż finite, the configurations off the singular set of the
+equations) and repaired or skipped when it fails (:class:`Candidates`, :func:`~.waves.repairs`);
+shape coordinates free at t = 0 whose centres lie on the singular set start off it in every
+candidate. The waves, the ramps and the states of a candidate are :mod:`.waves`.
 """
 from __future__ import annotations
 
@@ -176,8 +182,9 @@ class Candidates(Sequence):
     (:func:`~.waves.repairs`) or, when no repair avoids it, skipped: item i is the i-th
     candidate that passed. ``len()`` counts the candidates not known to be skipped (it shrinks
     as skips are found); ``screened`` lists what was repaired or skipped, ``screen_seconds`` the
-    time the checks and repairs took, ``first_skipped`` the first skipped guess (as generated). ``start`` is where the coordinates free at t = 0 start in
-    every candidate (off the singular set; empty when their centres are regular)."""
+    time the checks and repairs took, ``first_skipped`` the first skipped guess (as generated).
+    ``start`` is where the coordinates free at t = 0 start in every candidate (off the singular
+    set; empty when their centres are regular)."""
 
     def __init__(self, problem, shapes, coordinates, first=(), *, screen=None, start=(), progress=None,
                  blocked=None):

@@ -39,6 +39,13 @@ RATIO = 1e-3
 START_RATIO = 0.1
 
 
+def _median_size(values) -> float:
+    """The median of |values| over the finite ones (0 without any)."""
+    if values is None or not np.isfinite(values).any():
+        return 0.0
+    return float(np.median(np.abs(values[np.isfinite(values)])))
+
+
 @dataclass(frozen=True)
 class Check:
     """The verdict on one guess: ``ok``; else ``what`` went wrong ("singular", "not finite"),
@@ -106,8 +113,7 @@ class Screen:
     def _typical_values(self, samples: np.ndarray) -> tuple:
         q = samples.T
         det, chart = self._determinants(q), self._chart(q)
-        typical = lambda m: float(np.median(np.abs(m[np.isfinite(m)]))) if m is not None and np.isfinite(m).any() else 0.0  # noqa: E731
-        return typical(det), typical(chart)
+        return _median_size(det), _median_size(chart)
 
     def measure(self, q: np.ndarray) -> np.ndarray:
         """Per column of ``q`` (n × K): the smaller of |det A| and the chart's measure, each as a

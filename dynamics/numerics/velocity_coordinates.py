@@ -225,11 +225,12 @@ def choose_velocities(model, preferred=(), quantities=None, params=None, bounds=
     (name → (lo, hi); unbounded coordinates over [−π, π]) and :data:`BOX_SAMPLES` samples in it:
 
     1. the first set whose determinant keeps one sign and whose measure stays above
-       :data:`REGULAR_RATIO` of its largest value — regular over the whole region, so no guess and no iterate of the planner
-       meets its singular set (snake3 with |α| ≤ 1: (forward_velocity, α̇₁), not (θ̇, α̇₁),
-       singular at α₁ = 0, nor (α̇₁, α̇₂), singular at α₁ = α₂);
-    2. else the first set regular (measure > 1e-8 of its largest) at every sample — the planner's guesses are
-       then screened against its singular set (:mod:`nhgait.gaits.guesses`).
+       :data:`REGULAR_RATIO` of its largest value — regular over the whole region, so no guess
+       and no iterate of the planner meets its singular set (the 3-link snake with |α| ≤ 1:
+       (θ̇, forward_velocity), not (θ̇, α̇₁), singular at α₁ = 0, nor (α̇₁, α̇₂), singular at
+       α₁ = α₂);
+    2. else the first set regular (measure > 1e-8 of its largest) at every sample — the
+       planner's guesses are then screened against its singular set (:mod:`nhgait.gaits.screening`).
 
     Raises :class:`ModelError` when no set is regular at the samples.
     """
