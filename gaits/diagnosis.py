@@ -8,6 +8,13 @@ Three kinds of failure (:func:`diagnose`):
   closest point found (smallest constraint violation) the conditions it violates by how much
   (the NLP's rows are labelled: "dynamics", "final.x", "periodic.psi", "bounds.phi"), how often
   the inputs sit at their bounds, and what to relax;
+* **singular postures** (with either of the above) — where the guesses or the closest point met the
+  singular set of the planner's equations (:mod:`.screening`: the velocity states stop
+  determining the motion, or the reduction's chart divides by zero): each posture in the
+  user's coordinate names, what the screening did (repaired, skipped), and what to change —
+  bounds that keep the shape off those postures, a fixed initial shape (where the guesses
+  started), velocity states regular over the task's bounds (when the task names its own),
+  another chart (``fiber = [...]``);
 * **converged but not verified** — the independent re-simulation misses the planned states or
   the task's conditions by more than the task's ``verify_tolerance``: the misses, and the likely
   cause (bang-bang inputs at their bounds whose switching the intervals do not resolve, or RK4
@@ -36,6 +43,10 @@ def _saturation_line(solution) -> tuple:
 
 
 def _not_converged(result) -> list:
+    if not result.attempts:
+        skipped = sum(1 for x in getattr(result, "screening", ()) if x.action == "skipped")
+        return [f"no guess was solved: each of the {skipped} candidates met the singular set of the planner's "
+                "equations, and no repair (phase, centre, amplitude) avoided it"]
     counts = Counter(a.status for a in result.attempts)
     lines = [f"no guess converged: {len(result.attempts)} attempts ("
              + ", ".join(f"{n} {status}" for status, n in counts.most_common()) + ")"]
@@ -87,6 +98,21 @@ def _not_verified(result) -> list:
     lines += [f"  {x}" for x in v.failures()[:8]]
     sat, saturated = _saturation_line(s)
     N = result.task.intervals
+    dropped = _dropped_and_missed(result, v)
+    if dropped:
+        lines.append(f"likely cause: {', '.join(dropped)} missed: the planner dropped "
+                     f"{'them' if len(dropped) > 1 else 'it'} as implied by the task's other conditions, which "
+                     "hold in general but not at this gait's end posture, where the solver used the freedom "
+                     "(see 'conditions' above)")
+        return lines
+    crossed = next((x for x in getattr(result, "screening", ()) if x.action == "reached"), None)
+    if crossed is not None:
+        shape = tuple(getattr(result.model, "shape", ())) or None
+        velocities = ", ".join(s.settings.get("velocities", ()))
+        lines.append(f"likely cause: the gait passes through the singular set of the planner's equations at "
+                     f"{crossed.check.posture(shape)} (t = {crossed.check.t:.2f} s), where the velocity states "
+                     f"({velocities}) do not determine the motion: the transcription steps across it")
+        return lines + ["what to change:"] + [f"  {x}" for x in _away_from_singular(result, [crossed], shape)]
     if saturated:
         lines.append(f"likely cause: bang-bang inputs — {sat}; a switch inside an interval is not resolved by "
                      f"piecewise-constant inputs: increase intervals (now {N}, e.g. --set intervals={2 * N})")
@@ -98,11 +124,90 @@ def _not_verified(result) -> list:
 
 
 def _out_of_time(result) -> list:
-    """The budget that ran out (where, what to change), then what the attempts gave."""
+    """The budget that ran out (where, what to change), then what the attempts gave and the
+    singular postures the guesses met."""
     lines = list(result.overrun.lines())
     if result.attempts:
         lines += _not_converged(result)
-    return lines
+    return lines + _singular(result)
+
+
+def _singular(result) -> list:
+    """The singular postures met (module docstring); empty when none was."""
+    met = [x for x in getattr(result, "screening", ()) if not x.check.ok]
+    if not met:
+        return []
+    settings = result.solution.settings if result.solution is not None else {}
+    velocities = tuple(settings.get("velocities", ()))
+    route = str(settings.get("specialisation", ""))
+    shape = tuple(getattr(result.model, "shape", ())) or None
+    what = (f"the velocity states ({', '.join(velocities)}) do not determine the motion there"
+            if velocities else "the reduction's chart is singular there")
+    if velocities and "velocity basis" not in route:
+        what += f", or the chart with fiber ({', '.join(result.model.fiber)}) is singular"
+    lines = [f"the planner's equations are singular at postures the guesses met ({what}):"]
+    groups: dict = {}
+    for x in met:                  # the same posture met by several candidates: one line
+        done = {"repaired": f"repaired: {x.repair}", "skipped": "skipped, not solved",
+                "moved": f"every guess started at {x.repair} instead", "reached": "where the solver ended"}[x.action]
+        key = (x.check.posture(shape), f"{x.check.t:.2f}", done if x.action != "repaired" else "repaired")
+        groups.setdefault(key, []).append((x.label, done))
+    for (posture, t, _), members in list(groups.items())[:6]:
+        who = repr(members[0][0]) + (f" and {len(members) - 1} other candidates" if len(members) > 1 else "")
+        lines.append(f"  {who}: {posture} at t = {t} s ({members[0][1]})")
+    return lines + ["what to change:"] + [f"  {line}" for line in _away_from_singular(result, met, shape)]
+
+
+def _away_from_singular(result, met, shape) -> list:
+    task = result.task
+    names = sorted({c for x in met for c, v in zip(x.check.coordinates, x.check.q) if shape is None or c in shape})
+    now = ", ".join(f"{c} in [{task.bounds[c][0]:g}, {task.bounds[c][1]:g}]" for c in names
+                    if isinstance(task.bounds.get(c), tuple))
+    out = [f"bounds on {', '.join(names)} that keep the shape off these postures" + (f" (now {now})" if now else "")]
+    start = next((x.repair for x in met if x.action == "moved"), None)
+    free = [c for c in names if c not in task.initial]
+    fixed = sorted({(c, v) for x in met if x.check.t == 0.0 for c, v in zip(x.check.coordinates, x.check.q)
+                    if c in names and c in task.initial})
+    if fixed:
+        out.append(f"the fixed initial shape ({', '.join(f'{c} = {v:.3g}' for c, v in fixed)}) lies on the singular "
+                   "set: start elsewhere, or leave it free")
+    if free:
+        out.append(f"a fixed initial shape off them ([task].initial: {start})" if start else
+                   f"a fixed initial shape off them ([task].initial.{free[0]} = ...)")
+    better = _regular_velocities(result)
+    if better:
+        out.append(f"velocities = [{', '.join(repr(v) for v in better)}] in [task]: they determine the motion "
+                   "everywhere within the task's bounds")
+    route = str(result.solution.settings.get("specialisation", "")) if result.solution is not None else ""
+    if "velocity basis" not in route:
+        out.append("another chart: fiber = [...] in [system] (nhgait derive lists the choices and their "
+                   "singular sets)")
+    return out
+
+
+def _regular_velocities(result) -> tuple:
+    """Velocity states regular over the task's bounds when the task named others, else ()."""
+    task, model = result.task, result.model
+    if not getattr(task, "velocities", None) or model is None or not hasattr(model, "layout"):
+        return ()
+    from nhgait.dynamics.errors import ModelError
+    from nhgait.dynamics.numerics.velocity_coordinates import choose_velocities
+    bounds = {k: v for k, v in task.bounds.items() if isinstance(v, tuple)}
+    try:
+        scene = getattr(result.plan, "scene", None)
+        chosen = choose_velocities(model, task.names, getattr(scene, "quantities", None),
+                                   result.solution.problem.params, bounds)
+    except ModelError:
+        return ()
+    return chosen if set(chosen) != set(task.velocities) else ()
+
+
+def _dropped_and_missed(result, v) -> list:
+    """The conditions the normalisation dropped as implied that the re-simulation misses."""
+    report = getattr(result, "conditions", None)
+    implied = {f"{where}.{name}" for where, name, reason in getattr(report, "dropped", ())
+               if reason.startswith("implied")}
+    return [name for name, err in v.condition_errors.items() if err > v.tolerance and name in implied]
 
 
 def diagnose(result) -> tuple:
@@ -114,4 +219,4 @@ def diagnose(result) -> tuple:
     s = result.solution
     if s is not None and s.verification is not None and s.status == "Verification_Failed":
         return tuple(_not_verified(result))
-    return tuple(_not_converged(result))
+    return tuple(_not_converged(result) + _singular(result))

@@ -115,7 +115,8 @@ def _rollout_function(problem, n: int, nv: int):
 
 
 def _residual_function(problem, coords, rollout):
-    """r(q0, c, weight): final targets, periodicity, bound penalties, weight · c."""
+    """(r, ∂r/∂c) of (q0, c, weight), two Functions (the trust region evaluates r more often
+    than its Jacobian): final targets, periodicity, bound penalties, weight · c."""
     n = len(coords)
     q0, c, weight = ca.MX.sym("q0", n), ca.MX.sym("c", rollout.size1_in(1)), ca.MX.sym("weight")
     Q = rollout(q0, c)
@@ -130,7 +131,7 @@ def _residual_function(problem, coords, rollout):
                 parts.append(BOUND_WEIGHT * ca.fmax(0, lo - Q[i, :]).T)
     parts.append(weight * c)
     r = ca.vertcat(*parts)
-    return ca.Function("r", [q0, c, weight], [r, ca.jacobian(r, c)])
+    return ca.Function("r", [q0, c, weight], [r]), ca.Function("J", [q0, c, weight], [ca.jacobian(r, c)])
 
 
 def fitted_guess(problem, coordinates: tuple, initial_configuration) -> InitialGuess:
@@ -140,7 +141,7 @@ def fitted_guess(problem, coordinates: tuple, initial_configuration) -> InitialG
     n = len(coordinates)
     nv = len(problem.model.state_names) - n
     rollout, Y0, Phi, fine = _rollout_function(problem, n, nv)
-    residual = _residual_function(problem, coordinates, rollout)
+    residual, jacobian = _residual_function(problem, coordinates, rollout)
     q0 = np.asarray(initial_configuration, float)
     T = float(problem.horizon)
     rng = np.random.default_rng(0)
@@ -148,8 +149,8 @@ def fitted_guess(problem, coordinates: tuple, initial_configuration) -> InitialG
 
     def fit(c0, weight):
         with np.errstate(all="ignore"):
-            return least_squares(lambda c: np.asarray(residual(q0, c, weight)[0]).ravel(), c0,
-                                 jac=lambda c: np.asarray(residual(q0, c, weight)[1]), method="trf", max_nfev=200)
+            return least_squares(lambda c: np.asarray(residual(q0, c, weight)).ravel(), c0,
+                                 jac=lambda c: np.asarray(jacobian(q0, c, weight)), method="trf", max_nfev=200)
 
     best = None
     for start in range(STARTS):

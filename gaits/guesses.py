@@ -26,20 +26,28 @@ Amplitudes respect the task's bounds (at most 90 % of the distance to the nearer
 Configurations q(t) and their rates q̇(t) (ramps included) are mapped to the model's state
 by its ``state(q, q̇)`` map; the controls are zero. :func:`candidates` returns them in order;
 the planner tries them (several at once when cores allow) and reports which one won.
+
+Each candidate is checked along its whole length before it is handed out
+(:class:`~.screening.Screen`: ż finite, the configurations off the singular set of the
+equations) and repaired or skipped when it fails (:class:`Candidates`, :func:`~.waves.repairs`);
+shape coordinates free at t = 0 whose centres lie on the singular set start off it in every
+candidate. The waves, the ramps and the states of a candidate are :mod:`.waves`.
 """
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import combinations
 
 import numpy as np
 
-from nhgait.ocp import InitialGuess
+from .screening import RATIO, Check, Screen
+from .waves import FITTED_LABEL, ShapeGuess, amplitude, ends, free_start, guess_from_shape, repairs
 
 __all__ = ["ShapeGuess", "shape_guesses", "rollout_guesses", "guess_from_shape", "candidates", "Candidates",
-           "RATIOS", "AMPLITUDES"]
+           "Screened", "screened_dict", "RATIOS", "AMPLITUDES"]
 
 RATIOS = ((1, 1), (2, 1), (1, 2), (3, 2), (2, 3))
 #: (A, B) as fractions of the largest allowed amplitude of each variable (1 rad when unbounded)
@@ -47,57 +55,14 @@ AMPLITUDES = ((1.0, 0.9), (1.0, 0.6), (-1.0, 0.9), (0.6, 1.0))
 SINGLE = ((1, 0.5), (1, 1.0), (2, 0.5), (1, -0.5))
 
 
-@dataclass(frozen=True)
-class ShapeGuess:
-    """Sinusoids c(t) = amplitude · sin(k ω t + phase) per coordinate, over linear ramps.
-
-    ``rates`` are waves of velocity states (w(t) = mean + amplitude · sin(k ω t + phase)); a
-    guess with rates is a rollout of the model's kinematics (see the module docstring).
-    """
-
-    label: str
-    waves: tuple            # ((coordinate, amplitude, k, phase), ...)
-    rates: tuple = ()       # ((velocity state, mean, amplitude, k, phase), ...)
-
-
-def _centre(problem, name) -> float:
-    """Where a coordinate free at both ends sits: the middle of its bounds (0 when unbounded or
-    when 0 is inside them)."""
-    if name in problem.state_bounds:
-        lo, hi = problem.bounds(problem.state_bounds, name)
-        if math.isfinite(lo) and math.isfinite(hi) and not lo <= 0.0 <= hi:
-            return (lo + hi) / 2
-    return 0.0
-
-
-def _ends(problem, name):
-    """(value at t = 0, value at t = T) of a coordinate's ramp."""
-    a = problem.fixed_value(problem.initial, name)
-    b = problem.fixed_value(problem.final, name)
-    if name in problem.periodic:
-        b = a if b is None else b
-        a = b if a is None else a
-    a = _centre(problem, name) if a is None else a
-    return a, (a if b is None else b)
-
-
-def _amplitude(problem, name) -> float:
-    """Largest amplitude of a wave around the ramp (90 % of the distance to a bound)."""
-    if name in problem.state_bounds:
-        lo, hi = problem.bounds(problem.state_bounds, name)
-        a, b = _ends(problem, name)
-        room = min(min(a, b) - lo, hi - max(a, b))
-        if math.isfinite(room):
-            return max(0.0, min(1.0, room))
-    return 1.0
-
-
-def shape_guesses(problem, shape: tuple) -> list:
-    """The shape-loop candidates (see the module docstring), in order of preference."""
+def shape_guesses(problem, shape: tuple, start=()) -> list:
+    """The shape-loop candidates (see the module docstring), in order of preference; ``start``:
+    where the coordinates free at t = 0 start (:class:`ShapeGuess`)."""
     out = []
+    start = tuple(start)
     fixed0 = {n for n in shape if problem.fixed_value(problem.initial, n) is not None}
     for a, b in combinations(shape, 2):
-        amp_a, amp_b = _amplitude(problem, a), _amplitude(problem, b)
+        amp_a, amp_b = amplitude(problem, a, start), amplitude(problem, b, start)
         # the variable fixed at t = 0 carries the sine (phase 0), the other the cosine
         if b in fixed0 and a not in fixed0:
             a, b, amp_a, amp_b = b, a, amp_b, amp_a
@@ -105,19 +70,21 @@ def shape_guesses(problem, shape: tuple) -> list:
         for ka, kb in RATIOS:
             for fa, fb in AMPLITUDES:
                 label = f"{a}:{b} {ka}:{kb} A={fa * amp_a:.2g} B={fb * amp_b:.2g}"
-                out.append(ShapeGuess(label, ((a, fa * amp_a, ka, 0.0), (b, fb * amp_b, kb, phase_b))))
+                out.append(ShapeGuess(label, ((a, fa * amp_a, ka, 0.0), (b, fb * amp_b, kb, phase_b)),
+                                      start=start))
     if len(shape) == 1:
         (a,) = shape
-        amp = _amplitude(problem, a)
+        amp = amplitude(problem, a, start)
         phase = 0.0 if a in fixed0 else math.pi / 2
         for k, f in SINGLE:
-            out.append(ShapeGuess(f"{a} k={k} A={f * amp:.2g}", ((a, f * amp, k, phase),)))
-    out.append(ShapeGuess("ramps only", ()))
+            out.append(ShapeGuess(f"{a} k={k} A={f * amp:.2g}", ((a, f * amp, k, phase),), start=start))
+    out.append(ShapeGuess("ramps only", (), start=start))
     return out
 
 
-def rollout_guesses(problem, shape: tuple, rates: tuple) -> list:
+def rollout_guesses(problem, shape: tuple, rates: tuple, start=()) -> list:
     """Rollout candidates: each velocity state of ``rates`` paired with each shape variable."""
+    start = tuple(start)
     T = float(problem.horizon)
     w = 2 * math.pi / T
     mean = _mean_speed(problem)
@@ -126,14 +93,14 @@ def rollout_guesses(problem, shape: tuple, rates: tuple) -> list:
     for v in rates:
         reach = max(abs(mean) * T, _span(problem), 0.25)
         for b in shape or (None,):
-            amp_b = _amplitude(problem, b) if b else 0.0
+            amp_b = amplitude(problem, b, start) if b else 0.0
             phase_b = 0.0 if b in fixed0 else math.pi / 2
             for kv, kb in RATIOS:
                 for fa, fb in AMPLITUDES[:2] + ((-1.0, 0.6),):
                     A = fa * reach * w * kv / 2          # excursion 2A/(k ω) ≈ the task's reach
                     waves = ((b, fb * amp_b, kb, phase_b),) if b else ()
                     label = f"rollout {v}:{b} {kv}:{kb} A={A:.2g}" + (f" B={fb * amp_b:.2g}" if b else "")
-                    out.append(ShapeGuess(label, waves, ((v, mean, A, kv, 0.0),)))
+                    out.append(ShapeGuess(label, waves, ((v, mean, A, kv, 0.0),), start))
     return out
 
 
@@ -177,70 +144,6 @@ def _order(guesses: list, n_pairs: int) -> list:
     return [g for row in zip(*blocks) for g in row] + rest
 
 
-def guess_from_shape(problem, shape: ShapeGuess, coordinates: tuple) -> InitialGuess:
-    """The state guess (nz × (N+1)) of one candidate; zero controls."""
-    if shape.label == FITTED.label:
-        from .fitted import fitted_guess
-        return fitted_guess(problem, coordinates, [_ends(problem, c)[0] for c in coordinates])
-    if shape.rates:
-        return _rollout(problem, shape, coordinates)
-    t = problem.grid()
-    T = float(problem.horizon)
-    w = 2 * math.pi / T
-    n = len(coordinates)
-    q, qdot = np.zeros((n, t.size)), np.zeros((n, t.size))
-    for i, name in enumerate(coordinates):
-        a, b = _ends(problem, name)
-        q[i] = a + (b - a) * t / T
-        qdot[i] = (b - a) / T
-    for name, amp, k, phase in shape.waves:
-        i = coordinates.index(name)
-        q[i] += amp * np.sin(k * w * t + phase)
-        qdot[i] += amp * k * w * np.cos(k * w * t + phase)
-    state = problem.model.numeric["state"]
-    Z = np.column_stack([np.asarray(state(q[:, j], qdot[:, j], problem.params)).ravel() for j in range(t.size)])
-    return InitialGuess(Z, np.zeros((problem.n_controls, problem.intervals)), horizon=T, label=shape.label)
-
-
-def _rollout(problem, shape: ShapeGuess, coordinates: tuple) -> InitialGuess:
-    """Integrate q̇ = q̇(q, y) (RK4, 4 steps per interval) with y(t) from the waves and rates."""
-    model = problem.model
-    n, names = len(coordinates), tuple(model.state_names)
-    T, N = float(problem.horizon), problem.intervals
-    w = 2 * math.pi / T
-    qdot = model.numeric["qdot"]
-
-    def y_of(t):
-        y = np.zeros(len(names) - n)
-        for name, amp, k, phase in shape.waves:
-            rate = f"{name}_dot"
-            if rate in names:
-                y[names.index(rate) - n] += amp * k * w * math.cos(k * w * t + phase)
-        for name, mean, amp, k, phase in shape.rates:
-            y[names.index(name) - n] += mean + amp * math.sin(k * w * t + phase)
-        return y
-
-    def f(t, q):
-        return np.asarray(qdot(np.concatenate([q, y_of(t)]), problem.params)).ravel()
-
-    q = np.array([_ends(problem, c)[0] for c in coordinates])
-    for name, amp, k, phase in shape.waves:
-        q[coordinates.index(name)] += amp * math.sin(phase)
-    h = T / N / 4
-    Z = np.zeros((len(names), N + 1))
-    Z[:, 0] = np.concatenate([q, y_of(0.0)])
-    t = 0.0
-    for j in range(N):
-        for _ in range(4):
-            k1 = f(t, q)
-            k2 = f(t + h / 2, q + h / 2 * k1)
-            k3 = f(t + h / 2, q + h / 2 * k2)
-            k4 = f(t + h, q + h * k3)
-            q, t = q + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4), t + h
-        Z[:, j + 1] = np.concatenate([q, y_of(t)])
-    return InitialGuess(Z, np.zeros((problem.n_controls, N)), horizon=T, label=shape.label)
-
-
 def _rate_states(model, shape: tuple) -> tuple:
     """Velocity states of a velocity-coordinate model that are not shape rates."""
     n = len(model.system.coordinates)
@@ -250,53 +153,173 @@ def _rate_states(model, shape: tuple) -> tuple:
     return tuple(v for v in model.state_names[n:] if v not in {f"{c}_dot" for c in shape})
 
 
-#: the fitted roll-out (:mod:`.fitted`), built by :func:`guess_from_shape` like the others
-FITTED = ShapeGuess("fitted roll-out", ())
+@dataclass(frozen=True)
+class Screened:
+    """What the screening did to one candidate before any solve: ``action`` "repaired" (tried as
+    ``repair`` says) or "skipped" (never solved), and the :class:`~.screening.Check` of the
+    candidate as generated (where it met the singular set or a non-finite ż)."""
+
+    label: str
+    action: str
+    check: Check
+    repair: str = ""
+
+
+def screened_dict(record: Screened) -> dict:
+    """A :class:`Screened` record as plain data (solution.json)."""
+    c = record.check
+    return {"label": record.label, "action": record.action, "repair": record.repair, "what": c.what,
+            "t": c.t, "configuration": dict(zip(c.coordinates, c.q)), "measure": c.measure}
 
 
 class Candidates(Sequence):
-    """The planner's initial guesses in order of preference, each built when first used (a
-    rollout integrates the kinematics, so building all of them up front would delay the
-    first solve); ``with_first(guess)`` puts a ready guess (a warm start) in front."""
+    """The planner's initial guesses in order of preference, each built and screened when first
+    used (a rollout integrates the kinematics, so building all of them up front would delay the
+    first solve); ``with_first(guess)`` puts a ready guess (a warm start) in front.
 
-    def __init__(self, problem, shapes, coordinates, first=()):
+    Every candidate is checked along its whole length (:class:`~.screening.Screen`) before it is
+    handed out; one that meets the singular set or a non-finite ż is repaired
+    (:func:`~.waves.repairs`) or, when no repair avoids it, skipped: item i is the i-th
+    candidate that passed. ``len()`` counts the candidates not known to be skipped (it shrinks
+    as skips are found); ``screened`` lists what was repaired or skipped, ``screen_seconds`` the
+    time the checks and repairs took, ``first_skipped`` the first skipped guess (as generated).
+    ``start`` is where the coordinates free at t = 0 start in every candidate (off the singular
+    set; empty when their centres are regular)."""
+
+    def __init__(self, problem, shapes, coordinates, first=(), *, screen=None, start=(), progress=None,
+                 blocked=None):
+        from nhgait.dynamics.progress import Progress
         self._problem, self._shapes, self._coordinates = problem, tuple(shapes), tuple(coordinates)
         self._first = tuple(first)
-        self._built: dict = {}
+        self._screen, self.start, self._blocked = screen, tuple(start), blocked
+        self._progress = progress or Progress.silent()
+        self._accepted: list = []
+        self._next = 0
+        self.screened: list = []
+        self.screen_seconds = 0.0
+        self.first_skipped = None
 
     def __len__(self) -> int:
-        return len(self._first) + len(self._shapes)
+        return len(self._accepted) + len(self._first) + len(self._shapes) - self._next
 
     def __getitem__(self, index):
         if isinstance(index, slice):
             return [self[i] for i in range(*index.indices(len(self)))]
         i = index + len(self) if index < 0 else index
-        if not 0 <= i < len(self):
+        while i >= len(self._accepted) and self._advance():
+            i = index + len(self) if index < 0 else index
+        if not 0 <= i < len(self._accepted):
             raise IndexError(index)
-        if i < len(self._first):
-            return self._first[i]
-        j = i - len(self._first)
-        if j not in self._built:
-            self._built[j] = guess_from_shape(self._problem, self._shapes[j], self._coordinates)
-        return self._built[j]
+        return self._accepted[i]
+
+    def _advance(self) -> bool:
+        """Build and screen the next candidate; False when none is left."""
+        if self._next >= len(self._first) + len(self._shapes):
+            return False
+        j, self._next = self._next, self._next + 1
+        if self._blocked is not None and j >= len(self._first):
+            label = self._shapes[j - len(self._first)].label
+            self.screened.append(Screened(label, "skipped", self._blocked))
+            if j == len(self._first):
+                names = tuple(getattr(self._problem.model, "shape", ())) or None
+                self._progress.note(f"  every candidate skipped, not solved: {self._blocked.reason(names)}, where "
+                                    "every guess starts or ends (fixed by the task)")
+            return True
+        if j < len(self._first):
+            shape, guess = None, self._first[j]
+        else:
+            shape = self._shapes[j - len(self._first)]
+            guess = guess_from_shape(self._problem, shape, self._coordinates)
+        if self._screen is None:
+            self._accepted.append(guess)
+            return True
+        t0 = time.perf_counter()
+        accepted = self._screened(guess, shape)
+        self.screen_seconds += time.perf_counter() - t0
+        if accepted is not None:
+            self._accepted.append(accepted)
+        return True
+
+    def _screened(self, guess, shape):
+        """``guess`` when it passes, else its first repair that passes, else None (recorded)."""
+        check = self._screen.check(guess)
+        if check.ok:
+            return guess
+        names = tuple(getattr(self._problem.model, "shape", ())) or None
+        free = free_start(self._problem, self._coordinates)
+        tried = 0
+        for variant, what in (repairs(self._problem, shape, free) if shape is not None else ()):
+            tried += 1
+            repaired = guess_from_shape(self._problem, variant, self._coordinates)
+            if self._screen.check(repaired).ok:
+                self.screened.append(Screened(guess.label, "repaired", check, what))
+                self._progress.note(f"  guess {guess.label!r}: {check.reason(names)}; repaired ({what})")
+                return repaired
+        self.screened.append(Screened(guess.label, "skipped", check))
+        self.first_skipped = self.first_skipped or guess
+        self._progress.note(f"  guess {guess.label!r} skipped, not solved: {check.reason(names)}"
+                            + (f"; none of {tried} repairs (phase, centre, amplitude) avoids it" if tried else ""))
+        return None
+
+    def check(self, guess):
+        """The :class:`~.screening.Check` of any guess or solution on this problem's grid (None
+        when the candidates are not screened)."""
+        return None if self._screen is None else self._screen.check(guess)
 
     def with_first(self, guess) -> "Candidates":
-        return Candidates(self._problem, self._shapes, self._coordinates, (guess, *self._first))
+        return Candidates(self._problem, self._shapes, self._coordinates, (guess, *self._first),
+                          screen=self._screen, start=self.start, progress=self._progress, blocked=self._blocked)
 
 
-def candidates(problem, *, shape=None) -> Candidates:
+def candidates(problem, *, shape=None, screen=True, progress=None) -> Candidates:
     """Initial guesses for ``problem`` in order of preference (see the module docstring),
-    built lazily. ``shape`` defaults to the model's shape variables (``problem.model.shape``).
-    """
+    built and screened lazily (:class:`Candidates`). ``shape`` defaults to the model's shape
+    variables (``problem.model.shape``); ``screen`` False hands them out unchecked; ``progress``
+    hears about repaired and skipped candidates and a moved start."""
     model = problem.model
     coords = tuple(model.system.coordinates)
     shape = tuple(shape if shape is not None else getattr(model, "shape", ()))
+    checks = Screen(problem) if screen else None
+    start, moved = _regular_start(problem, checks, coords, shape, progress) if checks is not None else ((), None)
     n_pairs = len(shape) * (len(shape) - 1) // 2
-    loops = _order(shape_guesses(problem, shape), n_pairs)
-    rollouts = rollout_guesses(problem, shape, _rate_states(model, shape))
+    loops = _order(shape_guesses(problem, shape, start), n_pairs)
+    rollouts = rollout_guesses(problem, shape, _rate_states(model, shape), start)
     from .fitted import applies, leads
     ordered = _interleave(loops[:-1], rollouts) + loops[-1:]
     if applies(problem):
         at = 0 if leads(problem, shape) else 1
-        ordered = ordered[:at] + [FITTED] + ordered[at:]
-    return Candidates(problem, ordered, coords)
+        ordered = ordered[:at] + [ShapeGuess(FITTED_LABEL, (), start=start)] + ordered[at:]
+    out = Candidates(problem, ordered, coords, screen=checks, start=start, progress=progress,
+                     blocked=_blocked_end(problem, checks, coords, start) if checks is not None else None)
+    if moved is not None:
+        out.screened.append(moved)
+    return out
+
+
+def _blocked_end(problem, checks, coords, start):
+    """The :class:`~.screening.Check` of an end configuration every candidate shares (the start,
+    or the end of the ramps) when it lies on the singular set — no repair can move it — else None."""
+    T = float(problem.horizon)
+    for j, t in ((0, 0.0), (1, T)):
+        q = np.array([ends(problem, c, start)[j] for c in coords])
+        m = float(checks.measure(q[:, None])[0])
+        if m < RATIO:
+            return Check(False, "singular", t, tuple(float(v) for v in q), coords, m)
+    return None
+
+
+def _regular_start(problem, checks, coords, shape, progress) -> tuple:
+    """(start, record): start values, off the singular set, for the shape coordinates free at
+    t = 0 whose centres (:func:`~.waves.centre`) are on it — ((name, value), ...), empty when
+    the centres are regular — and the :class:`Screened` record of the move (or None)."""
+    free = {c: r for c, r in free_start(problem, coords).items() if c in shape}
+    q0 = np.array([ends(problem, c)[0] for c in coords])
+    moved = checks.regular_start(q0, free)
+    if not moved:
+        return (), None
+    was = ", ".join(f"{c} = {q0[coords.index(c)]:.3g}" for c in moved)
+    now = ", ".join(f"{c} = {v:.3g}" for c, v in moved.items())
+    if progress is not None:
+        progress.note(f"  the free start {was} is on the singular set of the equations: every guess starts at {now}")
+    at = Check(False, "singular", 0.0, tuple(float(v) for v in q0), coords, float(checks.measure(q0[:, None])[0]))
+    return tuple(moved.items()), Screened("free start", "moved", at, now)

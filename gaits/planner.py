@@ -52,8 +52,8 @@ import numpy as np
 
 from .search import Attempt, Search, continuation, solve_from_guesses, solve_with_fallbacks  # noqa: F401
 
-__all__ = ["plan", "PlanResult", "prepare", "Prepared", "state_problem", "to_momentum_coordinates", "known_names",
-           "warm_start", "read_solution", "summary_lines"]
+__all__ = ["plan", "PlanResult", "prepare", "Prepared", "state_problem", "to_momentum_coordinates", "verified_gait",
+           "unsolved", "known_names", "warm_start", "read_solution", "summary_lines"]
 
 
 def solver_order(solver: str, transcription=None, problem=None) -> tuple:
@@ -111,6 +111,7 @@ class PlanResult:
     diagnosis: tuple = ()
     overrun: Any = None
     unwritten: str = ""
+    screening: tuple = ()
 
     def __repr__(self) -> str:
         from nhgait.dynamics.reprs import plan_repr
@@ -355,13 +356,15 @@ def plan_budget(to_plan, time_limit=None, *, started=None, progress=None):
 class _Reached:
     """How far a plan got (kept when its budget runs out): the prepared model and problem, the
     guesses' search, the solution in momentum coordinates (verified when ``verified``), the
-    seconds per step and, when the budget ran out, where."""
+    seconds per step, what the screening of the guesses found (``screening``) and, when the
+    budget ran out, where."""
 
     prepared: Any = None
     search: Any = None
     solution: Any = None
     timings: dict = field(default_factory=dict)
     overrun: Any = None
+    screening: tuple = ()
 
 
 def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, verify, progress) -> None:
@@ -380,20 +383,23 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
     if problem.intervals > LARGE_INTERVALS:
         progress.note(large_request_note(problem))
     with budget.stage("the initial guesses"):
-        guesses = candidates(problem)
+        guesses = candidates(problem, progress=progress)
         if guess is not None:
             guesses = guesses.with_first(warm_start(guess, problem))
     t0 = time.perf_counter()
     try:
         _search(problem, guesses, settings, progress, budget, reached)
-    finally:                       # a spent budget still reports where the time went
+    finally:                       # a spent budget still reports where the time went and what was screened
         reached.timings["solve_s"] = time.perf_counter() - t0 - reached.timings.get("setup_s", 0.0)
+        if reached.search is not None:
+            reached.search, reached.screening = screening_report(guesses, reached.search, problem)
     search = reached.search
     reached.solution = _in_momentum(search, reached.prepared, to_plan, params)
     if verify and search.solution is not None:
         t0 = time.perf_counter()
         with budget.stage("verification"):
-            reached.solution = _verified(reached.solution, to_plan, progress)
+            reached.solution = verified_gait(search.solution, reached.prepared.model, reached.prepared.stated,
+                                             to_plan, params, progress=progress)
         reached.timings["verify_s"] = time.perf_counter() - t0
 
 
@@ -415,7 +421,8 @@ def _result(to_plan, reached: _Reached, settings, params) -> PlanResult:
     return PlanResult(to_plan.label, task, solution, (search.won if search is not None else None) or "none",
                       search.attempts if search is not None else (), (), dict(reached.timings), to_plan,
                       prepared.model if prepared is not None else None,
-                      prepared.conditions if prepared is not None else None, overrun=reached.overrun)
+                      prepared.conditions if prepared is not None else None, overrun=reached.overrun,
+                      screening=reached.screening)
 
 
 @dataclass(frozen=True)
@@ -463,16 +470,63 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
 
 
 def _in_momentum(search, prepared, to_plan, params):
-    """The winning solution, else the closest failure, in momentum coordinates (None: no attempt)."""
+    """The winning solution, else the closest failure, in momentum coordinates of the derived
+    model (None: no attempt): :func:`verified_gait` without the verification."""
     solution = search.solution if search.solution is not None else search.closest
     if solution is None:
         return None
-    momentum = momentum_problem(prepared.model, prepared.stated, to_plan, params)
-    return to_momentum_coordinates(solution, momentum)
+    return verified_gait(solution, prepared.model, prepared.stated, to_plan, params, verify=False)
 
 
-def _verified(solution, to_plan, progress):
-    """``solution`` verified by the independent re-simulation (step 5)."""
+def screening_report(guesses, search, problem) -> tuple:
+    """(search, report): what the screening of ``guesses`` repaired or skipped and where the
+    solution (or, when no guess converged, the closest point) met the singular set
+    (:class:`~nhgait.gaits.guesses.Screened`); a search in which every candidate was skipped
+    (none left in ``guesses``) gets a closest point that says so (:func:`unsolved`)."""
+    from .guesses import Screened
+    report = tuple(getattr(guesses, "screened", ()))
+    if search.solution is None and search.closest is None and not len(guesses):
+        search = replace(search, closest=unsolved(problem, getattr(guesses, "first_skipped", None)))
+    check = getattr(guesses, "check", None)
+    point = search.solution if search.solution is not None else (search.closest if search.attempts else None)
+    verdict = check(point) if check is not None and point is not None else None
+    if verdict is not None and not verdict.ok:
+        which = "solution" if search.solution is not None else "closest point"
+        report += (Screened(f"{which} ({search.won or point.settings.get('guess', '?')})", "reached", verdict),)
+    return search, report
+
+
+def unsolved(problem, guess=None):
+    """A failed :class:`~nhgait.ocp.Solution` for a search that solved nothing (every candidate
+    skipped by its screening): status ``Not_Solved``, the states of ``guess`` (zeros without one)."""
+    from nhgait.ocp import Solution
+    t = problem.grid()
+    states = np.asarray(guess.states, float) if guess is not None else np.zeros((len(problem.state_names), t.size))
+    return Solution(False, "Not_Solved", "every candidate met the singular set of the equations and was skipped",
+                    0, float("nan"), t, states, np.zeros((problem.n_controls, problem.intervals)),
+                    tuple(problem.state_names), tuple(problem.control_names), float(problem.horizon),
+                    0.0, 0.0, 0.0, 0.0, problem=problem,
+                    settings={"guess": getattr(guess, "label", "none"), "intervals": problem.intervals,
+                              "transcription": "none", "solver": "none (no candidate solved)"})
+
+
+def verified_gait(solution, model, stated, to_plan, params, *, verify=True, progress=None):
+    """``solution`` (velocity coordinates) in the momentum coordinates of a chart of ``model``
+    regular along it (:func:`~nhgait.gaits.charts.verification_chart`; a failed solution in
+    ``model``'s own) and, with ``verify``, verified there to the task's tolerance; when no
+    chart is regular along the gait, in x = (q, q̇) on the Euler–Lagrange equations
+    (:func:`~nhgait.gaits.charts.lagrange_ode`)."""
+    from nhgait.dynamics.progress import Progress
+    from .charts import lagrange_ode, verification_chart
+    progress = progress or Progress.silent()
+    n = len(model.system.coordinates)
+    if verify and solution.success:
+        model, regular = verification_chart(to_plan.scene.system, model, solution.states[:n], params, progress)
+        if not regular:
+            model = lagrange_ode(to_plan.scene.system)
+    solution = to_momentum_coordinates(solution, momentum_problem(model, stated, to_plan, params))
+    if not verify:
+        return solution
     with progress.phase("verify: re-simulate the optimal inputs on the general model (DOP853, rtol 1e-10)"):
         solution = solution.verified(tolerance=to_plan.task.verify_tolerance)
     v = solution.verification
@@ -487,18 +541,24 @@ def momentum_problem(model, problem, to_plan, params):
 
 
 def to_momentum_coordinates(solution, momentum):
-    """A velocity-coordinate solution re-expressed on the problem ``momentum`` (z = (q, P)).
+    """A solution re-expressed on the problem ``momentum`` (z = (q, P), a chart of the derived model).
 
-    The statement is the same (tasks are coordinate-free); only the states change. Any
-    verification is dropped: verify the returned solution in momentum coordinates.
+    The statement is the same (tasks are coordinate-free); only the states change: q̇ from the
+    solution's model (``qdot``; regular along the gait in the planner's velocity coordinates),
+    then P = XᵀM(q)q̇ of the momentum model's chart (its ``state`` map), so the result does not
+    go through the chart of the model the solution was stated on. Any verification is dropped:
+    verify the returned solution in momentum coordinates.
     """
     model = solution.problem.model
-    if "momentum_state" not in model.numeric.functions:
+    same_chart = tuple(model.fiber) == tuple(getattr(momentum.model, "fiber", ()))
+    if "momentum_state" not in model.numeric.functions and same_chart:
         return replace(solution, problem=momentum, verification=None)
-    to_p = model.numeric["momentum_state"]
-    params = solution.problem.params
-    states = np.column_stack([np.asarray(to_p(solution.states[:, k], params)).ravel()
-                              for k in range(solution.states.shape[1])])
+    n = len(model.system.coordinates)
+    state = momentum.model.numeric["state"]
+    K = solution.states.shape[1]
+    with np.errstate(all="ignore"):
+        states = np.asarray(state.map(K)(solution.states[:n], solution.velocities(),
+                                         momentum.model.numeric.params(momentum.params)))
     settings = {**solution.settings, "transcribed_in": list(solution.state_names)}
     return replace(solution, states=states, state_names=momentum.state_names,
                    problem=momentum, verification=None, settings=settings)
@@ -522,10 +582,13 @@ def written(result: PlanResult, out: Path, *, animate: bool = True, progress=Non
 
 
 def _solution_extra(result: PlanResult) -> dict:
-    """What solution.json holds beyond the Solution: the task, the guess, success, diagnosis."""
+    """What solution.json holds beyond the Solution: the task, the guess (tried, screened),
+    success, diagnosis."""
+    from .guesses import screened_dict
     return {"task": result.task.to_dict(), "system": result.label, "success": result.success,
             "diagnosis": list(result.diagnosis),
-            "guess": {"won": result.guess, "tried": [a.__dict__ for a in result.attempts]}}
+            "guess": {"won": result.guess, "tried": [a.__dict__ for a in result.attempts],
+                      "screened": [screened_dict(x) for x in result.screening]}}
 
 
 def write_outputs(result: PlanResult, out: Path, *, animate: bool = True, progress=None) -> list:
@@ -594,6 +657,13 @@ def summary_lines(result: PlanResult) -> list:
         lines.append(f"  symmetry           {symmetry.chosen.group} moves the fibre ({', '.join(result.model.fiber)}); "
                      f"the guesses loop the shape ({', '.join(result.model.shape)}); why, and the other choices "
                      "(fiber = [...] in [system]): nhgait derive")
+    checked = getattr(s.problem, "model", None)
+    if symmetry is not None and checked is not None and not hasattr(checked, "fiber"):
+        lines.append(f"  verified in        x = (q, q̇) on the Euler–Lagrange equations: the gait crosses the singular "
+                     "set of every chart of the reduction tried")
+    elif symmetry is not None and checked is not None and tuple(checked.fiber) != tuple(result.model.fiber):
+        lines.append(f"  verified in        the chart with fiber ({', '.join(checked.fiber)}): the gait crosses the "
+                     f"singular set of fiber ({', '.join(result.model.fiber)}), where its momenta are not defined")
     return lines + _closing_lines(result)
 
 

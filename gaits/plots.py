@@ -315,6 +315,9 @@ def plot_momentum(solution, ctx: FigureContext, axes=None):
         if name.startswith("pt_"):
             ax.set_ylabel(f"{label(name)} [{unit(ctx, name)}]")
             ax.set_title(f"{label(name)}: shape momentum conjugate to {label(name[3:])}", fontsize="small")
+        elif name.endswith("_dot") and name[:-4] in ctx.system.coordinates:     # a gait verified in (q, q̇)
+            ax.set_ylabel(f"{label(name)}")
+            ax.set_title(f"{label(name)}: generalised velocity", fontsize="small")
         else:
             u = _basis_momentum_unit(ctx, names.index(name))
             ax.set_ylabel(f"{label(name)} [{u}]" if u else f"{label(name)} [unit of XᵀMq̇]")

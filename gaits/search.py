@@ -118,15 +118,27 @@ def _spent(budget) -> bool:
     return budget is not None and budget.spent()
 
 
+def _take(guesses, indices) -> list:
+    """The guesses at ``indices``, fewer when the sequence runs out first (screened candidates
+    skip the ones that cannot be repaired, so their length is known only once they are built)."""
+    out = []
+    for i in indices:
+        try:
+            out.append(guesses[i])
+        except IndexError:
+            break
+    return out
+
+
 def _built(guesses, indices, budget) -> list | None:
-    """The guesses at ``indices`` (built now when lazy: a roll-out integrates the model), or
-    None when ``budget`` is spent before or while they are built."""
+    """The guesses at ``indices`` (:func:`_take`; built now when lazy: a roll-out integrates the
+    model), or None when ``budget`` is spent before or while they are built."""
     if budget is None:
-        return [guesses[i] for i in indices]
+        return _take(guesses, indices)
     from nhgait.ocp.budget import BudgetSpent
     try:
         with budget.stage("the initial guesses"):
-            return [guesses[i] for i in indices]
+            return _take(guesses, indices)
     except BudgetSpent:
         return None
 
@@ -145,7 +157,7 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
     attempts, closest = [], None
     for start in range(0, total, workers):
         batch = _built(guesses, range(start, min(start + workers, total)), budget)
-        if batch is None:
+        if not batch:
             break
         sols = solve_attempts(solver, batch, workers=workers, budget=budget, progress=progress)
         for k, (g, s) in enumerate(zip(batch, sols)):
@@ -163,13 +175,15 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
 def solve_with_fallbacks(solver, guesses, *, workers: int = 1, limit: int | None = None, progress=None,
                          budget=None) -> Search:
     """The guesses in order (:func:`solve_from_guesses`), then :func:`continuation` from the
-    first one (not once ``budget`` is spent)."""
+    first one (for screened candidates, the first that passed its screening: a regular guess;
+    not once ``budget`` is spent)."""
     search = solve_from_guesses(solver, guesses, workers=workers, limit=limit, progress=progress, budget=budget)
-    if search.solution is None and len(guesses) and not _spent(budget):
+    first = None if search.solution is not None or _spent(budget) else _built(guesses, range(1), budget)
+    if first:
         if progress is not None:
-            progress.note(f"  no guess converged: continuation from {guesses[0].label!r} (the task's end values "
+            progress.note(f"  no guess converged: continuation from {first[0].label!r} (the task's end values "
                           "approached in 4 steps)")
-        search = search.then(continuation(solver, guesses[0], progress=progress, budget=budget))
+        search = search.then(continuation(solver, first[0], progress=progress, budget=budget))
     return search
 
 

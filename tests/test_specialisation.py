@@ -86,9 +86,10 @@ class _Implicit:
 
 def test_implicit_models_bind_numerically(models):
     """The snakeboard is SE(2)-invariant (forces included): the numeric route evaluates at the
-    group identity and rotates ṡ back; in velocity coordinates Maggi's form (AD of L with a
-    basis of ker ω) is cheaper still. Both reproduce the general model / its exact normal form,
-    and each is cheaper than the 20 steps' graph with the values bound."""
+    group identity and rotates ṡ back; in velocity coordinates Maggi's form (AD of L with the
+    basis of ker ω dual to the velocity states) is cheaper still. Both reproduce the general
+    model / its exact normal form, and each is cheaper than the 20 steps' graph with the values
+    bound."""
     model = models["snakeboard"]["reduced"]
     implicit = _Implicit(model)
     plain = specialise(implicit, use_cache=False)
@@ -97,7 +98,7 @@ def test_implicit_models_bind_numerically(models):
     assert plain.numeric["rhs"].n_instructions() < model.numeric["rhs"].n_instructions()
     fast = specialise(implicit, velocities=SNAKEBOARD_V, use_cache=False)
     symbolic = specialise(model, velocities=SNAKEBOARD_V, use_cache=False)
-    assert fast.route == "Maggi at the group identity"
+    assert fast.route == "Maggi in the velocity basis at the group identity"
     _agree(fast, symbolic, 8, 2, model.numeric.params(), rtol=1e-10)
 
 

@@ -11,7 +11,7 @@ its solver itself, the derivation coming from the content-hash cache
 Everything that knows the planner's API is in :func:`describe_case` (driver side: the scene
 and base task as data) and :func:`_plan_point` (worker side: one point, warm or cold). The
 worker uses the planner's building blocks (``prepare``, ``warm_start``, the guesses,
-``solve_from_guesses``, ``continuation``, ``to_momentum_coordinates``, ``Solution.verified``)
+``solve_from_guesses``, ``continuation``, ``verified_gait``)
 rather than ``plan(guess=...)`` itself, to keep one built solver per structure across points
 and to build the cold candidates only when a warm start fails.
 """
@@ -343,7 +343,7 @@ def _plan_point(job: PointJob) -> dict:
 
 def _solve_within(job: PointJob, budget, reached: dict) -> dict:
     from ..guesses import candidates
-    from ..planner import momentum_problem, to_momentum_coordinates, warm_start
+    from ..planner import unsolved, verified_gait, warm_start
     from ..search import solve_attempts, solve_with_fallbacks
     solution = None
     if job.warm is not None:
@@ -357,13 +357,15 @@ def _solve_within(job: PointJob, budget, reached: dict) -> dict:
         with budget.stage("the derivation and the NLP set-up"):
             model, (stated, problem), solver, resolved = _solver_for(job)
         with budget.stage("the solves", interrupt=False):
-            search = solve_with_fallbacks(solver, candidates(problem), budget=budget)
+            guesses = candidates(problem)
+            search = solve_with_fallbacks(solver, guesses, budget=budget)
             reached["spent"] += sum(a.iterations for a in search.attempts)
             solution = search.solution if search.solution is not None else search.closest
             reached["closest"] = solution if solution is not None else reached.get("closest")
-    momentum = momentum_problem(model, stated, resolved, job.params)
+        if solution is None:           # every candidate skipped by its screening
+            solution = unsolved(problem, guesses.first_skipped)
     with budget.stage("verification"):
-        solution = to_momentum_coordinates(solution, momentum).verified(tolerance=resolved.task.verify_tolerance)
+        solution = verified_gait(solution, model, stated, resolved, job.params)
     out = _outcome(solution, reached["start"])
     return {**out, "warm": warm_data(out["solution"]) if out["success"] else None,
             "total_iterations": reached["spent"]}
