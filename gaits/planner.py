@@ -170,9 +170,11 @@ def state_problem(task, specialised, scene, *, params=None, name: str = ""):
 
 
 def _check_full_states(task, model, params) -> None:
-    """A full (q, q̇) at an end must satisfy the constraints (:func:`nhgait.dynamics.derivation.states.to_state`)."""
+    """A full (q, q̇) at an end must satisfy the constraints
+    (:func:`nhgait.dynamics.derivation.states.check_physical_state`; a posture on the singular
+    set of the reduction's chart is allowed: the velocity states may be regular there)."""
     from nhgait.dynamics.errors import ModelError
-    from nhgait.dynamics.derivation.states import to_state
+    from nhgait.dynamics.derivation.states import check_physical_state
     from nhgait.ocp import ProblemError
     coords = tuple(model.system.coordinates)
     problems = []
@@ -181,7 +183,7 @@ def _check_full_states(task, model, params) -> None:
         values = {k: v for k, v in mapping.items() if not isinstance(v, tuple)}
         if all(c in values and f"{c}_dot" in values for c in coords):
             try:
-                to_state(model, [values[c] for c in coords], [values[f"{c}_dot"] for c in coords], params)
+                check_physical_state(model, [values[c] for c in coords], [values[f"{c}_dot"] for c in coords], params)
             except ModelError as exc:
                 problems += [f"[task].{where}: {p}" for p in exc.problems]
     if problems:

@@ -154,11 +154,30 @@ class Budget:
         previous = _arm(self, self.remaining()) if armed else None
         try:
             yield self
+        except Exception as exc:       # the alarm raised inside a C extension comes back wrapped
+            spent = _spent_within(exc)
+            if spent is None:
+                raise
+            raise spent from None
         finally:
             if armed:
                 _disarm(previous)
             self.phase = outer
         self.check(phase)
+
+
+def _spent_within(exc: BaseException) -> "BudgetSpent | None":
+    """The :class:`BudgetSpent` that ``exc`` wraps, if any: the alarm's exception raised while a
+    C extension was running comes back as that extension's error with BudgetSpent as its cause
+    or context (CasADi's ``DM.__array__``: "SystemError: … returned a result with an exception
+    set")."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, BudgetSpent):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
 
 
 def _can_alarm() -> bool:

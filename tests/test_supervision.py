@@ -199,6 +199,25 @@ def test_a_stage_is_interrupted_at_its_deadline_and_the_alarm_put_back():
         signal.signal(signal.SIGALRM, before)
 
 
+def test_the_alarm_inside_a_c_extension_is_still_the_budget():
+    """The alarm's BudgetSpent raised while a C extension runs (CasADi converting a DM during the
+    verification's integration) comes back as that extension's SystemError "returned a result
+    with an exception set", BudgetSpent its cause: the stage gives back the BudgetSpent (a plan
+    once exited 3, an internal error, instead of failing on its budget)."""
+    budget = Budget(0.2, "test")
+    with pytest.raises(BudgetSpent) as spent:
+        with budget.stage("verification"):
+            while True:
+                try:
+                    sum(range(100))
+                except BudgetSpent as exc:
+                    raise SystemError("<function DM.__array__> returned a result with an exception set") from exc
+    assert spent.value.overrun.phase == "verification"
+    with pytest.raises(SystemError):                 # any other error passes through unchanged
+        with Budget(10.0, "test").stage("verification"):
+            raise SystemError("not the budget")
+
+
 def test_a_budget_limits_attempts_to_the_time_left():
     budget = Budget(100.0, "test", started=time.monotonic() - 60.0)
     assert 39.0 < budget.limit(1000.0) <= 40.0

@@ -131,8 +131,23 @@ def to_state(model, q, qdot, params=None, *, tol: float = CONSTRAINT_TOL) -> np.
     Raises :class:`ModelError` if (q, q̇) violates the constraints or has the wrong size, and
     :class:`SingularConfigurationError` if q is on the reduction's singular set.
     """
-    system = model.system
     q = np.asarray(q, dtype=float).ravel()
+    x, measure = _checked(model, q, qdot, params, tol)
+    _check_measure(model, q, measure)
+    return x
+
+
+def check_physical_state(model, q, qdot, params=None, *, tol: float = CONSTRAINT_TOL) -> None:
+    """Raise :class:`ModelError` if (q, q̇) has the wrong size or violates the constraints
+    (holonomic, ω(q)q̇ = 0) — what :func:`to_state` checks, without the reduction's chart: a
+    posture on the chart's singular set is a valid physical state (a planner in velocity
+    coordinates regular there can start from it)."""
+    _checked(model, np.asarray(q, dtype=float).ravel(), qdot, params, tol)
+
+
+def _checked(model, q, qdot, params, tol) -> tuple:
+    """(x, measure) after the checks of :func:`check_physical_state`."""
+    system = model.system
     qdot = np.asarray(qdot, dtype=float).ravel()
     problems = []
     if q.size != system.n:
@@ -148,7 +163,6 @@ def to_state(model, q, qdot, params=None, *, tol: float = CONSTRAINT_TOL) -> np.
         _check_holonomic(system, q, params, tol)
     with np.errstate(all="ignore"):
         x, measure, res = _evaluate(model, q, qdot, params)
-    _check_measure(model, q, measure)
     if system.k:
         limit = tol * max(1.0, math.hypot(*values[system.n:]))
         residuals = res.tolist()
@@ -159,7 +173,7 @@ def to_state(model, q, qdot, params=None, *, tol: float = CONSTRAINT_TOL) -> np.
                              + [f"constraint {i + 1} ({expr} = 0): residual {r:.6g} at this configuration"
                                 for i, (expr, r) in enumerate(zip(system.constraint_exprs, residuals)) if abs(r) > limit],
                              title="inconsistent state")
-    return x
+    return x, measure
 
 
 def _check_holonomic(system, q, params, tol) -> None:
