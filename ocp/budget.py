@@ -10,8 +10,9 @@ A :class:`Budget` starts when it is made and runs out ``seconds`` later (None: n
 
 * **Stages interrupt.** Inside ``stage(name)`` a spent budget raises :class:`BudgetSpent`
   wherever the main thread is — in sympy, in the compiler's wait (which kills the compiler and
-  removes its files), in the verification's integrator: a one-shot ``SIGALRM`` timer armed
-  at the deadline (the previous handler and timer restored on leaving; only in the main
+  removes its files), in the verification's integrator: a ``SIGALRM`` timer armed
+  at the deadline, repeated every second until the stage is left (a swallowed exception does
+  not end the budget; the previous handler and timer restored on leaving; only in the main
   thread — elsewhere the stage checks at its start and end). ``stage(name, interrupt=False)``
   only names the phase: the solver attempts are bounded by their supervisor
   (:mod:`.supervision`), which kills a child at ``limit`` and never needs an interrupt.
@@ -56,6 +57,9 @@ ATTEMPT_CAP_S = 300.0
 #: after an attempt's limit, the seconds its solver has to stop itself and answer (Ipopt's
 #: ``max_wall_time``) before the supervisor kills it
 KILL_GRACE_S = 2.0
+#: a stage's alarm repeats this often (seconds) after its deadline until the stage is left: an
+#: exception raised by the handler can be swallowed on its way up (:func:`_arm`)
+REPEAT_S = 1.0
 
 
 def default_plan_seconds(n_coordinates: int) -> float:
@@ -185,12 +189,15 @@ def _can_alarm() -> bool:
 
 
 def _arm(budget: Budget, seconds: float) -> tuple:
-    """Raise BudgetSpent in the main thread after ``seconds``: (previous handler, previous
-    timer (delay, interval), the time armed) for :func:`_disarm`."""
+    """Raise BudgetSpent in the main thread after ``seconds``, and again every
+    :data:`REPEAT_S` until disarmed — an exception raised by a signal handler can be lost
+    (inside CasADi's SWIG argument conversion, which clears the error and tries the next
+    overload: a plan's verification once ran on for minutes past its one-shot alarm). Returns
+    (previous handler, previous timer (delay, interval), the time armed) for :func:`_disarm`."""
     def ran_out(signum, frame):
         raise BudgetSpent(budget.overrun())
     handler = signal.signal(signal.SIGALRM, ran_out)
-    timer = signal.setitimer(signal.ITIMER_REAL, max(seconds, 1e-3))
+    timer = signal.setitimer(signal.ITIMER_REAL, max(seconds, 1e-3), REPEAT_S)
     return handler, timer, time.monotonic()
 
 
