@@ -98,7 +98,7 @@ def _not_verified(result) -> list:
     lines += [f"  {x}" for x in v.failures()[:8]]
     sat, saturated = _saturation_line(s)
     N = result.task.intervals
-    dropped = _dropped_and_missed(result, v)
+    dropped = _dropped_and_missed(result, v) if v.max_error <= v.tolerance else []   # nodes met, a condition not
     if dropped:
         lines.append(f"likely cause: {', '.join(dropped)} missed: the planner dropped "
                      f"{'them' if len(dropped) > 1 else 'it'} as implied by the task's other conditions, which "
@@ -117,7 +117,9 @@ def _not_verified(result) -> list:
         lines.append(f"likely cause: bang-bang inputs — {sat}; a switch inside an interval is not resolved by "
                      f"piecewise-constant inputs: increase intervals (now {N}, e.g. --set intervals={2 * N})")
     else:
-        lines.append(f"likely cause: the transcription's integration steps are too coarse for {v.tolerance:g}: "
+        steps = int(s.settings.get("rk4_steps", 4))
+        tried = f" (even refined to {steps} RK4 sub-steps per interval)" if steps > 4 else ""
+        lines.append(f"likely cause: the transcription's integration steps are too coarse for {v.tolerance:g}{tried}: "
                      f"increase intervals (now {N}, e.g. --set intervals={2 * N}), or set verify_tolerance to "
                      "the accuracy you need")
     return lines

@@ -374,6 +374,7 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
     from nhgait.ocp import ProblemError
     from .guesses import candidates
     from .reachability import unreachable_targets
+    from .refinement import refinable
     t0 = time.perf_counter()
     with budget.stage("derivation"):
         reached.prepared = prepare(to_plan, params=params, progress=progress)
@@ -399,10 +400,27 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
     reached.solution = _in_momentum(search, reached.prepared, to_plan, params)
     if verify and search.solution is not None:
         t0 = time.perf_counter()
-        with budget.stage("verification"):
-            reached.solution = verified_gait(search.solution, reached.prepared.model, reached.prepared.stated,
-                                             to_plan, params, progress=progress)
+
+        def verify_one(solution):
+            with budget.stage("verification"):
+                return verified_gait(solution, reached.prepared.model, reached.prepared.stated, to_plan, params,
+                                     progress=progress)
+        reached.solution = verify_one(search.solution)
+        if refinable(reached.solution):
+            _refined(reached, settings, budget, progress, verify_one)
         reached.timings["verify_s"] = time.perf_counter() - t0
+
+
+def _refined(reached: _Reached, settings, budget, progress, verify_one) -> None:
+    """The converged solution solved again with more RK4 sub-steps (:mod:`.refinement`), in
+    ``reached``: its search gets the refined solution (when one converged) and the attempts."""
+    from .refinement import refine
+    search = reached.search
+    solution, verified, attempts = refine(search.solution, reached.solution, settings, budget, progress, verify_one)
+    won = (search.won if solution is search.solution
+           else f"{search.won}, refined ({solution.settings['rk4_steps']} RK4 sub-steps)")
+    reached.search = replace(search, solution=solution, attempts=search.attempts + attempts, won=won)
+    reached.solution = verified
 
 
 def _result(to_plan, reached: _Reached, settings, params) -> PlanResult:

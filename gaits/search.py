@@ -24,7 +24,8 @@ import math
 from dataclasses import dataclass, replace
 from typing import Any
 
-__all__ = ["Attempt", "Search", "solve_attempts", "solve_from_guesses", "solve_with_fallbacks", "continuation"]
+__all__ = ["Attempt", "Search", "attempt_of", "solve_attempts", "solve_from_guesses", "solve_with_fallbacks",
+           "continuation"]
 
 
 @dataclass(frozen=True)
@@ -64,7 +65,8 @@ def _closer(a, b):
     return b if (math.isnan(va) or (not math.isnan(vb) and vb < va)) else a
 
 
-def _attempt(label, s, solver_name="") -> Attempt:
+def attempt_of(label, s, solver_name="") -> Attempt:
+    """The :class:`Attempt` record of solution ``s`` of the guess ``label``."""
     return Attempt(label, s.status, bool(s.success), int(s.iterations), float(s.objective), solver_name,
                    float(s.constraint_violation), float(s.solve_time_s))
 
@@ -161,7 +163,7 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
             break
         sols = solve_attempts(solver, batch, workers=workers, budget=budget, progress=progress)
         for k, (g, s) in enumerate(zip(batch, sols)):
-            attempts.append(_attempt(g.label, s, name))
+            attempts.append(attempt_of(g.label, s, name))
             _report(progress, start + k + 1, total, g.label, s)
             if not s.success:
                 closest = _closer(closest, s)
@@ -213,7 +215,7 @@ def continuation(solver, guess, steps=(0.25, 0.5, 0.75, 1.0), *, progress=None, 
         sub = solver.with_problem(_moved(solver.problem, alpha))
         solution, = solve_attempts(sub, [current], budget=budget, progress=progress)
         label = f"continuation {alpha:g} from {guess.label}"
-        attempts.append(_attempt(label, solution, solver.options.solver))
+        attempts.append(attempt_of(label, solution, solver.options.solver))
         if progress is not None:
             _report(progress, k, len(steps), label, solution)
         if not solution.success:

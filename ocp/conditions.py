@@ -29,6 +29,9 @@ the NLP's constraint Jacobian rank-deficient (Ipopt then crawls or stops at a wr
   (equal values) or contradictory (different ones). Otherwise, a periodic quantity whose
   gradient lies in the span of the periodic states' and of the periodic quantities kept
   before it is implied (locally a function of them) and dropped.
+* **Free offsets**: a state the dynamics do not depend on and no condition, bound or weight
+  names by value (a rotor angle free at both ends) is fixed to 0 at t = 0
+  (:mod:`.offsets`: otherwise the NLP has a flat direction the solver drifts along).
 * **Counts** need no rule of their own: a condition is kept only when it raises the rank in
   the free components, so at most the state's size are kept; every further one is implied or
   contradicts the others (an error naming both).
@@ -43,6 +46,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from .offsets import free_offsets
 from .problem import OptimalControlProblem, ProblemError
 
 __all__ = ["normalise", "ConditionReport"]
@@ -54,16 +58,21 @@ RESIDUAL_TOL = 1e-8        # a condition holds when |c(z) − a| ≤ RESIDUAL_TO
 
 @dataclass(frozen=True)
 class ConditionReport:
-    """What :func:`normalise` changed: ``dropped`` (where, name, reason) and ``solved``
-    (where → the end state fixed by value, or absent)."""
+    """What :func:`normalise` changed: ``dropped`` (where, name, reason), ``solved``
+    (where → the end state fixed by value, or absent) and ``pinned`` (the states whose initial
+    value it fixed at 0: :func:`~nhgait.ocp.offsets.free_offsets`)."""
 
     dropped: tuple = ()
     solved: tuple = ()
+    pinned: tuple = ()
 
     def lines(self) -> list:
         out = [f"{where}.{name}: dropped, {reason}" for where, name, reason in self.dropped]
         out += [f"{where}: the conditions determine the whole state; fixed to ({', '.join(f'{v:.6g}' for v in z)})"
                 for where, z in self.solved]
+        out += [f"initial.{name}: fixed to 0 — nothing depends on its value (the dynamics, the objective and "
+                "every condition are the same for any value; left free, the solver drifts along it)"
+                for name in self.pinned]
         return out
 
 
@@ -314,6 +323,10 @@ def normalise(problem: OptimalControlProblem, *, seed: int = 0) -> tuple:
         changes[where] = mapping
     periodic, gone = _periodic(current, rng)
     dropped += [("periodic", n, r) for n, r in gone]
-    if not dropped and not solved:
+    pinned = free_offsets(current)
+    if pinned:
+        changes["initial"] = {**changes.get("initial", current.initial), **{name: 0.0 for name in pinned}}
+    if not dropped and not solved and not pinned:
         return problem, ConditionReport()
-    return current.replace(periodic=periodic, **changes), ConditionReport(tuple(dropped), tuple(solved))
+    return (current.replace(periodic=periodic, **changes),
+            ConditionReport(tuple(dropped), tuple(solved), tuple(pinned)))

@@ -21,18 +21,28 @@ P1 = {"horizon": 4.0, "intervals": 4, "control_bounds": 5.0,
       "rest": ["initial", "final"]}
 
 
-def test_a_converged_plan_that_misses_the_task_is_a_failure():
+def test_a_converged_plan_that_misses_the_task_is_refined_or_a_failure():
+    """4 intervals of 1 s: with 4 RK4 sub-steps the optimum misses its re-simulation; the planner
+    solves it again with more sub-steps (gaits.refinement) and verifies that. A tolerance no
+    refinement reaches (below the re-simulation's own rtol) leaves a converged, unverified
+    plan: a failure that says so; a loose one accepts the first optimum as it is."""
     result = plan("unicycle", P1, jit=False, solver="ipopt")
-    s = result.solution
-    assert s.stats["solver_status"] == "Solve_Succeeded"          # the solver converged …
-    assert not result.success and s.status == "Verification_Failed"  # … but it is not a gait
+    first = result.attempts[0]
+    assert first.success and "refined to" in result.attempts[-1].label
+    assert result.success and result.solution.verification.max_error <= 1e-6
+    assert result.solution.settings["rk4_steps"] > 4
+    tight = plan("unicycle", {**P1, "verify_tolerance": 1e-13}, jit=False, solver="ipopt")
+    s = tight.solution
+    assert s.stats["solver_status"] == "Solve_Succeeded"           # the solver converged …
+    assert not tight.success and s.status == "Verification_Failed"  # … but it is not a gait
     v = s.verification
-    assert not v.passed and v.max_error > 1e-6
-    text = "\n".join(result.diagnosis)
-    assert "does not meet the task to 1e-06" in text and "increase intervals (now 4" in text
+    assert not v.passed and v.max_error > 1e-13
+    text = "\n".join(tight.diagnosis)
+    assert "does not meet the task to 1e-13" in text and "increase intervals (now 4" in text
+    assert "even refined to" in text
     loose = plan("unicycle", {**P1, "verify_tolerance": 1e-2}, jit=False, solver="ipopt")
-    assert loose.success and loose.solution.verification.max_error <= 1e-2
-    assert loose.solution.objective == pytest.approx(s.objective, rel=1e-9)   # same optimum, other verdict
+    assert loose.success and loose.solution.verification.max_error <= 1e-2 and len(loose.attempts) == 1
+    assert loose.solution.objective == pytest.approx(first.objective, rel=1e-9)   # the first optimum, accepted
 
 
 TASK_TOML = """
@@ -43,6 +53,7 @@ initial = {x = 0.0, y = 0.0, theta = 0.0, phi = 0.0}
 final = {x = 0.0, y = 0.5, theta = 0.0}
 rest = ["initial", "final"]
 control_bounds = 5.0
+verify_tolerance = 1e-13
 """
 
 
