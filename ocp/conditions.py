@@ -28,7 +28,9 @@ the NLP's constraint Jacobian rank-deficient (Ipopt then crawls or stops at a wr
   other end (y(T) = y(0) = c becomes ``final.y = c``) or, constant at both ends, implied
   (equal values) or contradictory (different ones). Otherwise, a periodic quantity whose
   gradient lies in the span of the periodic states' and of the periodic quantities kept
-  before it is implied (locally a function of them) and dropped.
+  before it is implied (locally a function of them) and dropped — only locally: when the
+  periodic quantities are rates determined by the velocity states v and the periodic states,
+  the set is stated exactly as v(T) = v(0) instead (:func:`_determined_velocities`).
 * **Free offsets**: a state the dynamics do not depend on and no condition, bound or weight
   names by value (a rotor angle free at both ends) is fixed to 0 at t = 0
   (:mod:`.offsets`: otherwise the NLP has a flat direction the solver drifts along).
@@ -301,7 +303,40 @@ def _periodic(problem, rng) -> tuple:
             dropped.append((name, "implied by the periodicity of " + ", ".join(states + [derived[k] for k in kept])))
         else:
             kept.append(j)
+    velocities = _determined_velocities(problem, states, derived, [derived[k] for k in kept], jac) if dropped else ()
+    if velocities:
+        reason = (f"stated as the periodicity of the velocity states {', '.join(velocities)}, which the periodic "
+                  f"rates determine and which determine them (the rates alone could repeat at a posture where "
+                  "they stop determining the motion, without the motion repeating)")
+        return tuple(states + [v for v in velocities if v not in states]), [(name, reason) for name in derived]
     return tuple(states + [derived[k] for k in kept]), dropped
+
+
+def _determined_velocities(problem, states, derived, kept, jac) -> tuple:
+    """The velocity states v (the state components after the coordinates) when the periodic
+    derived quantities r are functions of the periodic states and v alone and the kept ones
+    determine v (∂r_kept/∂v of full column rank at every sample); else ().
+
+    Then, the periodic states being equal at both ends, r(T) = r(0) for every r follows from
+    v(T) = v(0); and v(T) = v(0) follows from the kept rows wherever ∂r_kept/∂v is regular. Keeping
+    the kept rows and dropping the others as "implied" is exact only there: a 4-link snake in
+    the velocities (θ̇, forward_velocity), two of its three periodic joint rates kept, ended at
+    a posture where those two no longer determine the motion, the third rate missed by 0.078.
+    Stated as v(T) = v(0) (n − k independent rows), every rate is periodic exactly."""
+    n = int(getattr(problem.model.numeric, "n_coordinates", 0) or 0)
+    velocity = list(problem.state_names[n:]) if n else []
+    if not velocity or len(kept) < len(velocity) or not jac:
+        return ()
+    z = ca.SX.sym("z", problem.n_states)
+    allowed = {problem.state_names.index(s) for s in states} | set(range(n, problem.n_states))
+    for name in derived:
+        expr = problem.quantity(name, z)
+        if any(ca.depends_on(expr, z[j]) for j in range(problem.n_states) if j not in allowed):
+            return ()
+    rows = [derived.index(name) for name in kept]
+    if not all(_rank(J[np.ix_(rows, range(n, problem.n_states))]) == len(velocity) for J in jac):
+        return ()
+    return tuple(velocity)
 
 
 def normalise(problem: OptimalControlProblem, *, seed: int = 0) -> tuple:
