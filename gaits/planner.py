@@ -534,24 +534,38 @@ def verified_gait(solution, model, stated, to_plan, params, *, verify=True, prog
     """``solution`` (velocity coordinates) in the momentum coordinates of a chart of ``model``
     regular along it (:func:`~nhgait.gaits.charts.verification_chart`; a failed solution in
     ``model``'s own) and, with ``verify``, verified there to the task's tolerance; when no
-    chart is regular along the gait, in x = (q, q̇) on the Euler–Lagrange equations
+    chart is regular along the gait, or the re-simulation in the chart stops (its singular set
+    met between the nodes), in x = (q, q̇) on the Euler–Lagrange equations
     (:func:`~nhgait.gaits.charts.lagrange_ode`)."""
     from nhgait.dynamics.progress import Progress
     from .charts import lagrange_ode, verification_chart
     progress = progress or Progress.silent()
     n = len(model.system.coordinates)
+    regular = False
     if verify and solution.success:
         model, regular = verification_chart(to_plan.scene.system, model, solution.states[:n], params, progress)
         if not regular:
             model = lagrange_ode(to_plan.scene.system)
-    solution = to_momentum_coordinates(solution, momentum_problem(model, stated, to_plan, params))
+    moved = to_momentum_coordinates(solution, momentum_problem(model, stated, to_plan, params))
     if not verify:
-        return solution
+        return moved
+    checked = _verified_once(moved, to_plan, progress)
+    if regular and not checked.verification.success:
+        progress.note("  the re-simulation stopped in the chart (its singular set between the nodes): verifying on the "
+                      "Euler–Lagrange equations (index-1 form, x = (q, q̇)), which have none")
+        model = lagrange_ode(to_plan.scene.system)
+        moved = to_momentum_coordinates(solution, momentum_problem(model, stated, to_plan, params))
+        checked = _verified_once(moved, to_plan, progress)
+    return checked
+
+
+def _verified_once(solution, to_plan, progress):
     with progress.phase("verify: re-simulate the optimal inputs on the general model (DOP853, rtol 1e-10)"):
         solution = solution.verified(tolerance=to_plan.task.verify_tolerance)
     v = solution.verification
     progress.note(f"  {'passed' if v.passed else 'FAILED'}: nodes met to {v.max_error:.2e}, conditions to "
-                  f"{v.max_condition_error:.2e} (tolerance {v.tolerance:g})")
+                  f"{v.max_condition_error:.2e} (tolerance {v.tolerance:g})"
+                  + ("" if v.success else "; the re-simulation stopped early"))
     return solution
 
 

@@ -86,7 +86,8 @@ class Integrator:
 def simulate_piecewise_constant(model, params, t, z0, controls, integrator: Integrator = Integrator()):
     """Integrate ż = rhs(t, z, u_k, params) interval by interval with scipy ``solve_ivp``.
 
-    Returns the states at the grid ``t`` (nz × len(t)) and whether all intervals succeeded.
+    Returns the states at the grid ``t`` (nz × len(t)) and whether all intervals succeeded; a
+    right-hand side that is not finite ends the integration there (the later columns NaN).
     """
     from scipy.integrate import solve_ivp
 
@@ -96,19 +97,38 @@ def simulate_piecewise_constant(model, params, t, z0, controls, integrator: Inte
     ts, zs, us = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", controls.shape[0])
     f = ca.Function("f", [ts, zs, us], [rhs(ts, zs, us, params)])
     jac = ca.Function("J", [ts, zs, us], [ca.jacobian(rhs(ts, zs, us, params), zs)])
-    out = np.empty((nz, len(t)))
+    out = np.full((nz, len(t)), np.nan)
     out[:, 0] = z0
     z = np.asarray(z0, dtype=float)
     ok = True
     for k in range(len(t) - 1):
         u = controls[:, k]
-        sol = solve_ivp(lambda tt, zz: np.asarray(f(tt, zz, u)).ravel(), (t[k], t[k + 1]), z,
-                        method=method, rtol=rtol, atol=atol,
-                        **({"jac": lambda tt, zz: np.asarray(jac(tt, zz, u))} if method in ("Radau", "BDF", "LSODA") else {}))
+        try:
+            sol = solve_ivp(_finite(f, u), (t[k], t[k + 1]), z, method=method, rtol=rtol, atol=atol,
+                            **({"jac": lambda tt, zz: np.asarray(jac(tt, zz, u))} if method in ("Radau", "BDF", "LSODA")
+                               else {}))
+        except _NotFinite:
+            return out, False
         ok &= bool(sol.success)
         z = sol.y[:, -1]
         out[:, k + 1] = z
     return out, ok
+
+
+class _NotFinite(ArithmeticError):
+    """The right-hand side was not finite (the model's singular set)."""
+
+
+def _finite(f, u):
+    """ż = f(t, z, u) for ``solve_ivp``, raising :class:`_NotFinite` on a NaN or inf: with one,
+    SciPy's explicit Runge–Kutta step control computes a NaN step size and then never fails
+    (every comparison with NaN is false) — a verification once ran for minutes."""
+    def rhs(tt, zz):
+        out = np.asarray(f(tt, zz, u)).ravel()
+        if not np.all(np.isfinite(out)):
+            raise _NotFinite(f"the right-hand side is not finite at t = {tt:g}")
+        return out
+    return rhs
 
 
 def condition_errors(problem, states) -> dict:
@@ -228,6 +248,7 @@ class Solution:
         sim, ok = simulate_piecewise_constant(self.problem.model, self.problem.params, self.t,
                                               self.states[:, 0], self.controls, Integrator(method, rtol, atol))
         err = np.abs(sim - self.states)
+        err[np.isnan(err)] = np.inf                      # not reached (the integration stopped)
         return Verification(max_error=float(err.max()),
                             state_errors={n: float(e) for n, e in zip(self.state_names, err.max(axis=1))},
                             states=sim, method=method, rtol=rtol, atol=atol, success=ok,
