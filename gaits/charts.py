@@ -58,6 +58,29 @@ def fixed_configurations(task, coordinates) -> list:
     return out
 
 
+def end_postures(task, coordinates) -> list:
+    """A configuration q for each end of ``task`` that fixes at least one coordinate: the fixed
+    values, every other coordinate at the centre of its bound (0 when unbounded) — where the
+    guesses start or end (a heading fixed at π/2 decides whether ẋ can be a velocity state
+    whatever the shape)."""
+    out = []
+    for end in ("initial", "final"):
+        given = getattr(task, end)
+        if not any(isinstance(given.get(c), (int, float)) for c in coordinates):
+            continue
+        q = []
+        for c in coordinates:
+            value, bound = given.get(c), task.bounds.get(c)
+            if isinstance(value, (int, float)):
+                q.append(float(value))
+            elif isinstance(bound, tuple) and all(map(np.isfinite, bound)):
+                q.append(float(sum(bound)) / 2)
+            else:
+                q.append(0.0)
+        out.append(q)
+    return out
+
+
 def _singular_ends(model, ends, params) -> list:
     """The ends whose configuration is on ``model``'s singular set (its measure, which counts a
     factorisation that gives 0/0 there as singular)."""

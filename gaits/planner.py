@@ -194,7 +194,7 @@ def prepare(to_plan, *, params=None, progress=None) -> Prepared:
     """The :class:`Prepared` model and problems of a :class:`~nhgait.gaits.task_library.Plan`."""
     from nhgait.dynamics.progress import Progress
     from nhgait.dynamics.numerics.specialisation import choose_velocities, specialise
-    from .charts import derive_for_task, fixed_configurations
+    from .charts import derive_for_task, end_postures
     from .task import check_names
 
     progress = progress or Progress.silent()
@@ -207,7 +207,7 @@ def prepare(to_plan, *, params=None, progress=None) -> Prepared:
     check_names(task, known_names(model, scene.quantities), tuple(model.system.inputs),
                 n_velocities=len(model.state_names) - n)
     bounds = {k: v for k, v in task.bounds.items() if isinstance(v, tuple)}
-    ends = [q for _, q in fixed_configurations(task, tuple(model.system.coordinates))]
+    ends = end_postures(task, tuple(model.system.coordinates))
     velocities = task.velocities or choose_velocities(model, task.names, scene.quantities, params, bounds, ends)
     with progress.phase(f"specialise: parameter values bound, velocity states ({', '.join(velocities)})"):
         specialised = specialise(model, params, velocities=velocities, quantities=scene.quantities)

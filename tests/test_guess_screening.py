@@ -206,3 +206,33 @@ def test_a_loop_through_the_snakes_singular_set_is_caught_between_nodes_and_move
     both = np.concatenate([gap, (gap[1:] + gap[:-1]) / 2])
     assert np.all(both > 0) or np.all(both < 0)
     assert np.all(np.isfinite(first.states))
+
+
+def test_velocity_states_are_chosen_regular_at_the_tasks_end_postures():
+    """A car with two off-axle trailers whose base frame is the last trailer (generated pair
+    28/0), turned by π/2 with its shape left free: no set of two velocity states is regular over
+    the whole region (the last trailer can stand still while the car moves), and the first set
+    regular at the samples, (ẋ, φ̇), cannot determine the motion at the final heading θ = π/2 —
+    ẋ = v cos θ of the trailer's axle is 0 there, whatever the shape (closed form: det [ω; Y] = 0
+    at that posture). The choice looks at the ends the task fixes even partly."""
+    import experiment_scripts
+    from nhgait.dynamics import derive
+    from nhgait.dynamics.derivation.scene import scene_from_text
+    from nhgait.dynamics.numerics.velocity_coordinates import choose_velocities, velocity_map
+    from nhgait.gaits.charts import end_postures
+    gen = experiment_scripts.load("robot_generator")
+    pair = gen.pair(28, 0, "car")
+    to_plan = resolve(scene_from_text(pair.scene, pair.name))
+    task, scene = to_plan.task, to_plan.scene
+    model = derive(scene.system, "reduced")
+    coords = tuple(model.system.coordinates)
+    ends = end_postures(task, coords)
+    final = ends[-1]
+    assert final[coords.index("theta")] == pytest.approx(math.pi / 2, abs=1e-3)
+    params = model.numeric.params()
+    for names, singular in ((("x_dot", "phi_dot"), True), (("phi_dot", "forward_velocity"), False)):
+        A = np.asarray(velocity_map(model, params, names, scene.quantities)(final), float)
+        s = np.linalg.svd(A, compute_uv=False)
+        assert (s[-1] / s[0] < 1e-3) == singular, names
+    bounds = {k: v for k, v in task.bounds.items() if isinstance(v, tuple)}
+    assert choose_velocities(model, task.names, scene.quantities, None, bounds, ends) == ("phi_dot", "forward_velocity")

@@ -229,8 +229,12 @@ def choose_velocities(model, preferred=(), quantities=None, params=None, bounds=
        and no iterate of the planner meets its singular set (the 3-link snake with |α| ≤ 1:
        (θ̇, forward_velocity), not (θ̇, α̇₁), singular at α₁ = 0, nor (α̇₁, α̇₂), singular at
        α₁ = α₂);
-    2. else the first set regular (measure > 1e-8 of its largest) at every sample — the
-       planner's guesses are then screened against its singular set (:mod:`nhgait.gaits.screening`).
+    2. else the first set regular (measure > 1e-8 of its largest) at every sample and well away
+       from its singular set (above :data:`REGULAR_RATIO` of its largest) at the task's fixed
+       ends, where every guess starts or ends (a car whose base is its last trailer, turned by
+       π/2: ẋ of that trailer does not determine the motion there, its forward velocity does);
+       else the first regular at every sample — the planner's guesses are then screened
+       against its singular set (:mod:`nhgait.gaits.screening`).
 
     Raises :class:`ModelError` when no set is regular at the samples.
     """
@@ -247,7 +251,8 @@ def choose_velocities(model, preferred=(), quantities=None, params=None, bounds=
     with np.errstate(all="ignore"):
         A = np.asarray(A_of.map(qs.shape[0])(qs.T)).reshape(k + len(names), qs.shape[0], system.n)
     A = np.transpose(A, (1, 0, 2))
-    fallback = None
+    fallback, at_ends = None, None
+    ends = len(points)
     for count, chosen in enumerate(combinations(range(len(names)), nv)):
         if count == _COMBINATIONS:
             break
@@ -258,7 +263,9 @@ def choose_velocities(model, preferred=(), quantities=None, params=None, bounds=
         if np.all(np.abs(m) >= REGULAR_RATIO * scale) and (np.all(m > 0) or np.all(m < 0)):
             return tuple(names[i] for i in chosen)
         fallback = fallback or chosen
+        if at_ends is None and np.all(np.abs(m[:ends]) >= REGULAR_RATIO * scale):
+            at_ends = chosen
     if fallback is not None:
-        return tuple(names[i] for i in fallback)
+        return tuple(names[i] for i in (at_ends or fallback))
     raise ModelError([f"no {nv} velocity quantities among {', '.join(names)} parametrise the "
                       f"allowed velocities of {system.name}"], title="invalid velocity coordinates")
