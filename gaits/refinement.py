@@ -34,8 +34,9 @@ __all__ = ["refinable", "refined_steps", "refine", "MARGIN", "MAX_STEPS", "REFIN
 #: the refined transcription aims at this fraction of the verification tolerance (the next
 #: optimum is not the point whose miss was measured)
 MARGIN = 10.0
-#: RK4 sub-steps per interval at most (8× the default: 8⁴ ≈ 4000× more accurate)
-MAX_STEPS = 32
+#: RK4 sub-steps per interval at most (32× the default: 32⁴ ≈ 10⁶× more accurate; a car with
+#: three trailers steering at 26 rad/s missed by 1.1 at 4 sub-steps, 1.7e-4 at 32)
+MAX_STEPS = 128
 #: times a plan refines at most
 REFINEMENTS = 2
 #: iterations a refinement from the converged point is expected to take (measured 5–33 on the

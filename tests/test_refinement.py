@@ -27,7 +27,8 @@ def test_the_sub_steps_follow_the_h4_law():
     assert refined_steps(4, 1.6e-6, 1e-6) == 8                    # (16)^¼ = 2
     assert refined_steps(4, 1.2e-5, 1e-6) == 16                   # (120)^¼ = 3.3 → 4
     assert refined_steps(4, 1e-9, 1e-6) == 8                      # never less than 2M
-    assert refined_steps(4, 4.3e-4, 1e-6) == MAX_STEPS            # (4300)^¼ = 8.1 → 36, capped
+    assert refined_steps(4, 4.3e-4, 1e-6) == 36                   # (4300)^¼ = 8.1 → 9
+    assert refined_steps(32, 1.7e-4, 1e-6) == MAX_STEPS           # (1700)^¼ = 6.4 → 224, capped
     assert MARGIN == 10.0
 
 
