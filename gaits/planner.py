@@ -533,30 +533,49 @@ def unsolved(problem, guess=None):
 def verified_gait(solution, model, stated, to_plan, params, *, verify=True, progress=None):
     """``solution`` (velocity coordinates) in the momentum coordinates of a chart of ``model``
     regular along it (:func:`~nhgait.gaits.charts.verification_chart`; a failed solution in
-    ``model``'s own) and, with ``verify``, verified there to the task's tolerance; when no
-    chart is regular along the gait, or the re-simulation in the chart stops (its singular set
-    met between the nodes), in x = (q, q̇) on the Euler–Lagrange equations
-    (:func:`~nhgait.gaits.charts.lagrange_ode`)."""
+    ``model``'s own) and, with ``verify``, verified there to the task's tolerance; in x = (q, q̇)
+    on the Euler–Lagrange equations (:func:`~nhgait.gaits.charts.lagrange_ode`) when no chart is
+    regular along the gait, when the re-simulation in the chart stops (its singular set met
+    between the nodes), when the solution's states in the chart are not finite (a failed one
+    too: its trajectory is written out), and when the gait fails there before another chart is
+    tried (:func:`_lagrange_first`)."""
     from nhgait.dynamics.progress import Progress
     from .charts import lagrange_ode, verification_chart
     progress = progress or Progress.silent()
     n = len(model.system.coordinates)
-    regular = False
+    regular, default = False, model
     if verify and solution.success:
         model, regular = verification_chart(to_plan.scene.system, model, solution.states[:n], params, progress)
         if not regular:
             model = lagrange_ode(to_plan.scene.system)
+    in_lagrange = (lambda: to_momentum_coordinates(solution, momentum_problem(lagrange_ode(to_plan.scene.system),
+                                                                               stated, to_plan, params)))
     moved = to_momentum_coordinates(solution, momentum_problem(model, stated, to_plan, params))
+    if not np.all(np.isfinite(moved.states)) and np.all(np.isfinite(solution.states)):
+        # a chart singular at some node (where the momenta are not defined): (q, q̇) instead
+        moved, regular = in_lagrange(), False
     if not verify:
         return moved
+    if regular and model is not default:
+        screened = _lagrange_first(in_lagrange(), to_plan, progress)
+        if screened is not None:
+            return screened
     checked = _verified_once(moved, to_plan, progress)
     if regular and not checked.verification.success:
         progress.note("  the re-simulation stopped in the chart (its singular set between the nodes): verifying on the "
                       "Euler–Lagrange equations (index-1 form, x = (q, q̇)), which have none")
-        model = lagrange_ode(to_plan.scene.system)
-        moved = to_momentum_coordinates(solution, momentum_problem(model, stated, to_plan, params))
-        checked = _verified_once(moved, to_plan, progress)
+        checked = _verified_once(in_lagrange(), to_plan, progress)
     return checked
+
+
+def _lagrange_first(solution, to_plan, progress):
+    """A gait that met the singular set of the planner's chart, re-simulated on the
+    Euler–Lagrange equations first: None when it passes there (it is then verified in the
+    regular chart found, whose momenta the figures show), else that failed verification — a
+    chart near its own singular set can take minutes to re-simulate a trajectory that is not a
+    solution (a 5-link chain: 0.3 s on these equations, over 10 minutes in the chart)."""
+    checked = _verified_once(solution, to_plan, progress)
+    return None if checked.verification.passed else checked
 
 
 def _verified_once(solution, to_plan, progress):

@@ -31,7 +31,7 @@ from ..errors import ModelError
 
 __all__ = ["BODY_VELOCITIES", "body_velocity", "planar_frame", "velocity_problems", "velocity_rows",
            "row_function", "body_rows", "velocity_map", "velocity_measure", "choose_velocities",
-           "REGULAR_RATIO", "BOX_SAMPLES", "region_samples", "group_matrix"]
+           "REGULAR_RATIO", "BOX_SAMPLES", "CONDITION_RATIO", "region_samples", "group_matrix"]
 
 #: planar body velocities of a frame (x, y, heading θ): coefficients of (ẋ, ẏ)
 BODY_VELOCITIES = ("forward_velocity", "lateral_velocity")
@@ -42,6 +42,9 @@ BODY_VELOCITIES = ("forward_velocity", "lateral_velocity")
 REGULAR_RATIO = 1e-3
 #: configurations sampled in the task's region by :func:`choose_velocities`
 BOX_SAMPLES = 96
+#: a set regular over the region is chosen only when its smallest normalised measure there is
+#: within this factor of the best regular set's (:func:`choose_velocities`)
+CONDITION_RATIO = 10.0
 _RANK_TOL = 1e-8
 _COMBINATIONS = 5000     # sets of names examined at most (in order of preference)
 
@@ -228,7 +231,10 @@ def choose_velocities(model, preferred=(), quantities=None, params=None, bounds=
        :data:`REGULAR_RATIO` of its largest value — regular over the whole region, so no guess
        and no iterate of the planner meets its singular set (the 3-link snake with |α| ≤ 1:
        (θ̇, forward_velocity), not (θ̇, α̇₁), singular at α₁ = 0, nor (α̇₁, α̇₂), singular at
-       α₁ = α₂);
+       α₁ = α₂) — and whose smallest measure there is within :data:`CONDITION_RATIO` of the
+       best such set's (a 5-link chain's (ẋ, ẏ, q̇₄) is regular over the region but 300× worse
+       conditioned than (q̇₃, q̇₄, forward_velocity): its equations are stiff, its optimum was
+       accurate only to 3e-3 at 128 RK4 sub-steps per interval);
     2. else the first set regular (measure > 1e-8 of its largest) at every sample and well away
        from its singular set (above :data:`REGULAR_RATIO` of its largest) at the task's fixed
        ends, where every guess starts or ends (a car whose base is its last trailer, turned by
@@ -251,7 +257,7 @@ def choose_velocities(model, preferred=(), quantities=None, params=None, bounds=
     with np.errstate(all="ignore"):
         A = np.asarray(A_of.map(qs.shape[0])(qs.T)).reshape(k + len(names), qs.shape[0], system.n)
     A = np.transpose(A, (1, 0, 2))
-    fallback, at_ends = None, None
+    fallback, at_ends, regular = None, None, []
     ends = len(points)
     for count, chosen in enumerate(combinations(range(len(names)), nv)):
         if count == _COMBINATIONS:
@@ -261,10 +267,15 @@ def choose_velocities(model, preferred=(), quantities=None, params=None, bounds=
         if not scale > _RANK_TOL or not np.all(np.abs(m) > _RANK_TOL * scale):
             continue
         if np.all(np.abs(m) >= REGULAR_RATIO * scale) and (np.all(m > 0) or np.all(m < 0)):
-            return tuple(names[i] for i in chosen)
+            regular.append((chosen, float(np.min(np.abs(m)))))
+            continue
         fallback = fallback or chosen
         if at_ends is None and np.all(np.abs(m[:ends]) >= REGULAR_RATIO * scale):
             at_ends = chosen
+    if regular:
+        best = max(measure for _, measure in regular)
+        chosen = next(c for c, measure in regular if measure >= best / CONDITION_RATIO)
+        return tuple(names[i] for i in chosen)
     if fallback is not None:
         return tuple(names[i] for i in (at_ends or fallback))
     raise ModelError([f"no {nv} velocity quantities among {', '.join(names)} parametrise the "
