@@ -71,3 +71,15 @@ def solve(f, *, n_u, T, N, fixed0, fixedT, periodic=(), bounds=None, u_bound, gu
     x = np.asarray(r["x"]).ravel()
     return {"objective": float(r["f"]), "status": stats["return_status"], "iterations": stats["iter_count"],
             "Z": x[:nz * (N + 1)].reshape(nz, N + 1, order="F"), "U": x[nz * (N + 1):].reshape(n_u, N, order="F")}
+
+
+def car_ode() -> ca.Function:
+    """examples/car.toml written again by hand: m = 1, I_z = 0.1, I_s = 0.01, l = 0.5; q = (x, y,
+    θ, φ), inputs (F, τ_φ): the driving force along the heading and the steering torque."""
+    q, qd, u = ca.SX.sym("q", 4), ca.SX.sym("qd", 4), ca.SX.sym("u", 2)
+    th, ph = q[2], q[3]
+    L = (qd[0] ** 2 + qd[1] ** 2) / 2 + 0.1 * qd[2] ** 2 / 2 + 0.01 * qd[3] ** 2 / 2
+    rows = ca.vertcat(-ca.sin(th) * qd[0] + ca.cos(th) * qd[1],
+                      -ca.sin(th + ph) * qd[0] + ca.cos(th + ph) * qd[1] + 0.5 * ca.cos(ph) * qd[2])
+    forces = ca.vertcat(u[0] * ca.cos(th), u[0] * ca.sin(th), 0, u[1])
+    return index1_ode(L, rows, forces, q, qd, u)

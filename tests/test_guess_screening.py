@@ -41,17 +41,6 @@ ARC = {"name": "arc", "horizon": 6.0, "intervals": 60,
        "objective": "effort", "velocities": ["theta_dot", "phi_dot"]}
 
 
-def _car_ode():
-    """examples/car.toml written again by hand: m = 1, I_z = 0.1, I_s = 0.01, l = 0.5."""
-    q, qd, u = ca.SX.sym("q", 4), ca.SX.sym("qd", 4), ca.SX.sym("u", 2)
-    th, ph = q[2], q[3]
-    L = (qd[0] ** 2 + qd[1] ** 2) / 2 + 0.1 * qd[2] ** 2 / 2 + 0.01 * qd[3] ** 2 / 2
-    rows = ca.vertcat(-ca.sin(th) * qd[0] + ca.cos(th) * qd[1],
-                      -ca.sin(th + ph) * qd[0] + ca.cos(th + ph) * qd[1] + 0.5 * ca.cos(ph) * qd[2])
-    forces = ca.vertcat(u[0] * ca.cos(th), u[0] * ca.sin(th), 0, u[1])
-    return dae_reference.index1_ode(L, rows, forces, q, qd, u)
-
-
 def _arc_guess(N=60, T=6.0):
     """The reference's own start: the arc driven with a smooth speed profile, φ = 0.3 throughout."""
     R = 0.5 / math.tan(0.3)
@@ -80,7 +69,7 @@ def test_a_guess_through_the_singular_set_is_repaired_and_the_plan_verified():
     s = result.solution
     assert result.success and result.guess == loop.label
     assert s.verification.passed and s.verification.max_error <= 1e-6
-    reference = dae_reference.solve(_car_ode(), n_u=2, T=6.0, N=60,
+    reference = dae_reference.solve(dae_reference.car_ode(), n_u=2, T=6.0, N=60,
                                     fixed0={i: v for i, v in enumerate([0, 0, 0, 0.3, 0, 0, 0, 0])},
                                     fixedT={0: 1.6, 1: 1.6, 2: math.pi / 2, 3: 0.3, 6: 0.0, 7: 0.0},
                                     bounds={3: (-0.7, 0.7)}, u_bound=(np.array([-5.0, -1.0]), np.array([5.0, 1.0])),

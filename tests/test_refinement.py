@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import casadi as ca
 import numpy as np
 from scipy.integrate import solve_ivp
 
@@ -32,17 +31,6 @@ def test_the_sub_steps_follow_the_h4_law():
     assert MARGIN == 10.0
 
 
-def _car_ode():
-    """examples/car.toml by hand: m = 1, I_z = 0.1, I_s = 0.01, l = 0.5; inputs (F, τ_φ)."""
-    q, qd, u = ca.SX.sym("q", 4), ca.SX.sym("qd", 4), ca.SX.sym("u", 2)
-    th, ph = q[2], q[3]
-    L = (qd[0] ** 2 + qd[1] ** 2) / 2 + 0.1 * qd[2] ** 2 / 2 + 0.01 * qd[3] ** 2 / 2
-    rows = ca.vertcat(-ca.sin(th) * qd[0] + ca.cos(th) * qd[1],
-                      -ca.sin(th + ph) * qd[0] + ca.cos(th + ph) * qd[1] + 0.5 * ca.cos(ph) * qd[2])
-    forces = ca.vertcat(u[0] * ca.cos(th), u[0] * ca.sin(th), 0, u[1])
-    return dae_reference.index1_ode(L, rows, forces, q, qd, u)
-
-
 def test_a_gait_four_sub_steps_do_not_resolve_is_refined_and_verified():
     """The car's parallel park at N = 9: with 4 sub-steps the optimum misses its re-simulation
     by about 4e-4; the planner solves it again with more sub-steps from that point, verified."""
@@ -53,7 +41,7 @@ def test_a_gait_four_sub_steps_do_not_resolve_is_refined_and_verified():
     assert first.success and "refined to" in again.label and again.success
     steps = s.settings["rk4_steps"]
     assert steps > 4 and f"refined ({steps} RK4 sub-steps)" in result.guess
-    f = _car_ode()
+    f = dae_reference.car_ode()
     t, q, qd, u = s.t, s.states[:4], s.velocities(), s.controls
     z = np.concatenate([q[:, 0], qd[:, 0]])
     for k in range(t.size - 1):
