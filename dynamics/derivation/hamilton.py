@@ -15,6 +15,7 @@ import time
 from dataclasses import dataclass
 from functools import cached_property
 
+import casadi as ca
 import sympy as sp
 
 from nhgait.dynamics.derivation.cse_text import equation_lines
@@ -43,6 +44,17 @@ class HamiltonianDAE(DAEModel):
     omega: sp.Matrix
     tau: sp.Matrix
     formulation = "hamilton"
+    velocity_part = "canonical momenta p = M(q) q̇"
+
+    def initial_state(self, q, qdot, params):
+        mass = self.numeric["mass"](ca.vertcat(q, ca.SX.zeros(q.shape[0])), params)
+        return ca.vertcat(q, ca.mtimes(mass, qdot))
+
+    def constraint_gram(self, x, params):
+        numeric = self.numeric
+        n = numeric.n_coordinates
+        omega_minv = ca.jacobian(numeric["constraint"](x, params), x[n:])    # ω M⁻¹ (g = ω M⁻¹ p)
+        return ca.mtimes(ca.mtimes(omega_minv, numeric["mass"](x, params)), omega_minv.T)
 
 
     @property
