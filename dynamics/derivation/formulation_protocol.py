@@ -14,8 +14,9 @@ from __future__ import annotations
 from .formulation_base import (Formulation, LoopDynamics, LoopPoint, Stabilisation,  # noqa: F401 - re-exported
                                StateLayout)
 
+#: (``REDUCED``, ``LAGRANGE``, ``HAMILTON``, ``PROTOCOLS``: module attributes resolved on first use)
 __all__ = ["FormulationProtocol", "StateLayout", "LoopPoint", "Stabilisation", "LoopDynamics",
-           "REDUCED", "LAGRANGE", "HAMILTON", "PROTOCOLS", "protocol_of", "protocol_named"]
+           "protocol_of", "protocol_named"]
 
 #: the former abstract protocol: the models' common base
 FormulationProtocol = Formulation

@@ -395,7 +395,13 @@ def numeric_pivots(A_num: np.ndarray, order=None, tol=1e-9) -> list[int]:
 class MatrixOps:
     """Matrix operations shared by every arithmetic back end (matrices are lists of rows of
     elements); the back end supplies the scalar operations (see
-    :mod:`nhgait.dynamics.derivation.reduction.arithmetic`)."""
+    :mod:`nhgait.dynamics.derivation.reduction.arithmetic`).
+
+    ``symbolic``: the elements are exact (sympy expressions or ring fractions), so the steps
+    can test identities exactly and show the thesis's block matrices; the displayed matrices
+    are sympy Matrices (:meth:`square`, :meth:`blocks`, :meth:`zero_block`)."""
+
+    symbolic = True
 
     def mat(self, A, normal=False):
         return [[self.frac(A[i, j], normal) for j in range(A.shape[1])] for i in range(A.shape[0])]
@@ -509,6 +515,18 @@ class MatrixOps:
         if rows == 0 or cols == 0:
             return sp.zeros(rows, cols)
         return sp.Matrix(rows, cols, [self.expr(A[i][j]) for i in range(rows) for j in range(cols)])
+
+    def square(self, rows):
+        """A displayed matrix from rows of display values (a sympy Matrix)."""
+        return sp.Matrix(rows) if rows else sp.zeros(0, 0)
+
+    def zero_block(self, rows, cols):
+        """A displayed zero matrix."""
+        return sp.zeros(rows, cols)
+
+    def blocks(self, rows):
+        """A displayed matrix from rows of displayed blocks."""
+        return sp.BlockMatrix(rows).as_explicit()
 
     def value(self, e):
         """A sympy expression as a display value (sympy itself for the sympy back ends)."""

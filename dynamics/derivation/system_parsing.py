@@ -26,7 +26,7 @@ from __future__ import annotations
 import keyword
 import math
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Mapping, NamedTuple
 
 import sympy as sp
 
@@ -451,7 +451,14 @@ def linear_split(c, q_dot):
     return row if any(r != 0 for r in row) else None
 
 
-def quadratic_split(L, q_dot):
+class QuadraticSplit(NamedTuple):
+    """L = ½q̇ᵀ``M``q̇ − ``V``, read off term by term."""
+
+    M: object
+    V: object
+
+
+def quadratic_split(L, q_dot) -> QuadraticSplit | None:
     """(M, V) read off L term by term when L is written as Σ c_ij q̇_i q̇_j + c_0 with every
     coefficient free of the velocities (the form generated from bodies, ``½ M_ii q̇_i² +
     M_ij q̇_i q̇_j − V``): no differentiation, one pass over L. None when L is not written so
@@ -481,7 +488,7 @@ def quadratic_split(L, q_dot):
         else:
             M[i][j] += c
             M[j][i] += c
-    return sp.Matrix(M), sp.Add(*V)
+    return QuadraticSplit(sp.Matrix(M), sp.Add(*V))
 
 
 def _frames(statement, coord_names: list, problems: list) -> tuple:

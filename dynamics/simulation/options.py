@@ -100,8 +100,8 @@ class SimulationOptions:
         names = [f.name for f in dataclasses.fields(cls)]
         unknown = [k for k in keywords if k not in names]
         if unknown:
-            raise ModelError([f"unknown option {k!r}{known_names(k, names, label='options')}" for k in unknown],
-                             title="invalid simulation request")
+            raise ModelError([f"unknown option {k!r}{known_names(k, names, label='options')}"
+                              for k in unknown], title="invalid simulation request")
         return dataclasses.replace(options or cls(), **keywords)
 
     # ------------------------------------------------------------------ resolved at the boundary
@@ -152,7 +152,8 @@ class SimulationOptions:
             try:
                 alpha, beta = (float(v) for v in self.baumgarte)
                 if not (alpha >= 0 and beta >= 0 and np.isfinite(alpha + beta)):
-                    problems.append(f"baumgarte = (alpha, beta) must be finite and ≥ 0, got {self.baumgarte!r}")
+                    problems.append("baumgarte = (alpha, beta) must be finite and ≥ 0, got "
+                                    f"{self.baumgarte!r}")
             except (TypeError, ValueError):
                 problems.append(f"baumgarte must be a pair (alpha, beta), got {self.baumgarte!r}")
         return problems
@@ -164,8 +165,8 @@ class SimulationOptions:
         if not (isinstance(self.max_steps, (int, np.integer)) and self.max_steps > 0):
             problems.append(f"max_steps must be a positive integer, got {self.max_steps!r}")
         if not (0 < self.rtol < 1 and 0 < self.atol < np.inf):   # rtol = inf: steps of any size, a hang
-            problems.append(f"rtol must lie in (0, 1) and atol be positive and finite, got rtol={self.rtol!r}, "
-                            f"atol={self.atol!r}")
+            problems.append("rtol must lie in (0, 1) and atol be positive and finite, got "
+                            f"rtol={self.rtol!r}, atol={self.atol!r}")
         if self.singular_tol is not None and not (0 <= self.singular_tol < 1):
             problems.append(f"singular_tol must be in [0, 1) or None, got {self.singular_tol!r}")
         if self.t_eval is not None and t0 is not None:

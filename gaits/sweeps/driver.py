@@ -321,8 +321,10 @@ class _Run:
         self.counts["now"] += 1
         if self.progress is not None:
             c = self.counts
-            self.progress(Progress(len(self.done), self.grid.size, c["ok"], c["failed"], len(self.in_flight),
-                                   c["retried"], time.perf_counter() - self.t_start, c["now"], record))
+            self.progress(Progress(finished=len(self.done), total=self.grid.size, succeeded=c["ok"],
+                                   failed=c["failed"], running=len(self.in_flight), retried=c["retried"],
+                                   elapsed_s=time.perf_counter() - self.t_start, solved_now=c["now"],
+                                   last=record))
 
     def _record(self, point, job, answer, attempts) -> PointRecord:
         if "input_error" in answer:
@@ -366,9 +368,11 @@ def run_sweep(case: SweepCase, grid: Grid, backend, store: SweepStore,
             run.finish(future)
     for future in warming:
         future.cancel()
-    return SweepResult(store.directory, grid, case.describe(), tuple(store.records()), run.counts["now"],
-                       run.counts["retried"], time.perf_counter() - run.t_start,
-                       backend.describe() if hasattr(backend, "describe") else "", dict(case.units))
+    return SweepResult(directory=store.directory, grid=grid, case=case.describe(),
+                       records=tuple(store.records()), solved_now=run.counts["now"],
+                       retried=run.counts["retried"], wall_time_s=time.perf_counter() - run.t_start,
+                       backend=backend.describe() if hasattr(backend, "describe") else "",
+                       units=dict(case.units))
 
 
 def sweep(system, task=None, grid=(), *, out, overrides=(), params=None, scheduler: str | None = None,

@@ -89,6 +89,7 @@ class CasadiArithmetic(MatrixOps):
     """
 
     kind = "casadi"
+    symbolic = False
 
     def __init__(self, exprs=(), symbols=(), angles=()):
         import casadi as ca
@@ -283,6 +284,17 @@ class CasadiArithmetic(MatrixOps):
     def column(self, values):
         return self.ca.vertcat(*values) if values else self.ca.SX(0, 1)
 
+    def square(self, rows):
+        ca = self.ca
+        return ca.vertcat(*[ca.horzcat(*r) for r in rows]) if rows else ca.SX(0, 0)
+
+    def zero_block(self, rows, cols):
+        return self.ca.SX(rows, cols)
+
+    def blocks(self, rows):
+        ca = self.ca
+        return ca.vertcat(*[ca.horzcat(*r) for r in rows])
+
 
 def _prod(arith, variables):
     out = arith.one
@@ -291,14 +303,28 @@ def _prod(arith, variables):
     return out
 
 
+def _ring(exprs, symbols, angles, time, budget):
+    return FracField(exprs, symbols=symbols, angles=angles, time=time, budget=budget)
+
+
+def _sympy(exprs, symbols, angles, time, budget):
+    return SympyArithmetic()
+
+
+def _casadi(exprs, symbols, angles, time, budget):
+    return CasadiArithmetic()
+
+
+#: back-end name → its constructor (exprs, symbols, angles, time, budget)
+ARITHMETICS = {"ring": _ring, "sympy": _sympy, "casadi": _casadi}
+
+
 def make_arithmetic(kind: str, exprs, symbols, angles, time=(), budget=None):
-    """The back end ``kind`` ("ring", "sympy" or "casadi") for one derivation; ``time``: the
-    symbols the steps carry along but never differentiate (t, see :class:`FracField`);
-    ``budget``: the ring's work budget (None: no limit)."""
-    if kind == "ring":
-        return FracField(exprs, symbols=symbols, angles=angles, time=time, budget=budget)
-    if kind == "sympy":
-        return SympyArithmetic()
-    if kind == "casadi":
-        return CasadiArithmetic()
-    raise ModelError([f"internal: unknown arithmetic {kind!r}"])
+    """The back end ``kind`` (a key of :data:`ARITHMETICS`: "ring", "sympy" or "casadi") for one
+    derivation; ``time``: the symbols the steps carry along but never differentiate (t, see
+    :class:`FracField`); ``budget``: the ring's work budget (None: no limit)."""
+    try:
+        make = ARITHMETICS[kind]
+    except KeyError:
+        raise ModelError([f"internal: unknown arithmetic {kind!r}"]) from None
+    return make(exprs, symbols, angles, time, budget)
