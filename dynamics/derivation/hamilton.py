@@ -22,7 +22,7 @@ from nhgait.dynamics.derivation.cse_text import equation_lines
 from nhgait.dynamics.derivation.notation import method_name, system_names
 from .dae_model import DAEModel
 
-from .symbolic import tidy
+from ..algebra.trig import tidy
 from .system import System
 
 

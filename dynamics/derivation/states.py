@@ -244,7 +244,7 @@ def consistent_velocities(system, q, given: dict, *, params=None, tol: float = 1
     WU = W[:, U]
     rank = np.linalg.matrix_rank(WU, tol=1e-9 * scale) if U else 0
     if rank < len(U):
-        from .symbolic import numeric_pivots
+        from ..algebra.matrices import numeric_pivots
         pivots = [U[j] for j in numeric_pivots(WU)] if U else []
         free = [names[i] + "_dot" for i in U if i not in pivots]
         raise ModelError([f"the given velocities ({', '.join(c + '_dot' for c in values) or 'none'}) do not "

@@ -44,7 +44,7 @@ import numpy as np
 import sympy as sp
 
 from ..errors import ModelError
-from .symbolic import null_basis_adjugate, numeric_pivots
+from ..algebra.matrices import null_basis_adjugate, numeric_pivots
 from .system import System
 
 #: verdict labels

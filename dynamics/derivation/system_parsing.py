@@ -32,14 +32,14 @@ import sympy as sp
 
 from nhgait.dynamics.suggestions import known_names
 
+from ..algebra.symbols import TIME
+
 from .expressions import CONSTANTS, FUNCTIONS, expression_problems, number_problems
 from .holonomic import choose_dependent, eliminate, velocity_row
 
+#: (``TIME``, the time symbol t of forces and input laws, is :data:`nhgait.dynamics.algebra.symbols.TIME`)
 __all__ = ["TIME", "ParsedSystem", "parse_system", "parse_field", "velocity_name", "name_of", "names_of",
            "from_sympy", "NON_SMOOTH", "linear_split", "quadratic_split"]
-
-#: the time symbol t of forces and input laws
-TIME = sp.Symbol("t", real=True)
 
 #: functions that make L or ω non-smooth: their derivatives (DiracDelta) are not functions
 NON_SMOOTH = (sp.Heaviside, sp.sign, sp.Min, sp.Max)

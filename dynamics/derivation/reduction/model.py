@@ -14,7 +14,7 @@ from nhgait.dynamics.reprs import ModelDisplay
 
 from ..formulation_base import Formulation, LoopDynamics
 from ..steps import DISPLAY_OPS, Steps, default_symbol_names, text_of
-from ..symbolic import TIDY_NODES, tidy, tree_size
+from ...algebra.trig import TIDY_NODES, tidy, tree_size
 from ..symmetry import SymmetryTest
 from ..system import System
 
