@@ -126,6 +126,20 @@ def derive(system, formulation: str = "reduced", *, version: str | None = None,
     The model, whose ``system`` is the ``system`` given here and whose ``provenance``
     (:class:`~nhgait.dynamics.numerics.cache.Provenance`) says whether it came from the cache, its key,
     when the equations were derived and how long that took.
+
+    Examples
+    --------
+    The vertical rolling disc (n = 4 coordinates, k = 2 rolling constraints): the reduced ODE
+    has 2n − k = 6 first-order equations in z = (q, P), the Lagrangian DAE 2n states (q, q̇):
+
+    >>> from nhgait.dynamics import derive
+    >>> model = derive("unicycle")
+    >>> model.formulation, model.state_names
+    ('reduced', ('x', 'y', 'theta', 'phi', 'p', 'pt_theta'))
+    >>> model.dimension == 2 * model.system.n - model.system.k
+    True
+    >>> derive("unicycle", "lagrange").state_names
+    ('x', 'y', 'theta', 'phi', 'x_dot', 'y_dot', 'theta_dot', 'phi_dot')
     """
     if isinstance(system, str):
         from .models import builtin

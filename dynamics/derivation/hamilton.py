@@ -92,8 +92,8 @@ def _inverse_metric(M: sp.Matrix) -> sp.Matrix:
     The cofactors and the determinant come from Berkowitz's division-free algorithm, so each
     entry is one fraction of polynomials and its normal form one cancellation; an LU inverse
     nests the fractions of every elimination step, whose normal form grows explosively for a
-    dense metric (the whole derivation of the roller racer, examples/roller_racer.toml: over
-    7 min with LU, 0.8 s; a cart with one trailer: over 2 min, 1.2 s)."""
+    dense metric (minutes against about a second for the roller racer and a cart with a
+    trailer: docs/benchmarks.md, "Measured numbers behind design choices")."""
     det = tidy(M.det(method="berkowitz"))
     return (M.adjugate(method="berkowitz") / det).applyfunc(tidy)
 

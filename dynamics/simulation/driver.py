@@ -216,7 +216,7 @@ def simulate(model, t_span, q0, qdot0, *, controller=None, params=None,
     (True, [0.0, 0.5, 1.0])
     >>> traj.q[-1].round(6).tolist()        # x = r φ, y = 0, θ = 0, φ = 1
     [0.1, 0.0, 0.0, 1.0]
-    >>> abs(traj.constraint_residual).max() < 1e-12
+    >>> float(abs(traj.constraint_residual).max()) < 1e-12
     True
     """
     call = _Call(model=model, t_span=t_span, q0=q0, qdot0=qdot0, controller=controller, params=params,

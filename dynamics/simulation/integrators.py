@@ -213,8 +213,9 @@ def left_of(b: float) -> float:
 
 
 class Fast:
-    """Evaluate a CasADi Function on dense numpy vectors through a FunctionBuffer (~0.5 µs a
-    call instead of ~30 µs). Returns a copy of the first output, flattened column-major."""
+    """Evaluate a CasADi Function on dense numpy vectors through a FunctionBuffer (no per-call
+    conversions: about 60× cheaper a call, docs/benchmarks.md, "Measured numbers behind design
+    choices"). Returns a copy of the first output, flattened column-major."""
 
     def __init__(self, function: ca.Function):
         self._buffer, self._eval = function.buffer()

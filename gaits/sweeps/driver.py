@@ -398,6 +398,21 @@ def sweep(system, task=None, grid=(), *, out, overrides=(), params=None, schedul
     progress : callback receiving a :class:`Progress` after each point
     chain : points per back-end task down the continuation tree (None: the back end's choice;
         1 for the local pool, 4 for Dask)
+
+    Examples
+    --------
+    The unicycle's parallel park for two sideways shifts, solved in this process
+    (``workers=0``); the longer shift costs more effort:
+
+    >>> import tempfile
+    >>> from nhgait.gaits import sweep
+    >>> with tempfile.TemporaryDirectory() as out:
+    ...     result = sweep("unicycle", "parallel-park", ["final.y=0.3:0.5:2"], out=out, workers=0,
+    ...                    options={"jit": False})
+    >>> [(r.axis_values["final.y"], r.success) for r in result.records]
+    [(0.3, True), (0.5, True)]
+    >>> bool(result.records[0].objective < result.records[1].objective)
+    True
     """
     from ..outputs import output_directory, output_lock
     out = output_directory(out)                     # before any derivation: exit 2 for a bad location
