@@ -139,7 +139,8 @@ def package_edges(edges: dict, found: dict) -> dict:
 
 def long_modules(found: dict, limit: int = MAX_LINES) -> list:
     """(module, non-blank lines) of every module longer than ``limit``."""
-    sizes = ((name, sum(1 for line in path.read_text().splitlines() if line.strip())) for name, path in found.items())
+    sizes = ((name, sum(1 for line in path.read_text().splitlines() if line.strip()))
+             for name, path in found.items())
     return sorted((name, n) for name, n in sizes if n > limit)
 
 

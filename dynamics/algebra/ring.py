@@ -11,10 +11,12 @@ the ring cannot hold raises :class:`NotRational`; a derivation over its work bud
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import sympy as sp
 
 __all__ = ["NotRational", "WorkBudgetExceeded", "reduce_poly", "collect_generators", "add_fractions",
-           "float_rational", "walk_fraction", "to_field"]
+           "float_rational", "walk_fraction", "to_field", "RingFraction"]
 
 
 class NotRational(Exception):
@@ -70,8 +72,9 @@ def collect_generators(e, gens: dict):
 
 
 def add_fractions(terms, zero, one):
-    """Σ num/den over fractions of one ring: equal denominators are summed first, so a sum
-    over a common denominator costs no multiplication of denominators."""
+    """Σ num/den over fractions of one ring, as a pair (num, den) — the representation of an
+    element of :class:`~.fraction_field.FracField`: equal denominators are summed first, so a
+    sum over a common denominator costs no multiplication of denominators."""
     groups: list = []
     for nmr, dnm in terms:
         if not nmr:
@@ -146,10 +149,18 @@ def walk_fraction(e, R, table: dict):
     return ev(e)
 
 
-def to_field(e, extra):
+class RingFraction(NamedTuple):
+    """An expression as ``num``/``den``, polynomials of the sparse ``ring`` over ℚ."""
+
+    ring: object
+    num: object
+    den: object
+
+
+def to_field(e, extra) -> RingFraction:
     """Evaluate ``e`` as a fraction num/den of sparse polynomials over QQ in the generators of
     ``e`` (plus ``extra``), walking the tree without intermediate gcds (one cancellation at
-    the end is cheaper than one per operation). Returns (ring, num, den)."""
+    the end is cheaper than one per operation)."""
     from sympy.polys.domains import QQ
     from sympy.polys.rings import ring as make_ring
     gens: dict = {}
@@ -161,4 +172,4 @@ def to_field(e, extra):
         raise NotRational
     R, *g = make_ring(order, QQ)
     num, den = walk_fraction(e, R, {k: (v, R.one) for k, v in zip(order, g)})
-    return R, num, den
+    return RingFraction(R, num, den)

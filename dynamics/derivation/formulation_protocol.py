@@ -11,8 +11,8 @@ first asked for: no sympy at import).
 """
 from __future__ import annotations
 
-from .formulation_base import (Formulation, LoopDynamics, LoopPoint, Stabilisation,  # noqa: F401 - re-exported
-                               StateLayout)
+from .formulation_base import (Formulation, LoopDynamics, LoopPoint,  # noqa: F401 - re-exported
+                               Stabilisation, StateLayout)
 
 #: (``REDUCED``, ``LAGRANGE``, ``HAMILTON``, ``PROTOCOLS``: module attributes resolved on first use)
 __all__ = ["FormulationProtocol", "StateLayout", "LoopPoint", "Stabilisation", "LoopDynamics",

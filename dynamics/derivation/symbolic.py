@@ -12,4 +12,5 @@ from ..algebra.matrices import (LARGE_MATRIX_NODES, is_large, null_basis_adjugat
                                 numeric_pivots, plain_adjugate, plain_det, strip_factors)
 from ..algebra.matrix_ops import MatrixOps  # noqa: F401
 from ..algebra.ring import NotRational, WorkBudgetExceeded  # noqa: F401
-from ..algebra.trig import TIDY_NODES, has_trig, independent_arguments, tidy, tree_size, trig_normal  # noqa: F401
+from ..algebra.trig import (TIDY_NODES, has_trig, independent_arguments, tidy, tree_size,  # noqa: F401
+                            trig_normal)

@@ -64,7 +64,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import ModelError
-from .velocity_coordinates import (BODY_VELOCITIES, body_velocity, choose_velocities,  # noqa: F401 - re-exported
+from .velocity_coordinates import (BODY_VELOCITIES, body_velocity, choose_velocities,  # noqa: F401
                                    momentum_basis, row_function, velocity_problems, velocity_rows)
 
 __all__ = ["specialise", "SpecialisedModel", "body_velocity", "BODY_VELOCITIES", "velocity_rows",

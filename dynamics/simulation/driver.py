@@ -277,8 +277,8 @@ def _prepare(call: _Call, resolved) -> tuple[_Prepared, RunRequest]:
             settings["outputs_note"] = "the dependency closure needs the ODE route; every state integrated"
         else:
             seeds = resolved.seeds
-    loop = closed_loop(_integration_model(model, pv, settings), controller, stabilisation=options.stabilisation,
-                       seeds=seeds)
+    loop = closed_loop(_integration_model(model, pv, settings), controller,
+                       stabilisation=options.stabilisation, seeds=seeds)
     y0 = np.zeros(loop.n_y)              # (x_S, W = 0, ∫g = 0)
     y0[:len(loop.state_index)] = x0[list(loop.state_index)]
     seg_params = [loop.segment_params(pv, controller, a) for a, _ in segments]
@@ -347,7 +347,8 @@ class Routed(NamedTuple):
 
 
 def _route_scipy(request: RunRequest, method: str, settings: dict) -> Routed:
-    return Routed(integrate_scipy(request, method, projection=request.options.stabilisation.projects), method, {})
+    run = integrate_scipy(request, method, projection=request.options.stabilisation.projects)
+    return Routed(run, method, {})
 
 
 def _route_cvodes(request: RunRequest, method: str, settings: dict) -> Routed:
@@ -406,7 +407,10 @@ def _switch_to_implicit(request: RunRequest, run, settings: dict, extra: dict) -
     settings["auto"] = (f"DOP853 detected stiffness at t = {run.t_stiff:.6g} (h|λ| "
                         f"up to {run.h_lambda:.3g} for 15 steps: the step is set by stability) "
                         f"after {run.nfev} evaluations; redone with {implicit}")
-    new = integrate_scipy(request, "Radau") if request.python_inputs else integrate_sundials(request, "cvodes")
+    if request.python_inputs:
+        new = integrate_scipy(request, "Radau")
+    else:
+        new = integrate_sundials(request, "cvodes")
     new.nfev += run.nfev
     new.t_stiff, new.h_lambda = run.t_stiff, run.h_lambda
     return Routed(new, implicit, extra)

@@ -420,13 +420,13 @@ class _ScipyTools:
 
     @classmethod
     def build(cls, request: RunRequest, method: str, projection: bool) -> "_ScipyTools":
-        loop = request.loop
+        loop, options = request.loop, request.options
         implicit = method in IMPLICIT_METHODS and not request.python_inputs
         return cls(rhs=Fast(loop.rhs), qdot=Fast(loop.qdot), jac=Fast(loop.jac) if implicit else None,
                    project=Fast(loop.project) if projection else None,
-                   measure=Measure(loop.event) if (loop.event is not None and request.options.singular_tol) else None,
+                   measure=Measure(loop.event) if (loop.event is not None and options.singular_tol) else None,
                    solver_class=SCIPY_METHODS[method],
-                   budget={"left": _EVALS_PER_STEP * request.options.max_steps + 1000})
+                   budget={"left": _EVALS_PER_STEP * options.max_steps + 1000})
 
     def projector(self, segment: Segment, n_params: int):
         """y ↦ y projected onto the constraints on ``segment``, or None without projection."""
@@ -438,10 +438,10 @@ class _ScipyTools:
     def solver_maker(self, request: RunRequest, segment: Segment, fun):
         """make(t_start, y_start, h) → a scipy solver on ``segment`` from (t_start, y_start),
         first step ``h`` (None: scipy's choice)."""
-        t_hi, p, jac = segment.t_hi, segment.params, self.jac
+        t_hi, p, jac, options = segment.t_hi, segment.params, self.jac, request.options
 
         def make(t_start, y_start, h):
-            opts = dict(rtol=request.options.rtol, atol=request.options.atol, max_step=request.options.max_step)
+            opts = dict(rtol=options.rtol, atol=options.atol, max_step=options.max_step)
             if h is not None:
                 opts["first_step"] = min(h, segment.end - t_start)
             if jac is not None:
@@ -496,8 +496,9 @@ def integrate_scipy(request: RunRequest, method: str, *, projection=False, stop_
             f_new = getattr(solver, "f", None)        # f(t_new, y_new) of the RK and Radau solvers
             if f_new is not None and _first_bad(f_new) is not None:
                 return run.fail(NONFINITE, t_new, "", bad=_first_bad(f_new))
-            if run.n_steps >= request.options.max_steps and (solver.status == "running" or j < len(segments) - 1):
-                return run.fail(MAX_STEPS, t_new, f"max_steps = {request.options.max_steps} reached at t = {t_new:.9g}")
+            max_steps = request.options.max_steps
+            if run.n_steps >= max_steps and (solver.status == "running" or j < len(segments) - 1):
+                return run.fail(MAX_STEPS, t_new, f"max_steps = {max_steps} reached at t = {t_new:.9g}")
             if project is not None and solver.status == "running":
                 run.njev += getattr(solver, "njev", 0)
                 last_h = _next_step(solver)
