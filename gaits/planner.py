@@ -304,6 +304,7 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     search, timings["setup_s"] = _search(problem, guesses, settings, progress)
     timings["solve_s"] = time.perf_counter() - t0 - timings["setup_s"]
     solution, verify_s = _verified(search, prepared, to_plan, params, verify, progress)
+    solution = replace(solution, **_feedback_and_stability(search, progress))    # issue 28
     if verify_s is not None:
         timings["verify_s"] = verify_s
     solution = replace(solution, settings={**solution.settings, "system": to_plan.label,
@@ -371,6 +372,16 @@ def _verified(search, prepared, to_plan, params, verify, progress) -> tuple:
                       f"{v.max_condition_error:.2e} (tolerance {v.tolerance:g})")
         return solution, time.perf_counter() - t0
     return solution, None
+
+
+def _feedback_and_stability(search, progress) -> dict:
+    """The time-varying LQR along a converged plan in its own (velocity) coordinates
+    (:mod:`nhgait.ocp.feedback`) and, for a periodic plan, the Floquet multipliers of the open and
+    the closed loop (:mod:`nhgait.ocp.floquet`); {} for a failed plan."""
+    if search.solution is None:
+        return {}
+    from .plan_feedback import feedback_and_stability
+    return feedback_and_stability(search.solution, progress)
 
 
 def momentum_problem(model, problem, to_plan, params):
