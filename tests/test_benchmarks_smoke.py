@@ -38,3 +38,13 @@ def test_thesis_printed_equations_script(capsys):
     assert script.main() == 0
     out = capsys.readouterr().out
     assert "x(10pi)=4.8299458" in out and "x(10pi)=2.2990248" in out
+
+
+def test_bench_tracking_smoke(tmp_path, capsys):
+    bench = _load("bench_tracking")
+    out = tmp_path / "tracking.json"
+    assert bench.main(["--quick", "--out", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert data["snakeboard"]["ratio"] < 0.2 and data["six_coordinates"]["samples"] == 8
+    assert data["floquet"]["closed_loop"]["max_multiplier_difference"] < 1e-6
+    assert "Floquet (snakeboard forward gait)" in capsys.readouterr().out
