@@ -452,6 +452,12 @@ def summary_lines(result: PlanResult) -> list:
                  f"{st.get('solver')}, {st.get('hessian', 'exact')} Hessian, {_compiled_text(st)}, "
                  f"states ({', '.join(st.get('transcribed_in', s.state_names))})")
     lines += [f"  conditions         {line}" for line in (result.conditions.lines() if result.conditions else ())]
+    if s.feedback is not None:                                               # issue 28
+        lines.append(f"  feedback           time-varying LQR, {s.feedback.gains.shape[0]} gains "
+                     f"{s.feedback.gains.shape[1]}×{s.feedback.gains.shape[2]} in solution.json; nhgait track "
+                     "applies it to a robot that differs")
+    if s.stability is not None:
+        lines += [f"  stability          {line}" for line in s.stability.summary()]
     symmetry = getattr(result.model, "symmetry", None)
     if symmetry is not None:
         lines.append(f"  symmetry           {symmetry.chosen.group} moves the fibre ({', '.join(result.model.fiber)}); "

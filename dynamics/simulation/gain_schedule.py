@@ -27,6 +27,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import ModelError
+from .controllers import KnotSchedule
 
 __all__ = ["GainSchedule", "hermite"]
 
@@ -45,7 +46,7 @@ def _frozen(array) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class GainSchedule:
+class GainSchedule(KnotSchedule):
     """u = sat(u_k − K_k (σ(q, q̇) − z_ref(t))) on [t_k, t_{k+1}) (module docstring).
 
     Parameters
@@ -105,15 +106,6 @@ class GainSchedule:
 
     # ---------------------------------------------------------------- the protocol of .controllers
     @property
-    def breakpoints(self) -> np.ndarray:
-        """Interior knots: the integrator restarts where the gain and u_k jump."""
-        return self.times[1:-1]
-
-    @property
-    def domain(self) -> tuple:
-        return float(self.times[0]), float(self.times[-1])
-
-    @property
     def n_controls(self) -> int:
         return self.controls.shape[1]
 
@@ -126,10 +118,6 @@ class GainSchedule:
         """m + m·nz + 4 nz + 2 numbers per interval (module docstring)."""
         m, nz = self.n_controls, self.n_states
         return m + m * nz + 4 * nz + 2
-
-    def interval(self, t: float) -> int:
-        """k with t in [t_k, t_{k+1}) (clamped to 0 … N−1)."""
-        return int(np.clip(np.searchsorted(self.times, float(t), side="right") - 1, 0, self.controls.shape[0] - 1))
 
     def segment_data(self, a: float) -> np.ndarray:
         """The numbers of the interval containing ``a`` (module docstring)."""
