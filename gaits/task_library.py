@@ -135,7 +135,12 @@ def resolve(system, task=None, *, overrides=()) -> Plan:
         task = parse_task(apply_overrides(task.to_dict(), overrides), **check)
         return Plan(scene, task, f"{name}/{task.name}", units, drawing)
     if isinstance(task, str):
-        tasks = (lib or {}).get("tasks", {})
+        if lib is None:
+            raise ProblemError([f"--gait {task}: the built-in gaits belong to the built-in scenes, and "
+                                f"{scene.source} is a scene file: plan its own [task] (without --gait), or the "
+                                "built-in scene by name (nhgait plan snakeboard --gait forward)"],
+                               title="unknown gait")
+        tasks = lib.get("tasks", {})
         if task not in tasks:
             get_task(name, task)      # raises with the list of known gaits
         table, where = {"name": task, **tasks[task]}, f"[tasks.{task}]"

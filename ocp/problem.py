@@ -89,7 +89,21 @@ def builtin_quantities(model) -> dict:
                 v = qdot(z, params)
                 return body_velocity(name, v[ix], v[iy], z[ih], ca.cos, ca.sin)
             out[name] = Quantity(name, body, f"planar body velocity {name} of the frame {tuple(frame)}")
+    out.update(holonomic_quantities(model))
     return out
+
+
+def holonomic_quantities(model) -> dict:
+    """``holonomic1``, ``holonomic2`` …: h_i(q) of a model whose system keeps holonomic
+    constraints (its ``numeric["holonomic"]``); a plan starts on h = 0 (the velocity form keeps
+    it there), see :func:`nhgait.gaits.task.to_problem`."""
+    numeric = model.numeric
+    if "holonomic" not in getattr(numeric, "functions", {}):
+        return {}
+    h, n = numeric["holonomic"], len(_coordinates(model))
+    return {f"holonomic{i + 1}": Quantity(f"holonomic{i + 1}", lambda z, params, i=i: h(z[:n], params)[i],
+                                          f"holonomic constraint {i + 1}: h(q), zero on the constraint surface")
+            for i in range(h.size1_out(0))}
 
 
 @dataclass(frozen=True, eq=False)

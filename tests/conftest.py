@@ -52,3 +52,11 @@ def models(systems):
                     return lazy[name, formulation]
             return _F()
     return _View()
+
+
+@pytest.fixture
+def sandbox(tmp_path, monkeypatch):
+    """A private TMPDIR and output folder and the session's cache, checked for leftovers by the
+    hostile-input tests (tests/adversarial.py)."""
+    from adversarial import make_sandbox
+    return make_sandbox(tmp_path, monkeypatch)

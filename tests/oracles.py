@@ -436,7 +436,36 @@ def _family(name):
     return None
 
 
+def _model_disc_height():
+    """A thin disc rolling in 3-D with the height z of its centre kept as a coordinate: q = (x,
+    y, z, yaw, lean, spin), (x, y) the point of the ground below the rim's lowest point, C its
+    centre. The rim's lowest material point P does not move (three velocity constraints: the
+    vertical one is the time derivative of the configuration constraint z = r cos(lean), given
+    to KanesMethod as ``configuration_constraints``). A lean torque from the ground."""
+    import sympy as sp
+    from sympy.physics.mechanics import Point, ReferenceFrame, RigidBody, dynamicsymbols, inertia
+    x, y, z, yaw, lean, spin = q = dynamicsymbols("x y z yaw lean spin")
+    m, r, g = p = sp.symbols("m r g", positive=True)
+    tau = sp.Symbol("tau_lean")
+    N = ReferenceFrame("N")
+    I = ReferenceFrame("I")
+    I.orient_body_fixed(N, (yaw, lean, 0), "zxy")
+    D = I.orientnew("D", "Axis", (spin, I.y))
+    O = Point("O")
+    O.set_vel(N, 0)
+    C = O.locatenew("C", x * N.x + y * N.y + z * N.z + r * (I.z - I.z.dot(N.z) * N.z))
+    C.set_vel(N, C.pos_from(O).dt(N))
+    P = C.locatenew("P", -r * I.z)
+    P.v2pt_theory(C, N, D)
+    disc = RigidBody("disc", C, D, m, (inertia(I, m * r ** 2 / 4, m * r ** 2 / 2, m * r ** 2 / 4), C))
+    loads = [(C, -m * g * N.z), (I, tau * I.x)]
+    return dict(N=N, q=list(q), params=list(p), inputs=[tau], bodies=[disc], loads=loads,
+                constraints=[P.vel(N).dot(N.x), P.vel(N).dot(N.y), P.vel(N).dot(N.z)],
+                configuration=[z - r * sp.cos(lean)], dependent_sets=[(0, 1, 2)])
+
+
 _MODELS = {
+    "disc_height": _model_disc_height,
     "unicycle": _model_unicycle,
     "snakeboard": _model_snakeboard,
     "chaplygin_sleigh": _model_chaplygin_sleigh,
@@ -458,7 +487,10 @@ def kanes_method(mdl: dict, dependent):
     kd = [qi.diff(t) - ui for qi, ui in zip(q, u)]
     cons = [msubs(c, dict(zip([qi.diff(t) for qi in q], u))) for c in mdl["constraints"]]
     ind = [i for i in range(len(q)) if i not in dependent]
-    km = KanesMethod(mdl["N"], q_ind=q, u_ind=[u[i] for i in ind], kd_eqs=kd,
+    configuration = mdl.get("configuration", [])     # with q_dependent: the last len(...) of dependent
+    q_dep = [q[i] for i in dependent[len(dependent) - len(configuration):]] if configuration else []
+    km = KanesMethod(mdl["N"], q_ind=[qi for qi in q if qi not in q_dep], q_dependent=q_dep,
+                     configuration_constraints=configuration, u_ind=[u[i] for i in ind], kd_eqs=kd,
                      u_dependent=[u[i] for i in dependent], velocity_constraints=cons)
     km.kanes_equations(mdl["bodies"], mdl["loads"])
     return km

@@ -23,7 +23,7 @@ LAYERS = (
     ("nhgait",),
     ("nhgait.dynamics",),                                   # errors, progress, memo
     ("nhgait.dynamics.derivation", "nhgait.dynamics.numerics"),
-    ("nhgait.dynamics.simulation",),
+    ("nhgait.dynamics.simulation", "nhgait.dynamics.linearisation"),
     ("nhgait.ocp",),
     ("nhgait.gaits",),
     ("nhgait.gaits.sweeps", "nhgait.gaits.bench", "nhgait.gaits.tracking"),

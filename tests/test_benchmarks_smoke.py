@@ -40,6 +40,17 @@ def test_thesis_printed_equations_script(capsys):
     assert "x(10pi)=4.8299458" in out and "x(10pi)=2.2990248" in out
 
 
+def test_bench_bicycle_smoke(tmp_path, capsys):
+    bench = _load("bench_bicycle")
+    assert bench.main(["--out", str(tmp_path), "--speeds", "4:7:4", "--repeats", "1", "--no-cold",
+                       "--no-commands"]) == 0
+    data = json.loads((tmp_path / "bicycle.json").read_text())
+    assert data["table2_max_abs_error"] < 1e-10 and data["basu_mandal_max_abs_error"] < 1e-11
+    assert data["weave_error"] < 1e-10 and data["capsize_error"] < 1e-10
+    assert (tmp_path / "eigenvalues.png").stat().st_size > 10_000
+    assert "linearise_median_s" in capsys.readouterr().out
+
+
 def test_bench_tracking_smoke(tmp_path, capsys):
     bench = _load("bench_tracking")
     out = tmp_path / "tracking.json"

@@ -31,7 +31,7 @@ import sympy as sp
 from ..errors import ModelError
 
 __all__ = ["FUNCTIONS", "CONSTANTS", "parse_expression", "parse_number", "expression_problems", "finite_or_nan",
-           "MAX_LENGTH", "MAX_NODES", "MAX_DEPTH", "MAX_EXPONENT"]
+           "MAX_LENGTH", "MAX_NODES", "MAX_DEPTH", "MAX_EXPONENT", "MAX_MAGNITUDE", "magnitude_problem"]
 
 #: function name → (sympy function, allowed argument counts; None = two or more)
 FUNCTIONS = {
@@ -51,6 +51,11 @@ MAX_DEPTH = 100
 MAX_EXPONENT = 1_000
 #: largest exact number (decimal digits of numerator or denominator) an expression may build
 MAX_DIGITS = 300
+#: largest magnitude of a number nhgait accepts (a parameter, an initial value, a target, a
+#: constant of an expression, a URDF mass): a coordinate of 1e15 m keeps no digit below 0.1 m in
+#: double precision, and products of a few values at this bound stay far from the 1.8e308
+#: where doubles overflow (m = 1e308 made the kinetic metric's eigenvalues undefined)
+MAX_MAGNITUDE = 1e15
 
 _OPERATOR_HINT = {ast.BitXor: "'^' is not a power: write '**'", ast.Mod: "'%' is not supported",
                   ast.FloorDiv: "'//' is not supported: write '/'",
@@ -305,10 +310,14 @@ def expression_problems(text: str, names: dict, where: str, problems: list, *,
     if expr.has(sp.I):
         problems.append(f"{where}: {_shorten(source)!r} is not real")
         return None
-    if any(not math.isfinite(float(x)) for x in expr.atoms(sp.Float)) or any(
-            not math.isfinite(_float_value(c)) for c in expr.atoms(sp.Function, sp.Pow)
-            if not c.free_symbols):
+    constants = [float(x) for x in expr.atoms(sp.Float, sp.Integer)] + [
+        _float_value(c) for c in expr.atoms(sp.Function, sp.Pow) if not c.free_symbols]
+    if any(not math.isfinite(v) for v in constants):
         problems.append(f"{where}: a constant in {_shorten(source)!r} is too large or undefined")
+        return None
+    if any(abs(v) > MAX_MAGNITUDE for v in constants):
+        problems.append(f"{where}: a constant in {_shorten(source)!r} exceeds {MAX_MAGNITUDE:.0e} in magnitude, "
+                        "the largest number nhgait accepts")
         return None
     return expr
 
@@ -342,7 +351,7 @@ def number_problems(value, where: str, problems: list, names: dict | None = None
         out = finite_or_nan(value)
         if math.isnan(out):
             problems.append(f"{where}: {value!r} is not finite")
-        return out
+        return magnitude_problem(out, where, problems)
     if not isinstance(value, str):
         problems.append(f"{where}: expected a number or a constant expression, got "
                         f"{type(value).__name__} {_shorten(repr(value))}")
@@ -362,7 +371,18 @@ def number_problems(value, where: str, problems: list, names: dict | None = None
     if not math.isfinite(out):
         problems.append(f"{where}: {_shorten(value)!r} is not a finite real number")
         return math.nan
-    return out
+    return magnitude_problem(out, where, problems)
+
+
+def magnitude_problem(value: float, where: str, problems: list) -> float:
+    """``value``, or nan after appending a problem when it exceeds :data:`MAX_MAGNITUDE` in
+    magnitude (naming ``where`` and the bound)."""
+    if abs(value) > MAX_MAGNITUDE:
+        problems.append(f"{where}: {value:.6g} exceeds {MAX_MAGNITUDE:.0e} in magnitude, the largest number "
+                        "nhgait accepts (beyond it double precision keeps no digit below 0.1 and products "
+                        "of such values overflow)")
+        return math.nan
+    return value
 
 
 _MATH = {sp.sin: math.sin, sp.cos: math.cos, sp.tan: math.tan, sp.asin: math.asin,

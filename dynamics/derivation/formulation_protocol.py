@@ -167,8 +167,9 @@ class FormulationProtocol(abc.ABC):
     def singular_set_text(self, model) -> str:
         """What the singular set is, in words (the message of a run stopped on it)."""
 
-    def dae_option_problems(self, dae: str, stabilization) -> list:
-        """The problems of a request that sets options this formulation does not have."""
+    def dae_option_problems(self, dae: str, stabilization, *, holonomic: bool = False) -> list:
+        """The problems of a request that sets options this formulation does not have
+        (``holonomic``: the system keeps holonomic constraints, whose drift projection removes)."""
         return []
 
     def __repr__(self) -> str:
@@ -226,14 +227,17 @@ class ReducedProtocol(FormulationProtocol):
             return "singular set: " + " or ".join(f"{e} = 0" for e in sset)
         return "the reduction is singular there"
 
-    def dae_option_problems(self, dae, stabilization) -> list:
+    def dae_option_problems(self, dae, stabilization, *, holonomic: bool = False) -> list:
         problems = []
         if dae == "idas":
             problems.append("dae='idas' applies to the DAE forms (lagrange, hamilton); the reduced "
                             "form is an ODE")
+        if stabilization == "projection" and holonomic:
+            return problems           # q projected back onto the kept holonomic constraints h(q) = 0
         if stabilization is not None:
             problems.append("stabilization applies to the DAE forms; the reduced ODE satisfies the "
-                            "constraints by construction")
+                            "constraints by construction (projection also applies to a reduced ODE "
+                            "with kept holonomic constraints: it removes their drift)")
         return problems
 
 

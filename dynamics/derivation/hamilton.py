@@ -60,7 +60,7 @@ class HamiltonianDAE(DAEModel):
 
     def to_text(self, cse: bool | None = None) -> str:
         """The equations as text; ``cse``: name repeated sub-expressions once (None: when long)."""
-        lines = [f"Hamilton's equations with multipliers of {self.system.name} (index-{self.differentiation_index} DAE)"]
+        lines = [f"Hamilton's equations with multipliers of {self.system.name} (index-{self.differentiation_index} DAE)", *self.system.holonomic_lines()]
         eqs = self.equations()
         return "\n".join(lines + equation_lines([sp.Symbol("H"), *(e.lhs for e in eqs)],
                                                  [self.H, *(e.rhs for e in eqs)], cse))

@@ -56,7 +56,7 @@ class LagrangianDAE(DAEModel):
 
     def to_text(self, cse: bool | None = None) -> str:
         """The equations as text; ``cse``: name repeated sub-expressions once (None: when long)."""
-        lines = [f"Euler–Lagrange equations with multipliers of {self.system.name} (index-{self.differentiation_index} DAE)"]
+        lines = [f"Euler–Lagrange equations with multipliers of {self.system.name} (index-{self.differentiation_index} DAE)", *self.system.holonomic_lines()]
         eqs = self.equations()
         return "\n".join(lines + equation_lines([e.lhs for e in eqs], [e.rhs for e in eqs], cse))
 

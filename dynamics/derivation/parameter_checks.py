@@ -29,10 +29,10 @@ LAMBDIFIED = OwnerMemo("lambdified M, ω and V per system")
 def numeric_functions(system) -> tuple:
     """(M(q, params), ω(q, params) or None, V(q, params)) as numpy callables (:data:`LAMBDIFIED`)."""
     def lambdify():
-        args = [system.q, system.param_symbols]
-        return (sp.lambdify(args, system.mass_matrix(), "numpy"),
-                sp.lambdify(args, system.omega(), "numpy") if system.k else None,
-                sp.lambdify(args, system.potential(), "numpy"))
+        args = [system.q, system.param_symbols]     # cse: a system built from bodies repeats much
+        return (sp.lambdify(args, system.mass_matrix(), "numpy", cse=True),
+                sp.lambdify(args, system.omega(), "numpy", cse=True) if system.k else None,
+                sp.lambdify(args, system.potential(), "numpy", cse=True))
     return LAMBDIFIED.get(system, None, lambdify)
 
 
@@ -94,7 +94,10 @@ def _sampled_spectrum(system, pv) -> tuple:
             M = np.array(mass(qs, pv), dtype=float)
         if not np.all(np.isfinite(M)):
             continue
-        eigenvalues = np.linalg.eigvalsh(0.5 * (M + M.T))
+        try:                        # halves first: M + Mᵀ of entries near the largest double overflows
+            eigenvalues = np.linalg.eigvalsh(0.5 * M + 0.5 * M.T)
+        except np.linalg.LinAlgError:
+            continue
         largest = max(largest, abs(eigenvalues[-1]), abs(eigenvalues[0]))
         if worst is None or eigenvalues[0] < worst[0]:
             worst = (eigenvalues[0], qs)

@@ -18,11 +18,14 @@ from nhgait.dynamics.suggestions import known_names
 
 from ..errors import ModelError
 from .expressions import number_problems
+from .textfiles import names_a_file, read_text_file
 from .system import TIME, System, parse_field, jump_times
 from .tomldata import read_toml
 
 SYSTEM_KEYS = {"name", "coordinates", "lagrangian", "constraints", "forces", "parameters", "inputs",
-               "fiber", "planar_frame", "description"}
+               "fiber", "planar_frame", "description", "holonomic", "dependent"}
+#: the most output samples of a [simulation] (about 1.2 kB and 30–80 µs per sample for the unicycle's outputs)
+MAX_SAMPLES = 1_000_000
 SIMULATION_KEYS = {"q0", "qdot0", "t_final", "samples", "t0", "inputs", "parameters", "formulation",
                    "rtol", "atol", "method", "outputs"}
 #: top-level tables; ``task``, ``units`` and ``drawing`` are kept as data for the planner and
@@ -151,6 +154,8 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
     urdf = None
     if isinstance(data.get("system"), dict) and "urdf" in data["system"]:
         urdf, system = _urdf_system(data["system"], source, problems)
+    elif isinstance(data.get("system"), dict) and "bodies" in data["system"]:
+        system = _bodies_system(data["system"], source, problems)
     else:
         system = _system(data.get("system"), source, problems)
     spec = None
@@ -184,6 +189,17 @@ def _urdf_system(sysd, source, problems):
         problems.extend(exc.problems)
         return None, None
     return built, built.system
+
+
+def _bodies_system(sysd, source, problems):
+    """The System of a ``[system]`` table stated with ``bodies`` and ``wheels`` (docs/bodies.md),
+    or None after recording its problems."""
+    from .bodies import bodies_system
+    try:
+        return bodies_system(sysd, source)
+    except ModelError as exc:
+        problems.extend(exc.problems)
+        return None
 
 
 def _urdf_task_defaults(task: dict, urdf) -> dict:
@@ -220,7 +236,8 @@ def _system(sysd, source, problems) -> System | None:
         return System(coordinates=sysd["coordinates"], lagrangian=sysd["lagrangian"],
                       constraints=sysd.get("constraints", []), forces=sysd.get("forces", {}),
                       parameters=sysd.get("parameters", {}), inputs=sysd.get("inputs"), name=name,
-                      fiber=sysd.get("fiber"), planar_frame=sysd.get("planar_frame", "auto"))
+                      fiber=sysd.get("fiber"), planar_frame=sysd.get("planar_frame", "auto"),
+                      holonomic=sysd.get("holonomic", ()), dependent=sysd.get("dependent"))
     except ModelError as exc:
         problems.extend(exc.problems)
         return None
@@ -241,13 +258,18 @@ def _simulation(sim, system, problems) -> SimulationSpec | None:
             problems.append(f"[simulation]: missing key {key!r}")
     n = system.n if system else None
     q0 = _vector(sim["q0"], "[simulation].q0", n, problems) if "q0" in sim else None
+    if q0 is None and system is not None and system.eliminated and "q0" in sim:
+        problems.append("the holonomic constraints eliminated " + ", ".join(
+            f"{c} (= {e})" for c, e in system.eliminated) + f": q0 lists the other coordinates "
+            f"({', '.join(system.coordinates)})")
     t0 = _number(sim.get("t0", 0.0), "[simulation].t0", problems)
     tf = _number(sim["t_final"], "[simulation].t_final", problems) if "t_final" in sim else math.nan
     if math.isfinite(t0) and math.isfinite(tf) and not tf > t0:
         problems.append(f"[simulation]: t_final = {tf} must be greater than t0 = {t0}")
     samples = sim.get("samples", 2)
-    if isinstance(samples, bool) or not isinstance(samples, int) or not 2 <= samples <= 10_000_000:
-        problems.append(f"[simulation].samples must be an integer from 2 to 10⁷, got {samples!r}")
+    if isinstance(samples, bool) or not isinstance(samples, int) or not 2 <= samples <= MAX_SAMPLES:
+        problems.append(f"[simulation].samples must be an integer from 2 to 10⁶, got {samples!r} (10⁶ samples "
+                        "already take about a gigabyte and a minute to evaluate and write)")
     sim_params = {k: _number(v, f"[simulation].parameters.{k}", problems)
                   for k, v in _table(sim.get("parameters"), "[simulation].parameters", problems).items()}
     for key in ("rtol", "atol"):
@@ -269,6 +291,8 @@ def _simulation(sim, system, problems) -> SimulationSpec | None:
                         f"{known_names(bad[0], system.parameters, label='parameters')}")
     elif sim_params and len(problems) == start:
         problems.extend(system.parameter_problems(sim_params, label="the [simulation] parameters"))
+    if q0 is not None and system.holonomic and len(problems) == start:
+        q0 = _consistent_q0(system, q0, sim_params, problems)
     qd0 = _initial_velocities(sim.get("qdot0"), system, q0, sim_params, problems) if "qdot0" in sim else None
     controller = _input_laws(sim.get("inputs", {}), system, sim_params, problems)
     if len(problems) > start:
@@ -276,6 +300,17 @@ def _simulation(sim, system, problems) -> SimulationSpec | None:
     return SimulationSpec(q0=q0, qdot0=qd0, t_final=tf, samples=samples, t0=t0, controller=controller,
                           parameters=sim_params, formulation=formulation, rtol=sim.get("rtol"),
                           atol=sim.get("atol"), method=sim.get("method"), outputs=outputs)
+
+
+def _consistent_q0(system, q0, params, problems):
+    """``q0`` with its dependent coordinates solved from the kept holonomic constraints (the
+    values written are Newton's starting point; :func:`~.holonomic.consistent_configuration`)."""
+    from .holonomic import consistent_configuration
+    try:
+        return consistent_configuration(system, q0, params=params)
+    except ModelError as exc:
+        problems.extend(f"[simulation].q0: {p}" for p in exc.problems)
+        return None
 
 
 def _initial_velocities(value, system, q0, params, problems):
@@ -372,7 +407,7 @@ def load_scene(path_or_name, overrides=()) -> Scene:
     ``overrides``: ``--set`` assignments to its ``[simulation]`` table
     (:func:`~nhgait.dynamics.derivation.assignments.apply_simulation_overrides`)."""
     p = Path(str(path_or_name))
-    if not p.exists() and p.suffix != ".toml":
+    if not names_a_file(p) and p.suffix != ".toml":
         name = str(path_or_name).replace("-", "_")
         try:
             text = resources.files("nhgait.dynamics.derivation").joinpath("scenes", f"{name}.toml").read_text()
@@ -383,11 +418,10 @@ def load_scene(path_or_name, overrides=()) -> Scene:
                               f"{known_names(name, available, label='built-ins')}"], title="unknown scene") from None
         source = f"built-in scene {name}"
     else:
-        if not p.exists():
-            raise ModelError([f"scene file {p} does not exist"], title="unknown scene")
-        text = p.read_text()
+        text = read_text_file(p, "scene file", title="cannot read the scene")
         source = str(p)
     return scene_from_text(text, source, overrides)
+
 
 
 def scene_from_text(text: str, source: str = "<scene>", overrides=()) -> Scene:

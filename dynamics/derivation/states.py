@@ -144,6 +144,8 @@ def to_state(model, q, qdot, params=None, *, tol: float = CONSTRAINT_TOL) -> np.
     values = q.tolist() + qdot.tolist()               # scalar checks in Python: a few entries
     if not all(map(math.isfinite, values)):
         raise ModelError(["q and qdot must be finite"], title="invalid state")
+    if system.holonomic:
+        _check_holonomic(system, q, params, tol)
     with np.errstate(all="ignore"):
         x, measure, res = _evaluate(model, q, qdot, params)
     _check_measure(model, q, measure)
@@ -158,6 +160,27 @@ def to_state(model, q, qdot, params=None, *, tol: float = CONSTRAINT_TOL) -> np.
                                 for i, (expr, r) in enumerate(zip(system.constraint_exprs, residuals)) if abs(r) > limit],
                              title="inconsistent state")
     return x
+
+
+def _check_holonomic(system, q, params, tol) -> None:
+    """Raise when q violates a kept holonomic constraint h(q) = 0 by more than
+    ``tol``·max(1, |q|), naming the consistent values of the dependent coordinates."""
+    from .holonomic import consistent_configuration, holonomic_residual
+    residual = holonomic_residual(system, q, params)
+    limit = tol * max(1.0, float(np.max(np.abs(q))))
+    if np.all(np.abs(residual) <= limit):
+        return
+    problems = [f"the configuration violates the holonomic constraint {h} = 0: residual {r:.6g}"
+                for h, r in zip(system.holonomic, residual) if not abs(r) <= limit]
+    try:
+        fixed = consistent_configuration(system, q, params=params)
+        names = list(system.coordinates)
+        problems.append("the consistent configuration has " + ", ".join(
+            f"{c} = {fixed[names.index(c)]:.12g}" for c in system.dependent)
+            + " (nhgait.dynamics.derivation.holonomic.consistent_configuration; a scene's q0 is solved so)")
+    except ModelError as exc:
+        problems.extend(exc.problems)
+    raise ModelError(problems, title="inconsistent state")
 
 
 def from_state(model, x, params=None):

@@ -13,13 +13,32 @@ def has_trig(expr) -> bool:
     return any(expr.has(f) for f in _TRIG)
 
 
+#: expressions with more tree nodes than this are left as they are by :func:`tidy` (a system
+#: built from bodies — the Whipple bicycle — has minors of 10⁵ nodes, whose normal form costs
+#: minutes; the implicit form never needs it, the numeric steps see the same function)
+TIDY_NODES = 6000
+
+
+def tree_size(expr, limit: int) -> int:
+    """Number of nodes of ``expr``'s tree, counted up to ``limit`` + 1 (cost O(limit))."""
+    count = 0
+    for _ in sp.preorder_traversal(expr):
+        count += 1
+        if count > limit:
+            break
+    return count
+
+
 def tidy(expr):
     """Cheap, predictable simplification: trig identities where trig functions appear, then
     cancellation of rational factors. Keeps expressions readable without ``simplify``'s cost.
-    Results are memoised (the same minors recur across candidates and steps)."""
+    Results are memoised (the same minors recur across candidates and steps). Expressions
+    above :data:`TIDY_NODES` nodes are returned unchanged."""
     if isinstance(expr, sp.MatrixBase):
         return expr.applyfunc(tidy)
     if expr == 0 or expr.is_Number or expr.is_Symbol:
+        return expr
+    if tree_size(expr, TIDY_NODES) > TIDY_NODES:
         return expr
     return _tidy_scalar(expr)
 
@@ -258,8 +277,11 @@ def null_basis_adjugate(A: sp.Matrix, pivots: list[int]) -> sp.Matrix:
     if not free:
         return sp.zeros(l, 0)
     B = A.extract(list(range(k)), pivots)
-    detB = B.det(method="berkowitz")
-    adjB = B.adjugate(method="berkowitz")
+    large = is_large(A)
+    if large:                      # entries from bodies: plain products, no intermediate simplification
+        detB, adjB = plain_det(B), plain_adjugate(B)
+    else:
+        detB, adjB = B.det(method="berkowitz"), B.adjugate(method="berkowitz")
     cols = []
     for j in free:
         v = sp.zeros(l, 1)
@@ -270,7 +292,7 @@ def null_basis_adjugate(A: sp.Matrix, pivots: list[int]) -> sp.Matrix:
         v = tidy(v)
         # remove a common constant/polynomial factor, fix the sign of the free entry
         try:
-            g = sp.gcd(list(v))
+            g = None if large else sp.gcd(list(v))
         except (sp.PolynomialError, sp.GeneratorsNeeded, TypeError):
             g = None          # no gcd of these entries: v is a basis vector as it is
         if g is not None and g not in (0, 1) and g.is_Number:
@@ -281,10 +303,58 @@ def null_basis_adjugate(A: sp.Matrix, pivots: list[int]) -> sp.Matrix:
     return sp.Matrix.hstack(*cols) if cols else sp.zeros(l, 0)
 
 
+#: a matrix whose entries have more tree nodes together than this is "large": its minors and
+#: their gcd are formed without simplification (the wheeled 8-link snake's ω_s has 329 nodes,
+#: the Whipple bicycle's 912, whose 4×4 minors then take seconds instead of a minute)
+LARGE_MATRIX_NODES = 600
+
+
+def is_large(A: sp.Matrix) -> bool:
+    """More than :data:`LARGE_MATRIX_NODES` tree nodes in the entries of ``A`` together."""
+    total = 0
+    for e in A:
+        total += tree_size(e, LARGE_MATRIX_NODES)
+        if total > LARGE_MATRIX_NODES:
+            return True
+    return False
+
+
+def plain_det(B: sp.Matrix):
+    """det B by expansion along the first row, without simplification (for large entries,
+    where sympy's methods spend minutes simplifying intermediate products)."""
+    n = B.shape[0]
+    if n == 0:
+        return sp.Integer(1)
+    if n == 1:
+        return B[0, 0]
+    terms = []
+    for j in range(n):
+        if B[0, j] != 0:
+            minor = B.extract(list(range(1, n)), [c for c in range(n) if c != j])
+            terms.append((-1) ** j * B[0, j] * plain_det(minor))
+    return sp.Add(*terms)
+
+
+def plain_adjugate(B: sp.Matrix) -> sp.Matrix:
+    """adj B (the transposed cofactor matrix) by :func:`plain_det` of the minors."""
+    n = B.shape[0]
+    if n == 1:
+        return sp.Matrix([[1]])
+    out = sp.zeros(n, n)
+    for i in range(n):
+        for j in range(n):
+            minor = B.extract([r for r in range(n) if r != i], [c for c in range(n) if c != j])
+            out[j, i] = (-1) ** (i + j) * plain_det(minor)
+    return out
+
+
 def strip_factors(N: sp.Matrix, symbols) -> sp.Matrix:
     """Divide each column of ``N`` by the common factor of its entries that depends on
     ``symbols`` (e.g. a sin θ common to a null vector when θ is a group variable), so a basis
-    vector does not vanish at a spurious point. Factors of other symbols are kept."""
+    vector does not vanish at a spurious point. Factors of other symbols are kept. A large
+    ``N`` (:func:`is_large`) is returned as it is (its gcd alone would take minutes)."""
+    if is_large(N):
+        return N
     symbols = set(symbols)
     cols = []
     for j in range(N.shape[1]):

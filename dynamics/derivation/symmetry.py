@@ -18,6 +18,21 @@ For every candidate set of fiber coordinates s ⊂ q (the rest r are shape coord
 
 Selection rule (documented in docs/reduction.md): fewest shape constraints k − rank ω_s first,
 then a full candidate before a principally kinematic one, then smallest dimension l; ties go to the candidate with fewer forced fiber coordinates, then to coordinate order.
+
+How many candidates are tested
+------------------------------
+Up to :data:`FULL_TABLE_MAX_N` coordinates every one of the 2ⁿ − 1 subsets is a row of the
+table (the thesis's Table 3.1, 255 rows at n = 8, a fraction of a second). Beyond, 2ⁿ grows out
+of reach (n = 20: a million subsets), so:
+
+* a ``fiber`` the user gives is tested alone (one row) — any n;
+* otherwise only the subsets that can be symmetries are tested — translations of coordinates
+  L and ω do not depend on, or SE(2) on the planar frame times such translations — by
+  increasing size, stopping after the first size that holds a full candidate of the largest
+  rank ω_s those coordinates allow (no larger set can come before it in the selection rule),
+  and after :data:`MAX_CANDIDATES` candidates at most: past that budget the search says so and
+  asks for the fiber (``fiber = [...]`` in ``[system]``) unless it already found an admissible
+  one, which it then takes with a note.
 """
 from __future__ import annotations
 
@@ -86,6 +101,10 @@ class Candidate:
 
 #: largest k for which step 2 writes out a basis of D_q (k×k minors); larger: described only
 DISTRIBUTION_MAX_K = 3
+#: up to this many coordinates the symmetry table holds every subset (2ⁿ − 1 rows)
+FULL_TABLE_MAX_N = 8
+#: most candidate fibre sets the pruned search tests (about 1 ms each) before it asks for the fiber
+MAX_CANDIDATES = 4000
 
 
 @dataclass(frozen=True)
@@ -96,6 +115,7 @@ class SymmetryTest:
     candidates: tuple[Candidate, ...]
     chosen: Candidate
     chosen_by: str                   # "user" or "test"
+    search: str = ""                 # how the candidates were found, when not all subsets were tested
 
     @cached_property
     def distribution(self):
@@ -121,6 +141,8 @@ class SymmetryTest:
             mark = " **(chosen)**" if c is self.chosen else ""
             rows.append(f"| ({', '.join(c.fiber)}) | {c.group} | span{{{', '.join('∂/∂' + s for s in c.orbit_tangent)}}}"
                         f" | {c.rank} | {'yes' if c.invariant else 'no'} | {sq} | {xi} | {c.verdict}{mark}: {c.reason} |")
+        if self.search:
+            rows.append(f"\n{self.search}")
         return "\n".join(rows)
 
 
@@ -274,37 +296,42 @@ def _candidate(inputs: _TestInputs, idx) -> Candidate:
                      indices=tuple(idx), n=n, rows=rows)
 
 
-def _choose(system: System, candidates: list) -> SymmetryTest:
+def _choose(system: System, candidates: list, search: str = "") -> SymmetryTest:
     """Step 3: the user's fiber (refused when not admissible) or the best admissible candidate:
     most constraints in the fiber, full before kinematic, fewest fiber coordinates, fewest
     forced fiber coordinates, then the coordinates' order."""
-    names, k = system.coordinates, system.k
-    forced = {c for c, f in zip(names, system.tau) if f != 0}
-
-    def key(c):
-        return (k - c.rank, c.verdict != FULL, len(c.fiber), len(set(c.fiber) & forced),
-                [names.index(f) for f in c.fiber])
-
+    names = system.coordinates
     if system.fiber is not None:
         want = tuple(sorted(system.fiber, key=names.index))
         chosen = next(c for c in candidates if c.fiber == want)
         if not chosen.admissible:
-            table = SymmetryTest(system, tuple(candidates), chosen, "user").table_markdown()
+            table = SymmetryTest(system, tuple(candidates), chosen, "user", search).table_markdown()
             raise ModelError([f"the fiber coordinates ({', '.join(want)}) do not give a full symmetry "
                               f"group: {chosen.verdict}: {chosen.reason}\n{table}"],
                              title="no full symmetry group")
-        return SymmetryTest(system, tuple(candidates), chosen, "user")
-    full = sorted((c for c in candidates if c.admissible), key=key)
+        return SymmetryTest(system, tuple(candidates), chosen, "user", search)
+    full = sorted((c for c in candidates if c.admissible), key=lambda c: _rank_key(system, c))
     if not full:
-        table = SymmetryTest(system, tuple(candidates), candidates[0], "test").table_markdown()
+        table = (SymmetryTest(system, tuple(candidates), candidates[0], "test", search).table_markdown()
+                 if candidates else f"(no subset can be a symmetry: L or ω depends on every coordinate) {search}")
         raise ModelError(["no candidate group of fiber coordinates gives a full Lie algebra element "
                           "(and none is principally kinematic); the symmetry table:\n" + table],
                          title="no full symmetry group")
-    return SymmetryTest(system, tuple(candidates), full[0], "test")
+    return SymmetryTest(system, tuple(candidates), full[0], "test", search)
 
 
-def symmetry_test(system: System, M: sp.Matrix | None = None) -> SymmetryTest:
-    """Steps 2–3: D_q, the candidate table over all fiber sets, and the chosen fiber.
+def _rank_key(system: System, c: Candidate) -> tuple:
+    """The selection rule as a sort key (smallest first; see the module docstring)."""
+    names = system.coordinates
+    forced = {name for name, f in zip(names, system.tau) if f != 0}
+    return (system.k - c.rank, c.verdict != FULL, len(c.fiber), len(set(c.fiber) & forced),
+            [names.index(f) for f in c.fiber])
+
+
+def symmetry_test(system: System, M: sp.Matrix | None = None, *,
+                  max_candidates: int = MAX_CANDIDATES) -> SymmetryTest:
+    """Steps 2–3: D_q, the candidate table, and the chosen fiber (which candidates are tested:
+    the module docstring; ``max_candidates`` bounds the pruned search).
 
     Raises :class:`ModelError` (with the table) when no candidate is admissible or when the
     user's fiber choice is not.
@@ -315,6 +342,62 @@ def symmetry_test(system: System, M: sp.Matrix | None = None) -> SymmetryTest:
     V = system.potential()
     inputs = _TestInputs(system, W, omega_samples(system, 3, seed=5) if k else [np.zeros((0, n))] * 3,
                          set().union(M.free_symbols, W.free_symbols, V.free_symbols))
-    candidates = [_candidate(inputs, idx) for size in range(1, n + 1)
-                  for idx in itertools.combinations(range(n), size)]
-    return _choose(system, candidates)
+    if n <= FULL_TABLE_MAX_N:
+        return _choose(system, [_candidate(inputs, idx) for size in range(1, n + 1)
+                                for idx in itertools.combinations(range(n), size)])
+    if system.fiber is not None:
+        idx = tuple(sorted(system.coordinates.index(c) for c in system.fiber))
+        return _choose(system, [_candidate(inputs, idx)],
+                       f"n = {n} > {FULL_TABLE_MAX_N}: the given fiber is tested alone (no table of the 2^{n} − 1 subsets)")
+    candidates, search = _pruned_candidates(inputs, max_candidates)
+    return _choose(system, candidates, search)
+
+
+def _symmetry_sets(inputs: _TestInputs, size: int, plain: list) -> list:
+    """The index sets of ``size`` coordinates that can be symmetries: subsets of ``plain`` (the
+    coordinates L and ω do not depend on), or the planar frame with such a subset."""
+    system = inputs.system
+    sets = set(itertools.combinations(plain, size))
+    if system.planar_frame is not None:
+        frame = {system.coordinates.index(c) for c in system.planar_frame}
+        others = [i for i in plain if i not in frame]
+        if size >= len(frame):
+            sets.update(tuple(sorted(frame | set(rest))) for rest in itertools.combinations(others, size - len(frame)))
+    return sorted(sets)
+
+
+def _pruned_candidates(inputs: _TestInputs, budget: int) -> tuple[list, str]:
+    """(the candidates tested, a sentence saying how) for n > FULL_TABLE_MAX_N without a given
+    fiber: the module docstring's pruned search."""
+    system = inputs.system
+    n, k = system.n, system.k
+    plain = [i for i, q in enumerate(system.q) if q not in inputs.free]
+    columns = sorted(set(plain) | {system.coordinates.index(c) for c in (system.planar_frame or ())})
+    best_rank = min((np.linalg.matrix_rank(w[:, columns], tol=1e-9 * max(1, np.abs(w).max())) if k and columns else 0)
+                    for w in inputs.W_samples)
+    candidates, tested = [], 0
+    for size in range(1, n + 1):
+        level = _symmetry_sets(inputs, size, plain)
+        if tested + len(level) > budget:
+            return _over_budget(system, candidates, tested, size, budget)
+        candidates += [_candidate(inputs, idx) for idx in level]
+        tested += len(level)
+        admissible = [c for c in candidates if c.admissible]
+        if any(c.verdict == FULL and c.rank == best_rank for c in admissible):
+            break
+    return candidates, (f"n = {n} > {FULL_TABLE_MAX_N}: {tested} of the 2^{n} − 1 subsets tested (those that can be "
+                        f"symmetries, up to {size} coordinates; no larger set comes first in the rule)")
+
+
+def _over_budget(system: System, candidates: list, tested: int, size: int, budget: int) -> tuple[list, str]:
+    """The search stopped at ``budget``: the best admissible candidate so far, with a note, or
+    an error asking for the fiber."""
+    admissible = sorted((c for c in candidates if c.admissible), key=lambda c: _rank_key(system, c))
+    if not admissible:
+        raise ModelError([f"the symmetry search over {system.n} coordinates found no admissible fibre among the "
+                          f"{tested} candidate sets of up to {size - 1} coordinates, and testing sets of {size} "
+                          f"would exceed {budget} candidates: name the fibre coordinates in [system] "
+                          "(fiber = [...]; System(fiber=...))"], title="symmetry search too large")
+    return candidates, (f"n = {system.n} > {FULL_TABLE_MAX_N}: the search stopped after {tested} candidate sets of up "
+                        f"to {size - 1} coordinates (budget {budget}); the best found is taken — name another "
+                        "fibre in [system] (fiber = [...]) to choose")

@@ -29,9 +29,12 @@ from nhgait.dynamics.suggestions import known_names
 from ..errors import ModelError
 from ..memo import OwnerMemo
 from . import parameter_checks
-from .system_parsing import TIME, parse_field, parse_system, velocity_name
+from .system_parsing import TIME, linear_split, parse_field, parse_system, quadratic_split, velocity_name
 
 __all__ = ["System", "TIME", "jump_times", "parse_field", "velocity_name", "FORCE_JUMP_TIMES"]
+
+#: per system (dropped with it): M(q) and V(q), derived once (read off L or differentiated)
+METRICS = OwnerMemo("kinetic metric and potential per system")
 
 #: the force jump times of a system per parameter values (sympy walks the forces: ~20 µs a
 #: call, and every simulation asks); dropped with the system
@@ -84,6 +87,18 @@ class System:
     planar_frame : (x, y, heading) names, "auto" or None
         Coordinates of a planar pose used for the SE(2)-type choice of g (version B of the
         reconstruction). "auto" looks for coordinates named x, y and theta.
+    holonomic : sequence of str or expression, optional
+        Configuration constraints h(q) = 0 (coordinates and parameters only). Each is
+        eliminated when it is linear in a coordinate with a constant coefficient (the
+        coordinate is substituted everywhere and dropped from ``coordinates``; see
+        ``eliminated``), else kept: its velocity row ∇h·q̇ is appended to the constraints and
+        ``holonomic`` holds the kept h (:mod:`.holonomic`, docs/holonomic.md).
+    dependent : sequence of coordinate names, optional
+        The coordinate each holonomic constraint is solved for (eliminated, or the one a
+        consistent configuration adjusts); default: the last coordinate it can be solved for,
+        else the one with the largest |∂h/∂q| at q = 0. Normalised to the kept constraints'.
+    eliminated : sequence of (name, expression), optional
+        Set by the elimination: the coordinates removed and what they equal.
     """
 
     coordinates: Sequence
@@ -95,6 +110,9 @@ class System:
     name: str = "system"
     fiber: Sequence | None = None
     planar_frame: object = "auto"
+    holonomic: Sequence = ()
+    dependent: Sequence | None = None
+    eliminated: Sequence = ()
     # derived (read by __post_init__, system_parsing.parse_system)
     q: tuple = field(init=False, repr=False)
     q_dot: tuple = field(init=False, repr=False)
@@ -130,22 +148,48 @@ class System:
 
     @property
     def k(self) -> int:
-        """Number of constraints."""
+        """Number of constraints (the velocity rows of kept holonomic constraints included)."""
         return len(self.constraint_exprs)
 
+    @property
+    def holonomic_rows(self) -> tuple:
+        """Indices of the constraint rows that are velocity forms ∇h·q̇ of kept holonomic
+        constraints (the last ``len(holonomic)`` rows)."""
+        return tuple(range(self.k - len(self.holonomic), self.k))
+
+    def holonomic_lines(self) -> list:
+        """What the holonomic constraints became, one indented line each (empty without)."""
+        lines = [f"  holonomic: {c} = {sp.sstr(e)} (eliminated)" for c, e in self.eliminated]
+        lines += [f"  holonomic: {sp.sstr(h)} = 0 kept as constraint {row + 1} (its velocity form); "
+                  f"{c} follows the other coordinates" for h, c, row in zip(self.holonomic, self.dependent, self.holonomic_rows)]
+        return lines
+
     def mass_matrix(self) -> sp.Matrix:
-        """Kinetic metric M(q) = ∂²L/∂q̇∂q̇ (eq. 2.5), n×n."""
-        return sp.hessian(self.L, self.q_dot)
+        """Kinetic metric M(q) = ∂²L/∂q̇∂q̇ (eq. 2.5), n×n: read off L term by term when L is
+        written as Σ c_ij q̇_i q̇_j − V (:func:`~.system_parsing.quadratic_split`), else
+        differentiated; computed once per system (:data:`METRICS`)."""
+        return METRICS.get(self, "M", lambda: self._split()[0])
 
     def potential(self) -> sp.Expr:
         """V(q) = −L(q, 0)."""
-        return -self.L.xreplace({v: 0 for v in self.q_dot})
+        return METRICS.get(self, "V", lambda: self._split()[1])
+
+    def _split(self) -> tuple:
+        split = quadratic_split(self.L, self.q_dot)
+        if split is not None:
+            return split
+        return sp.hessian(self.L, self.q_dot), -self.L.xreplace({v: 0 for v in self.q_dot})
 
     def omega(self) -> sp.Matrix:
-        """Pfaffian constraint matrix ω(q), k×n (eq. 2.11)."""
+        """Pfaffian constraint matrix ω(q), k×n (eq. 2.11): each row read off its constraint
+        when written as Σ ω_i q̇_i (:func:`~.system_parsing.linear_split`), else differentiated;
+        computed once per system (:data:`METRICS`)."""
         if not self.constraint_exprs:
             return sp.zeros(0, self.n)
-        return sp.Matrix([[sp.diff(c, v) for v in self.q_dot] for c in self.constraint_exprs])
+        return sp.Matrix(METRICS.get(self, "omega", self._omega_rows))
+
+    def _omega_rows(self) -> list:
+        return [linear_split(c, self.q_dot) or [sp.diff(c, v) for v in self.q_dot] for c in self.constraint_exprs]
 
     def force_jump_times(self, values=None) -> tuple:
         """Times at which a force jumps (Heaviside/sign of a·t + b): integration breakpoints
@@ -198,12 +242,16 @@ class System:
             "coordinates=" + ",".join(self.coordinates),
             "parameters=" + ",".join(s.name for s in self.param_symbols),
             "inputs=" + ",".join(self.inputs),
-            "L=" + sp.srepr(self.L),
-            "constraints=" + ";".join(sp.srepr(c) for c in self.constraint_exprs),
-            "forces=" + ";".join(sp.srepr(f) for f in self.tau),
+            "L=" + sp.srepr(self.L, order="none"),
+            "constraints=" + ";".join(sp.srepr(c, order="none") for c in self.constraint_exprs),
+            "forces=" + ";".join(sp.srepr(f, order="none") for f in self.tau),
             "fiber=" + (",".join(self.fiber) if self.fiber else "auto"),
             "planar_frame=" + (",".join(self.planar_frame) if self.planar_frame else "none"),
         ]
+        if self.holonomic or self.eliminated:
+            parts += ["holonomic=" + ";".join(sp.srepr(h, order="none") for h in self.holonomic),
+                      "dependent=" + ",".join(self.dependent),
+                      "eliminated=" + ";".join(f"{c}:{sp.srepr(e, order='none')}" for c, e in self.eliminated)]
         return "\n".join(parts)
 
     def __repr__(self) -> str:

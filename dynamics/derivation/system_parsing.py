@@ -12,7 +12,10 @@ constraint expressions and τ — and lists every problem it finds, in one pass:
    forces when not declared;
 3. the structure (:func:`_check_structure`): L = ½q̇ᵀM(q)q̇ − V(q) (eq. 2.6) and smooth, each
    constraint linear in q̇ with no velocity-free term (Pfaffian, eq. 2.11);
-4. the frames (:func:`_frames`): the fiber coordinates and the planar frame (x, y, heading).
+4. the holonomic constraints h(q) = 0 (:func:`_holonomic`, :mod:`.holonomic`): parsed, then each
+   eliminated (a coordinate solved for and substituted everywhere) where it is linear in a
+   coordinate, else kept with its velocity row ∇h·q̇ appended to the constraints;
+5. the frames (:func:`_frames`): the fiber coordinates and the planar frame (x, y, heading).
 
 A problem in one field never hides one in another; a check that needs an earlier result runs
 on whatever is valid. The numeric checks of the parameter values (a positive-definite M(q),
@@ -30,9 +33,10 @@ import sympy as sp
 from nhgait.dynamics.suggestions import known_names
 
 from .expressions import CONSTANTS, FUNCTIONS, expression_problems, number_problems
+from .holonomic import choose_dependent, eliminate, velocity_row
 
 __all__ = ["TIME", "ParsedSystem", "parse_system", "parse_field", "velocity_name", "name_of", "names_of",
-           "from_sympy", "NON_SMOOTH"]
+           "from_sympy", "NON_SMOOTH", "linear_split", "quadratic_split"]
 
 #: the time symbol t of forces and input laws
 TIME = sp.Symbol("t", real=True)
@@ -140,6 +144,11 @@ class ParsedSystem:
     input_symbols : the input symbols of the forces.
     fiber : the fiber coordinates given, or None (chosen by the symmetry test).
     planar_frame : (x, y, heading) names or None.
+    holonomic : the holonomic constraints h(q) kept (their velocity rows are the last
+        entries of ``constraint_exprs``); dependent : the coordinate each is solved for.
+    eliminated : (name, expression) of the coordinates eliminated by holonomic constraints.
+    lagrangian, constraints, forces : the statement's fields, as expressions in the kept
+        coordinates when a coordinate was eliminated (else as given).
     problems : every problem found, as sentences.
     complete : every field read and every structural check passed (the numeric checks of the
         parameters can run).
@@ -158,6 +167,12 @@ class ParsedSystem:
     input_symbols: tuple
     fiber: tuple | None
     planar_frame: tuple | None
+    holonomic: tuple
+    dependent: tuple
+    eliminated: tuple
+    lagrangian: object
+    constraints: object
+    forces: object
     problems: tuple
     complete: bool
 
@@ -193,16 +208,97 @@ def parse_system(statement) -> ParsedSystem:
     declared = _declare(statement, problems)
     symbols = _symbols(declared)
     L, cons, tau, inputs = _expressions(statement, declared, symbols, problems)
+    holonomic, wanted = _holonomic(statement, declared, symbols, problems)
     complete = declared.names_ok and L is not None and None not in cons and not problems
     if declared.names_ok:
         _check_structure(L, cons, symbols.q_dot, problems)
-    fiber, planar_frame = _frames(statement, declared.coordinates, problems)
+    stated = _Stated(symbols.q, symbols.q_dot, L, tuple(cons), tuple(tau), (), (),
+                     tuple(getattr(statement, "eliminated", ()) or ()),
+                     statement.lagrangian, statement.constraints, statement.forces)
+    if holonomic and complete and not problems:
+        stated = _constrained(stated, holonomic, wanted, declared, problems)
+    coordinates = tuple(c.name for c in stated.q)
+    fiber, planar_frame = _frames(statement, list(coordinates), problems)
     return ParsedSystem(
-        coordinates=tuple(declared.coordinates), parameters=dict(zip(declared.parameters, declared.values)),
-        inputs=tuple(u.name for u in inputs), q=symbols.q, q_dot=symbols.q_dot, L=L,
-        constraint_exprs=tuple(c for c in cons if c is not None), tau=tuple(tau),
+        coordinates=coordinates, parameters=dict(zip(declared.parameters, declared.values)),
+        inputs=tuple(u.name for u in inputs), q=stated.q, q_dot=stated.q_dot, L=stated.L,
+        constraint_exprs=tuple(c for c in stated.cons if c is not None), tau=stated.tau,
         param_symbols=symbols.params, param_values=tuple(declared.values), input_symbols=tuple(inputs),
-        fiber=fiber, planar_frame=planar_frame, problems=tuple(problems), complete=complete)
+        fiber=fiber, planar_frame=planar_frame, holonomic=stated.holonomic, dependent=stated.dependent,
+        eliminated=stated.eliminated, lagrangian=stated.lagrangian, constraints=stated.constraints,
+        forces=stated.forces, problems=tuple(problems), complete=complete)
+
+
+@dataclass(frozen=True)
+class _Stated:
+    """The statement in its working coordinates (after any elimination)."""
+
+    q: tuple
+    q_dot: tuple
+    L: object
+    cons: tuple
+    tau: tuple
+    holonomic: tuple
+    dependent: tuple
+    eliminated: tuple
+    lagrangian: object
+    constraints: object
+    forces: object
+
+
+def _holonomic(statement, declared: _Declared, symbols: _Symbols, problems: list) -> tuple:
+    """Step 4a: the holonomic constraints parsed (each a function of the coordinates and
+    parameters only) and the dependent coordinate wanted for each (None: chosen)."""
+    raw = getattr(statement, "holonomic", ()) or ()
+    if isinstance(raw, (str, sp.Expr)):
+        problems.append("holonomic: expected a list of expressions (write holonomic = [\"...\"])")
+        return [], []
+    exprs = [parse_field(h, symbols.names, f"holonomic constraint {i + 1}", problems) for i, h in enumerate(raw)]
+    dependent = getattr(statement, "dependent", None)
+    wanted = [None] * len(exprs)
+    if dependent is not None:
+        named = names_of(dependent, "dependent", problems)
+        if len(named) != len(exprs):
+            problems.append(f"dependent: one coordinate per holonomic constraint ({len(exprs)}), got {len(named)}")
+        else:
+            wanted = named
+    if not declared.names_ok:
+        return exprs, wanted
+    known = frozenset(symbols.q) | frozenset(symbols.params)
+    for i, (h, c) in enumerate(zip(exprs, wanted)):
+        if h is None:
+            continue
+        where = f"holonomic constraint {i + 1}"
+        _check_symbols(h, where, known, symbols.names, problems)
+        if h.has(*NON_SMOOTH):
+            problems.append(f"{where} uses a discontinuous function: holonomic constraints must be smooth")
+        if not h.free_symbols & set(symbols.q):
+            problems.append(f"{where} ({h} = 0) contains no coordinate")
+        if c is not None and (c not in declared.coordinates or symbols.names[c] not in h.free_symbols):
+            problems.append(f"dependent: {c!r} is not a coordinate of holonomic constraint {i + 1} ({h} = 0)")
+    if len(set(c for c in wanted if c)) < len([c for c in wanted if c]):
+        problems.append("dependent: a coordinate is named twice")
+    return exprs, wanted
+
+
+def _constrained(stated: _Stated, holonomic, wanted, declared: _Declared, problems: list) -> _Stated:
+    """Step 4b: eliminate what can be solved, keep the rest with its velocity rows (:mod:`.holonomic`)."""
+    el = eliminate(stated.q, stated.q_dot, stated.L, stated.cons, stated.tau, holonomic, wanted)
+    params = dict(zip(declared.parameters, declared.values))
+    kept = [h for h, _ in el.holonomic]
+    names = [c.name for c in el.q]
+    dependent = []
+    for h, c in el.holonomic:
+        if c is not None and c not in names:
+            problems.append(f"dependent: {c!r} was eliminated by another holonomic constraint")
+            c = None
+        dependent.append(c if c is not None else names[choose_dependent(h, el.q, params)])
+    rows = tuple(velocity_row(h, el.q, el.q_dot) for h in kept)
+    changed = bool(el.eliminated)
+    forces = {c: t for c, t in zip(names, el.tau) if t != 0} if changed else stated.forces
+    return _Stated(el.q, el.q_dot, el.L, el.constraints + rows, el.tau, tuple(kept), tuple(dependent),
+                   stated.eliminated + el.eliminated, el.L if changed else stated.lagrangian,
+                   list(el.constraints) if changed else stated.constraints, forces)
 
 
 def _declare(statement, problems: list) -> _Declared:
@@ -315,6 +411,8 @@ def _check_structure(L, cons, qd, problems: list) -> None:
         if c.has(*NON_SMOOTH):
             problems.append(f"constraint {i + 1} uses a discontinuous function (Heaviside, sign, "
                             "Min, Max): constraints must be smooth")
+        elif linear_split(c, qd) is not None:
+            continue              # written as Σ c_i q̇_i: Pfaffian by inspection
         elif any(sp.diff(c, a, b) != 0 for a in qd for b in qd):
             problems.append(f"constraint {i + 1} ({c} = 0) is not linear in the velocities")
         elif sp.expand(c.xreplace(zero_v)) != 0:
@@ -328,12 +426,62 @@ def _check_structure(L, cons, qd, problems: list) -> None:
         problems.append("the Lagrangian uses a discontinuous function (Heaviside, sign, Min, Max): "
                         "L must be twice differentiable (use such functions in forces)")
         return
+    if quadratic_split(L, qd) is not None:
+        return                    # written as Σ M_ij q̇_i q̇_j − V: quadratic by inspection
     grad = [sp.diff(L, v) for v in qd]
     if any(sp.diff(g, v) != 0 for g in [sp.diff(gg, w) for gg in grad for w in qd] for v in qd):
         problems.append("the Lagrangian is not quadratic in the velocities (need L = ½q̇ᵀMq̇ − V)")
     elif any(sp.expand(g.xreplace(zero_v)) != 0 for g in grad):
         problems.append("the Lagrangian has terms linear in the velocities (gyroscopic terms "
                         "are not supported; need L = ½q̇ᵀM(q)q̇ − V(q))")
+
+
+def linear_split(c, q_dot):
+    """The coefficients [ω_1 … ω_n] read off ``c`` term by term when it is written as
+    Σ ω_i q̇_i with every coefficient free of the velocities and not all zero; else None."""
+    index = {v: i for i, v in enumerate(q_dot)}
+    row = [sp.Integer(0)] * len(q_dot)
+    for term in sp.Add.make_args(c):
+        found = [f for f in sp.Mul.make_args(term) if f in index]
+        rest = [f for f in sp.Mul.make_args(term) if f not in index]
+        coefficient = sp.Mul(*rest)
+        if len(found) != 1 or coefficient.free_symbols & set(index):
+            return None
+        row[index[found[0]]] += coefficient
+    return row if any(r != 0 for r in row) else None
+
+
+def quadratic_split(L, q_dot):
+    """(M, V) read off L term by term when L is written as Σ c_ij q̇_i q̇_j + c_0 with every
+    coefficient free of the velocities (the form generated from bodies, ``½ M_ii q̇_i² +
+    M_ij q̇_i q̇_j − V``): no differentiation, one pass over L. None when L is not written so
+    (e.g. ``m*(x_dot**2 + y_dot**2)/2``): then M = ∂²L/∂q̇² is differentiated."""
+    index = {v: i for i, v in enumerate(q_dot)}
+    n = len(q_dot)
+    M = [[sp.Integer(0)] * n for _ in range(n)]
+    V = []
+    for term in sp.Add.make_args(L):
+        coefficient, velocities = [], []
+        for factor in sp.Mul.make_args(term):
+            if factor in index:
+                velocities.append(factor)
+            elif factor.is_Pow and factor.base in index and factor.exp == 2:
+                velocities += [factor.base, factor.base]
+            else:
+                coefficient.append(factor)
+        c = sp.Mul(*coefficient)
+        if len(velocities) not in (0, 2) or c.free_symbols & set(index):
+            return None
+        if not velocities:
+            V.append(-c)
+            continue
+        i, j = index[velocities[0]], index[velocities[1]]
+        if i == j:
+            M[i][i] += 2 * c
+        else:
+            M[i][j] += c
+            M[j][i] += c
+    return sp.Matrix(M), sp.Add(*V)
 
 
 def _frames(statement, coord_names: list, problems: list) -> tuple:

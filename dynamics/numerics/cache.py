@@ -17,12 +17,19 @@ Trust rules (as pip's and Python's bytecode caches)
 * the directory is created with mode 0700;
 * a directory or entry that is group- or world-writable or owned by another user is refused
   with a warning (the result is recomputed and not written there);
-* an entry is a pickle whose first record is a header naming the key and the expected type;
-  an entry written for another key, or an object of the wrong type, is rejected and rebuilt;
+* an entry is a format line, a JSON header (key, type, size and SHA-256 of the payload) and
+  the pickled payload; the header and the payload's SHA-256 are checked *before* anything is
+  unpickled, so an entry written for another key or type, truncated, or with one bit flipped on
+  disk is refused with a warning and rebuilt — never deserialised (a damaged pickle of CasADi
+  objects can crash the interpreter);
 * compiled libraries are loaded only through :func:`trusted_file` with their recorded SHA-256.
 
-Entries are written atomically (temporary file + ``os.replace``), so concurrent derivations
-of one model leave one valid entry.
+Faults cost at most a rebuild: entries are written to a temporary file of the same directory
+and renamed into place (``os.replace``), so a reader never sees a partial entry and concurrent
+derivations of one model leave one valid entry; a directory that cannot be written (read-only,
+full, over quota, over ``ulimit -f``) gives one warning and the run goes on uncached; a
+temporary file left by a writer that was killed (``.tmp-<host>-<pid>-…``: its process is gone,
+or it is older than :data:`STALE_TMP_S`) is removed by the next write.
 
 Location: ``$NHGAIT_CACHE_DIR`` if set, else the user's cache directory
 (``$XDG_CACHE_HOME/nhgait`` or ``~/.cache/nhgait``; ``~/Library/Caches/nhgait`` on macOS,
@@ -30,12 +37,17 @@ Location: ``$NHGAIT_CACHE_DIR`` if set, else the user's cache directory
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
+import json
 import os
 import pickle
+import shutil
+import socket
 import stat
 import sys
 import tempfile
+import time
 import warnings
 from dataclasses import dataclass
 from datetime import datetime, timezone
@@ -44,10 +56,8 @@ from importlib import metadata
 from pathlib import Path
 
 __all__ = ["cache_dir", "cache_key", "make_key", "code_stamp", "load", "store", "path_for",
-           "Provenance", "trusted_dir", "trusted_file", "file_sha256", "UntrustedCacheWarning"]
-
-_FORMAT = "nhgait-cache-1"
-
+           "Provenance", "trusted_dir", "trusted_file", "file_sha256", "UntrustedCacheWarning",
+           "temporary_prefix", "remove_stale_temporaries", "unwritable_warning", "STALE_TMP_S"]
 
 class UntrustedCacheWarning(UserWarning):
     """A cache directory or entry was refused by the trust rules."""
@@ -147,6 +157,18 @@ def _untrusted_reason(path: Path) -> str | None:
     return None
 
 
+def _file_reason(path: Path) -> str | None:
+    """Why the cache file ``path`` must not be read: the trust rules, or not a regular file (a
+    FIFO planted there would block the reader, a directory cannot be read)."""
+    reason = _untrusted_reason(path)
+    if reason is not None:
+        return reason
+    try:
+        return None if stat.S_ISREG(path.lstat().st_mode) else "is not a regular file"
+    except OSError as exc:               # removed meanwhile
+        return f"cannot be inspected ({exc.strerror})"
+
+
 def trusted_dir(path: Path | None = None, *, create: bool = True) -> Path | None:
     """The cache directory ``path`` (default :func:`cache_dir`) if it may be trusted: created
     with mode 0700 when missing, refused (warning, None) when it is group/world-writable, a
@@ -159,13 +181,13 @@ def trusted_dir(path: Path | None = None, *, create: bool = True) -> Path | None
             path.mkdir(mode=0o700, parents=True, exist_ok=True)
         except OSError as exc:
             warnings.warn(f"cannot create the cache directory {path} ({exc.strerror}); "
-                          "results are not cached", UntrustedCacheWarning, stacklevel=3)
+                          "results are not cached", UntrustedCacheWarning, stacklevel=1)
             return None
     reason = _untrusted_reason(path)
     if reason:
         warnings.warn(f"refusing the cache directory {path}: it {reason}; results are recomputed "
                       "and not cached (fix with chmod 700 or set NHGAIT_CACHE_DIR)",
-                      UntrustedCacheWarning, stacklevel=3)
+                      UntrustedCacheWarning, stacklevel=1)
         return None
     return path
 
@@ -186,7 +208,7 @@ def trusted_file(path: Path, sha256: str | None = None) -> bool:
         return False
     if trusted_dir(path.parent, create=False) is None:
         return False
-    reason = _untrusted_reason(path)
+    reason = _file_reason(path)
     if reason is None and sha256 is not None and file_sha256(path) != sha256:
         reason = "does not match its recorded SHA-256 (modified after it was written)"
     if reason:
@@ -197,41 +219,70 @@ def trusted_file(path: Path, sha256: str | None = None) -> bool:
 
 
 # ------------------------------------------------------------------------------ entries
-class _EntryUnpickler(pickle.Unpickler):
-    """Reads only the header record: plain strings and dicts, no class is resolved, so a
-    planted file cannot run code before the header is checked."""
-
-    def find_class(self, module, name):  # pragma: no cover - only planted files get here
-        raise pickle.UnpicklingError(f"header refers to {module}.{name}")
+#: first line of an entry: the format (an entry of another format is not read)
+_MAGIC = b"NHGAIT-CACHE-ENTRY 2\n"
+#: longest header line read (the header is JSON: key, type, size and SHA-256 of the payload)
+_HEADER_MAX = 4096
+#: an entry's temporary file: ``.tmp-<host>-<pid>-<random><suffix>``, so that the next run can
+#: tell a writer that died (same host, no such process) from one that is writing now
+TMP_PREFIX = ".tmp-"
+#: a temporary file older than this (seconds) is removed whoever wrote it
+STALE_TMP_S = 3600.0
 
 
 def _type_name(tp: type) -> str:
     return f"{tp.__module__}.{tp.__qualname__}"
 
 
+def _read_entry(path: Path, key: str, types: tuple):
+    """The payload bytes of the entry at ``path`` once its header names this key and one of
+    ``types`` and the payload's size and SHA-256 match the header; else :class:`ValueError`
+    saying why. Nothing is deserialised here."""
+    with path.open("rb") as fh:
+        if fh.read(len(_MAGIC)) != _MAGIC:
+            raise ValueError("not an nhgait cache entry of this format")
+        line = fh.readline(_HEADER_MAX)
+        try:
+            header = json.loads(line)
+        except ValueError:
+            raise ValueError("its header is damaged") from None
+        if not isinstance(header, dict) or header.get("key") != key:
+            raise ValueError("it was written for another key")
+        if header.get("type") not in {_type_name(t) for t in types}:
+            raise ValueError(f"it holds a {header.get('type')}, expected "
+                             f"{' or '.join(_type_name(t) for t in types)}")
+        size = header.get("size")
+        if not isinstance(size, int) or size < 0 or size > path.stat().st_size:
+            raise ValueError("its header is damaged")
+        payload = fh.read(size + 1)
+    if len(payload) != size:
+        raise ValueError(f"it is truncated or extended ({len(payload)} payload bytes, {size} written)")
+    if hashlib.sha256(payload).hexdigest() != header.get("sha256"):
+        raise ValueError("its bytes do not match the SHA-256 written with them (damaged on disk)")
+    return payload
+
+
 def load(key: str, expected_type: type | tuple, *, suffix: str = ".pkl"):
     """The cached object for ``key`` if the entry passes the trust rules, was written for this
-    key and holds an instance of ``expected_type``; else None (with a warning for a bad entry)."""
+    key, holds an instance of ``expected_type`` and its bytes match the SHA-256 written with
+    them; else None (with a warning for a bad entry, which the caller rebuilds). The payload is
+    unpickled only after all of that is checked."""
     path = path_for(key, suffix)
     if not path.exists():
         return None
     if trusted_dir(path.parent, create=False) is None:
         return None
-    reason = _untrusted_reason(path)
+    reason = _file_reason(path)
     if reason:
         warnings.warn(f"refusing cache entry {path}: it {reason}; it is recomputed",
                       UntrustedCacheWarning, stacklevel=2)
         return None
     types = expected_type if isinstance(expected_type, tuple) else (expected_type,)
     try:
-        with path.open("rb") as fh:
-            header = _EntryUnpickler(fh).load()
-            if not (isinstance(header, dict) and header.get("format") == _FORMAT
-                    and header.get("key") == key and header.get("type") in {_type_name(t) for t in types}):
-                raise pickle.UnpicklingError("not an nhgait cache entry for this key and type")
-            obj = pickle.load(fh)
+        obj = pickle.loads(_read_entry(path, key, types))
     except Exception as exc:  # corrupt, foreign or from an incompatible version: rebuild it
-        warnings.warn(f"ignoring unreadable cache entry {path} ({type(exc).__name__}: {exc})",
+        why = str(exc) if isinstance(exc, ValueError) else f"{type(exc).__name__}: {exc}"
+        warnings.warn(f"ignoring unreadable cache entry {path} ({why}); it is rebuilt",
                       UntrustedCacheWarning, stacklevel=2)
         return None
     if not isinstance(obj, types):
@@ -242,22 +293,96 @@ def load(key: str, expected_type: type | tuple, *, suffix: str = ".pkl"):
 
 
 def store(key: str, obj, *, suffix: str = ".pkl") -> Path | None:
-    """Write ``obj`` atomically under ``key`` (None when the directory is not trusted)."""
+    """Write ``obj`` atomically under ``key``: the entry is the format line, a JSON header
+    (key, type, size and SHA-256 of the payload) and the pickled payload, written to a
+    temporary file of the same directory and renamed into place. Returns None when the
+    directory is not trusted or cannot be written (read-only, full, over quota or over the
+    file-size limit: one warning, the run goes on uncached)."""
     folder = trusted_dir()
     if folder is None:
         return None
-    path = path_for(key, suffix)
-    fd, tmp = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=suffix)
+    remove_stale_temporaries(folder)
+    payload = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
+    header = json.dumps({"key": key, "type": _type_name(type(obj)), "size": len(payload),
+                         "sha256": hashlib.sha256(payload).hexdigest()}).encode() + b"\n"
+    path, tmp = path_for(key, suffix), None
     try:
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=temporary_prefix(), suffix=suffix)
         with os.fdopen(fd, "wb") as fh:
-            pickle.dump({"format": _FORMAT, "key": key, "type": _type_name(type(obj))}, fh,
-                        protocol=pickle.HIGHEST_PROTOCOL)
-            pickle.dump(obj, fh, protocol=pickle.HIGHEST_PROTOCOL)
+            fh.write(_MAGIC + header)
+            fh.write(payload)
         os.replace(tmp, path)
+        tmp = None
+    except OSError as exc:
+        unwritable_warning(folder, exc)
+        return None
     finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
     return path
+
+
+def unwritable_warning(folder: Path, exc: OSError) -> None:
+    """One warning for a cache directory that could not be written: the same text and place for
+    every entry (``stacklevel=1``), so Python's default warning filter shows it once per run."""
+    warnings.warn(f"cannot write the cache directory {folder} ({exc.strerror or exc}); results "
+                  "are not cached (free space, fix its permissions or set NHGAIT_CACHE_DIR)",
+                  UntrustedCacheWarning, stacklevel=1)
+
+
+# ------------------------------------------------------------------------------ temporaries
+def _host_tag() -> str:
+    """A short tag of this machine (temporary files on a shared file system name their host)."""
+    return hashlib.sha256(socket.gethostname().encode()).hexdigest()[:8]
+
+
+def temporary_prefix(kind: str = TMP_PREFIX) -> str:
+    """``<kind><host>-<pid>-``: the prefix of a temporary file or folder this process writes."""
+    return f"{kind}{_host_tag()}-{os.getpid()}-"
+
+
+def _writer_is_gone(name: str, kind: str) -> bool:
+    """Did the process that named this temporary (:func:`temporary_prefix`) die? Only a writer
+    on this host can be checked: one on another host is taken to be alive (its temporary goes
+    once it is :data:`STALE_TMP_S` old)."""
+    parts = name[len(kind):].split("-", 2)
+    if len(parts) < 3 or parts[0] != _host_tag() or not parts[1].isdigit():
+        return False
+    pid = int(parts[1])
+    if pid == os.getpid():
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except OSError:          # exists, owned by someone else
+        return False
+    return False
+
+
+def remove_stale_temporaries(folder: Path, kind: str = TMP_PREFIX, *, max_age_s: float = STALE_TMP_S) -> int:
+    """Remove the temporaries ``<kind>*`` of ``folder`` left by a writer that died (killed
+    during a write: its process is gone) or older than ``max_age_s``; a writer running now keeps
+    its own. Returns how many were removed."""
+    now, removed = time.time(), 0
+    try:
+        entries = [e for e in os.scandir(folder) if e.name.startswith(kind)]
+    except OSError:
+        return 0
+    for entry in entries:
+        try:
+            age = now - entry.stat(follow_symlinks=False).st_mtime
+        except FileNotFoundError:          # its writer renamed or removed it meanwhile
+            continue
+        if age > max_age_s or _writer_is_gone(entry.name, kind):
+            if entry.is_dir(follow_symlinks=False):
+                shutil.rmtree(entry.path, ignore_errors=True)
+            else:
+                with contextlib.suppress(OSError):
+                    os.unlink(entry.path)
+            removed += 1
+    return removed
 
 
 def now() -> str:

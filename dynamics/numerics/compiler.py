@@ -10,19 +10,27 @@
   ``key`` = :func:`library_key`, the SHA-256 of the source, the compiler command, the flags,
   the libraries and ``salt``; a record ``<key>.json`` holds the library's SHA-256. A cached
   library is used only when :func:`~.cache.trusted_file` accepts both (directory 0700, owned
-  by the user, not group/world-writable, content hash unchanged); otherwise it is rebuilt. An
-  untrusted cache directory means a private temporary directory (``Library.private``; the
-  caller removes it once the library is loaded).
+  by the user, not group/world-writable, content hash unchanged); otherwise it is rebuilt. A
+  cache directory refused by the trust rules is not used for libraries either (its ``jit/``
+  is never created nor read), and one that cannot be written (read-only, full) gives one
+  warning: the library is then built in a private temporary directory
+  (``nhgait-jit-<host>-<pid>-…`` in ``$TMPDIR``, ``Library.private``; the caller removes it
+  once the library is loaded).
 * **Atomic.** Compilation happens in ``jit/.build-<random>/``; the library and then its record
   are moved into place with ``os.replace``, so no reader ever sees half a library, and a
   library without its record is never loaded.
+* **Its temporaries are nhgait's.** The compiler runs with ``TMPDIR`` (``TMP``, ``TEMP``) set
+  to the build folder, so its own temporary files (gcc's ``cc*.s``, ``cc*.o``) are removed
+  with that folder, never left in the user's ``$TMPDIR``.
 * **Interrupts clean up.** The compiler runs as a child in its own process group. Any
   exception while waiting — KeyboardInterrupt (Ctrl-C), the ``Terminated`` exception the CLI
-  raises on SIGTERM (:mod:`nhgait.gaits.cli.main`), a timeout — kills the whole group (a wrapper
+  raises on SIGTERM (:mod:`nhgait.gaits.cli.stopping`), a timeout — kills the whole group (a wrapper
   script named by ``$NHGAIT_CC`` and everything it started: gcc, cc1, as) and removes the
   build folder. On Linux the compiler also gets SIGKILL if the thread that started it dies
-  without cleaning up (``PR_SET_PDEATHSIG``), and build folders left by such a death are
-  removed by the next build once they are :data:`STALE_BUILD_S` old.
+  without cleaning up (``PR_SET_PDEATHSIG``), and build folders (and private folders) left by
+  such a death — kill -9 — are removed by the next build: their name carries the host and the
+  process id, so a folder whose process is gone goes at once, any other once it is
+  :data:`STALE_BUILD_S` old.
 * **Talks.** Compiling takes seconds to minutes: a :class:`~.progress.Progress` gets a
   heartbeat while the compiler runs.
 
@@ -46,6 +54,7 @@ import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from ..errors import STOP_SIGNALS
 from ..memo import LruMemo
 
 __all__ = ["Library", "CompilerUnavailable", "build_library", "compiler_command", "library_key",
@@ -153,23 +162,11 @@ def _cached(directory: Path, key: str) -> Path | None:
     return so if trusted_file(so, recorded) else None
 
 
-def _remove_stale_builds(directory: Path) -> None:
-    """Remove ``.build-*`` folders older than :data:`STALE_BUILD_S` (left by a process that
-    died); younger ones may belong to a build running now and are kept."""
-    now = time.time()
-    for entry in directory.glob(".build-*"):
-        try:
-            age = now - entry.stat().st_mtime
-        except FileNotFoundError:       # removed meanwhile by its own build
-            continue
-        if age > STALE_BUILD_S:
-            shutil.rmtree(entry, ignore_errors=True)
-
-
-def _child_setup():
-    """The preexec function of the compiler: its own process group and, on Linux, SIGKILL when
-    the parent thread dies (exit at once if the parent died before). ``prctl`` is looked up
-    here, in the parent: the forked child only calls it."""
+def _child_setup(mask=None):
+    """The preexec function of the compiler: its own process group, the signal mask ``mask``
+    (the parent blocks the stop signals while it starts the compiler, :func:`_run`) and, on
+    Linux, SIGKILL when the parent thread dies (exit at once if the parent died before).
+    ``prctl`` is looked up here, in the parent: the forked child only calls it."""
     parent = os.getpid()
     prctl = None
     if sys.platform.startswith("linux"):
@@ -178,6 +175,8 @@ def _child_setup():
 
     def setup() -> None:  # pragma: no cover - runs in the child
         os.setpgrp()
+        if mask is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
         if prctl is not None:
             prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
             if os.getppid() != parent:
@@ -185,16 +184,32 @@ def _child_setup():
     return setup
 
 
-def _run(cmd: list, progress, label: str, timeout: float | None) -> subprocess.CompletedProcess:
-    """Run the compiler, killing its process group on any exception (see the module docstring)."""
+def _run(cmd: list, progress, label: str, timeout: float | None, tmpdir: Path) -> subprocess.CompletedProcess:
+    """Run the compiler with its temporaries in ``tmpdir``, killing its process group on any
+    exception (see the module docstring). The stop signals are blocked until the compiler is
+    started and their exception would kill it (one raised inside ``Popen`` itself left the
+    compiler's group running)."""
     start = time.perf_counter()
-    with subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                          preexec_fn=_child_setup() if os.name == "posix" else None) as proc:
+    env = {**os.environ, "TMPDIR": str(tmpdir), "TMP": str(tmpdir), "TEMP": str(tmpdir)}
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS) if os.name == "posix" else None
+    try:
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
+                                errors="replace", preexec_fn=_child_setup(mask) if os.name == "posix" else None)
+    except BaseException:
+        _unblock(mask)
+        raise
+    with proc:
         try:
+            _unblock(mask)
             return _wait(proc, cmd, start, progress, label, timeout)
         except BaseException:
             _kill(proc)
             raise
+
+
+def _unblock(mask) -> None:
+    if mask is not None:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
 
 def _wait(proc, cmd, start, progress, label, timeout) -> subprocess.CompletedProcess:
@@ -244,15 +259,16 @@ class _Job:
 def _compile(job: _Job, directory: Path) -> Library:
     """Compile ``job.source`` in a ``.build-*`` folder of ``directory`` (removed whatever
     happens) and move the library, then its record, to ``directory/key.so`` and ``key.json``."""
-    from .cache import file_sha256
+    from .cache import file_sha256, temporary_prefix
     start = time.perf_counter()
     key, command, flags, libs = job.key, job.command, job.flags, job.libs
-    with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:
+    with tempfile.TemporaryDirectory(dir=directory, prefix=temporary_prefix(".build-"),
+                                     ignore_cleanup_errors=True) as tmp:
         c_file, so_tmp, record = Path(tmp) / f"{key}.c", Path(tmp) / f"{key}.so", Path(tmp) / f"{key}.json"
         c_file.write_text(job.source)
         cmd = [*command, *flags, "-fPIC", "-shared", str(c_file), "-o", str(so_tmp), *libs]
         try:
-            proc = _run(cmd, job.progress, job.label, job.timeout)
+            proc = _run(cmd, job.progress, job.label, job.timeout, Path(tmp))
         except OSError as exc:
             raise CompilerUnavailable(f"cannot run the C compiler {command[0]!r} ({exc.strerror})") from None
         if proc.returncode != 0 or not so_tmp.exists():
@@ -273,21 +289,51 @@ def build_library(source: str, *, flags: tuple = ("-O1",), salt: str = "", libs:
     """Compile ``source`` (or load it from the cache): see the module docstring. ``flags`` go
     before ``-fPIC -shared``, ``libs`` after the source; ``salt`` only changes the key.
     Raises :class:`CompilerUnavailable`."""
-    from .cache import trusted_dir
+    from .cache import remove_stale_temporaries, unwritable_warning
     command, flags, libs = _command(), tuple(flags), tuple(libs)
     key = library_key(source, flags=flags, salt=salt, libs=libs)
     job = _Job(source=source, command=command, flags=flags, libs=libs, salt=salt, key=key,
                progress=progress, label=label, timeout=timeout)
-    directory = trusted_dir(jit_dir())
+    directory = _library_dir()
     if directory is not None:
         found = _cached(directory, key)
         if found is not None:
             return Library(found, key, True, 0.0, len(source), flags)
-        _remove_stale_builds(directory)
-        return _compile(job, directory)
-    private = Path(tempfile.mkdtemp(prefix="nhgait-jit-"))
+        remove_stale_temporaries(directory, ".build-", max_age_s=STALE_BUILD_S)
+        try:
+            return _compile(job, directory)
+        except OSError as exc:        # the cache cannot be written (read-only, full): build privately
+            unwritable_warning(directory.parent, exc)
+    return _compile_privately(job)
+
+
+def _library_dir() -> Path | None:
+    """``<cache dir>/jit`` when both it and the cache directory pass the trust rules (a refused
+    cache directory is not used for libraries either), else None."""
+    from .cache import trusted_dir
+    if trusted_dir() is None:
+        return None
+    try:
+        return trusted_dir(jit_dir())
+    except OSError:
+        return None
+
+
+def _compile_privately(job: _Job) -> Library:
+    """Compile into a private temporary folder (``Library.private``), after removing the
+    private folders of processes that died; a folder that cannot be written means no compiler."""
+    from .cache import remove_stale_temporaries, temporary_prefix
+    remove_stale_temporaries(Path(tempfile.gettempdir()), "nhgait-jit-", max_age_s=STALE_BUILD_S)
+    try:
+        private = Path(tempfile.mkdtemp(prefix=temporary_prefix("nhgait-jit-")))
+    except OSError as exc:
+        raise CompilerUnavailable(f"cannot create a folder for the C compiler in {tempfile.gettempdir()} "
+                                  f"({exc.strerror})") from None
     try:
         return replace(_compile(job, private), private=True)
+    except OSError as exc:
+        shutil.rmtree(private, ignore_errors=True)
+        raise CompilerUnavailable(f"cannot write the C compiler's files in {private} ({exc.strerror})") from None
     except BaseException:
         shutil.rmtree(private, ignore_errors=True)
         raise

@@ -4,6 +4,8 @@ wrappers. Compiled once per derived model and cached with it (see :mod:`.cache`)
 Every function takes the parameter vector ``params`` in the order of
 ``System.param_symbols`` and the input vector ``u`` in the order of ``System.inputs``.
 
+Every form, for a system with kept holonomic constraints: holonomic(q, params) → h(q).
+
 Reduced ODE (z = (q, P, P̃)):
     rhs(t, z, u, params) → ż;  jacobian(t, z, u, params) → (∂ż/∂z, ∂ż/∂u);
     qdot(z, params) → q̇;  qddot(t, z, u, params) → q̈;  state(q, q̇, params) → z;
@@ -110,7 +112,17 @@ def _time_inputs_params(system):
     return t, u, params
 
 
+def _holonomic_function(system) -> ca.Function:
+    """``holonomic(q, params)`` → h(q) of the kept holonomic constraints (c×1)."""
+    q, params = ca.SX.sym("q", system.n), ca.SX.sym("params", len(system.param_symbols))
+    h = to_casadi(list(system.holonomic), list(system.q) + list(system.param_symbols),
+                  [q[i] for i in range(system.n)] + [params[i] for i in range(params.shape[0])])
+    return ca.Function("holonomic", [q, params], [ca.vertcat(*h)], ["q", "params"], ["h"])
+
+
 def _base(system, formulation, state_names, functions, n_mult=0):
+    if system.holonomic:
+        functions = {**functions, "holonomic": _holonomic_function(system)}
     return NumericModel(formulation=formulation, state_names=tuple(state_names),
                         input_names=tuple(system.inputs),
                         param_names=tuple(s.name for s in system.param_symbols),

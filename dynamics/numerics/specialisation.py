@@ -139,7 +139,11 @@ class SpecialisedModel:
 
     @property
     def shape(self) -> tuple:
-        return tuple(self.base.shape)
+        """The shape coordinates a planner may move freely: the reduced model's shape without
+        the dependent coordinates of kept holonomic constraints (the bicycle's pitch follows
+        lean and steer)."""
+        dependent = set(self.system.dependent or ())
+        return tuple(c for c in self.base.shape if c not in dependent)
 
 
 @dataclass(frozen=True)
@@ -664,6 +668,8 @@ def _build(model, params, velocities, quantities) -> _Entry:
         route, fns = _cheapest(model, velocities, quantities, reference)
     from .numeric_model import NumericModel
     old = model.numeric
+    if "holonomic" in old.functions:                # h(q): the same in every route
+        fns = {**fns, "holonomic": _bind(old["holonomic"], params)}
     state_names = (tuple(model.system.coordinates) + tuple(velocities)) if velocities else tuple(old.state_names)
     numeric = NumericModel(formulation="reduced-velocity" if velocities else old.formulation,
                            state_names=state_names, input_names=old.input_names,

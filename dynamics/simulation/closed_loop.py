@@ -153,19 +153,32 @@ class ClosedLoop:
 
     @cached_property
     def project(self) -> ca.Function | None:
-        """y ↦ y with the velocity part projected onto {g = 0} in the kinetic metric."""
+        """y ↦ y with q moved back onto the kept holonomic constraints h(q) = 0 (Newton's
+        method on the dependent coordinates, :data:`HOLONOMIC_NEWTON` steps) and, in the DAE
+        forms, the velocity part projected onto {g = 0} in the kinetic metric."""
         pc = self._pieces
-        if not self.protocol.dae_options_apply or not self.complete:
+        holonomic = pc.get("holonomic")
+        if not self.complete or not (self.protocol.dae_options_apply or holonomic):
             return None
         y = pc["y"]
         x, g, energy, n = pc["x"], pc["g"], pc["energy"], self.n_q
+        q = x[:n]
+        if holonomic:
+            h, cols = holonomic
+            J = ca.jacobian(h, q)[:, cols]
+            for _ in range(HOLONOMIC_NEWTON):
+                step = ca.solve(ca.substitute(J, x[:n], q), ca.substitute(h, x[:n], q))
+                q = q - ca.mtimes(_scatter(cols, n), step)
         v = x[n:]
-        Jv = ca.jacobian(g, v)                         # g is linear in v (q̇ or p)
-        W = ca.hessian(energy, v)[0]                   # kinetic metric in v (M or M⁻¹)
-        WinvJt = ca.solve(W, Jv.T)
-        dv = -ca.mtimes(WinvJt, ca.solve(ca.mtimes(Jv, WinvJt), g))
+        if self.protocol.dae_options_apply:
+            moved = ca.vertcat(q, v)
+            g_q, energy_q = ca.substitute(g, x, moved), ca.substitute(energy, x, moved)
+            Jv = ca.jacobian(g_q, v)                       # g is linear in v (q̇ or p)
+            W = ca.hessian(energy_q, v)[0]                 # kinetic metric in v (M or M⁻¹)
+            WinvJt = ca.solve(W, Jv.T)
+            v = v - ca.mtimes(WinvJt, ca.solve(ca.mtimes(Jv, WinvJt), g_q))
         return ca.Function("project", [y, pc["params"]],
-                           [ca.densify(ca.vertcat(x[:n], v + dv, y[self.n_x:]))], ["y", "params"],
+                           [ca.densify(ca.vertcat(q, v, y[self.n_x:]))], ["y", "params"],
                            ["y_projected"])
 
     def dae(self, stabilization, baumgarte) -> dict:
@@ -210,6 +223,27 @@ def closed_loop(model, controller, *, stabilization=None, baumgarte=(1.0, 0.0),
            tuple(float(v) for v in baumgarte) if stabilization == "baumgarte" else None,
            None if seeds is None else tuple(sorted(set(int(s) for s in seeds))))
     return CLOSED_LOOPS.get(model.numeric, key, lambda: _build(model, controller, stabilization, baumgarte, key[3]))
+
+
+#: Newton steps of the holonomic projection (each squares the drift: 1e-8 → 1e-16 → below)
+HOLONOMIC_NEWTON = 2
+
+
+def _scatter(cols, n) -> ca.DM:
+    """The n×len(cols) matrix that puts a vector into the rows ``cols``."""
+    E = np.zeros((n, len(cols)))
+    for j, i in enumerate(cols):
+        E[i, j] = 1.0
+    return ca.DM(E)
+
+
+def _holonomic_pieces(model, q, params):
+    """(h(q) as SX, dependent columns) of the kept holonomic constraints, or None."""
+    system = model.system
+    if not system.holonomic:
+        return None
+    h = model.numeric["holonomic"](q, params)
+    return h, [list(system.coordinates).index(c) for c in system.dependent]
 
 
 def _invariant_entries(expr, x, params, candidates, param_values, samples=6) -> list:
@@ -350,5 +384,6 @@ def _build(model, controller, stabilization, baumgarte, seeds) -> ClosedLoop:
         event=_event_function(restrict(measure), y, p) if system.k else None,
         qdot=ca.Function("qdot", [y, p], [ca.densify(restrict(qdot))], ["y", "p"], ["qdot"]),
         _pieces=dict(args=args, names=names, ydot=ydot, y=y, x=x, g=g, energy=energy, num=num, t=t,
-                     t_c=t_c, u=u, p=p, params=params, g_int=g_int, alpha=alpha, beta=beta),
+                     t_c=t_c, u=u, p=p, params=params, g_int=g_int, alpha=alpha, beta=beta,
+                     holonomic=_holonomic_pieces(model, q, params)),
         n_segment=n_segment)

@@ -34,6 +34,9 @@ is only an invariant and drifts at the level of the integration error. Stabilisa
 default and recorded in ``Trajectory.settings`` when on: ``"baumgarte"`` (ġ + 2αg + β²∫g = 0)
 and ``"projection"`` (scipy and compiled methods: after every accepted step the velocities are
 projected onto {g = 0} in the kinetic-energy metric and the integration restarts from there).
+With kept holonomic constraints h(q) = 0 (every formulation, the reduced ODE included)
+``"projection"`` first moves the dependent coordinates back onto h = 0 (Newton's method);
+the drift h(q(t)) is reported as ``Trajectory.holonomic_residual`` either way.
 
 Failure is data, never a hang
 -----------------------------
@@ -127,8 +130,9 @@ def _check_request(call: _Call) -> list:
     problems += _option_problems(call)
     if not (isinstance(call.max_steps, (int, np.integer)) and call.max_steps > 0):
         problems.append(f"max_steps must be a positive integer, got {call.max_steps!r}")
-    if not (call.rtol > 0 and call.atol > 0):
-        problems.append(f"rtol and atol must be positive, got rtol={call.rtol!r}, atol={call.atol!r}")
+    if not (0 < call.rtol < 1 and 0 < call.atol < np.inf):   # rtol = inf allowed steps of any size: a hang
+        problems.append(f"rtol must lie in (0, 1) and atol be positive and finite, got rtol={call.rtol!r}, "
+                        f"atol={call.atol!r}")
     if call.singular_tol is not None and not (0 <= call.singular_tol < 1):
         problems.append(f"singular_tol must be in [0, 1) or None, got {call.singular_tol!r}")
     if call.t_eval is not None and t0 is not None:
@@ -148,7 +152,8 @@ def _option_problems(call: _Call) -> list:
         problems.append(f"unknown dae form {dae!r} (choose from {', '.join(DAE_FORMS)})")
     if stabilization not in STABILIZATIONS:
         problems.append(f"unknown stabilization {stabilization!r} (None, 'baumgarte' or 'projection')")
-    problems += protocol_of(call.model).dae_option_problems(dae, stabilization)
+    problems += protocol_of(call.model).dae_option_problems(
+        dae, stabilization, holonomic=bool(getattr(call.model, "system", None) and call.model.system.holonomic))
     if stabilization == "projection" and (dae == "idas" or method in ("CVODES", "auto")):
         problems.append("stabilization='projection' needs dae='index1' and a scipy or compiled "
                         "method (the state is projected after every step)")
@@ -606,7 +611,8 @@ def _trajectory(call: _Call, loop, results: tuple, route: tuple, prepared: _Prep
     traj_outputs = _named_outputs(call, prepared, loop, out, Y)
     arrays = dict(t=samples.t, q=out["q"], qdot=out["qdot"], state=Y[:, :n_xs], u=out["u"], lam=lam,
                   constraint_residual=out["g"], energy=energy, work=work,
-                  energy_balance=energy - energy0 - work)
+                  energy_balance=energy - energy0 - work,
+                  holonomic_residual=_holonomic_drift(model.system, out["q"], prepared.pv))
     for a in list(arrays.values()) + list(traj_outputs.values()):
         if a is not None:
             a.setflags(write=False)
@@ -618,6 +624,15 @@ def _trajectory(call: _Call, loop, results: tuple, route: tuple, prepared: _Prep
                       message=run.message, formulation=model.formulation, method=method_name,
                       **names, settings=settings,
                       diagnostics=_diagnostics(model, loop, run, out, extra), outputs=traj_outputs)
+
+
+def _holonomic_drift(system, q, pv) -> np.ndarray:
+    """h(q(t)) of the kept holonomic constraints at the samples (N, c); (N, 0) without them."""
+    if not system.holonomic:
+        return np.zeros((q.shape[0], 0))
+    from ..derivation.holonomic import holonomic_residual
+    with np.errstate(all="ignore"):
+        return holonomic_residual(system, q, np.asarray(pv, dtype=float))
 
 
 #: per closed loop (dropped with it): the column names of its trajectories

@@ -29,6 +29,8 @@ class Trajectory:
     u : (N, m) inputs applied (at a switch time: the left limit).
     lam : (N, k) Lagrange multipliers, or None for the reduced ODE.
     constraint_residual : (N, k) ω(q) q̇.
+    holonomic_residual : (N, c) h(q) of the kept holonomic constraints (the drift from the
+        constraint surface; (N, 0) without them).
     energy : (N,) E (Lagrangian energy, H or h).
     work : (N,) ∫ τ·q̇ dt from t₀, integrated as a quadrature state.
     energy_balance : (N,) E − E(t₀) − work (E(t₀) at the initial state even if t_eval starts later).
@@ -74,6 +76,7 @@ class Trajectory:
     settings: dict = field(default_factory=dict)
     diagnostics: dict = field(default_factory=dict)
     outputs: dict = field(default_factory=dict)
+    holonomic_residual: np.ndarray | None = None
 
     def __repr__(self) -> str:
         from nhgait.dynamics.reprs import trajectory_repr
@@ -105,6 +108,9 @@ class Trajectory:
                 blocks.append(self.lam)
             names += [f"constraint{i + 1}" for i in range(self.constraint_residual.shape[1])]
             blocks.append(self.constraint_residual)
+            if self.holonomic_residual is not None and self.holonomic_residual.size:
+                names += [f"holonomic{i + 1}" for i in range(self.holonomic_residual.shape[1])]
+                blocks.append(self.holonomic_residual)
             names += ["energy", "work", "energy_balance"]
             blocks += [self.energy[:, None], self.work[:, None], self.energy_balance[:, None]]
         return tuple(names), np.hstack(blocks)
@@ -116,7 +122,8 @@ class Trajectory:
         * ``"qdot"``: q then ``<name>_dot`` velocities;
         * ``"state"``: the formulation's integrated state (``state_names``);
         * ``"all"``: q, velocities, inputs, multipliers (``lambda1`` …), constraint residuals
-          (``constraint1`` …), ``energy``, ``work``, ``energy_balance``;
+          (``constraint1`` …), holonomic residuals h(q) (``holonomic1`` …, when kept),
+          ``energy``, ``work``, ``energy_balance``;
         * ``"outputs"``: the run's requested outputs.
 
         ``units``: optional mapping name → unit (e.g. a scene's ``[units]``). When given, every

@@ -28,6 +28,10 @@ def cmd_bench_precision(args) -> int:
     from nhgait.dynamics import derive, load_scene
     from nhgait.dynamics.errors import ModelError
     from nhgait.gaits.bench import work_precision as wp
+    from nhgait.gaits.outputs import output_directory
+    if args.repeats < 1:
+        raise ModelError([f"--repeats {args.repeats}: at least 1 timed run per point"], title="invalid request")
+    out = output_directory(args.out)        # before any derivation: exit 2 for a bad location
     scene = load_scene(args.scene)
     spec = scene.simulation
     if spec is None:
@@ -52,8 +56,13 @@ def cmd_bench_precision(args) -> int:
               f"{countdown.total} points, {args.repeats} timed runs each (median)", file=stream, flush=True)
     rows = wp.measure(case, setups, tolerances, repeats=args.repeats,
                       progress=lambda row: countdown.step(_point(row)))
-    out = Path(args.out)
-    _write_report(rows, case, f"{label} (spread {spread:.2g})", out)
+    try:
+        _write_report(rows, case, f"{label} (spread {spread:.2g})", out)
+    except OSError as exc:                  # the measurements are kept: the CSV goes to a fallback
+        from nhgait.gaits.outputs import rescue, write_failure
+        where = rescue("precision.csv", lambda path: wp.write_csv(rows, path), "measurements")
+        print(f"NOT WRITTEN: {write_failure(exc, out)}; {where}")
+        return 1
     print(f"wrote {out}/precision.csv, precision.png, precision.md ({countdown.total} points in "
           f"{duration(countdown.elapsed())})")
     return 0
@@ -140,7 +149,7 @@ def add_bench_parser(subparsers):
     q.add_argument("--methods", default="RK45,DOP853,Radau,LSODA,CVODES,compiled")
     q.add_argument("--formulations", default="reduced,lagrange,hamilton")
     q.add_argument("--no-idas", action="store_true", help="skip the IDAS route of the DAE forms")
-    q.add_argument("--repeats", type=int, default=5, help="timed runs per point (median)")
+    q.add_argument("--repeats", type=int, default=5, help="timed runs per point (median; at least 1)")
     q.add_argument("--out", default="out/bench", help="output folder (default out/bench)")
     q.add_argument("--quiet", action="store_true", help="no progress on stderr")
     q.set_defaults(func=cmd_bench_precision)

@@ -3,7 +3,8 @@
 Plans the scene file's ``[task]`` (or a built-in gait of a built-in scene), verifies the
 optimum by an independent simulation and writes solution.json and PNG plots; ``--gif`` also
 writes the animation motion.gif (60 frames, a few seconds: the longest part of the output, so
-it is made only on request and its time is reported apart). Registered by
+it is made only on request and its time is reported apart). The plan runs within a time budget
+(``--time-limit``; a budget that runs out is a clean failure, exit 1). Registered by
 :mod:`nhgait.gaits.cli.main`.
 """
 from __future__ import annotations
@@ -16,6 +17,7 @@ __all__ = ["add_plan_parser", "run"]
 
 def add_plan_parser(subparsers) -> argparse.ArgumentParser:
     from ..task_library import describe_library
+    from .arguments import positive_int, workers
     p = subparsers.add_parser(
         "plan", help="plan an optimal gait of a scene's [task] (or a built-in gait) and verify it",
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -39,12 +41,16 @@ def add_plan_parser(subparsers) -> argparse.ArgumentParser:
     jit.add_argument("--jit", dest="jit", action="store_true", default=None,
                      help="compile the NLP functions (default: when a C compiler is found; cached)")
     jit.add_argument("--no-jit", dest="jit", action="store_false", help="interpreted NLP functions")
-    p.add_argument("--workers", default="1", help="initial guesses tried at once, in separate processes "
-                                                 "(a number or 'auto'; default 1)")
+    p.add_argument("--workers", default="1", type=workers, help="initial guesses tried at once, in separate "
+                                                                 "processes (a number or 'auto'; default 1)")
     p.add_argument("--hessian", choices=["auto", "exact", "gauss-newton", "limited-memory"], default="auto",
                    help="Lagrangian Hessian: exact (auto), Gauss-Newton (the stage curvature dropped) or "
                         "limited-memory (Ipopt's L-BFGS)")
-    p.add_argument("--max-guesses", type=int, default=12,
+    p.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
+                   help="seconds the whole plan may take (default: the task's time_limit, else 120 s + 30 s per "
+                        "coordinate); each solver attempt is also limited, from its measured cost; a plan that "
+                        "runs out fails cleanly (exit 1) naming the phase ('inf': unlimited)")
+    p.add_argument("--max-guesses", type=positive_int, default=12,
                    help="initial guesses tried per solver before the continuation (default 12)")
     gif = p.add_mutually_exclusive_group()
     gif.add_argument("--gif", action="store_true",
@@ -59,18 +65,24 @@ def add_plan_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
+    """Plan with ``--out`` checked and locked first (:mod:`nhgait.gaits.outputs`); exit 1 when
+    the plan failed or its files could not all be written (the summary says where the
+    solution went)."""
     from nhgait.dynamics.progress import Progress
+    from ..outputs import output_directory, output_lock
     from ..planner import plan, summary_lines
     started = time.perf_counter()
-    workers = args.workers if args.workers == "auto" else int(args.workers)
+    workers = args.workers
     progress = Progress.silent() if args.quiet else Progress.to_stderr(verbose=args.verbose)
-    result = plan(args.system, args.gait, overrides=args.overrides, intervals=args.intervals,
-                  solver=args.solver, transcription=args.transcription, jit=args.jit, workers=workers,
-                  out_dir=args.out, animate=args.gif, hessian=args.hessian,
-                  max_guesses=args.max_guesses, progress=progress)
+    out = output_directory(args.out)
+    with output_lock(out, f"nhgait plan {args.system}"):
+        result = plan(args.system, args.gait, overrides=args.overrides, intervals=args.intervals,
+                      solver=args.solver, transcription=args.transcription, jit=args.jit, workers=workers,
+                      out_dir=out, animate=args.gif, hessian=args.hessian,
+                      max_guesses=args.max_guesses, progress=progress, time_limit=args.time_limit)
     print("\n".join(summary_lines(result)))
     print(f"  wall time          {_wall_text(time.perf_counter() - started, result.timings)}")
-    return 0 if result.success else 1
+    return 0 if result.success and not result.unwritten else 1
 
 
 def _wall_text(wall: float, timings: dict) -> str:

@@ -28,11 +28,16 @@ def add_reproduce_parser(subparsers):
 def run(args) -> int:
     """Run the reproduction; print a summary table; 0 when every run reached the end."""
     from ..bench.reproduction import reproduce
+    from ..outputs import output_directory
 
     import sys
-    summary = reproduce(args.out, rtol=args.rtol, idas=not args.no_idas, columns=getattr(args, "columns", None),
+    out = output_directory(args.out)        # before any derivation: exit 2 for a bad location
+    summary = reproduce(out, rtol=args.rtol, idas=not args.no_idas, columns=getattr(args, "columns", None),
                         progress=None if getattr(args, "quiet", False) else sys.stderr)
     print_summary(summary)
+    if summary.get("unwritten"):
+        print(f"NOT WRITTEN: {summary['unwritten']}")
+        return 1
     n_csv = sum(len(summary[c].get("csv", [])) for c in ("unicycle", "snakeboard"))
     print(f"wrote {args.out}/summary.json and {sum(len(summary[c].get('figures', [])) for c in ('unicycle', 'snakeboard'))} figures"
           + (f" and {n_csv} CSV files ({args.columns} columns)" if n_csv else ""))

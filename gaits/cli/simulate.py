@@ -29,30 +29,68 @@ def cmd_simulate(args) -> int:
     figures asked for, print a summary; exit status 1 when the run stopped early."""
     from nhgait.dynamics import load_scene
     _check_arguments(args)
+    out, plot = _checked_outputs(args)
     scene = load_scene(args.scene, overrides=args.overrides)
-    model, traj, outputs = _run(args, scene)
+    model, traj, outputs, compile_s = _run(args, scene)
     columns = args.columns or ("outputs" if outputs else "q")
     if columns == "outputs" and not traj.outputs:
         from nhgait.dynamics.errors import ModelError
         raise ModelError(["--columns outputs needs [simulation].outputs in the scene"],
                          title="invalid request")
-    out = None
-    if args.out is not None:
-        out = Path(args.out)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        traj.to_csv(out, columns=columns, units=dict(scene.units or {}))
-    _print_summary(scene, traj)
-    if out is not None:
-        print(f"  wrote {out} (columns: {columns})")
-    if args.plot is not None:
-        from ..trajectory_plots import write_trajectory_figures
-        files = write_trajectory_figures(traj, model, args.plot, units=dict(scene.units or {}),
-                                         drawing=scene.drawing, params=scene.simulation.parameters)
-        print(f"  wrote {', '.join(str(f) for f in files)}")
+    _print_summary(scene, traj, compile_s)
+    units = dict(scene.units or {})
+    written = _write_csv(traj, out, columns, units) if out is not None else True
+    if plot is not None and not _write_figures(traj, model, scene, plot):
+        if out is None:                       # the figures were the only output: keep the run
+            _write_csv(traj, None, columns, units)
+        written = False
     if not traj.success:
         print(f"simulation stopped: {traj.message}", file=sys.stderr)
         return 1
-    return 0
+    return 0 if written else 1
+
+
+def _checked_outputs(args) -> tuple:
+    """(the CSV path or None, the figure folder or None), checked before any derivation
+    (:mod:`nhgait.gaits.outputs`: exit 2 for a location that cannot be written)."""
+    from ..outputs import output_directory, output_file
+    out = output_file(args.out) if args.out is not None else None
+    plot = output_directory(args.plot, "--plot") if args.plot is not None else None
+    return out, plot
+
+
+def _write_csv(traj, out: Path | None, columns: str, units: dict) -> bool:
+    """Write the CSV to ``out``; a write that fails (or ``out`` None) saves it to a fallback it
+    names. True when written to ``out``."""
+    from ..outputs import rescue, write_failure
+
+    def write(path):
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        traj.to_csv(path, columns=columns, units=units)
+    if out is None:
+        print(f"  the run is kept: {rescue('trajectory.csv', write, 'trajectory')}")
+        return False
+    try:
+        write(out)
+    except OSError as exc:
+        print(f"  NOT WRITTEN: {write_failure(exc, out)}; {rescue(out.name, write, 'trajectory')}")
+        return False
+    print(f"  wrote {out} (columns: {columns})")
+    return True
+
+
+def _write_figures(traj, model, scene, plot: Path) -> bool:
+    """time_series.png and path.png into ``plot``; a failure is reported (the CSV holds the run)."""
+    from ..outputs import write_failure
+    from ..trajectory_plots import write_trajectory_figures
+    try:
+        files = write_trajectory_figures(traj, model, plot, units=dict(scene.units or {}),
+                                         drawing=scene.drawing, params=scene.simulation.parameters)
+    except OSError as exc:
+        print(f"  figures NOT WRITTEN: {write_failure(exc, plot)}")
+        return False
+    print(f"  wrote {', '.join(str(f) for f in files)}")
+    return True
 
 
 def _check_arguments(args) -> None:
@@ -83,21 +121,76 @@ def _run(args, scene) -> tuple:
     atol = args.atol if args.atol is not None else (spec.atol or rtol * 1e-2)
     outputs = None if args.all_states else spec.outputs
     kwargs = {"dae": args.dae} if protocol_named(form).dae_options_apply else {}
-    traj = simulate(model, (spec.t0, spec.t_final), spec.q0, spec.qdot0, controller=spec.controller,
-                    params=spec.parameters or None, method=args.method or spec.method or "DOP853",
-                    rtol=rtol, atol=atol, t_eval=spec.t_eval, outputs=outputs,
-                    quantities=scene.quantities or None, **kwargs)
-    return model, traj, outputs
+    method = args.method or spec.method or "DOP853"
+    common = dict(controller=spec.controller, params=spec.parameters or None, method=method, rtol=rtol, atol=atol,
+                  outputs=outputs, quantities=scene.quantities or None, **kwargs)
+    compile_s = _estimate_first(simulate, model, spec, common)
+    traj = simulate(model, (spec.t0, spec.t_final), spec.q0, spec.qdot0, t_eval=spec.t_eval, **common)
+    return model, traj, outputs, compile_s
 
 
-def _print_summary(scene, traj) -> None:
+#: steps of the first look at a run (methods whose max_steps counts every step: scipy, compiled)
+PROBE_STEPS = 2000
+#: a run the first steps predict to need more than this many times max_steps is refused
+REFUSE_FACTOR = 100
+#: a run predicted to take longer than this (seconds) says so first
+SAY_AFTER_S = 10.0
+#: max_steps of simulate (its default)
+MAX_STEPS = 1_000_000
+#: more output samples than this say their cost first (about 1.2 kB and 50 µs each)
+MANY_SAMPLES = 100_000
+
+
+def _estimate_first(simulate, model, spec, common) -> float:
+    """Look at the first :data:`PROBE_STEPS` steps of the run (every accepted step reported) and
+    extrapolate to t_final: a run that would take longer than :data:`SAY_AFTER_S` says its
+    estimate on stderr first; one that needs more than :data:`REFUSE_FACTOR` × max_steps (so
+    that max_steps would stop it after a small part of its span, minutes later) is refused at
+    once (exit 2). SUNDIALS methods count max_steps per output interval: not looked at.
+    Returns the seconds the look spent compiling the integrator (the run itself then loads it)."""
+    from nhgait.dynamics.errors import ModelError
+    from nhgait.dynamics.simulation.driver import MAX_STEPS as STOPPED_BY_MAX_STEPS
+    if spec.samples > MANY_SAMPLES:
+        print(f"nhgait simulate: {spec.samples:,} samples: about {spec.samples * 1.2e3 / 1e6:.0f} MB and "
+              f"{_duration(spec.samples * 50e-6)} to evaluate and write the outputs (measured for the unicycle; "
+              "more for more states)", file=sys.stderr, flush=True)
+    if str(common["method"]).upper() in ("CVODES", "IDAS", "AUTO"):
+        return 0.0
+    span = spec.t_final - spec.t0
+    probe = simulate(model, (spec.t0, spec.t_final), spec.q0, spec.qdot0, t_eval=None, max_steps=PROBE_STEPS, **common)
+    compile_s = float(probe.diagnostics.get("compile_time_s") or 0.0)
+    if probe.status != STOPPED_BY_MAX_STEPS or not probe.t[-1] > spec.t0:
+        return compile_s
+    ratio = span / (probe.t[-1] - spec.t0)
+    steps = PROBE_STEPS * ratio
+    seconds = max(probe.wall_time_s - compile_s, 0.0) * ratio
+    first = (f"the first {PROBE_STEPS} steps of {common['method']} reached t = {probe.t[-1]:.4g} s of t_final = "
+             f"{spec.t_final:.4g} s")
+    if steps > REFUSE_FACTOR * MAX_STEPS:
+        raise ModelError([f"{first}: the whole run needs about {steps:.1e} steps and {_duration(seconds)}, far beyond "
+                          f"max_steps = {MAX_STEPS:,}, which would stop it near t = {spec.t0 + span * MAX_STEPS / steps:.4g} s; "
+                          "shorten t_final (--set t_final=...)"], title="simulation beyond reach")
+    if seconds > SAY_AFTER_S:
+        stop = (f"; max_steps = {MAX_STEPS:,} will probably stop it near t = {spec.t0 + span * MAX_STEPS / steps:.4g} s"
+                if steps > MAX_STEPS else "")
+        print(f"nhgait simulate: {first}: the whole run needs about {steps:.2g} steps and {_duration(seconds)} "
+              f"(an extrapolation){stop}", file=sys.stderr, flush=True)
+    return compile_s
+
+
+def _duration(seconds: float) -> str:
+    from nhgait.dynamics.countdown import duration
+    return duration(seconds)
+
+
+def _print_summary(scene, traj, compile_s: float = 0.0) -> None:
     """What ran, how far, at what cost; the end state and the run's own checks."""
     import numpy as np
     used, total = traj.diagnostics["state_count"]
     status = "" if traj.success else " — STOPPED"
     print(f"{scene.system.name}: {traj.formulation} formulation, {traj.method}, {used} of {total} states "
           f"integrated ({', '.join(traj.state_names)}), {len(traj.t)} samples to "
-          f"t = {traj.t[-1]:.6g} s ({traj.nfev} evaluations, {_timing(traj)}){status}")
+          f"t = {traj.t[-1]:.6g} s ({traj.nfev} evaluations, {_timing(traj, compile_s)}){status}")
     if "fallback" in traj.settings:
         print(f"  note: {traj.settings['fallback']}")
     if "auto" in traj.settings:
@@ -108,14 +201,22 @@ def _print_summary(scene, traj) -> None:
     if traj.constraint_residual.size and np.isfinite(traj.constraint_residual).all():
         print(f"  max |ω(q)q̇| = {np.abs(traj.constraint_residual).max():.3g}, "
               f"max |energy balance| = {np.nanmax(np.abs(traj.energy_balance)):.3g}")
+    if traj.holonomic_residual is not None and traj.holonomic_residual.size:
+        print(f"  max |h(q)| = {np.nanmax(np.abs(traj.holonomic_residual)):.3g} (drift from the holonomic "
+              "constraints kept)")
     if "recommendation" in traj.diagnostics:
         print(f"  {traj.diagnostics['recommendation']}")
 
 
-def _timing(traj) -> str:
-    """"run 0.087 s" or "run 0.087 s + compiling the integrator 1.07 s (once per model; cached)"."""
-    compile_s = float(traj.diagnostics.get("compile_time_s") or 0.0)
-    run = f"run {traj.wall_time_s - compile_s:.3f} s"
+def _timing(traj, earlier_compile_s: float = 0.0) -> str:
+    """"run 0.087 s" or "run 0.087 s + compiling the integrator 1.07 s (once per model; cached)"
+    (``earlier_compile_s``: compiled by the first look at the run, :func:`_estimate_first`)."""
+    if earlier_compile_s > 0:        # compiled by the first look: this run loaded it (its loop is shared)
+        compile_s, run_s = earlier_compile_s, traj.wall_time_s
+    else:
+        compile_s = float(traj.diagnostics.get("compile_time_s") or 0.0)
+        run_s = traj.wall_time_s - compile_s
+    run = f"run {run_s:.3f} s"
     if compile_s <= 0:
         return run
     return f"{run} + compiling the integrator {compile_s:.3f} s (once per model; cached for the next run)"

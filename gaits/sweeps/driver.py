@@ -41,7 +41,7 @@ from nhgait.ocp import ProblemError
 from .backends import WorkerDied, make_backend
 from .grid import Grid, parse_grid
 from .point import PointJob, SweepCase, point_task, prepare_worker, solve_chain, solve_point
-from .store import PointRecord, SweepStore
+from .store import PointRecord, StoreWriteError, SweepStore
 
 __all__ = ["sweep", "run_sweep", "RunOptions", "load_sweep", "SweepResult", "Progress"]
 
@@ -292,12 +292,27 @@ class _Run:
                 self.submit(points[0], jobs[0], 2)
                 return
             records = [_failure(p, j, f"{status} twice: {exc}", status, attempts) for p, j in zip(points, jobs)]
+            answers = [{"failure": r.message} for r in records]
         else:
-            answers = [answers] if len(points) == 1 else answers
-            records = [self._record(p, j, a, attempts) for p, j, a in zip(points, jobs, answers)]
-        for point, record in zip(points, records):
-            self._store(point, record)
+            answers, records = ([answers] if len(points) == 1 else answers), None
+        try:
+            if records is None:
+                records = [self._record(p, j, a, attempts) for p, j, a in zip(points, jobs, answers)]
+            for point, record in zip(points, records):
+                self._store(point, record)
+        except StoreWriteError as exc:
+            raise StoreWriteError(self._rescued(exc, points, answers)) from None
         self.release(points[0].index)          # through the chain's (now done) points
+
+    def _rescued(self, exc, points, answers) -> str:
+        """The message of a store that could not be written: why, what is stored, and where the
+        answers of ``points`` (not stored) were saved instead."""
+        from ..outputs import rescue
+        unstored = [{"id": p.id, "axis_values": dict(p.values), "answer": a}
+                    for p, a in zip(points, answers) if p.index not in self.done]
+        where = rescue("unstored_points.json", unstored, f"answer of {len(unstored)} unstored point(s)")
+        return (f"{exc}; {len(self.done)} points are stored in {self.store.directory}; {where}; free the space "
+                "and continue with --resume")
 
     def _store(self, point, record) -> None:
         self.store.add(record)
@@ -380,20 +395,23 @@ def sweep(system, task=None, grid=(), *, out, overrides=(), params=None, schedul
     chain : points per back-end task down the continuation tree (None: the back end's choice;
         1 for the local pool, 4 for Dask)
     """
-    from .point import check_case, describe_case
-    case = describe_case(system, task, overrides=overrides, params=params, options=options)
-    the_grid = grid if isinstance(grid, Grid) else parse_grid(grid, parameters=tuple(case.params))
-    centre = the_grid.point(the_grid.centre)
-    check_case(case, PointJob(case, centre.id, *point_task(case.task, case.params, centre)))
-    own = backend is None
-    backend = make_backend(scheduler, workers) if own else backend
-    try:
-        with SweepStore(out) as store:
-            return run_sweep(case, the_grid, backend, store,
-                             RunOptions(resume=resume, warm_start=warm_start, progress=progress, chain=chain))
-    finally:
-        if own:
-            backend.close()
+    from ..outputs import output_directory, output_lock
+    out = output_directory(out)                     # before any derivation: exit 2 for a bad location
+    with output_lock(out, f"nhgait sweep {system} --out {out}"):   # one writer: a second run is refused now
+        from .point import check_case, describe_case
+        case = describe_case(system, task, overrides=overrides, params=params, options=options)
+        the_grid = grid if isinstance(grid, Grid) else parse_grid(grid, parameters=tuple(case.params))
+        centre = the_grid.point(the_grid.centre)
+        check_case(case, PointJob(case, centre.id, *point_task(case.task, case.params, centre)))
+        own = backend is None
+        backend = make_backend(scheduler, workers) if own else backend
+        try:
+            with SweepStore(out, lock=False) as store:
+                return run_sweep(case, the_grid, backend, store,
+                                 RunOptions(resume=resume, warm_start=warm_start, progress=progress, chain=chain))
+        finally:
+            if own:
+                backend.close()
 
 
 def load_sweep(directory) -> SweepResult:

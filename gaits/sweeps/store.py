@@ -19,9 +19,19 @@ whole point in its worker: set-up, solve, verification), ``verification_error`` 
 ``warm`` or ``cold after warm failed``), ``warm_from`` (the parent point's id),
 ``attempts`` (1, or 2 after a worker died), ``worker``, ``solution_path`` (relative to DIR:
 ``solutions/<id>.json``, the full solution) and ``finished_at`` (UTC ISO time).
+
+One writer per store: an open store holds the directory's writer lock
+(:func:`nhgait.gaits.outputs.output_lock`; ``lock=False`` when the caller holds it already),
+so a second sweep on the same ``--out`` is refused at once, naming the first. A store file, a
+journal or a ``solutions`` folder that is a symbolic link is refused (writing through it would
+turn the link's target into a database), and so is a file that is not an SQLite database. A
+write that fails while the sweep runs (disk full, folder removed) raises
+:class:`StoreWriteError`: the points already stored stay, the driver saves the unstored
+answers to a fallback (:func:`nhgait.gaits.outputs.rescue`) and ``--resume`` continues.
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -33,12 +43,19 @@ from pathlib import Path
 
 from nhgait.ocp import ProblemError
 
-__all__ = ["SweepStore", "PointRecord", "STORE_NAME", "FORMAT"]
+__all__ = ["SweepStore", "PointRecord", "StoreWriteError", "STORE_NAME", "FORMAT"]
 
 STORE_NAME = "sweep.sqlite"
 FORMAT = 1
 #: what makes a sweep the same sweep on --resume
 IDENTITY = ("scene", "task", "params", "options", "grid")
+#: the store's files besides sweep.sqlite (SQLite's journals) and the solutions folder: none may be a link
+_COMPANIONS = (STORE_NAME + "-wal", STORE_NAME + "-shm", STORE_NAME + "-journal", "solutions")
+
+
+class StoreWriteError(RuntimeError):
+    """A write to the store failed while the sweep ran (disk full, folder removed, read-only):
+    the message says why; the points stored before stay."""
 
 
 @dataclass(frozen=True)
@@ -104,21 +121,54 @@ def _from_sql(name, value):
 class SweepStore:
     """The store of one sweep directory (see the module docstring). Use as a context manager."""
 
-    def __init__(self, directory, *, create: bool = True):
+    def __init__(self, directory, *, create: bool = True, lock: bool = True):
+        from ..outputs import output_lock
         self.directory = Path(directory)
         self.path = self.directory / STORE_NAME
         if not create and not self.path.exists():
             raise ProblemError([f"{self.directory} holds no sweep ({STORE_NAME} not found)"], title="no sweep")
-        self.directory.mkdir(parents=True, exist_ok=True)
-        (self.directory / "solutions").mkdir(exist_ok=True)
-        self._db = sqlite3.connect(self.path, timeout=30)
-        self._db.execute("PRAGMA journal_mode=WAL")
-        self._db.execute("PRAGMA synchronous=FULL")
-        columns = ", ".join(f"{c} {_TYPES.get(c, 'TEXT')}" + (" PRIMARY KEY" if c == "id" else "")
-                            for c in _COLUMNS)
-        with self._db:
-            self._db.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL)")
-            self._db.execute(f"CREATE TABLE IF NOT EXISTS points ({columns})")
+        self._exit = contextlib.ExitStack()
+        if create and lock:
+            self._exit.enter_context(output_lock(self.directory, f"nhgait sweep --out {self.directory}"))
+        try:
+            self._refuse_links()
+            if create:
+                self.directory.mkdir(parents=True, exist_ok=True)
+                (self.directory / "solutions").mkdir(exist_ok=True)
+            self._db = self._connect(create)
+        except BaseException:
+            self._exit.close()
+            raise
+
+    def _refuse_links(self) -> None:
+        """A store file, journal or solutions folder that is a link or not a regular file is refused."""
+        problems = []
+        for name in (STORE_NAME, *_COMPANIONS):
+            path = self.directory / name
+            if path.is_symlink():
+                problems.append(f"{path} is a symbolic link: nhgait does not write a sweep through links "
+                                "(the link's target would become part of the store)")
+            elif name != "solutions" and path.exists() and not path.is_file():
+                problems.append(f"{path} is not a regular file")
+        if problems:
+            raise ProblemError(problems, title="invalid sweep directory")
+
+    def _connect(self, create: bool) -> sqlite3.Connection:
+        """The open database with its tables (a file that is not an SQLite database is refused)."""
+        db = sqlite3.connect(self.path, timeout=30)
+        try:
+            db.execute("PRAGMA journal_mode=WAL")
+            db.execute("PRAGMA synchronous=FULL")
+            columns = ", ".join(f"{c} {_TYPES.get(c, 'TEXT')}" + (" PRIMARY KEY" if c == "id" else "")
+                                for c in _COLUMNS)
+            with db:
+                db.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL)")
+                db.execute(f"CREATE TABLE IF NOT EXISTS points ({columns})")
+        except sqlite3.DatabaseError as exc:
+            db.close()
+            raise ProblemError([f"{self.path} is not a sweep store ({exc}): choose another --out"],
+                               title="invalid sweep directory") from None
+        return db
 
     def __enter__(self):
         return self
@@ -127,7 +177,10 @@ class SweepStore:
         self.close()
 
     def close(self) -> None:
-        self._db.close()
+        try:
+            self._db.close()
+        finally:
+            self._exit.close()
 
     # ------------------------------------------------------------------ meta
     @property
@@ -174,11 +227,19 @@ class SweepStore:
     # ------------------------------------------------------------------ rows
     def write_solution(self, point_id: str, solution: dict) -> str:
         """Write a point's full solution atomically; returns its path relative to the directory."""
-        rel = f"solutions/{point_id}.json"
-        fd, tmp = tempfile.mkstemp(dir=self.directory / "solutions", prefix=".tmp-", suffix=".json")
-        with os.fdopen(fd, "w") as fh:
-            fh.write(json.dumps(solution))       # one shot: the C encoder (json.dump streams in Python)
-        os.replace(tmp, self.directory / rel)
+        rel, tmp = f"solutions/{point_id}.json", None
+        try:
+            fd, tmp = tempfile.mkstemp(dir=self.directory / "solutions", prefix=".tmp-", suffix=".json")
+            with os.fdopen(fd, "w") as fh:
+                fh.write(json.dumps(solution))       # one shot: the C encoder (json.dump streams in Python)
+            os.replace(tmp, self.directory / rel)
+            tmp = None
+        except OSError as exc:
+            raise StoreWriteError(f"cannot write {self.directory / rel} ({exc.strerror or exc})") from None
+        finally:
+            if tmp is not None:
+                with contextlib.suppress(OSError):
+                    os.unlink(tmp)
         return rel
 
     def add(self, record: PointRecord) -> None:
@@ -186,9 +247,12 @@ class SweepStore:
         values = [_sql_value(c, getattr(record, c)) for c in _COLUMNS]
         if not record.finished_at:
             values[_COLUMNS.index("finished_at")] = _now()
-        with self._db:
-            self._db.execute(f"INSERT OR REPLACE INTO points ({', '.join(_COLUMNS)}) "
-                             f"VALUES ({', '.join('?' * len(_COLUMNS))})", values)
+        try:
+            with self._db:
+                self._db.execute(f"INSERT OR REPLACE INTO points ({', '.join(_COLUMNS)}) "
+                                 f"VALUES ({', '.join('?' * len(_COLUMNS))})", values)
+        except sqlite3.OperationalError as exc:       # disk full, read-only, removed
+            raise StoreWriteError(f"cannot write {self.path} ({exc})") from None
 
     def count(self) -> int:
         return int(self._db.execute("SELECT COUNT(*) FROM points").fetchone()[0])

@@ -12,7 +12,7 @@ from nhgait.dynamics.derivation.notation import symmetry_choice_lines
 from nhgait.dynamics.reprs import ModelDisplay
 
 from ..steps import DISPLAY_OPS, Steps, default_symbol_names, text_of
-from ..symbolic import tidy
+from ..symbolic import TIDY_NODES, tidy, tree_size
 from ..symmetry import SymmetryTest
 from ..system import System
 
@@ -96,7 +96,8 @@ def classify(layout, A_zero: bool) -> str:
 
 
 def _det(A: sp.Matrix):
-    if A.shape[0] <= SINGULAR_DET_MAX:
+    """det A written out and factored for small matrices of small entries, else unevaluated."""
+    if A.shape[0] <= SINGULAR_DET_MAX and sum(tree_size(e, TIDY_NODES) for e in A) <= TIDY_NODES:
         return sp.factor(tidy(A.det(method="berkowitz")))
     return sp.Determinant(sp.ImmutableMatrix(A))
 
@@ -244,6 +245,7 @@ class ReducedODE(ModelDisplay):
                  f"({self.dimension} = 2n − k first-order ODEs, {self.form} form, version {self.version}, "
                  f"{self.classification})",
                  *symmetry_choice_lines(self.symmetry, self.fiber, self.shape),
+                 *self.system.holonomic_lines(),
                  f"  state z = ({', '.join(self.state_names)})"]
         if self.rhs is None:
             lines.append("  q̇ = X(q) v,  K(q) v = (" + ", ".join(map(str, self.momenta)) +

@@ -21,6 +21,7 @@ import sympy as sp
 from ...errors import ModelError
 from . import energy, wheels
 from .mass_parameters import mass_problems, with_mass_parameters
+from ..textfiles import read_text_file
 from .reader import read_urdf
 from .tree import MOVING, build_bodies, tree_problems
 
@@ -59,16 +60,45 @@ class UrdfSystem:
 
 def resolve_path(text: str, base_dir: Path) -> Path:
     """The URDF file a scene names: relative to the scene's folder, or inside the installed
-    example-robot-data package (``example-robot-data:tiago_description/robots/tiago.urdf``)."""
+    example-robot-data package (``example-robot-data:tiago_description/robots/tiago.urdf``).
+
+    A scene is data from anyone, so the file must lie (after following links) inside the
+    scene's own folder tree, inside example-robot-data's robots, or inside a folder the user
+    allows in ``$NHGAIT_URDF_PATH`` (folders separated by ``os.pathsep``); anything else —
+    ``/etc/shadow``, ``../../../etc/passwd`` — is refused before the file is opened, and the
+    message does not say whether it exists."""
     if text.startswith(ROBOT_DATA):
         try:
             dist = metadata.distribution("example-robot-data")
         except metadata.PackageNotFoundError:
             raise ModelError([f"urdf = {text!r} needs the example-robot-data package "
                               "(pip install 'nhgait[pinocchio]')"], title="unknown URDF") from None
-        return Path(dist.locate_file(f"cmeel.prefix/share/example-robot-data/robots/{text[len(ROBOT_DATA):]}"))
+        root = Path(dist.locate_file("cmeel.prefix/share/example-robot-data/robots"))
+        return _inside(root / text[len(ROBOT_DATA):], [root], text, "example-robot-data's robots folder")
     path = Path(text)
-    return path if path.is_absolute() else base_dir / path
+    path = path if path.is_absolute() else base_dir / path
+    return _inside(path, [base_dir, *allowed_urdf_folders()], text, f"the scene's folder {base_dir}")
+
+
+#: folders (``os.pathsep``-separated) from which a scene may read URDFs besides its own folder tree
+URDF_PATH_VARIABLE = "NHGAIT_URDF_PATH"
+
+
+def allowed_urdf_folders() -> list:
+    """The folders of ``$NHGAIT_URDF_PATH`` (the user's explicit permission)."""
+    import os
+    return [Path(f).expanduser() for f in os.environ.get(URDF_PATH_VARIABLE, "").split(os.pathsep) if f]
+
+
+def _inside(path: Path, roots: list, text: str, where: str) -> Path:
+    """``path`` when it resolves (links followed) inside one of ``roots``; else a ModelError."""
+    resolved = path.resolve()
+    for root in roots:
+        if resolved.is_relative_to(Path(root).resolve()):
+            return path
+    raise ModelError([f"[system].urdf = {text!r} is outside {where}: a scene may name a URDF inside its own "
+                      f"folder tree or 'example-robot-data:<path>'; to allow another folder, add it to "
+                      f"${URDF_PATH_VARIABLE}"], title="URDF refused")
 
 
 def _names(table, key, problems) -> list:
@@ -246,11 +276,11 @@ def _robot(text, base_dir, problems):
     except ModelError as exc:
         problems.extend(exc.problems)
         return None
-    if not path.is_file():
+    if not path.exists():
         problems.append(f"[system].urdf: file {path} does not exist")
         return None
     try:
-        return read_urdf(path.read_text(), str(path))
+        return read_urdf(read_text_file(path, "URDF"), str(path))
     except ModelError as exc:
         problems.extend(exc.problems)
         return None

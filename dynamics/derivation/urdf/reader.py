@@ -22,7 +22,7 @@ from xml.parsers import expat
 import numpy as np
 
 from ...errors import ModelError
-from ..expressions import finite_or_nan
+from ..expressions import MAX_MAGNITUDE, finite_or_nan, magnitude_problem
 
 #: joint types of the URDF specification
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
@@ -126,6 +126,10 @@ def _floats(text, count, where, problems, default):
     if values.size != count or not np.all(np.isfinite(values)):
         problems.append(f"{where} = {text!r} is not {count} finite numbers")
         return np.array(default, dtype=float)
+    if np.any(np.abs(values) > MAX_MAGNITUDE):
+        problems.append(f"{where} = {text!r}: a value exceeds {MAX_MAGNITUDE:.0e} in magnitude, the largest "
+                        "number nhgait accepts")
+        return np.array(default, dtype=float)
     return values
 
 
@@ -136,6 +140,8 @@ def _number(element, key, where, problems, default=None):
     value = finite_or_nan(text)
     if math.isnan(value):
         problems.append(f"{where}: {key} = {text!r} is not a finite number")
+        return default
+    if math.isnan(magnitude_problem(value, f"{where}: {key}", problems)):
         return default
     return value
 

@@ -134,24 +134,31 @@ def build_bodies(robot: Robot, root: str, coordinates: dict, locked: dict) -> li
         frames.append({})
         return len(placed) - 1
 
-    def visit(link, body_index, rotation, translation):
-        frames[body_index][link] = (rotation, translation)
-        for joint in children.get(link, ()):
-            origin_r = rotation @ joint.rotation
-            origin_t = translation + rotation @ joint.translation
-            motion = moving(joint)
-            if motion is None:
-                r, t = joint_motion(joint, value_of(joint))
-                visit(joint.child, body_index, origin_r @ r, origin_t + origin_r @ t)
-            else:
-                index = add_body(link=joint.child, joint=joint, parent=body_index, rotation=origin_r,
-                                 translation=origin_t, coordinate=motion[0], multiplier=motion[1],
-                                 offset=motion[2])
-                visit(joint.child, index, np.eye(3), np.zeros(3))
-
+    # depth first, parents before children, in file order: an explicit stack, so that a chain
+    # of any length (1000 fixed links) needs no recursion. An item is a link to place in a body
+    # ("link") or a joint to cross from its parent link's placement ("joint").
     add_body(link=root, joint=None, parent=None, rotation=np.eye(3), translation=np.zeros(3),
              coordinate=None, multiplier=1.0, offset=0.0)
-    visit(root, 0, np.eye(3), np.zeros(3))
+    stack = [("link", root, 0, np.eye(3), np.zeros(3))]
+    while stack:
+        kind, item, body_index, rotation, translation = stack.pop()
+        if kind == "link":
+            frames[body_index][item] = (rotation, translation)
+            stack.extend(("joint", joint, body_index, rotation, translation)
+                         for joint in reversed(children.get(item, ())))
+            continue
+        joint = item
+        origin_r = rotation @ joint.rotation
+        origin_t = translation + rotation @ joint.translation
+        motion = moving(joint)
+        if motion is None:
+            r, t = joint_motion(joint, value_of(joint))
+            stack.append(("link", joint.child, body_index, origin_r @ r, origin_t + origin_r @ t))
+        else:
+            index = add_body(link=joint.child, joint=joint, parent=body_index, rotation=origin_r,
+                             translation=origin_t, coordinate=motion[0], multiplier=motion[1],
+                             offset=motion[2])
+            stack.append(("link", joint.child, index, np.eye(3), np.zeros(3)))
     bodies = []
     for placement, body_frames in zip(placed, frames):
         mass, com, inertia = _mass_properties(body_frames, robot)
