@@ -215,10 +215,28 @@ def prepare(to_plan, *, params=None, progress=None) -> Prepared:
 
 
 # ----------------------------------------------------------------------------- warm start
+#: the largest solution.json read (bytes; the largest plans, with their feedback gains, write a
+#: few MB)
+MAX_SOLUTION_BYTES = 64 * 1024 * 1024
+
+
 def read_solution(path) -> dict:
-    """The content of a ``solution.json`` written by :func:`plan` (a dict)."""
+    """The content of a ``solution.json`` written by :func:`plan` (a dict), read as data
+    (:func:`~nhgait.dynamics.derivation.textfiles.read_text_file`); a file that is not one is
+    a :class:`~nhgait.dynamics.errors.ModelError` naming it."""
     import json
-    return json.loads(Path(path).read_text())
+    from nhgait.dynamics.derivation.textfiles import read_text_file
+    from nhgait.dynamics.errors import ModelError
+    title = "cannot read the solution"
+    text = read_text_file(path, "solution file", limit=MAX_SOLUTION_BYTES, title=title)
+    try:
+        data = json.loads(text)
+    except (ValueError, RecursionError) as exc:
+        raise ModelError([f"solution file {path} is not JSON ({exc})"], title=title) from None
+    if not isinstance(data, dict):
+        raise ModelError([f"solution file {path} holds a JSON {type(data).__name__}, not the object nhgait plan "
+                          "writes"], title=title)
+    return data
 
 
 def _trajectory_of(previous) -> tuple:
@@ -548,19 +566,13 @@ def write_outputs(result: PlanResult, out: Path, *, animate: bool = True, progre
     """solution.json (with ``task``, ``guess``, ``success`` and ``diagnosis``) and the figures;
     a failed plan's figures are titled FAILED and it gets no animation; a plan whose time budget
     ran out gets solution.json only (nothing without a point). Each file is written whole or
-    not at all: into a staging folder in ``out`` (removed whatever happens), then moved into
-    place. Returns the paths."""
-    import tempfile
+    not at all (:func:`nhgait.gaits.outputs.staged`). Returns the paths."""
     from nhgait.dynamics.progress import Progress
+    from .outputs import staged
     progress = progress or Progress.silent()
     if result.solution is None:
         return []
-    out.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=out, prefix=".writing-") as staging:
-        staged = _write_files(result, Path(staging), animate=animate, progress=progress)
-        for path in staged:
-            os.replace(path, out / path.name)
-    return [out / path.name for path in staged]
+    return staged(out, lambda folder: _write_files(result, folder, animate=animate, progress=progress))
 
 
 def _write_files(result: PlanResult, out: Path, *, animate: bool, progress) -> list:

@@ -5,11 +5,21 @@ ten times closer to the plan's end than the open loop — measured ~1/100 on the
 J_θ +20 %), the seeded noise (same seed, same numbers, in this process, in a serial back end
 and in worker processes), and for the URDF masses a second URDF file whose link mass and
 inertia are scaled by hand (the parametrised Lagrangian at that mass equals the edited file's
-to 1e-12 at random states).
+to 1e-12 at random states). Like ``plan``: a bad plan file is one error (exit 2), a write that
+fails at the end keeps tracking.json in a fallback, a study that runs out of time ends as a
+clean failure with the samples it did, and SIGTERM/Ctrl-C during the samples stops it at once
+leaving nothing (the samples made endless, so the signal always finds them running).
 """
 from __future__ import annotations
 
+import errno
 import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -81,6 +91,125 @@ def test_cli_track_lists_every_problem_of_its_request(tmp_path, capsys):
     assert "positive number" in err and "--samples must be an integer ≥ 1" in err
     assert main(["track", "unicycle", "--plan", str(tmp_path / "none.json"), "--set", "final.y=0.3",
                  "--out", str(tmp_path)]) == 2
+
+
+def _bad_plan_files(folder: Path, good: dict) -> dict:
+    """Plan files nhgait must refuse, by what is wrong with them."""
+    files = {"not JSON": "{\"feedback\": ", "a JSON list": "[1, 2]"}
+    short = json.loads(json.dumps(good))
+    short["feedback"]["gains"] = short["feedback"]["gains"][:-1]
+    files["gains of the wrong shape"] = json.dumps(short)
+    unread = json.loads(json.dumps(good))
+    del unread["feedback"]["weights"]
+    files["no weights"] = json.dumps(unread)
+    paths = {}
+    for i, (what, text) in enumerate(files.items()):
+        paths[what] = folder / f"bad{i}.json"
+        paths[what].write_text(text)
+    paths["a directory"] = folder
+    return paths
+
+
+@pytest.mark.parametrize("what, said", [("not JSON", "is not JSON"), ("a JSON list", "holds a JSON list"),
+                                        ("gains of the wrong shape", "feedback.gains has the shape"),
+                                        ("no weights", "its feedback cannot be read"),
+                                        ("a directory", "is a directory")])
+def test_a_bad_plan_file_is_one_error(study, tmp_path, capsys, what, said):
+    _, out = study
+    bad = _bad_plan_files(tmp_path, json.loads((out / "solution.json").read_text()))[what]
+    code = main(["track", "unicycle", "--plan", str(bad), "--out", str(tmp_path / "o"), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and said in err and "Traceback" not in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_study_whose_files_cannot_be_written_keeps_its_report(study, sandbox, monkeypatch, capsys):
+    """The disk fills while the figures are written: exit 1, the summary names the failure and
+    the fallback, which holds the tracking.json of the summary's numbers; nothing half-written
+    left behind."""
+    from nhgait.gaits.tracking import plots
+    _, out = study
+
+    def no_space(*args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+    monkeypatch.setattr(plots, "write_tracking_figures", no_space)
+    code = main(["track", "unicycle", "--plan", str(out / "solution.json"), "--mismatch", "params.J_theta=1.2",
+                 "--samples", "2", "--out", str(sandbox.out / "t"), "--quiet"])
+    text = capsys.readouterr().out
+    assert code == 1 and re.search(r"NOT WRITTEN: writing .* failed: no space left", text)
+    rescued = re.search(r"the tracking report was saved to (\S+tracking\.json)", text).group(1)
+    assert rescued.startswith(str(sandbox.tmp))
+    report = json.loads(Path(rescued).read_text())
+    median = float(re.search(r"closed loop +final position error median ([-\d.e+]+)", text).group(1))
+    assert report["closed_loop"]["final_position_error"]["median"] == pytest.approx(median, rel=1e-3)
+    assert not (sandbox.out / "t").exists()           # created by this run, left empty: removed
+
+
+def test_a_study_that_runs_out_of_time_is_a_clean_failure(study, tmp_path, monkeypatch):
+    """Samples that take 1 s each and a budget of 8 s: the study ends in the noise-free run or
+    the samples (a loaded machine may need the budget for the first), not successful, with the
+    budget and the phase in tracking.json, the samples it did summarised; exit 1 from the CLI."""
+    from nhgait.gaits.tracking import runs
+    _, out = study
+    real = runs.run_sample
+
+    def slow(ctx, case, index):
+        if index >= 0:
+            time.sleep(1.0)
+        return real(ctx, case, index)
+    monkeypatch.setattr(runs, "run_sample", slow)
+    result = track("unicycle", plan_file=out / "solution.json", mismatch=["params.J_theta=1.2"], samples=20,
+                   time_limit=8.0, out_dir=tmp_path / "t")
+    assert not result.success and result.overrun.phase in ("the noise-free run", "the samples")
+    report = json.loads((tmp_path / "t" / "tracking.json").read_text())
+    assert report["success"] is False and report["samples_requested"] == 20 and report["samples"] < 20
+    assert "the time budget of 8 s (--time-limit / track(time_limit=...)) ran out" in report["time_budget"][0]
+    assert "--time-limit SECONDS" in report["time_budget"][1]
+    if report["samples"]:
+        assert len(report["closed_loop"]["final_position_error"]["samples"]) == report["samples"]
+
+
+#: nhgait with every noisy sample endless (the noise-free run as it is), Ctrl-C as in a terminal
+ENDLESS_SAMPLES = ("import signal, sys, time\n"
+                   "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
+                   "from nhgait.gaits.tracking import runs\n"
+                   "real = runs.run_sample\n"
+                   "def endless(ctx, case, index):\n"
+                   "    while index >= 0:\n"
+                   "        real(ctx, case, index)\n"
+                   "    return real(ctx, case, index)\n"
+                   "runs.run_sample = endless\n"
+                   "from nhgait.gaits.cli.main import main\n"
+                   "sys.exit(main())\n")
+
+
+@pytest.mark.skipif(not hasattr(os, "killpg"), reason="needs POSIX process groups")
+@pytest.mark.parametrize("signame, status, said", [("SIGTERM", 143, "terminated"), ("SIGINT", 130, "interrupted")])
+def test_a_study_stopped_during_its_samples_leaves_nothing(study, tmp_path, signame, status, said):
+    """SIGTERM or Ctrl-C once the samples run: exit 143 or 130, nothing in --out (the files are
+    written at the end, staged), no process of its session left."""
+    _, out = study
+    err_path = tmp_path / "stderr.txt"
+    with open(err_path, "w") as err:
+        proc = subprocess.Popen([sys.executable, "-c", ENDLESS_SAMPLES, "track", "unicycle", "--plan",
+                                 str(out / "solution.json"), "--samples", "3", "--out", str(tmp_path / "o")],
+                                stdout=subprocess.DEVNULL, stderr=err, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 240.0
+        while "3 samples in this process" not in err_path.read_text():
+            assert proc.poll() is None and time.monotonic() < deadline, err_path.read_text()
+            time.sleep(0.05)
+        os.killpg(proc.pid, getattr(signal, signame))
+        assert proc.wait(timeout=15.0) == status
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert f"nhgait: {said}" in err_path.read_text()
+    assert not (tmp_path / "o").exists() or not list((tmp_path / "o").iterdir())
+    time.sleep(0.5)
+    with pytest.raises(ProcessLookupError):
+        os.killpg(proc.pid, 0)
 
 
 # ------------------------------------------------------------------------------ URDF masses

@@ -5,7 +5,10 @@ on the general model with the parameters changed and with initial-state and inpu
 loop and with the plan's feedback (the time-varying LQR stored with every plan), K samples —
 in this process, or on the sweep back ends when K is large or ``--scheduler``/``--workers`` is
 given — and writes tracking.json, tracking_paths.png and tracking_errors.png
-(:mod:`nhgait.gaits.tracking.study`). Registered by :mod:`nhgait.gaits.cli.main`.
+(:mod:`nhgait.gaits.tracking.study`). Like ``plan``: ``--out`` is checked and locked before any
+work, the files are written whole or not at all, and the study runs within a time budget
+(``--time-limit``, shared by the plan and the samples; one that runs out is a clean failure,
+exit 1). Registered by :mod:`nhgait.gaits.cli.main`.
 """
 from __future__ import annotations
 
@@ -49,6 +52,10 @@ def add_track_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=None,
                    help=f"local worker processes (0: this process; default: this process up to {SERIAL_SAMPLES} "
                         "samples, else one per core)")
+    p.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
+                   help="seconds the whole study (the plan and the samples) may take (default: the task's "
+                        "time_limit, else 120 s + 30 s per coordinate); a study that runs out fails cleanly (exit 1) "
+                        "with the samples done in tracking.json ('inf': unlimited)")
     talk = p.add_mutually_exclusive_group()
     talk.add_argument("--quiet", action="store_true", help="no progress on stderr")
     talk.add_argument("--verbose", action="store_true", help="the solver's own iteration log as well")
@@ -58,8 +65,11 @@ def add_track_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
+    """The study with ``--out`` checked and locked first (:mod:`nhgait.gaits.outputs`); exit 1
+    when the plan or a run failed, the time ran out or the files could not all be written."""
     from nhgait.dynamics.progress import Progress
     from nhgait.ocp import ProblemError
+    from ..outputs import output_directory, output_lock
     from ..tracking.runs import Noise
     from ..tracking.study import summary_lines, track
     problems = [f"--{name} must be ≥ 0, got {value:g}" for name, value in
@@ -70,9 +80,12 @@ def run(args) -> int:
         raise ProblemError(problems, title="invalid tracking study")
     started = time.perf_counter()
     progress = Progress.silent() if args.quiet else Progress.to_stderr(verbose=args.verbose)
-    result = track(args.system, args.gait, overrides=args.overrides, mismatch=args.mismatch, samples=args.samples,
-                   seed=args.seed, noise=Noise(args.state_noise, args.input_noise), plan_file=args.plan,
-                   scheduler=args.scheduler, workers=args.workers, out_dir=args.out, progress=progress)
+    out = output_directory(args.out)
+    with output_lock(out, f"nhgait track {args.system}"):
+        result = track(args.system, args.gait, overrides=args.overrides, mismatch=args.mismatch,
+                       samples=args.samples, seed=args.seed, noise=Noise(args.state_noise, args.input_noise),
+                       plan_file=args.plan, scheduler=args.scheduler, workers=args.workers, out_dir=out,
+                       progress=progress, time_limit=args.time_limit)
     print("\n".join(summary_lines(result)))
     print(f"  wall time          {time.perf_counter() - started:.1f} s")
-    return 0 if result.success else 1
+    return 0 if result.success and not result.unwritten else 1
