@@ -100,7 +100,7 @@ def holonomic_quantities(model) -> dict:
     numeric = model.numeric
     if "holonomic" not in getattr(numeric, "functions", {}):
         return {}
-    h, n = numeric["holonomic"], len(_coordinates(model))
+    h, n = numeric["holonomic"], len(model_coordinates(model))
     return {f"holonomic{i + 1}": Quantity(f"holonomic{i + 1}", lambda z, params, i=i: h(z[:n], params)[i],
                                           f"holonomic constraint {i + 1}: h(q), zero on the constraint surface")
             for i in range(h.size1_out(0))}
