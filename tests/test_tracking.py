@@ -93,6 +93,51 @@ def test_cli_track_lists_every_problem_of_its_request(tmp_path, capsys):
                  "--out", str(tmp_path)]) == 2
 
 
+def test_the_robot_starts_on_its_own_constraints():
+    """robot_start against closed forms: a pendulum on a cart kept on px² + py² = l² with the
+    robot's l 10 % longer lands on the robot's circle (the dependent coordinate solved) with
+    px ṗx + py ṗy = 0; the snakeboard with its wheel base r 20 % longer gets velocities that
+    meet the robot's two wheel constraints; with a mass changed nothing moves."""
+    from nhgait.dynamics.derivation.system import System
+    from nhgait.dynamics.derivation.scene import load_scene
+    from nhgait.gaits.tracking.runs import robot_start
+    cart = System(coordinates=["s", "px", "py"],
+                  lagrangian="M*s_dot**2/2 + m*((s_dot + px_dot)**2 + py_dot**2)/2 - m*g*py",
+                  holonomic=["px**2 + py**2 - l**2"], forces={"s": "F"},
+                  parameters={"M": 2.0, "m": 0.5, "g": 9.81, "l": 0.7}, planar_frame=None, name="cart_pendulum")
+    angle, rate = 0.4, 1.3
+    q = np.array([0.2, 0.7 * np.sin(angle), -0.7 * np.cos(angle)])
+    qdot = np.array([0.5, 0.7 * rate * np.cos(angle), 0.7 * rate * np.sin(angle)])
+    q1, qdot1 = robot_start(cart, q, qdot, {**cart.parameters, "l": 0.77})
+    assert np.hypot(q1[1], q1[2]) == pytest.approx(0.77, rel=1e-12)
+    assert q1[1] * qdot1[1] + q1[2] * qdot1[2] == pytest.approx(0.0, abs=1e-12)
+    q2, qdot2 = robot_start(cart, q, qdot, {**cart.parameters, "M": 2.2})
+    assert np.allclose(q2, q, rtol=0, atol=1e-14) and np.allclose(qdot2, qdot, rtol=0, atol=1e-14)
+
+    board = load_scene("snakeboard").system
+    r = board.parameters["r"]
+    q = np.array([0.1, -0.2, 0.3, 0.4, 0.5])                 # x, y, theta, psi, phi
+
+    def wheels(qd, r):
+        x, y, th, psi, phi = q
+        return [-np.sin(th - phi) * qd[0] + np.cos(th - phi) * qd[1] - r * np.cos(phi) * qd[2],
+                -np.sin(th + phi) * qd[0] + np.cos(th + phi) * qd[1] + r * np.cos(phi) * qd[2]]
+    qdot = np.array([0.0, 0.0, 0.3, 0.2, 0.1])               # θ̇, ψ̇, φ̇; (ẋ, ẏ) from the wheels
+    qdot[:2] = _on_both_wheels(q, qdot, r)
+    assert np.allclose(wheels(qdot, r), 0.0, atol=1e-12)
+    _, moved = robot_start(board, q, qdot, {**board.parameters, "r": 1.2 * r})
+    assert np.allclose(wheels(moved, 1.2 * r), 0.0, atol=1e-12) and not np.allclose(moved, qdot)
+    _, same = robot_start(board, q, qdot, {**board.parameters, "m": 0.55})
+    assert np.allclose(same, qdot, rtol=0, atol=1e-13)
+
+
+def _on_both_wheels(q, qdot, r):
+    """(ẋ, ẏ) meeting both snakeboard wheel constraints for the given θ̇ (a 2×2 solve)."""
+    th, phi = q[2], q[4]
+    A = np.array([[-np.sin(th - phi), np.cos(th - phi)], [-np.sin(th + phi), np.cos(th + phi)]])
+    return np.linalg.solve(A, [r * np.cos(phi) * qdot[2], -r * np.cos(phi) * qdot[2]])
+
+
 def _bad_plan_files(folder: Path, good: dict) -> dict:
     """Plan files nhgait must refuse, by what is wrong with them."""
     files = {"not JSON": "{\"feedback\": ", "a JSON list": "[1, 2]"}

@@ -11,8 +11,10 @@ the model itself (both from the disk cache after the first time), builds the
 Sample i (``numpy.random.default_rng((seed, i))``):
 
 * initial state z(0) = z_0 + δz, δz_i ~ N(0, (σ_z s_i)²) in the plan's own (velocity)
-  coordinates (consistent with the constraints by construction), s_i the feedback's state
-  scales; q(0) = z(0)[:n], q̇(0) = q̇(z(0)) of the plan's model;
+  coordinates (consistent with the model's nonholonomic constraints by construction), s_i the
+  feedback's state scales; q(0) = z(0)[:n], q̇(0) = q̇(z(0)) of the plan's model, then made the
+  robot's (:func:`robot_start`: on its kept holonomic constraints, in its constraint
+  distribution);
 * input noise u_k + δu_k, δu_{k,j} ~ N(0, (σ_u ū_j)²), constant on each plan interval, ū_j the
   feedback's input scales; the actuators clip the sum to the task's input bounds;
 * the same noise for the open loop (gains zero) and the closed loop (the plan's gains), both
@@ -32,7 +34,7 @@ import numpy as np
 
 from nhgait.dynamics.memo import LruMemo
 
-__all__ = ["Noise", "TrackingCase", "run_samples", "schedule_of", "REFINE", "LOOPS"]
+__all__ = ["Noise", "TrackingCase", "run_samples", "schedule_of", "robot_start", "REFINE", "LOOPS"]
 
 #: output points per plan interval
 REFINE = 4
@@ -141,6 +143,7 @@ def run_sample(ctx: _Context, case: TrackingCase, index: int) -> dict:
     z0 = sched.reference[0] + dz
     n = ctx.model.system.n
     qdot0 = np.asarray(ctx.specialised.numeric["qdot"](z0, []), dtype=float).ravel()
+    q0, qdot0 = robot_start(ctx.model.system, z0[:n], qdot0, case.robot)
     grid = _grid(sched.times)
     robot = np.array([case.robot[name] for name in ctx.model.numeric.param_names], dtype=float)
     out = {"index": index}
@@ -149,11 +152,29 @@ def run_sample(ctx: _Context, case: TrackingCase, index: int) -> dict:
         out["reference_position"] = [sched.reference_state(tt)[pos].tolist() for tt in grid]
         out["position_names"] = list(ctx.frame)
     for loop, law in zip(LOOPS, (sched.open_loop(), sched)):
-        traj = simulate(ctx.model, (sched.times[0], sched.times[-1]), z0[:n], qdot0,
+        traj = simulate(ctx.model, (sched.times[0], sched.times[-1]), q0, qdot0,
                         controller=law.with_controls(sched.controls + du), params=robot, method="compiled",
                         t_eval=grid, rtol=1e-8, atol=1e-10)
         out[loop] = _measure(ctx, traj)
     return out
+
+
+def robot_start(system, q, qdot, robot: dict) -> tuple:
+    """(q, q̇) a robot with the parameter values ``robot`` can start in, nearest the sample's:
+    the dependent coordinates solved onto its kept holonomic constraints h(q) = 0
+    (:func:`~nhgait.dynamics.derivation.holonomic.consistent_configuration`; noise in the plan's
+    coordinates moves every coordinate), then q̇ moved by the least change (Euclidean) onto
+    {ω(q) q̇ = 0} of the robot, q̇ − W⁺W q̇ with W = ω(q) (the velocity rows of the holonomic
+    constraints included) — which changes nothing unless a mismatched parameter enters the
+    constraints (a wheel's radius) or the configuration moved."""
+    from nhgait.dynamics.derivation.holonomic import consistent_configuration
+    if system.holonomic:
+        q = consistent_configuration(system, q, params=robot)
+    if system.k:
+        omega = system.numeric_functions()[1]
+        W = np.array(omega(q, system.param_vector(robot)), dtype=float).reshape(system.k, system.n)
+        qdot = qdot - np.linalg.pinv(W) @ (W @ qdot)
+    return q, qdot
 
 
 def _grid(times) -> np.ndarray:
@@ -193,12 +214,15 @@ def _rms(t, err) -> np.ndarray:
 
 
 def _saturation_time(t, u, lower, upper) -> float:
-    """Seconds during which some input sits at a bound (left-point rule on the output grid)."""
+    """Seconds during which some input sits at a bound (left-point rule on the output grid); an
+    input the task fixes (lower = upper: the bicycle's lean torque) is never counted."""
     if len(t) < 2:
         return 0.0
     tol = 1e-9 * np.maximum(1.0, np.abs(np.where(np.isfinite(upper), upper, 0.0)))
     at = np.zeros(u.shape[0], dtype=bool)
     for j in range(u.shape[1]):
+        if lower[j] == upper[j]:
+            continue
         for bound in (lower[j], upper[j]):
             if np.isfinite(bound):
                 at |= np.abs(u[:, j] - bound) <= tol[j]
