@@ -38,7 +38,7 @@ import sys
 import threading
 from contextlib import contextmanager
 
-from nhgait.dynamics.errors import Terminated
+from nhgait.dynamics.errors import Terminated, clear_stops, note_stop
 
 __all__ = ["stop_signals", "Stop", "exit_now", "FORCE_AFTER_S", "EXIT_STATUS", "MESSAGES"]
 
@@ -63,6 +63,7 @@ class Stop:
 
     def handler(self, signum, frame):
         self.signal = signum
+        note_stop(signum)
         raise self.exception()
 
 
@@ -86,6 +87,7 @@ def stop_signals():
         yield stop
     finally:
         done.set()                 # the stop came to its end here: nothing to force
+        clear_stops()
         signal.set_wakeup_fd(old_fd)
         for signum, handler in previous.items():
             signal.signal(signum, handler)

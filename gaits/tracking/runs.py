@@ -136,8 +136,12 @@ def _noise(case: TrackingCase, ctx: _Context, index: int) -> tuple:
 
 
 def run_sample(ctx: _Context, case: TrackingCase, index: int) -> dict:
-    """{"index", "open_loop": {...}, "closed_loop": {...}} of one sample (:func:`_measure`)."""
+    """{"index", "open_loop": {...}, "closed_loop": {...}} of one sample (:func:`_measure`).
+    A stop received while an earlier sample ran is raised here again, in case its exception was
+    lost inside CasADi (:func:`~nhgait.dynamics.errors.raise_if_stopped`)."""
     from nhgait.dynamics import simulate
+    from nhgait.dynamics.errors import raise_if_stopped
+    raise_if_stopped()
     sched = ctx.schedule
     dz, du = _noise(case, ctx, index)
     z0 = sched.reference[0] + dz
