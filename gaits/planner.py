@@ -60,10 +60,9 @@ def solver_order(solver: str, transcription=None, problem=None) -> tuple:
     """The solvers ``plan`` tries, the next one when the previous finds no solution.
 
     "auto": Ipopt alone for collocation (FATROP does not take it); for shooting, FATROP first
-    when the stage function is written inline (small ODEs: P1–P3 solve in 0.36–0.82 of the
-    reference's time, our Ipopt 0.81–1.19), Ipopt first when it is structured (robots of 5–10
-    coordinates: the 3-link snake 149 ms in 28 iterations with Ipopt against 277 ms in 36 with
-    FATROP, the two-steering snakeboard 250 against 289 ms; docs/gait-planning.md)."""
+    when the stage function is written inline (small ODEs: FATROP is the faster there), Ipopt
+    first when it is structured (robots of 5–10 coordinates: Ipopt is the faster there; the
+    measurements are in docs/gait-planning.md and docs/benchmarks.md)."""
     from nhgait.ocp import ProblemError
     from nhgait.ocp.solver import SOLVERS
     if solver == "auto":
@@ -297,8 +296,8 @@ def _default_workers() -> int:
 def choose_hessian(hessian: str) -> str:
     """``hessian`` unless "auto": the exact Hessian at every size — measured against
     Gauss–Newton (no convergence in 500 iterations on the snake and the two-steering
-    snakeboard, 1.3× faster only on a nearly kinematic cart) and limited-memory BFGS (20–70×
-    the iterations); docs/gait-planning.md."""
+    snakeboard, faster only on a nearly kinematic cart) and limited-memory BFGS (many times the
+    iterations); the numbers are in docs/gait-planning.md and docs/benchmarks.md."""
     return "exact" if hessian == "auto" else hessian
 
 

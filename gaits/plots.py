@@ -133,8 +133,9 @@ def figure_context(solution, model, units=None, drawing=None) -> FigureContext:
     system = model.system
     parsed = parse_drawing(drawing, system) if drawing is not None else None
     frame = parsed.frame if parsed is not None else default_frame(system)
-    return FigureContext(system, dict(units or {}), parsed, frame, tuple(getattr(model, "fiber", ())),
-                         tuple(getattr(model, "shape", ())), model)
+    return FigureContext(system=system, units=dict(units or {}), drawing=parsed, frame=frame,
+                         fiber=tuple(getattr(model, "fiber", ())), shape=tuple(getattr(model, "shape", ())),
+                         model=model)
 
 
 def _axes(ax, **kw):

@@ -45,6 +45,7 @@ import numpy as np
 from nhgait.dynamics.numerics.compiler import CompilerUnavailable, build_library, compiler_command
 from nhgait.dynamics.progress import Progress
 
+from .backends import BACKENDS, SolverBackend
 from .derivatives import nlp_functions
 from .problem import OptimalControlProblem, ProblemError
 from .solution import Solution
@@ -53,7 +54,7 @@ from .transcription import Collocation, StageShooting, TranscribedNLP, get_trans
 __all__ = ["SolverOptions", "OCPSolver", "solve", "InitialGuess", "SOLVERS", "HESSIANS", "CompileBudget",
            "COMPILE_BUDGET", "CompileReport"]
 
-SOLVERS = ("ipopt", "fatrop")
+SOLVERS = tuple(BACKENDS)
 HESSIANS = ("exact", "gauss-newton", "limited-memory")
 #: MUMPS settings for collocation KKT matrices (see the module docstring)
 COLLOCATION_MUMPS = {"mumps_scaling": 8, "mumps_pivot_order": 0}
@@ -150,16 +151,22 @@ class SolverOptions:
             problems.append(f"unknown solver {self.solver!r} (known: {', '.join(SOLVERS)})")
         if self.hessian not in HESSIANS:
             problems.append(f"unknown Hessian {self.hessian!r} (known: {', '.join(HESSIANS)})")
-        elif self.solver == "fatrop" and self.hessian == "limited-memory":
-            problems.append("FATROP has no limited-memory Hessian: use exact or gauss-newton, or Ipopt")
+        elif self.solver in BACKENDS and self.hessian == "limited-memory" and not self.backend.limited_memory:
+            problems.append(f"{self.backend.label} has no limited-memory Hessian: use exact or gauss-newton, "
+                            "or Ipopt")
         if problems:
             raise ProblemError(problems)
+
+    @property
+    def backend(self) -> SolverBackend:
+        """The solver named by ``solver`` (:mod:`.backends`)."""
+        return BACKENDS[self.solver]
 
     @property
     def stops_in_time(self) -> bool:
         """Whether the solver itself honours ``time_limit`` (Ipopt: ``max_wall_time``; FATROP has
         no time option)."""
-        return self.solver == "ipopt" and self.time_limit is not None
+        return self.backend.time_option and self.time_limit is not None
 
     @property
     def compiled(self) -> bool:
@@ -168,22 +175,10 @@ class SolverOptions:
 
     def nlpsol_options(self, *, expand: bool = False) -> dict:
         opts = {"print_time": False, "record_time": True, "expand": bool(expand), "error_on_fail": False}
-        if self.solver == "fatrop":
-            fopts = {"print_level": self.print_level, "max_iter": int(self.max_iter), "tol": float(self.tol)}
-            fopts.update(self.fatrop)
-            opts["fatrop"] = fopts
-            return opts
-        opts.update({"ipopt.print_level": self.print_level, "ipopt.sb": "yes",
-                     "ipopt.max_iter": int(self.max_iter), "ipopt.tol": float(self.tol),
-                     "ipopt.hessian_approximation": "limited-memory" if self.hessian == "limited-memory" else "exact",
-                     "ipopt.linear_solver": self.linear_solver})
-        if self.time_limit is not None:
-            opts["ipopt.max_wall_time"] = float(self.time_limit)
-        opts.update({f"ipopt.{k}" if not k.startswith("ipopt.") else k: v for k, v in self.ipopt.items()})
-        return opts
+        return self.backend.nlpsol_options(self, opts)
 
     def describe(self) -> dict:
-        extra = dict(self.ipopt) if self.solver == "ipopt" else dict(self.fatrop)
+        extra = self.backend.own_options(self)
         return {"solver": self.solver, "max_iter": self.max_iter, "tol": self.tol, "hessian": self.hessian,
                 "jit": self.jit, "jit_flags": list(self.jit_flags) if self.jit_flags else None,
                 "linear_solver": self.linear_solver, "expand": self.expand, "time_limit": self.time_limit, **extra}
@@ -280,13 +275,14 @@ class OCPSolver:
         self.problem = problem
         self.options = options or SolverOptions()
         self.progress = progress or Progress.silent()
-        if self.options.solver == "fatrop" and transcription in (None, "multiple-shooting"):
+        backend = self.options.backend
+        if backend.stage_structure and transcription in (None, "multiple-shooting"):
             transcription = StageShooting()
         self.transcription = get_transcription(transcription)
-        if self.options.solver == "fatrop" and self.nlp_structure_missing():
+        if backend.stage_structure and self.nlp_structure_missing():
             raise ProblemError([f"FATROP needs a stage-ordered transcription (multiple-shooting-stages), "
                                 f"got {self.transcription.name}"])
-        if isinstance(self.transcription, Collocation) and self.options.solver == "ipopt":
+        if isinstance(self.transcription, Collocation) and backend.mumps:
             self.options = replace(self.options, ipopt={**COLLOCATION_MUMPS, **self.options.ipopt})
         self.nlp: TranscribedNLP = self.transcription.build(problem)
         self.functions = nlp_functions(self.nlp, hessian=self.options.hessian, solver=self.options.solver)
@@ -318,17 +314,14 @@ class OCPSolver:
     def _nlpsol(self, name, nlp, opts, *, talk: bool = True):
         if self.functions and not isinstance(nlp, ca.Function):
             opts = {**opts, "cache": self.functions}
-        if self.options.solver == "fatrop":
-            st = self.nlp.structure
-            opts = {**opts, "structure_detection": "manual", "N": st["N"], "nx": st["nx"], "nu": st["nu"],
-                    "ng": st["ng"]}
-        if talk and self.options.solver == "ipopt":      # progress lines (not with the solver's own log), deadlines
+        backend = self.options.backend
+        opts = backend.structure_options(self.nlp, opts)
+        if talk and backend.iteration_callback:  # progress lines (not with the solver's own log), deadlines
             said = Progress.silent() if self.progress.verbose else self.progress
             self._callback = _Iterations(f"{name}_iterations", self.nlp, said)
             opts = {**opts, "iteration_callback": self._callback}
         if talk and self.progress.verbose:     # the solver's own log (on stdout)
-            opts = ({**opts, "fatrop": {**opts.get("fatrop", {}), "print_level": 10}}
-                    if self.options.solver == "fatrop" else {**opts, "ipopt.print_level": 5})
+            opts = backend.verbose_options(opts)
         return ca.nlpsol(name, self.options.solver, nlp, opts)
 
     def _jit_solver(self):
@@ -542,7 +535,7 @@ class OCPSolver:
         status = ("Invalid_Initial_Point" if refused else
                   str(stats.get("return_status", "exception" if error else "unknown")))
         status = TIME_LIMIT_STATUSES.get(status, status)
-        if self.options.solver == "fatrop" and error is None:
+        if not self.options.backend.reports_success and error is None:
             ok = bool(stats.get("success", False)) or _fatrop_converged(stats, violation, self.options.tol)
             flag = (stats.get("fatrop") or {}).get("return_flag") if isinstance(stats.get("fatrop"), dict) else None
             stats = {**stats, "success": ok, "fatrop_return_flag": flag}

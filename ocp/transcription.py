@@ -314,9 +314,12 @@ class _Builder:
         lbg = np.concatenate(self.lbg) if self.lbg else np.zeros(0)
         ubg = np.concatenate(self.ubg) if self.ubg else np.zeros(0)
         d = decisions
-        return TranscribedNLP(self.problem, transcription, d.w, f, g, d.lbx, d.ubx, lbg, ubg,
-                              d.node_index, d.control_index, d.horizon_index, assembly.kernel, assembly.guess_filler,
-                              assembly.structure, assembly.layout, tuple(self.labels))
+        return TranscribedNLP(problem=self.problem, transcription=transcription, w=d.w, f=f, g=g,
+                              lbx=d.lbx, ubx=d.ubx, lbg=lbg, ubg=ubg, node_index=d.node_index,
+                              control_index=d.control_index, horizon_index=d.horizon_index,
+                              kernel=assembly.kernel, guess_filler=assembly.guess_filler,
+                              structure=assembly.structure, layout=assembly.layout,
+                              row_labels=tuple(self.labels))
 
     def horizon_variable(self):
         p = self.problem

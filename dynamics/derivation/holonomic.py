@@ -97,7 +97,8 @@ def eliminate(q, q_dot, L, constraints, tau, holonomic, wanted) -> Elimination:
         kept = [(e.xreplace(subs), d) for e, d in kept]
         done.append((c.name, phi))
         q, q_dot = rest, rest_dot
-    return Elimination(tuple(q), tuple(q_dot), L, tuple(constraints), tuple(tau), tuple(kept), tuple(done))
+    return Elimination(q=tuple(q), q_dot=tuple(q_dot), L=L, constraints=tuple(constraints), tau=tuple(tau),
+                       holonomic=tuple(kept), eliminated=tuple(done))
 
 
 def velocity_row(h, q, q_dot) -> sp.Expr:

@@ -405,7 +405,23 @@ def _quantities(system, table, problems) -> dict:
 def load_scene(path_or_name, overrides=()) -> Scene:
     """Read a scene file, or a built-in scene by name ("unicycle", "snakeboard", ...);
     ``overrides``: ``--set`` assignments to its ``[simulation]`` table
-    (:func:`~nhgait.dynamics.derivation.assignments.apply_simulation_overrides`)."""
+    (:func:`~nhgait.dynamics.derivation.assignments.apply_simulation_overrides`).
+
+    Examples
+    --------
+    The snakeboard (thesis Example 3.2): five coordinates, two torques, and the rotor radius
+    written in the scene as r = √((J + J_r + 2J_w)/m):
+
+    >>> from nhgait.dynamics import load_scene
+    >>> scene = load_scene("snakeboard")
+    >>> scene.system.coordinates, scene.system.inputs
+    (('x', 'y', 'theta', 'psi', 'phi'), ('tau_psi', 'tau_phi'))
+    >>> p = scene.system.parameters
+    >>> abs(p["r"] - ((p["J"] + p["J_r"] + 2 * p["J_w"]) / p["m"]) ** 0.5) < 1e-15
+    True
+    >>> scene.simulation.q0.tolist()     # Table 3.3: the shape on ψ = sin t, φ = sin(t + π/2)
+    [0.0, 0.0, 0.0, 0.0, 1.0]
+    """
     p = Path(str(path_or_name))
     if not names_a_file(p) and p.suffix != ".toml":
         name = str(path_or_name).replace("-", "_")
