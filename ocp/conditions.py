@@ -11,8 +11,13 @@ the NLP's constraint Jacobian rank-deficient (Ipopt then crawls or stops at a wr
   fixed, moved (Gauss–Newton in the free components) onto the set where the conditions kept
   before j hold, condition j is *dependent* when the gradient of c_j with respect to the free
   components lies in the span of the kept ones' (rank test at every such point). A dependent
-  condition satisfied at those points is dropped ("implied by …"); violated it is an
-  inconsistent set, reported with the residual (one ProblemError). (Testing away from that
+  condition satisfied at those points is dropped ("implied by …"). Violated there, it is
+  judged where the kept conditions and it hold *together* (solved over the free components
+  from the same starts): the kept set may have several branches (θ̇₀ = v a(q) = 0 at v = 0 and
+  wherever a(q) = 0; θ̇₁ = v b(q) = 0 holds only on the first). No common point: an
+  inconsistent set, reported with the residual (one ProblemError); a common point where it
+  adds no rank: dropped ("implied … where they all hold"; the verification checks it as
+  written); adding rank there: kept. (Testing away from that
   set would miss dependence that holds only on it: a snakeboard's θ̇ = v tan φ / r is
   independent of ẋ = v cos θ in general, but zero wherever ẋ = 0 at θ = 0.) When the fixed values
   and the kept conditions determine the whole state and the kept conditions are linear in
@@ -159,11 +164,16 @@ def _end(problem, where: str, rng):
         uses = [i for i in fixed if any(abs(J[j, i]) > RANK_TOL * (1 + np.abs(J[j]).max()) for J in anywhere)]
         implied_by = ", ".join([f"{problem.state_names[i]} = {fixed[i]:g}" for i in uses]
                                + [f"{names[k]} = {values[k]:g}" for k in kept])
-        residuals = [float(end(z)[0][j] - values[j]) for z in points]
-        worst = max(residuals, key=abs)
-        if abs(worst) <= RESIDUAL_TOL * (1 + abs(values[j])):
+        verdict = _dependent(end, kept, j, values, points, Z, free)
+        if verdict == "implied":
             dropped.append((name, f"implied by {implied_by or 'the other conditions'}"))
+        elif verdict == "implied where both hold":
+            dropped.append((name, f"implied by {implied_by or 'the other conditions'} where they all hold "
+                                  "(dependent there; the verification checks it)"))
+        elif verdict == "independent":
+            kept.append(j)
         else:
+            worst = verdict
             problems.append(f"[task].{where}: {name} = {values[j]:g} contradicts {implied_by}: where those hold, "
                             f"{name} = {values[j] + worst:.6g} (residual {worst:.3g})")
     if problems:
@@ -176,6 +186,32 @@ def _end(problem, where: str, rng):
     if independent == problem.n_states and linear:
         return out, dropped, points[0]
     return out, dropped, None
+
+
+def _dependent(end: _End, kept: list, j: int, values, points: list, Z, free):
+    """The verdict on condition j, whose gradient (in the free components) lies in the span of
+    the kept ones' at some of ``points`` (where the kept conditions hold):
+
+    * ``"implied"`` — c_j = a_j at every such point;
+    * otherwise the kept conditions and c_j are solved *together* over the free components from
+      the same starts (the implication is judged where they all hold, not on one branch of the
+      kept set: θ̇₀ = v a(q) = 0 holds at v = 0 and wherever a(q) = 0, and θ̇₁ = v b(q) = 0 only
+      on the first branch); no common point: the residual on the kept set (an inconsistent set);
+      at the common points the rank test again — ``"implied where both hold"`` when c_j adds no
+      rank there (near those points it is a function of the kept ones, so imposing it would
+      only make the constraint Jacobian rank-deficient), ``"independent"`` when it does.
+    """
+    residuals = [float(end(z)[0][j] - values[j]) for z in points]
+    worst = max(residuals, key=abs)
+    if abs(worst) <= RESIDUAL_TOL * (1 + abs(values[j])):
+        return "implied"
+    common = _feasible(end, kept + [j], values, Z, free)
+    if not common:
+        return worst
+    jac = [end(z)[1][:, free] for z in common]
+    if all(_rank(J[kept + [j]]) == _rank(J[kept]) for J in jac):
+        return "implied where both hold"
+    return "independent"
 
 
 def _feasible(end: _End, kept: list, values, Z, free) -> list:

@@ -109,3 +109,30 @@ def test_periodic_joint_rates_of_a_four_link_snake_are_implied():
     assert prepared.problem.periodic == ("alpha1", "alpha2", "alpha3", "alpha1_dot", "alpha2_dot")
     assert any(line.startswith("periodic.alpha3_dot: dropped, implied by the periodicity")
                for line in prepared.conditions.lines())
+
+
+def test_dependent_conditions_at_a_free_configuration_are_not_called_contradictory():
+    """The benchmark's car with two off-axle trailers (robot_generator pair 24/17), periodic from
+    rest: the final rates θ̇₀ = θ̇₁ = 0 come from periodicity while the final shape (φ, θ₀, θ₁) is
+    free at that end. Every velocity 0 satisfies the task (the closed-form reference), so the
+    set is consistent: it was refused ("theta1_dot = -0 contradicts theta2 = 0, theta0_dot = -0
+    … residual -0.63", judged on the branch of θ̇₀ = 0 where the velocity is not zero). Now
+    accepted, and every condition — kept or dropped — holds at the final configuration with
+    every velocity zero."""
+    import numpy as np
+    from nhgait.dynamics.derivation.scene import scene_from_text
+    from nhgait.ocp.problem import builtin_quantities
+    pair = experiment_scripts.load("robot_generator").pair(24, 17)
+    prepared = prepare(resolve(scene_from_text(pair.scene, "<car2_24_17>"), None))
+    stated, problem = prepared.stated, prepared.problem
+    names = stated.state_names
+    n = len(stated.model.system.coordinates)
+    q_end = [stated.final[c] if c in stated.final else stated.initial[c] for c in names[:n]]
+    z = np.concatenate([q_end, np.zeros(len(names) - n)])          # every velocity zero
+    quantities = builtin_quantities(stated.model)
+    for mapping in (stated.final, problem.final):
+        for name, value in mapping.items():
+            y = z[names.index(name)] if name in names else float(quantities[name].function(z, stated.params))
+            assert y == pytest.approx(value, abs=1e-12), name
+    assert "final.theta1_dot" in {f"final.{k}" for k in problem.final} | {
+        line.split(":")[0] for line in prepared.conditions.lines()}
