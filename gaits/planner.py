@@ -393,7 +393,8 @@ def _verified(search, prepared, to_plan, params, verify, progress) -> tuple:
             solution = solution.verified(tolerance=to_plan.task.verify_tolerance)
         v = solution.verification
         progress.note(f"  {'passed' if v.passed else 'FAILED'}: nodes met to {v.max_error:.2e}, conditions to "
-                      f"{v.max_condition_error:.2e} (tolerance {v.tolerance:g})")
+                      f"{v.max_condition_error:.2e}; relative to each state's range {v.max_scaled_error:.2e} and "
+                      f"{v.max_scaled_condition_error:.2e} (tolerance {v.tolerance:g})")
         return solution, time.perf_counter() - t0
     return solution, None
 
@@ -475,8 +476,9 @@ def summary_lines(result: PlanResult) -> list:
              f"solver {s.solver_time_s * 1e3:.1f} ms); set-up {s.setup_time_s * 1e3:.1f} ms"]
     if v is not None:
         lines.append(f"  verification       {'passed' if v.passed else 'FAILED'}: max state error {v.max_error:.2e}, "
-                     f"conditions met to {v.max_condition_error:.2e} (tolerance {v.tolerance:g}; DOP853, "
-                     f"rtol {v.rtol:g})")
+                     f"conditions met to {v.max_condition_error:.2e}; relative to each state's range "
+                     f"{v.max_scaled_error:.2e}, {v.max_scaled_condition_error:.2e} (tolerance {v.tolerance:g}; "
+                     f"DOP853, rtol {v.rtol:g})")
     else:
         lines.append("  verification       not run")
     st = s.settings

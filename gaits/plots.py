@@ -160,6 +160,7 @@ def body_segments(solution, ctx, k) -> list:
     if ctx.drawing is not None:
         return ctx.drawing.segments(_q(solution, k), solution.problem.params)
     x, y, th = (series(solution, c)[k] for c in ctx.frame)
+    th = th + float(getattr(solution.problem.model.system, "forward_angle", 0.0))    # the forward axis
     size = _scale(solution, ctx)
     return [([x, x + 0.15 * size * np.cos(th)], [y, y + 0.15 * size * np.sin(th)])]
 

@@ -328,7 +328,7 @@ def apply_overrides(data, assignments) -> dict:
     ``objective`` and ``name`` take words. A malformed assignment is a ProblemError.
     """
     out = {k: (dict(v) if isinstance(v, Mapping) else v) for k, v in dict(data or {}).items()}
-    problems = []
+    problems, changed = [], []
     for text in assignments or ():
         assignment = parse_assignment(text, problems, example="final.x=2.0")
         if assignment is None:
@@ -351,6 +351,7 @@ def apply_overrides(data, assignments) -> dict:
             parsed = int(value) if value.isdigit() else value
         else:
             parsed = value
+        changed.append((parts[0], text))
         if len(parts) == 1:
             out[parts[0]] = parsed
         else:
@@ -361,7 +362,24 @@ def apply_overrides(data, assignments) -> dict:
             out[parts[0]] = {**table, parts[1]: parsed}
     if problems:
         raise ProblemError(problems, title="invalid --set")
-    return out
+    return renamed(out, changed)
+
+
+#: keys whose change makes another task (the others change how it is solved or checked)
+MEANING_KEYS = ("horizon", "initial", "final", "rest", "periodic", "bounds", "control_bounds", "objective",
+                "waypoints", "integrals", "phases")
+
+
+def renamed(table: dict, changed) -> dict:
+    """``table`` named for what ``--set`` changed, unless the assignments name it themselves:
+    ``parallel-park`` with ``final.y=0.8`` becomes ``parallel-park (final.y=0.8)`` — a task that
+    means something else is not reported under its old name. ``changed``: (key, assignment text)."""
+    if any(key == "name" for key, _ in changed):
+        return table
+    meaning = [text.strip() for key, text in changed if key in MEANING_KEYS]
+    if not meaning:
+        return table
+    return {**table, "name": f"{table.get('name', 'task')} ({', '.join(meaning)})"}
 
 
 # ----------------------------------------------------------------------------- names and problem

@@ -83,10 +83,11 @@ def builtin_quantities(model) -> dict:
         frame = ("x", "y", "theta")
     if frame and all(c in coords for c in frame):
         ix, iy, ih = (coords.index(c) for c in frame)
+        offset = float(getattr(getattr(model, "system", None), "forward_angle", 0.0))   # System.forward
         for name in BODY_VELOCITIES:
             def body(z, params, name=name):
                 v = qdot(z, params)
-                return body_velocity(name, v[ix], v[iy], z[ih], ca.cos, ca.sin)
+                return body_velocity(name, v[ix], v[iy], z[ih] + offset, ca.cos, ca.sin)
             out[name] = Quantity(name, body, f"planar body velocity {name} of the frame {tuple(frame)}")
     out.update(holonomic_quantities(model))
     return out

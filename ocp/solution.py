@@ -19,7 +19,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-__all__ = ["Solution", "Verification", "Integrator", "simulate_piecewise_constant", "condition_errors"]
+__all__ = ["Solution", "Verification", "Integrator", "simulate_piecewise_constant", "condition_errors",
+           "condition_scales", "scales"]
 
 
 @dataclass(frozen=True)
@@ -33,6 +34,10 @@ class Verification:
     condition_errors : dict "initial.<name>" / "final.<name>" / "periodic.<name>" → how far the
         re-simulated trajectory is from meeting that condition of the problem (0 when met).
     state_errors : dict name → max over nodes of the error of that state.
+    state_scales, condition_scales : dict name → the scale s ≥ 1 each error is judged against:
+        max(1, the range max_k y(t_k) − min_k y(t_k) of that state or quantity over the plan's
+        nodes), so that a 1200 kg car's momentum (range ~10³) is judged relative to its range and
+        a position in metres absolutely (:func:`scales`).
     states : ndarray (nz × (N+1)), the re-simulated node states.
     method, rtol, atol : the integrator settings.
     success : bool, whether every integration interval succeeded.
@@ -48,30 +53,69 @@ class Verification:
     time_s: float = 0.0
     condition_errors: dict = field(default_factory=dict)
     tolerance: float = 1e-6
+    state_scales: dict = field(default_factory=dict)
+    condition_scales: dict = field(default_factory=dict)
 
     @property
     def max_condition_error(self) -> float:
-        """Largest violation of a boundary or periodicity condition by the re-simulation."""
+        """Largest violation of a boundary or periodicity condition by the re-simulation (absolute)."""
         return max(self.condition_errors.values(), default=0.0)
+
+    @property
+    def scaled_state_errors(self) -> dict:
+        """State name → its error divided by its scale (``state_scales``, 1 when absent)."""
+        return {n: e / self.state_scales.get(n, 1.0) for n, e in self.state_errors.items()}
+
+    @property
+    def scaled_condition_errors(self) -> dict:
+        return {n: e / self.condition_scales.get(n, 1.0) for n, e in self.condition_errors.items()}
+
+    @property
+    def max_scaled_error(self) -> float:
+        """Largest node error relative to its state's scale (what :attr:`passed` judges)."""
+        return max(self.scaled_state_errors.values(), default=self.max_error)
+
+    @property
+    def max_scaled_condition_error(self) -> float:
+        return max(self.scaled_condition_errors.values(), default=0.0)
 
     @property
     def passed(self) -> bool:
         """The re-simulation ran through and meets the solution's nodes and every condition to
-        ``tolerance`` (absolute, in the units of each quantity)."""
-        return bool(self.success and self.max_error <= self.tolerance
-                    and self.max_condition_error <= self.tolerance)
+        ``tolerance`` relative to each state's or quantity's scale (``state_scales``,
+        ``condition_scales``: absolute for anything whose range is below 1)."""
+        return bool(self.success and self.max_scaled_error <= self.tolerance
+                    and self.max_scaled_condition_error <= self.tolerance)
 
     def failures(self) -> list:
-        """One sentence per miss (empty when :attr:`passed`), worst first."""
+        """One sentence per miss (empty when :attr:`passed`), worst first; the absolute figure
+        and, when the scale is not 1, the scaled one."""
         out = [] if self.success else ["the re-simulation stopped early (the integrator failed)"]
-        if self.max_error > self.tolerance:
-            worst = max(self.state_errors, key=self.state_errors.get)
-            out.append(f"the re-simulated states leave the planned ones by up to {self.max_error:.3g} "
-                       f"({worst}; tolerance {self.tolerance:g})")
-        for name, err in sorted(self.condition_errors.items(), key=lambda kv: -kv[1]):
+        scaled = self.scaled_state_errors
+        if self.max_scaled_error > self.tolerance:
+            worst = max(scaled, key=scaled.get)
+            out.append(f"the re-simulated states leave the planned ones by up to {self.state_errors[worst]:.3g} "
+                       f"({worst}{_relative(scaled[worst], self.state_scales.get(worst, 1.0))}; "
+                       f"tolerance {self.tolerance:g})")
+        for name, err in sorted(self.scaled_condition_errors.items(), key=lambda kv: -kv[1]):
             if err > self.tolerance:
-                out.append(f"{name} missed by {err:.3g} (tolerance {self.tolerance:g})")
+                out.append(f"{name} missed by {self.condition_errors[name]:.3g}"
+                           f"{_relative(err, self.condition_scales.get(name, 1.0))} (tolerance {self.tolerance:g})")
         return out
+
+
+def _relative(scaled: float, scale: float) -> str:
+    return "" if scale == 1.0 else f", {scaled:.3g} of its scale {scale:.4g}"
+
+
+def scales(values: np.ndarray) -> np.ndarray:
+    """max(1, max − min) of each row of ``values`` (rows: states or quantities over the nodes): the
+    scale a verification error is judged against."""
+    values = np.asarray(values, dtype=float)
+    if values.size == 0:
+        return np.ones(values.shape[0])
+    spread = np.nanmax(values, axis=1) - np.nanmin(values, axis=1)
+    return np.maximum(1.0, np.where(np.isfinite(spread), spread, 1.0))
 
 
 @dataclass(frozen=True)
@@ -128,6 +172,21 @@ def condition_errors(problem, states) -> dict:
             out[f"{where}.{name}"] = float(max(lo - y, y - hi, 0.0))
     for name in problem.periodic:
         out[f"periodic.{name}"] = abs(value(name, -1) - value(name, 0))
+    return out
+
+
+def condition_scales(problem, states) -> dict:
+    """The scale (:func:`scales`) of the quantity of each condition of :func:`condition_errors`,
+    over the nodes ``states`` (nz × (N+1))."""
+    zs = ca.SX.sym("z", problem.n_states)
+    out, seen = {}, {}
+    names = [*(("initial", n) for n in problem.initial), *(("final", n) for n in problem.final),
+             *(("periodic", n) for n in problem.periodic)]
+    for where, name in names:
+        if name not in seen:
+            f = ca.Function("y", [zs], [problem.quantity(name, zs)]).map(states.shape[1])
+            seen[name] = float(scales(np.asarray(f(states), float))[0])
+        out[f"{where}.{name}"] = seen[name]
     return out
 
 
@@ -232,7 +291,9 @@ class Solution:
                             state_errors={n: float(e) for n, e in zip(self.state_names, err.max(axis=1))},
                             states=sim, method=method, rtol=rtol, atol=atol, success=ok,
                             time_s=time.perf_counter() - t0, condition_errors=condition_errors(self.problem, sim),
-                            tolerance=float(tolerance))
+                            tolerance=float(tolerance),
+                            state_scales=dict(zip(self.state_names, map(float, scales(self.states)))),
+                            condition_scales=condition_scales(self.problem, self.states))
 
     def verified(self, **kwargs) -> "Solution":
         """A copy of this solution carrying :meth:`verify`'s result. Success means verified: a
@@ -259,7 +320,9 @@ class Solution:
                 "max_error": v.max_error, "state_errors": v.state_errors, "method": v.method,
                 "rtol": v.rtol, "atol": v.atol, "success": v.success, "tolerance": v.tolerance,
                 "passed": v.passed, "failures": v.failures(),
-                "condition_errors": v.condition_errors, "max_condition_error": v.max_condition_error},
+                "condition_errors": v.condition_errors, "max_condition_error": v.max_condition_error,
+                "state_scales": v.state_scales, "condition_scales": v.condition_scales,
+                "max_scaled_error": v.max_scaled_error, "max_scaled_condition_error": v.max_scaled_condition_error},
             "settings": self.settings,
             "problem": self.problem.describe() if self.problem is not None else None,
             "trajectory": self._trajectory(),

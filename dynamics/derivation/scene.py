@@ -23,7 +23,7 @@ from .system import TIME, System, parse_field, jump_times
 from .tomldata import read_toml
 
 SYSTEM_KEYS = {"name", "coordinates", "lagrangian", "constraints", "forces", "parameters", "inputs",
-               "fiber", "planar_frame", "description", "holonomic", "dependent"}
+               "fiber", "planar_frame", "forward", "description", "holonomic", "dependent"}
 #: the most output samples of a [simulation] (about 1.2 kB and 30–80 µs per sample for the unicycle's outputs)
 MAX_SAMPLES = 1_000_000
 SIMULATION_KEYS = {"q0", "qdot0", "t_final", "samples", "t0", "inputs", "parameters", "formulation",
@@ -237,6 +237,7 @@ def _system(sysd, source, problems) -> System | None:
                       constraints=sysd.get("constraints", []), forces=sysd.get("forces", {}),
                       parameters=sysd.get("parameters", {}), inputs=sysd.get("inputs"), name=name,
                       fiber=sysd.get("fiber"), planar_frame=sysd.get("planar_frame", "auto"),
+                      forward=sysd.get("forward", "x"),
                       holonomic=sysd.get("holonomic", ()), dependent=sysd.get("dependent"))
     except ModelError as exc:
         problems.extend(exc.problems)
