@@ -8,6 +8,7 @@ that may run for more than a few seconds::
         ...                                   # prints "… compile …" and then "  done in 28.1 s"
     progress.note("guess 2 of 41: psi:phi 2:1 (the previous one was infeasible)")
     progress.heartbeat("compiling", elapsed)  # at most every ``interval`` seconds
+    progress.note_once("no-fork", "solver attempts run in this process")   # the first time only
 
 Lines go to a text stream (stderr) prefixed with the elapsed time of the whole run, so a
 user can see which phase takes the time. ``verbose`` asks the solvers for their own logs.
@@ -31,6 +32,7 @@ class Progress:
     interval: float = 5.0
     started: float = field(default_factory=time.perf_counter)
     _last_beat: float = 0.0
+    _said: set = field(default_factory=set)
 
     @classmethod
     def silent(cls) -> "Progress":
@@ -49,6 +51,12 @@ class Progress:
         if self.stream is None:
             return
         print(f"[{time.perf_counter() - self.started:7.1f} s] {text}", file=self.stream, flush=True)
+
+    def note_once(self, key: str, text: str) -> None:
+        """:meth:`note` the first time ``key`` is given (a remark that applies to the whole run)."""
+        if key not in self._said:
+            self._said.add(key)
+            self.note(text)
 
     @contextmanager
     def phase(self, name: str):

@@ -1,7 +1,9 @@
 """Why a plan failed, and what to change: the lines ``nhgait plan`` prints after FAILED.
 
-Two kinds of failure (:func:`diagnose`):
+Three kinds of failure (:func:`diagnose`):
 
+* **the time budget ran out** — the budget, where it came from, the phase it ran out in and
+  what to change (``--time-limit``), then what the attempts so far gave (as below);
 * **no guess converged** — the attempts by outcome (the solvers' own status names); at the
   closest point found (smallest constraint violation) the conditions it violates by how much
   (the NLP's rows are labelled: "dynamics", "final.x", "periodic.psi", "bounds.phi"), how often
@@ -69,6 +71,11 @@ def _relax(result, s, saturated) -> list:
                    "the distance or widen control_bounds")
     if all(a.status == "Maximum_Iterations_Exceeded" for a in result.attempts):
         out.append("every attempt hit the iteration limit: raise max_iter")
+    timed_out = [a for a in result.attempts if a.status == "Time_Limit_Exceeded"]
+    if timed_out:
+        solvers = sorted({a.solver for a in timed_out if a.solver})
+        out.append(f"{len(timed_out)} attempt(s) were stopped at their time limit ({', '.join(solvers) or 'the solver'} "
+                   "did not finish: slow, or looping); the other solver (--solver) or a warm start may do better")
     return out or ["check the task's values against the robot's reach"]
 
 
@@ -90,10 +97,20 @@ def _not_verified(result) -> list:
     return lines
 
 
+def _out_of_time(result) -> list:
+    """The budget that ran out (where, what to change), then what the attempts gave."""
+    lines = list(result.overrun.lines())
+    if result.attempts:
+        lines += _not_converged(result)
+    return lines
+
+
 def diagnose(result) -> tuple:
     """The failure report of a :class:`~nhgait.gaits.planner.PlanResult` (empty on success)."""
     if result.success:
         return ()
+    if getattr(result, "overrun", None) is not None:
+        return tuple(_out_of_time(result))
     s = result.solution
     if s is not None and s.verification is not None and s.status == "Verification_Failed":
         return tuple(_not_verified(result))

@@ -19,8 +19,8 @@ Steps
    then bounds or linear rows.
 3. :func:`~nhgait.gaits.task.to_problem`: the :class:`~nhgait.ocp.OptimalControlProblem`
    (unknown names and impossible counts are one ProblemError).
-4. :func:`solve_from_guesses`: the candidates of :mod:`.guesses` in batches of ``workers``
-   (separate processes when ``workers > 1``); within the first batch with a success the lowest
+4. :func:`solve_from_guesses`: the candidates of :mod:`.guesses` in batches of ``workers``,
+   each attempt in a supervised child process (step 7); within the first batch with a success the lowest
    objective wins. When every direct candidate fails, :func:`continuation` solves easier
    versions (the fixed end values moved a fraction 1/4, 1/2, 3/4 of the way from their
    initial values) and grows them to the task, each warm-started from the last.
@@ -29,7 +29,16 @@ Steps
    general (unspecialised) model: DOP853, rtol 1e-10 (``Solution.verify``), including how far
    the re-simulated trajectory is from each boundary and periodicity condition.
 6. ``solution.json``, ``path.png``, ``shape.png``, ``histories.png``, ``momentum.png`` and
-   ``motion.gif`` in ``out_dir``.
+   ``motion.gif`` in ``out_dir`` (each written whole or not at all: into a staging folder,
+   then moved).
+7. **Time.** The whole plan runs within a wall-clock budget (:func:`plan_budget`:
+   ``time_limit``, the task's ``time_limit`` or a default from the robot's size) and each
+   solver attempt within its own limit (:func:`~.time_limits.attempt_limited`, at most the time left). Each
+   attempt runs in a supervised child process (:mod:`nhgait.ocp.supervision`), so that a solver
+   looping in its C code is killed at its limit and an interrupt stops it at once. A budget
+   that runs out — in the derivation, the compilation, the solves, the continuation or the
+   verification — ends the plan as a failure naming the phase (``PlanResult.overrun``), with
+   the closest point reached written to ``solution.json`` (no figures).
 """
 from __future__ import annotations
 
@@ -83,7 +92,9 @@ class PlanResult:
     winning candidate; attempts : every candidate tried; files : written files; timings :
     seconds per step; plan : the Plan; conditions : what was dropped from the task's
     conditions and why (:class:`~nhgait.ocp.conditions.ConditionReport`); diagnosis : why a
-    failure failed and what to change (:func:`~nhgait.gaits.diagnosis.diagnose`); unwritten :
+    failure failed and what to change (:func:`~nhgait.gaits.diagnosis.diagnose`); overrun : None,
+    or where the time budget ran out (:class:`~nhgait.ocp.budget.Overrun`: the plan failed;
+    ``solution`` is then the closest point reached, or None before any attempt); unwritten :
     empty, or what could not be written to ``out_dir`` and where solution.json went instead.
     """
 
@@ -98,6 +109,7 @@ class PlanResult:
     model: Any = None
     conditions: Any = None
     diagnosis: tuple = ()
+    overrun: Any = None
     unwritten: str = ""
 
     def __repr__(self) -> str:
@@ -274,7 +286,7 @@ def choose_hessian(hessian: str) -> str:
 
 def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", transcription=None,
          jit=None, workers=1, params=None, max_iter=500, guess=None, out_dir=None, animate=False,
-         verify=True, hessian="auto", max_guesses=12, progress=None) -> PlanResult:
+         verify=True, hessian="auto", max_guesses=12, progress=None, time_limit=None) -> PlanResult:
     """Plan a gait: see the module docstring.
 
     Parameters
@@ -296,54 +308,114 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     hessian : "auto", "exact", "gauss-newton" or "limited-memory" (Ipopt)
     max_guesses : guesses tried per solver before the continuation
     progress : a :class:`~nhgait.dynamics.progress.Progress` (None: silent)
+    time_limit : seconds the whole plan may take (None: the task's ``time_limit``, else the
+        default of :func:`plan_budget`); a plan that runs out is a failure whose ``overrun``
+        says in which phase (step 7 of the module docstring)
     """
     from nhgait.dynamics.progress import Progress
+    from nhgait.ocp.budget import BudgetSpent
     from .diagnosis import diagnose
-    from .guesses import candidates
-    from nhgait.ocp import ProblemError
     from .outputs import output_directory
-    from .reachability import unreachable_targets
     from .task_library import resolve
 
     progress = progress or Progress.silent()
-    timings = {}
-    t0 = time.perf_counter()
+    started = time.monotonic()
     if out_dir is not None:            # checked before any derivation (exit 2 for a bad location)
         out_dir = output_directory(out_dir, "out_dir")
     if intervals is not None:
         overrides = [*overrides, f"intervals={int(intervals)}"]
     to_plan = resolve(system, task, overrides=overrides)
-    prepared = prepare(to_plan, params=params, progress=progress)
-    problem = prepared.problem
-    unreachable = unreachable_targets(problem, prepared.model.system, params)
-    if unreachable:
-        raise ProblemError(unreachable, title="unreachable task")
-    if problem.intervals > LARGE_INTERVALS:
-        progress.note(large_request_note(problem))
-    timings["prepare_s"] = time.perf_counter() - t0
+    budget = plan_budget(to_plan, time_limit, started=started, progress=progress)
     workers = _default_workers() if workers in (None, "auto") else int(workers)
-    guesses = candidates(problem)
-    if guess is not None:
-        guesses = guesses.with_first(warm_start(guess, problem))
-    t0 = time.perf_counter()
     settings = SearchSettings(solver, transcription, jit, choose_hessian(hessian), max_iter, workers, max_guesses)
-    search, timings["setup_s"] = _search(problem, guesses, settings, progress)
-    timings["solve_s"] = time.perf_counter() - t0 - timings["setup_s"]
-    solution, verify_s = _verified(search, prepared, to_plan, params, verify, progress)
-    if verify_s is not None:
-        timings["verify_s"] = verify_s
-    solution = replace(solution, settings={**solution.settings, "system": to_plan.label,
-                                           "velocities": list(prepared.specialised.velocities),
-                                           "specialisation": prepared.specialised.route, "workers": workers,
-                                           "conditions": prepared.conditions.lines(),
-                                           **{k: round(v, 6) for k, v in timings.items()}})
-    result = PlanResult(to_plan.label, to_plan.task.replace(intervals=problem.intervals), solution,
-                        search.won or "none", search.attempts, (), timings, to_plan, prepared.model,
-                        prepared.conditions)
+    reached = _Reached()
+    try:
+        _run_plan(to_plan, reached, settings, budget, params=params, guess=guess, verify=verify, progress=progress)
+    except BudgetSpent as exc:
+        reached.overrun = exc.overrun
+        progress.note(f"  the time budget of {exc.overrun.seconds:g} s ran out during {exc.overrun.phase}")
+    result = _result(to_plan, reached, settings, params)
     result = replace(result, diagnosis=diagnose(result))
     if out_dir is not None:
         result = written(result, out_dir, animate=animate, progress=progress)
     return result
+
+
+def plan_budget(to_plan, time_limit=None, *, started=None, progress=None):
+    """The :class:`~nhgait.ocp.budget.Budget` of a plan (:func:`~nhgait.gaits.time_limits.budget_for`:
+    ``time_limit``, else the task's, else the default for the robot's size), said on ``progress``."""
+    from .time_limits import budget_for
+    budget = budget_for(len(to_plan.scene.system.coordinates), time_limit, to_plan.task.time_limit, started=started)
+    if progress is not None:
+        progress.note(f"time budget: {budget.describe()}; --time-limit SECONDS to change it")
+    return budget
+
+
+@dataclass(eq=False)
+class _Reached:
+    """How far a plan got (kept when its budget runs out): the prepared model and problem, the
+    guesses' search, the solution in momentum coordinates (verified when ``verified``), the
+    seconds per step and, when the budget ran out, where."""
+
+    prepared: Any = None
+    search: Any = None
+    solution: Any = None
+    timings: dict = field(default_factory=dict)
+    overrun: Any = None
+
+
+def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, verify, progress) -> None:
+    """Steps 2–5 of the module docstring, each within ``budget``, recorded in ``reached``."""
+    from nhgait.ocp import ProblemError
+    from .guesses import candidates
+    from .reachability import unreachable_targets
+    t0 = time.perf_counter()
+    with budget.stage("derivation"):
+        reached.prepared = prepare(to_plan, params=params, progress=progress)
+    reached.timings["prepare_s"] = time.perf_counter() - t0
+    problem = reached.prepared.problem
+    unreachable = unreachable_targets(problem, reached.prepared.model.system, params)
+    if unreachable:
+        raise ProblemError(unreachable, title="unreachable task")
+    if problem.intervals > LARGE_INTERVALS:
+        progress.note(large_request_note(problem))
+    with budget.stage("the initial guesses"):
+        guesses = candidates(problem)
+        if guess is not None:
+            guesses = guesses.with_first(warm_start(guess, problem))
+    t0 = time.perf_counter()
+    try:
+        _search(problem, guesses, settings, progress, budget, reached)
+    finally:                       # a spent budget still reports where the time went
+        reached.timings["solve_s"] = time.perf_counter() - t0 - reached.timings.get("setup_s", 0.0)
+    search = reached.search
+    reached.solution = _in_momentum(search, reached.prepared, to_plan, params)
+    if verify and search.solution is not None:
+        t0 = time.perf_counter()
+        with budget.stage("verification"):
+            reached.solution = _verified(reached.solution, to_plan, progress)
+        reached.timings["verify_s"] = time.perf_counter() - t0
+
+
+def _result(to_plan, reached: _Reached, settings, params) -> PlanResult:
+    """The PlanResult of what the plan reached (a failure when its budget ran out)."""
+    prepared, search, solution = reached.prepared, reached.search, reached.solution
+    if solution is None and search is not None:
+        solution = _in_momentum(search, prepared, to_plan, params)
+    if solution is not None:
+        if reached.overrun is not None:
+            solution = replace(solution, success=False, message=f"{solution.message} (then the time budget of "
+                               f"{reached.overrun.seconds:g} s ran out during {reached.overrun.phase})")
+        extra = {"system": to_plan.label, "velocities": list(prepared.specialised.velocities),
+                 "specialisation": prepared.specialised.route, "workers": settings.workers,
+                 "conditions": prepared.conditions.lines(),
+                 **{k: round(v, 6) for k, v in reached.timings.items()}}
+        solution = replace(solution, settings={**solution.settings, **extra})
+    task = to_plan.task if prepared is None else to_plan.task.replace(intervals=prepared.problem.intervals)
+    return PlanResult(to_plan.label, task, solution, (search.won if search is not None else None) or "none",
+                      search.attempts if search is not None else (), (), dict(reached.timings), to_plan,
+                      prepared.model if prepared is not None else None,
+                      prepared.conditions if prepared is not None else None, overrun=reached.overrun)
 
 
 @dataclass(frozen=True)
@@ -361,42 +433,53 @@ class SearchSettings:
     limit: int
 
 
-def _search(problem, guesses, settings: SearchSettings, progress):
-    """(:class:`~nhgait.gaits.search.Search`, set-up seconds): the solvers of
-    :func:`solver_order` in turn until one converges."""
+def _search(problem, guesses, settings: SearchSettings, progress, budget, reached: _Reached) -> None:
+    """The solvers of :func:`solver_order` in turn until one converges: the search so far in
+    ``reached.search``, the set-up seconds in ``reached.timings["setup_s"]``. Building a solver
+    is interrupted when the budget runs out; each attempt gets at most the time left
+    (:func:`~.time_limits.attempt_limited`)."""
     from nhgait.ocp import OCPSolver, SolverOptions
+    from .time_limits import attempt_limited
     s = settings
-    search, setup = Search(None, (), None), 0.0
+    reached.search = Search(None, (), None)
     for name in solver_order(s.solver, s.transcription, problem):
         t0 = time.perf_counter()
-        with progress.phase(f"build the NLP for {name} ({problem.intervals} intervals, {s.hessian} Hessian)"):
-            ocp = OCPSolver(problem, s.transcription, SolverOptions(jit=s.jit, solver=name, max_iter=s.max_iter,
-                                                                   hessian=s.hessian), progress=progress)
-        setup += time.perf_counter() - t0
-        with progress.phase(f"solve with {name} from up to {min(s.limit, len(guesses))} guesses"):
-            search = search.then(solve_with_fallbacks(ocp, guesses, workers=s.workers, limit=s.limit,
-                                                      progress=progress))
-        if search.solution is not None:
+        try:
+            with budget.stage(f"the NLP set-up and compilation for {name}"):
+                with progress.phase(f"build the NLP for {name} ({problem.intervals} intervals, {s.hessian} Hessian)"):
+                    ocp = OCPSolver(problem, s.transcription,
+                                    SolverOptions(jit=s.jit, solver=name, max_iter=s.max_iter, hessian=s.hessian),
+                                    progress=progress)
+                    ocp = attempt_limited(ocp, None, progress)
+        finally:
+            reached.timings["setup_s"] = reached.timings.get("setup_s", 0.0) + time.perf_counter() - t0
+        with budget.stage(f"the solves with {name}", interrupt=False):
+            with progress.phase(f"solve with {name} from up to {min(s.limit, len(guesses))} guesses"):
+                reached.search = reached.search.then(solve_with_fallbacks(ocp, guesses, workers=s.workers,
+                                                                          limit=s.limit, progress=progress,
+                                                                          budget=budget))
+        if reached.search.solution is not None:
             break
-    return search, setup
 
 
-def _verified(search, prepared, to_plan, params, verify, progress) -> tuple:
-    """(the winning solution in momentum coordinates, verified (or the closest failure),
-    seconds the verification took or None)."""
+def _in_momentum(search, prepared, to_plan, params):
+    """The winning solution, else the closest failure, in momentum coordinates (None: no attempt)."""
     solution = search.solution if search.solution is not None else search.closest
+    if solution is None:
+        return None
     momentum = momentum_problem(prepared.model, prepared.stated, to_plan, params)
-    solution = to_momentum_coordinates(solution, momentum)
-    if verify and search.solution is not None:
-        t0 = time.perf_counter()
-        with progress.phase("verify: re-simulate the optimal inputs on the general model (DOP853, rtol 1e-10)"):
-            solution = solution.verified(tolerance=to_plan.task.verify_tolerance)
-        v = solution.verification
-        progress.note(f"  {'passed' if v.passed else 'FAILED'}: nodes met to {v.max_error:.2e}, conditions to "
-                      f"{v.max_condition_error:.2e}; relative to each state's range {v.max_scaled_error:.2e} and "
-                      f"{v.max_scaled_condition_error:.2e} (tolerance {v.tolerance:g})")
-        return solution, time.perf_counter() - t0
-    return solution, None
+    return to_momentum_coordinates(solution, momentum)
+
+
+def _verified(solution, to_plan, progress):
+    """``solution`` verified by the independent re-simulation (step 5)."""
+    with progress.phase("verify: re-simulate the optimal inputs on the general model (DOP853, rtol 1e-10)"):
+        solution = solution.verified(tolerance=to_plan.task.verify_tolerance)
+    v = solution.verification
+    progress.note(f"  {'passed' if v.passed else 'FAILED'}: nodes met to {v.max_error:.2e}, conditions to "
+                  f"{v.max_condition_error:.2e}; relative to each state's range {v.max_scaled_error:.2e} and "
+                  f"{v.max_scaled_condition_error:.2e} (tolerance {v.tolerance:g})")
+    return solution
 
 
 def momentum_problem(model, problem, to_plan, params):
@@ -433,6 +516,8 @@ def written(result: PlanResult, out: Path, *, animate: bool = True, progress=Non
         return replace(result, files=tuple(write_outputs(result, Path(out), animate=animate, progress=progress)))
     except OSError as exc:
         failed = write_failure(exc, getattr(exc, "filename", None) or out)
+    if result.solution is None:
+        return replace(result, unwritten=failed)
     data = {**result.solution.to_dict(), **_solution_extra(result)}
     return replace(result, unwritten=f"{failed}; {rescue('solution.json', data, 'solution')}")
 
@@ -446,12 +531,28 @@ def _solution_extra(result: PlanResult) -> dict:
 
 def write_outputs(result: PlanResult, out: Path, *, animate: bool = True, progress=None) -> list:
     """solution.json (with ``task``, ``guess``, ``success`` and ``diagnosis``) and the figures;
-    a failed plan's figures are titled FAILED and it gets no animation. Returns the paths."""
+    a failed plan's figures are titled FAILED and it gets no animation; a plan whose time budget
+    ran out gets solution.json only (nothing without a point). Each file is written whole or
+    not at all: into a staging folder in ``out`` (removed whatever happens), then moved into
+    place. Returns the paths."""
+    import tempfile
     from nhgait.dynamics.progress import Progress
-    from . import plots
     progress = progress or Progress.silent()
+    if result.solution is None:
+        return []
     out.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=out, prefix=".writing-") as staging:
+        staged = _write_files(result, Path(staging), animate=animate, progress=progress)
+        for path in staged:
+            os.replace(path, out / path.name)
+    return [out / path.name for path in staged]
+
+
+def _write_files(result: PlanResult, out: Path, *, animate: bool, progress) -> list:
+    from . import plots
     files = [result.solution.to_json(out / "solution.json", extra=_solution_extra(result))]
+    if result.overrun is not None:          # the budget is spent: the point, not the figures
+        return files
     failed = None if result.success else (result.diagnosis[0] if result.diagnosis else result.solution.status)
     animate = animate and result.success
     with progress.phase("write solution.json and the figures"):
@@ -468,8 +569,12 @@ def write_outputs(result: PlanResult, out: Path, *, animate: bool = True, progre
 def summary_lines(result: PlanResult) -> list:
     """The lines ``nhgait plan`` prints."""
     s = result.solution
+    if s is None:             # the budget ran out before any attempt
+        lines = [f"nhgait plan {result.label}: FAILED (time budget spent)", "  no attempt was made"]
+        return lines + _closing_lines(result)
     v = s.verification
-    lines = [f"nhgait plan {result.label}: {'SUCCESS' if result.success else 'FAILED'} ({s.status})",
+    status = "time budget spent; closest point: " + s.status if result.overrun is not None else s.status
+    lines = [f"nhgait plan {result.label}: {'SUCCESS' if result.success else 'FAILED'} ({status})",
              f"  objective          J = {s.objective:.6f}",
              f"  iterations         {s.iterations}  (guess: {result.guess}; tried {len(result.attempts)})",
              f"  solve time         {s.solve_time_s * 1e3:.1f} ms  (functions {s.function_time_s * 1e3:.1f} ms, "
@@ -491,6 +596,12 @@ def summary_lines(result: PlanResult) -> list:
         lines.append(f"  symmetry           {symmetry.chosen.group} moves the fibre ({', '.join(result.model.fiber)}); "
                      f"the guesses loop the shape ({', '.join(result.model.shape)}); why, and the other choices "
                      "(fiber = [...] in [system]): nhgait derive")
+    return lines + _closing_lines(result)
+
+
+def _closing_lines(result: PlanResult) -> list:
+    """The diagnosis and the files written."""
+    lines = []
     if result.diagnosis:
         lines.append("  why:")
         lines.extend(f"    {line}" for line in result.diagnosis)
@@ -502,6 +613,8 @@ def summary_lines(result: PlanResult) -> list:
         if result.success and not any(str(f).endswith(".gif") for f in result.files):
             lines.append("  animation          not written: it is the longest part of the output (60 frames, "
                          "about 5 s for the snakeboard); add --gif (plan(..., animate=True)) to write motion.gif")
+    if result.overrun is not None:
+        lines.append("  figures            not written: the time budget was spent")
     return lines
 
 

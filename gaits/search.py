@@ -5,15 +5,18 @@
     search = solve_with_fallbacks(solver, guesses, workers=2, limit=12, progress=progress)
     search.solution, search.won, search.attempts, search.closest
 
-* :func:`solve_from_guesses` — the guesses in batches of ``workers`` (forked processes when
-  ``workers > 1``); within the first batch with a success the lowest objective wins; at most
-  ``limit`` guesses are tried.
+* :func:`solve_from_guesses` — the guesses in batches of ``workers``, each attempt in a child
+  process supervised by :func:`~nhgait.ocp.supervision.supervise` (:func:`solve_attempts`: bounded
+  in time, killed at once on an interrupt; ``workers`` children at once); within the first
+  batch with a success the lowest objective wins; at most ``limit`` guesses are tried.
 * :func:`continuation` — when every guess fails: easier versions of the problem (the end
   values fixed at both ends moved a fraction 1/4, 1/2, 3/4 of the way from their initial
   values) grown to the task, each warm-started from the last.
 
 Every attempt is recorded (:class:`Attempt`); the failed solution with the smallest
-constraint violation is kept as ``closest`` — the point a failure report describes.
+constraint violation is kept as ``closest`` — the point a failure report describes. With a
+``budget`` (:class:`~nhgait.ocp.budget.Budget`) no attempt runs past the time left and nothing
+new starts once it is spent: the caller checks ``budget.spent()`` and reports it.
 """
 from __future__ import annotations
 
@@ -21,7 +24,7 @@ import math
 from dataclasses import dataclass, replace
 from typing import Any
 
-__all__ = ["Attempt", "Search", "solve_from_guesses", "solve_with_fallbacks", "continuation"]
+__all__ = ["Attempt", "Search", "solve_attempts", "solve_from_guesses", "solve_with_fallbacks", "continuation"]
 
 
 @dataclass(frozen=True)
@@ -66,64 +69,74 @@ def _attempt(label, s, solver_name="") -> Attempt:
                    float(s.constraint_violation), float(s.solve_time_s))
 
 
+#: statuses of attempts that gave no answer of their own (their supervisor's message says why)
+UNANSWERED = ("Time_Limit_Exceeded", "Solver_Died")
+
+
 def _report(progress, index, total, label, s) -> None:
     if s.success:
         progress.note(f"  guess {index}/{total} {label!r}: {s.status} after {s.iterations} iterations, "
                       f"J = {s.objective:.6g} ({s.solve_time_s:.2f} s)")
+    elif s.status in UNANSWERED and s.iterations == 0:
+        progress.note(f"  guess {index}/{total} {label!r}: {s.message} — next")
     else:
         progress.note(f"  guess {index}/{total} {label!r}: {s.status} after {s.iterations} iterations "
                       f"({s.solve_time_s:.2f} s; constraint violation {s.constraint_violation:.2g}) — next")
 
 
-# ----------------------------------------------------------------------------- parallel batches
-_WORKER: dict = {}   # set by the pool initializer, in forked worker processes only
+# ----------------------------------------------------------------------------- supervised attempts
+def _detached(solver, guess):
+    """In the attempt's child: the solve, without its problem (the parent puts it back)."""
+    return replace(solver.solve(guess), problem=None)
 
 
-def _receive(solver, guesses, parent):
-    """Pool initializer: the batch, inherited through fork (nothing is pickled). A worker dies
-    at once on SIGTERM (``pool.terminate()``, even inside the solver) and leaves Ctrl-C to the
-    parent, which terminates the pool (inheriting the CLI's handlers, workers raised inside the
-    solver and deadlocked the pool). On Linux it is also killed when the thread that forked it
-    ends (``PR_SET_PDEATHSIG``): the pool's handler thread can fork a replacement while the
-    pool is being terminated, and that worker outlived the planner, waiting on the task queue."""
-    import os
-    import signal
-    import sys
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    if sys.platform.startswith("linux"):
-        import ctypes
-        ctypes.CDLL(None).prctl(1, signal.SIGKILL)          # PR_SET_PDEATHSIG
-        if os.getppid() != parent:                          # the parent ended before that
-            os._exit(1)
-    _WORKER["batch"] = (solver, guesses)
+def _limit(solver, budget) -> float | None:
+    """When the supervisor kills an attempt: at the solver's time limit — plus a grace in which
+    a solver that honours it (Ipopt) stops itself and answers — within what is left of ``budget``."""
+    from nhgait.ocp.budget import KILL_GRACE_S
+    options = solver.options
+    limit = None if options.time_limit is None else float(options.time_limit)
+    if limit is not None and options.stops_in_time:
+        limit += KILL_GRACE_S
+    return limit if budget is None else budget.limit(limit)
 
 
-def _solve_index(i):
-    """Worker of a forked process: solve candidate i of the batch set up by the parent."""
-    solver, guesses = _WORKER["batch"]
-    return replace(solver.solve(guesses[i]), problem=None)
+def solve_attempts(solver, guesses, *, workers: int = 1, budget=None, progress=None) -> list:
+    """The solutions of ``guesses`` (in order), each solved in a child process that
+    :func:`~nhgait.ocp.supervision.supervise` bounds in time and kills on any interrupt, up to
+    ``workers`` at once; an attempt killed at its limit (or within what is left of ``budget``)
+    is a failed solution with status ``Time_Limit_Exceeded``, one whose process died
+    ``Solver_Died``."""
+    from functools import partial
+    from nhgait.ocp.supervision import Job, supervise
+    limit = _limit(solver, budget)
+    jobs = [Job(partial(_detached, solver, g), limit, partial(solver.unsolved, g)) for g in guesses]
+    return [replace(s, problem=solver.problem) for s in supervise(jobs, workers=workers, progress=progress)]
 
 
-def _solve_batch(solver, guesses, workers: int, progress) -> list:
-    """Solutions of ``guesses`` (in order), in ``workers`` forked processes when possible."""
-    import multiprocessing as mp
-    import os
-    if workers > 1 and len(guesses) > 1 and "fork" in mp.get_all_start_methods():
-        try:
-            with mp.get_context("fork").Pool(min(workers, len(guesses)), initializer=_receive,
-                                             initargs=(solver, guesses, os.getpid())) as pool:
-                sols = pool.map(_solve_index, range(len(guesses)))
-            return [replace(s, problem=solver.problem) for s in sols]
-        except (OSError, RuntimeError) as exc:   # no fork here (sandbox, resources)
-            progress.note(f"  solving in parallel is not possible here ({exc}); one guess at a time")
-    return [solver.solve(g) for g in guesses]
+def _spent(budget) -> bool:
+    return budget is not None and budget.spent()
+
+
+def _built(guesses, indices, budget) -> list | None:
+    """The guesses at ``indices`` (built now when lazy: a roll-out integrates the model), or
+    None when ``budget`` is spent before or while they are built."""
+    if budget is None:
+        return [guesses[i] for i in indices]
+    from nhgait.ocp.budget import BudgetSpent
+    try:
+        with budget.stage("the initial guesses"):
+            return [guesses[i] for i in indices]
+    except BudgetSpent:
+        return None
 
 
 # ----------------------------------------------------------------------------- the search
-def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None = None, progress=None) -> Search:
+def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None = None, progress=None,
+                       budget=None) -> Search:
     """Try ``guesses`` (at most ``limit``) in batches of ``workers``; the best success of the
-    first batch with one."""
+    first batch with one. With a ``budget`` (:class:`~nhgait.ocp.budget.Budget`) each attempt
+    gets at most the time left, and no batch starts once it is spent."""
     from nhgait.dynamics.progress import Progress
     progress = progress or Progress.silent()
     name = solver.options.solver
@@ -131,8 +144,10 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
     total = len(guesses) if limit is None else min(len(guesses), int(limit))
     attempts, closest = [], None
     for start in range(0, total, workers):
-        batch = [guesses[i] for i in range(start, min(start + workers, total))]
-        sols = _solve_batch(solver, batch, workers, progress)
+        batch = _built(guesses, range(start, min(start + workers, total)), budget)
+        if batch is None:
+            break
+        sols = solve_attempts(solver, batch, workers=workers, budget=budget, progress=progress)
         for k, (g, s) in enumerate(zip(batch, sols)):
             attempts.append(_attempt(g.label, s, name))
             _report(progress, start + k + 1, total, g.label, s)
@@ -145,15 +160,16 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
     return Search(None, tuple(attempts), None, closest)
 
 
-def solve_with_fallbacks(solver, guesses, *, workers: int = 1, limit: int | None = None, progress=None) -> Search:
+def solve_with_fallbacks(solver, guesses, *, workers: int = 1, limit: int | None = None, progress=None,
+                         budget=None) -> Search:
     """The guesses in order (:func:`solve_from_guesses`), then :func:`continuation` from the
-    first one."""
-    search = solve_from_guesses(solver, guesses, workers=workers, limit=limit, progress=progress)
-    if search.solution is None and len(guesses):
+    first one (not once ``budget`` is spent)."""
+    search = solve_from_guesses(solver, guesses, workers=workers, limit=limit, progress=progress, budget=budget)
+    if search.solution is None and len(guesses) and not _spent(budget):
         if progress is not None:
             progress.note(f"  no guess converged: continuation from {guesses[0].label!r} (the task's end values "
                           "approached in 4 steps)")
-        search = search.then(continuation(solver, guesses[0], progress=progress))
+        search = search.then(continuation(solver, guesses[0], progress=progress, budget=budget))
     return search
 
 
@@ -171,14 +187,17 @@ def _moved(problem, alpha):
     return problem.replace(final=final)
 
 
-def continuation(solver, guess, steps=(0.25, 0.5, 0.75, 1.0), *, progress=None) -> Search:
-    """Grow an easier problem into ``solver.problem`` (module docstring)."""
+def continuation(solver, guess, steps=(0.25, 0.5, 0.75, 1.0), *, progress=None, budget=None) -> Search:
+    """Grow an easier problem into ``solver.problem`` (module docstring); each step a
+    supervised attempt (:func:`solve_attempts`), none started once ``budget`` is spent."""
     from nhgait.ocp import InitialGuess
     attempts, current, closest = [], guess, None
     solution = None
     for k, alpha in enumerate(steps, 1):
+        if _spent(budget):             # every step so far converged: no failure to report
+            return Search(None, tuple(attempts), None, closest)
         sub = solver.with_problem(_moved(solver.problem, alpha))
-        solution = sub.solve(current)
+        solution, = solve_attempts(sub, [current], budget=budget, progress=progress)
         label = f"continuation {alpha:g} from {guess.label}"
         attempts.append(_attempt(label, solution, solver.options.solver))
         if progress is not None:

@@ -17,6 +17,7 @@ Format (docs/gait-planning.md)::
                                          #   {effort = 1.0, time = 0.1, tau_psi = 2.0}
     velocities = ["forward_velocity", "psi_dot", "phi_dot"]     # optional: velocity states
     verify_tolerance = 1e-6              # re-simulation must meet every condition to this
+    time_limit = 300                     # s the whole plan may take (default: from the robot's size)
 
 Names are the system's coordinates, ``<coordinate>_dot``, the scene's named quantities
 (``[quantities]``) and, for a planar frame (x, y, θ), ``forward_velocity`` and
@@ -50,7 +51,7 @@ __all__ = ["Task", "FrozenMap", "parse_task", "apply_overrides", "check_names", 
            "TASK_KEYS", "TASK_WORDS", "task_words"]
 
 TASK_KEYS = ("name", "description", "horizon", "intervals", "initial", "final", "rest", "periodic", "bounds",
-             "control_bounds", "objective", "velocities", "verify_tolerance")
+             "control_bounds", "objective", "velocities", "verify_tolerance", "time_limit")
 ENDS = ("initial", "final")
 OBJECTIVES = ("effort", "time")
 #: a task's name of a statement field (the others are the same)
@@ -111,6 +112,7 @@ class Task:
     description: str = ""
     rest: tuple = ()
     verify_tolerance: float = 1e-6
+    time_limit: float | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "objective", FrozenMap(self.objective))
@@ -152,6 +154,8 @@ class Task:
         out["velocities"] = list(self.velocities)
         out["rest"] = list(self.rest)
         out["verify_tolerance"] = self.verify_tolerance
+        if self.time_limit is not None:
+            out["time_limit"] = self.time_limit
         return out
 
 
@@ -290,7 +294,22 @@ def _task_fields(data, where, problems) -> dict:
         if key in data and not isinstance(data[key], str):
             problems.append(f"{where}.{key} must be a string")
     return {"velocities": _names_list(data, "velocities", problems), "rest": rest, "verify_tolerance": tolerance,
-            "name": str(data.get("name", "task")), "description": str(data.get("description", ""))}
+            "name": str(data.get("name", "task")), "description": str(data.get("description", "")),
+            "time_limit": _time_limit(data, where, problems)}
+
+
+def _time_limit(data, where, problems) -> float | None:
+    """``time_limit``: seconds the plan may take, > 0 (``"inf"``: unlimited); None when not given."""
+    if "time_limit" not in data:
+        return None
+    seconds = _number(data["time_limit"], f"{where}.time_limit", problems, allow_inf=True)
+    if math.isnan(seconds):                   # said already
+        return None
+    if not seconds > 0:
+        problems.append(f"{where}.time_limit = {data['time_limit']!r} must be a positive number of seconds "
+                        "(\"inf\": unlimited)")
+        return None
+    return seconds
 
 
 def parse_task(data, *, where: str = "[task]", system=None, quantities=()) -> Task:

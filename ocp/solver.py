@@ -33,6 +33,7 @@ An Ipopt/FATROP failure (infeasible, iteration limit, …) is returned as
 """
 from __future__ import annotations
 
+import math
 import shutil
 import time
 import weakref
@@ -61,6 +62,9 @@ COLLOCATION_MUMPS = {"mumps_scaling": 8, "mumps_pivot_order": 0}
 FATROP_FLAGS = {0: "Solve_Succeeded", 1: "Maximum_Iterations_Exceeded", 2: "Solved_To_Acceptable_Level",
                 3: "Infeasible_Problem_Detected", 4: "Line_Search_Failed", 5: "Error_In_Step_Computation",
                 6: "Unknown_Error"}
+#: the solvers' own names of a solve stopped by its wall-time limit → the name nhgait reports
+TIME_LIMIT_STATUSES = {"Maximum_WallTime_Exceeded": "Time_Limit_Exceeded",
+                       "Maximum_CpuTime_Exceeded": "Time_Limit_Exceeded"}
 
 
 @dataclass(frozen=True)
@@ -117,7 +121,11 @@ class SolverOptions:
     ``solver``: "ipopt" or "fatrop"; ``hessian``: one of :data:`HESSIANS`; ``jit``: compile
     the NLP functions (None: when a C compiler is found); ``jit_flags``: compiler flags (None:
     chosen by ``budget`` from the C size); ``expand``: None = SX for inline stages when
-    interpreted; ``ipopt``/``fatrop``: extra options.
+    interpreted; ``ipopt``/``fatrop``: extra options; ``time_limit``: seconds of wall time per
+    solve (None: unbounded) — Ipopt's ``max_wall_time`` and a deadline in its iteration
+    callback (:meth:`OCPSolver.with_time_limit` changes the latter only); FATROP has no time
+    option: its attempts are bounded by the supervisor that runs them (:mod:`.supervision`). A
+    solve stopped by it has status ``"Time_Limit_Exceeded"``.
     """
 
     max_iter: int = 3000
@@ -132,9 +140,12 @@ class SolverOptions:
     ipopt: dict = field(default_factory=dict)
     fatrop: dict = field(default_factory=dict)
     budget: CompileBudget = COMPILE_BUDGET
+    time_limit: float | None = None
 
     def __post_init__(self):
         problems = []
+        if self.time_limit is not None and not (float(self.time_limit) > 0):
+            problems.append(f"time_limit must be a positive number of seconds, got {self.time_limit!r}")
         if self.solver not in SOLVERS:
             problems.append(f"unknown solver {self.solver!r} (known: {', '.join(SOLVERS)})")
         if self.hessian not in HESSIANS:
@@ -143,6 +154,12 @@ class SolverOptions:
             problems.append("FATROP has no limited-memory Hessian: use exact or gauss-newton, or Ipopt")
         if problems:
             raise ProblemError(problems)
+
+    @property
+    def stops_in_time(self) -> bool:
+        """Whether the solver itself honours ``time_limit`` (Ipopt: ``max_wall_time``; FATROP has
+        no time option)."""
+        return self.solver == "ipopt" and self.time_limit is not None
 
     @property
     def compiled(self) -> bool:
@@ -160,6 +177,8 @@ class SolverOptions:
                      "ipopt.max_iter": int(self.max_iter), "ipopt.tol": float(self.tol),
                      "ipopt.hessian_approximation": "limited-memory" if self.hessian == "limited-memory" else "exact",
                      "ipopt.linear_solver": self.linear_solver})
+        if self.time_limit is not None:
+            opts["ipopt.max_wall_time"] = float(self.time_limit)
         opts.update({f"ipopt.{k}" if not k.startswith("ipopt.") else k: v for k, v in self.ipopt.items()})
         return opts
 
@@ -167,7 +186,7 @@ class SolverOptions:
         extra = dict(self.ipopt) if self.solver == "ipopt" else dict(self.fatrop)
         return {"solver": self.solver, "max_iter": self.max_iter, "tol": self.tol, "hessian": self.hessian,
                 "jit": self.jit, "jit_flags": list(self.jit_flags) if self.jit_flags else None,
-                "linear_solver": self.linear_solver, "expand": self.expand, **extra}
+                "linear_solver": self.linear_solver, "expand": self.expand, "time_limit": self.time_limit, **extra}
 
 
 @dataclass(frozen=True)
@@ -183,7 +202,11 @@ class InitialGuess:
 class _Iterations(ca.Callback):
     """Ipopt's iteration callback: a progress line (iteration, objective, largest constraint
     violation of the iterate) every ``every`` iterations, at most once per ``seconds`` — a fast
-    solve prints nothing, a long one talks. :meth:`start` resets it for a new solve."""
+    solve prints nothing, a long one talks — and the solve's deadline: past it, Ipopt is asked
+    to stop (``timed_out``; reported as ``Time_Limit_Exceeded`` with the iterate reached). An
+    exception raised while it runs (a signal's handler) is kept in ``raised`` and the solver
+    stopped, to be raised again once the solver has returned (an exception inside a CasADi
+    callback would otherwise be lost). :meth:`start` resets it for a new solve."""
 
     def __init__(self, name, nlp, progress, every=10, seconds=1.0):
         ca.Callback.__init__(self)
@@ -192,8 +215,10 @@ class _Iterations(ca.Callback):
         self.start()
         self.construct(name, {"enable_fd": False})
 
-    def start(self):
-        self.count, self.last = 0, time.perf_counter()
+    def start(self, deadline: float | None = None):
+        """A new solve, asked to stop after ``deadline`` (``time.perf_counter()`` seconds)."""
+        self.count, self.last, self.deadline = 0, time.perf_counter(), deadline
+        self.timed_out, self.raised = False, None
 
     def get_n_in(self):
         return ca.nlpsol_n_out()
@@ -213,15 +238,26 @@ class _Iterations(ca.Callback):
         return ca.Sparsity.dense(size, 1)
 
     def eval(self, arg):
+        try:
+            return [self._iteration(arg)]
+        except BaseException as exc:  # noqa: BLE001 - kept, the solver stopped, raised after it returns
+            self.raised = exc
+            return [1]
+
+    def _iteration(self, arg) -> int:
+        """1 to stop the solver (past the deadline), else 0."""
         self.count += 1
         now = time.perf_counter()
-        if self.count % self.every == 0 and now - self.last >= self.seconds:
+        if self.deadline is not None and now > self.deadline:
+            self.timed_out = True
+            return 1
+        if self.progress.enabled and self.count % self.every == 0 and now - self.last >= self.seconds:
             self.last = now
             g = np.asarray(arg[ca.nlpsol_out().index("g")]).ravel()
             viol = max(np.max(self.nlp.lbg - g, initial=0.0), np.max(g - self.nlp.ubg, initial=0.0))
             self.progress.note(f"    iteration {self.count}: objective {float(arg[1]):.6g}, "
                                f"constraint violation {viol:.2e}")
-        return [0]
+        return 0
 
 
 class OCPSolver:
@@ -261,9 +297,7 @@ class OCPSolver:
         elif self.options.jit is not False:
             self.solver = self._jit_solver()
         if not self.compiled:
-            inline = self.nlp.layout is None or self.nlp.layout.stage.mode == "inline"
-            expand = inline if self.options.expand is None else self.options.expand
-            self.solver = self._nlpsol("ocp", self._oracle(), self.options.nlpsol_options(expand=expand))
+            self.solver = self._nlpsol("ocp", *self._source())
         self.setup_time_s = time.perf_counter() - t0
 
     def nlp_structure_missing(self) -> bool:
@@ -272,6 +306,15 @@ class OCPSolver:
     def _oracle(self) -> dict:
         return {"x": self.nlp.w, "f": self.nlp.f, "g": self.nlp.g}
 
+    def _source(self) -> tuple:
+        """(oracle, nlpsol options) the solver is made from: the compiled library's oracle, or
+        the symbolic one (expanded to SX for inline stages unless ``options.expand`` says)."""
+        if self.compiled:
+            return ca.external("nlp", str(self.jit_path)), self.options.nlpsol_options()
+        inline = self.nlp.layout is None or self.nlp.layout.stage.mode == "inline"
+        expand = inline if self.options.expand is None else self.options.expand
+        return self._oracle(), self.options.nlpsol_options(expand=expand)
+
     def _nlpsol(self, name, nlp, opts, *, talk: bool = True):
         if self.functions and not isinstance(nlp, ca.Function):
             opts = {**opts, "cache": self.functions}
@@ -279,8 +322,9 @@ class OCPSolver:
             st = self.nlp.structure
             opts = {**opts, "structure_detection": "manual", "N": st["N"], "nx": st["nx"], "nu": st["nu"],
                     "ng": st["ng"]}
-        if talk and self.progress.enabled and self.options.solver == "ipopt" and not self.progress.verbose:
-            self._callback = _Iterations(f"{name}_iterations", self.nlp, self.progress)
+        if talk and self.options.solver == "ipopt":      # progress lines (not with the solver's own log), deadlines
+            said = Progress.silent() if self.progress.verbose else self.progress
+            self._callback = _Iterations(f"{name}_iterations", self.nlp, said)
             opts = {**opts, "iteration_callback": self._callback}
         if talk and self.progress.verbose:     # the solver's own log (on stdout)
             opts = ({**opts, "fatrop": {**opts.get("fatrop", {}), "print_level": 10}}
@@ -367,30 +411,87 @@ class OCPSolver:
                 "(a configuration on the model's singular set?)")
 
     def solve(self, guess: InitialGuess) -> Solution:
-        """Run the solver from ``guess`` (projected into the bounds); failures are returned as
-        ``success=False``, a guess with non-finite dynamics without running the solver."""
-        nlp, problem = self.nlp, self.problem
+        """Run the solver from ``guess`` (projected into the bounds) in this process; failures
+        are returned as ``success=False``, a guess with non-finite dynamics without running the
+        solver. (The planner runs each solve in a supervised child: :mod:`.supervision`.)"""
         w0 = self._start(guess)
-        if getattr(self, "_callback", None) is not None:
-            self._callback.start()
+        callback = getattr(self, "_callback", None)
+        if callback is not None:
+            limit = self.options.time_limit
+            callback.start(None if limit is None else time.perf_counter() + float(limit))
         out, error, refused, wall = self._run(w0)
+        if callback is not None and callback.raised is not None:
+            raise callback.raised
         stats = {} if refused else self.solver.stats()     # a refused guess never ran the solver
+        if callback is not None and callback.timed_out:
+            stats = {**stats, "return_status": "Time_Limit_Exceeded"}
         w, objective, viol, violated = self._outcome(out, w0)
-        Z, U, T = nlp.unpack(w)
         fn_time = sum(float(v) for k, v in stats.items() if k.startswith("t_wall_nlp_"))
         total = float(stats.get("t_wall_total", wall))
         success, status, stats = self._verdict(stats, error, refused, viol)
-        return Solution(success=success, status=status,
-                        message=status if error is None else f"{status}: {error}",
+        return self._solution(guess, w, success=success, status=status,
+                              message=status if error is None else f"{status}: {error}", objective=objective,
+                              viol=viol, violated=violated, stats=stats,
+                              times=(wall, fn_time, max(total - fn_time, 0.0)))
+
+    def unsolved(self, guess: InitialGuess, status: str, message: str, seconds: float = 0.0) -> Solution:
+        """The failed Solution of an attempt from ``guess`` that gave no answer (stopped at its
+        time limit, its process died): the guess itself, with its objective and constraint
+        violation (NaN where the NLP functions give none)."""
+        w0 = self._start(guess)
+        try:
+            out = {"x": w0, "f": self.solver.get_function("nlp_f")(w0, [])[0],
+                   "g": self.solver.get_function("nlp_g")(w0, [])}
+            _, objective, viol, violated = self._outcome(out, w0)
+        except RuntimeError:                   # an evaluation error at the guess
+            objective, viol, violated = math.nan, math.nan, {}
+        stats = {"solver_status": status, "success": False}
+        return self._solution(guess, w0, success=False, status=status, message=f"{status}: {message}",
+                              objective=objective, viol=viol, violated=violated, stats=stats,
+                              times=(float(seconds), 0.0, float(seconds)))
+
+    def _solution(self, guess, w, *, success, status, message, objective, viol, violated, stats, times) -> Solution:
+        """A Solution at the decision vector ``w``; ``times``: (wall, in the functions, in the solver) [s]."""
+        problem = self.problem
+        Z, U, T = self.nlp.unpack(w)
+        wall, fn_time, solver_time = times
+        return Solution(success=success, status=status, message=message,
                         iterations=int(stats.get("iter_count", 0)), objective=objective,
                         t=np.linspace(0.0, T, problem.intervals + 1), states=Z, controls=U,
                         state_names=problem.state_names, control_names=problem.control_names,
                         horizon=T, solve_time_s=wall, setup_time_s=self.setup_time_s,
-                        function_time_s=fn_time, solver_time_s=max(total - fn_time, 0.0),
+                        function_time_s=fn_time, solver_time_s=solver_time,
                         stats={k: (v if isinstance(v, (int, float, str, bool)) else str(v))
                                for k, v in stats.items() if not isinstance(v, dict)},
                         settings={**self.settings(), "guess": guess.label}, problem=problem,
                         constraint_violation=viol, violations=violated)
+
+    def evaluation_seconds(self, guess: InitialGuess | None = None) -> float:
+        """Seconds of one evaluation of every NLP function the solver uses (objective,
+        constraints, their derivatives, the Hessian of the Lagrangian) at ``guess`` (None: zero
+        clipped into the bounds), each called once (a first call also allocates its work
+        memory: an over-estimate, never under): the cost of about one iteration, from which
+        :mod:`.budget` sets an attempt's default time limit."""
+        w0 = np.clip(np.zeros(self.nlp.n_w), self.nlp.lbx, self.nlp.ubx) if guess is None else self._start(guess)
+        total = 0.0
+        for name in self.solver.get_function():
+            f = self.solver.get_function(name)
+            args = [w0 if f.name_in(i) == "x" else np.ones(f.size_in(i)) for i in range(f.n_in())]
+            total += _seconds(f, args)
+        return total
+
+    def with_time_limit(self, seconds: float | None) -> "OCPSolver":
+        """This solver with ``options.time_limit = seconds``, sharing its NLP functions and
+        solver: Ipopt honours it through its iteration callback's deadline (its own
+        ``max_wall_time`` is fixed when the solver is made — remaking an interpreted solver costs
+        as much as making it); FATROP, which has no time option, through the supervisor that
+        runs the attempt (:mod:`.supervision`)."""
+        if seconds == self.options.time_limit:
+            return self
+        other = object.__new__(OCPSolver)
+        other.__dict__.update(self.__dict__)
+        other.options = replace(self.options, time_limit=seconds)
+        return other
 
     def _start(self, guess: InitialGuess) -> np.ndarray:
         """The guess packed into the decision vector and clipped into its bounds
@@ -440,6 +541,7 @@ class OCPSolver:
         return flag, or convergence read from its own measures (:func:`_fatrop_converged`)."""
         status = ("Invalid_Initial_Point" if refused else
                   str(stats.get("return_status", "exception" if error else "unknown")))
+        status = TIME_LIMIT_STATUSES.get(status, status)
         if self.options.solver == "fatrop" and error is None:
             ok = bool(stats.get("success", False)) or _fatrop_converged(stats, violation, self.options.tol)
             flag = (stats.get("fatrop") or {}).get("return_flag") if isinstance(stats.get("fatrop"), dict) else None
@@ -447,6 +549,16 @@ class OCPSolver:
             status = "Solve_Succeeded" if ok else FATROP_FLAGS.get(flag, f"FATROP return flag {flag}")
         success = bool(stats.get("success", False)) and error is None
         return success, status, {**stats, "solver_status": status}
+
+
+def _seconds(f, args) -> float:
+    """Wall seconds of one call ``f(*args)`` (an evaluation error — NaN at a guess — still counts)."""
+    start = time.perf_counter()
+    try:
+        f(*args)
+    except RuntimeError:
+        pass
+    return time.perf_counter() - start
 
 
 def _fatrop_converged(stats, violation, tol) -> bool:

@@ -34,8 +34,8 @@ def figures(out):
 
     def catch(fig, fname, *args, **kwargs):
         original(fig, fname, *args, **kwargs)
-        path = Path(fname)
-        caught[f"{path.parent.name}/{path.name}"] = fig
+        path = Path(fname)        # <command>/<name>, or <command>/.writing-*/<name> (a plan's staging folder)
+        caught[f"{path.relative_to(out).parts[0]}/{path.name}"] = fig
 
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(Figure, "savefig", catch)

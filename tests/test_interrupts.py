@@ -1,8 +1,18 @@
-"""Interrupts clean up (issue 19, item 8).
+"""Interrupts clean up (issue 19, item 8) and stop at once (issue 24, item 2).
 
-A SIGTERM or a Ctrl-C while the C compiler runs, or while forked workers solve, leaves no
-process and no temporary file behind, exits 143 or 130, and the next run compiles cleanly; a
-half-written cache entry is never read.
+A SIGTERM or a Ctrl-C while the C compiler runs, or while solver attempts run in their
+supervised children, leaves no process and no temporary file behind, exits 143 or 130, and the
+next run compiles cleanly; a half-written cache entry is never read. A solver in its C code
+does not delay the end (within 2 s); ``--time-limit`` ends a plan that needs longer as a clean
+failure; a solver process killed from outside is a failed attempt; the watchdog ends a process
+whose main thread is stuck in C.
+
+Solver attempts that never end on their own (:data:`ENDLESS`): the real solver, run again and
+again from the same start in the attempt's child — mostly inside its C code — so that a signal
+sent once the children run always finds them solving. (The earlier test of this sent the
+signal when it saw the pool's two workers; their two half-second solves had often finished by
+then, and the plan had gone on to verify and write its figures: the exit 0 was a plan that had
+ended before the signal, not a lost signal.)
 
 The compiler is a wrapper script (``$NHGAIT_CC``) that runs the real compiler as its child
 and, while ``<tmp>/slow`` exists, sleeps 30 s before waiting for it: the tests control the
@@ -17,6 +27,7 @@ import _thread
 import json
 import os
 import pickle
+import re
 import shutil
 import signal
 import subprocess
@@ -40,16 +51,29 @@ needs_cc = pytest.mark.skipif(REAL_CC is None, reason="no C compiler")
 SOURCE = "int nhgait_answer(void) { return 42; }\n"
 #: a plan whose NLP compiles in about a second (0.2 MB of C)
 PLAN = ["plan", "unicycle", "--gait", "parallel-park", "--intervals", "10", "--no-gif"]
-#: a plan that solves its first two guesses in two forked workers (about half a second)
-PLAN_WORKERS = ["plan", "snakeboard", "--gait", "forward", "--no-jit", "--workers", "2", "--no-gif"]
 #: the nhgait command line with Ctrl-C raising KeyboardInterrupt, as in a terminal (a test
 #: runner may have started us with SIGINT ignored, which a child would inherit)
 LAUNCHER = ("import signal, sys\n"
             "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
             "from nhgait.gaits.cli.main import main\n"
             "sys.exit(main())\n")
+#: the same with every solver attempt endless (the module docstring)
+ENDLESS = ("import signal, sys\n"
+           "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
+           "from nhgait.ocp.solver import OCPSolver\n"
+           "solve_once = OCPSolver._run\n"
+           "def endless(self, w0):\n"
+           "    while True:\n"
+           "        solve_once(self, w0)\n"
+           "OCPSolver._run = endless\n"
+           "from nhgait.gaits.cli.main import main\n"
+           "sys.exit(main())\n")
+#: a plan whose attempts run in supervised children (FATROP first: the snakeboard's ODE is small)
+PLAN_SOLVES = ["plan", "snakeboard", "--gait", "forward", "--no-jit", "--no-gif"]
 #: what a run that exits cleanly needs after the signal (seconds)
 EXIT_S = 15.0
+#: how soon a plan must end after SIGINT/SIGTERM whatever it is doing (issue 24)
+STOP_S = 2.0
 
 
 # ----------------------------------------------------------------------------- processes
@@ -165,11 +189,12 @@ def slow_cc(tmp_path, monkeypatch, cache) -> SlowCompiler:
 
 
 # ----------------------------------------------------------------------------- nhgait runs
-def _start(args: list, tmp_path: Path) -> subprocess.Popen:
-    """``nhgait <args> --out <tmp>/out`` in a new session, its stderr in ``tmp/stderr.txt``."""
-    with open(tmp_path / "stderr.txt", "w") as err:
-        return subprocess.Popen([sys.executable, "-c", LAUNCHER, *args, "--out", str(tmp_path / "out")],
-                                stdout=subprocess.DEVNULL, stderr=err, start_new_session=True)
+def _start(args: list, tmp_path: Path, launcher: str = LAUNCHER) -> subprocess.Popen:
+    """``nhgait <args> --out <tmp>/out`` in a new session, its stdout in ``tmp/stdout.txt``,
+    its stderr in ``tmp/stderr.txt``."""
+    with open(tmp_path / "stderr.txt", "w") as err, open(tmp_path / "stdout.txt", "w") as out:
+        return subprocess.Popen([sys.executable, "-c", launcher, *args, "--out", str(tmp_path / "out")],
+                                stdout=out, stderr=err, start_new_session=True)
 
 
 def _signal_and_wait(proc: subprocess.Popen, signame: str, to_group: bool, timeout: float = EXIT_S) -> int:
@@ -187,7 +212,12 @@ def _signal_and_wait(proc: subprocess.Popen, signame: str, to_group: bool, timeo
 
 
 def _assert_no_process_left(session: int) -> None:
-    _wait_until(lambda: not _live(session=session), 5.0, f"every process of session {session} to exit")
+    deadline = time.monotonic() + 5.0
+    while _live(session=session) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    left = _live(session=session)
+    _kill_session(session)
+    assert not left, f"processes of session {session} still running 5 s after it ended: {left}"
 
 
 SIGNALS = [pytest.param("SIGTERM", 143, False, "terminated", id="SIGTERM"),
@@ -227,78 +257,114 @@ def test_plan_stopped_while_compiling_leaves_nothing_and_the_next_run_compiles(
     assert json.loads((jit / names[0]).read_text())["library_sha256"] == file_sha256(jit / names[1])
 
 
-@pytest.mark.parametrize("signame, status, to_group, said", SIGNALS)
-def test_plan_stopped_while_workers_solve_leaves_no_worker(cache, tmp_path, signame, status, to_group, said):
-    """SIGTERM or Ctrl-C while two forked workers solve: exit 143 or 130 within seconds, no
-    worker left."""
-    proc = _start(PLAN_WORKERS, tmp_path)
+def _when_solving(proc: subprocess.Popen, children: int) -> list[Proc]:
+    """The plan's attempt children once ``children`` of them run (the plan killed on failure)."""
     try:
-        workers = _wait_until(lambda: len(_live(ppid=proc.pid)) >= 2, 120.0, "two workers")
+        return _wait_until(lambda: len(_live(ppid=proc.pid)) >= children and _live(ppid=proc.pid), 120.0,
+                           f"{children} solver processes")
     except BaseException:
         _kill_session(proc.pid)
         raise
-    assert workers
-    assert _signal_and_wait(proc, signame, to_group, timeout=8.0) == status
+
+
+STOPS = [pytest.param("SIGTERM", 143, False, "terminated", id="SIGTERM"),
+         pytest.param("SIGTERM", 143, True, "terminated", id="SIGTERM-to-group-as-timeout-sends-it"),
+         pytest.param("SIGINT", 130, True, "interrupted", id="Ctrl-C")]
+
+
+@pytest.mark.parametrize("signame, status, to_group, said", STOPS)
+def test_plan_stopped_while_a_solver_iterates_in_c(cache, tmp_path, signame, status, to_group, said):
+    """SIGTERM (to the plan, or to its whole group as ``timeout`` sends it) or Ctrl-C while
+    the solver runs in its C code: the plan ends within 2 s with 143 or 130, stopped in its
+    solve phase, and no process is left."""
+    proc = _start(PLAN_SOLVES, tmp_path, ENDLESS)
+    solvers = _when_solving(proc, 1)
+    sent = time.monotonic()
+    assert _signal_and_wait(proc, signame, to_group, timeout=EXIT_S) == status
+    assert time.monotonic() - sent < STOP_S
+    err = (tmp_path / "stderr.txt").read_text()
+    assert f"nhgait: {said}" in err and "solve with fatrop from up to 12 guesses: stopped after" in err
+    assert "Traceback" not in err
+    assert not any(_live(ppid=p.pid) for p in solvers)
+    _assert_no_process_left(proc.pid)
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("signame, status, to_group, said", SIGNALS)
+def test_plan_stopped_while_workers_solve_leaves_no_worker(cache, tmp_path, signame, status, to_group, said):
+    """SIGTERM or Ctrl-C while two attempts solve at once (``--workers 2``): exit 143 or 130
+    within 2 s, no worker left."""
+    proc = _start([*PLAN_SOLVES, "--workers", "2"], tmp_path, ENDLESS)
+    assert len(_when_solving(proc, 2)) == 2
+    sent = time.monotonic()
+    assert _signal_and_wait(proc, signame, to_group, timeout=EXIT_S) == status
+    assert time.monotonic() - sent < STOP_S
     assert f"nhgait: {said}" in (tmp_path / "stderr.txt").read_text()
     _assert_no_process_left(proc.pid)
 
 
-# ----------------------------------------------------------------------------- build_library
-@needs_cc
-def test_keyboard_interrupt_kills_the_compiler_and_removes_its_build_folder(slow_cc, cache):
-    """build_library interrupted (KeyboardInterrupt in the waiting thread) while the compiler
-    runs: the exception propagates, the wrapper and its children are gone, nothing is left in
-    the jit folder."""
-    from nhgait.dynamics.numerics.compiler import build_library
-    slow_cc.slow(True)
-    seen = []
-
-    def interrupt_once_compiling():
-        deadline = time.monotonic() + 20.0
-        while time.monotonic() < deadline and not seen:
-            group = slow_cc.group("sleep")          # the tiny source may be compiled by then
-            if group:
-                seen.extend(group)
-                _thread.interrupt_main()          # KeyboardInterrupt in the waiting main thread
-            time.sleep(0.01)
-
-    timer = threading.Thread(target=interrupt_once_compiling, daemon=True)
-    timer.start()
-    with pytest.raises(KeyboardInterrupt):
-        build_library(SOURCE, timeout=25.0)
-    timer.join()
-    assert {"slowcc.sh", "sleep"} <= {p.name for p in seen}
-    assert _live(pgrp=slow_cc.runs()[0]) == []            # the wrapper and its children
-    assert sorted(p.name for p in (cache / "jit").iterdir()) == []
-
-
-@needs_cc
-def test_a_compiler_over_its_time_limit_is_killed(slow_cc, cache):
-    """A timeout is one more exception while waiting: CompilerUnavailable, the group killed,
-    no build folder."""
-    from nhgait.dynamics.numerics.compiler import CompilerUnavailable, build_library
-    slow_cc.slow(True)
-    with pytest.raises(CompilerUnavailable, match="took more than 1 s"):
-        build_library(SOURCE, timeout=1.0)
-    assert _live(pgrp=slow_cc.runs()[0]) == []
-    assert sorted(p.name for p in (cache / "jit").iterdir()) == []
+def test_a_time_limit_ends_a_plan_that_needs_longer_as_a_clean_failure(cache, tmp_path):
+    """``--time-limit 5`` on a plan whose attempts never end: exit 1 about 6 s after it
+    started (the budget counts from the plan's start; the interpreter's start-up before it
+    takes 1–2 s on a loaded machine), the summary naming the budget, the phase it ran out in
+    (the solves, or earlier on a loaded machine) and the option; the closest point in
+    solution.json when an attempt was made, and nothing else; no process left."""
+    proc = _start([*PLAN_SOLVES, "--time-limit", "5"], tmp_path, ENDLESS)
+    try:
+        status = proc.wait(timeout=60.0)
+    except subprocess.TimeoutExpired:
+        _kill_session(proc.pid)
+        proc.wait()
+        pytest.fail("the plan outlived its time limit")
+    assert status == 1
+    out = (tmp_path / "stdout.txt").read_text()
+    wall = float(re.search(r"wall time +([0-9.]+) s in all", out).group(1))
+    assert wall < 5.0 + 1.5                             # the budget, then the kill and solution.json
+    assert "FAILED (time budget spent" in out and "--time-limit SECONDS" in out
+    phases = ("derivation", "the initial guesses", "the NLP set-up and compilation for fatrop", "the solves with fatrop")
+    assert any(f"the time budget of 5 s (--time-limit / plan(time_limit=...)) ran out during {phase} " in out
+               for phase in phases), out
+    attempted = "no attempt was made" not in out
+    written = sorted(p.name for p in (tmp_path / "out").iterdir()) if (tmp_path / "out").exists() else []
+    assert written == (["solution.json"] if attempted else [])
+    if attempted:
+        saved = json.loads((tmp_path / "out" / "solution.json").read_text())
+        assert saved["success"] is False and "time budget" in saved["diagnosis"][0]
+    _assert_no_process_left(proc.pid)
 
 
-@needs_cc
-def test_stale_build_folders_are_removed_and_fresh_ones_kept(cache):
-    """A build folder older than STALE_BUILD_S (left by a process killed with SIGKILL) goes
-    with the next build; a younger one may belong to a build running now and stays."""
-    from nhgait.dynamics.numerics.cache import trusted_dir
-    from nhgait.dynamics.numerics.compiler import STALE_BUILD_S, build_library, jit_dir
-    jit = trusted_dir(jit_dir())
-    stale, fresh = jit / ".build-stale", jit / ".build-fresh"
-    for folder in (stale, fresh):
-        folder.mkdir()
-        (folder / "half.c").write_text(SOURCE)
-    old = time.time() - STALE_BUILD_S - 60.0
-    os.utime(stale, (old, old))
-    lib = build_library(SOURCE)
-    assert not lib.cached and not stale.exists() and fresh.exists()
+def test_a_solver_process_killed_from_outside_is_a_failed_attempt(cache, tmp_path):
+    """SIGKILL to the attempt's process (a crash, the OOM killer): the plan reports the attempt
+    as failed, naming the signal, and goes on to the next guess; then SIGTERM ends it."""
+    proc = _start(PLAN_SOLVES, tmp_path, ENDLESS)
+    first, = _when_solving(proc, 1)
+    os.kill(first.pid, signal.SIGKILL)
+    err = tmp_path / "stderr.txt"
+    _wait_until(lambda: "the solver's process died of SIGKILL" in err.read_text(), 30.0, "the failed attempt")
+    _wait_until(lambda: [p for p in _live(ppid=proc.pid) if p.pid != first.pid], 30.0, "the next attempt")
+    assert _signal_and_wait(proc, "SIGTERM", False) == 143
+    _assert_no_process_left(proc.pid)
+
+
+@pytest.mark.parametrize("signame, status, to_group, said", STOPS)
+def test_a_sweep_stopped_while_its_workers_solve_leaves_nothing(cache, tmp_path, signame, status, to_group, said):
+    """A sweep on the local pool (two workers, each point's attempts supervised children of a
+    worker), stopped once it has stored a point: 143 or 130 within 2 s, no worker and no
+    solver process left."""
+    out = tmp_path / "out"
+    proc = _start(["sweep", "unicycle", "--task", "parallel-park", "--grid", "final.y=0.3:0.7:21", "--set",
+                   "intervals=50", "--workers", "2"], tmp_path)
+    try:
+        _wait_until(lambda: len(_live(ppid=proc.pid)) >= 2 and (out / "solutions").exists()
+                    and any((out / "solutions").iterdir()), 240.0, "the first point stored")
+    except BaseException:
+        _kill_session(proc.pid)
+        raise
+    sent = time.monotonic()
+    assert _signal_and_wait(proc, signame, to_group, timeout=EXIT_S) == status
+    assert time.monotonic() - sent < STOP_S
+    assert "nhgait" in (tmp_path / "stderr.txt").read_text()
+    _assert_no_process_left(proc.pid)
 
 
 @needs_cc
@@ -352,3 +418,38 @@ def test_a_half_written_cache_entry_is_never_read(cache, monkeypatch):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert entries.load(key, dict) == {"answer": 42}
+
+
+def test_the_watchdog_ends_a_process_whose_main_thread_is_stuck_in_c(tmp_path):
+    """The main thread in a long C call (a large matrix product) cannot run Python's handler:
+    the watchdog ends the process with 143 within 2 s of SIGTERM, saying so, and takes along
+    the processes it started — here one in a process group of its own, as the compiler's."""
+    script = ("import subprocess, sys, numpy as np\n"
+              "from nhgait.gaits.cli.stopping import stop_signals\n"
+              "helper = subprocess.Popen(['sleep', '60'], start_new_session=True)\n"
+              "a = np.ones((6000, 6000))\n"
+              "with stop_signals():\n"
+              "    print('ready', helper.pid, flush=True)\n"
+              "    for _ in range(100):\n"
+              "        a @ a\n"
+              "sys.exit(0)\n")
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True, env={**os.environ, "OMP_NUM_THREADS": "1",
+                                                                    "OPENBLAS_NUM_THREADS": "1"})
+    helper = None
+    try:
+        said, helper = proc.stdout.readline().split()
+        assert said == "ready"
+        time.sleep(0.2)                                  # inside the product
+        sent = time.monotonic()
+        proc.send_signal(signal.SIGTERM)
+        status = proc.wait(timeout=EXIT_S)
+    finally:
+        _kill_session(proc.pid)
+    try:
+        assert status == 143 and time.monotonic() - sent < STOP_S
+        assert "nhgait: terminated (forced: still running 1.5 s after the signal)" in proc.stderr.read()
+        _wait_until(lambda: not [p for p in _processes() if p.pid == int(helper)], 5.0, "the helper to be gone")
+    finally:
+        if [p for p in _processes() if p.pid == int(helper)]:
+            os.kill(int(helper), signal.SIGKILL)

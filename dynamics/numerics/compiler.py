@@ -24,7 +24,7 @@
   with that folder, never left in the user's ``$TMPDIR``.
 * **Interrupts clean up.** The compiler runs as a child in its own process group. Any
   exception while waiting — KeyboardInterrupt (Ctrl-C), the ``Terminated`` exception the CLI
-  raises on SIGTERM (:mod:`nhgait.gaits.cli.main`), a timeout — kills the whole group (a wrapper
+  raises on SIGTERM (:mod:`nhgait.gaits.cli.stopping`), a timeout — kills the whole group (a wrapper
   script named by ``$NHGAIT_CC`` and everything it started: gcc, cc1, as) and removes the
   build folder. On Linux the compiler also gets SIGKILL if the thread that started it dies
   without cleaning up (``PR_SET_PDEATHSIG``), and build folders (and private folders) left by
@@ -54,6 +54,7 @@ import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from ..errors import STOP_SIGNALS
 from ..memo import LruMemo
 
 __all__ = ["Library", "CompilerUnavailable", "build_library", "compiler_command", "library_key",
@@ -161,10 +162,11 @@ def _cached(directory: Path, key: str) -> Path | None:
     return so if trusted_file(so, recorded) else None
 
 
-def _child_setup():
-    """The preexec function of the compiler: its own process group and, on Linux, SIGKILL when
-    the parent thread dies (exit at once if the parent died before). ``prctl`` is looked up
-    here, in the parent: the forked child only calls it."""
+def _child_setup(mask=None):
+    """The preexec function of the compiler: its own process group, the signal mask ``mask``
+    (the parent blocks the stop signals while it starts the compiler, :func:`_run`) and, on
+    Linux, SIGKILL when the parent thread dies (exit at once if the parent died before).
+    ``prctl`` is looked up here, in the parent: the forked child only calls it."""
     parent = os.getpid()
     prctl = None
     if sys.platform.startswith("linux"):
@@ -173,6 +175,8 @@ def _child_setup():
 
     def setup() -> None:  # pragma: no cover - runs in the child
         os.setpgrp()
+        if mask is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
         if prctl is not None:
             prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
             if os.getppid() != parent:
@@ -182,16 +186,30 @@ def _child_setup():
 
 def _run(cmd: list, progress, label: str, timeout: float | None, tmpdir: Path) -> subprocess.CompletedProcess:
     """Run the compiler with its temporaries in ``tmpdir``, killing its process group on any
-    exception (see the module docstring)."""
+    exception (see the module docstring). The stop signals are blocked until the compiler is
+    started and their exception would kill it (one raised inside ``Popen`` itself left the
+    compiler's group running)."""
     start = time.perf_counter()
     env = {**os.environ, "TMPDIR": str(tmpdir), "TMP": str(tmpdir), "TEMP": str(tmpdir)}
-    with subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
-                          errors="replace", preexec_fn=_child_setup() if os.name == "posix" else None) as proc:
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS) if os.name == "posix" else None
+    try:
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
+                                errors="replace", preexec_fn=_child_setup(mask) if os.name == "posix" else None)
+    except BaseException:
+        _unblock(mask)
+        raise
+    with proc:
         try:
+            _unblock(mask)
             return _wait(proc, cmd, start, progress, label, timeout)
         except BaseException:
             _kill(proc)
             raise
+
+
+def _unblock(mask) -> None:
+    if mask is not None:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
 
 def _wait(proc, cmd, start, progress, label, timeout) -> subprocess.CompletedProcess:

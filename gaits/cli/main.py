@@ -10,9 +10,11 @@ an optimisation that did not converge or was not verified); 2 bad input — one 
 every problem, no traceback; 3 an internal error (a bug: one line naming it; ``NHGAIT_DEBUG=1``
 shows the traceback); 130 interrupted (Ctrl-C), 143 terminated (SIGTERM, e.g. ``timeout``).
 
-Interrupts clean up: SIGTERM is turned into an exception like Ctrl-C, so that a running C
-compiler is killed and its temporary files removed (:mod:`nhgait.dynamics.numerics.compiler`), worker
-processes are stopped and no half-written cache entry is left.
+Interrupts clean up, at once: SIGTERM is turned into an exception like Ctrl-C, so that a running
+C compiler is killed and its temporary files removed (:mod:`nhgait.dynamics.numerics.compiler`),
+supervised solver processes are killed (:mod:`nhgait.ocp.supervision`) and no half-written cache
+entry or output file is left; a watchdog ends the process when the main thread is inside C code
+that does not return (:mod:`.stopping`).
 """
 from __future__ import annotations
 
@@ -21,6 +23,8 @@ import importlib
 import os
 import sys
 import warnings
+
+from nhgait.dynamics.errors import Terminated  # noqa: F401 - nhgait.gaits.cli.main.Terminated, kept
 
 #: (module, function adding the subcommand), in the order of ``nhgait --help``
 SUBCOMMANDS = (
@@ -44,29 +48,33 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-class Terminated(BaseException):
-    """SIGTERM received: unwinds like KeyboardInterrupt (cleanup runs), exit status 143."""
-
-
-def _terminate(signum, frame):
-    raise Terminated()
-
-
 def main(argv=None) -> int:
-    import signal
+    """Run one subcommand; its exit status (the module docstring's table). Run as the program
+    (``argv`` None: the ``nhgait`` command), a stop by SIGINT/SIGTERM ends the process as soon
+    as its cleanup is done (:func:`~.stopping.exit_now`); called with ``argv`` it returns."""
     from nhgait.dynamics.errors import ModelError
+    from .stopping import exit_now, stop_signals
     parser = build_parser()
     args = parser.parse_args(argv)
-    previous = signal.signal(signal.SIGTERM, _terminate) if _main_thread() else None
+    stopped = (lambda status: status) if argv is not None else exit_now
     formatter, warnings.formatwarning = warnings.formatwarning, _format_warning
     try:
-        return int(args.func(args) or 0)
+        with stop_signals() as stop:
+            try:
+                status = int(args.func(args) or 0)
+            except Exception:
+                if stop.signal is None:
+                    raise
+                raise stop.exception() from None    # the stop, whatever it became on its way up
+            if stop.signal is not None:             # its exception was dropped on the way (a __del__)
+                raise stop.exception()
+            return status
     except KeyboardInterrupt:
         print("nhgait: interrupted", file=sys.stderr)
-        return 130
+        return stopped(130)
     except Terminated:
         print("nhgait: terminated", file=sys.stderr)
-        return 143
+        return stopped(143)
     except ModelError as exc:            # bad input (ProblemError and BridgeError included)
         print(f"nhgait: {exc}", file=sys.stderr)
         return 2
@@ -78,18 +86,11 @@ def main(argv=None) -> int:
         return 3
     finally:
         warnings.formatwarning = formatter
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
 
 
 def _format_warning(message, category, filename, lineno, line=None) -> str:
     """A warning as the command prints it: one line, no source location."""
     return f"nhgait: warning: {message}\n"
-
-
-def _main_thread() -> bool:
-    import threading
-    return threading.current_thread() is threading.main_thread()
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -3,7 +3,8 @@
 Plans the scene file's ``[task]`` (or a built-in gait of a built-in scene), verifies the
 optimum by an independent simulation and writes solution.json and PNG plots; ``--gif`` also
 writes the animation motion.gif (60 frames, a few seconds: the longest part of the output, so
-it is made only on request and its time is reported apart). Registered by
+it is made only on request and its time is reported apart). The plan runs within a time budget
+(``--time-limit``; a budget that runs out is a clean failure, exit 1). Registered by
 :mod:`nhgait.gaits.cli.main`.
 """
 from __future__ import annotations
@@ -45,6 +46,10 @@ def add_plan_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--hessian", choices=["auto", "exact", "gauss-newton", "limited-memory"], default="auto",
                    help="Lagrangian Hessian: exact (auto), Gauss-Newton (the stage curvature dropped) or "
                         "limited-memory (Ipopt's L-BFGS)")
+    p.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
+                   help="seconds the whole plan may take (default: the task's time_limit, else 120 s + 30 s per "
+                        "coordinate); each solver attempt is also limited, from its measured cost; a plan that "
+                        "runs out fails cleanly (exit 1) naming the phase ('inf': unlimited)")
     p.add_argument("--max-guesses", type=positive_int, default=12,
                    help="initial guesses tried per solver before the continuation (default 12)")
     gif = p.add_mutually_exclusive_group()
@@ -74,7 +79,7 @@ def run(args) -> int:
         result = plan(args.system, args.gait, overrides=args.overrides, intervals=args.intervals,
                       solver=args.solver, transcription=args.transcription, jit=args.jit, workers=workers,
                       out_dir=out, animate=args.gif, hessian=args.hessian,
-                      max_guesses=args.max_guesses, progress=progress)
+                      max_guesses=args.max_guesses, progress=progress, time_limit=args.time_limit)
     print("\n".join(summary_lines(result)))
     print(f"  wall time          {_wall_text(time.perf_counter() - started, result.timings)}")
     return 0 if result.success and not result.unwritten else 1

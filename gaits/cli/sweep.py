@@ -40,6 +40,9 @@ def add_sweep_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--chain", type=int, default=None, metavar="N",
                    help="grid points per back-end task, solved in a row down the continuation tree "
                         "(default: 1 for the local pool, 4 for Dask, whose fixed cost per task they share)")
+    p.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
+                   help="seconds each grid point may take (default: the task's time_limit, else the planner's "
+                        "default for the robot's size); a point that runs out is a failed point naming the budget")
     p.add_argument("--cold", action="store_true", help="no continuation: start every point from the planner's guesses")
     p.add_argument("--plot", default=None, metavar="X,Y", help="axes of the heat map (default: the first two)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG files")
@@ -105,7 +108,8 @@ def run(args) -> int:
     try:
         result = sweep(args.scene, args.task, args.grid, out=args.out, scheduler=args.scheduler, workers=args.workers,
                        resume=args.resume, warm_start=not args.cold, overrides=args.overrides, chain=args.chain,
-                       progress=None if args.quiet else _ProgressPrinter())
+                       progress=None if args.quiet else _ProgressPrinter(),
+                       options=None if args.time_limit is None else {"time_limit": args.time_limit})
     except KeyboardInterrupt:
         stored = len(load_sweep(out).records) if (out / "sweep.sqlite").exists() else 0
         print(f"\nnhgait sweep: interrupted; {stored} points are stored in {out} — continue with --resume",

@@ -114,8 +114,12 @@ class SerialBackend(_Backend):
 
 
 # ----------------------------------------------------------------------------- process pool
-def _worker_main(conn) -> None:
-    """A pool worker: receive (fn, args), answer ("ok", value) or ("error", exception text)."""
+def _worker_main(conn, parent: int | None = None) -> None:
+    """A pool worker: receive (fn, args), answer ("ok", value) or ("error", exception text).
+    On Linux it dies with the thread of ``parent`` that started it (``PR_SET_PDEATHSIG``): a
+    driver that ends at once on SIGTERM (:mod:`nhgait.gaits.cli.stopping`) leaves no worker
+    solving on; its solver attempts, supervised children of its own, go with it."""
+    _die_with(parent)
     while True:
         try:
             message = conn.recv()
@@ -134,6 +138,20 @@ def _worker_main(conn) -> None:
             conn.send(("error", f"the answer cannot be sent back ({type(exc).__name__}: {exc})"))
 
 
+def _die_with(parent: int | None) -> None:
+    """Ctrl-C is the driver's to handle (it closes the pool); on Linux, SIGKILL when the
+    driver's thread that started this worker ends."""
+    import signal
+    import sys
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if parent is None or not sys.platform.startswith("linux"):
+        return
+    import ctypes
+    ctypes.CDLL(None).prctl(1, signal.SIGKILL)          # PR_SET_PDEATHSIG
+    if os.getppid() != parent:                          # the driver ended before that
+        os._exit(1)
+
+
 #: set in each worker's environment unless the user set them: one point per core, so the
 #: linear-algebra libraries must not start threads of their own (Dask's nannies do the same)
 SINGLE_THREADED = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
@@ -144,7 +162,7 @@ class _Slot:
 
     def __init__(self, ctx):
         self.conn, child = ctx.Pipe()
-        self.process = ctx.Process(target=_worker_main, args=(child,), daemon=True)
+        self.process = ctx.Process(target=_worker_main, args=(child, os.getpid()), daemon=True)
         added = {k: v for k, v in SINGLE_THREADED.items() if k not in os.environ}
         os.environ.update(added)          # a spawned child copies the environment at start
         try:
@@ -242,8 +260,10 @@ class ProcessPool(_Backend):
         self._wake_w.send(None)
         self._thread.join(timeout=10)
         for slot in self._slots:
-            if slot.future is not None:
+            if slot.future is not None:     # closed mid-point (an interrupt): its answer is not wanted
                 slot.future.cancel() or slot.future.set_exception(RuntimeError("the process pool was closed"))
+                slot.process.terminate()    # SIGTERM: it dies at once, its supervised solvers with it
+                continue
             try:
                 slot.conn.send(None)
             except OSError:

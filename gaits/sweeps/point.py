@@ -62,7 +62,7 @@ class SweepCase:
     ``shape``: the two coordinates of the shape-loop plots (the shape variables, completed by
     the last fiber coordinate when the shape is one-dimensional, e.g. the unicycle's (θ, φ)); ``coordinates``, ``inputs``: the
     system's names; ``options``: planner options
-    (``transcription``, ``solver``, ``jit``).
+    (``transcription``, ``solver``, ``jit``, ``time_limit``: seconds per point, :func:`point_budget`).
     """
 
     scene: SceneData
@@ -285,9 +285,11 @@ WARM_IPOPT = {"mu_init": 1e-6, "bound_push": 1e-8, "bound_frac": 1e-8}
 def _solver_for(job: PointJob, *, warm: bool = False):
     """(derived model, (stated problem, problem solved), OCPSolver, plan) of ``job``, reusing
     this process's solver of the same structure (``OCPSolver.with_problem``: same NLP
-    functions, new bounds); ``warm``: the solver with :data:`WARM_IPOPT` (Ipopt only)."""
+    functions, new bounds); ``warm``: the solver with :data:`WARM_IPOPT` (Ipopt only). A new
+    solver gets the planner's time limit per attempt (:func:`~nhgait.gaits.time_limits.attempt_limited`)."""
     from nhgait.ocp import OCPSolver, SolverOptions
     from ..planner import prepare, state_problem
+    from ..time_limits import attempt_limited
     from ..task_library import resolve
     case = job.case
     resolved = resolve(_scene(case.scene), job.task)
@@ -303,6 +305,7 @@ def _solver_for(job: PointJob, *, warm: bool = False):
     solver = OCPSolver(prepared.problem, case.options.get("transcription"),
                        SolverOptions(jit=case.options.get("jit"), solver=case.options.get("solver", "ipopt"),
                                      ipopt=dict(WARM_IPOPT) if warm else {}))
+    solver = attempt_limited(solver)
     SOLVERS.get(key, lambda: (prepared.model, prepared.specialised, solver))
     return prepared.model, (prepared.stated, prepared.problem), solver, resolved
 
@@ -315,24 +318,67 @@ def prepare_worker(job: PointJob) -> bool:
     return True
 
 
+def point_budget(job: PointJob):
+    """The time budget of one point (:func:`~nhgait.gaits.time_limits.budget_for`): the sweep's
+    ``time_limit`` option (``--time-limit``), else the task's ``time_limit``, else the planner's
+    default for the robot's size."""
+    from ..time_limits import budget_for
+    return budget_for(len(job.case.coordinates), job.case.options.get("time_limit"), job.task.get("time_limit"),
+                      given_as="--time-limit per point")
+
+
 def _plan_point(job: PointJob) -> dict:
     """Warm start from the parent when there is one; else (or when it fails) the planner's own
-    guesses and continuation; then the planner's verification in momentum coordinates."""
+    guesses and continuation; then the planner's verification in momentum coordinates — all
+    within the point's budget (:func:`point_budget`): a point that runs out is a failure with
+    status ``Time_Limit_Exceeded`` and the closest point reached."""
+    from nhgait.ocp.budget import BudgetSpent
+    budget = point_budget(job)
+    reached: dict = {"start": "cold", "spent": 0}
+    try:
+        return _solve_within(job, budget, reached)
+    except BudgetSpent as exc:
+        return _out_of_time(exc.overrun, reached)
+
+
+def _solve_within(job: PointJob, budget, reached: dict) -> dict:
     from ..guesses import candidates
     from ..planner import momentum_problem, to_momentum_coordinates, warm_start
-    from ..search import solve_with_fallbacks
-    solution, start = None, "cold"
+    from ..search import solve_attempts, solve_with_fallbacks
+    solution = None
     if job.warm is not None:
-        model, (stated, problem), solver, resolved = _solver_for(job, warm=True)
-        solution = solver.solve(warm_start(job.warm, problem, f"warm start from point {job.warm_from}"))
-        start = "warm" if solution.success else "cold after warm failed"
-    spent = int(solution.iterations) if solution is not None else 0
+        with budget.stage("the derivation and the NLP set-up"):
+            model, (stated, problem), solver, resolved = _solver_for(job, warm=True)
+        guess = warm_start(job.warm, problem, f"warm start from point {job.warm_from}")
+        solution, = solve_attempts(solver, [guess], budget=budget)
+        reached.update(closest=solution, spent=int(solution.iterations),
+                       start="warm" if solution.success else "cold after warm failed")
     if solution is None or not solution.success:
-        model, (stated, problem), solver, resolved = _solver_for(job)
-        search = solve_with_fallbacks(solver, candidates(problem))
-        spent += sum(a.iterations for a in search.attempts)
-        solution = search.solution if search.solution is not None else search.closest
+        with budget.stage("the derivation and the NLP set-up"):
+            model, (stated, problem), solver, resolved = _solver_for(job)
+        with budget.stage("the solves", interrupt=False):
+            search = solve_with_fallbacks(solver, candidates(problem), budget=budget)
+            reached["spent"] += sum(a.iterations for a in search.attempts)
+            solution = search.solution if search.solution is not None else search.closest
+            reached["closest"] = solution if solution is not None else reached.get("closest")
     momentum = momentum_problem(model, stated, resolved, job.params)
-    out = _outcome(to_momentum_coordinates(solution, momentum).verified(tolerance=resolved.task.verify_tolerance),
-                   start)
-    return {**out, "warm": warm_data(out["solution"]) if out["success"] else None, "total_iterations": spent}
+    with budget.stage("verification"):
+        solution = to_momentum_coordinates(solution, momentum).verified(tolerance=resolved.task.verify_tolerance)
+    out = _outcome(solution, reached["start"])
+    return {**out, "warm": warm_data(out["solution"]) if out["success"] else None,
+            "total_iterations": reached["spent"]}
+
+
+def _out_of_time(overrun, reached: dict) -> dict:
+    """The answer of a point whose budget ran out: a failure naming the budget and the phase,
+    with the closest point reached (in the coordinates it was solved in) when there is one."""
+    closest = reached.get("closest")
+    message = " ".join(overrun.lines("--time-limit SECONDS (per point)"))
+    nan = math.nan
+    return {"success": False, "status": "Time_Limit_Exceeded", "message": message,
+            "objective": _nan(closest.objective) if closest is not None else nan,
+            "iterations": int(closest.iterations) if closest is not None else 0, "solve_time_s": nan,
+            "verification_error": nan,
+            "constraint_violation": _nan(closest.constraint_violation) if closest is not None else nan,
+            "start": reached["start"], "solution": closest.to_dict() if closest is not None else None,
+            "warm": None, "total_iterations": reached["spent"]}

@@ -1,0 +1,168 @@
+"""How ``nhgait`` stops on SIGINT and SIGTERM: at once, in any phase, leaving nothing behind.
+
+:func:`stop_signals` is the context the command line runs each subcommand in:
+
+* **SIGTERM** raises :class:`~nhgait.dynamics.errors.Terminated` (exit 143), **SIGINT**
+  KeyboardInterrupt (exit 130; left ignored when the shell started us with it ignored, as a
+  background job): they unwind like any exception, so a running C compiler is killed and its
+  files removed (:mod:`nhgait.dynamics.numerics.compiler`), supervised solver processes are killed
+  (:mod:`nhgait.ocp.supervision`), a half-written cache entry or output file is removed.
+* **A stop is remembered** (:class:`Stop`): the handler's exception can be replaced on its
+  way up — raised inside CasADi's argument conversion, SWIG's overload dispatch answers
+  "Wrong number or type of arguments" (a ``NotImplementedError``) — so the command line turns
+  any exception that follows a stop signal back into the stop (exit 130/143, not "internal
+  error").
+* **A watchdog** covers what a Python handler cannot: the main thread inside C code that does
+  not return (CasADi building a large NLP, a solver run in this process where there is no
+  fork), and a handler whose exception is swallowed because it ran where Python ignores
+  exceptions (an ``os.register_at_fork`` hook, a ``__del__``: "Exception ignored in ...").
+  Python's C-level handler writes each signal's number to a wakeup pipe
+  (``signal.set_wakeup_fd``) whatever the main thread is doing; a daemon thread reads it and,
+  if the process is still alive :data:`FORCE_AFTER_S` seconds later, writes the same message
+  and ends it with ``os._exit(128 + signal)``. A normal stop (kill the children, remove the
+  temporary files, print) takes milliseconds, so the watchdog only ever meets a process stuck
+  in C — where no temporary file is being written: every writer of one (the cache, the
+  outputs) is Python code in which the handler runs at once. Before it ends the process it
+  kills every process descended from it (Linux ``/proc``): supervised children and compilers
+  die with the main thread anyway (``PR_SET_PDEATHSIG``), but the compiler's own helpers (cc1,
+  as) would not. The one thing a forced end can leave is a compiler's build folder when the
+  signal came while the compiler was being started (its stop signals blocked, on a machine so
+  loaded that starting it took 1.5 s: 1 of 54 runs of ``experiments/stress_sigterm.py``); the
+  next build removes it once it is stale.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import threading
+from contextlib import contextmanager
+
+from nhgait.dynamics.errors import Terminated
+
+__all__ = ["stop_signals", "Stop", "exit_now", "FORCE_AFTER_S", "EXIT_STATUS", "MESSAGES"]
+
+#: how long after a stop signal the watchdog ends a process that is still running (s)
+FORCE_AFTER_S = 1.5
+#: exit status per signal (the shell's 128 + signal number)
+EXIT_STATUS = {signal.SIGINT: 130, signal.SIGTERM: 143}
+#: what ``nhgait`` says when it stops on a signal
+MESSAGES = {signal.SIGINT: "nhgait: interrupted", signal.SIGTERM: "nhgait: terminated"}
+
+
+class Stop:
+    """The stop signal received while :func:`stop_signals` was in force (``signal``: None
+    until one comes)."""
+
+    def __init__(self):
+        self.signal: int | None = None
+
+    def exception(self) -> BaseException:
+        """The exception the signal stands for: Terminated (SIGTERM) or KeyboardInterrupt."""
+        return Terminated() if self.signal == signal.SIGTERM else KeyboardInterrupt()
+
+    def handler(self, signum, frame):
+        self.signal = signum
+        raise self.exception()
+
+
+@contextmanager
+def stop_signals():
+    """SIGTERM → Terminated, SIGINT → KeyboardInterrupt, with the watchdog (module docstring);
+    yields the :class:`Stop`; everything put back on leaving. Outside the main thread nothing
+    is changed."""
+    stop = Stop()
+    if threading.current_thread() is not threading.main_thread():
+        yield stop
+        return
+    previous = _install(stop)
+    read, write = os.pipe()
+    os.set_blocking(write, False)
+    old_fd = signal.set_wakeup_fd(write, warn_on_full_buffer=False)
+    done = threading.Event()
+    threading.Thread(target=_watch, args=(read, frozenset(previous), done), name="nhgait-stop-watchdog",
+                     daemon=True).start()
+    try:
+        yield stop
+    finally:
+        done.set()                 # the stop came to its end here: nothing to force
+        signal.set_wakeup_fd(old_fd)
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        os.close(write)            # the watchdog reads the end of the pipe and leaves
+
+
+def _install(stop: Stop) -> dict:
+    """The handlers of ``stop`` for SIGTERM (always) and SIGINT (unless ignored or someone
+    else's); the previous handlers by signal."""
+    previous = {signal.SIGTERM: signal.signal(signal.SIGTERM, stop.handler)}
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        previous[signal.SIGINT] = signal.signal(signal.SIGINT, stop.handler)
+    return previous
+
+
+def _watch(read: int, ours: frozenset, done: threading.Event) -> None:
+    """The watchdog thread: the number of each signal caught arrives on the pipe ``read``;
+    ``done`` is set when :func:`stop_signals` is left."""
+    try:
+        while True:
+            data = os.read(read, 64)
+            if not data:
+                return
+            for signum in data:
+                if signum in ours and not done.wait(FORCE_AFTER_S):
+                    _force_exit(signum)
+    finally:
+        os.close(read)
+
+
+def _kill_descendants() -> None:
+    """SIGKILL every live process descended from this one (read from ``/proc``; elsewhere
+    nothing)."""
+    children: dict = {}
+    try:
+        entries = [e.name for e in os.scandir("/proc") if e.name.isdigit()]
+    except OSError:
+        return
+    for pid in entries:
+        try:
+            with open(f"/proc/{pid}/stat") as fh:
+                ppid = int(fh.read().rsplit(")", 1)[1].split()[1])
+        except (OSError, ValueError, IndexError):
+            continue
+        children.setdefault(ppid, []).append(int(pid))
+    stack, found = [os.getpid()], []
+    while stack:
+        for child in children.get(stack.pop(), ()):
+            found.append(child)
+            stack.append(child)
+    for pid in found:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except OSError:
+            continue
+
+
+def exit_now(status: int) -> int:
+    """End the process with ``status`` once a stop's cleanup is done: the ``atexit`` handlers
+    run (``weakref.finalize`` objects, multiprocessing's), the streams are flushed, and the
+    interpreter's teardown — 0.6–1 s with CasADi, SciPy and matplotlib loaded, several seconds
+    on a loaded machine, nothing of which the stop needs — is skipped."""
+    import atexit
+    try:
+        atexit._run_exitfuncs()
+        sys.stdout.flush()
+        sys.stderr.flush()
+    finally:
+        os._exit(status)
+    return status  # pragma: no cover - never reached
+
+
+def _force_exit(signum: int) -> None:  # pragma: no cover - measured by tests/test_interrupts.py
+    """End the process now: it has not stopped by itself (module docstring)."""
+    try:
+        _kill_descendants()
+        sys.stderr.write(f"{MESSAGES[signum]} (forced: still running {FORCE_AFTER_S:g} s after the signal)\n")
+        sys.stderr.flush()
+    finally:
+        os._exit(EXIT_STATUS[signum])

@@ -1,0 +1,53 @@
+"""How much time a plan, a sweep point and a solver attempt get (the rules of docs/gait-planning.md,
+"Time limits"); the budget itself and its defaults are :mod:`nhgait.ocp.budget`'s.
+
+* :func:`budget_for` — a plan's or a sweep point's :class:`~nhgait.ocp.budget.Budget`: the
+  seconds given (``--time-limit``, ``plan(time_limit=)``), else the task's ``time_limit``, else
+  :func:`~nhgait.ocp.budget.default_plan_seconds` of the robot's coordinates; ``inf``: unlimited.
+* :func:`attempt_limited` — a built solver with its default limit per attempt, from one measured
+  evaluation of its NLP functions (:func:`~nhgait.ocp.budget.default_attempt_seconds`).
+"""
+from __future__ import annotations
+
+import math
+
+__all__ = ["budget_for", "attempt_limited", "GIVEN"]
+
+#: how a budget given by the caller is named in the progress output and in failures
+GIVEN = "--time-limit / plan(time_limit=...)"
+
+
+def budget_for(n_coordinates: int, given=None, task_limit=None, *, given_as: str = GIVEN, started=None):
+    """The budget (module docstring); :class:`~nhgait.ocp.ProblemError` for a time that is not
+    a positive number of seconds."""
+    from nhgait.ocp import ProblemError
+    from nhgait.ocp.budget import PLAN_BASE_S, PLAN_PER_COORDINATE_S, Budget, default_plan_seconds
+    if given is not None:
+        seconds, source = given, given_as
+    elif task_limit is not None:
+        seconds, source = task_limit, "[task] time_limit"
+    else:
+        seconds = default_plan_seconds(n_coordinates)
+        source = f"default: {PLAN_BASE_S:g} s + {PLAN_PER_COORDINATE_S:g} s per coordinate, n = {n_coordinates}"
+    try:
+        seconds = float(seconds)
+    except (TypeError, ValueError):
+        seconds = math.nan
+    if not seconds > 0:
+        raise ProblemError([f"time_limit = {seconds if given is None else given!r} must be a positive number of "
+                            "seconds (inf: unlimited)"], title="invalid time limit")
+    return Budget(None if math.isinf(seconds) else seconds, source, **({} if started is None else {"started": started}))
+
+
+def attempt_limited(ocp, guess=None, progress=None):
+    """``ocp`` with its default time limit per attempt (:func:`~nhgait.ocp.budget.default_attempt_seconds`
+    from one measured evaluation of its NLP functions at ``guess``, None: zero within the
+    bounds), said on ``progress``."""
+    from nhgait.ocp.budget import ATTEMPT_CAP_S, ATTEMPT_FLOOR_S, EVALUATIONS_PER_ITERATION, default_attempt_seconds
+    evaluation = ocp.evaluation_seconds(guess)
+    limit = default_attempt_seconds(evaluation, ocp.options.max_iter)
+    if progress is not None:
+        progress.note(f"  each attempt at most {limit:.0f} s ({ocp.options.max_iter} iterations × "
+                      f"{EVALUATIONS_PER_ITERATION:g} evaluations of the NLP functions, {evaluation * 1e3:.1f} ms each; "
+                      f"between {ATTEMPT_FLOOR_S:g} and {ATTEMPT_CAP_S:g} s)")
+    return ocp.with_time_limit(limit)
