@@ -457,7 +457,7 @@ class OCPSolver:
         wall, fn_time, solver_time = times
         return Solution(success=success, status=status, message=message,
                         iterations=int(stats.get("iter_count", 0)), objective=objective,
-                        t=np.linspace(0.0, T, problem.intervals + 1), states=Z, controls=U,
+                        t=self.nlp.times(w), states=Z, controls=U,
                         state_names=problem.state_names, control_names=problem.control_names,
                         horizon=T, solve_time_s=wall, setup_time_s=self.setup_time_s,
                         function_time_s=fn_time, solver_time_s=solver_time,
@@ -500,7 +500,8 @@ class OCPSolver:
         states = np.asarray(guess.states, dtype=float)
         controls = np.asarray(guess.controls, dtype=float)
         problems = []
-        if states.shape != (problem.n_states, N + 1):
+        if states.shape not in ((problem.n_states, N + 1), (len(problem.model_state_names), N + 1)):
+            # the model's states alone: the integral states are completed (TranscribedNLP.complete)
             problems.append(f"guess states have shape {states.shape}, expected {(problem.n_states, N + 1)}")
         if controls.shape != (problem.n_controls, N):
             problems.append(f"guess controls have shape {controls.shape}, expected {(problem.n_controls, N)}")
