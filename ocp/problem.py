@@ -34,7 +34,7 @@ import numpy as np
 
 from nhgait.dynamics.suggestions import known_names
 
-from .statement import OCP_WORDS, FrozenMap, ProblemError, ProblemStatement, interval
+from .statement import OCP_WORDS, FrozenMap, ProblemError, ProblemStatement, instant_problems, interval
 
 __all__ = ["OptimalControlProblem", "Quantity", "ProblemError"]
 
@@ -149,7 +149,8 @@ class OptimalControlProblem(ProblemStatement):
         super().__post_init__()
         object.__setattr__(self, "quantities", FrozenMap(self.quantities))
         problems = self._bind_control_bounds() + self._bind_params()
-        problems += self.problems(OCP_WORDS, known=self.quantity_names, inputs=self.control_names)
+        model_names = [n for n in self.quantity_names if n not in self.integrals or n in self.model_state_names]
+        problems += self.problems(OCP_WORDS, known=model_names, inputs=self.control_names)
         problems += self._weight_problems() + self._quantity_problems() + self._input_quantity_problems()
         if problems:
             raise ProblemError(problems)
@@ -194,17 +195,8 @@ class OptimalControlProblem(ProblemStatement):
 
     def _input_quantity_problems(self) -> list:
         """A quantity of the inputs or accelerations is a path bound or an integrand only."""
-        places = [("initial", self.initial), ("final", self.final), ("periodic", dict.fromkeys(self.periodic))]
-        places += [(f"waypoints[{i}]", w.conditions) for i, w in enumerate(self.waypoints)]
-        for i, phase in enumerate(self.phases):
-            places += [(f"phases[{i}].final", phase.final)]
-            places += [(f"phases[{i}].waypoints[{j}]", w.conditions) for j, w in enumerate(phase.waypoints)]
-        try:
-            return [f"{where}: {name!r} depends on the inputs or accelerations: it can be bounded on the path "
-                    "(bounds) or integrated (integrals), not fixed at one instant"
-                    for where, mapping in places for name in mapping if self.uses_inputs(name)]
-        except KeyError:       # an unknown name, reported already
-            return []
+        motion = [n for n, q in self.derived_quantities.items() if q.inputs and n not in self.state_names]
+        return instant_problems(self, motion)
 
     # ------------------------------------------------------------------ names
     @property

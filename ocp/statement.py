@@ -26,7 +26,7 @@ from nhgait.dynamics.errors import ModelError
 from nhgait.dynamics.suggestions import known_names
 
 __all__ = ["ProblemStatement", "ProblemError", "Wording", "OCP_WORDS", "FrozenMap", "interval", "STATEMENT_FIELDS",
-           "MAX_INTERVALS", "Phase", "Waypoint", "NODE_TOLERANCE"]
+           "MAX_INTERVALS", "Phase", "Waypoint", "NODE_TOLERANCE", "instant_problems"]
 
 #: the statement's fields after ``model``, in order (an OptimalControlProblem's too)
 STATEMENT_FIELDS = ("horizon", "intervals", "initial", "final", "periodic", "state_bounds", "control_bounds",
@@ -250,19 +250,21 @@ def consistency_problems(statement: "ProblemStatement", words: Wording, known=No
 
 
 def integral_problems(statement: "ProblemStatement", words: Wording, known=None) -> list:
-    """An integral's name is new (not a quantity) and its integrand a known quantity; an end
-    weight names a quantity."""
+    """An integral's name is new (not one of the ``known`` quantities) and its integrand a
+    known quantity; an end weight names a quantity or an integral."""
     problems: list = []
-    base = None if known is None else [n for n in known if n not in statement.integrals]
+    base = None if known is None else list(known)
+    where = f"{_prefix(words)}{words.field('integrals')}"
     for name, integrand in statement.integrals.items():
         if base is not None and name in base:
-            problems.append(f"{words.field('integrals')}: {name!r} is a quantity already; an integral needs a new name")
+            problems.append(f"{where}: {name!r} is a quantity already; an integral needs a new name")
         if not isinstance(integrand, str):
-            problems.append(f"{words.field('integrals')}.{name}: the integrand is a quantity's name, got {integrand!r}")
+            problems.append(f"{where}.{name}: the integrand is a quantity's name, got {integrand!r}")
         else:
             problems += _unknown(integrand, base, words.unknown_quantity, f"{words.field('integrals')}.{name}")
-    for name, w in statement.end_weights.items():
-        problems += _unknown(name, known, words.unknown_quantity, words.field("end_weights"))
+    names = None if known is None else base + list(statement.integrals)
+    for name in statement.end_weights:
+        problems += _unknown(name, names, words.unknown_quantity, words.field("end_weights"))
     return problems
 
 
@@ -312,13 +314,14 @@ def phase_problems(statement: "ProblemStatement", words: "Wording", known=None, 
     and names; waypoints at nodes of a fixed horizon. Without phases, the problem's own
     waypoints (its horizon must then be fixed)."""
     problems: list = []
+    prefix = _prefix(words)
     if not statement.phases:
         return _waypoint_problems(statement.waypoints, statement.horizon, statement.intervals,
-                                  statement.free_horizon, "waypoints", known, problems)
+                                  statement.free_horizon, f"{prefix}waypoints", known, problems)
     if statement.waypoints:
-        problems.append("waypoints: with phases, each phase states its own waypoints (times from its start)")
+        problems.append(f"{prefix}waypoints: with phases, each phase states its own waypoints (times from its start)")
     for i, phase in enumerate(statement.phases):
-        where = f"phases[{i}]" + (f" ({phase.name})" if phase.name else "")
+        where = f"{prefix}phases[{i}]" + (f" ({phase.name})" if phase.name else "")
         N = phase.intervals
         if isinstance(N, bool) or not isinstance(N, numbers.Integral) or not 1 <= N <= MAX_INTERVALS:
             problems.append(f"{where}.intervals = {N!r} must be an integer from 1 to {MAX_INTERVALS}")
@@ -343,12 +346,19 @@ def phase_problems(statement: "ProblemStatement", words: "Wording", known=None, 
     return problems
 
 
+def _prefix(words: "Wording") -> str:
+    """What starts a place in ``words`` ("[task]." for a task table, "" for a problem's keywords)."""
+    return words.place.split("{field}")[0]
+
+
 def _waypoint_problems(waypoints, horizon, intervals, free_horizon, where, known, problems) -> list:
     for j, point in enumerate(waypoints):
         at = f"{where}[{j}]" + (f" ({point.name})" if point.name else "")
         for name, value in point.conditions.items():
             problems += _unknown(name, known, "{field}: unknown name {name!r}{hint}", at)
             interval(value, f"{at}[{name!r}]", problems)
+        if point.time is None:           # no time (said by the reader of the table)
+            continue
         if free_horizon is not None:
             problems.append(f"{at}: a waypoint at a given time needs a fixed horizon (a waypoint at a free time is "
                             "the end of a phase: phases = [...])")
@@ -366,6 +376,22 @@ def _waypoint_problems(waypoints, horizon, intervals, free_horizon, where, known
             problems.append(f"{at}: time {t:g} is not a node (every {h:g} s with T = {T:g}, N = {N}): the nearest "
                             f"nodes are {math.floor(k) * h:g} and {math.ceil(k) * h:g}")
     return problems
+
+
+def instant_problems(statement: "ProblemStatement", motion, prefix: str = "") -> list:
+    """A quantity of the inputs or accelerations (a name in ``motion``) is a path bound or an
+    integrand only: never a condition at one instant (an end, a waypoint, periodicity).
+    ``prefix`` starts each place ("[task]." for a task table)."""
+    motion = set(motion)
+    places = [(f"{prefix}initial", statement.initial), (f"{prefix}final", statement.final),
+              (f"{prefix}periodic", dict.fromkeys(statement.periodic))]
+    places += [(f"{prefix}waypoints[{i}]", w.conditions) for i, w in enumerate(statement.waypoints)]
+    for i, phase in enumerate(statement.phases):
+        places += [(f"{prefix}phases[{i}].final", phase.final)]
+        places += [(f"{prefix}phases[{i}].waypoints[{j}]", w.conditions) for j, w in enumerate(phase.waypoints)]
+    return [f"{where}: {name!r} depends on the inputs or accelerations: it can be bounded on the path "
+            "(bounds) or integrated (integrals), not fixed at one instant"
+            for where, mapping in places for name in mapping if name in motion]
 
 
 def waypoint_node(point: Waypoint, horizon: float, intervals: int) -> int:
@@ -457,10 +483,10 @@ class ProblemStatement:
     def problems(self, words: Wording = OCP_WORDS, known=None, inputs=None) -> list:
         """Every problem of the statement, in ``words``: its form (no model needed) and, given
         ``known`` (the quantity names) and ``inputs`` (the input names), its names."""
-        known = None if known is None else tuple(known) + tuple(self.integrals)
+        with_integrals = None if known is None else tuple(known) + tuple(self.integrals)
         return (horizon_problems(self, words) + intervals_problems(self, words) + free_horizon_problems(self, words)
-                + table_problems(self, words, known, inputs) + consistency_problems(self, words, known)
-                + phase_problems(self, words, known, inputs) + integral_problems(self, words, known))
+                + table_problems(self, words, with_integrals, inputs) + consistency_problems(self, words, with_integrals)
+                + phase_problems(self, words, with_integrals, inputs) + integral_problems(self, words, known))
 
     def statement_fields(self) -> dict:
         """The statement's fields after ``model`` (keyword arguments of a problem)."""
