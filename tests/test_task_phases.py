@@ -144,3 +144,30 @@ def test_two_phases_state_the_same_task_as_a_waypoint(scene, planned):
     result = plan(scene, phased, jit=False, max_guesses=4)
     assert result.success
     assert result.solution.objective == pytest.approx(planned.solution.objective, rel=1e-6)
+
+
+def test_the_path_guess_passes_the_stated_places_heading_along_its_legs():
+    """opty's pylons (examples/opty_pylons.toml): the first guess runs through the middles of
+    the phase ends' boxes at the phase boundaries, the car (forward along its body y axis,
+    α = π/2) heading along each leg at the leg's middle: atan2(Δy, Δx) − α, unwrapped."""
+    import math
+    from nhgait.gaits.guesses import candidates
+    from nhgait.gaits.planner import prepare
+    from nhgait.gaits.task_library import resolve
+    problem = prepare(resolve(str(Path(__file__).parents[1] / "examples" / "opty_pylons.toml"), None)).problem
+    guess = candidates(problem)[0]
+    assert guess.label == "path through the stated places"
+    q = guess.states
+    ends = [0, 140, 270, 400]
+    places = [(0.0, 0.0), (10.0, 15.0), (-5.0, 10.0), (0.0, 0.0)]
+    for k, (x, y) in zip(ends, places):
+        assert (q[0, k], q[1, k]) == pytest.approx((x, y), abs=1e-12)
+    t = problem.grid()
+    previous = 0.0
+    for j in range(3):
+        middle = 0.5 * (t[ends[j]] + t[ends[j + 1]])
+        (x0, y0), (x1, y1) = places[j], places[j + 1]
+        expected = math.atan2(y1 - y0, x1 - x0) - math.pi / 2
+        expected += 2 * math.pi * round((previous - expected) / (2 * math.pi))
+        assert float(np.interp(middle, t, q[2])) == pytest.approx(expected, abs=1e-9)
+        previous = expected
