@@ -255,7 +255,7 @@ class _Iterations(ca.Callback):
             self.last = now
             g = np.asarray(arg[ca.nlpsol_out().index("g")]).ravel()
             viol = max(np.max(self.nlp.lbg - g, initial=0.0), np.max(g - self.nlp.ubg, initial=0.0))
-            self.progress.note(f"    iteration {self.count}: objective {float(arg[1]):.6g}, "
+            self.progress.note(f"    iteration {self.count}: objective {float(arg[1]) / self.nlp.objective_scale:.6g}, "
                                f"constraint violation {viol:.2e}")
         return 0
 
@@ -535,7 +535,8 @@ class OCPSolver:
                          np.max(np.maximum(g - nlp.ubg, 0), initial=0.0),
                          np.max(np.maximum(nlp.lbx - w, 0), initial=0.0),
                          np.max(np.maximum(w - nlp.ubx, 0), initial=0.0)))
-        return w, float(out["f"]), viol, nlp.violations(g, w, tol=max(1e-6, 10 * self.options.tol))
+        objective = float(out["f"]) / nlp.objective_scale        # the NLP's f is s·J (transcription)
+        return w, objective, viol, nlp.violations(g, w, tol=max(1e-6, 10 * self.options.tol))
 
     def _verdict(self, stats: dict, error, refused: bool, violation: float) -> tuple:
         """(success, status, stats with ``solver_status``): Ipopt's return status; FATROP's

@@ -29,6 +29,7 @@ path bounds on derived quantities and the remaining periodicity conditions are r
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -96,6 +97,7 @@ class TranscribedNLP:
     structure: dict | None = None        # stage structure (N, nx, nu, ng) for FATROP
     layout: "StageLayout | None" = None  # where the mapped terms sit (shooting only)
     row_labels: tuple = ()               # the condition each row of g states (see _Builder.add_g)
+    objective_scale: float = 1.0         # f = objective_scale · J (:func:`objective_scale`)
 
     @property
     def horizon_index(self) -> int | None:
@@ -449,10 +451,35 @@ class _Builder:
         lbg = np.concatenate(self.lbg) if self.lbg else np.zeros(0)
         ubg = np.concatenate(self.ubg) if self.ubg else np.zeros(0)
         d = decisions
-        return TranscribedNLP(self.problem, transcription, d.w, f, g, d.lbx, d.ubx, lbg, ubg,
+        scale = objective_scale(self.problem)
+        return TranscribedNLP(self.problem, transcription, d.w, scale * f, g, d.lbx, d.ubx, lbg, ubg,
                               d.node_index, d.control_index, tuple(int(i) for i in d.horizon_indices),
                               assembly.kernel, assembly.guess_filler, assembly.structure, assembly.layout,
-                              tuple(self.labels))
+                              tuple(self.labels), scale)
+
+
+#: the size of objective both solvers handle well (their barrier starts at μ = 0.1)
+OBJECTIVE_REFERENCE = 1e4
+
+
+def objective_scale(problem) -> float:
+    """The factor s of the NLP's objective f = s J: min(1, OBJECTIVE_REFERENCE / J_ref), with
+    J_ref = T_max Σ_j w_j max(lo_j², hi_j²) over the bounded inputs (the effort at the bounds
+    for the longest horizon) + c_T T_max.
+
+    Ipopt's gradient-based scaling looks at the gradient at the start, which is zero for an
+    effort objective from zero inputs; an objective whose optimum is 10⁵–10⁶ (opty's parallel
+    park: forces up to 300 N for 30 s) then crawls at μ = 0.1 with tiny steps (288 Ipopt and 278
+    FATROP iterations; 37–41 with the objective scaled by any factor from 3.6e-3 to 3.6e-7).
+    Objectives that stay below the reference (every built-in gait, opty's garage) are left as
+    they are. Reported objectives are J (the solver divides by s)."""
+    T = float(problem.free_horizon[1]) if problem.free_horizon is not None else float(problem.horizon)
+    lo, hi = problem.control_bound_vectors()
+    reach = np.maximum(np.abs(lo), np.abs(hi))
+    weights = np.array([float(problem.control_weights.get(n, 1.0)) for n in problem.control_names])
+    finite = np.isfinite(reach)
+    J_ref = T * float(np.sum(weights[finite] * reach[finite] ** 2)) + float(problem.time_weight) * T
+    return 1.0 if not (J_ref > OBJECTIVE_REFERENCE and math.isfinite(J_ref)) else OBJECTIVE_REFERENCE / J_ref
 
 
 def _bounds_on(w, node_index, lo, hi, control_index, ulo, uhi, horizon_indices=(), Tbounds=None):

@@ -266,3 +266,21 @@ def _bounded_problem(particle, N, wide):
     return OptimalControlProblem(particle, 2.0, N, initial=REST, final={**REST, "x": 1.0}, quantities={"wide": wide},
                                  state_bounds={"wide": (-1.0, 1.0)}, waypoints=[Waypoint(1.0, {"y": 0.1})],
                                  integrals={"area": "x"})
+
+
+# ----------------------------------------------------------------------------- objective scale
+@pytest.mark.parametrize("method", ["shooting", "stages-fatrop"])
+def test_a_large_effort_objective_is_scaled_for_the_solver_and_reported_as_stated(particle, method):
+    """Inputs bounded by ±1000 N over 3 s: J_ref = 3 · 2 · 10⁶, the NLP's objective scaled by
+    10⁴ / J_ref; the optimum (a 30 m move, J = 1646) is the exact LQ one and is reported
+    unscaled."""
+    from nhgait.ocp.transcription import MultipleShooting, objective_scale
+    T, N = 3.0, 6
+    problem = OptimalControlProblem(particle, T, N, initial=REST, final={**REST, "x": 30.0, "y": 0.0},
+                                    control_bounds=1000.0)
+    assert objective_scale(problem) == pytest.approx(1e4 / (T * 2 * 1000.0 ** 2), rel=1e-15)
+    assert MultipleShooting().build(problem).objective_scale == objective_scale(problem)
+    sol = _solve(problem, method)
+    U, J = lq_oracle(np.full(N, T / N), _rest_to(30.0, 0.0, N))
+    _check(sol, U, J)
+    assert J > 1e3
