@@ -399,6 +399,16 @@ class _Builder:
                         for n in event.conditions if not p.is_state(n)]
         return out
 
+    def add_events_and_periodic(self, Z, periodic_g) -> None:
+        """Rows of the conditions on derived quantities at single nodes (``Z``: every node)
+        and of the periodic quantities left for g."""
+        for node in self.event_nodes():
+            for expr, a, c, label in self.event_rows(node, Z[:, node]):
+                self.add_g(expr, a, c, label)
+        for name in periodic_g:
+            f = self.qfun(name)
+            self.add_g(f(Z[:, -1]) - f(Z[:, 0]), 0.0, 0.0, f"periodic.{name}")
+
     def event_nodes(self) -> list:
         """The nodes with rows of their own (conditions on derived quantities)."""
         p = self.problem
@@ -407,6 +417,19 @@ class _Builder:
     def qfun(self, name):
         zs = ca.SX.sym("z", self.problem.n_states)
         return ca.Function(f"q_{name}", [zs], [self.problem.quantity(name, zs)])
+
+    def mapped_terms(self, stage, Z, args, free: bool) -> list:
+        """(functions, arguments, number of leading variable arguments) of the mapped terms of
+        a shooting NLP: the stage, then the path bounds on derived quantities of the state
+        (at the nodes Z) and of the inputs (with the stage's arguments)."""
+        n_var = 3 if free else 2
+        specs = [(stage, args, n_var)]
+        if self.state_paths:
+            specs.append((path_functions(self.problem, self.state_paths, inputs=False, free_horizon=free), (Z,), 1))
+        if self.input_paths:
+            specs.append((path_functions(self.problem, self.input_paths, inputs=True, free_horizon=free), args,
+                          n_var))
+        return specs
 
     def path_ranges(self) -> tuple:
         """(lo, hi) of the state path quantities (m_s × (N+1)) and of the input ones (m_u × N)."""
@@ -534,24 +557,14 @@ class MultipleShooting:
         Trow = b.schedule.horizon_row(Tvec)
         K, PH = b.interval_arguments(Trow)
         args = (Z[:, :N], U, Trow, K, PH)
-        specs = [(stage, args, 3 if free else 2)]
+        specs = b.mapped_terms(stage, Z, args, free)
         slo, shi, ulo_p, uhi_p = b.path_ranges()
-        if b.state_paths:
-            specs.append((path_functions(problem, b.state_paths, inputs=False, free_horizon=free), (Z,), 1))
-        if b.input_paths:
-            specs.append((path_functions(problem, b.input_paths, inputs=True, free_horizon=free), args,
-                          3 if free else 2))
         lo, hi, periodic_g = b.node_bounds()
 
         def g_of(Zend, *paths):
             b.reset()
             b.add_g(ca.vec(Zend - Z[:, 1:]), 0.0, 0.0, "dynamics")
-            for node in b.event_nodes():
-                for expr, a, c, label in b.event_rows(node, Z[:, node]):
-                    b.add_g(expr, a, c, label)
-            for name in periodic_g:
-                f = b.qfun(name)
-                b.add_g(f(Z[:, N]) - f(Z[:, 0]), 0.0, 0.0, f"periodic.{name}")
+            b.add_events_and_periodic(Z, periodic_g)
             for names, C, a, c in _path_blocks(b, paths, slo, shi, ulo_p, uhi_p):
                 b.add_g(ca.vec(C), a.T.ravel(), c.T.ravel(), [f"bounds.{n}" for n in names] * C.shape[1])
             return ca.vertcat(*b.g)
@@ -651,12 +664,7 @@ class Collocation:
         # interleave residuals and continuity per interval (banded Jacobian)
         b.add_g(ca.vec(ca.vertcat(R, Zend - Z[:, 1:])), 0.0, 0.0, "dynamics")
         lo, hi, periodic_g = b.node_bounds()
-        for node in b.event_nodes():
-            for expr, a, c, label in b.event_rows(node, Z[:, node]):
-                b.add_g(expr, a, c, label)
-        for name in periodic_g:
-            f = b.qfun(name)
-            b.add_g(f(Z[:, N]) - f(Z[:, 0]), 0.0, 0.0, f"periodic.{name}")
+        b.add_events_and_periodic(Z, periodic_g)
         slo, shi, ulo_p, uhi_p = b.path_ranges()
         free = b.schedule.variable_horizons
         paths = []
@@ -738,13 +746,8 @@ class StageShooting(MultipleShooting):
             Trow = sched.horizon_row(ca.DM(sched.initial_horizons()))
         K, PH = b.interval_arguments(Trow)
         args = (Z[:, :N], U, Trow, K, PH)
-        specs = [(stage, args, 3 if free else 2)]
+        specs = b.mapped_terms(stage, Z, args, free)
         slo, shi, ulo_p, uhi_p = b.path_ranges()
-        if b.state_paths:
-            specs.append((path_functions(problem, b.state_paths, inputs=False, free_horizon=free), (Z,), 1))
-        if b.input_paths:
-            specs.append((path_functions(problem, b.input_paths, inputs=True, free_horizon=free), args,
-                          3 if free else 2))
         ends = {0: [], N: []}
         if nc:
             labels = [f"periodic.{n}" for n in periodic_g]
