@@ -138,8 +138,11 @@ def explicit_ode(namespace: dict):
     specified = list(namespace["specified_symbols"])
     values = dict(namespace["par_map"])
     q, u = list(kane.q), list(kane.u)
-    M = kane.mass_matrix_full
-    F = kane.forcing_full
+    # KanesMethod with dependent speeds divides by removable factors (the three-body car's
+    # M and F by cos q0): evaluated at q0 = π/2 exactly — the garage's start — they are 3 % off
+    # (0/0 in rounding). Cancelled first, as a judge must be right wherever it is asked.
+    M = kane.mass_matrix_full.applyfunc(_cancelled)
+    F = kane.forcing_full.applyfunc(_cancelled)
     used = sorted(M.free_symbols | F.free_symbols, key=str)
     params = [s for s in used if s in values]
     t = me.dynamicsymbols._t
@@ -162,6 +165,12 @@ def explicit_ode(namespace: dict):
 
     _ = t
     return f, index, extra
+
+
+def _cancelled(expr):
+    """``expr`` over one denominator with common factors cancelled and trigonometry simplified."""
+    import sympy as sm
+    return sm.trigsimp(sm.cancel(sm.together(expr)))
 
 
 def resimulate(f, index, t, states, inputs, *, backward: bool) -> dict:
