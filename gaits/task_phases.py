@@ -11,8 +11,9 @@ Format (docs/gait-planning.md)::
     name = "corner"                      #   t N / T must be an integer (a node)
     conditions = {x = 1.0, y = [0.4, 0.6]}
 
-    [[task.phases]]                      # phases, joined continuously, solved as one NLP;
-    name = "to the pylon"                #   the task then has no horizon or intervals of its own
+    [[task.phases]]                      # phases, joined continuously, solved as one NLP; the task
+    name = "to the pylon"                #   then has no horizon of its own (intervals = N shares N
+                                         #   among the phases in proportion to theirs: a refinement)
     horizon = [1.0, 10.0]                # fixed, or free [min, max] (or {initial, min, max})
     intervals = 40
     final = {x = 10.0}                   # at the phase's end (a waypoint at a free time)
@@ -96,12 +97,27 @@ def parse_phases(data, problems, where: str = "[task]") -> tuple:
                          state_bounds=table(item, "bounds", problems, at),
                          control_bounds=_phase_controls(item, problems, at),
                          waypoints=parse_waypoints(item, problems, at), name=_name(item, at, problems)))
-    if out and ("horizon" in data or "intervals" in data):
-        problems.append(f"{where}: with phases, each phase states its own horizon and intervals (remove "
-                        f"{' and '.join(k for k in ('horizon', 'intervals') if k in data)} from {where})")
+    if out and "horizon" in data:
+        problems.append(f"{where}: with phases, each phase states its own horizon (remove horizon from {where})")
+    if out and "intervals" in data:
+        out = _spread(out, data["intervals"], where, problems)
     if out and data.get("waypoints"):
         problems.append(f"{where}.waypoints: with phases, each phase states its own waypoints (times from its start)")
     return tuple(out)
+
+
+def _spread(phases: list, total, where, problems) -> list:
+    """The phases with ``total`` intervals shared in proportion to their own (``--intervals``
+    or ``--set intervals=N`` on a task of phases: a refinement), each at least 1."""
+    from dataclasses import replace
+    if isinstance(total, bool) or not isinstance(total, int) or total < len(phases):
+        problems.append(f"{where}.intervals = {total!r}: with phases, an integer of at least one interval per "
+                        f"phase ({len(phases)}), shared in proportion to theirs")
+        return phases
+    own = [max(1, int(p.intervals)) if isinstance(p.intervals, int) else 1 for p in phases]
+    shares = [max(1, round(total * n / sum(own))) for n in own]
+    shares[-1] = max(1, total - sum(shares[:-1]))
+    return [replace(p, intervals=n) for p, n in zip(phases, shares)]
 
 
 def _phase_controls(item, problems, at) -> dict:

@@ -66,6 +66,8 @@ def test_tasks_between_the_ends_round_trip(scene):
         assert parse_task(task.to_dict()) == task
     task = _parse(scene, phased)
     assert (task.horizon, task.intervals, task.horizon_bounds) == (6.0, 60, (5.0, 8.0))
+    refined = _parse(scene, {**phased, "intervals": 150})        # shared in proportion: 30:30 → 75:75
+    assert [p.intervals for p in refined.phases] == [75, 75] and refined.intervals == 150
     assert "push" in task.names and "work" not in task.names
 
 
@@ -79,7 +81,7 @@ def test_bad_tables_between_the_ends_are_listed_together(scene):
     text = str(info.value)
     for expected in ["[task].waypoints[0]: unknown key(s) ['when']", "[task].waypoints[0]: missing key 'time'",
                      "[task].phases[0].intervals = 'ten' must be an integer",
-                     "with phases, each phase states its own horizon and intervals",
+                     "with phases, each phase states its own horizon (remove horizon from [task])",
                      "with phases, each phase states its own waypoints",
                      "[task].integrals.work: the integrand is the name of a quantity",
                      "'x' is a quantity already",
