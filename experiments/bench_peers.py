@@ -23,15 +23,16 @@ and objectives). For each task, in one run on this machine:
   transcription reads them, nhgait's piecewise constant as planned; the largest distance of the
   car's reference point from where the answer says it is (m).
 
-``--refine`` also runs each tool at 2× and 4× the nodes (opty from its previous answer, nhgait
-with ``--intervals``) and extrapolates the objective (Richardson, the observed order).
+``--refine TASKS`` also runs each tool at 2× and 4× the nodes on those tasks (opty from its
+previous answer, nhgait with ``--intervals``) and extrapolates the objective (Richardson, the
+observed order).
 
 Writes ``results.json``, ``table.csv`` and ``table.md`` into ``--out``; each run's log and
 answer under ``runs/<task>/<tool>/``. Progress on stderr.
 
 Usage: python experiments/bench_peers.py --opty-python /path/opty-venv/bin/python
        --examples /path/opty/examples-gallery [--tasks parallel_park,garage,pylons] [--out out/peers]
-       [--refine] [--skip-opty] [--opty-results DIR]
+       [--refine parallel_park,garage] [--skip-opty] [--opty-results DIR]
 """
 from __future__ import annotations
 
@@ -157,7 +158,7 @@ def bench_task(task: str, args, out: Path) -> dict:
         row["warm"]["accuracy"] = resimulate_in_opty(args.opty_python, example,
                                                      opty_trajectory(row["warm"]["solution"], kind),
                                                      out / task / "nhgait_warm")
-    if args.refine:
+    if task in args.refine.split(","):
         row["refine"] = refine(task, args, out, example, scene, nodes, row)
     return row
 
@@ -254,7 +255,7 @@ def main(argv=None) -> int:
     parser.add_argument("--examples", default="", help="the folder holding opty's gallery example files")
     parser.add_argument("--tasks", default=",".join(TASKS))
     parser.add_argument("--out", default="out/peers")
-    parser.add_argument("--refine", action="store_true")
+    parser.add_argument("--refine", default="", help="tasks also run at 2× and 4× the nodes (comma-separated)")
     parser.add_argument("--skip-opty", action="store_true", help="nhgait only")
     parser.add_argument("--opty-results", default="", help="reuse the opty runs of an earlier --out")
     args = parser.parse_args(argv)
