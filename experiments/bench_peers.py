@@ -23,9 +23,9 @@ and objectives). For each task, in one run on this machine:
   transcription reads them, nhgait's piecewise constant as planned; the largest distance of the
   car's reference point from where the answer says it is (m).
 
-``--refine TASKS`` also runs each tool at 2× and 4× the nodes on those tasks (opty from its
-previous answer, nhgait with ``--intervals``) and extrapolates the objective (Richardson, the
-observed order).
+``--refine TASKS`` also runs each tool at 2× and 4× the nodes on those tasks, each from its
+previous answer (opty through ``peer_opty_run.py --guess``, nhgait with ``--intervals`` and
+``--guess``), and extrapolates the objective (Richardson, the observed order).
 
 Writes ``results.json``, ``table.csv`` and ``table.md`` into ``--out``; each run's log and
 answer under ``runs/<task>/<tool>/``. Progress on stderr.
@@ -96,11 +96,12 @@ def resimulate_in_opty(python: str, example: Path, trajectory: dict, out: Path) 
 
 
 # ----------------------------------------------------------------------------- nhgait
-def run_nhgait(scene: Path, out: Path, cache: Path, intervals=None) -> dict:
+def run_nhgait(scene: Path, out: Path, cache: Path, intervals=None, guess=None) -> dict:
     """``nhgait plan`` as a new process with the cache ``cache``: its wall time and answer."""
     out.mkdir(parents=True, exist_ok=True)
     args = [sys.executable, "-m", "nhgait.gaits.cli.main", "plan", str(scene), "--out", str(out / "plan"),
             "--no-gif", "--quiet"] + (["--intervals", str(intervals)] if intervals else [])
+    args += ["--guess", str(guess)] if guess else []
     env = {**os.environ, "NHGAIT_CACHE_DIR": str(cache)}
     with open(out / "log.txt", "w") as log:
         t0 = time.perf_counter()
@@ -168,10 +169,12 @@ def refine(task, args, out, example, scene, nodes, row) -> dict:
     result = {"nhgait": [], "opty": []}
     N = nodes - 1
     with tempfile.TemporaryDirectory() as cache:
-        for factor in (1, 2, 4):
-            r = row["warm"] if factor == 1 else run_nhgait(scene, out / task / f"nhgait_{factor}x", Path(cache),
-                                                             intervals=N * factor)
-            result["nhgait"].append((N * factor, r.get("objective"), r.get("ok")))
+        previous = row["warm"]
+        result["nhgait"].append((N, previous.get("objective"), previous.get("ok")))
+        for factor in (2, 4):       # each from the previous answer, as opty's refinement below
+            previous = run_nhgait(scene, out / task / f"nhgait_{factor}x", Path(cache), intervals=N * factor,
+                                  guess=previous.get("solution"))
+            result["nhgait"].append((N * factor, previous.get("objective"), previous.get("ok")))
     if not args.skip_opty and not args.opty_results:
         guess = out / task / "opty" / "opty.json"
         for factor in (2, 4):
