@@ -20,7 +20,9 @@ classical gaits (snakeboard rotor:wheel frequency ratios 1:1 drive, 2:1 rotate, 
   model's own kinematics q̇ = q̇(q, y) (RK4, 4 steps per interval), so the guess moves the body
   only in allowed directions (a car parallel-parks by v = A sin ωt, φ = B sin 2ωt);
   rollouts are interleaved with the loops;
-* the last candidate is the ramps alone (no shape motion).
+* the last candidate is the ramps alone (no shape motion);
+* first of all, for a task that states places between its ends (waypoints, phase ends), the
+  path through them (:mod:`.path_guess`).
 
 Amplitudes respect the task's bounds (at most 90 % of the distance to the nearer bound).
 Configurations q(t) and their rates q̇(t) (ramps included) are mapped to the model's state
@@ -182,6 +184,9 @@ def guess_from_shape(problem, shape: ShapeGuess, coordinates: tuple) -> InitialG
     if shape.label == FITTED.label:
         from .fitted import fitted_guess
         return fitted_guess(problem, coordinates, [_ends(problem, c)[0] for c in coordinates])
+    if shape.label == PATH.label:
+        from .path_guess import path_guess
+        return path_guess(problem, coordinates, lambda name: _ends(problem, name))
     if shape.rates:
         return _rollout(problem, shape, coordinates)
     t = problem.grid()
@@ -252,6 +257,8 @@ def _rate_states(model, shape: tuple) -> tuple:
 
 #: the fitted roll-out (:mod:`.fitted`), built by :func:`guess_from_shape` like the others
 FITTED = ShapeGuess("fitted roll-out", ())
+#: the path through the places a task states between its ends (:mod:`.path_guess`)
+PATH = ShapeGuess("path through the stated places", ())
 
 
 class Candidates(Sequence):
@@ -299,4 +306,7 @@ def candidates(problem, *, shape=None) -> Candidates:
     if applies(problem):
         at = 0 if leads(problem, shape) else 1
         ordered = ordered[:at] + [FITTED] + ordered[at:]
+    from . import path_guess
+    if path_guess.applies(problem):        # a task that says where to pass: along there first
+        ordered = [PATH] + ordered
     return Candidates(problem, ordered, coords)

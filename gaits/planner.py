@@ -130,11 +130,11 @@ def known_names(model, quantities) -> tuple:
 
 def quantity_objects(model, scene):
     """The scene's named quantities as :class:`~nhgait.ocp.Quantity` objects on ``model``."""
-    from nhgait.dynamics.derivation.quantities import quantity_function
+    from nhgait.dynamics.derivation.quantities import motion_quantity_function, quantity_function
     from .task import scene_quantities
-    if not scene.quantities:
-        return {}
-    return scene_quantities(model, quantity_function(model.system, scene.quantities))
+    motion = scene.motion_quantities
+    return scene_quantities(model, quantity_function(model.system, scene.quantities) if scene.quantities else None,
+                            motion_quantity_function(model.system, motion) if motion else None)
 
 
 @dataclass(frozen=True, eq=False)
@@ -200,8 +200,8 @@ def prepare(to_plan, *, params=None, progress=None) -> Prepared:
     progress.note(f"  n = {model.system.n} coordinates, {len(model.state_names)} states, {model.form} form"
                   + (" (from the cache)" if prov is not None and prov.cache_hit else ""))
     n = len(model.system.coordinates)
-    check_names(task, known_names(model, scene.quantities), tuple(model.system.inputs),
-                n_velocities=len(model.state_names) - n)
+    check_names(task, known_names(model, scene.all_quantities), tuple(model.system.inputs),
+                n_velocities=len(model.state_names) - n, motion=tuple(scene.motion_quantities))
     bounds = {k: v for k, v in task.bounds.items() if isinstance(v, tuple)}
     ends = [q for _, q in fixed_configurations(task, tuple(model.system.coordinates))]
     velocities = task.velocities or choose_velocities(model, task.names, scene.quantities, params, bounds, ends)
@@ -500,7 +500,8 @@ def _verified(solution, to_plan, progress):
         solution = solution.verified(tolerance=to_plan.task.verify_tolerance)
     v = solution.verification
     progress.note(f"  {'passed' if v.passed else 'FAILED'}: nodes met to {v.max_error:.2e}, conditions to "
-                  f"{v.max_condition_error:.2e} (tolerance {v.tolerance:g})")
+                  f"{v.max_condition_error:.2e}; relative to each state's range {v.max_scaled_error:.2e} and "
+                  f"{v.max_scaled_condition_error:.2e} (tolerance {v.tolerance:g})")
     return solution
 
 
@@ -529,9 +530,9 @@ def to_momentum_coordinates(solution, momentum):
     if "momentum_state" not in model.numeric.functions:
         return replace(solution, problem=momentum, verification=None)
     to_p = model.numeric["momentum_state"]
-    params = solution.problem.params
-    states = np.column_stack([np.asarray(to_p(solution.states[:, k], params)).ravel()
-                              for k in range(solution.states.shape[1])])
+    params, nz = solution.problem.params, len(model.state_names)      # integral states follow z, unchanged
+    states = np.column_stack([np.concatenate([np.asarray(to_p(solution.states[:nz, k], params)).ravel(),
+                                              solution.states[nz:, k]]) for k in range(solution.states.shape[1])])
     settings = {**solution.settings, "transcribed_in": list(solution.state_names)}
     return replace(solution, states=states, state_names=momentum.state_names,
                    problem=momentum, verification=None, settings=settings)
@@ -607,8 +608,9 @@ def summary_lines(result: PlanResult) -> list:
              f"solver {s.solver_time_s * 1e3:.1f} ms); set-up {s.setup_time_s * 1e3:.1f} ms"]
     if v is not None:
         lines.append(f"  verification       {'passed' if v.passed else 'FAILED'}: max state error {v.max_error:.2e}, "
-                     f"conditions met to {v.max_condition_error:.2e} (tolerance {v.tolerance:g}; DOP853, "
-                     f"rtol {v.rtol:g})")
+                     f"conditions met to {v.max_condition_error:.2e}; relative to each state's range "
+                     f"{v.max_scaled_error:.2e}, {v.max_scaled_condition_error:.2e} (tolerance {v.tolerance:g}; "
+                     f"DOP853, rtol {v.rtol:g})")
     else:
         lines.append("  verification       not run")
     st = s.settings

@@ -124,7 +124,8 @@ def stage_jacobians(problem: OptimalControlProblem, states, controls, horizon: f
     F(z_k, u_k) is from z_{k+1} (the plan's own defects, ~0 for a converged plan)."""
     N, nz, nu = problem.intervals, problem.n_states, problem.n_controls
     st = stage_functions(ode_function(problem), N, steps=steps)
-    F, J = st.jacobian.map(N)(states[:, :N], controls, float(horizon), ca.DM(np.arange(N)).T)
+    phase = ca.DM([1.0 / N, 0.0])                                 # (ν, t0): one phase from t = 0
+    F, J = st.jacobian.map(N)(states[:, :N], controls, float(horizon), ca.DM(np.arange(N)).T, phase)
     blocks = np.stack(np.hsplit(np.asarray(J), N))                # (N, nz, nz + nu)
     gap = np.abs(np.asarray(F) - states[:, 1:]).max(axis=0)
     return blocks[:, :, :nz], blocks[:, :, nz:], gap

@@ -250,7 +250,7 @@ class _Iterations(ca.Callback):
             self.last = now
             g = np.asarray(arg[ca.nlpsol_out().index("g")]).ravel()
             viol = max(np.max(self.nlp.lbg - g, initial=0.0), np.max(g - self.nlp.ubg, initial=0.0))
-            self.progress.note(f"    iteration {self.count}: objective {float(arg[1]):.6g}, "
+            self.progress.note(f"    iteration {self.count}: objective {float(arg[1]) / self.nlp.objective_scale:.6g}, "
                                f"constraint violation {viol:.2e}")
         return 0
 
@@ -450,7 +450,7 @@ class OCPSolver:
         wall, fn_time, solver_time = times
         return Solution(success=success, status=status, message=message,
                         iterations=int(stats.get("iter_count", 0)), objective=objective,
-                        t=np.linspace(0.0, T, problem.intervals + 1), states=Z, controls=U,
+                        t=self.nlp.times(w), states=Z, controls=U,
                         state_names=problem.state_names, control_names=problem.control_names,
                         horizon=T, solve_time_s=wall, setup_time_s=self.setup_time_s,
                         function_time_s=fn_time, solver_time_s=solver_time,
@@ -493,7 +493,8 @@ class OCPSolver:
         states = np.asarray(guess.states, dtype=float)
         controls = np.asarray(guess.controls, dtype=float)
         problems = []
-        if states.shape != (problem.n_states, N + 1):
+        if states.shape not in ((problem.n_states, N + 1), (len(problem.model_state_names), N + 1)):
+            # the model's states alone: the integral states are completed (TranscribedNLP.complete)
             problems.append(f"guess states have shape {states.shape}, expected {(problem.n_states, N + 1)}")
         if controls.shape != (problem.n_controls, N):
             problems.append(f"guess controls have shape {controls.shape}, expected {(problem.n_controls, N)}")
@@ -527,7 +528,8 @@ class OCPSolver:
                          np.max(np.maximum(g - nlp.ubg, 0), initial=0.0),
                          np.max(np.maximum(nlp.lbx - w, 0), initial=0.0),
                          np.max(np.maximum(w - nlp.ubx, 0), initial=0.0)))
-        return w, float(out["f"]), viol, nlp.violations(g, w, tol=max(1e-6, 10 * self.options.tol))
+        objective = float(out["f"]) / nlp.objective_scale        # the NLP's f is s·J (transcription)
+        return w, objective, viol, nlp.violations(g, w, tol=max(1e-6, 10 * self.options.tol))
 
     def _verdict(self, stats: dict, error, refused: bool, violation: float) -> tuple:
         """(success, status, stats with ``solver_status``): Ipopt's return status; FATROP's

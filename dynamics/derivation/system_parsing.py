@@ -509,6 +509,11 @@ def _frames(statement, coord_names: list, problems: list) -> tuple:
         frame = tuple(names_of(frame, "planar_frame", problems))
         if len(frame) != 3 or any(c not in coord_names for c in frame):
             problems.append(f"planar_frame: need three coordinate names (x, y, heading), got {frame}")
+    forward = getattr(statement, "forward", "x")
+    if forward not in ("x", "y", "-x", "-y"):
+        problems.append(f"forward: the body axis that points forward is \"x\", \"y\", \"-x\" or \"-y\", got {forward!r}")
+    elif forward != "x" and frame is None:
+        problems.append(f"forward = {forward!r} needs a planar frame (planar_frame = [x, y, heading])")
     return fiber, frame
 
 

@@ -86,7 +86,8 @@ def velocity_rows(system, names, quantities=None):
             row[coords.index(name[:-4])] = sp.S.One
         elif name in BODY_VELOCITIES and planar_frame(system):
             ix, iy, ih = (coords.index(c) for c in planar_frame(system))
-            expr = body_velocity(name, qd[ix], qd[iy], q[ih], sp.cos, sp.sin)
+            expr = body_velocity(name, qd[ix], qd[iy], q[ih] + getattr(system, "forward_angle", 0),
+                                 sp.cos, sp.sin)
             row = [sp.diff(expr, v) for v in qd]
         elif name in quantities:
             expr = sp.expand(quantities[name])
