@@ -29,13 +29,14 @@ TASK = {
     "name": "park-via", "horizon": 6.0, "intervals": 60,
     "initial": {"x": 0.0, "y": 0.0, "theta": 0.0, "phi": 0.0, "forward_velocity": 0.0, "phi_dot": 0.0},
     "final": {"x": 0.0, "y": 0.5, "theta": 0.0, "phi": 0.0, "forward_velocity": 0.0, "phi_dot": 0.0},
-    "bounds": {"phi": [-0.7, 0.7], "accel": [-1.0, 1.0]},
+    "bounds": {"phi": [-0.7, 0.7], "accel": [-0.5, 0.5]},
     "control_bounds": {"F": [-5.0, 5.0], "tau_phi": [-1.0, 1.0]},
     "integrals": {"work": "push"},
     "waypoints": [{"time": 3.0, "name": "mid", "conditions": {"x": [0.3, 10.0]}}],
     "verify_tolerance": 1e-4,
 }
-BOUND = 1.0
+#: below the 0.64 m/s² the task reaches without the bound, so that the bound shapes the answer
+BOUND = 0.5
 
 
 @pytest.fixture(scope="module")
