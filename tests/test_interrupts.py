@@ -49,8 +49,9 @@ needs_cc = pytest.mark.skipif(REAL_CC is None, reason="no C compiler")
 
 #: a C source that compiles in a few milliseconds
 SOURCE = "int nhgait_answer(void) { return 42; }\n"
-#: a plan whose NLP compiles in about a second (0.2 MB of C)
-PLAN = ["plan", "unicycle", "--gait", "parallel-park", "--intervals", "10", "--no-gif"]
+#: a plan whose NLP compiles in about a second (0.2 MB of C), in the foreground (--jit without a
+#: fast compiler: the optimised build now)
+PLAN = ["plan", "unicycle", "--gait", "parallel-park", "--intervals", "10", "--no-gif", "--jit"]
 #: the nhgait command line with Ctrl-C raising KeyboardInterrupt, as in a terminal (a test
 #: runner may have started us with SIGINT ignored, which a child would inherit)
 LAUNCHER = ("import signal, sys\n"
@@ -184,6 +185,7 @@ def slow_cc(tmp_path, monkeypatch, cache) -> SlowCompiler:
         "wait $compiler\n")
     compiler.script.chmod(0o700)
     monkeypatch.setenv("NHGAIT_CC", str(compiler.script))
+    monkeypatch.setenv("NHGAIT_FAST_CC", "/nonexistent/tcc")     # the plan compiles with the wrapper (--jit)
     monkeypatch.delenv("CC", raising=False)
     return compiler
 
