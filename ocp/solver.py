@@ -249,6 +249,7 @@ class OCPSolver:
         self.compile_report = None
         if self.options.jit is None and compiler_command() is None and fast_compiler() is None:
             self.jit_fallback = NO_COMPILER
+            self.progress.note_once("no-compiler", f"{NO_COMPILER}: the NLP functions run interpreted")
         elif self.options.jit is not False:
             self.solver = self._jit_solver()
         if not self.compiled:

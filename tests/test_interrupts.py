@@ -71,6 +71,8 @@ ENDLESS = ("import signal, sys\n"
            "sys.exit(main())\n")
 #: a plan whose attempts run in supervised children (FATROP first: the snakeboard's ODE is small)
 PLAN_SOLVES = ["plan", "snakeboard", "--gait", "forward", "--no-jit", "--no-gif"]
+#: a plan whose optimised build runs in the background (no --jit: it solves interpreted or fast)
+PLAN_BACKGROUND = ["plan", "unicycle", "--gait", "parallel-park", "--intervals", "10", "--no-gif", "--solver", "ipopt"]
 #: what a run that exits cleanly needs after the signal (seconds)
 EXIT_S = 15.0
 #: how soon a plan must end after SIGINT/SIGTERM whatever it is doing (issue 24)
@@ -267,6 +269,34 @@ def _when_solving(proc: subprocess.Popen, children: int) -> list[Proc]:
     except BaseException:
         _kill_session(proc.pid)
         raise
+
+
+@needs_cc
+@pytest.mark.parametrize("signame, status, to_group, said", SIGNALS)
+def test_plan_stopped_while_its_background_build_compiles_leaves_nothing(
+        slow_cc, cache, tmp_path, monkeypatch, signame, status, to_group, said):
+    """The plan solves (its attempts endless) while its optimised build compiles in the
+    background, in a builder of another session (issue 25): SIGTERM or Ctrl-C to the plan ends
+    the builder and the compiler's whole process group too, and leaves no build folder (the
+    plan itself ran interpreted: no fast compiler here, nothing else in the jit folder)."""
+    monkeypatch.setenv("NHGAIT_BACKGROUND_BUILDS", "1")
+    slow_cc.slow(True)
+    proc = _start(PLAN_BACKGROUND, tmp_path, ENDLESS)
+    try:
+        group = _wait_until(lambda: slow_cc.group("cc1", "sleep"), 120.0, "the background gcc to compile")
+        _when_solving(proc, 2)                          # the builder and one attempt
+    except BaseException:
+        _kill_session(proc.pid)
+        raise
+    wrapper = next(p for p in group if p.pid == p.pgrp)
+    builder = next(p for p in _processes() if p.pid == wrapper.ppid)
+    assert builder.ppid == proc.pid and builder.session == builder.pid != proc.pid     # detached
+    assert _signal_and_wait(proc, signame, to_group) == status
+    assert f"nhgait: {said}" in (tmp_path / "stderr.txt").read_text()
+    _assert_no_process_left(proc.pid)
+    _assert_no_process_left(builder.session)            # the builder
+    assert not _live(pgrp=wrapper.pgrp)                 # the wrapper, gcc, cc1, its sleep
+    assert sorted(p.name for p in (cache / "jit").iterdir()) == []
 
 
 STOPS = [pytest.param("SIGTERM", 143, False, "terminated", id="SIGTERM"),

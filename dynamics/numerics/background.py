@@ -238,7 +238,8 @@ def main(argv=None) -> int:
     signal.signal(signal.SIGTERM, stop)
     signal.signal(signal.SIGINT, stop)
     signal.signal(signal.SIGHUP, signal.SIG_IGN)
-    try:
+    try:          # started with the stop signals blocked (:func:`_spawn`): a pending one raises here
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
         source = sys.stdin.read()
         if hashlib.sha256(source.encode()).hexdigest() != job["sha256"]:
             return 1                                   # a truncated hand-over: nothing to build
