@@ -199,12 +199,14 @@ def _failure(directory: Path, key: str) -> str | None:
         return None
 
 
-def wait_for_build(key: str, pid: int | None, timeout: float, *, poll: float = 0.2) -> bool:
-    """Wait until the library ``key`` is in the cache or the builder ``pid`` is gone (True),
-    or ``timeout`` seconds passed (False) — for a process that did not start the builder (a
-    benchmark waiting for the build a finished ``nhgait plan`` started)."""
+def wait_for_build(key: str, pid: int | None, timeout: float, *, directory: Path | None = None,
+                   poll: float = 0.2) -> bool:
+    """Wait until the library ``key`` is in the cache's ``jit/`` folder ``directory`` (None: this
+    process's) or the builder ``pid`` is gone (True), or ``timeout`` seconds passed (False) —
+    for a process that did not start the builder (a benchmark waiting for the build a finished
+    ``nhgait plan`` started)."""
     deadline = time.monotonic() + timeout
-    directory = library_dir()
+    directory = library_dir() if directory is None else Path(directory)
     while time.monotonic() < deadline:
         if directory is not None and (directory / f"{key}.json").exists():
             return True
