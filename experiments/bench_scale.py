@@ -56,12 +56,13 @@ def cold(member: str, folder: Path, cache: Path, timeout: float, extra: tuple = 
 @dataclasses.dataclass(frozen=True)
 class Settings:
     """How the planner's NLP is solved: ``solver`` and ``hessian`` (SolverOptions), ``intervals``
-    (None: the task's) and ``jit`` (None: the solver's default)."""
+    (None: the task's) and ``jit`` ("optimised": the optimised library, built now if the cold run's
+    background build did not finish; False: interpreted)."""
 
     solver: str = "ipopt"
     hessian: str = "exact"
     intervals: int | None = None
-    jit: bool | None = None
+    jit: bool | str | None = "optimised"
 
 
 class Ours:
@@ -133,7 +134,7 @@ def interleaved(runners, repeats) -> list:
 def warm(row: dict, repeats: int, reference: bool, hessians: bool, intervals=None, jit=True) -> dict:
     """The warm-cache solves of one member (module docstring)."""
     member = row["member"]
-    cold = Settings(row.get("solver") or "ipopt", row.get("hessian") or "exact", intervals, None if jit else False)
+    cold = Settings(row.get("solver") or "ipopt", row.get("hessian") or "exact", intervals, "optimised" if jit else False)
     runners = {"ours": Ours(member, row.get("guess"), cold)}
     if reference:
         runners["reference"] = Reference(member, intervals, jit)

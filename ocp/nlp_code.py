@@ -15,7 +15,8 @@ one C file by :class:`~.solver.OCPSolver`; :func:`choose_code` decides what runs
    cached like any library; without one, the functions run **interpreted** (one line says
    so) — measured slower than the fast compiler's code at every size of the scale benchmark
    (the 6-link snake: 33 s against 8.6 s per solve), so a fast compiler present is always used.
-   ``jit=True`` without a fast compiler builds the optimised library now, in the foreground.
+   ``jit=True`` without a fast compiler builds the optimised library now, in the foreground;
+   ``jit="optimised"`` always does (benchmarks, and users who want the fastest code at once).
 3. **The optimised build for later**, when the optimised library was not in the cache: started
    in the background (:mod:`~nhgait.dynamics.numerics.background`: detached, nice 19, one
    compiler at a time, memory-bounded, finished atomically into the cache) — the plan never
@@ -122,7 +123,10 @@ def choose_code(source: str, options, progress, *, salt: str) -> NlpCode:
             progress.note(f"  optimised library ({optimiser} {' '.join(flags)}) from the cache")
             return NlpCode(found, CompileReport(size, flags, 0.0, estimate, True, reason, str(found.path),
                                                 "optimised", optimiser))
-    lib, kind, compiler, fallback = _ready_now(source, options, progress, salt, (flags, estimate, command))
+    if options.jit == "optimised" and flags is not None and command is not None:
+        lib, kind, compiler, fallback = _optimised_now(source, progress, salt, (flags, estimate, command))
+    else:
+        lib, kind, compiler, fallback = _ready_now(source, options, progress, salt, (flags, estimate, command))
     later = None
     if kind != "optimised":
         later = (start_build(source, flags=flags, salt=salt) if flags is not None else
@@ -154,12 +158,19 @@ def _ready_now(source, options, progress, salt, optimised) -> tuple:
     else:
         progress.note_once("fast-compiler", MISSING)
     if options.jit is True and flags is not None and command is not None:
-        label = f"compile {mb:.2f} MB of C with {' '.join(flags)}"
-        progress.note(f"{label} (about {estimate:.0f} s unless cached) …")
-        try:
-            lib = build_library(source, flags=flags, salt=salt, progress=progress, label=label)
-        except CompilerUnavailable as exc:
-            return None, "interpreted", "", str(exc)
-        progress.note(f"  compiled in {lib.compile_s:.1f} s (cached for the next run)")
-        return lib, "optimised", Path(command[0]).name, None
+        return _optimised_now(source, progress, salt, optimised)
     return None, "interpreted", "", failed or (MISSING if command is not None else NO_COMPILER)
+
+
+def _optimised_now(source, progress, salt, optimised) -> tuple:
+    """(library or None, code, compiler name, fallback reason): the optimised library built now,
+    in the foreground (``jit="optimised"``, or ``jit=True`` without a fast compiler)."""
+    flags, estimate, command = optimised
+    label = f"compile {len(source) / 1e6:.2f} MB of C with {' '.join(flags)}"
+    progress.note(f"{label} (about {estimate:.0f} s unless cached) …")
+    try:
+        lib = build_library(source, flags=flags, salt=salt, progress=progress, label=label)
+    except CompilerUnavailable as exc:
+        return None, "interpreted", "", str(exc)
+    progress.note(f"  compiled in {lib.compile_s:.1f} s (cached for the next run)")
+    return lib, "optimised", Path(command[0]).name, None

@@ -74,7 +74,9 @@ class SolverOptions:
     """Solver settings.
 
     ``solver``: "ipopt" or "fatrop"; ``hessian``: one of :data:`HESSIANS`; ``jit``: compile
-    the NLP functions (None: when a C compiler is found); ``jit_flags``: compiler flags (None:
+    the NLP functions (None: when a C compiler is found, never waiting for the optimising one;
+    "optimised": the optimised library now, built in the foreground if not cached;
+    :mod:`.nlp_code`); ``jit_flags``: compiler flags (None:
     chosen by ``budget`` from the C size); ``expand``: None = SX for inline stages when
     interpreted; ``ipopt``/``fatrop``: extra options; ``time_limit``: seconds of wall time per
     solve (None: unbounded) — Ipopt's ``max_wall_time`` and a deadline in its iteration
@@ -86,7 +88,7 @@ class SolverOptions:
     max_iter: int = 3000
     tol: float = 1e-8
     hessian: str = "exact"
-    jit: bool | None = None
+    jit: bool | str | None = None
     jit_flags: tuple | None = None
     expand: bool | None = None
     print_level: int = 0
@@ -99,6 +101,8 @@ class SolverOptions:
 
     def __post_init__(self):
         problems = []
+        if self.jit not in (None, True, False, "optimised"):
+            problems.append(f"jit must be None, True, False or 'optimised', got {self.jit!r}")
         if self.time_limit is not None and not (float(self.time_limit) > 0):
             problems.append(f"time_limit must be a positive number of seconds, got {self.time_limit!r}")
         if self.solver not in SOLVERS:
