@@ -14,6 +14,9 @@ signal when it saw the pool's two workers; their two half-second solves had ofte
 then, and the plan had gone on to verify and write its figures: the exit 0 was a plan that had
 ended before the signal, not a lost signal.)
 
+A plan stopped while its optimised build runs in the background (issue 25) ends that build
+too: no builder, no compiler, no build folder.
+
 The compiler is a wrapper script (``$NHGAIT_CC``) that runs the real compiler as its child
 and, while ``<tmp>/slow`` exists, sleeps 30 s before waiting for it: the tests control the
 timing and never need a long compile. Processes are read from /proc. Each ``nhgait`` run is
