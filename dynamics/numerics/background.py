@@ -21,9 +21,11 @@ standard input, an unlinked temporary file) is:
 * **Stopped with the plan that is stopped.** ``nhgait`` stopped by SIGINT/SIGTERM cancels the
   builders it started (:meth:`Builders.cancel`: SIGTERM; the builder kills its compiler's process
   group and removes its folder — nothing is left); a forced end (the CLI's watchdog) kills them
-  with every descendant; a builder killed by SIGKILL takes its compiler with it
-  (``PR_SET_PDEATHSIG``) and the next build removes its folder (its process is gone). A plan
-  called from Python and interrupted leaves its builder to finish (into the cache, atomically).
+  with every descendant. A builder killed by SIGKILL from outside takes gcc with it
+  (``PR_SET_PDEATHSIG``), but gcc's own ``cc1`` may finish its file first (it writes only into
+  the build folder, which the next build removes: its process is gone) — as for a foreground
+  compile. A plan called from Python and interrupted leaves its builder to finish (into the
+  cache, atomically).
 * **Modest.** ``nice`` 19 (the plan and other work come first; on two cores it takes the
   second), one compiler process at a time per cache directory (the builders of one cache take
   an exclusive ``flock`` of its ``jit/`` folder in turn; one that finds its library built
