@@ -170,3 +170,21 @@ def test_fast_compiler_library_agrees_with_casadi_virtual_machine(cold):
     for point in rng.uniform(-2.0, 2.0, size=(20, 4)):
         for a, b in zip(compiled(point), f(point), strict=True):
             np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-13, atol=1e-13)
+
+
+def test_compiled_fast_agrees_and_falls_back_to_the_function_itself(cold, monkeypatch):
+    """:func:`compiled_fast` (the fitted roll-out's residual): the fast compiler's code against
+    the interpreted MX function, to 1e-13; without a fast compiler, the function itself."""
+    from nhgait.dynamics.numerics.fast_compiler import compiled_fast
+    q, c = ca.MX.sym("q", 2), ca.MX.sym("c", 3)
+    step = ca.Function("step", [q, c], [q + 0.1 * ca.vertcat(ca.cos(q[1]) * c[0], ca.sin(q[0]) * c[1] + c[2])])
+    r = step.mapaccum(20)(q, ca.repmat(c, 1, 20))[:, -1]
+    f = ca.Function("r", [q, c], [r, ca.jacobian(r, c)])
+    point = ([0.3, -0.2], [1.0, 0.5, -0.25])
+    if fast_compiler() is not None:
+        g = compiled_fast(f, salt="test")
+        assert g.class_name() == "External"
+        for a, b in zip(g(*point), f(*point), strict=True):
+            np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-13, atol=1e-13)
+    monkeypatch.setenv("NHGAIT_FAST_CC", "/nonexistent/tcc")
+    assert compiled_fast(f, salt="test") is f

