@@ -215,10 +215,28 @@ def prepare(to_plan, *, params=None, progress=None) -> Prepared:
 
 
 # ----------------------------------------------------------------------------- warm start
+#: the largest solution.json read (bytes; the largest plans, with their feedback gains, write a
+#: few MB)
+MAX_SOLUTION_BYTES = 64 * 1024 * 1024
+
+
 def read_solution(path) -> dict:
-    """The content of a ``solution.json`` written by :func:`plan` (a dict)."""
+    """The content of a ``solution.json`` written by :func:`plan` (a dict), read as data
+    (:func:`~nhgait.dynamics.derivation.textfiles.read_text_file`); a file that is not one is
+    a :class:`~nhgait.dynamics.errors.ModelError` naming it."""
     import json
-    return json.loads(Path(path).read_text())
+    from nhgait.dynamics.derivation.textfiles import read_text_file
+    from nhgait.dynamics.errors import ModelError
+    title = "cannot read the solution"
+    text = read_text_file(path, "solution file", limit=MAX_SOLUTION_BYTES, title=title)
+    try:
+        data = json.loads(text)
+    except (ValueError, RecursionError) as exc:
+        raise ModelError([f"solution file {path} is not JSON ({exc})"], title=title) from None
+    if not isinstance(data, dict):
+        raise ModelError([f"solution file {path} holds a JSON {type(data).__name__}, not the object nhgait plan "
+                          "writes"], title=title)
+    return data
 
 
 def _trajectory_of(previous) -> tuple:
@@ -365,7 +383,8 @@ class _Reached:
 
 
 def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, verify, progress) -> None:
-    """Steps 2–5 of the module docstring, each within ``budget``, recorded in ``reached``."""
+    """Steps 2–5 of the module docstring and the feedback along a converged plan, each within
+    ``budget``, recorded in ``reached``."""
     from nhgait.ocp import ProblemError
     from .guesses import candidates
     from .reachability import unreachable_targets
@@ -395,6 +414,11 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
         with budget.stage("verification"):
             reached.solution = _verified(reached.solution, to_plan, progress)
         reached.timings["verify_s"] = time.perf_counter() - t0
+    if search.solution is not None:                                          # issue 28
+        t0 = time.perf_counter()
+        with budget.stage("the feedback and stability"):
+            reached.solution = replace(reached.solution, **_feedback_and_stability(search, progress))
+        reached.timings["feedback_s"] = time.perf_counter() - t0
 
 
 def _result(to_plan, reached: _Reached, settings, params) -> PlanResult:
@@ -481,6 +505,16 @@ def _verified(solution, to_plan, progress):
     return solution
 
 
+def _feedback_and_stability(search, progress) -> dict:
+    """The time-varying LQR along a converged plan in its own (velocity) coordinates
+    (:mod:`nhgait.ocp.feedback`) and, for a periodic plan, the Floquet multipliers of the open and
+    the closed loop (:mod:`nhgait.ocp.floquet`); {} for a failed plan."""
+    if search.solution is None:
+        return {}
+    from .plan_feedback import feedback_and_stability
+    return feedback_and_stability(search.solution, progress)
+
+
 def momentum_problem(model, problem, to_plan, params):
     """The same statement on the derived (momentum-coordinate, unspecialised) model."""
     return problem.replace(model=model, quantities=quantity_objects(model, to_plan.scene), params=params)
@@ -532,19 +566,13 @@ def write_outputs(result: PlanResult, out: Path, *, animate: bool = True, progre
     """solution.json (with ``task``, ``guess``, ``success`` and ``diagnosis``) and the figures;
     a failed plan's figures are titled FAILED and it gets no animation; a plan whose time budget
     ran out gets solution.json only (nothing without a point). Each file is written whole or
-    not at all: into a staging folder in ``out`` (removed whatever happens), then moved into
-    place. Returns the paths."""
-    import tempfile
+    not at all (:func:`nhgait.gaits.outputs.staged`). Returns the paths."""
     from nhgait.dynamics.progress import Progress
+    from .outputs import staged
     progress = progress or Progress.silent()
     if result.solution is None:
         return []
-    out.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=out, prefix=".writing-") as staging:
-        staged = _write_files(result, Path(staging), animate=animate, progress=progress)
-        for path in staged:
-            os.replace(path, out / path.name)
-    return [out / path.name for path in staged]
+    return staged(out, lambda folder: _write_files(result, folder, animate=animate, progress=progress))
 
 
 def _write_files(result: PlanResult, out: Path, *, animate: bool, progress) -> list:
@@ -589,6 +617,12 @@ def summary_lines(result: PlanResult) -> list:
                  f"{st.get('solver')}, {st.get('hessian', 'exact')} Hessian, {_compiled_text(st)}, "
                  f"states ({', '.join(st.get('transcribed_in', s.state_names))})")
     lines += [f"  conditions         {line}" for line in (result.conditions.lines() if result.conditions else ())]
+    if s.feedback is not None:                                               # issue 28
+        lines.append(f"  feedback           time-varying LQR, {s.feedback.gains.shape[0]} gains "
+                     f"{s.feedback.gains.shape[1]}×{s.feedback.gains.shape[2]} in solution.json; nhgait track "
+                     "applies it to a robot that differs")
+    if s.stability is not None:
+        lines += [f"  stability          {line}" for line in s.stability.summary()]
     symmetry = getattr(result.model, "symmetry", None)
     if symmetry is not None:
         lines.append(f"  symmetry           {symmetry.chosen.group} moves the fibre ({', '.join(result.model.fiber)}); "

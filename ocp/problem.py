@@ -36,7 +36,7 @@ from nhgait.dynamics.suggestions import known_names
 
 from .statement import OCP_WORDS, FrozenMap, ProblemError, ProblemStatement, interval
 
-__all__ = ["OptimalControlProblem", "Quantity", "ProblemError"]
+__all__ = ["OptimalControlProblem", "Quantity", "ProblemError", "model_coordinates"]
 
 
 @dataclass(frozen=True)
@@ -58,7 +58,8 @@ def _require_model(model) -> None:
         raise ProblemError([f"model has no attribute {attr!r} (expected a derived ReducedODE)" for attr in missing])
 
 
-def _coordinates(model) -> tuple:
+def model_coordinates(model) -> tuple:
+    """The coordinate names of ``model``: its system's, else the first ``numeric.n_coordinates`` states."""
     system = getattr(model, "system", None)
     coords = getattr(system, "coordinates", None)
     if coords is None:  # fall back to the q-part of the state names
@@ -72,7 +73,7 @@ def builtin_quantities(model) -> dict:
     (``system.planar_frame``), the body velocities of
     :func:`nhgait.dynamics.numerics.specialisation.body_velocity` (the one definition)."""
     from nhgait.dynamics.numerics.specialisation import BODY_VELOCITIES, body_velocity
-    coords = _coordinates(model)
+    coords = model_coordinates(model)
     qdot = model.numeric["qdot"]
     out = {}
     for i, c in enumerate(coords):
@@ -99,7 +100,7 @@ def holonomic_quantities(model) -> dict:
     numeric = model.numeric
     if "holonomic" not in getattr(numeric, "functions", {}):
         return {}
-    h, n = numeric["holonomic"], len(_coordinates(model))
+    h, n = numeric["holonomic"], len(model_coordinates(model))
     return {f"holonomic{i + 1}": Quantity(f"holonomic{i + 1}", lambda z, params, i=i: h(z[:n], params)[i],
                                           f"holonomic constraint {i + 1}: h(q), zero on the constraint surface")
             for i in range(h.size1_out(0))}

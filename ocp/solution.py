@@ -173,6 +173,10 @@ class Solution:
     constraint_violation: float = math.nan
     verification: Verification | None = None
     violations: dict = field(default_factory=dict)
+    #: the time-varying LQR along the plan (:class:`~nhgait.ocp.feedback.Feedback`), or None
+    feedback: Any = field(default=None, repr=False)
+    #: Floquet multipliers of a periodic plan (:class:`~nhgait.ocp.floquet.Stability`), or None
+    stability: Any = field(default=None, repr=False)
 
     def __repr__(self) -> str:
         from nhgait.dynamics.reprs import solution_repr
@@ -261,6 +265,8 @@ class Solution:
                 "passed": v.passed, "failures": v.failures(),
                 "condition_errors": v.condition_errors, "max_condition_error": v.max_condition_error},
             "settings": self.settings,
+            "feedback": None if self.feedback is None else self.feedback.to_dict(),
+            "stability": None if self.stability is None else self.stability.to_dict(),
             "problem": self.problem.describe() if self.problem is not None else None,
             "trajectory": self._trajectory(),
         })

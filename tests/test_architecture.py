@@ -26,7 +26,7 @@ LAYERS = (
     ("nhgait.dynamics.simulation", "nhgait.dynamics.linearisation"),
     ("nhgait.ocp",),
     ("nhgait.gaits",),
-    ("nhgait.gaits.sweeps", "nhgait.gaits.bench"),
+    ("nhgait.gaits.sweeps", "nhgait.gaits.bench", "nhgait.gaits.tracking"),
     ("nhgait.gaits.cli",),
 )
 

@@ -50,3 +50,13 @@ def test_bench_bicycle_smoke(tmp_path, capsys):
     assert data["weave_error"] < 1e-10 and data["capsize_error"] < 1e-10
     assert (tmp_path / "eigenvalues.png").stat().st_size > 10_000
     assert "linearise_median_s" in capsys.readouterr().out
+
+
+def test_bench_tracking_smoke(tmp_path, capsys):
+    bench = _load("bench_tracking")
+    out = tmp_path / "tracking.json"
+    assert bench.main(["--quick", "--out", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert data["snakeboard"]["ratio"] < 0.2 and data["six_coordinates"]["samples"] == 8
+    assert data["floquet"]["closed_loop"]["max_multiplier_difference"] < 1e-6
+    assert "Floquet (snakeboard forward gait)" in capsys.readouterr().out

@@ -22,9 +22,12 @@ velocity part of x (∂²E/∂v², column-major) and S = ω M⁻¹ ωᵀ (DAE fo
 crossing); ``qdot(y, p) → q̇``. ``t_c`` is t clamped to the current interval
 [a, b) (see :func:`~.simulation.simulate`): the controller *and* the model's time-dependent
 forces are evaluated at t_c, so a jump at a breakpoint b is seen from the left up to b and from
-the right after it, however the integrator places its stages. ``p = (params, u₀, u₁, t_a)`` for an
-open-loop input integrated by segments (u = u₀ + u₁(t_c − t_a) on a segment), else ``params``.
-``u`` is an explicit input only for a controller without a CasADi form.
+the right after it, however the integrator places its stages. ``p = (params, d)`` for a
+controller integrated by segments — one that states its law as ``casadi_segment(t, q, q̇, d)``
+with ``d = segment_data(a)`` the numbers of the segment starting at a (an open-loop input:
+d = (u₀, u₁, t_a), u = u₀ + u₁(t_c − t_a); a gain schedule: its gains and reference) —, else
+``params``: one compiled loop serves every value of d. ``u`` is an explicit input only for a
+controller without a CasADi form.
 
 ẋ, λ, g, s and S come from the formulation's protocol
 (:meth:`~nhgait.dynamics.derivation.formulation_protocol.FormulationProtocol.loop_dynamics`).
@@ -60,9 +63,9 @@ CLOSED_LOOPS = OwnerMemo("closed loops per compiled model, controller and option
 CONTROLLER_KEYS = OwnerMemo("content keys of frozen controllers")
 
 
-def _is_open_loop(controller) -> bool:
-    from .controllers import OpenLoop
-    return isinstance(controller, OpenLoop)
+def _by_segments(controller) -> bool:
+    """The controller states its law per segment (``casadi_segment``, ``segment_data``)."""
+    return hasattr(controller, "casadi_segment") and hasattr(controller, "segment_data")
 
 
 def controller_key(controller) -> str:
@@ -77,19 +80,20 @@ def controller_key(controller) -> str:
 def _controller_key(controller) -> str:
     if controller is None:
         return "none"
-    if _is_open_loop(controller):
-        return f"open-loop/{controller.values.shape[1]}"
-    if not hasattr(controller, "casadi"):
+    segmented = _by_segments(controller)
+    if not (segmented or hasattr(controller, "casadi")):
         return "python"
     n = len(getattr(controller, "system_coordinates", ()) or ()) or None
     t, q, qd = ca.SX.sym("t"), ca.SX.sym("q", n or 64), ca.SX.sym("qdot", n or 64)
+    data = ca.SX.sym("segment_data", int(controller.segment_size) if segmented else 0)
+    method = "casadi_segment" if segmented else "casadi"
     try:
-        u = ca.vertcat(controller.casadi(t, q, qd))
+        u = ca.vertcat(controller.casadi_segment(t, q, qd, data) if segmented else controller.casadi(t, q, qd))
     except Exception as exc:  # the law could not be traced symbolically: refuse, with the cause
-        raise ModelError([f"controller.casadi failed on symbolic arguments "
+        raise ModelError([f"controller.{method} failed on symbolic arguments "
                           f"({type(exc).__name__}: {exc})"], title="invalid controller") from exc
-    text = ca.Function("u", [t, q, qd], [u]).serialize()
-    return "casadi/" + hashlib.sha256(text.encode()).hexdigest()
+    text = ca.Function("u", [t, q, qd, data], [u]).serialize()
+    return ("segments/" if segmented else "casadi/") + hashlib.sha256(text.encode()).hexdigest()
 
 
 @dataclass(frozen=True, eq=False)
@@ -113,6 +117,7 @@ class ClosedLoop:
     qdot: ca.Function
     _pieces: dict
     _compiled: dict = dataclasses.field(default_factory=dict)
+    n_segment: int = 0          # length of a segment's data d in p (controllers by segments)
 
     def compiled(self, projection: bool = False):
         """The loop as a compiled library (:func:`.compiled.build`; with ``projection`` every
@@ -132,7 +137,7 @@ class ClosedLoop:
     @property
     def n_p(self) -> int:
         """Length of the parameter vector p of the functions."""
-        return self.n_params + (2 * self.n_u + 1 if self.segment_u else 0)
+        return self.n_params + self.n_segment
 
     @property
     def complete(self) -> bool:
@@ -196,18 +201,15 @@ class ClosedLoop:
         return {"t": t, "x": y, "z": z, "p": ca.vertcat(pc["p"], t_hi), "ode": ode, "alg": res}
 
     def segment_params(self, params: np.ndarray, controller, a: float) -> np.ndarray:
-        """p on the interval starting at ``a``: params, and for an open-loop input (u₀, u₁, a)."""
+        """p on the interval starting at ``a``: params, and for a controller by segments the
+        numbers ``controller.segment_data(a)`` its law reads on that interval."""
         if not self.segment_u:
             return params
-        times, values = controller.times, controller.values
-        j = int(np.clip(np.searchsorted(times, a, side="right") - 1, 0, values.shape[0] - 1))
-        if controller.kind == "zoh":
-            u0, u1 = values[j], np.zeros(values.shape[1])
-        else:
-            j = min(j, times.size - 2)
-            u1 = (values[j + 1] - values[j]) / (times[j + 1] - times[j])
-            u0 = values[j] + u1 * (a - times[j])
-        return np.r_[params, u0, u1, a]
+        data = np.asarray(controller.segment_data(a), dtype=float).ravel()
+        if data.size != self.n_segment:
+            raise ModelError([f"controller.segment_data({a:g}) has {data.size} numbers, its segment_size is "
+                              f"{self.n_segment}"], title="invalid controller")
+        return np.r_[params, data]
 
 
 def closed_loop(model, controller, *, stabilization=None, baumgarte=(1.0, 0.0),
@@ -277,17 +279,22 @@ def _input(controller, m, t_c, q, qdot, params):
     """(u, explicit u arguments, p, symbolic, by segments): the input as the closed loop sees it."""
     if controller is None:
         return ca.SX.zeros(m), [], params, False, False
-    if _is_open_loop(controller):                 # u = u₀ + u₁(t_c − a) on each segment
-        u0, u1, t_a = ca.SX.sym("u0", m), ca.SX.sym("u1", m), ca.SX.sym("t_a")
-        return u0 + u1 * (t_c - t_a), [], ca.vertcat(params, u0, u1, t_a), False, True
+    if _by_segments(controller):                  # u(t_c, q, q̇, d), d the segment's numbers in p
+        data = ca.SX.sym("segment_data", int(controller.segment_size))
+        u = _checked_shape(ca.vertcat(controller.casadi_segment(t_c, q, qdot, data)), m, "casadi_segment")
+        return u, [], ca.vertcat(params, data), False, True
     if hasattr(controller, "casadi"):
-        u = ca.vertcat(controller.casadi(t_c, q, qdot))
-        if u.shape != (m, 1):
-            raise ModelError([f"controller.casadi returned shape {u.shape}, expected ({m}, 1)"],
-                             title="invalid controller")
+        u = _checked_shape(ca.vertcat(controller.casadi(t_c, q, qdot)), m, "casadi")
         return u, [], params, True, False
     u = ca.SX.sym("u", m)
     return u, [u], params, False, False
+
+
+def _checked_shape(u, m, method):
+    if u.shape != (m, 1):
+        raise ModelError([f"controller.{method} returned shape {u.shape}, expected ({m}, 1)"],
+                         title="invalid controller")
+    return u
 
 
 @dataclass(frozen=True)
@@ -339,6 +346,7 @@ def _build(model, controller, stabilization, baumgarte, seeds) -> ClosedLoop:
     x, work, g_int = ca.SX.sym("x", nx), ca.SX.sym("work"), ca.SX.sym("g_int", n_int)
     q, qdot = x[:n], num["qdot"](x, params)
     u, u_args, p, symbolic_u, segment_u = _input(controller, m, t_c, q, qdot, params)
+    n_segment = int(p.shape[0]) - len(num.param_names)
     dynamics = protocol.loop_dynamics(model, LoopPoint(t_c=t_c, x=x, u=u, params=params, g_int=g_int),
                                       Stabilisation(kind=stabilization, alpha=alpha, beta=beta))
     xdot, lam, g, measure, gram = dynamics.xdot, dynamics.lam, dynamics.g, dynamics.measure, dynamics.gram
@@ -377,4 +385,5 @@ def _build(model, controller, stabilization, baumgarte, seeds) -> ClosedLoop:
         qdot=ca.Function("qdot", [y, p], [ca.densify(restrict(qdot))], ["y", "p"], ["qdot"]),
         _pieces=dict(args=args, names=names, ydot=ydot, y=y, x=x, g=g, energy=energy, num=num, t=t,
                      t_c=t_c, u=u, p=p, params=params, g_int=g_int, alpha=alpha, beta=beta,
-                     holonomic=_holonomic_pieces(model, q, params)))
+                     holonomic=_holonomic_pieces(model, q, params)),
+        n_segment=n_segment)

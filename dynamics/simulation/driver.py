@@ -196,7 +196,8 @@ def _check_controller(call: _Call, t0, tf) -> list:
     if domain is not None and t0 is not None and (t0 < domain[0] or tf > domain[1]):
         problems.append(f"t_span [{t0:g}, {tf:g}] exceeds the controller's domain "
                         f"[{domain[0]:g}, {domain[1]:g}]")
-    if (dae == "idas" or method == "CVODES") and not hasattr(controller, "casadi"):
+    symbolic = hasattr(controller, "casadi") or hasattr(controller, "casadi_segment")
+    if (dae == "idas" or method == "CVODES") and not symbolic:
         problems.append(f"{'dae=' + repr(dae) if dae == 'idas' else 'method=' + repr(method)} needs "
                         "a controller with a casadi(t, q, qdot) method (SUNDIALS evaluates u as a "
                         "CasADi expression of the state)")

@@ -4,6 +4,7 @@
     nhgait simulate <scene.toml | built-in> ...    (gaits/cli_simulate.py)
     nhgait reproduce [--out DIR] ...               (gaits/cli_reproduce.py)
     nhgait plan <system> ... --out DIR             (gaits/cli_plan.py)
+    nhgait track <system> --mismatch ... --out DIR (gaits/cli/track.py)
 
 Exit status: 0 success; 1 the job ran but did not succeed (an integration that stopped early,
 an optimisation that did not converge or was not verified); 2 bad input — one message listing
@@ -35,6 +36,7 @@ SUBCOMMANDS = (
     ("nhgait.gaits.cli.plan", "add_plan_parser"),
     ("nhgait.gaits.cli.sweep", "add_sweep_parser"),
     ("nhgait.gaits.cli.linearize", "add_linearize_parser"),
+    ("nhgait.gaits.cli.track", "add_track_parser"),
 )
 
 
