@@ -97,7 +97,10 @@ def test_first_plan_does_not_wait_for_the_optimised_build_and_the_next_run_uses_
 def test_without_a_fast_compiler_one_clear_line_and_a_correct_plan(tmp_path, monkeypatch, capsys, optimiser):
     from nhgait.gaits.cli.main import main
     monkeypatch.setenv("NHGAIT_FAST_CC", "/nonexistent/tcc")
-    if not optimiser:
+    monkeypatch.delenv("CC", raising=False)
+    if optimiser:
+        monkeypatch.delenv("NHGAIT_CC", raising=False)         # gcc from $PATH
+    else:
         monkeypatch.setenv("NHGAIT_CC", "/nonexistent/cc")
     out = tmp_path / "out"
     status = main(["plan", PLAN["system"], "--gait", PLAN["task"], "--intervals", str(PLAN["intervals"]),
