@@ -16,7 +16,9 @@ an exact fit: the cart with two trailers takes 6 iterations from this fit, 10 fr
 The result moves only in allowed directions and ends where the task ends — what the
 hand-written reference does by hand for its cart (a speed bump and a heading wave fitted by
 Newton), here for any robot. The roll-out and its Jacobian are one CasADi function
-(``mapaccum`` over the sub-steps), so a fit takes milliseconds to a second.
+(``mapaccum`` over the sub-steps), compiled by the fast compiler when there is one
+(:func:`~nhgait.dynamics.numerics.fast_compiler.compiled_fast`), so a fit takes milliseconds to
+a few seconds.
 """
 from __future__ import annotations
 
@@ -142,10 +144,13 @@ def fitted_guess(problem, coordinates: tuple, initial_configuration) -> InitialG
     """The fitted roll-out of ``problem`` (module docstring) from ``initial_configuration``
     (the task's initial coordinates, free ones at the centre of their bounds)."""
     from scipy.optimize import least_squares
+
+    from nhgait.dynamics.numerics.fast_compiler import compiled_fast
     n = len(coordinates)
     nv = len(problem.model.state_names) - n
     rollout, Y0, Phi, fine = _rollout_function(problem, n, nv)
-    residual, jacobian = _residual_function(problem, coordinates, rollout)
+    residual, jacobian = (compiled_fast(f, salt=f"fitted roll-out {f.name()}")
+                          for f in _residual_function(problem, coordinates, rollout))
     q0 = np.asarray(initial_configuration, float)
     T = float(problem.horizon)
     rng = np.random.default_rng(0)

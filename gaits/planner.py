@@ -652,9 +652,17 @@ def _closing_lines(result: PlanResult) -> list:
 
 
 def _compiled_text(settings) -> str:
+    """Which code solved and what was started for later (:class:`~nhgait.ocp.nlp_code.CompileReport`)."""
+    c = settings.get("compile") or {}
+    later = c.get("later") or {}
+    after = ""
+    if later.get("state") == "started":
+        after = f"; {later.get('compiler')} {' '.join(later.get('flags') or [])} building in the background for the next run"
     if not settings.get("jit"):
         reason = settings.get("jit_fallback")
-        return "interpreted" + (f" ({reason})" if reason else "")
-    c = settings.get("compile") or {}
-    size = f"{c.get('c_bytes', 0) / 1e6:.2f} MB of C, {' '.join(c.get('flags') or [])}"
+        return "interpreted" + (f" ({reason}{after})" if reason else (f" ({after[2:]})" if after else ""))
+    size = f"{c.get('c_bytes', 0) / 1e6:.2f} MB of C"
+    if c.get("code") == "fast":
+        return f"compiled fast ({c.get('compiler')}, {size}, {c.get('compile_s', 0):.2f} s{after})"
+    size += f", {' '.join(c.get('flags') or [])}"
     return f"compiled ({size}" + (", cached)" if settings.get("jit_cached") else f", {c.get('compile_s', 0):.1f} s)")

@@ -49,8 +49,11 @@ RK4 = (((), (0.5,), (0.0, 0.5), (0.0, 0.0, 1.0)), (1 / 6, 1 / 3, 1 / 3, 1 / 6), 
 #: Ipopt solves, same guess, both compiled): the thesis snakeboard (8 states, 54 operations:
 #: 6 912) is fastest inline; the two-steering snakeboard (27 840) took 435 ms inline (5.1 MB
 #: of C, compiled at -O0 by the budget) against 250 ms structured (0.9 MB), the 3-link
-#: snake (39 760) 539 ms against 149 ms (7.5 against 0.7 MB).
-INLINE_LIMIT = 12_000
+#: snake (39 760) 539 ms against 149 ms (7.5 against 0.7 MB); the cart with one trailer
+#: (18 432; issue 25) 0.96–1.02× the hand-written reference inline with Ipopt (1.9 MB of C)
+#: and 0.68–0.70× with FATROP, against 1.45–1.64× structured with Ipopt; with two trailers
+#: (40 960) the inline C needs 1.5 GB of gcc -O1.
+INLINE_LIMIT = 20_000
 
 
 @dataclass(frozen=True, eq=False)

@@ -24,7 +24,8 @@ def test_bench_derivation_smoke(tmp_path, capsys):
 def test_bench_ocp_smoke(tmp_path, capsys):
     bench = _load("bench_ocp")
     out = tmp_path / "ocp.json"
-    assert bench.main(["--problems", "P1", "--N", "25", "--repeats", "1", "--out", str(out)]) == 0
+    assert bench.main(["--problems", "P1", "--N", "25", "--repeats", "1", "--out", str(out),
+                       "--sections", "default,fatrop,collocation"]) == 0    # cold: bench_scale's smoke test
     text = capsys.readouterr().out
     assert "P1" in text and "1.543703" in text and "FATROP" in text and "collocation" in text
     rows = json.loads(out.read_text())["rows"]

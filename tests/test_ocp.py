@@ -137,11 +137,13 @@ def test_compiled_is_the_default_and_falls_back_without_a_compiler(unicycle, mon
     problem = p1(unicycle, N=8)
     guess = p1_guess(problem)
     monkeypatch.setenv("CC", "/nonexistent/cc")
+    monkeypatch.setenv("NHGAIT_FAST_CC", "/nonexistent/tcc")
     fallback = OCPSolver(problem)                      # jit=None: compiled when a compiler exists
     assert not fallback.compiled and "no C compiler found" in fallback.jit_fallback
     sol = fallback.solve(guess)
     assert sol.success and sol.settings["jit"] is False and "no C compiler" in sol.settings["jit_fallback"]
     monkeypatch.delenv("CC")
+    monkeypatch.delenv("NHGAIT_FAST_CC")
     compiled = OCPSolver(problem)
     assert compiled.compiled and compiled.jit_fallback is None
     assert compiled.solve(guess).objective == pytest.approx(sol.objective, rel=1e-9)

@@ -55,7 +55,7 @@ def main(argv=None) -> int:
     (``argv`` None: the ``nhgait`` command), a stop by SIGINT/SIGTERM ends the process as soon
     as its cleanup is done (:func:`~.stopping.exit_now`); called with ``argv`` it returns."""
     from nhgait.dynamics.errors import ModelError
-    from .stopping import exit_now, stop_signals
+    from .stopping import cancel_background_builds, exit_now, stop_signals
     parser = build_parser()
     args = parser.parse_args(argv)
     stopped = (lambda status: status) if argv is not None else exit_now
@@ -72,9 +72,11 @@ def main(argv=None) -> int:
                 raise stop.exception()
             return status
     except KeyboardInterrupt:
+        cancel_background_builds()
         print("nhgait: interrupted", file=sys.stderr)
         return stopped(130)
     except Terminated:
+        cancel_background_builds()
         print("nhgait: terminated", file=sys.stderr)
         return stopped(143)
     except ModelError as exc:            # bad input (ProblemError and BridgeError included)
