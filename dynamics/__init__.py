@@ -5,7 +5,7 @@ Entry points (imported lazily, so ``import nhgait.dynamics`` does no symbolic wo
 * :class:`System` — state a system; :func:`load_scene` — read a TOML scene file;
 * :func:`unicycle`, :func:`snakeboard`, :func:`chaplygin_sleigh`, :func:`knife_edge_incline`;
 * :func:`derive` — ``derive(system, "reduced" | "lagrange" | "hamilton")``, cached on disk;
-* :func:`simulate` — forward simulation of any formulation;
+* :func:`simulate` — forward simulation of any formulation (its options: :class:`SimulationOptions`);
 * :func:`jacobi_test` — Jacobi identity of the reduced bracket and holonomy of ω.
 """
 from __future__ import annotations
@@ -21,7 +21,8 @@ _EXPORTS = {
     "ReducedODE": "derivation.reduction", "LagrangianDAE": "derivation.lagrange",
     "HamiltonianDAE": "derivation.hamilton",
     "load_scene": "derivation.scene", "Scene": "derivation.scene",
-    "simulate": "simulation.driver", "Trajectory": "simulation.trajectory",
+    "simulate": "simulation.driver", "SimulationOptions": "simulation.options",
+    "Trajectory": "simulation.trajectory",
     "jacobi_test": "derivation.analysis", "to_state": "derivation.states",
     "from_state": "derivation.states",
 }

@@ -45,3 +45,33 @@ class Terminated(BaseException):
 #: child restores the mask), so that the exception cannot land between the two and leave the
 #: child running (:mod:`nhgait.dynamics.numerics.compiler`, :mod:`nhgait.ocp.supervision`).
 STOP_SIGNALS = frozenset(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGALRM") if hasattr(signal, name))
+
+
+#: the stop signals (SIGINT, SIGTERM) the command line's handlers received during the current
+#: run: process state, like the signal dispositions it mirrors; set by the handlers, cleared
+#: when the command's stop handling ends (:mod:`nhgait.gaits.cli.stopping`)
+_RECEIVED_STOPS: set = set()
+
+
+def note_stop(signum: int) -> None:
+    """Record that a stop signal was received (called by the command line's handlers)."""
+    _RECEIVED_STOPS.add(signum)
+
+
+def clear_stops() -> None:
+    """Forget the stops received (the command's stop handling is over)."""
+    _RECEIVED_STOPS.clear()
+
+
+def raise_if_stopped() -> None:
+    """Raise the stop received again, if one was: :class:`Terminated` for SIGTERM,
+    ``KeyboardInterrupt`` for SIGINT. A stop's exception can be lost on its way up when the
+    handler runs inside a C extension that clears Python errors (CasADi's SWIG wrappers clear
+    them while they try one overload after another), and the run then goes on; a loop of many
+    short units of work (tracking samples) calls this between units, so that it stops at once
+    anyway."""
+    if signal.SIGTERM in _RECEIVED_STOPS:
+        raise Terminated()
+    if signal.SIGINT in _RECEIVED_STOPS:
+        raise KeyboardInterrupt()
+

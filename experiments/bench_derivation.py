@@ -28,9 +28,9 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 def _fresh():
     from sympy.core.cache import clear_cache
-    from nhgait.dynamics.derivation import symbolic
+    from nhgait.dynamics.algebra.trig import forget_normal_forms
     clear_cache()
-    symbolic._tidy_scalar.cache_clear()
+    forget_normal_forms()
 
 
 def _kane(name):

@@ -20,8 +20,11 @@ reported apart), the solvers of one row taking turns (a, b, a, b, …) so that a
 machine's load falls on all alike. Writes ``out/bench_ocp.json``. Compare ratios, not
 absolute times.
 
+* ``cold``: the whole ``nhgait plan`` process with an empty cache, then the same plan warm
+  (``experiments/plan_process.py``), beside the reference's own set-up (build + gcc -O1).
+
 Usage: python experiments/bench_ocp.py [--quick] [--N 25,50] [--problems P1,P2]
-       [--sections default,fatrop,collocation] [--repeats 5]
+       [--sections default,fatrop,collocation,cold] [--repeats 5]
 """
 from __future__ import annotations
 
@@ -34,6 +37,7 @@ import sys
 import time
 from pathlib import Path
 
+import plan_process  # experiments/plan_process.py: nhgait plan cold and warm, measured from outside
 import sibling  # experiments/sibling.py: the other scripts, loaded by file path
 PROBLEMS = {"P1": ("unicycle", "parallel-park"), "P2": ("snakeboard", "forward"), "P3": ("snakeboard", "rotate")}
 
@@ -172,6 +176,26 @@ def _collocation_row(ref, key, N, repeats):
     return row, c["success"], values
 
 
+def _cold_row(ref, key, N, repeats):
+    """``nhgait plan`` of the problem in a fresh process with an empty cache, its background
+    build, the same plan warm (:func:`plan_process.cold_and_warm`) and the reference's own
+    set-up (build + gcc -O1) of the same problem (issue 25: cold ≤ 2× warm)."""
+    import tempfile
+    system, gait = PROBLEMS[key]
+    with tempfile.TemporaryDirectory(prefix="bench-ocp-cold-") as tmp:
+        row = plan_process.cold_and_warm([system, "--gait", gait, "--intervals", N], Path(tmp), Path(tmp) / "cache",
+                                         timeout=900.0)
+    setup = ref.solve(key, N, jit=True)["setup_time_s"]
+    nan, bg = float("nan"), row.get("background", {})
+    row.update(section="cold", problem=key, N=N, reference_setup_s=setup,
+               cold_over_reference_setup=row.get("cold_s", nan) / setup)
+    values = [key, N, row.get("cold_s", nan), row.get("warm_s", nan), row.get("cold_over_warm", nan),
+              " " + str(row.get("code")), row.get("compile_s") or 0.0, " " + " ".join(bg.get("flags") or ["-"]),
+              bg.get("compile_s") or nan, bg.get("peak_mb") or nan, row.get("peak_mb", nan), setup,
+              row["cold_over_reference_setup"], " " + str(row.get("status"))]
+    return row, bool(row.get("success")) and (row.get("warm") or {}).get("success", False), values
+
+
 _PROBLEM = (("prob", "4s"), ("N", "4d"))
 _MS = "8.1f"
 SECTIONS = {
@@ -193,6 +217,13 @@ SECTIONS = {
         _PROBLEM + (("J shooting", "10.6f"), ("J colloc", "10.6f"), ("it MS", "5d"), ("it C", "4d"), ("MS ms", _MS),
                     ("coll ms", _MS), ("ratio", "5.2f"), ("coll setup ms", "13.1f")),
         _collocation_row),
+    "cold": Section(
+        "cold nhgait plan (empty cache, whole process) vs the same plan warm, and vs the reference's set-up "
+        "(build + gcc -O1); the code that solved cold and the background build it started",
+        _PROBLEM + (("cold s", "7.1f"), ("warm s", "7.1f"), ("c/w", "5.2f"), (" code", "12s"), ("now s", "6.2f"),
+                    (" bg", "5s"), ("bg s", "6.1f"), ("bg MB", "6.0f"), ("RSS MB", "7.0f"), ("ref setup s", "11.1f"),
+                    ("c/rsu", "6.2f"), (" status", "")),
+        _cold_row),
 }
 
 

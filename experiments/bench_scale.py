@@ -5,11 +5,15 @@ For every member of ``experiments/scale_tasks.py`` (wheeled snakes with 3–8 li
 1–6 trailers, the two-steering snakeboard; forward tasks written as users write them):
 
 * **cold** — ``nhgait plan <scene> --no-gif`` in a fresh process with an empty cache:
-  derive + specialise + build + compile + solve + verify; its wall time, the longest time
-  between two progress lines on stderr ("no phase silent for more than 10 s"), the peak
-  resident memory of the whole process tree (nhgait and the C compiler), the generated C,
-  the compile flags and seconds, the verdict;
-* **warm** — in this process, the cache filled by the cold run: the planner's NLP solved again
+  derive + specialise + build + the code that is ready at once (the fast compiler's library) +
+  solve + verify; its wall time, the longest time between two progress lines on stderr ("no
+  phase silent for more than 10 s"), the peak resident memory of the process tree, the
+  generated C, which code solved, the verdict; then **the background build** it started (gcc
+  -O1/-O0, waited for: its seconds and the compiler's peak memory) and **the same plan warm**
+  (the whole process again, the cache full): ``cold/warm`` (issue 25: ≤ 2) and cold against the
+  reference's own set-up (build + gcc; issue 25: ≤ 0.25 for n ≥ 6)
+  (``experiments/plan_process.py``);
+* **warm solve** — in this process, the cache filled by the cold run: the planner's NLP solved again
   from its winning guess (median of ``--repeats``), interleaved with the reference NLP of
   ``experiments/reference_scale_ocp.py`` (independent model, Ipopt, exact Hessian, gcc -O1,
   its own guess); ratio of the medians, iterations, objectives (relative difference);
@@ -28,9 +32,7 @@ import argparse
 import dataclasses
 import json
 import os
-import re
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -38,70 +40,29 @@ from pathlib import Path
 
 import numpy as np
 
+import plan_process  # experiments/plan_process.py: nhgait plan cold and warm, measured from outside
 import sibling  # experiments/sibling.py: the other scripts, loaded by file path
 
-#: prints the peak RSS (kB) of every process the command started (RUSAGE_CHILDREN)
-_WRAPPER = ("import resource, subprocess, sys; rc = subprocess.call(sys.argv[1:]); "
-            "print('PEAK_RSS_KB', resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, file=sys.stderr); "
-            "sys.exit(rc)")
-
-
-def _nhgait() -> list:
-    exe = Path(sys.executable).with_name("nhgait")
-    return [str(exe)] if exe.exists() else [sys.executable, "-m", "nhgait.gaits.cli.main"]
-
-
 def cold(member: str, folder: Path, cache: Path, timeout: float, extra: tuple = ()) -> dict:
-    """``nhgait plan`` in a fresh process with the empty cache ``cache`` (module docstring);
+    """``nhgait plan`` of ``member`` in a fresh process with the empty cache ``cache``, its
+    background build, then the same command warm (:func:`plan_process.cold_and_warm`);
     ``extra``: more command-line options (``--intervals``, ``--no-jit``)."""
     scene = folder / f"{member}.toml"
     scene.write_text(sibling.load("scale_tasks").scene_with_task(member))
-    out = folder / f"{member}_out"
-    env = {**os.environ, "NHGAIT_CACHE_DIR": str(cache)}
-    cmd = [sys.executable, "-c", _WRAPPER, *_nhgait(), "plan", str(scene), "--no-gif", "--out", str(out), *extra]
-    t0 = time.monotonic()
-    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    stamps, lines, peak = [t0], [], 0
-    try:
-        for line in proc.stderr:
-            stamps.append(time.monotonic())
-            lines.append(line.rstrip())
-            m = re.match(r"PEAK_RSS_KB (\d+)", line)
-            if m:
-                peak = int(m.group(1))
-        proc.wait(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        return {"member": member, "status": f"cold run not finished in {timeout:.0f} s"}
-    wall = time.monotonic() - t0
-    stamps.append(time.monotonic())
-    row = {"member": member, "exit": proc.returncode, "cold_s": wall, "peak_mb": peak / 1024.0,
-           "max_silent_s": max(b - a for a, b in zip(stamps, stamps[1:])), "stderr_tail": lines[-5:]}
-    path = out / "solution.json"
-    if path.exists():
-        data = json.loads(path.read_text())
-        st = data["settings"]
-        comp = st.get("compile") or {}
-        row.update({"success": data["success"], "status": data["status"], "objective": data["objective"],
-                    "iterations": data["iterations"], "guess": data["guess"]["won"],
-                    "solver": st.get("solver"), "hessian": st.get("hessian"), "stage": st.get("stage"),
-                    "ode_operations": st.get("ode_operations"), "c_bytes": comp.get("c_bytes", 0),
-                    "flags": comp.get("flags"), "compile_s": comp.get("compile_s", 0.0),
-                    "verification_error": (data.get("verification") or {}).get("max_error"),
-                    "condition_error": (data.get("verification") or {}).get("max_condition_error"),
-                    "velocities": st.get("velocities"), "phases": {k: st[k] for k in st if k.endswith("_s")}})
-    return row
+    (folder / member).mkdir(exist_ok=True)
+    return {"member": member, **plan_process.cold_and_warm([scene, *extra], folder / member, cache, timeout)}
 
 
 @dataclasses.dataclass(frozen=True)
 class Settings:
     """How the planner's NLP is solved: ``solver`` and ``hessian`` (SolverOptions), ``intervals``
-    (None: the task's) and ``jit`` (None: the solver's default)."""
+    (None: the task's) and ``jit`` ("optimised": the optimised library, built now if the cold run's
+    background build did not finish; False: interpreted)."""
 
     solver: str = "ipopt"
     hessian: str = "exact"
     intervals: int | None = None
-    jit: bool | None = None
+    jit: bool | str | None = "optimised"
 
 
 class Ours:
@@ -173,7 +134,7 @@ def interleaved(runners, repeats) -> list:
 def warm(row: dict, repeats: int, reference: bool, hessians: bool, intervals=None, jit=True) -> dict:
     """The warm-cache solves of one member (module docstring)."""
     member = row["member"]
-    cold = Settings(row.get("solver") or "ipopt", row.get("hessian") or "exact", intervals, None if jit else False)
+    cold = Settings(row.get("solver") or "ipopt", row.get("hessian") or "exact", intervals, "optimised" if jit else False)
     runners = {"ours": Ours(member, row.get("guess"), cold)}
     if reference:
         runners["reference"] = Reference(member, intervals, jit)
@@ -187,11 +148,12 @@ def warm(row: dict, repeats: int, reference: bool, hessians: bool, intervals=Non
             runners[f"{solver}/{hessian}"] = Ours(member, row.get("guess"),
                                                   dataclasses.replace(cold, solver=solver, hessian=hessian))
     results = dict(zip(runners, interleaved(list(runners.values()), repeats)))
-    out = {"warm": results["ours"]}
+    out = {"warm_solve": results["ours"]}
     if reference:
         r = results["reference"]
         out.update(reference=r, ratio=results["ours"]["solve_ms"] / r["solve_ms"],
-                   rel_objective=(row.get("objective", float("nan")) - r["objective"]) / abs(r["objective"]))
+                   rel_objective=(row.get("objective", float("nan")) - r["objective"]) / abs(r["objective"]),
+                   cold_over_reference_setup=row["cold_s"] / r["setup_s"])
         same = results.get("ours, reference's guess")
         if same is not None:
             out.update(same_guess=same, same_guess_ratio=same["solve_ms"] / r["solve_ms"])
@@ -203,21 +165,24 @@ def warm(row: dict, repeats: int, reference: bool, hessians: bool, intervals=Non
 def _line(r: dict) -> str:
     if "objective" not in r:
         return f"{r['member']:24s} {r.get('status', 'failed')}"
-    w, ref = r.get("warm", {}), r.get("reference", {})
-    return (f"{r['member']:24s} {r['cold_s']:6.1f} {r['max_silent_s']:6.1f} {r['peak_mb']:6.0f} "
-            f"{r['c_bytes'] / 1e6:5.2f} {ref.get('c_bytes', 0) / 1e6:5.2f} {r['compile_s']:6.1f} "
-            f"{ref.get('setup_s', float('nan')):6.1f} {w.get('solve_ms', float('nan')):8.1f} "
-            f"{ref.get('solve_ms', float('nan')):8.1f} {r.get('ratio', float('nan')):5.2f} "
-            f"{r.get('same_guess', {}).get('iterations', -1):4d} {r.get('same_guess_ratio', float('nan')):5.2f} "
-            f"{w.get('iterations', -1):4d} {ref.get('iterations', -1):4d} {r['objective']:10.6f} "
-            f"{r.get('rel_objective', float('nan')):9.1e} {r.get('verification_error') or float('nan'):8.1e} "
-            f"{r['solver']}/{r['hessian']} {r['status']}")
+    ref, bg = r.get("reference", {}), r.get("background", {})
+    nan = float("nan")
+    return (f"{r['member']:24s} {r['cold_s']:6.1f} {r.get('warm_s', nan):6.1f} {r.get('cold_over_warm', nan):5.2f} "
+            f"{ref.get('setup_s', nan):6.1f} {r.get('cold_over_reference_setup', nan):5.2f} "
+            f"{r['max_silent_s']:6.1f} {r['peak_mb']:6.0f} {r['code']:>11s} {r['compile_s']:5.2f} "
+            f"{' '.join(bg.get('flags') or ['-']):>4s} {bg.get('compile_s') or nan:6.1f} {bg.get('peak_mb') or nan:6.0f} "
+            f"{r['c_bytes'] / 1e6:5.2f} {ref.get('c_bytes', 0) / 1e6:5.2f} "
+            f"{r.get('warm_solve', {}).get('solve_ms', nan):8.1f} {ref.get('solve_ms', nan):8.1f} "
+            f"{r.get('ratio', nan):5.2f} {r.get('warm_solve', {}).get('iterations', -1):4d} "
+            f"{ref.get('iterations', -1):4d} {r.get('same_guess', {}).get('iterations', -1):4d} "
+            f"{r.get('same_guess_ratio', nan):5.2f} {r['objective']:10.6f} {r.get('rel_objective', nan):9.1e} "
+            f"{r.get('verification_error') or nan:8.1e} {r['solver']}/{r['hessian']} {r['status']}")
 
 
-HEADER = (f"{'member':24s} {'cold s':>6s} {'silent':>6s} {'RSS MB':>6s} {'C MB':>5s} {'ref C':>5s} "
-          f"{'cc s':>6s} {'ref su':>6s} {'warm ms':>8s} {'ref ms':>8s} {'ratio':>5s} {'sg it':>4s} {'sg r':>5s} "
-          f"{'it':>4s} {'r it':>4s} "
-          f"{'objective':>10s} {'rel J':>9s} {'verify':>8s} solver/hessian status")
+HEADER = (f"{'member':24s} {'cold s':>6s} {'warm s':>6s} {'c/w':>5s} {'ref su':>6s} {'c/rsu':>5s} {'silent':>6s} "
+          f"{'RSS MB':>6s} {'code':>11s} {'now s':>5s} {'bg':>4s} {'bg s':>6s} {'bg MB':>6s} {'C MB':>5s} "
+          f"{'ref C':>5s} {'warm ms':>8s} {'ref ms':>8s} {'ratio':>5s} {'it':>4s} {'r it':>4s} {'sg it':>4s} "
+          f"{'sg r':>5s} {'objective':>10s} {'rel J':>9s} {'verify':>8s} solver/hessian status")
 
 
 def main(argv=None) -> int:
@@ -241,6 +206,10 @@ def main(argv=None) -> int:
             row = cold(member, Path(tmp), cache, args.timeout, extra)
             if "objective" in row:
                 os.environ["NHGAIT_CACHE_DIR"] = str(cache)
+                os.environ["NHGAIT_BACKGROUND_BUILDS"] = "0"       # this process leaves no builder
+                if row.get("background", {}).get("state") not in ("built", "none", "unavailable"):
+                    print(f"# {member}: the optimised build is {row['background']}: the warm solve is not "
+                          "on the optimised library", file=sys.stderr, flush=True)
                 print(f"# {member}: warm solves{'' if args.no_reference else ' and the reference'} …",
                       file=sys.stderr, flush=True)
                 row.update(warm(row, args.repeats, not args.no_reference, args.hessians, args.intervals,

@@ -42,9 +42,9 @@ BUILTINS = ("unicycle", "snakeboard")
 
 def _fresh():
     from sympy.core.cache import clear_cache
-    from nhgait.dynamics.derivation import symbolic
+    from nhgait.dynamics.algebra.trig import forget_normal_forms
     clear_cache()
-    symbolic._tidy_scalar.cache_clear()
+    forget_normal_forms()
 
 
 class _Timeout(Exception):

@@ -85,8 +85,8 @@ def _animation_figure(ctx, names: tuple, path_xy: tuple, segs: list) -> tuple:
 
 def _frames(fig, update, nodes) -> list:
     """One RGB image per node. One draw per frame: the layout is computed once (constrained
-    layout per frame and matplotlib's animation writer drew every frame three times: 13 s for
-    60 frames, now ≈ 3 s)."""
+    layout per frame and matplotlib's animation writer drew every frame three times; the
+    timings are in docs/benchmarks.md, "Measured numbers behind design choices")."""
     from PIL import Image
     canvas = fig.canvas
     update(nodes[0])

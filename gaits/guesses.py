@@ -20,7 +20,9 @@ classical gaits (snakeboard rotor:wheel frequency ratios 1:1 drive, 2:1 rotate, 
   model's own kinematics q̇ = q̇(q, y) (RK4, 4 steps per interval), so the guess moves the body
   only in allowed directions (a car parallel-parks by v = A sin ωt, φ = B sin 2ωt);
   rollouts are interleaved with the loops;
-* the last candidate is the ramps alone (no shape motion).
+* the last candidate is the ramps alone (no shape motion);
+* first of all, for a task that states places between its ends (waypoints, phase ends), the
+  path through them (:mod:`.path_guess`).
 
 Amplitudes respect the task's bounds (at most 90 % of the distance to the nearer bound).
 Configurations q(t) and their rates q̇(t) (ramps included) are mapped to the model's state
@@ -44,7 +46,7 @@ from itertools import combinations
 import numpy as np
 
 from .screening import RATIO, Check, Screen
-from .waves import FITTED_LABEL, ShapeGuess, amplitude, ends, free_start, guess_from_shape, repairs
+from .waves import FITTED_LABEL, PATH_LABEL, ShapeGuess, amplitude, ends, free_start, guess_from_shape, repairs
 
 __all__ = ["ShapeGuess", "shape_guesses", "rollout_guesses", "guess_from_shape", "candidates", "Candidates",
            "Screened", "screened_dict", "RATIOS", "AMPLITUDES"]
@@ -289,6 +291,9 @@ def candidates(problem, *, shape=None, screen=True, progress=None) -> Candidates
     if applies(problem):
         at = 0 if leads(problem, shape) else 1
         ordered = ordered[:at] + [ShapeGuess(FITTED_LABEL, (), start=start)] + ordered[at:]
+    from . import path_guess
+    if path_guess.applies(problem):        # a task that says where to pass: along there first
+        ordered = [ShapeGuess(PATH_LABEL, (), start=start)] + ordered
     out = Candidates(problem, ordered, coords, screen=checks, start=start, progress=progress,
                      blocked=_blocked_end(problem, checks, coords, start) if checks is not None else None)
     if moved is not None:

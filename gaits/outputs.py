@@ -20,6 +20,10 @@ run is refused at once with the first one's process id, host, command and start 
 kernel releases the lock when its holder dies, even by kill -9 (the file stays, unlocked, and
 the next run takes it over). Platforms without ``fcntl`` run unlocked.
 
+:func:`staged` writes a command's files whole or not at all: ``write(folder)`` writes them into a
+staging folder inside the output directory (removed whatever happens), then each is moved into
+place (a rename on the same file system).
+
 :func:`rescue` writes a result whose location failed at the end (disk full, removed, made
 read-only meanwhile) to a fallback it names — ``$TMPDIR/nhgait-rescued-<time>-<pid>/``, else
 ``~/nhgait-rescued-…`` — or, when no folder takes it, prints it on standard output: a write
@@ -45,7 +49,7 @@ try:
 except ImportError:  # pragma: no cover - Windows
     fcntl = None
 
-__all__ = ["output_directory", "output_file", "output_lock", "rescue", "write_failure", "LOCK_NAME",
+__all__ = ["output_directory", "output_file", "output_lock", "staged", "rescue", "write_failure", "LOCK_NAME",
            "PROBE_BYTES"]
 
 #: bytes written by the probe (one block): a full, read-only or over-quota location cannot take them
@@ -210,6 +214,19 @@ def _holder(fd: int) -> str:
         return (f"process {data['pid']} on {data['host']}, `{data['command']}`, started {data['started']}")
     except (OSError, ValueError, KeyError, TypeError):
         return "a process that has not yet said which"
+
+
+# ----------------------------------------------------------------------------- staged writes
+def staged(out, write) -> list:
+    """The files ``write(staging)`` wrote (a list of paths in ``staging``), moved into ``out``
+    (created): each file whole or not at all (module docstring). Returns their paths in ``out``."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=out, prefix=".writing-") as staging:
+        written = [Path(path) for path in write(Path(staging))]
+        for path in written:
+            os.replace(path, out / path.name)
+    return [out / path.name for path in written]
 
 
 # ----------------------------------------------------------------------------- rescue

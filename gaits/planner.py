@@ -50,7 +50,10 @@ from typing import Any
 
 import numpy as np
 
+from .gait_check import (momentum_problem, screening_report, to_momentum_coordinates,  # noqa: F401
+                         unsolved, verified_gait)
 from .search import Attempt, Search, continuation, solve_from_guesses, solve_with_fallbacks  # noqa: F401
+from .task import quantity_objects  # noqa: F401
 
 __all__ = ["plan", "PlanResult", "prepare", "Prepared", "state_problem", "to_momentum_coordinates", "verified_gait",
            "unsolved", "known_names", "warm_start", "read_solution", "summary_lines"]
@@ -60,10 +63,9 @@ def solver_order(solver: str, transcription=None, problem=None) -> tuple:
     """The solvers ``plan`` tries, the next one when the previous finds no solution.
 
     "auto": Ipopt alone for collocation (FATROP does not take it); for shooting, FATROP first
-    when the stage function is written inline (small ODEs: P1–P3 solve in 0.36–0.82 of the
-    reference's time, our Ipopt 0.81–1.19), Ipopt first when it is structured (robots of 5–10
-    coordinates: the 3-link snake 149 ms in 28 iterations with Ipopt against 277 ms in 36 with
-    FATROP, the two-steering snakeboard 250 against 289 ms; docs/gait-planning.md)."""
+    when the stage function is written inline (small ODEs: FATROP is the faster there), Ipopt
+    first when it is structured (robots of 5–10 coordinates: Ipopt is the faster there; the
+    measurements are in docs/gait-planning.md and docs/benchmarks.md)."""
     from nhgait.ocp import ProblemError
     from nhgait.ocp.solver import SOLVERS
     if solver == "auto":
@@ -128,15 +130,6 @@ def known_names(model, quantities) -> tuple:
     """The names a task may use on ``model`` (see :func:`~nhgait.gaits.task.task_names`)."""
     from .task import task_names
     return task_names(model.system, quantities)
-
-
-def quantity_objects(model, scene):
-    """The scene's named quantities as :class:`~nhgait.ocp.Quantity` objects on ``model``."""
-    from nhgait.dynamics.derivation.quantities import quantity_function
-    from .task import scene_quantities
-    if not scene.quantities:
-        return {}
-    return scene_quantities(model, quantity_function(model.system, scene.quantities))
 
 
 @dataclass(frozen=True, eq=False)
@@ -204,8 +197,8 @@ def prepare(to_plan, *, params=None, progress=None) -> Prepared:
     progress.note(f"  n = {model.system.n} coordinates, {len(model.state_names)} states, {model.form} form"
                   + (" (from the cache)" if prov is not None and prov.cache_hit else ""))
     n = len(model.system.coordinates)
-    check_names(task, known_names(model, scene.quantities), tuple(model.system.inputs),
-                n_velocities=len(model.state_names) - n)
+    check_names(task, known_names(model, scene.all_quantities), tuple(model.system.inputs),
+                n_velocities=len(model.state_names) - n, motion=tuple(scene.motion_quantities))
     bounds = {k: v for k, v in task.bounds.items() if isinstance(v, tuple)}
     ends = end_postures(task, tuple(model.system.coordinates))
     velocities = task.velocities or choose_velocities(model, task.names, scene.quantities, params, bounds, ends)
@@ -218,10 +211,28 @@ def prepare(to_plan, *, params=None, progress=None) -> Prepared:
 
 
 # ----------------------------------------------------------------------------- warm start
+#: the largest solution.json read (bytes; the largest plans, with their feedback gains, write a
+#: few MB)
+MAX_SOLUTION_BYTES = 64 * 1024 * 1024
+
+
 def read_solution(path) -> dict:
-    """The content of a ``solution.json`` written by :func:`plan` (a dict)."""
+    """The content of a ``solution.json`` written by :func:`plan` (a dict), read as data
+    (:func:`~nhgait.dynamics.derivation.textfiles.read_text_file`); a file that is not one is
+    a :class:`~nhgait.dynamics.errors.ModelError` naming it."""
     import json
-    return json.loads(Path(path).read_text())
+    from nhgait.dynamics.derivation.textfiles import read_text_file
+    from nhgait.dynamics.errors import ModelError
+    title = "cannot read the solution"
+    text = read_text_file(path, "solution file", limit=MAX_SOLUTION_BYTES, title=title)
+    try:
+        data = json.loads(text)
+    except (ValueError, RecursionError) as exc:
+        raise ModelError([f"solution file {path} is not JSON ({exc})"], title=title) from None
+    if not isinstance(data, dict):
+        raise ModelError([f"solution file {path} holds a JSON {type(data).__name__}, not the object nhgait plan "
+                          "writes"], title=title)
+    return data
 
 
 def _trajectory_of(previous) -> tuple:
@@ -282,8 +293,8 @@ def _default_workers() -> int:
 def choose_hessian(hessian: str) -> str:
     """``hessian`` unless "auto": the exact Hessian at every size — measured against
     Gauss–Newton (no convergence in 500 iterations on the snake and the two-steering
-    snakeboard, 1.3× faster only on a nearly kinematic cart) and limited-memory BFGS (20–70×
-    the iterations); docs/gait-planning.md."""
+    snakeboard, faster only on a nearly kinematic cart) and limited-memory BFGS (many times the
+    iterations); the numbers are in docs/gait-planning.md and docs/benchmarks.md."""
     return "exact" if hessian == "auto" else hessian
 
 
@@ -370,7 +381,8 @@ class _Reached:
 
 
 def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, verify, progress) -> None:
-    """Steps 2–5 of the module docstring, each within ``budget``, recorded in ``reached``."""
+    """Steps 2–5 of the module docstring and the feedback along a converged plan, each within
+    ``budget``, recorded in ``reached``."""
     from nhgait.ocp import ProblemError
     from .guesses import candidates
     from .reachability import unreachable_targets
@@ -409,6 +421,11 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
         if refinable(reached.solution):
             _refined(reached, settings, budget, progress, verify_one)
         reached.timings["verify_s"] = time.perf_counter() - t0
+    if search.solution is not None:                                          # issue 28
+        t0 = time.perf_counter()
+        with budget.stage("the feedback and stability"):
+            reached.solution = replace(reached.solution, **_feedback_and_stability(search, progress))
+        reached.timings["feedback_s"] = time.perf_counter() - t0
 
 
 def _refined(reached: _Reached, settings, budget, progress, verify_one) -> None:
@@ -498,123 +515,14 @@ def _in_momentum(search, prepared, to_plan, params):
     return verified_gait(solution, prepared.model, prepared.stated, to_plan, params, verify=False)
 
 
-def screening_report(guesses, search, problem) -> tuple:
-    """(search, report): what the screening of ``guesses`` repaired or skipped and where the
-    solution (or, when no guess converged, the closest point) met the singular set
-    (:class:`~nhgait.gaits.guesses.Screened`); a search in which every candidate was skipped
-    (none left in ``guesses``) gets a closest point that says so (:func:`unsolved`)."""
-    from .guesses import Screened
-    report = tuple(getattr(guesses, "screened", ()))
-    if search.solution is None and search.closest is None and not len(guesses):
-        search = replace(search, closest=unsolved(problem, getattr(guesses, "first_skipped", None)))
-    check = getattr(guesses, "check", None)
-    point = search.solution if search.solution is not None else (search.closest if search.attempts else None)
-    verdict = check(point) if check is not None and point is not None else None
-    if verdict is not None and not verdict.ok:
-        which = "solution" if search.solution is not None else "closest point"
-        report += (Screened(f"{which} ({search.won or point.settings.get('guess', '?')})", "reached", verdict),)
-    return search, report
-
-
-def unsolved(problem, guess=None):
-    """A failed :class:`~nhgait.ocp.Solution` for a search that solved nothing (every candidate
-    skipped by its screening): status ``Not_Solved``, the states of ``guess`` (zeros without one)."""
-    from nhgait.ocp import Solution
-    t = problem.grid()
-    states = np.asarray(guess.states, float) if guess is not None else np.zeros((len(problem.state_names), t.size))
-    return Solution(False, "Not_Solved", "every candidate met the singular set of the equations and was skipped",
-                    0, float("nan"), t, states, np.zeros((problem.n_controls, problem.intervals)),
-                    tuple(problem.state_names), tuple(problem.control_names), float(problem.horizon),
-                    0.0, 0.0, 0.0, 0.0, problem=problem,
-                    settings={"guess": getattr(guess, "label", "none"), "intervals": problem.intervals,
-                              "transcription": "none", "solver": "none (no candidate solved)"})
-
-
-def verified_gait(solution, model, stated, to_plan, params, *, verify=True, progress=None):
-    """``solution`` (velocity coordinates) in the momentum coordinates of a chart of ``model``
-    regular along it (:func:`~nhgait.gaits.charts.verification_chart`; a failed solution in
-    ``model``'s own) and, with ``verify``, verified there to the task's tolerance; in x = (q, q̇)
-    on the Euler–Lagrange equations (:func:`~nhgait.gaits.charts.lagrange_ode`) when no chart is
-    regular along the gait, when the re-simulation in the chart stops (its singular set met
-    between the nodes), when the solution's states in the chart are not finite (a failed one
-    too: its trajectory is written out), and when the gait fails there before another chart is
-    tried (:func:`_lagrange_first`)."""
-    from nhgait.dynamics.progress import Progress
-    from .charts import lagrange_ode, verification_chart
-    progress = progress or Progress.silent()
-    n = len(model.system.coordinates)
-    regular, default = False, model
-    if verify and solution.success:
-        model, regular = verification_chart(to_plan.scene.system, model, solution.states[:n], params, progress)
-        if not regular:
-            model = lagrange_ode(to_plan.scene.system)
-    in_lagrange = (lambda: to_momentum_coordinates(solution, momentum_problem(lagrange_ode(to_plan.scene.system),
-                                                                               stated, to_plan, params)))
-    moved = to_momentum_coordinates(solution, momentum_problem(model, stated, to_plan, params))
-    if not np.all(np.isfinite(moved.states)) and np.all(np.isfinite(solution.states)):
-        # a chart singular at some node (where the momenta are not defined): (q, q̇) instead
-        moved, regular = in_lagrange(), False
-    if not verify:
-        return moved
-    if regular and model is not default:
-        screened = _lagrange_first(in_lagrange(), to_plan, progress)
-        if screened is not None:
-            return screened
-    checked = _verified_once(moved, to_plan, progress)
-    if regular and not checked.verification.success:
-        progress.note("  the re-simulation stopped in the chart (its singular set between the nodes): verifying on the "
-                      "Euler–Lagrange equations (index-1 form, x = (q, q̇)), which have none")
-        checked = _verified_once(in_lagrange(), to_plan, progress)
-    return checked
-
-
-def _lagrange_first(solution, to_plan, progress):
-    """A gait that met the singular set of the planner's chart, re-simulated on the
-    Euler–Lagrange equations first: None when it passes there (it is then verified in the
-    regular chart found, whose momenta the figures show), else that failed verification — a
-    chart near its own singular set can take minutes to re-simulate a trajectory that is not a
-    solution (a 5-link chain: 0.3 s on these equations, over 10 minutes in the chart)."""
-    checked = _verified_once(solution, to_plan, progress)
-    return None if checked.verification.passed else checked
-
-
-def _verified_once(solution, to_plan, progress):
-    with progress.phase("verify: re-simulate the optimal inputs on the general model (DOP853, rtol 1e-10)"):
-        solution = solution.verified(tolerance=to_plan.task.verify_tolerance)
-    v = solution.verification
-    progress.note(f"  {'passed' if v.passed else 'FAILED'}: nodes met to {v.max_error:.2e}, conditions to "
-                  f"{v.max_condition_error:.2e} (tolerance {v.tolerance:g})"
-                  + ("" if v.success else "; the re-simulation stopped early"))
-    return solution
-
-
-def momentum_problem(model, problem, to_plan, params):
-    """The same statement on the derived (momentum-coordinate, unspecialised) model."""
-    return problem.replace(model=model, quantities=quantity_objects(model, to_plan.scene), params=params)
-
-
-def to_momentum_coordinates(solution, momentum):
-    """A solution re-expressed on the problem ``momentum`` (z = (q, P), a chart of the derived model).
-
-    The statement is the same (tasks are coordinate-free); only the states change: q̇ from the
-    solution's model (``qdot``; regular along the gait in the planner's velocity coordinates),
-    then P = XᵀM(q)q̇ of the momentum model's chart (its ``state`` map), so the result does not
-    go through the chart of the model the solution was stated on. Any verification is dropped:
-    verify the returned solution in momentum coordinates.
-    """
-    model = solution.problem.model
-    same_chart = tuple(model.fiber) == tuple(getattr(momentum.model, "fiber", ()))
-    if "momentum_state" not in model.numeric.functions and same_chart:
-        return replace(solution, problem=momentum, verification=None)
-    n = len(model.system.coordinates)
-    state = momentum.model.numeric["state"]
-    K = solution.states.shape[1]
-    with np.errstate(all="ignore"):
-        states = np.asarray(state.map(K)(solution.states[:n], solution.velocities(),
-                                         momentum.model.numeric.params(momentum.params)))
-    settings = {**solution.settings, "transcribed_in": list(solution.state_names)}
-    return replace(solution, states=states, state_names=momentum.state_names,
-                   problem=momentum, verification=None, settings=settings)
+def _feedback_and_stability(search, progress) -> dict:
+    """The time-varying LQR along a converged plan in its own (velocity) coordinates
+    (:mod:`nhgait.ocp.feedback`) and, for a periodic plan, the Floquet multipliers of the open and
+    the closed loop (:mod:`nhgait.ocp.floquet`); {} for a failed plan."""
+    if search.solution is None:
+        return {}
+    from .plan_feedback import feedback_and_stability
+    return feedback_and_stability(search.solution, progress)
 
 
 # ----------------------------------------------------------------------------- outputs
@@ -648,19 +556,13 @@ def write_outputs(result: PlanResult, out: Path, *, animate: bool = True, progre
     """solution.json (with ``task``, ``guess``, ``success`` and ``diagnosis``) and the figures;
     a failed plan's figures are titled FAILED and it gets no animation; a plan whose time budget
     ran out gets solution.json only (nothing without a point). Each file is written whole or
-    not at all: into a staging folder in ``out`` (removed whatever happens), then moved into
-    place. Returns the paths."""
-    import tempfile
+    not at all (:func:`nhgait.gaits.outputs.staged`). Returns the paths."""
     from nhgait.dynamics.progress import Progress
+    from .outputs import staged
     progress = progress or Progress.silent()
     if result.solution is None:
         return []
-    out.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=out, prefix=".writing-") as staging:
-        staged = _write_files(result, Path(staging), animate=animate, progress=progress)
-        for path in staged:
-            os.replace(path, out / path.name)
-    return [out / path.name for path in staged]
+    return staged(out, lambda folder: _write_files(result, folder, animate=animate, progress=progress))
 
 
 def _write_files(result: PlanResult, out: Path, *, animate: bool, progress) -> list:
@@ -696,8 +598,9 @@ def summary_lines(result: PlanResult) -> list:
              f"solver {s.solver_time_s * 1e3:.1f} ms); set-up {s.setup_time_s * 1e3:.1f} ms"]
     if v is not None:
         lines.append(f"  verification       {'passed' if v.passed else 'FAILED'}: max state error {v.max_error:.2e}, "
-                     f"conditions met to {v.max_condition_error:.2e} (tolerance {v.tolerance:g}; DOP853, "
-                     f"rtol {v.rtol:g})")
+                     f"conditions met to {v.max_condition_error:.2e}; relative to each state's range "
+                     f"{v.max_scaled_error:.2e}, {v.max_scaled_condition_error:.2e} (tolerance {v.tolerance:g}; "
+                     f"DOP853, rtol {v.rtol:g})")
     else:
         lines.append("  verification       not run")
     st = s.settings
@@ -705,6 +608,12 @@ def summary_lines(result: PlanResult) -> list:
                  f"{st.get('solver')}, {st.get('hessian', 'exact')} Hessian, {_compiled_text(st)}, "
                  f"states ({', '.join(st.get('transcribed_in', s.state_names))})")
     lines += [f"  conditions         {line}" for line in (result.conditions.lines() if result.conditions else ())]
+    if s.feedback is not None:                                               # issue 28
+        lines.append(f"  feedback           time-varying LQR, {s.feedback.gains.shape[0]} gains "
+                     f"{s.feedback.gains.shape[1]}×{s.feedback.gains.shape[2]} in solution.json; nhgait track "
+                     "applies it to a robot that differs")
+    if s.stability is not None:
+        lines += [f"  stability          {line}" for line in s.stability.summary()]
     symmetry = getattr(result.model, "symmetry", None)
     if symmetry is not None:
         lines.append(f"  symmetry           {symmetry.chosen.group} moves the fibre ({', '.join(result.model.fiber)}); "
@@ -740,9 +649,17 @@ def _closing_lines(result: PlanResult) -> list:
 
 
 def _compiled_text(settings) -> str:
+    """Which code solved and what was started for later (:class:`~nhgait.ocp.nlp_code.CompileReport`)."""
+    c = settings.get("compile") or {}
+    later = c.get("later") or {}
+    after = ""
+    if later.get("state") == "started":
+        after = f"; {later.get('compiler')} {' '.join(later.get('flags') or [])} building in the background for the next run"
     if not settings.get("jit"):
         reason = settings.get("jit_fallback")
-        return "interpreted" + (f" ({reason})" if reason else "")
-    c = settings.get("compile") or {}
-    size = f"{c.get('c_bytes', 0) / 1e6:.2f} MB of C, {' '.join(c.get('flags') or [])}"
+        return "interpreted" + (f" ({reason}{after})" if reason else (f" ({after[2:]})" if after else ""))
+    size = f"{c.get('c_bytes', 0) / 1e6:.2f} MB of C"
+    if c.get("code") == "fast":
+        return f"compiled fast ({c.get('compiler')}, {size}, {c.get('compile_s', 0):.2f} s{after})"
+    size += f", {' '.join(c.get('flags') or [])}"
     return f"compiled ({size}" + (", cached)" if settings.get("jit_cached") else f", {c.get('compile_s', 0):.1f} s)")

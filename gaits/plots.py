@@ -133,8 +133,9 @@ def figure_context(solution, model, units=None, drawing=None) -> FigureContext:
     system = model.system
     parsed = parse_drawing(drawing, system) if drawing is not None else None
     frame = parsed.frame if parsed is not None else default_frame(system)
-    return FigureContext(system, dict(units or {}), parsed, frame, tuple(getattr(model, "fiber", ())),
-                         tuple(getattr(model, "shape", ())), model)
+    return FigureContext(system=system, units=dict(units or {}), drawing=parsed, frame=frame,
+                         fiber=tuple(getattr(model, "fiber", ())), shape=tuple(getattr(model, "shape", ())),
+                         model=model)
 
 
 def _axes(ax, **kw):
@@ -160,6 +161,7 @@ def body_segments(solution, ctx, k) -> list:
     if ctx.drawing is not None:
         return ctx.drawing.segments(_q(solution, k), solution.problem.params)
     x, y, th = (series(solution, c)[k] for c in ctx.frame)
+    th = th + float(getattr(solution.problem.model.system, "forward_angle", 0.0))    # the forward axis
     size = _scale(solution, ctx)
     return [([x, x + 0.15 * size * np.cos(th)], [y, y + 0.15 * size * np.sin(th)])]
 
@@ -305,7 +307,8 @@ def plot_histories(solution, ctx: FigureContext, axes=None):
 def plot_momentum(solution, ctx: FigureContext, axes=None):
     """The reduced momenta over time, one panel each, with their meaning and unit."""
     n = len(ctx.system.coordinates)
-    names = list(solution.state_names[n:])
+    model_states = solution.problem.model_state_names if solution.problem is not None else solution.state_names
+    names = list(model_states[n:])                       # the integral states (a task's) are not momenta
     if axes is None:
         import matplotlib.pyplot as plt
         _, axes = plt.subplots(len(names), 1, sharex=True, figsize=(7, 1.9 * max(1, len(names))))

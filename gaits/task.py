@@ -45,13 +45,17 @@ from dataclasses import dataclass, field, replace
 from nhgait.dynamics.derivation.assignments import parse_assignment
 from nhgait.dynamics.suggestions import known_names
 from nhgait.ocp import OptimalControlProblem, ProblemError, Quantity
-from nhgait.ocp.statement import FrozenMap, ProblemStatement, Wording
+from nhgait.ocp.statement import FrozenMap, ProblemStatement, Wording, instant_problems
+
+from .task_phases import parse_integrals, parse_phases, parse_waypoints, phase_table, waypoint_table
+from .task_values import control_bounds, horizon, names_list, number, table
 
 __all__ = ["Task", "FrozenMap", "parse_task", "apply_overrides", "check_names", "task_names", "to_problem", "at_rest",
-           "TASK_KEYS", "TASK_WORDS", "task_words"]
+           "TASK_KEYS", "TASK_WORDS", "task_words", "quantity_objects"]
 
 TASK_KEYS = ("name", "description", "horizon", "intervals", "initial", "final", "rest", "periodic", "bounds",
-             "control_bounds", "objective", "velocities", "verify_tolerance", "time_limit")
+             "control_bounds", "objective", "velocities", "verify_tolerance", "time_limit", "waypoints", "integrals",
+             "phases")
 ENDS = ("initial", "final")
 OBJECTIVES = ("effort", "time")
 #: a task's name of a statement field (the others are the same)
@@ -127,11 +131,19 @@ class Task:
     bounds = property(lambda self: self.statement.state_bounds)
     control_bounds = property(lambda self: self.statement.control_bounds)
     horizon_bounds = property(lambda self: self.statement.free_horizon)
+    waypoints = property(lambda self: self.statement.waypoints)
+    integrals = property(lambda self: self.statement.integrals)
+    phases = property(lambda self: self.statement.phases)
 
     @property
     def names(self) -> tuple:
-        """Every quantity name the task uses, in order of appearance."""
-        return tuple(dict.fromkeys((*self.initial, *self.final, *self.periodic, *self.bounds)))
+        """Every quantity name the task uses, in order of appearance (integrands, not the
+        integral states)."""
+        st = self.statement
+        points = [*st.waypoints, *(w for p in st.phases for w in p.waypoints)]
+        used = (*self.initial, *self.final, *self.periodic, *self.bounds, *(n for w in points for n in w.conditions),
+                *(n for p in st.phases for n in (*p.final, *p.state_bounds)), *self.integrals.values())
+        return tuple(n for n in dict.fromkeys(used) if n not in self.integrals)
 
     def replace(self, **changes) -> "Task":
         """A copy with some fields changed, named as the task names them (``intervals=60``)."""
@@ -143,8 +155,16 @@ class Task:
     def to_dict(self) -> dict:
         """The task as a ``[task]`` table (JSON/TOML-friendly)."""
         bounds = self.horizon_bounds
-        out = {"name": self.name, "description": self.description, "intervals": self.intervals,
-               "horizon": {"initial": self.horizon, "min": bounds[0], "max": bounds[1]} if bounds else self.horizon}
+        out = {"name": self.name, "description": self.description}
+        if self.phases:
+            out["phases"] = [phase_table(p) for p in self.phases]
+        else:
+            out["intervals"] = self.intervals
+            out["horizon"] = {"initial": self.horizon, "min": bounds[0], "max": bounds[1]} if bounds else self.horizon
+        if self.waypoints:
+            out["waypoints"] = [waypoint_table(w) for w in self.waypoints]
+        if self.integrals:
+            out["integrals"] = dict(self.integrals)
         for key in ("initial", "final", "bounds"):
             out[key] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in getattr(self, key).items()}
         out["periodic"] = list(self.periodic)
@@ -164,77 +184,6 @@ _STATEMENT_NAMES = {task: stated for stated, task in TASK_FIELD_NAMES.items()}
 
 
 # ----------------------------------------------------------------------------- parsing
-def _number(value, where, problems, *, allow_inf=False) -> float:
-    from nhgait.dynamics.derivation.expressions import number_problems
-    if allow_inf and (value in ("inf", "+inf", "-inf") or (isinstance(value, float) and math.isinf(value))):
-        return float(value)
-    return number_problems(value, where, problems)
-
-
-def _value(value, where, problems):
-    """A number or a [lo, hi] range (its order is the statement's to check)."""
-    if isinstance(value, (list, tuple)):
-        if len(value) != 2:
-            problems.append(f"{where}: a range is [lo, hi], got {len(value)} entries")
-            return (-math.inf, math.inf)
-        return (_number(value[0], f"{where} lower bound", problems, allow_inf=True),
-                _number(value[1], f"{where} upper bound", problems, allow_inf=True))
-    return _number(value, where, problems)
-
-
-def _table(data, key, problems) -> dict:
-    value = data.get(key, {})
-    if not isinstance(value, Mapping):
-        problems.append(f"[task].{key} must be a table of name = value, got {type(value).__name__} {value!r}")
-        return {}
-    out = {}
-    for name, v in value.items():
-        out[str(name)] = _value(v, f"[task].{key}.{name}", problems)
-        if key == "bounds" and not isinstance(v, (list, tuple)):
-            problems.append(f"[task].bounds.{name}: a path bound is a range [lo, hi], got {v!r}")
-    return out
-
-
-def _names_list(data, key, problems, *, repeats: bool = True) -> tuple:
-    value = data.get(key, [])
-    if isinstance(value, str) or not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
-        problems.append(f"[task].{key} must be a list of names such as [\"psi\", \"phi_dot\"], got {value!r}")
-        return ()
-    if repeats and len(set(value)) != len(value):
-        problems.append(f"[task].{key}: repeated names in {list(value)}")
-    return tuple(value)
-
-
-def _horizon(data, problems):
-    """(T, bounds or None) from ``horizon`` (None for T when it is missing); the bounds' order
-    is the statement's to check."""
-    if "horizon" not in data:
-        problems.append("[task]: missing key 'horizon' (a number of seconds, or [min, max] for a free horizon)")
-        return None, None
-    value = data["horizon"]
-    if isinstance(value, Mapping):
-        unknown = set(value) - {"initial", "min", "max"}
-        if unknown or not {"min", "max"} <= set(value):
-            problems.append("[task].horizon as a table needs min and max (and optionally initial), "
-                            f"got keys {sorted(value)}")
-            return None, None
-        lo = _number(value["min"], "[task].horizon.min", problems)
-        hi = _number(value["max"], "[task].horizon.max", problems)
-        T = _number(value.get("initial", (lo + hi) / 2), "[task].horizon.initial", problems)
-        if 0 < lo <= hi and not lo <= T <= hi:
-            problems.append(f"[task].horizon: initial {T:g} outside [{lo:g}, {hi:g}]")
-        return T, (lo, hi)
-    if isinstance(value, (list, tuple)):
-        if len(value) != 2:
-            problems.append(f"[task].horizon: a free horizon is [min, max], got {len(value)} entries")
-            return None, None
-        lo = _number(value[0], "[task].horizon min", problems)
-        hi = _number(value[1], "[task].horizon max", problems)
-        return (lo + hi) / 2, (lo, hi)
-    T = _number(value, "[task].horizon", problems)
-    return (None if math.isnan(T) else T), None         # a value that is no number is reported once
-
-
 def _objective(value, problems) -> dict:
     if isinstance(value, str):
         if value not in OBJECTIVES:
@@ -246,54 +195,42 @@ def _objective(value, problems) -> dict:
         return {"effort": 1.0}
     out = {}
     for name, w in value.items():
-        out[str(name)] = _number(w, f"[task].objective.{name}", problems)
+        out[str(name)] = number(w, f"[task].objective.{name}", problems)
         if out[str(name)] < 0:
             problems.append(f"[task].objective.{name} = {w!r} must be ≥ 0")
     return out
 
 
-def _control_bounds(data, problems):
-    value = data.get("control_bounds", {})
-    if isinstance(value, Mapping):
-        out = {}
-        for name, v in value.items():
-            out[str(name)] = _value(v, f"[task].control_bounds.{name}", problems)
-            if not isinstance(out[str(name)], tuple):
-                b = abs(out[str(name)])
-                out[str(name)] = (-b, b)
-        return out
-    b = _number(value, "[task].control_bounds", problems)
-    if not b > 0:
-        problems.append(f"[task].control_bounds = {value!r} must be a positive number or a table")
-    return abs(b)
-
-
 def _statement(data, problems) -> tuple:
     """(The ``[task]`` table's problem statement (no model), its objective), the problems of
     what it parses appended; the statement's own validators run after."""
-    horizon, free_horizon = _horizon(data, problems)
+    phases = parse_phases(data, problems)
+    T, free_horizon = horizon(data, problems) if not phases else (None, None)   # with phases: their sums
     objective = _objective(data.get("objective", "effort"), problems)
+    integrals, waypoints = parse_integrals(data, problems), parse_waypoints(data, problems)
     return ProblemStatement(
-        None, horizon=horizon, intervals=data.get("intervals", 50), initial=_table(data, "initial", problems),
-        final=_table(data, "final", problems), periodic=_names_list(data, "periodic", problems, repeats=False),
-        state_bounds=_table(data, "bounds", problems), control_bounds=_control_bounds(data, problems),
+        None, horizon=T, intervals=data.get("intervals", 50), initial=table(data, "initial", problems),
+        final=table(data, "final", problems), periodic=names_list(data, "periodic", problems, repeats=False),
+        state_bounds=table(data, "bounds", problems), control_bounds=control_bounds(data, problems),
         time_weight=max(0.0, objective.get("time", 0.0)),     # a negative weight: the objective's own check
-        free_horizon=free_horizon), objective
+        free_horizon=free_horizon, waypoints=waypoints if not phases else (),   # with phases: said by parse_phases
+        integrals=integrals, phases=phases,
+        end_weights={n: w for n, w in objective.items() if n in integrals}), objective
 
 
 def _task_fields(data, where, problems) -> dict:
     """What only a task says (not the statement's): velocities, rest, tolerance, name, description."""
-    rest = _names_list(data, "rest", problems)
+    rest = names_list(data, "rest", problems)
     for end in rest:
         if end not in ENDS:
             problems.append(f"{where}.rest: {end!r} is not an end (use [\"initial\"], [\"final\"] or both)")
-    tolerance = _number(data.get("verify_tolerance", 1e-6), f"{where}.verify_tolerance", problems)
+    tolerance = number(data.get("verify_tolerance", 1e-6), f"{where}.verify_tolerance", problems)
     if not tolerance > 0:
         problems.append(f"{where}.verify_tolerance = {data.get('verify_tolerance')!r} must be positive")
     for key in ("name", "description"):
         if key in data and not isinstance(data[key], str):
             problems.append(f"{where}.{key} must be a string")
-    return {"velocities": _names_list(data, "velocities", problems), "rest": rest, "verify_tolerance": tolerance,
+    return {"velocities": names_list(data, "velocities", problems), "rest": rest, "verify_tolerance": tolerance,
             "name": str(data.get("name", "task")), "description": str(data.get("description", "")),
             "time_limit": _time_limit(data, where, problems)}
 
@@ -302,7 +239,7 @@ def _time_limit(data, where, problems) -> float | None:
     """``time_limit``: seconds the plan may take, > 0 (``"inf"``: unlimited); None when not given."""
     if "time_limit" not in data:
         return None
-    seconds = _number(data["time_limit"], f"{where}.time_limit", problems, allow_inf=True)
+    seconds = number(data["time_limit"], f"{where}.time_limit", problems, allow_inf=True)
     if math.isnan(seconds):                   # said already
         return None
     if not seconds > 0:
@@ -312,11 +249,12 @@ def _time_limit(data, where, problems) -> float | None:
     return seconds
 
 
-def parse_task(data, *, where: str = "[task]", system=None, quantities=()) -> Task:
+def parse_task(data, *, where: str = "[task]", system=None, quantities=(), motion=()) -> Task:
     """A :class:`Task` from a ``[task]`` table (dict); every problem in one ProblemError.
 
-    With ``system`` (and the scene's ``quantities``) the names and counts are checked too, in
-    the same error (no derivation needed: names come from the system's statement).
+    With ``system`` (and the scene's ``quantities``, of which ``motion`` are those of the
+    inputs or accelerations) the names and counts are checked too, in the same error (no
+    derivation needed: names come from the system's statement).
     """
     if isinstance(data, Task):
         return data
@@ -332,7 +270,7 @@ def parse_task(data, *, where: str = "[task]", system=None, quantities=()) -> Ta
         problems += statement.problems(task_words(where))
     else:
         n, k = system.n, len(system.constraint_exprs)
-        problems += _name_problems(task, task_names(system, quantities), tuple(system.inputs), n - k, where)
+        problems += _name_problems(task, task_names(system, quantities), tuple(system.inputs), n - k, where, motion)
     if problems:
         raise ProblemError(problems, title="invalid task")
     return task
@@ -347,7 +285,7 @@ def apply_overrides(data, assignments) -> dict:
     ``objective`` and ``name`` take words. A malformed assignment is a ProblemError.
     """
     out = {k: (dict(v) if isinstance(v, Mapping) else v) for k, v in dict(data or {}).items()}
-    problems = []
+    problems, changed = [], []
     for text in assignments or ():
         assignment = parse_assignment(text, problems, example="final.x=2.0")
         if assignment is None:
@@ -370,6 +308,7 @@ def apply_overrides(data, assignments) -> dict:
             parsed = int(value) if value.isdigit() else value
         else:
             parsed = value
+        changed.append((parts[0], text))
         if len(parts) == 1:
             out[parts[0]] = parsed
         else:
@@ -380,7 +319,24 @@ def apply_overrides(data, assignments) -> dict:
             out[parts[0]] = {**table, parts[1]: parsed}
     if problems:
         raise ProblemError(problems, title="invalid --set")
-    return out
+    return renamed(out, changed)
+
+
+#: keys whose change makes another task (the others change how it is solved or checked)
+MEANING_KEYS = ("horizon", "initial", "final", "rest", "periodic", "bounds", "control_bounds", "objective",
+                "waypoints", "integrals", "phases")
+
+
+def renamed(table: dict, changed) -> dict:
+    """``table`` named for what ``--set`` changed, unless the assignments name it themselves:
+    ``parallel-park`` with ``final.y=0.8`` becomes ``parallel-park (final.y=0.8)`` — a task that
+    means something else is not reported under its old name. ``changed``: (key, assignment text)."""
+    if any(key == "name" for key, _ in changed):
+        return table
+    meaning = [text.strip() for key, text in changed if key in MEANING_KEYS]
+    if not meaning:
+        return table
+    return {**table, "name": f"{table.get('name', 'task')} ({', '.join(meaning)})"}
 
 
 # ----------------------------------------------------------------------------- names and problem
@@ -394,14 +350,17 @@ def task_names(system, quantities=()) -> tuple:
             + tuple(n for n in quantities if n not in coords))
 
 
-def _name_problems(task: Task, known, inputs, n_velocities, where: str = "[task]") -> list:
+def _name_problems(task: Task, known, inputs, n_velocities, where: str = "[task]", motion=()) -> list:
     """The statement's problems with its names checked against ``known`` and ``inputs``, then
-    the task's own: unknown objective weights, the count of velocity states, no inputs."""
+    the task's own: quantities of the inputs (``motion``) at one instant, unknown objective
+    weights, the count of velocity states, no inputs."""
     problems = task.statement.problems(task_words(where), known, inputs)
+    problems += instant_problems(task.statement, motion, prefix="[task].")
+    weights = (*OBJECTIVES, *inputs, *task.integrals)
     for name in task.objective:
-        if name not in OBJECTIVES and name not in inputs:
+        if name not in weights:
             problems.append(f"[task].objective: unknown weight {name!r}"
-                            f"{known_names(name, (*OBJECTIVES, *inputs), label='effort, time or an input')}")
+                            f"{known_names(name, weights, label='effort, time, an input or an integral')}")
     if task.velocities and len(task.velocities) != n_velocities:
         problems.append(f"[task].velocities: the system needs {n_velocities} velocity states, got "
                         f"{len(task.velocities)} ({', '.join(task.velocities)})")
@@ -410,32 +369,42 @@ def _name_problems(task: Task, known, inputs, n_velocities, where: str = "[task]
     return problems
 
 
-def check_names(task: Task, known: tuple, inputs: tuple, *, n_velocities: int):
+def check_names(task: Task, known: tuple, inputs: tuple, *, n_velocities: int, motion=()):
     """Unknown names and impossible counts of ``task`` on a model (one ProblemError)."""
-    problems = _name_problems(task, known, inputs, n_velocities)
+    problems = _name_problems(task, known, inputs, n_velocities, motion=motion)
     if problems:
         raise ProblemError(problems, title="invalid task")
 
 
-def scene_quantities(model, quantity_function) -> dict:
+def scene_quantities(model, quantity_function, motion_function=None) -> dict:
     """The scene's named quantities as OCP :class:`Quantity` objects of the state z.
 
     ``quantity_function`` is the CasADi Function (q, q̇, params) → y of
     :func:`nhgait.dynamics.derivation.quantities.quantity_function`; q is the first n entries of z and q̇
-    the model's ``qdot(z)``.
+    the model's ``qdot(z)``. ``motion_function`` (q, q̇, q̈, u, params) → y, of
+    :func:`~nhgait.dynamics.derivation.quantities.motion_quantity_function`, gives the quantities
+    of the inputs and accelerations, q̈ = ∂q̇/∂z · ż (:func:`~nhgait.ocp.problem.qddot_of`).
     """
-    if quantity_function is None:
-        return {}
+    from nhgait.ocp.problem import qddot_of
     n = len(model.system.coordinates)
-    names = quantity_function.name_out(0).split(",")
     qdot = model.numeric["qdot"]
     out = {}
-    for i, name in enumerate(names):
-        if not name or name in model.state_names:
-            continue
+    for name, i in _outputs(quantity_function, model):
         out[name] = Quantity(name, lambda z, params, i=i: quantity_function(z[:n], qdot(z, params), params)[i],
                              f"scene quantity {name}")
+    for name, i in _outputs(motion_function, model):
+        out[name] = Quantity(name, lambda z, u, zdot, params, i=i: motion_function(
+            z[:n], qdot(z, params), qddot_of(model, z, zdot, params), u, params)[i],
+            f"scene quantity {name} (of the inputs and accelerations)", inputs=True)
     return out
+
+
+def _outputs(function, model) -> list:
+    """(name, index) of each output of a quantity function, the model's own states left out."""
+    if function is None:
+        return []
+    names = function.name_out(0).split(",")
+    return [(name, i) for i, name in enumerate(names) if name and name not in model.state_names]
 
 
 def control_weights(objective: Mapping, inputs: tuple) -> dict:
@@ -480,3 +449,11 @@ def to_problem(task: Task, model, *, quantities=None, params=None, name: str = "
         task.statement, model, initial=ends["initial"], final=ends["final"],
         control_weights=control_weights(task.objective, tuple(model.system.inputs)),
         quantities=dict(quantities or {}), params=params, name=name or task.name)
+
+
+def quantity_objects(model, scene):
+    """The scene's named quantities as :class:`~nhgait.ocp.Quantity` objects on ``model``."""
+    from nhgait.dynamics.derivation.quantities import motion_quantity_function, quantity_function
+    motion = scene.motion_quantities
+    return scene_quantities(model, quantity_function(model.system, scene.quantities) if scene.quantities else None,
+                            motion_quantity_function(model.system, motion) if motion else None)

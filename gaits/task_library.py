@@ -130,7 +130,7 @@ def resolve(system, task=None, *, overrides=()) -> Plan:
     lib = library(name) if str(scene.source).startswith("built-in scene ") else None
     units = {**((lib or {}).get("units", {})), **dict(scene.units or {})}
     drawing = scene.drawing if scene.drawing is not None else (lib or {}).get("drawing")
-    check = {"system": scene.system, "quantities": scene.quantities}
+    check = {"system": scene.system, "quantities": scene.all_quantities, "motion": tuple(scene.motion_quantities)}
     if isinstance(task, Task):
         task = parse_task(apply_overrides(task.to_dict(), overrides), **check)
         return Plan(scene, task, f"{name}/{task.name}", units, drawing)

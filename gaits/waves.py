@@ -31,10 +31,12 @@ import numpy as np
 
 from nhgait.ocp import InitialGuess
 
-__all__ = ["ShapeGuess", "centre", "ends", "free_start", "amplitude", "guess_from_shape", "repairs", "FITTED_LABEL"]
+__all__ = ["ShapeGuess", "centre", "ends", "free_start", "amplitude", "guess_from_shape", "repairs", "FITTED_LABEL", "PATH_LABEL"]
 
 #: the fitted roll-out's label (:mod:`.fitted`; built by :func:`guess_from_shape` like the others)
 FITTED_LABEL = "fitted roll-out"
+#: the path through the places a task states between its ends (:mod:`.path_guess`)
+PATH_LABEL = "path through the stated places"
 #: amplitude factors of the repairs, after the phase and centre changes at full amplitude
 SCALES = (1.0, 0.5, 0.25)
 #: relative phases added to the second wave of a loop
@@ -109,6 +111,9 @@ def guess_from_shape(problem, shape: ShapeGuess, coordinates: tuple) -> InitialG
     if shape.label == FITTED_LABEL:
         from .fitted import fitted_guess
         return fitted_guess(problem, coordinates, [ends(problem, c, shape.start)[0] for c in coordinates])
+    if shape.label == PATH_LABEL:
+        from .path_guess import path_guess
+        return path_guess(problem, coordinates, lambda name: ends(problem, name, shape.start))
     if shape.rates:
         return _rollout(problem, shape, coordinates)
     t = problem.grid()

@@ -6,6 +6,13 @@ than the reduced state (2n − k components) can take independently. Imposed lit
 the NLP's constraint Jacobian rank-deficient (Ipopt then crawls or stops at a wrong point).
 :func:`normalise` states the same set of trajectories with independent conditions:
 
+* **A point at rest** (first, at each end): velocity quantities stated zero that are linear
+  in the velocity states ν (ẋ = ẏ = 0 of a car's front axle) are rows of A(q) ν = 0; when the
+  columns S of A that are not identically zero keep full rank at every configuration (the
+  smallest eigenvalue of A_Sᵀ A_S minimised over the coordinates the end leaves free), they
+  say exactly ν_S = 0 and are replaced by those states fixed to 0 (bounds). One such row alone
+  usually loses rank somewhere (ẋ = v cos θ vanishes at θ = π/2 for any v) and stays as written:
+  dropping either row of the pair, as the rank test below would, admits that branch.
 * **At one end** (t = 0 or t = T), with F the state components the end fixes by value and
   c_j(z) = a_j the equality conditions on derived quantities: at sample states z with z_F
   fixed, moved (Gauss–Newton in the free components) onto the set where the conditions kept
@@ -56,6 +63,7 @@ __all__ = ["normalise", "ConditionReport"]
 SAMPLES = 6
 RANK_TOL = 1e-8            # singular values below this fraction of the largest are zero
 RESIDUAL_TOL = 1e-8        # a condition holds when |c(z) − a| ≤ RESIDUAL_TOL (1 + |a|)
+REST_RANK_TOL = 1e-8       # A_Sᵀ A_S loses rank where its smallest eigenvalue falls below this fraction of its largest
 
 
 @dataclass(frozen=True)
@@ -153,6 +161,12 @@ def _point_on(end: _End, kept: list, values: np.ndarray, z0: np.ndarray, free: n
 def _end(problem, where: str, rng):
     """(new mapping, dropped [(name, reason)], solved state or None) of one end."""
     mapping = problem.initial if where == "initial" else problem.final
+    mapping, replaced = _velocities_at_rest(problem, mapping, rng)
+    out, dropped, solved = _end_conditions(problem, mapping, where, rng)
+    return out, replaced + dropped, solved
+
+
+def _end_conditions(problem, mapping, where: str, rng):
     fixed = _fixed(problem, mapping)
     eqs = _equalities(problem, mapping)
     if not eqs:
@@ -197,6 +211,89 @@ def _end(problem, where: str, rng):
     if independent == problem.n_states and linear:
         return out, dropped, points[0]
     return out, dropped, None
+
+
+def _velocities_at_rest(problem, mapping, rng) -> tuple:
+    """Velocity quantities stated zero at an end, replaced by the velocity states they stop.
+
+    With ν the velocity states (the model's states after its coordinates), a quantity c that
+    is linear in them, c = a(q)ᵀν, stated c = 0 ("the front axle at rest": ẋ = ẏ = 0) is one
+    row of A(q) ν = 0. When the columns S of A that are not identically zero have full rank at
+    *every* configuration — the smallest eigenvalue of A_Sᵀ A_S, minimised over q from the
+    samples (within the bounds), stays away from 0 — the rows say exactly ν_S = 0 (the other
+    velocity states stay free): they are replaced by those states fixed to 0, which the NLP
+    takes as bounds. Testing rank at sample points only would miss the configurations where it
+    drops (ẋ = 0 alone holds also for a car moving along y; ẋ = ẏ = 0 only at rest). Returns
+    (new mapping, dropped [(name, reason)])."""
+    n = len(getattr(problem.model.system, "coordinates", ()))
+    velocity = list(range(n, len(problem.model_state_names)))
+    fixed = _fixed(problem, mapping)
+    rows = [name for name, value in _equalities(problem, mapping) if value == 0.0]
+    if not rows or not velocity or any(fixed.get(i, 0.0) != 0.0 for i in velocity):
+        return mapping, []
+    end = _End(problem, rows)
+    Z = [z for z in _samples(problem, fixed, rng, 4 * SAMPLES) if np.all(np.isfinite(end(z)[1]))][:SAMPLES]
+    linear = [j for j, _ in enumerate(rows) if Z and all(_linear_in(end, z, j, velocity) for z in Z)]
+    if not linear:
+        return mapping, []
+    A = [end(z)[1][np.ix_(linear, velocity)] for z in Z]
+    scale = max(float(np.abs(a).max()) for a in A)
+    S = [k for k in range(len(velocity)) if scale > 0 and max(float(np.abs(a[:, k]).max()) for a in A) > RANK_TOL * scale]
+    if not S or len(S) > len(linear) or not _full_rank_everywhere(problem, end, linear, [velocity[k] for k in S], Z,
+                                                                  fixed):
+        return mapping, []
+    stopped = [problem.state_names[velocity[k]] for k in S]
+    names = [rows[j] for j in linear]
+    out = {k: v for k, v in mapping.items() if k not in names}
+    out.update({name: 0.0 for name in stopped})
+    free = [problem.state_names[i] for i in velocity if problem.state_names[i] not in stopped]
+    reason = (f"with {', '.join(f'{m} = 0' for m in names)}: exactly {', '.join(f'{m} = 0' for m in stopped)}"
+              + (f" ({', '.join(free)} free)" if free else ""))
+    return out, [(name, reason) for name in names]
+
+
+def _linear_in(end: _End, z, j: int, velocity: list) -> bool:
+    """c_j(z) = ∂c_j/∂ν · ν and c_j(q, 0) = 0 at ``z`` (homogeneous linear in the velocities)."""
+    c, J = end(z)
+    zero = z.copy()
+    zero[velocity] = 0.0
+    c0 = end(zero)[0][j]
+    predicted = float(J[j, velocity] @ z[velocity])
+    tol = RESIDUAL_TOL * (1 + abs(c[j]))
+    return abs(c0) <= tol and abs(c[j] - predicted) <= tol
+
+
+def _full_rank_everywhere(problem, end: _End, rows: list, columns: list, Z, fixed: dict) -> bool:
+    """Whether A_S = ∂c_rows/∂ν_S keeps full column rank over the configurations: the smallest
+    eigenvalue of A_Sᵀ A_S, minimised over the coordinates the end leaves free (Nelder–Mead from
+    each sample, within the coordinates' bounds), stays above :data:`REST_RANK_TOL` of its
+    largest sampled value (σ_min above 1e-4 of σ_max)."""
+    from scipy.optimize import minimize
+    n = len(problem.model.system.coordinates)
+    coords = [i for i in range(n) if i not in fixed]
+    if not coords:
+        return True
+    lo = np.array([problem.bounds(problem.state_bounds, problem.state_names[i])[0]
+                   if problem.state_names[i] in problem.state_bounds else -np.inf for i in coords])
+    hi = np.array([problem.bounds(problem.state_bounds, problem.state_names[i])[1]
+                   if problem.state_names[i] in problem.state_bounds else np.inf for i in coords])
+
+    def smallest(values, z0):
+        z = z0.copy()
+        z[coords] = np.clip(values, lo, hi)
+        A = end(z)[1][np.ix_(rows, columns)]
+        return float(np.linalg.eigvalsh(A.T @ A)[0]) if np.all(np.isfinite(A)) else np.inf
+
+    sampled = [smallest(z[coords], z) for z in Z]
+    top = max(v for v in sampled if np.isfinite(v)) if any(np.isfinite(sampled)) else 0.0
+    if not top > 0:
+        return False
+    for z in Z:
+        best = minimize(smallest, z[coords], args=(z,), method="Nelder-Mead",
+                        options={"xatol": 1e-9, "fatol": REST_RANK_TOL * top * 1e-4, "maxiter": 200 * len(coords)})
+        if best.fun <= REST_RANK_TOL * top:
+            return False
+    return True
 
 
 def _dependent(end: _End, kept: list, j: int, values, points: list, Z, free):

@@ -1,19 +1,20 @@
 """The NLP's constraint Jacobian and Lagrangian Hessian assembled from the stage derivatives.
 
-A shooting transcription records where its stage function F sits
-(:class:`~nhgait.ocp.transcription.StageLayout`)::
+A shooting transcription records where its mapped terms sit
+(:class:`~nhgait.ocp.transcription.StageLayout`: the stage function F, and the path bounds on
+derived quantities c, each a function applied at K points)::
 
-    g(w) = g_lin(w) + σ Σ_k E_k F(x_k),   x_k = P_k w   (P_k, E_k selections, σ = ±1).
+    g(w) = g_lin(w) + Σ_terms σ Σ_k E_k F(x_k),   x_k = P_k w   (P_k, E_k selections, σ = ±1).
 
 Hence, with λ the multipliers of g and λ_f that of the objective f,
 
-    ∂g/∂w      = ∂g_lin/∂w + σ Σ_k E_k J_k P_k,            J_k = ∂F/∂x (x_k)
-    ∇²_w L     = ∇²_w (λ_f f + λᵀ g_lin) + Σ_k P_kᵀ H_k P_k,  H_k = ∇²_x (σ E_kᵀλ)ᵀ F (x_k)
+    ∂g/∂w      = ∂g_lin/∂w + Σ_terms σ Σ_k E_k J_k P_k,            J_k = ∂F/∂x (x_k)
+    ∇²_w L     = ∇²_w (λ_f f + λᵀ g_lin) + Σ_terms Σ_k P_kᵀ H_k P_k,  H_k = ∇²_x (σ E_kᵀλ)ᵀ F (x_k)
 
-The stage terms come from the stage functions mapped over the N intervals (one call of
-``jacobian`` / ``hessian`` per interval, code independent of N); CasADi differentiates
-only g_lin and f (boundary rows, periodicity, path bounds on derived quantities, the
-objective), which are small. The blocks are placed by a constant sparse scatter.
+The terms come from their functions mapped over their points (one call of ``jacobian`` /
+``hessian`` per point, code independent of N); CasADi differentiates only g_lin and f
+(conditions at single nodes, periodicity, the objective), which are small. The blocks are
+placed by a constant sparse scatter of the structural nonzeros of one point's J and H.
 
 Hessians (``hessian``):
 
@@ -53,30 +54,42 @@ def _scatter(n_rows: int, n_cols: int, rows: np.ndarray, cols: np.ndarray, value
 
 
 def _jacobian(nlp, w) -> tuple:
-    """(g, ∂g/∂w), F evaluated once by the mapped stage Jacobian."""
+    """(g, ∂g/∂w), each term evaluated once by its mapped Jacobian."""
     lay = nlp.layout
-    st, (nz, N), nx = lay.stage, lay.rows.shape, lay.stage.n_variables
-    F, J = st.jacobian.map(N, "serial")(*lay.arguments)            # nz × N, nz × (nx N)
     n_g = int(nlp.g.shape[0])
-    place = ca.DM(ca.Sparsity.triplet(n_g, nz * N, lay.rows.T.ravel().tolist(), list(range(nz * N))), lay.sign)
-    g = lay.g_linear + ca.mtimes(place, ca.vec(F))
-    # entry (i, k nx + j) of J: row rows[i, k], column columns[j, k]
-    i, k, j = np.meshgrid(np.arange(nz), np.arange(N), np.arange(nx), indexing="ij")
-    values = ca.vec(J)[(((k * nx + j) * nz) + i).ravel().tolist()]
-    stage = _scatter(n_g, nlp.n_w, lay.rows[i, k], lay.columns[j, k], lay.sign * values)
-    return g, ca.jacobian(lay.g_linear, w) + stage
+    g, jac = lay.g_linear, ca.jacobian(lay.g_linear, w)
+    for term in lay.terms:
+        (m, K), fn = term.rows.shape, term.functions
+        F, J = fn.jacobian.map(K, "serial")(*term.arguments)        # m × K, m × (nx K) (K blocks of one sparsity)
+        place = ca.DM(ca.Sparsity.triplet(n_g, m * K, term.rows.T.ravel().tolist(), list(range(m * K))), term.sign)
+        g = g + ca.mtimes(place, ca.vec(F))
+        r, c = (np.array(v, dtype=np.int64) for v in fn.jacobian.sparsity_out(1).get_triplet())
+        if r.size == 0:
+            continue
+        k = np.repeat(np.arange(K), r.size)                         # nonzero e of point k: k nnz + e
+        e = np.tile(np.arange(r.size), K)
+        values = ca.vec(J.nz[(k * r.size + e).tolist()])
+        jac = jac + _scatter(n_g, nlp.n_w, term.rows[r[e], k], term.columns[c[e], k], term.sign * values)
+    return g, jac
 
 
 def _stage_hessian(nlp, lam_g, upper: bool) -> ca.MX:
-    lay = nlp.layout
-    st, (nz, N), nx = lay.stage, lay.rows.shape, lay.stage.n_variables
-    Lam = lay.sign * ca.reshape(lam_g[lay.rows.T.ravel().tolist()], nz, N)
-    H = st.hessian.map(N, "serial")(*lay.arguments, Lam)            # nx × (nx N)
-    a, k, b = np.meshgrid(np.arange(nx), np.arange(N), np.arange(nx), indexing="ij")
-    ra, rb = lay.columns[a, k], lay.columns[b, k]
-    keep = (ra <= rb) if upper else np.ones_like(ra, dtype=bool)
-    values = ca.vec(H)[(((k * nx + b) * nx) + a)[keep].tolist()]
-    return _scatter(nlp.n_w, nlp.n_w, ra[keep], rb[keep], values)
+    """Σ_terms Σ_k P_kᵀ H_k P_k (upper triangle for Ipopt)."""
+    total = ca.MX(nlp.n_w, nlp.n_w)
+    for term in nlp.layout.terms:
+        (m, K), fn = term.rows.shape, term.functions
+        Lam = term.sign * ca.reshape(lam_g[term.rows.T.ravel().tolist()], m, K)
+        H = fn.hessian.map(K, "serial")(*term.arguments, Lam)       # nx × (nx K)
+        a, b = (np.array(v, dtype=np.int64) for v in fn.hessian.sparsity_out(0).get_triplet())
+        if a.size == 0:
+            continue
+        k = np.repeat(np.arange(K), a.size)
+        e = np.tile(np.arange(a.size), K)
+        ra, rb = term.columns[a[e], k], term.columns[b[e], k]
+        keep = (ra <= rb) if upper else np.ones_like(ra, dtype=bool)
+        values = ca.vec(H.nz[(k * a.size + e)[keep].tolist()])
+        total = total + _scatter(nlp.n_w, nlp.n_w, ra[keep], rb[keep], values)
+    return total
 
 
 def nlp_functions(nlp, *, hessian: str = "exact", solver: str = "ipopt") -> dict:

@@ -34,22 +34,27 @@ import numpy as np
 
 from nhgait.dynamics.suggestions import known_names
 
-from .statement import OCP_WORDS, FrozenMap, ProblemError, ProblemStatement, interval
+from .statement import OCP_WORDS, FrozenMap, ProblemError, ProblemStatement, instant_problems, interval
 
-__all__ = ["OptimalControlProblem", "Quantity", "ProblemError"]
+__all__ = ["OptimalControlProblem", "Quantity", "ProblemError", "model_coordinates"]
 
 
 @dataclass(frozen=True)
 class Quantity:
-    """A scalar derived quantity y = function(z, params) of the state.
+    """A scalar derived quantity y = function(z, params) of the state, or — with ``inputs`` —
+    y = function(z, u, ż, params) of the state, the inputs and the state's derivative
+    ż = f(t, z, u) (accelerations q̈ are ∂q̇/∂z · ż).
 
-    ``function`` takes CasADi SX ``z`` (nz×1) and ``params`` (numeric vector) and returns a
-    scalar SX expression.
+    ``function`` takes CasADi ``z`` (the model's states, nz×1), [``u`` (nu×1), ``zdot`` (nz×1),]
+    and ``params`` (numeric vector) and returns a scalar expression. A quantity of the inputs is
+    a path constraint (``state_bounds``: at the nodes t_0 … t_{N−1}, each with the input of the
+    interval it starts) or an integrand (``integrals``), never a condition at one instant.
     """
 
     name: str
-    function: Callable[[Any, Any], Any]
+    function: Callable[..., Any]
     description: str = ""
+    inputs: bool = False
 
 
 def _require_model(model) -> None:
@@ -58,7 +63,8 @@ def _require_model(model) -> None:
         raise ProblemError([f"model has no attribute {attr!r} (expected a derived ReducedODE)" for attr in missing])
 
 
-def _coordinates(model) -> tuple:
+def model_coordinates(model) -> tuple:
+    """The coordinate names of ``model``: its system's, else the first ``numeric.n_coordinates`` states."""
     system = getattr(model, "system", None)
     coords = getattr(system, "coordinates", None)
     if coords is None:  # fall back to the q-part of the state names
@@ -67,12 +73,20 @@ def _coordinates(model) -> tuple:
     return tuple(coords)
 
 
+def qddot_of(model, z, zdot, params):
+    """q̈ = ∂q̇(z)/∂z · ż: the accelerations along the state derivative ``zdot``."""
+    n = len(model_coordinates(model))
+    zs = ca.SX.sym("z", len(model.state_names))
+    J = ca.Function("dqdot_dz", [zs], [ca.jacobian(model.numeric["qdot"](zs, params), zs)])
+    return ca.mtimes(J(z), zdot)[:n]
+
+
 def builtin_quantities(model) -> dict:
     """Derived quantities every model offers: ``<q>_dot`` and, for a planar frame (x, y, θ)
     (``system.planar_frame``), the body velocities of
     :func:`nhgait.dynamics.numerics.specialisation.body_velocity` (the one definition)."""
     from nhgait.dynamics.numerics.specialisation import BODY_VELOCITIES, body_velocity
-    coords = _coordinates(model)
+    coords = model_coordinates(model)
     qdot = model.numeric["qdot"]
     out = {}
     for i, c in enumerate(coords):
@@ -83,10 +97,11 @@ def builtin_quantities(model) -> dict:
         frame = ("x", "y", "theta")
     if frame and all(c in coords for c in frame):
         ix, iy, ih = (coords.index(c) for c in frame)
+        offset = float(getattr(getattr(model, "system", None), "forward_angle", 0.0))   # System.forward
         for name in BODY_VELOCITIES:
             def body(z, params, name=name):
                 v = qdot(z, params)
-                return body_velocity(name, v[ix], v[iy], z[ih], ca.cos, ca.sin)
+                return body_velocity(name, v[ix], v[iy], z[ih] + offset, ca.cos, ca.sin)
             out[name] = Quantity(name, body, f"planar body velocity {name} of the frame {tuple(frame)}")
     out.update(holonomic_quantities(model))
     return out
@@ -99,7 +114,7 @@ def holonomic_quantities(model) -> dict:
     numeric = model.numeric
     if "holonomic" not in getattr(numeric, "functions", {}):
         return {}
-    h, n = numeric["holonomic"], len(_coordinates(model))
+    h, n = numeric["holonomic"], len(model_coordinates(model))
     return {f"holonomic{i + 1}": Quantity(f"holonomic{i + 1}", lambda z, params, i=i: h(z[:n], params)[i],
                                           f"holonomic constraint {i + 1}: h(q), zero on the constraint surface")
             for i in range(h.size1_out(0))}
@@ -135,10 +150,14 @@ class OptimalControlProblem(ProblemStatement):
         super().__post_init__()
         object.__setattr__(self, "quantities", FrozenMap(self.quantities))
         problems = self._bind_control_bounds() + self._bind_params()
-        problems += self.problems(OCP_WORDS, known=self.quantity_names, inputs=self.control_names)
-        problems += self._weight_problems() + self._quantity_problems()
+        model_names = [n for n in self.quantity_names if n not in self.integrals or n in self.model_state_names]
+        problems += self.problems(OCP_WORDS, known=model_names, inputs=self.control_names)
+        problems += self._weight_problems() + self._quantity_problems() + self._input_quantity_problems()
         if problems:
             raise ProblemError(problems)
+        missing = {name: 0.0 for name in self.integrals if name not in self.initial}
+        if missing:                                   # an integral starts at 0 unless the statement says otherwise
+            object.__setattr__(self, "initial", FrozenMap({**self.initial, **missing}))
 
     def _bind_control_bounds(self) -> list:
         """A number b is |u_j| ≤ b for every input."""
@@ -175,9 +194,20 @@ class OptimalControlProblem(ProblemStatement):
         return [f"quantities[{name!r}]: expected a Quantity with a callable function"
                 for name, q in self.quantities.items() if not isinstance(q, Quantity) or not callable(q.function)]
 
+    def _input_quantity_problems(self) -> list:
+        """A quantity of the inputs or accelerations is a path bound or an integrand only."""
+        motion = [n for n, q in self.derived_quantities.items() if q.inputs and n not in self.state_names]
+        return instant_problems(self, motion)
+
     # ------------------------------------------------------------------ names
     @property
     def state_names(self) -> tuple:
+        """The model's states, then the integral states (``integrals``), in that order."""
+        return tuple(self.model.state_names) + tuple(self.integrals)
+
+    @property
+    def model_state_names(self) -> tuple:
+        """The model's own states z (the first entries of :attr:`state_names`)."""
         return tuple(self.model.state_names)
 
     @property
@@ -209,12 +239,37 @@ class OptimalControlProblem(ProblemStatement):
     def is_state(self, name: str) -> bool:
         return name in self.state_names
 
-    def quantity(self, name: str, z, params=None):
-        """The SX/MX expression of quantity ``name`` at state ``z``."""
+    def uses_inputs(self, name: str) -> bool:
+        """Whether quantity ``name`` depends on the inputs (or on accelerations)."""
+        q = self.derived_quantities.get(name) if name not in self.state_names else None
+        return bool(q is not None and q.inputs)
+
+    def quantity(self, name: str, z, params=None, *, u=None, t=0.0):
+        """The SX/MX expression of quantity ``name`` at state ``z`` (the problem's states, or the
+        model's alone); a quantity of the inputs needs ``u`` and, for time-dependent forces, the
+        time ``t``."""
         params = self.params if params is None else params
         if name in self.state_names:
             return z[self.state_names.index(name)]
-        return self.derived_quantities[name].function(z, params)
+        zm = z[:len(self.model.state_names)]
+        q = self.derived_quantities[name]
+        if not q.inputs:
+            return q.function(zm, params)
+        if u is None:
+            raise ProblemError([f"{name!r} depends on the inputs: it is a path constraint (bounds) or an integrand, "
+                                "not a condition at one instant"])
+        zdot = self.model.numeric["rhs"](t, zm, u, params)
+        return q.function(zm, u, zdot, params)
+
+    def ode(self) -> ca.Function:
+        """ż = f(t, z, u) of the problem's states (the model's, then the integrands of the
+        integral states), parameter values substituted: one SX Function ``(t, z, u) → ż``."""
+        nz, nu = self.n_states, self.n_controls
+        z, u, t = ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("t")
+        zm = z[:len(self.model.state_names)]
+        rhs = [self.model.numeric["rhs"](t, zm, u, self.params)]
+        rhs += [self.quantity(y, zm, u=u, t=t) for y in self.integrals.values()]
+        return ca.Function("ode", [t, z, u], [ca.vertcat(*rhs)], ["t", "z", "u"], ["zdot"])
 
     def bounds(self, mapping: Mapping, name: str) -> tuple[float, float]:
         return interval(mapping[name])
@@ -236,9 +291,10 @@ class OptimalControlProblem(ProblemStatement):
         return lo, hi
 
     def grid(self, horizon: float | None = None) -> np.ndarray:
-        """The N + 1 node times t_k = k T / N."""
-        T = float(self.horizon if horizon is None else horizon)
-        return np.linspace(0.0, T, self.intervals + 1)
+        """The N + 1 node times: t_k = k T / N, or for phases each phase's own grid, the phase
+        horizons scaled by ``horizon`` / T when it is given."""
+        from .schedule import schedule
+        return schedule(self).grid(horizon)
 
     def replace(self, **changes) -> "OptimalControlProblem":
         """A copy with some fields changed (validated again)."""
@@ -261,5 +317,13 @@ class OptimalControlProblem(ProblemStatement):
             "control_weights": dict(self.control_weights), "state_weights": dict(self.state_weights),
             "time_weight": self.time_weight,
             "free_horizon": list(self.free_horizon) if self.free_horizon is not None else None,
+            "waypoints": [{"time": w.time, "name": w.name, "conditions": fmt(w.conditions)} for w in self.waypoints],
+            "integrals": dict(self.integrals), "end_weights": dict(self.end_weights),
+            "phases": [{"name": p.name, "horizon": p.horizon, "intervals": p.intervals,
+                        "free_horizon": list(p.free_horizon) if p.free_horizon is not None else None,
+                        "final": fmt(p.final), "state_bounds": fmt(p.state_bounds),
+                        "control_bounds": fmt(p.control_bounds),
+                        "waypoints": [{"time": w.time, "name": w.name, "conditions": fmt(w.conditions)}
+                                      for w in p.waypoints]} for p in self.phases],
             "params": dict(zip(getattr(self.model.numeric, "param_names", ()), map(float, self.params))),
         }

@@ -19,7 +19,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-__all__ = ["Solution", "Verification", "Integrator", "simulate_piecewise_constant", "condition_errors"]
+__all__ = ["Solution", "Verification", "Integrator", "simulate_piecewise_constant", "condition_errors",
+           "condition_scales", "scales"]
 
 
 @dataclass(frozen=True)
@@ -33,6 +34,10 @@ class Verification:
     condition_errors : dict "initial.<name>" / "final.<name>" / "periodic.<name>" → how far the
         re-simulated trajectory is from meeting that condition of the problem (0 when met).
     state_errors : dict name → max over nodes of the error of that state.
+    state_scales, condition_scales : dict name → the scale s ≥ 1 each error is judged against:
+        max(1, the range max_k y(t_k) − min_k y(t_k) of that state or quantity over the plan's
+        nodes), so that a 1200 kg car's momentum (range ~10³) is judged relative to its range and
+        a position in metres absolutely (:func:`scales`).
     states : ndarray (nz × (N+1)), the re-simulated node states.
     method, rtol, atol : the integrator settings.
     success : bool, whether every integration interval succeeded.
@@ -48,30 +53,69 @@ class Verification:
     time_s: float = 0.0
     condition_errors: dict = field(default_factory=dict)
     tolerance: float = 1e-6
+    state_scales: dict = field(default_factory=dict)
+    condition_scales: dict = field(default_factory=dict)
 
     @property
     def max_condition_error(self) -> float:
-        """Largest violation of a boundary or periodicity condition by the re-simulation."""
+        """Largest violation of a boundary or periodicity condition by the re-simulation (absolute)."""
         return max(self.condition_errors.values(), default=0.0)
+
+    @property
+    def scaled_state_errors(self) -> dict:
+        """State name → its error divided by its scale (``state_scales``, 1 when absent)."""
+        return {n: e / self.state_scales.get(n, 1.0) for n, e in self.state_errors.items()}
+
+    @property
+    def scaled_condition_errors(self) -> dict:
+        return {n: e / self.condition_scales.get(n, 1.0) for n, e in self.condition_errors.items()}
+
+    @property
+    def max_scaled_error(self) -> float:
+        """Largest node error relative to its state's scale (what :attr:`passed` judges)."""
+        return max(self.scaled_state_errors.values(), default=self.max_error)
+
+    @property
+    def max_scaled_condition_error(self) -> float:
+        return max(self.scaled_condition_errors.values(), default=0.0)
 
     @property
     def passed(self) -> bool:
         """The re-simulation ran through and meets the solution's nodes and every condition to
-        ``tolerance`` (absolute, in the units of each quantity)."""
-        return bool(self.success and self.max_error <= self.tolerance
-                    and self.max_condition_error <= self.tolerance)
+        ``tolerance`` relative to each state's or quantity's scale (``state_scales``,
+        ``condition_scales``: absolute for anything whose range is below 1)."""
+        return bool(self.success and self.max_scaled_error <= self.tolerance
+                    and self.max_scaled_condition_error <= self.tolerance)
 
     def failures(self) -> list:
-        """One sentence per miss (empty when :attr:`passed`), worst first."""
+        """One sentence per miss (empty when :attr:`passed`), worst first; the absolute figure
+        and, when the scale is not 1, the scaled one."""
         out = [] if self.success else ["the re-simulation stopped early (the integrator failed)"]
-        if self.max_error > self.tolerance:
-            worst = max(self.state_errors, key=self.state_errors.get)
-            out.append(f"the re-simulated states leave the planned ones by up to {self.max_error:.3g} "
-                       f"({worst}; tolerance {self.tolerance:g})")
-        for name, err in sorted(self.condition_errors.items(), key=lambda kv: -kv[1]):
+        scaled = self.scaled_state_errors
+        if self.max_scaled_error > self.tolerance:
+            worst = max(scaled, key=scaled.get)
+            out.append(f"the re-simulated states leave the planned ones by up to {self.state_errors[worst]:.3g} "
+                       f"({worst}{_relative(scaled[worst], self.state_scales.get(worst, 1.0))}; "
+                       f"tolerance {self.tolerance:g})")
+        for name, err in sorted(self.scaled_condition_errors.items(), key=lambda kv: -kv[1]):
             if err > self.tolerance:
-                out.append(f"{name} missed by {err:.3g} (tolerance {self.tolerance:g})")
+                out.append(f"{name} missed by {self.condition_errors[name]:.3g}"
+                           f"{_relative(err, self.condition_scales.get(name, 1.0))} (tolerance {self.tolerance:g})")
         return out
+
+
+def _relative(scaled: float, scale: float) -> str:
+    return "" if scale == 1.0 else f", {scaled:.3g} of its scale {scale:.4g}"
+
+
+def scales(values: np.ndarray) -> np.ndarray:
+    """max(1, max − min) of each row of ``values`` (rows: states or quantities over the nodes): the
+    scale a verification error is judged against."""
+    values = np.asarray(values, dtype=float)
+    if values.size == 0:
+        return np.ones(values.shape[0])
+    spread = np.nanmax(values, axis=1) - np.nanmin(values, axis=1)
+    return np.maximum(1.0, np.where(np.isfinite(spread), spread, 1.0))
 
 
 @dataclass(frozen=True)
@@ -83,8 +127,10 @@ class Integrator:
     atol: float = 1e-12
 
 
-def simulate_piecewise_constant(model, params, t, z0, controls, integrator: Integrator = Integrator()):
-    """Integrate ż = rhs(t, z, u_k, params) interval by interval with scipy ``solve_ivp``.
+def simulate_piecewise_constant(model, params, t, z0, controls, integrator: Integrator = Integrator(), *, ode=None):
+    """Integrate ż = rhs(t, z, u_k, params) interval by interval with scipy ``solve_ivp`` (or
+    ż = ``ode(t, z, u)``, a Function with the parameters bound: a problem's states with its
+    integral states, :meth:`~nhgait.ocp.problem.OptimalControlProblem.ode`).
 
     Returns the states at the grid ``t`` (nz × len(t)) and whether all intervals succeeded; a
     right-hand side that is not finite ends the integration there (the later columns NaN).
@@ -92,11 +138,11 @@ def simulate_piecewise_constant(model, params, t, z0, controls, integrator: Inte
     from scipy.integrate import solve_ivp
 
     method, rtol, atol = integrator.method, integrator.rtol, integrator.atol
-    rhs = model.numeric["rhs"]
     nz = len(z0)
     ts, zs, us = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", controls.shape[0])
-    f = ca.Function("f", [ts, zs, us], [rhs(ts, zs, us, params)])
-    jac = ca.Function("J", [ts, zs, us], [ca.jacobian(rhs(ts, zs, us, params), zs)])
+    rate = ode(ts, zs, us) if ode is not None else model.numeric["rhs"](ts, zs, us, params)
+    f = ca.Function("f", [ts, zs, us], [rate])
+    jac = ca.Function("J", [ts, zs, us], [ca.jacobian(rate, zs)])
     out = np.full((nz, len(t)), np.nan)
     out[:, 0] = z0
     z = np.asarray(z0, dtype=float)
@@ -131,23 +177,69 @@ def _finite(f, u):
     return rhs
 
 
-def condition_errors(problem, states) -> dict:
-    """How far ``states`` (nz × (N+1)) are from meeting each boundary and periodicity condition
-    of ``problem``: distance of y(t_0) / y(t_N) to its value or range, |y(t_N) − y(t_0)|."""
-    zs = ca.SX.sym("z", problem.n_states)
-    out = {}
+class _Values:
+    """Quantities of ``problem`` at the nodes of ``states`` (nz × (N+1)): a state quantity at
+    every node, a quantity of the inputs at the nodes 0 … N−1 with the interval's input
+    (``controls`` nu × N) and the node time (``t``)."""
 
-    def value(name, col):
-        f = ca.Function("y", [zs], [problem.quantity(name, zs)])
-        return float(f(states[:, col]))
+    def __init__(self, problem, states, controls=None, t=None):
+        self.problem, self.states, self.controls, self.t = problem, np.asarray(states, float), controls, t
+        self._rows = {}
 
-    for where, mapping, col in (("initial", problem.initial, 0), ("final", problem.final, -1)):
-        for name in mapping:
+    def __call__(self, name) -> np.ndarray:
+        if name not in self._rows:
+            p, Z = self.problem, self.states
+            zs = ca.SX.sym("z", Z.shape[0])
+            if p.uses_inputs(name):
+                us, ts = ca.SX.sym("u", p.n_controls), ca.SX.sym("t")
+                f = ca.Function("y", [zs, us, ts], [p.quantity(name, zs, u=us, t=ts)]).map(Z.shape[1] - 1)
+                row = f(Z[:, :-1], self.controls, np.asarray(self.t, float)[:-1])
+            else:
+                row = ca.Function("y", [zs], [p.quantity(name, zs)]).map(Z.shape[1])(Z)
+            self._rows[name] = np.asarray(row, float).ravel()
+        return self._rows[name]
+
+
+def _conditions(problem):
+    """(label, name, node or None (periodic), mapping) of every condition checked, and the path bounds."""
+    from .schedule import schedule
+    sched = schedule(problem)
+    out = [(f"{e.label}.{n}", n, e.node, e.conditions) for e in sched.events for n in e.conditions]
+    out += [(f"periodic.{n}", n, None, None) for n in problem.periodic]
+    return out, sched
+
+
+def condition_errors(problem, states, controls=None, t=None) -> dict:
+    """How far ``states`` (nz × (N+1)) are from meeting each condition of ``problem``: the
+    distance of y at an event's node (initial, waypoints, phase ends, final) to its value or
+    range, |y(t_N) − y(t_0)| of a periodic one and, given ``controls`` and ``t``, the largest
+    violation of each path bound over the nodes ("bounds.<name>")."""
+    values, out = _Values(problem, states, controls, t), {}
+    conditions, sched = _conditions(problem)
+    for label, name, node, mapping in conditions:
+        y = values(name)
+        if node is None:
+            out[label] = float(abs(y[-1] - y[0]))
+        else:
             lo, hi = problem.bounds(mapping, name)
-            y = value(name, col)
-            out[f"{where}.{name}"] = float(max(lo - y, y - hi, 0.0))
-    for name in problem.periodic:
-        out[f"periodic.{name}"] = abs(value(name, -1) - value(name, 0))
+            out[label] = float(max(lo - y[node], y[node] - hi, 0.0))
+    if controls is not None and t is not None:
+        names = sched.path_names(problem)
+        lo, hi = sched.node_ranges(problem, names)
+        for i, name in enumerate(names):
+            y = values(name)
+            out[f"bounds.{name}"] = float(np.max(np.maximum(np.maximum(lo[i, :y.size] - y, y - hi[i, :y.size]), 0.0)))
+    return out
+
+
+def condition_scales(problem, states, controls=None, t=None) -> dict:
+    """The scale (:func:`scales`) of the quantity of each condition of :func:`condition_errors`,
+    over the nodes ``states`` (nz × (N+1))."""
+    values = _Values(problem, states, controls, t)
+    conditions, sched = _conditions(problem)
+    out = {label: float(scales(values(name)[None, :])[0]) for label, name, _, _ in conditions}
+    if controls is not None and t is not None:
+        out.update({f"bounds.{n}": float(scales(values(n)[None, :])[0]) for n in sched.path_names(problem)})
     return out
 
 
@@ -193,6 +285,10 @@ class Solution:
     constraint_violation: float = math.nan
     verification: Verification | None = None
     violations: dict = field(default_factory=dict)
+    #: the time-varying LQR along the plan (:class:`~nhgait.ocp.feedback.Feedback`), or None
+    feedback: Any = field(default=None, repr=False)
+    #: Floquet multipliers of a periodic plan (:class:`~nhgait.ocp.floquet.Stability`), or None
+    stability: Any = field(default=None, repr=False)
 
     def __repr__(self) -> str:
         from nhgait.dynamics.reprs import solution_repr
@@ -233,7 +329,8 @@ class Solution:
     def velocities(self) -> np.ndarray:
         """Generalised velocities q̇ at the nodes (n × (N+1)) through the model's qdot(z)."""
         qdot = self.problem.model.numeric["qdot"]
-        return np.column_stack([np.asarray(qdot(self.states[:, k], self.problem.params)).ravel()
+        nz = len(self.problem.model.state_names)               # the model's states (integral states follow)
+        return np.column_stack([np.asarray(qdot(self.states[:nz, k], self.problem.params)).ravel()
                                 for k in range(self.states.shape[1])])
 
     # ---------------------------------------------------------------- checks
@@ -246,14 +343,18 @@ class Solution:
             raise ValueError("this solution has no problem attached; cannot re-simulate")
         t0 = time.perf_counter()
         sim, ok = simulate_piecewise_constant(self.problem.model, self.problem.params, self.t,
-                                              self.states[:, 0], self.controls, Integrator(method, rtol, atol))
+                                              self.states[:, 0], self.controls, Integrator(method, rtol, atol),
+                                              ode=self.problem.ode())
         err = np.abs(sim - self.states)
         err[np.isnan(err)] = np.inf                      # not reached (the integration stopped)
         return Verification(max_error=float(err.max()),
                             state_errors={n: float(e) for n, e in zip(self.state_names, err.max(axis=1))},
                             states=sim, method=method, rtol=rtol, atol=atol, success=ok,
-                            time_s=time.perf_counter() - t0, condition_errors=condition_errors(self.problem, sim),
-                            tolerance=float(tolerance))
+                            time_s=time.perf_counter() - t0,
+                            condition_errors=condition_errors(self.problem, sim, self.controls, self.t),
+                            tolerance=float(tolerance),
+                            state_scales=dict(zip(self.state_names, map(float, scales(self.states)))),
+                            condition_scales=condition_scales(self.problem, self.states, self.controls, self.t))
 
     def verified(self, **kwargs) -> "Solution":
         """A copy of this solution carrying :meth:`verify`'s result. Success means verified: a
@@ -280,8 +381,12 @@ class Solution:
                 "max_error": v.max_error, "state_errors": v.state_errors, "method": v.method,
                 "rtol": v.rtol, "atol": v.atol, "success": v.success, "tolerance": v.tolerance,
                 "passed": v.passed, "failures": v.failures(),
-                "condition_errors": v.condition_errors, "max_condition_error": v.max_condition_error},
+                "condition_errors": v.condition_errors, "max_condition_error": v.max_condition_error,
+                "state_scales": v.state_scales, "condition_scales": v.condition_scales,
+                "max_scaled_error": v.max_scaled_error, "max_scaled_condition_error": v.max_scaled_condition_error},
             "settings": self.settings,
+            "feedback": None if self.feedback is None else self.feedback.to_dict(),
+            "stability": None if self.stability is None else self.stability.to_dict(),
             "problem": self.problem.describe() if self.problem is not None else None,
             "trajectory": self._trajectory(),
         })

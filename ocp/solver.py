@@ -8,17 +8,17 @@
 * **Hessians** (``SolverOptions.hessian``): ``"exact"`` (default), ``"gauss-newton"`` (the
   stage curvature dropped; the effort objective's Gauss–Newton matrix) or
   ``"limited-memory"`` (Ipopt's L-BFGS; not for FATROP).
-* **Compiled when worth it** (``jit=None``: when a C compiler is found): the oracle ``nlp``
-  and every function the solver builds from it are generated as one C file; its size decides
-  the optimisation level within :data:`COMPILE_BUDGET` (-O1 up to ``o1_bytes``, -O0 up to
-  ``o0_bytes``, interpreted above, so that a cold plan never spends minutes in a compiler
-  without saying so), then :func:`nhgait.dynamics.numerics.compiler.build_library` compiles it once
-  into the content-hash cache (trust rules, atomic, killed and cleaned up on interrupts) and
-  the solver is made from the external library. ``compile_report`` records the size, the
-  flags, the seconds and why. ``jit_flags`` forces the flags.
-* **Fallback**: without a compiler, when it fails, or above the budget, the solver runs the
-  functions interpreted (``expand=True``, i.e. SX, only for inline stages: an expanded
-  structured NLP would inline every call) and ``jit_fallback`` says why.
+* **Compiled, never waiting for the optimiser** (``jit=None``: when a C compiler is found):
+  the oracle ``nlp`` and every function the solver builds from it are generated as one C
+  file; :func:`.nlp_code.choose_code` runs it with the optimised library from the cache
+  (gcc, flags from its size within :data:`COMPILE_BUDGET`), else with the fast compiler's
+  library (tcc, ready in a fraction of a second) while the optimised build runs in the
+  background for the next run. ``compile_report`` says which code solved, the size, the
+  flags, the seconds and what was started for later. ``jit=True`` without a fast compiler
+  builds the optimised library now; ``jit_flags`` forces the optimised flags.
+* **Fallback**: without a compiler, when it fails, or without a fast compiler (``jit=None``),
+  the solver runs the functions interpreted (``expand=True``, i.e. SX, only for inline
+  stages: an expanded structured NLP would inline every call) and ``jit_fallback`` says why.
 * **Collocation and MUMPS scaling**: with Ipopt's default ``mumps_scaling`` (77, automatic)
   MUMPS factorises the collocation KKT matrix at a cost that grows super-linearly in N (P2:
   1.3 s per iteration at N = 100, 20 iterations) — the automatic choice scales the matrix in
@@ -42,10 +42,13 @@ from dataclasses import dataclass, field, replace
 import casadi as ca
 import numpy as np
 
-from nhgait.dynamics.numerics.compiler import CompilerUnavailable, build_library, compiler_command
+from nhgait.dynamics.numerics.compiler import compiler_command
+from nhgait.dynamics.numerics.fast_compiler import fast_compiler
 from nhgait.dynamics.progress import Progress
 
+from .backends import BACKENDS, SolverBackend
 from .derivatives import nlp_functions
+from .nlp_code import COMPILE_BUDGET, NO_COMPILER, CompileBudget, CompileReport, choose_code
 from .problem import OptimalControlProblem, ProblemError
 from .solution import Solution
 from .transcription import Collocation, StageShooting, TranscribedNLP, get_transcription
@@ -53,7 +56,7 @@ from .transcription import Collocation, StageShooting, TranscribedNLP, get_trans
 __all__ = ["SolverOptions", "OCPSolver", "solve", "InitialGuess", "SOLVERS", "HESSIANS", "CompileBudget",
            "COMPILE_BUDGET", "CompileReport"]
 
-SOLVERS = ("ipopt", "fatrop")
+SOLVERS = tuple(BACKENDS)
 HESSIANS = ("exact", "gauss-newton", "limited-memory")
 #: MUMPS settings for collocation KKT matrices (see the module docstring)
 COLLOCATION_MUMPS = {"mumps_scaling": 8, "mumps_pivot_order": 0}
@@ -68,58 +71,13 @@ TIME_LIMIT_STATUSES = {"Maximum_WallTime_Exceeded": "Time_Limit_Exceeded",
 
 
 @dataclass(frozen=True)
-class CompileBudget:
-    """Generated C size → optimisation level, from ``experiments/bench_scale.py`` on the 2-core
-    machine (loaded): gcc -O1 took 34.7 s for 2.56 MB, 63.4 s for 4.07 MB and 250 s for 7.02 MB
-    of CasADi's straight-line code (superlinear: register allocation in huge functions); -O0
-    takes 1.5–5 s per MB but its code runs 3–4× slower (the 8-link snake's NLP solved in 4.3 s
-    compiled at -O1, 16.7 s at -O0). -O1 is kept up to 5 MB (about a minute, announced with its
-    estimate, once per task structure), -O0 up to 20 MB, then the NLP is interpreted."""
-
-    o1_bytes: float = 5e6
-    o0_bytes: float = 20e6
-    o1_s_per_mb: float = 15.0
-    o0_s_per_mb: float = 1.5
-
-    def choose(self, c_bytes: int) -> tuple:
-        """(flags or None for interpreted, estimated seconds, reason)."""
-        mb = c_bytes / 1e6
-        if c_bytes <= self.o1_bytes:
-            return ("-O1",), mb * self.o1_s_per_mb, f"{mb:.2f} MB ≤ {self.o1_bytes / 1e6:g} MB: -O1"
-        if c_bytes <= self.o0_bytes:
-            return ("-O0",), mb * self.o0_s_per_mb, (f"{mb:.2f} MB > {self.o1_bytes / 1e6:g} MB: -O0 "
-                                                      f"(-O1 would take about {mb * self.o1_s_per_mb:.0f} s)")
-        return None, 0.0, f"{mb:.1f} MB > {self.o0_bytes / 1e6:g} MB: interpreted"
-
-
-COMPILE_BUDGET = CompileBudget()
-
-
-@dataclass(frozen=True)
-class CompileReport:
-    """What was compiled and why: C size, flags (None: interpreted), compiler seconds (0
-    when the library came from the cache), the estimate, the reason, the library path."""
-
-    c_bytes: int
-    flags: tuple | None
-    compile_s: float
-    estimate_s: float
-    cached: bool
-    reason: str
-    path: str | None = None
-
-    def describe(self) -> dict:
-        return {"c_bytes": self.c_bytes, "flags": list(self.flags) if self.flags else None,
-                "compile_s": round(self.compile_s, 3), "estimate_s": round(self.estimate_s, 1),
-                "cached": self.cached, "reason": self.reason}
-
-
-@dataclass(frozen=True)
 class SolverOptions:
     """Solver settings.
 
     ``solver``: "ipopt" or "fatrop"; ``hessian``: one of :data:`HESSIANS`; ``jit``: compile
-    the NLP functions (None: when a C compiler is found); ``jit_flags``: compiler flags (None:
+    the NLP functions (None: when a C compiler is found, never waiting for the optimising one;
+    "optimised": the optimised library now, built in the foreground if not cached;
+    :mod:`.nlp_code`); ``jit_flags``: compiler flags (None:
     chosen by ``budget`` from the C size); ``expand``: None = SX for inline stages when
     interpreted; ``ipopt``/``fatrop``: extra options; ``time_limit``: seconds of wall time per
     solve (None: unbounded) — Ipopt's ``max_wall_time`` and a deadline in its iteration
@@ -131,7 +89,7 @@ class SolverOptions:
     max_iter: int = 3000
     tol: float = 1e-8
     hessian: str = "exact"
-    jit: bool | None = None
+    jit: bool | str | None = None
     jit_flags: tuple | None = None
     expand: bool | None = None
     print_level: int = 0
@@ -144,46 +102,42 @@ class SolverOptions:
 
     def __post_init__(self):
         problems = []
+        if self.jit not in (None, True, False, "optimised"):
+            problems.append(f"jit must be None, True, False or 'optimised', got {self.jit!r}")
         if self.time_limit is not None and not (float(self.time_limit) > 0):
             problems.append(f"time_limit must be a positive number of seconds, got {self.time_limit!r}")
         if self.solver not in SOLVERS:
             problems.append(f"unknown solver {self.solver!r} (known: {', '.join(SOLVERS)})")
         if self.hessian not in HESSIANS:
             problems.append(f"unknown Hessian {self.hessian!r} (known: {', '.join(HESSIANS)})")
-        elif self.solver == "fatrop" and self.hessian == "limited-memory":
-            problems.append("FATROP has no limited-memory Hessian: use exact or gauss-newton, or Ipopt")
+        elif self.solver in BACKENDS and self.hessian == "limited-memory" and not self.backend.limited_memory:
+            problems.append(f"{self.backend.label} has no limited-memory Hessian: use exact or gauss-newton, "
+                            "or Ipopt")
         if problems:
             raise ProblemError(problems)
+
+    @property
+    def backend(self) -> SolverBackend:
+        """The solver named by ``solver`` (:mod:`.backends`)."""
+        return BACKENDS[self.solver]
 
     @property
     def stops_in_time(self) -> bool:
         """Whether the solver itself honours ``time_limit`` (Ipopt: ``max_wall_time``; FATROP has
         no time option)."""
-        return self.solver == "ipopt" and self.time_limit is not None
+        return self.backend.time_option and self.time_limit is not None
 
     @property
     def compiled(self) -> bool:
         """Whether compiled functions are asked for (``jit``, or auto with a compiler)."""
-        return bool(self.jit) if self.jit is not None else compiler_command() is not None
+        return bool(self.jit) if self.jit is not None else (compiler_command() or fast_compiler()) is not None
 
     def nlpsol_options(self, *, expand: bool = False) -> dict:
         opts = {"print_time": False, "record_time": True, "expand": bool(expand), "error_on_fail": False}
-        if self.solver == "fatrop":
-            fopts = {"print_level": self.print_level, "max_iter": int(self.max_iter), "tol": float(self.tol)}
-            fopts.update(self.fatrop)
-            opts["fatrop"] = fopts
-            return opts
-        opts.update({"ipopt.print_level": self.print_level, "ipopt.sb": "yes",
-                     "ipopt.max_iter": int(self.max_iter), "ipopt.tol": float(self.tol),
-                     "ipopt.hessian_approximation": "limited-memory" if self.hessian == "limited-memory" else "exact",
-                     "ipopt.linear_solver": self.linear_solver})
-        if self.time_limit is not None:
-            opts["ipopt.max_wall_time"] = float(self.time_limit)
-        opts.update({f"ipopt.{k}" if not k.startswith("ipopt.") else k: v for k, v in self.ipopt.items()})
-        return opts
+        return self.backend.nlpsol_options(self, opts)
 
     def describe(self) -> dict:
-        extra = dict(self.ipopt) if self.solver == "ipopt" else dict(self.fatrop)
+        extra = self.backend.own_options(self)
         return {"solver": self.solver, "max_iter": self.max_iter, "tol": self.tol, "hessian": self.hessian,
                 "jit": self.jit, "jit_flags": list(self.jit_flags) if self.jit_flags else None,
                 "linear_solver": self.linear_solver, "expand": self.expand, "time_limit": self.time_limit, **extra}
@@ -255,7 +209,7 @@ class _Iterations(ca.Callback):
             self.last = now
             g = np.asarray(arg[ca.nlpsol_out().index("g")]).ravel()
             viol = max(np.max(self.nlp.lbg - g, initial=0.0), np.max(g - self.nlp.ubg, initial=0.0))
-            self.progress.note(f"    iteration {self.count}: objective {float(arg[1]):.6g}, "
+            self.progress.note(f"    iteration {self.count}: objective {float(arg[1]) / self.nlp.objective_scale:.6g}, "
                                f"constraint violation {viol:.2e}")
         return 0
 
@@ -280,20 +234,22 @@ class OCPSolver:
         self.problem = problem
         self.options = options or SolverOptions()
         self.progress = progress or Progress.silent()
-        if self.options.solver == "fatrop" and transcription in (None, "multiple-shooting"):
+        backend = self.options.backend
+        if backend.stage_structure and transcription in (None, "multiple-shooting"):
             transcription = StageShooting()
         self.transcription = get_transcription(transcription)
-        if self.options.solver == "fatrop" and self.nlp_structure_missing():
+        if backend.stage_structure and self.nlp_structure_missing():
             raise ProblemError([f"FATROP needs a stage-ordered transcription (multiple-shooting-stages), "
                                 f"got {self.transcription.name}"])
-        if isinstance(self.transcription, Collocation) and self.options.solver == "ipopt":
+        if isinstance(self.transcription, Collocation) and backend.mumps:
             self.options = replace(self.options, ipopt={**COLLOCATION_MUMPS, **self.options.ipopt})
         self.nlp: TranscribedNLP = self.transcription.build(problem)
         self.functions = nlp_functions(self.nlp, hessian=self.options.hessian, solver=self.options.solver)
         self.jit_cached, self.jit_fallback, self.compiled, self.jit_path = None, None, False, None
         self.compile_report = None
-        if self.options.jit is None and compiler_command() is None:
-            self.jit_fallback = "no C compiler found (looked for $NHGAIT_CC, $CC, gcc and cc)"
+        if self.options.jit is None and compiler_command() is None and fast_compiler() is None:
+            self.jit_fallback = NO_COMPILER
+            self.progress.note_once("no-compiler", f"{NO_COMPILER}: the NLP functions run interpreted")
         elif self.options.jit is not False:
             self.solver = self._jit_solver()
         if not self.compiled:
@@ -318,17 +274,14 @@ class OCPSolver:
     def _nlpsol(self, name, nlp, opts, *, talk: bool = True):
         if self.functions and not isinstance(nlp, ca.Function):
             opts = {**opts, "cache": self.functions}
-        if self.options.solver == "fatrop":
-            st = self.nlp.structure
-            opts = {**opts, "structure_detection": "manual", "N": st["N"], "nx": st["nx"], "nu": st["nu"],
-                    "ng": st["ng"]}
-        if talk and self.options.solver == "ipopt":      # progress lines (not with the solver's own log), deadlines
+        backend = self.options.backend
+        opts = backend.structure_options(self.nlp, opts)
+        if talk and backend.iteration_callback:  # progress lines (not with the solver's own log), deadlines
             said = Progress.silent() if self.progress.verbose else self.progress
             self._callback = _Iterations(f"{name}_iterations", self.nlp, said)
             opts = {**opts, "iteration_callback": self._callback}
         if talk and self.progress.verbose:     # the solver's own log (on stdout)
-            opts = ({**opts, "fatrop": {**opts.get("fatrop", {}), "print_level": 10}}
-                    if self.options.solver == "fatrop" else {**opts, "ipopt.print_level": 5})
+            opts = backend.verbose_options(opts)
         return ca.nlpsol(name, self.options.solver, nlp, opts)
 
     def _jit_solver(self):
@@ -336,9 +289,10 @@ class OCPSolver:
 
         Every function the solver plugin builds from its oracle (``nlp_f``, ``nlp_g``,
         ``nlp_grad_f``, ``nlp_jac_g``, ``nlp_hess_l``, …, read off an uncompiled instance) and
-        the oracle ``nlp`` itself are generated into one C file; :data:`COMPILE_BUDGET` (or
-        ``jit_flags``) picks the flags from its size; the solver is then made from the external
-        oracle, whose ``factory`` loads each function from the library by name."""
+        the oracle ``nlp`` itself are generated into one C file; :func:`.nlp_code.choose_code`
+        picks the code that runs it now (the optimised library from the cache, else the fast
+        compiler's) and starts the optimised build for the next run; the solver is then made
+        from the external oracle, whose ``factory`` loads each function from the library by name."""
         opts = self.options.nlpsol_options()
         plain = self._nlpsol("ocp_plain", self._oracle(), opts, talk=False)
         x, p = ca.MX.sym("x", self.nlp.w.shape[0]), ca.MX.sym("p", 0)
@@ -347,30 +301,13 @@ class OCPSolver:
         cg = ca.CodeGenerator("nhgait_nlp.c", {"with_header": False})
         for f in [oracle] + [plain.get_function(name) for name in plain.get_function()]:
             cg.add(f)
-        source = cg.dump()
-        flags, estimate, reason = ((tuple(self.options.jit_flags), 0.0, "flags given")
-                                   if self.options.jit_flags else self.options.budget.choose(len(source)))
-        if flags is None:
-            self.jit_fallback = f"not compiled: {reason}"
-            self.compile_report = CompileReport(len(source), None, 0.0, 0.0, False, reason)
-            self.progress.note(f"NLP functions: {len(source) / 1e6:.1f} MB of C, over the compile budget: interpreted")
-            return None
-        label = f"compile {len(source) / 1e6:.2f} MB of C with {' '.join(flags)}"
-        try:
-            if self.progress.enabled:
-                self.progress.note(f"{label} (about {estimate:.0f} s unless cached) …")
-            lib = build_library(source, flags=flags, salt=f"nlp casadi {ca.__version__}", progress=self.progress,
-                                label=label)
-        except CompilerUnavailable as exc:
-            self.jit_fallback = str(exc)
+        code = choose_code(cg.dump(), self.options, self.progress, salt=f"nlp casadi {ca.__version__}")
+        self.compile_report, self.jit_fallback = code.report, code.fallback
+        lib = code.library
+        if lib is None:
             return None
         if lib.private:   # the library stays loaded; its private folder goes with this solver
             weakref.finalize(self, shutil.rmtree, lib.path.parent, True)
-        if self.progress.enabled:
-            self.progress.note("  compiled library from the cache" if lib.cached else
-                               f"  compiled in {lib.compile_s:.1f} s (cached for the next run)")
-        self.compile_report = CompileReport(len(source), flags, lib.compile_s, estimate, lib.cached, reason,
-                                            str(lib.path))
         self.compiled, self.jit_cached, self.jit_path = True, lib.cached, lib.path
         return self._nlpsol("ocp", ca.external("nlp", str(lib.path)), opts)
 
@@ -457,7 +394,7 @@ class OCPSolver:
         wall, fn_time, solver_time = times
         return Solution(success=success, status=status, message=message,
                         iterations=int(stats.get("iter_count", 0)), objective=objective,
-                        t=np.linspace(0.0, T, problem.intervals + 1), states=Z, controls=U,
+                        t=self.nlp.times(w), states=Z, controls=U,
                         state_names=problem.state_names, control_names=problem.control_names,
                         horizon=T, solve_time_s=wall, setup_time_s=self.setup_time_s,
                         function_time_s=fn_time, solver_time_s=solver_time,
@@ -500,7 +437,8 @@ class OCPSolver:
         states = np.asarray(guess.states, dtype=float)
         controls = np.asarray(guess.controls, dtype=float)
         problems = []
-        if states.shape != (problem.n_states, N + 1):
+        if states.shape not in ((problem.n_states, N + 1), (len(problem.model_state_names), N + 1)):
+            # the model's states alone: the integral states are completed (TranscribedNLP.complete)
             problems.append(f"guess states have shape {states.shape}, expected {(problem.n_states, N + 1)}")
         if controls.shape != (problem.n_controls, N):
             problems.append(f"guess controls have shape {controls.shape}, expected {(problem.n_controls, N)}")
@@ -534,7 +472,8 @@ class OCPSolver:
                          np.max(np.maximum(g - nlp.ubg, 0), initial=0.0),
                          np.max(np.maximum(nlp.lbx - w, 0), initial=0.0),
                          np.max(np.maximum(w - nlp.ubx, 0), initial=0.0)))
-        return w, float(out["f"]), viol, nlp.violations(g, w, tol=max(1e-6, 10 * self.options.tol))
+        objective = float(out["f"]) / nlp.objective_scale        # the NLP's f is s·J (transcription)
+        return w, objective, viol, nlp.violations(g, w, tol=max(1e-6, 10 * self.options.tol))
 
     def _verdict(self, stats: dict, error, refused: bool, violation: float) -> tuple:
         """(success, status, stats with ``solver_status``): Ipopt's return status; FATROP's
@@ -542,7 +481,7 @@ class OCPSolver:
         status = ("Invalid_Initial_Point" if refused else
                   str(stats.get("return_status", "exception" if error else "unknown")))
         status = TIME_LIMIT_STATUSES.get(status, status)
-        if self.options.solver == "fatrop" and error is None:
+        if not self.options.backend.reports_success and error is None:
             ok = bool(stats.get("success", False)) or _fatrop_converged(stats, violation, self.options.tol)
             flag = (stats.get("fatrop") or {}).get("return_flag") if isinstance(stats.get("fatrop"), dict) else None
             stats = {**stats, "success": ok, "fatrop_return_flag": flag}

@@ -1,9 +1,10 @@
 """The stage function of multiple shooting and its exact derivatives, built once per problem.
 
-One shooting interval k of a problem with N intervals on [0, T]: the model's ODE
-ż = f(t, z, u) is integrated in *scaled time* s ∈ [0, 1] per interval,
+One shooting interval k of a phase with N intervals on [t0, t0 + T] (a problem without
+phases: one phase, t0 = 0): the model's ODE ż = f(t, z, u) is integrated in *scaled time*
+s ∈ [0, 1] per interval,
 
-    dz/ds = g(z, u, T, τ) = h f(τ h, z, u),      h = T / N,  τ = k + s,
+    dz/ds = g(z, u, T, τ, ν, t0) = h f(t0 + τ h, z, u),      h = ν T,  ν = 1 / N,  τ = k + s,
 
 by RK4 with M equal sub-steps (Butcher tableau a, b, c; ds = 1/M)::
 
@@ -48,16 +49,20 @@ RK4 = (((), (0.5,), (0.0, 0.5), (0.0, 0.0, 1.0)), (1 / 6, 1 / 3, 1 / 3, 1 / 6), 
 #: Ipopt solves, same guess, both compiled): the thesis snakeboard (8 states, 54 operations:
 #: 6 912) is fastest inline; the two-steering snakeboard (27 840) took 435 ms inline (5.1 MB
 #: of C, compiled at -O0 by the budget) against 250 ms structured (0.9 MB), the 3-link
-#: snake (39 760) 539 ms against 149 ms (7.5 against 0.7 MB).
-INLINE_LIMIT = 12_000
+#: snake (39 760) 539 ms against 149 ms (7.5 against 0.7 MB); the cart with one trailer
+#: (18 432; issue 25) 0.96–1.02× the hand-written reference inline with Ipopt (1.9 MB of C)
+#: and 0.68–0.70× with FATROP, against 1.45–1.64× structured with Ipopt; with two trailers
+#: (40 960) the inline C needs 1.5 GB of gcc -O1.
+INLINE_LIMIT = 20_000
 
 
 @dataclass(frozen=True, eq=False)
 class StageFunctions:
     """F, ∂F/∂x and ∇²_x(λᵀF) of one shooting interval (see the module docstring).
 
-    Every function takes ``(z, u, T, k)``: node state (nz), control (nu), horizon (scalar; a
-    constant for a fixed horizon) and the interval index k (a constant); ``hessian`` also
+    Every function takes ``(z, u, T, k, phase)``: node state (nz), control (nu), the phase's
+    horizon (scalar; a constant for a fixed horizon), the interval's index k in its phase and
+    ``phase`` = (ν, t0) = (1 / N of the phase, its start time) (constants); ``hessian`` also
     ``lam`` (nz). ``jacobian`` returns (F, J) with J of shape nz × nx; ``hessian`` returns
     the dense symmetric nx × nx matrix. x = (z, u) or (z, u, T) when ``free_horizon``.
     """
@@ -77,6 +82,15 @@ class StageFunctions:
     def n_variables(self) -> int:
         return self.n_states + self.n_controls + (1 if self.free_horizon else 0)
 
+    @property
+    def n_outputs(self) -> int:
+        return self.n_states
+
+    @property
+    def value(self) -> ca.Function:
+        """F (the name every mapped term of :mod:`.transcription` gives its value function)."""
+        return self.step
+
     def describe(self) -> dict:
         """Sizes for reports: operations of f and of the SX code the stage functions hold."""
         return {"stage": self.mode, "rk4_steps": self.steps, "ode_operations": self.ode_operations,
@@ -89,10 +103,11 @@ def stage_mode(ode: ca.Function, *, steps: int = 4, free_horizon: bool = False) 
     return "inline" if 4 * steps * nx * int(ode.n_instructions()) <= INLINE_LIMIT else "structured"
 
 
-def stage_functions(ode: ca.Function, intervals: int, *, steps: int = 4, free_horizon: bool = False,
+def stage_functions(ode: ca.Function, intervals: int | None = None, *, steps: int = 4, free_horizon: bool = False,
                     mode: str = "auto") -> StageFunctions:
     """The stage functions of ``ode`` (an SX Function ``(t, z, u) -> ż`` with the parameter
-    values bound) for ``intervals`` = N intervals, ``steps`` = M RK4 sub-steps each.
+    values bound), ``steps`` = M RK4 sub-steps per interval; the number of intervals enters as
+    the argument ν = 1/N (``intervals`` is not needed: the same functions serve every N).
 
     ``mode``: "inline", "structured" or "auto" (inline while 4 M · nx · ops(f) ≤
     :data:`INLINE_LIMIT`).
@@ -102,27 +117,28 @@ def stage_functions(ode: ca.Function, intervals: int, *, steps: int = 4, free_ho
     nx = nz + nu + (1 if free_horizon else 0)
     if mode == "auto":
         mode = stage_mode(ode, steps=steps, free_horizon=free_horizon)
-    g = _scaled_ode(ode, intervals)
+    g = _scaled_ode(ode)
     build = {"inline": _inline, "structured": _structured}[mode]
     step, jac, hess, code = build(g, nz, nu, steps, free_horizon)
     return StageFunctions(step, jac, hess, mode, nz, nu, free_horizon, steps, ops, code)
 
 
-def _scaled_ode(ode: ca.Function, intervals: int) -> ca.Function:
-    """g(z, u, T, τ) = h f(τ h, z, u), h = T/N (module docstring)."""
+def _scaled_ode(ode: ca.Function) -> ca.Function:
+    """g(z, u, T, τ, phase) = h f(t0 + τ h, z, u), h = ν T, phase = (ν, t0) (module docstring)."""
     nz, nu = int(ode.size1_in(1)), int(ode.size1_in(2))
-    z, u, T, tau = ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("T"), ca.SX.sym("tau")
-    h = T / intervals
-    return ca.Function("g", [z, u, T, tau], [h * ode(tau * h, z, u)], ["z", "u", "T", "tau"], ["dzds"])
+    z, u, T, tau, phase = ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("T"), ca.SX.sym("tau"), ca.SX.sym("phase", 2)
+    h = phase[0] * T
+    return ca.Function("g", [z, u, T, tau, phase], [h * ode(phase[1] + tau * h, z, u)], ["z", "u", "T", "tau", "phase"],
+                       ["dzds"])
 
 
 def _symbols(sym, nz, nu):
-    return sym.sym("z", nz), sym.sym("u", nu), sym.sym("T"), sym.sym("k"), sym.sym("lam", nz)
+    return sym.sym("z", nz), sym.sym("u", nu), sym.sym("T"), sym.sym("k"), sym.sym("lam", nz), sym.sym("phase", 2)
 
 
 def _inline(g, nz, nu, steps, free):
     """One SX expression of the M sub-steps, differentiated by CasADi."""
-    z, u, T, k, lam = _symbols(ca.SX, nz, nu)
+    z, u, T, k, lam, phase = _symbols(ca.SX, nz, nu)
     a, b, _ = RK4
     ds = 1.0 / steps
     zi = z
@@ -130,10 +146,10 @@ def _inline(g, nz, nu, steps, free):
         kap = []
         for j in range(4):
             y = zi + ds * sum((a[j][l] * kap[l] for l in range(j)), ca.SX.zeros(nz))
-            kap.append(g(y, u, T, k + (i + RK4[2][j]) / steps))
+            kap.append(g(y, u, T, k + (i + RK4[2][j]) / steps, phase))
         zi = zi + ds * sum(b[j] * kap[j] for j in range(4))
     x = ca.vertcat(z, u, T) if free else ca.vertcat(z, u)
-    ins, names = [z, u, T, k], ["z", "u", "T", "k"]
+    ins, names = [z, u, T, k, phase], ["z", "u", "T", "k", "phase"]
     step = ca.Function("stage", ins, [zi], names, ["z_end"])
     jac = ca.Function("stage_jac", ins, [zi, ca.jacobian(zi, x)], names, ["z_end", "J"])
     hess = ca.Function("stage_hess", ins + [lam], [ca.hessian(ca.dot(lam, zi), x)[0]], names + ["lam"], ["H"])
@@ -143,11 +159,12 @@ def _inline(g, nz, nu, steps, free):
 def _structured(g, nz, nu, steps, free):
     """MX glue over g, g_jac, g_hess (module docstring): code independent of N and M."""
     zs, us, Ts, taus, nus = ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("T"), ca.SX.sym("tau"), ca.SX.sym("nu", nz)
-    val = g(zs, us, Ts, taus)
+    phs = ca.SX.sym("phase", 2)
+    val = g(zs, us, Ts, taus, phs)
     local = ca.vertcat(zs, us, Ts) if free else ca.vertcat(zs, us)
-    g_jac = ca.Function("g_jac", [zs, us, Ts, taus], [val, ca.jacobian(val, local)])
-    g_hess = ca.Function("g_hess", [zs, us, Ts, taus, nus], [ca.hessian(ca.dot(nus, val), local)[0]])
-    z, u, T, k, lam = _symbols(ca.MX, nz, nu)
+    g_jac = ca.Function("g_jac", [zs, us, Ts, taus, phs], [val, ca.jacobian(val, local)])
+    g_hess = ca.Function("g_hess", [zs, us, Ts, taus, phs, nus], [ca.hessian(ca.dot(nus, val), local)[0]])
+    z, u, T, k, lam, phase = _symbols(ca.MX, nz, nu)
     nx = nz + nu + (1 if free else 0)
     # ∂(u[, T])/∂x: constant rows below the sensitivity of y
     E = ca.DM(np.hstack([np.zeros((nx - nz, nz)), np.eye(nx - nz)]))
@@ -161,7 +178,7 @@ def _structured(g, nz, nu, steps, free):
             y = zi + ds * sum((a[j][l] * kap[l] for l in range(j)), ca.MX.zeros(nz))
             Y = Zi + ds * sum((a[j][l] * K[l] for l in range(j)), ca.MX.zeros(nz, nx))
             L = ca.vertcat(Y, E)
-            kj, G = g_jac(y, u, T, k + (i + RK4[2][j]) / steps)
+            kj, G = g_jac(y, u, T, k + (i + RK4[2][j]) / steps, phase)
             kap.append(kj)
             K.append(ca.mtimes(G, L))
             pts.append((y, L))
@@ -169,15 +186,15 @@ def _structured(g, nz, nu, steps, free):
         zi = zi + ds * sum(b[j] * kap[j] for j in range(4))
         Zi = Zi + ds * sum(b[j] * K[j] for j in range(4))
         record.append((pts, Gs))
-    ins, names = [z, u, T, k], ["z", "u", "T", "k"]
+    ins, names = [z, u, T, k, phase], ["z", "u", "T", "k", "phase"]
     step = ca.Function("stage", ins, [zi], names, ["z_end"])
     jac = ca.Function("stage_jac", ins, [zi, Zi], names, ["z_end", "J"])
-    H = _second_order_adjoint(record, g_hess, lam, u, T, k)
+    H = _second_order_adjoint(record, g_hess, lam, u, T, k, phase)
     hess = ca.Function("stage_hess", ins + [lam], [H], names + ["lam"], ["H"])
     return step, jac, hess, sum(int(f.n_instructions()) for f in (g, g_jac, g_hess))
 
 
-def _second_order_adjoint(record, g_hess, lam, u, T, k):
+def _second_order_adjoint(record, g_hess, lam, u, T, k, phase):
     """Σ L_ijᵀ ∇²(ν_ijᵀ g) L_ij with the adjoints ν_ij of a backward sweep (module docstring);
     ``record`` holds one entry per sub-step, each point's L is nx × nx, λ has the nz entries of z."""
     a, b, _ = RK4
@@ -198,6 +215,6 @@ def _second_order_adjoint(record, g_hess, lam, u, T, k):
         lz = lz + sum(ybar)
         for j in range(4):
             y, L = pts[j]
-            Hj = g_hess(y, u, T, k + (i + RK4[2][j]) / steps, nus[j])
+            Hj = g_hess(y, u, T, k + (i + RK4[2][j]) / steps, phase, nus[j])
             H = H + ca.mtimes([L.T, Hj, L])
     return H

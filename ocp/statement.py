@@ -26,11 +26,14 @@ from nhgait.dynamics.errors import ModelError
 from nhgait.dynamics.suggestions import known_names
 
 __all__ = ["ProblemStatement", "ProblemError", "Wording", "OCP_WORDS", "FrozenMap", "interval", "STATEMENT_FIELDS",
-           "MAX_INTERVALS"]
+           "MAX_INTERVALS", "Phase", "Waypoint", "NODE_TOLERANCE", "instant_problems"]
 
 #: the statement's fields after ``model``, in order (an OptimalControlProblem's too)
 STATEMENT_FIELDS = ("horizon", "intervals", "initial", "final", "periodic", "state_bounds", "control_bounds",
-                    "control_weights", "state_weights", "time_weight", "free_horizon")
+                    "control_weights", "state_weights", "time_weight", "free_horizon", "waypoints", "integrals",
+                    "phases", "end_weights")
+#: a waypoint's time is a node when t N / T is an integer to this (relative) tolerance
+NODE_TOLERANCE = 1e-9
 
 
 class ProblemError(ModelError):
@@ -246,6 +249,156 @@ def consistency_problems(statement: "ProblemStatement", words: Wording, known=No
     return problems
 
 
+def integral_problems(statement: "ProblemStatement", words: Wording, known=None) -> list:
+    """An integral's name is new (not one of the ``known`` quantities) and its integrand a
+    known quantity; an end weight names a quantity or an integral."""
+    problems: list = []
+    base = None if known is None else list(known)
+    where = f"{_prefix(words)}{words.field('integrals')}"
+    for name, integrand in statement.integrals.items():
+        if base is not None and name in base:
+            problems.append(f"{where}: {name!r} is a quantity already; an integral needs a new name")
+        if not isinstance(integrand, str):
+            problems.append(f"{where}.{name}: the integrand is a quantity's name, got {integrand!r}")
+        else:
+            problems += _unknown(integrand, base, words.unknown_quantity, f"{words.field('integrals')}.{name}")
+    names = None if known is None else base + list(statement.integrals)
+    for name in statement.end_weights:
+        problems += _unknown(name, names, words.unknown_quantity, words.field("end_weights"))
+    return problems
+
+
+# ----------------------------------------------------------------------------- conditions between the ends
+@dataclass(frozen=True)
+class Waypoint:
+    """Conditions at a given time between the ends: ``time`` t_w (s, from the start of the
+    problem, or of its phase for a phase's waypoint) and ``conditions`` (name → value or
+    (lo, hi), as ``initial``/``final``). The time must be a node, t_w = k T / N (a waypoint at
+    a *free* time is the end of a :class:`Phase`). ``name`` labels its rows ("waypoint1.x")."""
+
+    time: float
+    conditions: Mapping = field(default_factory=dict)
+    name: str = ""
+
+    def __post_init__(self):
+        object.__setattr__(self, "conditions", FrozenMap(self.conditions))
+
+
+@dataclass(frozen=True)
+class Phase:
+    """One phase of a multi-phase problem: ``intervals`` N_p of length T_p / N_p, its horizon
+    T_p (``horizon``; the initial value when ``free_horizon`` = (lo, hi) is given), the
+    conditions at its end (``final``: the phase boundary, at a time the solver chooses when the
+    horizon is free), path bounds on its nodes (``state_bounds``, added to the problem's) and
+    bounds on its inputs (``control_bounds``, intersected with the problem's), ``waypoints`` at
+    given times from its start. Consecutive phases share their boundary node (the state is
+    continuous); ``name`` labels its rows ("<name>.final.x"; default "phase<i>")."""
+
+    horizon: float
+    intervals: int = 20
+    free_horizon: tuple | None = None
+    final: Mapping = field(default_factory=dict)
+    state_bounds: Mapping = field(default_factory=dict)
+    control_bounds: Mapping = field(default_factory=dict)
+    waypoints: tuple = ()
+    name: str = ""
+
+    def __post_init__(self):
+        for key in ("final", "state_bounds", "control_bounds"):
+            object.__setattr__(self, key, FrozenMap(getattr(self, key)))
+        object.__setattr__(self, "waypoints", tuple(self.waypoints))
+
+
+def phase_problems(statement: "ProblemStatement", words: "Wording", known=None, inputs=None) -> list:
+    """Each phase: N an integer in range, T > 0, a free horizon 0 < lo ≤ hi, its tables' values
+    and names; waypoints at nodes of a fixed horizon. Without phases, the problem's own
+    waypoints (its horizon must then be fixed)."""
+    problems: list = []
+    prefix = _prefix(words)
+    if not statement.phases:
+        return _waypoint_problems(statement.waypoints, statement.horizon, statement.intervals,
+                                  statement.free_horizon, f"{prefix}waypoints", known, problems)
+    if statement.waypoints:
+        problems.append(f"{prefix}waypoints: with phases, each phase states its own waypoints (times from its start)")
+    for i, phase in enumerate(statement.phases):
+        where = f"{prefix}phases[{i}]" + (f" ({phase.name})" if phase.name else "")
+        N = phase.intervals
+        if isinstance(N, bool) or not isinstance(N, numbers.Integral) or not 1 <= N <= MAX_INTERVALS:
+            problems.append(f"{where}.intervals = {N!r} must be an integer from 1 to {MAX_INTERVALS}")
+        try:
+            if not (float(phase.horizon) > 0 and math.isfinite(float(phase.horizon))):
+                problems.append(f"{where}.horizon = {phase.horizon!r} must be positive and finite")
+        except (TypeError, ValueError):
+            problems.append(f"{where}.horizon = {phase.horizon!r} is not a number")
+        if phase.free_horizon is not None:
+            lo, hi = interval(phase.free_horizon, f"{where}.free_horizon", problems, words)
+            if not lo > 0:
+                problems.append(f"{where}.free_horizon: lower bound {lo:g} must be positive")
+        for key, mapping in (("final", phase.final), ("state_bounds", phase.state_bounds)):
+            for name, value in mapping.items():
+                problems += _unknown(name, known, words.unknown_quantity, f"{where}.{key}")
+                interval(value, f"{where}.{key}[{name!r}]", problems, words)
+        for name, value in phase.control_bounds.items():
+            problems += _unknown(name, inputs, words.unknown_input, f"{where}.control_bounds", label="inputs")
+            interval(value, f"{where}.control_bounds[{name!r}]", problems, words)
+        _waypoint_problems(phase.waypoints, phase.horizon, N, phase.free_horizon, f"{where}.waypoints", known,
+                           problems)
+    return problems
+
+
+def _prefix(words: "Wording") -> str:
+    """What starts a place in ``words`` ("[task]." for a task table, "" for a problem's keywords)."""
+    return words.place.split("{field}")[0]
+
+
+def _waypoint_problems(waypoints, horizon, intervals, free_horizon, where, known, problems) -> list:
+    for j, point in enumerate(waypoints):
+        at = f"{where}[{j}]" + (f" ({point.name})" if point.name else "")
+        for name, value in point.conditions.items():
+            problems += _unknown(name, known, "{field}: unknown name {name!r}{hint}", at)
+            interval(value, f"{at}[{name!r}]", problems)
+        if point.time is None:           # no time (said by the reader of the table)
+            continue
+        if free_horizon is not None:
+            problems.append(f"{at}: a waypoint at a given time needs a fixed horizon (a waypoint at a free time is "
+                            "the end of a phase: phases = [...])")
+            continue
+        try:
+            t, T, N = float(point.time), float(horizon), int(intervals)
+        except (TypeError, ValueError):
+            problems.append(f"{at}: time {point.time!r} is not a number")
+            continue
+        k = t * N / T
+        if not 0 < t < T:
+            problems.append(f"{at}: time {t:g} is not between the ends (0, {T:g})")
+        elif abs(k - round(k)) > NODE_TOLERANCE * max(1.0, k):
+            h = T / N
+            problems.append(f"{at}: time {t:g} is not a node (every {h:g} s with T = {T:g}, N = {N}): the nearest "
+                            f"nodes are {math.floor(k) * h:g} and {math.ceil(k) * h:g}")
+    return problems
+
+
+def instant_problems(statement: "ProblemStatement", motion, prefix: str = "") -> list:
+    """A quantity of the inputs or accelerations (a name in ``motion``) is a path bound or an
+    integrand only: never a condition at one instant (an end, a waypoint, periodicity).
+    ``prefix`` starts each place ("[task]." for a task table)."""
+    motion = set(motion)
+    places = [(f"{prefix}initial", statement.initial), (f"{prefix}final", statement.final),
+              (f"{prefix}periodic", dict.fromkeys(statement.periodic))]
+    places += [(f"{prefix}waypoints[{i}]", w.conditions) for i, w in enumerate(statement.waypoints)]
+    for i, phase in enumerate(statement.phases):
+        places += [(f"{prefix}phases[{i}].final", phase.final)]
+        places += [(f"{prefix}phases[{i}].waypoints[{j}]", w.conditions) for j, w in enumerate(phase.waypoints)]
+    return [f"{where}: {name!r} depends on the inputs or accelerations: it can be bounded on the path "
+            "(bounds) or integrated (integrals), not fixed at one instant"
+            for where, mapping in places for name in mapping if name in motion]
+
+
+def waypoint_node(point: Waypoint, horizon: float, intervals: int) -> int:
+    """The node k = t_w N / T of a waypoint (checked by :func:`phase_problems`)."""
+    return int(round(float(point.time) * int(intervals) / float(horizon)))
+
+
 # ----------------------------------------------------------------------------- the statement
 @dataclass(frozen=True)
 class ProblemStatement:
@@ -270,6 +423,13 @@ class ProblemStatement:
     state_weights : mapping name → c ≥ 0, adds Σ_k h c z_i(t_k)²
     time_weight : float, adds c_T T (free horizon only)
     free_horizon : (T_min, T_max) or None
+    waypoints : sequence of :class:`Waypoint` — conditions at given times (nodes) between the ends
+    integrals : mapping name → quantity name: an integral state I(t) = I(0) + ∫₀ᵗ y(z, u) dt of
+        the quantity y (I(0) = 0 unless ``initial`` gives it), usable in every condition, bound
+        and ``end_weights``
+    phases : sequence of :class:`Phase` — a multi-phase problem (the phases joined at shared
+        nodes); ``horizon``, ``intervals`` and ``free_horizon`` are then their sums (set here)
+    end_weights : mapping name → w, adds Σ w y(T) (an integral's final value: a Lagrange term)
 
     Making a statement checks nothing: :meth:`problems` lists what is wrong with it in a
     reader's words (:class:`~nhgait.ocp.problem.OptimalControlProblem` and
@@ -288,19 +448,45 @@ class ProblemStatement:
     state_weights: Mapping = field(default_factory=dict)
     time_weight: float = 0.0
     free_horizon: tuple | None = None
+    waypoints: tuple = ()
+    integrals: Mapping = field(default_factory=dict)
+    phases: tuple = ()
+    end_weights: Mapping = field(default_factory=dict)
 
     def __post_init__(self):
-        for key in ("initial", "final", "state_bounds", "control_weights", "state_weights"):
+        for key in ("initial", "final", "state_bounds", "control_weights", "state_weights", "integrals",
+                    "end_weights"):
             object.__setattr__(self, key, FrozenMap(getattr(self, key)))
         if isinstance(self.control_bounds, Mapping):
             object.__setattr__(self, "control_bounds", FrozenMap(self.control_bounds))
-        object.__setattr__(self, "periodic", tuple(self.periodic))
+        for key in ("periodic", "waypoints", "phases"):
+            object.__setattr__(self, key, tuple(getattr(self, key)))
+        if self.phases:
+            self._sum_phases()
+
+    def _sum_phases(self) -> None:
+        """horizon, intervals and free_horizon of a multi-phase statement: the phases' sums."""
+        try:
+            horizon = sum(float(p.horizon) for p in self.phases)
+            intervals = sum(int(p.intervals) for p in self.phases)
+        except (TypeError, ValueError):
+            return                                   # reported by phase_problems
+        free = None
+        if any(p.free_horizon is not None for p in self.phases):
+            bounds = [interval(p.free_horizon) if p.free_horizon is not None else (float(p.horizon),) * 2
+                      for p in self.phases]
+            free = (sum(b[0] for b in bounds), sum(b[1] for b in bounds))
+        object.__setattr__(self, "horizon", horizon)
+        object.__setattr__(self, "intervals", intervals)
+        object.__setattr__(self, "free_horizon", free)
 
     def problems(self, words: Wording = OCP_WORDS, known=None, inputs=None) -> list:
         """Every problem of the statement, in ``words``: its form (no model needed) and, given
         ``known`` (the quantity names) and ``inputs`` (the input names), its names."""
+        with_integrals = None if known is None else tuple(known) + tuple(self.integrals)
         return (horizon_problems(self, words) + intervals_problems(self, words) + free_horizon_problems(self, words)
-                + table_problems(self, words, known, inputs) + consistency_problems(self, words, known))
+                + table_problems(self, words, with_integrals, inputs) + consistency_problems(self, words, with_integrals)
+                + phase_problems(self, words, with_integrals, inputs) + integral_problems(self, words, known))
 
     def statement_fields(self) -> dict:
         """The statement's fields after ``model`` (keyword arguments of a problem)."""

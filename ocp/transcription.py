@@ -1,214 +1,86 @@
 """Transcriptions of an :class:`~nhgait.ocp.problem.OptimalControlProblem` into an NLP.
 
-Both transcriptions produce a :class:`TranscribedNLP`: CasADi MX expressions of one flat
+Every transcription produces a :class:`TranscribedNLP`: CasADi MX expressions of one flat
 decision vector w, objective f(w) and constraints g(w), with numeric bounds. The decision
 vector is stacked interval by interval so the KKT matrix is banded for MUMPS::
 
-    multiple shooting  w = (z_0, u_0, z_1, u_1, …, z_{N-1}, u_{N-1}, z_N [, T])
-    collocation        w = (z_0, Z_0, u_0, z_1, Z_1, u_1, …, z_N [, T])   Z_k: nz × d
+    multiple shooting  w = (z_0, u_0, z_1, u_1, …, z_{N-1}, u_{N-1}, z_N [, T_1 … T_P])
+    collocation        w = (z_0, Z_0, u_0, z_1, Z_1, u_1, …, z_N [, T_1 … T_P])   Z_k: nz × d
 
-Simple conditions on states (fixed values, ranges, path bounds at the nodes) become bounds
-on w, and a periodic state fixed at one end is fixed at the other end by a bound too; only
-the dynamics (gaps or collocation equations), conditions on derived quantities and the
-remaining periodicity conditions are rows of g.
+with z the problem's states (the model's, then its integral states) and T_p the phase horizons
+when any is free (:mod:`.schedule`: a problem without phases is one phase). Simple conditions
+on states (fixed values, ranges, path bounds at the nodes, conditions at waypoints and phase
+ends) become bounds on w, and a periodic state fixed at one end is fixed at the other end by a
+bound too; only the dynamics (gaps or collocation equations), conditions on derived quantities,
+path bounds on derived quantities and the remaining periodicity conditions are rows of g.
 
 * :class:`MultipleShooting` — ``steps`` explicit RK4 sub-steps per interval (default 4) in
-  one stage function ``F(z_k, u_k, T, k) -> z_{k+1}`` with its exact derivatives
-  (:mod:`.stage`), applied to all intervals by ``F.map(N)``: the NLP's code does not grow
-  with N. The NLP records where F sits (:class:`StageLayout`) so that the solver assembles
-  the constraint Jacobian and the Lagrangian Hessian from the stage derivatives
-  (:mod:`.derivatives`) instead of differentiating the whole graph.
+  one stage function ``F(z_k, u_k, T_p, κ_k, (ν_k, t0_p)) -> z_{k+1}`` with its exact
+  derivatives (:mod:`.stage`), applied to all intervals by ``F.map(N)``. Path bounds on
+  derived quantities are two more mapped functions with their own exact derivatives — c(z) at
+  the nodes 0 … N and, for quantities of the inputs and accelerations, c(z, u, T_p, κ, (ν, t0))
+  at the nodes 0 … N−1 with the input of the interval each starts. The NLP records where
+  these *mapped terms* sit (:class:`StageLayout`) so that the solver assembles the constraint
+  Jacobian and the Lagrangian Hessian from their derivatives (:mod:`.derivatives`) instead of
+  differentiating the whole graph: the NLP's code does not grow with N.
+* :class:`StageShooting` — the same in stage order, for FATROP.
 * :class:`Collocation` — Legendre (or Radau) collocation of degree d (default 3) on each
   interval, the collocation equations of one interval one Function mapped over N.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import math
+from dataclasses import dataclass
 from typing import Any
 
 import casadi as ca
 import numpy as np
 
 from .problem import OptimalControlProblem, ProblemError
+from .schedule import check_time, schedule
 from .stage import StageFunctions, stage_functions
 
 __all__ = ["MultipleShooting", "Collocation", "StageShooting", "TranscribedNLP", "Decisions", "Assembly", "StageLayout",
-           "TRANSCRIPTIONS",
-           "get_transcription", "ode_function"]
+           "MappedTerm", "PathFunctions", "TRANSCRIPTIONS", "get_transcription", "ode_function", "path_functions"]
 
 
-@dataclass(frozen=True, eq=False)
-class Decisions:
-    """The decision vector w, its bounds and where z_k (``node_index``, nz × (N+1)), u_k
-    (``control_index``, nu × N) and T (``horizon_index``, None for a fixed horizon) sit in it."""
-
-    w: ca.MX
-    lbx: np.ndarray
-    ubx: np.ndarray
-    node_index: np.ndarray
-    control_index: np.ndarray
-    horizon_index: int | None = None
+from .nlp import (Assembly, Decisions, MappedTerm, PathFunctions, StageLayout, TranscribedNLP,  # noqa: F401
+                  ode_function, path_functions)
 
 
-@dataclass(frozen=True, eq=False)
-class Assembly:
-    """What a transcription adds to its decisions and objective: ``kernel`` (the function
-    applied on every interval), ``g`` (its own constraint expression; None: the builder's
-    rows), the stage ``layout``, a ``guess_filler`` and the FATROP ``structure``."""
+def _stage_layout(w, g_of, specs) -> tuple:
+    """Build g with a placeholder for each term's outputs and read the placement off it.
 
-    kernel: ca.Function
-    g: Any = None
-    layout: "StageLayout | None" = None
-    guess_filler: Any = None
-    structure: dict | None = None
-
-
-@dataclass(frozen=True, eq=False)
-class TranscribedNLP:
-    """An NLP ``min f(w) s.t. lbg ≤ g(w) ≤ ubg, lbx ≤ w ≤ ubx`` and its layout.
-
-    ``node_index`` (nz × (N+1)) and ``control_index`` (nu × N) give the positions of z_k and
-    u_k in w; ``horizon_index`` the position of T (free horizon) or None.
+    ``specs``: (functions, arguments, number of leading variable arguments) per term;
+    ``g_of(*placeholders)`` builds g from the outputs (n_outputs × K each). The placeholders'
+    Jacobians give the rows and signs, the Jacobian of the variable arguments the columns
+    (both constant).
     """
-
-    problem: OptimalControlProblem
-    transcription: Any
-    w: ca.MX
-    f: ca.MX
-    g: ca.MX
-    lbx: np.ndarray
-    ubx: np.ndarray
-    lbg: np.ndarray
-    ubg: np.ndarray
-    node_index: np.ndarray
-    control_index: np.ndarray
-    horizon_index: int | None
-    kernel: ca.Function
-    guess_filler: Any = field(default=None, repr=False)
-    structure: dict | None = None        # stage structure (N, nx, nu, ng) for FATROP
-    layout: "StageLayout | None" = None  # where the stage function sits (shooting only)
-    row_labels: tuple = ()               # the condition each row of g states (see _Builder.add_g)
-
-    def violations(self, g: np.ndarray, w: np.ndarray, tol: float = 1e-6) -> dict:
-        """Label → largest violation (> ``tol``) of the rows of g and of the bounds on w at a
-        point ("dynamics", "initial.x", "final.y", "periodic.psi", "bounds.phi",
-        "control_bounds.tau", "horizon"). A solver that fails may return a point outside the
-        bounds (FATROP relaxes fixed ones), so both are checked."""
-        out = {}
-        for labels, lo, hi, value in ((self.row_labels, self.lbg, self.ubg, g), (self.w_labels(), self.lbx, self.ubx, w)):
-            viol = np.maximum(np.maximum(lo - value, value - hi), 0.0)
-            for label, v in zip(labels, viol):
-                if v > tol:
-                    out[label] = max(out.get(label, 0.0), float(v))
-        return out
-
-    def w_labels(self) -> list:
-        """The condition each bound on w states: "initial.<state>" / "final.<state>" at the end
-        nodes where the problem fixes that state, "periodic.<state>" at an end node fixed by
-        periodicity (the state fixed at the other end), "bounds.<state>" on the other nodes,
-        "control_bounds.<input>", "horizon" (every carried copy of T in the stage order);
-        "" for entries that are never bounded (the carried periodic values)."""
-        p = self.problem
-        labels = [""] * self.n_w
-        N = p.intervals
-        for i, name in enumerate(p.state_names):
-            for k in range(N + 1):
-                end = "initial" if k == 0 else "final" if k == N else None
-                mapping = p.initial if end == "initial" else p.final if end == "final" else {}
-                j = int(self.node_index[i, k])
-                if name in mapping:
-                    labels[j] = f"{end}.{name}"
-                elif end and name in p.periodic and self.lbx[j] == self.ubx[j]:   # see _Builder.node_bounds
-                    labels[j] = f"periodic.{name}"
-                else:
-                    labels[j] = f"bounds.{name}"
-        for j, name in enumerate(p.control_names):
-            for k in range(N):
-                labels[int(self.control_index[j, k])] = f"control_bounds.{name}"
-        if self.horizon_index is not None:
-            labels[self.horizon_index] = "horizon"
-            if self.structure is not None:   # stage order: x̃_k = (z_k, c_k, T_k) on every stage
-                block = self.structure["nx"][0] + self.structure["nu"][0]
-                for k in range(N + 1):
-                    labels[self.horizon_index + k * block] = "horizon"
-        return labels
-
-    @property
-    def n_w(self) -> int:
-        return int(self.w.shape[0])
-
-    def pack(self, states: np.ndarray, controls: np.ndarray, horizon: float | None = None) -> np.ndarray:
-        """A decision vector from node states (nz × (N+1)) and controls (nu × N)."""
-        w0 = np.zeros(self.n_w)
-        w0[self.node_index] = states
-        w0[self.control_index] = controls
-        if self.horizon_index is not None:
-            w0[self.horizon_index] = self.problem.horizon if horizon is None else horizon
-        if self.guess_filler is not None:
-            self.guess_filler(w0, np.asarray(states, float), np.asarray(controls, float))
-        return w0
-
-    def unpack(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-        """(states (nz × (N+1)), controls (nu × N), T) from a decision vector."""
-        w = np.asarray(w, dtype=float).ravel()
-        T = float(w[self.horizon_index]) if self.horizon_index is not None else float(self.problem.horizon)
-        return w[self.node_index], w[self.control_index], T
-
-
-def ode_function(problem: OptimalControlProblem) -> ca.Function:
-    """f(t, z, u) with the parameter values substituted (constants folded), one SX Function."""
-    nz, nu = problem.n_states, problem.n_controls
-    z, u, t = ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("t")
-    rhs = problem.model.numeric["rhs"](t, z, u, problem.params)
-    return ca.Function("ode", [t, z, u], [rhs], ["t", "z", "u"], ["zdot"])
-
-
-@dataclass(frozen=True, eq=False)
-class StageLayout:
-    """Where the stage function sits in an NLP::
-
-        g(w) = g_linear(w) + sign · Σ_k E_k F(x_k),   x_k = (z_k, u_k[, T]) = w[columns[:, k]],
-
-    with E_k placing F's nz outputs at the rows ``rows[:, k]`` of g. ``arguments`` are the
-    stage functions' inputs (Z, U, T row, k row), expressions of w, to call them mapped.
-    """
-
-    stage: StageFunctions
-    arguments: tuple
-    g_linear: ca.MX
-    rows: np.ndarray
-    columns: np.ndarray
-    sign: float
-
-
-def _stage_layout(stage, w, g_of, arguments) -> StageLayout:
-    """Build g with a placeholder for the stage outputs and read the placement off it.
-
-    ``g_of(Zend)`` builds g from the stage outputs (nz × N); the placeholder's Jacobian gives
-    the rows and the sign, the Jacobian of the stage inputs the columns (both constant).
-    """
-    nz, N = stage.n_states, int(arguments[0].shape[1])
-    P = ca.MX.sym("F", nz, N)
-    g_p = g_of(P)
-    x_in = ca.vertcat(*arguments[:2], arguments[2]) if stage.free_horizon else ca.vertcat(*arguments[:2])
-    sel = ca.Function("placement", [w, P], [ca.jacobian(g_p, ca.vec(P)), ca.jacobian(ca.vec(x_in), w)])
-    gp, xin = sel(np.zeros(w.shape[0]), np.zeros((nz, N)))
-    rows, signs = _single_entries(gp, by="column")
-    columns, _ = _single_entries(xin, by="row")
-    if not np.all(signs == signs[0]):   # pragma: no cover - guards the transcriptions below
-        raise ProblemError(["internal: the stage outputs enter g with mixed signs"])
-    g_linear = ca.substitute([g_p], [P], [ca.MX.zeros(nz, N)])[0]
-    g = ca.substitute([g_p], [P], [stage.step.map(N, "serial")(*arguments)])[0]
-    layout = StageLayout(stage, tuple(arguments), g_linear, rows.reshape((N, nz)).T,
-                         columns.reshape((N, stage.n_variables)).T, float(signs[0]))
-    return g, layout
+    P = [ca.MX.sym(f"F{i}", fn.n_outputs, int(args[0].shape[1])) for i, (fn, args, _) in enumerate(specs)]
+    g_p = g_of(*P)
+    terms, mapped = [], []
+    for (fn, args, n_var), Pi in zip(specs, P):
+        m, K = Pi.shape
+        x_in = ca.vertcat(*args[:n_var])
+        sel = ca.Function("placement", [w, Pi], [ca.jacobian(g_p, ca.vec(Pi)), ca.jacobian(ca.vec(x_in), w)])
+        gp, xin = sel(np.zeros(w.shape[0]), np.zeros((m, K)))
+        rows, signs = _single_entries(gp, by="column")
+        columns, _ = _single_entries(xin, by="row")
+        if not np.all(signs == signs[0]):   # pragma: no cover - guards the transcriptions below
+            raise ProblemError(["internal: a mapped term enters g with mixed signs"])
+        terms.append(MappedTerm(fn, tuple(args), rows.reshape((K, m)).T, columns.reshape((K, fn.n_variables)).T,
+                                float(signs[0])))
+        mapped.append(fn.value.map(K, "serial")(*args))
+    g_linear = ca.substitute([g_p], P, [ca.MX.zeros(*Pi.shape) for Pi in P])[0]
+    g = ca.substitute([g_p], P, mapped)[0]
+    return g, StageLayout(tuple(terms), g_linear)
 
 
 def _single_entries(M: ca.DM, by: str):
     """For a constant selection matrix: the index of the single nonzero of each column (or
     row) and its value."""
     r, c = M.sparsity().get_triplet()
-    r, c, v = np.array(r), np.array(c), np.array(M.nonzeros())
+    r, c, v = np.array(r, dtype=int), np.array(c, dtype=int), np.array(M.nonzeros())
     key, other = (c, r) if by == "column" else (r, c)
     n = M.shape[1] if by == "column" else M.shape[0]
     if len(key) != n or len(set(key.tolist())) != n:   # pragma: no cover - internal invariant
@@ -217,20 +89,26 @@ def _single_entries(M: ca.DM, by: str):
     return other[order], v[order]
 
 
+# ----------------------------------------------------------------------------- bookkeeping
 class _Builder:
-    """Shared bookkeeping: bounds on w, rows of g, objective terms."""
+    """Shared bookkeeping: bounds on w, rows of g, objective terms, the path quantities."""
 
     def __init__(self, problem: OptimalControlProblem):
         self.problem = problem
+        self.schedule = schedule(problem)
         self.g, self.lbg, self.ubg, self.labels = [], [], [], []
+        derived = [n for n in self.schedule.path_names(problem) if not problem.is_state(n)]
+        self.state_paths = [n for n in derived if not problem.uses_inputs(n)]
+        self.input_paths = [n for n in derived if problem.uses_inputs(n)]
 
     def reset(self):
         self.g, self.lbg, self.ubg, self.labels = [], [], [], []
 
     def add_g(self, expr, lo, hi, label):
         """Rows ``lo ≤ expr ≤ hi`` of g; ``label`` (one string, or one per row) names the
-        condition they state: "dynamics", "initial.<name>", "final.<name>",
-        "periodic.<name>", "bounds.<name>" (reports say which conditions a point violates)."""
+        condition they state: "dynamics", "initial.<name>", "final.<name>", "<waypoint>.<name>",
+        "<phase>.final.<name>", "periodic.<name>", "bounds.<name>" (reports say which conditions
+        a point violates)."""
         n = int(expr.shape[0])
         self.g.append(expr)
         self.lbg.append(np.broadcast_to(np.asarray(lo, float), (n,)))
@@ -239,20 +117,15 @@ class _Builder:
 
     def node_bounds(self) -> tuple[np.ndarray, np.ndarray, list]:
         """Bounds (nz × (N+1)) on the node states and the periodic states left for g."""
-        p = self.problem
-        nz, N = p.n_states, p.intervals
-        lo = np.full((nz, N + 1), -np.inf)
-        hi = np.full((nz, N + 1), np.inf)
-        for name, value in p.state_bounds.items():
-            if p.is_state(name):
-                i = p.state_names.index(name)
-                lo[i, :], hi[i, :] = p.bounds(p.state_bounds, name)
-        for col, mapping in ((0, p.initial), (N, p.final)):
-            for name in mapping:
+        p, sched = self.problem, self.schedule
+        N = p.intervals
+        lo, hi = sched.node_ranges(p, p.state_names)
+        for event in sched.events:
+            for name in event.conditions:
                 if p.is_state(name):
                     i = p.state_names.index(name)
-                    a, b = p.bounds(mapping, name)
-                    lo[i, col], hi[i, col] = max(lo[i, col], a), min(hi[i, col], b)
+                    a, b = p.bounds(event.conditions, name)
+                    lo[i, event.node], hi[i, event.node] = max(lo[i, event.node], a), min(hi[i, event.node], b)
         periodic_g = []
         for name in p.periodic:
             if not p.is_state(name):
@@ -267,43 +140,81 @@ class _Builder:
                 periodic_g.append(name)
         return lo, hi, periodic_g
 
-    def derived_rows(self, Z, Zfirst, Zlast, periodic_g):
-        """Rows of g for derived-quantity conditions and periodic states not fixed by bounds."""
+    def event_rows(self, node: int, z) -> list:
+        """(expression, lo, hi, label) of the conditions on derived quantities at ``node``."""
         p = self.problem
-        N = p.intervals
-        zs = ca.SX.sym("z", p.n_states)
-        cache = {}
+        out = []
+        for event in self.schedule.events:
+            if event.node == node:
+                out += [(p.quantity(n, z), *p.bounds(event.conditions, n), f"{event.label}.{n}")
+                        for n in event.conditions if not p.is_state(n)]
+        return out
 
-        def qfun(name):
-            if name not in cache:
-                cache[name] = ca.Function(f"q_{name}", [zs], [p.quantity(name, zs)])
-            return cache[name]
-
-        for col, mapping, zc in ((0, p.initial, Zfirst), (N, p.final, Zlast)):
-            for name in mapping:
-                if not p.is_state(name):
-                    a, b = p.bounds(mapping, name)
-                    self.add_g(qfun(name)(zc), a, b, f"{'initial' if col == 0 else 'final'}.{name}")
+    def add_events_and_periodic(self, Z, periodic_g) -> None:
+        """Rows of the conditions on derived quantities at single nodes (``Z``: every node)
+        and of the periodic quantities left for g."""
+        for node in self.event_nodes():
+            for expr, a, c, label in self.event_rows(node, Z[:, node]):
+                self.add_g(expr, a, c, label)
         for name in periodic_g:
-            f = qfun(name)
-            self.add_g(f(Zlast) - f(Zfirst), 0.0, 0.0, f"periodic.{name}")
-        for name in p.state_bounds:
-            if not p.is_state(name):
-                a, b = p.bounds(p.state_bounds, name)
-                self.add_g(ca.vec(qfun(name).map(N + 1)(Z)), a, b, f"bounds.{name}")
+            f = self.qfun(name)
+            self.add_g(f(Z[:, -1]) - f(Z[:, 0]), 0.0, 0.0, f"periodic.{name}")
 
-    def objective(self, Z, U, h, T):
+    def event_nodes(self) -> list:
+        """The nodes with rows of their own (conditions on derived quantities)."""
+        p = self.problem
+        return sorted({e.node for e in self.schedule.events if any(not p.is_state(n) for n in e.conditions)})
+
+    def qfun(self, name):
+        zs = ca.SX.sym("z", self.problem.n_states)
+        return ca.Function(f"q_{name}", [zs], [self.problem.quantity(name, zs)])
+
+    def mapped_terms(self, stage, Z, args, free: bool) -> list:
+        """(functions, arguments, number of leading variable arguments) of the mapped terms of
+        a shooting NLP: the stage, then the path bounds on derived quantities of the state
+        (at the nodes Z) and of the inputs (with the stage's arguments)."""
+        n_var = 3 if free else 2
+        specs = [(stage, args, n_var)]
+        if self.state_paths:
+            specs.append((path_functions(self.problem, self.state_paths, inputs=False, free_horizon=free), (Z,), 1))
+        if self.input_paths:
+            specs.append((path_functions(self.problem, self.input_paths, inputs=True, free_horizon=free), args,
+                          n_var))
+        return specs
+
+    def path_ranges(self) -> tuple:
+        """(lo, hi) of the state path quantities (m_s × (N+1)) and of the input ones (m_u × N)."""
+        p, sched = self.problem, self.schedule
+        (slo, shi), (ulo, uhi) = sched.node_ranges(p, self.state_paths), sched.node_ranges(p, self.input_paths)
+        return slo, shi, ulo[:, :-1], uhi[:, :-1]
+
+    def horizons(self):
+        """(the phase horizons as MX (a vector of P, variables or constants), their variable
+        symbol or None, their bounds)."""
+        sched = self.schedule
+        if not sched.variable_horizons:
+            return ca.MX(ca.DM(sched.initial_horizons())), None, None
+        T = ca.MX.sym("T", sched.n_phases)
+        return T, T, sched.horizon_bounds()
+
+    def interval_arguments(self, Trow):
+        """The constant rows of the stage arguments: κ (1 × N) and (ν, t0) (2 × N)."""
+        sched = self.schedule
+        return ca.DM(sched.local_index().astype(float)).T, ca.DM(sched.phase_rows())
+
+    def objective(self, Z, U, h, Tphases):
+        """Σ_k h_k Σ_j w_j u_{jk}² + Σ_k h_k Σ_i c_i z_i(t_k)² + c_T Σ_p T_p + Σ_e w_e y_e(t_N);
+        ``h`` the interval lengths (1 × N)."""
         p = self.problem
         wu = np.array([float(p.control_weights.get(n, 1.0)) for n in p.control_names])
-        if np.all(wu == 1.0):
-            f = h * ca.sumsqr(U)
-        else:
-            f = h * ca.sumsqr(ca.mtimes(ca.diag(ca.DM(np.sqrt(wu))), U))
+        f = ca.sum2(h * ca.mtimes(ca.DM(wu).T, U ** 2))
         if p.state_weights:
             wz = np.array([float(p.state_weights.get(n, 0.0)) for n in p.state_names])
-            f = f + h * ca.sum2(ca.mtimes(ca.DM(wz).T, Z[:, :-1] ** 2))
+            f = f + ca.sum2(h * ca.mtimes(ca.DM(wz).T, Z[:, :-1] ** 2))
         if p.time_weight:
-            f = f + float(p.time_weight) * T
+            f = f + float(p.time_weight) * ca.sum1(Tphases)
+        for name, weight in p.end_weights.items():
+            f = f + float(weight) * self.qfun(name)(Z[:, -1])
         return f
 
     def finish(self, transcription, decisions: Decisions, f, assembly: Assembly) -> TranscribedNLP:
@@ -314,19 +225,52 @@ class _Builder:
         lbg = np.concatenate(self.lbg) if self.lbg else np.zeros(0)
         ubg = np.concatenate(self.ubg) if self.ubg else np.zeros(0)
         d = decisions
-        return TranscribedNLP(self.problem, transcription, d.w, f, g, d.lbx, d.ubx, lbg, ubg,
-                              d.node_index, d.control_index, d.horizon_index, assembly.kernel, assembly.guess_filler,
-                              assembly.structure, assembly.layout, tuple(self.labels))
-
-    def horizon_variable(self):
-        p = self.problem
-        if p.free_horizon is None:
-            return None, float(p.horizon), None
-        T = ca.MX.sym("T")
-        lo, hi = p.bounds({"T": p.free_horizon}, "T")
-        return T, T, (lo, hi)
+        scale = objective_scale(self.problem)
+        return TranscribedNLP(problem=self.problem, transcription=transcription, w=d.w, f=scale * f, g=g,
+                              lbx=d.lbx, ubx=d.ubx, lbg=lbg, ubg=ubg, node_index=d.node_index,
+                              control_index=d.control_index,
+                              horizon_indices=tuple(int(i) for i in d.horizon_indices),
+                              kernel=assembly.kernel, guess_filler=assembly.guess_filler,
+                              structure=assembly.structure, layout=assembly.layout,
+                              row_labels=tuple(self.labels), objective_scale=scale)
 
 
+#: the size of objective both solvers handle well (their barrier starts at μ = 0.1)
+OBJECTIVE_REFERENCE = 1e4
+
+
+def objective_scale(problem) -> float:
+    """The factor s of the NLP's objective f = s J: min(1, OBJECTIVE_REFERENCE / J_ref), with
+    J_ref = T_max Σ_j w_j max(lo_j², hi_j²) over the bounded inputs (the effort at the bounds
+    for the longest horizon) + c_T T_max.
+
+    Ipopt's gradient-based scaling looks at the gradient at the start, which is zero for an
+    effort objective from zero inputs; an objective whose optimum is 10⁵–10⁶ (opty's parallel
+    park: forces up to 300 N for 30 s) then crawls at μ = 0.1 with tiny steps (288 Ipopt and 278
+    FATROP iterations; 37–41 with the objective scaled by any factor from 3.6e-3 to 3.6e-7).
+    Objectives that stay below the reference (every built-in gait, opty's garage) are left as
+    they are. Reported objectives are J (the solver divides by s)."""
+    T = float(problem.free_horizon[1]) if problem.free_horizon is not None else float(problem.horizon)
+    lo, hi = problem.control_bound_vectors()
+    reach = np.maximum(np.abs(lo), np.abs(hi))
+    weights = np.array([float(problem.control_weights.get(n, 1.0)) for n in problem.control_names])
+    finite = np.isfinite(reach)
+    J_ref = T * float(np.sum(weights[finite] * reach[finite] ** 2)) + float(problem.time_weight) * T
+    return 1.0 if not (J_ref > OBJECTIVE_REFERENCE and math.isfinite(J_ref)) else OBJECTIVE_REFERENCE / J_ref
+
+
+def _bounds_on(w, node_index, lo, hi, control_index, ulo, uhi, horizon_indices=(), Tbounds=None):
+    """lbx, ubx of w: the node bounds, the control bounds, the horizons' bounds."""
+    n_w = int(w.shape[0])
+    lbx, ubx = np.full(n_w, -np.inf), np.full(n_w, np.inf)
+    lbx[node_index], ubx[node_index] = lo, hi
+    lbx[control_index], ubx[control_index] = ulo, uhi
+    for index, (a, b) in zip(horizon_indices, Tbounds or ()):
+        lbx[index], ubx[index] = a, b
+    return lbx, ubx
+
+
+# ----------------------------------------------------------------------------- multiple shooting
 @dataclass(frozen=True)
 class MultipleShooting:
     """Direct multiple shooting with ``steps`` explicit RK4 sub-steps per interval.
@@ -345,8 +289,10 @@ class MultipleShooting:
             raise ProblemError([f"multiple shooting: steps = {self.steps!r} must be an integer ≥ 1"])
         if self.stage not in ("auto", "inline", "structured"):
             raise ProblemError([f"multiple shooting: stage = {self.stage!r} (auto, inline or structured)"])
-        return stage_functions(ode_function(problem), problem.intervals, steps=self.steps,
-                               free_horizon=problem.free_horizon is not None, mode=self.stage)
+        ode = ode_function(problem)
+        check_time(problem, ode)
+        return stage_functions(ode, steps=self.steps, free_horizon=schedule(problem).variable_horizons,
+                               mode=self.stage)
 
     def settings(self) -> dict:
         return {"transcription": self.name, "rk4_steps": self.steps, "map_mode": self.map_mode}
@@ -354,43 +300,52 @@ class MultipleShooting:
     def build(self, problem: OptimalControlProblem) -> TranscribedNLP:
         nz, nu, N = problem.n_states, problem.n_controls, problem.intervals
         b = _Builder(problem)
-        Tsym, T, Tbounds = b.horizon_variable()
+        Tvec, Tsym, Tbounds = b.horizons()
         V = ca.MX.sym("V", nz + nu, N)
         ZN = ca.MX.sym("zN", nz)
-        parts = [ca.vec(V), ZN] + ([Tsym] if Tsym is not None else [])
-        w = ca.vertcat(*parts)
+        w = ca.vertcat(*([ca.vec(V), ZN] + ([Tsym] if Tsym is not None else [])))
         Z = ca.horzcat(V[:nz, :], ZN)
         U = V[nz:, :]
-        h = T / N
         stage = self.stage_functions(problem)
-        args = (Z[:, :N], U, ca.repmat(T, 1, N), ca.DM(np.arange(N, dtype=float)).T)
+        free = b.schedule.variable_horizons
+        Trow = b.schedule.horizon_row(Tvec)
+        K, PH = b.interval_arguments(Trow)
+        args = (Z[:, :N], U, Trow, K, PH)
+        specs = b.mapped_terms(stage, Z, args, free)
+        slo, shi, ulo_p, uhi_p = b.path_ranges()
+        lo, hi, periodic_g = b.node_bounds()
 
-        def g_of(Zend):
+        def g_of(Zend, *paths):
             b.reset()
             b.add_g(ca.vec(Zend - Z[:, 1:]), 0.0, 0.0, "dynamics")
-            b.derived_rows(Z, Z[:, 0], Z[:, N], periodic_g)
+            b.add_events_and_periodic(Z, periodic_g)
+            for names, C, a, c in _path_blocks(b, paths, slo, shi, ulo_p, uhi_p):
+                b.add_g(ca.vec(C), a.T.ravel(), c.T.ravel(), [f"bounds.{n}" for n in names] * C.shape[1])
             return ca.vertcat(*b.g)
 
-        lo, hi, periodic_g = b.node_bounds()
-        g, layout = _stage_layout(stage, w, g_of, args)
-        f = b.objective(Z, U, h, T)
-        ulo, uhi = problem.control_bound_vectors()
-        # layout
+        g, layout = _stage_layout(w, g_of, specs)
+        f = b.objective(Z, U, PH[0, :] * Trow, Tvec)
         idx = np.arange((nz + nu) * N).reshape((N, nz + nu)).T        # column k = (z_k, u_k)
         node_index = np.hstack([idx[:nz, :], (nz + nu) * N + np.arange(nz)[:, None]])
         control_index = idx[nz:, :]
-        n_w = int(w.shape[0])
-        lbx, ubx = np.full(n_w, -np.inf), np.full(n_w, np.inf)
-        lbx[node_index], ubx[node_index] = lo, hi
-        lbx[control_index], ubx[control_index] = ulo[:, None], uhi[:, None]
-        horizon_index = None
-        if Tsym is not None:
-            horizon_index = n_w - 1
-            lbx[horizon_index], ubx[horizon_index] = Tbounds
-        return b.finish(self, Decisions(w, lbx, ubx, node_index, control_index, horizon_index), f,
+        h_index = tuple(range(int(w.shape[0]) - b.schedule.n_phases, int(w.shape[0]))) if Tsym is not None else ()
+        lbx, ubx = _bounds_on(w, node_index, lo, hi, control_index, *b.schedule.control_ranges(problem), h_index,
+                              Tbounds)
+        return b.finish(self, Decisions(w, lbx, ubx, node_index, control_index, h_index), f,
                         Assembly(stage.step, g=g, layout=layout))
 
 
+def _path_blocks(b: _Builder, paths, slo, shi, ulo, uhi) -> list:
+    """(names, values (m × K), lo, hi) of the path terms whose placeholders are ``paths``."""
+    blocks, paths = [], list(paths)
+    if b.state_paths:
+        blocks.append((b.state_paths, paths.pop(0), slo, shi))
+    if b.input_paths:
+        blocks.append((b.input_paths, paths.pop(0), ulo, uhi))
+    return blocks
+
+
+# ----------------------------------------------------------------------------- collocation
 @dataclass(frozen=True)
 class Collocation:
     """Direct collocation: degree-d polynomials on Legendre (or Radau) points per interval."""
@@ -429,6 +384,7 @@ class Collocation:
         if self.scheme not in ("legendre", "radau"):
             raise ProblemError([f"collocation: unknown scheme {self.scheme!r} (legendre, radau)"])
         ode = ode_function(problem)
+        check_time(problem, ode)
         nz, nu, d = problem.n_states, problem.n_controls, self.degree
         tau, C, D = self.coefficients()
         zk, zc, u = ca.SX.sym("zk", nz), ca.SX.sym("zc", nz * d), ca.SX.sym("u", nu)
@@ -445,7 +401,7 @@ class Collocation:
     def build(self, problem: OptimalControlProblem) -> TranscribedNLP:
         nz, nu, N, d = problem.n_states, problem.n_controls, problem.intervals, self.degree
         b = _Builder(problem)
-        Tsym, T, Tbounds = b.horizon_variable()
+        Tvec, Tsym, Tbounds = b.horizons()
         blk = nz + nz * d + nu
         V = ca.MX.sym("V", blk, N)
         ZN = ca.MX.sym("zN", nz)
@@ -453,36 +409,39 @@ class Collocation:
         Z = ca.horzcat(V[:nz, :], ZN)
         Zc = V[nz:nz + nz * d, :]                   # column k: vec(Z_k), nz*d
         U = V[nz + nz * d:, :]
-        h = T / N
+        Trow = b.schedule.horizon_row(Tvec)
+        K, PH = b.interval_arguments(Trow)
+        h = PH[0, :] * Trow
+        tk = PH[1, :] + K * h
         W = self.interval_function(problem)
-        R, Zend = W.map(N, self.map_mode)(Z[:, :N], Zc, U, ca.repmat(h, 1, N),
-                                          h * ca.DM(np.arange(N, dtype=float)).T)
+        R, Zend = W.map(N, self.map_mode)(Z[:, :N], Zc, U, h, tk)
         # interleave residuals and continuity per interval (banded Jacobian)
         b.add_g(ca.vec(ca.vertcat(R, Zend - Z[:, 1:])), 0.0, 0.0, "dynamics")
         lo, hi, periodic_g = b.node_bounds()
-        b.derived_rows(Z, Z[:, 0], Z[:, N], periodic_g)
-        f = b.objective(Z, U, h, T)
-        ulo, uhi = problem.control_bound_vectors()
+        b.add_events_and_periodic(Z, periodic_g)
+        slo, shi, ulo_p, uhi_p = b.path_ranges()
+        free = b.schedule.variable_horizons
+        paths = []
+        if b.state_paths:
+            paths.append(path_functions(problem, b.state_paths, inputs=False, free_horizon=free).value
+                         .map(N + 1)(Z))
+        if b.input_paths:
+            paths.append(path_functions(problem, b.input_paths, inputs=True, free_horizon=free).value
+                         .map(N)(Z[:, :N], U, Trow, K, PH))
+        for names, C, a, c in _path_blocks(b, paths, slo, shi, ulo_p, uhi_p):
+            b.add_g(ca.vec(C), a.T.ravel(), c.T.ravel(), [f"bounds.{n}" for n in names] * C.shape[1])
+        f = b.objective(Z, U, h, Tvec)
         idx = np.arange(blk * N).reshape((N, blk)).T
         node_index = np.hstack([idx[:nz, :], blk * N + np.arange(nz)[:, None]])
         coll_index = idx[nz:nz + nz * d, :]
         control_index = idx[nz + nz * d:, :]
-        n_w = int(w.shape[0])
-        lbx, ubx = np.full(n_w, -np.inf), np.full(n_w, np.inf)
-        lbx[node_index], ubx[node_index] = lo, hi
-        lbx[control_index], ubx[control_index] = ulo[:, None], uhi[:, None]
-        # path bounds on states also hold at the collocation points
-        path_lo, path_hi = np.full(nz, -np.inf), np.full(nz, np.inf)
-        for name in problem.state_bounds:
-            if problem.is_state(name):
-                i = problem.state_names.index(name)
-                path_lo[i], path_hi[i] = problem.bounds(problem.state_bounds, name)
-        lbx[coll_index] = np.tile(path_lo, d)[:, None]
-        ubx[coll_index] = np.tile(path_hi, d)[:, None]
-        horizon_index = None
-        if Tsym is not None:
-            horizon_index = n_w - 1
-            lbx[horizon_index], ubx[horizon_index] = Tbounds
+        h_index = tuple(range(int(w.shape[0]) - b.schedule.n_phases, int(w.shape[0]))) if Tsym is not None else ()
+        lbx, ubx = _bounds_on(w, node_index, lo, hi, control_index, *b.schedule.control_ranges(problem), h_index,
+                              Tbounds)
+        # path bounds on states also hold at the collocation points (those of the interval's phase)
+        state_lo, state_hi = b.schedule.interval_ranges(problem, problem.state_names)
+        lbx[coll_index] = np.tile(state_lo, (d, 1))
+        ubx[coll_index] = np.tile(state_hi, (d, 1))
         tau = self.coefficients()[0]
 
         def fill(w0, states, controls):
@@ -491,21 +450,23 @@ class Collocation:
                 s = tau[j + 1]
                 w0[coll_index[j * nz:(j + 1) * nz, :]] = (1 - s) * states[:, :-1] + s * states[:, 1:]
 
-        return b.finish(self, Decisions(w, lbx, ubx, node_index, control_index, horizon_index), f,
+        return b.finish(self, Decisions(w, lbx, ubx, node_index, control_index, h_index), f,
                         Assembly(W, guess_filler=fill))
 
 
+# ----------------------------------------------------------------------------- stage order (FATROP)
 @dataclass(frozen=True)
 class StageShooting(MultipleShooting):
     """Multiple shooting in stage order, for structure-exploiting solvers (FATROP).
 
     FATROP needs an optimal control structure: the decision vector stage by stage,
     w = (x̃_0, u_0, x̃_1, u_1, …, x̃_N), and the constraints stage by stage, each stage's
-    dynamics gap x̃_{k+1} − F̃(x̃_k, u_k) followed by the conditions on (x̃_k, u_k) alone.
-    Conditions linking the two ends (periodicity) or using a global variable (a free
-    horizon T) are made stage-local by *carrying* the values along the horizon:
+    dynamics gap x̃_{k+1} − F̃(x̃_k, u_k) followed by the conditions on (x̃_k, u_k) alone
+    (path bounds, the conditions of an event at that node). Conditions linking the two ends
+    (periodicity) or using global variables (free phase horizons T_p) are made stage-local by
+    *carrying* the values along the horizon:
 
-        x̃_k = (z_k, c_k [, T_k]),   c_{k+1} = c_k,  T_{k+1} = T_k,
+        x̃_k = (z_k, c_k [, T_1,k … T_P,k]),   c_{k+1} = c_k,  T_{p,k+1} = T_{p,k},
         c_0 = y_per(z_0)  (stage 0),     y_per(z_N) − c_N = 0  (stage N),
 
     with y_per the periodic quantities not already fixed at both ends by bounds. The problem
@@ -520,62 +481,94 @@ class StageShooting(MultipleShooting):
     def build(self, problem: OptimalControlProblem) -> TranscribedNLP:
         nz, nu, N = problem.n_states, problem.n_controls, problem.intervals
         b = _Builder(problem)
+        sched = b.schedule
         lo, hi, periodic_g = b.node_bounds()
         zs = ca.SX.sym("z", nz)
         yper = ca.Function("y_per", [zs], [ca.vertcat(*[problem.quantity(n, zs) for n in periodic_g])]
                            if periodic_g else [ca.SX(0, 1)])
-        nc, free = len(periodic_g), problem.free_horizon is not None
-        nx = nz + nc + (1 if free else 0)
+        nc, free, P = len(periodic_g), sched.variable_horizons, sched.n_phases
+        nT = P if free else 0
+        nx = nz + nc + nT
         V, XN = ca.MX.sym("V", nx + nu, N), ca.MX.sym("xN", nx)
         w = ca.vertcat(ca.vec(V), XN)                  # (x̃_0, u_0, …, x̃_{N-1}, u_{N-1}, x̃_N)
         X, U = ca.horzcat(V[:nx, :], XN), V[nx:, :]
         Z = X[:nz, :]
         stage = self.stage_functions(problem)
-        Trow = X[nx - 1, :N] if free else ca.DM.ones(1, N) * float(problem.horizon)
-        h = Trow / N if free else float(problem.horizon) / N
-        args = (Z[:, :N], U, Trow, ca.DM(np.arange(N, dtype=float)).T)
-        path = _StagePaths(problem, Z)                            # rows on every node
-        first, last = _end_rows(problem, Z[:, 0], "initial"), _end_rows(problem, Z[:, N], "final")
+        if free:   # each interval's own phase horizon, read from its stage's carried copy
+            Trow = ca.horzcat(*[X[nz + nc + p, int(sched.starts[p]):int(sched.starts[p + 1])] for p in range(P)])
+        else:
+            Trow = sched.horizon_row(ca.DM(sched.initial_horizons()))
+        K, PH = b.interval_arguments(Trow)
+        args = (Z[:, :N], U, Trow, K, PH)
+        specs = b.mapped_terms(stage, Z, args, free)
+        slo, shi, ulo_p, uhi_p = b.path_ranges()
+        ends = {0: [], N: []}
         if nc:
             labels = [f"periodic.{n}" for n in periodic_g]
-            first.append((X[nz:nz + nc, 0] - yper(Z[:, 0]), 0.0, 0.0, labels))
-            last.append((yper(Z[:, N]) - X[nz:nz + nc, N], 0.0, 0.0, labels))
+            ends[0].append((X[nz:nz + nc, 0] - yper(Z[:, 0]), 0.0, 0.0, labels))
+            ends[N].append((yper(Z[:, N]) - X[nz:nz + nc, N], 0.0, 0.0, labels))
+        events = {k: b.event_rows(k, Z[:, k]) for k in b.event_nodes()}
+        special = sorted(set(events) | {0, N})
+        counts = {}
 
-        def g_of(Zend):
-            # stage 0: gap, path rows, start rows; stages 1..N-1: (gap, path rows) column by column
+        def g_of(Zend, *paths):
             b.reset()
+            blocks = _path_blocks(b, paths, slo, shi, ulo_p, uhi_p)
             gaps = X[:, 1:] - ca.vertcat(Zend, X[nz:, :N])            # column k: gap of stage k
-            b.add_g(gaps[:, 0], 0.0, 0.0, "dynamics")
-            path.add(b, 0)
-            for expr, a, c, label in first:
-                b.add_g(expr, a, c, label)
-            if N > 1:
-                body = ca.vertcat(gaps[:, 1:], path.matrix[:, 1:N]) if path.n else gaps[:, 1:]
-                b.add_g(ca.vec(body), np.tile(np.concatenate([np.zeros(nx), path.lo]), N - 1),
-                        np.tile(np.concatenate([np.zeros(nx), path.hi]), N - 1),
-                        (["dynamics"] * nx + path.labels) * (N - 1))
-            path.add(b, N)
-            for expr, a, c, label in last:
-                b.add_g(expr, a, c, label)
+            for k in range(N + 1):
+                counts[k] = 0
+            start = 0
+            for k in special:
+                if start < k:            # the stages start … k−1: no rows of their own, one vectorised block
+                    self._run(b, gaps, blocks, start, k, counts)
+                self._stage(b, gaps, blocks, k, N, events.get(k, []) + ends.get(k, []), counts)
+                start = k + 1
             return ca.vertcat(*b.g)
 
-        g, layout = _stage_layout(stage, w, g_of, args)
-        counts = {k: path.n for k in range(N + 1)}
-        counts[0] += sum(int(e.shape[0]) for e, *_ in first)
-        counts[N] += sum(int(e.shape[0]) for e, *_ in last)
+        g, layout = _stage_layout(w, g_of, specs)
         wu = np.array([float(problem.control_weights.get(n, 1.0)) for n in problem.control_names])
-        hk = h                                         # the step of each interval
+        hk = PH[0, :] * Trow                           # the step of each interval
         f = ca.sum2(hk * ca.mtimes(ca.DM(wu).T, U ** 2))
         if problem.state_weights:
             wz = np.array([float(problem.state_weights.get(n, 0.0)) for n in problem.state_names])
             f = f + ca.sum2(hk * ca.mtimes(ca.DM(wz).T, Z[:, :N] ** 2))
         if problem.time_weight:
-            f = f + float(problem.time_weight) * X[nx - 1, 0]
+            f = f + float(problem.time_weight) * (ca.sum1(X[nz + nc:, 0]) if free
+                                                  else float(np.sum(sched.initial_horizons())))
+        for name, weight in problem.end_weights.items():
+            f = f + float(weight) * b.qfun(name)(Z[:, N])
         return self._layout(b, _StageVector(w, lo, hi, nx, nc, yper, counts), f, g, layout)
+
+    @staticmethod
+    def _run(b, gaps, blocks, a, c, counts):
+        """The stages a … c−1 (none an event's): gap then path rows, one vectorised block."""
+        body = ca.vertcat(gaps[:, a:c], *[C[:, a:c] for _, C, _, _ in blocks])
+        nx = int(gaps.shape[0])
+        lo = np.vstack([np.zeros((nx, c - a))] + [blo[:, a:c] for *_, blo, _ in blocks])
+        hi = np.vstack([np.zeros((nx, c - a))] + [bhi[:, a:c] for *_, _, bhi in blocks])
+        labels = ["dynamics"] * nx + [f"bounds.{n}" for names, *_ in blocks for n in names]
+        b.add_g(ca.vec(body), lo.T.ravel(), hi.T.ravel(), labels * (c - a))
+        for k in range(a, c):
+            counts[k] = sum(len(names) for names, *_ in blocks)
+
+    @staticmethod
+    def _stage(b, gaps, blocks, k, N, rows, counts):
+        """Stage k alone: its gap (k < N), its path rows, its events' and ends' rows."""
+        if k < N:
+            b.add_g(gaps[:, k], 0.0, 0.0, "dynamics")
+        n = 0
+        for names, C, blo, bhi in blocks:
+            if k < C.shape[1]:
+                b.add_g(C[:, k], blo[:, k], bhi[:, k], [f"bounds.{m}" for m in names])
+                n += len(names)
+        for expr, a, c, label in rows:
+            b.add_g(expr, a, c, label)
+            n += int(expr.shape[0])
+        counts[k] = n
 
     def _layout(self, b, vector: "_StageVector", f, g, layout):
         """The NLP in stage order: bounds on w, the FATROP structure and the guess filler."""
-        problem = b.problem
+        problem, sched = b.problem, b.schedule
         w, lo, hi, nx, nc, yper, counts = (vector.w, vector.lo, vector.hi, vector.nx, vector.nc, vector.yper,
                                            vector.counts)
         nz, nu, N = problem.n_states, problem.n_controls, problem.intervals
@@ -583,32 +576,30 @@ class StageShooting(MultipleShooting):
         starts = np.arange(N + 1) * blk
         node_index = starts[None, :] + np.arange(nz)[:, None]
         control_index = starts[None, :N] + nx + np.arange(nu)[:, None]
-        n_w = int(w.shape[0])
-        lbx, ubx = np.full(n_w, -np.inf), np.full(n_w, np.inf)
-        lbx[node_index], ubx[node_index] = lo, hi
-        ulo, uhi = problem.control_bound_vectors()
-        lbx[control_index], ubx[control_index] = ulo[:, None], uhi[:, None]
-        horizon_index = None
-        if problem.free_horizon is not None:
-            T_index = starts + nx - 1
-            lbx[T_index], ubx[T_index] = problem.bounds({"T": problem.free_horizon}, "T")
-            horizon_index = int(T_index[0])
+        ulo, uhi = sched.control_ranges(problem)
+        lbx, ubx = _bounds_on(w, node_index, lo, hi, control_index, ulo, uhi)
+        h_index = ()
+        if sched.variable_horizons:
+            for p, (a, c) in enumerate(sched.horizon_bounds()):
+                T_index = starts + nz + nc + p
+                lbx[T_index], ubx[T_index] = a, c
+            h_index = tuple(int(nz + nc + p) for p in range(sched.n_phases))
         ng = [counts.get(k, 0) for k in range(N + 1)]
         structure = {"N": N, "nx": [nx] * (N + 1), "nu": [nu] * N + [0], "ng": ng}
 
         def fill(w0, states, controls):
-            # the carried copies: y_per(z_0) and T on every stage
+            # the carried copies: y_per(z_0) and the horizons T_p on every stage
             extra = []
             if nc:
                 extra.append(np.asarray(yper(states[:, 0])).ravel())
-            if horizon_index is not None:
-                extra.append(np.array([w0[horizon_index]]))
+            if h_index:
+                extra.append(w0[list(h_index)])
             if extra:
                 extra = np.concatenate(extra)
                 for k in range(N + 1):
                     w0[starts[k] + nz:starts[k] + nx] = extra
 
-        return b.finish(self, Decisions(w, lbx, ubx, node_index, control_index, horizon_index), f,
+        return b.finish(self, Decisions(w, lbx, ubx, node_index, control_index, h_index), f,
                         Assembly(layout.stage.step, g=g, layout=layout, guess_filler=fill, structure=structure))
 
 
@@ -625,35 +616,6 @@ class _StageVector:
     nc: int
     yper: Any
     counts: dict
-
-
-def _end_rows(problem, z, where) -> list:
-    """(expression, lo, hi) of the conditions on derived quantities at one end."""
-    mapping = problem.initial if where == "initial" else problem.final
-    return [(problem.quantity(n, z), *problem.bounds(mapping, n), f"{where}.{n}")
-            for n in mapping if not problem.is_state(n)]
-
-
-class _StagePaths:
-    """Path bounds on derived quantities at every node, as a matrix (rows × (N+1))."""
-
-    def __init__(self, problem, Z):
-        names = [n for n in problem.state_bounds if not problem.is_state(n)]
-        zs = ca.SX.sym("z", problem.n_states)
-        self.n = len(names)
-        self.labels = [f"bounds.{n}" for n in names]
-        bounds = [problem.bounds(problem.state_bounds, n) for n in names]
-        self.lo = np.array([a for a, _ in bounds])
-        self.hi = np.array([c for _, c in bounds])
-        if self.n:
-            fn = ca.Function("path", [zs], [ca.vertcat(*[problem.quantity(n, zs) for n in names])])
-            self.matrix = fn.map(Z.shape[1])(Z)
-        else:
-            self.matrix = None
-
-    def add(self, b, k):
-        if self.n:
-            b.add_g(self.matrix[:, k], self.lo, self.hi, self.labels)
 
 
 TRANSCRIPTIONS = {"multiple-shooting": MultipleShooting, "collocation": Collocation,

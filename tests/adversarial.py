@@ -139,7 +139,9 @@ def watchdog(seconds: float = HANG_S):
 
 
 def children() -> list:
-    """Live (not zombie) child processes of this process (Linux /proc; [] elsewhere)."""
+    """Live (not zombie) child processes of this process (Linux /proc; [] elsewhere), except
+    multiprocessing's resource tracker: one per interpreter, started by the first spawned process
+    (a worker pool of an earlier test) and kept until the interpreter ends — not a leftover."""
     me, found = os.getpid(), []
     proc = Path("/proc")
     if not proc.is_dir():  # pragma: no cover
@@ -152,9 +154,16 @@ def children() -> list:
         except OSError:
             continue
         state, ppid = tail.split()[:2]
-        if int(ppid) == me and state not in ("Z", "X"):
+        if int(ppid) == me and state not in ("Z", "X") and not _resource_tracker(entry):
             found.append(f"{entry.name} {head.split('(', 1)[1]}")
     return found
+
+
+def _resource_tracker(entry: Path) -> bool:
+    try:
+        return b"multiprocessing.resource_tracker" in (entry / "cmdline").read_bytes()
+    except OSError:
+        return False
 
 
 def limited(memory: int = MEMORY_LIMIT, file_size: int | None = None):

@@ -12,6 +12,19 @@ sys.path.insert(0, str(Path(__file__).parent))  # the Kane oracle (tests/oracles
 
 
 @pytest.fixture(scope="session", autouse=True)
+def _no_background_builds():
+    """No optimised build left running after a test (nhgait.dynamics.numerics.background):
+    the tests of the background build turn it on for themselves and wait for or cancel it."""
+    old = os.environ.get("NHGAIT_BACKGROUND_BUILDS")
+    os.environ["NHGAIT_BACKGROUND_BUILDS"] = "0"
+    yield
+    if old is None:
+        os.environ.pop("NHGAIT_BACKGROUND_BUILDS", None)
+    else:
+        os.environ["NHGAIT_BACKGROUND_BUILDS"] = old
+
+
+@pytest.fixture(scope="session", autouse=True)
 def _temporary_cache(tmp_path_factory):
     old = os.environ.get("NHGAIT_CACHE_DIR")
     os.environ["NHGAIT_CACHE_DIR"] = str(tmp_path_factory.mktemp("nhgait-cache"))

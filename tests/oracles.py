@@ -464,7 +464,67 @@ def _model_disc_height():
                 configuration=[z - r * sp.cos(lean)], dependent_sets=[(0, 1, 2)])
 
 
+def _model_opty_bicycle():
+    """opty's parallel-park car (gallery example plot_parallel_park.py): a bicycle model with the
+    mass centre Ao at (x, y), yaw theta, front steer delta; the car A (m, I about Ao), the front
+    wheel B at Pf = Ao + a A.x (m/6, I/32); the rear point Pr = Ao − b A.x and Pf do not slip
+    sideways; the propulsion F at Pr along A.x and the steering torque T between A and B."""
+    import sympy as sp
+    from sympy.physics.mechanics import Point, ReferenceFrame, RigidBody, dynamicsymbols, inertia
+    x, y, th, de = q = dynamicsymbols("x y theta delta")
+    m, I, a, b = p = sp.symbols("m I a b", positive=True)
+    F, T = inp = sp.symbols("F T")
+    N = ReferenceFrame("N")
+    A = N.orientnew("A", "Axis", [th, N.z])
+    B = A.orientnew("B", "Axis", [de, A.z])
+    O = Point("O")
+    O.set_vel(N, 0)
+    Ao = O.locatenew("Ao", x * N.x + y * N.y)
+    Ao.set_vel(N, Ao.pos_from(O).dt(N))
+    Pr = Ao.locatenew("Pr", -b * A.x)
+    Pr.v2pt_theory(Ao, N, A)
+    Pf = Ao.locatenew("Pf", a * A.x)
+    Pf.v2pt_theory(Ao, N, A)
+    bodies = [RigidBody("A", Ao, A, m, (inertia(A, 0, 0, I), Ao)),
+              RigidBody("B", Pf, B, m / 6, (inertia(B, 0, 0, I / 32), Pf))]
+    loads = [(Pr, F * A.x), (A, -T * B.z), (B, T * B.z)]
+    return dict(N=N, q=list(q), params=list(p), inputs=list(inp), bodies=bodies, loads=loads,
+                constraints=[Pr.vel(N).dot(A.y), Pf.vel(N).dot(B.y)], dependent_sets=[(1, 2), (0, 2), (0, 1)])
+
+
+def _model_opty_car3():
+    """opty's three-body car (gallery examples plot_car_in_garage.py, plot_car_around_pylons.py):
+    front point Pf at (x, y), car angle q0, front axle angle qf relative to the car; the body A0
+    (m0, iZZ0 at Dmc = Pf − l/2 A0.y), the rear axle Ab = A0 (mb, iZZb at Pb = Pf − l A0.y), the
+    front axle Af (mf, iZZf at Pf); Pb and Pf do not move along their axles (A0.x, Af.x); the
+    drive force Fb at Pb along A0.y, the torque Tf on Af alone, friction −reibung·v at Dmc."""
+    import sympy as sp
+    from sympy.physics.mechanics import Point, ReferenceFrame, RigidBody, dynamicsymbols, inertia
+    x, y, q0, qf = q = dynamicsymbols("x y q0 qf")
+    l, m0, mb, mf, i0, ib, i_f, mu = p = sp.symbols("l m0 mb mf iZZ0 iZZb iZZf reibung", positive=True)
+    Fb, Tf = inp = sp.symbols("Fb Tf")
+    N = ReferenceFrame("N")
+    A0 = N.orientnew("A0", "Axis", [q0, N.z])
+    Af = A0.orientnew("Af", "Axis", [qf, A0.z])
+    O = Point("O")
+    O.set_vel(N, 0)
+    Pf = O.locatenew("Pf", x * N.x + y * N.y)
+    Pf.set_vel(N, Pf.pos_from(O).dt(N))
+    Pb = Pf.locatenew("Pb", -l * A0.y)
+    Pb.v2pt_theory(Pf, N, A0)
+    Dmc = Pf.locatenew("Dmc", -l / 2 * A0.y)
+    Dmc.v2pt_theory(Pf, N, A0)
+    bodies = [RigidBody("body0", Dmc, A0, m0, (inertia(A0, 0, 0, i0), Dmc)),
+              RigidBody("bodyb", Pb, A0, mb, (inertia(A0, 0, 0, ib), Pb)),
+              RigidBody("bodyf", Pf, Af, mf, (inertia(Af, 0, 0, i_f), Pf))]
+    loads = [(Pb, Fb * A0.y), (Af, Tf * N.z), (Dmc, -mu * Dmc.vel(N))]
+    return dict(N=N, q=list(q), params=list(p), inputs=list(inp), bodies=bodies, loads=loads,
+                constraints=[Pb.vel(N).dot(A0.x), Pf.vel(N).dot(Af.x)], dependent_sets=[(0, 2), (1, 2)])
+
+
 _MODELS = {
+    "opty_bicycle": _model_opty_bicycle,
+    "opty_car3": _model_opty_car3,
     "disc_height": _model_disc_height,
     "unicycle": _model_unicycle,
     "snakeboard": _model_snakeboard,

@@ -1,6 +1,7 @@
-"""The package's shape: every module imports, imports only downward, the module import graph
-has no cycle, no module imports another's private names, and the ocp and gaits layers load no
-sympy. The graph is read from the source with ``ast`` (imports inside functions count too: a
+"""The package's shape: every module imports, imports only downward, neither the module import
+graph nor the graph of sub-packages has a cycle, no module imports another's private names, no
+library module is longer than :data:`MAX_LINES` non-blank lines, and the ocp and gaits layers
+load no sympy. The graph is read from the source with ``ast`` (imports inside functions count too: a
 lazy import is still a dependency), so these tests fail on the first edge that breaks a rule,
 naming it."""
 from __future__ import annotations
@@ -17,18 +18,24 @@ ROOT = Path(__file__).resolve().parents[1]
 FOLDERS = {"api": "nhgait", "dynamics": "nhgait.dynamics", "ocp": "nhgait.ocp", "gaits": "nhgait.gaits"}
 
 #: layers, lowest first: a module may import its own layer's modules (the module graph stays
-#: acyclic) and any lower layer, never a higher one. Derivation and numerics share a layer:
-#: derived models compile themselves, the compiler reads the derivation's symbols.
+#: acyclic) and any lower layer, never a higher one. The numerics sit below the derivation
+#: (derived models compile themselves; the compiler needs only the algebra below both).
 LAYERS = (
     ("nhgait",),
     ("nhgait.dynamics",),                                   # errors, progress, memo
-    ("nhgait.dynamics.derivation", "nhgait.dynamics.numerics"),
+    ("nhgait.dynamics.algebra",),                           # sympy algebra, no physics
+    ("nhgait.dynamics.numerics",),
+    ("nhgait.dynamics.derivation",),
     ("nhgait.dynamics.simulation", "nhgait.dynamics.linearisation"),
     ("nhgait.ocp",),
     ("nhgait.gaits",),
-    ("nhgait.gaits.sweeps", "nhgait.gaits.bench"),
+    ("nhgait.gaits.sweeps", "nhgait.gaits.bench", "nhgait.gaits.tracking"),
     ("nhgait.gaits.cli",),
 )
+
+
+#: the longest a library module may be, in non-blank lines (one idea per module)
+MAX_LINES = 600
 
 
 def modules(folders: dict = FOLDERS, root: Path = ROOT) -> dict:
@@ -114,6 +121,29 @@ def layer_of(module: str) -> tuple[int, str]:
     return best
 
 
+def package_of(module: str, found: dict) -> str:
+    """The sub-package a module belongs to, at most three names deep (``nhgait.dynamics.derivation``
+    holds ``derivation.reduction.*`` and ``derivation.urdf.*``; ``nhgait.gaits`` its own modules)."""
+    package = module if found[module].name == "__init__.py" else module.rpartition(".")[0]
+    return ".".join(package.split(".")[:3])
+
+
+def package_edges(edges: dict, found: dict) -> dict:
+    """Package → the other packages its modules import (the graph one level up)."""
+    out = {}
+    for a, targets in edges.items():
+        pa = package_of(a, found)
+        out.setdefault(pa, set()).update(pb for b in targets if (pb := package_of(b, found)) != pa)
+    return out
+
+
+def long_modules(found: dict, limit: int = MAX_LINES) -> list:
+    """(module, non-blank lines) of every module longer than ``limit``."""
+    sizes = ((name, sum(1 for line in path.read_text().splitlines() if line.strip()))
+             for name, path in found.items())
+    return sorted((name, n) for name, n in sizes if n > limit)
+
+
 def upward_edges(edges: dict) -> list:
     return sorted((a, b) for a, targets in edges.items() for b in targets if layer_of(b)[0] > layer_of(a)[0])
 
@@ -127,6 +157,19 @@ def test_the_module_graph_has_no_cycle(graph):
     edges, _ = graph
     assert len(edges) > 70                      # every module was read
     assert cycles(edges) == []
+
+
+def test_the_sub_package_graph_has_no_cycle(graph):
+    """No two sub-packages import each other, even through modules that do not form a module
+    cycle (the derivation and the numerics once did: both now rest on the algebra below)."""
+    edges, _ = graph
+    packages = package_edges(edges, modules())
+    assert "nhgait.dynamics.algebra" in packages                 # the graph was read
+    assert cycles(packages) == []
+
+
+def test_no_library_module_is_longer_than_the_limit():
+    assert long_modules(modules()) == []
 
 
 def test_layers_import_downward(graph):
@@ -153,6 +196,25 @@ def test_the_checks_find_a_cycle_an_upward_import_and_a_private_name(tmp_path):
     assert cycles(edges) == [["nhgait.gaits.a", "nhgait.gaits.b"]]
     assert private == [("nhgait.gaits.b", "nhgait.gaits.a", "_x")]
     assert upward_edges(edges) == [("nhgait.gaits.c", "nhgait.gaits.cli")]
+
+
+def test_the_checks_find_a_package_cycle_and_a_long_module(tmp_path):
+    """Two sub-packages whose modules import each other without a module cycle (p.a → q.b,
+    q.c → p.d), and a module one line over the limit: both are found and named."""
+    root = tmp_path / "gaits"
+    for folder in ("p", "q"):
+        (root / folder).mkdir(parents=True)
+        (root / folder / "__init__.py").write_text("")
+    (root / "__init__.py").write_text("")
+    (root / "p" / "a.py").write_text("from ..q import b\n")
+    (root / "q" / "b.py").write_text("")
+    (root / "q" / "c.py").write_text("from ..p.d import f\n")
+    (root / "p" / "d.py").write_text("def f():\n    pass\n\n" + "x = 1\n" * (MAX_LINES - 1))
+    found = modules({"gaits": "nhgait.gaits"}, tmp_path)
+    edges, _ = import_edges(found)
+    assert cycles(edges) == []
+    assert cycles(package_edges(edges, found)) == [["nhgait.gaits.p", "nhgait.gaits.q"]]
+    assert long_modules(found) == [("nhgait.gaits.p.d", MAX_LINES + 1)]
 
 
 _IMPORT_ALL = """

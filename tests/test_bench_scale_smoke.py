@@ -1,6 +1,6 @@
 """Smoke test of ``experiments/bench_scale.py`` (issue 19's benchmark; the full run is on
 demand): one member, N = 20 (at N = 10 the RK4 error, 1.4e-6, fails the verification: correctly), interpreted, one repeat. The cold run is a real ``nhgait plan``
-in a fresh process with an empty cache; the row must carry what the benchmark table reports
+in a fresh process with an empty cache, then the same plan warm; the row must carry what the benchmark table reports
 (peak memory, the longest silent gap, phases) and the planner's objective must equal the
 independent hand-written reference's at the same N."""
 import json
@@ -21,6 +21,8 @@ def test_one_member_cold_and_warm(tmp_path, monkeypatch):
     assert row["success"] and row["exit"] == 0, row.get("stderr_tail")
     assert row["peak_mb"] > 50 and 0 < row["max_silent_s"] <= row["cold_s"]
     assert row["c_bytes"] == 0 or row["flags"] is None                        # --no-jit: nothing compiled
+    assert row["code"] == "interpreted" and row["background"]["state"] == "none"
+    assert row["warm"]["success"] and row["cold_over_warm"] == pytest.approx(row["cold_s"] / row["warm_s"])
     assert row["reference"]["success"]
     assert row["objective"] == pytest.approx(row["reference"]["objective"], rel=1e-6)
     assert row["verification_error"] <= 1e-6

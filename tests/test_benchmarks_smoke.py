@@ -2,7 +2,13 @@
 import json
 from pathlib import Path
 
+import pytest
+
 import experiment_scripts
+from nhgait.dynamics.numerics.compiler import compiler_command
+
+#: these compile C (the references use CasADi's jit with gcc); CI may have no compiler
+needs_cc = pytest.mark.skipif(compiler_command() is None, reason="no C compiler")
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -21,10 +27,12 @@ def test_bench_derivation_smoke(tmp_path, capsys):
     assert "ratio = time / KanesMethod" in capsys.readouterr().out
 
 
+@needs_cc
 def test_bench_ocp_smoke(tmp_path, capsys):
     bench = _load("bench_ocp")
     out = tmp_path / "ocp.json"
-    assert bench.main(["--problems", "P1", "--N", "25", "--repeats", "1", "--out", str(out)]) == 0
+    assert bench.main(["--problems", "P1", "--N", "25", "--repeats", "1", "--out", str(out),
+                       "--sections", "default,fatrop,collocation"]) == 0    # cold: bench_scale's smoke test
     text = capsys.readouterr().out
     assert "P1" in text and "1.543703" in text and "FATROP" in text and "collocation" in text
     rows = json.loads(out.read_text())["rows"]
@@ -49,3 +57,13 @@ def test_bench_bicycle_smoke(tmp_path, capsys):
     assert data["weave_error"] < 1e-10 and data["capsize_error"] < 1e-10
     assert (tmp_path / "eigenvalues.png").stat().st_size > 10_000
     assert "linearise_median_s" in capsys.readouterr().out
+
+
+def test_bench_tracking_smoke(tmp_path, capsys):
+    bench = _load("bench_tracking")
+    out = tmp_path / "tracking.json"
+    assert bench.main(["--quick", "--out", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert data["snakeboard"]["ratio"] < 0.2 and data["six_coordinates"]["samples"] == 8
+    assert data["floquet"]["closed_loop"]["max_multiplier_difference"] < 1e-6
+    assert "Floquet (snakeboard forward gait)" in capsys.readouterr().out

@@ -16,6 +16,10 @@ import pytest
 
 from nhgait.dynamics import simulate  # the function (lazy export), before any submodule import
 from nhgait.dynamics.simulation.controllers import OpenLoop, snakeboard_pd
+from nhgait.dynamics.numerics.compiler import compiler_command
+
+#: these need a C compiler ($NHGAIT_CC, $CC, gcc or cc); CI may have none
+needs_cc = pytest.mark.skipif(compiler_command() is None, reason="no C compiler")
 
 M, R, J_PHI, J_THETA = 0.5, 0.1, 0.2, 0.3            # unicycle defaults
 TAU_THETA, TAU_PHI = 0.9, 0.4
@@ -35,6 +39,7 @@ def _torques(T):
     return OpenLoop([0.0, T], [[TAU_THETA, TAU_PHI]], inputs=("tau_theta", "tau_phi"))
 
 
+@needs_cc
 @pytest.mark.parametrize("method", ["compiled", "compiled-DOPRI5"])
 def test_closed_form_and_dense_output(models, method):
     """Final state and 41 interior (dense-output) points against the closed form."""
@@ -47,6 +52,7 @@ def test_closed_form_and_dense_output(models, method):
     assert traj.t[-1] == T and traj.t.size == 41
 
 
+@needs_cc
 @pytest.mark.parametrize("method, order", [("compiled", 8), ("compiled-DOPRI5", 5)])
 def test_convergence_order(models, method, order):
     """With the step fixed by max_step (loose tolerance), halving h divides the error by ≈ 2^p."""
@@ -130,6 +136,7 @@ def test_every_step_output_over_several_segments_keeps_each_segment(models):
     assert np.max(np.abs(traj.q[:, 2] - expected)) < 1e-10
 
 
+@needs_cc
 def test_per_evaluation_cost_and_compile_once(models):
     """The compiled right-hand side equals CasADi's; the library is built once per model."""
     from nhgait.dynamics.simulation.closed_loop import closed_loop
@@ -172,6 +179,7 @@ def _fresh_build(model, controller):
     return compiled.build(loop.rhs, loop.outputs, loop.event)
 
 
+@needs_cc
 def test_tampered_library_is_refused_and_rebuilt(models, monkeypatch, tmp_path):
     from nhgait.dynamics.numerics.cache import UntrustedCacheWarning, file_sha256
     monkeypatch.setenv("NHGAIT_CACHE_DIR", str(tmp_path))
@@ -192,6 +200,7 @@ def test_tampered_library_is_refused_and_rebuilt(models, monkeypatch, tmp_path):
     assert record["library_sha256"] == file_sha256(so)
 
 
+@needs_cc
 @pytest.mark.skipif(not hasattr(os, "getuid"), reason="POSIX permissions")
 def test_world_writable_jit_directory_is_refused(models, monkeypatch, tmp_path):
     from nhgait.dynamics.numerics.cache import UntrustedCacheWarning

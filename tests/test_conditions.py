@@ -33,14 +33,14 @@ def minimal():
 
 def test_rest_to_rest_written_as_full_states(minimal):
     """Every coordinate and every velocity at both ends (as people write "from rest"):
-    accepted, the dependent ones dropped, the start solved for, same optimum as P1."""
+    accepted, the dependent ones replaced by what they say exactly (ẋ = r cos θ φ̇ and
+    ẏ = r sin θ φ̇ are zero together exactly when φ̇ = 0), same optimum as P1."""
     task = {**P1, "initial": {"x": 0.0, "y": 0.0, "theta": 0.0, "phi": 0.0, **{v: 0.0 for v in VELOCITIES}},
             "final": {"x": 0.0, "y": 0.5, "theta": 0.0, **{v: 0.0 for v in VELOCITIES}}}
     result = _solve(task)
     assert result.solution.objective == pytest.approx(minimal, rel=1e-8)
     lines = result.conditions.lines()
-    assert any(line.startswith("initial.") and "implied by" in line for line in lines)
-    assert any(line.startswith("initial: the conditions determine the whole state") for line in lines)
+    assert "initial.x_dot: dropped, with x_dot = 0, y_dot = 0: exactly phi_dot = 0 (theta_dot free)" in lines
     # the verification checks the task as written: every one of its conditions, dropped or not
     checked = set(result.solution.verification.condition_errors)
     assert {f"initial.{v}" for v in VELOCITIES} <= checked and {f"final.{v}" for v in VELOCITIES} <= checked
@@ -80,16 +80,17 @@ def test_inconsistent_partial_set_gives_the_value_the_others_imply():
 
 def test_fibre_at_rest_on_the_snakeboard():
     """ẋ = ẏ = θ̇ = 0 is one condition on the snakeboard (its fibre velocities are v cos θ,
-    v sin θ, v tan φ / r): two of the three are dropped and the optimum is P2's."""
+    v sin θ, v tan φ / r): exactly v = 0 — the three replaced by the forward velocity stopped —
+    and the optimum is P2's."""
     fibre = {"x_dot": 0.0, "y_dot": 0.0, "theta_dot": 0.0}
     p2 = plan("snakeboard", "forward", intervals=25, jit=False, solver="ipopt")
     task = p2.task.to_dict()
     task["initial"] = {**{k: v for k, v in task["initial"].items() if k != "forward_velocity"}, **fibre}
     task["final"] = {**{k: v for k, v in task["final"].items() if k != "forward_velocity"}, **fibre}
     result = _solve(task, "snakeboard")
-    dropped = [line for line in result.conditions.lines() if "dropped" in line]
-    assert len([d for d in dropped if d.startswith("initial.")]) == 2
-    assert len([d for d in dropped if d.startswith("final.")]) == 2
+    dropped = [line for line in result.conditions.lines() if "exactly forward_velocity = 0" in line]
+    assert len([d for d in dropped if d.startswith("initial.")]) == 3
+    assert len([d for d in dropped if d.startswith("final.")]) == 3
     assert result.solution.objective == pytest.approx(p2.solution.objective, rel=1e-6)
 
 
@@ -136,3 +137,22 @@ def test_dependent_conditions_at_a_free_configuration_are_not_called_contradicto
             assert y == pytest.approx(value, abs=1e-12), name
     assert "final.theta1_dot" in {f"final.{k}" for k in problem.final} | {
         line.split(":")[0] for line in prepared.conditions.lines()}
+
+
+CAR_PARK = {"horizon": 6.0, "intervals": 30, "control_bounds": {"F": [-5.0, 5.0], "tau_phi": [-1.0, 1.0]},
+            "initial": {"x": 0.0, "y": 0.0, "theta": 0.0, "phi": 0.0, "forward_velocity": 0.0, "phi_dot": 0.0},
+            "final": {"x": 0.0, "y": 0.5, "theta": 0.0}, "bounds": {"phi": [-0.7, 0.7]}}
+
+
+def test_a_point_at_rest_is_its_velocity_state_stopped_and_one_velocity_alone_is_not():
+    """examples/car.toml: the rear axle's ẋ = v cos θ, ẏ = v sin θ (closed form, v the forward
+    velocity). ẋ = ẏ = 0 says exactly v = 0 at every heading — replaced by the state fixed to 0,
+    the steering rate left free; ẋ = 0 alone also holds at θ = ±π/2 with v ≠ 0, so it is kept
+    as written (replacing it by v = 0 would lose that branch)."""
+    from pathlib import Path
+    car = str(Path(__file__).parents[1] / "examples" / "car.toml")
+    both = prepare(resolve(car, {**CAR_PARK, "final": {**CAR_PARK["final"], "x_dot": 0.0, "y_dot": 0.0}}))
+    assert dict(both.problem.final) == {"x": 0.0, "y": 0.5, "theta": 0.0, "forward_velocity": 0.0}
+    assert any("exactly forward_velocity = 0 (phi_dot free)" in line for line in both.conditions.lines())
+    alone = prepare(resolve(car, {**CAR_PARK, "final": {"x": 0.0, "y": 0.5, "x_dot": 0.0}}))
+    assert dict(alone.problem.final) == {"x": 0.0, "y": 0.5, "x_dot": 0.0} and not alone.conditions.lines()

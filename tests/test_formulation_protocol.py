@@ -1,6 +1,7 @@
-"""The per-formulation protocol (dynamics/derivation/formulation_protocol.py): every formulation
-answers the same questions, and its answers agree with an independent evaluation of the
-system's own sympy expressions (M(q), ω(q), V(q)) at constraint-consistent states.
+"""The formulations' vocabulary on the models (dynamics/derivation/formulation_base.py, the
+model types, the registry in formulations.py and the aliases of formulation_protocol.py): every
+formulation answers the same questions, and its answers agree with an independent evaluation of
+the system's own sympy expressions (M(q), ω(q), V(q)) at constraint-consistent states.
 
 Tolerances: the maps are a few dozen floating-point operations on O(1) numbers, so 1e-12
 relative is loose enough for rounding and far below any modelling error."""
@@ -13,9 +14,11 @@ import scipy.linalg
 import sympy as sp
 
 from nhgait.dynamics import ModelError, derive
-from nhgait.dynamics.derivation.formulation_protocol import (
-    HAMILTON, LAGRANGE, PROTOCOLS, REDUCED, LoopPoint, Stabilisation, protocol_named, protocol_of)
-from nhgait.dynamics.derivation.formulations import FORMULATIONS
+from nhgait.dynamics import HamiltonianDAE, LagrangianDAE, ReducedODE
+from nhgait.dynamics.derivation import formulation_protocol
+from nhgait.dynamics.derivation.formulation_base import (Baumgarte, LoopPoint, Projection, Stabilisation,
+                                                        stabilisation_named)
+from nhgait.dynamics.derivation.formulations import FORMULATIONS, formulation_type
 from nhgait.dynamics.derivation.states import (
     constraint_residual, from_state, initial_state_map, to_state)
 from nhgait.dynamics.numerics.numeric_model import NumericModel
@@ -44,28 +47,39 @@ def _consistent_state(system, omega, seed=3):
     return q, basis @ rng.uniform(-1.0, 1.0, basis.shape[1])
 
 
-def test_every_formulation_has_one_protocol():
-    assert tuple(PROTOCOLS) == FORMULATIONS == ("reduced", "lagrange", "hamilton")
-    assert [protocol_named(name) for name in FORMULATIONS] == [REDUCED, LAGRANGE, HAMILTON]
+def test_every_formulation_name_resolves_to_its_model_type():
+    assert FORMULATIONS == ("reduced", "lagrange", "hamilton")
+    types = [formulation_type(name) for name in FORMULATIONS]
+    assert types == [ReducedODE, LagrangianDAE, HamiltonianDAE]
+    assert [t.formulation for t in types] == list(FORMULATIONS)
     with pytest.raises(ModelError, match=r"unknown formulation 'euler' \(choose from reduced, lagrange, hamilton\)"):
-        protocol_named("euler")
+        formulation_type("euler")
+
+
+def test_the_former_protocol_names_are_aliases_of_the_model_types(models):
+    """``protocol_of(model).f(model, …)`` still means ``model.f(…)``."""
+    model = models["snakeboard"]["reduced"]
+    assert formulation_protocol.protocol_of(model) is ReducedODE
+    assert formulation_protocol.protocol_named("hamilton") is formulation_protocol.HAMILTON is HamiltonianDAE
+    assert formulation_protocol.PROTOCOLS == {"reduced": ReducedODE, "lagrange": LagrangianDAE,
+                                              "hamilton": HamiltonianDAE}
+    assert formulation_protocol.protocol_of(model).singular_set_text(model) == model.singular_set_text()
 
 
 @pytest.mark.parametrize("name, form", CASES)
 def test_model_type_and_state_layout(models, name, form):
     model = models[name][form]
-    protocol = protocol_of(model)
     system = model.system
-    layout = protocol.state_layout(model)
-    assert protocol.name == form and isinstance(model, protocol.model_type)
+    layout = model.state_layout()
+    assert model.formulation == form and isinstance(model, formulation_type(form))
     assert layout.names[:system.n] == tuple(system.coordinates)
     assert layout.velocity_names == layout.names[system.n:]
     if form == "reduced":
         assert len(layout.names) == 2 * system.n - system.k and layout.n_multipliers == 0
-        assert not (protocol.has_multipliers or protocol.dae_options_apply or protocol.has_constraint_gram)
+        assert not (model.has_multipliers or model.dae_options_apply or model.has_constraint_gram)
     else:
         assert len(layout.names) == 2 * system.n and layout.n_multipliers == system.k
-        assert protocol.has_multipliers and protocol.dae_options_apply and protocol.has_constraint_gram
+        assert model.has_multipliers and model.dae_options_apply and model.has_constraint_gram
         prefix = "" if form == "lagrange" else "p_"
         suffix = "_dot" if form == "lagrange" else ""
         assert layout.velocity_names == tuple(f"{prefix}{c}{suffix}" for c in system.coordinates)
@@ -128,7 +142,7 @@ def test_both_dae_forms_report_the_same_constraint_gram(models, name):
         params = ca.SX.sym("params", len(num.param_names))
         point = LoopPoint(t_c=ca.SX.sym("t"), x=x, u=ca.SX.zeros(len(system.inputs)), params=params,
                           g_int=ca.SX(0, 1))
-        out = protocol_of(model).loop_dynamics(model, point, Stabilisation())
+        out = model.loop_dynamics(point, Stabilisation())
         f = ca.Function("f", [x, params], [out.gram, out.measure, out.g])
         gram, measure, g = (np.asarray(v, dtype=float) for v in f(to_state(model, q, qdot), num.params()))
         np.testing.assert_allclose(gram.reshape(system.k, system.k, order="F"), S_ref, rtol=1e-10, atol=1e-12)
@@ -138,16 +152,33 @@ def test_both_dae_forms_report_the_same_constraint_gram(models, name):
 
 def test_options_and_singular_set_texts(models):
     reduced = models["snakeboard"]["reduced"]
-    problems = REDUCED.dae_option_problems("idas", "baumgarte")
-    assert len(problems) == 2 and "reduced form is an ODE" in problems[0]
-    assert REDUCED.dae_option_problems("index1", None) == []
-    assert LAGRANGE.dae_option_problems("idas", "baumgarte") == HAMILTON.dae_option_problems("idas", None) == []
-    assert REDUCED.singular_set_text(reduced) == "singular set: " + " or ".join(f"{e} = 0" for e in reduced.singular_set)
-    assert LAGRANGE.singular_set_text(models["snakeboard"]["lagrange"]) == (
+    problems = ReducedODE.dae_option_problems(True, Baumgarte)
+    assert len(problems) == 2
+    assert "reduced form is an ODE" in problems[0]
+    assert ReducedODE.dae_option_problems(False, Stabilisation) == []
+    assert ReducedODE.dae_option_problems(False, Projection, holonomic=True) == []
+    assert LagrangianDAE.dae_option_problems(True, Baumgarte) == []
+    assert HamiltonianDAE.dae_option_problems(True, Stabilisation) == []
+    expected = "singular set: " + " or ".join(f"{e} = 0" for e in reduced.singular_set)
+    assert reduced.singular_set_text() == expected
+    assert models["snakeboard"]["lagrange"].singular_set_text() == (
         "ω M⁻¹ ωᵀ loses rank: the constraints become dependent")
 
 
+def test_stabilisation_options_resolve_to_objects():
+    """The option strings become objects once; Baumgarte's law adds 2αg + β²∫g to the residual."""
+    assert stabilisation_named(None) == Stabilisation()
+    assert stabilisation_named("projection").projects
+    law = stabilisation_named("baumgarte", (2, 3))
+    assert law == Baumgarte(alpha=2.0, beta=3.0)
+    assert law.integral_states(2) == 2                         # β ≠ 0: the integrals ∫g are states
+    assert Baumgarte(1.0, 0.0).integral_states(2) == Stabilisation().integral_states(2) == 0
+    g, g_int, res = ca.SX.sym("g"), ca.SX.sym("g_int"), ca.SX.sym("r")
+    value = ca.Function("f", [res, g, g_int], [law.feedback(res, g, g_int)])(0.5, 0.25, 0.125)
+    assert float(value) == 0.5 + 2 * 2.0 * 0.25 + 3.0 ** 2 * 0.125
+
+
 def test_derive_entry_returns_the_model_type(systems):
-    model = LAGRANGE.derive(systems["unicycle"])
-    assert isinstance(model, LAGRANGE.model_type) and model.formulation == "lagrange"
+    model = derive(systems["unicycle"], "lagrange", use_cache=False)
+    assert isinstance(model, LagrangianDAE) and model.formulation == "lagrange"
     assert derive(systems["unicycle"], "hamilton", use_cache=False).formulation == "hamilton"

@@ -164,7 +164,7 @@ def test_the_users_snake_is_planned_through_the_charts_singular_set_and_verified
     # the verification that needs no chart: the same gait in x = (q, q̇) on the Euler–Lagrange
     # equations, whose right-hand side is the hand-written DAE's
     from nhgait.gaits.charts import lagrange_ode
-    from nhgait.gaits.planner import momentum_problem, to_momentum_coordinates
+    from nhgait.gaits.gait_check import momentum_problem, to_momentum_coordinates
     lagrange = lagrange_ode(result.plan.scene.system)
     x = np.concatenate([q[:, 7], s.velocities()[:, 7]])
     u = np.array([0.3, -0.2])

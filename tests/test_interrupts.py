@@ -14,6 +14,9 @@ signal when it saw the pool's two workers; their two half-second solves had ofte
 then, and the plan had gone on to verify and write its figures: the exit 0 was a plan that had
 ended before the signal, not a lost signal.)
 
+A plan stopped while its optimised build runs in the background (issue 25) ends that build
+too: no builder, no compiler, no build folder.
+
 The compiler is a wrapper script (``$NHGAIT_CC``) that runs the real compiler as its child
 and, while ``<tmp>/slow`` exists, sleeps 30 s before waiting for it: the tests control the
 timing and never need a long compile. Processes are read from /proc. Each ``nhgait`` run is
@@ -49,8 +52,9 @@ needs_cc = pytest.mark.skipif(REAL_CC is None, reason="no C compiler")
 
 #: a C source that compiles in a few milliseconds
 SOURCE = "int nhgait_answer(void) { return 42; }\n"
-#: a plan whose NLP compiles in about a second (0.2 MB of C)
-PLAN = ["plan", "unicycle", "--gait", "parallel-park", "--intervals", "10", "--no-gif"]
+#: a plan whose NLP compiles in about a second (0.2 MB of C), in the foreground (--jit without a
+#: fast compiler: the optimised build now)
+PLAN = ["plan", "unicycle", "--gait", "parallel-park", "--intervals", "10", "--no-gif", "--jit"]
 #: the nhgait command line with Ctrl-C raising KeyboardInterrupt, as in a terminal (a test
 #: runner may have started us with SIGINT ignored, which a child would inherit)
 LAUNCHER = ("import signal, sys\n"
@@ -70,6 +74,8 @@ ENDLESS = ("import signal, sys\n"
            "sys.exit(main())\n")
 #: a plan whose attempts run in supervised children (FATROP first: the snakeboard's ODE is small)
 PLAN_SOLVES = ["plan", "snakeboard", "--gait", "forward", "--no-jit", "--no-gif"]
+#: a plan whose optimised build runs in the background (no --jit: it solves interpreted or fast)
+PLAN_BACKGROUND = ["plan", "unicycle", "--gait", "parallel-park", "--intervals", "10", "--no-gif", "--solver", "ipopt"]
 #: what a run that exits cleanly needs after the signal (seconds)
 EXIT_S = 15.0
 #: how soon a plan must end after SIGINT/SIGTERM whatever it is doing (issue 24)
@@ -184,6 +190,7 @@ def slow_cc(tmp_path, monkeypatch, cache) -> SlowCompiler:
         "wait $compiler\n")
     compiler.script.chmod(0o700)
     monkeypatch.setenv("NHGAIT_CC", str(compiler.script))
+    monkeypatch.setenv("NHGAIT_FAST_CC", "/nonexistent/tcc")     # the plan compiles with the wrapper (--jit)
     monkeypatch.delenv("CC", raising=False)
     return compiler
 
@@ -265,6 +272,34 @@ def _when_solving(proc: subprocess.Popen, children: int) -> list[Proc]:
     except BaseException:
         _kill_session(proc.pid)
         raise
+
+
+@needs_cc
+@pytest.mark.parametrize("signame, status, to_group, said", SIGNALS)
+def test_plan_stopped_while_its_background_build_compiles_leaves_nothing(
+        slow_cc, cache, tmp_path, monkeypatch, signame, status, to_group, said):
+    """The plan solves (its attempts endless) while its optimised build compiles in the
+    background, in a builder of another session (issue 25): SIGTERM or Ctrl-C to the plan ends
+    the builder and the compiler's whole process group too, and leaves no build folder (the
+    plan itself ran interpreted: no fast compiler here, nothing else in the jit folder)."""
+    monkeypatch.setenv("NHGAIT_BACKGROUND_BUILDS", "1")
+    slow_cc.slow(True)
+    proc = _start(PLAN_BACKGROUND, tmp_path, ENDLESS)
+    try:
+        group = _wait_until(lambda: slow_cc.group("cc1", "sleep"), 120.0, "the background gcc to compile")
+        _when_solving(proc, 2)                          # the builder and one attempt
+    except BaseException:
+        _kill_session(proc.pid)
+        raise
+    wrapper = next(p for p in group if p.pid == p.pgrp)
+    builder = next(p for p in _processes() if p.pid == wrapper.ppid)
+    assert builder.ppid == proc.pid and builder.session == builder.pid != proc.pid     # detached
+    assert _signal_and_wait(proc, signame, to_group) == status
+    assert f"nhgait: {said}" in (tmp_path / "stderr.txt").read_text()
+    _assert_no_process_left(proc.pid)
+    _assert_no_process_left(builder.session)            # the builder
+    assert not _live(pgrp=wrapper.pgrp)                 # the wrapper, gcc, cc1, its sleep
+    assert sorted(p.name for p in (cache / "jit").iterdir()) == []
 
 
 STOPS = [pytest.param("SIGTERM", 143, False, "terminated", id="SIGTERM"),

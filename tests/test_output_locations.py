@@ -56,6 +56,9 @@ LOCATIONS = [
     ("sweep: /dev/full", ["sweep", NOWHERE, "--grid", "final.y=0.3,0.4", "--out"], lambda b: "/dev/full",
      r"character device"),
     ("sweep: empty", ["sweep", NOWHERE, "--grid", "final.y=0.3,0.4", "--out"], lambda b: "", r"--out is empty"),
+    ("track: an existing file", ["track", NOWHERE, "--out"], _file, r"--out .*a_file is a file: a directory is needed"),
+    ("track: /dev/full", ["track", NOWHERE, "--out"], lambda b: "/dev/full", r"/dev/full is a character device"),
+    ("track: below a file", ["track", NOWHERE, "--out"], lambda b: _file(b) / "x", r"cannot be created: .*a_file is a file"),
     ("sweep: below a file", ["sweep", NOWHERE, "--grid", "final.y=0.3,0.4", "--out"], lambda b: _file(b) / "s",
      r"a_file is a file"),
     ("bench: an existing file", ["bench", "precision", NOWHERE, "--out"], _file, r"is a file"),
@@ -89,8 +92,8 @@ FAULTS = [
 
 
 @pytest.mark.parametrize("where, code, said", [pytest.param(*c[1:], id=c[0]) for c in FAULTS])
-@pytest.mark.parametrize("command", [["plan", NOWHERE], ["simulate", NOWHERE], ["sweep", NOWHERE, "--grid", "x=1,2"]],
-                         ids=["plan", "simulate", "sweep"])
+@pytest.mark.parametrize("command", [["plan", NOWHERE], ["simulate", NOWHERE], ["sweep", NOWHERE, "--grid", "x=1,2"],
+                                     ["track", NOWHERE]], ids=["plan", "simulate", "sweep", "track"])
 def test_a_location_that_cannot_take_a_write_is_refused_with_the_reason(command, where, code, said, sandbox,
                                                                         monkeypatch):
     """The probe write meets the file system's error (as a read-only or full disk raises it):

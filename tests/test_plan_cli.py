@@ -33,6 +33,21 @@ def test_plan_a_scene_file_with_an_override(tmp_path, capsys):
         assert (out / name).stat().st_size > 1000
 
 
+def test_a_plan_refined_from_a_previous_answer(tmp_path, capsys):
+    """--guess: the N = 25 answer resampled onto N = 50 is tried first and wins; the refined
+    optimum is the one the planner reaches on its own at N = 50 (same local optimum)."""
+    coarse, fine, alone = tmp_path / "coarse", tmp_path / "fine", tmp_path / "alone"
+    common = ["--set", "final.x=0.8", "--no-jit"]
+    assert main(["plan", SLEIGH, *common, "--intervals", "25", "--out", str(coarse)]) == 0
+    assert main(["plan", SLEIGH, *common, "--intervals", "50", "--guess", str(coarse / "solution.json"),
+                 "--out", str(fine)]) == 0
+    assert main(["plan", SLEIGH, *common, "--intervals", "50", "--out", str(alone)]) == 0
+    capsys.readouterr()
+    refined, own = (json.loads((d / "solution.json").read_text()) for d in (fine, alone))
+    assert refined["guess"]["won"] == "warm start" and refined["task"]["intervals"] == 50
+    assert refined["objective"] == pytest.approx(own["objective"], rel=1e-6)
+
+
 def test_builtin_gait_as_in_make_demo(tmp_path, capsys):
     out = tmp_path / "demo"
     assert main(["plan", "snakeboard", "--gait", "forward", "--intervals", "25", "--no-jit",

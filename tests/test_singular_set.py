@@ -56,7 +56,7 @@ def test_singular_measure_is_normalised(tilted):
 
 
 def test_a_matrix_singular_for_every_configuration_is_a_model_error():
-    from nhgait.dynamics.derivation.symbolic import FracField
+    from nhgait.dynamics.algebra.fraction_field import FracField
     x = sp.Symbol("x", real=True)
     F = FracField([x], symbols=[x])
     with pytest.raises(ModelError, match="the test block is singular for every configuration"):

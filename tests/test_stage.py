@@ -151,6 +151,11 @@ def _park_guess(N):
     return InitialGuess(states, np.zeros((2, N)), label="straight line")
 
 
+def _phase(N, t0=0.0):
+    """The stage's ``phase`` argument (ν, t0) of a problem of N intervals starting at t0."""
+    return [1.0 / N, t0]
+
+
 def _vec(x) -> np.ndarray:
     """A casadi DM (or array) as a flat float array."""
     return np.asarray(x, dtype=float).ravel()
@@ -186,11 +191,11 @@ def test_stage_matches_rk4_differentiated_by_casadi(mode, timed, free, steps):
             T, lam = rng.uniform(1.5, 3.5), rng.uniform(-1, 1, 5)
             F0, J0, H0 = (np.array(a) for a in ref(z, u, T, lam))
             assert np.max(np.abs(H0)) > 1e-2            # the curvature checked is not negligible
-            _assert_close(stage.step(z, u, T, k), F0, 1e-10, "step")
-            F, J = stage.jacobian(z, u, T, k)
+            _assert_close(stage.step(z, u, T, k, _phase(N)), F0, 1e-10, "step")
+            F, J = stage.jacobian(z, u, T, k, _phase(N))
             _assert_close(F, F0, 1e-10, "jacobian's F")
             _assert_close(J, J0, 1e-10, "J")
-            _assert_close(stage.hessian(z, u, T, k, lam), H0, 1e-10, "H")
+            _assert_close(stage.hessian(z, u, T, k, _phase(N), lam), H0, 1e-10, "H")
 
 
 def _linear_rk4_closed_form(A, B, z, u, T, N, M):
@@ -239,11 +244,11 @@ def test_stage_of_a_linear_ode_is_the_taylor_polynomial_of_the_propagator(mode, 
     rng = np.random.default_rng(7)
     z0, u0, lam = rng.uniform(-1, 1, 3), rng.uniform(-1, 1, 2), rng.uniform(-1, 1, 3)
     F, Jz, Ju, dF, d2F, dJz, dJu = _linear_rk4_closed_form(A, B, z0, u0, T, N, steps)
-    _assert_close(_vec(stage.step(z0, u0, T, 2)), F, 1e-12, "step")
-    J = np.array(stage.jacobian(z0, u0, T, 2)[1])
+    _assert_close(_vec(stage.step(z0, u0, T, 2, _phase(N))), F, 1e-12, "step")
+    J = np.array(stage.jacobian(z0, u0, T, 2, _phase(N))[1])
     expected = np.hstack([Jz, Ju] + ([dF[:, None]] if free else []))
     _assert_close(J, expected, 1e-12, "J")
-    H = np.array(stage.hessian(z0, u0, T, 2, lam))
+    H = np.array(stage.hessian(z0, u0, T, 2, _phase(N), lam))
     if not free:
         assert np.max(np.abs(H)) <= 1e-14
         return
@@ -271,10 +276,10 @@ def test_stage_derivatives_match_central_differences(mode):
     lam = rng.uniform(-1, 1, 5)
 
     def step(x):
-        return _vec(stage.step(x[:5], x[5:7], x[7], k))
+        return _vec(stage.step(x[:5], x[5:7], x[7], k, _phase(N)))
 
     def grad(x):                                          # λᵀJ
-        return lam @ np.array(stage.jacobian(x[:5], x[5:7], x[7], k)[1])
+        return lam @ np.array(stage.jacobian(x[:5], x[5:7], x[7], k, _phase(N))[1])
 
     def central(fun, d):
         return np.column_stack([(fun(x0 + e) - fun(x0 - e)) / (2 * d) for e in np.eye(8) * d])
@@ -283,8 +288,8 @@ def test_stage_derivatives_match_central_differences(mode):
     # the reference's own error: truncation c δ² (c = |φ'''| / 6), so D(10δ) − D(δ) ≈ 99 c δ²
     for fun, D in ((step, J_fd), (grad, H_fd)):
         assert np.max(np.abs(central(fun, 10 * delta) - D)) / 99 <= 1e-9
-    _assert_close(stage.jacobian(x0[:5], x0[5:7], x0[7], k)[1], J_fd, 1e-8, "J vs FD")
-    _assert_close(stage.hessian(x0[:5], x0[5:7], x0[7], k, lam), H_fd, 1e-8, "H vs FD")
+    _assert_close(stage.jacobian(x0[:5], x0[5:7], x0[7], k, _phase(N))[1], J_fd, 1e-8, "J vs FD")
+    _assert_close(stage.hessian(x0[:5], x0[5:7], x0[7], k, _phase(N), lam), H_fd, 1e-8, "H vs FD")
 
 
 # ------------------------------------------------------------------------------------------

@@ -2,13 +2,13 @@
 thesis is right, and against the corrected forms where it is not (docs/thesis-errata.md).
 
 Equalities are decided exactly: the difference is brought to the trig normal form of
-``nhgait.dynamics.derivation.symbolic.trig_normal`` (canonical, so a zero difference returns 0).
+``nhgait.dynamics.algebra.trig.trig_normal`` (canonical, so a zero difference returns 0).
 For the snakeboard the thesis assumes J + J_r + 2J_w = m r² (eq. 3.55); we substitute it.
 """
 import pytest
 import sympy as sp
 
-from nhgait.dynamics.derivation.symbolic import trig_normal
+from nhgait.dynamics.algebra.trig import trig_normal
 
 x, y, th, psi, phi = sp.symbols("x y theta psi phi", real=True)
 m, r, J, Jr, Jw, Jphi, Jth = sp.symbols("m r J J_r J_w J_phi J_theta", real=True)

@@ -1,20 +1,85 @@
-"""The one entry point for equations of motion: :func:`derive`.
+"""The one entry point for equations of motion: :func:`derive`, and the registry of the
+formulations by name (:data:`FORMULATIONS`, :func:`formulation_type`).
 
 Derivations are cached once per system *structure* (parameters stay symbolic); the caller's
 system — its name and parameter values — is bound to the loaded object on every call, so a
 cached model always reports this input's values (see :mod:`.cache`).
+
+A formulation's name is resolved here, once, into its model type — :class:`~.reduction.ReducedODE`,
+:class:`~.lagrange.LagrangianDAE` or :class:`~.hamilton.HamiltonianDAE`, each carrying its
+formulation's vocabulary (:class:`~.formulation_base.Formulation`) — and its derivation. The
+model types are imported when first asked for (no sympy at import).
 """
 from __future__ import annotations
 
 import dataclasses
 import time
+from typing import Callable, NamedTuple
 
 from ..numerics import cache as _cache
 from ..errors import ModelError
-from .formulation_protocol import PROTOCOLS, protocol_named
 
-#: the formulation names, each with its protocol in :data:`~.formulation_protocol.PROTOCOLS`
-FORMULATIONS = tuple(PROTOCOLS)
+
+def _reduced(system, version):
+    from .reduction import derive_reduced
+    return derive_reduced(system, version=version)
+
+
+def _lagrange(system, version):
+    from .lagrange import derive_lagrangian
+    return derive_lagrangian(system)
+
+
+def _hamilton(system, version):
+    from .hamilton import derive_hamiltonian
+    return derive_hamiltonian(system)
+
+
+def _reduced_type() -> type:
+    from .reduction import ReducedODE
+    return ReducedODE
+
+
+def _lagrange_type() -> type:
+    from .lagrange import LagrangianDAE
+    return LagrangianDAE
+
+
+def _hamilton_type() -> type:
+    from .hamilton import HamiltonianDAE
+    return HamiltonianDAE
+
+
+class _Registration(NamedTuple):
+    """One formulation: ``model_type()`` imports and returns its model type, ``derive(system,
+    version)`` derives it."""
+
+    model_type: Callable[[], type]
+    derive: Callable
+
+
+#: formulation name → its :class:`_Registration`
+_REGISTRY = {"reduced": _Registration(_reduced_type, _reduced),
+             "lagrange": _Registration(_lagrange_type, _lagrange),
+             "hamilton": _Registration(_hamilton_type, _hamilton)}
+
+#: the formulation names, in the order the documentation lists them
+FORMULATIONS = tuple(_REGISTRY)
+
+
+def formulation_type(name: str) -> type:
+    """The model type of the formulation ``name`` (its class attributes answer what the
+    formulation has: ``dae_options_apply``, ``has_multipliers``, …); raises
+    :class:`~nhgait.dynamics.errors.ModelError` for an unknown name."""
+    return _registered(name).model_type()
+
+
+def _registered(name: str) -> _Registration:
+    try:
+        return _REGISTRY[name]
+    except (KeyError, TypeError):
+        raise ModelError([f"unknown formulation {name!r} (choose from {', '.join(FORMULATIONS)})"],
+                         title="invalid request") from None
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -61,23 +126,37 @@ def derive(system, formulation: str = "reduced", *, version: str | None = None,
     The model, whose ``system`` is the ``system`` given here and whose ``provenance``
     (:class:`~nhgait.dynamics.numerics.cache.Provenance`) says whether it came from the cache, its key,
     when the equations were derived and how long that took.
+
+    Examples
+    --------
+    The vertical rolling disc (n = 4 coordinates, k = 2 rolling constraints): the reduced ODE
+    has 2n − k = 6 first-order equations in z = (q, P), the Lagrangian DAE 2n states (q, q̇):
+
+    >>> from nhgait.dynamics import derive
+    >>> model = derive("unicycle")
+    >>> model.formulation, model.state_names
+    ('reduced', ('x', 'y', 'theta', 'phi', 'p', 'pt_theta'))
+    >>> model.dimension == 2 * model.system.n - model.system.k
+    True
+    >>> derive("unicycle", "lagrange").state_names
+    ('x', 'y', 'theta', 'phi', 'x_dot', 'y_dot', 'theta_dot', 'phi_dot')
     """
     if isinstance(system, str):
         from .models import builtin
         system = builtin(system)
-    protocol = protocol_named(formulation)
+    registered = _registered(formulation)
     if version not in (None, "A", "B"):
         raise ModelError([f"unknown reconstruction version {version!r} (A or B)"], title="invalid request")
     key = _cache.cache_key(system, formulation, f"version={version};compile={bool(compile)}")
     if use_cache:
         start = time.perf_counter()
         entry = _cache.load(key, _Entry)
-        if entry is not None and isinstance(entry.model, protocol.model_type):
+        if entry is not None and isinstance(entry.model, registered.model_type()):
             provenance = _cache.Provenance(key, entry.created, entry.derive_time_s, True,
                                            time.perf_counter() - start, _cache.versions())
             return bind(entry.model, system, provenance)
     created, start = _cache.now(), time.perf_counter()
-    model = protocol.derive(system, version)
+    model = registered.derive(system, version)
     if compile:
         model.numeric  # noqa: B018 - build and keep the compiled functions
     elapsed = time.perf_counter() - start

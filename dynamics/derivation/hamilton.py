@@ -15,13 +15,14 @@ import time
 from dataclasses import dataclass
 from functools import cached_property
 
+import casadi as ca
 import sympy as sp
 
 from nhgait.dynamics.derivation.cse_text import equation_lines
 from nhgait.dynamics.derivation.notation import method_name, system_names
 from .dae_model import DAEModel
 
-from .symbolic import tidy
+from ..algebra.trig import tidy
 from .system import System
 
 
@@ -43,6 +44,17 @@ class HamiltonianDAE(DAEModel):
     omega: sp.Matrix
     tau: sp.Matrix
     formulation = "hamilton"
+    velocity_part = "canonical momenta p = M(q) q̇"
+
+    def initial_state(self, q, qdot, params):
+        mass = self.numeric["mass"](ca.vertcat(q, ca.SX.zeros(q.shape[0])), params)
+        return ca.vertcat(q, ca.mtimes(mass, qdot))
+
+    def constraint_gram(self, x, params):
+        numeric = self.numeric
+        n = numeric.n_coordinates
+        omega_minv = ca.jacobian(numeric["constraint"](x, params), x[n:])    # ω M⁻¹ (g = ω M⁻¹ p)
+        return ca.mtimes(ca.mtimes(omega_minv, numeric["mass"](x, params)), omega_minv.T)
 
 
     @property
@@ -80,8 +92,8 @@ def _inverse_metric(M: sp.Matrix) -> sp.Matrix:
     The cofactors and the determinant come from Berkowitz's division-free algorithm, so each
     entry is one fraction of polynomials and its normal form one cancellation; an LU inverse
     nests the fractions of every elimination step, whose normal form grows explosively for a
-    dense metric (the whole derivation of the roller racer, examples/roller_racer.toml: over
-    7 min with LU, 0.8 s; a cart with one trailer: over 2 min, 1.2 s)."""
+    dense metric (minutes against about a second for the roller racer and a cart with a
+    trailer: docs/benchmarks.md, "Measured numbers behind design choices")."""
     det = tidy(M.det(method="berkowitz"))
     return (M.adjugate(method="berkowitz") / det).applyfunc(tidy)
 

@@ -97,7 +97,8 @@ def eliminate(q, q_dot, L, constraints, tau, holonomic, wanted) -> Elimination:
         kept = [(e.xreplace(subs), d) for e, d in kept]
         done.append((c.name, phi))
         q, q_dot = rest, rest_dot
-    return Elimination(tuple(q), tuple(q_dot), L, tuple(constraints), tuple(tau), tuple(kept), tuple(done))
+    return Elimination(q=tuple(q), q_dot=tuple(q_dot), L=L, constraints=tuple(constraints), tau=tuple(tau),
+                       holonomic=tuple(kept), eliminated=tuple(done))
 
 
 def velocity_row(h, q, q_dot) -> sp.Expr:
@@ -134,6 +135,12 @@ def _lambdified(system):
     return h, dh
 
 
+def _param_values(system, params) -> np.ndarray:
+    """The parameter vector of ``params``: a mapping (defaults for the rest), None (the defaults)
+    or already the vector in :attr:`~.system.System.param_symbols` order."""
+    return np.asarray(params, dtype=float) if isinstance(params, np.ndarray) else system.param_vector(params)
+
+
 def holonomic_residual(system, q, params=None) -> np.ndarray:
     """h(q) of the kept holonomic constraints at the configuration(s) ``q`` ((n,) → (c,);
     (N, n) → (N, c)); empty without kept constraints. ``params``: a mapping overriding the
@@ -142,7 +149,7 @@ def holonomic_residual(system, q, params=None) -> np.ndarray:
     if not system.holonomic:
         return np.zeros(q.shape[:-1] + (0,))
     h, _ = _functions(system)
-    pv = np.asarray(params, dtype=float) if isinstance(params, np.ndarray) else system.param_vector(params)
+    pv = _param_values(system, params)
     if q.ndim == 1:
         return np.array(h(q, pv), dtype=float).ravel()
     return np.array([np.array(h(row, pv), dtype=float).ravel() for row in q]).reshape(q.shape[0], -1)
@@ -152,7 +159,7 @@ def constraint_gradient(system, q, params=None) -> np.ndarray:
     """∂h/∂q (c, n) of the kept holonomic constraints at q (``params`` a mapping or the
     parameter vector)."""
     _, dh = _functions(system)
-    pv = np.asarray(params, dtype=float) if isinstance(params, np.ndarray) else system.param_vector(params)
+    pv = _param_values(system, params)
     return np.array(dh(np.asarray(q, dtype=float), pv), dtype=float).reshape(len(system.holonomic), system.n)
 
 
@@ -171,7 +178,7 @@ def consistent_configuration(system, q, *, params=None, dependent=None) -> np.nd
     dependent = list(dependent or system.dependent)
     cols = [names.index(c) for c in dependent]
     h, dh = _functions(system)
-    pv = system.param_vector(params)
+    pv = _param_values(system, params)
     start = q.copy()
     for _ in range(NEWTON_ITERATIONS):
         with np.errstate(all="ignore"):

@@ -15,6 +15,7 @@ import time
 from dataclasses import dataclass
 from functools import cached_property
 
+import casadi as ca
 import sympy as sp
 
 from nhgait.dynamics.derivation.cse_text import equation_lines
@@ -42,6 +43,16 @@ class LagrangianDAE(DAEModel):
     tau: sp.Matrix
     energy: sp.Expr
     formulation = "lagrange"
+    velocity_part = "velocities q̇"
+
+    def initial_state(self, q, qdot, params):
+        return ca.vertcat(q, qdot)
+
+    def constraint_gram(self, x, params):
+        numeric = self.numeric
+        n = numeric.n_coordinates
+        omega = ca.jacobian(numeric["constraint"](x, params), x[n:])
+        return ca.mtimes(omega, ca.solve(numeric["mass"](x, params), omega.T))
 
 
     def equations(self) -> list:

@@ -31,7 +31,7 @@ from typing import Mapping
 import numpy as np
 import sympy as sp
 
-from .symbolic import trig_normal
+from ..algebra.trig import trig_normal
 
 __all__ = ["displacement_bounds"]
 

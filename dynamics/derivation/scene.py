@@ -23,7 +23,7 @@ from .system import TIME, System, parse_field, jump_times
 from .tomldata import read_toml
 
 SYSTEM_KEYS = {"name", "coordinates", "lagrangian", "constraints", "forces", "parameters", "inputs",
-               "fiber", "planar_frame", "description", "holonomic", "dependent"}
+               "fiber", "planar_frame", "forward", "description", "holonomic", "dependent"}
 #: the most output samples of a [simulation] (about 1.2 kB and 30–80 µs per sample for the unicycle's outputs)
 MAX_SAMPLES = 1_000_000
 SIMULATION_KEYS = {"q0", "qdot0", "t_final", "samples", "t0", "inputs", "parameters", "formulation",
@@ -110,6 +110,13 @@ class Scene:
     drawing: dict | None = None
     quantities: dict = field(default_factory=dict)
     urdf: object = None          # the UrdfSystem of a scene with [system] urdf = "..." (else None)
+    #: the ``[quantities]`` that use inputs or accelerations ``<q>_ddot`` (path bounds and integrands of a task)
+    motion_quantities: dict = field(default_factory=dict)
+
+    @property
+    def all_quantities(self) -> dict:
+        """Every named quantity: of (q, q̇) (``quantities``) and of the motion (``motion_quantities``)."""
+        return {**self.quantities, **self.motion_quantities}
 
 
 def _number(value, where, problems):
@@ -172,11 +179,14 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
     if bad:
         problems.append(f"[units]: values must be strings such as \"N*m\" (not for {bad})")
     quantities = _quantities(system, extra.pop("quantities", {}), problems) if system else {}
+    motion = {k: e for k, e in quantities.items() if e.free_symbols & _motion_symbols(system)}
+    quantities = {k: e for k, e in quantities.items() if k not in motion}
     if problems:
         raise ModelError(problems, title=f"invalid scene {source}")
     if urdf is not None and "task" in extra:
         extra["task"] = _urdf_task_defaults(extra["task"], urdf)
-    return Scene(system=system, simulation=spec, source=source, quantities=quantities, urdf=urdf, **extra)
+    return Scene(system=system, simulation=spec, source=source, quantities=quantities, urdf=urdf,
+                 motion_quantities=motion, **extra)
 
 
 def _urdf_system(sysd, source, problems):
@@ -237,6 +247,7 @@ def _system(sysd, source, problems) -> System | None:
                       constraints=sysd.get("constraints", []), forces=sysd.get("forces", {}),
                       parameters=sysd.get("parameters", {}), inputs=sysd.get("inputs"), name=name,
                       fiber=sysd.get("fiber"), planar_frame=sysd.get("planar_frame", "auto"),
+                      forward=sysd.get("forward", "x"),
                       holonomic=sysd.get("holonomic", ()), dependent=sysd.get("dependent"))
     except ModelError as exc:
         problems.extend(exc.problems)
@@ -376,10 +387,19 @@ def _outputs(value, problems):
     return tuple(value)
 
 
+def _motion_symbols(system) -> set:
+    """The symbols that make a quantity one of the motion: the inputs and the accelerations."""
+    from .quantities import acceleration_symbols
+    return set(system.input_symbols) | set(acceleration_symbols(system))
+
+
 def _quantities(system, table, problems) -> dict:
-    """``[quantities]``: name = expression in the coordinates, velocities and parameters."""
+    """``[quantities]``: name = expression in the coordinates, velocities, accelerations
+    ``<q>_ddot``, inputs and parameters."""
+    from .quantities import acceleration_symbols
     names = {s.name: s for s in system.q + system.q_dot + system.param_symbols}
-    taken = set(names) | set(system.inputs) | {"t"}
+    taken = set(names) | set(system.inputs) | {"t"} | {s.name for s in acceleration_symbols(system)}
+    names.update({s.name: s for s in (*acceleration_symbols(system), *system.input_symbols)})
     out = {}
     for key, text in table.items():
         where = f"[quantities].{key}"
@@ -396,7 +416,7 @@ def _quantities(system, table, problems) -> dict:
         bad = sorted(s.name for s in e.free_symbols if s.name not in names)
         if bad:
             problems.append(f"{where}: unknown symbol(s) {bad}"
-                            f"{known_names(bad[0], list(names), label='allowed: coordinates, velocities, parameters')}")
+                            f"{known_names(bad[0], list(names), label='allowed: coordinates, velocities, accelerations, inputs, parameters')}")
             continue
         out[key] = e
     return out
@@ -405,7 +425,23 @@ def _quantities(system, table, problems) -> dict:
 def load_scene(path_or_name, overrides=()) -> Scene:
     """Read a scene file, or a built-in scene by name ("unicycle", "snakeboard", ...);
     ``overrides``: ``--set`` assignments to its ``[simulation]`` table
-    (:func:`~nhgait.dynamics.derivation.assignments.apply_simulation_overrides`)."""
+    (:func:`~nhgait.dynamics.derivation.assignments.apply_simulation_overrides`).
+
+    Examples
+    --------
+    The snakeboard (thesis Example 3.2): five coordinates, two torques, and the rotor radius
+    written in the scene as r = √((J + J_r + 2J_w)/m):
+
+    >>> from nhgait.dynamics import load_scene
+    >>> scene = load_scene("snakeboard")
+    >>> scene.system.coordinates, scene.system.inputs
+    (('x', 'y', 'theta', 'psi', 'phi'), ('tau_psi', 'tau_phi'))
+    >>> p = scene.system.parameters
+    >>> abs(p["r"] - ((p["J"] + p["J_r"] + 2 * p["J_w"]) / p["m"]) ** 0.5) < 1e-15
+    True
+    >>> scene.simulation.q0.tolist()     # Table 3.3: the shape on ψ = sin t, φ = sin(t + π/2)
+    [0.0, 0.0, 0.0, 0.0, 1.0]
+    """
     p = Path(str(path_or_name))
     if not names_a_file(p) and p.suffix != ".toml":
         name = str(path_or_name).replace("-", "_")

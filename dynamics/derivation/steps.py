@@ -12,6 +12,7 @@ from __future__ import annotations
 import re
 import unicodedata
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import sympy as sp
 
@@ -129,6 +130,14 @@ def text_of(obj) -> str:
     reps, reduced = sp.cse(exprs, optimizations=None)
     body = sp.Matrix(obj.shape[0], obj.shape[1], reduced) if isinstance(obj, sp.MatrixBase) else reduced[0]
     return sp.sstr(body) + ("  where " + "; ".join(f"{a} = {sp.sstr(b)}" for a, b in reps) if reps else "")
+
+
+class Stepped(NamedTuple):
+    """What a step function that feeds later steps returns: its displayed ``step`` and the
+    ``value`` the later steps use (``step, value = reconstruction(...)`` still unpacks)."""
+
+    step: Step
+    value: object
 
 
 @dataclass(frozen=True)

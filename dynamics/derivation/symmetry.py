@@ -44,7 +44,7 @@ import numpy as np
 import sympy as sp
 
 from ..errors import ModelError
-from .symbolic import null_basis_adjugate, numeric_pivots
+from ..algebra.matrices import null_basis_adjugate, numeric_pivots
 from .system import System
 
 #: verdict labels
@@ -292,8 +292,8 @@ def _candidate(inputs: _TestInputs, idx) -> Candidate:
         verdict, reason = FULL, why_inv
     if verdict in (FULL, KINEMATIC) and rank < k:
         reason += f"; {k - rank} constraint(s) restrict the shape velocities"
-    return Candidate(fiber, group, fiber, rank, inv, verdict, reason, omega_s=Ws, pivots=tuple(piv),
-                     indices=tuple(idx), n=n, rows=rows)
+    return Candidate(fiber=fiber, group=group, orbit_tangent=fiber, rank=rank, invariant=inv, verdict=verdict,
+                     reason=reason, omega_s=Ws, pivots=tuple(piv), indices=tuple(idx), n=n, rows=rows)
 
 
 def _choose(system: System, candidates: list, search: str = "") -> SymmetryTest:

@@ -31,6 +31,9 @@ from ..memo import OwnerMemo
 from . import parameter_checks
 from .system_parsing import TIME, linear_split, parse_field, parse_system, quadratic_split, velocity_name
 
+#: the body axis that points forward → its angle from the frame's heading (``System.forward``)
+FORWARD_AXES = {"x": sp.S.Zero, "y": sp.pi / 2, "-x": sp.pi, "-y": -sp.pi / 2}
+
 __all__ = ["System", "TIME", "jump_times", "parse_field", "velocity_name", "FORCE_JUMP_TIMES"]
 
 #: per system (dropped with it): M(q) and V(q), derived once (read off L or differentiated)
@@ -87,6 +90,10 @@ class System:
     planar_frame : (x, y, heading) names, "auto" or None
         Coordinates of a planar pose used for the SE(2)-type choice of g (version B of the
         reconstruction). "auto" looks for coordinates named x, y and theta.
+    forward : "x" (default), "y", "-x" or "-y"
+        The body axis of the planar frame that points forward: ``forward_velocity`` is the
+        velocity along it and ``lateral_velocity`` along the axis 90° to its left (a car whose
+        body y axis points along its length, as opty's gallery cars: ``"y"``).
     holonomic : sequence of str or expression, optional
         Configuration constraints h(q) = 0 (coordinates and parameters only). Each is
         eliminated when it is linear in a coordinate with a constant coefficient (the
@@ -110,6 +117,7 @@ class System:
     name: str = "system"
     fiber: Sequence | None = None
     planar_frame: object = "auto"
+    forward: str = "x"
     holonomic: Sequence = ()
     dependent: Sequence | None = None
     eliminated: Sequence = ()
@@ -141,6 +149,12 @@ class System:
             raise ModelError(problems)
 
     # ------------------------------------------------------------------ derived objects
+    @property
+    def forward_angle(self):
+        """The angle (sympy: 0, π/2, π or −π/2) from the frame's heading to its forward axis
+        (``forward``): forward_velocity = ẋ cos(θ + α) + ẏ sin(θ + α)."""
+        return FORWARD_AXES[self.forward]
+
     @property
     def n(self) -> int:
         """Number of coordinates."""
@@ -247,7 +261,7 @@ class System:
             "forces=" + ";".join(sp.srepr(f, order="none") for f in self.tau),
             "fiber=" + (",".join(self.fiber) if self.fiber else "auto"),
             "planar_frame=" + (",".join(self.planar_frame) if self.planar_frame else "none"),
-        ]
+        ] + ([] if self.forward == "x" else [f"forward={self.forward}"])
         if self.holonomic or self.eliminated:
             parts += ["holonomic=" + ";".join(sp.srepr(h, order="none") for h in self.holonomic),
                       "dependent=" + ",".join(self.dependent),

@@ -26,20 +26,20 @@ from __future__ import annotations
 import keyword
 import math
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Mapping, NamedTuple
 
 import sympy as sp
 
 from nhgait.dynamics.suggestions import known_names
 
+from ..algebra.symbols import TIME
+
 from .expressions import CONSTANTS, FUNCTIONS, expression_problems, number_problems
 from .holonomic import choose_dependent, eliminate, velocity_row
 
+#: (``TIME``, the time symbol t of forces and input laws, is :data:`nhgait.dynamics.algebra.symbols.TIME`)
 __all__ = ["TIME", "ParsedSystem", "parse_system", "parse_field", "velocity_name", "name_of", "names_of",
            "from_sympy", "NON_SMOOTH", "linear_split", "quadratic_split"]
-
-#: the time symbol t of forces and input laws
-TIME = sp.Symbol("t", real=True)
 
 #: functions that make L or ω non-smooth: their derivatives (DiracDelta) are not functions
 NON_SMOOTH = (sp.Heaviside, sp.sign, sp.Min, sp.Max)
@@ -451,7 +451,14 @@ def linear_split(c, q_dot):
     return row if any(r != 0 for r in row) else None
 
 
-def quadratic_split(L, q_dot):
+class QuadraticSplit(NamedTuple):
+    """L = ½q̇ᵀ``M``q̇ − ``V``, read off term by term."""
+
+    M: object
+    V: object
+
+
+def quadratic_split(L, q_dot) -> QuadraticSplit | None:
     """(M, V) read off L term by term when L is written as Σ c_ij q̇_i q̇_j + c_0 with every
     coefficient free of the velocities (the form generated from bodies, ``½ M_ii q̇_i² +
     M_ij q̇_i q̇_j − V``): no differentiation, one pass over L. None when L is not written so
@@ -481,7 +488,7 @@ def quadratic_split(L, q_dot):
         else:
             M[i][j] += c
             M[j][i] += c
-    return sp.Matrix(M), sp.Add(*V)
+    return QuadraticSplit(sp.Matrix(M), sp.Add(*V))
 
 
 def _frames(statement, coord_names: list, problems: list) -> tuple:
@@ -502,6 +509,11 @@ def _frames(statement, coord_names: list, problems: list) -> tuple:
         frame = tuple(names_of(frame, "planar_frame", problems))
         if len(frame) != 3 or any(c not in coord_names for c in frame):
             problems.append(f"planar_frame: need three coordinate names (x, y, heading), got {frame}")
+    forward = getattr(statement, "forward", "x")
+    if forward not in ("x", "y", "-x", "-y"):
+        problems.append(f"forward: the body axis that points forward is \"x\", \"y\", \"-x\" or \"-y\", got {forward!r}")
+    elif forward != "x" and frame is None:
+        problems.append(f"forward = {forward!r} needs a planar frame (planar_frame = [x, y, heading])")
     return fiber, frame
 
 

@@ -102,12 +102,13 @@ def reference_motion(model, *, speed=None, configuration=None, inputs=None, para
     if speed is None:
         qdot = np.zeros(len(names))
         z = _state(model, q, qdot, pv)
-        return ReferenceMotion(EQUILIBRIUM, None, q, qdot, z, u, pv, None)
+        return ReferenceMotion(kind=EQUILIBRIUM, speed=None, q=q, qdot=qdot, z=z, u=u, params=pv, family=None)
     qdot = _straight_velocities(system, model.fiber, q, float(speed), params, consistent_velocities)
     unit = _straight_velocities(system, model.fiber, q, 1.0, params, consistent_velocities)
     z = _state(model, q, qdot, pv)
     family = _state(model, q, unit, pv) - _state(model, q, np.zeros(len(names)), pv)
-    return ReferenceMotion(STEADY, float(speed), q, qdot, z, u, pv, family)
+    return ReferenceMotion(kind=STEADY, speed=float(speed), q=q, qdot=qdot, z=z, u=u, params=pv,
+                           family=family)
 
 
 def _straight_velocities(system, fiber, q, speed, params, solve) -> np.ndarray:

@@ -57,8 +57,8 @@ from pathlib import Path
 from ..errors import STOP_SIGNALS
 from ..memo import LruMemo
 
-__all__ = ["Library", "CompilerUnavailable", "build_library", "compiler_command", "library_key",
-           "jit_dir", "STALE_BUILD_S", "COMPILER_COMMANDS"]
+__all__ = ["Library", "CompilerUnavailable", "build_library", "cached_library", "compiler_command",
+           "library_key", "jit_dir", "library_dir", "compile_in", "CompileJob", "STALE_BUILD_S", "COMPILER_COMMANDS"]
 
 #: a build folder older than this (seconds) is left over from a process that died: removed
 STALE_BUILD_S = 3600.0
@@ -75,7 +75,7 @@ class Library:
     """A compiled shared library: ``path``; ``key`` its :func:`library_key`; ``cached`` when it
     came from the cache; ``compile_s`` the compiler's wall time (0 when cached); ``c_bytes``
     the source size; ``private`` when it lives in a private temporary folder the caller must
-    remove."""
+    remove; ``peak_mb`` the compiler's peak resident memory when it was measured."""
 
     path: Path
     key: str
@@ -84,6 +84,7 @@ class Library:
     c_bytes: int
     flags: tuple
     private: bool = False
+    peak_mb: float | None = None
 
 
 def _compiler_setting() -> tuple[str, str] | None:
@@ -142,10 +143,12 @@ def jit_dir() -> Path:
     return cache_dir() / "jit"
 
 
-def library_key(source: str, *, flags: tuple = ("-O1",), salt: str = "", libs: tuple = ("-lm",)) -> str:
-    """The cache key of ``source`` built by :func:`build_library` with these arguments and the
-    current compiler: SHA-256 of all of them. Raises :class:`CompilerUnavailable`."""
-    parts = [source, _command(), list(flags), list(libs), salt]
+def library_key(source: str, *, flags: tuple = ("-O1",), salt: str = "", libs: tuple = ("-lm",),
+                command: list | tuple | None = None) -> str:
+    """The cache key of ``source`` built by :func:`build_library` with these arguments and
+    ``command`` (None: the current compiler, :func:`compiler_command`): SHA-256 of all of them.
+    Raises :class:`CompilerUnavailable`."""
+    parts = [source, list(command) if command is not None else _command(), list(flags), list(libs), salt]
     return hashlib.sha256(json.dumps(parts).encode()).hexdigest()
 
 
@@ -162,11 +165,13 @@ def _cached(directory: Path, key: str) -> Path | None:
     return so if trusted_file(so, recorded) else None
 
 
-def _child_setup(mask=None):
+def _child_setup(mask=None, memory_bytes: int | None = None):
     """The preexec function of the compiler: its own process group, the signal mask ``mask``
-    (the parent blocks the stop signals while it starts the compiler, :func:`_run`) and, on
-    Linux, SIGKILL when the parent thread dies (exit at once if the parent died before).
-    ``prctl`` is looked up here, in the parent: the forked child only calls it."""
+    (the parent blocks the stop signals while it starts the compiler, :func:`_run`), at most
+    ``memory_bytes`` of address space (``RLIMIT_AS``; None: unlimited) and, on Linux, SIGKILL
+    when the parent thread dies (exit at once if the parent died before). ``prctl`` is looked
+    up here, in the parent: the forked child only calls it."""
+    import resource
     parent = os.getpid()
     prctl = None
     if sys.platform.startswith("linux"):
@@ -177,6 +182,8 @@ def _child_setup(mask=None):
         os.setpgrp()
         if mask is not None:
             signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+        if memory_bytes is not None:
+            resource.setrlimit(resource.RLIMIT_AS, (memory_bytes, memory_bytes))
         if prctl is not None:
             prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
             if os.getppid() != parent:
@@ -184,17 +191,19 @@ def _child_setup(mask=None):
     return setup
 
 
-def _run(cmd: list, progress, label: str, timeout: float | None, tmpdir: Path) -> subprocess.CompletedProcess:
-    """Run the compiler with its temporaries in ``tmpdir``, killing its process group on any
-    exception (see the module docstring). The stop signals are blocked until the compiler is
-    started and their exception would kill it (one raised inside ``Popen`` itself left the
-    compiler's group running)."""
+def _run(cmd: list, progress, label: str, timeout: float | None, tmpdir: Path,
+         memory_bytes: int | None = None) -> subprocess.CompletedProcess:
+    """Run the compiler with its temporaries in ``tmpdir`` and at most ``memory_bytes`` of
+    address space, killing its process group on any exception (see the module docstring). The
+    stop signals are blocked until the compiler is started and their exception would kill it
+    (one raised inside ``Popen`` itself left the compiler's group running)."""
     start = time.perf_counter()
     env = {**os.environ, "TMPDIR": str(tmpdir), "TMP": str(tmpdir), "TEMP": str(tmpdir)}
     mask = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS) if os.name == "posix" else None
     try:
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
-                                errors="replace", preexec_fn=_child_setup(mask) if os.name == "posix" else None)
+                                errors="replace",
+                                preexec_fn=_child_setup(mask, memory_bytes) if os.name == "posix" else None)
     except BaseException:
         _unblock(mask)
         raise
@@ -240,10 +249,12 @@ def _kill(proc: subprocess.Popen) -> None:
 
 
 @dataclass(frozen=True)
-class _Job:
+class CompileJob:
     """One compilation: the C ``source``, the compiler ``command``, ``flags`` (before the
     source), ``libs`` (after it), the key's ``salt`` and the ``key`` itself; ``progress``,
-    ``label`` and ``timeout`` for the waiting."""
+    ``label`` and ``timeout`` for the waiting; ``memory_bytes``, the compiler's address space
+    (None: unlimited); ``measure``: record the compiler's peak resident memory (meaningful in
+    a process whose only children are its compilers: the background builder)."""
 
     source: str
     command: list
@@ -254,45 +265,71 @@ class _Job:
     progress: object = None
     label: str = "compiling"
     timeout: float | None = None
+    memory_bytes: int | None = None
+    measure: bool = False
 
 
-def _compile(job: _Job, directory: Path) -> Library:
+def _compile(job: CompileJob, directory: Path) -> Library:
     """Compile ``job.source`` in a ``.build-*`` folder of ``directory`` (removed whatever
     happens) and move the library, then its record, to ``directory/key.so`` and ``key.json``."""
-    from .cache import file_sha256, temporary_prefix
-    start = time.perf_counter()
-    key, command, flags, libs = job.key, job.command, job.flags, job.libs
+    from .cache import temporary_prefix
     with tempfile.TemporaryDirectory(dir=directory, prefix=temporary_prefix(".build-"),
                                      ignore_cleanup_errors=True) as tmp:
-        c_file, so_tmp, record = Path(tmp) / f"{key}.c", Path(tmp) / f"{key}.so", Path(tmp) / f"{key}.json"
-        c_file.write_text(job.source)
-        cmd = [*command, *flags, "-fPIC", "-shared", str(c_file), "-o", str(so_tmp), *libs]
-        try:
-            proc = _run(cmd, job.progress, job.label, job.timeout, Path(tmp))
-        except OSError as exc:
-            raise CompilerUnavailable(f"cannot run the C compiler {command[0]!r} ({exc.strerror})") from None
-        if proc.returncode != 0 or not so_tmp.exists():
-            tail = " | ".join((proc.stdout or "").strip().splitlines()[-3:])
-            raise CompilerUnavailable(f"the C compiler failed ({' '.join(command + list(flags))}): {tail}")
-        os.chmod(so_tmp, 0o700)
-        record.write_text(json.dumps({"library_sha256": file_sha256(so_tmp), "compiler": command,
-                                      "flags": list(flags), "libs": list(libs), "salt": job.salt,
-                                      "c_bytes": len(job.source), "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}))
-        os.chmod(record, 0o600)
-        os.replace(so_tmp, directory / f"{key}.so")
-        os.replace(record, directory / f"{key}.json")
-    return Library(directory / f"{key}.so", key, False, time.perf_counter() - start, len(job.source), flags)
+        return compile_in(job, directory, Path(tmp))
+
+
+def compile_in(job: CompileJob, directory: Path, tmp: Path) -> Library:
+    """:func:`_compile` in the existing build folder ``tmp`` of ``directory`` (the caller
+    removes it): the library and then its record (SHA-256, compiler, flags, seconds and, with
+    ``job.measure``, the compiler's peak resident memory) moved into ``directory``."""
+    from .cache import file_sha256
+    start = time.perf_counter()
+    key, command, flags, libs = job.key, list(job.command), job.flags, job.libs
+    c_file, so_tmp, record = tmp / f"{key}.c", tmp / f"{key}.so", tmp / f"{key}.json"
+    c_file.write_text(job.source)
+    cmd = [*command, *flags, "-fPIC", "-shared", str(c_file), "-o", str(so_tmp), *libs]
+    try:
+        proc = _run(cmd, job.progress, job.label, job.timeout, tmp, job.memory_bytes)
+    except OSError as exc:
+        raise CompilerUnavailable(f"cannot run the C compiler {command[0]!r} ({exc.strerror})") from None
+    if proc.returncode != 0 or not so_tmp.exists():
+        tail = " | ".join((proc.stdout or "").strip().splitlines()[-3:])
+        raise CompilerUnavailable(f"the C compiler failed ({' '.join(command + list(flags))}): {tail}")
+    seconds, peak_mb = time.perf_counter() - start, _children_peak_mb() if job.measure else None
+    os.chmod(so_tmp, 0o700)
+    record.write_text(json.dumps({"library_sha256": file_sha256(so_tmp), "compiler": command,
+                                  "flags": list(flags), "libs": list(libs), "salt": job.salt,
+                                  "c_bytes": len(job.source), "compile_s": round(seconds, 3),
+                                  "compiler_peak_mb": peak_mb,
+                                  "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}))
+    os.chmod(record, 0o600)
+    os.replace(so_tmp, directory / f"{key}.so")
+    os.replace(record, directory / f"{key}.json")
+    return Library(directory / f"{key}.so", key, False, seconds, len(job.source), flags, peak_mb=peak_mb)
+
+
+def _children_peak_mb() -> float | None:
+    """The largest resident memory of any child process waited for so far (MB), or None."""
+    try:
+        import resource
+    except ImportError:  # pragma: no cover - not POSIX
+        return None
+    kb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    return round(kb / (1024.0 if sys.platform != "darwin" else 1024.0 ** 2), 1)
 
 
 def build_library(source: str, *, flags: tuple = ("-O1",), salt: str = "", libs: tuple = ("-lm",),
-                  progress=None, label: str = "compiling", timeout: float | None = None) -> Library:
+                  progress=None, label: str = "compiling", timeout: float | None = None,
+                  command: list | tuple | None = None) -> Library:
     """Compile ``source`` (or load it from the cache): see the module docstring. ``flags`` go
-    before ``-fPIC -shared``, ``libs`` after the source; ``salt`` only changes the key.
-    Raises :class:`CompilerUnavailable`."""
+    before ``-fPIC -shared``, ``libs`` after the source; ``salt`` only changes the key;
+    ``command``: the compiler (None: :func:`compiler_command`; the fast compiler of
+    :mod:`.fast_compiler` is passed here). Raises :class:`CompilerUnavailable`."""
     from .cache import remove_stale_temporaries, unwritable_warning
-    command, flags, libs = _command(), tuple(flags), tuple(libs)
-    key = library_key(source, flags=flags, salt=salt, libs=libs)
-    job = _Job(source=source, command=command, flags=flags, libs=libs, salt=salt, key=key,
+    command = list(command) if command is not None else _command()
+    flags, libs = tuple(flags), tuple(libs)
+    key = library_key(source, flags=flags, salt=salt, libs=libs, command=command)
+    job = CompileJob(source=source, command=command, flags=flags, libs=libs, salt=salt, key=key,
                progress=progress, label=label, timeout=timeout)
     directory = _library_dir()
     if directory is not None:
@@ -307,6 +344,22 @@ def build_library(source: str, *, flags: tuple = ("-O1",), salt: str = "", libs:
     return _compile_privately(job)
 
 
+def cached_library(source: str, *, flags: tuple = ("-O1",), salt: str = "", libs: tuple = ("-lm",),
+                   command: list | tuple | None = None) -> Library | None:
+    """The library :func:`build_library` would give for these arguments if it is in the cache
+    and trusted, else None (nothing is compiled). Raises :class:`CompilerUnavailable` when
+    ``command`` is None and there is no compiler."""
+    key = library_key(source, flags=tuple(flags), salt=salt, libs=tuple(libs), command=command)
+    directory = _library_dir()
+    found = None if directory is None else _cached(directory, key)
+    return None if found is None else Library(found, key, True, 0.0, len(source), tuple(flags))
+
+
+def library_dir() -> Path | None:
+    """``<cache dir>/jit`` when it may be used (:func:`_library_dir`), else None."""
+    return _library_dir()
+
+
 def _library_dir() -> Path | None:
     """``<cache dir>/jit`` when both it and the cache directory pass the trust rules (a refused
     cache directory is not used for libraries either), else None."""
@@ -319,7 +372,7 @@ def _library_dir() -> Path | None:
         return None
 
 
-def _compile_privately(job: _Job) -> Library:
+def _compile_privately(job: CompileJob) -> Library:
     """Compile into a private temporary folder (``Library.private``), after removing the
     private folders of processes that died; a folder that cannot be written means no compiler."""
     from .cache import remove_stale_temporaries, temporary_prefix

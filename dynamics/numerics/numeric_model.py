@@ -28,7 +28,7 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..derivation.system import TIME as TIME_SYM
+from ..algebra.symbols import TIME as TIME_SYM
 from .bridge import to_casadi
 
 

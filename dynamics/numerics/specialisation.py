@@ -13,7 +13,7 @@ values are bound into the functions. Two routes, chosen by the model's form:
 
 * **symbolic** (``model.form == "explicit"``, the default when ``form`` is absent): the values,
   as exact rationals, are substituted into the sympy rhs and q̇(z); every component is brought
-  to the one trig normal form of the package (:func:`nhgait.dynamics.derivation.symbolic.trig_normal`: a
+  to the one trig normal form of the package (:func:`nhgait.dynamics.algebra.trig.trig_normal`: a
   fraction of polynomials in sin/cos of each angle with sin² = 1 − cos²); coefficients below
   1e-13 of the largest of their polynomial are dropped (the round-off left by identities that
   hold for the values only up to float precision, e.g. m r² = J + J_r + 2J_w with r = √2.4),
@@ -207,7 +207,7 @@ def _maggi_velocity(model, params, names, quantities, basis: str = "chart") -> d
     """
     from .bridge import to_casadi
     from .linsolve import solve_general, solve_spd
-    from ..derivation.system import TIME
+    from ..algebra.symbols import TIME
     system = model.system
     n, nz = system.n, len(model.state_names)
     nu = len(model.numeric.input_names)
@@ -331,7 +331,7 @@ def _clean_polynomial(poly):
 def _normal(expr):
     """The trig normal form, round-off coefficients removed, and the normal form again."""
     import sympy as sp
-    from ..derivation.symbolic import trig_normal
+    from ..algebra.trig import trig_normal
     e = trig_normal(expr)
     if e == 0:
         return e
@@ -345,7 +345,7 @@ def _normal(expr):
 def _symbolic_momentum(model, params) -> dict:
     """rhs and q̇ of z = (q, P) with the values substituted, in normal form."""
     from .bridge import to_casadi
-    from ..derivation.system import TIME
+    from ..algebra.symbols import TIME
     system = model.system
     subs = {s: _exact(float(v)) for s, v in zip(system.param_symbols, params)}
     rhs = [_normal(e.xreplace(subs)) for e in model.rhs]
@@ -365,7 +365,7 @@ def _symbolic_velocity(model, params, names, quantities) -> dict:
     """The velocity-coordinate ODE in normal form (see the module docstring)."""
     import sympy as sp
     from .bridge import to_casadi
-    from ..derivation.system import TIME
+    from ..algebra.symbols import TIME
     system = model.system
     n, nv = system.n, len(model.state) - system.n
     subs = {s: _exact(float(v)) for s, v in zip(system.param_symbols, params)}

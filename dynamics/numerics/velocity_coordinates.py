@@ -110,7 +110,8 @@ def velocity_rows(system, names, quantities=None):
             row[coords.index(name[:-4])] = sp.S.One
         elif name in BODY_VELOCITIES and planar_frame(system):
             ix, iy, ih = (coords.index(c) for c in planar_frame(system))
-            expr = body_velocity(name, qd[ix], qd[iy], q[ih], sp.cos, sp.sin)
+            expr = body_velocity(name, qd[ix], qd[iy], q[ih] + getattr(system, "forward_angle", 0),
+                                 sp.cos, sp.sin)
             row = [sp.diff(expr, v) for v in qd]
         elif name in quantities:
             expr = sp.expand(quantities[name])
@@ -155,7 +156,7 @@ def group_matrix(layout):
 def body_rows(model, names, quantities=None):
     """Y_b = Y(q) diag(g(q), I) (sympy, trigonometric normal form): the rows of ``names`` in the
     body velocities of the model's layout (forward_velocity → ξ₁, θ̇ → ξ₃ for SE(2))."""
-    from ..derivation.symbolic import trig_normal
+    from ..algebra.trig import trig_normal
     rows = velocity_rows(model.system, names, quantities) * group_matrix(model.layout)
     return rows.applyfunc(trig_normal)
 

@@ -22,12 +22,15 @@ velocity part of x (∂²E/∂v², column-major) and S = ω M⁻¹ ωᵀ (DAE fo
 crossing); ``qdot(y, p) → q̇``. ``t_c`` is t clamped to the current interval
 [a, b) (see :func:`~.simulation.simulate`): the controller *and* the model's time-dependent
 forces are evaluated at t_c, so a jump at a breakpoint b is seen from the left up to b and from
-the right after it, however the integrator places its stages. ``p = (params, u₀, u₁, t_a)`` for an
-open-loop input integrated by segments (u = u₀ + u₁(t_c − t_a) on a segment), else ``params``.
-``u`` is an explicit input only for a controller without a CasADi form.
+the right after it, however the integrator places its stages. ``p = (params, d)`` for a
+controller integrated by segments — one that states its law as ``casadi_segment(t, q, q̇, d)``
+with ``d = segment_data(a)`` the numbers of the segment starting at a (an open-loop input:
+d = (u₀, u₁, t_a), u = u₀ + u₁(t_c − t_a); a gain schedule: its gains and reference) —, else
+``params``: one compiled loop serves every value of d. ``u`` is an explicit input only for a
+controller without a CasADi form.
 
-ẋ, λ, g, s and S come from the formulation's protocol
-(:meth:`~nhgait.dynamics.derivation.formulation_protocol.FormulationProtocol.loop_dynamics`).
+ẋ, λ, g, s and S come from the model's formulation
+(:meth:`~nhgait.dynamics.derivation.formulation_base.Formulation.loop_dynamics`).
 The singular-set measure s: the reduced ODE's ``numeric["singular"]`` (the engine's measure,
 0 where any matrix the reduction inverts loses rank); for the DAE forms the Hadamard ratio
 det S / Π Sᵢᵢ of the matrix ω M⁻¹ ωᵀ that the multipliers are solved with.
@@ -42,7 +45,7 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
-from ..derivation.formulation_protocol import LoopPoint, Stabilisation, protocol_named, protocol_of
+from ..derivation.formulation_base import LoopPoint, Stabilisation
 from ..errors import ModelError
 from ..memo import OwnerMemo
 from ..numerics.compiler import compiler_command
@@ -60,9 +63,9 @@ CLOSED_LOOPS = OwnerMemo("closed loops per compiled model, controller and option
 CONTROLLER_KEYS = OwnerMemo("content keys of frozen controllers")
 
 
-def _is_open_loop(controller) -> bool:
-    from .controllers import OpenLoop
-    return isinstance(controller, OpenLoop)
+def _by_segments(controller) -> bool:
+    """The controller states its law per segment (``casadi_segment``, ``segment_data``)."""
+    return hasattr(controller, "casadi_segment") and hasattr(controller, "segment_data")
 
 
 def controller_key(controller) -> str:
@@ -77,19 +80,20 @@ def controller_key(controller) -> str:
 def _controller_key(controller) -> str:
     if controller is None:
         return "none"
-    if _is_open_loop(controller):
-        return f"open-loop/{controller.values.shape[1]}"
-    if not hasattr(controller, "casadi"):
+    segmented = _by_segments(controller)
+    if not (segmented or hasattr(controller, "casadi")):
         return "python"
     n = len(getattr(controller, "system_coordinates", ()) or ()) or None
     t, q, qd = ca.SX.sym("t"), ca.SX.sym("q", n or 64), ca.SX.sym("qdot", n or 64)
+    data = ca.SX.sym("segment_data", int(controller.segment_size) if segmented else 0)
+    method = "casadi_segment" if segmented else "casadi"
     try:
-        u = ca.vertcat(controller.casadi(t, q, qd))
+        u = ca.vertcat(controller.casadi_segment(t, q, qd, data) if segmented else controller.casadi(t, q, qd))
     except Exception as exc:  # the law could not be traced symbolically: refuse, with the cause
-        raise ModelError([f"controller.casadi failed on symbolic arguments "
+        raise ModelError([f"controller.{method} failed on symbolic arguments "
                           f"({type(exc).__name__}: {exc})"], title="invalid controller") from exc
-    text = ca.Function("u", [t, q, qd], [u]).serialize()
-    return "casadi/" + hashlib.sha256(text.encode()).hexdigest()
+    text = ca.Function("u", [t, q, qd, data], [u]).serialize()
+    return ("segments/" if segmented else "casadi/") + hashlib.sha256(text.encode()).hexdigest()
 
 
 @dataclass(frozen=True, eq=False)
@@ -97,6 +101,7 @@ class ClosedLoop:
     """CasADi functions of one closed loop (see the module docstring)."""
 
     formulation: str
+    dae_form: bool              # the model is a DAE form (λ solved; velocities projected onto g = 0)
     n_q: int
     n_x: int
     n_y: int
@@ -113,6 +118,7 @@ class ClosedLoop:
     qdot: ca.Function
     _pieces: dict
     _compiled: dict = dataclasses.field(default_factory=dict)
+    n_segment: int = 0          # length of a segment's data d in p (controllers by segments)
 
     def compiled(self, projection: bool = False):
         """The loop as a compiled library (:func:`.compiled.build`; with ``projection`` every
@@ -125,14 +131,9 @@ class ClosedLoop:
         return self._compiled[key]
 
     @property
-    def protocol(self):
-        """The protocol of the loop's formulation (:mod:`~nhgait.dynamics.derivation.formulation_protocol`)."""
-        return protocol_named(self.formulation)
-
-    @property
     def n_p(self) -> int:
         """Length of the parameter vector p of the functions."""
-        return self.n_params + (2 * self.n_u + 1 if self.segment_u else 0)
+        return self.n_params + self.n_segment
 
     @property
     def complete(self) -> bool:
@@ -153,7 +154,7 @@ class ClosedLoop:
         forms, the velocity part projected onto {g = 0} in the kinetic metric."""
         pc = self._pieces
         holonomic = pc.get("holonomic")
-        if not self.complete or not (self.protocol.dae_options_apply or holonomic):
+        if not self.complete or not (self.dae_form or holonomic):
             return None
         y = pc["y"]
         x, g, energy, n = pc["x"], pc["g"], pc["energy"], self.n_q
@@ -165,7 +166,7 @@ class ClosedLoop:
                 step = ca.solve(ca.substitute(J, x[:n], q), ca.substitute(h, x[:n], q))
                 q = q - ca.mtimes(_scatter(cols, n), step)
         v = x[n:]
-        if self.protocol.dae_options_apply:
+        if self.dae_form:
             moved = ca.vertcat(q, v)
             g_q, energy_q = ca.substitute(g, x, moved), ca.substitute(energy, x, moved)
             Jv = ca.jacobian(g_q, v)                       # g is linear in v (q̇ or p)
@@ -176,9 +177,10 @@ class ClosedLoop:
                            [ca.densify(ca.vertcat(q, v, y[self.n_x:]))], ["y", "params"],
                            ["y_projected"])
 
-    def dae(self, stabilization, baumgarte) -> dict:
+    def dae(self) -> dict:
         """The semi-explicit index-1 DAE for IDAS: ``{"t", "x", "z", "p", "ode", "alg"}`` with
-        p = (p of ``rhs``, t_hi) and λ the algebraic variable."""
+        p = (p of ``rhs``, t_hi) and λ the algebraic variable (its law with the loop's
+        stabilisation's feedback)."""
         pc = self._pieces
         num, t, y, x = pc["num"], pc["t"], pc["y"], pc["x"]
         k = num.n_multipliers
@@ -187,40 +189,35 @@ class ClosedLoop:
         u_d = ca.substitute(pc["u"], pc["t_c"], ca.fmin(t, t_hi)) if (self.symbolic_u or self.segment_u) else pc["u"]
         xp = pc["params"]
         t_d = ca.fmin(t, t_hi)
-        res = num["dae_g"](t_d, x, z, u_d, xp)
-        alpha, beta = pc["alpha"], pc["beta"]
-        if stabilization == "baumgarte":
-            res = res + 2 * alpha * pc["g"] + (beta ** 2 * pc["g_int"] if self.n_int else 0)
+        res = pc["stabilisation"].feedback(num["dae_g"](t_d, x, z, u_d, xp), pc["g"], pc["g_int"])
         ode = ca.vertcat(num["dae_f"](t_d, x, z, u_d, xp), num["power"](t_d, x, u_d, xp),
                          pc["g"] if self.n_int else ca.SX(0, 1))
         return {"t": t, "x": y, "z": z, "p": ca.vertcat(pc["p"], t_hi), "ode": ode, "alg": res}
 
     def segment_params(self, params: np.ndarray, controller, a: float) -> np.ndarray:
-        """p on the interval starting at ``a``: params, and for an open-loop input (u₀, u₁, a)."""
+        """p on the interval starting at ``a``: params, and for a controller by segments the
+        numbers ``controller.segment_data(a)`` its law reads on that interval."""
         if not self.segment_u:
             return params
-        times, values = controller.times, controller.values
-        j = int(np.clip(np.searchsorted(times, a, side="right") - 1, 0, values.shape[0] - 1))
-        if controller.kind == "zoh":
-            u0, u1 = values[j], np.zeros(values.shape[1])
-        else:
-            j = min(j, times.size - 2)
-            u1 = (values[j + 1] - values[j]) / (times[j + 1] - times[j])
-            u0 = values[j] + u1 * (a - times[j])
-        return np.r_[params, u0, u1, a]
+        data = np.asarray(controller.segment_data(a), dtype=float).ravel()
+        if data.size != self.n_segment:
+            raise ModelError([f"controller.segment_data({a:g}) has {data.size} numbers, its segment_size is "
+                              f"{self.n_segment}"], title="invalid controller")
+        return np.r_[params, data]
 
 
-def closed_loop(model, controller, *, stabilization=None, baumgarte=(1.0, 0.0),
+def closed_loop(model, controller, *, stabilisation: Stabilisation = Stabilisation(),
                 seeds=None) -> ClosedLoop:
     """The closed loop of ``model`` under ``controller`` (memoised per model and content).
 
+    ``stabilisation``: the DAE forms' constraint stabilisation
+    (:class:`~nhgait.dynamics.derivation.formulation_base.Stabilisation`, none by default);
     ``seeds``: indices of x that the run must report (None: all); the loop integrates their
     dependency closure.
     """
-    key = (controller_key(controller), stabilization,
-           tuple(float(v) for v in baumgarte) if stabilization == "baumgarte" else None,
-           None if seeds is None else tuple(sorted(set(int(s) for s in seeds))))
-    return CLOSED_LOOPS.get(model.numeric, key, lambda: _build(model, controller, stabilization, baumgarte, key[3]))
+    seeds = None if seeds is None else tuple(sorted(set(int(s) for s in seeds)))
+    key = (controller_key(controller), stabilisation, seeds)
+    return CLOSED_LOOPS.get(model.numeric, key, lambda: _build(model, controller, stabilisation, seeds))
 
 
 #: Newton steps of the holonomic projection (each squares the drift: 1e-8 → 1e-16 → below)
@@ -277,17 +274,22 @@ def _input(controller, m, t_c, q, qdot, params):
     """(u, explicit u arguments, p, symbolic, by segments): the input as the closed loop sees it."""
     if controller is None:
         return ca.SX.zeros(m), [], params, False, False
-    if _is_open_loop(controller):                 # u = u₀ + u₁(t_c − a) on each segment
-        u0, u1, t_a = ca.SX.sym("u0", m), ca.SX.sym("u1", m), ca.SX.sym("t_a")
-        return u0 + u1 * (t_c - t_a), [], ca.vertcat(params, u0, u1, t_a), False, True
+    if _by_segments(controller):                  # u(t_c, q, q̇, d), d the segment's numbers in p
+        data = ca.SX.sym("segment_data", int(controller.segment_size))
+        u = _checked_shape(ca.vertcat(controller.casadi_segment(t_c, q, qdot, data)), m, "casadi_segment")
+        return u, [], ca.vertcat(params, data), False, True
     if hasattr(controller, "casadi"):
-        u = ca.vertcat(controller.casadi(t_c, q, qdot))
-        if u.shape != (m, 1):
-            raise ModelError([f"controller.casadi returned shape {u.shape}, expected ({m}, 1)"],
-                             title="invalid controller")
+        u = _checked_shape(ca.vertcat(controller.casadi(t_c, q, qdot)), m, "casadi")
         return u, [], params, True, False
     u = ca.SX.sym("u", m)
     return u, [u], params, False, False
+
+
+def _checked_shape(u, m, method):
+    if u.shape != (m, 1):
+        raise ModelError([f"controller.{method} returned shape {u.shape}, expected ({m}, 1)"],
+                         title="invalid controller")
+    return u
 
 
 @dataclass(frozen=True)
@@ -327,20 +329,17 @@ def _integrated(model, seeds, loop: _LoopExpressions):
     return index, measure, set(reads(power)) <= set(index)
 
 
-def _build(model, controller, stabilization, baumgarte, seeds) -> ClosedLoop:
+def _build(model, controller, stabilisation: Stabilisation, seeds) -> ClosedLoop:
     num, system = model.numeric, model.system
     n, nx, m = system.n, len(model.state_names), len(system.inputs)
-    protocol = protocol_of(model)
-    k = protocol.multiplier_count(model)
-    alpha, beta = (float(v) for v in baumgarte) if stabilization == "baumgarte" else (0.0, 0.0)
-    n_int = k if (stabilization == "baumgarte" and beta != 0.0) else 0
+    n_int = stabilisation.integral_states(model.multiplier_count())
     t, t_c = ca.SX.sym("t"), ca.SX.sym("t_c")
     params = ca.SX.sym("params", len(num.param_names))
     x, work, g_int = ca.SX.sym("x", nx), ca.SX.sym("work"), ca.SX.sym("g_int", n_int)
     q, qdot = x[:n], num["qdot"](x, params)
     u, u_args, p, symbolic_u, segment_u = _input(controller, m, t_c, q, qdot, params)
-    dynamics = protocol.loop_dynamics(model, LoopPoint(t_c=t_c, x=x, u=u, params=params, g_int=g_int),
-                                      Stabilisation(kind=stabilization, alpha=alpha, beta=beta))
+    n_segment = int(p.shape[0]) - len(num.param_names)
+    dynamics = model.loop_dynamics(LoopPoint(t_c=t_c, x=x, u=u, params=params, g_int=g_int), stabilisation)
     xdot, lam, g, measure, gram = dynamics.xdot, dynamics.lam, dynamics.g, dynamics.measure, dynamics.gram
     power = num["power"](t_c, x, u, params)
     energy = num["energy"](x, params)
@@ -368,7 +367,8 @@ def _build(model, controller, stabilization, baumgarte, seeds) -> ClosedLoop:
     args, names = [t, t_c, y] + u_args + [p], ["t", "t_c", "y"] + ["u"] * bool(u_args) + ["p"]
     outs = [ca.densify(restrict(o)) for o in (q, qdot, lam, g, energy, u, measure, metric, gram)]
     return ClosedLoop(
-        formulation=model.formulation, n_q=n, n_x=nx, n_y=int(y.shape[0]),
+        formulation=model.formulation, dae_form=model.dae_options_apply, n_q=n, n_x=nx,
+        n_y=int(y.shape[0]),
         n_params=len(num.param_names), n_u=m, state_index=tuple(index), has_work=has_work,
         n_int=n_int, symbolic_u=symbolic_u, segment_u=segment_u,
         rhs=ca.Function("closed_loop", args, [ydot], names, ["ydot"]),
@@ -376,5 +376,6 @@ def _build(model, controller, stabilization, baumgarte, seeds) -> ClosedLoop:
         event=_event_function(restrict(measure), y, p) if system.k else None,
         qdot=ca.Function("qdot", [y, p], [ca.densify(restrict(qdot))], ["y", "p"], ["qdot"]),
         _pieces=dict(args=args, names=names, ydot=ydot, y=y, x=x, g=g, energy=energy, num=num, t=t,
-                     t_c=t_c, u=u, p=p, params=params, g_int=g_int, alpha=alpha, beta=beta,
-                     holonomic=_holonomic_pieces(model, q, params)))
+                     t_c=t_c, u=u, p=p, params=params, g_int=g_int, stabilisation=stabilisation,
+                     holonomic=_holonomic_pieces(model, q, params)),
+        n_segment=n_segment)

@@ -17,6 +17,12 @@ Protocol (duck-typed; every controller here implements it)
     [a, b), sees the controller with t clamped to [a, b) so a switch is exact.
 ``domain`` (optional)
     (t_first, t_last) on which the law is defined; :func:`simulate` checks the time span.
+``segment_size``, ``segment_data(a) -> d``, ``casadi_segment(t, q, q_dot, d) -> SX`` (optional)
+    A law that reads, on the integration segment starting at a, a vector d (``segment_size``,)
+    of numbers known at that breakpoint (an open-loop input's value and slope, a gain schedule's
+    gains and reference). d enters the compiled closed loop as data, not as code: one compiled
+    loop serves every d (:mod:`.closed_loop`). :class:`OpenLoop` and
+    :class:`~.gain_schedule.GainSchedule` are such laws.
 
 Thesis laws
 -----------
@@ -187,8 +193,27 @@ def snakeboard_pd(system_coordinates=SNAKEBOARD_COORDINATES) -> PDTracking:
                       inputs=("tau_psi", "tau_phi"))
 
 
+class KnotSchedule:
+    """What a law on knots ``times`` (t_0 < … < t_N, an attribute of the class) has: the
+    integrator restarts at the interior knots (``breakpoints``), the law is defined on
+    [t_0, t_N] (``domain``) and :meth:`interval` finds the knot interval of a time."""
+
+    @property
+    def breakpoints(self) -> np.ndarray:
+        """Interior knots (N−1,)."""
+        return self.times[1:-1]
+
+    @property
+    def domain(self) -> tuple:
+        return float(self.times[0]), float(self.times[-1])
+
+    def interval(self, t: float) -> int:
+        """k with t in [t_k, t_{k+1}) (right-continuous at the knots), clamped to 0 … N−1."""
+        return int(np.clip(np.searchsorted(self.times, float(t), side="right") - 1, 0, self.times.size - 2))
+
+
 @dataclass(frozen=True, eq=False)
-class OpenLoop:
+class OpenLoop(KnotSchedule):
     """Open-loop input on a time grid: zero-order hold or piecewise linear.
 
     Parameters
@@ -237,20 +262,32 @@ class OpenLoop:
         object.__setattr__(self, "inputs", None if self.inputs is None else tuple(self.inputs))
 
     @property
-    def breakpoints(self) -> np.ndarray:
-        """Interior knots (N−1,)."""
-        return self.times[1:-1]
+    def segment_size(self) -> int:
+        """Length of :meth:`segment_data`: (u₀, u₁, t_a) with m entries each for u₀ and u₁."""
+        return 2 * self.values.shape[1] + 1
 
-    @property
-    def domain(self) -> tuple:
-        return float(self.times[0]), float(self.times[-1])
+    def segment_data(self, a: float) -> np.ndarray:
+        """(u₀, u₁, a) on the segment starting at ``a``: u = u₀ + u₁ (t − a) there (u₁ = 0 for
+        ``kind="zoh"``)."""
+        times, values = self.times, self.values
+        j = self.interval(a)
+        if self.kind == "zoh":
+            u0, u1 = values[j], np.zeros(values.shape[1])
+        else:
+            u1 = (values[j + 1] - values[j]) / (times[j + 1] - times[j])
+            u0 = values[j] + u1 * (a - times[j])
+        return np.r_[u0, u1, a]
+
+    def casadi_segment(self, t, q, q_dot, data) -> ca.SX:
+        """u = u₀ + u₁ (t − t_a) with d = (u₀, u₁, t_a) from :meth:`segment_data`."""
+        m = self.values.shape[1]
+        return data[:m] + data[m:2 * m] * (t - data[2 * m])
 
     def __call__(self, t, q=None, q_dot=None) -> np.ndarray:
         """u (m,) at time t (right-continuous at the knots); q, q_dot are ignored."""
         t = float(t)
         if self.kind == "zoh":
-            j = int(np.searchsorted(self.times, t, side="right")) - 1
-            return self.values[min(max(j, 0), self.values.shape[0] - 1)].copy()
+            return self.values[self.interval(t)].copy()
         tc = min(max(t, self.times[0]), self.times[-1])
         return np.array([np.interp(tc, self.times, col) for col in self.values.T])
 

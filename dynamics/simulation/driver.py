@@ -57,14 +57,13 @@ columns that need them; ``Trajectory.outputs`` holds the requested columns.
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
 import warnings
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
-from ..derivation.formulation_protocol import protocol_of
 from ..derivation.states import to_state
 from ..errors import ModelError
 from ..memo import OwnerMemo
@@ -73,19 +72,14 @@ from .compiled import CompilerUnavailable
 from .failures import diagnose_failure
 from .integrators import (FAILED, FINISHED, MAX_STEPS, NONFINITE, SCIPY_METHODS, SINGULAR, RunRequest,
                           Samples, integrate_scipy, left_of)
+from .options import COMPILED_METHODS, METHODS, SINGULAR_EVENT_TOL, SimulationOptions, checked_span
 from .route_compiled import integrate_compiled
 from .route_sundials import integrate_sundials
 from .trajectory import Diagnostics, OnRead, Trajectory, max_condition, min_measure
 
-__all__ = ["simulate", "Trajectory", "Diagnostics", "METHODS", "FINISHED", "FAILED", "MAX_STEPS", "NONFINITE",
-           "SINGULAR", "SINGULAR_EVENT_TOL"]
+__all__ = ["simulate", "Trajectory", "Diagnostics", "SimulationOptions", "METHODS", "FINISHED", "FAILED",
+           "MAX_STEPS", "NONFINITE", "SINGULAR", "SINGULAR_EVENT_TOL"]
 
-COMPILED_METHODS = {"compiled": "DOP853", "compiled-DOPRI5": "DOPRI5"}
-METHODS = tuple(SCIPY_METHODS) + ("CVODES",) + tuple(COMPILED_METHODS) + ("auto",)
-DAE_FORMS = ("index1", "idas")
-STABILIZATIONS = (None, "baumgarte", "projection")
-#: default threshold of the singular-set event (the measure is 1 far from the set, 0 on it)
-SINGULAR_EVENT_TOL = 1e-6
 STATUS_NAMES = {FINISHED: "finished", FAILED: "failed", MAX_STEPS: "max_steps",
                 NONFINITE: "non-finite", SINGULAR: "singular set"}
 
@@ -95,7 +89,8 @@ STATUS_NAMES = {FINISHED: "finished", FAILED: "failed", MAX_STEPS: "max_steps",
 # --------------------------------------------------------------------------------------------
 @dataclass(frozen=True, eq=False)
 class _Call:
-    """One :func:`simulate` call as the user stated it (every argument, unchecked)."""
+    """One :func:`simulate` call as the user stated it (unchecked): what is simulated and the
+    :class:`~.options.SimulationOptions` of how."""
 
     model: object
     t_span: object
@@ -103,84 +98,27 @@ class _Call:
     qdot0: object
     controller: object
     params: object
-    method: str
-    rtol: float
-    atol: float
-    t_eval: object
-    dae: str
-    stabilization: str | None
-    baumgarte: object
-    max_step: float
-    max_steps: int
-    singular_tol: float | None
-    outputs: object
-    quantities: dict | None
+    options: SimulationOptions
 
 
 def _check_request(call: _Call) -> list:
     """Every problem with the request, as a list of sentences."""
-    problems = []
-    try:
-        t0, tf = (float(v) for v in call.t_span)
-        if not (math.isfinite(t0) and math.isfinite(tf) and tf > t0):
-            problems.append(f"t_span must be increasing and finite, got ({t0:g}, {tf:g})")
-    except (TypeError, ValueError):
-        problems.append(f"t_span must be a pair (t0, tf), got {call.t_span!r}")
-        t0 = tf = None
-    problems += _option_problems(call)
-    if not (isinstance(call.max_steps, (int, np.integer)) and call.max_steps > 0):
-        problems.append(f"max_steps must be a positive integer, got {call.max_steps!r}")
-    if not (0 < call.rtol < 1 and 0 < call.atol < np.inf):   # rtol = inf allowed steps of any size: a hang
-        problems.append(f"rtol must lie in (0, 1) and atol be positive and finite, got rtol={call.rtol!r}, "
-                        f"atol={call.atol!r}")
-    if call.singular_tol is not None and not (0 <= call.singular_tol < 1):
-        problems.append(f"singular_tol must be in [0, 1) or None, got {call.singular_tol!r}")
-    if call.t_eval is not None and t0 is not None:
-        problems += _t_eval_problems(call.t_eval, t0, tf)
+    options, model = call.options, call.model
+    span = checked_span(call.t_span)
+    t0, tf = span.t0, span.tf
+    problems = span.problems + options.name_problems()
+    if options.stabilisation_type is not None:
+        holonomic = bool(getattr(model, "system", None) and model.system.holonomic)
+        problems += model.dae_option_problems(options.idas, options.stabilisation_type, holonomic=holonomic)
+    problems += options.combination_problems()
+    problems += options.value_problems(t0, tf)
     if call.controller is not None:
         problems += _check_controller(call, t0, tf)
     return problems
 
 
-def _option_problems(call: _Call) -> list:
-    """The method, DAE form and stabilisation problems of the request."""
-    method, dae, stabilization = call.method, call.dae, call.stabilization
-    problems = []
-    if method not in METHODS:
-        problems.append(f"unknown method {method!r} (choose from {', '.join(METHODS)})")
-    if dae not in DAE_FORMS:
-        problems.append(f"unknown dae form {dae!r} (choose from {', '.join(DAE_FORMS)})")
-    if stabilization not in STABILIZATIONS:
-        problems.append(f"unknown stabilization {stabilization!r} (None, 'baumgarte' or 'projection')")
-    problems += protocol_of(call.model).dae_option_problems(
-        dae, stabilization, holonomic=bool(getattr(call.model, "system", None) and call.model.system.holonomic))
-    if stabilization == "projection" and (dae == "idas" or method in ("CVODES", "auto")):
-        problems.append("stabilization='projection' needs dae='index1' and a scipy or compiled "
-                        "method (the state is projected after every step)")
-    if stabilization == "baumgarte":
-        try:
-            alpha, beta = (float(v) for v in call.baumgarte)
-            if not (alpha >= 0 and beta >= 0 and np.isfinite(alpha + beta)):
-                problems.append(f"baumgarte = (alpha, beta) must be finite and ≥ 0, got {call.baumgarte!r}")
-        except (TypeError, ValueError):
-            problems.append(f"baumgarte must be a pair (alpha, beta), got {call.baumgarte!r}")
-    return problems
-
-
-def _t_eval_problems(t_eval, t0: float, tf: float) -> list:
-    te = np.asarray(t_eval, dtype=float)
-    span = max(abs(t0), abs(tf), 1.0) * 1e-12
-    if te.ndim != 1 or te.size == 0:
-        return ["t_eval must be a non-empty 1-D array"]
-    if not np.all(np.isfinite(te)) or np.any(np.diff(te) <= 0):
-        return ["t_eval must be finite and strictly increasing"]
-    if te[0] < t0 - span or te[-1] > tf + span:
-        return [f"t_eval must lie in t_span [{t0:g}, {tf:g}], got [{te[0]:g}, {te[-1]:g}]"]
-    return []
-
-
 def _check_controller(call: _Call, t0, tf) -> list:
-    system, controller, dae, method = call.model.system, call.controller, call.dae, call.method
+    system, controller, options = call.model.system, call.controller, call.options
     problems = []
     if not callable(controller):
         problems.append("controller must be callable as controller(t, q, qdot) -> u")
@@ -196,10 +134,11 @@ def _check_controller(call: _Call, t0, tf) -> list:
     if domain is not None and t0 is not None and (t0 < domain[0] or tf > domain[1]):
         problems.append(f"t_span [{t0:g}, {tf:g}] exceeds the controller's domain "
                         f"[{domain[0]:g}, {domain[1]:g}]")
-    if (dae == "idas" or method == "CVODES") and not hasattr(controller, "casadi"):
-        problems.append(f"{'dae=' + repr(dae) if dae == 'idas' else 'method=' + repr(method)} needs "
-                        "a controller with a casadi(t, q, qdot) method (SUNDIALS evaluates u as a "
-                        "CasADi expression of the state)")
+    symbolic = hasattr(controller, "casadi") or hasattr(controller, "casadi_segment")
+    if options.sundials and not symbolic:
+        asked = f"dae={options.dae!r}" if options.idas else f"method={options.method!r}"
+        problems.append(f"{asked} needs a controller with a casadi(t, q, qdot) method (SUNDIALS evaluates "
+                        "u as a CasADi expression of the state)")
     return problems
 
 
@@ -237,12 +176,8 @@ def _segments(t0, tf, controller, system=None, params=None):
 # --------------------------------------------------------------------------------------------
 # the driver
 # --------------------------------------------------------------------------------------------
-def simulate(model, t_span, q0, qdot0, *, controller=None, params=None, method: str = "DOP853",
-             rtol: float = 1e-8, atol: float = 1e-10, t_eval=None, dae: str = "index1",
-             stabilization: str | None = None, baumgarte=(1.0, 0.0),
-             max_step: float = np.inf, max_steps: int = 1_000_000,
-             singular_tol: float | None = SINGULAR_EVENT_TOL, outputs=None,
-             quantities: dict | None = None) -> Trajectory:
+def simulate(model, t_span, q0, qdot0, *, controller=None, params=None,
+             options: SimulationOptions | None = None, **keywords) -> Trajectory:
     """Simulate a derived formulation from a consistent physical state (q0, q̇0).
 
     Parameters
@@ -258,31 +193,38 @@ def simulate(model, t_span, q0, qdot0, *, controller=None, params=None, method: 
     params : dict or (n_params,) array, optional
         Parameter values overriding the system's defaults; checked like the defaults (finite,
         positive-definite kinetic metric).
-    method : one of :data:`METHODS` (see the module docstring); ignored with ``dae="idas"``.
-    rtol, atol : integrator tolerances (SUNDIALS: reltol, abstol).
-    t_eval : (N,) output times in t_span, optional; None reports every accepted step (SUNDIALS:
-        the interval ends).
-    dae : {"index1", "idas"} — how a DAE form is integrated (see the module docstring).
-    stabilization : {None, "baumgarte", "projection"} — constraint stabilisation of the DAE forms.
-    baumgarte : (alpha, beta) — ġ + 2αg + β²∫g = 0 when ``stabilization="baumgarte"``.
-    max_step : largest step of the scipy and compiled solvers.
-    max_steps : cap on accepted steps (SUNDIALS: per output interval); reaching it ends the run
-        with status −2.
-    singular_tol : the run stops (status −4) where the singular-set measure falls below this;
-        None disables the event.
-    outputs : sequence of names, optional — integrate only what they depend on (:mod:`.closure`).
-    quantities : mapping name → sympy expression of (q, q̇, parameters), optional — named
-        quantities that ``outputs`` may refer to (a scene's ``[quantities]``).
+    options : SimulationOptions, optional
+        How to integrate (every default when None).
+    **keywords
+        Any field of :class:`~.options.SimulationOptions`, replacing the one of ``options``:
+        ``method`` (:data:`METHODS`, see the module docstring), ``rtol``, ``atol``, ``t_eval``,
+        ``dae`` ("index1", "idas"), ``stabilization`` (None, "baumgarte", "projection"),
+        ``baumgarte`` (α, β), ``max_step``, ``max_steps``, ``singular_tol``, ``outputs``,
+        ``quantities``.
 
     Returns
     -------
     Trajectory
+
+    Examples
+    --------
+    The unicycle rolling straight ahead at 1 rad/s of its wheel (r = 0.1 m) for one second:
+
+    >>> from nhgait.dynamics import derive, simulate
+    >>> model = derive("unicycle")
+    >>> traj = simulate(model, (0.0, 1.0), [0, 0, 0, 0], [0.1, 0, 0, 1.0], t_eval=[0.0, 0.5, 1.0])
+    >>> traj.success, traj.t.tolist()
+    (True, [0.0, 0.5, 1.0])
+    >>> traj.q[-1].round(6).tolist()        # x = r φ, y = 0, θ = 0, φ = 1
+    [0.1, 0.0, 0.0, 1.0]
+    >>> float(abs(traj.constraint_residual).max()) < 1e-12
+    True
     """
-    call = _Call(model, t_span, q0, qdot0, controller, params, method, rtol, atol, t_eval, dae,
-                 stabilization, baumgarte, max_step, max_steps, singular_tol, outputs, quantities)
+    call = _Call(model=model, t_span=t_span, q0=q0, qdot0=qdot0, controller=controller, params=params,
+                 options=SimulationOptions.from_keywords(options, **keywords))
     resolved = _checked_outputs(call)
     prepared, request = _prepare(call, resolved)
-    route = "IDAS" if dae == "idas" and protocol_of(model).dae_options_apply else method
+    route = "IDAS" if call.options.idas and model.dae_options_apply else call.options.method
     return _assemble(call, request, ROUTES[route](request, route, prepared.settings), prepared)
 
 
@@ -303,11 +245,11 @@ def _checked_outputs(call: _Call):
     """The resolved ``outputs`` (or None) of a valid request; :class:`ModelError` listing every
     problem otherwise."""
     problems = _check_request(call)
-    resolved = None
-    if call.outputs is not None and not problems:
+    resolved, outputs = None, call.options.outputs
+    if outputs is not None and not problems:
         from .closure import resolve_outputs
         try:
-            resolved = resolve_outputs(call.model, tuple(call.outputs), call.quantities)
+            resolved = resolve_outputs(call.model, tuple(outputs), call.options.quantities)
         except ModelError as err:
             problems += list(err.problems)
     if not problems and call.params is not None:
@@ -317,10 +259,9 @@ def _checked_outputs(call: _Call):
     return resolved
 
 
-def _prepare(call: _Call, resolved) -> tuple:
-    """(:class:`_Prepared`, :class:`RunRequest`): the initial state, the segments, the closed
-    loop and the settings of a checked request."""
-    model, controller = call.model, call.controller
+def _prepare(call: _Call, resolved) -> tuple[_Prepared, RunRequest]:
+    """The initial state, the segments, the closed loop and the settings of a checked request."""
+    model, controller, options = call.model, call.controller, call.options
     system, num = model.system, model.numeric
     pv = num.params(call.params)
     t0, tf = float(call.t_span[0]), float(call.t_span[1])
@@ -333,18 +274,18 @@ def _prepare(call: _Call, resolved) -> tuple:
     settings = _settings(call, (t0, tf), len(segments), named_params)
     seeds = None
     if resolved is not None:
-        if call.dae == "idas" or call.stabilization == "projection":
+        if options.idas or options.stabilisation.projects:
             settings["outputs_note"] = "the dependency closure needs the ODE route; every state integrated"
         else:
             seeds = resolved.seeds
-    loop = closed_loop(_integration_model(model, pv, settings), controller, stabilization=call.stabilization,
-                       baumgarte=call.baumgarte, seeds=seeds)
+    loop = closed_loop(_integration_model(model, pv, settings), controller,
+                       stabilisation=options.stabilisation, seeds=seeds)
     y0 = np.zeros(loop.n_y)              # (x_S, W = 0, ∫g = 0)
     y0[:len(loop.state_index)] = x0[list(loop.state_index)]
     seg_params = [loop.segment_params(pv, controller, a) for a, _ in segments]
-    request = RunRequest(loop, controller, segments, y0, seg_params, call.t_eval, call.rtol, call.atol,
-                         call.max_step, call.max_steps, call.singular_tol, call.stabilization, call.baumgarte)
-    te = None if call.t_eval is None else np.asarray(call.t_eval, dtype=float)
+    request = RunRequest(loop=loop, controller=controller, segments=segments, y0=y0, seg_params=seg_params,
+                         options=options)
+    te = None if options.t_eval is None else np.asarray(options.t_eval, dtype=float)
     with_initial = te is None or abs(te[0] - t0) <= 1e-12 * max(1.0, abs(t0))
     return _Prepared(pv, resolved, settings, start, with_initial), request
 
@@ -363,14 +304,11 @@ def _check_first_input(call: _Call, t0: float) -> None:
 
 def _settings(call: _Call, t_span: tuple, n_segments: int, named_params: dict) -> dict:
     """Every option the run uses, as ``Trajectory.settings`` reports them."""
-    stabilization = call.stabilization
-    return {"method": call.method, "dae": call.dae if protocol_of(call.model).dae_options_apply else None,
-            "rtol": call.rtol, "atol": call.atol, "stabilization": stabilization,
-            "baumgarte": tuple(float(v) for v in call.baumgarte) if stabilization == "baumgarte" else None,
-            "max_step": call.max_step, "max_steps": call.max_steps, "t_span": t_span,
-            "segments": n_segments, "params": named_params,
+    options = call.options
+    return {**options.settings(call.model), "t_span": t_span, "segments": n_segments, "params": named_params,
             "controller": None if call.controller is None else type(call.controller).__name__,
-            "singular_tol": call.singular_tol, "outputs": None if call.outputs is None else tuple(call.outputs)}
+            "singular_tol": options.singular_tol,
+            "outputs": None if options.outputs is None else tuple(options.outputs)}
 
 
 #: per compiled model (model.numeric, dropped with it): parameter values → (the model
@@ -385,7 +323,7 @@ def _integration_model(model, pv, settings):
     cached on disk), which leaves far fewer operations per evaluation (the snakeboard's ż: 108
     instead of 313); the DAE forms are integrated as derived. ``settings["specialised"]`` says
     which route was taken."""
-    if not protocol_of(model).specialised_for_integration:
+    if not model.specialised_for_integration:
         return model
 
     def specialised_view():           # one view per model and values: its closed loop is reused
@@ -400,65 +338,83 @@ def _integration_model(model, pv, settings):
 # --------------------------------------------------------------------------------------------
 # routes: one function per integration route, all fed by one RunRequest
 # --------------------------------------------------------------------------------------------
-def _route_scipy(request: RunRequest, method: str, settings: dict) -> tuple:
-    run = integrate_scipy(request, method, projection=request.stabilization == "projection")
-    return run, method, {}
+class Routed(NamedTuple):
+    """What a route returns: the integration ``run``, the name of the method that ran it and
+    ``extra`` diagnostics."""
+
+    run: object
+    method: str
+    extra: dict
 
 
-def _route_cvodes(request: RunRequest, method: str, settings: dict) -> tuple:
-    return integrate_sundials(request, "cvodes"), "CVODES", {}
+def _route_scipy(request: RunRequest, method: str, settings: dict) -> Routed:
+    run = integrate_scipy(request, method, projection=request.options.stabilisation.projects)
+    return Routed(run, method, {})
 
 
-def _route_idas(request: RunRequest, method: str, settings: dict) -> tuple:
+def _route_cvodes(request: RunRequest, method: str, settings: dict) -> Routed:
+    return Routed(integrate_sundials(request, "cvodes"), "CVODES", {})
+
+
+def _route_idas(request: RunRequest, method: str, settings: dict) -> Routed:
     t0 = request.segments[0][0]
     lam0 = _outputs(request.loop, request.controller, None, Samples.point(t0, t0, 0, request.y0),
                     request.seg_params)["lam"][0]
-    return integrate_sundials(request, "idas", lam0), "IDAS", {}
+    return Routed(integrate_sundials(request, "idas", lam0), "IDAS", {})
 
 
-def _route_compiled(request: RunRequest, method: str, settings: dict) -> tuple:
-    """The compiled explicit Runge–Kutta route ("compiled", "compiled-DOPRI5"; "auto" stops on
-    stiffness and switches to an implicit method); scipy DOP853 when no library can be built."""
+def _route_compiled(request: RunRequest, method: str, settings: dict) -> Routed:
+    """The compiled explicit Runge–Kutta route ("compiled", "compiled-DOPRI5"); scipy DOP853
+    when no library can be built."""
+    return _explicit(request, method, settings, stop_on_stiff=False)
+
+
+def _route_auto(request: RunRequest, method: str, settings: dict) -> Routed:
+    """"auto": the compiled DOP853 route stopped on stiffness and redone by an implicit method."""
+    return _explicit(request, method, settings, stop_on_stiff=True)
+
+
+def _explicit(request: RunRequest, method: str, settings: dict, *, stop_on_stiff: bool) -> Routed:
     extra = {}
     scheme = COMPILED_METHODS.get(method, "DOP853")
-    library, reason = _library(request.loop, request.python_inputs, request.stabilization == "projection")
-    auto = method == "auto"
+    projection = request.options.stabilisation.projects
+    library, reason = _library(request.loop, request.python_inputs, projection)
     if library is None:
         settings["fallback"] = f"{reason}; integrated with scipy DOP853"
         if "compiler" in reason:
             warnings.warn(f"method={method!r}: {settings['fallback']}", stacklevel=3)
-        if not auto:
-            return integrate_scipy(request, "DOP853", projection=request.stabilization == "projection"), "DOP853", extra
+        if not stop_on_stiff:
+            return Routed(integrate_scipy(request, "DOP853", projection=projection), "DOP853", extra)
         run = integrate_scipy(request, "DOP853", stop_on_stiff=True)
         if run.message == "stiff":
             return _switch_to_implicit(request, run, settings, extra)
-        return run, "DOP853", extra
+        return Routed(run, "DOP853", extra)
     extra["library"] = library
     extra["compile_time_s"] = library.compile_time_s
-    run = integrate_compiled(request, library, scheme, stop_on_stiff=auto)
-    if auto and run.message == "stiff":
+    run = integrate_compiled(request, library, scheme, stop_on_stiff=stop_on_stiff)
+    if stop_on_stiff and run.message == "stiff":
         extra.pop("library")
         return _switch_to_implicit(request, run, settings, extra)
-    return run, f"compiled {scheme}", extra
+    return Routed(run, f"compiled {scheme}", extra)
 
 
-#: route name → route(request, method, settings) → (Run, method name, extra diagnostics)
+#: route name → route(request, method, settings) → :class:`Routed`
 ROUTES = {**{name: _route_scipy for name in SCIPY_METHODS}, "CVODES": _route_cvodes, "IDAS": _route_idas,
-          **{name: _route_compiled for name in COMPILED_METHODS}, "auto": _route_compiled}
+          **{name: _route_compiled for name in COMPILED_METHODS}, "auto": _route_auto}
 
 
-def _switch_to_implicit(request: RunRequest, run, settings: dict, extra: dict) -> tuple:
+def _switch_to_implicit(request: RunRequest, run, settings: dict, extra: dict) -> Routed:
     implicit = "Radau" if request.python_inputs else "CVODES"
     settings["auto"] = (f"DOP853 detected stiffness at t = {run.t_stiff:.6g} (h|λ| "
                         f"up to {run.h_lambda:.3g} for 15 steps: the step is set by stability) "
                         f"after {run.nfev} evaluations; redone with {implicit}")
-    if implicit == "CVODES":
-        new = integrate_sundials(request, "cvodes")
-    else:
+    if request.python_inputs:
         new = integrate_scipy(request, "Radau")
+    else:
+        new = integrate_sundials(request, "cvodes")
     new.nfev += run.nfev
     new.t_stiff, new.h_lambda = run.t_stiff, run.h_lambda
-    return new, implicit, extra
+    return Routed(new, implicit, extra)
 
 
 def _library(loop, explicit_u, projection=False):
@@ -559,9 +515,9 @@ def _first_nonfinite_row(out: dict) -> int | None:
     return min(rows) if rows else None
 
 
-def _assemble(call: _Call, request: RunRequest, routed: tuple, prepared: _Prepared) -> Trajectory:
+def _assemble(call: _Call, request: RunRequest, routed: Routed, prepared: _Prepared) -> Trajectory:
     """Outputs, diagnosis of a failure, diagnostics → :class:`Trajectory` (``routed``: what the
-    route returned, (Run, method name, extra diagnostics))."""
+    route returned)."""
     run, method_name, extra = routed
     model, loop, segments = call.model, request.loop, request.segments
     library = extra.pop("library", None)
@@ -582,7 +538,7 @@ def _assemble(call: _Call, request: RunRequest, routed: tuple, prepared: _Prepar
         diagnose_failure(model, request, run)
     if run.status == SINGULAR:
         run.message = (f"reached the singular set at t = {run.t_fail:.9g}: singular-set measure "
-                       f"below {request.event_tol:g} ({_singular_text(model)})"
+                       f"below {request.options.singular_tol:g} ({model.singular_set_text()})"
                        + (f"; {run.message}" if run.message else ""))
     energy0 = float(out["energy"][0, 0])
     if prepared.with_initial:          # the points the outputs were evaluated at
@@ -605,7 +561,7 @@ def _trajectory(call: _Call, loop, results: tuple, route: tuple, prepared: _Prep
     work = Y[:, n_xs] if loop.has_work else np.full(N, np.nan)
     energy = out["energy"].ravel()
     lam = None
-    if protocol_of(model).has_multipliers:
+    if model.has_multipliers:
         lam = samples.lam.reshape(N, -1) if samples.lam is not None else out["lam"]
     traj_outputs = _named_outputs(call, prepared, loop, out, Y)
     arrays = dict(t=samples.t, q=out["q"], qdot=out["qdot"], state=Y[:, :n_xs], u=out["u"], lam=lam,
@@ -646,10 +602,6 @@ def _names(model, loop) -> dict:
         input_names=tuple(system.inputs)))
 
 
-def _singular_text(model) -> str:
-    return protocol_of(model).singular_set_text(model)
-
-
 def _diagnostics(model, loop, run, out, extra) -> Diagnostics:
     d = dict(extra)
     d["integrated_states"] = _names(model, loop)["state_names"]
@@ -658,7 +610,7 @@ def _diagnostics(model, loop, run, out, extra) -> Diagnostics:
     if blocks.size("measure"):
         d["min_singular_measure"] = OnRead(min_measure, blocks, "measure")
     d["max_cond_metric"] = OnRead(max_condition, blocks, "metric")
-    if protocol_of(model).has_constraint_gram and blocks.size("gram"):
+    if model.has_constraint_gram and blocks.size("gram"):
         d["max_cond_gram"] = OnRead(max_condition, blocks, "gram")
     if run.status == SINGULAR:
         d["t_event"] = run.t_fail
@@ -674,7 +626,7 @@ def _diagnostics(model, loop, run, out, extra) -> Diagnostics:
 
 
 def _named_outputs(call: _Call, prepared: _Prepared, loop, out, Y) -> dict:
-    resolved, quantities, model = prepared.resolved, call.quantities, call.model
+    resolved, quantities, model = prepared.resolved, call.options.quantities, call.model
     if resolved is None:
         return {}
     from .closure import expand_outputs

@@ -67,10 +67,9 @@ class RunRequest:
 
     loop : the :class:`~.closed_loop.ClosedLoop`; controller : the user's controller or None;
     segments : [(a, b)] intervals between the controller's switch times; y0 : (n_y,) start;
-    seg_params : the loop's parameter vector of each segment; t_eval : output times or None
-    (every accepted step); rtol, atol, max_step, max_steps : the solver settings; event_tol :
-    the singular-set threshold (None or 0: no event); stabilization, baumgarte : the DAE's
-    constraint stabilisation.
+    seg_params : the loop's parameter vector of each segment; options : the run's
+    :class:`~.options.SimulationOptions` (output times, tolerances, step limits, the singular-set
+    threshold — None or 0: no event —, the constraint stabilisation).
     """
 
     loop: object
@@ -78,14 +77,7 @@ class RunRequest:
     segments: list
     y0: np.ndarray
     seg_params: list
-    t_eval: object
-    rtol: float
-    atol: float
-    max_step: float
-    max_steps: int
-    event_tol: float | None
-    stabilization: str | None = None
-    baumgarte: tuple = (1.0, 0.0)
+    options: object             # SimulationOptions
 
     @property
     def python_inputs(self) -> bool:
@@ -221,8 +213,9 @@ def left_of(b: float) -> float:
 
 
 class Fast:
-    """Evaluate a CasADi Function on dense numpy vectors through a FunctionBuffer (~0.5 µs a
-    call instead of ~30 µs). Returns a copy of the first output, flattened column-major."""
+    """Evaluate a CasADi Function on dense numpy vectors through a FunctionBuffer (no per-call
+    conversions: about 60× cheaper a call, docs/benchmarks.md, "Measured numbers behind design
+    choices"). Returns a copy of the first output, flattened column-major."""
 
     def __init__(self, function: ca.Function):
         self._buffer, self._eval = function.buffer()
@@ -427,13 +420,13 @@ class _ScipyTools:
 
     @classmethod
     def build(cls, request: RunRequest, method: str, projection: bool) -> "_ScipyTools":
-        loop = request.loop
+        loop, options = request.loop, request.options
         implicit = method in IMPLICIT_METHODS and not request.python_inputs
         return cls(rhs=Fast(loop.rhs), qdot=Fast(loop.qdot), jac=Fast(loop.jac) if implicit else None,
                    project=Fast(loop.project) if projection else None,
-                   measure=Measure(loop.event) if (loop.event is not None and request.event_tol) else None,
+                   measure=Measure(loop.event) if (loop.event is not None and options.singular_tol) else None,
                    solver_class=SCIPY_METHODS[method],
-                   budget={"left": _EVALS_PER_STEP * request.max_steps + 1000})
+                   budget={"left": _EVALS_PER_STEP * options.max_steps + 1000})
 
     def projector(self, segment: Segment, n_params: int):
         """y ↦ y projected onto the constraints on ``segment``, or None without projection."""
@@ -445,10 +438,10 @@ class _ScipyTools:
     def solver_maker(self, request: RunRequest, segment: Segment, fun):
         """make(t_start, y_start, h) → a scipy solver on ``segment`` from (t_start, y_start),
         first step ``h`` (None: scipy's choice)."""
-        t_hi, p, jac = segment.t_hi, segment.params, self.jac
+        t_hi, p, jac, options = segment.t_hi, segment.params, self.jac, request.options
 
         def make(t_start, y_start, h):
-            opts = dict(rtol=request.rtol, atol=request.atol, max_step=request.max_step)
+            opts = dict(rtol=options.rtol, atol=options.atol, max_step=options.max_step)
             if h is not None:
                 opts["first_step"] = min(h, segment.end - t_start)
             if jac is not None:
@@ -464,7 +457,7 @@ def integrate_scipy(request: RunRequest, method: str, *, projection=False, stop_
     loop, segments = request.loop, request.segments
     tools = _ScipyTools.build(request, method, projection)
     run = Run()
-    grid = _Grid(request.t_eval, segments[0][0])
+    grid = _Grid(request.options.t_eval, segments[0][0])
     y = np.array(request.y0, dtype=float)
     last_h, stiff = None, {"count": 0}
     for segment in request.intervals():
@@ -475,7 +468,7 @@ def integrate_scipy(request: RunRequest, method: str, *, projection=False, stop_
             return run.fail(NONFINITE, segment.start, "", bad=_first_bad(f0))
         make = tools.solver_maker(request, segment, fun)
         project = tools.projector(segment, loop.n_params)
-        watch = None if tools.measure is None else EventWatch(tools.measure, p, request.event_tol)
+        watch = None if tools.measure is None else EventWatch(tools.measure, p, request.options.singular_tol)
         solver, counted = make(segment.start, y, last_h), 0
         g_old = watch.with_rate(y, f0) if watch is not None else None
         while solver.status == "running":
@@ -503,8 +496,9 @@ def integrate_scipy(request: RunRequest, method: str, *, projection=False, stop_
             f_new = getattr(solver, "f", None)        # f(t_new, y_new) of the RK and Radau solvers
             if f_new is not None and _first_bad(f_new) is not None:
                 return run.fail(NONFINITE, t_new, "", bad=_first_bad(f_new))
-            if run.n_steps >= request.max_steps and (solver.status == "running" or j < len(segments) - 1):
-                return run.fail(MAX_STEPS, t_new, f"max_steps = {request.max_steps} reached at t = {t_new:.9g}")
+            max_steps = request.options.max_steps
+            if run.n_steps >= max_steps and (solver.status == "running" or j < len(segments) - 1):
+                return run.fail(MAX_STEPS, t_new, f"max_steps = {max_steps} reached at t = {t_new:.9g}")
             if project is not None and solver.status == "running":
                 run.njev += getattr(solver, "njev", 0)
                 last_h = _next_step(solver)

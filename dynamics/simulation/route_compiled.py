@@ -21,10 +21,12 @@ def integrate_compiled(request: RunRequest, library, scheme: str, *, stop_on_sti
     """Run the compiled integrator (:mod:`.compiled`, the closed loop's ``library``) interval by
     interval with the explicit Runge–Kutta ``scheme`` ("DOP853" or "DOPRI5"); the outputs of
     each C call are kept as arrays (no per-step Python)."""
-    segments, event_tol = request.segments, request.event_tol
+    options = request.options
+    segments, event_tol = request.segments, options.singular_tol
     run = Run()
-    te = None if request.t_eval is None else np.ascontiguousarray(request.t_eval, dtype=float)
-    state = RunState.start(segments[0][0], (request.rtol, request.atol), (request.max_step, request.max_steps),
+    te = None if options.t_eval is None else np.ascontiguousarray(options.t_eval, dtype=float)
+    state = RunState.start(segments[0][0], (options.rtol, options.atol),
+                           (options.max_step, options.max_steps),
                            event_tol if (event_tol and library.has_event) else 0.0, stop_on_stiff)
     state.set("i_eval", grid_start(te, segments[0][0]))
     y = np.ascontiguousarray(request.y0, dtype=float).copy()
@@ -51,7 +53,7 @@ def integrate_compiled(request: RunRequest, library, scheme: str, *, stop_on_sti
         if code != 0:
             break
     _count_compiled(run, state)
-    return _compiled_outcome(run, state, code, (te, segment, y), request.max_steps)
+    return _compiled_outcome(run, state, code, (te, segment, y), options.max_steps)
 
 
 def _count_compiled(run: Run, state) -> None:

@@ -65,20 +65,20 @@ def integrate_sundials(request: RunRequest, kind: str, lam0=None) -> Run:
     :data:`_CHUNK` output points per call; the event is checked at the outputs. For CVODES a
     step size below 10⁻¹³·max(1, |t|) is a failure (it would otherwise spend ``max_steps``
     steps going nowhere next to a singularity)."""
-    loop, segments = request.loop, request.segments
-    te = None if request.t_eval is None else np.asarray(request.t_eval, dtype=float)
+    loop, segments, options = request.loop, request.segments, request.options
+    te = None if options.t_eval is None else np.asarray(options.t_eval, dtype=float)
     run = Run(with_lam=kind == "idas")
     y, lam = np.array(request.y0, dtype=float), None if lam0 is None else np.array(lam0, dtype=float)
     t_max = max(abs(segments[0][0]), abs(segments[-1][1]), 1.0)
-    opts = {"abstol": request.atol, "reltol": request.rtol, "max_num_steps": int(request.max_steps),
+    opts = {"abstol": options.atol, "reltol": options.rtol, "max_num_steps": int(options.max_steps),
             "print_stats": False, "show_eval_warnings": False, "disable_internal_warnings": True}
     if kind == "idas":
         opts.update(calc_ic=True, suppress_algebraic=True)
-        problem = loop.dae(request.stabilization, request.baumgarte)
+        problem = loop.dae()
     else:
         opts["min_step_size"] = 1e-13 * t_max        # CVODES only (IDAS has no such option)
         problem = _cvodes_problem(loop)
-    measure = Measure(loop.event) if (loop.event is not None and request.event_tol) else None
+    measure = Measure(loop.event) if (loop.event is not None and options.singular_tol) else None
     for segment in request.intervals():
         a, b = segment.start, segment.end
         tol = 1e-12 * max(1.0, abs(b))
@@ -87,9 +87,9 @@ def integrate_sundials(request: RunRequest, kind: str, lam0=None) -> Run:
         if not grid or grid[-1] < b:
             grid.append(b)
         names = dict(zip(grid, wanted)) if te is not None else {b: b}
-        watch = None if measure is None else EventWatch(measure, segment.params, request.event_tol)
+        watch = None if measure is None else EventWatch(measure, segment.params, options.singular_tol)
         call = _SundialsCall(kind, problem, opts, np.r_[segment.params, segment.t_hi], segment, watch,
-                             request.max_steps)
+                             options.max_steps)
         start = _Start(a, y, lam)
         for c in range(0, len(grid), _CHUNK):
             chunk = grid[c:c + _CHUNK]

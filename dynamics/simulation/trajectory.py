@@ -49,6 +49,21 @@ class Trajectory:
         ``stiff_at``/``h_lambda_max``/``recommendation`` (explicit methods),
         ``integrated_states``, ``state_count``, ``t_event``, ``compile_time_s``.
     outputs : name → (N,) for the run's requested outputs (empty without ``outputs``).
+
+    Examples
+    --------
+    The Chaplygin sleigh pushed straight ahead at 1 m/s keeps going (no force acts; its
+    energy stays what it was):
+
+    >>> from nhgait.dynamics import derive, simulate
+    >>> traj = simulate(derive("chaplygin_sleigh"), (0.0, 2.0), [0, 0, 0], [1.0, 0, 0],
+    ...                 t_eval=[0.0, 1.0, 2.0])
+    >>> traj.coordinates, traj.q.shape
+    (('x', 'y', 'theta'), (3, 3))
+    >>> traj.q[:, 0].round(12).tolist(), traj.status          # x = v t
+    ([0.0, 1.0, 2.0], 0)
+    >>> float(abs(traj.energy_balance).max()) < 1e-12, traj.lam is None   # reduced ODE: no λ
+    (True, True)
     """
 
     t: np.ndarray

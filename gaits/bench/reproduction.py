@@ -27,7 +27,6 @@ from pathlib import Path
 
 import numpy as np
 
-from nhgait.dynamics.derivation.formulation_protocol import protocol_named
 from nhgait.dynamics.derivation.formulations import FORMULATIONS
 from nhgait.dynamics.derivation.states import constraint_residual
 from nhgait.dynamics.simulation.controllers import snakeboard_pd, unicycle_pd
@@ -83,7 +82,7 @@ def run_case(name, *, rtol=1e-10, formulations=FORMULATIONS, idas=True, params=N
         model = derive(system, formulation)
         if q0 is None:
             q0, qdot0 = thesis_initial_state(model, controller, params)
-        routes = ("index1", "idas") if idas and protocol_named(formulation).dae_options_apply else ("index1",)
+        routes = ("index1", "idas") if idas and model.dae_options_apply else ("index1",)
         for dae in routes:
             label = formulation if dae == "index1" else f"{formulation}/idas"
             runs[label] = simulate(model, (0.0, t_final), q0, qdot0, controller=controller,

@@ -52,14 +52,10 @@ class Setup:
         return f"{self.formulation}/{route}{extra}"
 
     def options(self) -> dict:
-        from nhgait.dynamics.derivation.formulation_protocol import protocol_named
+        from nhgait.dynamics.derivation.formulations import formulation_type
         opts = {"method": self.method}
-        if protocol_named(self.formulation).dae_options_apply:
-            opts["dae"] = self.dae
-            if self.stabilization:
-                opts["stabilization"] = self.stabilization
-                if self.stabilization == "baumgarte":
-                    opts["baumgarte"] = self.baumgarte
+        if formulation_type(self.formulation).dae_options_apply:   # baumgarte is read only with its law
+            opts.update(dae=self.dae, stabilization=self.stabilization, baumgarte=self.baumgarte)
         return opts
 
 
@@ -112,11 +108,11 @@ def default_setups(formulations=("reduced", "lagrange", "hamilton"),
                    methods=("RK45", "DOP853", "Radau", "LSODA", "CVODES", "compiled"),
                    idas=True) -> list:
     """Every formulation × method, plus IDAS for the DAE forms."""
-    from nhgait.dynamics.derivation.formulation_protocol import protocol_named
+    from nhgait.dynamics.derivation.formulations import formulation_type
     setups = [Setup(f, m) for f in formulations for m in methods]
     if idas:
         setups += [Setup(f, "DOP853", dae="idas") for f in formulations
-                   if protocol_named(f).dae_options_apply]
+                   if formulation_type(f).dae_options_apply]
     return setups
 
 

@@ -4,6 +4,7 @@
     nhgait simulate <scene.toml | built-in> ...    (gaits/cli_simulate.py)
     nhgait reproduce [--out DIR] ...               (gaits/cli_reproduce.py)
     nhgait plan <system> ... --out DIR             (gaits/cli_plan.py)
+    nhgait track <system> --mismatch ... --out DIR (gaits/cli/track.py)
 
 Exit status: 0 success; 1 the job ran but did not succeed (an integration that stopped early,
 an optimisation that did not converge or was not verified); 2 bad input — one message listing
@@ -35,6 +36,7 @@ SUBCOMMANDS = (
     ("nhgait.gaits.cli.plan", "add_plan_parser"),
     ("nhgait.gaits.cli.sweep", "add_sweep_parser"),
     ("nhgait.gaits.cli.linearize", "add_linearize_parser"),
+    ("nhgait.gaits.cli.track", "add_track_parser"),
 )
 
 
@@ -53,7 +55,7 @@ def main(argv=None) -> int:
     (``argv`` None: the ``nhgait`` command), a stop by SIGINT/SIGTERM ends the process as soon
     as its cleanup is done (:func:`~.stopping.exit_now`); called with ``argv`` it returns."""
     from nhgait.dynamics.errors import ModelError
-    from .stopping import exit_now, stop_signals
+    from .stopping import cancel_background_builds, exit_now, stop_signals
     parser = build_parser()
     args = parser.parse_args(argv)
     stopped = (lambda status: status) if argv is not None else exit_now
@@ -70,9 +72,11 @@ def main(argv=None) -> int:
                 raise stop.exception()
             return status
     except KeyboardInterrupt:
+        cancel_background_builds()
         print("nhgait: interrupted", file=sys.stderr)
         return stopped(130)
     except Terminated:
+        cancel_background_builds()
         print("nhgait: terminated", file=sys.stderr)
         return stopped(143)
     except ModelError as exc:            # bad input (ProblemError and BridgeError included)

@@ -109,7 +109,6 @@ def _run(args, scene) -> tuple:
     """(model, Trajectory, the outputs asked for) of the scene's [simulation], the command
     line's options first."""
     from nhgait.dynamics import derive, simulate  # functions via the lazy exports
-    from nhgait.dynamics.derivation.formulation_protocol import protocol_named
     from nhgait.dynamics.errors import ModelError
     spec = scene.simulation
     if spec is None:
@@ -120,7 +119,7 @@ def _run(args, scene) -> tuple:
     rtol = args.rtol if args.rtol is not None else (spec.rtol or 1e-8)
     atol = args.atol if args.atol is not None else (spec.atol or rtol * 1e-2)
     outputs = None if args.all_states else spec.outputs
-    kwargs = {"dae": args.dae} if protocol_named(form).dae_options_apply else {}
+    kwargs = {"dae": args.dae} if model.dae_options_apply else {}
     method = args.method or spec.method or "DOP853"
     common = dict(controller=spec.controller, params=spec.parameters or None, method=method, rtol=rtol, atol=atol,
                   outputs=outputs, quantities=scene.quantities or None, **kwargs)

@@ -6,7 +6,8 @@
   KeyboardInterrupt (exit 130; left ignored when the shell started us with it ignored, as a
   background job): they unwind like any exception, so a running C compiler is killed and its
   files removed (:mod:`nhgait.dynamics.numerics.compiler`), supervised solver processes are killed
-  (:mod:`nhgait.ocp.supervision`), a half-written cache entry or output file is removed.
+  (:mod:`nhgait.ocp.supervision`), a half-written cache entry or output file is removed, and
+  the optimised builds started in the background are cancelled (:func:`cancel_background_builds`).
 * **A stop is remembered** (:class:`Stop`): the handler's exception can be replaced on its
   way up — raised inside CasADi's argument conversion, SWIG's overload dispatch answers
   "Wrong number or type of arguments" (a ``NotImplementedError``) — so the command line turns
@@ -38,9 +39,10 @@ import sys
 import threading
 from contextlib import contextmanager
 
-from nhgait.dynamics.errors import Terminated
+from nhgait.dynamics.errors import Terminated, clear_stops, note_stop
 
-__all__ = ["stop_signals", "Stop", "exit_now", "FORCE_AFTER_S", "EXIT_STATUS", "MESSAGES"]
+__all__ = ["stop_signals", "Stop", "exit_now", "cancel_background_builds", "FORCE_AFTER_S", "EXIT_STATUS",
+           "MESSAGES"]
 
 #: how long after a stop signal the watchdog ends a process that is still running (s)
 FORCE_AFTER_S = 1.5
@@ -63,6 +65,7 @@ class Stop:
 
     def handler(self, signum, frame):
         self.signal = signum
+        note_stop(signum)
         raise self.exception()
 
 
@@ -86,6 +89,7 @@ def stop_signals():
         yield stop
     finally:
         done.set()                 # the stop came to its end here: nothing to force
+        clear_stops()
         signal.set_wakeup_fd(old_fd)
         for signum, handler in previous.items():
             signal.signal(signum, handler)
@@ -141,6 +145,15 @@ def _kill_descendants() -> None:
             os.kill(pid, signal.SIGKILL)
         except OSError:
             continue
+
+
+def cancel_background_builds() -> int:
+    """Stop the optimised builds this process started in the background
+    (:mod:`nhgait.dynamics.numerics.background`): a stopped command leaves no compiler running
+    and no build folder (a command that ends normally leaves them to finish into the cache).
+    How many were running."""
+    background = sys.modules.get("nhgait.dynamics.numerics.background")
+    return background.BUILDERS.cancel() if background is not None else 0
 
 
 def exit_now(status: int) -> int:

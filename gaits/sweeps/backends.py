@@ -37,8 +37,8 @@ from multiprocessing.connection import wait
 
 from nhgait.ocp import ProblemError
 
-__all__ = ["WorkerDied", "SerialBackend", "ProcessPool", "DaskBackend", "make_backend", "default_workers",
-           "dask_available", "warm_up", "import_modules"]
+__all__ = ["WorkerDied", "SerialBackend", "ProcessPool", "DaskBackend", "make_backend", "backend_problems",
+           "default_workers", "dask_available", "warm_up", "import_modules"]
 
 
 class WorkerDied(RuntimeError):
@@ -360,17 +360,24 @@ class DaskBackend(_Backend):
             self.cluster.close()
 
 
+def backend_problems(scheduler: str | None = None, workers: int | None = None) -> list:
+    """What is wrong with a ``--scheduler``/``--workers`` request (checked before any work)."""
+    if scheduler and workers:
+        return ["give either --scheduler or --workers: a Dask cluster has its own workers"]
+    if not scheduler and workers is not None and workers < 0:
+        return [f"--workers must be ≥ 0, got {workers}"]
+    return []
+
+
 def make_backend(scheduler: str | None = None, workers: int | None = None):
     """The back end for ``--scheduler``/``--workers``: a Dask client when a scheduler is
     given, else the local process pool (``workers`` None: one per core; 0: serial, in this
     process)."""
+    problems = backend_problems(scheduler, workers)
+    if problems:
+        raise ProblemError(problems, title="invalid back end")
     if scheduler:
-        if workers:
-            raise ProblemError(["give either --scheduler or --workers: a Dask cluster has its own workers"],
-                               title="invalid back end")
         return DaskBackend(scheduler)
-    if workers is not None and workers < 0:
-        raise ProblemError([f"--workers must be ≥ 0, got {workers}"], title="invalid back end")
     if workers == 0:
         return SerialBackend()
     return ProcessPool(workers)

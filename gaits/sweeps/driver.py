@@ -321,8 +321,10 @@ class _Run:
         self.counts["now"] += 1
         if self.progress is not None:
             c = self.counts
-            self.progress(Progress(len(self.done), self.grid.size, c["ok"], c["failed"], len(self.in_flight),
-                                   c["retried"], time.perf_counter() - self.t_start, c["now"], record))
+            self.progress(Progress(finished=len(self.done), total=self.grid.size, succeeded=c["ok"],
+                                   failed=c["failed"], running=len(self.in_flight), retried=c["retried"],
+                                   elapsed_s=time.perf_counter() - self.t_start, solved_now=c["now"],
+                                   last=record))
 
     def _record(self, point, job, answer, attempts) -> PointRecord:
         if "input_error" in answer:
@@ -366,9 +368,11 @@ def run_sweep(case: SweepCase, grid: Grid, backend, store: SweepStore,
             run.finish(future)
     for future in warming:
         future.cancel()
-    return SweepResult(store.directory, grid, case.describe(), tuple(store.records()), run.counts["now"],
-                       run.counts["retried"], time.perf_counter() - run.t_start,
-                       backend.describe() if hasattr(backend, "describe") else "", dict(case.units))
+    return SweepResult(directory=store.directory, grid=grid, case=case.describe(),
+                       records=tuple(store.records()), solved_now=run.counts["now"],
+                       retried=run.counts["retried"], wall_time_s=time.perf_counter() - run.t_start,
+                       backend=backend.describe() if hasattr(backend, "describe") else "",
+                       units=dict(case.units))
 
 
 def sweep(system, task=None, grid=(), *, out, overrides=(), params=None, scheduler: str | None = None,
@@ -394,6 +398,21 @@ def sweep(system, task=None, grid=(), *, out, overrides=(), params=None, schedul
     progress : callback receiving a :class:`Progress` after each point
     chain : points per back-end task down the continuation tree (None: the back end's choice;
         1 for the local pool, 4 for Dask)
+
+    Examples
+    --------
+    The unicycle's parallel park for two sideways shifts, solved in this process
+    (``workers=0``); the longer shift costs more effort:
+
+    >>> import tempfile
+    >>> from nhgait.gaits import sweep
+    >>> with tempfile.TemporaryDirectory() as out:
+    ...     result = sweep("unicycle", "parallel-park", ["final.y=0.3:0.5:2"], out=out, workers=0,
+    ...                    options={"jit": False})
+    >>> [(r.axis_values["final.y"], r.success) for r in result.records]
+    [(0.3, True), (0.5, True)]
+    >>> bool(result.records[0].objective < result.records[1].objective)
+    True
     """
     from ..outputs import output_directory, output_lock
     out = output_directory(out)                     # before any derivation: exit 2 for a bad location

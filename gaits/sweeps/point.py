@@ -33,7 +33,7 @@ from nhgait.ocp import ProblemError
 
 from .grid import GridPoint
 
-__all__ = ["SceneData", "SweepCase", "PointJob", "point_task", "solve_point", "describe_case", "warm_data",
+__all__ = ["SceneData", "SweepCase", "PointJob", "point_task", "solve_point", "describe_case", "warm_data", "scene_of",
            "prepare_worker", "WARM_IPOPT"]
 
 
@@ -205,7 +205,7 @@ def _scene_data(system) -> SceneData:
     return SceneData(f"built-in scene {system}", builtin=str(system))
 
 
-def _scene(data: SceneData):
+def scene_of(data: SceneData):
     """What the planner's ``resolve`` takes: the built-in name, or the Scene parsed from the text."""
     if data.builtin is not None:
         return data.builtin
@@ -220,7 +220,7 @@ def describe_case(system, task=None, *, overrides=(), params=None, options=None)
     from nhgait.dynamics import derive
     from ..task_library import resolve
     data = _scene_data(system)
-    resolved = resolve(_scene(data), task, overrides=overrides)
+    resolved = resolve(scene_of(data), task, overrides=overrides)
     sys_ = resolved.scene.system
     problems = sys_.parameter_problems(dict(params), label="params") if params else []
     if problems:
@@ -249,7 +249,7 @@ def check_case(case: SweepCase, job: PointJob) -> None:
     once by the driver on the centre point, so bad input stops the sweep before it starts)."""
     from ..planner import prepare
     from ..task_library import resolve
-    prepare(resolve(_scene(case.scene), job.task), params=job.params)
+    prepare(resolve(scene_of(case.scene), job.task), params=job.params)
 
 
 #: this worker process's built solvers by structure (scene, parameters, task shape, options):
@@ -292,7 +292,7 @@ def _solver_for(job: PointJob, *, warm: bool = False):
     from ..time_limits import attempt_limited
     from ..task_library import resolve
     case = job.case
-    resolved = resolve(_scene(case.scene), job.task)
+    resolved = resolve(scene_of(case.scene), job.task)
     warm = warm and case.options.get("solver", "ipopt") == "ipopt"
     key = (case.scene.sha256, tuple(sorted(job.params.items())), _structure(job.task),
            tuple(sorted(case.options.items())), warm)
@@ -343,7 +343,8 @@ def _plan_point(job: PointJob) -> dict:
 
 def _solve_within(job: PointJob, budget, reached: dict) -> dict:
     from ..guesses import candidates
-    from ..planner import unsolved, verified_gait, warm_start
+    from ..gait_check import unsolved, verified_gait
+    from ..planner import warm_start
     from ..search import solve_attempts, solve_with_fallbacks
     solution = None
     if job.warm is not None:

@@ -42,7 +42,7 @@ from __future__ import annotations
 import dataclasses
 import time
 
-from ..symbolic import NotRational, WorkBudgetExceeded
+from ...algebra.ring import NotRational, WorkBudgetExceeded
 from ..system import System
 from .model import ImplicitForm, ReducedODE, casadi_text, classify, singular_set
 from .pipeline import StepsRun, arithmetic_for, run_steps

@@ -4,7 +4,7 @@ The steps (``connection``, ``legendre``, ``poisson``, ``equations``) never call 
 directly for their algebra: they combine *elements* (scalars) and *matrices* (lists of rows of
 elements) through the methods below. A back end decides what an element is:
 
-* :class:`~nhgait.dynamics.derivation.symbolic.FracField` — exact fractions of one sparse polynomial ring
+* :class:`~nhgait.dynamics.algebra.fraction_field.FracField` — exact fractions of one sparse polynomial ring
   over ℚ (sin/cos of each angle as generators, sin² → 1 − cos²; time factors of the forces
   such as sin(2.5t) or exp(−t) as further generators): the explicit form, canonical and fast
   for rational trigonometric systems;
@@ -24,11 +24,13 @@ from __future__ import annotations
 import sympy as sp
 
 from ...errors import ModelError
-from ..symbolic import FracField, MatrixOps, as_sympy, tidy
+from ...algebra.fraction_field import FracField, as_sympy
+from ...algebra.matrix_ops import MatrixOps
+from ...algebra.trig import tidy
 
 
 class SympyArithmetic(MatrixOps):
-    """Elements are sympy expressions; ``normal`` is :func:`~nhgait.dynamics.derivation.symbolic.tidy`."""
+    """Elements are sympy expressions; ``normal`` is :func:`~nhgait.dynamics.algebra.trig.tidy`."""
 
     kind = "sympy"
 
@@ -89,6 +91,7 @@ class CasadiArithmetic(MatrixOps):
     """
 
     kind = "casadi"
+    symbolic = False
 
     def __init__(self, exprs=(), symbols=(), angles=()):
         import casadi as ca
@@ -212,56 +215,10 @@ class CasadiArithmetic(MatrixOps):
         return self._rows(-ca.mtimes([self._sx(Ainv), dA, self._sx(Ainv)]))
 
     def solve(self, A, B, what="matrix"):
-        """A⁻¹B without forming an inverse: Gaussian elimination on the entries of A that are
-        nonzero constants (they never vanish, so this adds no singular point; sparse rows keep
-        the cost near the number of nonzeros), then one symbolic QR solve of the remaining
-        Schur complement, then back-substitution."""
-        ca = self.ca
-        k = len(A)
-        M = [list(r) for r in A]
-        R = [list(r) for r in B]
-        rows, cols, pivots = set(range(k)), set(range(k)), []
-        while True:
-            best = None
-            for r in rows:
-                nnz_r = sum(1 for c in cols if not M[r][c].is_zero())
-                for c in cols:
-                    e = M[r][c]
-                    if e.is_constant() and not e.is_zero():
-                        nnz_c = sum(1 for r2 in rows if not M[r2][c].is_zero())
-                        cost = (nnz_r - 1) * (nnz_c - 1)
-                        if best is None or cost < best[0]:
-                            best = (cost, r, c)
-            if best is None:
-                break
-            _, r, c = best
-            rows.discard(r)
-            cols.discard(c)
-            pivots.append((r, c))
-            for r2 in rows:
-                if not M[r2][c].is_zero():
-                    f = M[r2][c] / M[r][c]
-                    M[r2] = [x - f * y if not y.is_zero() else x for x, y in zip(M[r2], M[r])]
-                    M[r2][c] = ca.SX(0)
-                    R[r2] = [x - f * y for x, y in zip(R[r2], R[r])]
-        m = len(B[0]) if B else 0
-        X = {}
-        if rows:
-            rr, cc = sorted(rows), sorted(cols)
-            S = ca.SX(len(rr), len(cc))
-            rhs = ca.SX(len(rr), m)
-            for i, r in enumerate(rr):
-                for j, c in enumerate(cc):
-                    S[i, j] = M[r][c]
-                for j in range(m):
-                    rhs[i, j] = R[r][j]
-            sol = ca.solve(S, rhs)
-            for j, c in enumerate(cc):
-                X[c] = [sol[j, t] for t in range(m)]
-        for r, c in reversed(pivots):
-            X[c] = [(R[r][t] - self.add_many([M[r][j] * X[j][t] for j in X if j != c and not M[r][j].is_zero()]))
-                    / M[r][c] for t in range(m)]
-        return [X[c] for c in range(k)]
+        """A⁻¹B without forming an inverse (:func:`~nhgait.dynamics.numerics.linsolve.solve_rows`:
+        elimination on the constant nonzero entries of A, QR of the rest)."""
+        from ...numerics.linsolve import solve_rows
+        return solve_rows(A, B)
 
     def show(self, A, rows=None, cols=None):
         """An SX matrix (printed by CasADi with shared subexpressions)."""
@@ -283,6 +240,17 @@ class CasadiArithmetic(MatrixOps):
     def column(self, values):
         return self.ca.vertcat(*values) if values else self.ca.SX(0, 1)
 
+    def square(self, rows):
+        ca = self.ca
+        return ca.vertcat(*[ca.horzcat(*r) for r in rows]) if rows else ca.SX(0, 0)
+
+    def zero_block(self, rows, cols):
+        return self.ca.SX(rows, cols)
+
+    def blocks(self, rows):
+        ca = self.ca
+        return ca.vertcat(*[ca.horzcat(*r) for r in rows])
+
 
 def _prod(arith, variables):
     out = arith.one
@@ -291,14 +259,28 @@ def _prod(arith, variables):
     return out
 
 
+def _ring(exprs, symbols, angles, time, budget):
+    return FracField(exprs, symbols=symbols, angles=angles, time=time, budget=budget)
+
+
+def _sympy(exprs, symbols, angles, time, budget):
+    return SympyArithmetic()
+
+
+def _casadi(exprs, symbols, angles, time, budget):
+    return CasadiArithmetic()
+
+
+#: back-end name → its constructor (exprs, symbols, angles, time, budget)
+ARITHMETICS = {"ring": _ring, "sympy": _sympy, "casadi": _casadi}
+
+
 def make_arithmetic(kind: str, exprs, symbols, angles, time=(), budget=None):
-    """The back end ``kind`` ("ring", "sympy" or "casadi") for one derivation; ``time``: the
-    symbols the steps carry along but never differentiate (t, see :class:`FracField`);
-    ``budget``: the ring's work budget (None: no limit)."""
-    if kind == "ring":
-        return FracField(exprs, symbols=symbols, angles=angles, time=time, budget=budget)
-    if kind == "sympy":
-        return SympyArithmetic()
-    if kind == "casadi":
-        return CasadiArithmetic()
-    raise ModelError([f"internal: unknown arithmetic {kind!r}"])
+    """The back end ``kind`` (a key of :data:`ARITHMETICS`: "ring", "sympy" or "casadi") for one
+    derivation; ``time``: the symbols the steps carry along but never differentiate (t, see
+    :class:`FracField`); ``budget``: the ring's work budget (None: no limit)."""
+    try:
+        make = ARITHMETICS[kind]
+    except KeyError:
+        raise ModelError([f"internal: unknown arithmetic {kind!r}"]) from None
+    return make(exprs, symbols, angles, time, budget)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields
 
-from ..steps import Step
+from ..steps import Step, Stepped
 
 
 @dataclass(frozen=True, eq=False)
@@ -101,7 +101,7 @@ def _shape_column(arith, layout, lift: _LiftMatrices, pivot_solution, alpha):
     return [arith.normal(x) for x in column]
 
 
-def reconstruction(arith, layout, symbols) -> tuple[Step, Reconstruction]:
+def reconstruction(arith, layout, symbols) -> Stepped:
     """Step 5 (eqs. 2.47, 3.10–3.13, 3.36, 3.71): solve ω_s ṡ + ω_r ṙ = 0 with the momentum
     definition for ṡ = −A_q ṙ + Γ_q p; A = g⁻¹A_q, Γ = g⁻¹Γ_q = g⁻¹N K_Ω⁻¹. The pivot block B
     of ω_b is solved against the free shape columns (``arith.solve``: a linear solve in the
@@ -140,10 +140,10 @@ def reconstruction(arith, layout, symbols) -> tuple[Step, Reconstruction]:
         "Gamma": arith.show(Gamma, l, d), "xi": arith.show(xi, l, 1)},
         "Solve ω_s ṡ + ω_r ṙ = 0 with the momentum definition for ṡ; ξ = g⁻¹ṡ.",
         labels={"xi_body": "g^-1 s_dot", "A": "A(r)", "Gamma": "Gamma(r)", "xi": "xi = -A r_dot + Gamma p"})
-    return step, result
+    return Stepped(step, result)
 
 
-def body_basis(arith, layout, symbols, reconstruction: Reconstruction) -> tuple[Step, list]:
+def body_basis(arith, layout, symbols, reconstruction: Reconstruction) -> Stepped:
     """Step 6 (eqs. 3.14–3.15, 3.37–3.38, 3.72–3.73): e = g⁻¹N, Ω = K_Ω⁻¹p, so Γp = eΩ and
     ξ = −Aṙ + eΩ on the constraints."""
     l, d, m = len(layout.si), layout.d, len(layout.free)
@@ -151,21 +151,23 @@ def body_basis(arith, layout, symbols, reconstruction: Reconstruction) -> tuple[
     xi_c = arith.madd(arith.mneg(arith.matmul(reconstruction.A, rdot, normal=False)) if m else arith.zeros(l, 1),
                   arith.matmul(reconstruction.e, arith.vec(symbols.Om), normal=False) if d else arith.zeros(l, 1))
     Omega = arith.matmul(reconstruction.K_nh_inv, arith.vec(symbols.P_nh)) if d else []
-    return Step(6, "Body-fixed basis e and Ω", "§3.2.2 (5), eqs. 3.14–3.15, 3.37–3.38, 3.72–3.73", {
+    step = Step(6, "Body-fixed basis e and Ω", "§3.2.2 (5), eqs. 3.14–3.15, 3.37–3.38, 3.72–3.73", {
         "e": arith.show(reconstruction.e, l, d), "Omega": arith.show(Omega, d, 1), "xi": arith.show(xi_c, l, 1)}, "Γ(r)p = eΩ.",
-        labels={"e": "e = g^-1 xi_Q", "Omega": "Omega = K_Omega^-1 p", "xi": "xi = -A r_dot + e Omega"}), xi_c
+        labels={"e": "e = g^-1 xi_Q", "Omega": "Omega = K_Omega^-1 p", "xi": "xi = -A r_dot + e Omega"})
+    return Stepped(step, xi_c)
 
 
-def reduced_lagrangian(arith, layout, symbols) -> tuple[Step, object]:
+def reduced_lagrangian(arith, layout, symbols) -> Stepped:
     """Step 7 (eqs. 3.16, 3.74): l(r, ṙ, ξ) = L with ṡ = gξ."""
     qd = layout.system.q_dot
     sdot = arith.matmul(arith.mat(layout.g), arith.vec(symbols.xi), normal=False)
     l_red = arith.normal(arith.subs(arith.frac(layout.system.L), {arith.sub_key(qd[i]): sdot[a][0] for a, i in enumerate(layout.si)}))
-    return Step(7, "Reduced Lagrangian l(r, ṙ, ξ)", "§3.2.2 (6), eqs. 3.16, 3.74",
-                {"l": arith.expr(l_red)}, "L with ṡ = gξ."), l_red
+    step = Step(7, "Reduced Lagrangian l(r, ṙ, ξ)", "§3.2.2 (6), eqs. 3.16, 3.74",
+                {"l": arith.expr(l_red)}, "L with ṡ = gξ.")
+    return Stepped(step, l_red)
 
 
-def constrained_lagrangian(arith, layout, symbols, reconstruction: Reconstruction) -> tuple[Step, list]:
+def constrained_lagrangian(arith, layout, symbols, reconstruction: Reconstruction) -> Stepped:
     """Step 8 (eqs. 3.17, 3.75): l_c(r, ṙ, Ω) = ½vᵀKv − V with v = (Ω, ṙ) and K = XᵀMX,
     block-diagonal (K_Ω, K_r): no Ω–ṙ cross terms."""
     d, m = layout.d, len(layout.free)
@@ -174,6 +176,7 @@ def constrained_lagrangian(arith, layout, symbols, reconstruction: Reconstructio
     K_r = arith.matmul(arith.matmul(arith.T(Xr), M, normal=False), Xr) if m else []
     K = arith.block_diag(reconstruction.K_nh, K_r)
     l_c = arith.quadratic(K, symbols.v, half=True) - arith.value(layout.V)
-    return Step(8, "Reduced constrained Lagrangian l_c(r, ṙ, Ω)", "§3.2.2 (7), eqs. 3.17, 3.75",
+    step = Step(8, "Reduced constrained Lagrangian l_c(r, ṙ, Ω)", "§3.2.2 (7), eqs. 3.17, 3.75",
                 {"l_c": l_c, "K": arith.show(K, d + m, d + m)}, "l with ξ = −Aṙ + eΩ; no Ω–ṙ cross terms.",
-                labels={"K": "K = X^T M X"}), K
+                labels={"K": "K = X^T M X"})
+    return Stepped(step, K)

@@ -17,7 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ...errors import ModelError
-from ..steps import Step
+from ..steps import Step, Stepped
 
 
 @dataclass(frozen=True, eq=False)
@@ -39,12 +39,12 @@ class MomentumEquations:
     xi_coef: list
 
 
-def gradient(arith, layout, symbols, connection, Kinv) -> tuple[Step, HamiltonianGradient]:
+def gradient(arith, layout, symbols, connection, Kinv) -> Stepped:
     """Step 18 (eqs. 3.32, 3.49, 3.92): ∇h = (0, ∂h/∂P, ∂h/∂r, ∂h/∂P̃); ∂h/∂s = 0 by symmetry
     (checked exactly by the explicit back ends)."""
     q, nP = layout.system.q, len(symbols.P)
     V = arith.frac(layout.V)
-    if arith.kind != "casadi":
+    if arith.symbolic:
         for i in layout.si:
             if any(not arith.is_zero(arith.normal(arith.diff(e, q[i]))) for r in connection.K for e in r) or \
                     not arith.is_zero(arith.normal(arith.diff(V, q[i]))):
@@ -59,10 +59,11 @@ def gradient(arith, layout, symbols, connection, Kinv) -> tuple[Step, Hamiltonia
     shown = [arith.quadratic(quad[i], symbols.P, half=True) + arith.expr(dV[i]) if i in quad else arith.expr(dV[i])
              for i in layout.ri]
     dh_dP = [arith.form([(Kinv[a][b], [symbols.P[b]]) for b in range(nP)]) for a in range(nP)]
-    return Step(18, "Gradient of h", "§3.2.5, eqs. 3.32, 3.49, 3.92",
+    step = Step(18, "Gradient of h", "§3.2.5, eqs. 3.32, 3.49, 3.92",
                 {"dh_dP": arith.column(dh_dP), "dh_dr": arith.column(shown)}, "∂h/∂s = 0 by symmetry.",
                 labels={"dh_dP": "dh/d(" + ", ".join(map(str, symbols.P)) + ")",
-                        "dh_dr": "dh/d(" + ", ".join(layout.shape) + ")"}), HamiltonianGradient(quad=quad, dV=dV)
+                        "dh_dr": "dh/d(" + ", ".join(layout.shape) + ")"})
+    return Stepped(step, HamiltonianGradient(quad=quad, dV=dV))
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,7 +144,7 @@ def _forces(arith, layout, symbols, connection, XKinv):
     return out
 
 
-def equations(arith, layout, symbols, inputs: MomentumInputs) -> tuple[Step, MomentumEquations]:
+def equations(arith, layout, symbols, inputs: MomentumInputs) -> Stepped:
     """Step 19 (eqs. 3.33, 3.50, 3.93): (ξ, Ṗ, ṙ, dP̃/dt) = J∇h + (0, Xᵀτ); the forces enter
     through the constraint-adapted basis X, never by hand."""
     nP, d, l = len(symbols.P), layout.d, len(layout.si)
@@ -159,7 +160,7 @@ def equations(arith, layout, symbols, inputs: MomentumInputs) -> tuple[Step, Mom
         "xi": arith.column(xi), "P_dot": arith.column(Pdot[:d]), "r_dot": arith.column([qdot[i] for i in layout.ri]),
         "Pt_dot": arith.column(Pdot[d:]), "F": arith.column(forces)},
         "(ξ, Ṗ, ṙ, dP̃/dt) = J∇h + (0, Xᵀτ).", labels={"F": "forces X^T tau"})
-    return step, MomentumEquations(Pdot=Pdot, qdot=qdot, xi_coef=xi_coef)
+    return Stepped(step, MomentumEquations(Pdot=Pdot, qdot=qdot, xi_coef=xi_coef))
 
 
 def fiber_velocities(arith, layout, symbols, eqs) -> Step:

@@ -2,7 +2,7 @@
 reduced constrained Hamiltonian h = ½PᵀK⁻¹P + V."""
 from __future__ import annotations
 
-from ..steps import Step
+from ..steps import Step, Stepped
 
 
 def legendre_transform(arith, layout, symbols, connection) -> Step:
@@ -14,7 +14,7 @@ def legendre_transform(arith, layout, symbols, connection) -> Step:
                 labels={"P": "(" + ", ".join(map(str, symbols.P)) + ") = dl_c/d(" + ", ".join(map(str, symbols.v)) + ")"})
 
 
-def velocities(arith, layout, symbols, connection) -> tuple[Step, list]:
+def velocities(arith, layout, symbols, connection) -> Stepped:
     """Step 10 (eqs. 3.19, 3.78–3.79): v = K⁻¹P, with K⁻¹ = blockdiag(K_Ω⁻¹, K_r⁻¹); returns
     (step, K⁻¹). The implicit back end's inverse is a linear solve at evaluation time."""
     d, nP = layout.d, len(symbols.P)
@@ -23,13 +23,15 @@ def velocities(arith, layout, symbols, connection) -> tuple[Step, list]:
     K_r_inv = arith.inv(K_r, "shape metric K_r = X_rᵀMX_r") if m else []
     Kinv = arith.block_diag(connection.K_nh_inv, K_r_inv)
     v = [arith.form([(Kinv[a][b], [symbols.P[b]]) for b in range(nP)]) for a in range(nP)]
-    return Step(10, "Velocities from momenta", "§3.2.3, eqs. 3.19, 3.78–3.79",
+    step = Step(10, "Velocities from momenta", "§3.2.3, eqs. 3.19, 3.78–3.79",
                 {"v": arith.column(v)}, "v = K⁻¹P.",
-                labels={"v": "(" + ", ".join(map(str, symbols.v)) + ")"}), Kinv
+                labels={"v": "(" + ", ".join(map(str, symbols.v)) + ")"})
+    return Stepped(step, Kinv)
 
 
-def hamiltonian(arith, layout, symbols, Kinv) -> tuple[Step, object]:
+def hamiltonian(arith, layout, symbols, Kinv) -> Stepped:
     """Step 11 (eqs. 3.20, 3.80): h = P·v − l_c = ½PᵀK⁻¹P + V."""
     h = arith.quadratic(Kinv, symbols.P, half=True) + arith.value(layout.V)
-    return Step(11, "Reduced constrained Hamiltonian", "§3.2.3, eqs. 3.20, 3.80",
-                {"h": h}, "h = P·v − l_c = ½PᵀK⁻¹P + V."), h
+    step = Step(11, "Reduced constrained Hamiltonian", "§3.2.3, eqs. 3.20, 3.80",
+                {"h": h}, "h = P·v − l_c = ½PᵀK⁻¹P + V.")
+    return Stepped(step, h)

@@ -5,14 +5,16 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from functools import cached_property
 
+import casadi as ca
 import sympy as sp
 
 from nhgait.dynamics.derivation.cse_text import cse_lines, wants_cse
 from nhgait.dynamics.derivation.notation import symmetry_choice_lines
 from nhgait.dynamics.reprs import ModelDisplay
 
+from ..formulation_base import Formulation, LoopDynamics
 from ..steps import DISPLAY_OPS, Steps, default_symbol_names, text_of
-from ..symbolic import TIDY_NODES, tidy, tree_size
+from ...algebra.trig import TIDY_NODES, tidy, tree_size
 from ..symmetry import SymmetryTest
 from ..system import System
 
@@ -162,12 +164,17 @@ def symbol_names_for(layout) -> dict:
 
 
 @dataclass(frozen=True, eq=False)
-class ReducedODE(ModelDisplay):
+class ReducedODE(ModelDisplay, Formulation):
     """Reduced constrained Hamiltonian equations ż = f(t, z, u), 2n − k first-order ODEs.
 
     State ordering (``state_names``): z = (q_1 … q_n in the system's coordinate order,
     P_1 … P_d nonholonomic momenta (named ``p`` or ``p1``, ``p2`` …), P̃ for each free shape
     coordinate (named ``pt_<shape coordinate>``)). No multipliers appear.
+
+    The formulation's vocabulary (:class:`~..formulation_base.Formulation`): the singular-set
+    measure is the engine's ``numeric["singular"]`` (0 where a matrix the reduction inverts
+    loses rank), and the initial configuration is checked against it; the DAE options do not
+    apply (projection only removes the drift of kept holonomic constraints).
 
     Attributes
     ----------
@@ -222,6 +229,51 @@ class ReducedODE(ModelDisplay):
     provenance: object = field(default=None, repr=False)
 
     formulation = "reduced"
+    velocity_part = "momenta P = Xᵀ M(q) q̇ (nonholonomic P, shape P̃)"
+    has_multipliers = False
+    dae_options_apply = False
+    has_constraint_gram = False
+    specialised_for_integration = True
+
+    def multiplier_count(self) -> int:
+        return 0
+
+    def initial_state(self, q, qdot, params):
+        return self.numeric["state"](q, qdot, params)
+
+    def constraint_residual(self, q, qdot, params):
+        return self.numeric["constraint"](q, qdot, params)
+
+    def configuration_measure(self, q, params):
+        return self.numeric["singular"](q, params) if self.system.k else ca.SX(1)
+
+    def loop_dynamics(self, point, stabilisation):
+        num, n = self.numeric, self.system.n
+        x, params = point.x, point.params
+        q, qdot = x[:n], num["qdot"](x, params)
+        return LoopDynamics(xdot=num["rhs"](point.t_c, x, point.u, params), lam=ca.SX(0, 1),
+                            g=num["constraint"](q, qdot, params),
+                            measure=self.configuration_measure(q, params), gram=ca.SX(0, 1))
+
+    def singular_set_text(self) -> str:
+        sset = self.singular_set
+        if sset:
+            return "singular set: " + " or ".join(f"{e} = 0" for e in sset)
+        return "the reduction is singular there"
+
+    @classmethod
+    def dae_option_problems(cls, idas, stabilisation, *, holonomic: bool = False) -> list:
+        problems = []
+        if idas:
+            problems.append("dae='idas' applies to the DAE forms (lagrange, hamilton); the reduced "
+                            "form is an ODE")
+        if stabilisation.projects and holonomic:
+            return problems           # q projected back onto the kept holonomic constraints h(q) = 0
+        if stabilisation.kind is not None:
+            problems.append("stabilization applies to the DAE forms; the reduced ODE satisfies the "
+                            "constraints by construction (projection also applies to a reduced ODE "
+                            "with kept holonomic constraints: it removes their drift)")
+        return problems
 
     def __repr__(self) -> str:
         return (f"ReducedODE({self.system.name}, {self.form}, {self.dimension} ODEs in z = "

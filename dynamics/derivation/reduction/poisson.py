@@ -12,16 +12,17 @@ import sympy as sp
 
 from dataclasses import dataclass
 
-from ..steps import Step
+from ..steps import Step, Stepped
 
 
-def canonical_momenta(arith, layout, symbols, connection) -> tuple[Step, list]:
+def canonical_momenta(arith, layout, symbols, connection) -> Stepped:
     """Step 12 (eqs. 3.21–3.22, 3.81): P_a = X_aᵀp, p = ∂L/∂q̇."""
     nP = len(symbols.P)
     P_of_p = [arith.form([(connection.X[i][a], [symbols.p[i]]) for i in range(layout.n)]) for a in range(nP)]
-    return Step(12, "Momenta in canonical momenta", "§3.2.4, eqs. 3.21–3.22, 3.81",
+    step = Step(12, "Momenta in canonical momenta", "§3.2.4, eqs. 3.21–3.22, 3.81",
                 {"P": arith.column(P_of_p)}, "P_a = X_aᵀp (nonholonomic: p_i = ξ_Q^iᵀp).",
-                labels={"P": "(" + ", ".join(map(str, symbols.P)) + ") in p"}), P_of_p
+                labels={"P": "(" + ", ".join(map(str, symbols.P)) + ") in p"})
+    return Stepped(step, P_of_p)
 
 
 def body_momentum(arith, layout, symbols, connection) -> Step:
@@ -80,7 +81,7 @@ def brackets_in_mu(arith, layout, symbols, lie) -> Step:
                      + [(arith.neg(v[i][0]), [symbols.p[i]]) for i in layout.ri])
         C_mu[a][b], C_mu[b][a] = val, -val
     return Step(15, "Brackets of the momenta in μ", "§3.2.4, eqs. 3.28, 3.45, 3.88",
-                {"C_mu": _square(arith, C_mu)}, "{P_a, P_b} = −pᵀ[X_a, X_b] = −μᵀg⁻¹[X_a, X_b]_s.",
+                {"C_mu": arith.square(C_mu)}, "{P_a, P_b} = −pᵀ[X_a, X_b] = −μᵀg⁻¹[X_a, X_b]_s.",
                 labels={"C_mu": "{P_a, P_b}(mu)"})
 
 
@@ -95,13 +96,7 @@ class RestrictedBrackets:
     XKinv: list
 
 
-def _square(arith, rows):
-    if arith.kind == "casadi":
-        return arith.ca.vertcat(*[arith.ca.horzcat(*r) for r in rows]) if rows else arith.ca.SX(0, 0)
-    return sp.Matrix(rows) if rows else sp.zeros(0, 0)
-
-
-def restricted_brackets(arith, layout, symbols, connection, Kinv, lie) -> tuple[Step, "RestrictedBrackets"]:
+def restricted_brackets(arith, layout, symbols, connection, Kinv, lie) -> Stepped:
     """Step 16 (eqs. 3.29–3.30, 3.46–3.47, 3.89–3.90): μ|_M̄ = gᵀ(MXK⁻¹P)_s and
     {P_a, P_b}|_M̄ = coef_ab·P with coef_ab = −Σ_c γ_abc K⁻¹_c· (γ_abc = X_cᵀM[X_a, X_b])."""
     nP, n = len(symbols.P), layout.n
@@ -121,27 +116,24 @@ def restricted_brackets(arith, layout, symbols, connection, Kinv, lie) -> tuple[
         val = arith.form([(c[j], [symbols.P[j]]) for j in range(nP)])
         C[a][b], C[b][a] = val, -val
     step = Step(16, "Brackets restricted to M̄", "§3.2.4, eqs. 3.29–3.30, 3.46–3.47, 3.89–3.90",
-                {"mu": arith.column(mu_M), "C": _square(arith, C)}, "μ|_M̄ = gᵀ(M X K⁻¹P)_s.",
+                {"mu": arith.column(mu_M), "C": arith.square(C)}, "μ|_M̄ = gᵀ(M X K⁻¹P)_s.",
                 labels={"mu": "mu|M", "C": "{P_a, P_b}|M"})
-    return step, RestrictedBrackets(coef=coef, C=C, XKinv=XKinv)
+    return Stepped(step, RestrictedBrackets(coef=coef, C=C, XKinv=XKinv))
 
 
-def structure(arith, layout, symbols, connection, C) -> tuple[Step, object]:
+def structure(arith, layout, symbols, connection, C) -> Stepped:
     """Step 17 (eqs. 3.31, 3.48, 3.91, Fig. 3.7): J in rows (ξ, P, r, P̃) as in the thesis (when
     the shape velocities are free) and J_z = [[0, X], [−Xᵀ, C]] in z = (q, P)."""
     n, d, nP, l = layout.n, layout.d, len(symbols.P), len(layout.si)
     m = nP - d
-    if arith.kind == "casadi":
-        ca = arith.ca
-        X = arith.show(connection.X, n, nP)
-        Cm = _square(arith, C)
-        J_z = ca.vertcat(ca.horzcat(ca.SX(n, n), X), ca.horzcat(-X.T, Cm))
-        return Step(17, "Reduced Poisson structure matrix", "§3.2.4, Fig. 3.7, eqs. 3.31, 3.48, 3.91",
-                    {"J_z": J_z}, "Skew-symmetric, in z = (q, P) coordinates.",
-                    labels={"J_z": "J_z (rows q, P)"}), J_z
     X = arith.show(connection.X, n, nP)
-    Cm = sp.Matrix(C) if nP else sp.zeros(0, 0)
-    J_z = sp.BlockMatrix([[sp.zeros(n, n), X], [-X.T, Cm]]).as_explicit()
+    Cm = arith.square(C)
+    J_z = arith.blocks([[arith.zero_block(n, n), X], [-X.T, Cm]])
+    if not arith.symbolic:        # the implicit form shows J_z alone (CasADi)
+        step = Step(17, "Reduced Poisson structure matrix", "§3.2.4, Fig. 3.7, eqs. 3.31, 3.48, 3.91",
+                    {"J_z": J_z}, "Skew-symmetric, in z = (q, P) coordinates.",
+                    labels={"J_z": "J_z (rows q, P)"})
+        return Stepped(step, J_z)
     items, labels = {}, {"J": "J (rows xi, P, r, Pt)", "J_z": "J_z (rows q, P)"}
     if not layout.dependent:
         e, A = arith.show(connection.e, l, d), arith.show(connection.A, l, m)
@@ -151,6 +143,7 @@ def structure(arith, layout, symbols, connection, C) -> tuple[Step, object]:
             [sp.zeros(m, l), sp.zeros(m, d), sp.zeros(m, m), sp.eye(m)],
             [A.T, Cm[d:, :d], -sp.eye(m), Cm[d:, d:]]]).as_explicit()
     items["J_z"] = J_z
-    return Step(17, "Reduced Poisson structure matrix", "§3.2.4, Fig. 3.7, eqs. 3.31, 3.48, 3.91", items,
+    step = Step(17, "Reduced Poisson structure matrix", "§3.2.4, Fig. 3.7, eqs. 3.31, 3.48, 3.91", items,
                 "Skew-symmetric; rows (ξ, P, r, P̃) as in the thesis, and in z = (q, P) coordinates.",
-                labels=labels), J_z
+                labels=labels)
+    return Stepped(step, J_z)

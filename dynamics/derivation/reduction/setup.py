@@ -10,6 +10,7 @@ keeps the other shape velocities free; with k_s = k this is exactly the thesis's
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 import sympy as sp
@@ -17,7 +18,8 @@ import sympy as sp
 from nhgait.dynamics.derivation.notation import method_name, system_names
 
 from ..steps import Step
-from ..symbolic import numeric_pivots, strip_factors, tidy
+from ...algebra.matrices import numeric_pivots, strip_factors
+from ...algebra.trig import tidy
 from ..symmetry import SymmetryTest, group_transform, symmetry_test
 from ..system import System
 
@@ -201,8 +203,15 @@ def choose_form(k: int, d: int, m: int, dependent: int) -> str:
     return "explicit"
 
 
-def choose_layout(system: System, version: str | None = None, form: str | None = None) -> tuple[Layout, list]:
-    """Steps 1–3 and the choices of the reconstruction; returns (layout, [steps 1, 2, 3])."""
+class LayoutChoice(NamedTuple):
+    """The choices of steps 1–3 (``layout``) and the displayed ``steps`` 1, 2, 3."""
+
+    layout: Layout
+    steps: list
+
+
+def choose_layout(system: System, version: str | None = None, form: str | None = None) -> LayoutChoice:
+    """Steps 1–3 and the choices of the reconstruction."""
     names = system.coordinates
     M = system.mass_matrix()
     symmetry = symmetry_test(system, M)
@@ -223,8 +232,8 @@ def choose_layout(system: System, version: str | None = None, form: str | None =
     dependent = [i for i in pivots if i in ri]
     if form is None:
         form = choose_form(system.k, N.shape[1], len(free), len(dependent))
-    return Layout(system=system, version=version, fiber=fiber, shape=tuple(names[i] for i in ri),
-                  si=si, ri=ri, pivots=pivots, free=free, N=N, g=g, ginv=ginv,
-                  M=M, V=system.potential(), W=W, Wb=Wb, form=form,
-                  symmetry=symmetry), steps
+    layout = Layout(system=system, version=version, fiber=fiber, shape=tuple(names[i] for i in ri),
+                    si=si, ri=ri, pivots=pivots, free=free, N=N, g=g, ginv=ginv,
+                    M=M, V=system.potential(), W=W, Wb=Wb, form=form, symmetry=symmetry)
+    return LayoutChoice(layout, steps)
 

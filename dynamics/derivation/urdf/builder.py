@@ -20,12 +20,13 @@ import sympy as sp
 
 from ...errors import ModelError
 from . import energy, wheels
+from .mass_parameters import mass_problems, with_mass_parameters
 from ..textfiles import read_text_file
 from .reader import read_urdf
 from .tree import MOVING, build_bodies, tree_problems
 
 KEYS = {"urdf", "base", "joints", "names", "locked", "rolling", "skates", "radius", "inputs", "gravity",
-        "name", "description", "forces", "parameters", "fiber", "planar_frame"}
+        "name", "description", "forces", "parameters", "fiber", "planar_frame", "masses"}
 BASE_COORDINATES = ("x", "y", "theta")
 #: ``urdf = "example-robot-data:<path>"`` names a file of the installed example-robot-data package
 ROBOT_DATA = "example-robot-data:"
@@ -225,6 +226,7 @@ class _Spec:
     radius: dict
     inputs: dict
     names: dict
+    masses: dict = field(default_factory=dict)
 
     def wheels(self, key: str) -> list:
         """The joints listed under ``key`` ("rolling" or "skates")."""
@@ -236,7 +238,8 @@ def _spec(table, problems) -> _Spec:
                  rolling=_names(table, "rolling", problems), skates=_names(table, "skates", problems),
                  radius=_numbers(table, "radius", problems),
                  inputs=_mapping(table, "inputs", problems, "input name"),
-                 names=_mapping(table, "names", problems, "coordinate name"))
+                 names=_mapping(table, "names", problems, "coordinate name"),
+                 masses=_mapping(table, "masses", problems, "parameter name"))
 
 
 def coordinate_name(spec, joint: str) -> str:
@@ -257,6 +260,7 @@ def urdf_system(table: dict, base_dir: Path, source: str = "<scene>") -> UrdfSys
         tree, root = tree_problems(robot)
         problems.extend(tree)
         _joint_problems(robot, spec, problems)
+        problems.extend(mass_problems(robot, spec.masses, table.get("parameters", {})))
     if problems:
         raise ModelError(problems, title=f"invalid scene {source}")
     return _build(robot, root, spec, table, source)
@@ -297,13 +301,14 @@ def _build(robot, root, spec, table, source) -> UrdfSystem:
     names = list(BASE_COORDINATES) + [coordinate_name(spec, j) for j in spec.joints]
     q = [sp.Symbol(n, real=True) for n in names]
     q_dot = [sp.Symbol(f"{n}_dot", real=True) for n in names]
-    bodies = build_bodies(robot, root, {name: i for i, name in enumerate(spec.joints)}, spec.locked)
-    kin = energy.body_kinematics(bodies, q[3:])
+    bodies, kin = _tree(robot, root, spec, q)
     problems: list = []
     rows = _wheel_rows(robot, bodies, kin, spec, q, problems)
     if problems:
         raise ModelError(problems, title=f"invalid scene {source}")
     L = _lagrangian(bodies, kin, q, q_dot, float(table.get("gravity", 9.81)))
+    L, masses = with_mass_parameters(L, robot, spec.masses, lambda alone: _lagrangian(
+        *_tree(alone, root, spec, q), q, q_dot, float(table.get("gravity", 9.81))))
     exprs = [wheels.in_qdot(r, q[2], q_dot) for r in rows]
     kept = wheels.independent_rows(exprs, (q[2:], q_dot)) if exprs else []
     notes = tuple(f"constraint {i + 1} of the wheels dropped: a combination of the others" for i in
@@ -315,13 +320,19 @@ def _build(robot, root, spec, table, source) -> UrdfSystem:
     from ..system import System
     try:
         system = System(coordinates=names, lagrangian=L, constraints=[exprs[i] for i in kept], forces=forces,
-                        parameters=table.get("parameters", {}), inputs=declared,
+                        parameters={**table.get("parameters", {}), **masses}, inputs=declared,
                         name=table.get("name", robot.name), fiber=table.get("fiber"),
                         planar_frame=table.get("planar_frame", "auto"))
     except ModelError as exc:
         raise ModelError(list(exc.problems), title=f"invalid scene {source}") from None
     return UrdfSystem(system=system, control_bounds=_effort_bounds(robot, spec),
                       bounds=_limit_bounds(robot, spec), notes=notes, source=robot.source)
+
+
+def _tree(robot, root, spec, q) -> tuple:
+    """(bodies, their kinematics) of the tree with the scene's coordinates and locked joints."""
+    bodies = build_bodies(robot, root, {name: i for i, name in enumerate(spec.joints)}, spec.locked)
+    return bodies, energy.body_kinematics(bodies, q[3:])
 
 
 def _wheel_rows(robot, bodies, kin, spec, q, problems) -> list:

@@ -9,6 +9,7 @@ root link. Its frame is that link's frame; ``rotation``/``translation`` place th
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -42,9 +43,17 @@ class Body:
     frames: dict = field(default_factory=dict)
 
 
-def tree_problems(robot: Robot) -> tuple[list, str | None]:
+class TreeCheck(NamedTuple):
+    """The ``problems`` of a URDF tree (sentences) and its ``root`` link's name (None when
+    there is no root)."""
+
+    problems: list
+    root: str | None
+
+
+def tree_problems(robot: Robot) -> TreeCheck:
     """Problems of the tree (unknown links, a link with two parents, a cycle, no or several
-    roots, floating or planar joints) and the root link's name (None when there is no root)."""
+    roots, floating or planar joints) and the root link's name."""
     problems = []
     parent_of = {}
     for joint in robot.joints.values():
@@ -76,7 +85,7 @@ def tree_problems(robot: Robot) -> tuple[list, str | None]:
         cut_off = [name for name in robot.links if name not in seen]
         if cut_off:
             problems.append(f"links {cut_off} are not reached from the root {root!r}: a closed loop")
-    return problems, root
+    return TreeCheck(problems, root)
 
 
 def _children(robot: Robot) -> dict:

@@ -15,6 +15,8 @@ q̇ like the metric (:func:`~.energy.metric_in_qdot`).
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 import sympy as sp
 
@@ -24,28 +26,45 @@ from .energy import clean, skew, snapped
 HORIZONTAL = 1e-9
 
 
-def wheel_frame(bodies, child_link):
-    """(body index, rotation, translation) of link ``child_link``'s frame in the body it belongs
-    to (identity for the link that is its body's own)."""
+class WheelFrame(NamedTuple):
+    """Where a wheel's frame sits: the index of its ``body``, the ``rotation`` and
+    ``translation`` of the frame in that body."""
+
+    body: int
+    rotation: object
+    translation: object
+
+
+class WheelRows(NamedTuple):
+    """A wheel's constraint rows in ν: ``side`` (no sliding along the axle) and ``rolling``
+    (no slipping along the ground; None for a skate)."""
+
+    side: object
+    rolling: object
+
+
+def wheel_frame(bodies, child_link) -> WheelFrame:
+    """Link ``child_link``'s frame in the body it belongs to (identity for the link that is its
+    body's own)."""
     for index, body in enumerate(bodies):
         if child_link in body.frames:
             rotation, translation = body.frames[child_link]
-            return index, rotation, translation
+            return WheelFrame(index, rotation, translation)
     raise KeyError(child_link)
 
 
-def wheel_rows(kin, rotation, translation, axis, radius):
-    """(side row, rolling row or None) in ν for a wheel whose child frame is (rotation,
-    translation) in a body with kinematics ``kin``; ``radius`` None for a skate."""
+def wheel_rows(kin, rotation, translation, axis, radius) -> WheelRows:
+    """The rows of a wheel whose child frame is (rotation, translation) in a body with
+    kinematics ``kin``; ``radius`` None for a skate."""
     r, p = snapped(rotation), snapped(translation)
     a = r * snapped(axis)
     up = kin.R.T * sp.Matrix([0, 0, 1])
     centre = kin.Jv - skew(p) * kin.Jw
     if radius is None:
-        return (a.T * centre).applyfunc(clean), None
+        return WheelRows((a.T * centre).applyfunc(clean), None)
     contact = centre + skew(up) * kin.Jw * radius         # −ρ ω × n = ρ n × ω
     forward = skew(up) * a
-    return (a.T * contact).applyfunc(clean), (forward.T * contact).applyfunc(clean)
+    return WheelRows((a.T * contact).applyfunc(clean), (forward.T * contact).applyfunc(clean))
 
 
 def axle_tilt(kin, rotation, axis, joint_symbols, samples):

@@ -1,0 +1,140 @@
+"""A gait checked on the robot's own equations: the planner's solution (in its velocity
+coordinates) moved to the momentum coordinates of a chart regular along it, or to x = (q, q̇) on
+the Euler–Lagrange equations, and re-simulated there by an independent integrator.
+
+* :func:`verified_gait` — the check the planner and the sweeps run on every converged gait;
+* :func:`to_momentum_coordinates`, :func:`momentum_problem` — a solution on another chart of
+  the derived model (z = (q, P); P = XᵀM(q)q̇);
+* :func:`screening_report`, :func:`unsolved` — what the screening of the guesses repaired or
+  skipped, and the answer of a search that solved nothing.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from .task import quantity_objects
+
+__all__ = ["verified_gait", "to_momentum_coordinates", "momentum_problem", "screening_report", "unsolved"]
+
+
+def screening_report(guesses, search, problem) -> tuple:
+    """(search, report): what the screening of ``guesses`` repaired or skipped and where the
+    solution (or, when no guess converged, the closest point) met the singular set
+    (:class:`~nhgait.gaits.guesses.Screened`); a search in which every candidate was skipped
+    (none left in ``guesses``) gets a closest point that says so (:func:`unsolved`)."""
+    from .guesses import Screened
+    report = tuple(getattr(guesses, "screened", ()))
+    if search.solution is None and search.closest is None and not len(guesses):
+        search = replace(search, closest=unsolved(problem, getattr(guesses, "first_skipped", None)))
+    check = getattr(guesses, "check", None)
+    point = search.solution if search.solution is not None else (search.closest if search.attempts else None)
+    verdict = check(point) if check is not None and point is not None else None
+    if verdict is not None and not verdict.ok:
+        which = "solution" if search.solution is not None else "closest point"
+        report += (Screened(f"{which} ({search.won or point.settings.get('guess', '?')})", "reached", verdict),)
+    return search, report
+
+
+def unsolved(problem, guess=None):
+    """A failed :class:`~nhgait.ocp.Solution` for a search that solved nothing (every candidate
+    skipped by its screening): status ``Not_Solved``, the states of ``guess`` (zeros without one)."""
+    from nhgait.ocp import Solution
+    t = problem.grid()
+    states = np.asarray(guess.states, float) if guess is not None else np.zeros((len(problem.state_names), t.size))
+    return Solution(False, "Not_Solved", "every candidate met the singular set of the equations and was skipped",
+                    0, float("nan"), t, states, np.zeros((problem.n_controls, problem.intervals)),
+                    tuple(problem.state_names), tuple(problem.control_names), float(problem.horizon),
+                    0.0, 0.0, 0.0, 0.0, problem=problem,
+                    settings={"guess": getattr(guess, "label", "none"), "intervals": problem.intervals,
+                              "transcription": "none", "solver": "none (no candidate solved)"})
+
+
+def verified_gait(solution, model, stated, to_plan, params, *, verify=True, progress=None):
+    """``solution`` (velocity coordinates) in the momentum coordinates of a chart of ``model``
+    regular along it (:func:`~nhgait.gaits.charts.verification_chart`; a failed solution in
+    ``model``'s own) and, with ``verify``, verified there to the task's tolerance; in x = (q, q̇)
+    on the Euler–Lagrange equations (:func:`~nhgait.gaits.charts.lagrange_ode`) when no chart is
+    regular along the gait, when the re-simulation in the chart stops (its singular set met
+    between the nodes), when the solution's states in the chart are not finite (a failed one
+    too: its trajectory is written out), and when the gait fails there before another chart is
+    tried (:func:`_lagrange_first`)."""
+    from nhgait.dynamics.progress import Progress
+    from .charts import lagrange_ode, verification_chart
+    progress = progress or Progress.silent()
+    n = len(model.system.coordinates)
+    regular, default = False, model
+    if verify and solution.success:
+        model, regular = verification_chart(to_plan.scene.system, model, solution.states[:n], params, progress)
+        if not regular:
+            model = lagrange_ode(to_plan.scene.system)
+    in_lagrange = (lambda: to_momentum_coordinates(solution, momentum_problem(lagrange_ode(to_plan.scene.system),
+                                                                               stated, to_plan, params)))
+    moved = to_momentum_coordinates(solution, momentum_problem(model, stated, to_plan, params))
+    if not np.all(np.isfinite(moved.states)) and np.all(np.isfinite(solution.states)):
+        # a chart singular at some node (where the momenta are not defined): (q, q̇) instead
+        moved, regular = in_lagrange(), False
+    if not verify:
+        return moved
+    if regular and model is not default:
+        screened = _lagrange_first(in_lagrange(), to_plan, progress)
+        if screened is not None:
+            return screened
+    checked = _verified_once(moved, to_plan, progress)
+    if regular and not checked.verification.success:
+        progress.note("  the re-simulation stopped in the chart (its singular set between the nodes): verifying on the "
+                      "Euler–Lagrange equations (index-1 form, x = (q, q̇)), which have none")
+        checked = _verified_once(in_lagrange(), to_plan, progress)
+    return checked
+
+
+def _lagrange_first(solution, to_plan, progress):
+    """A gait that met the singular set of the planner's chart, re-simulated on the
+    Euler–Lagrange equations first: None when it passes there (it is then verified in the
+    regular chart found, whose momenta the figures show), else that failed verification — a
+    chart near its own singular set can take minutes to re-simulate a trajectory that is not a
+    solution (a 5-link chain: 0.3 s on these equations, over 10 minutes in the chart)."""
+    checked = _verified_once(solution, to_plan, progress)
+    return None if checked.verification.passed else checked
+
+
+def _verified_once(solution, to_plan, progress):
+    with progress.phase("verify: re-simulate the optimal inputs on the general model (DOP853, rtol 1e-10)"):
+        solution = solution.verified(tolerance=to_plan.task.verify_tolerance)
+    v = solution.verification
+    progress.note(f"  {'passed' if v.passed else 'FAILED'}: nodes met to {v.max_error:.2e}, conditions to "
+                  f"{v.max_condition_error:.2e}; relative to each state's range {v.max_scaled_error:.2e} and "
+                  f"{v.max_scaled_condition_error:.2e} (tolerance {v.tolerance:g})"
+                  + ("" if v.success else "; the re-simulation stopped early"))
+    return solution
+
+
+def momentum_problem(model, problem, to_plan, params):
+    """The same statement on the derived (momentum-coordinate, unspecialised) model."""
+    return problem.replace(model=model, quantities=quantity_objects(model, to_plan.scene), params=params)
+
+
+def to_momentum_coordinates(solution, momentum):
+    """A solution re-expressed on the problem ``momentum`` (z = (q, P), a chart of the derived model).
+
+    The statement is the same (tasks are coordinate-free); only the states change: q̇ from the
+    solution's model (``qdot``; regular along the gait in the planner's velocity coordinates),
+    then P = XᵀM(q)q̇ of the momentum model's chart (its ``state`` map), so the result does not
+    go through the chart of the model the solution was stated on. Any verification is dropped:
+    verify the returned solution in momentum coordinates.
+    """
+    model = solution.problem.model
+    same_chart = tuple(model.fiber) == tuple(getattr(momentum.model, "fiber", ()))
+    if "momentum_state" not in model.numeric.functions and same_chart:
+        return replace(solution, problem=momentum, verification=None)
+    n, nz = len(model.system.coordinates), len(model.state_names)    # integral states follow z, unchanged
+    state = momentum.model.numeric["state"]
+    K = solution.states.shape[1]
+    with np.errstate(all="ignore"):
+        states = np.asarray(state.map(K)(solution.states[:n], solution.velocities(),
+                                         momentum.model.numeric.params(momentum.params)))
+    states = np.vstack([states, solution.states[nz:]])
+    settings = {**solution.settings, "transcribed_in": list(solution.state_names)}
+    return replace(solution, states=states, state_names=momentum.state_names,
+                   problem=momentum, verification=None, settings=settings)

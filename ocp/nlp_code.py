@@ -1,0 +1,176 @@
+"""Which code runs a planner's NLP functions: ready at once now, optimised for the next run.
+
+The NLP functions (the oracle and every function the solver builds from it) are generated as
+one C file by :class:`~.solver.OCPSolver`; :func:`choose_code` decides what runs them
+(issue 25: no compiler on the critical path of a cold plan)::
+
+    code = choose_code(source, options, progress)
+    code.library, code.report.code, code.report.later
+
+1. **The optimised library from the cache** when an earlier run (or its background build)
+   made it: gcc (``$NHGAIT_CC``, ``$CC``, gcc, cc) with the flags :class:`CompileBudget` picks
+   from the C size (``SolverOptions.jit_flags`` forces them).
+2. Otherwise **code ready at once**: the fast compiler (:mod:`~nhgait.dynamics.numerics.fast_compiler`,
+   the Tiny C Compiler: 0.02–0.25 s for 0.4–7 MB of C, code 1.2–2.6× slower than gcc -O1),
+   cached like any library; without one, the functions run **interpreted** (one line says
+   so) — measured slower than the fast compiler's code at every size of the scale benchmark
+   (the 6-link snake: 33 s against 8.6 s per solve), so a fast compiler present is always used.
+   ``jit=True`` without a fast compiler builds the optimised library now, in the foreground;
+   ``jit="optimised"`` always does (benchmarks, and users who want the fastest code at once).
+3. **The optimised build for later**, when the optimised library was not in the cache: started
+   in the background (:mod:`~nhgait.dynamics.numerics.background`: detached, nice 19, one
+   compiler at a time, memory-bounded, finished atomically into the cache) — the plan never
+   waits for it; the next run takes step 1.
+
+:class:`CompileReport` (``settings.compile`` of solution.json, the summary's compile line) says
+which code solved (``code``: optimised, fast or interpreted; ``compiler``; ``flags``; seconds;
+``cached``) and what was built for later (``later``: started with the builder's pid, or why not).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from nhgait.dynamics.numerics.background import BackgroundBuild, start_build
+from nhgait.dynamics.numerics.compiler import CompilerUnavailable, Library, build_library, cached_library, compiler_command
+from nhgait.dynamics.numerics.fast_compiler import MISSING, fast_compiler
+
+__all__ = ["CompileBudget", "COMPILE_BUDGET", "CompileReport", "NlpCode", "choose_code", "CODES", "NO_COMPILER"]
+
+#: what can run the NLP functions
+CODES = ("optimised", "fast", "interpreted")
+#: why the functions run interpreted when no compiler at all is found
+NO_COMPILER = "no C compiler found (looked for $NHGAIT_CC, $CC, gcc and cc, and a fast compiler)"
+
+
+@dataclass(frozen=True)
+class CompileBudget:
+    """Generated C size → optimisation level, from ``experiments/bench_scale.py`` on the 2-core
+    machine (loaded): gcc -O1 took 34.7 s for 2.56 MB, 63.4 s for 4.07 MB and 250 s for 7.02 MB
+    of CasADi's straight-line code (superlinear: register allocation in huge functions; 0.47 GB
+    of memory for 2.56 MB, 1.1 GB for 7 MB); -O0 takes 1.5–5 s per MB but its code runs 3–4×
+    slower (the 8-link snake's NLP solved in 4.3 s compiled at -O1, 16.7 s at -O0). -O1 is kept
+    up to 5 MB, -O0 up to 20 MB, then there is no optimised build. The optimised build runs in
+    the background (:func:`choose_code`); its estimate is said beside it."""
+
+    o1_bytes: float = 5e6
+    o0_bytes: float = 20e6
+    o1_s_per_mb: float = 15.0
+    o0_s_per_mb: float = 1.5
+
+    def choose(self, c_bytes: int) -> tuple:
+        """(flags or None for no optimised build, estimated seconds, reason)."""
+        mb = c_bytes / 1e6
+        if c_bytes <= self.o1_bytes:
+            return ("-O1",), mb * self.o1_s_per_mb, f"{mb:.2f} MB ≤ {self.o1_bytes / 1e6:g} MB: -O1"
+        if c_bytes <= self.o0_bytes:
+            return ("-O0",), mb * self.o0_s_per_mb, (f"{mb:.2f} MB > {self.o1_bytes / 1e6:g} MB: -O0 "
+                                                      f"(-O1 would take about {mb * self.o1_s_per_mb:.0f} s)")
+        return None, 0.0, f"{mb:.1f} MB > {self.o0_bytes / 1e6:g} MB: no optimised build"
+
+
+COMPILE_BUDGET = CompileBudget()
+
+
+@dataclass(frozen=True)
+class CompileReport:
+    """What runs the NLP functions and why: the C size; ``flags`` of that code (None:
+    interpreted); the compiler's seconds (0 when the library came from the cache); the
+    optimised build's estimate; ``cached``; the ``reason`` for the optimised flags; the library
+    path; ``code`` (one of :data:`CODES`), ``compiler`` (its name) and ``later`` (the
+    :class:`~nhgait.dynamics.numerics.background.BackgroundBuild` for the next run, or None)."""
+
+    c_bytes: int
+    flags: tuple | None
+    compile_s: float
+    estimate_s: float
+    cached: bool
+    reason: str
+    path: str | None = None
+    code: str = "optimised"
+    compiler: str = ""
+    later: BackgroundBuild | None = None
+
+    def describe(self) -> dict:
+        return {"c_bytes": self.c_bytes, "flags": list(self.flags) if self.flags else None,
+                "compile_s": round(self.compile_s, 3), "estimate_s": round(self.estimate_s, 1),
+                "cached": self.cached, "reason": self.reason, "code": self.code, "compiler": self.compiler,
+                "later": self.later.describe() if self.later is not None else None}
+
+
+@dataclass(frozen=True)
+class NlpCode:
+    """The outcome of :func:`choose_code`: the ``library`` to solve with (None: interpreted),
+    the ``report``, and ``fallback`` — why the functions run interpreted (None otherwise)."""
+
+    library: Library | None
+    report: CompileReport
+    fallback: str | None = None
+
+
+def choose_code(source: str, options, progress, *, salt: str) -> NlpCode:
+    """The code that runs the NLP functions of ``source`` now, and the optimised build started
+    for later (module docstring); ``options`` a :class:`~.solver.SolverOptions` (``jit``,
+    ``jit_flags``, ``budget``); ``salt`` separates the keys (the CasADi version)."""
+    size = len(source)
+    flags, estimate, reason = ((tuple(options.jit_flags), 0.0, "flags given") if options.jit_flags
+                               else options.budget.choose(size))
+    command = compiler_command()
+    optimiser = Path(command[0]).name if command else ""
+    if flags is not None and command is not None:
+        found = cached_library(source, flags=flags, salt=salt)
+        if found is not None:
+            progress.note(f"  optimised library ({optimiser} {' '.join(flags)}) from the cache")
+            return NlpCode(found, CompileReport(size, flags, 0.0, estimate, True, reason, str(found.path),
+                                                "optimised", optimiser))
+    if options.jit == "optimised" and flags is not None and command is not None:
+        lib, kind, compiler, fallback = _optimised_now(source, progress, salt, (flags, estimate, command))
+    else:
+        lib, kind, compiler, fallback = _ready_now(source, options, progress, salt, (flags, estimate, command))
+    later = None
+    if kind != "optimised":
+        later = (start_build(source, flags=flags, salt=salt) if flags is not None else
+                 BackgroundBuild("unavailable", (), optimiser, reason=reason))
+        progress.note(f"  {later.text()}" + (f" (about {estimate:.0f} s)" if later.state == "started" else ""))
+    report = CompileReport(size, None if lib is None else lib.flags, 0.0 if lib is None else lib.compile_s,
+                           estimate, bool(lib is not None and lib.cached), reason,
+                           None if lib is None else str(lib.path), kind, compiler, later)
+    return NlpCode(lib, report, fallback)
+
+
+def _ready_now(source, options, progress, salt, optimised) -> tuple:
+    """(library or None, code, compiler name, fallback reason): the fast compiler's library,
+    else — ``jit=True`` only — the optimised one built now, else interpreted."""
+    flags, estimate, command = optimised
+    mb = len(source) / 1e6
+    fast = fast_compiler()
+    failed = None
+    if fast is not None:
+        try:
+            lib = build_library(source, command=fast.command, flags=fast.flags, libs=fast.libs, salt=salt,
+                                progress=progress, label=f"compile {mb:.2f} MB of C with {fast.name}")
+            progress.note(f"  NLP functions: {mb:.2f} MB of C, " + ("fast library from the cache" if lib.cached else
+                          f"compiled with {fast.name} in {lib.compile_s:.2f} s"))
+            return lib, "fast", fast.name, None
+        except CompilerUnavailable as exc:
+            failed = f"the fast C compiler failed: {exc}"
+            progress.note_once("fast-compiler-failed", f"{failed}; the NLP functions run interpreted")
+    else:
+        progress.note_once("fast-compiler", MISSING)
+    if options.jit is True and flags is not None and command is not None:
+        return _optimised_now(source, progress, salt, optimised)
+    return None, "interpreted", "", failed or (MISSING if command is not None else NO_COMPILER)
+
+
+def _optimised_now(source, progress, salt, optimised) -> tuple:
+    """(library or None, code, compiler name, fallback reason): the optimised library built now,
+    in the foreground (``jit="optimised"``, or ``jit=True`` without a fast compiler)."""
+    flags, estimate, command = optimised
+    label = f"compile {len(source) / 1e6:.2f} MB of C with {' '.join(flags)}"
+    progress.note(f"{label} (about {estimate:.0f} s unless cached) …")
+    try:
+        lib = build_library(source, flags=flags, salt=salt, progress=progress, label=label)
+    except CompilerUnavailable as exc:
+        return None, "interpreted", "", str(exc)
+    progress.note(f"  compiled in {lib.compile_s:.1f} s (cached for the next run)")
+    return lib, "optimised", Path(command[0]).name, None
