@@ -501,7 +501,7 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
             with progress.phase(f"solve with {name} from up to {min(s.limit, len(guesses))} guesses"):
                 reached.search = reached.search.then(solve_with_fallbacks(ocp, guesses, workers=s.workers,
                                                                           limit=s.limit, progress=progress,
-                                                                          budget=budget))
+                                                                          budget=budget, explore=True))
         if reached.search.solution is not None:
             break
 

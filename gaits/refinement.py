@@ -20,7 +20,8 @@ margin of :data:`MARGIN`::
 The problem is the same (the task's N, the same piecewise-constant inputs): only the
 integration inside each interval is finer, so the objective stays comparable with any other
 transcription of the task at that N. :func:`refine` solves it from the converged point (the
-planner's solver, in a supervised attempt within the plan's budget) and verifies again, at most
+planner's solver — Ipopt with the warm-start settings :data:`~nhgait.gaits.search.WARM_IPOPT` —
+in a supervised attempt within the plan's budget) and verifies again, at most
 :data:`REFINEMENTS` times. Few iterations are needed from there, so its NLP is interpreted
 unless that is expected to take longer than compiling it at -O0 (:data:`COMPILE_ABOVE_S`).
 """
@@ -81,8 +82,10 @@ def _solver(problem, transcription, name, search_settings, progress):
     from nhgait.ocp import OCPSolver, SolverOptions
     from nhgait.ocp.budget import EVALUATIONS_PER_ITERATION
     from .time_limits import attempt_limited
+    from .search import WARM_IPOPT
     s = search_settings
-    options = SolverOptions(jit=False, solver=name, max_iter=s.max_iter, hessian=s.hessian)
+    options = SolverOptions(jit=False, solver=name, max_iter=s.max_iter, hessian=s.hessian,
+                            ipopt=dict(WARM_IPOPT) if name == "ipopt" else {})
     ocp = OCPSolver(problem, transcription, options)
     expected = ocp.evaluation_seconds() * EVALUATIONS_PER_ITERATION * EXPECTED_ITERATIONS
     if s.jit is not False and expected > COMPILE_ABOVE_S:

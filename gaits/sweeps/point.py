@@ -27,6 +27,8 @@ import time
 from dataclasses import dataclass, field, replace
 from typing import Mapping
 
+from ..search import WARM_IPOPT as _WARM
+
 
 from nhgait.dynamics.memo import LruMemo
 from nhgait.ocp import ProblemError
@@ -273,13 +275,9 @@ def _structure(task: Mapping) -> str:
     return json.dumps(shape, sort_keys=True, default=str)
 
 
-#: Ipopt settings of warm-started solves: a small initial barrier parameter (the start is
-#: near the optimum: a large μ would first pull it back to the central path) and the start kept
-#: close to its active bounds (Ipopt would push it 1e-2 inside). On the benchmark's P2 grid
-#: (15 points) a warm point takes 7 iterations with Ipopt's defaults, 5.1 with μ₀ = 1e-4 and
-#: bounds pushed 1e-6, 4.6 with these, against 8.5 from the planner's guesses. A warm start
-#: that fails falls back to the planner's guesses.
-WARM_IPOPT = {"mu_init": 1e-6, "bound_push": 1e-8, "bound_frac": 1e-8}
+#: Ipopt settings of a sweep point's warm start (:data:`nhgait.gaits.search.WARM_IPOPT`); a warm
+#: start that fails falls back to the planner's guesses.
+WARM_IPOPT = _WARM
 
 
 def _solver_for(job: PointJob, *, warm: bool = False):
