@@ -28,8 +28,8 @@ import time
 from dataclasses import dataclass, replace
 from typing import Any
 
-__all__ = ["Attempt", "Search", "WARM_IPOPT", "attempt_of", "solve_attempts", "solve_from_guesses", "solve_with_fallbacks",
-           "continuation"]
+__all__ = ["Attempt", "Search", "WARM_IPOPT", "attempt_of", "solve_attempts", "solve_from_guesses",
+           "solve_with_fallbacks", "continuation"]
 
 
 @dataclass(frozen=True)
@@ -81,8 +81,8 @@ def attempt_of(label, s, solver_name="") -> Attempt:
 EXPLORE_GUESSES = 6
 #: ... within this many times the seconds of the first success, at least EXPLORE_FLOOR_S, at
 #: most EXPLORE_BUDGET_SHARE of what is left of the plan's budget
-EXPLORE_TIME_RATIO = 4.0
-EXPLORE_FLOOR_S = 5.0
+EXPLORE_TIME_RATIO = 3.0
+EXPLORE_FLOOR_S = 1.0
 EXPLORE_BUDGET_SHARE = 0.25
 
 #: Ipopt settings of warm-started solves (a sweep point from its neighbour, a refinement from the

@@ -27,12 +27,10 @@ import time
 from dataclasses import dataclass, field, replace
 from typing import Mapping
 
-from ..search import WARM_IPOPT as _WARM
-
-
 from nhgait.dynamics.memo import LruMemo
 from nhgait.ocp import ProblemError
 
+from ..search import WARM_IPOPT as _WARM
 from .grid import GridPoint
 
 __all__ = ["SceneData", "SweepCase", "PointJob", "point_task", "solve_point", "describe_case", "warm_data", "scene_of",
