@@ -126,8 +126,10 @@ class Screen:
 
     # ------------------------------------------------------------------ checks
     def points(self, guess) -> tuple:
-        """(t (2N+1,), Z (nz × (2N+1)), U (nu × (2N+1))): the nodes and the midpoints, in time order."""
-        Z, U = np.asarray(guess.states, float), np.asarray(guess.controls, float)
+        """(t (2N+1,), Z (nz × (2N+1)), U (nu × (2N+1))): the nodes and the midpoints, in time order
+        (Z the model's states: a task's integral states, which follow them, are left out)."""
+        nz = len(self.problem.model_state_names)
+        Z, U = np.asarray(guess.states, float)[:nz], np.asarray(guess.controls, float)
         T = float(guess.horizon if guess.horizon is not None else self.problem.horizon)
         N = Z.shape[1] - 1
         t = np.linspace(0.0, T, 2 * N + 1)
