@@ -121,6 +121,9 @@ def run_plan(scene: Path, out: Path, budget: float, time_limit: bool, grace: flo
             proc.wait(timeout=budget + (grace if time_limit else 0.0))
         except subprocess.TimeoutExpired:
             stopped = _stop_group(proc)
+        except BaseException:                         # this script stopped: its plan (a new session) too
+            _stop_group(proc)
+            raise
         wall = time.monotonic() - t0
         leftover = _group_alive(proc.pid)
         if leftover:                                  # children that outlived the plan
@@ -337,8 +340,14 @@ def _args(argv):
     return ap.parse_args(argv)
 
 
+def _terminated(signum, frame):
+    """SIGTERM as an exception, so the plan running in its own session is stopped with this script."""
+    raise SystemExit(128 + signum)
+
+
 def main(argv=None) -> int:
     args = _args(argv)
+    signal.signal(signal.SIGTERM, _terminated)
     gen = sibling.load("robot_generator")
     families = tuple(f.strip() for f in args.families.split(",") if f.strip())
     indices = ([int(i) for i in args.indices.split(",")] if args.indices
