@@ -406,6 +406,9 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
         _search(problem, guesses, settings, progress, budget, reached)
     finally:                       # a spent budget still reports where the time went
         reached.timings["solve_s"] = time.perf_counter() - t0 - reached.timings.get("setup_s", 0.0)
+    if to_plan.task.robust is not None and reached.search.solution is not None:    # [task.robust]
+        from .robust_plan import robust_search
+        reached.search = robust_search(reached.search, reached.prepared, to_plan, settings, budget, progress)
     search = reached.search
     reached.solution = _in_momentum(search, reached.prepared, to_plan, params)
     if verify and search.solution is not None:
