@@ -135,7 +135,8 @@ def robust(samples: int, overrides) -> dict:
 def _print_robust(r: dict) -> None:
     for label in ("nominal", "robust"):
         x = r[label]
-        print(f"  {label:8s} plan: J = {x['objective']:.4g}, planned in {x['plan_s']:.1f} s; open loop final position "
+        effort = x["objective"] if x["robust"] is None else x["robust"]["task_objective"]
+        print(f"  {label:8s} plan: J = {x['objective']:.4g} (the task's {effort:.4g}), planned in {x['plan_s']:.1f} s; open loop final position "
               f"error median {x['open_median']:.4g} {x['unit']}, max {x['open_max']:.4g} (noise-free "
               f"{x['noise_free_open']:.4g}); closed loop median {x['closed_median']:.4g}, max {x['closed_max']:.4g}")
     n, b = r["nominal"], r["robust"]

@@ -93,9 +93,11 @@ def robust_search(search, prepared, to_plan, settings, budget, progress):
 def robust_record(sc, ocp, nominal, solution, spec) -> dict:
     """What solution.json says of a robust plan: the copies and each one's terminal deviation
     e_s (:func:`~nhgait.ocp.scenarios.terminal_deviations`) under the nominal and the robust inputs."""
+    robust_plan = _deviations(sc, ocp, solution)
+    term = sc.weight * robust_plan[sc.aggregate]
     return {"robust": True, **spec.to_dict(), **sc.describe(), "end_fraction": END_FRACTION,
-            "nominal_objective": float(nominal.objective),
-            "nominal_plan": _deviations(sc, ocp, nominal), "robust_plan": _deviations(sc, ocp, solution),
+            "nominal_objective": float(nominal.objective), "task_objective": float(solution.objective) - term,
+            "robust_term": term, "nominal_plan": _deviations(sc, ocp, nominal), "robust_plan": robust_plan,
             "rule": "objective J + W·A_s Σ_i ((y_i(c_N^s) − y_i(z_N)) / σ_i)², σ_i = end_fraction·s_i, "
                     "W = weight × the nominal plan's objective"}
 
