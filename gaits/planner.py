@@ -408,7 +408,9 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
         reached.timings["solve_s"] = time.perf_counter() - t0 - reached.timings.get("setup_s", 0.0)
     if to_plan.task.robust is not None and reached.search.solution is not None:    # [task.robust]
         from .robust_plan import robust_search
+        t0 = time.perf_counter()
         reached.search = robust_search(reached.search, reached.prepared, to_plan, settings, budget, progress)
+        reached.timings["robust_s"] = time.perf_counter() - t0
     search = reached.search
     reached.solution = _in_momentum(search, reached.prepared, to_plan, params)
     if verify and search.solution is not None:
@@ -627,6 +629,9 @@ def summary_lines(result: PlanResult) -> list:
                      "applies it to a robot that differs")
     if s.stability is not None:
         lines += [f"  stability          {line}" for line in s.stability.summary()]
+    if st.get("robust"):                                                     # [task.robust]
+        from .robust_plan import summary_line
+        lines.append(f"  robust             {summary_line(st['robust'])}")
     symmetry = getattr(result.model, "symmetry", None)
     if symmetry is not None:
         lines.append(f"  symmetry           {symmetry.chosen.group} moves the fibre ({', '.join(result.model.fiber)}); "

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["robust_search", "scenarios_for", "END_FRACTION"]
+__all__ = ["robust_search", "scenarios_for", "summary_line", "END_FRACTION"]
 
 #: ε: the terminal deviations are measured in units of ε s_i (the feedback's end fraction)
 END_FRACTION = 0.02
@@ -109,3 +109,12 @@ def _deviations(sc, ocp, solution) -> dict:
     copies = copy_states(ocp.nlp, sc, w)
     e = terminal_deviations(sc, ocp.problem, solution.states[:, -1], copies[:, :, -1].T)
     return {"deviations": [float(v) for v in e], "mean": float(np.mean(e)), "worst": float(np.max(e))}
+
+
+def summary_line(record: dict) -> str:
+    """The robust plan's line in ``nhgait plan``'s summary, from its ``settings["robust"]``."""
+    key = record["aggregate"]
+    return (f"{record['copies']} copies ({', '.join(record['parameters'])}); {key} terminal deviation "
+            f"{record['nominal_plan'][key]:.3g} → {record['robust_plan'][key]:.3g} (units of "
+            f"({record['end_fraction']:g} s_i)²); the task's objective {record['nominal_objective']:.6g} → "
+            f"{record['task_objective']:.6g}")
