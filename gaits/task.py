@@ -330,7 +330,7 @@ def apply_overrides(data, assignments) -> dict:
 
 #: keys whose change makes another task (the others change how it is solved or checked)
 MEANING_KEYS = ("horizon", "initial", "final", "rest", "periodic", "bounds", "control_bounds", "objective",
-                "waypoints", "integrals", "phases")
+                "waypoints", "integrals", "phases", "robust")
 
 
 def renamed(table: dict, changed) -> dict:

@@ -109,7 +109,7 @@ class Scenarios:
 
     def describe(self) -> dict:
         return {"copies": self.count, "labels": list(self.labels), "params": self.params.tolist(),
-                "terminal": list(self.terminal), "scales": self.scales.tolist(), "weight": float(self.weight),
+                "terminal": list(self.terminal), "scales": self.scales.tolist(), "objective_weight": float(self.weight),
                 "aggregate": self.aggregate}
 
 

@@ -161,6 +161,8 @@ def test_a_robust_task_round_trips_through_its_table():
         [("J_theta", 1.2), ("m", 0.9)], [("J_theta", 1.2), ("m", 1.1)]]
     drawn = resolve("unicycle", _task({**robust, "samples": 5, "seed": 3})).task.robust.factors()
     assert len(drawn) == 5 and all(0.9 <= c["m"] <= 1.1 and c["J_theta"] == 1.2 for c in drawn)
+    changed = resolve("unicycle", task, overrides=["robust.weight=2", "robust.samples=3"]).task
+    assert (changed.robust.weight, changed.robust.samples) == (2.0, 3) and "robust.weight=2" in changed.name
 
 
 def test_a_copy_at_the_nominal_parameters_reproduces_the_nominal_plan():
