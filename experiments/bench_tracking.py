@@ -16,10 +16,16 @@
    open loop's monodromy (the variational equation, CVODES) against central differences of
    DOP853 flows at rtol 1e-13 (``finite_difference_monodromy``): largest entry and multiplier
    differences (target ≤ 1e-6).
+5. Robust planning (``[task.robust]``): the snakeboard's forward gait planned against the
+   grid m ×{0.9, 1.1}, J_r ×{0.9, 1.1} (4 copies, mean terminal deviation, weight 1) and the
+   nominal plan, both tracked as in part 1 (m +10 %, J_r −10 %, the same 20 noisy samples and
+   seed): open-loop final position error median / max and the noise-free run, closed loop too,
+   the objectives and the robust plan's time.
 
 Writes ``out/bench_tracking.json``. The machine's cores may be shared: quote one run.
 
-Usage: python experiments/bench_tracking.py [--quick] [--workers 2] [--out out/bench_tracking.json]
+Usage: python experiments/bench_tracking.py [--quick] [--workers 2] [--sections snakeboard,tiago,six,floquet,robust]
+                                           [--out out/bench_tracking.json]
 (``--quick``: N = 30 plans, 4 samples, 8 samples of part 3 — a smoke run, not the targets.)
 """
 from __future__ import annotations
@@ -104,8 +110,51 @@ def floquet(overrides) -> dict:
     return out
 
 
+#: the copies of part 5: every combination of these factors (the nominal one left out)
+ROBUST = {"parameters": {"m": [0.9, 1.1], "J_r": [0.9, 1.1]}}
+
+
+def robust(samples: int, overrides) -> dict:
+    """Part 5: the nominal and the robust plan of the forward gait, tracked under one mismatch."""
+    from nhgait.gaits.task_library import resolve
+    from nhgait.gaits.tracking.study import track
+    task = resolve("snakeboard", "forward", overrides=overrides).task.to_dict()
+    out = {}
+    for label, extra in (("nominal", {}), ("robust", {"robust": ROBUST})):
+        t0 = time.perf_counter()
+        result = track("snakeboard", {**task, **extra}, mismatch=["params.m=1.1", "params.J_r=0.9"],
+                       samples=samples, seed=0)
+        wall, report, solution = time.perf_counter() - t0, result.report, result.plan.solution
+        out[label] = {**_ratio(report), "noise_free_open": report["open_loop"]["noise_free_final_position_error"],
+                      "objective": solution.objective, "plan_s": result.timings["plan_s"], "wall_s": wall,
+                      "robust": solution.settings.get("robust")}
+    out["copies"] = ROBUST
+    return out
+
+
+def _print_robust(r: dict) -> None:
+    for label in ("nominal", "robust"):
+        x = r[label]
+        effort = x["objective"] if x["robust"] is None else x["robust"]["task_objective"]
+        print(f"  {label:8s} plan: J = {x['objective']:.4g} (the task's {effort:.4g}), planned in {x['plan_s']:.1f} s; open loop final position "
+              f"error median {x['open_median']:.4g} {x['unit']}, max {x['open_max']:.4g} (noise-free "
+              f"{x['noise_free_open']:.4g}); closed loop median {x['closed_median']:.4g}, max {x['closed_max']:.4g}")
+    n, b = r["nominal"], r["robust"]
+    dev = b["robust"]
+    print(f"  robust / nominal open loop: median {b['open_median'] / n['open_median']:.3f}, max "
+          f"{b['open_max'] / n['open_max']:.3f}, noise-free {b['noise_free_open'] / n['noise_free_open']:.3f}; "
+          f"copies' mean terminal deviation {dev['nominal_plan']['mean']:.3g} → {dev['robust_plan']['mean']:.3g} "
+          f"(units of (0.02 s_i)²)")
+
+
 def _print(results: dict) -> None:
+    if "robust" in results:
+        print("robust planning (snakeboard forward, copies m ×{0.9, 1.1}, J_r ×{0.9, 1.1}; tracked with m +10 %, "
+              "J_r −10 %):")
+        _print_robust(results["robust"])
     for name in ("snakeboard", "tiago"):
+        if name not in results:
+            continue
         r = results[name]
         if "skipped" in r:
             print(f"{name}: skipped ({r['skipped']})")
@@ -115,6 +164,8 @@ def _print(results: dict) -> None:
               f"{r['closed_max']:.4g}; closed max / open median = {r['ratio']:.4f} (target ≤ 0.1); "
               f"inputs at a bound {r['saturation_s_open_median']:.3g} s open, {r['saturation_s_closed_median']:.3g} s "
               f"closed (medians); {r['wall_s']:.1f} s")
+    if "six_coordinates" not in results or "floquet" not in results:
+        return
     r = results["six_coordinates"]
     print(f"two-steering snakeboard (n = 6): {r['samples']} samples on {r['workers']} workers in "
           f"{r['samples_s']:.1f} s ({r['per_sample_ms']:.0f} ms per sample, open + closed loop; target ≤ 60 s), "
@@ -132,16 +183,25 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a smoke run (small N and few samples)")
     ap.add_argument("--workers", type=int, default=2, help="worker processes of part 3 (default 2)")
+    ap.add_argument("--sections", default="snakeboard,tiago,six,floquet,robust",
+                    help="parts to run, comma-separated (default: all)")
     ap.add_argument("--out", default="out/bench_tracking.json")
     args = ap.parse_args(argv)
+    sections = set(args.sections.split(","))
     overrides = ["intervals=30"] if args.quick else []
     samples, many = (4, 8) if args.quick else (20, 100)
     results = {"quick": args.quick}
     with tempfile.TemporaryDirectory() as folder:
-        results["snakeboard"] = snakeboard(samples, overrides)
-        results["tiago"] = tiago(samples, overrides)
-        results["six_coordinates"] = six_coordinates(many, args.workers, Path(folder))
-    results["floquet"] = floquet(overrides)
+        if "snakeboard" in sections:
+            results["snakeboard"] = snakeboard(samples, overrides)
+        if "tiago" in sections:
+            results["tiago"] = tiago(samples, overrides)
+        if "six" in sections:
+            results["six_coordinates"] = six_coordinates(many, args.workers, Path(folder))
+    if "floquet" in sections:
+        results["floquet"] = floquet(overrides)
+    if "robust" in sections:
+        results["robust"] = robust(samples, ["intervals=50"] if args.quick else [])
     _print(results)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

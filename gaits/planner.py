@@ -408,6 +408,11 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
         reached.timings["solve_s"] = time.perf_counter() - t0 - reached.timings.get("setup_s", 0.0)
         if reached.search is not None:
             reached.search, reached.screening = screening_report(guesses, reached.search, problem)
+    if to_plan.task.robust is not None and reached.search.solution is not None:    # [task.robust]
+        from .robust_plan import robust_search
+        t0 = time.perf_counter()
+        reached.search = robust_search(reached.search, reached.prepared, to_plan, settings, budget, progress)
+        reached.timings["robust_s"] = time.perf_counter() - t0
     search = reached.search
     reached.solution = _in_momentum(search, reached.prepared, to_plan, params)
     if verify and search.solution is not None:
@@ -418,7 +423,7 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
                 return verified_gait(solution, reached.prepared.model, reached.prepared.stated, to_plan, params,
                                      progress=progress)
         reached.solution = verify_one(search.solution)
-        if refinable(reached.solution):
+        if refinable(reached.solution) and "robust" not in search.solution.settings:   # refined: nominal again
             _refined(reached, settings, budget, progress, verify_one)
         reached.timings["verify_s"] = time.perf_counter() - t0
     if search.solution is not None:                                          # issue 28
@@ -614,6 +619,9 @@ def summary_lines(result: PlanResult) -> list:
                      "applies it to a robot that differs")
     if s.stability is not None:
         lines += [f"  stability          {line}" for line in s.stability.summary()]
+    if st.get("robust"):                                                     # [task.robust]
+        from .robust_plan import summary_line
+        lines.append(f"  robust             {summary_line(st['robust'])}")
     symmetry = getattr(result.model, "symmetry", None)
     if symmetry is not None:
         lines.append(f"  symmetry           {symmetry.chosen.group} moves the fibre ({', '.join(result.model.fiber)}); "

@@ -18,6 +18,7 @@ Format (docs/gait-planning.md)::
     velocities = ["forward_velocity", "psi_dot", "phi_dot"]     # optional: velocity states
     verify_tolerance = 1e-6              # re-simulation must meet every condition to this
     time_limit = 300                     # s the whole plan may take (default: from the robot's size)
+    robust = {parameters = {m = [0.9, 1.1]}}   # optional: scenario planning (:mod:`.task_robust`)
 
 Names are the system's coordinates, ``<coordinate>_dot``, the scene's named quantities
 (``[quantities]``) and, for a planar frame (x, y, θ), ``forward_velocity`` and
@@ -48,6 +49,7 @@ from nhgait.ocp import OptimalControlProblem, ProblemError, Quantity
 from nhgait.ocp.statement import FrozenMap, ProblemStatement, Wording, instant_problems
 
 from .task_phases import parse_integrals, parse_phases, parse_waypoints, phase_table, waypoint_table
+from .task_robust import RobustTask, parse_robust, robust_name_problems, robust_table
 from .task_values import control_bounds, horizon, names_list, number, table
 
 __all__ = ["Task", "FrozenMap", "parse_task", "apply_overrides", "check_names", "task_names", "to_problem", "at_rest",
@@ -55,7 +57,7 @@ __all__ = ["Task", "FrozenMap", "parse_task", "apply_overrides", "check_names", 
 
 TASK_KEYS = ("name", "description", "horizon", "intervals", "initial", "final", "rest", "periodic", "bounds",
              "control_bounds", "objective", "velocities", "verify_tolerance", "time_limit", "waypoints", "integrals",
-             "phases")
+             "phases", "robust")
 ENDS = ("initial", "final")
 OBJECTIVES = ("effort", "time")
 #: a task's name of a statement field (the others are the same)
@@ -117,6 +119,7 @@ class Task:
     rest: tuple = ()
     verify_tolerance: float = 1e-6
     time_limit: float | None = None
+    robust: RobustTask | None = None     # [task.robust]: scenario planning (:mod:`.task_robust`)
 
     def __post_init__(self):
         object.__setattr__(self, "objective", FrozenMap(self.objective))
@@ -176,6 +179,8 @@ class Task:
         out["verify_tolerance"] = self.verify_tolerance
         if self.time_limit is not None:
             out["time_limit"] = self.time_limit
+        if self.robust is not None:
+            out["robust"] = robust_table(self)
         return out
 
 
@@ -232,7 +237,7 @@ def _task_fields(data, where, problems) -> dict:
             problems.append(f"{where}.{key} must be a string")
     return {"velocities": names_list(data, "velocities", problems), "rest": rest, "verify_tolerance": tolerance,
             "name": str(data.get("name", "task")), "description": str(data.get("description", "")),
-            "time_limit": _time_limit(data, where, problems)}
+            "time_limit": _time_limit(data, where, problems), "robust": parse_robust(data, where, problems)}
 
 
 def _time_limit(data, where, problems) -> float | None:
@@ -271,6 +276,7 @@ def parse_task(data, *, where: str = "[task]", system=None, quantities=(), motio
     else:
         n, k = system.n, len(system.constraint_exprs)
         problems += _name_problems(task, task_names(system, quantities), tuple(system.inputs), n - k, where, motion)
+        problems += robust_name_problems(task.robust, system, task_names(system, quantities), where)
     if problems:
         raise ProblemError(problems, title="invalid task")
     return task
@@ -324,7 +330,7 @@ def apply_overrides(data, assignments) -> dict:
 
 #: keys whose change makes another task (the others change how it is solved or checked)
 MEANING_KEYS = ("horizon", "initial", "final", "rest", "periodic", "bounds", "control_bounds", "objective",
-                "waypoints", "integrals", "phases")
+                "waypoints", "integrals", "phases", "robust")
 
 
 def renamed(table: dict, changed) -> dict:

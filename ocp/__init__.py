@@ -7,7 +7,9 @@ Layers (each imports only the ones before it; none imports sympy):
 * :mod:`.transcription` — :class:`MultipleShooting` (RK4, default), :class:`Collocation`;
 * :mod:`.solver` — :class:`OCPSolver` / :func:`solve` (Ipopt by default here, FATROP on a stage-ordered
   transcription; optional cached jit — ``nhgait.gaits.planner.plan`` tries FATROP first);
-* :mod:`.solution` — :class:`Solution` (data, with ``verify()`` and ``to_json()``).
+* :mod:`.solution` — :class:`Solution` (data, with ``verify()`` and ``to_json()``);
+* :mod:`.scenarios` — :class:`Scenarios`, :class:`ScenarioShooting`: robust planning, copies of the
+  state under other parameter values driven by the same inputs.
 
 Example::
 
@@ -29,6 +31,7 @@ _EXPORTS = {
     "get_transcription": "transcription",
     "SolverOptions": "solver", "OCPSolver": "solver", "solve": "solver", "InitialGuess": "solver",
     "Solution": "solution", "Verification": "solution",
+    "Scenarios": "scenarios", "ScenarioShooting": "scenarios",
 }
 
 __all__ = sorted(_EXPORTS)

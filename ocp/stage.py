@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-__all__ = ["StageFunctions", "stage_functions", "stage_mode", "INLINE_LIMIT", "RK4"]
+__all__ = ["StageFunctions", "stage_functions", "stage_mode", "phase_size", "INLINE_LIMIT", "RK4"]
 
 #: RK4 tableau (a lower triangular, b weights, c nodes)
 RK4 = (((), (0.5,), (0.0, 0.5), (0.0, 0.0, 1.0)), (1 / 6, 1 / 3, 1 / 3, 1 / 6), (0.0, 0.5, 0.5, 1.0))
@@ -62,7 +62,8 @@ class StageFunctions:
 
     Every function takes ``(z, u, T, k, phase)``: node state (nz), control (nu), the phase's
     horizon (scalar; a constant for a fixed horizon), the interval's index k in its phase and
-    ``phase`` = (ν, t0) = (1 / N of the phase, its start time) (constants); ``hessian`` also
+    ``phase`` = (ν, t0) = (1 / N of the phase, its start time) (constants; followed by θ for an
+    ODE with a parameter argument, :func:`phase_size`); ``hessian`` also
     ``lam`` (nz). ``jacobian`` returns (F, J) with J of shape nz × nx; ``hessian`` returns
     the dense symmetric nx × nx matrix. x = (z, u) or (z, u, T) when ``free_horizon``.
     """
@@ -106,7 +107,7 @@ def stage_mode(ode: ca.Function, *, steps: int = 4, free_horizon: bool = False) 
 def stage_functions(ode: ca.Function, intervals: int | None = None, *, steps: int = 4, free_horizon: bool = False,
                     mode: str = "auto") -> StageFunctions:
     """The stage functions of ``ode`` (an SX Function ``(t, z, u) -> ż`` with the parameter
-    values bound), ``steps`` = M RK4 sub-steps per interval; the number of intervals enters as
+    values bound, or ``(t, z, u, θ) -> ż`` whose θ then follows (ν, t0) in ``phase``), ``steps`` = M RK4 sub-steps per interval; the number of intervals enters as
     the argument ν = 1/N (``intervals`` is not needed: the same functions serve every N).
 
     ``mode``: "inline", "structured" or "auto" (inline while 4 M · nx · ops(f) ≤
@@ -123,22 +124,31 @@ def stage_functions(ode: ca.Function, intervals: int | None = None, *, steps: in
     return StageFunctions(step, jac, hess, mode, nz, nu, free_horizon, steps, ops, code)
 
 
+def phase_size(ode: ca.Function) -> int:
+    """The entries of the stage's constant argument ``phase``: (ν, t0), followed by the
+    parameter vector θ of an ODE ``(t, z, u, θ) -> ż`` that takes one (:mod:`.scenarios`)."""
+    return 2 + (int(ode.size1_in(3)) if ode.n_in() > 3 else 0)
+
+
 def _scaled_ode(ode: ca.Function) -> ca.Function:
-    """g(z, u, T, τ, phase) = h f(t0 + τ h, z, u), h = ν T, phase = (ν, t0) (module docstring)."""
+    """g(z, u, T, τ, phase) = h f(t0 + τ h, z, u[, θ]), h = ν T, phase = (ν, t0[, θ]) (module
+    docstring): an ODE with a parameter argument θ gets it from the constant ``phase``."""
     nz, nu = int(ode.size1_in(1)), int(ode.size1_in(2))
-    z, u, T, tau, phase = ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("T"), ca.SX.sym("tau"), ca.SX.sym("phase", 2)
+    z, u, T, tau = ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("T"), ca.SX.sym("tau")
+    phase = ca.SX.sym("phase", phase_size(ode))
     h = phase[0] * T
-    return ca.Function("g", [z, u, T, tau, phase], [h * ode(phase[1] + tau * h, z, u)], ["z", "u", "T", "tau", "phase"],
-                       ["dzds"])
+    args = [phase[1] + tau * h, z, u] + ([phase[2:]] if ode.n_in() > 3 else [])
+    return ca.Function("g", [z, u, T, tau, phase], [h * ode(*args)], ["z", "u", "T", "tau", "phase"], ["dzds"])
 
 
-def _symbols(sym, nz, nu):
-    return sym.sym("z", nz), sym.sym("u", nu), sym.sym("T"), sym.sym("k"), sym.sym("lam", nz), sym.sym("phase", 2)
+def _symbols(sym, nz, nu, n_phase=2):
+    return (sym.sym("z", nz), sym.sym("u", nu), sym.sym("T"), sym.sym("k"), sym.sym("lam", nz),
+            sym.sym("phase", n_phase))
 
 
 def _inline(g, nz, nu, steps, free):
     """One SX expression of the M sub-steps, differentiated by CasADi."""
-    z, u, T, k, lam, phase = _symbols(ca.SX, nz, nu)
+    z, u, T, k, lam, phase = _symbols(ca.SX, nz, nu, int(g.size1_in(4)))
     a, b, _ = RK4
     ds = 1.0 / steps
     zi = z
@@ -159,12 +169,12 @@ def _inline(g, nz, nu, steps, free):
 def _structured(g, nz, nu, steps, free):
     """MX glue over g, g_jac, g_hess (module docstring): code independent of N and M."""
     zs, us, Ts, taus, nus = ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("T"), ca.SX.sym("tau"), ca.SX.sym("nu", nz)
-    phs = ca.SX.sym("phase", 2)
+    phs = ca.SX.sym("phase", int(g.size1_in(4)))
     val = g(zs, us, Ts, taus, phs)
     local = ca.vertcat(zs, us, Ts) if free else ca.vertcat(zs, us)
     g_jac = ca.Function("g_jac", [zs, us, Ts, taus, phs], [val, ca.jacobian(val, local)])
     g_hess = ca.Function("g_hess", [zs, us, Ts, taus, phs, nus], [ca.hessian(ca.dot(nus, val), local)[0]])
-    z, u, T, k, lam, phase = _symbols(ca.MX, nz, nu)
+    z, u, T, k, lam, phase = _symbols(ca.MX, nz, nu, int(g.size1_in(4)))
     nx = nz + nu + (1 if free else 0)
     # ∂(u[, T])/∂x: constant rows below the sensitivity of y
     E = ca.DM(np.hstack([np.zeros((nx - nz, nz)), np.eye(nx - nz)]))

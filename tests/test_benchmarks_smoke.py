@@ -66,4 +66,8 @@ def test_bench_tracking_smoke(tmp_path, capsys):
     data = json.loads(out.read_text())
     assert data["snakeboard"]["ratio"] < 0.2 and data["six_coordinates"]["samples"] == 8
     assert data["floquet"]["closed_loop"]["max_multiplier_difference"] < 1e-6
-    assert "Floquet (snakeboard forward gait)" in capsys.readouterr().out
+    robust, nominal = data["robust"]["robust"], data["robust"]["nominal"]      # planned for m ×1.1 among others
+    assert robust["noise_free_open"] < 0.8 * nominal["noise_free_open"]
+    assert robust["robust"]["copies"] == 4 and nominal["robust"] is None
+    printed = capsys.readouterr().out
+    assert "Floquet (snakeboard forward gait)" in printed and "robust / nominal open loop" in printed
