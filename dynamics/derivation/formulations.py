@@ -16,6 +16,7 @@ import dataclasses
 import time
 from typing import Callable, NamedTuple
 
+from ..algebra.determinism import seeded
 from ..numerics import cache as _cache
 from ..errors import ModelError
 
@@ -156,7 +157,8 @@ def derive(system, formulation: str = "reduced", *, version: str | None = None,
                                            time.perf_counter() - start, _cache.versions())
             return bind(entry.model, system, provenance)
     created, start = _cache.now(), time.perf_counter()
-    model = registered.derive(system, version)
+    with seeded():                     # sympy's random choices fixed: the same work every time
+        model = registered.derive(system, version)
     if compile:
         model.numeric  # noqa: B018 - build and keep the compiled functions
     elapsed = time.perf_counter() - start
