@@ -268,6 +268,11 @@ class Candidates(Sequence):
         when the candidates are not screened)."""
         return None if self._screen is None else self._screen.check(guess)
 
+    @property
+    def given_first(self) -> bool:
+        """Whether a given guess (a warm start, :meth:`with_first`) leads the candidates."""
+        return bool(self._first)
+
     def with_first(self, guess) -> "Candidates":
         return Candidates(self._problem, self._shapes, self._coordinates, (guess, *self._first),
                           screen=self._screen, start=self.start, progress=self._progress, blocked=self._blocked)

@@ -490,6 +490,7 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
     from nhgait.ocp import OCPSolver, SolverOptions
     from .time_limits import attempt_limited
     s = settings
+    explore = not getattr(guesses, "given_first", False)     # a warm start answers where the user asked
     reached.search = Search(None, (), None)
     for name in solver_order(s.solver, s.transcription, problem):
         t0 = time.perf_counter()
@@ -506,7 +507,7 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
             with progress.phase(f"solve with {name} from up to {min(s.limit, len(guesses))} guesses"):
                 reached.search = reached.search.then(solve_with_fallbacks(ocp, guesses, workers=s.workers,
                                                                           limit=s.limit, progress=progress,
-                                                                          budget=budget, explore=True))
+                                                                          budget=budget, explore=explore))
         if reached.search.solution is not None:
             break
 

@@ -84,6 +84,9 @@ EXPLORE_GUESSES = 6
 EXPLORE_TIME_RATIO = 3.0
 EXPLORE_FLOOR_S = 1.0
 EXPLORE_BUDGET_SHARE = 0.25
+#: a later guess replaces the best so far when its objective is lower by more than this
+#: fraction (of max(1, |J|)): the same optimum reached from another guess is not a new one
+EXPLORE_GAIN = 1e-6
 
 #: Ipopt settings of warm-started solves (a sweep point from its neighbour, a refinement from the
 #: converged point): a small initial barrier parameter (the start is near the optimum: a large μ
@@ -234,7 +237,7 @@ def _explored(solver, guesses, found: Search, indices, seconds: float, workers: 
         for k, (g, s) in enumerate(zip(batch, sols)):
             attempts.append(attempt_of(g.label, s, name))
             _report(progress, indices[start] + k + 1, indices[-1] + 1, g.label, s)
-            if s.success and s.objective < best.objective:
+            if s.success and s.objective < best.objective - EXPLORE_GAIN * max(1.0, abs(best.objective)):
                 best, label = s, g.label
     if label != found.won:
         progress.note(f"  kept {label!r}: J = {best.objective:.6g} (the first converged: {found.solution.objective:.6g})")

@@ -116,7 +116,8 @@ def test_solution_json_has_the_trajectory_task_and_guess(planned):
     q, qd = np.array(tr["q"]), np.array(tr["qdot"])
     assert np.max(np.abs(-np.sin(q[:, 2]) * qd[:, 0] + np.cos(q[:, 2]) * qd[:, 1])) < 1e-9
     assert data["task"]["final"]["y"] == 0.5 and data["task"]["intervals"] == N
-    assert data["guess"]["won"] == result.guess and data["guess"]["tried"][-1]["success"]
+    assert data["guess"]["won"] == result.guess
+    assert any(t["success"] for t in data["guess"]["tried"] if result.guess.startswith(t["label"]))
 
 
 #: files of other owners still naming sympy (cli/main.py: a docstring; cli/derive.py: printing)
@@ -160,7 +161,8 @@ def test_continuation_grows_an_easier_problem():
 def test_parallel_candidates_agree_with_sequential():
     seq = plan("snakeboard", "rotate", intervals=25, jit=False, workers=1, verify=False)
     par = plan("snakeboard", "rotate", intervals=25, jit=False, workers=2, verify=False)
-    assert par.success and len(par.attempts) == 2
+    assert par.success
+    assert len(par.attempts) >= 2            # the first batch (two at once), then the exploration's
     best = min((a.objective for a in par.attempts if a.success))
     assert par.solution.objective == pytest.approx(best, rel=1e-12)
     # the first candidate is the same in both: its result does not depend on the process

@@ -41,7 +41,9 @@ def test_a_converged_plan_that_misses_the_task_is_refined_or_a_failure():
     assert "does not meet the task to 1e-13" in text and "increase intervals (now 4" in text
     assert "even refined to" in text
     loose = plan("unicycle", {**P1, "verify_tolerance": 1e-2}, jit=False, solver="ipopt")
-    assert loose.success and loose.solution.verification.max_error <= 1e-2 and len(loose.attempts) == 1
+    assert loose.success
+    assert loose.solution.verification.max_error <= 1e-2
+    assert not any("refined" in a.label for a in loose.attempts)           # nothing solved again
     assert loose.solution.objective == pytest.approx(first.objective, rel=1e-9)   # the first optimum, accepted
 
 
