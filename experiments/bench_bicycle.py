@@ -30,7 +30,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-
 import sibling
 
 PUBLISHED = sibling.load("whipple_published")

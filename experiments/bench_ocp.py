@@ -39,6 +39,7 @@ from pathlib import Path
 
 import plan_process  # experiments/plan_process.py: nhgait plan cold and warm, measured from outside
 import sibling  # experiments/sibling.py: the other scripts, loaded by file path
+
 PROBLEMS = {"P1": ("unicycle", "parallel-park"), "P2": ("snakeboard", "forward"), "P3": ("snakeboard", "rotate")}
 
 
@@ -52,12 +53,10 @@ class Ours:
 
     def __init__(self, key, N, *, solver=None, transcription=None, jit=None, guess_label=None):
         from nhgait.gaits.guesses import candidates
-        from nhgait.gaits.planner import prepare
+        from nhgait.gaits.planner import prepare, solver_order
         from nhgait.gaits.search import solve_from_guesses
         from nhgait.gaits.task_library import resolve
         from nhgait.ocp import OCPSolver, SolverOptions
-
-        from nhgait.gaits.planner import solver_order
         solver = solver or solver_order("auto", transcription)[0]
         system, gait = PROBLEMS[key]
         t0 = time.perf_counter()

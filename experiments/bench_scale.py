@@ -35,13 +35,12 @@ import os
 import statistics
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
-
 import plan_process  # experiments/plan_process.py: nhgait plan cold and warm, measured from outside
 import sibling  # experiments/sibling.py: the other scripts, loaded by file path
+
 
 def cold(member: str, folder: Path, cache: Path, timeout: float, extra: tuple = ()) -> dict:
     """``nhgait plan`` of ``member`` in a fresh process with the empty cache ``cache``, its

@@ -42,6 +42,7 @@ BUILTINS = ("unicycle", "snakeboard")
 
 def _fresh():
     from sympy.core.cache import clear_cache
+
     from nhgait.dynamics.algebra.trig import forget_normal_forms
     clear_cache()
     forget_normal_forms()
@@ -98,7 +99,7 @@ def _mechanics(name, kind):
     """A callable that runs sympy's LagrangesMethod (equations + rhs()) or KanesMethod on the
     oracle's physical description of ``name`` (timed from the description onwards)."""
     import oracles
-    from sympy.physics.mechanics import Lagrangian, LagrangesMethod
+    from sympy.physics.mechanics import LagrangesMethod, Lagrangian
 
     def run():
         mdl = oracles.model_description(name)
@@ -154,7 +155,8 @@ def measure(name, repeats, cap, cli=True, agreement=True):
     row["lagrange_s"] = _median(_mechanics(name, "lagrange"), repeats, cap)
     row["kane_s"] = _median(_mechanics(name, "kane"), repeats, cap)
     if agreement:
-        from oracles import agreement as oracle_agreement, oracle
+        from oracles import agreement as oracle_agreement
+        from oracles import oracle
         row["oracle_error"] = oracle_agreement(system, model, oracle(name))
     else:
         row["oracle_error"] = None

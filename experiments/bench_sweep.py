@@ -28,14 +28,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import operator
 import statistics
 import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
-
-
-import operator
 
 _echo = operator.itemgetter(1)      # a picklable function that does no work: payload → answer
 _carried = operator.attrgetter("warm")     # the same for a job carrying its answer as ``warm``
@@ -121,6 +119,7 @@ def _pipelined(backend, payload, count: int, chain: int = 1) -> float:
     """Seconds per point for ``count`` tasks of ``chain`` points each, kept 2 per worker in
     flight as the sweep driver does."""
     import concurrent.futures as cf
+
     from nhgait.gaits.sweeps.point import solve_chain
     t0 = time.perf_counter()
     in_flight, sent = set(), 0

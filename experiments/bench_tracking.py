@@ -31,7 +31,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-
 import sibling  # experiments/sibling.py: the other scripts, loaded by file path
 
 ROOT = Path(__file__).resolve().parents[1]

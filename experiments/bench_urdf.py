@@ -40,6 +40,7 @@ ROBOTS = {
 
 def _build(table):
     from sympy.core.cache import clear_cache
+
     from nhgait.dynamics.derivation.urdf import urdf_system
     clear_cache()
     t0 = time.perf_counter()

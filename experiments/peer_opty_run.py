@@ -59,7 +59,7 @@ def _source(path: str, num_nodes: int | None) -> str:
     return text
 
 
-def _interpolated(guess: dict, prob) -> "np.ndarray":
+def _interpolated(guess: dict, prob) -> np.ndarray:
     """A previous answer on this problem's nodes (normalised time), as opty's free vector."""
     import numpy as np
     old_t = np.asarray(guess["t"], float)

@@ -169,14 +169,14 @@ MODELS = {  # name -> (rhs, nx, nu)
 }
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def ode_function(model: str) -> ca.Function:
     rhs, nx, nu = MODELS[model]
     X, U = ca.SX.sym("x", nx), ca.SX.sym("u", nu)
     return ca.Function("f_" + model, [X, U], [rhs(X, U)], ["x", "u"], ["xdot"])
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def rk4_function(model: str, dt: float, M: int) -> ca.Function:
     """One shooting interval: M explicit RK4 steps of size dt/M (SX, ODE inlined)."""
     rhs, nx, nu = MODELS[model]
@@ -459,7 +459,7 @@ class _Build:
     expand: bool
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _build(build: _Build):
     return _FORMULATIONS[build.formulation](build.problem, build.N, build.M, build.jit, build.map_mode, build.expand)
 

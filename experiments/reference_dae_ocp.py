@@ -61,7 +61,6 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-
 import sibling  # experiments/sibling.py: the other scripts, loaded by file path
 
 SUBSTEPS = 4
@@ -372,9 +371,8 @@ class ReferenceOCP:
         self.compile_s += setup
         return solver, setup
 
-    def solve(self, guess=None, max_wall_s=300.0, max_iter=1000, tolerance=1e-4) -> "ReferenceResult":
+    def solve(self, guess=None, max_wall_s=300.0, max_iter=1000, tolerance=1e-4) -> ReferenceResult:
         """Ipopt from ``guess`` (a solution.json path/dict, or None: the own guess)."""
-        import casadi as ca
         start = "planner" if guess is not None else "own"
         Q, Qd, U = self.planner_guess(guess) if guess is not None else self.own_guess()
         w0 = np.clip(self.pack(Q, Qd, U), self.lbw, self.ubw)

@@ -166,7 +166,6 @@ from pathlib import Path
 
 import casadi as ca
 import numpy as np
-
 import sibling  # experiments/sibling.py: the other scripts, loaded by file path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -306,7 +305,7 @@ class KaneBody:
     derive_s: float
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def kane_body(member: str) -> KaneBody:
     """Kane's equations of ``member`` (``tests/oracles.py`` description) in body-frame speeds."""
     import sympy as sp
@@ -459,7 +458,7 @@ def _speeds_symbolic(kb: KaneBody, ind, dep, z, tau) -> tuple:
 _SPEEDS = {"numeric": _speeds_numeric, "symbolic": _speeds_symbolic}
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def reduced_ode(member: str, linear: str = "symbolic") -> ReducedODE:
     """The reduced ODE of ``member`` (see the module docstring); ``linear`` = "numeric" (solves
     in the SX graph) or "symbolic" (eliminated in sympy before printing)."""
@@ -546,7 +545,7 @@ class _StateIndex:
     state_rate: dict
 
     @classmethod
-    def of(cls, ode: ReducedODE) -> "_StateIndex":
+    def of(cls, ode: ReducedODE) -> _StateIndex:
         return cls({c: i for i, c in enumerate(ode.coordinates)},
                    {f"{s}_dot" if s != "v" else "forward_velocity": ode.n + j for j, s in enumerate(ode.independent)})
 
@@ -943,7 +942,7 @@ def build(member: str, N: int | None = None, jit: bool = True, task: dict | None
 # --------------------------------------------------------------------------- #
 # a second model: the multiplier DAE in (q, q̇) (check and re-simulation)
 # --------------------------------------------------------------------------- #
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def multiplier_dae(member: str) -> ca.Function:
     """q̈(q, q̇, τ) of M_q q̈ = F_q + A_qᵀλ, A_q q̈ = −Ȧ_q q̇, from the *unconstrained*
     ``KanesMethod`` in the speeds u = q̇ (no body-frame speeds, no symmetry, no reduction)."""

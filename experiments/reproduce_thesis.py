@@ -78,8 +78,8 @@ def main(argv=None) -> int:
     parser.add_argument("--no-idas", action="store_true", help="skip the IDAS runs")
     args = parser.parse_args(argv)
 
-    from nhgait.gaits.cli.reproduce import print_summary
     from nhgait.gaits.bench.reproduction import reproduce
+    from nhgait.gaits.cli.reproduce import print_summary
 
     summary = reproduce(args.out, rtol=args.rtol, idas=not args.no_idas, reference=kane_reference)
     print_summary(summary)

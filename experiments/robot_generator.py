@@ -54,7 +54,6 @@ import sys
 from dataclasses import dataclass, field
 
 import numpy as np
-
 import sibling  # experiments/sibling.py: the other scripts, loaded by file path
 
 FAMILIES = ("chain", "car", "sleigh", "snakeboard")

@@ -5,6 +5,7 @@ Run: python experiments/thesis_printed_equations.py
 """
 import numpy as np
 from scipy.integrate import solve_ivp
+
 m,J,Jr,Jw=0.5,0.3,0.2,0.1; r=np.sqrt((J+Jr+2*Jw)/m)
 kp,kd=10,5
 def make(psi_factor=2.0, ptpsi0_factor=2.0):

@@ -302,10 +302,10 @@ def _status(tr) -> str:
 # ------------------------------------------------------------------------------------------
 def per_evaluation_costs(log=print) -> dict:
     """Nanoseconds per closed-loop right-hand side evaluation of the snakeboard PD run."""
-    from nhgait.dynamics.simulation.closed_loop import closed_loop
-    from nhgait.dynamics.simulation.integrators import Fast
     from nhgait.dynamics.derivation.states import to_state
+    from nhgait.dynamics.simulation.closed_loop import closed_loop
     from nhgait.dynamics.simulation.driver import _integration_model
+    from nhgait.dynamics.simulation.integrators import Fast
     out = {}
     general = derive("snakeboard", "reduced")
     pv = general.numeric.params(None)

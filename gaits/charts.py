@@ -192,6 +192,7 @@ def lagrange_ode(system):
     wherever ω has full rank, so a gait that crosses the singular set of every chart of the
     reduction can still be re-simulated. The LagrangianDAE with these functions added."""
     import casadi as ca
+
     from nhgait.dynamics import derive
     dae = derive(system, "lagrange")
     numeric = dae.numeric

@@ -61,6 +61,7 @@ def verified_gait(solution, model, stated, to_plan, params, *, verify=True, prog
     too: its trajectory is written out), and when the gait fails there before another chart is
     tried (:func:`_lagrange_first`)."""
     from nhgait.dynamics.progress import Progress
+
     from .charts import lagrange_ode, verification_chart
     progress = progress or Progress.silent()
     n = len(model.system.coordinates)

@@ -46,7 +46,16 @@ from itertools import combinations
 import numpy as np
 
 from .screening import RATIO, Check, Screen
-from .waves import FITTED_LABEL, PATH_LABEL, ShapeGuess, amplitude, ends, free_start, guess_from_shape, repairs
+from .waves import (
+    FITTED_LABEL,
+    PATH_LABEL,
+    ShapeGuess,
+    amplitude,
+    ends,
+    free_start,
+    guess_from_shape,
+    repairs,
+)
 
 __all__ = ["ShapeGuess", "shape_guesses", "rollout_guesses", "guess_from_shape", "candidates", "Candidates",
            "Screened", "screened_dict", "RATIOS", "AMPLITUDES"]
@@ -268,7 +277,7 @@ class Candidates(Sequence):
         when the candidates are not screened)."""
         return None if self._screen is None else self._screen.check(guess)
 
-    def with_first(self, guess) -> "Candidates":
+    def with_first(self, guess) -> Candidates:
         return Candidates(self._problem, self._shapes, self._coordinates, (guess, *self._first),
                           screen=self._screen, start=self.start, progress=self._progress, blocked=self._blocked)
 

@@ -50,8 +50,7 @@ from typing import Any
 
 import numpy as np
 
-from .gait_check import (momentum_problem, screening_report, to_momentum_coordinates,  # noqa: F401
-                         unsolved, verified_gait)
+from .gait_check import momentum_problem, screening_report, to_momentum_coordinates, unsolved, verified_gait  # noqa: F401
 from .search import Attempt, Search, continuation, solve_from_guesses, solve_with_fallbacks  # noqa: F401
 from .task import quantity_objects  # noqa: F401
 
@@ -154,6 +153,7 @@ def state_problem(task, specialised, scene, *, params=None, name: str = ""):
     the specialised model: an end that gives every coordinate and velocity is checked
     against ω(q)q̇ = 0 first (the error names each violated constraint)."""
     from nhgait.ocp.conditions import normalise
+
     from .task import to_problem
     _check_full_states(task, specialised.base, params)
     stated = to_problem(task, specialised, quantities=quantity_objects(specialised, scene), params=params,
@@ -166,8 +166,8 @@ def _check_full_states(task, model, params) -> None:
     """A full (q, q̇) at an end must satisfy the constraints
     (:func:`nhgait.dynamics.derivation.states.check_physical_state`; a posture on the singular
     set of the reduction's chart is allowed: the velocity states may be regular there)."""
-    from nhgait.dynamics.errors import ModelError
     from nhgait.dynamics.derivation.states import check_physical_state
+    from nhgait.dynamics.errors import ModelError
     from nhgait.ocp import ProblemError
     coords = tuple(model.system.coordinates)
     problems = []
@@ -185,8 +185,9 @@ def _check_full_states(task, model, params) -> None:
 
 def prepare(to_plan, *, params=None, progress=None) -> Prepared:
     """The :class:`Prepared` model and problems of a :class:`~nhgait.gaits.task_library.Plan`."""
-    from nhgait.dynamics.progress import Progress
     from nhgait.dynamics.numerics.specialisation import choose_velocities, specialise
+    from nhgait.dynamics.progress import Progress
+
     from .charts import derive_for_task, end_postures
     from .task import check_names
 
@@ -221,6 +222,7 @@ def read_solution(path) -> dict:
     (:func:`~nhgait.dynamics.derivation.textfiles.read_text_file`); a file that is not one is
     a :class:`~nhgait.dynamics.errors.ModelError` naming it."""
     import json
+
     from nhgait.dynamics.derivation.textfiles import read_text_file
     from nhgait.dynamics.errors import ModelError
     title = "cannot read the solution"
@@ -328,6 +330,7 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     """
     from nhgait.dynamics.progress import Progress
     from nhgait.ocp.budget import BudgetSpent
+
     from .diagnosis import diagnose
     from .outputs import output_directory
     from .task_library import resolve
@@ -384,6 +387,7 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
     """Steps 2–5 of the module docstring and the feedback along a converged plan, each within
     ``budget``, recorded in ``reached``."""
     from nhgait.ocp import ProblemError
+
     from .guesses import candidates
     from .reachability import unreachable_targets
     from .refinement import refinable
@@ -483,6 +487,7 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
     is interrupted when the budget runs out; each attempt gets at most the time left
     (:func:`~.time_limits.attempt_limited`)."""
     from nhgait.ocp import OCPSolver, SolverOptions
+
     from .time_limits import attempt_limited
     s = settings
     reached.search = Search(None, (), None)
@@ -558,6 +563,7 @@ def write_outputs(result: PlanResult, out: Path, *, animate: bool = True, progre
     ran out gets solution.json only (nothing without a point). Each file is written whole or
     not at all (:func:`nhgait.gaits.outputs.staged`). Returns the paths."""
     from nhgait.dynamics.progress import Progress
+
     from .outputs import staged
     progress = progress or Progress.silent()
     if result.solution is None:
@@ -621,7 +627,7 @@ def summary_lines(result: PlanResult) -> list:
                      "(fiber = [...] in [system]): nhgait derive")
     checked = getattr(s.problem, "model", None)
     if symmetry is not None and checked is not None and not hasattr(checked, "fiber"):
-        lines.append(f"  verified in        x = (q, q̇) on the Euler–Lagrange equations: the gait crosses the singular "
+        lines.append("  verified in        x = (q, q̇) on the Euler–Lagrange equations: the gait crosses the singular "
                      "set of every chart of the reduction tried")
     elif symmetry is not None and checked is not None and tuple(checked.fiber) != tuple(result.model.fiber):
         lines.append(f"  verified in        the chart with fiber ({', '.join(checked.fiber)}): the gait crosses the "

@@ -81,8 +81,9 @@ def _solver(problem, transcription, name, search_settings, progress):
     :data:`COMPILE_ABOVE_S`, else compiled at -O0 (unless the plan does not compile at all)."""
     from nhgait.ocp import OCPSolver, SolverOptions
     from nhgait.ocp.budget import EVALUATIONS_PER_ITERATION
-    from .time_limits import attempt_limited
+
     from .search import WARM_IPOPT
+    from .time_limits import attempt_limited
     s = search_settings
     options = SolverOptions(jit=False, solver=name, max_iter=s.max_iter, hessian=s.hessian,
                             ipopt=dict(WARM_IPOPT) if name == "ipopt" else {})
@@ -99,6 +100,7 @@ def refine(solution, verified, search_settings, budget, progress, verify):
     :func:`refinable`, each result verified by ``verify(solution)``; the attempts made. Returns
     the inputs unchanged when nothing was refined or no refined solve converged."""
     from nhgait.ocp import InitialGuess
+
     from .search import attempt_of, solve_attempts
     attempts = []
     for _ in range(REFINEMENTS):

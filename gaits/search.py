@@ -56,7 +56,7 @@ class Search:
     won: str | None
     closest: Any = None
 
-    def then(self, other: "Search") -> "Search":
+    def then(self, other: Search) -> Search:
         """This search followed by ``other`` (attempts joined, the closer failure kept)."""
         return Search(other.solution, self.attempts + other.attempts, other.won,
                       _closer(self.closest, other.closest))
@@ -133,6 +133,7 @@ def solve_attempts(solver, guesses, *, workers: int = 1, budget=None, progress=N
     is a failed solution with status ``Time_Limit_Exceeded``, one whose process died
     ``Solver_Died``."""
     from functools import partial
+
     from nhgait.ocp.supervision import Job, supervise
     limit = _limit(solver, budget)
     jobs = [Job(partial(_detached, solver, g), limit, partial(solver.unsolved, g)) for g in guesses]

@@ -145,7 +145,7 @@ class Task:
                 *(n for p in st.phases for n in (*p.final, *p.state_bounds)), *self.integrals.values())
         return tuple(n for n in dict.fromkeys(used) if n not in self.integrals)
 
-    def replace(self, **changes) -> "Task":
+    def replace(self, **changes) -> Task:
         """A copy with some fields changed, named as the task names them (``intervals=60``)."""
         statement_fields = set(self.statement.statement_fields()) | set(TASK_FIELD_NAMES.values())
         own = {k: v for k, v in changes.items() if k not in statement_fields}

@@ -13,9 +13,10 @@ The built-in gait tasks are data, in the same ``[task]`` format a user writes
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
-from typing import Any, Mapping
+from typing import Any
 
 from nhgait.dynamics.suggestions import did_you_mean
 from nhgait.ocp import ProblemError

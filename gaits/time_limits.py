@@ -43,7 +43,12 @@ def attempt_limited(ocp, guess=None, progress=None):
     """``ocp`` with its default time limit per attempt (:func:`~nhgait.ocp.budget.default_attempt_seconds`
     from one measured evaluation of its NLP functions at ``guess``, None: zero within the
     bounds), said on ``progress``."""
-    from nhgait.ocp.budget import ATTEMPT_CAP_S, ATTEMPT_FLOOR_S, EVALUATIONS_PER_ITERATION, default_attempt_seconds
+    from nhgait.ocp.budget import (
+        ATTEMPT_CAP_S,
+        ATTEMPT_FLOOR_S,
+        EVALUATIONS_PER_ITERATION,
+        default_attempt_seconds,
+    )
     evaluation = ocp.evaluation_seconds(guess)
     limit = default_attempt_seconds(evaluation, ocp.options.max_iter)
     if progress is not None:

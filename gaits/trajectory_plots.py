@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from nhgait.gaits.plot_style import series_styles
-from nhgait.gaits.plots import with_unit, figure_context, label, plot_path, unit
+from nhgait.gaits.plots import figure_context, label, plot_path, unit, with_unit
 
 __all__ = ["TrajectoryView", "plot_time_series", "write_trajectory_figures"]
 
@@ -40,7 +40,7 @@ class TrajectoryView:
     problem: _Problem
 
     @classmethod
-    def of(cls, traj, model, params=None) -> "TrajectoryView":
+    def of(cls, traj, model, params=None) -> TrajectoryView:
         system = model.system
         return cls(t=np.asarray(traj.t), states=np.asarray(traj.q).T, state_names=tuple(system.coordinates),
                    qdot=np.asarray(traj.qdot), problem=_Problem(model, system.param_vector(params or None)))

@@ -112,7 +112,7 @@ class Budget:
     phase: str = "start-up"
 
     @classmethod
-    def unlimited(cls) -> "Budget":
+    def unlimited(cls) -> Budget:
         return cls(None, "unlimited")
 
     @property
@@ -170,7 +170,7 @@ class Budget:
         self.check(phase)
 
 
-def _spent_within(exc: BaseException) -> "BudgetSpent | None":
+def _spent_within(exc: BaseException) -> BudgetSpent | None:
     """The :class:`BudgetSpent` that ``exc`` wraps, if any: the alarm's exception raised while a
     C extension was running comes back as that extension's error with BudgetSpent as its cause
     or context (CasADi's ``DM.__array__``: "SystemError: … returned a result with an exception

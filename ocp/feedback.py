@@ -196,7 +196,7 @@ class Feedback:
                 "lower": finite(self.lower), "upper": finite(self.upper), "defect": float(self.defect)}
 
     @classmethod
-    def from_dict(cls, data: dict) -> "Feedback":
+    def from_dict(cls, data: dict) -> Feedback:
         """The feedback written by :meth:`to_dict` (``solution.json["feedback"]``)."""
         names, cnames = tuple(data["state_names"]), tuple(data["control_names"])
         w = data["weights"]

@@ -41,7 +41,7 @@ class Assembly:
 
     kernel: ca.Function
     g: Any = None
-    layout: "StageLayout | None" = None
+    layout: StageLayout | None = None
     guess_filler: Any = None
     structure: dict | None = None
 
@@ -70,7 +70,7 @@ class TranscribedNLP:
     kernel: ca.Function
     guess_filler: Any = field(default=None, repr=False)
     structure: dict | None = None        # stage structure (N, nx, nu, ng) for FATROP
-    layout: "StageLayout | None" = None  # where the mapped terms sit (shooting only)
+    layout: StageLayout | None = None  # where the mapped terms sit (shooting only)
     row_labels: tuple = ()               # the condition each row of g states (see _Builder.add_g)
     objective_scale: float = 1.0         # f = objective_scale · J (:func:`objective_scale`)
 

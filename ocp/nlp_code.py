@@ -32,7 +32,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from nhgait.dynamics.numerics.background import BackgroundBuild, start_build
-from nhgait.dynamics.numerics.compiler import CompilerUnavailable, Library, build_library, cached_library, compiler_command
+from nhgait.dynamics.numerics.compiler import (
+    CompilerUnavailable,
+    Library,
+    build_library,
+    cached_library,
+    compiler_command,
+)
 from nhgait.dynamics.numerics.fast_compiler import MISSING, fast_compiler
 
 __all__ = ["CompileBudget", "COMPILE_BUDGET", "CompileReport", "NlpCode", "choose_code", "CODES", "NO_COMPILER"]

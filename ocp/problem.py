@@ -26,8 +26,9 @@ Functions ``rhs(t, z, u, params)`` and ``qdot(z, params)``, ``params()``), ``sta
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -296,13 +297,13 @@ class OptimalControlProblem(ProblemStatement):
         from .schedule import schedule
         return schedule(self).grid(horizon)
 
-    def replace(self, **changes) -> "OptimalControlProblem":
+    def replace(self, **changes) -> OptimalControlProblem:
         """A copy with some fields changed (validated again)."""
         from dataclasses import replace
         return replace(self, **changes)
 
     @classmethod
-    def from_statement(cls, statement: ProblemStatement, model, **changes) -> "OptimalControlProblem":
+    def from_statement(cls, statement: ProblemStatement, model, **changes) -> OptimalControlProblem:
         """``statement`` bound to ``model`` (``changes``: other fields, e.g. ``quantities``)."""
         return cls(model, **{**statement.statement_fields(), **changes})
 

@@ -356,7 +356,7 @@ class Solution:
                             state_scales=dict(zip(self.state_names, map(float, scales(self.states)))),
                             condition_scales=condition_scales(self.problem, self.states, self.controls, self.t))
 
-    def verified(self, **kwargs) -> "Solution":
+    def verified(self, **kwargs) -> Solution:
         """A copy of this solution carrying :meth:`verify`'s result. Success means verified: a
         converged solution whose verification fails has ``success`` False, status
         ``Verification_Failed`` and a message listing the misses (the solver's own status is

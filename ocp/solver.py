@@ -311,7 +311,7 @@ class OCPSolver:
         self.compiled, self.jit_cached, self.jit_path = True, lib.cached, lib.path
         return self._nlpsol("ocp", ca.external("nlp", str(lib.path)), opts)
 
-    def with_problem(self, problem: OptimalControlProblem) -> "OCPSolver":
+    def with_problem(self, problem: OptimalControlProblem) -> OCPSolver:
         """This solver for ``problem``, a problem of the same structure whose values (targets,
         bounds) differ: the NLP functions are reused, only the bounds are recomputed."""
         nlp = self.transcription.build(problem)
@@ -417,7 +417,7 @@ class OCPSolver:
             total += _seconds(f, args)
         return total
 
-    def with_time_limit(self, seconds: float | None) -> "OCPSolver":
+    def with_time_limit(self, seconds: float | None) -> OCPSolver:
         """This solver with ``options.time_limit = seconds``, sharing its NLP functions and
         solver: Ipopt honours it through its iteration callback's deadline (its own
         ``max_wall_time`` is fixed when the solver is made — remaking an interpreted solver costs

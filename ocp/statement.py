@@ -158,7 +158,7 @@ def _say(problems: list, template: str | None, **values) -> None:
 
 
 # ----------------------------------------------------------------------------- validators
-def horizon_problems(statement: "ProblemStatement", words: Wording) -> list:
+def horizon_problems(statement: ProblemStatement, words: Wording) -> list:
     """T > 0 and finite (for a free horizon, its initial value)."""
     problems: list = []
     guess = words.horizon if statement.free_horizon is None else words.free_horizon_guess
@@ -171,7 +171,7 @@ def horizon_problems(statement: "ProblemStatement", words: Wording) -> list:
     return problems
 
 
-def free_horizon_problems(statement: "ProblemStatement", words: Wording) -> list:
+def free_horizon_problems(statement: ProblemStatement, words: Wording) -> list:
     """A free horizon 0 < T_min ≤ T_max; a time weight only with a free horizon."""
     if statement.free_horizon is None:
         return [words.time_without_free_horizon] if statement.time_weight else []
@@ -189,7 +189,7 @@ def free_horizon_problems(statement: "ProblemStatement", words: Wording) -> list
 MAX_INTERVALS = 5000
 
 
-def intervals_problems(statement: "ProblemStatement", words: Wording) -> list:
+def intervals_problems(statement: ProblemStatement, words: Wording) -> list:
     """N an integer from 1 to :data:`MAX_INTERVALS`."""
     N = statement.intervals
     if isinstance(N, bool) or not isinstance(N, numbers.Integral) or not 1 <= N <= MAX_INTERVALS:
@@ -197,11 +197,11 @@ def intervals_problems(statement: "ProblemStatement", words: Wording) -> list:
     return []
 
 
-def _ends(statement: "ProblemStatement") -> tuple:
+def _ends(statement: ProblemStatement) -> tuple:
     return (("initial", statement.initial), ("final", statement.final))
 
 
-def table_problems(statement: "ProblemStatement", words: Wording, known=None, inputs=None) -> list:
+def table_problems(statement: ProblemStatement, words: Wording, known=None, inputs=None) -> list:
     """Each condition and bound a number or a (lo, hi) pair with lo ≤ hi, no periodic name
     twice and, given ``known`` (quantity names) and ``inputs`` (input names), every name known."""
     problems: list = []
@@ -227,7 +227,7 @@ def _unknown(name, known, template: str, where: str, label: str = "known") -> li
     return [template.format(field=where, name=name, hint=known_names(name, known, label=label))]
 
 
-def consistency_problems(statement: "ProblemStatement", words: Wording, known=None) -> list:
+def consistency_problems(statement: ProblemStatement, words: Wording, known=None) -> list:
     """End values outside their path bound; periodic quantities whose end values cannot be
     equal. A name outside ``known`` and a contradictory bound are reported once, elsewhere."""
     problems: list = []
@@ -249,7 +249,7 @@ def consistency_problems(statement: "ProblemStatement", words: Wording, known=No
     return problems
 
 
-def integral_problems(statement: "ProblemStatement", words: Wording, known=None) -> list:
+def integral_problems(statement: ProblemStatement, words: Wording, known=None) -> list:
     """An integral's name is new (not one of the ``known`` quantities) and its integrand a
     known quantity; an end weight names a quantity or an integral."""
     problems: list = []
@@ -309,7 +309,7 @@ class Phase:
         object.__setattr__(self, "waypoints", tuple(self.waypoints))
 
 
-def phase_problems(statement: "ProblemStatement", words: "Wording", known=None, inputs=None) -> list:
+def phase_problems(statement: ProblemStatement, words: Wording, known=None, inputs=None) -> list:
     """Each phase: N an integer in range, T > 0, a free horizon 0 < lo ≤ hi, its tables' values
     and names; waypoints at nodes of a fixed horizon. Without phases, the problem's own
     waypoints (its horizon must then be fixed)."""
@@ -346,7 +346,7 @@ def phase_problems(statement: "ProblemStatement", words: "Wording", known=None, 
     return problems
 
 
-def _prefix(words: "Wording") -> str:
+def _prefix(words: Wording) -> str:
     """What starts a place in ``words`` ("[task]." for a task table, "" for a problem's keywords)."""
     return words.place.split("{field}")[0]
 
@@ -378,7 +378,7 @@ def _waypoint_problems(waypoints, horizon, intervals, free_horizon, where, known
     return problems
 
 
-def instant_problems(statement: "ProblemStatement", motion, prefix: str = "") -> list:
+def instant_problems(statement: ProblemStatement, motion, prefix: str = "") -> list:
     """A quantity of the inputs or accelerations (a name in ``motion``) is a path bound or an
     integrand only: never a condition at one instant (an end, a waypoint, periodicity).
     ``prefix`` starts each place ("[task]." for a task table)."""

@@ -42,8 +42,9 @@ import select
 import signal
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 from nhgait.dynamics.errors import STOP_SIGNALS
 
@@ -173,7 +174,7 @@ class _Child:
         self.reaped = self.closed = self.eof = False
 
     @classmethod
-    def start(cls, job: Job, mask) -> "_Child":
+    def start(cls, job: Job, mask) -> _Child:
         _flush_python_streams()                      # nothing buffered is written twice
         parent = os.getpid()
         prctl = _prctl()

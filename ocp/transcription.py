@@ -44,8 +44,16 @@ __all__ = ["MultipleShooting", "Collocation", "StageShooting", "TranscribedNLP",
            "MappedTerm", "PathFunctions", "TRANSCRIPTIONS", "get_transcription", "ode_function", "path_functions"]
 
 
-from .nlp import (Assembly, Decisions, MappedTerm, PathFunctions, StageLayout, TranscribedNLP,  # noqa: F401
-                  ode_function, path_functions)
+from .nlp import (  # noqa: F401
+    Assembly,
+    Decisions,
+    MappedTerm,
+    PathFunctions,
+    StageLayout,
+    TranscribedNLP,
+    ode_function,
+    path_functions,
+)
 
 
 def _stage_layout(w, g_of, specs) -> tuple:
@@ -566,7 +574,7 @@ class StageShooting(MultipleShooting):
             n += int(expr.shape[0])
         counts[k] = n
 
-    def _layout(self, b, vector: "_StageVector", f, g, layout):
+    def _layout(self, b, vector: _StageVector, f, g, layout):
         """The NLP in stage order: bounds on w, the FATROP structure and the guess filler."""
         problem, sched = b.problem, b.schedule
         w, lo, hi, nx, nc, yper, counts = (vector.w, vector.lo, vector.hi, vector.nx, vector.nc, vector.yper,

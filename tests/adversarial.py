@@ -93,7 +93,7 @@ class Answer:
     err: str
     new_children: tuple = ()
 
-    def check(self, statuses, said: str | None = None, sandbox: Sandbox | None = None) -> "Answer":
+    def check(self, statuses, said: str | None = None, sandbox: Sandbox | None = None) -> Answer:
         """Assert the contract of the module docstring; ``said`` is a regular expression the
         output (stderr, then stdout) must contain."""
         statuses = (statuses,) if isinstance(statuses, int) else tuple(statuses)

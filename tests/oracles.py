@@ -48,8 +48,8 @@ Usage::
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -177,8 +177,7 @@ class KaneOracle:
 # --------------------------------------------------------------------------- #
 def _model_unicycle():
     import sympy as sp
-    from sympy.physics.mechanics import (Point, ReferenceFrame, RigidBody, dynamicsymbols,
-                                         inertia)
+    from sympy.physics.mechanics import Point, ReferenceFrame, RigidBody, dynamicsymbols, inertia
     x, y, th, ph = q = dynamicsymbols("x y theta phi")
     m, r, Jphi, Jth = p = sp.symbols("m r J_phi J_theta", positive=True)
     tau_th, tau_ph = inp = sp.symbols("tau_theta tau_phi")
@@ -246,8 +245,7 @@ def _model_snakeboard():
 
 def _model_chaplygin_sleigh():
     import sympy as sp
-    from sympy.physics.mechanics import (Point, ReferenceFrame, RigidBody, dynamicsymbols,
-                                         inertia)
+    from sympy.physics.mechanics import Point, ReferenceFrame, RigidBody, dynamicsymbols, inertia
     x, y, th = q = dynamicsymbols("x y theta")
     m, Ic, a = p = sp.symbols("m I_c a", positive=True)
     Fin, tau = inp = sp.symbols("F tau")
@@ -269,8 +267,7 @@ def _model_chaplygin_sleigh():
 
 def _model_knife_edge_incline():
     import sympy as sp
-    from sympy.physics.mechanics import (Point, ReferenceFrame, RigidBody, dynamicsymbols,
-                                         inertia)
+    from sympy.physics.mechanics import Point, ReferenceFrame, RigidBody, dynamicsymbols, inertia
     x, y, th = q = dynamicsymbols("x y theta")
     m, I, g, alpha = p = sp.symbols("m I g alpha", positive=True)
     tau = sp.Symbol("tau")
@@ -297,8 +294,7 @@ def _model_cart_trailers(k, absolute=False):
     ``absolute``) absolute headings theta0, theta1. Steering torque tau_theta on the cart,
     wheel torque tau_phi between wheel and cart."""
     import sympy as sp
-    from sympy.physics.mechanics import (Point, ReferenceFrame, RigidBody, dynamicsymbols,
-                                         inertia)
+    from sympy.physics.mechanics import Point, ReferenceFrame, RigidBody, dynamicsymbols, inertia
     if absolute:
         x, y, th, th1, ph = q = dynamicsymbols("x y theta0 theta1 phi")
         headings = [th, th1]
@@ -354,9 +350,9 @@ def _model_snake(n_links, rotor=False):
     them); optionally a rotor on the head (inertia J_r, angle psi relative to the head,
     torque tau_psi)."""
     import itertools
+
     import sympy as sp
-    from sympy.physics.mechanics import (Point, ReferenceFrame, RigidBody, dynamicsymbols,
-                                         inertia)
+    from sympy.physics.mechanics import Point, ReferenceFrame, RigidBody, dynamicsymbols, inertia
     x, y, th = dynamicsymbols("x y theta")
     psi = dynamicsymbols("psi") if rotor else None
     alphas = [dynamicsymbols(f"alpha{j}") for j in range(1, n_links)]
@@ -592,8 +588,7 @@ def agreement(system, model, orc, count=100, seed=0) -> float:
 
 def _build(name: str) -> KaneOracle:
     import sympy as sp
-    from sympy.physics.mechanics import dynamicsymbols, kinetic_energy, msubs
-    from sympy.physics.mechanics import find_dynamicsymbols
+    from sympy.physics.mechanics import dynamicsymbols, find_dynamicsymbols, kinetic_energy, msubs
 
     mdl = _MODELS[name]()
     N, q, params, inputs = mdl["N"], mdl["q"], mdl["params"], mdl["inputs"]
@@ -655,7 +650,7 @@ def _build(name: str) -> KaneOracle:
     )
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def oracle(name: str) -> KaneOracle:
     """The (cached, lazily built) Kane oracle for ``name`` (see ORACLE_NAMES)."""
     model_description(name)   # registers a family member

@@ -5,9 +5,8 @@ in a fresh process with an empty cache, then the same plan warm; the row must ca
 independent hand-written reference's at the same N."""
 import json
 
-import pytest
-
 import experiment_scripts
+import pytest
 
 bench = experiment_scripts.load("bench_scale")
 

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from adversarial import answer, children, run_process, start_process
+from adversarial import children, run_process, start_process
 
 from nhgait.dynamics.numerics import cache
 

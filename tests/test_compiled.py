@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from nhgait.dynamics import simulate  # the function (lazy export), before any submodule import
-from nhgait.dynamics.simulation.controllers import OpenLoop, snakeboard_pd
 from nhgait.dynamics.numerics.compiler import compiler_command
+from nhgait.dynamics.simulation.controllers import OpenLoop, snakeboard_pd
 
 #: these need a C compiler ($NHGAIT_CC, $CC, gcc or cc); CI may have none
 needs_cc = pytest.mark.skipif(compiler_command() is None, reason="no C compiler")
@@ -69,8 +69,8 @@ def test_convergence_order(models, method, order):
 
 def test_agrees_with_kane_oracle(models):
     """Snakeboard PD run on [0, 3] against KanesMethod + DOP853 (both tight)."""
-    from scipy.integrate import solve_ivp
     from oracles import oracle
+    from scipy.integrate import solve_ivp
     o, ctl = oracle("snakeboard"), snakeboard_pd()
     model = models["snakeboard"]["reduced"]
     pv = model.numeric.params(None)
@@ -223,6 +223,7 @@ def test_world_writable_jit_directory_is_refused(models, monkeypatch, tmp_path):
 def test_auto_without_compiler_still_switches_when_stiff(models, monkeypatch):
     """method="auto" on scipy DOP853 (no compiler) detects the stiff gains and switches."""
     import math
+
     from nhgait.dynamics.simulation.controllers import PDTracking, Sinusoid
     monkeypatch.setenv("NHGAIT_CC", "/nonexistent/bin/cc")
     stiff = PDTracking(coordinates=("psi", "phi"),

@@ -7,9 +7,9 @@ unicycle's rolling constraint ẋ = r cos θ φ̇ with r = 0.1 (its scene file),
 """
 from __future__ import annotations
 
+import experiment_scripts
 import pytest
 
-import experiment_scripts
 from nhgait.gaits.planner import plan, prepare
 from nhgait.gaits.task_library import resolve
 from nhgait.ocp import ProblemError
@@ -121,6 +121,7 @@ def test_dependent_conditions_at_a_free_configuration_are_not_called_contradicto
     accepted, and every condition — kept or dropped — holds at the final configuration with
     every velocity zero."""
     import numpy as np
+
     from nhgait.dynamics.derivation.scene import scene_from_text
     from nhgait.ocp.problem import builtin_quantities
     pair = experiment_scripts.load("robot_generator").pair(24, 17)

@@ -111,6 +111,7 @@ def test_snakeboard_forward_gait_multipliers_match_finite_differences(forward, t
     differences of DOP853 flows (rtol 1e-13) to 1e-6; the open loop's matrix too, its
     multipliers are the chain of integrators' 1 (marginal); solution.json carries both."""
     import json
+
     from nhgait.ocp.transcription import ode_function
     result, prepared = forward
     st, fb = result.solution.stability, result.solution.feedback

@@ -13,14 +13,17 @@ import pytest
 import scipy.linalg
 import sympy as sp
 
-from nhgait.dynamics import ModelError, derive
-from nhgait.dynamics import HamiltonianDAE, LagrangianDAE, ReducedODE
+from nhgait.dynamics import HamiltonianDAE, LagrangianDAE, ModelError, ReducedODE, derive
 from nhgait.dynamics.derivation import formulation_protocol
-from nhgait.dynamics.derivation.formulation_base import (Baumgarte, LoopPoint, Projection, Stabilisation,
-                                                        stabilisation_named)
+from nhgait.dynamics.derivation.formulation_base import (
+    Baumgarte,
+    LoopPoint,
+    Projection,
+    Stabilisation,
+    stabilisation_named,
+)
 from nhgait.dynamics.derivation.formulations import FORMULATIONS, formulation_type
-from nhgait.dynamics.derivation.states import (
-    constraint_residual, from_state, initial_state_map, to_state)
+from nhgait.dynamics.derivation.states import constraint_residual, from_state, initial_state_map, to_state
 from nhgait.dynamics.numerics.numeric_model import NumericModel
 
 TOL = 1e-12

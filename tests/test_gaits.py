@@ -161,7 +161,7 @@ def test_parallel_candidates_agree_with_sequential():
     seq = plan("snakeboard", "rotate", intervals=25, jit=False, workers=1, verify=False)
     par = plan("snakeboard", "rotate", intervals=25, jit=False, workers=2, verify=False)
     assert par.success and len(par.attempts) == 2
-    best = min((a.objective for a in par.attempts if a.success))
+    best = min(a.objective for a in par.attempts if a.success)
     assert par.solution.objective == pytest.approx(best, rel=1e-12)
     # the first candidate is the same in both: its result does not depend on the process
     assert par.attempts[0].objective == pytest.approx(seq.attempts[0].objective, rel=1e-9)
@@ -199,6 +199,7 @@ def test_auto_solver_falls_back_to_ipopt(monkeypatch):
     """solver="auto": FATROP first; when it finds nothing (here: every FATROP solve reported as
     failed), Ipopt plans the task and the report says which solver did what."""
     from dataclasses import replace as dc_replace
+
     from nhgait.gaits.planner import solver_order
     from nhgait.ocp import OCPSolver, ProblemError
     assert solver_order("auto") == ("fatrop", "ipopt") and solver_order("auto", "collocation") == ("ipopt",)

@@ -20,10 +20,10 @@ import math
 from pathlib import Path
 
 import casadi as ca
+import dae_reference
 import numpy as np
 import pytest
 
-import dae_reference
 from nhgait.gaits.guesses import candidates
 from nhgait.gaits.planner import plan, prepare
 from nhgait.gaits.task_library import resolve
@@ -205,6 +205,7 @@ def test_velocity_states_are_chosen_regular_at_the_tasks_end_postures():
     ẋ = v cos θ of the trailer's axle is 0 there, whatever the shape (closed form: det [ω; Y] = 0
     at that posture). The choice looks at the ends the task fixes even partly."""
     import experiment_scripts
+
     from nhgait.dynamics import derive
     from nhgait.dynamics.derivation.scene import scene_from_text
     from nhgait.dynamics.numerics.velocity_coordinates import choose_velocities, velocity_map
@@ -235,11 +236,17 @@ def test_velocity_states_regular_over_the_region_are_also_well_conditioned():
     stiff left the optimum 3e-3 off its re-simulation. The choice keeps the task's preference
     only among sets within a factor 10 of the best conditioned."""
     from itertools import combinations
+
     import experiment_scripts
+
     from nhgait.dynamics import derive
     from nhgait.dynamics.derivation.scene import scene_from_text
-    from nhgait.dynamics.numerics.velocity_coordinates import (CONDITION_RATIO, choose_velocities, region_samples,
-                                                               velocity_map)
+    from nhgait.dynamics.numerics.velocity_coordinates import (
+        CONDITION_RATIO,
+        choose_velocities,
+        region_samples,
+        velocity_map,
+    )
     from nhgait.gaits.charts import end_postures
     gen = experiment_scripts.load("robot_generator")
     pair = gen.pair(24, 4)

@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 
 from nhgait.dynamics import simulate  # the function (lazy export), before any submodule import
-from nhgait.dynamics.simulation.controllers import PDTracking, Sinusoid, snakeboard_pd, unicycle_pd
 from nhgait.dynamics.errors import ModelError
 from nhgait.dynamics.numerics.compiler import compiler_command
+from nhgait.dynamics.simulation.controllers import PDTracking, Sinusoid, snakeboard_pd, unicycle_pd
 from nhgait.dynamics.simulation.driver import MAX_STEPS, NONFINITE, SINGULAR
 
 #: these need a C compiler ($NHGAIT_CC, $CC, gcc or cc); CI may have none
@@ -116,8 +116,8 @@ def _crossing():
 
 
 def test_singular_set_crossing_stops_with_status(models):
-    from scipy.integrate import solve_ivp
     from oracles import oracle
+    from scipy.integrate import solve_ivp
     stops = []
     for form in ("reduced", "lagrange", "hamilton"):
         for method in ("compiled", "DOP853", "Radau"):
@@ -245,8 +245,8 @@ def test_extreme_parameters_report_conditioning(models, params):
     metric is ill-conditioned and the steering dynamics stiff (λ ~ −k_d/J_w). ``auto`` switches
     to CVODES; every formulation agrees with KanesMethod + Radau (same parameters) and reports
     the conditioning."""
-    from scipy.integrate import solve_ivp
     from oracles import oracle
+    from scipy.integrate import solve_ivp
     o, ctl = oracle("snakeboard"), snakeboard_pd()
     pv = models["snakeboard"]["reduced"].numeric.params(params)
     T = 1.0

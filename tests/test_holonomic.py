@@ -12,17 +12,17 @@ formulations. References:
   motion against the same pendulum written with the angle (an independent, unconstrained
   formulation).
 """
+from pathlib import Path
+
 import numpy as np
 import pytest
+from oracles import oracle
 
 from nhgait.dynamics import ModelError, System, derive, load_scene, simulate
 from nhgait.dynamics.derivation.holonomic import consistent_configuration
 from nhgait.dynamics.derivation.scene import scene_from_text
 from nhgait.dynamics.derivation.states import consistent_velocities, to_state
 from nhgait.dynamics.linearisation import linearise
-from oracles import oracle
-
-from pathlib import Path
 
 SCENE = (Path(__file__).parent / "scenes" / "disc_height.toml").read_text()
 R = 0.26

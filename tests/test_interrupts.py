@@ -26,16 +26,13 @@ zombie (exited, not yet reaped by init) counts as gone.
 """
 from __future__ import annotations
 
-import _thread
 import json
 import os
-import pickle
 import re
 import shutil
 import signal
 import subprocess
 import sys
-import threading
 import time
 import warnings
 from dataclasses import dataclass
@@ -407,6 +404,7 @@ def test_a_library_without_its_record_is_never_loaded(cache):
     """A library whose record is missing (a writer killed between its two moves), here also
     half-written, is rebuilt rather than loaded; the rebuilt one is trusted again."""
     import ctypes
+
     from nhgait.dynamics.numerics.cache import file_sha256
     from nhgait.dynamics.numerics.compiler import build_library
     first = build_library(SOURCE)

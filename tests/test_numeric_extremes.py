@@ -9,7 +9,7 @@ import json
 from pathlib import Path
 
 import pytest
-from adversarial import CAR, ROOT, answer
+from adversarial import CAR, answer
 
 CAR_TEXT = Path(CAR).read_text()
 PARK = ["plan", "unicycle", "--gait", "parallel-park"]
@@ -144,6 +144,7 @@ def test_a_lagrangian_constant_beyond_the_bound_is_refused(sandbox):
 def test_the_bound_is_the_one_stated_and_values_within_it_pass():
     """1e15 passes and the next double above it is refused, in every reader."""
     import math
+
     from nhgait.dynamics.derivation.expressions import MAX_MAGNITUDE, number_problems
     problems = []
     assert number_problems(MAX_MAGNITUDE, "x", problems) == MAX_MAGNITUDE and problems == []
@@ -155,6 +156,7 @@ def test_the_bound_is_the_one_stated_and_values_within_it_pass():
 def test_a_plan_of_many_intervals_says_its_size_first():
     """N > 1000: the note names the number of NLP variables, (N + 1)·n_x + N·n_u."""
     from types import SimpleNamespace
+
     from nhgait.gaits.planner import large_request_note
     note = large_request_note(SimpleNamespace(intervals=2000, n_states=6, n_controls=2))
     assert note.startswith("N = 2000 intervals is a large request: 16006 NLP variables and 12000")

@@ -15,10 +15,9 @@ import sys
 import numpy as np
 import pytest
 
-from nhgait.ocp import (Collocation, OCPSolver, OptimalControlProblem, ProblemError,
-                        SolverOptions, solve)
 from nhgait.dynamics.numerics.compiler import compiler_command
 from nhgait.dynamics.numerics.fast_compiler import fast_compiler
+from nhgait.ocp import Collocation, OCPSolver, OptimalControlProblem, ProblemError, SolverOptions, solve
 
 #: these compile the NLP functions (gcc, or the fast compiler); CI may have neither
 needs_a_compiler = pytest.mark.skipif(compiler_command() is None and fast_compiler() is None,
@@ -160,11 +159,13 @@ def test_compiled_is_the_default_and_falls_back_without_a_compiler(unicycle, mon
 def test_compiled_library_is_loaded_only_when_trusted(unicycle):
     import os
     import warnings
+
     from nhgait.dynamics.numerics.cache import UntrustedCacheWarning
     problem = p1(unicycle, N=7)
     first = OCPSolver(problem, options=SolverOptions(jit=True))
     so = first.jit_path
     import json
+
     from nhgait.dynamics.numerics.cache import file_sha256
     assert json.loads((so.parent / (so.stem + ".json")).read_text())["library_sha256"] == file_sha256(so)
     assert oct(so.parent.stat().st_mode & 0o777) == "0o700"

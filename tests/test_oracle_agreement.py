@@ -6,7 +6,6 @@ the same q̈ and the same λ; versions A and B of the reconstruction give identi
 """
 import numpy as np
 import pytest
-
 from conftest import SYSTEMS
 from oracles import oracle
 

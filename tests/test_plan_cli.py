@@ -91,6 +91,7 @@ def _ctx(result):
 
 def test_plots_use_the_scene_units_and_leave_global_state(car_solution):
     import matplotlib.pyplot as plt
+
     from nhgait.gaits import plots
     before = dict(matplotlib.rcParams)
     ctx = _ctx(car_solution)
@@ -115,6 +116,7 @@ def test_plots_use_the_scene_units_and_leave_global_state(car_solution):
 
 def test_shape_views_for_one_two_and_more_shape_variables(car_solution):
     import matplotlib.pyplot as plt
+
     from nhgait.gaits import plots
     ctx = _ctx(car_solution)
     fig, axes = plt.subplots(1, 2)
@@ -128,6 +130,7 @@ def test_shape_views_for_one_two_and_more_shape_variables(car_solution):
 
 def test_gif_has_time_unit_and_scale(car_solution, tmp_path):
     from PIL import Image
+
     from nhgait.gaits.animation import _nice, animate_solution
     path = animate_solution(car_solution.solution, _ctx(car_solution), tmp_path / "m.gif", frames=5)
     assert Image.open(path).n_frames == 5

@@ -7,10 +7,10 @@ its own guess, Ipopt, exact Hessian).
 
 Both discretise the same continuous problem with RK4 ×4 per interval, so their optima agree
 to the solvers' tolerances (measured: 5.6e-8 relative), not merely to the discretisation error."""
+import experiment_scripts
 import numpy as np
 import pytest
 
-import experiment_scripts
 from nhgait.gaits.planner import plan
 
 reference = experiment_scripts.load("reference_scale_ocp")
@@ -69,7 +69,6 @@ def test_a_chart_that_covers_the_ends_is_chosen():
     that fiber have rank 3 (rows: cart no-slip, rolling, two trailer no-slips; the last three
     act on (y, θ) only) — evaluated here from the scene's ω, not by the reduction. The planner
     takes fiber (x, y, θ) instead and reaches the independent transcription's optimum."""
-    import sympy as sp
     from nhgait.dynamics.derivation.scene import scene_from_text
     member = "cart_trailers_2"
     scene = scene_from_text(scale_tasks.scene_with_task(member), member)
@@ -115,8 +114,8 @@ def test_a_chart_whose_reconstruction_fails_at_the_ends_is_replaced():
     finite at q = 0 (the pivot block on (x, y, θ, φ) loses rank there, as for two trailers;
     its singular measure once reported 1.0 there by dropping a NaN); the planner's chart is
     regular there and its reconstruction finite."""
-    from nhgait.dynamics.progress import Progress
     from nhgait.dynamics.derivation.scene import scene_from_text
+    from nhgait.dynamics.progress import Progress
     from nhgait.gaits.charts import derive_for_task
     from nhgait.gaits.task_library import resolve
     scene = scene_from_text(scale_tasks.scene_with_task("cart_trailers_3"), "c3")

@@ -6,11 +6,10 @@ import shutil
 import subprocess
 from pathlib import Path
 
+import experiment_scripts
 import pytest
 
 from nhgait.dynamics.derivation.steps import latex_document, tex_text
-
-import experiment_scripts
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -89,6 +88,7 @@ def test_cli_derive_scene_file_with_checks_and_steps(tmp_path, capsys):
 
 def test_dataclasses_replace_keeps_every_field(models):
     import dataclasses
+
     from nhgait.dynamics import unicycle
     model = models["unicycle"]["reduced"]
     other = dataclasses.replace(model, system=unicycle(m=2.0))

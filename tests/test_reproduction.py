@@ -9,12 +9,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import experiment_scripts
 import numpy as np
 import pytest
 
 from nhgait.gaits.bench.reproduction import reproduce
-
-import experiment_scripts
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -107,6 +106,7 @@ def test_csv_columns(reproduction):
 
 def test_cli_parser_registers_reproduce():
     import argparse
+
     from nhgait.gaits.cli.reproduce import add_reproduce_parser, run
     parser = argparse.ArgumentParser()
     add_reproduce_parser(parser.add_subparsers())

@@ -26,7 +26,7 @@ def _trees(order: int) -> list:
     return sorted(out)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _forests(nodes: int, largest: int) -> tuple:
     """Multisets of trees with ``nodes`` nodes in all, each tree at most ``largest`` nodes."""
     if nodes == 0:
@@ -40,7 +40,7 @@ def _forests(nodes: int, largest: int) -> tuple:
     return tuple(out)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _trees_cached(order):
     return tuple(_trees(order))
 
@@ -64,7 +64,7 @@ def test_tree_counts():
 def _stage_weights(a, c):
     s = len(c)
 
-    @functools.lru_cache(maxsize=None)
+    @functools.cache
     def phi(tree):
         vec = [F(1)] * s
         for child in tree:

@@ -14,10 +14,9 @@ off the singular set, q̈ of the reduced ODE equals the oracle's to 1e-9 relativ
 the benchmark's independent transcription (experiments/reference_dae_ocp.py: the Lagrange DAE
 built in CasADi from the same description).
 """
+import experiment_scripts
 import numpy as np
 import pytest
-
-import experiment_scripts
 
 gen = experiment_scripts.load("robot_generator")
 

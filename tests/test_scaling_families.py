@@ -11,12 +11,10 @@ implicit form forced checks that form on a thesis system.
 """
 from pathlib import Path
 
+import experiment_scripts
 import numpy as np
 import pytest
-
 from oracles import agreement, oracle
-
-import experiment_scripts
 
 ROOT = Path(__file__).resolve().parents[1]
 RTOL = 1e-10

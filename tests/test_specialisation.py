@@ -152,6 +152,7 @@ def test_generated_chain_specialised_where_its_chart_is_singular():
     at random postures and at the straight one, on the chart's singular set: q̇ satisfies the
     constraints and has the velocity states as its components, and ẏ = (ẍ, ÿ, q̈₄) to 1e-8."""
     import experiment_scripts
+
     from nhgait.dynamics import derive
     from nhgait.dynamics.derivation.scene import scene_from_text
     gen, ref = experiment_scripts.load("robot_generator"), experiment_scripts.load("reference_dae_ocp")

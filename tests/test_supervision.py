@@ -21,8 +21,14 @@ from pathlib import Path
 
 import pytest
 
-from nhgait.ocp.budget import (ATTEMPT_CAP_S, ATTEMPT_FLOOR_S, Budget, BudgetSpent, default_attempt_seconds,
-                               default_plan_seconds)
+from nhgait.ocp.budget import (
+    ATTEMPT_CAP_S,
+    ATTEMPT_FLOOR_S,
+    Budget,
+    BudgetSpent,
+    default_attempt_seconds,
+    default_plan_seconds,
+)
 from nhgait.ocp.supervision import Job, can_fork, supervise
 
 needs_fork = pytest.mark.skipif(not can_fork() or not Path("/proc/self/stat").exists(),

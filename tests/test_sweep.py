@@ -8,16 +8,16 @@ import os
 import sqlite3
 import time
 
+import experiment_scripts
 import numpy as np
 import pytest
 
-from nhgait.gaits.sweeps.driver import Progress, RunOptions, load_sweep, run_sweep
 from nhgait.gaits.sweeps.backends import ProcessPool, SerialBackend, WorkerDied, make_backend
+from nhgait.gaits.sweeps.driver import Progress, RunOptions, load_sweep, run_sweep
 from nhgait.gaits.sweeps.grid import Grid, parse_grid
 from nhgait.gaits.sweeps.point import PointJob, SceneData, SweepCase, point_task
 from nhgait.gaits.sweeps.store import SweepStore
 from nhgait.ocp import ProblemError
-import experiment_scripts
 
 CASE = SweepCase(SceneData("fake"), task={"horizon": 4.0, "intervals": 10, "final": {"x": 1.0}},
                  params={"m": 1.0, "J_r": 0.2}, label="fake/task")

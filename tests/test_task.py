@@ -97,6 +97,7 @@ def test_resolve_names_the_missing_task(tmp_path):
 def test_a_task_is_the_problem_statement_in_the_tables_words():
     """The task parses into the ocp statement (no model yet); one validator speaks to both readers."""
     from dataclasses import replace
+
     from nhgait.gaits.task import TASK_WORDS
     from nhgait.ocp import ProblemStatement
     task = parse_task(P2)

@@ -154,6 +154,7 @@ def test_the_path_guess_passes_the_stated_places_heading_along_its_legs():
     the phase ends' boxes at the phase boundaries, the car (forward along its body y axis,
     α = π/2) heading along each leg at the leg's middle: atan2(Δy, Δx) − α, unwrapped."""
     import math
+
     from nhgait.gaits.guesses import candidates
     from nhgait.gaits.planner import prepare
     from nhgait.gaits.task_library import resolve

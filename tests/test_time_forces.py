@@ -23,9 +23,9 @@ import pytest
 from scipy.integrate import cumulative_simpson, solve_ivp
 
 from nhgait.dynamics import System, derive, load_scene, simulate
-from nhgait.dynamics.simulation.controllers import OpenLoop
 from nhgait.dynamics.derivation.reduction import derive_reduced
 from nhgait.dynamics.derivation.states import consistent_velocities, to_state
+from nhgait.dynamics.simulation.controllers import OpenLoop
 
 SCENE = Path(__file__).resolve().parents[1] / "examples" / "roller_racer.toml"
 #: the scene's parameter values, restated (kg, kg m², m)
@@ -44,14 +44,22 @@ def _hinge_torque(t, phi, phi_dot):
 # ------------------------------------------------------------------------------------------
 # the independent Kane model of the roller racer
 # ------------------------------------------------------------------------------------------
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _kane():
     """Numeric functions of the Kane model: qddot(t, q, q̇), residual(q, q̇) (the two axle
     side-slip velocities), energy(q, q̇) (kinetic energy), momentum(q, q̇) = ∂T/∂q̇ and its
     rate momentum_rate(q, q̇, q̈)."""
     import sympy as sp
-    from sympy.physics.mechanics import (KanesMethod, Point, ReferenceFrame, RigidBody,
-                                         dynamicsymbols, inertia, kinetic_energy, msubs)
+    from sympy.physics.mechanics import (
+        KanesMethod,
+        Point,
+        ReferenceFrame,
+        RigidBody,
+        dynamicsymbols,
+        inertia,
+        kinetic_energy,
+        msubs,
+    )
     t = dynamicsymbols._t
     q = dynamicsymbols("x y theta phi")
     x, y, th, ph = q
@@ -110,7 +118,7 @@ def _kane_qdot(q, forward, phi_dot):
     return np.linalg.solve(np.vstack([A, Y]), [0, 0, forward, phi_dot])
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _reference(t_final):
     """(q, q̇)(t_final) of the Kane model from the scene's initial state (the front axle rolling
     at 0.1 m/s, φ̇ = 0), integrated by scipy DOP853 at rtol 1e-12, atol 1e-13."""
@@ -461,6 +469,7 @@ def test_specialised_momentum_coordinates_keep_t(roller):
 def test_agreement_check_samples_time(roller):
     """The specialisation's check rejects a candidate that evaluates the forces at one fixed t."""
     import casadi as ca
+
     from nhgait.dynamics.numerics.specialisation import _agrees, _numeric_bound, _Reference
     model = roller["reduced-explicit"]
     pv = model.numeric.params()

@@ -98,8 +98,8 @@ def test_the_robot_starts_on_its_own_constraints():
     robot's l 10 % longer lands on the robot's circle (the dependent coordinate solved) with
     px ṗx + py ṗy = 0; the snakeboard with its wheel base r 20 % longer gets velocities that
     meet the robot's two wheel constraints; with a mass changed nothing moves."""
-    from nhgait.dynamics.derivation.system import System
     from nhgait.dynamics.derivation.scene import load_scene
+    from nhgait.dynamics.derivation.system import System
     from nhgait.gaits.tracking.runs import robot_start
     cart = System(coordinates=["s", "px", "py"],
                   lagrangian="M*s_dot**2/2 + m*((s_dot + px_dot)**2 + py_dot**2)/2 - m*g*py",

@@ -202,6 +202,7 @@ r = 0.5
 def test_long_legitimate_expressions_parse():
     """A Lagrangian of thousands of terms is not 'nested': sums and products are chains."""
     import sympy as sp
+
     from nhgait.dynamics.derivation.expressions import expression_problems
     names = {f"x{i}": sp.Symbol(f"x{i}", real=True) for i in range(50)}
     text = " + ".join(f"x{i % 50}*x{(3 * i) % 50}/7" for i in range(2500))

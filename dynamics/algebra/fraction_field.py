@@ -6,8 +6,14 @@ from __future__ import annotations
 import sympy as sp
 
 from .matrix_ops import MatrixOps
-from .ring import (NotRational, WorkBudgetExceeded, add_fractions, collect_generators, reduce_poly,
-                   walk_fraction)
+from .ring import (
+    NotRational,
+    WorkBudgetExceeded,
+    add_fractions,
+    collect_generators,
+    reduce_poly,
+    walk_fraction,
+)
 from .trig import has_trig, tidy
 
 __all__ = ["FracField", "as_sympy", "check_trig"]

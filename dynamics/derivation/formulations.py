@@ -14,10 +14,11 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
-from ..numerics import cache as _cache
 from ..errors import ModelError
+from ..numerics import cache as _cache
 
 
 def _reduced(system, version):

@@ -20,8 +20,8 @@ import sympy as sp
 
 from nhgait.dynamics.derivation.cse_text import equation_lines
 from nhgait.dynamics.derivation.notation import method_name, system_names
-from .dae_model import DAEModel
 
+from .dae_model import DAEModel
 from .system import System
 
 

@@ -22,7 +22,6 @@ from ..errors import ModelError
 from .system import System
 
 
-
 def _from_scene(name: str, parameters: dict) -> System:
     """The system of the built-in scene ``name`` with ``parameters`` overriding its defaults."""
     from .scene import load_scene

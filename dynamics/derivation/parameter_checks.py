@@ -9,7 +9,7 @@ with the system) and shared with the symmetry test and the initial-state checks.
 """
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 import sympy as sp

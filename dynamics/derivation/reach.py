@@ -26,7 +26,7 @@ reachable) — it refuses only the impossible.
 from __future__ import annotations
 
 import math
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 import sympy as sp

@@ -18,8 +18,8 @@ from nhgait.dynamics.suggestions import known_names
 
 from ..errors import ModelError
 from .expressions import number_problems
+from .system import TIME, System, jump_times, parse_field
 from .textfiles import names_a_file, read_text_file
-from .system import TIME, System, parse_field, jump_times
 from .tomldata import read_toml
 
 SYSTEM_KEYS = {"name", "coordinates", "lagrangian", "constraints", "forces", "parameters", "inputs",
@@ -69,6 +69,7 @@ class ExpressionController:
     def casadi(self, t, q, qdot):
         """The same law as CasADi SX (for DAE solvers that need u symbolically)."""
         import casadi as ca
+
         from ..numerics.bridge import to_casadi
         s = self.system
         syms = [TIME] + list(s.q) + list(s.q_dot)

@@ -42,7 +42,7 @@ def initial_state_map(model) -> ca.Function:
     return _state_map(model).function
 
 
-def _state_map(model) -> "_StateMap":
+def _state_map(model) -> _StateMap:
     return INITIAL_STATE_MAPS.get(model.numeric, "initial_state", lambda: _StateMap(_build_initial_state_map(model)))
 
 

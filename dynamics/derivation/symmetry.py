@@ -43,8 +43,8 @@ from functools import cached_property
 import numpy as np
 import sympy as sp
 
-from ..errors import ModelError
 from ..algebra.matrices import null_basis_adjugate, numeric_pivots
+from ..errors import ModelError
 from .system import System
 
 #: verdict labels
@@ -196,7 +196,7 @@ def _invariance(system: System, fiber: tuple[str, ...], free: set) -> tuple[bool
     """Is (L, ω) invariant under the group acting on the fiber? Returns (ok, group label, why).
     ``free``: the free symbols of M, ω and V."""
     s_syms = {system.q[system.coordinates.index(c)] for c in fiber}
-    dep = sorted((s.name for s in s_syms & free))
+    dep = sorted(s.name for s in s_syms & free)
     label = f"R^{len(fiber)} ({', '.join(fiber)})"
     if not dep:
         return True, label, f"L and ω do not depend on {', '.join(fiber)}"

@@ -18,8 +18,8 @@ Conventions
 """
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
-from typing import Mapping, Sequence
 
 import numpy as np
 import sympy as sp

@@ -25,15 +25,15 @@ from __future__ import annotations
 
 import keyword
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Mapping, NamedTuple
+from typing import NamedTuple
 
 import sympy as sp
 
 from nhgait.dynamics.suggestions import known_names
 
 from ..algebra.symbols import TIME
-
 from .expressions import CONSTANTS, FUNCTIONS, expression_problems, number_problems
 from .holonomic import choose_dependent, eliminate, velocity_row
 

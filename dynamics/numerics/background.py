@@ -54,8 +54,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import STOP_SIGNALS, Terminated
-from .compiler import (STALE_BUILD_S, CompileJob, CompilerUnavailable, compile_in, compiler_command, library_dir,
-                       library_key)
+from .compiler import (
+    STALE_BUILD_S,
+    CompileJob,
+    CompilerUnavailable,
+    compile_in,
+    compiler_command,
+    library_dir,
+    library_key,
+)
 
 __all__ = ["BackgroundBuild", "Builders", "BUILDERS", "start_build", "wait_for_build", "background_allowed",
            "MEMORY_BYTES", "TIMEOUT_S", "NICENESS", "main"]

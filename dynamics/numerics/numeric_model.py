@@ -45,7 +45,7 @@ class NumericModel:
     n_coordinates: int = 0
     n_multipliers: int = 0
 
-    def with_defaults(self, values) -> "NumericModel":
+    def with_defaults(self, values) -> NumericModel:
         """The same compiled functions with other default parameter values (a structure is
         compiled once; each system binds its own values)."""
         values = tuple(float(v) for v in values)
@@ -62,8 +62,9 @@ class NumericModel:
         if isinstance(values, dict):
             for k, v in values.items():
                 if k not in self.param_names:
-                    from ..errors import ModelError
                     from nhgait.dynamics.suggestions import known_names
+
+                    from ..errors import ModelError
                     raise ModelError([f"unknown parameter {k!r}{known_names(k, self.param_names, label='parameters')}"])
                 vec[self.param_names.index(k)] = float(v)
             return vec

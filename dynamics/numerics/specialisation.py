@@ -64,9 +64,17 @@ import casadi as ca
 import numpy as np
 
 from ..errors import ModelError
-from .velocity_coordinates import (BODY_VELOCITIES, body_velocity, choose_velocities, group_matrix,  # noqa: F401
-                                   row_function, velocity_map, velocity_measure, velocity_problems,
-                                   velocity_rows)
+from .velocity_coordinates import (  # noqa: F401
+    BODY_VELOCITIES,
+    body_velocity,
+    choose_velocities,
+    group_matrix,
+    row_function,
+    velocity_map,
+    velocity_measure,
+    velocity_problems,
+    velocity_rows,
+)
 
 __all__ = ["specialise", "SpecialisedModel", "body_velocity", "BODY_VELOCITIES", "velocity_rows",
            "choose_velocities", "model_form"]
@@ -205,9 +213,9 @@ def _maggi_velocity(model, params, names, quantities, basis: str = "chart") -> d
     (the velocity states y = B_v v, B_v = Y X: ẏ = (∂(B_v v)/∂q) q̇ + B_v v̇). The result is used
     only when it agrees with the 20-step functions at random states (:func:`_build`).
     """
+    from ..algebra.symbols import TIME
     from .bridge import to_casadi
     from .linsolve import solve_general, solve_spd
-    from ..algebra.symbols import TIME
     system = model.system
     n, nz = system.n, len(model.state_names)
     nu = len(model.numeric.input_names)
@@ -331,6 +339,7 @@ def _clean_polynomial(poly):
 def _normal(expr):
     """The trig normal form, round-off coefficients removed, and the normal form again."""
     import sympy as sp
+
     from ..algebra.trig import trig_normal
     e = trig_normal(expr)
     if e == 0:
@@ -344,8 +353,8 @@ def _normal(expr):
 
 def _symbolic_momentum(model, params) -> dict:
     """rhs and q̇ of z = (q, P) with the values substituted, in normal form."""
-    from .bridge import to_casadi
     from ..algebra.symbols import TIME
+    from .bridge import to_casadi
     system = model.system
     subs = {s: _exact(float(v)) for s, v in zip(system.param_symbols, params)}
     rhs = [_normal(e.xreplace(subs)) for e in model.rhs]
@@ -364,8 +373,9 @@ def _symbolic_momentum(model, params) -> dict:
 def _symbolic_velocity(model, params, names, quantities) -> dict:
     """The velocity-coordinate ODE in normal form (see the module docstring)."""
     import sympy as sp
-    from .bridge import to_casadi
+
     from ..algebra.symbols import TIME
+    from .bridge import to_casadi
     system = model.system
     n, nv = system.n, len(model.state) - system.n
     subs = {s: _exact(float(v)) for s, v in zip(system.param_symbols, params)}
@@ -583,6 +593,7 @@ def _cheapest(model, velocities, quantities, reference: _Reference) -> tuple:
 
 def _key(model, params, velocities, quantities) -> str:
     import sympy as sp
+
     from . import cache
     structure = cache.cache_key(model.system, "reduced", f"version={getattr(model, 'version', None)}")
     qtext = ";".join(f"{k}={sp.srepr(v)}" for k, v in sorted((quantities or {}).items()) if k in velocities)

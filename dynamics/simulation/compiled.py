@@ -133,7 +133,7 @@ def c_source(rhs: ca.Function, outputs: ca.Function, event: ca.Function | None,
 # building and loading (nhgait.dynamics.numerics.compiler)
 # --------------------------------------------------------------------------------------------
 def build(rhs: ca.Function, outputs: ca.Function, event: ca.Function | None = None,
-          project: ca.Function | None = None) -> "CompiledLoop":
+          project: ca.Function | None = None) -> CompiledLoop:
     """Compile (or load from the cache) the closed loop ``rhs(t, t_c, y, p)``,
     ``outputs(t, t_c, y, p)``, ``event(y, ydot, p) → (s, ṡ)`` and ``project(y, params)``
     (optional). Raises :class:`CompilerUnavailable`.
@@ -200,7 +200,7 @@ class RunState:
     cnt: np.ndarray
 
     @classmethod
-    def start(cls, t0, tolerances, step_limits, event_tol, stop_on_stiff=False) -> "RunState":
+    def start(cls, t0, tolerances, step_limits, event_tol, stop_on_stiff=False) -> RunState:
         """From ``t0`` with ``tolerances`` = (rtol, atol), ``step_limits`` = (largest step,
         max_steps), the event threshold (0: none) and whether stiffness stops the run."""
         (rtol, atol), (h_max, max_steps) = tolerances, step_limits
@@ -240,18 +240,18 @@ class OutputBuffers:
     y_steps: np.ndarray | None = None
 
     @classmethod
-    def for_grid(cls, t_eval: np.ndarray, ny: int) -> "OutputBuffers":
+    def for_grid(cls, t_eval: np.ndarray, ny: int) -> OutputBuffers:
         return cls(t_eval=t_eval, y_eval=np.empty((t_eval.size, ny)))      # rows written before read
 
     @classmethod
-    def for_steps(cls, ny: int, rows: int = 4097) -> "OutputBuffers":
+    def for_steps(cls, ny: int, rows: int = 4097) -> OutputBuffers:
         return cls(t_steps=np.empty(rows), y_steps=np.empty((rows, ny)))    # rows written before read
 
-    def grown(self) -> "OutputBuffers":
+    def grown(self) -> OutputBuffers:
         """Empty step buffers with room for about twice as many rows."""
         return OutputBuffers.for_steps(self.y_steps.shape[1], 2 * self.t_steps.size - 1)
 
-    def fresh(self) -> "OutputBuffers":
+    def fresh(self) -> OutputBuffers:
         """Empty step buffers of the same size."""
         return OutputBuffers.for_steps(self.y_steps.shape[1], self.t_steps.size)
 

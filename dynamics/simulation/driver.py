@@ -70,8 +70,18 @@ from ..memo import OwnerMemo
 from .closed_loop import closed_loop
 from .compiled import CompilerUnavailable
 from .failures import diagnose_failure
-from .integrators import (FAILED, FINISHED, MAX_STEPS, NONFINITE, SCIPY_METHODS, SINGULAR, RunRequest,
-                          Samples, integrate_scipy, left_of)
+from .integrators import (
+    FAILED,
+    FINISHED,
+    MAX_STEPS,
+    NONFINITE,
+    SCIPY_METHODS,
+    SINGULAR,
+    RunRequest,
+    Samples,
+    integrate_scipy,
+    left_of,
+)
 from .options import COMPILED_METHODS, METHODS, SINGULAR_EVENT_TOL, SimulationOptions, checked_span
 from .route_compiled import integrate_compiled
 from .route_sundials import integrate_sundials
@@ -490,7 +500,7 @@ class _DiagnosticBlocks:
             return self.library.diag_sizes[_BLOCKS[6:].index(name)]
         return self.blocks[name].shape[1]
 
-    def rows(self, start: int, stop: int | None) -> "_DiagnosticBlocks":
+    def rows(self, start: int, stop: int | None) -> _DiagnosticBlocks:
         part = slice(start, stop)
         if self.library is not None and not self.blocks:
             t, t_c, Y, P, seg = self.points

@@ -11,8 +11,7 @@ from typing import NamedTuple
 import casadi as ca
 import numpy as np
 
-from .integrators import (FAILED, MAX_STEPS, SINGULAR, WATCH, EventWatch, Measure, Run, RunRequest,
-                          Segment)
+from .integrators import FAILED, MAX_STEPS, SINGULAR, WATCH, EventWatch, Measure, Run, RunRequest, Segment
 
 __all__ = ["integrate_sundials"]
 

@@ -71,7 +71,7 @@ def run_case(name, *, rtol=1e-10, formulations=FORMULATIONS, idas=True, params=N
     dict with ``t_eval`` (N,), ``q0``, ``qdot0`` (n,), ``controller`` and ``runs``
     (label → :class:`~nhgait.dynamics.simulation.driver.Trajectory`).
     """
-    from nhgait.dynamics import builtin, derive, simulate     # the derivations: loaded when a case runs
+    from nhgait.dynamics import builtin, derive, simulate  # the derivations: loaded when a case runs
     factory, t_final, n_points = CASES[name]
     controller = factory()
     system = builtin(name)

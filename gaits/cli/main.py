@@ -55,6 +55,7 @@ def main(argv=None) -> int:
     (``argv`` None: the ``nhgait`` command), a stop by SIGINT/SIGTERM ends the process as soon
     as its cleanup is done (:func:`~.stopping.exit_now`); called with ``argv`` it returns."""
     from nhgait.dynamics.errors import ModelError
+
     from .stopping import cancel_background_builds, exit_now, stop_signals
     parser = build_parser()
     args = parser.parse_args(argv)

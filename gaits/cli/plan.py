@@ -72,6 +72,7 @@ def run(args) -> int:
     the plan failed or its files could not all be written (the summary says where the
     solution went)."""
     from nhgait.dynamics.progress import Progress
+
     from ..outputs import output_directory, output_lock
     from ..planner import plan, summary_lines
     started = time.perf_counter()

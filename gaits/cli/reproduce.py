@@ -27,10 +27,10 @@ def add_reproduce_parser(subparsers):
 
 def run(args) -> int:
     """Run the reproduction; print a summary table; 0 when every run reached the end."""
+    import sys
+
     from ..bench.reproduction import reproduce
     from ..outputs import output_directory
-
-    import sys
     out = output_directory(args.out)        # before any derivation: exit 2 for a bad location
     summary = reproduce(out, rtol=args.rtol, idas=not args.no_idas, columns=getattr(args, "columns", None),
                         progress=None if getattr(args, "quiet", False) else sys.stderr)

@@ -69,6 +69,7 @@ def run(args) -> int:
     when the plan or a run failed, the time ran out or the files could not all be written."""
     from nhgait.dynamics.progress import Progress
     from nhgait.ocp import ProblemError
+
     from ..outputs import output_directory, output_lock
     from ..tracking.runs import Noise
     from ..tracking.study import summary_lines, track

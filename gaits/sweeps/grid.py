@@ -26,8 +26,8 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
-from typing import Iterator, Mapping
 
 import numpy as np
 
@@ -127,7 +127,7 @@ class Grid:
         return {"axes": [{"name": a.name, "values": list(a.values)} for a in self.axes]}
 
     @classmethod
-    def from_dict(cls, data: Mapping) -> "Grid":
+    def from_dict(cls, data: Mapping) -> Grid:
         return cls(tuple(Axis(a["name"], tuple(a["values"])) for a in data["axes"]))
 
 

@@ -24,8 +24,8 @@ import math
 import os
 import socket
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from typing import Mapping
 
 from nhgait.dynamics.memo import LruMemo
 from nhgait.ocp import ProblemError
@@ -192,6 +192,7 @@ def _outcome(s, start: str) -> dict:
 # ---- the planner adapter (the only code that knows the planner's API) -------------------
 def _scene_data(system) -> SceneData:
     from pathlib import Path
+
     from nhgait.dynamics.errors import ModelError
     if isinstance(system, SceneData):
         return system
@@ -218,6 +219,7 @@ def describe_case(system, task=None, *, overrides=(), params=None, options=None)
     ``[task]``; a built-in gait name; a ``[task]`` dict), with ``--set`` overrides and
     parameter values; the planner checks the task on the model here, before any point runs."""
     from nhgait.dynamics import derive
+
     from ..task_library import resolve
     data = _scene_data(system)
     resolved = resolve(scene_of(data), task, overrides=overrides)
@@ -284,9 +286,10 @@ def _solver_for(job: PointJob, *, warm: bool = False):
     functions, new bounds); ``warm``: the solver with :data:`WARM_IPOPT` (Ipopt only). A new
     solver gets the planner's time limit per attempt (:func:`~nhgait.gaits.time_limits.attempt_limited`)."""
     from nhgait.ocp import OCPSolver, SolverOptions
+
     from ..planner import prepare, state_problem
-    from ..time_limits import attempt_limited
     from ..task_library import resolve
+    from ..time_limits import attempt_limited
     case = job.case
     resolved = resolve(scene_of(case.scene), job.task)
     warm = warm and case.options.get("solver", "ipopt") == "ipopt"
@@ -338,8 +341,8 @@ def _plan_point(job: PointJob) -> dict:
 
 
 def _solve_within(job: PointJob, budget, reached: dict) -> dict:
-    from ..guesses import candidates
     from ..gait_check import unsolved, verified_gait
+    from ..guesses import candidates
     from ..planner import warm_start
     from ..search import solve_attempts, solve_with_fallbacks
     solution = None

@@ -93,6 +93,7 @@ def schedule_of(feedback, specialised, system):
     :class:`~nhgait.ocp.feedback.Feedback` on the plan's (specialised) model: its state map
     (q, q̇) ↦ z with the nominal parameters bound."""
     import casadi as ca
+
     from nhgait.dynamics.simulation.gain_schedule import GainSchedule
     n = system.n
     q, qd = ca.SX.sym("q", n), ca.SX.sym("qdot", n)
@@ -106,6 +107,7 @@ def schedule_of(feedback, specialised, system):
 def _context(case: TrackingCase) -> _Context:
     def build():
         from nhgait.ocp.feedback import Feedback
+
         from ..planner import prepare
         from ..sweeps.point import scene_of
         from ..task_library import resolve

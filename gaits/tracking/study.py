@@ -91,6 +91,7 @@ class TrackingResult:
 def _plan_data(plan_file):
     """The content of a ``solution.json`` to track (one with feedback), or None."""
     from nhgait.ocp import ProblemError
+
     from ..planner import read_solution
     if plan_file is None:
         return None
@@ -172,6 +173,7 @@ def track(system, task=None, *, overrides=(), mismatch=(), samples: int = 20, se
     """
     from nhgait.dynamics.progress import Progress
     from nhgait.ocp.budget import BudgetSpent
+
     from ..outputs import output_directory
     from ..sweeps.point import describe_case
     from ..task_library import resolve
@@ -238,6 +240,7 @@ def _checked_request(samples, mismatch, system, make_budget, backend) -> tuple:
     every problem of the request, the back end's (``backend``: (scheduler, workers)) included —
     before planning."""
     from nhgait.ocp import ProblemError
+
     from ..sweeps.backends import backend_problems
     ok = isinstance(samples, int) and samples >= 1
     problems = [] if ok else [f"--samples must be an integer ≥ 1, got {samples}"]
@@ -307,6 +310,7 @@ def _context_for_report(system, case, units) -> dict:
     """Names and units the report needs: the plan's state names and their units (the scene's
     ``[units]``, else the plots' rules), the position's unit, the feedback's weights."""
     from nhgait.ocp.feedback import Feedback
+
     from ..plots import FigureContext, unit
     fb = Feedback.from_dict(case.feedback)
     ctx = FigureContext(system, dict(units), None, None, (), ())
@@ -361,6 +365,7 @@ def _written(result: TrackingResult, out: Path, units, progress) -> TrackingResu
     """``result`` with its files written to ``out`` (:func:`_write_files`, staged); a write that
     fails puts tracking.json in a fallback folder and says so in ``unwritten``."""
     from dataclasses import replace
+
     from ..outputs import rescue, staged, write_failure
     try:
         return replace(result, files=tuple(staged(out, lambda folder: _write_files(result, folder, units, progress))))

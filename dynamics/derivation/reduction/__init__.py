@@ -89,6 +89,7 @@ def _model(layout, first, run: StepsRun, t0) -> ReducedODE:
     steps 4–20: the explicit form holds sympy matrices; the implicit form holds CasADi text
     and the functions compiled from the run."""
     import sympy as sp
+
     from ..steps import Step, Steps
     from .model import symbol_names_for
     system, symbols = layout.system, run.symbols

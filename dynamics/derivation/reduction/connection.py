@@ -42,7 +42,7 @@ class Connection(Reconstruction):
     K: list
 
     @classmethod
-    def of(cls, reconstruction: Reconstruction, *, xi_c, l_red, K) -> "Connection":
+    def of(cls, reconstruction: Reconstruction, *, xi_c, l_red, K) -> Connection:
         parts = {f.name: getattr(reconstruction, f.name) for f in fields(Reconstruction)}
         return cls(**parts, xi_c=xi_c, l_red=l_red, K=K)
 

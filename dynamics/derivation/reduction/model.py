@@ -12,9 +12,9 @@ from nhgait.dynamics.derivation.cse_text import cse_lines, wants_cse
 from nhgait.dynamics.derivation.notation import symmetry_choice_lines
 from nhgait.dynamics.reprs import ModelDisplay
 
+from ...algebra.trig import TIDY_NODES, tidy, tree_size
 from ..formulation_base import Formulation, LoopDynamics
 from ..steps import DISPLAY_OPS, Steps, default_symbol_names, text_of
-from ...algebra.trig import TIDY_NODES, tidy, tree_size
 from ..symmetry import SymmetryTest
 from ..system import System
 

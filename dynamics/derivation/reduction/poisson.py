@@ -8,9 +8,9 @@ The brackets are {P_a, P_b} = {X_aᵀp, X_bᵀp} = −pᵀ[X_a, X_b] with the Li
 """
 from __future__ import annotations
 
-import sympy as sp
-
 from dataclasses import dataclass
+
+import sympy as sp
 
 from ..steps import Step, Stepped
 

@@ -17,9 +17,9 @@ import sympy as sp
 
 from nhgait.dynamics.derivation.notation import method_name, system_names
 
-from ..steps import Step
 from ...algebra.matrices import numeric_pivots, strip_factors
 from ...algebra.trig import tidy
+from ..steps import Step
 from ..symmetry import SymmetryTest, group_transform, symmetry_test
 from ..system import System
 

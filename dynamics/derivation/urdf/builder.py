@@ -19,9 +19,9 @@ import numpy as np
 import sympy as sp
 
 from ...errors import ModelError
+from ..textfiles import read_text_file
 from . import energy, wheels
 from .mass_parameters import mass_problems, with_mass_parameters
-from ..textfiles import read_text_file
 from .reader import read_urdf
 from .tree import MOVING, build_bodies, tree_problems
 
