@@ -126,7 +126,7 @@ class Section:
         return " ".join(f"{title:>{_width(spec)}s}" for title, spec in self.columns)
 
     def line(self, values) -> str:
-        return " ".join(format(value, spec) for (_, spec), value in zip(self.columns, values))
+        return " ".join(format(value, spec) for (_, spec), value in zip(self.columns, values, strict=True))
 
 
 def _width(spec: str) -> int:

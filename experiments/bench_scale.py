@@ -146,7 +146,7 @@ def warm(row: dict, repeats: int, reference: bool, hessians: bool, intervals=Non
                                 ("fatrop", "exact"), ("fatrop", "gauss-newton")):
             runners[f"{solver}/{hessian}"] = Ours(member, row.get("guess"),
                                                   dataclasses.replace(cold, solver=solver, hessian=hessian))
-    results = dict(zip(runners, interleaved(list(runners.values()), repeats)))
+    results = dict(zip(runners, interleaved(list(runners.values()), repeats), strict=True))
     out = {"warm_solve": results["ours"]}
     if reference:
         r = results["reference"]

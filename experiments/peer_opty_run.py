@@ -33,6 +33,10 @@ import os
 import re
 import sys
 import time
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:   # numpy is imported where it is used (the annotations are not evaluated)
+    import numpy as np
 
 START = time.time()   # as close to the interpreter's start as a script gets
 
@@ -149,7 +153,7 @@ def explicit_ode(namespace: dict):
     mech = q + u
     x_sym = sm.symbols(f"x0:{len(mech)}")
     r_sym = sm.symbols(f"r0:{len(specified)}")
-    subs = dict(zip(mech, x_sym)) | dict(zip(specified, r_sym))
+    subs = dict(zip(mech, x_sym, strict=True)) | dict(zip(specified, r_sym, strict=True))
     M_f = sm.lambdify([x_sym, r_sym, params], M.xreplace(subs), "numpy", cse=True)
     F_f = sm.lambdify([x_sym, r_sym, params], F.xreplace(subs), "numpy", cse=True)
     pvals = [float(values[s]) for s in params]
@@ -186,7 +190,7 @@ def resimulate(f, index, t, states, inputs, *, backward: bool) -> dict:
     ok = True
     for k in range(len(t) - 1):
         r = R[:, k + 1] if backward else R[:, k]
-        sol = solve_ivp(lambda tt, xx: f(tt, xx, r), (t[k], t[k + 1]), x, method="DOP853", rtol=1e-10, atol=1e-12)
+        sol = solve_ivp(lambda tt, xx, r=r: f(tt, xx, r), (t[k], t[k + 1]), x, method="DOP853", rtol=1e-10, atol=1e-12)
         ok &= bool(sol.success)
         x = sol.y[:, -1]
         sim[:, k + 1] = x
@@ -235,7 +239,7 @@ def resimulate_command(args) -> dict:
     specified = [str(s) for s in namespace["specified_symbols"]]
     import numpy as np
     R = np.zeros((len(specified), len(data["t"])))
-    for name, row in zip(data["input_names"], np.asarray(data["inputs"], float).T):   # inputs: N × m
+    for name, row in zip(data["input_names"], np.asarray(data["inputs"], float).T, strict=False):   # inputs: N × m
         R[specified.index(name), :-1] = row
     return {"example": os.path.basename(args.example), "accuracy": resimulate(f, index, data["t"], data["states"], R,
                                                                                backward=False)}

@@ -60,7 +60,7 @@ def run_plan(args: list, out: Path, cache: Path, timeout: float) -> dict:
         return {"status": f"plan not finished in {timeout:.0f} s"}
     stamps.append(time.monotonic())
     row = {"exit": proc.returncode, "wall_s": stamps[-1] - t0, "peak_mb": peak / 1024.0,
-           "max_silent_s": max(b - a for a, b in zip(stamps, stamps[1:])), "stderr_tail": lines[-5:]}
+           "max_silent_s": max(b - a for a, b in zip(stamps, stamps[1:], strict=False)), "stderr_tail": lines[-5:]}
     path = out / "solution.json"
     if path.exists():
         row.update(_solution_fields(json.loads(path.read_text())))

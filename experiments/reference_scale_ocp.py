@@ -337,9 +337,9 @@ def kane_body(member: str) -> KaneBody:
     q_syms = tuple(sp.Symbol(f"q_{nm}", real=True) for nm in names)
     u_syms = tuple(sp.Symbol(f"u_{sp_}", real=True) for sp_ in speeds)
     tau_syms = tuple(sp.Symbol(str(i), real=True) for i in mdl["inputs"])
-    plain = {**dict(zip(q, q_syms)), **dict(zip(u, u_syms))}
+    plain = {**dict(zip(q, q_syms, strict=True)), **dict(zip(u, u_syms, strict=True))}
     plain.update({p: sp.Float(values[str(p)]) for p in mdl["params"]})
-    plain.update({i: ts for i, ts in zip(mdl["inputs"], tau_syms)})
+    plain.update({i: ts for i, ts in zip(mdl["inputs"], tau_syms, strict=True)})
     frame0 = {q_syms[0]: 0, q_syms[1]: 0, q_syms[2]: 0}
 
     def to_plain(mat):
@@ -694,7 +694,7 @@ def _rk4_rollout(ode: ReducedODE, q0: np.ndarray, u_of_t, t: np.ndarray, sub: in
     """Kinematic rollout q̇ = R(q) u_ind(t) (RK4, ``sub`` steps per node interval)."""
     qs = [np.asarray(q0, float)]
     R = ode.velocity_matrix
-    for a, b in zip(t[:-1], t[1:]):
+    for a, b in zip(t[:-1], t[1:], strict=True):
         q = qs[-1].copy()
         h = (b - a) / sub
         for i in range(sub):
@@ -785,7 +785,7 @@ def rk4_stage(ode: ReducedODE, dt: float, steps: int = 4, kind: str = "MX") -> c
     if kind == "step":
         zs, ts = ca.SX.sym("z", ode.nx), ca.SX.sym("tau", ode.nu)
         step = ca.Function(f"step_{ode.member}", [zs, ts], [rk4(zs, ts, ode.f)])
-        f, sym = None, ca.MX.sym
+        sym = ca.MX.sym
     elif kind in ("MX", "SX"):
         step, sym = None, (ca.MX.sym if kind == "MX" else ca.SX.sym)
     else:
@@ -955,21 +955,21 @@ def multiplier_dae(member: str) -> ca.Function:
     names = [qi.func.__name__ for qi in q]
     u = [dynamicsymbols(f"ud_{c}") for c in names]
     qd = [qi.diff(t) for qi in q]
-    km = KanesMethod(mdl["N"], q_ind=q, u_ind=u, kd_eqs=[a - b for a, b in zip(u, qd)])
+    km = KanesMethod(mdl["N"], q_ind=q, u_ind=u, kd_eqs=[a - b for a, b in zip(u, qd, strict=True)])
     km.kanes_equations(mdl["bodies"], mdl["loads"])
-    cons = sp.Matrix(mdl["constraints"]).xreplace(dict(zip(qd, u)))
+    cons = sp.Matrix(mdl["constraints"]).xreplace(dict(zip(qd, u, strict=True)))
     values = _parameter_values(member)
     qs = sp.symbols([f"q{i}" for i in range(n)], real=True)
     us = sp.symbols([f"qd{i}" for i in range(n)], real=True)
     taus = sp.symbols([str(i) for i in mdl["inputs"]], real=True)
-    plain = {**dict(zip(q, qs)), **dict(zip(u, us)), **dict(zip(mdl["inputs"], taus))}
+    plain = {**dict(zip(q, qs, strict=True)), **dict(zip(u, us, strict=True)), **dict(zip(mdl["inputs"], taus, strict=True))}
     plain.update({p: sp.Float(values[str(p)]) for p in mdl["params"]})
     M = sp.Matrix(km.mass_matrix).xreplace(plain)
     F = sp.Matrix(km.forcing).xreplace(plain)
     A = cons.jacobian(u).xreplace(plain)
     Aqd = A * sp.Matrix(us)
     bias = sp.zeros(A.shape[0], 1)
-    for qi, ui in zip(qs, us):
+    for qi, ui in zip(qs, us, strict=True):
         bias += Aqd.diff(qi) * ui
     Q, QD, TAU = ca.SX.sym("q", n), ca.SX.sym("qd", n), ca.SX.sym("tau", len(taus))
     env = {**{s: Q[i] for i, s in enumerate(qs)}, **{s: QD[i] for i, s in enumerate(us)},
@@ -1067,7 +1067,7 @@ def resimulate(ref: Reference, res: dict, rtol: float = 1e-10, atol: float = 1e-
     nfev = 0
     for kk in range(ref.N):
         tau = U[kk]
-        sol = solve_ivp(lambda _t, s: np.concatenate([s[n:], np.asarray(dae(s[:n], s[n:], tau)).ravel()]),
+        sol = solve_ivp(lambda _t, s, tau=tau: np.concatenate([s[n:], np.asarray(dae(s[:n], s[n:], tau)).ravel()]),
                         (t[kk], t[kk + 1]), states[-1], method="DOP853", rtol=rtol, atol=atol)
         if not sol.success:
             return {"success": False, "message": sol.message, "node_error": math.inf}

@@ -50,7 +50,7 @@ def kane_reference(name, t_eval, q0, qdot0, controller, params=None):
     from nhgait.dynamics.derivation.models import builtin
 
     system = builtin(name)
-    values = dict(zip((s.name for s in system.param_symbols), system.param_values))
+    values = dict(zip((s.name for s in system.param_symbols), system.param_values, strict=True))
     values.update(params or {})
     o = _oracle(name)
     pv = np.array([float(values[p]) for p in o.parameters])

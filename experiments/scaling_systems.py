@@ -52,7 +52,7 @@ def _velocity_text(coords):
     qds = [sp.Symbol(f"{c}_dot", real=True) for c in coords]
 
     def d(expr):
-        return sum((sp.diff(expr, a) * b for a, b in zip(qs, qds)), sp.Integer(0))
+        return sum((sp.diff(expr, a) * b for a, b in zip(qs, qds, strict=True)), sp.Integer(0))
     return qs, d
 
 
@@ -87,7 +87,7 @@ def _tidy_form(expr, coords):
     """Collect a form in the velocities and trigsimp each coefficient (readable scene text)."""
     qds = [sp.Symbol(f"{c}_dot", real=True) for c in coords]
     poly = sp.Poly(sp.expand(expr), *qds)
-    return sp.Add(*[_trig_tidy(c) * sp.Mul(*[v ** k for v, k in zip(qds, mon)])
+    return sp.Add(*[_trig_tidy(c) * sp.Mul(*[v ** k for v, k in zip(qds, mon, strict=True)])
                     for mon, c in poly.terms()])
 
 

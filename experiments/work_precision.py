@@ -81,7 +81,7 @@ def kane_final_state(name, controller, start, solver=("DOP853", 1e-13, 1e-15), p
     (q0, qdot0, t_final), (method, rtol, atol) = start, solver
     system = builtin(name, **(params or {}))
     o = _oracle(name)
-    values = dict(zip((s.name for s in system.param_symbols), system.param_values))
+    values = dict(zip((s.name for s in system.param_symbols), system.param_values, strict=True))
     pv = np.array([float(values[p]) for p in o.parameters])
     n = len(o.coordinates)
 
@@ -104,8 +104,8 @@ def lagranges_method_anchor(name):
     n = system.n
     q = dynamicsymbols(" ".join(system.coordinates))
     qd = [qi.diff() for qi in q]
-    to_fn = dict(zip(system.q, q))
-    to_fn.update(dict(zip(system.q_dot, qd)))
+    to_fn = dict(zip(system.q, q, strict=True))
+    to_fn.update(dict(zip(system.q_dot, qd, strict=True)))
     L = system.L.xreplace(to_fn)
     cons = [c.xreplace(to_fn) for c in system.constraint_exprs]
     N = ReferenceFrame("N")
@@ -142,7 +142,7 @@ def anchor_rows(name, case, tolerances, repeats):
     y0 = np.r_[case.q0, case.qdot0]
     rows = []
     for rtol in sorted(tolerances, reverse=True):
-        def run():
+        def run(rtol=rtol):
             return solve_ivp(rhs, (0.0, case.t_final), y0, method="DOP853", rtol=rtol, atol=rtol * 1e-2)
         wall, walls, sol = wp.time_call(run, repeats)
         err = float(np.max(np.abs(np.r_[sol.y[:n, -1] - case.reference[0], sol.y[n:, -1] - case.reference[1]])))
@@ -362,7 +362,7 @@ def _loglog_time(anchors, level):
     """The anchor's time at error ``level``: log-log interpolation between the two anchor runs
     whose errors bracket it (None if none do)."""
     pts = sorted((r.error, r.wall_s) for r in anchors if r.success and r.error > 0)
-    for (e1, w1), (e2, w2) in zip(pts, pts[1:]):
+    for (e1, w1), (e2, w2) in zip(pts, pts[1:], strict=False):
         if e1 <= level <= e2:
             x = (math.log(level) - math.log(e1)) / (math.log(e2) - math.log(e1))
             return math.exp(math.log(w1) + x * (math.log(w2) - math.log(w1)))
@@ -390,7 +390,7 @@ def targets(case, rows, anchors, repeats=15) -> list:
             used = [r for r in anchors if r.rtol == 1e-6]
         else:                           # the two anchor runs bracketing the anchor's error
             pts = sorted((r for r in anchors if r.success), key=lambda r: r.error)
-            used = [next((a for a, b in zip(pts, pts[1:]) if a.error <= anchor_level <= b.error), None)]
+            used = [next((a for a, b in zip(pts, pts[1:], strict=False) if a.error <= anchor_level <= b.error), None)]
             used = [] if used[0] is None else [used[0], pts[pts.index(used[0]) + 1]]
         if not cands or not used:
             lines.append(f"- error ≤ {level:g}: not measurable in this run")
@@ -553,7 +553,7 @@ def _figure(name, rows, anchors, title, path):
     forms = list(dict.fromkeys(r.formulation for r in rows))
     fig, axes = plt.subplots(1, len(forms), figsize=(5.2 * len(forms), 5.2), sharex=True,
                              sharey=True, squeeze=False)
-    for ax, f in zip(axes[0], forms):
+    for ax, f in zip(axes[0], forms, strict=True):
         wp.plot_case([r for r in rows if r.formulation == f], ax, anchor=anchors,
                      title=f"{name}: {f} (rtol 1e-4 … 1e-12)")
     fig.suptitle(title, fontsize=8)

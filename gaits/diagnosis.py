@@ -162,13 +162,13 @@ def _singular(result) -> list:
 
 def _away_from_singular(result, met, shape) -> list:
     task = result.task
-    names = sorted({c for x in met for c, v in zip(x.check.coordinates, x.check.q) if shape is None or c in shape})
+    names = sorted({c for x in met for c, v in zip(x.check.coordinates, x.check.q, strict=True) if shape is None or c in shape})
     now = ", ".join(f"{c} in [{task.bounds[c][0]:g}, {task.bounds[c][1]:g}]" for c in names
                     if isinstance(task.bounds.get(c), tuple))
     out = [f"bounds on {', '.join(names)} that keep the shape off these postures" + (f" (now {now})" if now else "")]
     start = next((x.repair for x in met if x.action == "moved"), None)
     free = [c for c in names if c not in task.initial]
-    fixed = sorted({(c, v) for x in met if x.check.t == 0.0 for c, v in zip(x.check.coordinates, x.check.q)
+    fixed = sorted({(c, v) for x in met if x.check.t == 0.0 for c, v in zip(x.check.coordinates, x.check.q, strict=True)
                     if c in names and c in task.initial})
     if fixed:
         out.append(f"the fixed initial shape ({', '.join(f'{c} = {v:.3g}' for c, v in fixed)}) lies on the singular "

@@ -92,7 +92,7 @@ def parse_drawing(table, system, *, where: str = "[drawing]") -> Drawing | None:
             if not isinstance(point, list) or len(point) != 2:
                 problems.append(f"{w}.{end} must be a point [px, py], got {point!r}")
                 continue
-            for axis, value in zip("xy", point):
+            for axis, value in zip("xy", point, strict=True):
                 text = str(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else value
                 e = expression_problems(text, names, f"{w}.{end} {axis}", problems)
                 if e is not None:

@@ -70,8 +70,9 @@ def verified_gait(solution, model, stated, to_plan, params, *, verify=True, prog
         model, regular = verification_chart(to_plan.scene.system, model, solution.states[:n], params, progress)
         if not regular:
             model = lagrange_ode(to_plan.scene.system)
-    in_lagrange = (lambda: to_momentum_coordinates(solution, momentum_problem(lagrange_ode(to_plan.scene.system),
-                                                                               stated, to_plan, params)))
+    def in_lagrange():
+        return to_momentum_coordinates(solution, momentum_problem(lagrange_ode(to_plan.scene.system), stated,
+                                                                  to_plan, params))
     moved = to_momentum_coordinates(solution, momentum_problem(model, stated, to_plan, params))
     if not np.all(np.isfinite(moved.states)) and np.all(np.isfinite(solution.states)):
         # a chart singular at some node (where the momenta are not defined): (q, q̇) instead

@@ -152,7 +152,7 @@ def _order(guesses: list, n_pairs: int) -> list:
     per = len(RATIOS) * len(AMPLITUDES)
     blocks = [guesses[i * per:(i + 1) * per] for i in range(n_pairs)]
     rest = guesses[n_pairs * per:]
-    return [g for row in zip(*blocks) for g in row] + rest
+    return [g for row in zip(*blocks, strict=False) for g in row] + rest
 
 
 def _rate_states(model, shape: tuple) -> tuple:
@@ -180,7 +180,7 @@ def screened_dict(record: Screened) -> dict:
     """A :class:`Screened` record as plain data (solution.json)."""
     c = record.check
     return {"label": record.label, "action": record.action, "repair": record.repair, "what": c.what,
-            "t": c.t, "configuration": dict(zip(c.coordinates, c.q)), "measure": c.measure}
+            "t": c.t, "configuration": dict(zip(c.coordinates, c.q, strict=True)), "measure": c.measure}
 
 
 class Candidates(Sequence):

@@ -26,7 +26,7 @@ __all__ = ["plot_path", "plot_shape_loop", "plot_histories", "plot_momentum", "w
 _GREEK = {g: c for g, c in zip(
     ("alpha", "beta", "gamma", "delta", "epsilon", "zeta", "eta", "theta", "iota", "kappa", "lambda",
      "mu", "nu", "xi", "pi", "rho", "sigma", "tau", "upsilon", "phi", "chi", "psi", "omega"),
-    "αβγδεζηθικλμνξπρστυφχψω")}
+    "αβγδεζηθικλμνξπρστυφχψω", strict=True)}
 
 
 def label(name: str) -> str:
@@ -77,7 +77,7 @@ def _input_unit(system, name) -> str:
     syms = [s for s in system.input_symbols if s.name == name]
     if not syms:
         return ""
-    on = [c for c, f in zip(coords, system.tau) if syms[0] in getattr(f, "free_symbols", ())]
+    on = [c for c, f in zip(coords, system.tau, strict=True) if syms[0] in getattr(f, "free_symbols", ())]
     if on and all(_is_angle(system, c) and not _is_frame_position(system, c) for c in on):
         return "N·m"
     return "N" if on else ""
@@ -291,7 +291,7 @@ def plot_histories(solution, ctx: FigureContext, axes=None):
     axes[0].set_ylabel(f"shape {', '.join(label(c) for c in shape)} [{', '.join(u for u in shape_units if u)}]")
     axes[0].legend(fontsize="small")
     axes[0].set_title("shape coordinates and inputs (inputs constant on each interval)")
-    for ax, u in zip(axes[1:], units):
+    for ax, u in zip(axes[1:], units, strict=False):
         for i, n in enumerate(solution.control_names):
             if unit(ctx, n) == u:
                 ax.step(solution.t, np.append(solution.controls[i], solution.controls[i, -1]), where="post",
@@ -313,7 +313,7 @@ def plot_momentum(solution, ctx: FigureContext, axes=None):
         import matplotlib.pyplot as plt
         _, axes = plt.subplots(len(names), 1, sharex=True, figsize=(7, 1.9 * max(1, len(names))))
     axes = list(np.atleast_1d(axes))
-    for ax, name in zip(axes, names):
+    for ax, name in zip(axes, names, strict=False):
         ax.plot(solution.t, series(solution, name), lw=2, color="C0")
         if name.startswith("pt_"):
             ax.set_ylabel(f"{label(name)} [{unit(ctx, name)}]")

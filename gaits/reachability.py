@@ -24,7 +24,7 @@ def unreachable_targets(problem, system, params=None) -> list:
     if any(problem.fixed_value(problem.initial, v) != 0.0 for v in problem.state_names[n:]):
         return []
     lo, hi = problem.control_bound_vectors()
-    bounds = {u: (a, b) for u, a, b in zip(problem.control_names, lo, hi)}
+    bounds = {u: (a, b) for u, a, b in zip(problem.control_names, lo, hi, strict=True)}
     horizon = problem.free_horizon[1] if problem.free_horizon is not None else problem.horizon
     reach = displacement_bounds(system, bounds, float(horizon), params)
     if reach is None:

@@ -61,7 +61,7 @@ class Check:
 
     def posture(self, names=None) -> str:
         """"alpha1 = 0.31, alpha2 = 0.31": the values of ``names`` (default: every coordinate)."""
-        pairs = [(c, v) for c, v in zip(self.coordinates, self.q) if names is None or c in names]
+        pairs = [(c, v) for c, v in zip(self.coordinates, self.q, strict=True) if names is None or c in names]
         return ", ".join(f"{c} = {v:.3g}" for c, v in pairs)
 
     def reason(self, shape=None) -> str:
@@ -182,7 +182,7 @@ class Screen:
         lo = np.array([free[c][0] for c in names])
         hi = np.array([free[c][1] for c in names])
         if len(names) <= 3:
-            axes = [np.linspace(a, b, 5) for a, b in zip(lo, hi)]
+            axes = [np.linspace(a, b, 5) for a, b in zip(lo, hi, strict=True)]
             trial = np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(names), -1).T
         else:
             trial = np.random.default_rng(3).uniform(lo, hi, (count, len(names)))
@@ -193,4 +193,4 @@ class Screen:
         if ok.size == 0:
             return {}
         best = ok[np.argmin(np.linalg.norm(trial[ok] - q0[idx], axis=1))]
-        return {c: float(v) for c, v in zip(names, trial[best])}
+        return {c: float(v) for c, v in zip(names, trial[best], strict=True)}

@@ -189,7 +189,7 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
             break
         t0 = time.monotonic()
         sols = solve_attempts(solver, batch, workers=workers, budget=budget, progress=progress)
-        for k, (g, s) in enumerate(zip(batch, sols)):
+        for k, (g, s) in enumerate(zip(batch, sols, strict=True)):
             attempts.append(attempt_of(g.label, s, name))
             _report(progress, start + k + 1, total, g.label, s)
             if not s.success:
@@ -232,7 +232,7 @@ def _explored(solver, guesses, found: Search, indices, seconds: float, workers: 
             break
         limit = left if solver.options.time_limit is None else min(left, solver.options.time_limit)
         sols = solve_attempts(solver.with_time_limit(limit), batch, workers=workers, budget=budget, progress=progress)
-        for k, (g, s) in enumerate(zip(batch, sols)):
+        for k, (g, s) in enumerate(zip(batch, sols, strict=True)):
             attempts.append(attempt_of(g.label, s, name))
             _report(progress, indices[start] + k + 1, indices[-1] + 1, g.label, s)
             if s.success and s.objective < best.objective:

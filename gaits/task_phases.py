@@ -117,7 +117,7 @@ def _spread(phases: list, total, where, problems) -> list:
     own = [max(1, int(p.intervals)) if isinstance(p.intervals, int) else 1 for p in phases]
     shares = [max(1, round(total * n / sum(own))) for n in own]
     shares[-1] = max(1, total - sum(shares[:-1]))
-    return [replace(p, intervals=n) for p, n in zip(phases, shares)]
+    return [replace(p, intervals=n) for p, n in zip(phases, shares, strict=True)]
 
 
 def _phase_controls(item, problems, at) -> dict:

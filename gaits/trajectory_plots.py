@@ -65,11 +65,11 @@ def plot_time_series(traj, ctx, axes):
     axes = list(np.atleast_1d(axes))
     rows = [("coordinate", u, names) for u, names in coords.items()] + \
            [("input", u, names) for u, names in inputs.items()]
-    for ax, (kind, u, names) in zip(axes, rows):
+    for ax, (kind, u, names) in zip(axes, rows, strict=False):
         source = traj.q if kind == "coordinate" else traj.u
         order = traj.coordinates if kind == "coordinate" else traj.input_names
         styles = series_styles(len(names))
-        for name, style in zip(names, styles):
+        for name, style in zip(names, styles, strict=True):
             ax.plot(traj.t, np.asarray(source)[:, list(order).index(name)], lw=1.8,
                     label=with_unit(ctx, name), **style)
         what = "coordinates" if kind == "coordinate" else "inputs"

@@ -157,7 +157,7 @@ def _rollout(problem, shape: ShapeGuess, coordinates: tuple) -> InitialGuess:
         return np.asarray(qdot(np.concatenate([q, y_of(t)]), problem.params)).ravel()
 
     q = np.array([ends(problem, c, shape.start)[0] for c in coordinates])
-    for name, amp, k, phase in shape.waves:
+    for name, amp, _k, phase in shape.waves:
         q[coordinates.index(name)] += amp * math.sin(phase)
     h = T / N / 4
     Z = np.zeros((len(names), N + 1))

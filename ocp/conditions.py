@@ -450,7 +450,7 @@ def normalise(problem: OptimalControlProblem, *, seed: int = 0) -> tuple:
         if z is not None:
             ranges = {k: v for k, v in mapping.items()
                       if not current.is_state(k) and current.bounds(mapping, k)[0] != current.bounds(mapping, k)[1]}
-            mapping = {**ranges, **dict(zip(current.state_names, map(float, z)))}
+            mapping = {**ranges, **dict(zip(current.state_names, map(float, z), strict=True))}
             solved.append((where, tuple(map(float, z))))
         changes[where] = mapping
     periodic, gone = _periodic(current, rng)

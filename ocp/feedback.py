@@ -74,11 +74,11 @@ class Weights:
 
     def to_dict(self, state_names, control_names) -> dict:
         return {"rule": self.rule,
-                "state": dict(zip(state_names, map(float, self.state))),
-                "final": dict(zip(state_names, map(float, self.final))),
-                "control": dict(zip(control_names, map(float, self.control))),
-                "state_scale": dict(zip(state_names, map(float, self.state_scale))),
-                "control_scale": dict(zip(control_names, map(float, self.control_scale)))}
+                "state": dict(zip(state_names, map(float, self.state), strict=True)),
+                "final": dict(zip(state_names, map(float, self.final), strict=True)),
+                "control": dict(zip(control_names, map(float, self.control), strict=True)),
+                "state_scale": dict(zip(state_names, map(float, self.state_scale), strict=True)),
+                "control_scale": dict(zip(control_names, map(float, self.control_scale), strict=True))}
 
 
 def state_scales(problem: OptimalControlProblem, states: np.ndarray) -> np.ndarray:
@@ -122,7 +122,7 @@ def default_weights(problem: OptimalControlProblem, states: np.ndarray, controls
 def stage_jacobians(problem: OptimalControlProblem, states, controls, horizon: float, steps: int = 4) -> tuple:
     """(A (N, nz, nz), B (N, nz, nu), gap (N,)): the stage Jacobians at the nodes and how far
     F(z_k, u_k) is from z_{k+1} (the plan's own defects, ~0 for a converged plan)."""
-    N, nz, nu = problem.intervals, problem.n_states, problem.n_controls
+    N, nz = problem.intervals, problem.n_states
     st = stage_functions(ode_function(problem), N, steps=steps)
     phase = ca.DM([1.0 / N, 0.0])                                 # (ν, t0): one phase from t = 0
     F, J = st.jacobian.map(N)(states[:, :N], controls, float(horizon), ca.DM(np.arange(N)).T, phase)

@@ -98,7 +98,7 @@ def _integrate(fn, X0, pieces, method: str, rtol: float, atol: float) -> np.ndar
     from scipy.integrate import solve_ivp
     X = np.asarray(X0, dtype=float)
     for a, b, data in pieces:
-        sol = solve_ivp(lambda tt, xx: np.asarray(fn(tt, xx, data)).ravel(), (a, b), X, method=method,
+        sol = solve_ivp(lambda tt, xx, data=data: np.asarray(fn(tt, xx, data)).ravel(), (a, b), X, method=method,
                         rtol=rtol, atol=atol)
         if not sol.success:
             raise RuntimeError(f"the {method} integration of the closed loop failed on [{a:g}, {b:g}]: {sol.message}")

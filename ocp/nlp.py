@@ -90,7 +90,7 @@ class TranscribedNLP:
         out = {}
         for labels, lo, hi, value in ((self.row_labels, self.lbg, self.ubg, g), (self.w_labels(), self.lbx, self.ubx, w)):
             viol = np.maximum(np.maximum(lo - value, value - hi), 0.0)
-            for label, v in zip(labels, viol):
+            for label, v in zip(labels, viol, strict=True):
                 if v > tol:
                     out[label] = max(out.get(label, 0.0), float(v))
         return out

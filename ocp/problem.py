@@ -326,5 +326,5 @@ class OptimalControlProblem(ProblemStatement):
                         "control_bounds": fmt(p.control_bounds),
                         "waypoints": [{"time": w.time, "name": w.name, "conditions": fmt(w.conditions)}
                                       for w in p.waypoints]} for p in self.phases],
-            "params": dict(zip(getattr(self.model.numeric, "param_names", ()), map(float, self.params))),
+            "params": dict(zip(getattr(self.model.numeric, "param_names", ()), map(float, self.params), strict=False)),
         }

@@ -175,7 +175,7 @@ def schedule(problem) -> Schedule:
     events = [Event(0, "initial", dict(problem.initial))]
     for p, phase in enumerate(phases):
         base = int(starts[p])
-        for j, point in enumerate(phase.waypoints):
+        for point in phase.waypoints:
             label = point.name or f"waypoint{len(events)}"
             events.append(Event(base + waypoint_node(point, phase.horizon, phase.intervals), label,
                                 dict(point.conditions)))

@@ -151,7 +151,7 @@ def simulate_piecewise_constant(model, params, t, z0, controls, integrator: Inte
         u = controls[:, k]
         try:
             sol = solve_ivp(_finite(f, u), (t[k], t[k + 1]), z, method=method, rtol=rtol, atol=atol,
-                            **({"jac": lambda tt, zz: np.asarray(jac(tt, zz, u))} if method in ("Radau", "BDF", "LSODA")
+                            **({"jac": lambda tt, zz, u=u: np.asarray(jac(tt, zz, u))} if method in ("Radau", "BDF", "LSODA")
                                else {}))
         except _NotFinite:
             return out, False
@@ -348,12 +348,12 @@ class Solution:
         err = np.abs(sim - self.states)
         err[np.isnan(err)] = np.inf                      # not reached (the integration stopped)
         return Verification(max_error=float(err.max()),
-                            state_errors={n: float(e) for n, e in zip(self.state_names, err.max(axis=1))},
+                            state_errors={n: float(e) for n, e in zip(self.state_names, err.max(axis=1), strict=True)},
                             states=sim, method=method, rtol=rtol, atol=atol, success=ok,
                             time_s=time.perf_counter() - t0,
                             condition_errors=condition_errors(self.problem, sim, self.controls, self.t),
                             tolerance=float(tolerance),
-                            state_scales=dict(zip(self.state_names, map(float, scales(self.states)))),
+                            state_scales=dict(zip(self.state_names, map(float, scales(self.states)), strict=True)),
                             condition_scales=condition_scales(self.problem, self.states, self.controls, self.t))
 
     def verified(self, **kwargs) -> Solution:

@@ -114,7 +114,6 @@ def stage_functions(ode: ca.Function, intervals: int | None = None, *, steps: in
     """
     nz, nu = int(ode.size1_in(1)), int(ode.size1_in(2))
     ops = int(ode.n_instructions())
-    nx = nz + nu + (1 if free_horizon else 0)
     if mode == "auto":
         mode = stage_mode(ode, steps=steps, free_horizon=free_horizon)
     g = _scaled_ode(ode)

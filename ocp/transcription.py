@@ -67,7 +67,7 @@ def _stage_layout(w, g_of, specs) -> tuple:
     P = [ca.MX.sym(f"F{i}", fn.n_outputs, int(args[0].shape[1])) for i, (fn, args, _) in enumerate(specs)]
     g_p = g_of(*P)
     terms, mapped = [], []
-    for (fn, args, n_var), Pi in zip(specs, P):
+    for (fn, args, n_var), Pi in zip(specs, P, strict=True):
         m, K = Pi.shape
         x_in = ca.vertcat(*args[:n_var])
         sel = ca.Function("placement", [w, Pi], [ca.jacobian(g_p, ca.vec(Pi)), ca.jacobian(ca.vec(x_in), w)])
@@ -273,7 +273,7 @@ def _bounds_on(w, node_index, lo, hi, control_index, ulo, uhi, horizon_indices=(
     lbx, ubx = np.full(n_w, -np.inf), np.full(n_w, np.inf)
     lbx[node_index], ubx[node_index] = lo, hi
     lbx[control_index], ubx[control_index] = ulo, uhi
-    for index, (a, b) in zip(horizon_indices, Tbounds or ()):
+    for index, (a, b) in zip(horizon_indices, Tbounds or (), strict=False):
         lbx[index], ubx[index] = a, b
     return lbx, ubx
 

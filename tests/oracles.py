@@ -378,7 +378,7 @@ def _model_snake(n_links, rotor=False):
         c.v2pt_theory(joint, N, Lj)
         frames.append(Lj)
         centres.append(c)
-    bodies = [RigidBody(f"link{i + 1}", c, F, ms, (inertia(F, 0, 0, Is), c)) for i, (c, F) in enumerate(zip(centres, frames))]
+    bodies = [RigidBody(f"link{i + 1}", c, F, ms, (inertia(F, 0, 0, Is), c)) for i, (c, F) in enumerate(zip(centres, frames, strict=True))]
     loads = []
     if rotor:
         R = frames[0].orientnew("R", "Axis", [psi, N.z])
@@ -387,7 +387,7 @@ def _model_snake(n_links, rotor=False):
     for j in range(1, n_links):
         tau = taus[j - 1 + (1 if rotor else 0)]
         loads += [(frames[j], tau * N.z), (frames[j - 1], -tau * N.z)]
-    constraints = [c.vel(N).dot(F.y) for c, F in zip(centres, frames)]
+    constraints = [c.vel(N).dot(F.y) for c, F in zip(centres, frames, strict=True)]
     k, n = n_links, len(q)
     free = [i for i in range(n) if i >= (4 if rotor else 3)]   # the joint angles
     fixed_ind = [3] if rotor else []
@@ -540,8 +540,8 @@ def kanes_method(mdl: dict, dependent):
     q = mdl["q"]
     t = dynamicsymbols._t
     u = [dynamicsymbols(f"u_{qi.func.__name__}") for qi in q]
-    kd = [qi.diff(t) - ui for qi, ui in zip(q, u)]
-    cons = [msubs(c, dict(zip([qi.diff(t) for qi in q], u))) for c in mdl["constraints"]]
+    kd = [qi.diff(t) - ui for qi, ui in zip(q, u, strict=True)]
+    cons = [msubs(c, dict(zip([qi.diff(t) for qi in q], u, strict=True))) for c in mdl["constraints"]]
     ind = [i for i in range(len(q)) if i not in dependent]
     configuration = mdl.get("configuration", [])     # with q_dependent: the last len(...) of dependent
     q_dep = [q[i] for i in dependent[len(dependent) - len(configuration):]] if configuration else []
@@ -596,13 +596,13 @@ def _build(name: str) -> KaneOracle:
     t = dynamicsymbols._t
     qd = [qi.diff(t) for qi in q]
     u = [dynamicsymbols(f"u_{qi.func.__name__}") for qi in q]
-    qd_to_u = dict(zip(qd, u))
+    qd_to_u = dict(zip(qd, u, strict=True))
 
     # plain symbols for lambdify
     qs = sp.symbols([f"q_{i}" for i in range(n)])
     us = sp.symbols([f"v_{i}" for i in range(n)])
-    to_plain = dict(zip(q, qs))
-    to_plain.update(dict(zip(u, us)))
+    to_plain = dict(zip(q, qs, strict=True))
+    to_plain.update(dict(zip(u, us, strict=True)))
 
     def plain(expr):
         e = msubs(sp.Matrix(expr), qd_to_u).xreplace(to_plain)

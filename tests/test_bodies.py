@@ -43,7 +43,7 @@ def test_disc_from_a_wheel_equals_the_hand_written_disc():
     rng = np.random.default_rng(1)
     for _ in range(20):
         q = rng.uniform(-1.2, 1.2, 5)
-        qd = consistent_velocities(by_hand, q, dict(zip(("yaw", "lean", "spin"), rng.uniform(-2, 2, 3))))
+        qd = consistent_velocities(by_hand, q, dict(zip(("yaw", "lean", "spin"), rng.uniform(-2, 2, 3), strict=True)))
         u = rng.uniform(-1, 1, 1)
         np.testing.assert_allclose(a.call("qddot", 0.0, a.call("state", q, qd, pv), u, pv),
                                    b.call("qddot", 0.0, b.call("state", q, qd, pv), u, pv), rtol=1e-12, atol=1e-12)

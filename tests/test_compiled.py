@@ -103,7 +103,7 @@ def test_open_loop_segments_are_exact(models):
     tau = np.array([0.3, -0.2, 0.5, 0.0, -0.4])
     ctl = OpenLoop(times, np.c_[tau, np.zeros(5)], inputs=("tau_theta", "tau_phi"))
     theta, omega = 0.0, 0.0
-    for dt, a in zip(np.diff(times), tau / J_THETA):
+    for dt, a in zip(np.diff(times), tau / J_THETA, strict=True):
         theta, omega = theta + omega * dt + 0.5 * a * dt ** 2, omega + a * dt
     for method in ("compiled", "CVODES"):
         traj = simulate(model, (0.0, 1.0), np.zeros(4), np.zeros(4), controller=ctl,
@@ -125,7 +125,7 @@ def test_every_step_output_over_several_segments_keeps_each_segment(models):
                     rtol=1e-12, atol=1e-14)
     assert traj.success and traj.settings["segments"] == 5 and np.all(np.diff(traj.t) >= 0)
     starts = [(0.0, 0.0)]                               # (θ, ω) at each switch time
-    for dt, a in zip(np.diff(times), tau / J_THETA):
+    for dt, a in zip(np.diff(times), tau / J_THETA, strict=True):
         theta, omega = starts[-1]
         starts.append((theta + omega * dt + 0.5 * a * dt ** 2, omega + a * dt))
     j = np.clip(np.searchsorted(times, traj.t, side="right") - 1, 0, 4)

@@ -91,7 +91,7 @@ def test_monodromy_of_a_nonlinear_time_varying_loop_matches_finite_differences()
     rng = np.random.default_rng(4)
     ref = np.vstack([np.sin(times), np.cos(times)])
     rates = np.stack([np.stack([[np.cos(a), -np.sin(a)], [np.cos(b), -np.sin(b)]]) for a, b in
-                      zip(times[:-1], times[1:])])
+                      zip(times[:-1], times[1:], strict=True)])
     controls, gains = rng.normal(size=(1, n)), rng.uniform(0.2, 1.5, (n, 1, 2))
     analytic, _ = monodromy(ode, times, ref, controls, rates, gains)
     reference = finite_difference_monodromy(ode, times, ref, controls, rates, gains)

@@ -33,7 +33,7 @@ CASES = [(name, form) for name in ("unicycle", "snakeboard", "chaplygin_sleigh")
 def _reference(system):
     """M(q), ω(q), V(q) at the default parameter values, lambdified from the system's sympy
     expressions (not through the engine's compiled functions)."""
-    values = dict(zip(system.param_symbols, system.param_values))
+    values = dict(zip(system.param_symbols, system.param_values, strict=True))
     args = list(system.q)
     mass = sp.lambdify(args, system.mass_matrix().subs(values), "numpy")
     omega = sp.lambdify(args, system.omega().subs(values), "numpy")

@@ -60,7 +60,7 @@ def test_a_guess_through_the_singular_set_is_repaired_and_the_plan_verified():
     repaired = [x for x in guesses.screened if x.action == "repaired"]
     assert repaired, "a loop of φ around 0.3 with amplitude 0.4 crosses φ = 0 and must be repaired"
     for record in repaired:                      # each was caught where it crosses sin φ = 0
-        phi = dict(zip(record.check.coordinates, record.check.q))["phi"]
+        phi = dict(zip(record.check.coordinates, record.check.q, strict=True))["phi"]
         assert abs(phi) < 0.05
     loop = next(g for g in handed if "(amplitudes x0.5)" in g.label and "rollout" not in g.label)
     phi = loop.states[3]

@@ -91,7 +91,7 @@ def test_named_subexpressions_are_the_plain_equations(slider):
     back = {}
     for name, sub in definitions:                   # each name may use the earlier ones
         back[name] = sub.xreplace(back)
-    for plain, named in zip(rhs, reduced):
+    for plain, named in zip(rhs, reduced, strict=True):
         assert sp.simplify(named.xreplace(back) - plain) == 0
     text = model.to_text()                          # long: named by default; --no-cse prints all
     assert "\n  where\n    w1 = " in text and "where" not in model.to_text(cse=False)

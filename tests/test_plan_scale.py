@@ -74,7 +74,7 @@ def test_a_chart_that_covers_the_ends_is_chosen():
     scene = scene_from_text(scale_tasks.scene_with_task(member), member)
     system = scene.system
     omega = system.omega().xreplace({**{q: 0 for q in system.q},
-                                               **{s: v for s, v in zip(system.param_symbols, system.param_values)}})
+                                               **{s: v for s, v in zip(system.param_symbols, system.param_values, strict=True)}})
     fiber = [system.coordinates.index(c) for c in ("x", "y", "theta", "phi")]
     assert np.linalg.matrix_rank(np.array(omega[:, fiber], dtype=float)) == 3
     from nhgait.dynamics import derive

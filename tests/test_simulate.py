@@ -74,7 +74,7 @@ def test_zoh_switching_is_exact(models):
     traj = simulate(model, (0.0, 1.0), UNI_Q0, np.zeros(4), controller=ctl, rtol=1e-12, atol=1e-14)
     J = 0.3
     theta, omega = 0.0, 0.0
-    for dt, a in zip(np.diff(times), tau / J):
+    for dt, a in zip(np.diff(times), tau / J, strict=True):
         theta, omega = theta + omega * dt + 0.5 * a * dt ** 2, omega + a * dt
     assert traj.success and traj.settings["segments"] == 5
     assert traj.q[-1, 2] == pytest.approx(theta, abs=1e-13)

@@ -458,7 +458,7 @@ def test_time_dependent_force_plans_and_verifies(timed_model, free):
         for k in range(problem.intervals):
             t0, t1 = sol.t[k], sol.t[k + 1]
             shift = t0 if restart else 0.0
-            run = solve_ivp(lambda t, zz: _rhs(t - shift, zz, sol.controls[:, k], True, np), (t0, t1), z,
+            run = solve_ivp(lambda t, zz, shift=shift, k=k: _rhs(t - shift, zz, sol.controls[:, k], True, np), (t0, t1), z,
                             method="DOP853", rtol=1e-11, atol=1e-12)
             z = run.y[:, -1]
             out.append(z)

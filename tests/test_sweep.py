@@ -107,10 +107,10 @@ def test_continuation_tree_reaches_every_point_by_unit_steps():
         steps, index = 0, p.index
         while g.parent(index) is not None:
             parent = g.parent(index)
-            assert sum(abs(a - b) for a, b in zip(parent, index)) == 1      # a grid neighbour
+            assert sum(abs(a - b) for a, b in zip(parent, index, strict=True)) == 1      # a grid neighbour
             index, steps = parent, steps + 1
         assert index == g.centre
-        assert steps == sum(abs(a - b) for a, b in zip(p.index, g.centre))  # shortest path
+        assert steps == sum(abs(a - b) for a, b in zip(p.index, g.centre, strict=True))  # shortest path
 
 
 # ----------------------------------------------------------------------------- sweeps with the fake

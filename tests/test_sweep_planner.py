@@ -131,7 +131,7 @@ def test_dask_sweep_gives_the_pool_objectives(pool_sweep, dask_backend, tmp_path
     r = sweep("unicycle", "parallel-park", GRID, out=tmp_path, overrides=SET, backend=dask_backend)
     assert r.complete and "Dask distributed (LocalCluster on 127.0.0.1" in r.backend
     assert len({x.worker for x in r.records}) == 2                       # both Dask workers solved points
-    for a, b in zip(r.records, pool_sweep.records):
+    for a, b in zip(r.records, pool_sweep.records, strict=True):
         assert a.id == b.id and a.success and a.objective == pytest.approx(b.objective, rel=1e-8, abs=0)
 
 

@@ -74,7 +74,7 @@ def test_forward_axis_of_the_body_frame():
     assert lateral == pytest.approx(-(qd[0] * math.cos(q[2]) + qd[1] * math.sin(q[2])), abs=1e-12)
     assert forward == pytest.approx(0.1 * qd[3], abs=1e-12) and lateral == pytest.approx(0.0, abs=1e-12)
     Y = velocity_rows(system, ["forward_velocity"])
-    row = np.array([float(e.subs(dict(zip(system.q, q)))) for e in Y.row(0)])
+    row = np.array([float(e.subs(dict(zip(system.q, q, strict=True)))) for e in Y.row(0)])
     assert row == pytest.approx([-math.sin(q[2]), math.cos(q[2]), 0, 0], abs=1e-14)
     fast = specialise(model, velocities=("forward_velocity", "theta_dot"))
     y = np.asarray(fast.numeric["state"](q, qd, [])).ravel()[4:]

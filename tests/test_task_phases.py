@@ -164,7 +164,7 @@ def test_the_path_guess_passes_the_stated_places_heading_along_its_legs():
     q = guess.states
     ends = [0, 140, 270, 400]
     places = [(0.0, 0.0), (10.0, 15.0), (-5.0, 10.0), (0.0, 0.0)]
-    for k, (x, y) in zip(ends, places):
+    for k, (x, y) in zip(ends, places, strict=True):
         assert (q[0, k], q[1, k]) == pytest.approx((x, y), abs=1e-12)
     t = problem.grid()
     previous = 0.0

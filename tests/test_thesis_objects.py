@@ -26,7 +26,7 @@ def same(a, b, subs=None):
 
 def same_matrix(A, B, subs=None):
     A, B = sp.Matrix(A), sp.Matrix(B)
-    return A.shape == B.shape and all(same(a, b, subs) for a, b in zip(A, B))
+    return A.shape == B.shape and all(same(a, b, subs) for a, b in zip(A, B, strict=True))
 
 
 @pytest.fixture(scope="module")

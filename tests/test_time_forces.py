@@ -79,15 +79,15 @@ def _kane():
     bodies = [RigidBody("front", P1, B1, m1, (inertia(B1, 0, 0, I1), P1)),
               RigidBody("rear", P2, B2, m2, (inertia(B2, 0, 0, I2), P2))]
     qd = [qi.diff(t) for qi in q]
-    to_u = dict(zip(qd, u))
+    to_u = dict(zip(qd, u, strict=True))
     torque = 0.6 * sp.sin(2.5 * t) - 1.5 * ph - 0.1 * u[3]
     loads = [(B2, torque * N.z), (B1, -torque * N.z)]     # hinge torque and its reaction
     cons = [msubs(P1.vel(N).dot(B1.y), to_u), msubs(P2.vel(N).dot(B2.y), to_u)]
-    km = KanesMethod(N, q_ind=q, u_ind=[u[0], u[3]], kd_eqs=[a - b for a, b in zip(qd, u)],
+    km = KanesMethod(N, q_ind=q, u_ind=[u[0], u[3]], kd_eqs=[a - b for a, b in zip(qd, u, strict=True)],
                      u_dependent=[u[1], u[2]], velocity_constraints=cons)
     km.kanes_equations(bodies, loads)
     qs, us, ts = sp.symbols("q0:4"), sp.symbols("v0:4"), sp.Symbol("time")
-    plain = {**dict(zip(q, qs)), **dict(zip(u, us)), t: ts}
+    plain = {**dict(zip(q, qs, strict=True)), **dict(zip(u, us, strict=True)), t: ts}
 
     def lam(args, expr):
         return sp.lambdify(args, msubs(expr, to_u).xreplace(plain), modules="numpy", cse=True)

@@ -41,7 +41,7 @@ def test_urdf_scene_has_the_written_equations(written, urdf):
         np.testing.assert_allclose(Vb, Va, rtol=0, atol=1e-12)
         np.testing.assert_allclose(Fb, Fa, rtol=0, atol=1e-12)
         # the same constraint distribution: each row of one is ± the same row of the other
-        for row_a, row_b in zip(Wa, Wb):
+        for row_a, row_b in zip(Wa, Wb, strict=True):
             sign = np.sign(row_a @ row_b)
             np.testing.assert_allclose(sign * row_b, row_a, rtol=0, atol=1e-12)
 

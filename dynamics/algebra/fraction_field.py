@@ -65,7 +65,7 @@ class FracField(MatrixOps):
         self.ZERO, self.ONE = (self.zero, self.one), (self.one, self.one)
         self.work = 0
         self.budget = budget
-        self.table = {x: (v, self.one) for x, v in zip(order, g)}
+        self.table = {x: (v, self.one) for x, v in zip(order, g, strict=True)}
         self.gens = g
         self.angle = {}
         pairs = []

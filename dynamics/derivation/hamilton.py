@@ -64,9 +64,9 @@ class HamiltonianDAE(DAEModel):
     def equations(self) -> list:
         lam = sp.Matrix(self.multipliers) if self.multipliers else sp.zeros(0, 1)
         n = self.system.n
-        eqs = [sp.Eq(sp.Symbol(f"{nm}_dot"), e) for nm, e in zip(self.state_names[:n], self.dH_dp)]
+        eqs = [sp.Eq(sp.Symbol(f"{nm}_dot"), e) for nm, e in zip(self.state_names[:n], self.dH_dp, strict=True)]
         pd = -self.dH_dq + self.omega.T * lam + self.tau
-        eqs += [sp.Eq(sp.Symbol(f"{nm}_dot"), e) for nm, e in zip(self.state_names[n:], pd)]
+        eqs += [sp.Eq(sp.Symbol(f"{nm}_dot"), e) for nm, e in zip(self.state_names[n:], pd, strict=True)]
         eqs += [sp.Eq(c, 0) for c in self.omega * self.dH_dp]
         return eqs
 

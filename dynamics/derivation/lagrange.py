@@ -61,7 +61,7 @@ class LagrangianDAE(DAEModel):
         lam = sp.Matrix(self.multipliers) if self.multipliers else sp.zeros(0, 1)
         lhs = self.M * qdd
         rhs = self.F + self.omega.T * lam + self.tau
-        eqs = [sp.Eq(a, b) for a, b in zip(lhs, rhs)]
+        eqs = [sp.Eq(a, b) for a, b in zip(lhs, rhs, strict=True)]
         eqs += [sp.Eq(c, 0) for c in self.omega * sp.Matrix(self.system.q_dot)]
         return eqs
 

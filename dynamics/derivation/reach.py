@@ -63,7 +63,7 @@ def displacement_bounds(system, input_bounds: Mapping, horizon: float, params: M
         power += u_max * math.sqrt(max(norm2, 0.0))
     diagonal = np.diag(np.array(Minv, dtype=float))
     return {name: float(math.sqrt(max(d, 0.0)) * power * horizon ** 2 / 2)
-            for name, d in zip(system.coordinates, diagonal)}
+            for name, d in zip(system.coordinates, diagonal, strict=True)}
 
 
 def _limit(bounds) -> float | None:

@@ -77,7 +77,7 @@ class _StateMap:
 
     def __call__(self, args) -> tuple:
         """(x, measure, residual) at ``args`` = (q, qdot, params), each a flat float array."""
-        for i, (a, size) in enumerate(zip(args, self.sizes_in)):
+        for i, (a, size) in enumerate(zip(args, self.sizes_in, strict=True)):
             if a.size != size:
                 raise ModelError([f"{self.function.name_in(i)} has {a.size} entries, expected {size}"],
                                  title="invalid state")
@@ -91,7 +91,7 @@ class _StateMap:
 def _pieces(array: np.ndarray, sizes) -> list:
     """Consecutive views of ``array`` of the given sizes."""
     ends = np.cumsum([0] + list(sizes))
-    return [array[a:b] for a, b in zip(ends[:-1], ends[1:])]
+    return [array[a:b] for a, b in zip(ends[:-1], ends[1:], strict=True)]
 
 
 def _evaluate(model, q, qdot, params) -> tuple:
@@ -116,7 +116,7 @@ def _check_measure(model, q, measure: float) -> None:
     measure other than 1, see :meth:`~.formulation_base.Formulation.configuration_measure`)."""
     if not math.isfinite(measure) or measure < SINGULAR_TOL:
         names = model.system.coordinates
-        where = ", ".join(f"{c} = {v:.6g}" for c, v in zip(names, q))
+        where = ", ".join(f"{c} = {v:.6g}" for c, v in zip(names, q, strict=True))
         raise SingularConfigurationError([
             f"q = ({where}) is on the singular set of the reduction: a matrix the reduction "
             f"inverts (the constraints on the fiber ({', '.join(model.fiber)}), their pivot "
@@ -170,7 +170,7 @@ def _checked(model, q, qdot, params, tol) -> tuple:
                               "give velocities in the constraint distribution D_q, or only some of them (the "
                               "others follow from ω(q)q̇ = 0)"]
                              + [f"constraint {i + 1} ({expr} = 0): residual {r:.6g} at this configuration"
-                                for i, (expr, r) in enumerate(zip(system.constraint_exprs, residuals)) if abs(r) > limit],
+                                for i, (expr, r) in enumerate(zip(system.constraint_exprs, residuals, strict=True)) if abs(r) > limit],
                              title="inconsistent state")
     return x, measure
 
@@ -184,7 +184,7 @@ def _check_holonomic(system, q, params, tol) -> None:
     if np.all(np.abs(residual) <= limit):
         return
     problems = [f"the configuration violates the holonomic constraint {h} = 0: residual {r:.6g}"
-                for h, r in zip(system.holonomic, residual) if not abs(r) <= limit]
+                for h, r in zip(system.holonomic, residual, strict=True) if not abs(r) <= limit]
     try:
         fixed = consistent_configuration(system, q, params=params)
         names = list(system.coordinates)

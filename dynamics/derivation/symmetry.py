@@ -323,7 +323,7 @@ def _choose(system: System, candidates: list, search: str = "") -> SymmetryTest:
 def _rank_key(system: System, c: Candidate) -> tuple:
     """The selection rule as a sort key (smallest first; see the module docstring)."""
     names = system.coordinates
-    forced = {name for name, f in zip(names, system.tau) if f != 0}
+    forced = {name for name, f in zip(names, system.tau, strict=True) if f != 0}
     return (system.k - c.rank, c.verdict != FULL, len(c.fiber), len(set(c.fiber) & forced),
             [names.index(f) for f in c.fiber])
 

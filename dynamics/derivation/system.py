@@ -175,7 +175,7 @@ class System:
         """What the holonomic constraints became, one indented line each (empty without)."""
         lines = [f"  holonomic: {c} = {sp.sstr(e)} (eliminated)" for c, e in self.eliminated]
         lines += [f"  holonomic: {sp.sstr(h)} = 0 kept as constraint {row + 1} (its velocity form); "
-                  f"{c} follows the other coordinates" for h, c, row in zip(self.holonomic, self.dependent, self.holonomic_rows)]
+                  f"{c} follows the other coordinates" for h, c, row in zip(self.holonomic, self.dependent, self.holonomic_rows, strict=True)]
         return lines
 
     def mass_matrix(self) -> sp.Matrix:

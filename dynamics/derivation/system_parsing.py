@@ -220,7 +220,7 @@ def parse_system(statement) -> ParsedSystem:
     coordinates = tuple(c.name for c in stated.q)
     fiber, planar_frame = _frames(statement, list(coordinates), problems)
     return ParsedSystem(
-        coordinates=coordinates, parameters=dict(zip(declared.parameters, declared.values)),
+        coordinates=coordinates, parameters=dict(zip(declared.parameters, declared.values, strict=True)),
         inputs=tuple(u.name for u in inputs), q=stated.q, q_dot=stated.q_dot, L=stated.L,
         constraint_exprs=tuple(c for c in stated.cons if c is not None), tau=stated.tau,
         param_symbols=symbols.params, param_values=tuple(declared.values), input_symbols=tuple(inputs),
@@ -265,7 +265,7 @@ def _holonomic(statement, declared: _Declared, symbols: _Symbols, problems: list
     if not declared.names_ok:
         return exprs, wanted
     known = frozenset(symbols.q) | frozenset(symbols.params)
-    for i, (h, c) in enumerate(zip(exprs, wanted)):
+    for i, (h, c) in enumerate(zip(exprs, wanted, strict=True)):
         if h is None:
             continue
         where = f"holonomic constraint {i + 1}"
@@ -284,7 +284,7 @@ def _holonomic(statement, declared: _Declared, symbols: _Symbols, problems: list
 def _constrained(stated: _Stated, holonomic, wanted, declared: _Declared, problems: list) -> _Stated:
     """Step 4b: eliminate what can be solved, keep the rest with its velocity rows (:mod:`.holonomic`)."""
     el = eliminate(stated.q, stated.q_dot, stated.L, stated.cons, stated.tau, holonomic, wanted)
-    params = dict(zip(declared.parameters, declared.values))
+    params = dict(zip(declared.parameters, declared.values, strict=True))
     kept = [h for h, _ in el.holonomic]
     names = [c.name for c in el.q]
     dependent = []
@@ -295,7 +295,7 @@ def _constrained(stated: _Stated, holonomic, wanted, declared: _Declared, proble
         dependent.append(c if c is not None else names[choose_dependent(h, el.q, params)])
     rows = tuple(velocity_row(h, el.q, el.q_dot) for h in kept)
     changed = bool(el.eliminated)
-    forces = {c: t for c, t in zip(names, el.tau) if t != 0} if changed else stated.forces
+    forces = {c: t for c, t in zip(names, el.tau, strict=True) if t != 0} if changed else stated.forces
     return _Stated(el.q, el.q_dot, el.L, el.constraints + rows, el.tau, tuple(kept), tuple(dependent),
                    stated.eliminated + el.eliminated, el.L if changed else stated.lagrangian,
                    list(el.constraints) if changed else stated.constraints, forces)
@@ -326,7 +326,7 @@ def _declare(statement, problems: list) -> _Declared:
                             " inputs and t must be distinct)")
         seen.add(nm)
     names_ok = not problems
-    values = [number_problems(v, f"parameter {nm!r}", problems) for nm, v in zip(param_names, params.values())]
+    values = [number_problems(v, f"parameter {nm!r}", problems) for nm, v in zip(param_names, params.values(), strict=False)]
     return _Declared(coord_names, param_names, values, declared, names_ok)
 
 
@@ -370,9 +370,9 @@ def _expressions(statement, declared: _Declared, symbols: _Symbols, problems: li
                 if s not in known and s != TIME and s not in found:
                     found.append(s)
         inputs = tuple(sp.Symbol(s.name, real=True) for s in found)   # API symbols may lack real=True
-        return L, cons, [e.xreplace(dict(zip(found, inputs))) for e in tau], inputs
+        return L, cons, [e.xreplace(dict(zip(found, inputs, strict=True))) for e in tau], inputs
     inputs = tuple(names[u] for u in declared.inputs)
-    for cname, e in zip(declared.coordinates, tau):
+    for cname, e in zip(declared.coordinates, tau, strict=True):
         _check_symbols(e, f"the force on {cname}", known | set(inputs) | {TIME}, names, problems)
     return L, cons, tau, inputs
 

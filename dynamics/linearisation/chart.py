@@ -63,7 +63,7 @@ class StabilityChart:
         or the grid's ends)."""
         edges = [float(self.speeds[0])] + [c.speed for c in self.changes] + [float(self.speeds[-1])]
         verdicts = [self.verdicts[0]] + [c.above for c in self.changes]
-        return [(a, b) for a, b, v in zip(edges[:-1], edges[1:], verdicts) if v == STABLE]
+        return [(a, b) for a, b, v in zip(edges[:-1], edges[1:], verdicts, strict=True) if v == STABLE]
 
     def to_text(self) -> str:
         lines = [f"eigenvalues at {len(self.speeds)} speeds from {self.speeds[0]:g} to {self.speeds[-1]:g} m/s "

@@ -53,7 +53,7 @@ class ReferenceMotion:
 
     def describe(self, coordinates) -> str:
         """One line: which motion, at which configuration."""
-        where = ", ".join(f"{c} = {v:.6g}" for c, v in zip(coordinates, self.q) if v != 0) or "q = 0"
+        where = ", ".join(f"{c} = {v:.6g}" for c, v in zip(coordinates, self.q, strict=True) if v != 0) or "q = 0"
         if self.kind == STEADY:
             return f"straight steady motion at {self.speed:.6g} m/s ({where})"
         return f"equilibrium at rest ({where})"

@@ -221,7 +221,7 @@ def _maggi_velocity(model, params, names, quantities, basis: str = "chart") -> d
     nu = len(model.numeric.input_names)
     t, z, u, params_sx = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", len(params))
     qs, qds = ca.SX.sym("q", n), ca.SX.sym("qdot", n)
-    subs = {s: float(v) for s, v in zip(system.param_symbols, params)}
+    subs = {s: float(v) for s, v in zip(system.param_symbols, params, strict=True)}
     syms = [TIME] + list(system.q) + list(system.q_dot) + list(system.input_symbols)
     sx = [t] + [qs[i] for i in range(n)] + [qds[i] for i in range(n)] + [u[i] for i in range(nu)]
     L = to_casadi([system.L.xreplace(subs)], syms, sx)[0]
@@ -265,7 +265,7 @@ def _velocity_basis(model, params, q, names, quantities):
     n, k = system.n, system.k
     A = velocity_map(model, params, names, quantities)(q)
     Xb = solve_general(A, ca.vertcat(ca.SX(k, n - k), ca.SX.eye(n - k)))
-    subs = {s: float(v) for s, v in zip(system.param_symbols, params)}
+    subs = {s: float(v) for s, v in zip(system.param_symbols, params, strict=True)}
     G = group_matrix(model.layout).xreplace(subs)
     G = ca.reshape(ca.vertcat(*to_casadi(list(G.T), list(system.q), [q[i] for i in range(n)])), n, n)
     return ca.mtimes(G, Xb)
@@ -281,7 +281,7 @@ def _body_basis(model, params, q):
     from .linsolve import solve_general
     layout, system = model.layout, model.system
     n, k = system.n, system.k
-    subs = {s: float(v) for s, v in zip(system.param_symbols, params)}
+    subs = {s: float(v) for s, v in zip(system.param_symbols, params, strict=True)}
     qs = [q[i] for i in range(n)]
     pivots = list(layout.pivots)
     free = [i for i in range(n) if i not in pivots]
@@ -356,7 +356,7 @@ def _symbolic_momentum(model, params) -> dict:
     from ..algebra.symbols import TIME
     from .bridge import to_casadi
     system = model.system
-    subs = {s: _exact(float(v)) for s, v in zip(system.param_symbols, params)}
+    subs = {s: _exact(float(v)) for s, v in zip(system.param_symbols, params, strict=True)}
     rhs = [_normal(e.xreplace(subs)) for e in model.rhs]
     qdot = [_normal(e.xreplace(subs)) for e in model.qdot]
     nz, nu, npar = len(model.state), len(system.input_symbols), len(system.param_symbols)
@@ -378,22 +378,22 @@ def _symbolic_velocity(model, params, names, quantities) -> dict:
     from .bridge import to_casadi
     system = model.system
     n, nv = system.n, len(model.state) - system.n
-    subs = {s: _exact(float(v)) for s, v in zip(system.param_symbols, params)}
+    subs = {s: _exact(float(v)) for s, v in zip(system.param_symbols, params, strict=True)}
     norm = lambda M: M.applyfunc(_normal)  # noqa: E731
     q, P = list(model.state[:n]), list(model.state[n:])
     K, X = norm(model.K.xreplace(subs)), norm(model.X.xreplace(subs))
-    Y = velocity_rows(system, names, quantities).xreplace(dict(zip(system.q, q))).xreplace(subs)
+    Y = velocity_rows(system, names, quantities).xreplace(dict(zip(system.q, q, strict=True))).xreplace(subs)
     ys, vs = sp.Matrix(sp.symbols(f"_y0:{nv}")), sp.Matrix(sp.symbols(f"_v0:{nv}"))
     B = norm(Y * X)                                                   # y = B v, v = K⁻¹P
     Binv, Kinv = norm(B.inv(method="LU")), norm(K.inv(method="LU"))
     qdot_v = list(X * vs)
-    Pdot = sp.Matrix([_normal(e.xreplace(subs)).xreplace(dict(zip(P, K * vs))) for e in model.rhs[n:]])
+    Pdot = sp.Matrix([_normal(e.xreplace(subs)).xreplace(dict(zip(P, K * vs, strict=True))) for e in model.rhs[n:]])
     Kdot, Bdot = sp.zeros(nv, nv), sp.zeros(nv, nv)
     for i, qi in enumerate(q):
         Kdot += K.diff(qi) * qdot_v[i]
         Bdot += B.diff(qi) * qdot_v[i]
     ydot = Bdot * vs + B * (Kinv * (Pdot - Kdot * vs))
-    back = dict(zip(vs, Binv * ys))
+    back = dict(zip(vs, Binv * ys, strict=True))
     qdot = [_normal(e.xreplace(back)) for e in qdot_v]
     ydot = [_normal(e.xreplace(back)) for e in ydot]
     nz, nu, npar = n + nv, len(system.input_symbols), len(system.param_symbols)

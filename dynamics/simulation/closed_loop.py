@@ -256,7 +256,7 @@ def _invariant_entries(expr, x, params, candidates, param_values, samples=6) -> 
             d, value = grad(rng.uniform(-1.2, 1.2, x.shape[0]), pv)
         d = np.abs(np.asarray(d, dtype=float)).ravel()
         free &= np.isfinite(d) & (d <= 1e-12 * (1.0 + abs(float(value))))
-    return [i for i, f in zip(candidates, free) if f]
+    return [i for i, f in zip(candidates, free, strict=True) if f]
 
 
 def _event_function(measure, y, p) -> ca.Function:

@@ -104,8 +104,8 @@ def c_source(rhs: ca.Function, outputs: ca.Function, event: ca.Function | None,
     every accepted step onto the constraints)."""
     args = outputs.mx_in() if outputs.is_a("MXFunction") else outputs.sx_in()
     blocks = outputs.call(args)
-    main = [ca.vec(o) for o, name in zip(blocks, outputs.name_out()) if name not in DIAGNOSTIC_OUTPUTS]
-    diag = [ca.vec(o) for o, name in zip(blocks, outputs.name_out()) if name in DIAGNOSTIC_OUTPUTS]
+    main = [ca.vec(o) for o, name in zip(blocks, outputs.name_out(), strict=True) if name not in DIAGNOSTIC_OUTPUTS]
+    diag = [ca.vec(o) for o, name in zip(blocks, outputs.name_out(), strict=True) if name in DIAGNOSTIC_OUTPUTS]
     out = ca.Function("nhg_out", args, [_shared(ca.vertcat(*main))])
     functions = [_renamed(rhs, "nhg_rhs"), out, ca.Function("nhg_diag", args, [_shared(ca.vertcat(*diag))])]
     if event is not None:

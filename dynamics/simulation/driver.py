@@ -180,7 +180,7 @@ def _segments(t0, tf, controller, system=None, params=None):
     if system is not None and hasattr(system, "force_jump_times"):
         cuts.update(system.force_jump_times(params))
     points = [t0] + sorted(b for b in cuts if t0 < b < tf) + [tf]
-    return list(zip(points[:-1], points[1:]))
+    return list(zip(points[:-1], points[1:], strict=True))
 
 
 # --------------------------------------------------------------------------------------------
@@ -276,7 +276,7 @@ def _prepare(call: _Call, resolved) -> tuple[_Prepared, RunRequest]:
     pv = num.params(call.params)
     t0, tf = float(call.t_span[0]), float(call.t_span[1])
     x0 = to_state(model, call.q0, call.qdot0, call.params)
-    named_params = dict(zip(num.param_names, pv.tolist()))
+    named_params = dict(zip(num.param_names, pv.tolist(), strict=True))
     segments = _segments(t0, tf, controller, system, named_params)
     if controller is not None:
         _check_first_input(call, t0)
@@ -456,7 +456,7 @@ def _outputs(loop, controller, library, points: Samples, seg_params) -> dict:
     P = np.asarray(seg_params, dtype=float).reshape(len(seg_params), loop.n_p)
     if library is not None:
         table = library.output_table(points.t, points.t_c, Y, P, points.seg)
-        out = dict(zip(_CHECKED_BLOCKS, library.blocks(table)), table=table)
+        out = dict(zip(_CHECKED_BLOCKS, library.blocks(table), strict=True), table=table)
         out["diagnostic"] = _DiagnosticBlocks(library, (points.t, points.t_c, Y, P, points.seg))
         return out
     P = P[points.seg]
@@ -469,7 +469,7 @@ def _outputs(loop, controller, library, points: Samples, seg_params) -> dict:
         res = loop.outputs.map(N)(T, Tc, Y.T, U, P.T)
     else:
         res = loop.outputs.map(N)(T, Tc, Y.T, P.T)
-    out = {k: np.asarray(v).T.reshape(N, -1) for k, v in zip(_BLOCKS, res)}
+    out = {k: np.asarray(v).T.reshape(N, -1) for k, v in zip(_BLOCKS, res, strict=True)}
     out["diagnostic"] = _DiagnosticBlocks(None, None, {k: out.pop(k) for k in _BLOCKS[6:]})
     return out
 
@@ -491,7 +491,7 @@ class _DiagnosticBlocks:
 
     def __getitem__(self, name: str) -> np.ndarray:
         if not self.blocks:
-            self.blocks.update(zip(_BLOCKS[6:], self.library.diagnostic_outputs(*self.points)))
+            self.blocks.update(zip(_BLOCKS[6:], self.library.diagnostic_outputs(*self.points), strict=True))
         return self.blocks[name]
 
     def size(self, name: str) -> int:

@@ -169,7 +169,7 @@ class Run:
 
     def _flush(self) -> None:
         if self._rows:
-            t, t_c, seg, y, lam = zip(*self._rows)
+            t, t_c, seg, y, lam = zip(*self._rows, strict=True)
             self._blocks.append(Samples(np.array(t), np.array(t_c), np.array(seg, dtype=np.intp),
                                         np.array(y), np.array(lam) if self.with_lam else None))
             self._rows = []
@@ -226,7 +226,7 @@ class Fast:
             self._buffer.set_res(i, memoryview(r))
 
     def __call__(self, *args) -> np.ndarray:
-        for dst, a in zip(self._args, args):
+        for dst, a in zip(self._args, args, strict=True):
             dst[:] = a
         self._eval()
         rows, cols = self._shapes[0]
@@ -234,7 +234,7 @@ class Fast:
 
     def scalars(self, *args) -> tuple:
         """All outputs, each a scalar (for functions with scalar outputs only)."""
-        for dst, a in zip(self._args, args):
+        for dst, a in zip(self._args, args, strict=True):
             dst[:] = a
         self._eval()
         return tuple(float(r[0]) for r in self._res)

@@ -85,7 +85,7 @@ def integrate_sundials(request: RunRequest, kind: str, lam0=None) -> Run:
         grid = [min(tt, b) for tt in wanted]
         if not grid or grid[-1] < b:
             grid.append(b)
-        names = dict(zip(grid, wanted)) if te is not None else {b: b}
+        names = dict(zip(grid, wanted, strict=False)) if te is not None else {b: b}
         watch = None if measure is None else EventWatch(measure, segment.params, options.singular_tol)
         call = _SundialsCall(kind, problem, opts, np.r_[segment.params, segment.t_hi], segment, watch,
                              options.max_steps)

@@ -195,7 +195,7 @@ def _print_summary(scene, traj, compile_s: float = 0.0) -> None:
     if "auto" in traj.settings:
         print(f"  auto: {traj.settings['auto']}")
     finite = np.isfinite(traj.q[-1])
-    q_end = ", ".join(f"{c}={v:.8g}" for c, v, ok in zip(scene.system.coordinates, traj.q[-1], finite) if ok)
+    q_end = ", ".join(f"{c}={v:.8g}" for c, v, ok in zip(scene.system.coordinates, traj.q[-1], finite, strict=True) if ok)
     print(f"  q(t_end): {q_end}")
     if traj.constraint_residual.size and np.isfinite(traj.constraint_residual).all():
         print(f"  max |ω(q)q̇| = {np.abs(traj.constraint_residual).max():.3g}, "

@@ -292,14 +292,14 @@ class _Run:
                 self.second_try.update(p.index for p in points[1:])
                 self.submit(points[0], jobs[0], 2)
                 return
-            records = [_failure(p, j, f"{status} twice: {exc}", status, attempts) for p, j in zip(points, jobs)]
+            records = [_failure(p, j, f"{status} twice: {exc}", status, attempts) for p, j in zip(points, jobs, strict=True)]
             answers = [{"failure": r.message} for r in records]
         else:
             answers, records = ([answers] if len(points) == 1 else answers), None
         try:
             if records is None:
-                records = [self._record(p, j, a, attempts) for p, j, a in zip(points, jobs, answers)]
-            for point, record in zip(points, records):
+                records = [self._record(p, j, a, attempts) for p, j, a in zip(points, jobs, answers, strict=True)]
+            for point, record in zip(points, records, strict=True):
                 self._store(point, record)
         except StoreWriteError as exc:
             raise StoreWriteError(self._rescued(exc, points, answers)) from None
@@ -310,7 +310,7 @@ class _Run:
         answers of ``points`` (not stored) were saved instead."""
         from ..outputs import rescue
         unstored = [{"id": p.id, "axis_values": dict(p.values), "answer": a}
-                    for p, a in zip(points, answers) if p.index not in self.done]
+                    for p, a in zip(points, answers, strict=True) if p.index not in self.done]
         where = rescue("unstored_points.json", unstored, f"answer of {len(unstored)} unstored point(s)")
         return (f"{exc}; {len(self.done)} points are stored in {self.store.directory}; {where}; free the space "
                 "and continue with --resume")

@@ -104,7 +104,7 @@ class Grid:
 
     def point(self, index) -> GridPoint:
         index = tuple(int(i) for i in index)
-        return GridPoint(index, tuple((a.name, a.values[i]) for a, i in zip(self.axes, index)))
+        return GridPoint(index, tuple((a.name, a.values[i]) for a, i in zip(self.axes, index, strict=True)))
 
     def points(self) -> Iterator[GridPoint]:
         for index in itertools.product(*(range(n) for n in self.shape)):

@@ -103,7 +103,7 @@ def _new_ax(ax, size=(5.5, 4.2)):
 
 def _slice_title(result, keep, fixed) -> str:
     index = grid_slice(result, keep, fixed)
-    rest = [f"{a.name} = {a.values[i]:g}" for a, i in zip(result.grid.axes, index) if not isinstance(i, slice)]
+    rest = [f"{a.name} = {a.values[i]:g}" for a, i in zip(result.grid.axes, index, strict=True) if not isinstance(i, slice)]
     return f" ({', '.join(rest)})" if rest else ""
 
 
@@ -196,7 +196,7 @@ def plot_shape_loops(result, axis: str, *, shape=None, fixed=None, axes=None):
         fig = Figure(figsize=(2.4 * len(values) + 0.6, 3.0), layout="constrained")   # room for the suptitle
         axes = fig.subplots(1, len(values), sharex=True, sharey=True, squeeze=False)[0]
     units = result.units
-    for i, (value, ax) in enumerate(zip(values, axes)):
+    for i, (value, ax) in enumerate(zip(values, axes, strict=False)):
         index[k] = i
         record = result.record(tuple(index))
         traj = _load_trajectory(result, record)

@@ -263,7 +263,7 @@ class SweepStore:
     def records(self) -> list:
         """Every stored :class:`PointRecord`, in grid order."""
         rows = self._db.execute(f"SELECT {', '.join(_COLUMNS)} FROM points")
-        out = [PointRecord(**{c: _from_sql(c, v) for c, v in zip(_COLUMNS, row)}) for row in rows]
+        out = [PointRecord(**{c: _from_sql(c, v) for c, v in zip(_COLUMNS, row, strict=True)}) for row in rows]
         return sorted(out, key=lambda r: r.idx)
 
     def load_solution(self, record: PointRecord) -> dict | None:

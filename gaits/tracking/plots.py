@@ -34,7 +34,7 @@ def plot_tracking_paths(result, axes, names=("x", "y")):
     report = result.report
     reference = np.asarray(result.samples[0]["reference_position"]) if "reference_position" in result.samples[0] \
         else None
-    for ax, loop in zip(axes, LOOPS):
+    for ax, loop in zip(axes, LOOPS, strict=False):
         for answer in result.samples[1:]:
             p = np.asarray(answer[loop]["position"])
             if p.size:
@@ -96,7 +96,7 @@ def plot_tracking_errors(result, axes, coordinates, units):
     axes[0].set_yscale("log")
     axes[0].legend(fontsize="small", loc="best")
     from ..plots import label
-    for ax, name in zip(axes[1:], coordinates):
+    for ax, name in zip(axes[1:], coordinates, strict=False):
         ax.set_ylabel(f"{label(name)} error [{units.get(name, '')}]")
     for ax in axes:
         ax.grid(alpha=0.3)

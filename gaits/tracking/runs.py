@@ -157,7 +157,7 @@ def run_sample(ctx: _Context, case: TrackingCase, index: int) -> dict:
         pos = [list(ctx.model.system.coordinates).index(c) for c in ctx.frame]
         out["reference_position"] = [sched.reference_state(tt)[pos].tolist() for tt in grid]
         out["position_names"] = list(ctx.frame)
-    for loop, law in zip(LOOPS, (sched.open_loop(), sched)):
+    for loop, law in zip(LOOPS, (sched.open_loop(), sched), strict=True):
         traj = simulate(ctx.model, (sched.times[0], sched.times[-1]), q0, qdot0,
                         controller=law.with_controls(sched.controls + du), params=robot, method="compiled",
                         t_eval=grid, rtol=1e-8, atol=1e-10)
@@ -195,7 +195,7 @@ def _measure(ctx: _Context, traj) -> dict:
     t = traj.t
     names = list(ctx.model.system.coordinates)
     pos = [names.index(c) for c in ctx.frame]
-    z = np.array([np.asarray(sched.state_map(q, qd), dtype=float).ravel() for q, qd in zip(traj.q, traj.qdot)])
+    z = np.array([np.asarray(sched.state_map(q, qd), dtype=float).ravel() for q, qd in zip(traj.q, traj.qdot, strict=True)])
     ref = np.array([sched.reference_state(tt) for tt in t])
     err = z - ref if len(t) else np.zeros((0, sched.n_states))
     complete = bool(traj.success) and len(t) and abs(t[-1] - sched.times[-1]) <= 1e-9 * max(1.0, sched.times[-1])

@@ -141,7 +141,7 @@ def _planned(system, task, overrides, data, progress, time_limit):
     if not result.success:
         raise _PlanFailed(result)
     p = result.solution.problem
-    params = dict(zip(p.model.numeric.param_names, map(float, p.params)))
+    params = dict(zip(p.model.numeric.param_names, map(float, p.params), strict=True))
     return (result.label, result.task.to_dict(), params, result.solution.feedback.to_dict(), dict(result.plan.units),
             result)
 

@@ -115,7 +115,7 @@ def in_qdot(row_nu: sp.Matrix, psi, q_dot) -> sp.Expr:
     """A row in ν as an expression in q̇ (u = cos ψ ẋ + sin ψ ẏ, w = −sin ψ ẋ + cos ψ ẏ)."""
     c, s = sp.cos(psi), sp.sin(psi)
     coefficients = [c * row_nu[0] - s * row_nu[1], s * row_nu[0] + c * row_nu[1], *row_nu[2:]]
-    return sp.Add(*[k * v for k, v in zip(coefficients, q_dot)])
+    return sp.Add(*[k * v for k, v in zip(coefficients, q_dot, strict=True)])
 
 
 def wheel_contacts(multibody: Multibody, q, values: dict) -> tuple:

@@ -133,10 +133,10 @@ def _forces(arith, layout, symbols, connection, XKinv):
     for a in range(nP):
         total = XtT[a][0]
         c0, cs = arith.linear_split(total, symbols.P)
-        terms = [(c0, [])] + [(c, [v]) for c, v in zip(cs, symbols.P)]
+        terms = [(c0, [])] + [(c, [v]) for c, v in zip(cs, symbols.P, strict=True)]
         # a force need not be affine in the momenta (drag −c q̇², friction sign(q̇)): what the
         # affine split does not hold is kept as its own term, never dropped
-        affine = arith.add_many([c0] + [arith.mul(c, arith.sym(v)) for c, v in zip(cs, symbols.P)])
+        affine = arith.add_many([c0] + [arith.mul(c, arith.sym(v)) for c, v in zip(cs, symbols.P, strict=True)])
         rest = arith.normal(arith.add_many([total, arith.neg(affine)]))
         if not arith.is_zero(rest):
             terms.append((rest, []))
@@ -152,7 +152,7 @@ def equations(arith, layout, symbols, inputs: MomentumInputs) -> Stepped:
     connection, Kinv, XKinv = inputs.connection, inputs.Kinv, inputs.brackets.XKinv
     forces = _forces(arith, layout, symbols, connection, XKinv)
     Pdot = [_momentum_rate(arith, layout, symbols, inputs, forces, a) for a in range(nP)]
-    eA = [list(r1) + list(r2) for r1, r2 in zip(connection.e or [[] for _ in range(l)], arith.mneg(connection.A) if m else [[] for _ in range(l)])]
+    eA = [list(r1) + list(r2) for r1, r2 in zip(connection.e or [[] for _ in range(l)], arith.mneg(connection.A) if m else [[] for _ in range(l)], strict=True)]
     xi_coef = arith.matmul(eA, Kinv) if l and nP else arith.zeros(l, nP)
     xi = [arith.form([(xi_coef[i][j], [symbols.P[j]]) for j in range(nP)]) for i in range(l)]
     qdot = [arith.form([(XKinv[i][j], [symbols.P[j]]) for j in range(nP)]) for i in range(layout.n)]
@@ -180,5 +180,5 @@ def momenta_of_velocity(arith, layout, symbols, connection) -> list:
     out = []
     for a in range(nP):
         c0, cs = arith.linear_split(XTMq[a][0], list(qd))
-        out.append(arith.form([(c, [v]) for c, v in zip(cs, qd)]))
+        out.append(arith.form([(c, [v]) for c, v in zip(cs, qd, strict=True)]))
     return out

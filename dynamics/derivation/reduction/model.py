@@ -283,7 +283,7 @@ class ReducedODE(ModelDisplay, Formulation):
         """ż = f as sympy Eq objects (``<z>_dot``); explicit form only."""
         if self.rhs is None:
             return []
-        return [sp.Eq(sp.Symbol(f"{nm}_dot"), e) for nm, e in zip(self.state_names, self.rhs)]
+        return [sp.Eq(sp.Symbol(f"{nm}_dot"), e) for nm, e in zip(self.state_names, self.rhs, strict=True)]
 
     def pretty_rhs(self) -> list:
         """ż for display: each coefficient of a momentum/input monomial factored when it is
@@ -307,7 +307,7 @@ class ReducedODE(ModelDisplay, Formulation):
                          f"K: {self.K!r}; ż: {self.numeric['rhs'].n_instructions()} CasADi operations")
             return "\n".join(lines)
         rhs = self.pretty_rhs() if pretty else self.rhs
-        plain = [f"  d{nm}/dt = {text_of(e)}" for nm, e in zip(self.state_names, rhs)]
+        plain = [f"  d{nm}/dt = {text_of(e)}" for nm, e in zip(self.state_names, rhs, strict=True)]
         if cse or (cse is None and wants_cse(plain)):
             return "\n".join(lines + [f"  {line}" for line in
                                        cse_lines([f"d{nm}/dt" for nm in self.state_names], rhs)])
@@ -328,7 +328,7 @@ class ReducedODE(ModelDisplay, Formulation):
         if self.rhs is None:
             out.append(f"  P = X(q)ᵀ M(q) q̇, evaluated by model.numeric['state'] ({self.momenta_of_velocity!r})")
         else:
-            out += [f"  {s} = {text_of(e)}" for s, e in zip(self.momenta, self.momenta_of_velocity)]
+            out += [f"  {s} = {text_of(e)}" for s, e in zip(self.momenta, self.momenta_of_velocity, strict=True)]
         if self.singular_set:
             out.append("singular set: " + " or ".join(f"{text_of(e)} = 0" for e in self.singular_set))
         return "\n".join(out) + "\n"
@@ -360,5 +360,5 @@ def _pretty(e, gens):
     terms = []
     for mon, c in poly.terms():
         c = sp.factor(c) if sp.count_ops(c) <= FACTOR_OPS else c
-        terms.append(c * sp.Mul(*[g ** k for g, k in zip(gens, mon)]))
+        terms.append(c * sp.Mul(*[g ** k for g, k in zip(gens, mon, strict=True)]))
     return sp.Add(*terms)

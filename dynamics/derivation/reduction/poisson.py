@@ -32,7 +32,7 @@ def body_momentum(arith, layout, symbols, connection) -> Step:
     mu = []
     for x in symbols.xi:
         c0, cs = arith.linear_split(arith.subs(arith.diff(connection.l_red, x), sub), symbols.v)
-        mu.append(arith.form([(c0, [])] + [(c, [v]) for c, v in zip(cs, symbols.v)]))
+        mu.append(arith.form([(c0, [])] + [(c, [v]) for c, v in zip(cs, symbols.v, strict=True)]))
     return Step(13, "Body momentum on the constraints", "§3.2.4, eqs. 3.24, 3.83",
                 {"mu": arith.column(mu) if l else arith.column([])}, "μ = ∂l/∂ξ; P̃_α = p_α − μ·A_α.",
                 labels={"mu": "mu = dl/dxi (on xi = -A r_dot + e Omega)"})
@@ -65,7 +65,7 @@ def lie_brackets(arith, layout, connection) -> dict:
         for b in range(a + 1, nP):
             d_b = arith.jvp(cols[b], q, cols[a])
             d_a = arith.jvp(cols[a], q, cols[b])
-            out[a, b] = [[arith.normal(arith.add_many([x, arith.neg(y)]))] for x, y in zip(d_b, d_a)]
+            out[a, b] = [[arith.normal(arith.add_many([x, arith.neg(y)]))] for x, y in zip(d_b, d_a, strict=True)]
     return out
 
 

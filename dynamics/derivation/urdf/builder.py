@@ -51,7 +51,7 @@ class UrdfSystem:
                  f"({', '.join(s.coordinates)}), k = {s.k} constraints",
                  f"  L = {sp.sstr(s.L)}"]
         lines += [f"  0 = {sp.sstr(c)}" for c in s.constraint_exprs]
-        lines += [f"  force on {c}: {sp.sstr(f)}" for c, f in zip(s.coordinates, s.tau) if f != 0]
+        lines += [f"  force on {c}: {sp.sstr(f)}" for c, f in zip(s.coordinates, s.tau, strict=True) if f != 0]
         lines += [f"  {name} in [{lo:g}, {hi:g}] (URDF limit)" for name, (lo, hi) in
                   {**self.control_bounds, **self.bounds}.items()]
         lines += [f"  note: {note}" for note in self.notes]

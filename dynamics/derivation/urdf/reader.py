@@ -196,7 +196,7 @@ def _joint(element, where, problems):
         problems.append(f"{where}: type {kind!r} is not a URDF joint type ({', '.join(JOINT_TYPES)})")
     parent, child = element.find("parent"), element.find("child")
     names = [e.get("link") if e is not None else None for e in (parent, child)]
-    for role, name in zip(("parent", "child"), names):
+    for role, name in zip(("parent", "child"), names, strict=True):
         if not name:
             problems.append(f"{where}: no <{role} link=...>")
     rotation, translation = _origin(element, where, problems)

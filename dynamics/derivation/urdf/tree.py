@@ -169,7 +169,7 @@ def build_bodies(robot: Robot, root: str, coordinates: dict, locked: dict) -> li
                              offset=motion[2])
             stack.append(("link", joint.child, index, np.eye(3), np.zeros(3)))
     bodies = []
-    for placement, body_frames in zip(placed, frames):
+    for placement, body_frames in zip(placed, frames, strict=True):
         mass, com, inertia = _mass_properties(body_frames, robot)
         bodies.append(Body(**placement, mass=mass, com=com, inertia=inertia, frames=body_frames))
     return bodies
