@@ -76,4 +76,5 @@ def equation_lines(lefts, rights, cse: bool | None = None, *, indent: str = "  "
     n = len(lefts)
     lines = [f"{indent}where"] if definitions else []
     lines += [f"{indent}  {sp.sstr(name)} = {sp.sstr(sub)}" for name, sub in definitions]
-    return lines + [f"{indent}{sp.sstr(a)} = {sp.sstr(b)}" for a, b in zip(reduced[:n], reduced[n:], strict=True)]
+    return lines + [f"{indent}{sp.sstr(a)} = {sp.sstr(b)}"
+                    for a, b in zip(reduced[:n], reduced[n:], strict=True)]

@@ -99,7 +99,8 @@ def bind(model, system, provenance=None):
     them: given, or compiled and kept by ``model.numeric``), defaults rebound."""
     numeric = model.compiled if model.compiled is not None else model.__dict__.get("numeric")
     return dataclasses.replace(model, system=system, provenance=provenance,
-                               compiled=None if numeric is None else numeric.with_defaults(system.param_values))
+                               compiled=None if numeric is None
+                               else numeric.with_defaults(system.param_values))
 
 
 def derive(system, formulation: str = "reduced", *, version: str | None = None,

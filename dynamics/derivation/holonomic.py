@@ -92,7 +92,8 @@ def eliminate(q, q_dot, L, constraints, tau, holonomic, wanted) -> Elimination:
         L = L.xreplace(subs)
         constraints = [e.xreplace(subs) for e in constraints]
         tau_c = tau[i]
-        tau = [(t + tau_c * sp.diff(phi, qj)).xreplace(subs) for t, qj in zip(tau[:i] + tau[i + 1:], rest, strict=True)]
+        tau = [(t + tau_c * sp.diff(phi, qj)).xreplace(subs)
+               for t, qj in zip(tau[:i] + tau[i + 1:], rest, strict=True)]
         pending = [(e.xreplace(subs), d) for e, d in pending]
         kept = [(e.xreplace(subs), d) for e, d in kept]
         done.append((c.name, phi))

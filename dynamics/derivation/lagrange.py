@@ -67,13 +67,15 @@ class LagrangianDAE(DAEModel):
 
     def to_text(self, cse: bool | None = None) -> str:
         """The equations as text; ``cse``: name repeated sub-expressions once (None: when long)."""
-        lines = [f"Euler–Lagrange equations with multipliers of {self.system.name} (index-{self.differentiation_index} DAE)", *self.system.holonomic_lines()]
+        lines = [f"Euler–Lagrange equations with multipliers of {self.system.name} "
+                 f"(index-{self.differentiation_index} DAE)", *self.system.holonomic_lines()]
         eqs = self.equations()
         return "\n".join(lines + equation_lines([e.lhs for e in eqs], [e.rhs for e in eqs], cse))
 
     @cached_property
     def numeric(self):
-        """CasADi/numpy functions of this model (:func:`~nhgait.dynamics.numerics.numeric_model.compile_lagrange`)."""
+        """CasADi/numpy functions of this model
+        (:func:`~nhgait.dynamics.numerics.numeric_model.compile_lagrange`)."""
         if self.compiled is not None:
             return self.compiled
         from ..numerics.numeric_model import compile_lagrange

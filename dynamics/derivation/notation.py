@@ -73,7 +73,8 @@ def symmetry_choice_lines(symmetry, fiber, shape) -> list:
     lines = [f"  symmetry group {chosen.group} moves the fibre (group) coordinates ({', '.join(fiber)}); "
              f"shape coordinates ({', '.join(shape) or 'none'})"]
     if symmetry.chosen_by == "user":
-        lines.append(f"  chosen by the system's fiber = [{', '.join(repr(f) for f in fiber)}]; {chosen.reason}")
+        lines.append(f"  chosen by the system's fiber = [{', '.join(repr(f) for f in fiber)}]; "
+                     f"{chosen.reason}")
     else:
         lines.append(f"  chosen by the full-symmetry test ({chosen.reason}): {choice_reason(symmetry)}")
     system = symmetry.system
@@ -81,7 +82,8 @@ def symmetry_choice_lines(symmetry, fiber, shape) -> list:
     alternatives = sorted((c for c in admissible if c is not chosen),
                           key=lambda c: _key_parts(c, system.k, forced, list(system.coordinates)))
     if alternatives:
-        listed = "; ".join(f"fiber = [{', '.join(repr(f) for f in c.fiber)}] ({c.group}, {c.verdict.split(' (')[0]})"
+        listed = "; ".join(f"fiber = [{', '.join(repr(f) for f in c.fiber)}] ({c.group}, "
+                           f"{c.verdict.split(' (')[0]})"
                            for c in alternatives)
         lines.append(f"  to choose another, write it in [system] (or System(fiber=…)): {listed}; "
                      "all candidates: nhgait derive --table")

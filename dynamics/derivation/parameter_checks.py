@@ -62,7 +62,8 @@ def parameter_problems(system, values=None, label: str = "the default parameters
         if pv.size != len(system.param_symbols):
             return [f"expected {len(system.param_symbols)} parameter values "
                     f"({', '.join(system.parameters)}), got {pv.size}"]
-        problems += [f"parameter {s.name!r}: {v!r} is not finite" for s, v in zip(system.param_symbols, pv, strict=True)
+        problems += [f"parameter {s.name!r}: {v!r} is not finite"
+                     for s, v in zip(system.param_symbols, pv, strict=True)
                      if not np.isfinite(v)]
     return problems or numeric_checks(system, pv, label)
 

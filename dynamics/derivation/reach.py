@@ -36,7 +36,8 @@ from ..algebra.trig import trig_normal
 __all__ = ["displacement_bounds"]
 
 
-def displacement_bounds(system, input_bounds: Mapping, horizon: float, params: Mapping | None = None) -> dict | None:
+def displacement_bounds(system, input_bounds: Mapping, horizon: float,
+                        params: Mapping | None = None) -> dict | None:
     """Coordinate name → an upper bound on |q_i(T) − q_i(0)| over every input with
     |u_j| ≤ max(|lo_j|, |hi_j|) (``input_bounds``: input name → (lo, hi)), starting at rest,
     for the horizon T; None when it cannot be judged cheaply (see the module docstring)."""

@@ -43,7 +43,8 @@ def initial_state_map(model) -> ca.Function:
 
 
 def _state_map(model) -> _StateMap:
-    return INITIAL_STATE_MAPS.get(model.numeric, "initial_state", lambda: _StateMap(_build_initial_state_map(model)))
+    return INITIAL_STATE_MAPS.get(model.numeric,
+                                  "initial_state", lambda: _StateMap(_build_initial_state_map(model)))
 
 
 def _build_initial_state_map(model) -> ca.Function:
@@ -166,11 +167,12 @@ def _checked(model, q, qdot, params, tol) -> tuple:
         limit = tol * max(1.0, math.hypot(*values[system.n:]))
         residuals = res.tolist()
         if any(abs(r) > limit for r in residuals) and not any(math.isnan(r) for r in residuals):
-            raise ModelError([f"the state violates the constraints ω(q)q̇ = 0 (tolerance {tol:g}·max(1, |q̇|)); "
-                              "give velocities in the constraint distribution D_q, or only some of them (the "
-                              "others follow from ω(q)q̇ = 0)"]
+            raise ModelError(["the state violates the constraints ω(q)q̇ = 0 (tolerance "
+                              f"{tol:g}·max(1, |q̇|)); give velocities in the constraint distribution D_q, "
+                              "or only some of them (the others follow from ω(q)q̇ = 0)"]
                              + [f"constraint {i + 1} ({expr} = 0): residual {r:.6g} at this configuration"
-                                for i, (expr, r) in enumerate(zip(system.constraint_exprs, residuals, strict=True)) if abs(r) > limit],
+                                for i, (expr, r) in enumerate(zip(system.constraint_exprs, residuals,
+                                                                  strict=True)) if abs(r) > limit],
                              title="inconsistent state")
     return x, measure
 
@@ -247,7 +249,8 @@ def consistent_velocities(system, q, given: dict, *, params=None, tol: float = 1
     if system.k == 0:
         if U:
             raise ModelError([f"without constraints every velocity must be given; missing "
-                              f"{', '.join(names[i] + '_dot' for i in U)}"], title="cannot solve for the velocities")
+                              f"{', '.join(names[i] + '_dot' for i in U)}"],
+                             title="cannot solve for the velocities")
         return qdot
     f_w = system.numeric_functions()[1]
     with np.errstate(all="ignore"):
@@ -263,7 +266,8 @@ def consistent_velocities(system, q, given: dict, *, params=None, tol: float = 1
         free = [names[i] + "_dot" for i in U if i not in pivots]
         raise ModelError([f"the given velocities ({', '.join(c + '_dot' for c in values) or 'none'}) do not "
                           f"determine the rest: {len(U)} unknown velocities but only {rank} independent "
-                          f"constraints on them at this q; give {len(U) - rank} more, for example {', '.join(free)}"],
+                          f"constraints on them at this q; give {len(U) - rank} more, for example "
+                          f"{', '.join(free)}"],
                          title="cannot solve for the velocities")
     rhs = -W[:, G] @ qdot[G]
     if U:

@@ -67,7 +67,8 @@ def names_of(value, field_name: str, problems: list, *, required: bool = False) 
         return []
     if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
         kind = "a string" if isinstance(value, str) else type(value).__name__
-        hint = f' (write {field_name} = ["{value.split()[0]}", ...])' if isinstance(value, str) and value.split() else ""
+        hint = (f' (write {field_name} = ["{value.split()[0]}", ...])' if isinstance(value, str)
+                and value.split() else "")
         problems.append(f"{field_name}: expected a list of names, got {kind}{hint}")
         return []
     out = []
@@ -253,13 +254,15 @@ def _holonomic(statement, declared: _Declared, symbols: _Symbols, problems: list
     if isinstance(raw, (str, sp.Expr)):
         problems.append("holonomic: expected a list of expressions (write holonomic = [\"...\"])")
         return [], []
-    exprs = [parse_field(h, symbols.names, f"holonomic constraint {i + 1}", problems) for i, h in enumerate(raw)]
+    exprs = [parse_field(h, symbols.names, f"holonomic constraint {i + 1}", problems)
+             for i, h in enumerate(raw)]
     dependent = getattr(statement, "dependent", None)
     wanted = [None] * len(exprs)
     if dependent is not None:
         named = names_of(dependent, "dependent", problems)
         if len(named) != len(exprs):
-            problems.append(f"dependent: one coordinate per holonomic constraint ({len(exprs)}), got {len(named)}")
+            problems.append(f"dependent: one coordinate per holonomic constraint ({len(exprs)}), got "
+                            f"{len(named)}")
         else:
             wanted = named
     if not declared.names_ok:
@@ -326,7 +329,8 @@ def _declare(statement, problems: list) -> _Declared:
                             " inputs and t must be distinct)")
         seen.add(nm)
     names_ok = not problems
-    values = [number_problems(v, f"parameter {nm!r}", problems) for nm, v in zip(param_names, params.values(), strict=False)]
+    values = [number_problems(v, f"parameter {nm!r}", problems)
+              for nm, v in zip(param_names, params.values(), strict=False)]
     return _Declared(coord_names, param_names, values, declared, names_ok)
 
 
@@ -351,7 +355,8 @@ def _expressions(statement, declared: _Declared, symbols: _Symbols, problems: li
     raw = statement.constraints if statement.constraints is not None else ()
     if isinstance(raw, (str, sp.Expr)):
         problems.append("constraints: expected a list of expressions, got a single "
-                        f"{'string' if isinstance(raw, str) else 'expression'} (write constraints = [\"...\"])")
+                        f"{'string' if isinstance(raw, str) else 'expression'} (write constraints "
+                        "= [\"...\"])")
         raw = ()
     cons = [parse_field(c, names, f"constraint {i + 1}", problems) for i, c in enumerate(raw)]
     tau = _forces(statement, declared, names, problems)
@@ -511,7 +516,8 @@ def _frames(statement, coord_names: list, problems: list) -> tuple:
             problems.append(f"planar_frame: need three coordinate names (x, y, heading), got {frame}")
     forward = getattr(statement, "forward", "x")
     if forward not in ("x", "y", "-x", "-y"):
-        problems.append(f"forward: the body axis that points forward is \"x\", \"y\", \"-x\" or \"-y\", got {forward!r}")
+        problems.append("forward: the body axis that points forward is \"x\", \"y\", \"-x\" or \"-y\", got "
+                        f"{forward!r}")
     elif forward != "x" and frame is None:
         problems.append(f"forward = {forward!r} needs a planar frame (planar_frame = [x, y, heading])")
     return fiber, frame
@@ -532,8 +538,9 @@ def _check_symbols(expr, where: str, known, names: dict, problems: list) -> None
             hint = f" (no coordinate named {s.name[:-4]!r})"
         elif velocity_name(s.name) in names:
             hint = ""
+        allowed = [n for n, k in names.items() if k in known and k != TIME]
         problems.append(f"unknown symbol {s.name!r} in {where}: not a coordinate, velocity"
-                        f" or parameter{hint}{known_names(s.name, [n for n, k in names.items() if k in known and k != TIME], sep='; ')}")
+                        f" or parameter{hint}{known_names(s.name, allowed, sep='; ')}")
     for f in expr.atoms(sp.Function):
         if isinstance(f, sp.core.function.AppliedUndef):
             problems.append(f"unknown function {f.func.__name__!r} in {where}")

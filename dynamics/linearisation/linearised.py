@@ -221,7 +221,8 @@ def _check_at_rest(num, ref, keep, names, A) -> None:
     """f_K(z*, u*) = 0, or one error naming the rates that are not."""
     f = np.asarray(num["rhs"](0.0, ref.z, ref.u, ref.params), dtype=float).ravel()[keep]
     limit = REST * (1.0 + float(np.max(np.abs(ref.z)))) * max(1.0, float(np.max(np.abs(A), initial=0.0)))
-    moving = [f"d{name}/dt = {value:.6g}" for name, value in zip(names, f, strict=True) if not abs(value) <= limit]
+    moving = [f"d{name}/dt = {value:.6g}" for name, value in zip(names, f, strict=True)
+              if not abs(value) <= limit]
     if moving:
         what = "a steady motion" if ref.kind == STEADY else "an equilibrium"
         raise ModelError([f"the reference is not {what}: {', '.join(moving)} (should be 0; tolerance "
@@ -248,7 +249,8 @@ def _restriction(model, ref, keep, A) -> tuple:
         scale = max(1.0, float(np.max(np.abs(A), initial=0.0))) * float(np.linalg.norm(d))
         if np.linalg.norm(d) > 0 and np.linalg.norm(A @ d) <= 1e-9 * scale:
             family = d
-            removed.append("removed: λ = 0 along the family of straight steady motions (a neighbouring speed)")
+            removed.append("removed: λ = 0 along the family of straight steady motions (a "
+                           "neighbouring speed)")
         else:
             removed.append("kept: the direction of a neighbouring speed is not a null vector of A here")
     return basis, family, removed
@@ -263,7 +265,8 @@ def _tangent_basis(system, ref, keep) -> np.ndarray:
     outside = [j for j in range(n) if j not in keep and np.any(G[:, j] != 0)]
     if outside:
         raise ModelError([f"the holonomic constraints read the cyclic coordinates "
-                          f"{', '.join(system.coordinates[j] for j in outside)}"], title="invalid linearisation request")
+                          f"{', '.join(system.coordinates[j] for j in outside)}"],
+                         title="invalid linearisation request")
     G_K = np.zeros((G.shape[0], len(keep)))
     for col, state in enumerate(keep):
         if state < n:

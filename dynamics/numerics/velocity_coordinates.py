@@ -85,7 +85,8 @@ def velocity_problems(system, names, quantities) -> list:
         if name in quantities:
             continue
         problems.append(f"velocities: {name!r} is not a velocity quantity (use <coordinate>_dot for "
-                        f"{', '.join(coords)}" + (", forward_velocity, lateral_velocity" if planar_frame(system)
+                        f"{', '.join(coords)}" + (", forward_velocity, lateral_velocity"
+                                                  if planar_frame(system)
                                                   else "") + (f" or a quantity {', '.join(quantities)}"
                                                              if quantities else "") + ")")
     if len(set(names)) != len(names):

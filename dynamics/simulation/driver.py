@@ -512,7 +512,8 @@ def _first_nonfinite_row(out: dict) -> int | None:
     """First row after the initial one (counted from 0 after it) with a non-finite value in a
     column that is modelled (finite at the initial point)."""
     whole = out.get("table")                       # NaN and ±inf reach the sum
-    if np.isfinite(whole.sum()) if whole is not None else all(np.isfinite(out[k].sum()) for k in _CHECKED_BLOCKS):
+    if np.isfinite(whole.sum()) if whole is not None else all(np.isfinite(out[k].sum())
+                                                              for k in _CHECKED_BLOCKS):
         return None
     rows = []
     for key in _CHECKED_BLOCKS:
@@ -552,7 +553,8 @@ def _assemble(call: _Call, request: RunRequest, routed: Routed, prepared: _Prepa
                        + (f"; {run.message}" if run.message else ""))
     energy0 = float(out["energy"][0, 0])
     if prepared.with_initial:          # the points the outputs were evaluated at
-        samples = points if samples.lam is None else points.with_lam(np.concatenate([out["lam"][:1], samples.lam]))
+        samples = (points if samples.lam is None
+                   else points.with_lam(np.concatenate([out["lam"][:1], samples.lam])))
     else:
         out = _output_rows(out, 1, None)
     wall = time.perf_counter() - prepared.start
@@ -608,8 +610,8 @@ def _names(model, loop) -> dict:
     """``coordinates``, ``state_names`` (the integrated entries of x) and ``input_names``."""
     system = model.system
     return COLUMN_NAMES.get(loop, "names", lambda: dict(
-        coordinates=tuple(system.coordinates), state_names=tuple(model.state_names[i] for i in loop.state_index),
-        input_names=tuple(system.inputs)))
+        coordinates=tuple(system.coordinates),
+        state_names=tuple(model.state_names[i] for i in loop.state_index), input_names=tuple(system.inputs)))
 
 
 def _diagnostics(model, loop, run, out, extra) -> Diagnostics:
@@ -648,7 +650,8 @@ def _named_outputs(call: _Call, prepared: _Prepared, loop, out, Y) -> dict:
         from ..derivation.quantities import quantity_function
         N = out["q"].shape[0]
         f = quantity_function(model.system, quantities)
-        quantity_values = np.asarray(f.map(N)(out["q"].T, out["qdot"].T, np.repeat(prepared.pv[:, None], N, 1)))
+        quantity_values = np.asarray(f.map(N)(out["q"].T, out["qdot"].T,
+                                              np.repeat(prepared.pv[:, None], N, 1)))
     result = {}
     for name in names:
         if name in names_x and names_x.index(name) in loop.state_index:

@@ -105,7 +105,8 @@ def _force_values(system, point: tuple, params):
     t, q, qdot, u = point
     from ..derivation.system import TIME
     from ..numerics.bridge import to_casadi
-    syms = [TIME] + list(system.q) + list(system.q_dot) + list(system.input_symbols) + list(system.param_symbols)
+    syms = ([TIME] + list(system.q) + list(system.q_dot) + list(system.input_symbols)
+            + list(system.param_symbols))
     values = [t] + list(q) + list(qdot) + list(u) + list(params)
     try:
         sx = [ca.SX.sym(f"a{i}") for i in range(len(syms))]

@@ -94,7 +94,8 @@ class GainSchedule(KnotSchedule):
                     "rates": (r, (N, 2, nz)), "lower": (self.lower, (m,)), "upper": (self.upper, (m,))}
         for name, (value, shape) in expected.items():
             if value.shape != shape:
-                problems.append(f"{name} has shape {value.shape}, expected {shape} (N = {N}, m = {m}, nz = {nz})")
+                problems.append(f"{name} has shape {value.shape}, expected {shape} (N = {N}, m = "
+                                f"{m}, nz = {nz})")
         for name in ("times", "controls", "gains", "reference", "rates"):
             if not np.all(np.isfinite(getattr(self, name))):
                 problems.append(f"{name} must be finite")

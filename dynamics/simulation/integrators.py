@@ -9,10 +9,10 @@ points reached, counters and a status — never raising for a numerical failure:
 * :func:`integrate_scipy`: scipy's step loop (RK23, RK45, DOP853, Radau, BDF, LSODA), driven one
   step at a time so that every accepted step is checked (non-finite values, the singular-set
   event, the step budget, stiffness) and projection can restart the solver;
-* :func:`~.route_sundials.integrate_sundials` (:mod:`.route_sundials`): CasADi's CVODES (BDF) on the ODE, or IDAS on the index-1 DAE with
-  λ algebraic, reporting on the output grid;
-* :func:`~.route_compiled.integrate_compiled` (:mod:`.route_compiled`): the compiled Dormand–Prince integrator of :mod:`.compiled`, one C
-  call per interval.
+* :func:`~.route_sundials.integrate_sundials` (:mod:`.route_sundials`): CasADi's CVODES (BDF) on the
+  ODE, or IDAS on the index-1 DAE with λ algebraic, reporting on the output grid;
+* :func:`~.route_compiled.integrate_compiled` (:mod:`.route_compiled`): the compiled Dormand–Prince
+  integrator of :mod:`.compiled`, one C call per interval.
 
 Statuses (``Run.status``): :data:`FINISHED` 0, :data:`FAILED` −1 (the method gave up: step size
 underflow, solver error), :data:`MAX_STEPS` −2, :data:`NONFINITE` −3 (a non-finite right-hand
@@ -118,7 +118,8 @@ class Samples:
     def join(cls, parts) -> Samples:
         """The points of ``parts`` one after the other (multipliers only if all have them)."""
         lams = [part.lam for part in parts]
-        return cls(*(np.concatenate([getattr(part, name) for part in parts]) for name in ("t", "t_c", "seg", "y")),
+        return cls(*(np.concatenate([getattr(part, name) for part in parts])
+                     for name in ("t", "t_c", "seg", "y")),
                    None if any(lam is None for lam in lams) else np.concatenate(lams))
 
     @classmethod

@@ -81,7 +81,8 @@ def integrate_sundials(request: RunRequest, kind: str, lam0=None) -> Run:
     for segment in request.intervals():
         a, b = segment.start, segment.end
         tol = 1e-12 * max(1.0, abs(b))
-        wanted = [] if te is None else [float(tt) for tt in te if a + 1e-12 * max(1.0, abs(a)) < tt <= b + tol]
+        wanted = [] if te is None else [float(tt) for tt in te
+                                        if a + 1e-12 * max(1.0, abs(a)) < tt <= b + tol]
         grid = [min(tt, b) for tt in wanted]
         if not grid or grid[-1] < b:
             grid.append(b)

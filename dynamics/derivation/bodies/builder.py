@@ -44,7 +44,8 @@ def bodies_system(table: dict, source: str = "<scene>"):
     problems: list = []
     unknown = set(table) - KEYS
     if unknown:
-        problems.append(f"[system]: unknown key(s) {sorted(unknown)} with bodies (allowed: {', '.join(sorted(KEYS))})")
+        problems.append(f"[system]: unknown key(s) {sorted(unknown)} with bodies (allowed: "
+                        f"{', '.join(sorted(KEYS))})")
     params = table.get("parameters", {})
     if not isinstance(params, dict):
         problems.append("[system].parameters must be a table")
@@ -62,10 +63,12 @@ def bodies_system(table: dict, source: str = "<scene>"):
     holonomic = [*heights, *table.get("holonomic", [])]
     try:
         return System(coordinates=list(multibody.coordinates), lagrangian=lagrangian(M, V, q_dot),
-                      constraints=[in_qdot(r, q[2], q_dot) for r in rows] + list(table.get("constraints", [])),
+                      constraints=[in_qdot(r, q[2], q_dot) for r in rows]
+                      + list(table.get("constraints", [])),
                       forces=table.get("forces", {}), parameters=params, inputs=table.get("inputs"),
                       name=table.get("name", "system"), fiber=table.get("fiber"),
-                      planar_frame=list(multibody.base), holonomic=holonomic, dependent=table.get("dependent"))
+                      planar_frame=list(multibody.base), holonomic=holonomic,
+                      dependent=table.get("dependent"))
     except ModelError as exc:
         raise ModelError(list(exc.problems), title=f"invalid scene {source}") from None
 

@@ -52,7 +52,8 @@ def casadi_text(obj):
         obj = ca.vertcat(*obj) if obj else ca.SX(0, 1)
     if not isinstance(obj, ca.SX):
         return obj
-    ops = ca.Function("f", [ca.vertcat(*ca.symvar(obj)) if ca.symvar(obj) else ca.SX(0, 1)], [obj]).n_instructions()
+    ops = (ca.Function("f", [ca.vertcat(*ca.symvar(obj)) if ca.symvar(obj) else ca.SX(0, 1)], [obj])
+           .n_instructions())
     text = str(obj)
     if len(text) > CASADI_TEXT_MAX:
         text = text[:CASADI_TEXT_MAX] + f" … ({len(text)} characters; evaluate through model.numeric)"
@@ -83,7 +84,8 @@ class ImplicitForm:
     @classmethod
     def of(cls, layout):
         B = layout.Wb.extract(list(range(layout.k)), list(layout.pivots)) if layout.k else sp.zeros(0, 0)
-        return cls(B=B, N=layout.N, M=layout.M, omega=layout.W, pivots=tuple(layout.system.coordinates[i] for i in layout.pivots))
+        return cls(B=B, N=layout.N, M=layout.M, omega=layout.W,
+                   pivots=tuple(layout.system.coordinates[i] for i in layout.pivots))
 
 
 def classify(layout, A_zero: bool) -> str:
@@ -321,14 +323,17 @@ class ReducedODE(ModelDisplay, Formulation):
         bracket = ("a Poisson bracket (the Jacobi identity holds" if jacobi.jacobi_holds else
                    "almost-Poisson (the Jacobi identity does not hold, as expected of a nonholonomic bracket")
         out = [f"reduced bracket: {bracket}; max relative Jacobiator {jacobi.jacobiator:.2g}); constraints "
-               f"{'holonomic' if jacobi.holonomic else 'nonholonomic'} (max |ω[X_a, X_b]| {jacobi.holonomy:.2g}); "
-               f"thesis §2.2.2 (Jacobi ⇔ holonomic): {'consistent' if jacobi.consistent else 'INCONSISTENT'}",
+               f"{'holonomic' if jacobi.holonomic else 'nonholonomic'} (max |ω[X_a, X_b]| "
+               f"{jacobi.holonomy:.2g}); thesis §2.2.2 (Jacobi ⇔ holonomic): "
+               f"{'consistent' if jacobi.consistent else 'INCONSISTENT'}",
                f"classification (thesis Table 2.1): {self.classification}",
                "initial-state map (Tables 3.2–3.3), P = Xᵀ M(q) q̇ on ω(q)q̇ = 0:"]
         if self.rhs is None:
-            out.append(f"  P = X(q)ᵀ M(q) q̇, evaluated by model.numeric['state'] ({self.momenta_of_velocity!r})")
+            out.append("  P = X(q)ᵀ M(q) q̇, evaluated by model.numeric['state'] "
+                       f"({self.momenta_of_velocity!r})")
         else:
-            out += [f"  {s} = {text_of(e)}" for s, e in zip(self.momenta, self.momenta_of_velocity, strict=True)]
+            out += [f"  {s} = {text_of(e)}"
+                    for s, e in zip(self.momenta, self.momenta_of_velocity, strict=True)]
         if self.singular_set:
             out.append("singular set: " + " or ".join(f"{text_of(e)} = 0" for e in self.singular_set))
         return "\n".join(out) + "\n"
