@@ -103,8 +103,8 @@ def stage_mode(ode: ca.Function, *, steps: int = 4, free_horizon: bool = False) 
     return "inline" if 4 * steps * nx * int(ode.n_instructions()) <= INLINE_LIMIT else "structured"
 
 
-def stage_functions(ode: ca.Function, intervals: int | None = None, *, steps: int = 4, free_horizon: bool = False,
-                    mode: str = "auto") -> StageFunctions:
+def stage_functions(ode: ca.Function, intervals: int | None = None, *, steps: int = 4,
+                    free_horizon: bool = False, mode: str = "auto") -> StageFunctions:
     """The stage functions of ``ode`` (an SX Function ``(t, z, u) -> ż`` with the parameter
     values bound), ``steps`` = M RK4 sub-steps per interval; the number of intervals enters as
     the argument ν = 1/N (``intervals`` is not needed: the same functions serve every N).
@@ -125,14 +125,16 @@ def stage_functions(ode: ca.Function, intervals: int | None = None, *, steps: in
 def _scaled_ode(ode: ca.Function) -> ca.Function:
     """g(z, u, T, τ, phase) = h f(t0 + τ h, z, u), h = ν T, phase = (ν, t0) (module docstring)."""
     nz, nu = int(ode.size1_in(1)), int(ode.size1_in(2))
-    z, u, T, tau, phase = ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("T"), ca.SX.sym("tau"), ca.SX.sym("phase", 2)
+    z, u, T, tau, phase = (ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("T"), ca.SX.sym("tau"),
+                           ca.SX.sym("phase", 2))
     h = phase[0] * T
-    return ca.Function("g", [z, u, T, tau, phase], [h * ode(phase[1] + tau * h, z, u)], ["z", "u", "T", "tau", "phase"],
-                       ["dzds"])
+    return ca.Function("g", [z, u, T, tau, phase], [h * ode(phase[1] + tau * h, z, u)],
+                       ["z", "u", "T", "tau", "phase"], ["dzds"])
 
 
 def _symbols(sym, nz, nu):
-    return sym.sym("z", nz), sym.sym("u", nu), sym.sym("T"), sym.sym("k"), sym.sym("lam", nz), sym.sym("phase", 2)
+    return (sym.sym("z", nz), sym.sym("u", nu), sym.sym("T"), sym.sym("k"), sym.sym("lam", nz),
+            sym.sym("phase", 2))
 
 
 def _inline(g, nz, nu, steps, free):
@@ -157,7 +159,8 @@ def _inline(g, nz, nu, steps, free):
 
 def _structured(g, nz, nu, steps, free):
     """MX glue over g, g_jac, g_hess (module docstring): code independent of N and M."""
-    zs, us, Ts, taus, nus = ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("T"), ca.SX.sym("tau"), ca.SX.sym("nu", nz)
+    zs, us, Ts, taus, nus = (ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("T"), ca.SX.sym("tau"),
+                             ca.SX.sym("nu", nz))
     phs = ca.SX.sym("phase", 2)
     val = g(zs, us, Ts, taus, phs)
     local = ca.vertcat(zs, us, Ts) if free else ca.vertcat(zs, us)

@@ -117,7 +117,8 @@ def _start(job: Job, index: int, running: dict) -> None:
 
 def _say_in_process(progress, why: str) -> None:
     if progress is not None:
-        progress.note_once("attempts in process", f"  solver attempts run in this process ({why}): only Ipopt's "
+        progress.note_once("attempts in process",
+                           f"  solver attempts run in this process ({why}): only Ipopt's "
                            "own wall-time limit bounds them, and a signal waits until the solver returns")
 
 
@@ -247,7 +248,8 @@ class _Child:
         """Kill a child over its limit: the attempt's failed result."""
         seconds = self.seconds()
         self.kill()
-        return self.job.failed("Time_Limit_Exceeded", f"stopped after {seconds:.1f} s: the attempt's time limit "
+        return self.job.failed("Time_Limit_Exceeded",
+                               f"stopped after {seconds:.1f} s: the attempt's time limit "
                                f"is {self.job.limit:.1f} s", seconds)
 
     def kill(self) -> None:
