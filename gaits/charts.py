@@ -203,5 +203,6 @@ def lagrange_ode(system):
     functions = {**numeric.functions,
                  "rhs": ca.Function("rhs", [t, x, u, params], [numeric["ode"](t, x, u, params)[0]],
                                     ["t", "z", "u", "params"], ["zdot"]),
-                 "state": ca.Function("state", [q, qd, params], [ca.vertcat(q, qd)], ["q", "qdot", "params"], ["z"])}
+                 "state": ca.Function("state", [q, qd, params], [ca.vertcat(q, qd)],
+                                      ["q", "qdot", "params"], ["z"])}
     return replace(dae, compiled=replace(numeric, functions=functions))

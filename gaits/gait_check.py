@@ -33,7 +33,8 @@ def screening_report(guesses, search, problem) -> tuple:
     verdict = check(point) if check is not None and point is not None else None
     if verdict is not None and not verdict.ok:
         which = "solution" if search.solution is not None else "closest point"
-        report += (Screened(f"{which} ({search.won or point.settings.get('guess', '?')})", "reached", verdict),)
+        report += (Screened(f"{which} ({search.won or point.settings.get('guess', '?')})",
+                            "reached", verdict),)
     return search, report
 
 
@@ -42,8 +43,10 @@ def unsolved(problem, guess=None):
     skipped by its screening): status ``Not_Solved``, the states of ``guess`` (zeros without one)."""
     from nhgait.ocp import Solution
     t = problem.grid()
-    states = np.asarray(guess.states, float) if guess is not None else np.zeros((len(problem.state_names), t.size))
-    return Solution(False, "Not_Solved", "every candidate met the singular set of the equations and was skipped",
+    states = (np.asarray(guess.states, float) if guess is not None
+              else np.zeros((len(problem.state_names), t.size)))
+    return Solution(False, "Not_Solved",
+                    "every candidate met the singular set of the equations and was skipped",
                     0, float("nan"), t, states, np.zeros((problem.n_controls, problem.intervals)),
                     tuple(problem.state_names), tuple(problem.control_names), float(problem.horizon),
                     0.0, 0.0, 0.0, 0.0, problem=problem,
@@ -67,7 +70,8 @@ def verified_gait(solution, model, stated, to_plan, params, *, verify=True, prog
     n = len(model.system.coordinates)
     regular, default = False, model
     if verify and solution.success:
-        model, regular = verification_chart(to_plan.scene.system, model, solution.states[:n], params, progress)
+        model, regular = verification_chart(to_plan.scene.system, model, solution.states[:n],
+                                            params, progress)
         if not regular:
             model = lagrange_ode(to_plan.scene.system)
     def in_lagrange():
@@ -85,8 +89,9 @@ def verified_gait(solution, model, stated, to_plan, params, *, verify=True, prog
             return screened
     checked = _verified_once(moved, to_plan, progress)
     if regular and not checked.verification.success:
-        progress.note("  the re-simulation stopped in the chart (its singular set between the nodes): verifying on the "
-                      "Euler–Lagrange equations (index-1 form, x = (q, q̇)), which have none")
+        progress.note("  the re-simulation stopped in the chart (its singular set between the nodes): "
+                      "verifying on the Euler–Lagrange equations (index-1 form, x = (q, q̇)), "
+                      "which have none")
         checked = _verified_once(in_lagrange(), to_plan, progress)
     return checked
 

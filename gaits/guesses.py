@@ -233,7 +233,8 @@ class Candidates(Sequence):
             self.screened.append(Screened(label, "skipped", self._blocked))
             if j == len(self._first):
                 names = tuple(getattr(self._problem.model, "shape", ())) or None
-                self._progress.note(f"  every candidate skipped, not solved: {self._blocked.reason(names)}, where "
+                self._progress.note("  every candidate skipped, not solved: "
+                                    f"{self._blocked.reason(names)}, where "
                                     "every guess starts or ends (fixed by the task)")
             return True
         if j < len(self._first):
@@ -269,7 +270,8 @@ class Candidates(Sequence):
         self.screened.append(Screened(guess.label, "skipped", check))
         self.first_skipped = self.first_skipped or guess
         self._progress.note(f"  guess {guess.label!r} skipped, not solved: {check.reason(names)}"
-                            + (f"; none of {tried} repairs (phase, centre, amplitude) avoids it" if tried else ""))
+                            + (f"; none of {tried} repairs (phase, centre, amplitude) avoids it"
+                               if tried else ""))
         return None
 
     def check(self, guess):
@@ -279,7 +281,8 @@ class Candidates(Sequence):
 
     def with_first(self, guess) -> Candidates:
         return Candidates(self._problem, self._shapes, self._coordinates, (guess, *self._first),
-                          screen=self._screen, start=self.start, progress=self._progress, blocked=self._blocked)
+                          screen=self._screen, start=self.start, progress=self._progress,
+                          blocked=self._blocked)
 
 
 def candidates(problem, *, shape=None, screen=True, progress=None) -> Candidates:
@@ -291,7 +294,8 @@ def candidates(problem, *, shape=None, screen=True, progress=None) -> Candidates
     coords = tuple(model.system.coordinates)
     shape = tuple(shape if shape is not None else getattr(model, "shape", ()))
     checks = Screen(problem) if screen else None
-    start, moved = _regular_start(problem, checks, coords, shape, progress) if checks is not None else ((), None)
+    start, moved = (_regular_start(problem, checks, coords, shape, progress) if checks is not None
+                    else ((), None))
     n_pairs = len(shape) * (len(shape) - 1) // 2
     loops = _order(shape_guesses(problem, shape, start), n_pairs)
     rollouts = rollout_guesses(problem, shape, _rate_states(model, shape), start)
@@ -334,6 +338,8 @@ def _regular_start(problem, checks, coords, shape, progress) -> tuple:
     was = ", ".join(f"{c} = {q0[coords.index(c)]:.3g}" for c in moved)
     now = ", ".join(f"{c} = {v:.3g}" for c, v in moved.items())
     if progress is not None:
-        progress.note(f"  the free start {was} is on the singular set of the equations: every guess starts at {now}")
-    at = Check(False, "singular", 0.0, tuple(float(v) for v in q0), coords, float(checks.measure(q0[:, None])[0]))
+        progress.note(f"  the free start {was} is on the singular set of the equations: every guess "
+                      f"starts at {now}")
+    at = Check(False, "singular", 0.0, tuple(float(v) for v in q0), coords,
+               float(checks.measure(q0[:, None])[0]))
     return tuple(moved.items()), Screened("free start", "moved", at, now)

@@ -90,7 +90,8 @@ def _solver(problem, transcription, name, search_settings, progress):
     ocp = OCPSolver(problem, transcription, options)
     expected = ocp.evaluation_seconds() * EVALUATIONS_PER_ITERATION * EXPECTED_ITERATIONS
     if s.jit is not False and expected > COMPILE_ABOVE_S:
-        ocp = OCPSolver(problem, transcription, replace(options, jit=True, jit_flags=("-O0",)), progress=progress)
+        ocp = OCPSolver(problem, transcription, replace(options, jit=True, jit_flags=("-O0",)),
+                        progress=progress)
     return attempt_limited(ocp, None, progress)
 
 
@@ -110,12 +111,15 @@ def refine(solution, verified, search_settings, budget, progress, verify):
         if transcription is None or transcription.steps <= steps or budget.spent():
             break
         name = settings.get("solver", "ipopt")
-        progress.note(f"  the re-simulation misses by {max(v.max_error, v.max_condition_error):.2g} with {steps} "
-                      f"RK4 sub-steps per interval: solving again with {transcription.steps}, from this point")
+        progress.note(f"  the re-simulation misses by {max(v.max_error, v.max_condition_error):.2g} "
+                      f"with {steps} "
+                      f"RK4 sub-steps per interval: solving again with {transcription.steps}, "
+                      "from this point")
         with budget.stage(f"the refinement's NLP set-up ({transcription.steps} RK4 sub-steps)"):
             ocp = _solver(solution.problem, transcription, name, search_settings, progress)
         guess = InitialGuess(solution.states, solution.controls, horizon=float(solution.horizon),
-                             label=f"{settings.get('guess', 'solution')}, refined to {transcription.steps} sub-steps")
+                             label=f"{settings.get('guess', 'solution')}, refined to "
+                                   f"{transcription.steps} sub-steps")
         with budget.stage("the refinement's solve", interrupt=False):
             again, = solve_attempts(ocp, [guess], budget=budget, progress=progress)
         again = replace(again, settings={**again.settings, "guess": guess.label})

@@ -90,7 +90,8 @@ class Screen:
         self._rhs = numeric["rhs"].map(2 * N + 1)
         self._map = numeric.functions.get("velocity_map")
         self._singular = numeric.functions.get("singular")
-        bounds = {c: problem.bounds(problem.state_bounds, c) for c in self.coordinates if c in problem.state_bounds}
+        bounds = {c: problem.bounds(problem.state_bounds, c) for c in self.coordinates
+                  if c in problem.state_bounds}
         samples = region_samples(self.coordinates, bounds, count=64)
         self._typical = self._typical_values(samples)
 
@@ -119,7 +120,8 @@ class Screen:
         """Per column of ``q`` (n × K): the smaller of |det A| and the chart's measure, each as a
         fraction of its typical value (≥ 1 is ordinary; below :data:`RATIO` singular)."""
         out = np.full(q.shape[1], np.inf)
-        for values, typical in ((self._determinants(q), self._typical[0]), (self._chart(q), self._typical[1])):
+        for values, typical in ((self._determinants(q), self._typical[0]),
+                                (self._chart(q), self._typical[1])):
             if values is not None and typical > 0:
                 out = np.minimum(out, np.where(np.isfinite(values), np.abs(values) / typical, 0.0))
         return out

@@ -214,7 +214,8 @@ def _explore_seconds(first: float, budget) -> float:
     return seconds if budget is None else min(seconds, EXPLORE_BUDGET_SHARE * budget.remaining())
 
 
-def _explored(solver, guesses, found: Search, indices, seconds: float, workers: int, budget, progress) -> Search:
+def _explored(solver, guesses, found: Search, indices, seconds: float, workers: int, budget,
+              progress) -> Search:
     """``found`` or a lower objective among the guesses at ``indices`` tried after it, each
     attempt within what is left of ``seconds`` (the closest failure and every attempt kept)."""
     deadline = time.monotonic() + seconds
@@ -222,7 +223,8 @@ def _explored(solver, guesses, found: Search, indices, seconds: float, workers: 
     attempts, best, label = list(found.attempts), found.solution, found.won
     indices = list(indices)
     if indices and seconds > 0:
-        progress.note(f"  looking for a lower objective: up to {len(indices)} more guesses within {seconds:.0f} s")
+        progress.note(f"  looking for a lower objective: up to {len(indices)} more guesses within "
+                      f"{seconds:.0f} s")
     for start in range(0, len(indices), workers):
         left = deadline - time.monotonic()
         if left <= 0 or _spent(budget):
@@ -231,14 +233,16 @@ def _explored(solver, guesses, found: Search, indices, seconds: float, workers: 
         if not batch:
             break
         limit = left if solver.options.time_limit is None else min(left, solver.options.time_limit)
-        sols = solve_attempts(solver.with_time_limit(limit), batch, workers=workers, budget=budget, progress=progress)
+        sols = solve_attempts(solver.with_time_limit(limit), batch, workers=workers, budget=budget,
+                              progress=progress)
         for k, (g, s) in enumerate(zip(batch, sols, strict=True)):
             attempts.append(attempt_of(g.label, s, name))
             _report(progress, indices[start] + k + 1, indices[-1] + 1, g.label, s)
             if s.success and s.objective < best.objective:
                 best, label = s, g.label
     if label != found.won:
-        progress.note(f"  kept {label!r}: J = {best.objective:.6g} (the first converged: {found.solution.objective:.6g})")
+        progress.note(f"  kept {label!r}: J = {best.objective:.6g} (the first converged: "
+                      f"{found.solution.objective:.6g})")
     return Search(best, tuple(attempts), label, found.closest)
 
 
@@ -247,13 +251,13 @@ def solve_with_fallbacks(solver, guesses, *, workers: int = 1, limit: int | None
     """The guesses in order (:func:`solve_from_guesses`, exploring with ``explore``), then
     :func:`continuation` from the first one (for screened candidates, the first that passed its
     screening: a regular guess; not once ``budget`` is spent)."""
-    search = solve_from_guesses(solver, guesses, workers=workers, limit=limit, progress=progress, budget=budget,
-                                explore=explore)
+    search = solve_from_guesses(solver, guesses, workers=workers, limit=limit, progress=progress,
+                                budget=budget, explore=explore)
     first = None if search.solution is not None or _spent(budget) else _built(guesses, range(1), budget)
     if first:
         if progress is not None:
-            progress.note(f"  no guess converged: continuation from {first[0].label!r} (the task's end values "
-                          "approached in 4 steps)")
+            progress.note(f"  no guess converged: continuation from {first[0].label!r} (the "
+                          "task's end values approached in 4 steps)")
         search = search.then(continuation(solver, first[0], progress=progress, budget=budget))
     return search
 

@@ -129,7 +129,8 @@ def summarize(case, references=None) -> dict:
             "n_steps": run.n_steps,
         }
     for label, (_, q_ref, info) in (references or {}).items():
-        out["runs"][label] = {"final_q": dict(zip(coords, np.asarray(q_ref)[-1].tolist(), strict=True)), **info}
+        out["runs"][label] = {"final_q": dict(zip(coords, np.asarray(q_ref)[-1].tolist(), strict=True)),
+                              **info}
     for a, b in itertools.combinations(q_by_label, 2):
         if q_by_label[a].shape == q_by_label[b].shape:
             out["max_deviation_q"][f"{a} vs {b}"] = _max_abs(q_by_label[a] - q_by_label[b])

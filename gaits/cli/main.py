@@ -42,7 +42,8 @@ SUBCOMMANDS = (
 
 def build_parser() -> argparse.ArgumentParser:
     from nhgait import __version__
-    parser = argparse.ArgumentParser(prog="nhgait", description="Dynamics and gait planning of nonholonomic robots.")
+    parser = argparse.ArgumentParser(prog="nhgait",
+                                     description="Dynamics and gait planning of nonholonomic robots.")
     parser.add_argument("--version", action="version", version=f"nhgait {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     for module, adder in SUBCOMMANDS:

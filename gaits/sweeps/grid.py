@@ -100,7 +100,8 @@ class Grid:
         for a in self.axes:
             if a.name == name:
                 return a
-        raise ProblemError([f"no grid axis {name!r} (axes: {', '.join(self.names)})"], title="invalid grid axis")
+        raise ProblemError([f"no grid axis {name!r} (axes: {', '.join(self.names)})"],
+                           title="invalid grid axis")
 
     def point(self, index) -> GridPoint:
         index = tuple(int(i) for i in index)
@@ -225,7 +226,8 @@ def parse_grid(axes, *, parameters: tuple | None = None) -> Grid:
         axes = [f"{name}={','.join(repr(float(v)) for v in np.atleast_1d(values))}"
                 for name, values in axes.items()]
     if isinstance(axes, str) or not axes:
-        raise ProblemError([f"a sweep needs at least one axis NAME=lo:hi:n, got {axes!r}"], title="invalid grid")
+        raise ProblemError([f"a sweep needs at least one axis NAME=lo:hi:n, got {axes!r}"],
+                           title="invalid grid")
     parsed = [parse_axis(text, problems) for text in axes]
     names = [str(text).partition("=")[0].strip() for text in axes if "=" in str(text)]
     for name in sorted({n for n in names if names.count(n) > 1}):

@@ -115,7 +115,8 @@ def _context(case: TrackingCase) -> _Context:
         feedback = Feedback.from_dict(case.feedback)
         system = prepared.model.system
         frame = tuple(system.planar_frame or ())[:2] or tuple(system.coordinates)
-        return _Context(prepared.model, prepared.specialised, schedule_of(feedback, prepared.specialised, system),
+        return _Context(prepared.model, prepared.specialised,
+                        schedule_of(feedback, prepared.specialised, system),
                         (feedback.weights.state_scale, feedback.weights.control_scale), frame)
     return CONTEXTS.get(case.key, build)
 
@@ -195,10 +196,12 @@ def _measure(ctx: _Context, traj) -> dict:
     t = traj.t
     names = list(ctx.model.system.coordinates)
     pos = [names.index(c) for c in ctx.frame]
-    z = np.array([np.asarray(sched.state_map(q, qd), dtype=float).ravel() for q, qd in zip(traj.q, traj.qdot, strict=True)])
+    z = np.array([np.asarray(sched.state_map(q, qd), dtype=float).ravel()
+                  for q, qd in zip(traj.q, traj.qdot, strict=True)])
     ref = np.array([sched.reference_state(tt) for tt in t])
     err = z - ref if len(t) else np.zeros((0, sched.n_states))
-    complete = bool(traj.success) and len(t) and abs(t[-1] - sched.times[-1]) <= 1e-9 * max(1.0, sched.times[-1])
+    complete = (bool(traj.success) and len(t)
+                and abs(t[-1] - sched.times[-1]) <= 1e-9 * max(1.0, sched.times[-1]))
     final = float(np.linalg.norm(traj.q[-1, pos] - sched.reference[-1, pos])) if complete else float("nan")
     return {"success": bool(traj.success), "status": int(traj.status), "message": str(traj.message),
             "final_position_error": final,
