@@ -176,10 +176,11 @@ def table(rows, cap) -> str:
             "RHS ops | q̈ error vs Kane |\n|---|---|---|---|---|---|---|---|---|---|---|")
     lines = [head]
     for r in rows:
-        lag = _fmt(_ratio(r["derive_s"], r["lagrange_s"]), ".2f") if r["lagrange_s"] else f"> cap ({cap:.0f} s)"
+        lag = (_fmt(_ratio(r["derive_s"], r["lagrange_s"]), ".2f") if r["lagrange_s"]
+               else f"> cap ({cap:.0f} s)")
         lines.append(f"| {r['name']} | {r['n']} | {r['k']} | {r['form']} | {_fmt(r['derive_s'])} | {lag} | "
-                     f"{_fmt(_ratio(r['derive_s'], r['kane_s']), '.2f')} | {_fmt(r['print_s'])} | {_fmt(r['cli_s'], '.2f')} | "
-                     f"{r['rhs_ops']} | {_fmt(r['oracle_error'], '.1e')} |")
+                     f"{_fmt(_ratio(r['derive_s'], r['kane_s']), '.2f')} | {_fmt(r['print_s'])} | "
+                     f"{_fmt(r['cli_s'], '.2f')} | {r['rhs_ops']} | {_fmt(r['oracle_error'], '.1e')} |")
     return "\n".join(lines)
 
 
@@ -202,7 +203,8 @@ def plot(rows, path):
     nn = np.arange(4, 12)
     a2.plot(nn, 60 * nn ** 2, "k:", label="∝ n² (reference)")
     a2.plot(nn, 6 * nn ** 3, "k-.", label="∝ n³ (reference)")
-    for ax, title, ylabel in ((a1, "cold derivation", "seconds"), (a2, "CasADi right-hand side", "operations")):
+    for ax, title, ylabel in ((a1, "cold derivation", "seconds"),
+                              (a2, "CasADi right-hand side", "operations")):
         ax.set_yscale("log")
         ax.set_xlabel("n (coordinates)")
         ax.set_ylabel(ylabel)

@@ -61,8 +61,8 @@ def tiago(samples: int, overrides) -> dict:
         return {"skipped": "needs pip install 'nhgait[pinocchio]' (TIAGo's URDF is in example-robot-data)"}
     from nhgait.gaits.tracking.study import track
     t0 = time.perf_counter()
-    result = track(str(ROOT / "examples" / "tiago_park.toml"), overrides=overrides, mismatch=["params.m_base=1.1"],
-                   samples=samples, seed=0)
+    result = track(str(ROOT / "examples" / "tiago_park.toml"), overrides=overrides,
+                   mismatch=["params.m_base=1.1"], samples=samples, seed=0)
     return {**_ratio(result.report), "wall_s": time.perf_counter() - t0, "samples": samples}
 
 
@@ -112,17 +112,19 @@ def _print(results: dict) -> None:
         print(f"{name}: {r['samples']} samples; final position error open median {r['open_median']:.4g} "
               f"{r['unit']} (max {r['open_max']:.4g}), closed median {r['closed_median']:.4g}, max "
               f"{r['closed_max']:.4g}; closed max / open median = {r['ratio']:.4f} (target ≤ 0.1); "
-              f"inputs at a bound {r['saturation_s_open_median']:.3g} s open, {r['saturation_s_closed_median']:.3g} s "
-              f"closed (medians); {r['wall_s']:.1f} s")
+              f"inputs at a bound {r['saturation_s_open_median']:.3g} s open, "
+              f"{r['saturation_s_closed_median']:.3g} s closed (medians); {r['wall_s']:.1f} s")
     r = results["six_coordinates"]
     print(f"two-steering snakeboard (n = 6): {r['samples']} samples on {r['workers']} workers in "
-          f"{r['samples_s']:.1f} s ({r['per_sample_ms']:.0f} ms per sample, open + closed loop; target ≤ 60 s), "
-          f"plan {r['plan_s']:.1f} s, whole study {r['wall_s']:.1f} s; closed max / open median = {r['ratio']:.4f}")
+          f"{r['samples_s']:.1f} s ({r['per_sample_ms']:.0f} ms per sample, open + closed loop; "
+          "target ≤ 60 s), "
+          f"plan {r['plan_s']:.1f} s, whole study {r['wall_s']:.1f} s; closed max / open median = "
+          f"{r['ratio']:.4f}")
     f = results["floquet"]
     print(f"Floquet (snakeboard forward gait): closed loop multipliers agree with finite differences to "
           f"{f['closed_loop']['max_multiplier_difference']:.2e}, monodromy entries to "
-          f"{f['closed_loop']['max_entry_difference']:.2e} (open loop {f['open_loop']['max_entry_difference']:.2e}); "
-          f"target ≤ 1e-6")
+          f"{f['closed_loop']['max_entry_difference']:.2e} (open loop "
+          f"{f['open_loop']['max_entry_difference']:.2e}); target ≤ 1e-6")
     for line in f["summary"]:
         print(f"  {line}")
 

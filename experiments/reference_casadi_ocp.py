@@ -286,7 +286,8 @@ def _ipopt_opts(jit: bool, expand: bool = True) -> dict:
     if jit:
         # CasADi writes jit_tmp*.c / tmp_casadi_compiler_shell*.so into the working directory
         # and may leave them at exit: the solvers are built inside _scratch_cwd().
-        opts.update({"jit": True, "compiler": "shell", "jit_cleanup": False, "jit_options": {"flags": ["-O1"], "cleanup": False}})
+        opts.update({"jit": True, "compiler": "shell", "jit_cleanup": False,
+                     "jit_options": {"flags": ["-O1"], "cleanup": False}})
     return opts
 
 
@@ -461,7 +462,8 @@ class _Build:
 
 @functools.cache
 def _build(build: _Build):
-    return _FORMULATIONS[build.formulation](build.problem, build.N, build.M, build.jit, build.map_mode, build.expand)
+    return _FORMULATIONS[build.formulation](build.problem, build.N, build.M, build.jit, build.map_mode,
+                                            build.expand)
 
 
 def solve(problem: str, N: int, *, jit: bool = False, M: int = 4,

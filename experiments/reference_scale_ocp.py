@@ -547,7 +547,8 @@ class _StateIndex:
     @classmethod
     def of(cls, ode: ReducedODE) -> _StateIndex:
         return cls({c: i for i, c in enumerate(ode.coordinates)},
-                   {f"{s}_dot" if s != "v" else "forward_velocity": ode.n + j for j, s in enumerate(ode.independent)})
+                   {f"{s}_dot" if s != "v"
+                    else "forward_velocity": ode.n + j for j, s in enumerate(ode.independent)})
 
     def get(self, name):
         """The index of ``name`` in z, None when it is not a state."""
@@ -582,7 +583,8 @@ def _end_bounds(ode: ReducedODE, task: dict, index: _StateIndex, path: tuple, no
     return tuple(ends)
 
 
-def _periodic_rows(ode: ReducedODE, task: dict, index: _StateIndex, path: tuple, ends: tuple, notes: list) -> list:
+def _periodic_rows(ode: ReducedODE, task: dict, index: _StateIndex, path: tuple, ends: tuple,
+                   notes: list) -> list:
     """The periodic states kept as rows z_N[i] = z_0[i]; a periodic state fixed at one end is
     fixed at the other instead (``ends`` narrowed), a periodic rate that is not a state must be
     implied by the periodic states (checked, dropped)."""
@@ -617,7 +619,8 @@ def _control_bounds(ode: ReducedODE, task: dict) -> tuple:
     lbu, ubu = np.full(ode.nu, -_INF), np.full(ode.nu, _INF)
     for name, value in cb.items():
         j = ode.inputs.index(name)
-        lbu[j], ubu[j] = (-float(value), float(value)) if not isinstance(value, (list, tuple)) else _range(value)
+        lbu[j], ubu[j] = ((-float(value), float(value)) if not isinstance(value, (list, tuple))
+                          else _range(value))
     return lbu, ubu
 
 
@@ -933,7 +936,8 @@ class Reference:
         }
 
 
-def build(member: str, N: int | None = None, jit: bool = True, task: dict | None = None, **options) -> Reference:
+def build(member: str, N: int | None = None, jit: bool = True, task: dict | None = None,
+          **options) -> Reference:
     """The reference NLP of ``member`` (compiled when ``jit``); ``N`` overrides the task's;
     ``options``: the other fields of :class:`Options`."""
     return Reference(member, Options(N=N, jit=jit, **options), task)
@@ -962,7 +966,8 @@ def multiplier_dae(member: str) -> ca.Function:
     qs = sp.symbols([f"q{i}" for i in range(n)], real=True)
     us = sp.symbols([f"qd{i}" for i in range(n)], real=True)
     taus = sp.symbols([str(i) for i in mdl["inputs"]], real=True)
-    plain = {**dict(zip(q, qs, strict=True)), **dict(zip(u, us, strict=True)), **dict(zip(mdl["inputs"], taus, strict=True))}
+    plain = {**dict(zip(q, qs, strict=True)), **dict(zip(u, us, strict=True)),
+             **dict(zip(mdl["inputs"], taus, strict=True))}
     plain.update({p: sp.Float(values[str(p)]) for p in mdl["params"]})
     M = sp.Matrix(km.mass_matrix).xreplace(plain)
     F = sp.Matrix(km.forcing).xreplace(plain)
@@ -1067,7 +1072,8 @@ def resimulate(ref: Reference, res: dict, rtol: float = 1e-10, atol: float = 1e-
     nfev = 0
     for kk in range(ref.N):
         tau = U[kk]
-        sol = solve_ivp(lambda _t, s, tau=tau: np.concatenate([s[n:], np.asarray(dae(s[:n], s[n:], tau)).ravel()]),
+        sol = solve_ivp(lambda _t, s, tau=tau: np.concatenate([s[n:],
+                                                               np.asarray(dae(s[:n], s[n:], tau)).ravel()]),
                         (t[kk], t[kk + 1]), states[-1], method="DOP853", rtol=rtol, atol=atol)
         if not sol.success:
             return {"success": False, "message": sol.message, "node_error": math.inf}
@@ -1223,7 +1229,8 @@ def main(argv=None) -> int:
     rows = []
     for m in members:
         if args.in_process or len(members) == 1:
-            rows.append(run_member(m, options, repeats=args.repeats, check=args.check, verify=not args.no_verify))
+            rows.append(run_member(m, options, repeats=args.repeats, check=args.check,
+                                   verify=not args.no_verify))
         else:
             rows.append(_run_isolated(m, args))
         r = rows[-1]

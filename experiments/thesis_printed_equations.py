@@ -24,7 +24,8 @@ def make(psi_factor=2.0, ptpsi0_factor=2.0):
         return [np.cos(th)*xi1,np.sin(th)*xi1,xi3,psid,phid,pd,ppsd,tphi]
     ph0=1.0
     psd0=1.0
-    z0=[0,0,0,0,ph0,Jr*np.sin(2*ph0)*psd0, ptpsi0_factor*Jr/(m*r**2)*(m*r**2-Jr*np.sin(ph0)**2)*psd0, 2*Jw*0.0]
+    z0=[0,0,0,0,ph0,Jr*np.sin(2*ph0)*psd0,
+        ptpsi0_factor*Jr/(m*r**2)*(m*r**2-Jr*np.sin(ph0)**2)*psd0, 2*Jw*0.0]
     return f,z0
 def main(argv=None):
   for pf,icf in [(2,2),(1,1),(2,1),(1,2)]:
