@@ -378,7 +378,8 @@ def _model_snake(n_links, rotor=False):
         c.v2pt_theory(joint, N, Lj)
         frames.append(Lj)
         centres.append(c)
-    bodies = [RigidBody(f"link{i + 1}", c, F, ms, (inertia(F, 0, 0, Is), c)) for i, (c, F) in enumerate(zip(centres, frames, strict=True))]
+    bodies = [RigidBody(f"link{i + 1}", c, F, ms, (inertia(F, 0, 0, Is), c))
+              for i, (c, F) in enumerate(zip(centres, frames, strict=True))]
     loads = []
     if rotor:
         R = frames[0].orientnew("R", "Axis", [psi, N.z])

@@ -38,8 +38,8 @@ def _reference(system):
     mass = sp.lambdify(args, system.mass_matrix().subs(values), "numpy")
     omega = sp.lambdify(args, system.omega().subs(values), "numpy")
     potential = sp.lambdify(args, system.potential().subs(values), "numpy")
-    return (lambda q: np.array(mass(*q), dtype=float), lambda q: np.array(omega(*q), dtype=float).reshape(system.k, system.n),
-            lambda q: float(potential(*q)))
+    return (lambda q: np.array(mass(*q), dtype=float), lambda q: np.array(omega(*q), dtype=float)
+            .reshape(system.k, system.n), lambda q: float(potential(*q)))
 
 
 def _consistent_state(system, omega, seed=3):
@@ -55,7 +55,8 @@ def test_every_formulation_name_resolves_to_its_model_type():
     types = [formulation_type(name) for name in FORMULATIONS]
     assert types == [ReducedODE, LagrangianDAE, HamiltonianDAE]
     assert [t.formulation for t in types] == list(FORMULATIONS)
-    with pytest.raises(ModelError, match=r"unknown formulation 'euler' \(choose from reduced, lagrange, hamilton\)"):
+    with pytest.raises(ModelError,
+                       match=r"unknown formulation 'euler' \(choose from reduced, lagrange, hamilton\)"):
         formulation_type("euler")
 
 

@@ -178,7 +178,8 @@ def test_unknown_names_are_one_error(tmp_path):
                                                       "phi": 0, "x_dot": 0, "y_dot": 0, "psi_dot": 0},
                             "control_bounds": {"tau_q": [-1, 1]}, "objective": {"tau_z": 1.0}}, jit=False)
     text = str(info.value)
-    assert "unknown name 'zz'" in text and "unknown input 'tau_q'" in text and "unknown weight 'tau_z'" in text
+    assert ("unknown name 'zz'" in text and "unknown input 'tau_q'" in text
+            and "unknown weight 'tau_z'" in text)
 
 
 def test_warm_start_from_a_previous_solution(tmp_path):
@@ -209,7 +210,8 @@ def test_auto_solver_falls_back_to_ipopt(monkeypatch):
 
     def fatrop_fails(self, guess):
         sol = original(self, guess)
-        return dc_replace(sol, success=False, status="forced failure") if self.options.solver == "fatrop" else sol
+        return (dc_replace(sol, success=False, status="forced failure")
+                if self.options.solver == "fatrop" else sol)
     monkeypatch.setattr(OCPSolver, "solve", fatrop_fails)
     result = plan("snakeboard", "forward", intervals=25, jit=False, verify=False, max_iter=30)
     solvers = [a.solver for a in result.attempts]
@@ -225,7 +227,8 @@ def test_scene_quantities_in_a_task(tmp_path):
     text = text.replace("[units]", '[quantities]\nv_rear = "cos(theta)*x_dot + sin(theta)*y_dot"\n'
                                    'speed2 = "x_dot**2 + y_dot**2"\n\n[units]')
     text = text.replace("forward_velocity", "v_rear").replace("bounds = {phi = [-0.7, 0.7]}",
-                                                                "bounds = {phi = [-0.7, 0.7], speed2 = [0.0, 0.16]}")
+                                                                "bounds = {phi = [-0.7, 0.7], speed2 = "
+                                                                "[0.0, 0.16]}")
     scene = tmp_path / "car_q.toml"
     scene.write_text(text)
     result = plan(str(scene), intervals=50, jit=False)

@@ -64,7 +64,8 @@ def test_a_guess_through_the_singular_set_is_repaired_and_the_plan_verified():
         assert abs(phi) < 0.05
     loop = next(g for g in handed if "(amplitudes x0.5)" in g.label and "rollout" not in g.label)
     phi = loop.states[3]
-    assert np.all(phi > 0) and np.all((phi[1:] + phi[:-1]) / 2 > 0)        # off sin φ = 0, nodes and midpoints
+    # off sin φ = 0, nodes and midpoints
+    assert np.all(phi > 0) and np.all((phi[1:] + phi[:-1]) / 2 > 0)
     result = plan(CAR, ARC, jit=False, solver="ipopt", guess=loop)
     s = result.solution
     assert result.success and result.guess == loop.label
@@ -72,7 +73,8 @@ def test_a_guess_through_the_singular_set_is_repaired_and_the_plan_verified():
     reference = dae_reference.solve(dae_reference.car_ode(), n_u=2, T=6.0, N=60,
                                     fixed0={i: v for i, v in enumerate([0, 0, 0, 0.3, 0, 0, 0, 0])},
                                     fixedT={0: 1.6, 1: 1.6, 2: math.pi / 2, 3: 0.3, 6: 0.0, 7: 0.0},
-                                    bounds={3: (-0.7, 0.7)}, u_bound=(np.array([-5.0, -1.0]), np.array([5.0, 1.0])),
+                                    bounds={3: (-0.7, 0.7)},
+                                    u_bound=(np.array([-5.0, -1.0]), np.array([5.0, 1.0])),
                                     guess=_arc_guess())
     assert reference["status"] == "Solve_Succeeded"
     assert s.objective == pytest.approx(reference["objective"], rel=1e-3)
@@ -91,7 +93,8 @@ def test_a_plan_whose_guesses_all_meet_the_singular_set_names_the_posture(tmp_pa
     assert "'forward_velocity'" in better and "'theta_dot'" not in better       # v sin φ = l cos φ θ̇
     saved = json.loads((tmp_path / "solution.json").read_text())
     assert saved["success"] is False and saved["guess"]["screened"]
-    assert all(x["action"] == "skipped" and x["configuration"]["phi"] == 0.0 for x in saved["guess"]["screened"])
+    assert all(x["action"] == "skipped" and x["configuration"]["phi"] == 0.0
+               for x in saved["guess"]["screened"])
 
 
 def _snake_ode():
@@ -156,8 +159,8 @@ def test_the_users_snake_is_planned_through_the_charts_singular_set_and_verified
     Z = np.vstack([q, s.velocities()])
     fixed0 = {i: 0.0 for i in (0, 1, 2, 5, 6, 7, 8, 9)}
     reference = dae_reference.solve(f, n_u=2, T=6.0, N=50, fixed0=fixed0, fixedT={0: 0.3, 1: 0.0, 2: 0.0},
-                                    periodic=(3, 4, 8, 9), bounds={3: (-1.0, 1.0), 4: (-1.0, 1.0)}, u_bound=2.0,
-                                    guess=(Z, s.controls))
+                                    periodic=(3, 4, 8, 9), bounds={3: (-1.0, 1.0), 4: (-1.0, 1.0)},
+                                    u_bound=2.0, guess=(Z, s.controls))
     assert reference["status"] == "Solve_Succeeded"
     assert s.objective == pytest.approx(reference["objective"], rel=1e-3)
     assert s.objective <= 0.009992 * 1.01       # the hand-written reference of the issue: J = 0.009992
@@ -171,7 +174,8 @@ def test_the_users_snake_is_planned_through_the_charts_singular_set_and_verified
     assert np.asarray(lagrange.numeric["rhs"](0.0, x, u, lagrange.numeric.params())).ravel() == pytest.approx(
         np.asarray(f(x, u)).ravel(), rel=1e-9, abs=1e-12)
     prepared = prepare(resolve(SNAKE3))
-    in_x = to_momentum_coordinates(s, momentum_problem(lagrange, prepared.stated, result.plan, None)).verified()
+    in_x = to_momentum_coordinates(s, momentum_problem(lagrange, prepared.stated,
+                                                       result.plan, None)).verified()
     assert in_x.state_names[5:] == ("x_dot", "y_dot", "theta_dot", "alpha1_dot", "alpha2_dot")
     assert in_x.verification.passed and in_x.verification.max_error <= 1e-6
 
@@ -225,7 +229,8 @@ def test_velocity_states_are_chosen_regular_at_the_tasks_end_postures():
         s = np.linalg.svd(A, compute_uv=False)
         assert (s[-1] / s[0] < 1e-3) == singular, names
     bounds = {k: v for k, v in task.bounds.items() if isinstance(v, tuple)}
-    assert choose_velocities(model, task.names, scene.quantities, None, bounds, ends) == ("phi_dot", "forward_velocity")
+    assert (choose_velocities(model, task.names, scene.quantities, None, bounds, ends)
+            == ("phi_dot", "forward_velocity"))
 
 
 def test_velocity_states_regular_over_the_region_are_also_well_conditioned():

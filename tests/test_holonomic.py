@@ -105,7 +105,8 @@ def test_kept_constraint_in_all_three_formulations_equals_the_kane_oracle(kept):
         ref = orc.qddot(q, qd, u, po)
         scale = max(1.0, np.max(np.abs(ref)))
         z = red.call("state", q, qd, pv)
-        worst["reduced"] = max(worst["reduced"], np.max(np.abs(red.call("qddot", 0.0, z, u, pv) - ref)) / scale)
+        worst["reduced"] = max(worst["reduced"],
+                               np.max(np.abs(red.call("qddot", 0.0, z, u, pv) - ref)) / scale)
         xdot, lam_l = lag.call("ode", 0.0, np.r_[q, qd], u, pv)
         worst["lagrange"] = max(worst["lagrange"], np.max(np.abs(xdot[6:] - ref)) / scale)
         M = lag.call("mass", np.r_[q, qd], pv)

@@ -70,7 +70,8 @@ def test_bad_statements_list_every_problem(unicycle):
     with pytest.raises(ValueError, match="lies outside state_bounds"):
         OptimalControlProblem(unicycle, 1.0, 10, initial={"phi": 3.0}, state_bounds={"phi": (-1, 1)})
     with pytest.raises(ValueError, match="periodic 'theta'.*cannot be equal"):
-        OptimalControlProblem(unicycle, 1.0, 10, initial={"theta": 0.0}, final={"theta": 1.0}, periodic=["theta"])
+        OptimalControlProblem(unicycle, 1.0, 10, initial={"theta": 0.0}, final={"theta": 1.0},
+                              periodic=["theta"])
     with pytest.raises(ValueError, match="unknown transcription"):
         OCPSolver(p1(unicycle), "shooting-stars")
 
@@ -191,7 +192,8 @@ def test_fatrop_reaches_the_ipopt_optimum(snakeboard):
     ipopt = solve(problem, guess, jit=False)
     stages = solve(problem, guess, transcription=StageShooting(), jit=False)
     fatrop = OCPSolver(problem, options=SolverOptions(jit=False, solver="fatrop"))
-    assert fatrop.nlp.structure["N"] == 25 and fatrop.nlp.structure["nx"][0] == 8 + 3   # ψ fixed at 0: φ, ψ̇, φ̇ carried
+    # ψ fixed at 0: φ, ψ̇, φ̇ carried
+    assert fatrop.nlp.structure["N"] == 25 and fatrop.nlp.structure["nx"][0] == 8 + 3
     sol = fatrop.solve(guess)
     assert ipopt.success and stages.success and sol.success, sol.status
     assert ipopt.objective == pytest.approx(REF_25["P2"], rel=1e-4)
@@ -210,7 +212,8 @@ def test_stage_transcription_free_horizon(unicycle):
     b = solve(problem, guess, transcription=StageShooting(), jit=False)
     c = solve(problem, guess, jit=False, solver="fatrop")
     assert a.success and b.success and c.success
-    assert b.objective == pytest.approx(a.objective, rel=1e-8) and b.horizon == pytest.approx(a.horizon, rel=1e-6)
+    assert (b.objective == pytest.approx(a.objective, rel=1e-8)
+            and b.horizon == pytest.approx(a.horizon, rel=1e-6))
     assert c.objective == pytest.approx(a.objective, rel=1e-6)
 
 

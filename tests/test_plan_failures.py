@@ -42,7 +42,8 @@ def test_a_converged_plan_that_misses_the_task_is_refined_or_a_failure():
     assert "even refined to" in text
     loose = plan("unicycle", {**P1, "verify_tolerance": 1e-2}, jit=False, solver="ipopt")
     assert loose.success and loose.solution.verification.max_error <= 1e-2 and len(loose.attempts) == 1
-    assert loose.solution.objective == pytest.approx(first.objective, rel=1e-9)   # the first optimum, accepted
+    # the first optimum, accepted
+    assert loose.solution.objective == pytest.approx(first.objective, rel=1e-9)
 
 
 TASK_TOML = """

@@ -120,7 +120,8 @@ def test_cli_writes_store_table_and_plots(tmp_path, capsys):
 # ----------------------------------------------------------------------------- Dask
 @pytest.fixture(scope="module")
 def dask_backend():
-    pytest.importorskip("distributed", reason="Dask distributed is not installed (pip install 'nhgait[dask]')")
+    pytest.importorskip("distributed",
+                        reason="Dask distributed is not installed (pip install 'nhgait[dask]')")
     from nhgait.gaits.sweeps.backends import DaskBackend
     backend = DaskBackend("local:2")
     yield backend

@@ -80,7 +80,8 @@ def test_bad_tables_between_the_ends_are_listed_together(scene):
     with pytest.raises(ProblemError) as info:
         _parse(scene, bad)
     text = str(info.value)
-    for expected in ["[task].waypoints[0]: unknown key(s) ['when']", "[task].waypoints[0]: missing key 'time'",
+    for expected in ["[task].waypoints[0]: unknown key(s) ['when']",
+                     "[task].waypoints[0]: missing key 'time'",
                      "[task].phases[0].intervals = 'ten' must be an integer",
                      "with phases, each phase states its own horizon (remove horizon from [task])",
                      "with phases, each phase states its own waypoints",
@@ -90,8 +91,10 @@ def test_bad_tables_between_the_ends_are_listed_together(scene):
                      "unknown weight 'wrok'"]:
         assert expected in text, (expected, text)
     without_phases = {k: v for k, v in bad.items() if k != "phases"}
-    with pytest.raises(ProblemError, match=r"(?s)waypoints\[1\]: unknown name 'zz'.*waypoints\[1\]: time 2.05 is "
-                                           r"not a node \(every 0.1 s with T = 6, N = 60\): the nearest nodes are 2 and 2.1"):
+    with pytest.raises(ProblemError,
+                       match=r"(?s)waypoints\[1\]: unknown name 'zz'.*waypoints\[1\]: time 2.05 is "
+                                           r"not a node \(every 0.1 s with T = 6, N = 60\): the nearest "
+                                           r"nodes are 2 and 2.1"):
         _parse(scene, without_phases)
 
 
@@ -111,8 +114,8 @@ def _forward_acceleration(solution, k, steps=1000):
     t = solution.t[k] + np.array([0.0, 1.0, 2.0]) * h / steps
     nz = len(problem.model_state_names)
     z = simulate_piecewise_constant(problem.model, problem.params, t, solution.states[:nz, k],
-                                    np.repeat(solution.controls[:, k:k + 1], 2, axis=1), Integrator(rtol=1e-11,
-                                                                                                 atol=1e-13))[0]
+                                    np.repeat(solution.controls[:, k:k + 1], 2, axis=1),
+                                    Integrator(rtol=1e-11, atol=1e-13))[0]
     qdot = problem.model.numeric["qdot"]
     v = []
     for j in range(3):

@@ -101,7 +101,8 @@ def _kane():
     order = [0, 3, 1, 2]
 
     def qddot(tt, qq, vv):
-        sol = np.linalg.solve(np.asarray(mass(tt, qq, vv), float), np.asarray(forcing(tt, qq, vv), float).ravel())
+        sol = np.linalg.solve(np.asarray(mass(tt, qq, vv), float),
+                              np.asarray(forcing(tt, qq, vv), float).ravel())
         out = np.empty(4)
         out[order] = sol
         return out
@@ -173,8 +174,8 @@ def test_scene_is_the_physical_roller_racer(scene):
     for _ in range(10):
         q, v = rng.uniform(-2, 2, 4), rng.uniform(-2, 2, 4)
         assert T(q, v) == pytest.approx(float(k["energy"](q, v)), rel=1e-13)
-        np.testing.assert_allclose(np.asarray(W(q), float) @ v, np.asarray(k["residual"](q, v), float).ravel(),
-                                   rtol=0, atol=1e-13)
+        np.testing.assert_allclose(np.asarray(W(q), float) @ v,
+                                   np.asarray(k["residual"](q, v), float).ravel(), rtol=0, atol=1e-13)
 
 
 def test_forms_are_the_requested_ones(roller):
@@ -364,8 +365,10 @@ CASES = {
                        (lambda t, th, thd, ph, phd: 0.5 * np.sin(3 * t + ph),
                         lambda t, th, thd, ph, phd: 0.2 * np.cos(2.5 * t) - 0.1 * phd)),
     "two frequencies, sqrt, a parameter": (("0.3*sin(t) + 0.2*sin(2.5*t)", "sqrt(1 + t)*sin(omega*t)/5"),
-                                           (lambda t, th, thd, ph, phd: 0.3 * np.sin(t) + 0.2 * np.sin(2.5 * t),
-                                            lambda t, th, thd, ph, phd: np.sqrt(1 + t) * np.sin(1.3 * t) / 5)),
+                                           (lambda t, th, thd, ph, phd: 0.3 * np.sin(t)
+                                            + 0.2 * np.sin(2.5 * t),
+                                            lambda t, th, thd, ph, phd: np.sqrt(1 + t) * np.sin(1.3 * t)
+                                            / 5)),
     "t inside a coordinate's function": (("0.4*sin(t*phi)", "exp(-t*phi_dot)/4"),
                                          (lambda t, th, thd, ph, phd: 0.4 * np.sin(t * ph),
                                           lambda t, th, thd, ph, phd: np.exp(-t * phd) / 4)),

@@ -140,7 +140,8 @@ def test_a_string_where_a_list_belongs_is_one_problem():
     with pytest.raises(ModelError) as info:
         System(**{**GOOD, "coordinates": "x phi"})
     assert len(info.value.problems) == 1
-    assert 'coordinates: expected a list of names, got a string (write coordinates = ["x", ...])' in str(info.value)
+    assert ('coordinates: expected a list of names, got a string (write coordinates = '
+            '["x", ...])' in str(info.value))
     with pytest.raises(ModelError) as info:
         System(**{**GOOD, "constraints": "x_dot - r*phi_dot"})
     assert len(info.value.problems) == 1 and "constraints: expected a list of expressions" in str(info.value)
