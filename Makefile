@@ -19,6 +19,7 @@ demo: $(STAMP)
 	@$(VENV)/bin/nhgait plan snakeboard --gait forward --out out/demo
 
 test: $(STAMP)
+	$(PY) -m ruff check .
 	$(PY) -m pytest -q
 
 reproduce: $(STAMP)

@@ -44,7 +44,8 @@ class Terminated(BaseException):
 #: that starts a child process blocks them until the child is registered to be killed (and the
 #: child restores the mask), so that the exception cannot land between the two and leave the
 #: child running (:mod:`nhgait.dynamics.numerics.compiler`, :mod:`nhgait.ocp.supervision`).
-STOP_SIGNALS = frozenset(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGALRM") if hasattr(signal, name))
+STOP_SIGNALS = frozenset(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGALRM")
+                         if hasattr(signal, name))
 
 
 #: the stop signals (SIGINT, SIGTERM) the command line's handlers received during the current

@@ -35,11 +35,11 @@ class Progress:
     _said: set = field(default_factory=set)
 
     @classmethod
-    def silent(cls) -> "Progress":
+    def silent(cls) -> Progress:
         return cls(None)
 
     @classmethod
-    def to_stderr(cls, *, verbose: bool = False) -> "Progress":
+    def to_stderr(cls, *, verbose: bool = False) -> Progress:
         return cls(sys.stderr, verbose=verbose)
 
     @property

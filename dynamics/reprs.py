@@ -73,7 +73,8 @@ def solution_repr(solution) -> str:
     verified = "not verified" if v is None else (f"verified to {v.max_error:.2g}" if v.passed
                                                  else f"verification FAILED ({v.max_error:.2g})")
     return (f"<Solution: {_status(solution.success, solution.status)}, J = {solution.objective:.6g}, "
-            f"{solution.iterations} iterations, {verified}, {_span(solution.t)}, horizon {solution.horizon:.4g} s\n"
+            f"{solution.iterations} iterations, {verified}, {_span(solution.t)}, horizon "
+            f"{solution.horizon:.4g} s\n"
             f" arrays: t {shape_of(solution.t)}, states {shape_of(solution.states)} rows "
             f"({', '.join(solution.state_names)}), controls {shape_of(solution.controls)} rows "
             f"({', '.join(solution.control_names)})>")
@@ -81,27 +82,30 @@ def solution_repr(solution) -> str:
 
 def solution_markdown(solution) -> str:
     v = solution.verification
-    rows = [("status", _status(solution.success, solution.status)), ("objective J", f"{solution.objective:.6g}"),
+    rows = [("status", _status(solution.success, solution.status)),
+            ("objective J", f"{solution.objective:.6g}"),
             ("iterations", str(solution.iterations)), ("horizon", f"{solution.horizon:.4g} s"),
             ("solve time", f"{solution.solve_time_s * 1e3:.1f} ms"),
             ("verification", "not run" if v is None
              else f"{'passed' if v.passed else 'FAILED'}, max error {v.max_error:.2g}"),
             ("states", f"`solution.states` {shape_of(solution.states)}: {', '.join(solution.state_names)}"),
-            ("controls", f"`solution.controls` {shape_of(solution.controls)}: {', '.join(solution.control_names)}")]
+            ("controls",
+             f"`solution.controls` {shape_of(solution.controls)}: {', '.join(solution.control_names)}")]
     return "**Solution**\n\n| | |\n|---|---|\n" + "\n".join(f"| {a} | {b} |" for a, b in rows) + "\n"
 
 
 def plan_repr(result) -> str:
     files = f"{len(result.files)} files in {result.files[0].parent}" if result.files else "no files written"
     solution = solution_repr(result.solution) if result.solution is not None else None
-    return (f"<PlanResult {result.label}: {'SUCCESS' if result.success else 'FAILED'}, guess {result.guess!r} "
-            f"of {len(result.attempts)} tried, {files}\n solution: {solution}>")
+    return (f"<PlanResult {result.label}: {'SUCCESS' if result.success else 'FAILED'}, guess "
+            f"{result.guess!r} of {len(result.attempts)} tried, {files}\n solution: {solution}>")
 
 
 def sweep_repr(result) -> str:
     solved = sum(1 for r in result.records if r.success)
     axes = ", ".join(f"{a.name} ({len(a)})" for a in result.grid.axes)
-    return (f"<SweepResult {result.case.get('label', '')}: {solved} of {int(np.prod(result.grid.shape))} points "
+    return (f"<SweepResult {result.case.get('label', '')}: {solved} of "
+            f"{int(np.prod(result.grid.shape))} points "
             f"solved and verified, grid {shape_of(np.empty(result.grid.shape))} over {axes}; "
             f"{result.directory}; result.objectives() is the grid of costs>")
 

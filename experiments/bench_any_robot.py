@@ -115,7 +115,8 @@ def run_plan(scene: Path, out: Path, budget: float, time_limit: bool, grace: flo
             cmd += ["--time-limit", f"{budget:g}"]
         env = {**os.environ, "NHGAIT_CACHE_DIR": cache}
         t0 = time.monotonic()
-        proc = subprocess.Popen(cmd, env=env, stdout=log_file, stderr=subprocess.STDOUT, start_new_session=True)
+        proc = subprocess.Popen(cmd, env=env, stdout=log_file, stderr=subprocess.STDOUT,
+                                start_new_session=True)
         stopped = None
         try:
             proc.wait(timeout=budget + (grace if time_limit else 0.0))
@@ -151,8 +152,9 @@ def _log_cause(log: Path) -> str:
 def classify(row: dict, solution: dict | None) -> dict:
     """outcome and cause of a plan (module docstring)."""
     if row["stopped_by_bench"]:
+        sigterm = "enough" if row.get("sigterm_enough") else "ignored"
         return {"outcome": "budget", "cause": f"no answer within the budget ({row['time_s']:.0f} s); "
-                                              f"SIGTERM {'enough' if row.get('sigterm_enough') else 'ignored'}"}
+                                              f"SIGTERM {sigterm}"}
     code = row["exit"]
     if code == 0 and solution and solution.get("success"):
         return {"outcome": "verified", "cause": ""}
@@ -198,7 +200,8 @@ def plan_pair(p, folder: Path, args, time_limit: bool) -> dict:
     scene.write_text(p.scene)
     extra = ("--no-jit",) if args.no_jit else ()
     row = {"pair": p.name, "robot": p.robot.name, "family": p.family, "n": p.robot.n, "k": p.robot.k,
-           "m": len(p.robot.inputs), "task": p.task_label, "N": p.task["intervals"], "horizon": p.task["horizon"]}
+           "m": len(p.robot.inputs), "task": p.task_label, "N": p.task["intervals"],
+           "horizon": p.task["horizon"]}
     row["budget_s"] = pair_budget(p, args.budget)
     row.update(run_plan(scene, folder / "plan", row["budget_s"], time_limit, args.grace, extra,
                         default=args.budget == "default"))
@@ -266,8 +269,8 @@ def summary(rows: list) -> dict:
             "worst_times": sorted(((r["time_s"], r["pair"], r["outcome"]) for r in rows), reverse=True)[:5]}
 
 
-COLUMNS = ("pair", "family", "n", "k", "task", "outcome", "cause", "time_s", "budget_s", "iterations", "objective",
-           "ref_objective", "verification_error", "guess")
+COLUMNS = ("pair", "family", "n", "k", "task", "outcome", "cause", "time_s", "budget_s", "iterations",
+           "objective", "ref_objective", "verification_error", "guess")
 
 
 def _fmt(v) -> str:
@@ -318,20 +321,22 @@ def _args(argv):
     ap.add_argument("--families", default=",".join(sibling.load("robot_generator").FAMILIES))
     ap.add_argument("--intervals", type=int, default=40, help="N of every task")
     ap.add_argument("--budget", type=_budget, default=120.0,
-                    help="wall-clock seconds per plan, or 'default': the planner's default for the robot's size "
-                         "(120 s + 30 s per coordinate), not passed as --time-limit")
+                    help="wall-clock seconds per plan, or 'default': the planner's default for the "
+                         "robot's size (120 s + 30 s per coordinate), not passed as --time-limit")
     ap.add_argument("--grace", type=float, default=5.0,
                     help="seconds past --time-limit before this script stops the plan")
     ap.add_argument("--reference", choices=("failed", "all", "none"), default="failed",
                     help="which pairs the reference checks (the verified ones are solvable anyway)")
     ap.add_argument("--reference-budget", type=float, default=300.0, help="seconds per reference solve")
     ap.add_argument("--reference-tolerance", type=float, default=1e-4,
-                    help="re-simulation and condition errors (relative) a reference answer must meet to count "
-                         "as solved: a gait exists to the transcription's accuracy at this N")
+                    help="re-simulation and condition errors (relative) a reference answer must "
+                         "meet to count as solved: a gait exists to the transcription's accuracy at this N")
     ap.add_argument("--reference-max-n", type=int, default=99,
                     help="no reference for robots with more coordinates")
-    ap.add_argument("--indices", default=None, help="comma-separated pair indices (instead of --first/--pairs)")
-    ap.add_argument("--reference-only", action="store_true", help="reuse the plans in --plans (default --out)")
+    ap.add_argument("--indices", default=None,
+                    help="comma-separated pair indices (instead of --first/--pairs)")
+    ap.add_argument("--reference-only", action="store_true",
+                    help="reuse the plans in --plans (default --out)")
     ap.add_argument("--plans", default=None,
                     help="with --reference-only: the benchmark output whose plans to check")
     ap.add_argument("--no-jit", action="store_true", help="plan with interpreted NLP functions")
@@ -356,7 +361,8 @@ def main(argv=None) -> int:
     out = Path(args.out)
     old = {}
     if args.reference_only:
-        old = {r["pair"]: r for r in json.loads((Path(args.plans or out) / "results.json").read_text())["rows"]}
+        old = {r["pair"]: r
+               for r in json.loads((Path(args.plans or out) / "results.json").read_text())["rows"]}
     time_limit = False if args.reference_only else has_time_limit()
     meta = {"seed": args.seed, "indices": [p.index for p in todo], "intervals": args.intervals,
             "budget_s": args.budget, "planner_time_limit": time_limit, "no_jit": args.no_jit}
@@ -365,7 +371,8 @@ def main(argv=None) -> int:
         if args.reference_only:
             row = old[p.name]
         else:
-            _say(args.quiet, f"[{i}/{len(todo)}] {p.name} (n = {p.robot.n}, k = {p.robot.k}, {p.task_label}): "
+            _say(args.quiet,
+                 f"[{i}/{len(todo)}] {p.name} (n = {p.robot.n}, k = {p.robot.k}, {p.task_label}): "
                              f"nhgait plan, budget {pair_budget(p, args.budget):g} s …")
             row = plan_pair(p, out / "pairs" / p.name, args, time_limit)
             _say(args.quiet, f"    {row['outcome']} in {row['time_s']:.1f} s {row['cause']}")

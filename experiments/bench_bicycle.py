@@ -30,7 +30,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-
 import sibling
 
 PUBLISHED = sibling.load("whipple_published")
@@ -69,7 +68,7 @@ def accuracy(model, speeds) -> dict:
     for v, published in PUBLISHED.TABLE2.items():
         ours = sorted(linearise(model, speed=float(v)).eigenvalues, key=lambda x: (round(x.real, 6), x.imag))
         theirs = sorted(np.asarray(published, complex), key=lambda x: (round(x.real, 6), x.imag))
-        worst = max(worst, max(abs(a - b) for a, b in zip(ours, theirs)))
+        worst = max(worst, max(abs(a - b) for a, b in zip(ours, theirs, strict=True)))
     t0 = time.perf_counter()
     chart = stability_chart(model, speeds)
     chart_s = time.perf_counter() - t0

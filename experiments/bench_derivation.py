@@ -28,6 +28,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 def _fresh():
     from sympy.core.cache import clear_cache
+
     from nhgait.dynamics.algebra.trig import forget_normal_forms
     clear_cache()
     forget_normal_forms()
@@ -40,8 +41,8 @@ def _kane(name):
 
 
 def _lagrange(name):
-    from sympy.physics.mechanics import LagrangesMethod, Lagrangian
     import oracles
+    from sympy.physics.mechanics import LagrangesMethod, Lagrangian
     mdl = oracles._MODELS[name]()
     L = Lagrangian(mdl["N"], *mdl["bodies"])
     lm = LagrangesMethod(L, mdl["q"], forcelist=mdl["loads"], frame=mdl["N"],

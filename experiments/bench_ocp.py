@@ -39,7 +39,9 @@ from pathlib import Path
 
 import plan_process  # experiments/plan_process.py: nhgait plan cold and warm, measured from outside
 import sibling  # experiments/sibling.py: the other scripts, loaded by file path
-PROBLEMS = {"P1": ("unicycle", "parallel-park"), "P2": ("snakeboard", "forward"), "P3": ("snakeboard", "rotate")}
+
+PROBLEMS = {"P1": ("unicycle", "parallel-park"), "P2": ("snakeboard", "forward"),
+            "P3": ("snakeboard", "rotate")}
 
 
 def _reference():
@@ -52,12 +54,10 @@ class Ours:
 
     def __init__(self, key, N, *, solver=None, transcription=None, jit=None, guess_label=None):
         from nhgait.gaits.guesses import candidates
-        from nhgait.gaits.planner import prepare
+        from nhgait.gaits.planner import prepare, solver_order
         from nhgait.gaits.search import solve_from_guesses
         from nhgait.gaits.task_library import resolve
         from nhgait.ocp import OCPSolver, SolverOptions
-
-        from nhgait.gaits.planner import solver_order
         solver = solver or solver_order("auto", transcription)[0]
         system, gait = PROBLEMS[key]
         t0 = time.perf_counter()
@@ -127,7 +127,7 @@ class Section:
         return " ".join(f"{title:>{_width(spec)}s}" for title, spec in self.columns)
 
     def line(self, values) -> str:
-        return " ".join(format(value, spec) for (_, spec), value in zip(self.columns, values))
+        return " ".join(format(value, spec) for (_, spec), value in zip(self.columns, values, strict=True))
 
 
 def _width(spec: str) -> int:
@@ -161,7 +161,8 @@ def _fatrop_row(ref, key, N, repeats):
            "speedup_vs_ipopt": i["solve_time_s"] / f["solve_time_s"]}
     values = [key, N, f["objective"], rel, f["iterations"], i["iterations"]]
     values += [x[name] * 1e3 for x in (f, i) for name in ("solve_time_s", "function_time_s", "solver_time_s")]
-    values += [r["solve_time_s"] * 1e3, r["solve_time_s"] / f["solve_time_s"], i["solve_time_s"] / f["solve_time_s"]]
+    values += [r["solve_time_s"] * 1e3, r["solve_time_s"] / f["solve_time_s"],
+               i["solve_time_s"] / f["solve_time_s"]]
     return row, f["success"] and rel < 1e-6, values
 
 
@@ -170,9 +171,10 @@ def _collocation_row(ref, key, N, repeats):
     colloc = Ours(key, N, solver="ipopt", transcription="collocation", guess_label=shooting.guess.label)
     m, c = interleaved([shooting, colloc], repeats)
     ratio = c["solve_time_s"] / m["solve_time_s"]
-    row = {"section": "collocation", "problem": key, "N": N, "shooting": m, "collocation": c, "time_ratio": ratio}
-    values = [key, N, m["objective"], c["objective"], m["iterations"], c["iterations"], m["solve_time_s"] * 1e3,
-              c["solve_time_s"] * 1e3, ratio, c["setup_time_s"] * 1e3]
+    row = {"section": "collocation", "problem": key, "N": N, "shooting": m, "collocation": c,
+           "time_ratio": ratio}
+    values = [key, N, m["objective"], c["objective"], m["iterations"], c["iterations"],
+              m["solve_time_s"] * 1e3, c["solve_time_s"] * 1e3, ratio, c["setup_time_s"] * 1e3]
     return row, c["success"], values
 
 
@@ -183,14 +185,15 @@ def _cold_row(ref, key, N, repeats):
     import tempfile
     system, gait = PROBLEMS[key]
     with tempfile.TemporaryDirectory(prefix="bench-ocp-cold-") as tmp:
-        row = plan_process.cold_and_warm([system, "--gait", gait, "--intervals", N], Path(tmp), Path(tmp) / "cache",
-                                         timeout=900.0)
+        row = plan_process.cold_and_warm([system, "--gait", gait, "--intervals", N], Path(tmp),
+                                         Path(tmp) / "cache", timeout=900.0)
     setup = ref.solve(key, N, jit=True)["setup_time_s"]
     nan, bg = float("nan"), row.get("background", {})
     row.update(section="cold", problem=key, N=N, reference_setup_s=setup,
                cold_over_reference_setup=row.get("cold_s", nan) / setup)
     values = [key, N, row.get("cold_s", nan), row.get("warm_s", nan), row.get("cold_over_warm", nan),
-              " " + str(row.get("code")), row.get("compile_s") or 0.0, " " + " ".join(bg.get("flags") or ["-"]),
+              " " + str(row.get("code")), row.get("compile_s") or 0.0,
+              " " + " ".join(bg.get("flags") or ["-"]),
               bg.get("compile_s") or nan, bg.get("peak_mb") or nan, row.get("peak_mb", nan), setup,
               row["cold_over_reference_setup"], " " + str(row.get("status"))]
     return row, bool(row.get("success")) and (row.get("warm") or {}).get("success", False), values
@@ -202,27 +205,31 @@ SECTIONS = {
     "default": Section(
         "default nhgait plan (auto = FATROP, compiled, own guess) and our Ipopt path (compiled) vs the "
         "hand-written reference (Ipopt, compiled, its guess)",
-        _PROBLEM + (("objective", "10.6f"), ("rel err", "8.1e"), ("it", "3d"), ("ref it", "6d"), ("ours ms", _MS),
-                    ("ref ms", _MS), ("ratio", "5.2f"), ("ipopt ms", _MS), ("ratio", "5.2f"), ("setup ms", _MS),
-                    ("ref setup", "9.1f"), ("verify", "8.1e"), (" guess", "")),
+        _PROBLEM + (("objective", "10.6f"), ("rel err", "8.1e"), ("it", "3d"), ("ref it", "6d"),
+                    ("ours ms", _MS),
+                    ("ref ms", _MS), ("ratio", "5.2f"), ("ipopt ms", _MS), ("ratio", "5.2f"),
+                    ("setup ms", _MS), ("ref setup", "9.1f"), ("verify", "8.1e"), (" guess", "")),
         _default_row),
     "fatrop": Section(
-        "FATROP (stage-ordered, compiled) vs our Ipopt (compiled) vs the reference's Ipopt (compiled); same guess",
-        _PROBLEM + (("J fatrop", "10.6f"), ("rel diff", "8.1e"), ("it F", "4d"), ("it I", "4d"), ("fatrop ms", "9.1f"),
-                    ("(fun", "6.1f"), ("solver)", "7.1f"), ("ipopt ms", _MS), ("(fun", "6.1f"), ("solver)", "7.1f"),
-                    ("ref ms", _MS), ("ref/F", "5.2f"), ("ipopt/F", "7.2f")),
+        "FATROP (stage-ordered, compiled) vs our Ipopt (compiled) vs the reference's Ipopt "
+        "(compiled); same guess",
+        _PROBLEM + (("J fatrop", "10.6f"), ("rel diff", "8.1e"), ("it F", "4d"), ("it I", "4d"),
+                    ("fatrop ms", "9.1f"),
+                    ("(fun", "6.1f"), ("solver)", "7.1f"), ("ipopt ms", _MS), ("(fun", "6.1f"),
+                    ("solver)", "7.1f"), ("ref ms", _MS), ("ref/F", "5.2f"), ("ipopt/F", "7.2f")),
         _fatrop_row),
     "collocation": Section(
         "collocation (Legendre, degree 3) vs multiple shooting, both ours compiled, same guess",
-        _PROBLEM + (("J shooting", "10.6f"), ("J colloc", "10.6f"), ("it MS", "5d"), ("it C", "4d"), ("MS ms", _MS),
-                    ("coll ms", _MS), ("ratio", "5.2f"), ("coll setup ms", "13.1f")),
+        _PROBLEM + (("J shooting", "10.6f"), ("J colloc", "10.6f"), ("it MS", "5d"), ("it C", "4d"),
+                    ("MS ms", _MS), ("coll ms", _MS), ("ratio", "5.2f"), ("coll setup ms", "13.1f")),
         _collocation_row),
     "cold": Section(
         "cold nhgait plan (empty cache, whole process) vs the same plan warm, and vs the reference's set-up "
         "(build + gcc -O1); the code that solved cold and the background build it started",
-        _PROBLEM + (("cold s", "7.1f"), ("warm s", "7.1f"), ("c/w", "5.2f"), (" code", "12s"), ("now s", "6.2f"),
-                    (" bg", "5s"), ("bg s", "6.1f"), ("bg MB", "6.0f"), ("RSS MB", "7.0f"), ("ref setup s", "11.1f"),
-                    ("c/rsu", "6.2f"), (" status", "")),
+        _PROBLEM + (("cold s", "7.1f"), ("warm s", "7.1f"), ("c/w", "5.2f"), (" code", "12s"),
+                    ("now s", "6.2f"),
+                    (" bg", "5s"), ("bg s", "6.1f"), ("bg MB", "6.0f"), ("RSS MB", "7.0f"),
+                    ("ref setup s", "11.1f"), ("c/rsu", "6.2f"), (" status", "")),
         _cold_row),
 }
 

@@ -88,7 +88,8 @@ def resimulate_in_opty(python: str, example: Path, trajectory: dict, out: Path) 
     path = out / "trajectory.json"
     path.write_text(json.dumps(trajectory))
     with tempfile.TemporaryDirectory() as work, open(out / "resimulate_log.txt", "w") as log:
-        subprocess.call([python, str(RUNNER), "resimulate", str(example), str(path), str(out / "accuracy.json")],
+        subprocess.call([python, str(RUNNER), "resimulate", str(example), str(path),
+                         str(out / "accuracy.json")],
                         cwd=work, stdout=log, stderr=subprocess.STDOUT)
     if not (out / "accuracy.json").exists():
         return {}
@@ -204,7 +205,8 @@ def _line(r: dict) -> str:
     if not r.get("ok", True) and "objective" not in r:
         return f"failed (exit {r.get('exit')})"
     return (f"whole {r.get('whole_s', float('nan')):.1f} s, solve {r.get('solve_s', float('nan')):.2f} s, "
-            f"{r.get('iterations')} iterations, J = {r.get('objective', float('nan')):.6g}, {r.get('status_msg')}")
+            f"{r.get('iterations')} iterations, J = {r.get('objective', float('nan')):.6g}, "
+            f"{r.get('status_msg')}")
 
 
 # ----------------------------------------------------------------------------- tables
@@ -217,20 +219,21 @@ def table_rows(results: list) -> list:
     for row in results:
         opty = row.get("opty")
         if opty:
-            rows.append([row["task"], "opty", opty.get("whole_s"), opty.get("solve_s"), opty.get("iterations"),
-                         opty.get("objective"), opty.get("horizon"), opty.get("converged"),
-                         (opty.get("accuracy") or {}).get("max_position_error_m")])
+            rows.append([row["task"], "opty", opty.get("whole_s"), opty.get("solve_s"),
+                         opty.get("iterations"), opty.get("objective"), opty.get("horizon"),
+                         opty.get("converged"), (opty.get("accuracy") or {}).get("max_position_error_m")])
         for label in ("cold", "warm"):
             r = row[label]
-            rows.append([row["task"], f"nhgait {label}", r.get("whole_s"), r.get("solve_s"), r.get("iterations"),
-                         r.get("objective"), r.get("horizon"), r.get("verified"),
+            rows.append([row["task"], f"nhgait {label}", r.get("whole_s"), r.get("solve_s"),
+                         r.get("iterations"), r.get("objective"), r.get("horizon"), r.get("verified"),
                          (r.get("accuracy") or {}).get("max_position_error_m")])
     return rows
 
 
 def _cell(v) -> str:
     if isinstance(v, float):
-        return "" if math.isnan(v) else (f"{v:.3g}" if abs(v) < 1e-2 else f"{v:.6g}" if abs(v) > 1e3 else f"{v:.4g}")
+        return "" if math.isnan(v) else (f"{v:.3g}" if abs(v) < 1e-2 else f"{v:.6g}" if abs(v) > 1e3
+                                         else f"{v:.4g}")
     return "" if v is None else str(v)
 
 
@@ -258,14 +261,16 @@ def main(argv=None) -> int:
     parser.add_argument("--examples", default="", help="the folder holding opty's gallery example files")
     parser.add_argument("--tasks", default=",".join(TASKS))
     parser.add_argument("--out", default="out/peers")
-    parser.add_argument("--refine", default="", help="tasks also run at 2× and 4× the nodes (comma-separated)")
+    parser.add_argument("--refine", default="",
+                        help="tasks also run at 2× and 4× the nodes (comma-separated)")
     parser.add_argument("--skip-opty", action="store_true", help="nhgait only")
     parser.add_argument("--opty-results", default="", help="reuse the opty runs of an earlier --out")
     args = parser.parse_args(argv)
     tasks = [t.strip() for t in args.tasks.split(",") if t.strip()]
     bad = [t for t in tasks if t not in TASKS]
     if bad or (not args.skip_opty and not args.opty_results and not (args.opty_python and args.examples)):
-        parser.error(f"unknown task(s) {bad}" if bad else "give --opty-python and --examples (or --skip-opty)")
+        parser.error(f"unknown task(s) {bad}" if bad
+                     else "give --opty-python and --examples (or --skip-opty)")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     results = [bench_task(task, args, out) for task in tasks]

@@ -35,13 +35,12 @@ import os
 import statistics
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
-
 import plan_process  # experiments/plan_process.py: nhgait plan cold and warm, measured from outside
 import sibling  # experiments/sibling.py: the other scripts, loaded by file path
+
 
 def cold(member: str, folder: Path, cache: Path, timeout: float, extra: tuple = ()) -> dict:
     """``nhgait plan`` of ``member`` in a fresh process with the empty cache ``cache``, its
@@ -134,7 +133,8 @@ def interleaved(runners, repeats) -> list:
 def warm(row: dict, repeats: int, reference: bool, hessians: bool, intervals=None, jit=True) -> dict:
     """The warm-cache solves of one member (module docstring)."""
     member = row["member"]
-    cold = Settings(row.get("solver") or "ipopt", row.get("hessian") or "exact", intervals, "optimised" if jit else False)
+    cold = Settings(row.get("solver") or "ipopt", row.get("hessian") or "exact", intervals,
+                    "optimised" if jit else False)
     runners = {"ours": Ours(member, row.get("guess"), cold)}
     if reference:
         runners["reference"] = Reference(member, intervals, jit)
@@ -147,7 +147,7 @@ def warm(row: dict, repeats: int, reference: bool, hessians: bool, intervals=Non
                                 ("fatrop", "exact"), ("fatrop", "gauss-newton")):
             runners[f"{solver}/{hessian}"] = Ours(member, row.get("guess"),
                                                   dataclasses.replace(cold, solver=solver, hessian=hessian))
-    results = dict(zip(runners, interleaved(list(runners.values()), repeats)))
+    results = dict(zip(runners, interleaved(list(runners.values()), repeats), strict=True))
     out = {"warm_solve": results["ours"]}
     if reference:
         r = results["reference"]
@@ -167,22 +167,25 @@ def _line(r: dict) -> str:
         return f"{r['member']:24s} {r.get('status', 'failed')}"
     ref, bg = r.get("reference", {}), r.get("background", {})
     nan = float("nan")
-    return (f"{r['member']:24s} {r['cold_s']:6.1f} {r.get('warm_s', nan):6.1f} {r.get('cold_over_warm', nan):5.2f} "
+    return (f"{r['member']:24s} {r['cold_s']:6.1f} {r.get('warm_s', nan):6.1f} "
+            f"{r.get('cold_over_warm', nan):5.2f} "
             f"{ref.get('setup_s', nan):6.1f} {r.get('cold_over_reference_setup', nan):5.2f} "
             f"{r['max_silent_s']:6.1f} {r['peak_mb']:6.0f} {r['code']:>11s} {r['compile_s']:5.2f} "
-            f"{' '.join(bg.get('flags') or ['-']):>4s} {bg.get('compile_s') or nan:6.1f} {bg.get('peak_mb') or nan:6.0f} "
+            f"{' '.join(bg.get('flags') or ['-']):>4s} {bg.get('compile_s') or nan:6.1f} "
+            f"{bg.get('peak_mb') or nan:6.0f} "
             f"{r['c_bytes'] / 1e6:5.2f} {ref.get('c_bytes', 0) / 1e6:5.2f} "
             f"{r.get('warm_solve', {}).get('solve_ms', nan):8.1f} {ref.get('solve_ms', nan):8.1f} "
             f"{r.get('ratio', nan):5.2f} {r.get('warm_solve', {}).get('iterations', -1):4d} "
             f"{ref.get('iterations', -1):4d} {r.get('same_guess', {}).get('iterations', -1):4d} "
-            f"{r.get('same_guess_ratio', nan):5.2f} {r['objective']:10.6f} {r.get('rel_objective', nan):9.1e} "
+            f"{r.get('same_guess_ratio', nan):5.2f} {r['objective']:10.6f} "
+            f"{r.get('rel_objective', nan):9.1e} "
             f"{r.get('verification_error') or nan:8.1e} {r['solver']}/{r['hessian']} {r['status']}")
 
 
-HEADER = (f"{'member':24s} {'cold s':>6s} {'warm s':>6s} {'c/w':>5s} {'ref su':>6s} {'c/rsu':>5s} {'silent':>6s} "
-          f"{'RSS MB':>6s} {'code':>11s} {'now s':>5s} {'bg':>4s} {'bg s':>6s} {'bg MB':>6s} {'C MB':>5s} "
-          f"{'ref C':>5s} {'warm ms':>8s} {'ref ms':>8s} {'ratio':>5s} {'it':>4s} {'r it':>4s} {'sg it':>4s} "
-          f"{'sg r':>5s} {'objective':>10s} {'rel J':>9s} {'verify':>8s} solver/hessian status")
+HEADER = (f"{'member':24s} {'cold s':>6s} {'warm s':>6s} {'c/w':>5s} {'ref su':>6s} {'c/rsu':>5s} "
+          f"{'silent':>6s} {'RSS MB':>6s} {'code':>11s} {'now s':>5s} {'bg':>4s} {'bg s':>6s} {'bg MB':>6s} "
+          f"{'C MB':>5s} {'ref C':>5s} {'warm ms':>8s} {'ref ms':>8s} {'ratio':>5s} {'it':>4s} {'r it':>4s} "
+          f"{'sg it':>4s} {'sg r':>5s} {'objective':>10s} {'rel J':>9s} {'verify':>8s} solver/hessian status")
 
 
 def main(argv=None) -> int:
@@ -193,10 +196,12 @@ def main(argv=None) -> int:
     ap.add_argument("--hessians", action="store_true", help="also every Hessian and solver, warm")
     ap.add_argument("--no-reference", action="store_true", help="skip the hand-written reference")
     ap.add_argument("--intervals", type=int, default=None, help="N for every member (default: the task's)")
-    ap.add_argument("--no-jit", action="store_true", help="interpreted NLPs, ours and the reference (smoke test)")
+    ap.add_argument("--no-jit", action="store_true",
+                    help="interpreted NLPs, ours and the reference (smoke test)")
     ap.add_argument("--out", default="out/bench_scale.json")
     args = ap.parse_args(argv)
-    extra = ((f"--intervals={args.intervals}",) if args.intervals else ()) + (("--no-jit",) if args.no_jit else ())
+    extra = ((f"--intervals={args.intervals}",) if args.intervals else ()) + (("--no-jit",)
+                                                                              if args.no_jit else ())
     rows = []
     print(HEADER, flush=True)
     with tempfile.TemporaryDirectory(prefix="bench-scale-") as tmp:

@@ -42,6 +42,7 @@ BUILTINS = ("unicycle", "snakeboard")
 
 def _fresh():
     from sympy.core.cache import clear_cache
+
     from nhgait.dynamics.algebra.trig import forget_normal_forms
     clear_cache()
     forget_normal_forms()
@@ -98,7 +99,7 @@ def _mechanics(name, kind):
     """A callable that runs sympy's LagrangesMethod (equations + rhs()) or KanesMethod on the
     oracle's physical description of ``name`` (timed from the description onwards)."""
     import oracles
-    from sympy.physics.mechanics import Lagrangian, LagrangesMethod
+    from sympy.physics.mechanics import LagrangesMethod, Lagrangian
 
     def run():
         mdl = oracles.model_description(name)
@@ -154,7 +155,8 @@ def measure(name, repeats, cap, cli=True, agreement=True):
     row["lagrange_s"] = _median(_mechanics(name, "lagrange"), repeats, cap)
     row["kane_s"] = _median(_mechanics(name, "kane"), repeats, cap)
     if agreement:
-        from oracles import agreement as oracle_agreement, oracle
+        from oracles import agreement as oracle_agreement
+        from oracles import oracle
         row["oracle_error"] = oracle_agreement(system, model, oracle(name))
     else:
         row["oracle_error"] = None
@@ -174,10 +176,11 @@ def table(rows, cap) -> str:
             "RHS ops | q̈ error vs Kane |\n|---|---|---|---|---|---|---|---|---|---|---|")
     lines = [head]
     for r in rows:
-        lag = _fmt(_ratio(r["derive_s"], r["lagrange_s"]), ".2f") if r["lagrange_s"] else f"> cap ({cap:.0f} s)"
+        lag = (_fmt(_ratio(r["derive_s"], r["lagrange_s"]), ".2f") if r["lagrange_s"]
+               else f"> cap ({cap:.0f} s)")
         lines.append(f"| {r['name']} | {r['n']} | {r['k']} | {r['form']} | {_fmt(r['derive_s'])} | {lag} | "
-                     f"{_fmt(_ratio(r['derive_s'], r['kane_s']), '.2f')} | {_fmt(r['print_s'])} | {_fmt(r['cli_s'], '.2f')} | "
-                     f"{r['rhs_ops']} | {_fmt(r['oracle_error'], '.1e')} |")
+                     f"{_fmt(_ratio(r['derive_s'], r['kane_s']), '.2f')} | {_fmt(r['print_s'])} | "
+                     f"{_fmt(r['cli_s'], '.2f')} | {r['rhs_ops']} | {_fmt(r['oracle_error'], '.1e')} |")
     return "\n".join(lines)
 
 
@@ -200,7 +203,8 @@ def plot(rows, path):
     nn = np.arange(4, 12)
     a2.plot(nn, 60 * nn ** 2, "k:", label="∝ n² (reference)")
     a2.plot(nn, 6 * nn ** 3, "k-.", label="∝ n³ (reference)")
-    for ax, title, ylabel in ((a1, "cold derivation", "seconds"), (a2, "CasADi right-hand side", "operations")):
+    for ax, title, ylabel in ((a1, "cold derivation", "seconds"),
+                              (a2, "CasADi right-hand side", "operations")):
         ax.set_yscale("log")
         ax.set_xlabel("n (coordinates)")
         ax.set_ylabel(ylabel)

@@ -28,14 +28,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import operator
 import statistics
 import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
-
-
-import operator
 
 _echo = operator.itemgetter(1)      # a picklable function that does no work: payload → answer
 _carried = operator.attrgetter("warm")     # the same for a job carrying its answer as ``warm``
@@ -55,7 +53,8 @@ def timed_sweep(case, grid, backend, *, warm_start=True):
     from nhgait.gaits.sweeps.store import SweepStore
     with tempfile.TemporaryDirectory() as tmp, SweepStore(tmp) as store:
         t0 = time.perf_counter()
-        result = run_sweep(case, grid, backend, store, RunOptions(warm_start=warm_start))  # prepares the other workers
+        # prepares the other workers
+        result = run_sweep(case, grid, backend, store, RunOptions(warm_start=warm_start))
         return time.perf_counter() - t0, result
 
 
@@ -113,14 +112,15 @@ def dask_overhead(samples: int, solves: int, scene=("snakeboard", "forward")) ->
             "dask_overhead_s": per_point[1], "overhead_fraction_of_p2_solve": per_point[1] / solve_s,
             "overhead_per_point_s_by_chain": per_point,
             "overhead_fraction_of_p2_solve_by_chain": {k: v / solve_s for k, v in per_point.items()},
-            "round_trip_fraction_of_p2_solve": (statistics.median(trips) - statistics.median(local)) / solve_s,
-            "samples": samples}
+            "round_trip_fraction_of_p2_solve": (statistics.median(trips) - statistics.median(local))
+            / solve_s, "samples": samples}
 
 
 def _pipelined(backend, payload, count: int, chain: int = 1) -> float:
     """Seconds per point for ``count`` tasks of ``chain`` points each, kept 2 per worker in
     flight as the sweep driver does."""
     import concurrent.futures as cf
+
     from nhgait.gaits.sweeps.point import solve_chain
     t0 = time.perf_counter()
     in_flight, sent = set(), 0
@@ -189,8 +189,10 @@ def _throughput_section(report: dict, repeats: int, p1_axes) -> None:
     print(f"1. throughput, P1 N=50, {t['points']} points ({' × '.join(p1_axes)}), {repeats} runs each:")
     print(f"   1 worker  median {t['median_s'][1]:.2f} s  runs {[round(x, 2) for x in t['times_s'][1]]}")
     print(f"   2 workers median {t['median_s'][2]:.2f} s  runs {[round(x, 2) for x in t['times_s'][2]]}")
-    print(f"   speed-up 2 workers / 1 worker = {t['speedup_2_over_1']:.2f}  (target ≥ 1.7); solved {t['solved']}")
-    print(f"   points running at once (Σ point wall / sweep wall, median): 1 worker {t['concurrency'][1]:.2f}, "
+    print(f"   speed-up 2 workers / 1 worker = {t['speedup_2_over_1']:.2f}  (target ≥ 1.7); solved "
+          f"{t['solved']}")
+    print("   points running at once (Σ point wall / sweep wall, median): 1 worker "
+          f"{t['concurrency'][1]:.2f}, "
           f"2 workers {t['concurrency'][2]:.2f} — below 2 while the centre is solved cold and when the "
           f"cores are shared")
 
@@ -204,14 +206,18 @@ def _dask_section(report: dict, samples: int, solves: int, p2, dask_axes) -> Non
     except ModelError as exc:  # pragma: no cover - Dask not installed
         print(f"2. Dask overhead: skipped ({exc})")
     else:
-        print(f"2. Dask per-point overhead (LocalCluster, 1 worker; a {p2[0]} job and a solution-sized answer): "
-              f"{d['dask_overhead_s'] * 1e3:.1f} ms per point with 2 points in flight as the sweep keeps them "
-              f"(median of 3 × {d['samples']}), {d['dask_round_trip_s'] * 1e3:.1f} ms for one isolated round trip;")
-        print(f"   {'/'.join(p2)} N=50 solve median {d['p2_solve_s'] * 1e3:.1f} ms ({d['p2_iterations']} iterations) → "
-              f"{100 * d['overhead_fraction_of_p2_solve']:.1f} % for one point per task, "
+        print(f"2. Dask per-point overhead (LocalCluster, 1 worker; a {p2[0]} job and a "
+              "solution-sized answer): "
+              f"{d['dask_overhead_s'] * 1e3:.1f} ms per point with 2 points in flight as the "
+              "sweep keeps them "
+              f"(median of 3 × {d['samples']}), {d['dask_round_trip_s'] * 1e3:.1f} ms for one "
+              "isolated round trip;")
+        print(f"   {'/'.join(p2)} N=50 solve median {d['p2_solve_s'] * 1e3:.1f} ms ({d['p2_iterations']} "
+              f"iterations) → {100 * d['overhead_fraction_of_p2_solve']:.1f} % for one point per task, "
               f"{100 * d['round_trip_fraction_of_p2_solve']:.1f} % isolated")
         for k in CHAINS:
-            print(f"   tasks of {k} point{'s' if k > 1 else ' '}: {d['overhead_per_point_s_by_chain'][k] * 1e3:5.1f} ms per point "
+            print(f"   tasks of {k} point{'s' if k > 1 else ' '}: "
+                  f"{d['overhead_per_point_s_by_chain'][k] * 1e3:5.1f} ms per point "
                   f"= {100 * d['overhead_fraction_of_p2_solve_by_chain'][k]:4.1f} % of the solve")
         ch = d["sweep"] = dask_chains(dask_axes, p2)
         m = ch["points_per_task"]
@@ -220,23 +226,27 @@ def _dask_section(report: dict, samples: int, solves: int, p2, dask_axes) -> Non
         f = d["overhead_fraction_of_p2_solve_by_chain"]
         est = f[lo] if hi == lo else f[lo] + (f[hi] - f[lo]) * (m - lo) / (hi - lo)
         d["overhead_fraction_in_sweep"] = est
-        print(f"   a Dask sweep of {' × '.join(dask_axes)} (local:2, chain {ch['chain']}): {ch['points']} points in "
-              f"{ch['tasks']} tasks = {m:.2f} points per task ({ch['solved']} solved) → overhead ≈ "
-              f"{100 * est:.1f} % of a solve per point (target ≤ 10 %)")
+        print(f"   a Dask sweep of {' × '.join(dask_axes)} (local:2, chain {ch['chain']}): "
+              f"{ch['points']} points in {ch['tasks']} tasks = {m:.2f} points per task ({ch['solved']} "
+              f"solved) → overhead ≈ {100 * est:.1f} % of a solve per point (target ≤ 10 %)")
 
 
 def _continuation_section(report: dict, p2_axes, p2) -> None:
     """Section 3 (printed, and added to ``report``): warm against cold starts along the grid."""
     c = report["continuation"] = continuation(p2_axes, p2)
     print(f"3. continuation, {'/'.join(p2)} N=50, {c['points']} points ({' × '.join(p2_axes)}), 2 workers:")
-    print(f"   warm: {c['warm']['iterations']} Ipopt iterations, {c['warm']['solved']} solved, {c['warm']['wall_s']:.1f} s")
-    print(f"   cold: {c['cold']['iterations']} Ipopt iterations, {c['cold']['solved']} solved, {c['cold']['wall_s']:.1f} s")
+    print(f"   warm: {c['warm']['iterations']} Ipopt iterations, {c['warm']['solved']} solved, "
+          f"{c['warm']['wall_s']:.1f} s")
+    print(f"   cold: {c['cold']['iterations']} Ipopt iterations, {c['cold']['solved']} solved, "
+          f"{c['cold']['wall_s']:.1f} s")
     print(f"   iterations warm / cold = {c['iteration_ratio_warm_over_cold']:.2f}  (target ≤ 0.60)")
     if "dask" in report:
         point = c["warm"]["point_wall_median_s"]
         report["dask"]["overhead_fraction_of_warm_point"] = report["dask"]["dask_overhead_s"] / point
-        print(f"   a warm point in its worker (set-up reuse, solve, re-simulation): median {point * 1e3:.0f} ms → "
-              f"Dask overhead {100 * report['dask']['overhead_fraction_of_warm_point']:.1f} % of a whole point")
+        print("   a warm point in its worker (set-up reuse, solve, re-simulation): median "
+              f"{point * 1e3:.0f} ms → "
+              f"Dask overhead {100 * report['dask']['overhead_fraction_of_warm_point']:.1f} % of "
+              "a whole point")
 
 
 def main(argv=None) -> int:

@@ -49,7 +49,8 @@ def measure(n: int, fiber: bool, repeats: int, full_up_to: int) -> dict:
     test_s, test = _median_time(lambda: symmetry.symmetry_test(system), repeats)
     derive_s, _ = _median_time(lambda: derive(system, "reduced", use_cache=False), repeats)
     row = {"n": n, "fiber given": fiber, "symmetry test s": round(test_s, 3), "derive s": round(derive_s, 3),
-           "candidates tested": len(test.candidates), "subsets": 2 ** n - 1, "chosen": list(test.chosen.fiber)}
+           "candidates tested": len(test.candidates), "subsets": 2 ** n - 1,
+           "chosen": list(test.chosen.fiber)}
     if not fiber and n <= full_up_to:
         limit = symmetry.FULL_TABLE_MAX_N
         symmetry.FULL_TABLE_MAX_N = n

@@ -24,8 +24,8 @@
 
 Writes ``out/bench_tracking.json``. The machine's cores may be shared: quote one run.
 
-Usage: python experiments/bench_tracking.py [--quick] [--workers 2] [--sections snakeboard,tiago,six,floquet,robust]
-                                           [--out out/bench_tracking.json]
+Usage: python experiments/bench_tracking.py [--quick] [--workers 2]
+       [--sections snakeboard,tiago,six,floquet,robust] [--out out/bench_tracking.json]
 (``--quick``: N = 30 plans, 4 samples, 8 samples of part 3 — a smoke run, not the targets.)
 """
 from __future__ import annotations
@@ -37,7 +37,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-
 import sibling  # experiments/sibling.py: the other scripts, loaded by file path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -68,8 +67,8 @@ def tiago(samples: int, overrides) -> dict:
         return {"skipped": "needs pip install 'nhgait[pinocchio]' (TIAGo's URDF is in example-robot-data)"}
     from nhgait.gaits.tracking.study import track
     t0 = time.perf_counter()
-    result = track(str(ROOT / "examples" / "tiago_park.toml"), overrides=overrides, mismatch=["params.m_base=1.1"],
-                   samples=samples, seed=0)
+    result = track(str(ROOT / "examples" / "tiago_park.toml"), overrides=overrides,
+                   mismatch=["params.m_base=1.1"], samples=samples, seed=0)
     return {**_ratio(result.report), "wall_s": time.perf_counter() - t0, "samples": samples}
 
 
@@ -125,7 +124,8 @@ def robust(samples: int, overrides) -> dict:
         result = track("snakeboard", {**task, **extra}, mismatch=["params.m=1.1", "params.J_r=0.9"],
                        samples=samples, seed=0)
         wall, report, solution = time.perf_counter() - t0, result.report, result.plan.solution
-        out[label] = {**_ratio(report), "noise_free_open": report["open_loop"]["noise_free_final_position_error"],
+        out[label] = {**_ratio(report),
+                      "noise_free_open": report["open_loop"]["noise_free_final_position_error"],
                       "objective": solution.objective, "plan_s": result.timings["plan_s"], "wall_s": wall,
                       "robust": solution.settings.get("robust")}
     out["copies"] = ROBUST
@@ -136,21 +136,24 @@ def _print_robust(r: dict) -> None:
     for label in ("nominal", "robust"):
         x = r[label]
         effort = x["objective"] if x["robust"] is None else x["robust"]["task_objective"]
-        print(f"  {label:8s} plan: J = {x['objective']:.4g} (the task's {effort:.4g}), planned in {x['plan_s']:.1f} s; open loop final position "
+        print(f"  {label:8s} plan: J = {x['objective']:.4g} (the task's {effort:.4g}), planned in "
+              f"{x['plan_s']:.1f} s; open loop final position "
               f"error median {x['open_median']:.4g} {x['unit']}, max {x['open_max']:.4g} (noise-free "
-              f"{x['noise_free_open']:.4g}); closed loop median {x['closed_median']:.4g}, max {x['closed_max']:.4g}")
+              f"{x['noise_free_open']:.4g}); closed loop median {x['closed_median']:.4g}, max "
+              f"{x['closed_max']:.4g}")
     n, b = r["nominal"], r["robust"]
     dev = b["robust"]
     print(f"  robust / nominal open loop: median {b['open_median'] / n['open_median']:.3f}, max "
-          f"{b['open_max'] / n['open_max']:.3f}, noise-free {b['noise_free_open'] / n['noise_free_open']:.3f}; "
-          f"copies' mean terminal deviation {dev['nominal_plan']['mean']:.3g} → {dev['robust_plan']['mean']:.3g} "
-          f"(units of (0.02 s_i)²)")
+          f"{b['open_max'] / n['open_max']:.3f}, noise-free "
+          f"{b['noise_free_open'] / n['noise_free_open']:.3f}; "
+          f"copies' mean terminal deviation {dev['nominal_plan']['mean']:.3g} → "
+          f"{dev['robust_plan']['mean']:.3g} (units of (0.02 s_i)²)")
 
 
 def _print(results: dict) -> None:
     if "robust" in results:
-        print("robust planning (snakeboard forward, copies m ×{0.9, 1.1}, J_r ×{0.9, 1.1}; tracked with m +10 %, "
-              "J_r −10 %):")
+        print("robust planning (snakeboard forward, copies m ×{0.9, 1.1}, J_r ×{0.9, 1.1}; tracked "
+              "with m +10 %, J_r −10 %):")
         _print_robust(results["robust"])
     for name in ("snakeboard", "tiago"):
         if name not in results:
@@ -162,19 +165,21 @@ def _print(results: dict) -> None:
         print(f"{name}: {r['samples']} samples; final position error open median {r['open_median']:.4g} "
               f"{r['unit']} (max {r['open_max']:.4g}), closed median {r['closed_median']:.4g}, max "
               f"{r['closed_max']:.4g}; closed max / open median = {r['ratio']:.4f} (target ≤ 0.1); "
-              f"inputs at a bound {r['saturation_s_open_median']:.3g} s open, {r['saturation_s_closed_median']:.3g} s "
-              f"closed (medians); {r['wall_s']:.1f} s")
+              f"inputs at a bound {r['saturation_s_open_median']:.3g} s open, "
+              f"{r['saturation_s_closed_median']:.3g} s closed (medians); {r['wall_s']:.1f} s")
     if "six_coordinates" not in results or "floquet" not in results:
         return
     r = results["six_coordinates"]
     print(f"two-steering snakeboard (n = 6): {r['samples']} samples on {r['workers']} workers in "
-          f"{r['samples_s']:.1f} s ({r['per_sample_ms']:.0f} ms per sample, open + closed loop; target ≤ 60 s), "
-          f"plan {r['plan_s']:.1f} s, whole study {r['wall_s']:.1f} s; closed max / open median = {r['ratio']:.4f}")
+          f"{r['samples_s']:.1f} s ({r['per_sample_ms']:.0f} ms per sample, open + closed loop; "
+          "target ≤ 60 s), "
+          f"plan {r['plan_s']:.1f} s, whole study {r['wall_s']:.1f} s; closed max / open median = "
+          f"{r['ratio']:.4f}")
     f = results["floquet"]
     print(f"Floquet (snakeboard forward gait): closed loop multipliers agree with finite differences to "
           f"{f['closed_loop']['max_multiplier_difference']:.2e}, monodromy entries to "
-          f"{f['closed_loop']['max_entry_difference']:.2e} (open loop {f['open_loop']['max_entry_difference']:.2e}); "
-          f"target ≤ 1e-6")
+          f"{f['closed_loop']['max_entry_difference']:.2e} (open loop "
+          f"{f['open_loop']['max_entry_difference']:.2e}); target ≤ 1e-6")
     for line in f["summary"]:
         print(f"  {line}")
 

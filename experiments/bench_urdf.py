@@ -27,7 +27,8 @@ TIAGO = "example-robot-data:tiago_description/robots/tiago.urdf"
 WHEELS = ["wheel_left_joint", "wheel_right_joint"]
 #: tiago_3 is the 8-coordinate TIAGo of tests/test_urdf_pinocchio.py
 ROBOTS = {
-    "snakeboard": {"urdf": "snakeboard.urdf", "joints": ["psi", "phi"], "skates": ["back_wheels", "front_wheels"]},
+    "snakeboard": {"urdf": "snakeboard.urdf", "joints": ["psi", "phi"],
+                   "skates": ["back_wheels", "front_wheels"]},
     "roller_racer": {"urdf": "roller_racer.urdf", "joints": ["phi"], "skates": ["front_axle", "rear_axle"]},
     "tiago_base": {"urdf": TIAGO, "joints": WHEELS, "rolling": WHEELS},
     "tiago_shoulder": {"urdf": TIAGO, "joints": WHEELS + ["arm_1_joint"], "rolling": WHEELS},
@@ -40,6 +41,7 @@ ROBOTS = {
 
 def _build(table):
     from sympy.core.cache import clear_cache
+
     from nhgait.dynamics.derivation.urdf import urdf_system
     clear_cache()
     t0 = time.perf_counter()
@@ -100,7 +102,8 @@ def main(argv=None):
     if not args.no_plan:
         result["plan"] = bench_plan()
         for kind, numbers in result["plan"].items():
-            print(f"plan tiago_park ({kind}): " + ", ".join(f"{k} = {v:.6g}" if isinstance(v, float) else f"{k} = {v}"
+            print(f"plan tiago_park ({kind}): " + ", ".join(f"{k} = {v:.6g}" if isinstance(v, float)
+                                                            else f"{k} = {v}"
                                                           for k, v in numbers.items()))
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)

@@ -33,6 +33,10 @@ import os
 import re
 import sys
 import time
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:   # numpy is imported where it is used (the annotations are not evaluated)
+    import numpy as np
 
 START = time.time()   # as close to the interpreter's start as a script gets
 
@@ -59,7 +63,7 @@ def _source(path: str, num_nodes: int | None) -> str:
     return text
 
 
-def _interpolated(guess: dict, prob) -> "np.ndarray":
+def _interpolated(guess: dict, prob) -> np.ndarray:
     """A previous answer on this problem's nodes (normalised time), as opty's free vector."""
     import numpy as np
     old_t = np.asarray(guess["t"], float)
@@ -149,7 +153,7 @@ def explicit_ode(namespace: dict):
     mech = q + u
     x_sym = sm.symbols(f"x0:{len(mech)}")
     r_sym = sm.symbols(f"r0:{len(specified)}")
-    subs = dict(zip(mech, x_sym)) | dict(zip(specified, r_sym))
+    subs = dict(zip(mech, x_sym, strict=True)) | dict(zip(specified, r_sym, strict=True))
     M_f = sm.lambdify([x_sym, r_sym, params], M.xreplace(subs), "numpy", cse=True)
     F_f = sm.lambdify([x_sym, r_sym, params], F.xreplace(subs), "numpy", cse=True)
     pvals = [float(values[s]) for s in params]
@@ -158,7 +162,8 @@ def explicit_ode(namespace: dict):
 
     def f(_t, x, r):
         xm = np.asarray(x, float)[index]
-        dx = np.linalg.solve(np.asarray(M_f(xm, r, pvals), float), np.asarray(F_f(xm, r, pvals), float).ravel())
+        dx = np.linalg.solve(np.asarray(M_f(xm, r, pvals), float),
+                             np.asarray(F_f(xm, r, pvals), float).ravel())
         out = np.zeros(len(states))
         out[index] = dx
         return out
@@ -186,14 +191,16 @@ def resimulate(f, index, t, states, inputs, *, backward: bool) -> dict:
     ok = True
     for k in range(len(t) - 1):
         r = R[:, k + 1] if backward else R[:, k]
-        sol = solve_ivp(lambda tt, xx: f(tt, xx, r), (t[k], t[k + 1]), x, method="DOP853", rtol=1e-10, atol=1e-12)
+        sol = solve_ivp(lambda tt, xx, r=r: f(tt, xx, r), (t[k], t[k + 1]), x, method="DOP853",
+                        rtol=1e-10, atol=1e-12)
         ok &= bool(sol.success)
         x = sol.y[:, -1]
         sim[:, k + 1] = x
     err = np.abs(sim[index] - X[index])
     position = np.hypot(sim[index[0]] - X[index[0]], sim[index[1]] - X[index[1]])
     return {"success": ok, "max_state_error": float(err.max()), "max_position_error_m": float(position.max()),
-            "final_position_error_m": float(position[-1]), "state_errors": [float(e) for e in err.max(axis=1)]}
+            "final_position_error_m": float(position[-1]),
+            "state_errors": [float(e) for e in err.max(axis=1)]}
 
 
 # ----------------------------------------------------------------------------- commands
@@ -235,9 +242,11 @@ def resimulate_command(args) -> dict:
     specified = [str(s) for s in namespace["specified_symbols"]]
     import numpy as np
     R = np.zeros((len(specified), len(data["t"])))
-    for name, row in zip(data["input_names"], np.asarray(data["inputs"], float).T):   # inputs: N × m
+    # inputs: N × m
+    for name, row in zip(data["input_names"], np.asarray(data["inputs"], float).T, strict=False):
         R[specified.index(name), :-1] = row
-    return {"example": os.path.basename(args.example), "accuracy": resimulate(f, index, data["t"], data["states"], R,
+    return {"example": os.path.basename(args.example), "accuracy": resimulate(f, index, data["t"],
+                                                                              data["states"], R,
                                                                                backward=False)}
 
 
@@ -261,7 +270,8 @@ def main(argv=None) -> int:
     print(f"{result['example']}: " + ("" if args.command != "run" else
           f"{result['status_msg']}, J = {result['objective']:.6g}, {result['iterations']} iterations, "
           f"whole {result['whole_s']:.1f} s; ") + f"re-simulated: position off by up to "
-          f"{acc['max_position_error_m']:.3g} m (final {acc['final_position_error_m']:.3g} m)", file=sys.stderr)
+          f"{acc['max_position_error_m']:.3g} m (final {acc['final_position_error_m']:.3g} m)",
+          file=sys.stderr)
     return 0 if math.isfinite(acc["max_state_error"]) else 1
 
 

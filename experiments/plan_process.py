@@ -42,7 +42,8 @@ def run_plan(args: list, out: Path, cache: Path, timeout: float) -> dict:
     """``nhgait plan ARGS --no-gif --out OUT`` in a fresh process with the cache ``cache`` (module
     docstring); a run not finished in ``timeout`` s is killed and says so in ``status``."""
     env = {**os.environ, "NHGAIT_CACHE_DIR": str(cache), "NHGAIT_BACKGROUND_BUILDS": "1"}
-    cmd = [sys.executable, "-c", _WRAPPER, *nhgait_command(), "plan", *map(str, args), "--no-gif", "--out", str(out)]
+    cmd = [sys.executable, "-c", _WRAPPER, *nhgait_command(), "plan", *map(str, args), "--no-gif",
+           "--out", str(out)]
     t0 = time.monotonic()
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     stamps, lines, peak = [t0], [], 0
@@ -60,7 +61,8 @@ def run_plan(args: list, out: Path, cache: Path, timeout: float) -> dict:
         return {"status": f"plan not finished in {timeout:.0f} s"}
     stamps.append(time.monotonic())
     row = {"exit": proc.returncode, "wall_s": stamps[-1] - t0, "peak_mb": peak / 1024.0,
-           "max_silent_s": max(b - a for a, b in zip(stamps, stamps[1:])), "stderr_tail": lines[-5:]}
+           "max_silent_s": max(b - a for a, b in zip(stamps, stamps[1:], strict=False)),
+           "stderr_tail": lines[-5:]}
     path = out / "solution.json"
     if path.exists():
         row.update(_solution_fields(json.loads(path.read_text())))
@@ -73,9 +75,12 @@ def _solution_fields(data: dict) -> dict:
     verification = data.get("verification") or {}
     return {"success": data["success"], "status": data["status"], "objective": data["objective"],
             "iterations": data["iterations"], "guess": data["guess"]["won"], "solver": st.get("solver"),
-            "hessian": st.get("hessian"), "stage": st.get("stage"), "ode_operations": st.get("ode_operations"),
-            "c_bytes": comp.get("c_bytes", 0), "code": comp.get("code", "interpreted" if not st.get("jit") else "?"),
-            "compiler": comp.get("compiler"), "flags": comp.get("flags"), "compile_s": comp.get("compile_s", 0.0),
+            "hessian": st.get("hessian"), "stage": st.get("stage"),
+            "ode_operations": st.get("ode_operations"),
+            "c_bytes": comp.get("c_bytes", 0),
+            "code": comp.get("code", "interpreted" if not st.get("jit") else "?"),
+            "compiler": comp.get("compiler"), "flags": comp.get("flags"),
+            "compile_s": comp.get("compile_s", 0.0),
             "later": comp.get("later"), "verification_error": verification.get("max_error"),
             "condition_error": verification.get("max_condition_error"), "velocities": st.get("velocities"),
             "phases": {k: st[k] for k in st if k.endswith("_s")}}
@@ -95,7 +100,8 @@ def background_build(later: dict | None, cache: Path, timeout: float) -> dict:
            "waited_s": time.monotonic() - t0, "flags": later.get("flags")}
     if record.exists():
         data = json.loads(record.read_text())
-        row.update(compile_s=data.get("compile_s"), peak_mb=data.get("compiler_peak_mb"), c_bytes=data.get("c_bytes"))
+        row.update(compile_s=data.get("compile_s"), peak_mb=data.get("compiler_peak_mb"),
+                   c_bytes=data.get("c_bytes"))
     failed = jit / f"{later['key']}.failed"
     if failed.exists():
         row["reason"] = json.loads(failed.read_text()).get("reason")

@@ -169,14 +169,14 @@ MODELS = {  # name -> (rhs, nx, nu)
 }
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def ode_function(model: str) -> ca.Function:
     rhs, nx, nu = MODELS[model]
     X, U = ca.SX.sym("x", nx), ca.SX.sym("u", nu)
     return ca.Function("f_" + model, [X, U], [rhs(X, U)], ["x", "u"], ["xdot"])
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def rk4_function(model: str, dt: float, M: int) -> ca.Function:
     """One shooting interval: M explicit RK4 steps of size dt/M (SX, ODE inlined)."""
     rhs, nx, nu = MODELS[model]
@@ -286,7 +286,8 @@ def _ipopt_opts(jit: bool, expand: bool = True) -> dict:
     if jit:
         # CasADi writes jit_tmp*.c / tmp_casadi_compiler_shell*.so into the working directory
         # and may leave them at exit: the solvers are built inside _scratch_cwd().
-        opts.update({"jit": True, "compiler": "shell", "jit_cleanup": False, "jit_options": {"flags": ["-O1"], "cleanup": False}})
+        opts.update({"jit": True, "compiler": "shell", "jit_cleanup": False,
+                     "jit_options": {"flags": ["-O1"], "cleanup": False}})
     return opts
 
 
@@ -459,9 +460,10 @@ class _Build:
     expand: bool
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _build(build: _Build):
-    return _FORMULATIONS[build.formulation](build.problem, build.N, build.M, build.jit, build.map_mode, build.expand)
+    return _FORMULATIONS[build.formulation](build.problem, build.N, build.M, build.jit, build.map_mode,
+                                            build.expand)
 
 
 def solve(problem: str, N: int, *, jit: bool = False, M: int = 4,

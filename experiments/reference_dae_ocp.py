@@ -61,7 +61,6 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-
 import sibling  # experiments/sibling.py: the other scripts, loaded by file path
 
 SUBSTEPS = 4
@@ -247,7 +246,8 @@ class ReferenceOCP:
         uu, mu = ca.MX.sym("u", m), ca.MX.sym("mu", k)
         nxt = step(x, uu, h)
         Wn = self.f["omega"](xn[:n])
-        link = ca.Function("link", [x, uu, mu, xn], [ca.vertcat(xn[:n] - nxt[:n], xn[n:] - nxt[n:] - Wn.T @ mu,
+        link = ca.Function("link", [x, uu, mu, xn], [ca.vertcat(xn[:n] - nxt[:n],
+                                                                xn[n:] - nxt[n:] - Wn.T @ mu,
                                                                  Wn @ xn[n:])])
         stride = 2 * n + m + k
         w = ca.MX.sym("w", N * stride + 2 * n)                              # interval-stacked
@@ -356,8 +356,8 @@ class ReferenceOCP:
         key = (float(max_wall_s), int(max_iter))
         if key in self._solvers:
             return self._solvers[key], 0.0
-        opts = {"print_time": False, "ipopt": {"print_level": 0, "max_iter": max_iter, "tol": 1e-8, "sb": "yes",
-                                               "max_wall_time": float(max_wall_s)}}
+        opts = {"print_time": False, "ipopt": {"print_level": 0, "max_iter": max_iter, "tol": 1e-8,
+                                               "sb": "yes", "max_wall_time": float(max_wall_s)}}
         t0 = time.perf_counter()
         if self.jit:
             opts.update({"expand": False, "jit": True, "compiler": "shell", "jit_cleanup": False,
@@ -372,9 +372,8 @@ class ReferenceOCP:
         self.compile_s += setup
         return solver, setup
 
-    def solve(self, guess=None, max_wall_s=300.0, max_iter=1000, tolerance=1e-4) -> "ReferenceResult":
+    def solve(self, guess=None, max_wall_s=300.0, max_iter=1000, tolerance=1e-4) -> ReferenceResult:
         """Ipopt from ``guess`` (a solution.json path/dict, or None: the own guess)."""
-        import casadi as ca
         start = "planner" if guess is not None else "own"
         Q, Qd, U = self.planner_guess(guess) if guess is not None else self.own_guess()
         w0 = np.clip(self.pack(Q, Qd, U), self.lbw, self.ubw)

@@ -166,7 +166,6 @@ from pathlib import Path
 
 import casadi as ca
 import numpy as np
-
 import sibling  # experiments/sibling.py: the other scripts, loaded by file path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -306,7 +305,7 @@ class KaneBody:
     derive_s: float
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def kane_body(member: str) -> KaneBody:
     """Kane's equations of ``member`` (``tests/oracles.py`` description) in body-frame speeds."""
     import sympy as sp
@@ -338,9 +337,9 @@ def kane_body(member: str) -> KaneBody:
     q_syms = tuple(sp.Symbol(f"q_{nm}", real=True) for nm in names)
     u_syms = tuple(sp.Symbol(f"u_{sp_}", real=True) for sp_ in speeds)
     tau_syms = tuple(sp.Symbol(str(i), real=True) for i in mdl["inputs"])
-    plain = {**dict(zip(q, q_syms)), **dict(zip(u, u_syms))}
+    plain = {**dict(zip(q, q_syms, strict=True)), **dict(zip(u, u_syms, strict=True))}
     plain.update({p: sp.Float(values[str(p)]) for p in mdl["params"]})
-    plain.update({i: ts for i, ts in zip(mdl["inputs"], tau_syms)})
+    plain.update({i: ts for i, ts in zip(mdl["inputs"], tau_syms, strict=True)})
     frame0 = {q_syms[0]: 0, q_syms[1]: 0, q_syms[2]: 0}
 
     def to_plain(mat):
@@ -459,7 +458,7 @@ def _speeds_symbolic(kb: KaneBody, ind, dep, z, tau) -> tuple:
 _SPEEDS = {"numeric": _speeds_numeric, "symbolic": _speeds_symbolic}
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def reduced_ode(member: str, linear: str = "symbolic") -> ReducedODE:
     """The reduced ODE of ``member`` (see the module docstring); ``linear`` = "numeric" (solves
     in the SX graph) or "symbolic" (eliminated in sympy before printing)."""
@@ -546,9 +545,10 @@ class _StateIndex:
     state_rate: dict
 
     @classmethod
-    def of(cls, ode: ReducedODE) -> "_StateIndex":
+    def of(cls, ode: ReducedODE) -> _StateIndex:
         return cls({c: i for i, c in enumerate(ode.coordinates)},
-                   {f"{s}_dot" if s != "v" else "forward_velocity": ode.n + j for j, s in enumerate(ode.independent)})
+                   {f"{s}_dot" if s != "v"
+                    else "forward_velocity": ode.n + j for j, s in enumerate(ode.independent)})
 
     def get(self, name):
         """The index of ``name`` in z, None when it is not a state."""
@@ -583,7 +583,8 @@ def _end_bounds(ode: ReducedODE, task: dict, index: _StateIndex, path: tuple, no
     return tuple(ends)
 
 
-def _periodic_rows(ode: ReducedODE, task: dict, index: _StateIndex, path: tuple, ends: tuple, notes: list) -> list:
+def _periodic_rows(ode: ReducedODE, task: dict, index: _StateIndex, path: tuple, ends: tuple,
+                   notes: list) -> list:
     """The periodic states kept as rows z_N[i] = z_0[i]; a periodic state fixed at one end is
     fixed at the other instead (``ends`` narrowed), a periodic rate that is not a state must be
     implied by the periodic states (checked, dropped)."""
@@ -618,7 +619,8 @@ def _control_bounds(ode: ReducedODE, task: dict) -> tuple:
     lbu, ubu = np.full(ode.nu, -_INF), np.full(ode.nu, _INF)
     for name, value in cb.items():
         j = ode.inputs.index(name)
-        lbu[j], ubu[j] = (-float(value), float(value)) if not isinstance(value, (list, tuple)) else _range(value)
+        lbu[j], ubu[j] = ((-float(value), float(value)) if not isinstance(value, (list, tuple))
+                          else _range(value))
     return lbu, ubu
 
 
@@ -695,7 +697,7 @@ def _rk4_rollout(ode: ReducedODE, q0: np.ndarray, u_of_t, t: np.ndarray, sub: in
     """Kinematic rollout q̇ = R(q) u_ind(t) (RK4, ``sub`` steps per node interval)."""
     qs = [np.asarray(q0, float)]
     R = ode.velocity_matrix
-    for a, b in zip(t[:-1], t[1:]):
+    for a, b in zip(t[:-1], t[1:], strict=True):
         q = qs[-1].copy()
         h = (b - a) / sub
         for i in range(sub):
@@ -786,7 +788,7 @@ def rk4_stage(ode: ReducedODE, dt: float, steps: int = 4, kind: str = "MX") -> c
     if kind == "step":
         zs, ts = ca.SX.sym("z", ode.nx), ca.SX.sym("tau", ode.nu)
         step = ca.Function(f"step_{ode.member}", [zs, ts], [rk4(zs, ts, ode.f)])
-        f, sym = None, ca.MX.sym
+        sym = ca.MX.sym
     elif kind in ("MX", "SX"):
         step, sym = None, (ca.MX.sym if kind == "MX" else ca.SX.sym)
     else:
@@ -934,7 +936,8 @@ class Reference:
         }
 
 
-def build(member: str, N: int | None = None, jit: bool = True, task: dict | None = None, **options) -> Reference:
+def build(member: str, N: int | None = None, jit: bool = True, task: dict | None = None,
+          **options) -> Reference:
     """The reference NLP of ``member`` (compiled when ``jit``); ``N`` overrides the task's;
     ``options``: the other fields of :class:`Options`."""
     return Reference(member, Options(N=N, jit=jit, **options), task)
@@ -943,7 +946,7 @@ def build(member: str, N: int | None = None, jit: bool = True, task: dict | None
 # --------------------------------------------------------------------------- #
 # a second model: the multiplier DAE in (q, q̇) (check and re-simulation)
 # --------------------------------------------------------------------------- #
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def multiplier_dae(member: str) -> ca.Function:
     """q̈(q, q̇, τ) of M_q q̈ = F_q + A_qᵀλ, A_q q̈ = −Ȧ_q q̇, from the *unconstrained*
     ``KanesMethod`` in the speeds u = q̇ (no body-frame speeds, no symmetry, no reduction)."""
@@ -956,21 +959,22 @@ def multiplier_dae(member: str) -> ca.Function:
     names = [qi.func.__name__ for qi in q]
     u = [dynamicsymbols(f"ud_{c}") for c in names]
     qd = [qi.diff(t) for qi in q]
-    km = KanesMethod(mdl["N"], q_ind=q, u_ind=u, kd_eqs=[a - b for a, b in zip(u, qd)])
+    km = KanesMethod(mdl["N"], q_ind=q, u_ind=u, kd_eqs=[a - b for a, b in zip(u, qd, strict=True)])
     km.kanes_equations(mdl["bodies"], mdl["loads"])
-    cons = sp.Matrix(mdl["constraints"]).xreplace(dict(zip(qd, u)))
+    cons = sp.Matrix(mdl["constraints"]).xreplace(dict(zip(qd, u, strict=True)))
     values = _parameter_values(member)
     qs = sp.symbols([f"q{i}" for i in range(n)], real=True)
     us = sp.symbols([f"qd{i}" for i in range(n)], real=True)
     taus = sp.symbols([str(i) for i in mdl["inputs"]], real=True)
-    plain = {**dict(zip(q, qs)), **dict(zip(u, us)), **dict(zip(mdl["inputs"], taus))}
+    plain = {**dict(zip(q, qs, strict=True)), **dict(zip(u, us, strict=True)),
+             **dict(zip(mdl["inputs"], taus, strict=True))}
     plain.update({p: sp.Float(values[str(p)]) for p in mdl["params"]})
     M = sp.Matrix(km.mass_matrix).xreplace(plain)
     F = sp.Matrix(km.forcing).xreplace(plain)
     A = cons.jacobian(u).xreplace(plain)
     Aqd = A * sp.Matrix(us)
     bias = sp.zeros(A.shape[0], 1)
-    for qi, ui in zip(qs, us):
+    for qi, ui in zip(qs, us, strict=True):
         bias += Aqd.diff(qi) * ui
     Q, QD, TAU = ca.SX.sym("q", n), ca.SX.sym("qd", n), ca.SX.sym("tau", len(taus))
     env = {**{s: Q[i] for i, s in enumerate(qs)}, **{s: QD[i] for i, s in enumerate(us)},
@@ -1068,7 +1072,8 @@ def resimulate(ref: Reference, res: dict, rtol: float = 1e-10, atol: float = 1e-
     nfev = 0
     for kk in range(ref.N):
         tau = U[kk]
-        sol = solve_ivp(lambda _t, s: np.concatenate([s[n:], np.asarray(dae(s[:n], s[n:], tau)).ravel()]),
+        sol = solve_ivp(lambda _t, s, tau=tau: np.concatenate([s[n:],
+                                                               np.asarray(dae(s[:n], s[n:], tau)).ravel()]),
                         (t[kk], t[kk + 1]), states[-1], method="DOP853", rtol=rtol, atol=atol)
         if not sol.success:
             return {"success": False, "message": sol.message, "node_error": math.inf}
@@ -1224,7 +1229,8 @@ def main(argv=None) -> int:
     rows = []
     for m in members:
         if args.in_process or len(members) == 1:
-            rows.append(run_member(m, options, repeats=args.repeats, check=args.check, verify=not args.no_verify))
+            rows.append(run_member(m, options, repeats=args.repeats, check=args.check,
+                                   verify=not args.no_verify))
         else:
             rows.append(_run_isolated(m, args))
         r = rows[-1]

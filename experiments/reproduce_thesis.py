@@ -50,7 +50,7 @@ def kane_reference(name, t_eval, q0, qdot0, controller, params=None):
     from nhgait.dynamics.derivation.models import builtin
 
     system = builtin(name)
-    values = dict(zip((s.name for s in system.param_symbols), system.param_values))
+    values = dict(zip((s.name for s in system.param_symbols), system.param_values, strict=True))
     values.update(params or {})
     o = _oracle(name)
     pv = np.array([float(values[p]) for p in o.parameters])
@@ -78,8 +78,8 @@ def main(argv=None) -> int:
     parser.add_argument("--no-idas", action="store_true", help="skip the IDAS runs")
     args = parser.parse_args(argv)
 
-    from nhgait.gaits.cli.reproduce import print_summary
     from nhgait.gaits.bench.reproduction import reproduce
+    from nhgait.gaits.cli.reproduce import print_summary
 
     summary = reproduce(args.out, rtol=args.rtol, idas=not args.no_idas, reference=kane_reference)
     print_summary(summary)

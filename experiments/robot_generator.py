@@ -54,7 +54,6 @@ import sys
 from dataclasses import dataclass, field
 
 import numpy as np
-
 import sibling  # experiments/sibling.py: the other scripts, loaded by file path
 
 FAMILIES = ("chain", "car", "sleigh", "snakeboard")
@@ -272,8 +271,8 @@ def chain(rng, name: str) -> Robot:
     where = {0: "head", L - 1: "tail"}.get(b, "middle")
     conv = {1: "relative joint angles (rear minus front)", -1: "relative joint angles (front minus rear)",
             0: "absolute link headings"}[convention]
-    comment = (f"Wheeled {L}-link chain{' with a rotor on the base link' if rotor else ''}: (x, y, {theta}) the "
-               f"{where} link's centre and heading, {conv}; wheel axles (no side slip) on links "
+    comment = (f"Wheeled {L}-link chain{' with a rotor on the base link' if rotor else ''}: (x, y, "
+               f"{theta}) the {where} link's centre and heading, {conv}; wheel axles (no side slip) on links "
                f"{', '.join(str(i + 1) for i in wheeled)}; torques on the joints.")
     return Robot(name, "chain", comment, tuple(coords), ("x", "y", theta), tuple(shape), tuple(frames),
                  tuple(points), tuple(bodies), tuple((f"W{i + 1}", f"link{i + 1}") for i in wheeled),
@@ -309,7 +308,8 @@ def car(rng, name: str) -> Robot:
     # points: P0 the car's rear axle, H_i the hitch of trailer i, P_i its axle
     if b == 0:
         first = Point("P0", None, "car") if base == "rear axle" else None
-        points = [first] if first else [Point("G0", None, "car"), Point("P0", "G0", "car", (_L((-1, "a")), ()))]
+        points = [first] if first else [Point("G0", None, "car"),
+                                        Point("P0", "G0", "car", (_L((-1, "a")), ()))]
         for i in range(1, K + 1):
             prev = "car" if i == 1 else f"trailer{i - 1}"
             points.append(Point(f"H{i}", f"P{i - 1}", prev, (_L((-1, f"d{i}")), ())))
@@ -329,13 +329,15 @@ def car(rng, name: str) -> Robot:
     wheels = [("P0", "car"), ("F0", "steer")] + [(f"P{i}", f"trailer{i}") for i in range(1, K + 1)]
     coords = ["x", "y", theta, steer] + hitch
     conv = {1: "hitch angles relative (trailer minus the body ahead)",
-            -1: "hitch angles relative (the body ahead minus the trailer)", 0: "absolute headings"}[convention]
-    comment = (f"Car with {K} trailer(s) hitched behind the axle of the body ahead (off-axle): (x, y, {theta}) "
-               f"the {'car' if b == 0 else 'last trailer'}'s {base if b == 0 else 'axle'} and heading, {conv}; "
-               f"front axle steered by {steer}; drive force F along the car at its rear axle, "
-               "steering torque tau_s.")
-    return Robot(name, "car", comment, tuple(coords), ("x", "y", theta), tuple([steer] + hitch), tuple(frames),
-                 tuple(points), tuple(bodies), tuple(wheels),
+            -1: "hitch angles relative (the body ahead minus the trailer)",
+            0: "absolute headings"}[convention]
+    comment = (f"Car with {K} trailer(s) hitched behind the axle of the body ahead (off-axle): (x, "
+               f"y, {theta}) "
+               f"the {'car' if b == 0 else 'last trailer'}'s {base if b == 0 else 'axle'} and "
+               f"heading, {conv}; front axle steered by {steer}; drive force F along the car at "
+               "its rear axle, steering torque tau_s.")
+    return Robot(name, "car", comment, tuple(coords), ("x", "y", theta), tuple([steer] + hitch),
+                 tuple(frames), tuple(points), tuple(bodies), tuple(wheels),
                  (Torque("tau_s", "steer", "car"),), (Push("F", "P0", "car"),), params,
                  length=params["b"] + sum(params[f"d{i}"] + params[f"l{i}"] for i in range(1, K + 1)))
 
@@ -397,8 +399,9 @@ def snakeboard(rng, name: str) -> Robot:
     torques = (Torque("tau_psi", "rotor", "board"), Torque("tau_phi", "front", "back", 0.5 * sign))
     where = "back axle" if at_back else "centre"
     comment = (f"Snakeboard with random parameters: (x, y, theta) the board's {where} "
-               f"and heading; the front wheels steer by theta {'+' if sign > 0 else '-'} phi, the back wheels by "
-               f"theta {'-' if sign > 0 else '+'} phi; rotor torque tau_psi, steering torque tau_phi.")
+               f"and heading; the front wheels steer by theta {'+' if sign > 0 else '-'} phi, the "
+               f"back wheels by theta {'-' if sign > 0 else '+'} phi; rotor torque tau_psi, steering "
+               "torque tau_phi.")
     return Robot(name, "snakeboard", comment, ("x", "y", "theta", "psi", "phi"), ("x", "y", "theta"),
                  ("psi", "phi"), tuple(frames), tuple(points), tuple(bodies), (("K", "back"), ("F", "front")),
                  torques, (), params, length=2 * params["r"])
@@ -582,8 +585,10 @@ def make_task(rng, robot: Robot, intervals: int = 40) -> tuple:
         initial.update(_start_shape(rng, robot, bounds, h0))
     rest = {f"{c}_dot": 0.0 for c in robot.coordinates}
     task = {"name": f"{labels['kind']}-{labels['mode']}",
-            "description": f"{robot.family} {labels['kind']}, {labels['mode']}, initial shape {labels['shape']}, "
-                           f"{labels['reach']} target, {labels['bounds']} control bounds (robot_generator.py)",
+            "description": f"{robot.family} {labels['kind']}, {labels['mode']}, initial shape "
+                           f"{labels['shape']}, "
+                           f"{labels['reach']} target, {labels['bounds']} control bounds "
+                           "(robot_generator.py)",
             "horizon": float(f"{T:.3g}"), "intervals": int(intervals), "initial": {**initial, **rest},
             "final": dict(final)}
     if labels["mode"] == "rest":

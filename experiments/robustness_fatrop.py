@@ -19,7 +19,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 TASKS = [("unicycle", "parallel-park"), ("snakeboard", "forward"), ("snakeboard", "rotate"),
          ("snakeboard", "lateral"), (str(ROOT / "examples" / "car.toml"), None),
-         (str(ROOT / "examples" / "cart_trailer.toml"), None), (str(ROOT / "examples" / "rotor_sleigh.toml"), None)]
+         (str(ROOT / "examples" / "cart_trailer.toml"), None),
+         (str(ROOT / "examples" / "rotor_sleigh.toml"), None)]
 
 
 def main(argv=None) -> int:
@@ -46,8 +47,9 @@ def main(argv=None) -> int:
                 i, f = res["ipopt"], res["fatrop"]
                 same = i.success and f.success and abs(i.objective - f.objective) <= 1e-6 * abs(i.objective)
                 rows.append({"task": to_plan.label, "N": N, "guess": guess.label,
-                             **{s: {"success": r.success, "iterations": r.iterations, "objective": r.objective,
-                                    "status": r.status} for s, r in res.items()}, "same_optimum": same})
+                             **{s: {"success": r.success, "iterations": r.iterations,
+                                    "objective": r.objective, "status": r.status} for s, r in res.items()},
+                             "same_optimum": same})
                 print(f"{to_plan.label:32s} {N:4d} {guess.label[:42]:42s} "
                       f"{str(i.success):>5s} {i.iterations:4d} {i.objective:11.6f} "
                       f"{str(f.success):>5s} {f.iterations:4d} {f.objective:11.6f} {same}", flush=True)

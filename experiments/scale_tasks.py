@@ -167,7 +167,8 @@ def task_toml(task_table: dict) -> str:
 
 def scene_with_task(member: str) -> str:
     """The member's scene text (``scaling_systems.scene_text``) followed by its ``[task]``."""
-    return _scaling_systems().scene_text(member).rstrip("\n") + "\n\n" + task_toml(copy.deepcopy(TASKS[member]))
+    return (_scaling_systems().scene_text(member).rstrip("\n") + "\n\n"
+            + task_toml(copy.deepcopy(TASKS[member])))
 
 
 if __name__ == "__main__":  # pragma: no cover - prints one scene file

@@ -52,7 +52,7 @@ def _velocity_text(coords):
     qds = [sp.Symbol(f"{c}_dot", real=True) for c in coords]
 
     def d(expr):
-        return sum((sp.diff(expr, a) * b for a, b in zip(qs, qds)), sp.Integer(0))
+        return sum((sp.diff(expr, a) * b for a, b in zip(qs, qds, strict=True)), sp.Integer(0))
     return qs, d
 
 
@@ -87,7 +87,7 @@ def _tidy_form(expr, coords):
     """Collect a form in the velocities and trigsimp each coefficient (readable scene text)."""
     qds = [sp.Symbol(f"{c}_dot", real=True) for c in coords]
     poly = sp.Poly(sp.expand(expr), *qds)
-    return sp.Add(*[_trig_tidy(c) * sp.Mul(*[v ** k for v, k in zip(qds, mon)])
+    return sp.Add(*[_trig_tidy(c) * sp.Mul(*[v ** k for v, k in zip(qds, mon, strict=True)])
                     for mon, c in poly.terms()])
 
 
@@ -158,7 +158,8 @@ def cart_trailer_absolute() -> str:
     coords = ["x", "y", "theta0", "theta1", "phi"]
     qs, d = _velocity_text(coords)
     T, cons = _cart_chain(coords, [qs[2], qs[3]], 1, d)
-    return _Member("cart_trailer_absolute", "Cart with one trailer, absolute headings (issue 8 reproduction).",
+    return _Member("cart_trailer_absolute",
+                   "Cart with one trailer, absolute headings (issue 8 reproduction).",
                    coords, T, cons, {"theta0": "tau_theta", "phi": "tau_phi"}, {**CART, **TRAILER}).toml()
 
 
@@ -205,7 +206,8 @@ def snakeboard_two_steering() -> str:
     front = centre + P["r"] * _e(th)
     back = centre - P["r"] * _e(th)
     cons = [_n(th + pb).dot(back.applyfunc(d)), _n(th + pf).dot(front.applyfunc(d))]
-    return _Member("snakeboard_two_steering", "Snakeboard with independently steered wheels (issue 8 reproduction).",
+    return _Member("snakeboard_two_steering",
+                   "Snakeboard with independently steered wheels (issue 8 reproduction).",
                    coords, T, cons, {"psi": "tau_psi", "phi_f": "tau_f", "phi_b": "tau_b"}, BOARD).toml()
 
 

@@ -202,8 +202,10 @@ def summary(results: dict) -> list:
         if not stops:
             continue
         p90 = stops[min(len(stops) - 1, int(round(0.9 * (len(stops) - 1))))]
-        lines.append(f"{kind}: {len(hit)} runs signalled ({len(result['trials']) - len(hit)} ended first); stop time "
-                     f"median {statistics.median(stops):.3f} s, 90th percentile {p90:.3f} s, max {stops[-1]:.3f} s; "
+        lines.append(f"{kind}: {len(hit)} runs signalled ({len(result['trials']) - len(hit)} ended "
+                     "first); stop time "
+                     f"median {statistics.median(stops):.3f} s, 90th percentile {p90:.3f} s, max "
+                     f"{stops[-1]:.3f} s; "
                      f"{sum(r['passed'] for r in result['trials'])}/{len(result['trials'])} passed")
         phases = Counter(r["phase"] for r in hit)
         lines.append("  phases hit: " + ", ".join(f"{name} ×{count}" for name, count in phases.most_common()))
@@ -235,7 +237,8 @@ def main(argv=None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "stress_sigterm.json").write_text(json.dumps({"member": args.member, "seed": args.seed,
-                                                         "stop_bound_s": STOP_S, "results": results}, indent=1))
+                                                         "stop_bound_s": STOP_S,
+                                                         "results": results}, indent=1))
     return 0 if all(r["passed"] for result in results.values() for r in result["trials"]) else 1
 
 

@@ -5,7 +5,9 @@ Run: python experiments/thesis_printed_equations.py
 """
 import numpy as np
 from scipy.integrate import solve_ivp
-m,J,Jr,Jw=0.5,0.3,0.2,0.1; r=np.sqrt((J+Jr+2*Jw)/m)
+
+m,J,Jr,Jw=0.5,0.3,0.2,0.1
+r=np.sqrt((J+Jr+2*Jw)/m)
 kp,kd=10,5
 def make(psi_factor=2.0, ptpsi0_factor=2.0):
     def f(t,z):
@@ -20,8 +22,10 @@ def make(psi_factor=2.0, ptpsi0_factor=2.0):
         tphi=-np.cos(t)+kp*(np.cos(t)-ph)+kd*(-np.sin(t)-phid)
         ppsd=pph/(2*Jw)*(-Jr/(2*m*r**2)*p+Jr*np.sin(2*ph)/(Jr-2*m*r**2-Jr*np.cos(2*ph))*pps)+tpsi
         return [np.cos(th)*xi1,np.sin(th)*xi1,xi3,psid,phid,pd,ppsd,tphi]
-    ph0=1.0; psd0=1.0
-    z0=[0,0,0,0,ph0,Jr*np.sin(2*ph0)*psd0, ptpsi0_factor*Jr/(m*r**2)*(m*r**2-Jr*np.sin(ph0)**2)*psd0, 2*Jw*0.0]
+    ph0=1.0
+    psd0=1.0
+    z0=[0,0,0,0,ph0,Jr*np.sin(2*ph0)*psd0,
+        ptpsi0_factor*Jr/(m*r**2)*(m*r**2-Jr*np.sin(ph0)**2)*psd0, 2*Jw*0.0]
     return f,z0
 def main(argv=None):
   for pf,icf in [(2,2),(1,1),(2,1),(1,2)]:

@@ -81,7 +81,7 @@ def kane_final_state(name, controller, start, solver=("DOP853", 1e-13, 1e-15), p
     (q0, qdot0, t_final), (method, rtol, atol) = start, solver
     system = builtin(name, **(params or {}))
     o = _oracle(name)
-    values = dict(zip((s.name for s in system.param_symbols), system.param_values))
+    values = dict(zip((s.name for s in system.param_symbols), system.param_values, strict=True))
     pv = np.array([float(values[p]) for p in o.parameters])
     n = len(o.coordinates)
 
@@ -104,8 +104,8 @@ def lagranges_method_anchor(name):
     n = system.n
     q = dynamicsymbols(" ".join(system.coordinates))
     qd = [qi.diff() for qi in q]
-    to_fn = dict(zip(system.q, q))
-    to_fn.update(dict(zip(system.q_dot, qd)))
+    to_fn = dict(zip(system.q, q, strict=True))
+    to_fn.update(dict(zip(system.q_dot, qd, strict=True)))
     L = system.L.xreplace(to_fn)
     cons = [c.xreplace(to_fn) for c in system.constraint_exprs]
     N = ReferenceFrame("N")
@@ -142,10 +142,11 @@ def anchor_rows(name, case, tolerances, repeats):
     y0 = np.r_[case.q0, case.qdot0]
     rows = []
     for rtol in sorted(tolerances, reverse=True):
-        def run():
+        def run(rtol=rtol):
             return solve_ivp(rhs, (0.0, case.t_final), y0, method="DOP853", rtol=rtol, atol=rtol * 1e-2)
         wall, walls, sol = wp.time_call(run, repeats)
-        err = float(np.max(np.abs(np.r_[sol.y[:n, -1] - case.reference[0], sol.y[n:, -1] - case.reference[1]])))
+        err = float(np.max(np.abs(np.r_[sol.y[:n, -1] - case.reference[0],
+                                        sol.y[n:, -1] - case.reference[1]])))
         rows.append(wp.Row(case=case.name, label="anchor: LagrangesMethod+lambdify/scipy DOP853",
                            formulation="anchor", method="DOP853", rtol=rtol, error=err, wall_s=wall,
                            wall_all_s=walls, nfev=int(sol.nfev), n_steps=0, constraint=math.nan,
@@ -203,7 +204,8 @@ def setups_for(name, methods, tolerances):
                        wp.Setup(f, "DOP853", stabilization="projection"), wp.Setup(f, "DOP853", dae="idas")]
         return setups, [t for t in tolerances if t in (1e-6, 1e-8, 1e-10)] or tolerances[:1]
     if name == "shape":
-        return [wp.Setup("reduced", m) for m in ("compiled", "DOP853", "CVODES") if m in methods or m == "compiled"], tolerances
+        return [wp.Setup("reduced", m) for m in ("compiled", "DOP853", "CVODES") if m in methods
+                or m == "compiled"], tolerances
     if name == "stiff":
         ms = [m for m in methods if m != "RK45"] + ["auto"]
         return wp.default_setups(("reduced", "lagrange"), ms, idas=True), \
@@ -230,7 +232,8 @@ def hard_cases(log=print) -> list:
                           rtol=1e-8, atol=1e-10, t_eval=t_eval)
             wall = time.perf_counter() - start
             d = tr.diagnostics
-            detail = f"φ(t_stop) = {tr.q[-1, 4]:.6f}; min measure {d.get('min_singular_measure', float('nan')):.2g}"
+            detail = (f"φ(t_stop) = {tr.q[-1, 4]:.6f}; min measure "
+                      f"{d.get('min_singular_measure', float('nan')):.2g}")
             if d.get("max_cond_gram"):
                 detail += f"; max cond(ω M⁻¹ ωᵀ) = {d['max_cond_gram']:.2g}"
             rows.append(("singular crossing φ_d = 2 cos t", f, method, _status(tr), tr.t[-1], wall, detail))
@@ -260,7 +263,8 @@ def hard_cases(log=print) -> list:
                                                                       if "fallback" in tr.settings else "")))
     base = builtin("snakeboard")
     m, r = base.parameters["m"], base.parameters["r"]
-    for label, params in (("J_r = 0.99 m r², J = 1e-3, J_w = 1e-4", {"J": 1e-3, "J_w": 1e-4, "J_r": 0.99 * m * r * r}),
+    for label, params in (("J_r = 0.99 m r², J = 1e-3, J_w = 1e-4",
+                           {"J": 1e-3, "J_w": 1e-4, "J_r": 0.99 * m * r * r}),
                           ("very light wheels J_w = 1e-6", {"J_w": 1e-6})):
         T = 1.0            # the steering is stiff (λ ~ −k_d/J_w): the reference uses Radau
         reference, _, _ = kane_final_state("snakeboard", snakeboard_pd(), (SNAKE_Q0, SNAKE_QDOT0, T),
@@ -284,7 +288,8 @@ def hard_cases(log=print) -> list:
         tr = simulate(derive("snakeboard", "reduced"), (0.0, 10 * math.pi), SNAKE_Q0, SNAKE_QDOT0,
                       controller=stiff_controller(), method=method, rtol=1e-6, atol=1e-8,
                       t_eval=[0, 10 * math.pi])
-        detail = f"nfev {tr.nfev}; " + (tr.settings.get("auto") or tr.diagnostics.get("recommendation", "")[:100])
+        detail = f"nfev {tr.nfev}; " + (tr.settings.get("auto")
+                                        or tr.diagnostics.get("recommendation", "")[:100])
         rows.append(("stiff gains k_p = 1e4, k_d = 200", "reduced", method, _status(tr), tr.t[-1],
                      time.perf_counter() - start, detail))
     for row in rows:
@@ -302,10 +307,10 @@ def _status(tr) -> str:
 # ------------------------------------------------------------------------------------------
 def per_evaluation_costs(log=print) -> dict:
     """Nanoseconds per closed-loop right-hand side evaluation of the snakeboard PD run."""
-    from nhgait.dynamics.simulation.closed_loop import closed_loop
-    from nhgait.dynamics.simulation.integrators import Fast
     from nhgait.dynamics.derivation.states import to_state
+    from nhgait.dynamics.simulation.closed_loop import closed_loop
     from nhgait.dynamics.simulation.driver import _integration_model
+    from nhgait.dynamics.simulation.integrators import Fast
     out = {}
     general = derive("snakeboard", "reduced")
     pv = general.numeric.params(None)
@@ -362,7 +367,7 @@ def _loglog_time(anchors, level):
     """The anchor's time at error ``level``: log-log interpolation between the two anchor runs
     whose errors bracket it (None if none do)."""
     pts = sorted((r.error, r.wall_s) for r in anchors if r.success and r.error > 0)
-    for (e1, w1), (e2, w2) in zip(pts, pts[1:]):
+    for (e1, w1), (e2, w2) in zip(pts, pts[1:], strict=False):
         if e1 <= level <= e2:
             x = (math.log(level) - math.log(e1)) / (math.log(e2) - math.log(e1))
             return math.exp(math.log(w1) + x * (math.log(w2) - math.log(w1)))
@@ -390,7 +395,8 @@ def targets(case, rows, anchors, repeats=15) -> list:
             used = [r for r in anchors if r.rtol == 1e-6]
         else:                           # the two anchor runs bracketing the anchor's error
             pts = sorted((r for r in anchors if r.success), key=lambda r: r.error)
-            used = [next((a for a, b in zip(pts, pts[1:]) if a.error <= anchor_level <= b.error), None)]
+            used = [next((a for a, b in zip(pts, pts[1:], strict=False)
+                          if a.error <= anchor_level <= b.error), None)]
             used = [] if used[0] is None else [used[0], pts[pts.index(used[0]) + 1]]
         if not cands or not used:
             lines.append(f"- error ≤ {level:g}: not measurable in this run")
@@ -418,13 +424,14 @@ def targets(case, rows, anchors, repeats=15) -> list:
         else:
             a_time = _loglog_time(retimed, anchor_level)
             a_text = (f"anchor at error {anchor_level:g} (log-log between rtol {retimed[0].rtol:g}, "
-                      f"error {retimed[0].error:.2g}, and rtol {retimed[1].rtol:g}, error {retimed[1].error:.2g})")
+                      f"error {retimed[0].error:.2g}, and rtol {retimed[1].rtol:g}, error "
+                      f"{retimed[1].error:.2g})")
         ratio = a_time / med[best]
         lines.append(f"- error ≤ {level:g}: {best}, whole simulate() call {med[best] * 1e3:.3g} ms "
                      f"({core_ratio:.2f}× its C integrator core, target ≤ 1.3: "
                      f"{'met' if core_ratio <= 1.3 else 'NOT met'}); {a_text} {a_time * 1e3:.3g} ms; "
-                     f"whole-call ratio {ratio:.1f} (target ≥ {budget}: {'met' if ratio >= budget else 'NOT met'}); "
-                     f"interleaved medians of {repeats}: "
+                     f"whole-call ratio {ratio:.1f} (target ≥ {budget}: "
+                     f"{'met' if ratio >= budget else 'NOT met'}); interleaved medians of {repeats}: "
                      + ", ".join(f"{k.split(' (')[0]} {v * 1e3:.3g} ms" for k, v in med.items()))
     return lines
 
@@ -442,7 +449,8 @@ def reduced_vs_dae(rows, levels=(1e-5, 1e-7, 1e-9, 1e-11)) -> str:
         cells = [f"{level:g}"]
         for f in FORMULATIONS:
             wall, row = best[f]
-            cells.append("—" if row is None else f"{wall * 1e3:.3g} ({row.label.split('/', 1)[1]}, {row.rtol:g})")
+            cells.append("—" if row is None
+                         else f"{wall * 1e3:.3g} ({row.label.split('/', 1)[1]}, {row.rtol:g})")
         cells.append("—" if not (np.isfinite(best['reduced'][0]) and np.isfinite(dae))
                      else f"{best['reduced'][0] / dae:.2f}")
         lines.append("| " + " | ".join(cells) + " |")
@@ -508,8 +516,8 @@ def main(argv=None) -> int:
         setups, tols = setups_for(name, methods, tolerances)
         rows = wp.measure(case, setups, tols, repeats=args.repeats,
                           progress=lambda r: print(f"  {r.label:34s} rtol {r.rtol:7.0e} err {r.error:9.2e} "
-                                                   f"{r.wall_s * 1e3:10.3f} ms nfev {r.nfev:8d} {r.note[:50]}",
-                                                   flush=True))
+                                                   f"{r.wall_s * 1e3:10.3f} ms nfev {r.nfev:8d} "
+                                                   f"{r.note[:50]}", flush=True))
         anchors = []
         if name in ("snakeboard", "unicycle") and not args.no_anchor:
             anchors = anchor_rows(name, case, tolerances, args.repeats)
@@ -553,7 +561,7 @@ def _figure(name, rows, anchors, title, path):
     forms = list(dict.fromkeys(r.formulation for r in rows))
     fig, axes = plt.subplots(1, len(forms), figsize=(5.2 * len(forms), 5.2), sharex=True,
                              sharey=True, squeeze=False)
-    for ax, f in zip(axes[0], forms):
+    for ax, f in zip(axes[0], forms, strict=True):
         wp.plot_case([r for r in rows if r.formulation == f], ax, anchor=anchors,
                      title=f"{name}: {f} (rtol 1e-4 … 1e-12)")
     fig.suptitle(title, fontsize=8)
@@ -577,7 +585,8 @@ def _markdown(info, summary, sections, hard) -> str:
     lines = [f"Machine: {info}.", "", *summary, ""]
     lines += sections
     if hard:
-        lines += ["### hard cases", "", "| case | formulation | method | outcome | t reached [s] | wall [s] | detail |",
+        lines += ["### hard cases", "",
+                  "| case | formulation | method | outcome | t reached [s] | wall [s] | detail |",
                   "|---|---|---|---|---|---|---|"]
         for row in hard:
             lines.append("| " + " | ".join(f"{c:.6g}" if isinstance(c, float) else str(c).replace("|", "\\|")

@@ -39,7 +39,7 @@ def animate_solution(solution, ctx, path, *, fps: int = 15, frames: int = 60) ->
 
     def update(k):
         trace.set_data(x[:k + 1], y[:k + 1])
-        for line, (xs, ys) in zip(lines, segs[k]):
+        for line, (xs, ys) in zip(lines, segs[k], strict=True):
             line.set_data(xs, ys)
         title.set_text(f"t = {solution.t[k]:.2f} s of {solution.t[-1]:.2f} s")
 

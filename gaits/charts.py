@@ -192,6 +192,7 @@ def lagrange_ode(system):
     wherever ω has full rank, so a gait that crosses the singular set of every chart of the
     reduction can still be re-simulated. The LagrangianDAE with these functions added."""
     import casadi as ca
+
     from nhgait.dynamics import derive
     dae = derive(system, "lagrange")
     numeric = dae.numeric
@@ -202,5 +203,6 @@ def lagrange_ode(system):
     functions = {**numeric.functions,
                  "rhs": ca.Function("rhs", [t, x, u, params], [numeric["ode"](t, x, u, params)[0]],
                                     ["t", "z", "u", "params"], ["zdot"]),
-                 "state": ca.Function("state", [q, qd, params], [ca.vertcat(q, qd)], ["q", "qdot", "params"], ["z"])}
+                 "state": ca.Function("state", [q, qd, params], [ca.vertcat(q, qd)],
+                                      ["q", "qdot", "params"], ["z"])}
     return replace(dae, compiled=replace(numeric, functions=functions))

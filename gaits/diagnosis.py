@@ -45,15 +45,16 @@ def _saturation_line(solution) -> tuple:
 def _not_converged(result) -> list:
     if not result.attempts:
         skipped = sum(1 for x in getattr(result, "screening", ()) if x.action == "skipped")
-        return [f"no guess was solved: each of the {skipped} candidates met the singular set of the planner's "
-                "equations, and no repair (phase, centre, amplitude) avoided it"]
+        return [f"no guess was solved: each of the {skipped} candidates met the singular set of "
+                "the planner's equations, and no repair (phase, centre, amplitude) avoided it"]
     counts = Counter(a.status for a in result.attempts)
     lines = [f"no guess converged: {len(result.attempts)} attempts ("
              + ", ".join(f"{n} {status}" for status, n in counts.most_common()) + ")"]
     s = result.solution
     if s is None or not s.violations:
         return lines + ["  the solver stopped before reporting a point (see the attempts in solution.json)"]
-    lines.append(f"at the closest point found (guess {s.settings.get('guess', '?')!r}, {s.settings.get('solver', '?')}, "
+    lines.append(f"at the closest point found (guess {s.settings.get('guess', '?')!r}, "
+                 f"{s.settings.get('solver', '?')}, "
                  f"{s.status}, constraint violation {s.constraint_violation:.2g}):")
     for label, v in sorted(s.violations.items(), key=lambda kv: -kv[1])[:8]:
         what = "the trajectory does not follow the model (shooting gaps)" if label == "dynamics" else label
@@ -85,43 +86,49 @@ def _relax(result, s, saturated) -> list:
     timed_out = [a for a in result.attempts if a.status == "Time_Limit_Exceeded"]
     if timed_out:
         solvers = sorted({a.solver for a in timed_out if a.solver})
-        out.append(f"{len(timed_out)} attempt(s) were stopped at their time limit ({', '.join(solvers) or 'the solver'} "
-                   "did not finish: slow, or looping); the other solver (--solver) or a warm start may do better")
+        out.append(f"{len(timed_out)} attempt(s) were stopped at their time limit "
+                   f"({', '.join(solvers) or 'the solver'} "
+                   "did not finish: slow, or looping); the other solver (--solver) or a warm start "
+                   "may do better")
     return out or ["check the task's values against the robot's reach"]
 
 
 def _not_verified(result) -> list:
     s, v = result.solution, result.solution.verification
-    lines = [f"the solver converged ({s.stats.get('solver_status', 'Solve_Succeeded')}, J = {s.objective:.6g}) "
-             f"but the independent re-simulation (DOP853, rtol {v.rtol:g}) does not meet the task to "
-             f"{v.tolerance:g}:"]
+    lines = [f"the solver converged ({s.stats.get('solver_status', 'Solve_Succeeded')}, J = "
+             f"{s.objective:.6g}) but the independent re-simulation (DOP853, rtol {v.rtol:g}) does not meet "
+             f"the task to {v.tolerance:g}:"]
     lines += [f"  {x}" for x in v.failures()[:8]]
     sat, saturated = _saturation_line(s)
     N = result.task.intervals
-    dropped = _dropped_and_missed(result, v) if v.max_error <= v.tolerance else []   # nodes met, a condition not
+    # nodes met, a condition not
+    dropped = _dropped_and_missed(result, v) if v.max_error <= v.tolerance else []
     if dropped:
         lines.append(f"likely cause: {', '.join(dropped)} missed: the planner dropped "
-                     f"{'them' if len(dropped) > 1 else 'it'} as implied by the task's other conditions, which "
-                     "hold in general but not at this gait's end posture, where the solver used the freedom "
-                     "(see 'conditions' above)")
+                     f"{'them' if len(dropped) > 1 else 'it'} as implied by the task's other "
+                     "conditions, which hold in general but not at this gait's end posture, where the solver "
+                     "used the freedom (see 'conditions' above)")
         return lines
     crossed = next((x for x in getattr(result, "screening", ()) if x.action == "reached"), None)
     if crossed is not None:
         shape = tuple(getattr(result.model, "shape", ())) or None
         velocities = ", ".join(s.settings.get("velocities", ()))
         lines.append(f"likely cause: the gait passes through the singular set of the planner's equations at "
-                     f"{crossed.check.posture(shape)} (t = {crossed.check.t:.2f} s), where the velocity states "
-                     f"({velocities}) do not determine the motion: the transcription steps across it")
+                     f"{crossed.check.posture(shape)} (t = {crossed.check.t:.2f} s), where the "
+                     f"velocity states ({velocities}) do not determine the motion: the transcription "
+                     "steps across it")
         return lines + ["what to change:"] + [f"  {x}" for x in _away_from_singular(result, [crossed], shape)]
     if saturated:
-        lines.append(f"likely cause: bang-bang inputs — {sat}; a switch inside an interval is not resolved by "
-                     f"piecewise-constant inputs: increase intervals (now {N}, e.g. --set intervals={2 * N})")
+        lines.append(f"likely cause: bang-bang inputs — {sat}; a switch inside an interval is not "
+                     f"resolved by piecewise-constant inputs: increase intervals (now {N}, e.g. --set "
+                     f"intervals={2 * N})")
     else:
         steps = int(s.settings.get("rk4_steps", 4))
         tried = f" (even refined to {steps} RK4 sub-steps per interval)" if steps > 4 else ""
-        lines.append(f"likely cause: the transcription's integration steps are too coarse for {v.tolerance:g}{tried}: "
-                     f"increase intervals (now {N}, e.g. --set intervals={2 * N}), or set verify_tolerance to "
-                     "the accuracy you need")
+        lines.append("likely cause: the transcription's integration steps are too coarse for "
+                     f"{v.tolerance:g}{tried}: "
+                     f"increase intervals (now {N}, e.g. --set intervals={2 * N}), or set "
+                     "verify_tolerance to the accuracy you need")
     return lines
 
 
@@ -151,7 +158,8 @@ def _singular(result) -> list:
     groups: dict = {}
     for x in met:                  # the same posture met by several candidates: one line
         done = {"repaired": f"repaired: {x.repair}", "skipped": "skipped, not solved",
-                "moved": f"every guess started at {x.repair} instead", "reached": "where the solver ended"}[x.action]
+                "moved": f"every guess started at {x.repair} instead",
+                "reached": "where the solver ended"}[x.action]
         key = (x.check.posture(shape), f"{x.check.t:.2f}", done if x.action != "repaired" else "repaired")
         groups.setdefault(key, []).append((x.label, done))
     for (posture, t, _), members in list(groups.items())[:6]:
@@ -162,24 +170,27 @@ def _singular(result) -> list:
 
 def _away_from_singular(result, met, shape) -> list:
     task = result.task
-    names = sorted({c for x in met for c, v in zip(x.check.coordinates, x.check.q) if shape is None or c in shape})
+    names = sorted({c for x in met for c, v in zip(x.check.coordinates, x.check.q, strict=True)
+                    if shape is None or c in shape})
     now = ", ".join(f"{c} in [{task.bounds[c][0]:g}, {task.bounds[c][1]:g}]" for c in names
                     if isinstance(task.bounds.get(c), tuple))
-    out = [f"bounds on {', '.join(names)} that keep the shape off these postures" + (f" (now {now})" if now else "")]
+    out = [f"bounds on {', '.join(names)} that keep the shape off these postures"
+           + (f" (now {now})" if now else "")]
     start = next((x.repair for x in met if x.action == "moved"), None)
     free = [c for c in names if c not in task.initial]
-    fixed = sorted({(c, v) for x in met if x.check.t == 0.0 for c, v in zip(x.check.coordinates, x.check.q)
+    fixed = sorted({(c, v) for x in met if x.check.t == 0.0
+                    for c, v in zip(x.check.coordinates, x.check.q, strict=True)
                     if c in names and c in task.initial})
     if fixed:
-        out.append(f"the fixed initial shape ({', '.join(f'{c} = {v:.3g}' for c, v in fixed)}) lies on the singular "
-                   "set: start elsewhere, or leave it free")
+        out.append(f"the fixed initial shape ({', '.join(f'{c} = {v:.3g}' for c, v in fixed)}) lies on "
+                   "the singular set: start elsewhere, or leave it free")
     if free:
         out.append(f"a fixed initial shape off them ([task].initial: {start})" if start else
                    f"a fixed initial shape off them ([task].initial.{free[0]} = ...)")
     better = _regular_velocities(result)
     if better:
-        out.append(f"velocities = [{', '.join(repr(v) for v in better)}] in [task]: they determine the motion "
-                   "everywhere within the task's bounds")
+        out.append(f"velocities = [{', '.join(repr(v) for v in better)}] in [task]: they "
+                   "determine the motion everywhere within the task's bounds")
     route = str(result.solution.settings.get("specialisation", "")) if result.solution is not None else ""
     if "velocity basis" not in route:
         out.append("another chart: fiber = [...] in [system] (nhgait derive lists the choices and their "

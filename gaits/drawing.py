@@ -73,8 +73,10 @@ def parse_drawing(table, system, *, where: str = "[drawing]") -> Drawing | None:
         problems.append(f"{where}: unknown key(s) {sorted(unknown)} (allowed: frame, segment)")
     frame = table.get("frame", default_frame(system))
     coords = tuple(system.coordinates)
-    if frame is None or not isinstance(frame, (list, tuple)) or len(frame) != 3 or any(c not in coords for c in frame):
-        problems.append(f"{where}.frame: need three coordinates (x, y, heading) of {', '.join(coords)}, got {frame!r}")
+    if frame is None or not isinstance(frame, (list, tuple)) or len(frame) != 3 or any(c not in coords
+                                                                                       for c in frame):
+        problems.append(f"{where}.frame: need three coordinates (x, y, heading) of {', '.join(coords)}, "
+                        f"got {frame!r}")
         frame = None
     segments = table.get("segment", [])
     if not isinstance(segments, list) or not all(isinstance(s, dict) for s in segments):
@@ -92,8 +94,9 @@ def parse_drawing(table, system, *, where: str = "[drawing]") -> Drawing | None:
             if not isinstance(point, list) or len(point) != 2:
                 problems.append(f"{w}.{end} must be a point [px, py], got {point!r}")
                 continue
-            for axis, value in zip("xy", point):
-                text = str(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else value
+            for axis, value in zip("xy", point, strict=True):
+                text = (str(value) if isinstance(value, (int, float))
+                        and not isinstance(value, bool) else value)
                 e = expression_problems(text, names, f"{w}.{end} {axis}", problems)
                 if e is not None:
                     exprs[f"s{i}_{end}_{axis}"] = e

@@ -159,8 +159,8 @@ def fitted_guess(problem, coordinates: tuple, initial_configuration) -> InitialG
     def fit(c0, weight):
         with np.errstate(all="ignore"):
             return least_squares(lambda c: np.asarray(residual(q0, c, weight)).ravel(), c0,
-                                 jac=lambda c: np.asarray(jacobian(q0, c, weight)), method="trf", max_nfev=200,
-                                 ftol=FIT_FTOL)
+                                 jac=lambda c: np.asarray(jacobian(q0, c, weight)), method="trf",
+                                 max_nfev=200, ftol=FIT_FTOL)
 
     best = None
     for start in range(STARTS):

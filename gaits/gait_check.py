@@ -33,7 +33,8 @@ def screening_report(guesses, search, problem) -> tuple:
     verdict = check(point) if check is not None and point is not None else None
     if verdict is not None and not verdict.ok:
         which = "solution" if search.solution is not None else "closest point"
-        report += (Screened(f"{which} ({search.won or point.settings.get('guess', '?')})", "reached", verdict),)
+        report += (Screened(f"{which} ({search.won or point.settings.get('guess', '?')})",
+                            "reached", verdict),)
     return search, report
 
 
@@ -42,8 +43,10 @@ def unsolved(problem, guess=None):
     skipped by its screening): status ``Not_Solved``, the states of ``guess`` (zeros without one)."""
     from nhgait.ocp import Solution
     t = problem.grid()
-    states = np.asarray(guess.states, float) if guess is not None else np.zeros((len(problem.state_names), t.size))
-    return Solution(False, "Not_Solved", "every candidate met the singular set of the equations and was skipped",
+    states = (np.asarray(guess.states, float) if guess is not None
+              else np.zeros((len(problem.state_names), t.size)))
+    return Solution(False, "Not_Solved",
+                    "every candidate met the singular set of the equations and was skipped",
                     0, float("nan"), t, states, np.zeros((problem.n_controls, problem.intervals)),
                     tuple(problem.state_names), tuple(problem.control_names), float(problem.horizon),
                     0.0, 0.0, 0.0, 0.0, problem=problem,
@@ -61,16 +64,19 @@ def verified_gait(solution, model, stated, to_plan, params, *, verify=True, prog
     too: its trajectory is written out), and when the gait fails there before another chart is
     tried (:func:`_lagrange_first`)."""
     from nhgait.dynamics.progress import Progress
+
     from .charts import lagrange_ode, verification_chart
     progress = progress or Progress.silent()
     n = len(model.system.coordinates)
     regular, default = False, model
     if verify and solution.success:
-        model, regular = verification_chart(to_plan.scene.system, model, solution.states[:n], params, progress)
+        model, regular = verification_chart(to_plan.scene.system, model, solution.states[:n],
+                                            params, progress)
         if not regular:
             model = lagrange_ode(to_plan.scene.system)
-    in_lagrange = (lambda: to_momentum_coordinates(solution, momentum_problem(lagrange_ode(to_plan.scene.system),
-                                                                               stated, to_plan, params)))
+    def in_lagrange():
+        return to_momentum_coordinates(solution, momentum_problem(lagrange_ode(to_plan.scene.system), stated,
+                                                                  to_plan, params))
     moved = to_momentum_coordinates(solution, momentum_problem(model, stated, to_plan, params))
     if not np.all(np.isfinite(moved.states)) and np.all(np.isfinite(solution.states)):
         # a chart singular at some node (where the momenta are not defined): (q, q̇) instead
@@ -83,8 +89,9 @@ def verified_gait(solution, model, stated, to_plan, params, *, verify=True, prog
             return screened
     checked = _verified_once(moved, to_plan, progress)
     if regular and not checked.verification.success:
-        progress.note("  the re-simulation stopped in the chart (its singular set between the nodes): verifying on the "
-                      "Euler–Lagrange equations (index-1 form, x = (q, q̇)), which have none")
+        progress.note("  the re-simulation stopped in the chart (its singular set between the nodes): "
+                      "verifying on the Euler–Lagrange equations (index-1 form, x = (q, q̇)), "
+                      "which have none")
         checked = _verified_once(in_lagrange(), to_plan, progress)
     return checked
 

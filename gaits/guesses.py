@@ -46,7 +46,16 @@ from itertools import combinations
 import numpy as np
 
 from .screening import RATIO, Check, Screen
-from .waves import FITTED_LABEL, PATH_LABEL, ShapeGuess, amplitude, ends, free_start, guess_from_shape, repairs
+from .waves import (
+    FITTED_LABEL,
+    PATH_LABEL,
+    ShapeGuess,
+    amplitude,
+    ends,
+    free_start,
+    guess_from_shape,
+    repairs,
+)
 
 __all__ = ["ShapeGuess", "shape_guesses", "rollout_guesses", "guess_from_shape", "candidates", "Candidates",
            "Screened", "screened_dict", "RATIOS", "AMPLITUDES"]
@@ -143,7 +152,7 @@ def _order(guesses: list, n_pairs: int) -> list:
     per = len(RATIOS) * len(AMPLITUDES)
     blocks = [guesses[i * per:(i + 1) * per] for i in range(n_pairs)]
     rest = guesses[n_pairs * per:]
-    return [g for row in zip(*blocks) for g in row] + rest
+    return [g for row in zip(*blocks, strict=False) for g in row] + rest
 
 
 def _rate_states(model, shape: tuple) -> tuple:
@@ -171,7 +180,7 @@ def screened_dict(record: Screened) -> dict:
     """A :class:`Screened` record as plain data (solution.json)."""
     c = record.check
     return {"label": record.label, "action": record.action, "repair": record.repair, "what": c.what,
-            "t": c.t, "configuration": dict(zip(c.coordinates, c.q)), "measure": c.measure}
+            "t": c.t, "configuration": dict(zip(c.coordinates, c.q, strict=True)), "measure": c.measure}
 
 
 class Candidates(Sequence):
@@ -224,7 +233,8 @@ class Candidates(Sequence):
             self.screened.append(Screened(label, "skipped", self._blocked))
             if j == len(self._first):
                 names = tuple(getattr(self._problem.model, "shape", ())) or None
-                self._progress.note(f"  every candidate skipped, not solved: {self._blocked.reason(names)}, where "
+                self._progress.note("  every candidate skipped, not solved: "
+                                    f"{self._blocked.reason(names)}, where "
                                     "every guess starts or ends (fixed by the task)")
             return True
         if j < len(self._first):
@@ -260,7 +270,8 @@ class Candidates(Sequence):
         self.screened.append(Screened(guess.label, "skipped", check))
         self.first_skipped = self.first_skipped or guess
         self._progress.note(f"  guess {guess.label!r} skipped, not solved: {check.reason(names)}"
-                            + (f"; none of {tried} repairs (phase, centre, amplitude) avoids it" if tried else ""))
+                            + (f"; none of {tried} repairs (phase, centre, amplitude) avoids it"
+                               if tried else ""))
         return None
 
     def check(self, guess):
@@ -273,9 +284,10 @@ class Candidates(Sequence):
         """Whether a given guess (a warm start, :meth:`with_first`) leads the candidates."""
         return bool(self._first)
 
-    def with_first(self, guess) -> "Candidates":
+    def with_first(self, guess) -> Candidates:
         return Candidates(self._problem, self._shapes, self._coordinates, (guess, *self._first),
-                          screen=self._screen, start=self.start, progress=self._progress, blocked=self._blocked)
+                          screen=self._screen, start=self.start, progress=self._progress,
+                          blocked=self._blocked)
 
 
 def candidates(problem, *, shape=None, screen=True, progress=None) -> Candidates:
@@ -287,7 +299,8 @@ def candidates(problem, *, shape=None, screen=True, progress=None) -> Candidates
     coords = tuple(model.system.coordinates)
     shape = tuple(shape if shape is not None else getattr(model, "shape", ()))
     checks = Screen(problem) if screen else None
-    start, moved = _regular_start(problem, checks, coords, shape, progress) if checks is not None else ((), None)
+    start, moved = (_regular_start(problem, checks, coords, shape, progress) if checks is not None
+                    else ((), None))
     n_pairs = len(shape) * (len(shape) - 1) // 2
     loops = _order(shape_guesses(problem, shape, start), n_pairs)
     rollouts = rollout_guesses(problem, shape, _rate_states(model, shape), start)
@@ -330,6 +343,8 @@ def _regular_start(problem, checks, coords, shape, progress) -> tuple:
     was = ", ".join(f"{c} = {q0[coords.index(c)]:.3g}" for c in moved)
     now = ", ".join(f"{c} = {v:.3g}" for c, v in moved.items())
     if progress is not None:
-        progress.note(f"  the free start {was} is on the singular set of the equations: every guess starts at {now}")
-    at = Check(False, "singular", 0.0, tuple(float(v) for v in q0), coords, float(checks.measure(q0[:, None])[0]))
+        progress.note(f"  the free start {was} is on the singular set of the equations: every guess "
+                      f"starts at {now}")
+    at = Check(False, "singular", 0.0, tuple(float(v) for v in q0), coords,
+               float(checks.measure(q0[:, None])[0]))
     return tuple(moved.items()), Screened("free start", "moved", at, now)

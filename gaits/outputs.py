@@ -128,7 +128,8 @@ def _probe(folder: Path, option: str, target: Path) -> None:
             fh.flush()
             os.fsync(fh.fileno())
     except OSError as exc:
-        raise ModelError([f"{option} {target} cannot be written: {_why(exc, folder)}"], title=_TITLE) from None
+        raise ModelError([f"{option} {target} cannot be written: {_why(exc, folder)}"],
+                         title=_TITLE) from None
     finally:
         if name is not None:
             with contextlib.suppress(OSError):
@@ -161,7 +162,8 @@ def output_lock(directory, command: str):
     try:
         directory.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise ModelError([f"{directory} cannot be created: {_why(exc, directory.parent)}"], title=_TITLE) from None
+        raise ModelError([f"{directory} cannot be created: {_why(exc, directory.parent)}"],
+                         title=_TITLE) from None
     try:
         if fcntl is None:  # pragma: no cover - Windows
             yield
@@ -187,8 +189,8 @@ def _acquire(path: Path, directory: Path) -> int:
     previous holder between our open and our lock is not the lock any more: open again."""
     while True:
         try:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0),
-                         0o644)
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0)
+                         | getattr(os, "O_CLOEXEC", 0), 0o644)
         except OSError as exc:
             raise ModelError([f"{directory} cannot be locked for writing: {_why(exc, directory)}"],
                              title=_TITLE) from None
@@ -197,8 +199,9 @@ def _acquire(path: Path, directory: Path) -> int:
         except BlockingIOError:
             holder = _holder(fd)
             os.close(fd)
-            raise ModelError([f"{directory} is being written by another nhgait run ({holder}): wait for it to "
-                              "finish, or choose another --out"], title="output directory in use") from None
+            raise ModelError([f"{directory} is being written by another nhgait run ({holder}): "
+                              "wait for it to finish, or choose another --out"],
+                             title="output directory in use") from None
         try:
             same = os.fstat(fd).st_ino == os.stat(path, follow_symlinks=False).st_ino
         except FileNotFoundError:

@@ -108,6 +108,7 @@ def path_guess(problem, coordinates: tuple, ramps) -> InitialGuess:
     q[coordinates.index(fh)] = _headings(t, t_knots, x, y, start, end, alpha)
     qdot = np.gradient(q, t, axis=1)
     state = problem.model.numeric["state"]
-    Z = np.column_stack([np.asarray(state(q[:, j], qdot[:, j], problem.params)).ravel() for j in range(t.size)])
+    Z = np.column_stack([np.asarray(state(q[:, j], qdot[:, j], problem.params)).ravel()
+                         for j in range(t.size)])
     return InitialGuess(Z, np.zeros((problem.n_controls, problem.intervals)), horizon=float(problem.horizon),
                         label=LABEL)

@@ -23,7 +23,8 @@ def feedback_and_stability(solution, progress) -> dict:
     out = {"feedback": feedback}
     if problem.periodic:
         with progress.phase("stability: monodromy matrices of the open and the closed loop over one period"):
-            out["stability"] = stability(ode_function(problem), feedback, fiber=getattr(problem.model, "fiber", ()))
+            out["stability"] = stability(ode_function(problem), feedback,
+                                         fiber=getattr(problem.model, "fiber", ()))
         for line in out["stability"].summary():
             progress.note(f"  {line}")
     return out

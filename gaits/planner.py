@@ -50,13 +50,12 @@ from typing import Any
 
 import numpy as np
 
-from .gait_check import (momentum_problem, screening_report, to_momentum_coordinates,  # noqa: F401
-                         unsolved, verified_gait)
+from .gait_check import momentum_problem, screening_report, to_momentum_coordinates, unsolved, verified_gait  # noqa: F401
 from .search import Attempt, Search, continuation, solve_from_guesses, solve_with_fallbacks  # noqa: F401
 from .task import quantity_objects  # noqa: F401
 
-__all__ = ["plan", "PlanResult", "prepare", "Prepared", "state_problem", "to_momentum_coordinates", "verified_gait",
-           "unsolved", "known_names", "warm_start", "read_solution", "summary_lines"]
+__all__ = ["plan", "PlanResult", "prepare", "Prepared", "state_problem", "to_momentum_coordinates",
+           "verified_gait", "unsolved", "known_names", "warm_start", "read_solution", "summary_lines"]
 
 
 def solver_order(solver: str, transcription=None, problem=None) -> tuple:
@@ -71,7 +70,8 @@ def solver_order(solver: str, transcription=None, problem=None) -> tuple:
     if solver == "auto":
         if transcription == "collocation":
             return ("ipopt",)
-        return ("ipopt", "fatrop") if problem is not None and _structured_stage(problem) else ("fatrop", "ipopt")
+        return (("ipopt", "fatrop") if problem is not None and _structured_stage(problem)
+                else ("fatrop", "ipopt"))
     if solver not in SOLVERS:
         raise ProblemError([f"unknown solver {solver!r} (auto, {', '.join(SOLVERS)})"])
     return (solver,)
@@ -139,8 +139,8 @@ class Prepared:
     ``model``: the derived reduced ODE (momentum coordinates); ``specialised``: the model
     specialised to the parameter values, which the NLP is stated on; ``problem``: the statement
     with independent conditions (what is solved); ``stated``: the statement as the task gives it
-    (what the verification checks); ``conditions``: what :func:`~nhgait.ocp.conditions.normalise` dropped or solved, and why.
-    """
+    (what the verification checks); ``conditions``: what :func:`~nhgait.ocp.conditions.normalise`
+    dropped or solved, and why."""
 
     model: Any
     specialised: Any
@@ -154,6 +154,7 @@ def state_problem(task, specialised, scene, *, params=None, name: str = ""):
     the specialised model: an end that gives every coordinate and velocity is checked
     against ω(q)q̇ = 0 first (the error names each violated constraint)."""
     from nhgait.ocp.conditions import normalise
+
     from .task import to_problem
     _check_full_states(task, specialised.base, params)
     stated = to_problem(task, specialised, quantities=quantity_objects(specialised, scene), params=params,
@@ -166,8 +167,8 @@ def _check_full_states(task, model, params) -> None:
     """A full (q, q̇) at an end must satisfy the constraints
     (:func:`nhgait.dynamics.derivation.states.check_physical_state`; a posture on the singular
     set of the reduction's chart is allowed: the velocity states may be regular there)."""
-    from nhgait.dynamics.errors import ModelError
     from nhgait.dynamics.derivation.states import check_physical_state
+    from nhgait.dynamics.errors import ModelError
     from nhgait.ocp import ProblemError
     coords = tuple(model.system.coordinates)
     problems = []
@@ -176,7 +177,8 @@ def _check_full_states(task, model, params) -> None:
         values = {k: v for k, v in mapping.items() if not isinstance(v, tuple)}
         if all(c in values and f"{c}_dot" in values for c in coords):
             try:
-                check_physical_state(model, [values[c] for c in coords], [values[f"{c}_dot"] for c in coords], params)
+                check_physical_state(model, [values[c] for c in coords],
+                                     [values[f"{c}_dot"] for c in coords], params)
             except ModelError as exc:
                 problems += [f"[task].{where}: {p}" for p in exc.problems]
     if problems:
@@ -185,8 +187,9 @@ def _check_full_states(task, model, params) -> None:
 
 def prepare(to_plan, *, params=None, progress=None) -> Prepared:
     """The :class:`Prepared` model and problems of a :class:`~nhgait.gaits.task_library.Plan`."""
-    from nhgait.dynamics.progress import Progress
     from nhgait.dynamics.numerics.specialisation import choose_velocities, specialise
+    from nhgait.dynamics.progress import Progress
+
     from .charts import derive_for_task, end_postures
     from .task import check_names
 
@@ -201,7 +204,8 @@ def prepare(to_plan, *, params=None, progress=None) -> Prepared:
                 n_velocities=len(model.state_names) - n, motion=tuple(scene.motion_quantities))
     bounds = {k: v for k, v in task.bounds.items() if isinstance(v, tuple)}
     ends = end_postures(task, tuple(model.system.coordinates))
-    velocities = task.velocities or choose_velocities(model, task.names, scene.quantities, params, bounds, ends)
+    velocities = task.velocities or choose_velocities(model, task.names, scene.quantities, params,
+                                                      bounds, ends)
     with progress.phase(f"specialise: parameter values bound, velocity states ({', '.join(velocities)})"):
         specialised = specialise(model, params, velocities=velocities, quantities=scene.quantities)
     stated, problem, report = state_problem(task, specialised, scene, params=params, name=to_plan.label)
@@ -221,6 +225,7 @@ def read_solution(path) -> dict:
     (:func:`~nhgait.dynamics.derivation.textfiles.read_text_file`); a file that is not one is
     a :class:`~nhgait.dynamics.errors.ModelError` naming it."""
     import json
+
     from nhgait.dynamics.derivation.textfiles import read_text_file
     from nhgait.dynamics.errors import ModelError
     title = "cannot read the solution"
@@ -230,8 +235,8 @@ def read_solution(path) -> dict:
     except (ValueError, RecursionError) as exc:
         raise ModelError([f"solution file {path} is not JSON ({exc})"], title=title) from None
     if not isinstance(data, dict):
-        raise ModelError([f"solution file {path} holds a JSON {type(data).__name__}, not the object nhgait plan "
-                          "writes"], title=title)
+        raise ModelError([f"solution file {path} holds a JSON {type(data).__name__}, not the object "
+                          "nhgait plan writes"], title=title)
     return data
 
 
@@ -282,8 +287,8 @@ def large_request_note(problem) -> str:
     linearly with N and with the states)."""
     N, nx, nu = problem.intervals, problem.n_states, problem.n_controls
     return (f"N = {N} intervals is a large request: {(N + 1) * nx + N * nu} NLP variables and {N * nx} "
-            f"continuity constraints; expect minutes (the 4-coordinate car at N = 2000: 34 s to build the NLP, "
-            f"105 s to solve, on a 2-core machine; both grow about linearly with N)")
+            "continuity constraints; expect minutes (the 4-coordinate car at N = 2000: 34 s to "
+            f"build the NLP, 105 s to solve, on a 2-core machine; both grow about linearly with N)")
 
 
 def _default_workers() -> int:
@@ -328,6 +333,7 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     """
     from nhgait.dynamics.progress import Progress
     from nhgait.ocp.budget import BudgetSpent
+
     from .diagnosis import diagnose
     from .outputs import output_directory
     from .task_library import resolve
@@ -341,10 +347,12 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     to_plan = resolve(system, task, overrides=overrides)
     budget = plan_budget(to_plan, time_limit, started=started, progress=progress)
     workers = _default_workers() if workers in (None, "auto") else int(workers)
-    settings = SearchSettings(solver, transcription, jit, choose_hessian(hessian), max_iter, workers, max_guesses)
+    settings = SearchSettings(solver, transcription, jit, choose_hessian(hessian), max_iter,
+                              workers, max_guesses)
     reached = _Reached()
     try:
-        _run_plan(to_plan, reached, settings, budget, params=params, guess=guess, verify=verify, progress=progress)
+        _run_plan(to_plan, reached, settings, budget, params=params, guess=guess, verify=verify,
+                  progress=progress)
     except BudgetSpent as exc:
         reached.overrun = exc.overrun
         progress.note(f"  the time budget of {exc.overrun.seconds:g} s ran out during {exc.overrun.phase}")
@@ -359,7 +367,8 @@ def plan_budget(to_plan, time_limit=None, *, started=None, progress=None):
     """The :class:`~nhgait.ocp.budget.Budget` of a plan (:func:`~nhgait.gaits.time_limits.budget_for`:
     ``time_limit``, else the task's, else the default for the robot's size), said on ``progress``."""
     from .time_limits import budget_for
-    budget = budget_for(len(to_plan.scene.system.coordinates), time_limit, to_plan.task.time_limit, started=started)
+    budget = budget_for(len(to_plan.scene.system.coordinates), time_limit, to_plan.task.time_limit,
+                        started=started)
     if progress is not None:
         progress.note(f"time budget: {budget.describe()}; --time-limit SECONDS to change it")
     return budget
@@ -384,6 +393,7 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
     """Steps 2–5 of the module docstring and the feedback along a converged plan, each within
     ``budget``, recorded in ``reached``."""
     from nhgait.ocp import ProblemError
+
     from .guesses import candidates
     from .reachability import unreachable_targets
     from .refinement import refinable
@@ -420,10 +430,11 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
 
         def verify_one(solution):
             with budget.stage("verification"):
-                return verified_gait(solution, reached.prepared.model, reached.prepared.stated, to_plan, params,
-                                     progress=progress)
+                return verified_gait(solution, reached.prepared.model, reached.prepared.stated, to_plan,
+                                     params, progress=progress)
         reached.solution = verify_one(search.solution)
-        if refinable(reached.solution) and "robust" not in search.solution.settings:   # refined: nominal again
+        # refined: nominal again
+        if refinable(reached.solution) and "robust" not in search.solution.settings:
             _refined(reached, settings, budget, progress, verify_one)
         reached.timings["verify_s"] = time.perf_counter() - t0
     if search.solution is not None:                                          # issue 28
@@ -438,7 +449,8 @@ def _refined(reached: _Reached, settings, budget, progress, verify_one) -> None:
     ``reached``: its search gets the refined solution (when one converged) and the attempts."""
     from .refinement import refine
     search = reached.search
-    solution, verified, attempts = refine(search.solution, reached.solution, settings, budget, progress, verify_one)
+    solution, verified, attempts = refine(search.solution, reached.solution, settings, budget,
+                                          progress, verify_one)
     won = (search.won if solution is search.solution
            else f"{search.won}, refined ({solution.settings['rk4_steps']} RK4 sub-steps)")
     reached.search = replace(search, solution=solution, attempts=search.attempts + attempts, won=won)
@@ -452,7 +464,8 @@ def _result(to_plan, reached: _Reached, settings, params) -> PlanResult:
         solution = _in_momentum(search, prepared, to_plan, params)
     if solution is not None:
         if reached.overrun is not None:
-            solution = replace(solution, success=False, message=f"{solution.message} (then the time budget of "
+            solution = replace(solution, success=False,
+                               message=f"{solution.message} (then the time budget of "
                                f"{reached.overrun.seconds:g} s ran out during {reached.overrun.phase})")
         extra = {"system": to_plan.label, "velocities": list(prepared.specialised.velocities),
                  "specialisation": prepared.specialised.route, "workers": settings.workers,
@@ -488,6 +501,7 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
     is interrupted when the budget runs out; each attempt gets at most the time left
     (:func:`~.time_limits.attempt_limited`)."""
     from nhgait.ocp import OCPSolver, SolverOptions
+
     from .time_limits import attempt_limited
     s = settings
     explore = not getattr(guesses, "given_first", False)     # a warm start answers where the user asked
@@ -496,9 +510,11 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
         t0 = time.perf_counter()
         try:
             with budget.stage(f"the NLP set-up and compilation for {name}"):
-                with progress.phase(f"build the NLP for {name} ({problem.intervals} intervals, {s.hessian} Hessian)"):
+                with progress.phase(f"build the NLP for {name} ({problem.intervals} intervals, "
+                                    f"{s.hessian} Hessian)"):
                     ocp = OCPSolver(problem, s.transcription,
-                                    SolverOptions(jit=s.jit, solver=name, max_iter=s.max_iter, hessian=s.hessian),
+                                    SolverOptions(jit=s.jit, solver=name, max_iter=s.max_iter,
+                                                  hessian=s.hessian),
                                     progress=progress)
                     ocp = attempt_limited(ocp, None, progress)
         finally:
@@ -539,7 +555,8 @@ def written(result: PlanResult, out: Path, *, animate: bool = True, progress=Non
     and where the solution is."""
     from .outputs import rescue, write_failure
     try:
-        return replace(result, files=tuple(write_outputs(result, Path(out), animate=animate, progress=progress)))
+        return replace(result, files=tuple(write_outputs(result, Path(out), animate=animate,
+                                                         progress=progress)))
     except OSError as exc:
         failed = write_failure(exc, getattr(exc, "filename", None) or out)
     if result.solution is None:
@@ -564,6 +581,7 @@ def write_outputs(result: PlanResult, out: Path, *, animate: bool = True, progre
     ran out gets solution.json only (nothing without a point). Each file is written whole or
     not at all (:func:`nhgait.gaits.outputs.staged`). Returns the paths."""
     from nhgait.dynamics.progress import Progress
+
     from .outputs import staged
     progress = progress or Progress.silent()
     if result.solution is None:
@@ -579,8 +597,8 @@ def _write_files(result: PlanResult, out: Path, *, animate: bool, progress) -> l
     failed = None if result.success else (result.diagnosis[0] if result.diagnosis else result.solution.status)
     animate = animate and result.success
     with progress.phase("write solution.json and the figures"):
-        files.extend(plots.write_figures(result.solution, out, units=result.plan.units, drawing=result.plan.drawing,
-                                         model=result.model, failed=failed))
+        files.extend(plots.write_figures(result.solution, out, units=result.plan.units,
+                                         drawing=result.plan.drawing, model=result.model, failed=failed))
     if animate:
         from .animation import animate_solution
         with progress.phase("write the animation motion.gif (60 frames; the longest part of the output)"):
@@ -600,24 +618,26 @@ def summary_lines(result: PlanResult) -> list:
     lines = [f"nhgait plan {result.label}: {'SUCCESS' if result.success else 'FAILED'} ({status})",
              f"  objective          J = {s.objective:.6f}",
              f"  iterations         {s.iterations}  (guess: {result.guess}; tried {len(result.attempts)})",
-             f"  solve time         {s.solve_time_s * 1e3:.1f} ms  (functions {s.function_time_s * 1e3:.1f} ms, "
+             f"  solve time         {s.solve_time_s * 1e3:.1f} ms  (functions "
+             f"{s.function_time_s * 1e3:.1f} ms, "
              f"solver {s.solver_time_s * 1e3:.1f} ms); set-up {s.setup_time_s * 1e3:.1f} ms"]
     if v is not None:
-        lines.append(f"  verification       {'passed' if v.passed else 'FAILED'}: max state error {v.max_error:.2e}, "
-                     f"conditions met to {v.max_condition_error:.2e}; relative to each state's range "
-                     f"{v.max_scaled_error:.2e}, {v.max_scaled_condition_error:.2e} (tolerance {v.tolerance:g}; "
-                     f"DOP853, rtol {v.rtol:g})")
+        lines.append(f"  verification       {'passed' if v.passed else 'FAILED'}: max state error "
+                     f"{v.max_error:.2e}, conditions met to {v.max_condition_error:.2e}; relative to each "
+                     f"state's range {v.max_scaled_error:.2e}, {v.max_scaled_condition_error:.2e} (tolerance "
+                     f"{v.tolerance:g}; DOP853, rtol {v.rtol:g})")
     else:
         lines.append("  verification       not run")
     st = s.settings
     lines.append(f"  N = {st.get('intervals')}, T = {s.horizon:.4f} s, {st.get('transcription')}, "
                  f"{st.get('solver')}, {st.get('hessian', 'exact')} Hessian, {_compiled_text(st)}, "
                  f"states ({', '.join(st.get('transcribed_in', s.state_names))})")
-    lines += [f"  conditions         {line}" for line in (result.conditions.lines() if result.conditions else ())]
+    lines += [f"  conditions         {line}"
+              for line in (result.conditions.lines() if result.conditions else ())]
     if s.feedback is not None:                                               # issue 28
         lines.append(f"  feedback           time-varying LQR, {s.feedback.gains.shape[0]} gains "
-                     f"{s.feedback.gains.shape[1]}×{s.feedback.gains.shape[2]} in solution.json; nhgait track "
-                     "applies it to a robot that differs")
+                     f"{s.feedback.gains.shape[1]}×{s.feedback.gains.shape[2]} in solution.json; "
+                     "nhgait track applies it to a robot that differs")
     if s.stability is not None:
         lines += [f"  stability          {line}" for line in s.stability.summary()]
     if st.get("robust"):                                                     # [task.robust]
@@ -625,16 +645,19 @@ def summary_lines(result: PlanResult) -> list:
         lines.append(f"  robust             {summary_line(st['robust'])}")
     symmetry = getattr(result.model, "symmetry", None)
     if symmetry is not None:
-        lines.append(f"  symmetry           {symmetry.chosen.group} moves the fibre ({', '.join(result.model.fiber)}); "
-                     f"the guesses loop the shape ({', '.join(result.model.shape)}); why, and the other choices "
-                     "(fiber = [...] in [system]): nhgait derive")
+        lines.append(f"  symmetry           {symmetry.chosen.group} moves the fibre "
+                     f"({', '.join(result.model.fiber)}); "
+                     f"the guesses loop the shape ({', '.join(result.model.shape)}); why, and the "
+                     "other choices (fiber = [...] in [system]): nhgait derive")
     checked = getattr(s.problem, "model", None)
     if symmetry is not None and checked is not None and not hasattr(checked, "fiber"):
-        lines.append(f"  verified in        x = (q, q̇) on the Euler–Lagrange equations: the gait crosses the singular "
-                     "set of every chart of the reduction tried")
+        lines.append("  verified in        x = (q, q̇) on the Euler–Lagrange equations: the gait crosses "
+                     "the singular set of every chart of the reduction tried")
     elif symmetry is not None and checked is not None and tuple(checked.fiber) != tuple(result.model.fiber):
-        lines.append(f"  verified in        the chart with fiber ({', '.join(checked.fiber)}): the gait crosses the "
-                     f"singular set of fiber ({', '.join(result.model.fiber)}), where its momenta are not defined")
+        lines.append(f"  verified in        the chart with fiber ({', '.join(checked.fiber)}): the gait "
+                     "crosses the "
+                     f"singular set of fiber ({', '.join(result.model.fiber)}), where its momenta "
+                     "are not defined")
     return lines + _closing_lines(result)
 
 
@@ -651,7 +674,8 @@ def _closing_lines(result: PlanResult) -> list:
         lines.extend(f"    {f}" for f in result.files)
         if result.success and not any(str(f).endswith(".gif") for f in result.files):
             lines.append("  animation          not written: it is the longest part of the output (60 frames, "
-                         "about 5 s for the snakeboard); add --gif (plan(..., animate=True)) to write motion.gif")
+                         "about 5 s for the snakeboard); add --gif (plan(..., animate=True)) to "
+                         "write motion.gif")
     if result.overrun is not None:
         lines.append("  figures            not written: the time budget was spent")
     return lines
@@ -663,7 +687,8 @@ def _compiled_text(settings) -> str:
     later = c.get("later") or {}
     after = ""
     if later.get("state") == "started":
-        after = f"; {later.get('compiler')} {' '.join(later.get('flags') or [])} building in the background for the next run"
+        after = (f"; {later.get('compiler')} {' '.join(later.get('flags') or [])} building in the background "
+                 "for the next run")
     if not settings.get("jit"):
         reason = settings.get("jit_fallback")
         return "interpreted" + (f" ({reason}{after})" if reason else (f" ({after[2:]})" if after else ""))
@@ -671,4 +696,5 @@ def _compiled_text(settings) -> str:
     if c.get("code") == "fast":
         return f"compiled fast ({c.get('compiler')}, {size}, {c.get('compile_s', 0):.2f} s{after})"
     size += f", {' '.join(c.get('flags') or [])}"
-    return f"compiled ({size}" + (", cached)" if settings.get("jit_cached") else f", {c.get('compile_s', 0):.1f} s)")
+    return f"compiled ({size}" + (", cached)" if settings.get("jit_cached")
+                                  else f", {c.get('compile_s', 0):.1f} s)")

@@ -26,7 +26,7 @@ __all__ = ["plot_path", "plot_shape_loop", "plot_histories", "plot_momentum", "w
 _GREEK = {g: c for g, c in zip(
     ("alpha", "beta", "gamma", "delta", "epsilon", "zeta", "eta", "theta", "iota", "kappa", "lambda",
      "mu", "nu", "xi", "pi", "rho", "sigma", "tau", "upsilon", "phi", "chi", "psi", "omega"),
-    "αβγδεζηθικλμνξπρστυφχψω")}
+    "αβγδεζηθικλμνξπρστυφχψω", strict=True)}
 
 
 def label(name: str) -> str:
@@ -77,7 +77,7 @@ def _input_unit(system, name) -> str:
     syms = [s for s in system.input_symbols if s.name == name]
     if not syms:
         return ""
-    on = [c for c, f in zip(coords, system.tau) if syms[0] in getattr(f, "free_symbols", ())]
+    on = [c for c, f in zip(coords, system.tau, strict=True) if syms[0] in getattr(f, "free_symbols", ())]
     if on and all(_is_angle(system, c) and not _is_frame_position(system, c) for c in on):
         return "N·m"
     return "N" if on else ""
@@ -187,9 +187,11 @@ def plot_path(solution, ctx: FigureContext, ax=None, *, bodies: int = 7):
             lab = None
             if j == len(nodes) - 1 and i == 0:
                 lab = (f"body at {bodies} instants t = 0 … {t[-1]:.3g} s (lighter = earlier)"
-                       if ctx.drawing is not None else f"heading {label(fh)} at {bodies} instants (lighter = earlier)")
+                       if ctx.drawing is not None
+                       else f"heading {label(fh)} at {bodies} instants (lighter = earlier)")
             ax.plot(xs, ys, "-", color="0.3", lw=lw, alpha=alpha, solid_capstyle="round", zorder=1, label=lab)
-    ax.plot(x, y, "-", color="C0", lw=2.0, label=f"path of the frame point ({label(fx)}, {label(fy)})", zorder=3)
+    ax.plot(x, y, "-", color="C0", lw=2.0,
+            label=f"path of the frame point ({label(fx)}, {label(fy)})", zorder=3)
     ax.plot(x[0], y[0], "o", color="C2", ms=8, label="start (t = 0)", zorder=4)
     ax.plot(x[-1], y[-1], "s", color="C3", ms=8, label=f"end (t = {t[-1]:.3g} s)", zorder=4)
     ax.set_xlabel(with_unit(ctx, fx))
@@ -263,7 +265,8 @@ def _parallel_coordinates(solution, ctx, shape, ax):
     for k in range(data.shape[1]):
         ax.plot(range(len(shape)), scaled[:, k], "-", color=colors[k], lw=0.8, alpha=0.7)
     ax.set_xticks(range(len(shape)))
-    ax.set_xticklabels([f"{with_unit(ctx, c)}\n[{lo[i, 0]:.2g}, {hi[i, 0]:.2g}]" for i, c in enumerate(shape)])
+    ax.set_xticklabels([f"{with_unit(ctx, c)}\n[{lo[i, 0]:.2g}, {hi[i, 0]:.2g}]"
+                        for i, c in enumerate(shape)])
     ax.set_ylabel("value scaled to its range [min, max] (1 = max)")
     ax.plot([], [], color=colors[0], label="t = 0")
     ax.plot([], [], color=colors[-1], label=f"t = {solution.t[-1]:.3g} s")
@@ -288,10 +291,11 @@ def plot_histories(solution, ctx: FigureContext, axes=None):
     shape_units = list(dict.fromkeys(unit(ctx, c) for c in shape))      # in the order of the names
     for c in shape:
         axes[0].plot(solution.t, series(solution, c), lw=2, label=with_unit(ctx, c))
-    axes[0].set_ylabel(f"shape {', '.join(label(c) for c in shape)} [{', '.join(u for u in shape_units if u)}]")
+    axes[0].set_ylabel(f"shape {', '.join(label(c) for c in shape)} "
+                       f"[{', '.join(u for u in shape_units if u)}]")
     axes[0].legend(fontsize="small")
     axes[0].set_title("shape coordinates and inputs (inputs constant on each interval)")
-    for ax, u in zip(axes[1:], units):
+    for ax, u in zip(axes[1:], units, strict=False):
         for i, n in enumerate(solution.control_names):
             if unit(ctx, n) == u:
                 ax.step(solution.t, np.append(solution.controls[i], solution.controls[i, -1]), where="post",
@@ -307,13 +311,14 @@ def plot_histories(solution, ctx: FigureContext, axes=None):
 def plot_momentum(solution, ctx: FigureContext, axes=None):
     """The reduced momenta over time, one panel each, with their meaning and unit."""
     n = len(ctx.system.coordinates)
-    model_states = solution.problem.model_state_names if solution.problem is not None else solution.state_names
+    model_states = (solution.problem.model_state_names if solution.problem is not None
+                    else solution.state_names)
     names = list(model_states[n:])                       # the integral states (a task's) are not momenta
     if axes is None:
         import matplotlib.pyplot as plt
         _, axes = plt.subplots(len(names), 1, sharex=True, figsize=(7, 1.9 * max(1, len(names))))
     axes = list(np.atleast_1d(axes))
-    for ax, name in zip(axes, names):
+    for ax, name in zip(axes, names, strict=False):
         ax.plot(solution.t, series(solution, name), lw=2, color="C0")
         if name.startswith("pt_"):
             ax.set_ylabel(f"{label(name)} [{unit(ctx, name)}]")
@@ -371,7 +376,8 @@ def write_figures(solution, out: Path, *, units=None, drawing=None, model=None,
         axes = fig.subplots(rows, 1, sharex=rows > 1, squeeze=False)[:, 0]
         fn(solution, ctx, axes[0] if rows == 1 else axes)
         if failed:
-            fig.suptitle(f"FAILED — not a verified gait\n{_short(failed)}", color="tab:red", fontsize="medium")
+            fig.suptitle(f"FAILED — not a verified gait\n{_short(failed)}", color="tab:red",
+                         fontsize="medium")
         fig.savefig(out / name, dpi=110, bbox_inches="tight")
         files.append(out / name)
     return files

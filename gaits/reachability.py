@@ -24,7 +24,7 @@ def unreachable_targets(problem, system, params=None) -> list:
     if any(problem.fixed_value(problem.initial, v) != 0.0 for v in problem.state_names[n:]):
         return []
     lo, hi = problem.control_bound_vectors()
-    bounds = {u: (a, b) for u, a, b in zip(problem.control_names, lo, hi)}
+    bounds = {u: (a, b) for u, a, b in zip(problem.control_names, lo, hi, strict=True)}
     horizon = problem.free_horizon[1] if problem.free_horizon is not None else problem.horizon
     reach = displacement_bounds(system, bounds, float(horizon), params)
     if reach is None:
@@ -38,8 +38,9 @@ def unreachable_targets(problem, system, params=None) -> list:
         low, high = problem.bounds(problem.final, name)
         distance = max(low - start, start - high, 0.0)
         if distance > reach[name] * (1 + 1e-9) and math.isfinite(distance):
-            problems.append(f"final {name} is {distance:.6g} from initial {name} = {start:g}, but starting at rest "
-                            f"with {limits} no input moves {name} more than {reach[name]:.4g} in T = {horizon:g} s "
-                            "(a bound from the kinetic energy the inputs can supply): lengthen the horizon, "
-                            "widen the control bounds or move the target")
+            problems.append(f"final {name} is {distance:.6g} from initial {name} = {start:g}, but "
+                            "starting at rest "
+                            f"with {limits} no input moves {name} more than {reach[name]:.4g} in T = "
+                            f"{horizon:g} s (a bound from the kinetic energy the inputs can supply): "
+                            "lengthen the horizon, widen the control bounds or move the target")
     return problems

@@ -81,15 +81,17 @@ def _solver(problem, transcription, name, search_settings, progress):
     :data:`COMPILE_ABOVE_S`, else compiled at -O0 (unless the plan does not compile at all)."""
     from nhgait.ocp import OCPSolver, SolverOptions
     from nhgait.ocp.budget import EVALUATIONS_PER_ITERATION
-    from .time_limits import attempt_limited
+
     from .search import WARM_IPOPT
+    from .time_limits import attempt_limited
     s = search_settings
     options = SolverOptions(jit=False, solver=name, max_iter=s.max_iter, hessian=s.hessian,
                             ipopt=dict(WARM_IPOPT) if name == "ipopt" else {})
     ocp = OCPSolver(problem, transcription, options)
     expected = ocp.evaluation_seconds() * EVALUATIONS_PER_ITERATION * EXPECTED_ITERATIONS
     if s.jit is not False and expected > COMPILE_ABOVE_S:
-        ocp = OCPSolver(problem, transcription, replace(options, jit=True, jit_flags=("-O0",)), progress=progress)
+        ocp = OCPSolver(problem, transcription, replace(options, jit=True, jit_flags=("-O0",)),
+                        progress=progress)
     return attempt_limited(ocp, None, progress)
 
 
@@ -99,6 +101,7 @@ def refine(solution, verified, search_settings, budget, progress, verify):
     :func:`refinable`, each result verified by ``verify(solution)``; the attempts made. Returns
     the inputs unchanged when nothing was refined or no refined solve converged."""
     from nhgait.ocp import InitialGuess
+
     from .search import attempt_of, solve_attempts
     attempts = []
     for _ in range(REFINEMENTS):
@@ -108,12 +111,15 @@ def refine(solution, verified, search_settings, budget, progress, verify):
         if transcription is None or transcription.steps <= steps or budget.spent():
             break
         name = settings.get("solver", "ipopt")
-        progress.note(f"  the re-simulation misses by {max(v.max_error, v.max_condition_error):.2g} with {steps} "
-                      f"RK4 sub-steps per interval: solving again with {transcription.steps}, from this point")
+        progress.note(f"  the re-simulation misses by {max(v.max_error, v.max_condition_error):.2g} "
+                      f"with {steps} "
+                      f"RK4 sub-steps per interval: solving again with {transcription.steps}, "
+                      "from this point")
         with budget.stage(f"the refinement's NLP set-up ({transcription.steps} RK4 sub-steps)"):
             ocp = _solver(solution.problem, transcription, name, search_settings, progress)
         guess = InitialGuess(solution.states, solution.controls, horizon=float(solution.horizon),
-                             label=f"{settings.get('guess', 'solution')}, refined to {transcription.steps} sub-steps")
+                             label=f"{settings.get('guess', 'solution')}, refined to "
+                                   f"{transcription.steps} sub-steps")
         with budget.stage("the refinement's solve", interrupt=False):
             again, = solve_attempts(ocp, [guess], budget=budget, progress=progress)
         again = replace(again, settings={**again.settings, "guess": guess.label})

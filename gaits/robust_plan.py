@@ -43,7 +43,8 @@ def scenarios_for(spec, prepared, nominal, quantities):
     params = np.array([[theta0[i] * c.get(n, 1.0) for i, n in enumerate(names)] for c in copies])
     varied = [names.index(n) for n in spec.parameters]
     terminal = spec.terminal or default_terminal(problem, specialised.system)
-    problems = [f"[task].robust.terminal: {n!r} is not a state of the plan ({', '.join(problem.model_state_names)})"
+    problems = [f"[task].robust.terminal: {n!r} is not a state of the plan "
+                f"({', '.join(problem.model_state_names)})"
                 for n in terminal if n not in problem.model_state_names]
     if problems:
         raise ProblemError(problems, title="invalid robust planning")
@@ -58,9 +59,11 @@ def robust_search(search, prepared, to_plan, settings, budget, progress):
     """The :class:`~.search.Search` of the scenario problem from the nominal ``search``'s
     solution (a failure when it does not converge), its record in ``settings["robust"]``."""
     from dataclasses import replace
+
     from nhgait.ocp import OCPSolver, SolverOptions
     from nhgait.ocp.scenarios import ScenarioShooting
     from nhgait.ocp.solver import InitialGuess
+
     from .search import Attempt, Search, solve_attempts
     from .time_limits import attempt_limited
     nominal, spec = search.solution, to_plan.task.robust
@@ -70,7 +73,8 @@ def robust_search(search, prepared, to_plan, settings, budget, progress):
         with progress.phase(f"robust: the scenario NLP of {sc.count} copies ({', '.join(spec.parameters)}) "
                             f"with Ipopt, {sc.aggregate} terminal deviation"):
             ocp = OCPSolver(prepared.problem, method, SolverOptions(jit=settings.jit, solver="ipopt",
-                                                                    max_iter=settings.max_iter, hessian=settings.hessian),
+                                                                    max_iter=settings.max_iter,
+                                                                    hessian=settings.hessian),
                             progress=progress)
             ocp = attempt_limited(ocp, None, progress)
     guess = InitialGuess(nominal.states, nominal.controls, nominal.horizon, "the nominal plan")
@@ -79,8 +83,8 @@ def robust_search(search, prepared, to_plan, settings, budget, progress):
             solution = solve_attempts(ocp, [guess], budget=budget, progress=progress)[0]
     record = robust_record(sc, ocp, nominal, solution, spec)
     progress.note(f"  robust: {solution.status} after {solution.iterations} iterations; terminal deviation "
-                  f"(mean over copies, in units of {END_FRACTION:g} s_i) {record['nominal_plan']['mean']:.3g} → "
-                  f"{record['robust_plan']['mean']:.3g}")
+                  f"(mean over copies, in units of {END_FRACTION:g} s_i) "
+                  f"{record['nominal_plan']['mean']:.3g} → {record['robust_plan']['mean']:.3g}")
     solution = replace(solution, settings={**solution.settings, "robust": record})
     attempt = Attempt("robust: from the nominal plan", solution.status, bool(solution.success),
                       int(solution.iterations), float(solution.objective), "ipopt",

@@ -61,7 +61,7 @@ class Check:
 
     def posture(self, names=None) -> str:
         """"alpha1 = 0.31, alpha2 = 0.31": the values of ``names`` (default: every coordinate)."""
-        pairs = [(c, v) for c, v in zip(self.coordinates, self.q) if names is None or c in names]
+        pairs = [(c, v) for c, v in zip(self.coordinates, self.q, strict=True) if names is None or c in names]
         return ", ".join(f"{c} = {v:.3g}" for c, v in pairs)
 
     def reason(self, shape=None) -> str:
@@ -90,7 +90,8 @@ class Screen:
         self._rhs = numeric["rhs"].map(2 * N + 1)
         self._map = numeric.functions.get("velocity_map")
         self._singular = numeric.functions.get("singular")
-        bounds = {c: problem.bounds(problem.state_bounds, c) for c in self.coordinates if c in problem.state_bounds}
+        bounds = {c: problem.bounds(problem.state_bounds, c) for c in self.coordinates
+                  if c in problem.state_bounds}
         samples = region_samples(self.coordinates, bounds, count=64)
         self._typical = self._typical_values(samples)
 
@@ -119,7 +120,8 @@ class Screen:
         """Per column of ``q`` (n × K): the smaller of |det A| and the chart's measure, each as a
         fraction of its typical value (≥ 1 is ordinary; below :data:`RATIO` singular)."""
         out = np.full(q.shape[1], np.inf)
-        for values, typical in ((self._determinants(q), self._typical[0]), (self._chart(q), self._typical[1])):
+        for values, typical in ((self._determinants(q), self._typical[0]),
+                                (self._chart(q), self._typical[1])):
             if values is not None and typical > 0:
                 out = np.minimum(out, np.where(np.isfinite(values), np.abs(values) / typical, 0.0))
         return out
@@ -182,7 +184,7 @@ class Screen:
         lo = np.array([free[c][0] for c in names])
         hi = np.array([free[c][1] for c in names])
         if len(names) <= 3:
-            axes = [np.linspace(a, b, 5) for a, b in zip(lo, hi)]
+            axes = [np.linspace(a, b, 5) for a, b in zip(lo, hi, strict=True)]
             trial = np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(names), -1).T
         else:
             trial = np.random.default_rng(3).uniform(lo, hi, (count, len(names)))
@@ -193,4 +195,4 @@ class Screen:
         if ok.size == 0:
             return {}
         best = ok[np.argmin(np.linalg.norm(trial[ok] - q0[idx], axis=1))]
-        return {c: float(v) for c, v in zip(names, trial[best])}
+        return {c: float(v) for c, v in zip(names, trial[best], strict=True)}

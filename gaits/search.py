@@ -56,7 +56,7 @@ class Search:
     won: str | None
     closest: Any = None
 
-    def then(self, other: "Search") -> "Search":
+    def then(self, other: Search) -> Search:
         """This search followed by ``other`` (attempts joined, the closer failure kept)."""
         return Search(other.solution, self.attempts + other.attempts, other.won,
                       _closer(self.closest, other.closest))
@@ -136,6 +136,7 @@ def solve_attempts(solver, guesses, *, workers: int = 1, budget=None, progress=N
     is a failed solution with status ``Time_Limit_Exceeded``, one whose process died
     ``Solver_Died``."""
     from functools import partial
+
     from nhgait.ocp.supervision import Job, supervise
     limit = _limit(solver, budget)
     jobs = [Job(partial(_detached, solver, g), limit, partial(solver.unsolved, g)) for g in guesses]
@@ -191,7 +192,7 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
             break
         t0 = time.monotonic()
         sols = solve_attempts(solver, batch, workers=workers, budget=budget, progress=progress)
-        for k, (g, s) in enumerate(zip(batch, sols)):
+        for k, (g, s) in enumerate(zip(batch, sols, strict=True)):
             attempts.append(attempt_of(g.label, s, name))
             _report(progress, start + k + 1, total, g.label, s)
             if not s.success:
@@ -216,7 +217,8 @@ def _explore_seconds(first: float, budget) -> float:
     return seconds if budget is None else min(seconds, EXPLORE_BUDGET_SHARE * budget.remaining())
 
 
-def _explored(solver, guesses, found: Search, indices, seconds: float, workers: int, budget, progress) -> Search:
+def _explored(solver, guesses, found: Search, indices, seconds: float, workers: int, budget,
+              progress) -> Search:
     """``found`` or a lower objective among the guesses at ``indices`` tried after it, each
     attempt within what is left of ``seconds`` (the closest failure and every attempt kept)."""
     deadline = time.monotonic() + seconds
@@ -224,7 +226,8 @@ def _explored(solver, guesses, found: Search, indices, seconds: float, workers: 
     attempts, best, label = list(found.attempts), found.solution, found.won
     indices = list(indices)
     if indices and seconds > 0:
-        progress.note(f"  looking for a lower objective: up to {len(indices)} more guesses within {seconds:.0f} s")
+        progress.note(f"  looking for a lower objective: up to {len(indices)} more guesses within "
+                      f"{seconds:.0f} s")
     for start in range(0, len(indices), workers):
         left = deadline - time.monotonic()
         if left <= 0 or _spent(budget):
@@ -233,14 +236,16 @@ def _explored(solver, guesses, found: Search, indices, seconds: float, workers: 
         if not batch:
             break
         limit = left if solver.options.time_limit is None else min(left, solver.options.time_limit)
-        sols = solve_attempts(solver.with_time_limit(limit), batch, workers=workers, budget=budget, progress=progress)
-        for k, (g, s) in enumerate(zip(batch, sols)):
+        sols = solve_attempts(solver.with_time_limit(limit), batch, workers=workers, budget=budget,
+                              progress=progress)
+        for k, (g, s) in enumerate(zip(batch, sols, strict=True)):
             attempts.append(attempt_of(g.label, s, name))
             _report(progress, indices[start] + k + 1, indices[-1] + 1, g.label, s)
             if s.success and s.objective < best.objective - EXPLORE_GAIN * max(1.0, abs(best.objective)):
                 best, label = s, g.label
     if label != found.won:
-        progress.note(f"  kept {label!r}: J = {best.objective:.6g} (the first converged: {found.solution.objective:.6g})")
+        progress.note(f"  kept {label!r}: J = {best.objective:.6g} (the first converged: "
+                      f"{found.solution.objective:.6g})")
     return Search(best, tuple(attempts), label, found.closest)
 
 
@@ -249,13 +254,13 @@ def solve_with_fallbacks(solver, guesses, *, workers: int = 1, limit: int | None
     """The guesses in order (:func:`solve_from_guesses`, exploring with ``explore``), then
     :func:`continuation` from the first one (for screened candidates, the first that passed its
     screening: a regular guess; not once ``budget`` is spent)."""
-    search = solve_from_guesses(solver, guesses, workers=workers, limit=limit, progress=progress, budget=budget,
-                                explore=explore)
+    search = solve_from_guesses(solver, guesses, workers=workers, limit=limit, progress=progress,
+                                budget=budget, explore=explore)
     first = None if search.solution is not None or _spent(budget) else _built(guesses, range(1), budget)
     if first:
         if progress is not None:
-            progress.note(f"  no guess converged: continuation from {first[0].label!r} (the task's end values "
-                          "approached in 4 steps)")
+            progress.note(f"  no guess converged: continuation from {first[0].label!r} (the "
+                          "task's end values approached in 4 steps)")
         search = search.then(continuation(solver, first[0], progress=progress, budget=budget))
     return search
 

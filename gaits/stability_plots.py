@@ -44,7 +44,8 @@ def plot_eigenvalues(chart, ax=None, *, reference=None, reference_label: str = "
     return ax
 
 
-def write_eigenvalue_figure(chart, out, *, title: str, reference=None, reference_label: str = "published") -> Path:
+def write_eigenvalue_figure(chart, out, *, title: str, reference=None,
+                            reference_label: str = "published") -> Path:
     """``eigenvalues.png`` in the folder ``out``; returns its path."""
     from matplotlib.figure import Figure
     out = Path(out)

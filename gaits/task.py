@@ -52,12 +52,12 @@ from .task_phases import parse_integrals, parse_phases, parse_waypoints, phase_t
 from .task_robust import RobustTask, parse_robust, robust_name_problems, robust_table
 from .task_values import control_bounds, horizon, names_list, number, table
 
-__all__ = ["Task", "FrozenMap", "parse_task", "apply_overrides", "check_names", "task_names", "to_problem", "at_rest",
-           "TASK_KEYS", "TASK_WORDS", "task_words", "quantity_objects"]
+__all__ = ["Task", "FrozenMap", "parse_task", "apply_overrides", "check_names", "task_names", "to_problem",
+           "at_rest", "TASK_KEYS", "TASK_WORDS", "task_words", "quantity_objects"]
 
 TASK_KEYS = ("name", "description", "horizon", "intervals", "initial", "final", "rest", "periodic", "bounds",
-             "control_bounds", "objective", "velocities", "verify_tolerance", "time_limit", "waypoints", "integrals",
-             "phases", "robust")
+             "control_bounds", "objective", "velocities", "verify_tolerance", "time_limit", "waypoints",
+             "integrals", "phases", "robust")
 ENDS = ("initial", "final")
 OBJECTIVES = ("effort", "time")
 #: a task's name of a statement field (the others are the same)
@@ -77,7 +77,8 @@ _TASK_TEMPLATES = {
                  "minutes to build and to solve)",
     "free_horizon_lower": _NEED_MIN_MAX,
     "free_horizon_any": _NEED_MIN_MAX,
-    "time_without_free_horizon": "{where}.objective: a time objective needs a free horizon (horizon = [min, max])",
+    "time_without_free_horizon": "{where}.objective: a time objective needs a free horizon (horizon "
+                                 "= [min, max])",
     "not_a_bound": None,
     "nan_bound": None,
     "contradictory": "{place}: contradictory range, lower bound {lo:g} > upper bound {hi:g}",
@@ -144,11 +145,12 @@ class Task:
         integral states)."""
         st = self.statement
         points = [*st.waypoints, *(w for p in st.phases for w in p.waypoints)]
-        used = (*self.initial, *self.final, *self.periodic, *self.bounds, *(n for w in points for n in w.conditions),
+        used = (*self.initial, *self.final, *self.periodic, *self.bounds,
+                *(n for w in points for n in w.conditions),
                 *(n for p in st.phases for n in (*p.final, *p.state_bounds)), *self.integrals.values())
         return tuple(n for n in dict.fromkeys(used) if n not in self.integrals)
 
-    def replace(self, **changes) -> "Task":
+    def replace(self, **changes) -> Task:
         """A copy with some fields changed, named as the task names them (``intervals=60``)."""
         statement_fields = set(self.statement.statement_fields()) | set(TASK_FIELD_NAMES.values())
         own = {k: v for k, v in changes.items() if k not in statement_fields}
@@ -163,7 +165,8 @@ class Task:
             out["phases"] = [phase_table(p) for p in self.phases]
         else:
             out["intervals"] = self.intervals
-            out["horizon"] = {"initial": self.horizon, "min": bounds[0], "max": bounds[1]} if bounds else self.horizon
+            out["horizon"] = ({"initial": self.horizon, "min": bounds[0], "max": bounds[1]} if bounds
+                              else self.horizon)
         if self.waypoints:
             out["waypoints"] = [waypoint_table(w) for w in self.waypoints]
         if self.integrals:
@@ -192,7 +195,8 @@ _STATEMENT_NAMES = {task: stated for stated, task in TASK_FIELD_NAMES.items()}
 def _objective(value, problems) -> dict:
     if isinstance(value, str):
         if value not in OBJECTIVES:
-            problems.append(f"[task].objective = {value!r}: use \"effort\" (∫|u|² dt), \"time\" or a table of weights")
+            problems.append(f"[task].objective = {value!r}: use \"effort\" (∫|u|² dt), \"time\" or a "
+                            "table of weights")
             return {"effort": 1.0}
         return {value: 1.0}
     if not isinstance(value, Mapping) or not value:
@@ -218,7 +222,8 @@ def _statement(data, problems) -> tuple:
         final=table(data, "final", problems), periodic=names_list(data, "periodic", problems, repeats=False),
         state_bounds=table(data, "bounds", problems), control_bounds=control_bounds(data, problems),
         time_weight=max(0.0, objective.get("time", 0.0)),     # a negative weight: the objective's own check
-        free_horizon=free_horizon, waypoints=waypoints if not phases else (),   # with phases: said by parse_phases
+        free_horizon=free_horizon,
+        waypoints=waypoints if not phases else (),   # with phases: said by parse_phases
         integrals=integrals, phases=phases,
         end_weights={n: w for n, w in objective.items() if n in integrals}), objective
 
@@ -235,7 +240,8 @@ def _task_fields(data, where, problems) -> dict:
     for key in ("name", "description"):
         if key in data and not isinstance(data[key], str):
             problems.append(f"{where}.{key} must be a string")
-    return {"velocities": names_list(data, "velocities", problems), "rest": rest, "verify_tolerance": tolerance,
+    return {"velocities": names_list(data, "velocities", problems), "rest": rest,
+            "verify_tolerance": tolerance,
             "name": str(data.get("name", "task")), "description": str(data.get("description", "")),
             "time_limit": _time_limit(data, where, problems), "robust": parse_robust(data, where, problems)}
 
@@ -268,14 +274,16 @@ def parse_task(data, *, where: str = "[task]", system=None, quantities=(), motio
     problems: list = []
     unknown = sorted(set(data) - set(TASK_KEYS))
     if unknown:
-        problems.append(f"{where}: unknown key(s) {unknown}{known_names(unknown[0], TASK_KEYS, label='allowed')}")
+        problems.append(f"{where}: unknown key(s) "
+                        f"{unknown}{known_names(unknown[0], TASK_KEYS, label='allowed')}")
     statement, objective = _statement(data, problems)
     task = Task(statement, objective, **_task_fields(data, where, problems))
     if system is None:
         problems += statement.problems(task_words(where))
     else:
         n, k = system.n, len(system.constraint_exprs)
-        problems += _name_problems(task, task_names(system, quantities), tuple(system.inputs), n - k, where, motion)
+        problems += _name_problems(task, task_names(system, quantities), tuple(system.inputs), n - k,
+                                   where, motion)
         problems += robust_name_problems(task.robust, system, task_names(system, quantities), where)
     if problems:
         raise ProblemError(problems, title="invalid task")
@@ -299,7 +307,8 @@ def apply_overrides(data, assignments) -> dict:
         key, value, parts = assignment.key, assignment.value, list(assignment.parts)
         if parts[0] not in TASK_KEYS or len(parts) > 2:
             problems.append(f"--set {text!r}: unknown key {key!r}"
-                            f"{known_names(parts[0], TASK_KEYS, label='allowed')[:-1]}, or table.name such as final.x)")
+                            f"{known_names(parts[0], TASK_KEYS, label='allowed')[:-1]}, or table.name "
+                            "such as final.x)")
             continue
         if value.startswith("[") and value.endswith("]"):
             value = value[1:-1]
@@ -396,7 +405,8 @@ def scene_quantities(model, quantity_function, motion_function=None) -> dict:
     qdot = model.numeric["qdot"]
     out = {}
     for name, i in _outputs(quantity_function, model):
-        out[name] = Quantity(name, lambda z, params, i=i: quantity_function(z[:n], qdot(z, params), params)[i],
+        out[name] = Quantity(name,
+                             lambda z, params, i=i: quantity_function(z[:n], qdot(z, params), params)[i],
                              f"scene quantity {name}")
     for name, i in _outputs(motion_function, model):
         out[name] = Quantity(name, lambda z, u, zdot, params, i=i: motion_function(
@@ -435,7 +445,8 @@ def at_rest(task: Task, model) -> dict:
             value = ends[where].get(name, 0.0)
             lo, hi = value if isinstance(value, tuple) else (value, value)
             if not lo <= 0.0 <= hi:
-                problems.append(f"[task].{where}.{name} = {value} contradicts rest = [\"{where}\"] (every velocity 0)")
+                problems.append(f"[task].{where}.{name} = {value} contradicts rest = [\"{where}\"] "
+                                "(every velocity 0)")
             ends[where][name] = 0.0
     if problems:
         raise ProblemError(problems, title="invalid task")
@@ -461,5 +472,5 @@ def quantity_objects(model, scene):
     """The scene's named quantities as :class:`~nhgait.ocp.Quantity` objects on ``model``."""
     from nhgait.dynamics.derivation.quantities import motion_quantity_function, quantity_function
     motion = scene.motion_quantities
-    return scene_quantities(model, quantity_function(model.system, scene.quantities) if scene.quantities else None,
-                            motion_quantity_function(model.system, motion) if motion else None)
+    return scene_quantities(model, quantity_function(model.system, scene.quantities) if scene.quantities
+                            else None, motion_quantity_function(model.system, motion) if motion else None)

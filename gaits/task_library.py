@@ -13,9 +13,10 @@ The built-in gait tasks are data, in the same ``[task]`` format a user writes
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
-from typing import Any, Mapping
+from typing import Any
 
 from nhgait.dynamics.suggestions import did_you_mean
 from nhgait.ocp import ProblemError
@@ -62,7 +63,8 @@ def library(scene_name: str) -> dict | None:
     unknown = set(data) - LIBRARY_KEYS
     tasks = data.get("tasks", {})
     if unknown or not isinstance(tasks, dict):  # pragma: no cover - guards the shipped data
-        raise ProblemError([f"unknown key(s) {sorted(unknown)} or bad [tasks]"], title=f"invalid library {name}")
+        raise ProblemError([f"unknown key(s) {sorted(unknown)} or bad [tasks]"],
+                           title=f"invalid library {name}")
     return data
 
 
@@ -95,7 +97,8 @@ def get_task(scene_name: str, name: str) -> Task:
         known = ", ".join(f"{s} {n}" for s, n in tasks)
         hint = did_you_mean(name, here)
         raise ProblemError([f"unknown gait {name!r} for system {scene_name!r}{': ' + hint if hint else ''} "
-                            f"(known: {known}; a scene file plans its own [task])"], title="invalid gait task")
+                            f"(known: {known}; a scene file plans its own [task])"],
+                           title="invalid gait task")
     return parse_task({"name": name, **tasks[name]}, where=f"[tasks.{name}]")
 
 
@@ -130,15 +133,17 @@ def resolve(system, task=None, *, overrides=()) -> Plan:
     lib = library(name) if str(scene.source).startswith("built-in scene ") else None
     units = {**((lib or {}).get("units", {})), **dict(scene.units or {})}
     drawing = scene.drawing if scene.drawing is not None else (lib or {}).get("drawing")
-    check = {"system": scene.system, "quantities": scene.all_quantities, "motion": tuple(scene.motion_quantities)}
+    check = {"system": scene.system, "quantities": scene.all_quantities,
+             "motion": tuple(scene.motion_quantities)}
     if isinstance(task, Task):
         task = parse_task(apply_overrides(task.to_dict(), overrides), **check)
         return Plan(scene, task, f"{name}/{task.name}", units, drawing)
     if isinstance(task, str):
         if lib is None:
             raise ProblemError([f"--gait {task}: the built-in gaits belong to the built-in scenes, and "
-                                f"{scene.source} is a scene file: plan its own [task] (without --gait), or the "
-                                "built-in scene by name (nhgait plan snakeboard --gait forward)"],
+                                f"{scene.source} is a scene file: plan its own [task] (without "
+                                "--gait), or the built-in scene by name (nhgait plan snakeboard "
+                                "--gait forward)"],
                                title="unknown gait")
         tasks = lib.get("tasks", {})
         if task not in tasks:

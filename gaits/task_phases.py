@@ -33,8 +33,8 @@ from nhgait.ocp.statement import Phase, Waypoint
 
 from .task_values import control_bounds, horizon, number, table
 
-__all__ = ["WAYPOINT_KEYS", "PHASE_KEYS", "parse_waypoints", "parse_phases", "parse_integrals", "waypoint_table",
-           "phase_table"]
+__all__ = ["WAYPOINT_KEYS", "PHASE_KEYS", "parse_waypoints", "parse_phases", "parse_integrals",
+           "waypoint_table", "phase_table"]
 
 WAYPOINT_KEYS = ("time", "name", "conditions")
 PHASE_KEYS = ("name", "horizon", "intervals", "final", "bounds", "control_bounds", "waypoints")
@@ -98,11 +98,13 @@ def parse_phases(data, problems, where: str = "[task]") -> tuple:
                          control_bounds=_phase_controls(item, problems, at),
                          waypoints=parse_waypoints(item, problems, at), name=_name(item, at, problems)))
     if out and "horizon" in data:
-        problems.append(f"{where}: with phases, each phase states its own horizon (remove horizon from {where})")
+        problems.append(f"{where}: with phases, each phase states its own horizon (remove horizon "
+                        f"from {where})")
     if out and "intervals" in data:
         out = _spread(out, data["intervals"], where, problems)
     if out and data.get("waypoints"):
-        problems.append(f"{where}.waypoints: with phases, each phase states its own waypoints (times from its start)")
+        problems.append(f"{where}.waypoints: with phases, each phase states its own waypoints (times "
+                        "from its start)")
     return tuple(out)
 
 
@@ -111,19 +113,20 @@ def _spread(phases: list, total, where, problems) -> list:
     or ``--set intervals=N`` on a task of phases: a refinement), each at least 1."""
     from dataclasses import replace
     if isinstance(total, bool) or not isinstance(total, int) or total < len(phases):
-        problems.append(f"{where}.intervals = {total!r}: with phases, an integer of at least one interval per "
-                        f"phase ({len(phases)}), shared in proportion to theirs")
+        problems.append(f"{where}.intervals = {total!r}: with phases, an integer of at least one "
+                        f"interval per phase ({len(phases)}), shared in proportion to theirs")
         return phases
     own = [max(1, int(p.intervals)) if isinstance(p.intervals, int) else 1 for p in phases]
     shares = [max(1, round(total * n / sum(own))) for n in own]
     shares[-1] = max(1, total - sum(shares[:-1]))
-    return [replace(p, intervals=n) for p, n in zip(phases, shares)]
+    return [replace(p, intervals=n) for p, n in zip(phases, shares, strict=True)]
 
 
 def _phase_controls(item, problems, at) -> dict:
     bounds = control_bounds(item, problems, at)
     if not isinstance(bounds, Mapping):
-        problems.append(f"{at}.control_bounds: a phase bounds inputs by name (a table such as {{F = [0, 5]}})")
+        problems.append(f"{at}.control_bounds: a phase bounds inputs by name "
+                        "(a table such as {F = [0, 5]})")
         return {}
     return bounds
 

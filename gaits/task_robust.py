@@ -66,11 +66,12 @@ class RobustTask:
         names = list(self.parameters)
         if self.samples is None:
             grid = itertools.product(*(self.parameters[n] for n in names))
-            return [dict(zip(names, combo)) for combo in grid if any(f != 1.0 for f in combo)]
+            return [dict(zip(names, combo, strict=True)) for combo in grid if any(f != 1.0 for f in combo)]
         rng = np.random.default_rng(int(self.seed))
         lo = np.array([min(self.parameters[n]) for n in names])
         hi = np.array([max(self.parameters[n]) for n in names])
-        return [dict(zip(names, map(float, rng.uniform(lo, hi)))) for _ in range(int(self.samples))]
+        return [dict(zip(names, map(float, rng.uniform(lo, hi)), strict=True))
+                for _ in range(int(self.samples))]
 
     def to_dict(self) -> dict:
         out = {"parameters": {k: list(v) for k, v in self.parameters.items()}, "seed": self.seed,
@@ -95,8 +96,10 @@ def parse_robust(data, where: str, problems: list) -> RobustTask | None:
         return None
     unknown = sorted(set(table) - set(ROBUST_KEYS))
     if unknown:
-        problems.append(f"{here}: unknown key(s) {unknown}{known_names(unknown[0], ROBUST_KEYS, label='allowed')}")
-    spec = RobustTask(_parameters(table, here, problems), _count(table, "samples", here, problems, 1, MAX_COPIES),
+        problems.append(f"{here}: unknown key(s) "
+                        f"{unknown}{known_names(unknown[0], ROBUST_KEYS, label='allowed')}")
+    spec = RobustTask(_parameters(table, here, problems),
+                      _count(table, "samples", here, problems, 1, MAX_COPIES),
                       _count(table, "seed", here, problems, 0, 2 ** 32 - 1) or 0,
                       _aggregate(table, here, problems), _weight(table, here, problems),
                       _terminal(table, here, problems))
@@ -119,7 +122,8 @@ def _parameters(table, here, problems) -> dict:
         if any(math.isnan(p) for p in parsed):          # said by number()
             continue
         if not factors or not all(math.isfinite(p) and p > 0 for p in parsed):
-            problems.append(f"{here}.parameters.{name}: factors must be positive numbers, got {list(factors)!r}")
+            problems.append(f"{here}.parameters.{name}: factors must be positive numbers, got "
+                            f"{list(factors)!r}")
             continue
         out[str(name)] = tuple(parsed)
     return out

@@ -51,7 +51,8 @@ def table(data, key, problems, where: str = "[task]") -> dict:
 def names_list(data, key, problems, *, repeats: bool = True, where: str = "[task]") -> tuple:
     """``data[key]``: a list of names (repeats refused unless ``repeats`` is False)."""
     item = data.get(key, [])
-    if isinstance(item, str) or not isinstance(item, (list, tuple)) or not all(isinstance(v, str) for v in item):
+    if isinstance(item, str) or not isinstance(item, (list, tuple)) or not all(isinstance(v, str)
+                                                                               for v in item):
         problems.append(f"{where}.{key} must be a list of names such as [\"psi\", \"phi_dot\"], got {item!r}")
         return ()
     if repeats and len(set(item)) != len(item):
@@ -64,7 +65,8 @@ def horizon(data, problems, where: str = "[task]"):
     seconds, ``[min, max]`` (free, T the middle) or ``{initial, min, max}``; the bounds' order
     is the statement's to check."""
     if "horizon" not in data:
-        problems.append(f"{where}: missing key 'horizon' (a number of seconds, or [min, max] for a free horizon)")
+        problems.append(f"{where}: missing key 'horizon' (a number of seconds, or [min, max] for a "
+                        "free horizon)")
         return None, None
     item = data["horizon"]
     if isinstance(item, Mapping):

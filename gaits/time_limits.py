@@ -28,26 +28,34 @@ def budget_for(n_coordinates: int, given=None, task_limit=None, *, given_as: str
         seconds, source = task_limit, "[task] time_limit"
     else:
         seconds = default_plan_seconds(n_coordinates)
-        source = f"default: {PLAN_BASE_S:g} s + {PLAN_PER_COORDINATE_S:g} s per coordinate, n = {n_coordinates}"
+        source = (f"default: {PLAN_BASE_S:g} s + {PLAN_PER_COORDINATE_S:g} s per coordinate, n = "
+                  f"{n_coordinates}")
     try:
         seconds = float(seconds)
     except (TypeError, ValueError):
         seconds = math.nan
     if not seconds > 0:
-        raise ProblemError([f"time_limit = {seconds if given is None else given!r} must be a positive number of "
-                            "seconds (inf: unlimited)"], title="invalid time limit")
-    return Budget(None if math.isinf(seconds) else seconds, source, **({} if started is None else {"started": started}))
+        raise ProblemError([f"time_limit = {seconds if given is None else given!r} must be a "
+                            "positive number of seconds (inf: unlimited)"], title="invalid time limit")
+    return Budget(None if math.isinf(seconds) else seconds, source,
+                  **({} if started is None else {"started": started}))
 
 
 def attempt_limited(ocp, guess=None, progress=None):
     """``ocp`` with its default time limit per attempt (:func:`~nhgait.ocp.budget.default_attempt_seconds`
     from one measured evaluation of its NLP functions at ``guess``, None: zero within the
     bounds), said on ``progress``."""
-    from nhgait.ocp.budget import ATTEMPT_CAP_S, ATTEMPT_FLOOR_S, EVALUATIONS_PER_ITERATION, default_attempt_seconds
+    from nhgait.ocp.budget import (
+        ATTEMPT_CAP_S,
+        ATTEMPT_FLOOR_S,
+        EVALUATIONS_PER_ITERATION,
+        default_attempt_seconds,
+    )
     evaluation = ocp.evaluation_seconds(guess)
     limit = default_attempt_seconds(evaluation, ocp.options.max_iter)
     if progress is not None:
         progress.note(f"  each attempt at most {limit:.0f} s ({ocp.options.max_iter} iterations × "
-                      f"{EVALUATIONS_PER_ITERATION:g} evaluations of the NLP functions, {evaluation * 1e3:.1f} ms each; "
+                      f"{EVALUATIONS_PER_ITERATION:g} evaluations of the NLP functions, "
+                      f"{evaluation * 1e3:.1f} ms each; "
                       f"between {ATTEMPT_FLOOR_S:g} and {ATTEMPT_CAP_S:g} s)")
     return ocp.with_time_limit(limit)

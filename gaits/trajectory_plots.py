@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from nhgait.gaits.plot_style import series_styles
-from nhgait.gaits.plots import with_unit, figure_context, label, plot_path, unit
+from nhgait.gaits.plots import figure_context, label, plot_path, unit, with_unit
 
 __all__ = ["TrajectoryView", "plot_time_series", "write_trajectory_figures"]
 
@@ -40,7 +40,7 @@ class TrajectoryView:
     problem: _Problem
 
     @classmethod
-    def of(cls, traj, model, params=None) -> "TrajectoryView":
+    def of(cls, traj, model, params=None) -> TrajectoryView:
         system = model.system
         return cls(t=np.asarray(traj.t), states=np.asarray(traj.q).T, state_names=tuple(system.coordinates),
                    qdot=np.asarray(traj.qdot), problem=_Problem(model, system.param_vector(params or None)))
@@ -65,11 +65,11 @@ def plot_time_series(traj, ctx, axes):
     axes = list(np.atleast_1d(axes))
     rows = [("coordinate", u, names) for u, names in coords.items()] + \
            [("input", u, names) for u, names in inputs.items()]
-    for ax, (kind, u, names) in zip(axes, rows):
+    for ax, (kind, u, names) in zip(axes, rows, strict=False):
         source = traj.q if kind == "coordinate" else traj.u
         order = traj.coordinates if kind == "coordinate" else traj.input_names
         styles = series_styles(len(names))
-        for name, style in zip(names, styles):
+        for name, style in zip(names, styles, strict=True):
             ax.plot(traj.t, np.asarray(source)[:, list(order).index(name)], lw=1.8,
                     label=with_unit(ctx, name), **style)
         what = "coordinates" if kind == "coordinate" else "inputs"

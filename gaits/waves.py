@@ -31,7 +31,8 @@ import numpy as np
 
 from nhgait.ocp import InitialGuess
 
-__all__ = ["ShapeGuess", "centre", "ends", "free_start", "amplitude", "guess_from_shape", "repairs", "FITTED_LABEL", "PATH_LABEL"]
+__all__ = ["ShapeGuess", "centre", "ends", "free_start", "amplitude", "guess_from_shape", "repairs",
+           "FITTED_LABEL", "PATH_LABEL"]
 
 #: the fitted roll-out's label (:mod:`.fitted`; built by :func:`guess_from_shape` like the others)
 FITTED_LABEL = "fitted roll-out"
@@ -101,7 +102,8 @@ def free_start(problem, coordinates) -> dict:
             continue
         if name in problem.periodic and problem.fixed_value(problem.final, name) is not None:
             continue
-        lo, hi = problem.bounds(problem.state_bounds, name) if name in problem.state_bounds else (-math.pi, math.pi)
+        lo, hi = (problem.bounds(problem.state_bounds, name) if name in problem.state_bounds
+                  else (-math.pi, math.pi))
         out[name] = (max(lo, -math.pi), min(hi, math.pi))
     return out
 
@@ -157,7 +159,7 @@ def _rollout(problem, shape: ShapeGuess, coordinates: tuple) -> InitialGuess:
         return np.asarray(qdot(np.concatenate([q, y_of(t)]), problem.params)).ravel()
 
     q = np.array([ends(problem, c, shape.start)[0] for c in coordinates])
-    for name, amp, k, phase in shape.waves:
+    for name, amp, _k, phase in shape.waves:
         q[coordinates.index(name)] += amp * math.sin(phase)
     h = T / N / 4
     Z = np.zeros((len(names), N + 1))
@@ -200,7 +202,8 @@ def repairs(problem, shape: ShapeGuess, free: dict):
         what = ", ".join(filter(None, [f"phase +{phase:.2f}" if phase else "",
                                       ", ".join(f"centre {c} = {v:.2g}" for c, v in shift.items()),
                                       f"amplitudes x{scale:g}" if scale != 1.0 else ""]))
-        yield replace(shape, label=f"{shape.label} ({what})", waves=tuple(waves), start=tuple(start.items())), what
+        yield replace(shape, label=f"{shape.label} ({what})", waves=tuple(waves),
+                      start=tuple(start.items())), what
 
 
 def _shifts(problem, shape: ShapeGuess, moved: list) -> list:

@@ -41,7 +41,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 __all__ = ["Budget", "BudgetSpent", "Overrun", "default_plan_seconds", "default_attempt_seconds",
-           "PLAN_BASE_S", "PLAN_PER_COORDINATE_S", "ATTEMPT_FLOOR_S", "ATTEMPT_CAP_S", "EVALUATIONS_PER_ITERATION", "KILL_GRACE_S"]
+           "PLAN_BASE_S", "PLAN_PER_COORDINATE_S", "ATTEMPT_FLOOR_S", "ATTEMPT_CAP_S",
+           "EVALUATIONS_PER_ITERATION", "KILL_GRACE_S"]
 
 #: a plan's default budget: this much plus PLAN_PER_COORDINATE_S per coordinate (seconds)
 PLAN_BASE_S = 120.0
@@ -72,7 +73,8 @@ def default_attempt_seconds(evaluation_s: float, max_iter: int) -> float:
     :data:`EVALUATIONS_PER_ITERATION` evaluations of ``evaluation_s`` seconds, clipped."""
     if not math.isfinite(evaluation_s) or evaluation_s <= 0:
         return ATTEMPT_FLOOR_S
-    return float(min(ATTEMPT_CAP_S, max(ATTEMPT_FLOOR_S, EVALUATIONS_PER_ITERATION * max_iter * evaluation_s)))
+    return float(min(ATTEMPT_CAP_S,
+                     max(ATTEMPT_FLOOR_S, EVALUATIONS_PER_ITERATION * max_iter * evaluation_s)))
 
 
 @dataclass(frozen=True)
@@ -112,7 +114,7 @@ class Budget:
     phase: str = "start-up"
 
     @classmethod
-    def unlimited(cls) -> "Budget":
+    def unlimited(cls) -> Budget:
         return cls(None, "unlimited")
 
     @property
@@ -170,7 +172,7 @@ class Budget:
         self.check(phase)
 
 
-def _spent_within(exc: BaseException) -> "BudgetSpent | None":
+def _spent_within(exc: BaseException) -> BudgetSpent | None:
     """The :class:`BudgetSpent` that ``exc`` wraps, if any: the alarm's exception raised while a
     C extension was running comes back as that extension's error with BudgetSpent as its cause
     or context (CasADi's ``DM.__array__``: "SystemError: … returned a result with an exception

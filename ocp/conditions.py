@@ -63,7 +63,8 @@ __all__ = ["normalise", "ConditionReport"]
 SAMPLES = 6
 RANK_TOL = 1e-8            # singular values below this fraction of the largest are zero
 RESIDUAL_TOL = 1e-8        # a condition holds when |c(z) − a| ≤ RESIDUAL_TOL (1 + |a|)
-REST_RANK_TOL = 1e-8       # A_Sᵀ A_S loses rank where its smallest eigenvalue falls below this fraction of its largest
+# A_Sᵀ A_S loses rank where its smallest eigenvalue falls below this fraction of its largest
+REST_RANK_TOL = 1e-8
 
 
 @dataclass(frozen=True)
@@ -78,7 +79,8 @@ class ConditionReport:
 
     def lines(self) -> list:
         out = [f"{where}.{name}: dropped, {reason}" for where, name, reason in self.dropped]
-        out += [f"{where}: the conditions determine the whole state; fixed to ({', '.join(f'{v:.6g}' for v in z)})"
+        out += [f"{where}: the conditions determine the whole state; fixed to "
+                f"({', '.join(f'{v:.6g}' for v in z)})"
                 for where, z in self.solved]
         out += [f"initial.{name}: fixed to 0 — nothing depends on its value (the dynamics, the objective and "
                 "every condition are the same for any value; left free, the solver drifts along it)"
@@ -151,7 +153,8 @@ def _point_on(end: _End, kept: list, values: np.ndarray, z0: np.ndarray, free: n
         r = c[kept] - values[kept]
         if not np.all(np.isfinite(r)):
             return None
-        if np.max(np.abs(r), initial=0.0) <= RESIDUAL_TOL * 1e-2 * (1 + np.max(np.abs(values[kept]), initial=0.0)):
+        if (np.max(np.abs(r), initial=0.0)
+            <= RESIDUAL_TOL * 1e-2 * (1 + np.max(np.abs(values[kept]), initial=0.0))):
             return z
         step = np.linalg.lstsq(J[np.ix_(kept, free)], -r, rcond=None)[0]
         z[free] += step
@@ -199,8 +202,8 @@ def _end_conditions(problem, mapping, where: str, rng):
             kept.append(j)
         else:
             worst = verdict
-            problems.append(f"[task].{where}: {name} = {values[j]:g} contradicts {implied_by}: where those hold, "
-                            f"{name} = {values[j] + worst:.6g} (residual {worst:.3g})")
+            problems.append(f"[task].{where}: {name} = {values[j]:g} contradicts {implied_by}: where "
+                            f"those hold, {name} = {values[j] + worst:.6g} (residual {worst:.3g})")
     if problems:
         raise ProblemError(problems, title="inconsistent boundary conditions")
     independent = len(fixed) + len(kept)          # ≤ nz: a kept condition raises the rank in the free part
@@ -238,9 +241,10 @@ def _velocities_at_rest(problem, mapping, rng) -> tuple:
         return mapping, []
     A = [end(z)[1][np.ix_(linear, velocity)] for z in Z]
     scale = max(float(np.abs(a).max()) for a in A)
-    S = [k for k in range(len(velocity)) if scale > 0 and max(float(np.abs(a[:, k]).max()) for a in A) > RANK_TOL * scale]
-    if not S or len(S) > len(linear) or not _full_rank_everywhere(problem, end, linear, [velocity[k] for k in S], Z,
-                                                                  fixed):
+    S = [k for k in range(len(velocity)) if scale > 0
+         and max(float(np.abs(a[:, k]).max()) for a in A) > RANK_TOL * scale]
+    if not S or len(S) > len(linear) or not _full_rank_everywhere(problem, end, linear,
+                                                                  [velocity[k] for k in S], Z, fixed):
         return mapping, []
     stopped = [problem.state_names[velocity[k]] for k in S]
     names = [rows[j] for j in linear]
@@ -290,7 +294,8 @@ def _full_rank_everywhere(problem, end: _End, rows: list, columns: list, Z, fixe
         return False
     for z in Z:
         best = minimize(smallest, z[coords], args=(z,), method="Nelder-Mead",
-                        options={"xatol": 1e-9, "fatol": REST_RANK_TOL * top * 1e-4, "maxiter": 200 * len(coords)})
+                        options={"xatol": 1e-9, "fatol": REST_RANK_TOL * top * 1e-4,
+                                 "maxiter": 200 * len(coords)})
         if best.fun <= REST_RANK_TOL * top:
             return False
     return True
@@ -396,16 +401,21 @@ def _periodic(problem, rng) -> tuple:
     jac = [end(z)[1] for z in Z]
     kept, dropped = [], []
     for j, name in enumerate(derived):
-        if Z and all(_rank(np.vstack([unit, J[kept + [j]]])) == _rank(np.vstack([unit, J[kept]])) for J in jac):
-            dropped.append((name, "implied by the periodicity of " + ", ".join(states + [derived[k] for k in kept])))
+        if Z and all(_rank(np.vstack([unit, J[kept + [j]]])) == _rank(np.vstack([unit, J[kept]]))
+                     for J in jac):
+            dropped.append((name, "implied by the periodicity of "
+                            + ", ".join(states + [derived[k] for k in kept])))
         else:
             kept.append(j)
-    velocities = _determined_velocities(problem, states, derived, [derived[k] for k in kept], jac) if dropped else ()
+    velocities = (_determined_velocities(problem, states, derived, [derived[k] for k in kept], jac)
+                  if dropped else ())
     if velocities:
-        reason = (f"stated as the periodicity of the velocity states {', '.join(velocities)}, which the periodic "
-                  f"rates determine and which determine them (the rates alone could repeat at a posture where "
-                  "they stop determining the motion, without the motion repeating)")
-        return tuple(states + [v for v in velocities if v not in states]), [(name, reason) for name in derived]
+        reason = (f"stated as the periodicity of the velocity states {', '.join(velocities)}, which "
+                  "the periodic "
+                  "rates determine and which determine them (the rates alone could repeat at a "
+                  "posture where they stop determining the motion, without the motion repeating)")
+        return tuple(states + [v for v in velocities if v not in states]), [(name, reason)
+                                                                            for name in derived]
     return tuple(states + [derived[k] for k in kept]), dropped
 
 
@@ -449,8 +459,9 @@ def normalise(problem: OptimalControlProblem, *, seed: int = 0) -> tuple:
         dropped += [(where, n, r) for n, r in gone]
         if z is not None:
             ranges = {k: v for k, v in mapping.items()
-                      if not current.is_state(k) and current.bounds(mapping, k)[0] != current.bounds(mapping, k)[1]}
-            mapping = {**ranges, **dict(zip(current.state_names, map(float, z)))}
+                      if not current.is_state(k)
+                      and current.bounds(mapping, k)[0] != current.bounds(mapping, k)[1]}
+            mapping = {**ranges, **dict(zip(current.state_names, map(float, z), strict=True))}
             solved.append((where, tuple(map(float, z))))
         changes[where] = mapping
     periodic, gone = _periodic(current, rng)

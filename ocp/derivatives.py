@@ -60,8 +60,10 @@ def _jacobian(nlp, w) -> tuple:
     g, jac = lay.g_linear, ca.jacobian(lay.g_linear, w)
     for term in lay.terms:
         (m, K), fn = term.rows.shape, term.functions
-        F, J = fn.jacobian.map(K, "serial")(*term.arguments)        # m × K, m × (nx K) (K blocks of one sparsity)
-        place = ca.DM(ca.Sparsity.triplet(n_g, m * K, term.rows.T.ravel().tolist(), list(range(m * K))), term.sign)
+        # m × K, m × (nx K) (K blocks of one sparsity)
+        F, J = fn.jacobian.map(K, "serial")(*term.arguments)
+        place = ca.DM(ca.Sparsity.triplet(n_g, m * K, term.rows.T.ravel().tolist(),
+                                          list(range(m * K))), term.sign)
         g = g + ca.mtimes(place, ca.vec(F))
         r, c = (np.array(v, dtype=np.int64) for v in fn.jacobian.sparsity_out(1).get_triplet())
         if r.size == 0:
@@ -117,5 +119,6 @@ def nlp_functions(nlp, *, hessian: str = "exact", solver: str = "ipopt") -> dict
         out["nlp_hess_l"] = ca.Function("nlp_hess_l", ins, [H], names, ["triu_hess_gamma_x_x"])
     else:
         grad = ca.gradient(lam_f * nlp.f, w) + ca.mtimes(jac.T, lam_g)
-        out["nlp_hess_l"] = ca.Function("nlp_hess_l", ins, [grad, H], names, ["grad_gamma_x", "hess_gamma_x_x"])
+        out["nlp_hess_l"] = ca.Function("nlp_hess_l", ins, [grad, H], names,
+                                        ["grad_gamma_x", "hess_gamma_x_x"])
     return out

@@ -74,11 +74,11 @@ class Weights:
 
     def to_dict(self, state_names, control_names) -> dict:
         return {"rule": self.rule,
-                "state": dict(zip(state_names, map(float, self.state))),
-                "final": dict(zip(state_names, map(float, self.final))),
-                "control": dict(zip(control_names, map(float, self.control))),
-                "state_scale": dict(zip(state_names, map(float, self.state_scale))),
-                "control_scale": dict(zip(control_names, map(float, self.control_scale)))}
+                "state": dict(zip(state_names, map(float, self.state), strict=True)),
+                "final": dict(zip(state_names, map(float, self.final), strict=True)),
+                "control": dict(zip(control_names, map(float, self.control), strict=True)),
+                "state_scale": dict(zip(state_names, map(float, self.state_scale), strict=True)),
+                "control_scale": dict(zip(control_names, map(float, self.control_scale), strict=True))}
 
 
 def state_scales(problem: OptimalControlProblem, states: np.ndarray) -> np.ndarray:
@@ -114,15 +114,19 @@ def default_weights(problem: OptimalControlProblem, states: np.ndarray, controls
     (``states`` nz × (N+1), ``controls`` nu × N)."""
     s = state_scales(problem, states)
     ubar = _control_scales(problem, controls)
-    rule = (f"Bryson: Q = 1/({path_fraction:g} s)², Q_N = 1/({final_fraction:g} s)², R = 1/ū²; s = bound width or "
-            "the plan's range (flat states: the largest of their kind), ū = the plan's peak input (≤ its bound)")
-    return Weights(1.0 / (path_fraction * s) ** 2, 1.0 / ubar ** 2, 1.0 / (final_fraction * s) ** 2, s, ubar, rule)
+    rule = (f"Bryson: Q = 1/({path_fraction:g} s)², Q_N = 1/({final_fraction:g} s)², R = 1/ū²; s = "
+            "bound width or "
+            "the plan's range (flat states: the largest of their kind), ū = the plan's peak input "
+            "(≤ its bound)")
+    return Weights(1.0 / (path_fraction * s) ** 2, 1.0 / ubar ** 2, 1.0 / (final_fraction * s) ** 2,
+                   s, ubar, rule)
 
 
-def stage_jacobians(problem: OptimalControlProblem, states, controls, horizon: float, steps: int = 4) -> tuple:
+def stage_jacobians(problem: OptimalControlProblem, states, controls, horizon: float,
+                    steps: int = 4) -> tuple:
     """(A (N, nz, nz), B (N, nz, nu), gap (N,)): the stage Jacobians at the nodes and how far
     F(z_k, u_k) is from z_{k+1} (the plan's own defects, ~0 for a converged plan)."""
-    N, nz, nu = problem.intervals, problem.n_states, problem.n_controls
+    N, nz = problem.intervals, problem.n_states
     st = stage_functions(ode_function(problem), N, steps=steps)
     phase = ca.DM([1.0 / N, 0.0])                                 # (ν, t0): one phase from t = 0
     F, J = st.jacobian.map(N)(states[:, :N], controls, float(horizon), ca.DM(np.arange(N)).T, phase)
@@ -196,7 +200,7 @@ class Feedback:
                 "lower": finite(self.lower), "upper": finite(self.upper), "defect": float(self.defect)}
 
     @classmethod
-    def from_dict(cls, data: dict) -> "Feedback":
+    def from_dict(cls, data: dict) -> Feedback:
         """The feedback written by :meth:`to_dict` (``solution.json["feedback"]``)."""
         names, cnames = tuple(data["state_names"]), tuple(data["control_names"])
         w = data["weights"]
@@ -207,7 +211,8 @@ class Feedback:
         return cls(np.asarray(data["t"], float), np.asarray(data["reference"], float),
                    np.asarray(data["controls"], float),
                    np.asarray(data["gains"], float), np.asarray(data["rates"], float), names, cnames, weights,
-                   bound(data["lower"], -np.inf), bound(data["upper"], np.inf), float(data.get("defect", 0.0)))
+                   bound(data["lower"], -np.inf), bound(data["upper"], np.inf),
+                   float(data.get("defect", 0.0)))
 
 
 def design_feedback(problem: OptimalControlProblem, t, states, controls, *, weights: Weights | None = None,
@@ -220,5 +225,6 @@ def design_feedback(problem: OptimalControlProblem, t, states, controls, *, weig
     A, B, gap = stage_jacobians(problem, states, controls, horizon, steps)
     K, _ = riccati(A, B, weights.state, weights.control, weights.final, weight=1.0 / problem.intervals)
     lo, hi = problem.control_bound_vectors()
-    return Feedback(t, states, controls, K, node_rates(problem, t, states, controls), tuple(problem.state_names),
-                    tuple(problem.control_names), weights, lo, hi, float(gap.max(initial=0.0)))
+    return Feedback(t, states, controls, K, node_rates(problem, t, states, controls),
+                    tuple(problem.state_names), tuple(problem.control_names), weights, lo, hi,
+                    float(gap.max(initial=0.0)))

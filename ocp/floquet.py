@@ -89,7 +89,8 @@ def monodromy(ode: ca.Function, t, reference, controls, rates, gains=None, *, z0
     step = ca.integrator("variational", "cvodes", {"x": X, "p": d, "t": s, "ode": scaled}, 0.0, 1.0,
                          {"abstol": atol, "reltol": rtol, "nonlinear_solver_iteration": "functional"})
     state = np.r_[reference[:, 0] if z0 is None else np.asarray(z0, float), np.eye(nz).ravel(order="F")]
-    for _, _, data in _interval_data(np.asarray(t, float), controls, _gains(gains, controls, nz), reference, rates):
+    for _, _, data in _interval_data(np.asarray(t, float), controls, _gains(gains, controls, nz),
+                                     reference, rates):
         state = np.asarray(step(x0=state, p=data)["xf"]).ravel()
     return state[nz:].reshape(nz, nz, order="F"), state[:nz]
 
@@ -98,10 +99,11 @@ def _integrate(fn, X0, pieces, method: str, rtol: float, atol: float) -> np.ndar
     from scipy.integrate import solve_ivp
     X = np.asarray(X0, dtype=float)
     for a, b, data in pieces:
-        sol = solve_ivp(lambda tt, xx: np.asarray(fn(tt, xx, data)).ravel(), (a, b), X, method=method,
-                        rtol=rtol, atol=atol)
+        sol = solve_ivp(lambda tt, xx, data=data: np.asarray(fn(tt, xx, data)).ravel(), (a, b), X,
+                        method=method, rtol=rtol, atol=atol)
         if not sol.success:
-            raise RuntimeError(f"the {method} integration of the closed loop failed on [{a:g}, {b:g}]: {sol.message}")
+            raise RuntimeError(f"the {method} integration of the closed loop failed on [{a:g}, {b:g}]: "
+                               f"{sol.message}")
         X = sol.y[:, -1]
     return X
 
@@ -116,7 +118,8 @@ def flow(ode: ca.Function, t, reference, controls, rates, gains, z0, *, method: 
 
 
 def finite_difference_monodromy(ode, t, reference, controls, rates, gains=None, *, step=None,
-                                method: str = "DOP853", rtol: float = 1e-13, atol: float = 1e-15) -> np.ndarray:
+                                method: str = "DOP853", rtol: float = 1e-13,
+                                atol: float = 1e-15) -> np.ndarray:
     """Φ by central differences of :func:`flow`, column i from z0 ± ε_i e_i with
     ε_i = ``step`` or √rtol · max(1, |z0_i|) (the O(ε²) truncation is then at the level of rtol
     times the flow's third derivative; the integration errors, smooth in z0, largely cancel in
@@ -184,7 +187,8 @@ class Stability:
         return {"period": self.period, "state_names": list(self.state_names),
                 "periodic_states": list(self.periodic_states),
                 "open_loop": {"verdict": v["open_loop"][0], "max_abs_multiplier": v["open_loop"][1],
-                              "multipliers": _complex(self.open_multipliers), "monodromy": self.open_loop.tolist()},
+                              "multipliers": _complex(self.open_multipliers),
+                              "monodromy": self.open_loop.tolist()},
                 "closed_loop": {"verdict": v["closed_loop"][0], "max_abs_multiplier": v["closed_loop"][1],
                                 "multipliers": _complex(self.closed_multipliers),
                                 "monodromy": self.closed_loop.tolist()},

@@ -15,8 +15,8 @@ import numpy as np
 from .problem import OptimalControlProblem
 from .schedule import schedule
 
-__all__ = ["TranscribedNLP", "Decisions", "Assembly", "StageLayout", "MappedTerm", "PathFunctions", "ode_function",
-           "path_functions"]
+__all__ = ["TranscribedNLP", "Decisions", "Assembly", "StageLayout", "MappedTerm", "PathFunctions",
+           "ode_function", "path_functions"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -41,7 +41,7 @@ class Assembly:
 
     kernel: ca.Function
     g: Any = None
-    layout: "StageLayout | None" = None
+    layout: StageLayout | None = None
     guess_filler: Any = None
     structure: dict | None = None
 
@@ -70,7 +70,7 @@ class TranscribedNLP:
     kernel: ca.Function
     guess_filler: Any = field(default=None, repr=False)
     structure: dict | None = None        # stage structure (N, nx, nu, ng) for FATROP
-    layout: "StageLayout | None" = None  # where the mapped terms sit (shooting only)
+    layout: StageLayout | None = None  # where the mapped terms sit (shooting only)
     row_labels: tuple = ()               # the condition each row of g states (see _Builder.add_g)
     objective_scale: float = 1.0         # f = objective_scale · J (:func:`objective_scale`)
 
@@ -88,9 +88,10 @@ class TranscribedNLP:
         "control_bounds.tau", "horizon"). A solver that fails may return a point outside the
         bounds (FATROP relaxes fixed ones), so both are checked."""
         out = {}
-        for labels, lo, hi, value in ((self.row_labels, self.lbg, self.ubg, g), (self.w_labels(), self.lbx, self.ubx, w)):
+        for labels, lo, hi, value in ((self.row_labels, self.lbg, self.ubg, g),
+                                      (self.w_labels(), self.lbx, self.ubx, w)):
             viol = np.maximum(np.maximum(lo - value, value - hi), 0.0)
-            for label, v in zip(labels, viol):
+            for label, v in zip(labels, viol, strict=True):
                 if v > tol:
                     out[label] = max(out.get(label, 0.0), float(v))
         return out
@@ -113,7 +114,8 @@ class TranscribedNLP:
                 j = int(self.node_index[i, k])
                 if (k, name) in at:
                     labels[j] = at[(k, name)]
-                elif k in (0, N) and name in p.periodic and self.lbx[j] == self.ubx[j]:   # see _Builder.node_bounds
+                # see _Builder.node_bounds
+                elif k in (0, N) and name in p.periodic and self.lbx[j] == self.ubx[j]:
                     labels[j] = f"periodic.{name}"
                 else:
                     labels[j] = f"bounds.{name}"
@@ -212,7 +214,8 @@ class PathFunctions:
         return len(self.names)
 
 
-def path_functions(problem: OptimalControlProblem, names, *, inputs: bool, free_horizon: bool) -> PathFunctions:
+def path_functions(problem: OptimalControlProblem, names, *, inputs: bool,
+                   free_horizon: bool) -> PathFunctions:
     """The :class:`PathFunctions` of the quantities ``names`` (the node time of an input term
     t = t0 + κ ν T enters the forces)."""
     nz, nu, m = problem.n_states, problem.n_controls, len(names)
@@ -228,7 +231,8 @@ def path_functions(problem: OptimalControlProblem, names, *, inputs: bool, free_
         x, ins, arg_names = z, [z], ["z"]
     value = ca.Function("path", ins, [c], arg_names, ["c"])
     jac = ca.Function("path_jac", ins, [c, ca.jacobian(c, x)], arg_names, ["c", "J"])
-    hess = ca.Function("path_hess", ins + [lam], [ca.hessian(ca.dot(lam, c), x)[0]], arg_names + ["lam"], ["H"])
+    hess = ca.Function("path_hess", ins + [lam], [ca.hessian(ca.dot(lam, c), x)[0]],
+                       arg_names + ["lam"], ["H"])
     return PathFunctions(value, jac, hess, tuple(names), int(x.shape[0]), inputs)
 
 

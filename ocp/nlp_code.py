@@ -32,10 +32,17 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from nhgait.dynamics.numerics.background import BackgroundBuild, start_build
-from nhgait.dynamics.numerics.compiler import CompilerUnavailable, Library, build_library, cached_library, compiler_command
+from nhgait.dynamics.numerics.compiler import (
+    CompilerUnavailable,
+    Library,
+    build_library,
+    cached_library,
+    compiler_command,
+)
 from nhgait.dynamics.numerics.fast_compiler import MISSING, fast_compiler
 
-__all__ = ["CompileBudget", "COMPILE_BUDGET", "CompileReport", "NlpCode", "choose_code", "CODES", "NO_COMPILER"]
+__all__ = ["CompileBudget", "COMPILE_BUDGET", "CompileReport", "NlpCode", "choose_code", "CODES",
+           "NO_COMPILER"]
 
 #: what can run the NLP functions
 CODES = ("optimised", "fast", "interpreted")
@@ -126,12 +133,14 @@ def choose_code(source: str, options, progress, *, salt: str) -> NlpCode:
     if options.jit == "optimised" and flags is not None and command is not None:
         lib, kind, compiler, fallback = _optimised_now(source, progress, salt, (flags, estimate, command))
     else:
-        lib, kind, compiler, fallback = _ready_now(source, options, progress, salt, (flags, estimate, command))
+        lib, kind, compiler, fallback = _ready_now(source, options, progress, salt,
+                                                   (flags, estimate, command))
     later = None
     if kind != "optimised":
         later = (start_build(source, flags=flags, salt=salt) if flags is not None else
                  BackgroundBuild("unavailable", (), optimiser, reason=reason))
-        progress.note(f"  {later.text()}" + (f" (about {estimate:.0f} s)" if later.state == "started" else ""))
+        progress.note(f"  {later.text()}"
+                      + (f" (about {estimate:.0f} s)" if later.state == "started" else ""))
     report = CompileReport(size, None if lib is None else lib.flags, 0.0 if lib is None else lib.compile_s,
                            estimate, bool(lib is not None and lib.cached), reason,
                            None if lib is None else str(lib.path), kind, compiler, later)
@@ -149,7 +158,8 @@ def _ready_now(source, options, progress, salt, optimised) -> tuple:
         try:
             lib = build_library(source, command=fast.command, flags=fast.flags, libs=fast.libs, salt=salt,
                                 progress=progress, label=f"compile {mb:.2f} MB of C with {fast.name}")
-            progress.note(f"  NLP functions: {mb:.2f} MB of C, " + ("fast library from the cache" if lib.cached else
+            progress.note(f"  NLP functions: {mb:.2f} MB of C, " + ("fast library from the cache"
+                                                                    if lib.cached else
                           f"compiled with {fast.name} in {lib.compile_s:.2f} s"))
             return lib, "fast", fast.name, None
         except CompilerUnavailable as exc:

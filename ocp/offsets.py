@@ -32,7 +32,8 @@ def free_offsets(problem) -> tuple:
     rhs = problem.model.numeric["rhs"]
     depends = rhs.sparsity_jac(1, 0)            # ∂ż/∂z: rows ż, columns z (the model's states)
     nz = len(problem.model_state_names)         # the integral states that follow start at 0 already
-    used = {j for j in range(nz) if depends.colind()[j + 1] > depends.colind()[j]} | set(range(nz, problem.n_states))
+    used = ({j for j in range(nz) if depends.colind()[j + 1] > depends.colind()[j]}
+            | set(range(nz, problem.n_states)))
     named = _named_by_value(problem)
     z = ca.SX.sym("z", problem.n_states)
     for name in named:
@@ -40,7 +41,8 @@ def free_offsets(problem) -> tuple:
             used.add(problem.state_names.index(name))
         elif name in problem.derived_quantities:
             inputs = problem.uses_inputs(name)      # a path bound on a quantity of the inputs too
-            expr = (problem.quantity(name, z, u=ca.SX.sym("u", problem.n_controls), t=ca.SX.sym("t")) if inputs
+            expr = (problem.quantity(name, z, u=ca.SX.sym("u", problem.n_controls), t=ca.SX.sym("t"))
+                    if inputs
                     else problem.quantity(name, z))
             used |= {j for j in range(problem.n_states) if ca.depends_on(expr, z[j])}
     return tuple(name for j, name in enumerate(problem.state_names) if j not in used)

@@ -26,8 +26,9 @@ Functions ``rhs(t, z, u, params)`` and ``qdot(z, params)``, ``params()``), ``sta
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -60,7 +61,8 @@ class Quantity:
 def _require_model(model) -> None:
     missing = [attr for attr in ("numeric", "state_names") if not hasattr(model, attr)]
     if missing:
-        raise ProblemError([f"model has no attribute {attr!r} (expected a derived ReducedODE)" for attr in missing])
+        raise ProblemError([f"model has no attribute {attr!r} (expected a derived ReducedODE)"
+                            for attr in missing])
 
 
 def model_coordinates(model) -> tuple:
@@ -116,7 +118,8 @@ def holonomic_quantities(model) -> dict:
         return {}
     h, n = numeric["holonomic"], len(model_coordinates(model))
     return {f"holonomic{i + 1}": Quantity(f"holonomic{i + 1}", lambda z, params, i=i: h(z[:n], params)[i],
-                                          f"holonomic constraint {i + 1}: h(q), zero on the constraint surface")
+                                          f"holonomic constraint {i + 1}: h(q), zero on the "
+                                          "constraint surface")
             for i in range(h.size1_out(0))}
 
 
@@ -150,13 +153,15 @@ class OptimalControlProblem(ProblemStatement):
         super().__post_init__()
         object.__setattr__(self, "quantities", FrozenMap(self.quantities))
         problems = self._bind_control_bounds() + self._bind_params()
-        model_names = [n for n in self.quantity_names if n not in self.integrals or n in self.model_state_names]
+        model_names = [n for n in self.quantity_names if n not in self.integrals
+                       or n in self.model_state_names]
         problems += self.problems(OCP_WORDS, known=model_names, inputs=self.control_names)
         problems += self._weight_problems() + self._quantity_problems() + self._input_quantity_problems()
         if problems:
             raise ProblemError(problems)
         missing = {name: 0.0 for name in self.integrals if name not in self.initial}
-        if missing:                                   # an integral starts at 0 unless the statement says otherwise
+        # an integral starts at 0 unless the statement says otherwise
+        if missing:
             object.__setattr__(self, "initial", FrozenMap({**self.initial, **missing}))
 
     def _bind_control_bounds(self) -> list:
@@ -174,7 +179,8 @@ class OptimalControlProblem(ProblemStatement):
 
     def _bind_params(self) -> list:
         try:
-            object.__setattr__(self, "params", np.asarray(self.model.numeric.params(self.params), dtype=float))
+            object.__setattr__(self, "params",
+                               np.asarray(self.model.numeric.params(self.params), dtype=float))
         except ValueError as exc:
             return [f"params: {exc}"]
         return []
@@ -192,7 +198,8 @@ class OptimalControlProblem(ProblemStatement):
 
     def _quantity_problems(self) -> list:
         return [f"quantities[{name!r}]: expected a Quantity with a callable function"
-                for name, q in self.quantities.items() if not isinstance(q, Quantity) or not callable(q.function)]
+                for name, q in self.quantities.items() if not isinstance(q, Quantity)
+                or not callable(q.function)]
 
     def _input_quantity_problems(self) -> list:
         """A quantity of the inputs or accelerations is a path bound or an integrand only."""
@@ -256,8 +263,8 @@ class OptimalControlProblem(ProblemStatement):
         if not q.inputs:
             return q.function(zm, params)
         if u is None:
-            raise ProblemError([f"{name!r} depends on the inputs: it is a path constraint (bounds) or an integrand, "
-                                "not a condition at one instant"])
+            raise ProblemError([f"{name!r} depends on the inputs: it is a path constraint (bounds) or "
+                                "an integrand, not a condition at one instant"])
         zdot = self.model.numeric["rhs"](t, zm, u, params)
         return q.function(zm, u, zdot, params)
 
@@ -296,13 +303,13 @@ class OptimalControlProblem(ProblemStatement):
         from .schedule import schedule
         return schedule(self).grid(horizon)
 
-    def replace(self, **changes) -> "OptimalControlProblem":
+    def replace(self, **changes) -> OptimalControlProblem:
         """A copy with some fields changed (validated again)."""
         from dataclasses import replace
         return replace(self, **changes)
 
     @classmethod
-    def from_statement(cls, statement: ProblemStatement, model, **changes) -> "OptimalControlProblem":
+    def from_statement(cls, statement: ProblemStatement, model, **changes) -> OptimalControlProblem:
         """``statement`` bound to ``model`` (``changes``: other fields, e.g. ``quantities``)."""
         return cls(model, **{**statement.statement_fields(), **changes})
 
@@ -317,7 +324,8 @@ class OptimalControlProblem(ProblemStatement):
             "control_weights": dict(self.control_weights), "state_weights": dict(self.state_weights),
             "time_weight": self.time_weight,
             "free_horizon": list(self.free_horizon) if self.free_horizon is not None else None,
-            "waypoints": [{"time": w.time, "name": w.name, "conditions": fmt(w.conditions)} for w in self.waypoints],
+            "waypoints": [{"time": w.time, "name": w.name, "conditions": fmt(w.conditions)}
+                          for w in self.waypoints],
             "integrals": dict(self.integrals), "end_weights": dict(self.end_weights),
             "phases": [{"name": p.name, "horizon": p.horizon, "intervals": p.intervals,
                         "free_horizon": list(p.free_horizon) if p.free_horizon is not None else None,
@@ -325,5 +333,6 @@ class OptimalControlProblem(ProblemStatement):
                         "control_bounds": fmt(p.control_bounds),
                         "waypoints": [{"time": w.time, "name": w.name, "conditions": fmt(w.conditions)}
                                       for w in p.waypoints]} for p in self.phases],
-            "params": dict(zip(getattr(self.model.numeric, "param_names", ()), map(float, self.params))),
+            "params": dict(zip(getattr(self.model.numeric, "param_names", ()), map(float, self.params),
+                               strict=False)),
         }

@@ -90,7 +90,8 @@ class Scenarios:
             out.append(f"robust.aggregate = {self.aggregate!r}: use {' or '.join(map(repr, AGGREGATES))}")
         if not (np.isfinite(self.weight) and self.weight >= 0):
             out.append(f"robust.weight = {self.weight!r} must be a finite number ≥ 0")
-        if self.ode.n_in() != 4 or int(self.ode.size1_in(1)) != nzm or int(self.ode.size1_in(3)) != self.params.shape[1]:
+        if (self.ode.n_in() != 4 or int(self.ode.size1_in(1)) != nzm
+            or int(self.ode.size1_in(3)) != self.params.shape[1]):
             out.append(f"robust: the copies' ODE must be (t, z[{nzm}], u, θ[{self.params.shape[1]}]) -> ż")
         if not np.all(np.isfinite(self.params)):
             out.append("robust: every copy's parameter values must be finite")
@@ -109,8 +110,8 @@ class Scenarios:
 
     def describe(self) -> dict:
         return {"copies": self.count, "labels": list(self.labels), "params": self.params.tolist(),
-                "terminal": list(self.terminal), "scales": self.scales.tolist(), "objective_weight": float(self.weight),
-                "aggregate": self.aggregate}
+                "terminal": list(self.terminal), "scales": self.scales.tolist(),
+                "objective_weight": float(self.weight), "aggregate": self.aggregate}
 
 
 def terminal_deviations(scenarios: Scenarios, problem, final_states, copy_finals) -> np.ndarray:
@@ -118,7 +119,8 @@ def terminal_deviations(scenarios: Scenarios, problem, final_states, copy_finals
     expressions; ``final_states`` z_N (nz), ``copy_finals`` the copies' c^s_N (nz_model × S)."""
     idx = scenarios.indices(problem)
     if isinstance(copy_finals, np.ndarray):
-        d = (copy_finals[idx, :] - np.asarray(final_states, dtype=float)[idx, None]) / scenarios.scales[:, None]
+        d = ((copy_finals[idx, :] - np.asarray(final_states, dtype=float)[idx, None])
+             / scenarios.scales[:, None])
         return np.sum(d ** 2, axis=0)
     scales = ca.DM(scenarios.scales)
     return [ca.sumsqr((copy_finals[idx, s] - final_states[idx]) / scales) for s in range(scenarios.count)]
@@ -212,7 +214,8 @@ def _with_copies(method: ScenarioShooting, problem, nlp0: TranscribedNLP, sc: Sc
     g_linear = ca.vertcat(nlp0.layout.g_linear, *rows)
     g = ca.vertcat(nlp0.g, ca.vec(stage.step.map(S * N, "serial")(*args)) + rows[0], *rows[1:])
     f = nlp0.f + nlp0.objective_scale * float(sc.weight) * robust
-    lbx = np.concatenate([nlp0.lbx, np.full(nzm * S * N, -np.inf)] + ([np.zeros(1)] if worst is not None else []))
+    lbx = np.concatenate([nlp0.lbx, np.full(nzm * S * N, -np.inf)]
+                         + ([np.zeros(1)] if worst is not None else []))
     ubx = np.concatenate([nlp0.ubx, np.full(nzm * S * N + (worst is not None), np.inf)])
     fill = _guess_filler(nlp0, sc, stage, Trow, K, PH, n0, worst is not None, problem)
     return replace(nlp0, transcription=method, w=w, f=f, g=g, lbx=lbx, ubx=ubx,

@@ -106,7 +106,8 @@ class Schedule:
     def horizon_row(self, horizons) -> ca.MX:
         """The horizon T_{p(k)} of each interval (1 × N) from the phase horizons ``horizons``
         (an MX vector of P entries, or numbers), one slice per phase."""
-        pieces = [ca.repmat(horizons[p], 1, int(self.starts[p + 1] - self.starts[p])) for p in range(self.n_phases)]
+        pieces = [ca.repmat(horizons[p], 1, int(self.starts[p + 1] - self.starts[p]))
+                  for p in range(self.n_phases)]
         return ca.horzcat(*pieces)
 
     def nodes_of_phase(self, p: int) -> range:
@@ -175,12 +176,13 @@ def schedule(problem) -> Schedule:
     events = [Event(0, "initial", dict(problem.initial))]
     for p, phase in enumerate(phases):
         base = int(starts[p])
-        for j, point in enumerate(phase.waypoints):
+        for point in phase.waypoints:
             label = point.name or f"waypoint{len(events)}"
             events.append(Event(base + waypoint_node(point, phase.horizon, phase.intervals), label,
                                 dict(point.conditions)))
         if p < len(phases) - 1:
-            events.append(Event(int(starts[p + 1]), f"{phase.name or f'phase{p + 1}'}.final", dict(phase.final)))
+            events.append(Event(int(starts[p + 1]), f"{phase.name or f'phase{p + 1}'}.final",
+                                dict(phase.final)))
     events.append(Event(int(starts[-1]), "final", {**dict(phases[-1].final), **dict(problem.final)}))
     return Schedule(phases, starts, interval_phase, variable, tuple(events))
 
@@ -200,8 +202,8 @@ def time_problems(problem, ode: ca.Function) -> list:
     t = ca.SX.sym("t")
     z, u = ca.SX.sym("z", ode.size1_in(1)), ca.SX.sym("u", ode.size1_in(2))
     if ca.depends_on(ode(t, z, u), t):
-        return ["phases: the model's forces depend on time t, and a free phase horizon makes the later phases' "
-                "start times unknown: fix the horizons of the phases (or of all but the last)"]
+        return ["phases: the model's forces depend on time t, and a free phase horizon makes the "
+                "later phases' start times unknown: fix the horizons of the phases (or of all but the last)"]
     return []
 
 

@@ -94,13 +94,15 @@ class Verification:
         scaled = self.scaled_state_errors
         if self.max_scaled_error > self.tolerance:
             worst = max(scaled, key=scaled.get)
-            out.append(f"the re-simulated states leave the planned ones by up to {self.state_errors[worst]:.3g} "
+            out.append("the re-simulated states leave the planned ones by up to "
+                       f"{self.state_errors[worst]:.3g} "
                        f"({worst}{_relative(scaled[worst], self.state_scales.get(worst, 1.0))}; "
                        f"tolerance {self.tolerance:g})")
         for name, err in sorted(self.scaled_condition_errors.items(), key=lambda kv: -kv[1]):
             if err > self.tolerance:
                 out.append(f"{name} missed by {self.condition_errors[name]:.3g}"
-                           f"{_relative(err, self.condition_scales.get(name, 1.0))} (tolerance {self.tolerance:g})")
+                           f"{_relative(err, self.condition_scales.get(name, 1.0))} (tolerance "
+                           f"{self.tolerance:g})")
         return out
 
 
@@ -127,7 +129,8 @@ class Integrator:
     atol: float = 1e-12
 
 
-def simulate_piecewise_constant(model, params, t, z0, controls, integrator: Integrator = Integrator(), *, ode=None):
+def simulate_piecewise_constant(model, params, t, z0, controls, integrator: Integrator = Integrator(), *,
+                                ode=None):
     """Integrate ż = rhs(t, z, u_k, params) interval by interval with scipy ``solve_ivp`` (or
     ż = ``ode(t, z, u)``, a Function with the parameters bound: a problem's states with its
     integral states, :meth:`~nhgait.ocp.problem.OptimalControlProblem.ode`).
@@ -151,7 +154,8 @@ def simulate_piecewise_constant(model, params, t, z0, controls, integrator: Inte
         u = controls[:, k]
         try:
             sol = solve_ivp(_finite(f, u), (t[k], t[k + 1]), z, method=method, rtol=rtol, atol=atol,
-                            **({"jac": lambda tt, zz: np.asarray(jac(tt, zz, u))} if method in ("Radau", "BDF", "LSODA")
+                            **({"jac": lambda tt, zz, u=u: np.asarray(jac(tt, zz, u))}
+                               if method in ("Radau", "BDF", "LSODA")
                                else {}))
         except _NotFinite:
             return out, False
@@ -228,7 +232,8 @@ def condition_errors(problem, states, controls=None, t=None) -> dict:
         lo, hi = sched.node_ranges(problem, names)
         for i, name in enumerate(names):
             y = values(name)
-            out[f"bounds.{name}"] = float(np.max(np.maximum(np.maximum(lo[i, :y.size] - y, y - hi[i, :y.size]), 0.0)))
+            out[f"bounds.{name}"] = float(np.max(np.maximum(np.maximum(lo[i, :y.size] - y,
+                                                                       y - hi[i, :y.size]), 0.0)))
     return out
 
 
@@ -343,20 +348,23 @@ class Solution:
             raise ValueError("this solution has no problem attached; cannot re-simulate")
         t0 = time.perf_counter()
         sim, ok = simulate_piecewise_constant(self.problem.model, self.problem.params, self.t,
-                                              self.states[:, 0], self.controls, Integrator(method, rtol, atol),
-                                              ode=self.problem.ode())
+                                              self.states[:, 0], self.controls,
+                                              Integrator(method, rtol, atol), ode=self.problem.ode())
         err = np.abs(sim - self.states)
         err[np.isnan(err)] = np.inf                      # not reached (the integration stopped)
         return Verification(max_error=float(err.max()),
-                            state_errors={n: float(e) for n, e in zip(self.state_names, err.max(axis=1))},
+                            state_errors={n: float(e)
+                                          for n, e in zip(self.state_names, err.max(axis=1), strict=True)},
                             states=sim, method=method, rtol=rtol, atol=atol, success=ok,
                             time_s=time.perf_counter() - t0,
                             condition_errors=condition_errors(self.problem, sim, self.controls, self.t),
                             tolerance=float(tolerance),
-                            state_scales=dict(zip(self.state_names, map(float, scales(self.states)))),
-                            condition_scales=condition_scales(self.problem, self.states, self.controls, self.t))
+                            state_scales=dict(zip(self.state_names,
+                                                  map(float, scales(self.states)), strict=True)),
+                            condition_scales=condition_scales(self.problem, self.states,
+                                                              self.controls, self.t))
 
-    def verified(self, **kwargs) -> "Solution":
+    def verified(self, **kwargs) -> Solution:
         """A copy of this solution carrying :meth:`verify`'s result. Success means verified: a
         converged solution whose verification fails has ``success`` False, status
         ``Verification_Failed`` and a message listing the misses (the solver's own status is
@@ -383,7 +391,8 @@ class Solution:
                 "passed": v.passed, "failures": v.failures(),
                 "condition_errors": v.condition_errors, "max_condition_error": v.max_condition_error,
                 "state_scales": v.state_scales, "condition_scales": v.condition_scales,
-                "max_scaled_error": v.max_scaled_error, "max_scaled_condition_error": v.max_scaled_condition_error},
+                "max_scaled_error": v.max_scaled_error,
+                "max_scaled_condition_error": v.max_scaled_condition_error},
             "settings": self.settings,
             "feedback": None if self.feedback is None else self.feedback.to_dict(),
             "stability": None if self.stability is None else self.stability.to_dict(),

@@ -140,7 +140,8 @@ class SolverOptions:
         extra = self.backend.own_options(self)
         return {"solver": self.solver, "max_iter": self.max_iter, "tol": self.tol, "hessian": self.hessian,
                 "jit": self.jit, "jit_flags": list(self.jit_flags) if self.jit_flags else None,
-                "linear_solver": self.linear_solver, "expand": self.expand, "time_limit": self.time_limit, **extra}
+                "linear_solver": self.linear_solver, "expand": self.expand,
+                "time_limit": self.time_limit, **extra}
 
 
 @dataclass(frozen=True)
@@ -209,7 +210,8 @@ class _Iterations(ca.Callback):
             self.last = now
             g = np.asarray(arg[ca.nlpsol_out().index("g")]).ravel()
             viol = max(np.max(self.nlp.lbg - g, initial=0.0), np.max(g - self.nlp.ubg, initial=0.0))
-            self.progress.note(f"    iteration {self.count}: objective {float(arg[1]) / self.nlp.objective_scale:.6g}, "
+            self.progress.note(f"    iteration {self.count}: objective "
+                               f"{float(arg[1]) / self.nlp.objective_scale:.6g}, "
                                f"constraint violation {viol:.2e}")
         return 0
 
@@ -228,8 +230,8 @@ class OCPSolver:
     jit_path : the compiled library (or None)
     """
 
-    def __init__(self, problem: OptimalControlProblem, transcription=None, options: SolverOptions | None = None,
-                 *, progress: Progress | None = None):
+    def __init__(self, problem: OptimalControlProblem, transcription=None,
+                 options: SolverOptions | None = None, *, progress: Progress | None = None):
         t0 = time.perf_counter()
         self.problem = problem
         self.options = options or SolverOptions()
@@ -296,7 +298,8 @@ class OCPSolver:
         opts = self.options.nlpsol_options()
         plain = self._nlpsol("ocp_plain", self._oracle(), opts, talk=False)
         x, p = ca.MX.sym("x", self.nlp.w.shape[0]), ca.MX.sym("p", 0)
-        oracle = ca.Function("nlp", [x, p], [plain.get_function("nlp_f")(x, p), plain.get_function("nlp_g")(x, p)],
+        oracle = ca.Function("nlp", [x, p],
+                             [plain.get_function("nlp_f")(x, p), plain.get_function("nlp_g")(x, p)],
                              ["x", "p"], ["f", "g"])
         cg = ca.CodeGenerator("nhgait_nlp.c", {"with_header": False})
         for f in [oracle] + [plain.get_function(name) for name in plain.get_function()]:
@@ -311,7 +314,7 @@ class OCPSolver:
         self.compiled, self.jit_cached, self.jit_path = True, lib.cached, lib.path
         return self._nlpsol("ocp", ca.external("nlp", str(lib.path)), opts)
 
-    def with_problem(self, problem: OptimalControlProblem) -> "OCPSolver":
+    def with_problem(self, problem: OptimalControlProblem) -> OCPSolver:
         """This solver for ``problem``, a problem of the same structure whose values (targets,
         bounds) differ: the NLP functions are reused, only the bounds are recomputed."""
         nlp = self.transcription.build(problem)
@@ -387,7 +390,8 @@ class OCPSolver:
                               objective=objective, viol=viol, violated=violated, stats=stats,
                               times=(float(seconds), 0.0, float(seconds)))
 
-    def _solution(self, guess, w, *, success, status, message, objective, viol, violated, stats, times) -> Solution:
+    def _solution(self, guess, w, *, success, status, message, objective, viol, violated, stats,
+                  times) -> Solution:
         """A Solution at the decision vector ``w``; ``times``: (wall, in the functions, in the solver) [s]."""
         problem = self.problem
         Z, U, T = self.nlp.unpack(w)
@@ -409,7 +413,8 @@ class OCPSolver:
         clipped into the bounds), each called once (a first call also allocates its work
         memory: an over-estimate, never under): the cost of about one iteration, from which
         :mod:`.budget` sets an attempt's default time limit."""
-        w0 = np.clip(np.zeros(self.nlp.n_w), self.nlp.lbx, self.nlp.ubx) if guess is None else self._start(guess)
+        w0 = (np.clip(np.zeros(self.nlp.n_w), self.nlp.lbx, self.nlp.ubx) if guess is None
+              else self._start(guess))
         total = 0.0
         for name in self.solver.get_function():
             f = self.solver.get_function(name)
@@ -417,7 +422,7 @@ class OCPSolver:
             total += _seconds(f, args)
         return total
 
-    def with_time_limit(self, seconds: float | None) -> "OCPSolver":
+    def with_time_limit(self, seconds: float | None) -> OCPSolver:
         """This solver with ``options.time_limit = seconds``, sharing its NLP functions and
         solver: Ipopt honours it through its iteration callback's deadline (its own
         ``max_wall_time`` is fixed when the solver is made — remaking an interpreted solver costs
@@ -483,7 +488,8 @@ class OCPSolver:
         status = TIME_LIMIT_STATUSES.get(status, status)
         if not self.options.backend.reports_success and error is None:
             ok = bool(stats.get("success", False)) or _fatrop_converged(stats, violation, self.options.tol)
-            flag = (stats.get("fatrop") or {}).get("return_flag") if isinstance(stats.get("fatrop"), dict) else None
+            flag = ((stats.get("fatrop") or {}).get("return_flag")
+                    if isinstance(stats.get("fatrop"), dict) else None)
             stats = {**stats, "success": ok, "fatrop_return_flag": flag}
             status = "Solve_Succeeded" if ok else FATROP_FLAGS.get(flag, f"FATROP return flag {flag}")
         success = bool(stats.get("success", False)) and error is None

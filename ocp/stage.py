@@ -104,18 +104,17 @@ def stage_mode(ode: ca.Function, *, steps: int = 4, free_horizon: bool = False) 
     return "inline" if 4 * steps * nx * int(ode.n_instructions()) <= INLINE_LIMIT else "structured"
 
 
-def stage_functions(ode: ca.Function, intervals: int | None = None, *, steps: int = 4, free_horizon: bool = False,
-                    mode: str = "auto") -> StageFunctions:
+def stage_functions(ode: ca.Function, intervals: int | None = None, *, steps: int = 4,
+                    free_horizon: bool = False, mode: str = "auto") -> StageFunctions:
     """The stage functions of ``ode`` (an SX Function ``(t, z, u) -> ż`` with the parameter
-    values bound, or ``(t, z, u, θ) -> ż`` whose θ then follows (ν, t0) in ``phase``), ``steps`` = M RK4 sub-steps per interval; the number of intervals enters as
-    the argument ν = 1/N (``intervals`` is not needed: the same functions serve every N).
+    values bound, or ``(t, z, u, θ) -> ż`` whose θ then follows (ν, t0) in ``phase``),
+    ``steps`` = M RK4 sub-steps per interval; the number of intervals enters as the argument ν = 1/N (``intervals`` is not needed: the same functions serve every N).
 
     ``mode``: "inline", "structured" or "auto" (inline while 4 M · nx · ops(f) ≤
     :data:`INLINE_LIMIT`).
     """
     nz, nu = int(ode.size1_in(1)), int(ode.size1_in(2))
     ops = int(ode.n_instructions())
-    nx = nz + nu + (1 if free_horizon else 0)
     if mode == "auto":
         mode = stage_mode(ode, steps=steps, free_horizon=free_horizon)
     g = _scaled_ode(ode)
@@ -138,7 +137,8 @@ def _scaled_ode(ode: ca.Function) -> ca.Function:
     phase = ca.SX.sym("phase", phase_size(ode))
     h = phase[0] * T
     args = [phase[1] + tau * h, z, u] + ([phase[2:]] if ode.n_in() > 3 else [])
-    return ca.Function("g", [z, u, T, tau, phase], [h * ode(*args)], ["z", "u", "T", "tau", "phase"], ["dzds"])
+    return ca.Function("g", [z, u, T, tau, phase], [h * ode(*args)],
+                       ["z", "u", "T", "tau", "phase"], ["dzds"])
 
 
 def _symbols(sym, nz, nu, n_phase=2):
@@ -168,7 +168,8 @@ def _inline(g, nz, nu, steps, free):
 
 def _structured(g, nz, nu, steps, free):
     """MX glue over g, g_jac, g_hess (module docstring): code independent of N and M."""
-    zs, us, Ts, taus, nus = ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("T"), ca.SX.sym("tau"), ca.SX.sym("nu", nz)
+    zs, us, Ts, taus, nus = (ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("T"), ca.SX.sym("tau"),
+                             ca.SX.sym("nu", nz))
     phs = ca.SX.sym("phase", int(g.size1_in(4)))
     val = g(zs, us, Ts, taus, phs)
     local = ca.vertcat(zs, us, Ts) if free else ca.vertcat(zs, us)

@@ -25,13 +25,13 @@ from typing import Any
 from nhgait.dynamics.errors import ModelError
 from nhgait.dynamics.suggestions import known_names
 
-__all__ = ["ProblemStatement", "ProblemError", "Wording", "OCP_WORDS", "FrozenMap", "interval", "STATEMENT_FIELDS",
-           "MAX_INTERVALS", "Phase", "Waypoint", "NODE_TOLERANCE", "instant_problems"]
+__all__ = ["ProblemStatement", "ProblemError", "Wording", "OCP_WORDS", "FrozenMap", "interval",
+           "STATEMENT_FIELDS", "MAX_INTERVALS", "Phase", "Waypoint", "NODE_TOLERANCE", "instant_problems"]
 
 #: the statement's fields after ``model``, in order (an OptimalControlProblem's too)
 STATEMENT_FIELDS = ("horizon", "intervals", "initial", "final", "periodic", "state_bounds", "control_bounds",
-                    "control_weights", "state_weights", "time_weight", "free_horizon", "waypoints", "integrals",
-                    "phases", "end_weights")
+                    "control_weights", "state_weights", "time_weight", "free_horizon", "waypoints",
+                    "integrals", "phases", "end_weights")
 #: a waypoint's time is a node when t N / T is an integer to this (relative) tolerance
 NODE_TOLERANCE = 1e-9
 
@@ -158,7 +158,7 @@ def _say(problems: list, template: str | None, **values) -> None:
 
 
 # ----------------------------------------------------------------------------- validators
-def horizon_problems(statement: "ProblemStatement", words: Wording) -> list:
+def horizon_problems(statement: ProblemStatement, words: Wording) -> list:
     """T > 0 and finite (for a free horizon, its initial value)."""
     problems: list = []
     guess = words.horizon if statement.free_horizon is None else words.free_horizon_guess
@@ -171,7 +171,7 @@ def horizon_problems(statement: "ProblemStatement", words: Wording) -> list:
     return problems
 
 
-def free_horizon_problems(statement: "ProblemStatement", words: Wording) -> list:
+def free_horizon_problems(statement: ProblemStatement, words: Wording) -> list:
     """A free horizon 0 < T_min ≤ T_max; a time weight only with a free horizon."""
     if statement.free_horizon is None:
         return [words.time_without_free_horizon] if statement.time_weight else []
@@ -189,7 +189,7 @@ def free_horizon_problems(statement: "ProblemStatement", words: Wording) -> list
 MAX_INTERVALS = 5000
 
 
-def intervals_problems(statement: "ProblemStatement", words: Wording) -> list:
+def intervals_problems(statement: ProblemStatement, words: Wording) -> list:
     """N an integer from 1 to :data:`MAX_INTERVALS`."""
     N = statement.intervals
     if isinstance(N, bool) or not isinstance(N, numbers.Integral) or not 1 <= N <= MAX_INTERVALS:
@@ -197,11 +197,11 @@ def intervals_problems(statement: "ProblemStatement", words: Wording) -> list:
     return []
 
 
-def _ends(statement: "ProblemStatement") -> tuple:
+def _ends(statement: ProblemStatement) -> tuple:
     return (("initial", statement.initial), ("final", statement.final))
 
 
-def table_problems(statement: "ProblemStatement", words: Wording, known=None, inputs=None) -> list:
+def table_problems(statement: ProblemStatement, words: Wording, known=None, inputs=None) -> list:
     """Each condition and bound a number or a (lo, hi) pair with lo ≤ hi, no periodic name
     twice and, given ``known`` (quantity names) and ``inputs`` (input names), every name known."""
     problems: list = []
@@ -216,7 +216,8 @@ def table_problems(statement: "ProblemStatement", words: Wording, known=None, in
                                               names_list=list(statement.periodic)))
     if isinstance(statement.control_bounds, Mapping):
         for name, value in statement.control_bounds.items():
-            problems += _unknown(name, inputs, words.unknown_input, words.field("control_bounds"), label="inputs")
+            problems += _unknown(name, inputs, words.unknown_input, words.field("control_bounds"),
+                                 label="inputs")
             interval(value, words.at("control_bounds", name), problems, words)
     return problems
 
@@ -227,7 +228,7 @@ def _unknown(name, known, template: str, where: str, label: str = "known") -> li
     return [template.format(field=where, name=name, hint=known_names(name, known, label=label))]
 
 
-def consistency_problems(statement: "ProblemStatement", words: Wording, known=None) -> list:
+def consistency_problems(statement: ProblemStatement, words: Wording, known=None) -> list:
     """End values outside their path bound; periodic quantities whose end values cannot be
     equal. A name outside ``known`` and a contradictory bound are reported once, elsewhere."""
     problems: list = []
@@ -238,8 +239,8 @@ def consistency_problems(statement: "ProblemStatement", words: Wording, known=No
             lo, hi = interval(value)
             bound_lo, bound_hi = interval(statement.state_bounds[name])
             if bound_lo <= bound_hi and (hi < bound_lo or lo > bound_hi):
-                problems.append(words.outside_bounds.format(place=words.at(where, name), name=name, value=value,
-                                                            lo=bound_lo, hi=bound_hi))
+                problems.append(words.outside_bounds.format(place=words.at(where, name), name=name,
+                                                            value=value, lo=bound_lo, hi=bound_hi))
     for name in statement.periodic:
         if name in statement.initial and name in statement.final:
             a, b = interval(statement.initial[name]), interval(statement.final[name])
@@ -249,7 +250,7 @@ def consistency_problems(statement: "ProblemStatement", words: Wording, known=No
     return problems
 
 
-def integral_problems(statement: "ProblemStatement", words: Wording, known=None) -> list:
+def integral_problems(statement: ProblemStatement, words: Wording, known=None) -> list:
     """An integral's name is new (not one of the ``known`` quantities) and its integrand a
     known quantity; an end weight names a quantity or an integral."""
     problems: list = []
@@ -261,7 +262,8 @@ def integral_problems(statement: "ProblemStatement", words: Wording, known=None)
         if not isinstance(integrand, str):
             problems.append(f"{where}.{name}: the integrand is a quantity's name, got {integrand!r}")
         else:
-            problems += _unknown(integrand, base, words.unknown_quantity, f"{words.field('integrals')}.{name}")
+            problems += _unknown(integrand, base, words.unknown_quantity,
+                                 f"{words.field('integrals')}.{name}")
     names = None if known is None else base + list(statement.integrals)
     for name in statement.end_weights:
         problems += _unknown(name, names, words.unknown_quantity, words.field("end_weights"))
@@ -309,7 +311,7 @@ class Phase:
         object.__setattr__(self, "waypoints", tuple(self.waypoints))
 
 
-def phase_problems(statement: "ProblemStatement", words: "Wording", known=None, inputs=None) -> list:
+def phase_problems(statement: ProblemStatement, words: Wording, known=None, inputs=None) -> list:
     """Each phase: N an integer in range, T > 0, a free horizon 0 < lo ≤ hi, its tables' values
     and names; waypoints at nodes of a fixed horizon. Without phases, the problem's own
     waypoints (its horizon must then be fixed)."""
@@ -319,7 +321,8 @@ def phase_problems(statement: "ProblemStatement", words: "Wording", known=None, 
         return _waypoint_problems(statement.waypoints, statement.horizon, statement.intervals,
                                   statement.free_horizon, f"{prefix}waypoints", known, problems)
     if statement.waypoints:
-        problems.append(f"{prefix}waypoints: with phases, each phase states its own waypoints (times from its start)")
+        problems.append(f"{prefix}waypoints: with phases, each phase states its own waypoints (times "
+                        "from its start)")
     for i, phase in enumerate(statement.phases):
         where = f"{prefix}phases[{i}]" + (f" ({phase.name})" if phase.name else "")
         N = phase.intervals
@@ -346,7 +349,7 @@ def phase_problems(statement: "ProblemStatement", words: "Wording", known=None, 
     return problems
 
 
-def _prefix(words: "Wording") -> str:
+def _prefix(words: Wording) -> str:
     """What starts a place in ``words`` ("[task]." for a task table, "" for a problem's keywords)."""
     return words.place.split("{field}")[0]
 
@@ -360,8 +363,8 @@ def _waypoint_problems(waypoints, horizon, intervals, free_horizon, where, known
         if point.time is None:           # no time (said by the reader of the table)
             continue
         if free_horizon is not None:
-            problems.append(f"{at}: a waypoint at a given time needs a fixed horizon (a waypoint at a free time is "
-                            "the end of a phase: phases = [...])")
+            problems.append(f"{at}: a waypoint at a given time needs a fixed horizon (a waypoint at a "
+                            "free time is the end of a phase: phases = [...])")
             continue
         try:
             t, T, N = float(point.time), float(horizon), int(intervals)
@@ -373,12 +376,12 @@ def _waypoint_problems(waypoints, horizon, intervals, free_horizon, where, known
             problems.append(f"{at}: time {t:g} is not between the ends (0, {T:g})")
         elif abs(k - round(k)) > NODE_TOLERANCE * max(1.0, k):
             h = T / N
-            problems.append(f"{at}: time {t:g} is not a node (every {h:g} s with T = {T:g}, N = {N}): the nearest "
-                            f"nodes are {math.floor(k) * h:g} and {math.ceil(k) * h:g}")
+            problems.append(f"{at}: time {t:g} is not a node (every {h:g} s with T = {T:g}, N = {N}): "
+                            f"the nearest nodes are {math.floor(k) * h:g} and {math.ceil(k) * h:g}")
     return problems
 
 
-def instant_problems(statement: "ProblemStatement", motion, prefix: str = "") -> list:
+def instant_problems(statement: ProblemStatement, motion, prefix: str = "") -> list:
     """A quantity of the inputs or accelerations (a name in ``motion``) is a path bound or an
     integrand only: never a condition at one instant (an end, a waypoint, periodicity).
     ``prefix`` starts each place ("[task]." for a task table)."""
@@ -388,7 +391,8 @@ def instant_problems(statement: "ProblemStatement", motion, prefix: str = "") ->
     places += [(f"{prefix}waypoints[{i}]", w.conditions) for i, w in enumerate(statement.waypoints)]
     for i, phase in enumerate(statement.phases):
         places += [(f"{prefix}phases[{i}].final", phase.final)]
-        places += [(f"{prefix}phases[{i}].waypoints[{j}]", w.conditions) for j, w in enumerate(phase.waypoints)]
+        places += [(f"{prefix}phases[{i}].waypoints[{j}]", w.conditions)
+                   for j, w in enumerate(phase.waypoints)]
     return [f"{where}: {name!r} depends on the inputs or accelerations: it can be bounded on the path "
             "(bounds) or integrated (integrals), not fixed at one instant"
             for where, mapping in places for name in mapping if name in motion]
@@ -484,8 +488,10 @@ class ProblemStatement:
         """Every problem of the statement, in ``words``: its form (no model needed) and, given
         ``known`` (the quantity names) and ``inputs`` (the input names), its names."""
         with_integrals = None if known is None else tuple(known) + tuple(self.integrals)
-        return (horizon_problems(self, words) + intervals_problems(self, words) + free_horizon_problems(self, words)
-                + table_problems(self, words, with_integrals, inputs) + consistency_problems(self, words, with_integrals)
+        return (horizon_problems(self, words) + intervals_problems(self, words)
+                + free_horizon_problems(self, words)
+                + table_problems(self, words, with_integrals, inputs)
+                + consistency_problems(self, words, with_integrals)
                 + phase_problems(self, words, with_integrals, inputs) + integral_problems(self, words, known))
 
     def statement_fields(self) -> dict:

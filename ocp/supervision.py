@@ -42,8 +42,9 @@ import select
 import signal
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 from nhgait.dynamics.errors import STOP_SIGNALS
 
@@ -116,7 +117,8 @@ def _start(job: Job, index: int, running: dict) -> None:
 
 def _say_in_process(progress, why: str) -> None:
     if progress is not None:
-        progress.note_once("attempts in process", f"  solver attempts run in this process ({why}): only Ipopt's "
+        progress.note_once("attempts in process",
+                           f"  solver attempts run in this process ({why}): only Ipopt's "
                            "own wall-time limit bounds them, and a signal waits until the solver returns")
 
 
@@ -173,7 +175,7 @@ class _Child:
         self.reaped = self.closed = self.eof = False
 
     @classmethod
-    def start(cls, job: Job, mask) -> "_Child":
+    def start(cls, job: Job, mask) -> _Child:
         _flush_python_streams()                      # nothing buffered is written twice
         parent = os.getpid()
         prctl = _prctl()
@@ -246,7 +248,8 @@ class _Child:
         """Kill a child over its limit: the attempt's failed result."""
         seconds = self.seconds()
         self.kill()
-        return self.job.failed("Time_Limit_Exceeded", f"stopped after {seconds:.1f} s: the attempt's time limit "
+        return self.job.failed("Time_Limit_Exceeded",
+                               f"stopped after {seconds:.1f} s: the attempt's time limit "
                                f"is {self.job.limit:.1f} s", seconds)
 
     def kill(self) -> None:

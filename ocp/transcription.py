@@ -40,12 +40,22 @@ from .problem import OptimalControlProblem, ProblemError
 from .schedule import check_time, schedule
 from .stage import StageFunctions, stage_functions
 
-__all__ = ["MultipleShooting", "Collocation", "StageShooting", "TranscribedNLP", "Decisions", "Assembly", "StageLayout",
-           "MappedTerm", "PathFunctions", "TRANSCRIPTIONS", "get_transcription", "ode_function", "path_functions"]
+__all__ = ["MultipleShooting", "Collocation", "StageShooting", "TranscribedNLP", "Decisions", "Assembly",
+           "StageLayout",
+           "MappedTerm", "PathFunctions", "TRANSCRIPTIONS", "get_transcription", "ode_function",
+           "path_functions"]
 
 
-from .nlp import (Assembly, Decisions, MappedTerm, PathFunctions, StageLayout, TranscribedNLP,  # noqa: F401
-                  ode_function, path_functions)
+from .nlp import (  # noqa: F401
+    Assembly,
+    Decisions,
+    MappedTerm,
+    PathFunctions,
+    StageLayout,
+    TranscribedNLP,
+    ode_function,
+    path_functions,
+)
 
 
 def _stage_layout(w, g_of, specs) -> tuple:
@@ -59,7 +69,7 @@ def _stage_layout(w, g_of, specs) -> tuple:
     P = [ca.MX.sym(f"F{i}", fn.n_outputs, int(args[0].shape[1])) for i, (fn, args, _) in enumerate(specs)]
     g_p = g_of(*P)
     terms, mapped = [], []
-    for (fn, args, n_var), Pi in zip(specs, P):
+    for (fn, args, n_var), Pi in zip(specs, P, strict=True):
         m, K = Pi.shape
         x_in = ca.vertcat(*args[:n_var])
         sel = ca.Function("placement", [w, Pi], [ca.jacobian(g_p, ca.vec(Pi)), ca.jacobian(ca.vec(x_in), w)])
@@ -68,8 +78,8 @@ def _stage_layout(w, g_of, specs) -> tuple:
         columns, _ = _single_entries(xin, by="row")
         if not np.all(signs == signs[0]):   # pragma: no cover - guards the transcriptions below
             raise ProblemError(["internal: a mapped term enters g with mixed signs"])
-        terms.append(MappedTerm(fn, tuple(args), rows.reshape((K, m)).T, columns.reshape((K, fn.n_variables)).T,
-                                float(signs[0])))
+        terms.append(MappedTerm(fn, tuple(args), rows.reshape((K, m)).T,
+                                columns.reshape((K, fn.n_variables)).T, float(signs[0])))
         mapped.append(fn.value.map(K, "serial")(*args))
     g_linear = ca.substitute([g_p], P, [ca.MX.zeros(*Pi.shape) for Pi in P])[0]
     g = ca.substitute([g_p], P, mapped)[0]
@@ -125,7 +135,8 @@ class _Builder:
                 if p.is_state(name):
                     i = p.state_names.index(name)
                     a, b = p.bounds(event.conditions, name)
-                    lo[i, event.node], hi[i, event.node] = max(lo[i, event.node], a), min(hi[i, event.node], b)
+                    lo[i, event.node], hi[i, event.node] = (max(lo[i, event.node], a),
+                                                            min(hi[i, event.node], b))
         periodic_g = []
         for name in p.periodic:
             if not p.is_state(name):
@@ -176,16 +187,18 @@ class _Builder:
         n_var = 3 if free else 2
         specs = [(stage, args, n_var)]
         if self.state_paths:
-            specs.append((path_functions(self.problem, self.state_paths, inputs=False, free_horizon=free), (Z,), 1))
+            specs.append((path_functions(self.problem, self.state_paths, inputs=False,
+                                         free_horizon=free), (Z,), 1))
         if self.input_paths:
-            specs.append((path_functions(self.problem, self.input_paths, inputs=True, free_horizon=free), args,
-                          n_var))
+            specs.append((path_functions(self.problem, self.input_paths, inputs=True, free_horizon=free),
+                          args, n_var))
         return specs
 
     def path_ranges(self) -> tuple:
         """(lo, hi) of the state path quantities (m_s × (N+1)) and of the input ones (m_u × N)."""
         p, sched = self.problem, self.schedule
-        (slo, shi), (ulo, uhi) = sched.node_ranges(p, self.state_paths), sched.node_ranges(p, self.input_paths)
+        (slo, shi), (ulo, uhi) = (sched.node_ranges(p, self.state_paths),
+                                  sched.node_ranges(p, self.input_paths))
         return slo, shi, ulo[:, :-1], uhi[:, :-1]
 
     def horizons(self):
@@ -265,7 +278,7 @@ def _bounds_on(w, node_index, lo, hi, control_index, ulo, uhi, horizon_indices=(
     lbx, ubx = np.full(n_w, -np.inf), np.full(n_w, np.inf)
     lbx[node_index], ubx[node_index] = lo, hi
     lbx[control_index], ubx[control_index] = ulo, uhi
-    for index, (a, b) in zip(horizon_indices, Tbounds or ()):
+    for index, (a, b) in zip(horizon_indices, Tbounds or (), strict=False):
         lbx[index], ubx[index] = a, b
     return lbx, ubx
 
@@ -328,9 +341,10 @@ class MultipleShooting:
         idx = np.arange((nz + nu) * N).reshape((N, nz + nu)).T        # column k = (z_k, u_k)
         node_index = np.hstack([idx[:nz, :], (nz + nu) * N + np.arange(nz)[:, None]])
         control_index = idx[nz:, :]
-        h_index = tuple(range(int(w.shape[0]) - b.schedule.n_phases, int(w.shape[0]))) if Tsym is not None else ()
-        lbx, ubx = _bounds_on(w, node_index, lo, hi, control_index, *b.schedule.control_ranges(problem), h_index,
-                              Tbounds)
+        h_index = (tuple(range(int(w.shape[0]) - b.schedule.n_phases, int(w.shape[0])))
+                   if Tsym is not None else ())
+        lbx, ubx = _bounds_on(w, node_index, lo, hi, control_index, *b.schedule.control_ranges(problem),
+                              h_index, Tbounds)
         return b.finish(self, Decisions(w, lbx, ubx, node_index, control_index, h_index), f,
                         Assembly(stage.step, g=g, layout=layout))
 
@@ -435,9 +449,10 @@ class Collocation:
         node_index = np.hstack([idx[:nz, :], blk * N + np.arange(nz)[:, None]])
         coll_index = idx[nz:nz + nz * d, :]
         control_index = idx[nz + nz * d:, :]
-        h_index = tuple(range(int(w.shape[0]) - b.schedule.n_phases, int(w.shape[0]))) if Tsym is not None else ()
-        lbx, ubx = _bounds_on(w, node_index, lo, hi, control_index, *b.schedule.control_ranges(problem), h_index,
-                              Tbounds)
+        h_index = (tuple(range(int(w.shape[0]) - b.schedule.n_phases, int(w.shape[0])))
+                   if Tsym is not None else ())
+        lbx, ubx = _bounds_on(w, node_index, lo, hi, control_index, *b.schedule.control_ranges(problem),
+                              h_index, Tbounds)
         # path bounds on states also hold at the collocation points (those of the interval's phase)
         state_lo, state_hi = b.schedule.interval_ranges(problem, problem.state_names)
         lbx[coll_index] = np.tile(state_lo, (d, 1))
@@ -495,7 +510,8 @@ class StageShooting(MultipleShooting):
         Z = X[:nz, :]
         stage = self.stage_functions(problem)
         if free:   # each interval's own phase horizon, read from its stage's carried copy
-            Trow = ca.horzcat(*[X[nz + nc + p, int(sched.starts[p]):int(sched.starts[p + 1])] for p in range(P)])
+            Trow = ca.horzcat(*[X[nz + nc + p, int(sched.starts[p]):int(sched.starts[p + 1])]
+                                for p in range(P)])
         else:
             Trow = sched.horizon_row(ca.DM(sched.initial_horizons()))
         K, PH = b.interval_arguments(Trow)
@@ -566,7 +582,7 @@ class StageShooting(MultipleShooting):
             n += int(expr.shape[0])
         counts[k] = n
 
-    def _layout(self, b, vector: "_StageVector", f, g, layout):
+    def _layout(self, b, vector: _StageVector, f, g, layout):
         """The NLP in stage order: bounds on w, the FATROP structure and the guess filler."""
         problem, sched = b.problem, b.schedule
         w, lo, hi, nx, nc, yper, counts = (vector.w, vector.lo, vector.hi, vector.nx, vector.nc, vector.yper,
@@ -600,7 +616,8 @@ class StageShooting(MultipleShooting):
                     w0[starts[k] + nz:starts[k] + nx] = extra
 
         return b.finish(self, Decisions(w, lbx, ubx, node_index, control_index, h_index), f,
-                        Assembly(layout.stage.step, g=g, layout=layout, guess_filler=fill, structure=structure))
+                        Assembly(layout.stage.step, g=g, layout=layout, guess_filler=fill,
+                                 structure=structure))
 
 
 @dataclass(frozen=True, eq=False)
@@ -630,5 +647,6 @@ def get_transcription(spec=None):
         try:
             return TRANSCRIPTIONS[spec]()
         except KeyError:
-            raise ProblemError([f"unknown transcription {spec!r} (known: {', '.join(TRANSCRIPTIONS)})"]) from None
+            raise ProblemError([f"unknown transcription {spec!r} (known: "
+                                f"{', '.join(TRANSCRIPTIONS)})"]) from None
     return spec

@@ -93,7 +93,7 @@ class Answer:
     err: str
     new_children: tuple = ()
 
-    def check(self, statuses, said: str | None = None, sandbox: Sandbox | None = None) -> "Answer":
+    def check(self, statuses, said: str | None = None, sandbox: Sandbox | None = None) -> Answer:
         """Assert the contract of the module docstring; ``said`` is a regular expression the
         output (stderr, then stdout) must contain."""
         statuses = (statuses,) if isinstance(statuses, int) else tuple(statuses)
@@ -179,7 +179,8 @@ def limited(memory: int = MEMORY_LIMIT, file_size: int | None = None):
 def start_process(argv, sandbox: Sandbox, *, env=None, file_size=None) -> subprocess.Popen:
     """``nhgait argv`` as a new process in its own session, with the sandbox's TMPDIR and
     cache, :data:`MEMORY_LIMIT` and optionally ``file_size`` (its output captured)."""
-    environ = {**os.environ, "TMPDIR": str(sandbox.tmp), "NHGAIT_CACHE_DIR": str(sandbox.cache), **(env or {})}
+    environ = {**os.environ, "TMPDIR": str(sandbox.tmp), "NHGAIT_CACHE_DIR": str(sandbox.cache),
+               **(env or {})}
     return subprocess.Popen([sys.executable, "-c", LAUNCHER, *map(str, argv)], env=environ,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
                             preexec_fn=limited(file_size=file_size))

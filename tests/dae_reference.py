@@ -58,7 +58,8 @@ def solve(f, *, n_u, T, N, fixed0, fixedT, periodic=(), bounds=None, u_bound, gu
         for i, v in fixed.items():
             lbz[i, col] = ubz[i, col] = v
     lo, hi = (-u_bound, u_bound) if np.isscalar(u_bound) else u_bound
-    lbu, ubu = np.broadcast_to(np.reshape(lo, (-1, 1)), (n_u, N)), np.broadcast_to(np.reshape(hi, (-1, 1)), (n_u, N))
+    lbu, ubu = (np.broadcast_to(np.reshape(lo, (-1, 1)), (n_u, N)),
+                np.broadcast_to(np.reshape(hi, (-1, 1)), (n_u, N)))
     w = ca.vertcat(ca.vec(Z), ca.vec(U))
     nlp = {"x": w, "f": T / N * ca.sumsqr(U), "g": ca.vertcat(*g)}
     solver = ca.nlpsol("reference", "ipopt", nlp, {"ipopt.print_level": 0, "print_time": 0,
@@ -70,7 +71,8 @@ def solve(f, *, n_u, T, N, fixed0, fixedT, periodic=(), bounds=None, u_bound, gu
     stats = solver.stats()
     x = np.asarray(r["x"]).ravel()
     return {"objective": float(r["f"]), "status": stats["return_status"], "iterations": stats["iter_count"],
-            "Z": x[:nz * (N + 1)].reshape(nz, N + 1, order="F"), "U": x[nz * (N + 1):].reshape(n_u, N, order="F")}
+            "Z": x[:nz * (N + 1)].reshape(nz, N + 1, order="F"),
+            "U": x[nz * (N + 1):].reshape(n_u, N, order="F")}
 
 
 def car_ode() -> ca.Function:

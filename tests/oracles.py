@@ -48,8 +48,8 @@ Usage::
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -177,8 +177,7 @@ class KaneOracle:
 # --------------------------------------------------------------------------- #
 def _model_unicycle():
     import sympy as sp
-    from sympy.physics.mechanics import (Point, ReferenceFrame, RigidBody, dynamicsymbols,
-                                         inertia)
+    from sympy.physics.mechanics import Point, ReferenceFrame, RigidBody, dynamicsymbols, inertia
     x, y, th, ph = q = dynamicsymbols("x y theta phi")
     m, r, Jphi, Jth = p = sp.symbols("m r J_phi J_theta", positive=True)
     tau_th, tau_ph = inp = sp.symbols("tau_theta tau_phi")
@@ -246,8 +245,7 @@ def _model_snakeboard():
 
 def _model_chaplygin_sleigh():
     import sympy as sp
-    from sympy.physics.mechanics import (Point, ReferenceFrame, RigidBody, dynamicsymbols,
-                                         inertia)
+    from sympy.physics.mechanics import Point, ReferenceFrame, RigidBody, dynamicsymbols, inertia
     x, y, th = q = dynamicsymbols("x y theta")
     m, Ic, a = p = sp.symbols("m I_c a", positive=True)
     Fin, tau = inp = sp.symbols("F tau")
@@ -269,8 +267,7 @@ def _model_chaplygin_sleigh():
 
 def _model_knife_edge_incline():
     import sympy as sp
-    from sympy.physics.mechanics import (Point, ReferenceFrame, RigidBody, dynamicsymbols,
-                                         inertia)
+    from sympy.physics.mechanics import Point, ReferenceFrame, RigidBody, dynamicsymbols, inertia
     x, y, th = q = dynamicsymbols("x y theta")
     m, I, g, alpha = p = sp.symbols("m I g alpha", positive=True)
     tau = sp.Symbol("tau")
@@ -297,8 +294,7 @@ def _model_cart_trailers(k, absolute=False):
     ``absolute``) absolute headings theta0, theta1. Steering torque tau_theta on the cart,
     wheel torque tau_phi between wheel and cart."""
     import sympy as sp
-    from sympy.physics.mechanics import (Point, ReferenceFrame, RigidBody, dynamicsymbols,
-                                         inertia)
+    from sympy.physics.mechanics import Point, ReferenceFrame, RigidBody, dynamicsymbols, inertia
     if absolute:
         x, y, th, th1, ph = q = dynamicsymbols("x y theta0 theta1 phi")
         headings = [th, th1]
@@ -354,9 +350,9 @@ def _model_snake(n_links, rotor=False):
     them); optionally a rotor on the head (inertia J_r, angle psi relative to the head,
     torque tau_psi)."""
     import itertools
+
     import sympy as sp
-    from sympy.physics.mechanics import (Point, ReferenceFrame, RigidBody, dynamicsymbols,
-                                         inertia)
+    from sympy.physics.mechanics import Point, ReferenceFrame, RigidBody, dynamicsymbols, inertia
     x, y, th = dynamicsymbols("x y theta")
     psi = dynamicsymbols("psi") if rotor else None
     alphas = [dynamicsymbols(f"alpha{j}") for j in range(1, n_links)]
@@ -382,7 +378,8 @@ def _model_snake(n_links, rotor=False):
         c.v2pt_theory(joint, N, Lj)
         frames.append(Lj)
         centres.append(c)
-    bodies = [RigidBody(f"link{i + 1}", c, F, ms, (inertia(F, 0, 0, Is), c)) for i, (c, F) in enumerate(zip(centres, frames))]
+    bodies = [RigidBody(f"link{i + 1}", c, F, ms, (inertia(F, 0, 0, Is), c))
+              for i, (c, F) in enumerate(zip(centres, frames, strict=True))]
     loads = []
     if rotor:
         R = frames[0].orientnew("R", "Axis", [psi, N.z])
@@ -391,7 +388,7 @@ def _model_snake(n_links, rotor=False):
     for j in range(1, n_links):
         tau = taus[j - 1 + (1 if rotor else 0)]
         loads += [(frames[j], tau * N.z), (frames[j - 1], -tau * N.z)]
-    constraints = [c.vel(N).dot(F.y) for c, F in zip(centres, frames)]
+    constraints = [c.vel(N).dot(F.y) for c, F in zip(centres, frames, strict=True)]
     k, n = n_links, len(q)
     free = [i for i in range(n) if i >= (4 if rotor else 3)]   # the joint angles
     fixed_ind = [3] if rotor else []
@@ -544,8 +541,8 @@ def kanes_method(mdl: dict, dependent):
     q = mdl["q"]
     t = dynamicsymbols._t
     u = [dynamicsymbols(f"u_{qi.func.__name__}") for qi in q]
-    kd = [qi.diff(t) - ui for qi, ui in zip(q, u)]
-    cons = [msubs(c, dict(zip([qi.diff(t) for qi in q], u))) for c in mdl["constraints"]]
+    kd = [qi.diff(t) - ui for qi, ui in zip(q, u, strict=True)]
+    cons = [msubs(c, dict(zip([qi.diff(t) for qi in q], u, strict=True))) for c in mdl["constraints"]]
     ind = [i for i in range(len(q)) if i not in dependent]
     configuration = mdl.get("configuration", [])     # with q_dependent: the last len(...) of dependent
     q_dep = [q[i] for i in dependent[len(dependent) - len(configuration):]] if configuration else []
@@ -592,8 +589,7 @@ def agreement(system, model, orc, count=100, seed=0) -> float:
 
 def _build(name: str) -> KaneOracle:
     import sympy as sp
-    from sympy.physics.mechanics import dynamicsymbols, kinetic_energy, msubs
-    from sympy.physics.mechanics import find_dynamicsymbols
+    from sympy.physics.mechanics import dynamicsymbols, find_dynamicsymbols, kinetic_energy, msubs
 
     mdl = _MODELS[name]()
     N, q, params, inputs = mdl["N"], mdl["q"], mdl["params"], mdl["inputs"]
@@ -601,13 +597,13 @@ def _build(name: str) -> KaneOracle:
     t = dynamicsymbols._t
     qd = [qi.diff(t) for qi in q]
     u = [dynamicsymbols(f"u_{qi.func.__name__}") for qi in q]
-    qd_to_u = dict(zip(qd, u))
+    qd_to_u = dict(zip(qd, u, strict=True))
 
     # plain symbols for lambdify
     qs = sp.symbols([f"q_{i}" for i in range(n)])
     us = sp.symbols([f"v_{i}" for i in range(n)])
-    to_plain = dict(zip(q, qs))
-    to_plain.update(dict(zip(u, us)))
+    to_plain = dict(zip(q, qs, strict=True))
+    to_plain.update(dict(zip(u, us, strict=True)))
 
     def plain(expr):
         e = msubs(sp.Matrix(expr), qd_to_u).xreplace(to_plain)
@@ -655,7 +651,7 @@ def _build(name: str) -> KaneOracle:
     )
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def oracle(name: str) -> KaneOracle:
     """The (cached, lazily built) Kane oracle for ``name`` (see ORACLE_NAMES)."""
     model_description(name)   # registers a family member

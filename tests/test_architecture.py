@@ -232,7 +232,8 @@ print(first_sympy)
 def test_ocp_and_gaits_modules_import_without_sympy():
     """Every module of ocp and gaits, imported in one fresh process: none loads sympy."""
     names = sorted(m for m in modules() if m.startswith(("nhgait.ocp", "nhgait.gaits")))
-    out = subprocess.run([sys.executable, "-c", _IMPORT_ALL, *names], capture_output=True, text=True, timeout=300)
+    out = subprocess.run([sys.executable, "-c", _IMPORT_ALL, *names], capture_output=True,
+                         text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "None", f"{out.stdout.strip()} loads sympy at import"
 

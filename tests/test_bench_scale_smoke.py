@@ -1,13 +1,13 @@
 """Smoke test of ``experiments/bench_scale.py`` (issue 19's benchmark; the full run is on
-demand): one member, N = 20 (at N = 10 the RK4 error, 1.4e-6, fails the verification: correctly), interpreted, one repeat. The cold run is a real ``nhgait plan``
-in a fresh process with an empty cache, then the same plan warm; the row must carry what the benchmark table reports
-(peak memory, the longest silent gap, phases) and the planner's objective must equal the
+demand): one member, N = 20 (at N = 10 the RK4 error, 1.4e-6, fails the verification:
+correctly), interpreted, one repeat. The cold run is a real ``nhgait plan`` in a fresh process
+with an empty cache, then the same plan warm; the row must carry what the benchmark table
+reports (peak memory, the longest silent gap, phases) and the planner's objective must equal the
 independent hand-written reference's at the same N."""
 import json
 
-import pytest
-
 import experiment_scripts
+import pytest
 
 bench = experiment_scripts.load("bench_scale")
 

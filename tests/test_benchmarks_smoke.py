@@ -2,9 +2,9 @@
 import json
 from pathlib import Path
 
+import experiment_scripts
 import pytest
 
-import experiment_scripts
 from nhgait.dynamics.numerics.compiler import compiler_command
 
 #: these compile C (the references use CasADi's jit with gcc); CI may have no compiler
@@ -66,7 +66,8 @@ def test_bench_tracking_smoke(tmp_path, capsys):
     data = json.loads(out.read_text())
     assert data["snakeboard"]["ratio"] < 0.2 and data["six_coordinates"]["samples"] == 8
     assert data["floquet"]["closed_loop"]["max_multiplier_difference"] < 1e-6
-    robust, nominal = data["robust"]["robust"], data["robust"]["nominal"]      # planned for m ×1.1 among others
+    # planned for m ×1.1 among others
+    robust, nominal = data["robust"]["robust"], data["robust"]["nominal"]
     assert robust["noise_free_open"] < 0.8 * nominal["noise_free_open"]
     assert robust["robust"]["copies"] == 4 and nominal["robust"] is None
     printed = capsys.readouterr().out

@@ -37,7 +37,7 @@ def _matched(ours, published):
     """The largest distance between the two sets of four eigenvalues, matched by sorting."""
     key = lambda v: (round(v.real, 6), v.imag)                       # noqa: E731
     a, b = sorted(np.asarray(ours, complex), key=key), sorted(np.asarray(published, complex), key=key)
-    return max(abs(x - y) for x, y in zip(a, b))
+    return max(abs(x - y) for x, y in zip(a, b, strict=True))
 
 
 @pytest.mark.parametrize("speed", sorted(TABLE2))

@@ -33,8 +33,9 @@ def test_lane_change_is_planned_and_verified(lane_change):
     q = sol.states[:8]
     assert q[names.index("y"), -1] == pytest.approx(1.0, abs=1e-6)
     assert abs(q[names.index("yaw"), -1]) < 1e-6 and abs(q[names.index("lean"), -1]) < 1e-6
-    assert np.all(np.abs(q[names.index("lean")]) <= 0.3 + 1e-9) and np.all(np.abs(q[names.index("steer")]) <= 0.3 + 1e-9)
-    controls = dict(zip(sol.control_names, sol.controls))
+    assert np.all(np.abs(q[names.index("lean")]) <= 0.3 + 1e-9) and np.all(np.abs(q[names.index("steer")])
+                                                                           <= 0.3 + 1e-9)
+    controls = dict(zip(sol.control_names, sol.controls, strict=True))
     assert np.all(controls["T_lean"] == 0.0) and np.max(np.abs(controls["T_steer"])) <= 20.0 + 1e-9
     h = holonomic_residual(result.model.system, q.T)
     assert np.max(np.abs(h)) < 1e-8                                 # the pitch follows lean and steer

@@ -43,10 +43,12 @@ def test_disc_from_a_wheel_equals_the_hand_written_disc():
     rng = np.random.default_rng(1)
     for _ in range(20):
         q = rng.uniform(-1.2, 1.2, 5)
-        qd = consistent_velocities(by_hand, q, dict(zip(("yaw", "lean", "spin"), rng.uniform(-2, 2, 3))))
+        qd = consistent_velocities(by_hand, q,
+                                   dict(zip(("yaw", "lean", "spin"), rng.uniform(-2, 2, 3), strict=True)))
         u = rng.uniform(-1, 1, 1)
         np.testing.assert_allclose(a.call("qddot", 0.0, a.call("state", q, qd, pv), u, pv),
-                                   b.call("qddot", 0.0, b.call("state", q, qd, pv), u, pv), rtol=1e-12, atol=1e-12)
+                                   b.call("qddot", 0.0, b.call("state", q, qd, pv), u, pv),
+                                   rtol=1e-12, atol=1e-12)
 
 
 def _moore_geometry(p):
@@ -74,7 +76,8 @@ def test_bicycle_is_built_from_bodies_with_one_kept_holonomic_constraint(bicycle
     assert holonomic_residual(bicycle, np.zeros(8))[0] == pytest.approx(0.0, abs=1e-15)   # upright: pitch 0
 
 
-@pytest.mark.parametrize("lean, steer", [(0.1745329251994330, 0.0872664625997165), (0.3, -0.5), (-0.6, 0.9), (0.0, 1.2)])
+@pytest.mark.parametrize("lean, steer",
+                         [(0.1745329251994330, 0.0872664625997165), (0.3, -0.5), (-0.6, 0.9), (0.0, 1.2)])
 def test_bicycle_pitch_is_moores_closed_form(bicycle, lean, steer):
     from scipy.optimize import brentq
     p = bicycle.parameters
@@ -93,13 +96,16 @@ def test_bicycle_pitch_is_moores_closed_form(bicycle, lean, steer):
 def test_no_configuration_when_the_front_wheel_cannot_touch_the_ground(bicycle):
     q = np.zeros(8)
     q[3], q[5] = 1.5, 1.0        # lying almost flat, steered: no pitch puts the front wheel down
-    with pytest.raises(ModelError, match=r"(?s)no configuration satisfies the holonomic constraint.*lean = 1.5"):
+    with pytest.raises(ModelError,
+                       match=r"(?s)no configuration satisfies the holonomic constraint.*lean = 1.5"):
         consistent_configuration(bicycle, q)
 
 
 def test_body_statement_errors_are_listed_together():
-    bad = DISC.replace('parent = "leaning"', 'parent = "nowhere"').replace('axis = [1, 0, 0]', 'axis = [0, 0, 0]')
-    bad = bad.replace('radius = "r"', 'radius = "rho"') + '\n[[system.bodies]]\nname = "x2"\nparent = "base"\ncolour = 3\n'
+    bad = DISC.replace('parent = "leaning"', 'parent = "nowhere"').replace('axis = [1, 0, 0]',
+                                                                           'axis = [0, 0, 0]')
+    bad = (bad.replace('radius = "r"', 'radius = "rho"') + '\n[[system.bodies]]\nname = "x2"\nparent = '
+                                                           '"base"\ncolour = 3\n')
     with pytest.raises(ModelError) as err:
         scene_from_text(bad)
     text = str(err.value)

@@ -47,7 +47,8 @@ def test_second_derive_loads_from_disk(cache_dir, monkeypatch):
     assert again.provenance.cache_hit is True and again.provenance.key == first.provenance.key
     assert again.provenance.created == first.provenance.created
     assert [str(e) for e in again.rhs] == [str(e) for e in first.rhs]
-    assert again.compiled is not None and again.numeric is again.compiled   # compiled functions came from the cache too
+    # compiled functions came from the cache too
+    assert again.compiled is not None and again.numeric is again.compiled
     with pytest.raises(AssertionError, match="symbolic work"):
         derive(unicycle(), "reduced", use_cache=False)
 

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from adversarial import answer, children, run_process, start_process
+from adversarial import children, run_process, start_process
 
 from nhgait.dynamics.numerics import cache
 
@@ -83,7 +83,8 @@ DAMAGE = [
     ("an old format", lambda good: b"\x80\x05" + good, r"not an nhgait cache entry"),
     ("empty", lambda good: b"", r"not an nhgait cache entry"),
     ("a header without its payload", lambda good: good[: good.index(b"\n", 30) + 1], r"truncated|damaged"),
-    ("a header of a huge size", lambda good: good.replace(b'"size": ', b'"size": 99999999', 1), r"damaged|truncated"),
+    ("a header of a huge size", lambda good: good.replace(b'"size": ', b'"size": 99999999', 1),
+     r"damaged|truncated"),
 ]
 
 
@@ -97,7 +98,8 @@ def test_a_damaged_entry_costs_one_rebuild(damage, said, private_cache):
     with pytest.warns(cache.UntrustedCacheWarning, match=said):
         rebuilt = derive(unicycle(), "reduced")
     assert not rebuilt.provenance.cache_hit
-    np.testing.assert_allclose(_rhs(rebuilt), _rhs(derive(unicycle(), "reduced", use_cache=False)), rtol=1e-14)
+    np.testing.assert_allclose(_rhs(rebuilt),
+                               _rhs(derive(unicycle(), "reduced", use_cache=False)), rtol=1e-14)
     assert derive(unicycle(), "reduced").provenance.cache_hit
 
 
@@ -139,7 +141,8 @@ WRITE_FAULTS = [("read-only file system", "mkstemp", errno.EROFS), ("no space le
 
 
 @pytest.mark.parametrize("where, code", [pytest.param(*c[1:], id=c[0]) for c in WRITE_FAULTS])
-def test_a_cache_that_cannot_be_written_warns_once_and_the_run_goes_on(where, code, private_cache, monkeypatch):
+def test_a_cache_that_cannot_be_written_warns_once_and_the_run_goes_on(where, code, private_cache,
+                                                                       monkeypatch):
     """Two derivations into a cache that refuses every write: both succeed uncached, the
     warning is shown once (Python's default filter: one text, one place), no temporary is left."""
     from nhgait.dynamics import derive, unicycle
@@ -190,7 +193,8 @@ def test_a_refused_cache_location_is_not_used_for_anything(setting, sandbox):
     else:
         folder = Path("/dev/null")
     sandbox.cache = folder
-    got = run_process(["simulate", "unicycle", "--method", "compiled", "--out", sandbox.out / "t.csv"], sandbox)
+    got = run_process(["simulate", "unicycle", "--method", "compiled", "--out",
+                       sandbox.out / "t.csv"], sandbox)
     got.check(0, r"nhgait: warning: (refusing the cache directory|cannot (create|write) the cache directory)")
     if folder.is_dir():
         assert list(folder.iterdir()) == []
@@ -303,8 +307,8 @@ def test_a_signal_during_the_compile_leaves_nothing(signame, status, fake_cc, sa
     the compiler gone, nothing in TMPDIR (gcc's cc*.s were left there 8 times out of 8), no
     build folder."""
     (fake_cc / "slow").touch()
-    proc = start_process(["simulate", "unicycle", "--method", "compiled", "--out", sandbox.out / "t.csv"], sandbox,
-                         env={"NHGAIT_CC": os.environ["NHGAIT_CC"]})
+    proc = start_process(["simulate", "unicycle", "--method", "compiled", "--out", sandbox.out / "t.csv"],
+                         sandbox, env={"NHGAIT_CC": os.environ["NHGAIT_CC"]})
     try:
         _wait_for(fake_cc / "started")
         os.kill(proc.pid, getattr(signal, signame))
@@ -327,15 +331,16 @@ def test_kill_9_during_the_compile_is_cleaned_by_the_next_build(fake_cc, sandbox
     at once, not an hour later."""
     from nhgait.dynamics.numerics.compiler import build_library, jit_dir
     (fake_cc / "slow").touch()
-    proc = start_process(["simulate", "unicycle", "--method", "compiled", "--out", sandbox.out / "t.csv"], sandbox,
-                         env={"NHGAIT_CC": os.environ["NHGAIT_CC"]})
+    proc = start_process(["simulate", "unicycle", "--method", "compiled", "--out", sandbox.out / "t.csv"],
+                         sandbox, env={"NHGAIT_CC": os.environ["NHGAIT_CC"]})
     try:
         _wait_for(fake_cc / "started")
     finally:
         os.kill(proc.pid, signal.SIGKILL)
         proc.communicate()
     left = [p.name for p in jit_dir().iterdir()]
-    assert len(left) == 1 and left[0].startswith(f".build-{cache.temporary_prefix().split('-')[1]}-{proc.pid}-")
+    assert (len(left) == 1
+            and left[0].startswith(f".build-{cache.temporary_prefix().split('-')[1]}-{proc.pid}-"))
     (fake_cc / "slow").unlink()
     build_library("int g(void) { return 2; }")
     assert sorted(p.suffix for p in jit_dir().iterdir()) == [".json", ".so"]

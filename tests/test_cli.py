@@ -61,7 +61,8 @@ def test_simulate_snakeboard_scene_writes_csv(tmp_path, formulation, capsys):
 
 def test_simulate_inconsistent_initial_state_exits_2(tmp_path, capsys):
     scene = tmp_path / "s.toml"
-    text = open(__import__("nhgait.dynamics.derivation", fromlist=["x"]).__path__[0] + "/scenes/unicycle.toml").read()
+    text = open(__import__("nhgait.dynamics.derivation", fromlist=["x"]).__path__[0]
+                + "/scenes/unicycle.toml").read()
     scene.write_text(text.replace("qdot0 = [0.1, 0.0, 1.0, 1.0]", "qdot0 = [0.5, 0.0, 1.0, 1.0]"))
     assert main(["simulate", str(scene), "--out", str(tmp_path / "t.csv")]) == 2
     assert "violates the constraints" in capsys.readouterr().err

@@ -29,7 +29,8 @@ def test_bad_input_exits_2_without_traceback(capsys, monkeypatch):
     from nhgait.dynamics.numerics.bridge import BridgeError
     parser = cli.build_parser()
     args = parser.parse_args(["derive", "unicycle"])
-    monkeypatch.setattr(cli, "build_parser", lambda: _Parser(args, _boom(BridgeError(["cannot convert Foo"]))))
+    monkeypatch.setattr(cli, "build_parser",
+                        lambda: _Parser(args, _boom(BridgeError(["cannot convert Foo"]))))
     assert cli.main([]) == 2
     err = capsys.readouterr().err
     assert "cannot convert Foo" in err and "Traceback" not in err

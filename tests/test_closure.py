@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from nhgait.dynamics import simulate  # the function (lazy export), before any submodule import
+from nhgait.dynamics.errors import ModelError
 from nhgait.dynamics.simulation.closure import closure, resolve_outputs
 from nhgait.dynamics.simulation.controllers import snakeboard_pd
-from nhgait.dynamics.errors import ModelError
 
 SNAKE_Q0, SNAKE_QDOT0 = np.array([0, 0, 0, 0, 1.0]), np.array([0, 0, 0, 1.0, 0])
 
@@ -47,8 +47,8 @@ def test_shape_only_run_integrates_five_of_eight_states(models):
     """The snakeboard's shape and momentum equations do not read the fiber (x, y, θ): a run
     that asks for shape and momenta integrates 5 of 8 states, and its shape trajectory equals
     the KanesMethod solution."""
-    from scipy.integrate import solve_ivp
     from oracles import oracle
+    from scipy.integrate import solve_ivp
     model = models["snakeboard"]["reduced"]
     ctl = snakeboard_pd()
     t_eval = np.linspace(0.0, 3.0, 31)
@@ -91,6 +91,7 @@ def test_python_controller_reads_everything(models):
 
 def test_cli_prints_the_state_count_and_writes_the_outputs(tmp_path, capsys):
     from importlib import resources
+
     from nhgait.gaits.cli.main import main
     text = resources.files("nhgait.dynamics.derivation").joinpath("scenes", "snakeboard.toml").read_text()
     scene = tmp_path / "shape.toml"

@@ -65,7 +65,8 @@ def cold(tmp_path, monkeypatch):
 @needs_posix
 @needs_cc
 @needs_fast
-def test_first_plan_does_not_wait_for_the_optimised_build_and_the_next_run_uses_it(cold, tmp_path, monkeypatch):
+def test_first_plan_does_not_wait_for_the_optimised_build_and_the_next_run_uses_it(cold, tmp_path,
+                                                                                   monkeypatch):
     from nhgait.gaits.planner import plan
     held = HeldCompiler(tmp_path / "cc")
     held.hold(True)
@@ -134,7 +135,8 @@ def test_cancelled_builder_leaves_no_compiler_and_no_folder(cold, tmp_path, monk
     held.hold(True)
     monkeypatch.setenv("NHGAIT_CC", str(held.script))
     builders = Builders()
-    build = start_build("int nhgait_answer(void) { return 42; }\n", flags=("-O1",), salt="test", builders=builders)
+    build = start_build("int nhgait_answer(void) { return 42; }\n", flags=("-O1",), salt="test",
+                        builders=builders)
     assert build.state == "started"
     import time
     deadline = time.monotonic() + 60
@@ -143,7 +145,8 @@ def test_cancelled_builder_leaves_no_compiler_and_no_folder(cold, tmp_path, monk
     assert held.runs() == 1
     compiler = int((held.folder / "started").read_text().split()[0])
     assert builders.cancel() == 1
-    assert not Path(f"/proc/{build.pid}").exists() or "Z" in Path(f"/proc/{build.pid}/stat").read_text().split()[2]
+    assert (not Path(f"/proc/{build.pid}").exists()
+            or "Z" in Path(f"/proc/{build.pid}/stat").read_text().split()[2])
     assert not _alive(compiler)
     assert list(jit_dir().iterdir()) == []
 
@@ -180,7 +183,8 @@ def test_compiled_fast_agrees_and_falls_back_to_the_function_itself(cold, monkey
     the interpreted MX function, to 1e-13; without a fast compiler, the function itself."""
     from nhgait.dynamics.numerics.fast_compiler import compiled_fast
     q, c = ca.MX.sym("q", 2), ca.MX.sym("c", 3)
-    step = ca.Function("step", [q, c], [q + 0.1 * ca.vertcat(ca.cos(q[1]) * c[0], ca.sin(q[0]) * c[1] + c[2])])
+    step = ca.Function("step", [q, c],
+                       [q + 0.1 * ca.vertcat(ca.cos(q[1]) * c[0], ca.sin(q[0]) * c[1] + c[2])])
     r = step.mapaccum(20)(q, ca.repmat(c, 1, 20))[:, -1]
     f = ca.Function("r", [q, c], [r, ca.jacobian(r, c)])
     point = ([0.3, -0.2], [1.0, 0.5, -0.25])

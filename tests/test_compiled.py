@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from nhgait.dynamics import simulate  # the function (lazy export), before any submodule import
-from nhgait.dynamics.simulation.controllers import OpenLoop, snakeboard_pd
 from nhgait.dynamics.numerics.compiler import compiler_command
+from nhgait.dynamics.simulation.controllers import OpenLoop, snakeboard_pd
 
 #: these need a C compiler ($NHGAIT_CC, $CC, gcc or cc); CI may have none
 needs_cc = pytest.mark.skipif(compiler_command() is None, reason="no C compiler")
@@ -69,8 +69,8 @@ def test_convergence_order(models, method, order):
 
 def test_agrees_with_kane_oracle(models):
     """Snakeboard PD run on [0, 3] against KanesMethod + DOP853 (both tight)."""
-    from scipy.integrate import solve_ivp
     from oracles import oracle
+    from scipy.integrate import solve_ivp
     o, ctl = oracle("snakeboard"), snakeboard_pd()
     model = models["snakeboard"]["reduced"]
     pv = model.numeric.params(None)
@@ -103,7 +103,7 @@ def test_open_loop_segments_are_exact(models):
     tau = np.array([0.3, -0.2, 0.5, 0.0, -0.4])
     ctl = OpenLoop(times, np.c_[tau, np.zeros(5)], inputs=("tau_theta", "tau_phi"))
     theta, omega = 0.0, 0.0
-    for dt, a in zip(np.diff(times), tau / J_THETA):
+    for dt, a in zip(np.diff(times), tau / J_THETA, strict=True):
         theta, omega = theta + omega * dt + 0.5 * a * dt ** 2, omega + a * dt
     for method in ("compiled", "CVODES"):
         traj = simulate(model, (0.0, 1.0), np.zeros(4), np.zeros(4), controller=ctl,
@@ -125,7 +125,7 @@ def test_every_step_output_over_several_segments_keeps_each_segment(models):
                     rtol=1e-12, atol=1e-14)
     assert traj.success and traj.settings["segments"] == 5 and np.all(np.diff(traj.t) >= 0)
     starts = [(0.0, 0.0)]                               # (θ, ω) at each switch time
-    for dt, a in zip(np.diff(times), tau / J_THETA):
+    for dt, a in zip(np.diff(times), tau / J_THETA, strict=True):
         theta, omega = starts[-1]
         starts.append((theta + omega * dt + 0.5 * a * dt ** 2, omega + a * dt))
     j = np.clip(np.searchsorted(times, traj.t, side="right") - 1, 0, 4)
@@ -223,6 +223,7 @@ def test_world_writable_jit_directory_is_refused(models, monkeypatch, tmp_path):
 def test_auto_without_compiler_still_switches_when_stiff(models, monkeypatch):
     """method="auto" on scipy DOP853 (no compiler) detects the stiff gains and switches."""
     import math
+
     from nhgait.dynamics.simulation.controllers import PDTracking, Sinusoid
     monkeypatch.setenv("NHGAIT_CC", "/nonexistent/bin/cc")
     stiff = PDTracking(coordinates=("psi", "phi"),

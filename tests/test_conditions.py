@@ -7,9 +7,9 @@ unicycle's rolling constraint ẋ = r cos θ φ̇ with r = 0.1 (its scene file),
 """
 from __future__ import annotations
 
+import experiment_scripts
 import pytest
 
-import experiment_scripts
 from nhgait.gaits.planner import plan, prepare
 from nhgait.gaits.task_library import resolve
 from nhgait.ocp import ProblemError
@@ -102,7 +102,8 @@ def test_periodic_joint_rates_of_a_four_link_snake_are_implied():
     from nhgait.dynamics.derivation.scene import scene_from_text
     scene = scene_from_text(scaling.snake(4), "<snake_4>")
     joints = ["alpha1", "alpha2", "alpha3"]
-    task = {"horizon": 6.0, "intervals": 10, "control_bounds": 5.0, "velocities": ["alpha1_dot", "alpha2_dot"],
+    task = {"horizon": 6.0, "intervals": 10, "control_bounds": 5.0,
+            "velocities": ["alpha1_dot", "alpha2_dot"],
             "initial": {"x": 0.0, "y": 0.0, "theta": 0.0}, "final": {"x": 0.3, "y": 0.0, "theta": 0.0},
             "periodic": joints + [f"{j}_dot" for j in joints],
             "bounds": {"alpha1": [0.2, 1.5], "alpha2": [-1.5, -0.2], "alpha3": [-1.5, 1.5]}}
@@ -121,6 +122,7 @@ def test_dependent_conditions_at_a_free_configuration_are_not_called_contradicto
     accepted, and every condition — kept or dropped — holds at the final configuration with
     every velocity zero."""
     import numpy as np
+
     from nhgait.dynamics.derivation.scene import scene_from_text
     from nhgait.ocp.problem import builtin_quantities
     pair = experiment_scripts.load("robot_generator").pair(24, 17)
@@ -140,7 +142,8 @@ def test_dependent_conditions_at_a_free_configuration_are_not_called_contradicto
 
 
 CAR_PARK = {"horizon": 6.0, "intervals": 30, "control_bounds": {"F": [-5.0, 5.0], "tau_phi": [-1.0, 1.0]},
-            "initial": {"x": 0.0, "y": 0.0, "theta": 0.0, "phi": 0.0, "forward_velocity": 0.0, "phi_dot": 0.0},
+            "initial": {"x": 0.0, "y": 0.0, "theta": 0.0, "phi": 0.0, "forward_velocity": 0.0,
+                        "phi_dot": 0.0},
             "final": {"x": 0.0, "y": 0.5, "theta": 0.0}, "bounds": {"phi": [-0.7, 0.7]}}
 
 

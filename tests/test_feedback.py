@@ -203,7 +203,8 @@ def test_nominal_closed_loop_follows_the_plan_and_feedback_cuts_a_mismatch(parke
     for factor in (1.0, 1.2):
         for name, law in (("open", sched.open_loop()), ("closed", sched)):
             run = simulate(prepared.model, span, z0[:n], qd0, controller=law,
-                           params=_robot_params(prepared.model, factor), method="compiled", rtol=1e-10, atol=1e-12)
+                           params=_robot_params(prepared.model, factor), method="compiled",
+                           rtol=1e-10, atol=1e-12)
             errors[name, factor] = float(np.linalg.norm(run.q[-1, :2] - sched.reference[-1, :2]))
     assert errors["open", 1.0] <= 1e-6 and errors["closed", 1.0] <= 1e-6
     assert errors["open", 1.2] >= 0.05

@@ -102,7 +102,8 @@ def test_simulate_figures(figures):
     assert ts._suptitle.get_text().startswith("sleigh_slider: simulated reduced model")
     ylabels = [ax.get_ylabel() for ax in ts.axes]
     assert ylabels == ["coordinates [m]", "coordinates [rad]", "inputs [N]"]
-    assert [_labelled(ax) for ax in ts.axes] == [["x [m]", "y [m]", "s [m]"], ["θ [rad]"], ["F [N]", "f_s [N]"]]
+    assert [_labelled(ax) for ax in ts.axes] == [["x [m]", "y [m]", "s [m]"], ["θ [rad]"],
+                                                 ["F [N]", "f_s [N]"]]
     assert ts.axes[-1].get_xlabel() == "t [s]"
     path = figures["simulate/path.png"].axes[0]
     assert path.get_title().startswith("sleigh_slider: path in the plane")
@@ -115,7 +116,8 @@ def test_plan_figures(figures):
     path = figures["plan/path.png"].axes[0]
     assert path.get_title() == "path in the plane (to scale)" and len(_series(path)) == 7 * 3 + 3
     shape = figures["plan/shape.png"].axes[0]
-    assert shape.get_title() == "shape loop" and (shape.get_xlabel(), shape.get_ylabel()) == ("θ [rad]", "s [m]")
+    assert (shape.get_title() == "shape loop"
+            and (shape.get_xlabel(), shape.get_ylabel()) == ("θ [rad]", "s [m]"))
     hist = figures["plan/histories.png"].axes
     assert hist[0].get_ylabel() == "shape θ, s [rad, m]" and _labelled(hist[0]) == ["θ [rad]", "s [m]"]
     assert hist[1].get_ylabel() == "input [N]" and _labelled(hist[1]) == ["F [N]", "f_s [N]"]
@@ -136,7 +138,8 @@ def test_sweep_figures(figures):
 
 def test_precision_figure_series_are_distinct(figures):
     ax = figures["bench/precision.png"].axes[0]
-    assert ax.get_xlabel() == "wall time per run, median [s]" and ax.get_ylabel().startswith("final-state error")
+    assert (ax.get_xlabel() == "wall time per run, median [s]"
+            and ax.get_ylabel().startswith("final-state error"))
     assert "sleigh_slider" in ax.get_title()
     assert len(_labelled(ax)) == 4                                 # 2 formulations × 2 methods
 
@@ -164,7 +167,8 @@ def test_result_reprs_are_short_and_say_where_the_arrays_are(figures, out):
     from nhgait.gaits.planner import plan
     from nhgait.gaits.sweeps.driver import load_sweep
     text = repr(load_sweep(out / "sweep"))
-    assert text.startswith("<SweepResult sleigh_slider/sidestep: 4 of 4 points solved and verified, grid (2, 2)")
+    assert text.startswith("<SweepResult sleigh_slider/sidestep: 4 of 4 points solved and "
+                           "verified, grid (2, 2)")
     assert "result.objectives()" in text and len(text) < 400
     result = plan(SLIDER, jit=False)
     text = repr(result)

@@ -91,7 +91,7 @@ def test_monodromy_of_a_nonlinear_time_varying_loop_matches_finite_differences()
     rng = np.random.default_rng(4)
     ref = np.vstack([np.sin(times), np.cos(times)])
     rates = np.stack([np.stack([[np.cos(a), -np.sin(a)], [np.cos(b), -np.sin(b)]]) for a, b in
-                      zip(times[:-1], times[1:])])
+                      zip(times[:-1], times[1:], strict=True)])
     controls, gains = rng.normal(size=(1, n)), rng.uniform(0.2, 1.5, (n, 1, 2))
     analytic, _ = monodromy(ode, times, ref, controls, rates, gains)
     reference = finite_difference_monodromy(ode, times, ref, controls, rates, gains)
@@ -111,6 +111,7 @@ def test_snakeboard_forward_gait_multipliers_match_finite_differences(forward, t
     differences of DOP853 flows (rtol 1e-13) to 1e-6; the open loop's matrix too, its
     multipliers are the chain of integrators' 1 (marginal); solution.json carries both."""
     import json
+
     from nhgait.ocp.transcription import ode_function
     result, prepared = forward
     st, fb = result.solution.stability, result.solution.feedback

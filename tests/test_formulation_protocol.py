@@ -13,14 +13,17 @@ import pytest
 import scipy.linalg
 import sympy as sp
 
-from nhgait.dynamics import ModelError, derive
-from nhgait.dynamics import HamiltonianDAE, LagrangianDAE, ReducedODE
+from nhgait.dynamics import HamiltonianDAE, LagrangianDAE, ModelError, ReducedODE, derive
 from nhgait.dynamics.derivation import formulation_protocol
-from nhgait.dynamics.derivation.formulation_base import (Baumgarte, LoopPoint, Projection, Stabilisation,
-                                                        stabilisation_named)
+from nhgait.dynamics.derivation.formulation_base import (
+    Baumgarte,
+    LoopPoint,
+    Projection,
+    Stabilisation,
+    stabilisation_named,
+)
 from nhgait.dynamics.derivation.formulations import FORMULATIONS, formulation_type
-from nhgait.dynamics.derivation.states import (
-    constraint_residual, from_state, initial_state_map, to_state)
+from nhgait.dynamics.derivation.states import constraint_residual, from_state, initial_state_map, to_state
 from nhgait.dynamics.numerics.numeric_model import NumericModel
 
 TOL = 1e-12
@@ -30,13 +33,13 @@ CASES = [(name, form) for name in ("unicycle", "snakeboard", "chaplygin_sleigh")
 def _reference(system):
     """M(q), ω(q), V(q) at the default parameter values, lambdified from the system's sympy
     expressions (not through the engine's compiled functions)."""
-    values = dict(zip(system.param_symbols, system.param_values))
+    values = dict(zip(system.param_symbols, system.param_values, strict=True))
     args = list(system.q)
     mass = sp.lambdify(args, system.mass_matrix().subs(values), "numpy")
     omega = sp.lambdify(args, system.omega().subs(values), "numpy")
     potential = sp.lambdify(args, system.potential().subs(values), "numpy")
-    return (lambda q: np.array(mass(*q), dtype=float), lambda q: np.array(omega(*q), dtype=float).reshape(system.k, system.n),
-            lambda q: float(potential(*q)))
+    return (lambda q: np.array(mass(*q), dtype=float), lambda q: np.array(omega(*q), dtype=float)
+            .reshape(system.k, system.n), lambda q: float(potential(*q)))
 
 
 def _consistent_state(system, omega, seed=3):
@@ -52,7 +55,8 @@ def test_every_formulation_name_resolves_to_its_model_type():
     types = [formulation_type(name) for name in FORMULATIONS]
     assert types == [ReducedODE, LagrangianDAE, HamiltonianDAE]
     assert [t.formulation for t in types] == list(FORMULATIONS)
-    with pytest.raises(ModelError, match=r"unknown formulation 'euler' \(choose from reduced, lagrange, hamilton\)"):
+    with pytest.raises(ModelError,
+                       match=r"unknown formulation 'euler' \(choose from reduced, lagrange, hamilton\)"):
         formulation_type("euler")
 
 

@@ -163,7 +163,7 @@ def test_parallel_candidates_agree_with_sequential():
     par = plan("snakeboard", "rotate", intervals=25, jit=False, workers=2, verify=False)
     assert par.success
     assert len(par.attempts) >= 2            # the first batch (two at once), then the exploration's
-    best = min((a.objective for a in par.attempts if a.success))
+    best = min(a.objective for a in par.attempts if a.success)
     assert par.solution.objective == pytest.approx(best, rel=1e-12)
     # the first candidate is the same in both: its result does not depend on the process
     assert par.attempts[0].objective == pytest.approx(seq.attempts[0].objective, rel=1e-9)
@@ -180,7 +180,8 @@ def test_unknown_names_are_one_error(tmp_path):
                                                       "phi": 0, "x_dot": 0, "y_dot": 0, "psi_dot": 0},
                             "control_bounds": {"tau_q": [-1, 1]}, "objective": {"tau_z": 1.0}}, jit=False)
     text = str(info.value)
-    assert "unknown name 'zz'" in text and "unknown input 'tau_q'" in text and "unknown weight 'tau_z'" in text
+    assert ("unknown name 'zz'" in text and "unknown input 'tau_q'" in text
+            and "unknown weight 'tau_z'" in text)
 
 
 def test_warm_start_from_a_previous_solution(tmp_path):
@@ -201,6 +202,7 @@ def test_auto_solver_falls_back_to_ipopt(monkeypatch):
     """solver="auto": FATROP first; when it finds nothing (here: every FATROP solve reported as
     failed), Ipopt plans the task and the report says which solver did what."""
     from dataclasses import replace as dc_replace
+
     from nhgait.gaits.planner import solver_order
     from nhgait.ocp import OCPSolver, ProblemError
     assert solver_order("auto") == ("fatrop", "ipopt") and solver_order("auto", "collocation") == ("ipopt",)
@@ -210,7 +212,8 @@ def test_auto_solver_falls_back_to_ipopt(monkeypatch):
 
     def fatrop_fails(self, guess):
         sol = original(self, guess)
-        return dc_replace(sol, success=False, status="forced failure") if self.options.solver == "fatrop" else sol
+        return (dc_replace(sol, success=False, status="forced failure")
+                if self.options.solver == "fatrop" else sol)
     monkeypatch.setattr(OCPSolver, "solve", fatrop_fails)
     result = plan("snakeboard", "forward", intervals=25, jit=False, verify=False, max_iter=30)
     solvers = [a.solver for a in result.attempts]
@@ -226,7 +229,8 @@ def test_scene_quantities_in_a_task(tmp_path):
     text = text.replace("[units]", '[quantities]\nv_rear = "cos(theta)*x_dot + sin(theta)*y_dot"\n'
                                    'speed2 = "x_dot**2 + y_dot**2"\n\n[units]')
     text = text.replace("forward_velocity", "v_rear").replace("bounds = {phi = [-0.7, 0.7]}",
-                                                                "bounds = {phi = [-0.7, 0.7], speed2 = [0.0, 0.16]}")
+                                                                "bounds = {phi = [-0.7, 0.7], speed2 = "
+                                                                "[0.0, 0.16]}")
     scene = tmp_path / "car_q.toml"
     scene.write_text(text)
     result = plan(str(scene), intervals=50, jit=False)

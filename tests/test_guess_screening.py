@@ -20,10 +20,10 @@ import math
 from pathlib import Path
 
 import casadi as ca
+import dae_reference
 import numpy as np
 import pytest
 
-import dae_reference
 from nhgait.gaits.guesses import candidates
 from nhgait.gaits.planner import plan, prepare
 from nhgait.gaits.task_library import resolve
@@ -60,11 +60,12 @@ def test_a_guess_through_the_singular_set_is_repaired_and_the_plan_verified():
     repaired = [x for x in guesses.screened if x.action == "repaired"]
     assert repaired, "a loop of φ around 0.3 with amplitude 0.4 crosses φ = 0 and must be repaired"
     for record in repaired:                      # each was caught where it crosses sin φ = 0
-        phi = dict(zip(record.check.coordinates, record.check.q))["phi"]
+        phi = dict(zip(record.check.coordinates, record.check.q, strict=True))["phi"]
         assert abs(phi) < 0.05
     loop = next(g for g in handed if "(amplitudes x0.5)" in g.label and "rollout" not in g.label)
     phi = loop.states[3]
-    assert np.all(phi > 0) and np.all((phi[1:] + phi[:-1]) / 2 > 0)        # off sin φ = 0, nodes and midpoints
+    # off sin φ = 0, nodes and midpoints
+    assert np.all(phi > 0) and np.all((phi[1:] + phi[:-1]) / 2 > 0)
     result = plan(CAR, ARC, jit=False, solver="ipopt", guess=loop)
     s = result.solution
     assert result.success and result.guess == loop.label
@@ -72,7 +73,8 @@ def test_a_guess_through_the_singular_set_is_repaired_and_the_plan_verified():
     reference = dae_reference.solve(dae_reference.car_ode(), n_u=2, T=6.0, N=60,
                                     fixed0={i: v for i, v in enumerate([0, 0, 0, 0.3, 0, 0, 0, 0])},
                                     fixedT={0: 1.6, 1: 1.6, 2: math.pi / 2, 3: 0.3, 6: 0.0, 7: 0.0},
-                                    bounds={3: (-0.7, 0.7)}, u_bound=(np.array([-5.0, -1.0]), np.array([5.0, 1.0])),
+                                    bounds={3: (-0.7, 0.7)},
+                                    u_bound=(np.array([-5.0, -1.0]), np.array([5.0, 1.0])),
                                     guess=_arc_guess())
     assert reference["status"] == "Solve_Succeeded"
     assert s.objective == pytest.approx(reference["objective"], rel=1e-3)
@@ -91,7 +93,8 @@ def test_a_plan_whose_guesses_all_meet_the_singular_set_names_the_posture(tmp_pa
     assert "'forward_velocity'" in better and "'theta_dot'" not in better       # v sin φ = l cos φ θ̇
     saved = json.loads((tmp_path / "solution.json").read_text())
     assert saved["success"] is False and saved["guess"]["screened"]
-    assert all(x["action"] == "skipped" and x["configuration"]["phi"] == 0.0 for x in saved["guess"]["screened"])
+    assert all(x["action"] == "skipped" and x["configuration"]["phi"] == 0.0
+               for x in saved["guess"]["screened"])
 
 
 def _snake_ode():
@@ -156,8 +159,8 @@ def test_the_users_snake_is_planned_through_the_charts_singular_set_and_verified
     Z = np.vstack([q, s.velocities()])
     fixed0 = {i: 0.0 for i in (0, 1, 2, 5, 6, 7, 8, 9)}
     reference = dae_reference.solve(f, n_u=2, T=6.0, N=50, fixed0=fixed0, fixedT={0: 0.3, 1: 0.0, 2: 0.0},
-                                    periodic=(3, 4, 8, 9), bounds={3: (-1.0, 1.0), 4: (-1.0, 1.0)}, u_bound=2.0,
-                                    guess=(Z, s.controls))
+                                    periodic=(3, 4, 8, 9), bounds={3: (-1.0, 1.0), 4: (-1.0, 1.0)},
+                                    u_bound=2.0, guess=(Z, s.controls))
     assert reference["status"] == "Solve_Succeeded"
     assert s.objective == pytest.approx(reference["objective"], rel=1e-3)
     assert s.objective <= 0.009992 * 1.01       # the hand-written reference of the issue: J = 0.009992
@@ -171,7 +174,8 @@ def test_the_users_snake_is_planned_through_the_charts_singular_set_and_verified
     assert np.asarray(lagrange.numeric["rhs"](0.0, x, u, lagrange.numeric.params())).ravel() == pytest.approx(
         np.asarray(f(x, u)).ravel(), rel=1e-9, abs=1e-12)
     prepared = prepare(resolve(SNAKE3))
-    in_x = to_momentum_coordinates(s, momentum_problem(lagrange, prepared.stated, result.plan, None)).verified()
+    in_x = to_momentum_coordinates(s, momentum_problem(lagrange, prepared.stated,
+                                                       result.plan, None)).verified()
     assert in_x.state_names[5:] == ("x_dot", "y_dot", "theta_dot", "alpha1_dot", "alpha2_dot")
     assert in_x.verification.passed and in_x.verification.max_error <= 1e-6
 
@@ -205,6 +209,7 @@ def test_velocity_states_are_chosen_regular_at_the_tasks_end_postures():
     ẋ = v cos θ of the trailer's axle is 0 there, whatever the shape (closed form: det [ω; Y] = 0
     at that posture). The choice looks at the ends the task fixes even partly."""
     import experiment_scripts
+
     from nhgait.dynamics import derive
     from nhgait.dynamics.derivation.scene import scene_from_text
     from nhgait.dynamics.numerics.velocity_coordinates import choose_velocities, velocity_map
@@ -224,7 +229,8 @@ def test_velocity_states_are_chosen_regular_at_the_tasks_end_postures():
         s = np.linalg.svd(A, compute_uv=False)
         assert (s[-1] / s[0] < 1e-3) == singular, names
     bounds = {k: v for k, v in task.bounds.items() if isinstance(v, tuple)}
-    assert choose_velocities(model, task.names, scene.quantities, None, bounds, ends) == ("phi_dot", "forward_velocity")
+    assert (choose_velocities(model, task.names, scene.quantities, None, bounds, ends)
+            == ("phi_dot", "forward_velocity"))
 
 
 def test_velocity_states_regular_over_the_region_are_also_well_conditioned():
@@ -235,11 +241,17 @@ def test_velocity_states_regular_over_the_region_are_also_well_conditioned():
     stiff left the optimum 3e-3 off its re-simulation. The choice keeps the task's preference
     only among sets within a factor 10 of the best conditioned."""
     from itertools import combinations
+
     import experiment_scripts
+
     from nhgait.dynamics import derive
     from nhgait.dynamics.derivation.scene import scene_from_text
-    from nhgait.dynamics.numerics.velocity_coordinates import (CONDITION_RATIO, choose_velocities, region_samples,
-                                                               velocity_map)
+    from nhgait.dynamics.numerics.velocity_coordinates import (
+        CONDITION_RATIO,
+        choose_velocities,
+        region_samples,
+        velocity_map,
+    )
     from nhgait.gaits.charts import end_postures
     gen = experiment_scripts.load("robot_generator")
     pair = gen.pair(24, 4)

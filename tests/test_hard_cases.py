@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 
 from nhgait.dynamics import simulate  # the function (lazy export), before any submodule import
-from nhgait.dynamics.simulation.controllers import PDTracking, Sinusoid, snakeboard_pd, unicycle_pd
 from nhgait.dynamics.errors import ModelError
 from nhgait.dynamics.numerics.compiler import compiler_command
+from nhgait.dynamics.simulation.controllers import PDTracking, Sinusoid, snakeboard_pd, unicycle_pd
 from nhgait.dynamics.simulation.driver import MAX_STEPS, NONFINITE, SINGULAR
 
 #: these need a C compiler ($NHGAIT_CC, $CC, gcc or cc); CI may have none
@@ -58,10 +58,12 @@ _NAN_SCRIPT = textwrap.dedent('''
             for opts in routes:
                 start = time.perf_counter()
                 tr = simulate(model, (0.0, 10.0), q0, qd0, controller=controller, max_steps=1000, **opts)
-                out.append(dict(case=label, form=form, route=opts.get("method", "IDAS") if "dae" not in opts else "IDAS",
+                out.append(dict(case=label, form=form,
+                                route=opts.get("method", "IDAS") if "dae" not in opts else "IDAS",
                                 wall=time.perf_counter() - start, success=bool(tr.success), status=tr.status,
                                 t_end=float(tr.t[-1]), message=tr.message,
-                                finite=bool(np.all(np.isfinite(tr.q)) and np.all(np.isfinite(tr.energy_balance)))))
+                                finite=bool(np.all(np.isfinite(tr.q))
+                                            and np.all(np.isfinite(tr.energy_balance)))))
     json.dump(out, sys.stdout)
 ''')
 
@@ -116,8 +118,8 @@ def _crossing():
 
 
 def test_singular_set_crossing_stops_with_status(models):
-    from scipy.integrate import solve_ivp
     from oracles import oracle
+    from scipy.integrate import solve_ivp
     stops = []
     for form in ("reduced", "lagrange", "hamilton"):
         for method in ("compiled", "DOP853", "Radau"):
@@ -141,7 +143,8 @@ def test_singular_set_crossing_stops_with_status(models):
     assert np.max(np.abs(traj.q[-1] - ref.y[:5, -1])) < 1e-6
 
 
-@pytest.mark.parametrize("form, method", [("lagrange", "CVODES"), ("hamilton", "CVODES"), ("lagrange", "IDAS")])
+@pytest.mark.parametrize("form, method",
+                         [("lagrange", "CVODES"), ("hamilton", "CVODES"), ("lagrange", "IDAS")])
 def test_sundials_keep_every_output_before_a_failure(models, form, method):
     """SUNDIALS routes integrate 16 outputs per call; when a call fails next to the singular set
     the outputs it reached before the failure are kept (they were lost: the run ended at
@@ -202,7 +205,8 @@ def test_stiff_gains_auto_picks_bdf(models):
     kw = dict(controller=stiff, rtol=1e-6, atol=1e-8, t_eval=[0.0, 4.0])
     model = models["snakeboard"]["reduced"]
     explicit = simulate(model, (0.0, 4.0), SNAKE_Q0, SNAKE_QDOT0, method="compiled", **kw)
-    assert explicit.success and "use method='CVODES', 'Radau' or 'BDF'" in explicit.diagnostics["recommendation"]
+    assert (explicit.success
+            and "use method='CVODES', 'Radau' or 'BDF'" in explicit.diagnostics["recommendation"])
     auto = simulate(model, (0.0, 4.0), SNAKE_Q0, SNAKE_QDOT0, method="auto", **kw)
     assert auto.success and auto.method == "CVODES" and "detected stiffness" in auto.settings["auto"]
     assert auto.nfev < explicit.nfev / 5
@@ -245,8 +249,8 @@ def test_extreme_parameters_report_conditioning(models, params):
     metric is ill-conditioned and the steering dynamics stiff (λ ~ −k_d/J_w). ``auto`` switches
     to CVODES; every formulation agrees with KanesMethod + Radau (same parameters) and reports
     the conditioning."""
-    from scipy.integrate import solve_ivp
     from oracles import oracle
+    from scipy.integrate import solve_ivp
     o, ctl = oracle("snakeboard"), snakeboard_pd()
     pv = models["snakeboard"]["reduced"].numeric.params(params)
     T = 1.0

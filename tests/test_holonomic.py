@@ -12,17 +12,17 @@ formulations. References:
   motion against the same pendulum written with the angle (an independent, unconstrained
   formulation).
 """
+from pathlib import Path
+
 import numpy as np
 import pytest
+from oracles import oracle
 
 from nhgait.dynamics import ModelError, System, derive, load_scene, simulate
 from nhgait.dynamics.derivation.holonomic import consistent_configuration
 from nhgait.dynamics.derivation.scene import scene_from_text
 from nhgait.dynamics.derivation.states import consistent_velocities, to_state
 from nhgait.dynamics.linearisation import linearise
-from oracles import oracle
-
-from pathlib import Path
 
 SCENE = (Path(__file__).parent / "scenes" / "disc_height.toml").read_text()
 R = 0.26
@@ -105,7 +105,8 @@ def test_kept_constraint_in_all_three_formulations_equals_the_kane_oracle(kept):
         ref = orc.qddot(q, qd, u, po)
         scale = max(1.0, np.max(np.abs(ref)))
         z = red.call("state", q, qd, pv)
-        worst["reduced"] = max(worst["reduced"], np.max(np.abs(red.call("qddot", 0.0, z, u, pv) - ref)) / scale)
+        worst["reduced"] = max(worst["reduced"],
+                               np.max(np.abs(red.call("qddot", 0.0, z, u, pv) - ref)) / scale)
         xdot, lam_l = lag.call("ode", 0.0, np.r_[q, qd], u, pv)
         worst["lagrange"] = max(worst["lagrange"], np.max(np.abs(xdot[6:] - ref)) / scale)
         M = lag.call("mass", np.r_[q, qd], pv)

@@ -67,21 +67,25 @@ def _nested_arrays(folder, depth=100_000):
 
 
 def _many_keys(folder, count=20_000):
-    return _write(folder, "keys.toml", CAR_TEXT + "\n[extra]\n" + "".join(f"k{i} = {i}\n" for i in range(count)))
+    return _write(folder, "keys.toml",
+                  CAR_TEXT + "\n[extra]\n" + "".join(f"k{i} = {i}\n" for i in range(count)))
 
 
 SCENE_FILES = [
     # (id, make(folder) -> path, expected statuses, what the message must say)
-    ("latin-1", lambda f: _write(f, "l.toml", CAR_TEXT.replace("# A car", "# A café car").encode("latin-1")), 2,
-     r"not UTF-8 text: byte 0xe9 at position \d+ \(line 1, column \d+\).*Latin-1"),
+    ("latin-1", lambda f: _write(f, "l.toml", CAR_TEXT.replace("# A car", "# A café car").encode("latin-1")),
+     2, r"not UTF-8 text: byte 0xe9 at position \d+ \(line 1, column \d+\).*Latin-1"),
     ("utf-16-le", lambda f: _write(f, "u.toml", CAR_TEXT.encode("utf-16")), 2, r"UTF-16 text"),
-    ("utf-16-be", lambda f: _write(f, "u.toml", b"\xfe\xff" + CAR_TEXT.encode("utf-16-be")), 2, r"UTF-16 text"),
+    ("utf-16-be", lambda f: _write(f, "u.toml", b"\xfe\xff" + CAR_TEXT.encode("utf-16-be")), 2,
+     r"UTF-16 text"),
     ("utf-8 with a byte-order mark", lambda f: _write(f, "bom.toml", b"\xef\xbb\xbf" + CAR_TEXT.encode()), 0,
      r"car"),
     ("binary garbage", lambda f: _write(f, "g.toml", bytes(range(128, 256)) * 64), 2, r"not UTF-8 text"),
-    ("NUL bytes", lambda f: _write(f, "n.toml", CAR_TEXT.replace("[units]", "[units]\0")), 2, r"TOML syntax error"),
+    ("NUL bytes", lambda f: _write(f, "n.toml", CAR_TEXT.replace("[units]", "[units]\0")), 2,
+     r"TOML syntax error"),
     ("empty file", lambda f: _write(f, "e.toml", b""), 2, r"missing \[system\] table"),
-    ("a directory", lambda f: (f / "d.toml").mkdir() or f / "d.toml", 2, r"is a directory, not a regular file"),
+    ("a directory", lambda f: (f / "d.toml").mkdir() or f / "d.toml", 2,
+     r"is a directory, not a regular file"),
     ("a FIFO", _fifo, 2, r"is a FIFO \(named pipe\), not a regular file"),
     ("a socket", _socket, 2, r"is a socket, not a regular file"),
     ("/dev/zero", lambda f: Path("/dev/zero"), 2, r"/dev/zero is a character device"),
@@ -91,16 +95,21 @@ SCENE_FILES = [
     ("a link to /dev/zero", _link_to("/dev/zero"), 2, r"character device"),
     ("a link loop", _loop, 2, r"cannot be opened"),
     ("a missing file", lambda f: f / "nothere.toml", 2, r"does not exist"),
-    ("a name longer than the system allows", lambda f: f / ("x" * 5000 + ".toml"), 2, r"too long|does not exist"),
+    ("a name longer than the system allows", lambda f: f / ("x" * 5000 + ".toml"), 2,
+     r"too long|does not exist"),
     ("200 MB (sparse)", _sparse, 2, r"larger than 4 MiB"),
     ("100 000 nested arrays", _nested_arrays, 2, r"TOML syntax error|nested"),
     ("20 000 keys in an unknown table", _many_keys, 2, r"unknown top-level table"),
-    ("a TOML date as a parameter", lambda f: _write(f, "d.toml", CAR_TEXT.replace("m = 1.0 ", "m = 1979-05-27 ")), 2,
+    ("a TOML date "
+     "as a parameter", lambda f: _write(f, "d.toml", CAR_TEXT.replace("m = 1.0 ", "m = 1979-05-27 ")), 2,
      r"parameter 'm'"),
-    ("a string that is code", lambda f: _write(f, "c.toml", CAR_TEXT.replace('m = 1.0 ', 'm = "__import__(\'os\')" ')), 2,
+    ("a string that is code", lambda f: _write(f, "c.toml",
+                                               CAR_TEXT.replace('m = 1.0 ', 'm = "__import__(\'os\')" ')), 2,
      r"parameter 'm'"),
-    ("unterminated string", lambda f: _write(f, "s.toml", '[system]\nname = "car\n'), 2, r"TOML syntax error"),
-    ("a lone surrogate", lambda f: _write(f, "s.toml", b'[system]\nname = "\xed\xa0\x80"\n'), 2, r"not UTF-8 text"),
+    ("unterminated string", lambda f: _write(f, "s.toml", '[system]\nname = "car\n'), 2,
+     r"TOML syntax error"),
+    ("a lone surrogate", lambda f: _write(f, "s.toml", b'[system]\nname = "\xed\xa0\x80"\n'), 2,
+     r"not UTF-8 text"),
 ]
 
 
@@ -171,7 +180,8 @@ def _billion_laughs(folder):
 
 
 def _deep_xml(folder, depth=50_000):
-    return _urdf_scene(folder, 'urdf = "robot.urdf"', '<robot name="r">' + "<a>" * depth + "</a>" * depth + "</robot>")
+    return _urdf_scene(folder, 'urdf = "robot.urdf"',
+                       '<robot name="r">' + "<a>" * depth + "</a>" * depth + "</robot>")
 
 
 URDF_FILES = [
@@ -181,9 +191,11 @@ URDF_FILES = [
      r"'/etc/shadow' is outside the scene's folder"),
     ("../../../etc/passwd", lambda f: _urdf_scene(f, 'urdf = "../../../../../../../etc/passwd"', None), 2,
      r"is outside the scene's folder"),
-    ("a link inside the folder to /etc/passwd", _outside_link, 2, r"'inside.urdf' is outside the scene's folder"),
-    ("example-robot-data:../../..", lambda f: _urdf_scene(f, 'urdf = "example-robot-data:../../../../../../etc/passwd"',
-                                                          None), 2, r"outside|example-robot-data package"),
+    ("a link inside the folder to /etc/passwd", _outside_link, 2,
+     r"'inside.urdf' is outside the scene's folder"),
+    ("example-robot-data:../../..",
+     lambda f: _urdf_scene(f, 'urdf = "example-robot-data:../../../../../../etc/passwd"', None), 2,
+     r"outside|example-robot-data package"),
     ("a number", lambda f: _urdf_scene(f, "urdf = 42", None), 2, r"must be a file name"),
     ("a missing URDF", lambda f: _urdf_scene(f, 'urdf = "nothere.urdf"', None), 2, r"does not exist"),
     ("a directory", lambda f: (f / "d.urdf").mkdir() or _urdf_scene(f, 'urdf = "d.urdf"', None), 2,
@@ -191,19 +203,25 @@ URDF_FILES = [
     ("a FIFO", lambda f: os.mkfifo(f / "p.urdf") or _urdf_scene(f, 'urdf = "p.urdf"', None), 2, r"is a FIFO"),
     ("latin-1", lambda f: _write(f, "robot.urdf", RACER_URDF.replace("racer", "racér").encode("latin-1"))
      and _urdf_scene(f, 'urdf = "robot.urdf"', None), 2, r"URDF .* is not UTF-8 text: byte 0xe9"),
-    ("utf-16", lambda f: _write(f, "robot.urdf", RACER_URDF.encode("utf-16")) and _urdf_scene(f, 'urdf = "robot.urdf"', None),
-     2, r"UTF-16"),
-    ("5 MB", lambda f: _urdf_scene(f, 'urdf = "robot.urdf"', RACER_URDF.replace("</robot>", "<!--" + "x" * (5 << 20) + "--></robot>")),
+    ("utf-16", lambda f: _write(f, "robot.urdf", RACER_URDF.encode("utf-16"))
+     and _urdf_scene(f, 'urdf = "robot.urdf"', None), 2, r"UTF-16"),
+    ("5 MB", lambda f: _urdf_scene(f, 'urdf = "robot.urdf"',
+                                   RACER_URDF.replace("</robot>", "<!--" + "x" * (5 << 20) + "--></robot>")),
      2, r"larger than 4 MiB"),
-    ("a mass of 1e308", lambda f: _urdf_scene(f, 'urdf = "robot.urdf"', RACER_URDF.replace('<mass value="1.5"/>', '<mass value="1e308"/>')),
+    ("a mass of 1e308", lambda f: _urdf_scene(f, 'urdf = "robot.urdf"',
+                                              RACER_URDF.replace('<mass value="1.5"/>',
+                                                                 '<mass value="1e308"/>')),
      2, r"mass: value = '1e308'|1e\+308 exceeds 1e\+15"),
-    ("an inertia of inf", lambda f: _urdf_scene(f, 'urdf = "robot.urdf"', RACER_URDF.replace('izz="0.04"', 'izz="inf"')),
+    ("an inertia of inf", lambda f: _urdf_scene(f, 'urdf = "robot.urdf"',
+                                                RACER_URDF.replace('izz="0.04"', 'izz="inf"')),
      2, r"not a finite number|not 6 finite numbers"),
-    ("an origin of 1e300", lambda f: _urdf_scene(f, 'urdf = "robot.urdf"', RACER_URDF.replace('xyz="-0.3 0 0"', 'xyz="-1e300 0 0"')),
+    ("an origin of 1e300", lambda f: _urdf_scene(f, 'urdf = "robot.urdf"',
+                                                 RACER_URDF.replace('xyz="-0.3 0 0"', 'xyz="-1e300 0 0"')),
      2, r"exceeds 1e\+15"),
     ("billion laughs", _billion_laughs, 2, r"document type declaration"),
     ("50 000 nested elements", _deep_xml, 2, r"robot|link"),
-    ("not XML", lambda f: _urdf_scene(f, 'urdf = "robot.urdf"', "root:x:0:0:root:/root:/bin/bash\n"), 2, r"malformed XML"),
+    ("not XML", lambda f: _urdf_scene(f, 'urdf = "robot.urdf"', "root:x:0:0:root:/root:/bin/bash\n"), 2,
+     r"malformed XML"),
 ]
 
 

@@ -26,16 +26,13 @@ zombie (exited, not yet reaped by init) counts as gone.
 """
 from __future__ import annotations
 
-import _thread
 import json
 import os
-import pickle
 import re
 import shutil
 import signal
 import subprocess
 import sys
-import threading
 import time
 import warnings
 from dataclasses import dataclass
@@ -75,7 +72,8 @@ ENDLESS = ("import signal, sys\n"
 #: a plan whose attempts run in supervised children (FATROP first: the snakeboard's ODE is small)
 PLAN_SOLVES = ["plan", "snakeboard", "--gait", "forward", "--no-jit", "--no-gif"]
 #: a plan whose optimised build runs in the background (no --jit: it solves interpreted or fast)
-PLAN_BACKGROUND = ["plan", "unicycle", "--gait", "parallel-park", "--intervals", "10", "--no-gif", "--solver", "ipopt"]
+PLAN_BACKGROUND = ["plan", "unicycle", "--gait", "parallel-park", "--intervals", "10", "--no-gif",
+                   "--solver", "ipopt"]
 #: what a run that exits cleanly needs after the signal (seconds)
 EXIT_S = 15.0
 #: how soon a plan must end after SIGINT/SIGTERM whatever it is doing (issue 24)
@@ -356,7 +354,8 @@ def test_a_time_limit_ends_a_plan_that_needs_longer_as_a_clean_failure(cache, tm
     wall = float(re.search(r"wall time +([0-9.]+) s in all", out).group(1))
     assert wall < 5.0 + 1.5                             # the budget, then the kill and solution.json
     assert "FAILED (time budget spent" in out and "--time-limit SECONDS" in out
-    phases = ("derivation", "the initial guesses", "the NLP set-up and compilation for fatrop", "the solves with fatrop")
+    phases = ("derivation", "the initial guesses", "the NLP set-up and compilation for fatrop",
+              "the solves with fatrop")
     assert any(f"the time budget of 5 s (--time-limit / plan(time_limit=...)) ran out during {phase} " in out
                for phase in phases), out
     attempted = "no attempt was made" not in out
@@ -382,7 +381,8 @@ def test_a_solver_process_killed_from_outside_is_a_failed_attempt(cache, tmp_pat
 
 
 @pytest.mark.parametrize("signame, status, to_group, said", STOPS)
-def test_a_sweep_stopped_while_its_workers_solve_leaves_nothing(cache, tmp_path, signame, status, to_group, said):
+def test_a_sweep_stopped_while_its_workers_solve_leaves_nothing(cache, tmp_path, signame, status, to_group,
+                                                                said):
     """A sweep on the local pool (two workers, each point's attempts supervised children of a
     worker), stopped once it has stored a point: 143 or 130 within 2 s, no worker and no
     solver process left."""
@@ -407,6 +407,7 @@ def test_a_library_without_its_record_is_never_loaded(cache):
     """A library whose record is missing (a writer killed between its two moves), here also
     half-written, is rebuilt rather than loaded; the rebuilt one is trusted again."""
     import ctypes
+
     from nhgait.dynamics.numerics.cache import file_sha256
     from nhgait.dynamics.numerics.compiler import build_library
     first = build_library(SOURCE)
@@ -484,7 +485,8 @@ def test_the_watchdog_ends_a_process_whose_main_thread_is_stuck_in_c(tmp_path):
     try:
         assert status == 143 and time.monotonic() - sent < STOP_S
         assert "nhgait: terminated (forced: still running 1.5 s after the signal)" in proc.stderr.read()
-        _wait_until(lambda: not [p for p in _processes() if p.pid == int(helper)], 5.0, "the helper to be gone")
+        _wait_until(lambda: not [p for p in _processes() if p.pid == int(helper)], 5.0,
+                    "the helper to be gone")
     finally:
         if [p for p in _processes() if p.pid == int(helper)]:
             os.kill(int(helper), signal.SIGKILL)

@@ -1,8 +1,8 @@
 """Jacobi identity of the reduced bracket ⇔ holonomic constraints (thesis §2.2.2, eq. 2.31)."""
 import pytest
+from conftest import SYSTEMS
 
 from nhgait.dynamics import System, derive, jacobi_test
-from conftest import SYSTEMS
 
 L = "(x_dot**2 + y_dot**2 + z_dot**2)/2"
 

@@ -49,7 +49,7 @@ def _disc_rates():
     W = sp.Matrix([[w.dot(axis).diff(v) for v in qd] for axis in (D.x, D.y, D.z)])
     Wdot = W.diff(dynamicsymbols._t)
     plain = sp.symbols("a0:6")
-    subs = dict(zip(qd + q, plain[3:] + plain[:3]))
+    subs = dict(zip(qd + q, plain[3:] + plain[:3], strict=True))
     return (sp.lambdify([plain], W.subs(subs)), sp.lambdify([plain], Wdot.subs(subs)))
 
 

@@ -42,7 +42,8 @@ def test_derive_states_group_fibre_and_shape_in_the_users_names(slider):
     _, model = slider
     text = model.to_text()
     assert "fiber s =" not in text and "shape r =" not in text        # the method's letters are gone
-    assert "symmetry group R^2 (x, y) moves the fibre (group) coordinates (x, y); shape coordinates (theta, s)" in text
+    assert ("symmetry group R^2 (x, y) moves the fibre (group) coordinates (x, y); shape "
+            "coordinates (theta, s)" in text)
     # the reason, and every other admissible choice written as the user would write it
     assert "chosen by the full-symmetry test (L and ω do not depend on x, y)" in text
     assert "preferred to the next candidate SE(2) (x, y, theta): it has fewer fibre coordinates" in text
@@ -67,11 +68,12 @@ def test_method_symbols_never_capture_a_users_name():
     DAE reach the Lagrange DAE's final state (three derivations, scipy DOP853 at 1e-11)."""
     from nhgait.dynamics import System, derive, simulate
     system = System(coordinates=["x", "y", "theta"],
-                    lagrangian="p*((x_dot - p_x*sin(theta)*theta_dot)**2 + (y_dot + p_x*cos(theta)*theta_dot)**2)/2"
-                               " + I_c*theta_dot**2/2",
+                    lagrangian="p*((x_dot - p_x*sin(theta)*theta_dot)**2 + (y_dot + "
+                               "p_x*cos(theta)*theta_dot)**2)/2 + I_c*theta_dot**2/2",
                     constraints=["-sin(theta)*x_dot + cos(theta)*y_dot"], forces={"theta": "0.1*cos(t)"},
                     parameters={"p": 1.0, "p_x": 0.3, "I_c": 0.2}, name="renamed")
-    reduced, hamilton = derive(system, "reduced", use_cache=False), derive(system, "hamilton", use_cache=False)
+    reduced, hamilton = derive(system, "reduced", use_cache=False), derive(system, "hamilton",
+                                                                           use_cache=False)
     assert "p_nh" in reduced.state_names and "p" not in reduced.state_names
     assert "p_x_nh" in hamilton.state_names
     q0, qd0 = [0.0, 0.0, 0.0], [1.0, 0.0, 0.5]
@@ -91,7 +93,7 @@ def test_named_subexpressions_are_the_plain_equations(slider):
     back = {}
     for name, sub in definitions:                   # each name may use the earlier ones
         back[name] = sub.xreplace(back)
-    for plain, named in zip(rhs, reduced):
+    for plain, named in zip(rhs, reduced, strict=True):
         assert sp.simplify(named.xreplace(back) - plain) == 0
     text = model.to_text()                          # long: named by default; --no-cse prints all
     assert "\n  where\n    w1 = " in text and "where" not in model.to_text(cse=False)
@@ -112,8 +114,8 @@ def test_simulate_set_against_an_independent_run(tmp_path, capsys):
     equals the Lagrange DAE (another formulation) integrated by scipy DOP853 at rtol 1e-12 with
     the same values given through the Python API."""
     from nhgait.dynamics import derive, load_scene, simulate
-    from nhgait.dynamics.derivation.scene import ExpressionController
     from nhgait.dynamics.derivation.expressions import parse_expression
+    from nhgait.dynamics.derivation.scene import ExpressionController
     out = tmp_path / "t.csv"
     assert main(["simulate", SLIDER, "--set", "t_final=3", "--set", "params.m_s=0.8", "--set", "q0.theta=0.2",
                  "--set", "inputs.f_s=0.5*cos(3*t)", "--set", "qdot0.x=0.7", "--rtol", "1e-10",
@@ -139,7 +141,8 @@ def test_every_unknown_name_gets_did_you_mean_and_the_known_names(tmp_path, caps
     assert "3 problem(s)" in err and "did you mean 't_final'?" in err
     assert "'tht' is not a coordinate: did you mean 'theta'? (coordinates: x, y, theta, s)" in err
     assert "unknown parameter 'mm': did you mean 'm'?" in err
-    assert main(["simulate", SLIDER, "--set", "q0=1", "--set", "t_final.x=2", "--out", str(tmp_path / "t.csv")]) == 2
+    assert main(["simulate", SLIDER, "--set", "q0=1", "--set", "t_final.x=2", "--out",
+                 str(tmp_path / "t.csv")]) == 2
     err = capsys.readouterr().err
     assert "q0 needs a name: q0.<name>=value" in err and "t_final takes no .<name>" in err
     scene = tmp_path / "typo.toml"
@@ -203,13 +206,15 @@ def test_help_lists_subpackages_the_first_five_things_and_the_true_default_solve
         assert name in text
     assert solver_order("auto") == ("fatrop", "ipopt")          # what the planner really does ...
     doc = " ".join(nhgait.__doc__.split())
-    assert "by default FATROP on a stage-ordered multiple-shooting transcription for small ODEs and Ipopt for larger ones" in doc
+    assert ("by default FATROP on a stage-ordered multiple-shooting transcription for small ODEs and Ipopt "
+            "for larger ones" in doc)
     assert nhgait.dynamics.__name__ == "nhgait.dynamics"          # sub-packages on first use
     # the five things: steps 1-3 run as written (4-5 plan, which test_plan_cli covers)
     code = nhgait.__doc__.split("The five things a user does first::")[1].split("The same from the shell")[0]
     lines = [ln.strip() for ln in code.strip().splitlines()]
     namespace = {}
-    exec("\n".join(lines[:2] + [ln.replace("examples/", str(ROOT / "examples") + "/") for ln in lines[3:6]]), namespace)
+    exec("\n".join(lines[:2] + [ln.replace("examples/", str(ROOT / "examples") + "/") for ln in lines[3:6]]),
+         namespace)
     assert namespace["traj"].success and namespace["traj"].q.shape[1] == 4
 
 
@@ -217,12 +222,14 @@ def test_short_reprs_and_notebook_markdown(slider):
     from nhgait.dynamics import derive, simulate
     scene, model = slider
     spec = scene.simulation
-    traj = simulate(model, (0, spec.t_final), spec.q0, spec.qdot0, controller=spec.controller, t_eval=spec.t_eval)
+    traj = simulate(model, (0, spec.t_final), spec.q0, spec.qdot0, controller=spec.controller,
+                    t_eval=spec.t_eval)
     text = repr(traj)
     assert len(text) < 300 and "success" in text and "t = 0 … 4 s (81 samples)" in text
     assert "q (81, 4)" in text and "state (81, 7)" in text
     lagrange = derive(scene.system, "lagrange")
-    assert repr(lagrange).startswith("<LagrangianDAE of sleigh_slider: 8 states") and len(repr(lagrange)) < 200
+    assert repr(lagrange).startswith("<LagrangianDAE of "
+                                     "sleigh_slider: 8 states") and len(repr(lagrange)) < 200
     md = model._repr_markdown_()
     assert "| shape coordinates | theta, s |" in md and "```\nReduced constrained" in md
 

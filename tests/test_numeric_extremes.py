@@ -9,7 +9,7 @@ import json
 from pathlib import Path
 
 import pytest
-from adversarial import CAR, ROOT, answer
+from adversarial import CAR, answer
 
 CAR_TEXT = Path(CAR).read_text()
 PARK = ["plan", "unicycle", "--gait", "parallel-park"]
@@ -22,7 +22,8 @@ CASES = [
     # --- plan: targets, horizons, bounds, intervals
     ("final.y=1e300", [*PARK, "--set", "final.y=1e300"], 2, r"final\.y.*" + BOUND),
     ("final.y=-1e16", [*PARK, "--set", "final.y=-1e16"], 2, BOUND),
-    ("final.y=1e15 is still a number", [*PARK, "--set", "final.y=1e400"], 2, r"too large|not finite|" + BOUND),
+    ("final.y=1e15 is still a number", [*PARK, "--set", "final.y=1e400"], 2,
+     r"too large|not finite|" + BOUND),
     ("final.y=inf", [*PARK, "--set", "final.y=inf"], 2, r"final\.y"),
     ("final.y=nan", [*PARK, "--set", "final.y=nan"], 2, r"final\.y"),
     ("final.y=10**400", [*PARK, "--set", "final.y=10**400"], 2, r"final\.y"),
@@ -36,7 +37,8 @@ CASES = [
     ("bounds.x=-1e16,1e16", [*PARK, "--set", "bounds.x=-1e16,1e16"], 2, r"bounds\.x.*" + BOUND),
     ("bounds.x=1,-1", [*PARK, "--set", "bounds.x=1,-1"], 2, r"bounds\.x|contradictory"),
     ("objective weight 1e300", [*PARK, "--set", "objective.effort=1e300"], 2, r"objective"),
-    ("--intervals 100000", [*PARK, "--intervals", "100000"], 2, r"intervals = 100000 must be an integer from 1 to 5000"),
+    ("--intervals 100000", [*PARK, "--intervals", "100000"], 2,
+     r"intervals = 100000 must be an integer from 1 to 5000"),
     ("--intervals 5001", [*PARK, "--intervals", "5001"], 2, r"from 1 to 5000"),
     ("--intervals 0", [*PARK, "--intervals", "0"], 2, r"intervals"),
     ("--intervals -5", [*PARK, "--intervals", "-5"], 2, r"intervals"),
@@ -51,7 +53,8 @@ CASES = [
     ("--set =1", [*PARK, "--set", "=1"], 2, r"expected key=value"),
     ("--set code", [*PARK, "--set", "final.y=__import__('os').getcwd()"], 2, r"final\.y"),
     ("--set unknown key", [*PARK, "--set", "final.nothere=1"], 2, r"nothere"),
-    ("--gait on a scene file", ["plan", CAR, "--gait", "forward"], 2, r"--gait forward: the built-in gaits belong"),
+    ("--gait on a scene file", ["plan", CAR, "--gait", "forward"], 2,
+     r"--gait forward: the built-in gaits belong"),
     ("--gait misspelt", ["plan", "snakeboard", "--gait", "fowrard"], 2, r"forward"),
     ("--solver nonsense", [*PARK, "--solver", "nonsense"], 2, r"invalid choice"),
     # --- simulate: samples, horizons, tolerances, values, input laws
@@ -60,8 +63,10 @@ CASES = [
     ("samples=-5", [*SIM, "--set", "samples=-5"], 2, r"samples"),
     ("samples=2.5", [*SIM, "--set", "samples=2.5"], 2, r"samples"),
     ("t_final=1e9", [*SIM, "--set", "t_final=1e9"], 2,
-     r"the first 2000 steps of DOP853 reached t = .* the whole run needs about .* steps .* far beyond max_steps"),
-    ("t_final=1e9 compiled", [*SIM, "--set", "t_final=1e9", "--method", "compiled"], 2, r"far beyond max_steps"),
+     r"the first 2000 steps of DOP853 reached t = .* the whole run needs about .* steps .* far "
+     r"beyond max_steps"),
+    ("t_final=1e9 compiled", [*SIM, "--set", "t_final=1e9", "--method", "compiled"], 2,
+     r"far beyond max_steps"),
     ("t_final=1e300", [*SIM, "--set", "t_final=1e300"], 2, r"t_final.*" + BOUND),
     ("t_final=nan", [*SIM, "--set", "t_final=nan"], 2, r"t_final"),
     ("t_final=-1", [*SIM, "--set", "t_final=-1"], 2, r"t_final"),
@@ -73,7 +78,8 @@ CASES = [
     ("params.m=-1", [*SIM, "--set", "params.m=-1"], 2, r"not positive definite"),
     ("params.m=1e-300", [*SIM, "--set", "params.m=1e-300"], 2, r"singular"),
     ("inputs: a huge constant", [*SIM, "--set", "inputs.tau_theta=1e300*t"], 2, BOUND),
-    ("inputs: exp(exp(100))", [*SIM, "--set", "inputs.tau_theta=exp(exp(100))"], 2, r"too large|undefined|" + BOUND),
+    ("inputs: exp(exp(100))", [*SIM, "--set", "inputs.tau_theta=exp(exp(100))"], 2,
+     r"too large|undefined|" + BOUND),
     ("inputs: code", [*SIM, "--set", "inputs.tau_theta=().__class__"], 2, r"tau_theta"),
     ("rtol=0", [*SIM, "--set", "rtol=0"], 2, r"rtol"),
     ("--rtol inf", [*SIM, "--rtol", "inf"], 2, r"rtol must lie in \(0, 1\)"),
@@ -93,10 +99,13 @@ CASES = [
     ("grid of 10⁷ points", [*SWEEP, "--grid", "final.y=0:1:10000", "--grid", "horizon=1:2:1000"], 2,
      r"more than 1000000"),
     ("--chain 0", [*SWEEP, "--grid", "final.y=0.3,0.4", "--chain", "0"], 2, r"chain must be a whole number"),
-    ("--workers -1", ["sweep", "unicycle", "--task", "parallel-park", "--grid", "final.y=0.3,0.4", "--workers", "-1"],
+    ("--workers -1",
+     ["sweep", "unicycle", "--task", "parallel-park", "--grid", "final.y=0.3,0.4", "--workers", "-1"],
      2, r"--workers must be ≥ 0"),
-    ("bench --tols nan", ["bench", "precision", "unicycle", "--tols", "nan"], 2, r"tolerances must lie in \(0, 1\)"),
-    ("bench --repeats 0", ["bench", "precision", "unicycle", "--repeats", "0"], 2, r"--repeats 0: at least 1 timed run"),
+    ("bench --tols nan", ["bench", "precision", "unicycle", "--tols", "nan"], 2,
+     r"tolerances must lie in \(0, 1\)"),
+    ("bench --repeats 0", ["bench", "precision", "unicycle", "--repeats", "0"], 2,
+     r"--repeats 0: at least 1 timed run"),
     ("reproduce --rtol 2", ["reproduce", "--rtol", "2"], 2, r"rtol must lie in \(0, 1\)"),
     ("reproduce --rtol nan", ["reproduce", "--rtol", "nan"], 2, r"rtol"),
     ("derive --version C", ["derive", "unicycle", "--version", "C"], 2, r"invalid choice"),
@@ -144,6 +153,7 @@ def test_a_lagrangian_constant_beyond_the_bound_is_refused(sandbox):
 def test_the_bound_is_the_one_stated_and_values_within_it_pass():
     """1e15 passes and the next double above it is refused, in every reader."""
     import math
+
     from nhgait.dynamics.derivation.expressions import MAX_MAGNITUDE, number_problems
     problems = []
     assert number_problems(MAX_MAGNITUDE, "x", problems) == MAX_MAGNITUDE and problems == []
@@ -155,6 +165,7 @@ def test_the_bound_is_the_one_stated_and_values_within_it_pass():
 def test_a_plan_of_many_intervals_says_its_size_first():
     """N > 1000: the note names the number of NLP variables, (N + 1)·n_x + N·n_u."""
     from types import SimpleNamespace
+
     from nhgait.gaits.planner import large_request_note
     note = large_request_note(SimpleNamespace(intervals=2000, n_states=6, n_controls=2))
     assert note.startswith("N = 2000 intervals is a large request: 16006 NLP variables and 12000")
@@ -166,7 +177,8 @@ def test_a_long_simulation_says_its_estimate_first(sandbox):
     and its own step count agrees with the estimate to a factor 2."""
     got = answer([*SIM, "--set", "t_final=300", "--out", sandbox.out / "t.csv"]).check(0, None, sandbox)
     import re
-    said = re.search(r"reached t = ([\d.e+]+) s of t_final = 300 s: the whole run needs about ([\d.e+]+) steps", got.err)
+    said = re.search(r"reached t = ([\d.e+]+) s of t_final = 300 s: the whole run needs about "
+                     r"([\d.e+]+) steps", got.err)
     if said is None:                      # a machine fast enough that the estimate is under 10 s: not said
         return
     assert 0 < float(said.group(1)) < 300
@@ -186,7 +198,8 @@ def test_the_sweep_store_and_grid_accept_the_bound_itself(tmp_path):
 
 # ----------------------------------------------------------------------------- reachable targets
 @pytest.mark.parametrize("target, statuses, said", [
-    ("final.y=1e4", 2, r"final y is 10000 from initial y = 0, but starting at rest with \|F\| ≤ 5, \|tau_phi\| ≤ 1 "
+    ("final.y=1e4", 2,
+     r"final y is 10000 from initial y = 0, but starting at rest with \|F\| ≤ 5, \|tau_phi\| ≤ 1 "
                        r"no input moves y more than 270 in T = 6 s"),
     ("final.y=300", 2, r"no input moves y more than 270"),
     ("final.x=-1e5", 2, r"final x is 100000 .* more than 270"),

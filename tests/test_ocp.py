@@ -15,10 +15,9 @@ import sys
 import numpy as np
 import pytest
 
-from nhgait.ocp import (Collocation, OCPSolver, OptimalControlProblem, ProblemError,
-                        SolverOptions, solve)
 from nhgait.dynamics.numerics.compiler import compiler_command
 from nhgait.dynamics.numerics.fast_compiler import fast_compiler
+from nhgait.ocp import Collocation, OCPSolver, OptimalControlProblem, ProblemError, SolverOptions, solve
 
 #: these compile the NLP functions (gcc, or the fast compiler); CI may have neither
 needs_a_compiler = pytest.mark.skipif(compiler_command() is None and fast_compiler() is None,
@@ -71,7 +70,8 @@ def test_bad_statements_list_every_problem(unicycle):
     with pytest.raises(ValueError, match="lies outside state_bounds"):
         OptimalControlProblem(unicycle, 1.0, 10, initial={"phi": 3.0}, state_bounds={"phi": (-1, 1)})
     with pytest.raises(ValueError, match="periodic 'theta'.*cannot be equal"):
-        OptimalControlProblem(unicycle, 1.0, 10, initial={"theta": 0.0}, final={"theta": 1.0}, periodic=["theta"])
+        OptimalControlProblem(unicycle, 1.0, 10, initial={"theta": 0.0}, final={"theta": 1.0},
+                              periodic=["theta"])
     with pytest.raises(ValueError, match="unknown transcription"):
         OCPSolver(p1(unicycle), "shooting-stars")
 
@@ -160,11 +160,13 @@ def test_compiled_is_the_default_and_falls_back_without_a_compiler(unicycle, mon
 def test_compiled_library_is_loaded_only_when_trusted(unicycle):
     import os
     import warnings
+
     from nhgait.dynamics.numerics.cache import UntrustedCacheWarning
     problem = p1(unicycle, N=7)
     first = OCPSolver(problem, options=SolverOptions(jit=True))
     so = first.jit_path
     import json
+
     from nhgait.dynamics.numerics.cache import file_sha256
     assert json.loads((so.parent / (so.stem + ".json")).read_text())["library_sha256"] == file_sha256(so)
     assert oct(so.parent.stat().st_mode & 0o777) == "0o700"
@@ -190,7 +192,8 @@ def test_fatrop_reaches_the_ipopt_optimum(snakeboard):
     ipopt = solve(problem, guess, jit=False)
     stages = solve(problem, guess, transcription=StageShooting(), jit=False)
     fatrop = OCPSolver(problem, options=SolverOptions(jit=False, solver="fatrop"))
-    assert fatrop.nlp.structure["N"] == 25 and fatrop.nlp.structure["nx"][0] == 8 + 3   # ψ fixed at 0: φ, ψ̇, φ̇ carried
+    # ψ fixed at 0: φ, ψ̇, φ̇ carried
+    assert fatrop.nlp.structure["N"] == 25 and fatrop.nlp.structure["nx"][0] == 8 + 3
     sol = fatrop.solve(guess)
     assert ipopt.success and stages.success and sol.success, sol.status
     assert ipopt.objective == pytest.approx(REF_25["P2"], rel=1e-4)
@@ -209,7 +212,8 @@ def test_stage_transcription_free_horizon(unicycle):
     b = solve(problem, guess, transcription=StageShooting(), jit=False)
     c = solve(problem, guess, jit=False, solver="fatrop")
     assert a.success and b.success and c.success
-    assert b.objective == pytest.approx(a.objective, rel=1e-8) and b.horizon == pytest.approx(a.horizon, rel=1e-6)
+    assert (b.objective == pytest.approx(a.objective, rel=1e-8)
+            and b.horizon == pytest.approx(a.horizon, rel=1e-6))
     assert c.objective == pytest.approx(a.objective, rel=1e-6)
 
 

@@ -6,7 +6,6 @@ the same q̈ and the same λ; versions A and B of the reconstruction give identi
 """
 import numpy as np
 import pytest
-
 from conftest import SYSTEMS
 from oracles import oracle
 
@@ -72,7 +71,8 @@ def test_hamiltonian_momentum_rate_matches_kane(name, systems, models):
         ref = orc.qddot(q, qd, u, pv)
         M = lag.call("mass", np.r_[q, qd], pv)
         h = 1e-6
-        Mdot = (lag.call("mass", np.r_[q + h * qd, qd], pv) - lag.call("mass", np.r_[q - h * qd, qd], pv)) / (2 * h)
+        Mdot = (lag.call("mass", np.r_[q + h * qd, qd], pv)
+                - lag.call("mass", np.r_[q - h * qd, qd], pv)) / (2 * h)
         pdot_ref = M @ ref + Mdot @ qd
         xdot_h, _ = ham.call("ode", 0.0, np.r_[q, M @ qd], u, pv)
         # central difference of M: error O(h²)·|M'''| ≈ 1e-11
@@ -128,7 +128,8 @@ def test_differential_drive_shape_velocities_in_the_constraints():
     the Lagrangian DAE at random consistent states, 1e-10 relative."""
     from nhgait.dynamics import System, derive
     s = System(coordinates=["x", "y", "theta", "phi_L", "phi_R"],
-               lagrangian="m*(x_dot**2 + y_dot**2)/2 + I*theta_dot**2/2 + J_w*(phi_L_dot**2 + phi_R_dot**2)/2",
+               lagrangian="m*(x_dot**2 + y_dot**2)/2 + I*theta_dot**2/2 + J_w*(phi_L_dot**2 + "
+                          "phi_R_dot**2)/2",
                constraints=["-sin(theta)*x_dot + cos(theta)*y_dot",
                             "cos(theta)*x_dot + sin(theta)*y_dot + b*theta_dot - rho*phi_R_dot",
                             "cos(theta)*x_dot + sin(theta)*y_dot - b*theta_dot - rho*phi_L_dot"],

@@ -19,8 +19,8 @@ from adversarial import answer, run_process
 
 NOWHERE = "no_such_scene.toml"          # reported only if the location passed its checks
 PLAN = ["plan", "unicycle", "--gait", "parallel-park", "--intervals", "20", "--no-jit", "--quiet"]
-SWEEP = ["sweep", "unicycle", "--task", "parallel-park", "--set", "intervals=20", "--workers", "0", "--no-plots",
-         "--quiet"]
+SWEEP = ["sweep", "unicycle", "--task", "parallel-park", "--set", "intervals=20", "--workers", "0",
+         "--no-plots", "--quiet"]
 
 
 def _file(box):
@@ -37,30 +37,41 @@ def _fifo(box):
 
 LOCATIONS = [
     # (id, command before the location, make(box) -> location, what the message must say)
-    ("plan: an existing file", ["plan", NOWHERE, "--out"], _file, r"--out .*a_file is a file: a directory is needed"),
-    ("plan: /dev/full", ["plan", NOWHERE, "--out"], lambda b: "/dev/full", r"/dev/full is a character device"),
-    ("plan: /dev/null", ["plan", NOWHERE, "--out"], lambda b: "/dev/null", r"/dev/null is a character device"),
+    ("plan: an existing file", ["plan", NOWHERE, "--out"], _file,
+     r"--out .*a_file is a file: a directory is needed"),
+    ("plan: /dev/full", ["plan", NOWHERE, "--out"], lambda b: "/dev/full",
+     r"/dev/full is a character device"),
+    ("plan: /dev/null", ["plan", NOWHERE, "--out"], lambda b: "/dev/null",
+     r"/dev/null is a character device"),
     ("plan: empty", ["plan", NOWHERE, "--out"], lambda b: "", r"--out is empty: name a directory"),
     ("plan: blank", ["plan", NOWHERE, "--out"], lambda b: "   ", r"--out is empty"),
     ("plan: below a file", ["plan", NOWHERE, "--out"], lambda b: _file(b) / "x" / "y",
      r"cannot be created: .*a_file is a file"),
     ("plan: a FIFO", ["plan", NOWHERE, "--out"], _fifo, r"a FIFO \(named pipe\): a directory is needed"),
-    ("simulate: a directory", ["simulate", NOWHERE, "--out"], lambda b: b.out, r"is a directory: a regular file is needed"),
-    ("simulate: /dev/full", ["simulate", NOWHERE, "--out"], lambda b: "/dev/full", r"/dev/full is a character device"),
+    ("simulate: a directory", ["simulate", NOWHERE, "--out"], lambda b: b.out,
+     r"is a directory: a regular file is needed"),
+    ("simulate: /dev/full", ["simulate", NOWHERE, "--out"], lambda b: "/dev/full",
+     r"/dev/full is a character device"),
     ("simulate: empty", ["simulate", NOWHERE, "--out"], lambda b: "", r"--out is empty: name a file"),
     ("simulate: below a file", ["simulate", NOWHERE, "--out"], lambda b: _file(b) / "t.csv",
      r"its folder .*a_file is a file"),
-    ("simulate: a FIFO", ["simulate", NOWHERE, "--out"], _fifo, r"a FIFO \(named pipe\): a regular file is needed"),
+    ("simulate: a FIFO", ["simulate", NOWHERE, "--out"], _fifo,
+     r"a FIFO \(named pipe\): a regular file is needed"),
     ("simulate --plot: a file", ["simulate", NOWHERE, "--plot"], _file, r"--plot .*a_file is a file"),
-    ("sweep: an existing file", ["sweep", NOWHERE, "--grid", "final.y=0.3,0.4", "--out"], _file, r"is a file"),
+    ("sweep: an existing file", ["sweep", NOWHERE, "--grid", "final.y=0.3,0.4", "--out"], _file,
+     r"is a file"),
     ("sweep: /dev/full", ["sweep", NOWHERE, "--grid", "final.y=0.3,0.4", "--out"], lambda b: "/dev/full",
      r"character device"),
-    ("sweep: empty", ["sweep", NOWHERE, "--grid", "final.y=0.3,0.4", "--out"], lambda b: "", r"--out is empty"),
-    ("track: an existing file", ["track", NOWHERE, "--out"], _file, r"--out .*a_file is a file: a directory is needed"),
-    ("track: /dev/full", ["track", NOWHERE, "--out"], lambda b: "/dev/full", r"/dev/full is a character device"),
-    ("track: below a file", ["track", NOWHERE, "--out"], lambda b: _file(b) / "x", r"cannot be created: .*a_file is a file"),
-    ("sweep: below a file", ["sweep", NOWHERE, "--grid", "final.y=0.3,0.4", "--out"], lambda b: _file(b) / "s",
-     r"a_file is a file"),
+    ("sweep: empty", ["sweep", NOWHERE, "--grid", "final.y=0.3,0.4", "--out"], lambda b: "",
+     r"--out is empty"),
+    ("track: an existing file", ["track", NOWHERE, "--out"], _file,
+     r"--out .*a_file is a file: a directory is needed"),
+    ("track: /dev/full", ["track", NOWHERE, "--out"], lambda b: "/dev/full",
+     r"/dev/full is a character device"),
+    ("track: below a file", ["track", NOWHERE, "--out"], lambda b: _file(b) / "x",
+     r"cannot be created: .*a_file is a file"),
+    ("sweep: below a file",
+     ["sweep", NOWHERE, "--grid", "final.y=0.3,0.4", "--out"], lambda b: _file(b) / "s", r"a_file is a file"),
     ("bench: an existing file", ["bench", "precision", NOWHERE, "--out"], _file, r"is a file"),
     ("bench: empty", ["bench", "precision", NOWHERE, "--out"], lambda b: "", r"--out is empty"),
     ("reproduce: an existing file", ["reproduce", "--out"], _file, r"is a file"),
@@ -92,7 +103,8 @@ FAULTS = [
 
 
 @pytest.mark.parametrize("where, code, said", [pytest.param(*c[1:], id=c[0]) for c in FAULTS])
-@pytest.mark.parametrize("command", [["plan", NOWHERE], ["simulate", NOWHERE], ["sweep", NOWHERE, "--grid", "x=1,2"],
+@pytest.mark.parametrize("command", [["plan", NOWHERE], ["simulate", NOWHERE],
+                                     ["sweep", NOWHERE, "--grid", "x=1,2"],
                                      ["track", NOWHERE]], ids=["plan", "simulate", "sweep", "track"])
 def test_a_location_that_cannot_take_a_write_is_refused_with_the_reason(command, where, code, said, sandbox,
                                                                         monkeypatch):
@@ -222,7 +234,8 @@ def test_a_plan_whose_files_cannot_be_written_keeps_its_solution(sandbox, monkey
     where solution.json went; the rescued file holds the objective the summary printed."""
     from nhgait.gaits import plots
     monkeypatch.setattr(plots, "write_figures", _no_space)
-    got = answer([*PLAN, "--out", sandbox.out / "p"]).check(1, r"NOT WRITTEN: writing .* failed: no space left", sandbox)
+    got = answer([*PLAN, "--out", sandbox.out / "p"]).check(1, r"NOT WRITTEN: writing .* failed: "
+                                                               r"no space left", sandbox)
     rescued = re.search(r"the solution was saved to (\S+solution\.json)", got.out).group(1)
     assert rescued.startswith(str(sandbox.tmp))
     objective = float(re.search(r"J = ([-\d.e+]+)", got.out).group(1))
@@ -261,7 +274,8 @@ def test_a_sweep_whose_store_fails_keeps_every_point(sandbox, monkeypatch):
     monkeypatch.setattr(SweepStore, "add", full_after_one)
     out = sandbox.out / "s"
     got = answer([*SWEEP, "--grid", "final.y=0.3,0.4,0.5", "--out", out])
-    got.check(1, r"stopped: cannot write .* \(database or disk is full\); 1 points are stored .*--resume", sandbox)
+    got.check(1, r"stopped: cannot write .* \(database or disk is full\); 1 points are "
+                 r"stored .*--resume", sandbox)
     rescued = re.search(r"saved to (\S+unstored_points\.json)", got.err).group(1)
     (point,) = json.loads(open(rescued).read())
     assert point["id"] == calls[1] and point["answer"]["success"] in (True, False)
@@ -282,7 +296,8 @@ def test_a_result_with_nowhere_to_go_is_printed(tmp_path, monkeypatch, capfd):
     said = outputs.rescue("solution.json", {"objective": 0.25}, "solution")
     assert said == "the solution (solution.json) is printed above: no fallback folder could be written"
     printed = capfd.readouterr().out
-    assert json.loads(printed.split("----- solution.json -----")[1].split("----- end")[0]) == {"objective": 0.25}
+    assert (json.loads(printed.split("----- solution.json -----")[1].split("----- end")[0])
+            == {"objective": 0.25})
 
 
 @pytest.mark.skipif(not hasattr(os, "memfd_create"), reason="Linux memfd")
@@ -299,4 +314,5 @@ def test_a_table_with_nowhere_to_go_is_printed_through_memory(tmp_path, monkeypa
     print("a line printed before")
     said = outputs.rescue("t.csv", lambda path: open(path, "w").write("t,x\n0.0,1.5\n"), "trajectory")
     assert "is printed above" in said
-    assert capfd.readouterr().out == "a line printed before\n----- t.csv -----\nt,x\n0.0,1.5\n\n----- end of t.csv -----\n"
+    assert (capfd.readouterr().out == "a line printed before\n----- t.csv -----\nt,x\n0.0,1.5\n\n----- end "
+                                      "of t.csv -----\n")

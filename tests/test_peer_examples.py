@@ -12,7 +12,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-
 from oracles import agreement, oracle
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -34,8 +33,9 @@ def test_the_benchmarks_richardson_extrapolation_and_state_order(tmp_path):
     answer in opty's state order: the bicycle's body velocities of the mass centre, the
     three-body car's absolute front-axle rate u_f = q̇0 + q̇f (opty's kinematic equation)."""
     import json
-    import numpy as np
+
     import experiment_scripts
+    import numpy as np
     bench = experiment_scripts.load("bench_peers")
     assert bench._richardson([5 + 3 / N ** 2 for N in (10, 20, 40)]) == pytest.approx(5.0, rel=1e-12)
     q = np.array([[0.0, 1.0], [0.0, 2.0], [0.0, np.pi / 2], [0.1, 0.2]])          # n × (N + 1)

@@ -20,7 +20,8 @@ SLEIGH = str(ROOT / "examples" / "rotor_sleigh.toml")
 
 def test_plan_a_scene_file_with_an_override(tmp_path, capsys):
     out = tmp_path / "sleigh"
-    code = main(["plan", SLEIGH, "--set", "final.x=0.8", "--intervals", "50", "--no-jit", "--gif", "--out", str(out)])
+    code = main(["plan", SLEIGH, "--set", "final.x=0.8", "--intervals", "50", "--no-jit", "--gif",
+                 "--out", str(out)])
     text = capsys.readouterr().out
     assert code == 0, text
     assert "SUCCESS" in text and "conditions met to" in text and "rotor_sleigh/forward-1m" in text
@@ -56,7 +57,8 @@ def test_builtin_gait_as_in_make_demo(tmp_path, capsys):
     # the GIF is made on request only (make demo stays fast), and the summary says so
     assert not (out / "motion.gif").exists() and "add --gif" in text
     wall = re.search(r"wall time +([0-9.]+) s in all: model ([0-9.]+) s, .* verification ([0-9.]+) s", text)
-    assert wall and float(wall.group(1)) >= float(wall.group(2)) + float(wall.group(3)) - 0.1   # parts of the whole
+    # parts of the whole
+    assert wall and float(wall.group(1)) >= float(wall.group(2)) + float(wall.group(3)) - 0.1
     data = json.loads((out / "solution.json").read_text())
     assert data["objective"] == pytest.approx(0.110252, rel=1e-4)       # hand-written reference, N = 25
     assert data["settings"]["solver"] == "fatrop" and data["guess"]["won"]       # the default: auto
@@ -91,6 +93,7 @@ def _ctx(result):
 
 def test_plots_use_the_scene_units_and_leave_global_state(car_solution):
     import matplotlib.pyplot as plt
+
     from nhgait.gaits import plots
     before = dict(matplotlib.rcParams)
     ctx = _ctx(car_solution)
@@ -115,6 +118,7 @@ def test_plots_use_the_scene_units_and_leave_global_state(car_solution):
 
 def test_shape_views_for_one_two_and_more_shape_variables(car_solution):
     import matplotlib.pyplot as plt
+
     from nhgait.gaits import plots
     ctx = _ctx(car_solution)
     fig, axes = plt.subplots(1, 2)
@@ -128,6 +132,7 @@ def test_shape_views_for_one_two_and_more_shape_variables(car_solution):
 
 def test_gif_has_time_unit_and_scale(car_solution, tmp_path):
     from PIL import Image
+
     from nhgait.gaits.animation import _nice, animate_solution
     path = animate_solution(car_solution.solution, _ctx(car_solution), tmp_path / "m.gif", frames=5)
     assert Image.open(path).n_frames == 5
@@ -138,7 +143,8 @@ def test_drawing_problems_are_listed(car_solution):
     from nhgait.gaits.drawing import parse_drawing
     from nhgait.ocp import ProblemError
     bad = {"frame": ["x", "y"], "colour": 1,
-           "segment": [{"from": ["l", "zz"], "to": [0]}, {"from": [0, 0], "to": [1, 0], "width": -1, "kind": 2}]}
+           "segment": [{"from": ["l", "zz"], "to": [0]},
+                       {"from": [0, 0], "to": [1, 0], "width": -1, "kind": 2}]}
     with pytest.raises(ProblemError) as info:
         parse_drawing(bad, car_solution.plan.scene.system)
     text = str(info.value)

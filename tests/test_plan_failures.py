@@ -44,7 +44,8 @@ def test_a_converged_plan_that_misses_the_task_is_refined_or_a_failure():
     assert loose.success
     assert loose.solution.verification.max_error <= 1e-2
     assert not any("refined" in a.label for a in loose.attempts)           # nothing solved again
-    assert loose.solution.objective == pytest.approx(first.objective, rel=1e-9)   # the first optimum, accepted
+    # the first optimum, accepted
+    assert loose.solution.objective == pytest.approx(first.objective, rel=1e-9)
 
 
 TASK_TOML = """

@@ -7,10 +7,10 @@ its own guess, Ipopt, exact Hessian).
 
 Both discretise the same continuous problem with RK4 ×4 per interval, so their optima agree
 to the solvers' tolerances (measured: 5.6e-8 relative), not merely to the discretisation error."""
+import experiment_scripts
 import numpy as np
 import pytest
 
-import experiment_scripts
 from nhgait.gaits.planner import plan
 
 reference = experiment_scripts.load("reference_scale_ocp")
@@ -46,8 +46,8 @@ def test_objective_equals_the_independent_transcription(planned, hand_written):
 
 def test_task_holds_on_the_plan(planned):
     """Ends as the task states them, incl. the conditions the planner dropped as implied
-    (ẏ, θ̇ at rest follow from θ = 0, ẋ = 0) to the verification tolerance 1e-6, read off the independent re-simulation
-    (DOP853, rtol 1e-10) of the optimal inputs, mapped to (q, q̇)."""
+    (ẏ, θ̇ at rest follow from θ = 0, ẋ = 0) to the verification tolerance 1e-6, read off the
+    independent re-simulation (DOP853, rtol 1e-10) of the optimal inputs, mapped to (q, q̇)."""
     sol = planned.solution
     names = list(planned.model.system.coordinates)
     z = sol.verification.states
@@ -59,7 +59,8 @@ def test_task_holds_on_the_plan(planned):
     np.testing.assert_allclose(q[-1, [names.index("x"), names.index("theta")]], [0.5, 0.0], atol=1e-6)
     for c in ("psi", "phi_f", "phi_b"):
         i = names.index(c)
-        assert q[-1, i] == pytest.approx(q[0, i], abs=1e-6) and qdot[-1, i] == pytest.approx(qdot[0, i], abs=1e-6)
+        assert (q[-1, i] == pytest.approx(q[0, i], abs=1e-6)
+                and qdot[-1, i] == pytest.approx(qdot[0, i], abs=1e-6))
     assert np.all(np.abs(q[:, [names.index("phi_f"), names.index("phi_b")]]) <= 1.0 + 1e-8)
 
 
@@ -69,13 +70,13 @@ def test_a_chart_that_covers_the_ends_is_chosen():
     that fiber have rank 3 (rows: cart no-slip, rolling, two trailer no-slips; the last three
     act on (y, θ) only) — evaluated here from the scene's ω, not by the reduction. The planner
     takes fiber (x, y, θ) instead and reaches the independent transcription's optimum."""
-    import sympy as sp
     from nhgait.dynamics.derivation.scene import scene_from_text
     member = "cart_trailers_2"
     scene = scene_from_text(scale_tasks.scene_with_task(member), member)
     system = scene.system
     omega = system.omega().xreplace({**{q: 0 for q in system.q},
-                                               **{s: v for s, v in zip(system.param_symbols, system.param_values)}})
+                                               **{s: v for s, v in zip(system.param_symbols,
+                                                                       system.param_values, strict=True)}})
     fiber = [system.coordinates.index(c) for c in ("x", "y", "theta", "phi")]
     assert np.linalg.matrix_rank(np.array(omega[:, fiber], dtype=float)) == 3
     from nhgait.dynamics import derive
@@ -92,7 +93,8 @@ def test_fitted_roll_out_ends_where_the_task_ends():
     """The cart with one trailer (velocity states θ̇, φ̇ driven by the inputs): the first guess
     is the kinematic roll-out fitted to the task, and its last node is the task's final
     configuration (x = 3, y = 0.3, θ = β₁ = 0) to 1e-3 (the fit trades the last digits for a
-    gentler motion, module ``nhgait.gaits.fitted``; the ends are 3 m apart); for the 3-link snake (states are shape rates) a shape loop stays first."""
+    gentler motion, module ``nhgait.gaits.fitted``; the ends are 3 m apart); for the 3-link snake
+    (states are shape rates) a shape loop stays first."""
     from nhgait.dynamics.derivation.scene import scene_from_text
     from nhgait.gaits.guesses import candidates
     from nhgait.gaits.planner import prepare
@@ -115,8 +117,8 @@ def test_a_chart_whose_reconstruction_fails_at_the_ends_is_replaced():
     finite at q = 0 (the pivot block on (x, y, θ, φ) loses rank there, as for two trailers;
     its singular measure once reported 1.0 there by dropping a NaN); the planner's chart is
     regular there and its reconstruction finite."""
-    from nhgait.dynamics.progress import Progress
     from nhgait.dynamics.derivation.scene import scene_from_text
+    from nhgait.dynamics.progress import Progress
     from nhgait.gaits.charts import derive_for_task
     from nhgait.gaits.task_library import resolve
     scene = scene_from_text(scale_tasks.scene_with_task("cart_trailers_3"), "c3")

@@ -6,11 +6,10 @@ import shutil
 import subprocess
 from pathlib import Path
 
+import experiment_scripts
 import pytest
 
 from nhgait.dynamics.derivation.steps import latex_document, tex_text
-
-import experiment_scripts
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -60,7 +59,8 @@ def _compile(tex: str, tmp_path):
     assert (tmp_path / "steps.pdf").stat().st_size > 0
 
 
-@pytest.mark.skipif(shutil.which("pdflatex") is None, reason="no LaTeX engine installed (structural checks run)")
+@pytest.mark.skipif(shutil.which("pdflatex") is None,
+                    reason="no LaTeX engine installed (structural checks run)")
 @pytest.mark.parametrize("which", ["snakeboard", "trailer"])
 def test_latex_export_compiles(which, models, trailer, tmp_path):
     model = models["snakeboard"]["reduced"] if which == "snakeboard" else trailer
@@ -83,12 +83,14 @@ def test_cli_derive_scene_file_with_checks_and_steps(tmp_path, capsys):
     assert main(["derive", str(scene), "--checks", "--steps", "latex"]) == 0
     out = capsys.readouterr().out
     assert "7 = 2n − k first-order ODEs, implicit form" in out
-    assert "reduced bracket: almost-Poisson (the Jacobi identity does not hold" in out and "singular set:" in out
+    assert ("reduced bracket: almost-Poisson (the Jacobi identity does not hold" in out
+            and "singular set:" in out)
     assert "\\paragraph{Step 20: Reconstruction of the fiber velocities}" in out
 
 
 def test_dataclasses_replace_keeps_every_field(models):
     import dataclasses
+
     from nhgait.dynamics import unicycle
     model = models["unicycle"]["reduced"]
     other = dataclasses.replace(model, system=unicycle(m=2.0))

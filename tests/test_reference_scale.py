@@ -3,10 +3,9 @@ the smallest member (the 3-link snake) at N = 20, interpreted (no compiler), its
 re-simulated on the independent multiplier DAE and checked against the task as written."""
 import math
 
+import experiment_scripts
 import numpy as np
 import pytest
-
-import experiment_scripts
 
 reference = experiment_scripts.load("reference_scale_ocp")
 scale_tasks = experiment_scripts.load("scale_tasks")

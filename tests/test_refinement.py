@@ -11,10 +11,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import dae_reference
 import numpy as np
 from scipy.integrate import solve_ivp
 
-import dae_reference
 from nhgait.gaits.planner import plan
 from nhgait.gaits.refinement import MARGIN, MAX_STEPS, refined_steps
 

@@ -9,12 +9,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import experiment_scripts
 import numpy as np
 import pytest
 
 from nhgait.gaits.bench.reproduction import reproduce
-
-import experiment_scripts
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -75,7 +74,8 @@ def test_constraints_and_energy(reproduction, case):
 def test_outputs_written(reproduction):
     out, s = reproduction
     on_disk = json.loads((out / "summary.json").read_text())
-    assert on_disk["snakeboard"]["runs"]["kane"]["final_q"]["x"] == s["snakeboard"]["runs"]["kane"]["final_q"]["x"]
+    assert (on_disk["snakeboard"]["runs"]["kane"]["final_q"]["x"]
+            == s["snakeboard"]["runs"]["kane"]["final_q"]["x"])
     names = sorted(p.name for p in out.glob("*.png"))
     assert names == sorted(["fig3_08_unicycle_xy.png", "fig3_09_unicycle_theta.png",
                             "fig3_10_unicycle_phi.png", "fig3_11_unicycle_lambda.png",
@@ -107,8 +107,10 @@ def test_csv_columns(reproduction):
 
 def test_cli_parser_registers_reproduce():
     import argparse
+
     from nhgait.gaits.cli.reproduce import add_reproduce_parser, run
     parser = argparse.ArgumentParser()
     add_reproduce_parser(parser.add_subparsers())
     args = parser.parse_args(["reproduce", "--out", "x", "--rtol", "1e-8", "--no-idas", "--columns", "qdot"])
-    assert args.func is run and args.rtol == 1e-8 and args.no_idas and args.out == "x" and args.columns == "qdot"
+    assert (args.func is run and args.rtol == 1e-8 and args.no_idas and args.out == "x"
+            and args.columns == "qdot")

@@ -26,7 +26,7 @@ def _trees(order: int) -> list:
     return sorted(out)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _forests(nodes: int, largest: int) -> tuple:
     """Multisets of trees with ``nodes`` nodes in all, each tree at most ``largest`` nodes."""
     if nodes == 0:
@@ -40,7 +40,7 @@ def _forests(nodes: int, largest: int) -> tuple:
     return tuple(out)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _trees_cached(order):
     return tuple(_trees(order))
 
@@ -64,7 +64,7 @@ def test_tree_counts():
 def _stage_weights(a, c):
     s = len(c)
 
-    @functools.lru_cache(maxsize=None)
+    @functools.cache
     def phi(tree):
         vec = [F(1)] * s
         for child in tree:
@@ -79,7 +79,7 @@ def _max_defect(weights, phi, order):
     worst = F(0)
     for p in range(1, order + 1):
         for tree in _trees_cached(p):
-            value = sum(w * v for w, v in zip(weights, phi(tree)))
+            value = sum(w * v for w, v in zip(weights, phi(tree), strict=True))
             worst = max(worst, abs(value - F(1, _gamma(tree))))
     return float(worst)
 
@@ -90,7 +90,7 @@ def test_order_conditions(name, order, embedded, exact):
     ex = exact_tableau(name)
     phi = _stage_weights(ex["a"], ex["c"])
     # row sums: c_i = Σ_j a_ij (the stages are consistent)
-    assert max(abs(sum(r) - ci) for r, ci in zip(ex["a"], ex["c"])) < F(1, 10 ** 25)
+    assert max(abs(sum(r) - ci) for r, ci in zip(ex["a"], ex["c"], strict=True)) < F(1, 10 ** 25)
     tol = 0.0 if exact else 1e-24                       # 30-digit published decimals
     assert _max_defect(ex["b"], phi, order) <= tol
     assert _max_defect(ex["bhat"], phi, embedded) <= tol
@@ -110,11 +110,11 @@ def test_continuous_extension_order(name, dense_order, theta):
     worst = F(0)
     for p in range(1, dense_order + 1):
         for tree in _trees_cached(p):
-            value = sum(w * v for w, v in zip(b_theta, phi(tree)))
+            value = sum(w * v for w, v in zip(b_theta, phi(tree), strict=True))
             worst = max(worst, abs(value - theta ** p / _gamma(tree)))
     assert float(worst) < (1e-24 if name == "DOP853" else 1e-30)
     if theta == 1:          # the extension ends on the step's solution y1
-        assert max(abs(x - y) for x, y in zip(b_theta, ex["b"])) < F(1, 10 ** 24)
+        assert max(abs(x - y) for x, y in zip(b_theta, ex["b"], strict=True)) < F(1, 10 ** 24)
 
 
 def test_float_tableau_matches_exact():

@@ -14,10 +14,9 @@ off the singular set, q̈ of the reduced ODE equals the oracle's to 1e-9 relativ
 the benchmark's independent transcription (experiments/reference_dae_ocp.py: the Lagrange DAE
 built in CasADi from the same description).
 """
+import experiment_scripts
 import numpy as np
 import pytest
-
-import experiment_scripts
 
 gen = experiment_scripts.load("robot_generator")
 
@@ -93,14 +92,14 @@ class _KaneMultiplierOracle:
         N, q, par, inputs, bodies, loads, constraints = _kane_description(robot)
         t = dynamicsymbols._t
         u = [dynamicsymbols(f"u_{i}") for i in range(len(q))]
-        km = KanesMethod(N, q_ind=q, u_ind=u, kd_eqs=[qi.diff(t) - ui for qi, ui in zip(q, u)])
+        km = KanesMethod(N, q_ind=q, u_ind=u, kd_eqs=[qi.diff(t) - ui for qi, ui in zip(q, u, strict=True)])
         km.kanes_equations(bodies, loads)
-        to_u = {qi.diff(t): ui for qi, ui in zip(q, u)}
+        to_u = {qi.diff(t): ui for qi, ui in zip(q, u, strict=True)}
         cons = sp.Matrix([msubs(c, to_u) for c in constraints])
         A = cons.jacobian(u)
-        Adot_u = sp.Matrix([sum(sp.diff(ci, qi) * ui for qi, ui in zip(q, u)) for ci in cons])
+        Adot_u = sp.Matrix([sum(sp.diff(ci, qi) * ui for qi, ui in zip(q, u, strict=True)) for ci in cons])
         qs, us = sp.symbols(f"q0:{len(q)}"), sp.symbols(f"v0:{len(q)}")
-        plain = {**dict(zip(q, qs)), **dict(zip(u, us))}
+        plain = {**dict(zip(q, qs, strict=True)), **dict(zip(u, us, strict=True))}
 
         def lam(expr):
             return sp.lambdify([qs, us, list(inputs.values()), list(par.values())],
@@ -181,7 +180,7 @@ def test_the_cases_cover_every_convention():
 def test_same_seed_same_pairs_other_seed_other_pairs():
     a = [p.scene for p in gen.pairs(7, 4, intervals=20)]
     assert a == [p.scene for p in gen.pairs(7, 4, intervals=20)]
-    assert all(x != y for x, y in zip(a, [p.scene for p in gen.pairs(8, 4, intervals=20)]))
+    assert all(x != y for x, y in zip(a, [p.scene for p in gen.pairs(8, 4, intervals=20)], strict=True))
     assert gen.pair(7, 3, intervals=20).scene == a[3]            # a pair depends on (seed, index) only
 
 

@@ -40,7 +40,7 @@ def coupled():
 
 def _problem(model):
     rest = {"x": 0.0, "y": 0.0, "x_dot": 0.0, "y_dot": 0.0}
-    return OptimalControlProblem(model, T, N, initial=rest, final=dict(zip(TERMINAL, TARGET)))
+    return OptimalControlProblem(model, T, N, initial=rest, final=dict(zip(TERMINAL, TARGET, strict=True)))
 
 
 def _final_map(b):
@@ -128,7 +128,8 @@ def test_bad_copies_are_listed_together(coupled):
     with pytest.raises(ProblemError) as info:
         _solve(model, bad)
     text = str(info.value)
-    for part in ("aggregate = 'median'", "weight = -1.0", "finite", "'speed' not a state", "one positive scale"):
+    for part in ("aggregate = 'median'", "weight = -1.0", "finite", "'speed' not a state",
+                 "one positive scale"):
         assert part in text, (part, text)
 
 
@@ -141,8 +142,8 @@ def _task(robust, **extra):
 
 def test_bad_robust_tables_are_one_error_naming_every_problem():
     from nhgait.gaits.task_library import resolve
-    robust = {"parameters": {"m": [0.9, -1.0], "mass": [1.1]}, "samples": 0, "aggregate": "median", "weight": -2,
-              "terminal": ["x", "speed"], "extra": 1}
+    robust = {"parameters": {"m": [0.9, -1.0], "mass": [1.1]}, "samples": 0, "aggregate": "median",
+              "weight": -2, "terminal": ["x", "speed"], "extra": 1}
     with pytest.raises(ProblemError) as info:
         resolve("unicycle", _task(robust))
     text = str(info.value)
@@ -182,12 +183,13 @@ def test_the_robust_plan_spreads_less_under_the_mismatch_it_was_planned_for():
     """The snakeboard's forward gait (N = 50) planned against m ×1.1 (weight 10), then both plans
     re-simulated open loop on the general model by nhgait track (its compiled loop, rtol 1e-8,
     no noise) with m ×1.1: the robust plan ends closer to where it was planned to."""
+    from nhgait.gaits.task_library import resolve
     from nhgait.gaits.tracking.runs import Noise
     from nhgait.gaits.tracking.study import track
-    from nhgait.gaits.task_library import resolve
     task = {**resolve("snakeboard", "forward").task.to_dict(), "intervals": 50}
     errors = {}
-    for label, robust in (("nominal", {}), ("robust", {"robust": {"parameters": {"m": [1.1]}, "weight": 10.0}})):
+    for label, robust in (("nominal", {}),
+                          ("robust", {"robust": {"parameters": {"m": [1.1]}, "weight": 10.0}})):
         report = track("snakeboard", {**task, **robust}, mismatch={"m": 1.1}, samples=1, seed=0,
                        noise=Noise(0.0, 0.0)).report
         errors[label] = report["open_loop"]["final_position_error"]["max"]

@@ -11,12 +11,10 @@ implicit form forced checks that form on a thesis system.
 """
 from pathlib import Path
 
+import experiment_scripts
 import numpy as np
 import pytest
-
 from oracles import agreement, oracle
-
-import experiment_scripts
 
 ROOT = Path(__file__).resolve().parents[1]
 RTOL = 1e-10
@@ -60,7 +58,8 @@ def test_explicit_and_implicit_forms_give_the_same_vector_field(systems):
     for _ in range(20):
         z = rng.uniform(-1.0, 1.0, 8)
         u = rng.uniform(-1.0, 1.0, 2)
-        np.testing.assert_allclose(im.call("rhs", 0.0, z, u, pv), ex.call("rhs", 0.0, z, u, pv), rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(im.call("rhs", 0.0, z, u, pv), ex.call("rhs", 0.0, z, u, pv),
+                                   rtol=1e-12, atol=1e-12)
 
 
 def test_the_two_steering_snakeboard_keeps_the_thesis_structure():

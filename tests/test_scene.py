@@ -43,7 +43,8 @@ def test_good_scene(tmp_path):
 
 
 def test_unknown_keys_are_errors(tmp_path):
-    text = GOOD.replace('name = "cart"', 'name = "cart"\ncolour = "red"').replace("samples = 11", "samples = 11\nstep = 0.1")
+    text = GOOD.replace('name = "cart"', 'name = "cart"\ncolour = "red"').replace("samples = 11",
+                                                                                  "samples = 11\nstep = 0.1")
     with pytest.raises(ModelError) as info:
         load_scene(write(tmp_path, text))
     msg = str(info.value)
@@ -68,7 +69,8 @@ def test_bad_horizon_and_samples(tmp_path):
     text = GOOD.replace('t_final = "pi"', "t_final = -1").replace("samples = 11", "samples = 1")
     with pytest.raises(ModelError) as info:
         load_scene(write(tmp_path, text))
-    assert "must be greater than t0" in str(info.value) and "samples must be an integer from 2" in str(info.value)
+    assert ("must be greater than t0" in str(info.value)
+            and "samples must be an integer from 2" in str(info.value))
 
 
 def test_toml_syntax_error(tmp_path):

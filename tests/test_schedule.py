@@ -133,8 +133,8 @@ def test_a_waypoint_between_nodes_is_refused_with_the_nearest_nodes(particle):
 @pytest.mark.parametrize("method", METHODS)
 def test_an_integral_state_meets_its_final_value_and_is_the_exact_integral(particle, method):
     T, N = 3.0, 6
-    problem = OptimalControlProblem(particle, T, N, initial=REST, final={**REST, "x": 1.0, "y": 0.0, "area": 2.0},
-                                    integrals={"area": "x"})
+    problem = OptimalControlProblem(particle, T, N, initial=REST,
+                                    final={**REST, "x": 1.0, "y": 0.0, "area": 2.0}, integrals={"area": "x"})
     assert problem.state_names[-1] == "area" and problem.initial["area"] == 0.0
     sol = _solve(problem, method)
     U, J = lq_oracle(np.full(N, T / N), _rest_to(1.0, 0.0, N) + [(lambda x, v, I, U: I[0, N], 2.0)])
@@ -183,7 +183,8 @@ def _slope(model):
 def test_an_acceleration_path_constraint_holds_at_every_node(particle, method):
     T, N = 2.0, 8
     problem = OptimalControlProblem(particle, T, N, initial=REST, final={**REST, "x": 1.0, "y": 0.5},
-                                    quantities={"slope": _slope(particle)}, state_bounds={"slope": (0.0, 0.0)})
+                                    quantities={"slope": _slope(particle)},
+                                    state_bounds={"slope": (0.0, 0.0)})
     sol = _solve(problem, method)
     rows = [(lambda x, v, I, U, k=k: (U[1, k] - 0.5 * U[0, k]) / MASS + x[0, k], 0.0) for k in range(N)]
     U, J = lq_oracle(np.full(N, T / N), _rest_to(1.0, 0.5, N) + rows)
@@ -217,7 +218,8 @@ def test_free_phase_horizons_find_the_bang_bang_minimum_time(particle, method):
     d, a = 1.0, 1.0
     phases = [Phase(1.5, 5, free_horizon=(0.2, 4.0)), Phase(1.5, 5, free_horizon=(0.2, 4.0))]
     problem = OptimalControlProblem(particle, 1.0, 1, initial=REST, final={**REST, "x": d, "y": 0.0},
-                                    phases=phases, control_bounds={"Fx": (-a * MASS, a * MASS), "Fy": (-1, 1)},
+                                    phases=phases,
+                                    control_bounds={"Fx": (-a * MASS, a * MASS), "Fy": (-1, 1)},
                                     control_weights={"Fx": 0.0, "Fy": 1.0}, time_weight=1.0)
     sol = _solve(problem, method)
     assert sol.success, sol.message
@@ -230,7 +232,8 @@ def test_bad_phases_are_listed_together(particle):
                                            r".*phases\[1\].*free_horizon: lower bound 0 must be positive"
                                            r".*phases\[1\].final: unknown"):
         OptimalControlProblem(particle, 1.0, 1, initial=REST,
-                              phases=[Phase(1.0, 0), Phase(-1.0, 3, free_horizon=(0.0, 1.0), final={"zz": 1.0})])
+                              phases=[Phase(1.0, 0),
+                                      Phase(-1.0, 3, free_horizon=(0.0, 1.0), final={"zz": 1.0})])
 
 
 # ----------------------------------------------------------------------------- code independent of N
@@ -263,9 +266,9 @@ def test_the_generated_code_does_not_grow_with_n_times_a_bounded_quantity(partic
 
 
 def _bounded_problem(particle, N, wide):
-    return OptimalControlProblem(particle, 2.0, N, initial=REST, final={**REST, "x": 1.0}, quantities={"wide": wide},
-                                 state_bounds={"wide": (-1.0, 1.0)}, waypoints=[Waypoint(1.0, {"y": 0.1})],
-                                 integrals={"area": "x"})
+    return OptimalControlProblem(particle, 2.0, N, initial=REST, final={**REST, "x": 1.0},
+                                 quantities={"wide": wide}, state_bounds={"wide": (-1.0, 1.0)},
+                                 waypoints=[Waypoint(1.0, {"y": 0.1})], integrals={"area": "x"})
 
 
 # ----------------------------------------------------------------------------- objective scale

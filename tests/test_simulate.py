@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from nhgait.dynamics import simulate  # the function (lazy export), before any submodule import
-from nhgait.dynamics.simulation.controllers import OpenLoop, PDTracking, Sinusoid, snakeboard_pd, unicycle_pd
 from nhgait.dynamics.errors import ModelError
+from nhgait.dynamics.simulation.controllers import OpenLoop, PDTracking, Sinusoid, snakeboard_pd, unicycle_pd
 from nhgait.dynamics.simulation.driver import NONFINITE
 
 SNAKE_Q0 = np.array([0.0, 0.0, 0.0, 0.0, 1.0])      # Table 3.3: psi_d(0) = 0, phi_d(0) = 1
@@ -74,7 +74,7 @@ def test_zoh_switching_is_exact(models):
     traj = simulate(model, (0.0, 1.0), UNI_Q0, np.zeros(4), controller=ctl, rtol=1e-12, atol=1e-14)
     J = 0.3
     theta, omega = 0.0, 0.0
-    for dt, a in zip(np.diff(times), tau / J):
+    for dt, a in zip(np.diff(times), tau / J, strict=True):
         theta, omega = theta + omega * dt + 0.5 * a * dt ** 2, omega + a * dt
     assert traj.success and traj.settings["segments"] == 5
     assert traj.q[-1, 2] == pytest.approx(theta, abs=1e-13)
@@ -84,8 +84,8 @@ def test_zoh_switching_is_exact(models):
 @pytest.mark.parametrize("formulation", ["reduced", "lagrange", "hamilton"])
 def test_matches_kane_oracle_short_horizon(models, formulation):
     """Every formulation against KanesMethod + DOP853 on t ∈ [0, 3] (both at rtol 1e-12)."""
-    from scipy.integrate import solve_ivp
     from oracles import oracle
+    from scipy.integrate import solve_ivp
 
     o, ctl = oracle("snakeboard"), snakeboard_pd()
     model = models["snakeboard"][formulation]

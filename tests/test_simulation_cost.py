@@ -150,12 +150,12 @@ def test_to_state_from_many_threads_equals_one_at_a_time():
     one_at_a_time = [to_state(model, q, qd) for q, qd in states]
     mass = model.system.numeric_functions()[0]
     pv = model.system.param_vector()
-    for (q, qd), x in zip(states, one_at_a_time):       # p = M(q) q̇, independently
+    for (q, qd), x in zip(states, one_at_a_time, strict=True):       # p = M(q) q̇, independently
         assert np.allclose(x, np.r_[q, np.asarray(mass(q, pv), dtype=float) @ qd], rtol=1e-12, atol=1e-12)
     with ThreadPoolExecutor(8) as pool:
         for _ in range(5):
             concurrent = list(pool.map(lambda s: to_state(model, *s), states))
-            assert all(np.array_equal(a, b) for a, b in zip(concurrent, one_at_a_time))
+            assert all(np.array_equal(a, b) for a, b in zip(concurrent, one_at_a_time, strict=True))
 
 
 def test_a_compiled_trajectory_pickles_before_its_diagnostics_are_read():

@@ -71,6 +71,7 @@ def test_factors_that_never_vanish_are_not_listed():
     assert _positive_everywhere(r**2 + 1) and _positive_everywhere(sp.cos(phi)**2 + 2 * r**4 + 3)
     for can_vanish in (r**2 - 1, r + 1, sp.cos(phi) + 1, J + m * r**2, r**2, sp.cos(phi)**2):
         assert not _positive_everywhere(can_vanish), can_vanish
-    assert _drop_positive_factors(3 * (r**2 + 1) * (J + m * r**2) * sp.cos(phi)**2) == (J + m * r**2) * sp.cos(phi)
+    assert (_drop_positive_factors(3 * (r**2 + 1) * (J + m * r**2) * sp.cos(phi)**2)
+            == (J + m * r**2) * sp.cos(phi))
     unicycle = derive("unicycle", "reduced")
     assert [str(sp.expand(e)) for e in unicycle.singular_set] == ["J_phi + m*r**2"]   # model's own symbols

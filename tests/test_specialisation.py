@@ -47,11 +47,14 @@ def test_velocity_model_is_small_and_has_the_momentum_flow(models):
     qd0[:3] = np.asarray(model.numeric["qdot"](model.numeric["state"](q0, qd0, P), P)).ravel()[:3]
     t = np.linspace(0.0, 2.0, 9)
     controls = np.random.default_rng(2).normal(size=(2, 8))
-    zv, ok_v = simulate_piecewise_constant(fast, P, t, np.asarray(fast.numeric["state"](q0, qd0, P)).ravel(), controls)
-    zp, ok_p = simulate_piecewise_constant(model, P, t, np.asarray(model.numeric["state"](q0, qd0, P)).ravel(), controls)
+    zv, ok_v = simulate_piecewise_constant(fast, P, t,
+                                           np.asarray(fast.numeric["state"](q0, qd0, P)).ravel(), controls)
+    zp, ok_p = simulate_piecewise_constant(model, P, t,
+                                           np.asarray(model.numeric["state"](q0, qd0, P)).ravel(), controls)
     assert ok_v and ok_p
     assert np.max(np.abs(zv[:5] - zp[:5])) < 1e-8          # DOP853 at rtol 1e-10 over 2 s
-    mapped = np.column_stack([np.asarray(fast.numeric["momentum_state"](zv[:, k], P)).ravel() for k in range(9)])
+    mapped = np.column_stack([np.asarray(fast.numeric["momentum_state"](zv[:, k], P)).ravel()
+                              for k in range(9)])
     assert np.max(np.abs(mapped - zp)) < 1e-8
     qd = np.asarray(fast.numeric["qdot"](zv[:, -1], P)).ravel()
     assert qd[0] * np.cos(zv[2, -1]) + qd[1] * np.sin(zv[2, -1]) == pytest.approx(zv[5, -1], abs=1e-12)
@@ -110,8 +113,8 @@ def test_a_force_that_breaks_the_symmetry_keeps_the_general_functions():
 
     def sleigh(forces):
         return System(coordinates=["x", "y", "theta"],
-                      lagrangian="m*((x_dot - a*sin(theta)*theta_dot)**2 + (y_dot + a*cos(theta)*theta_dot)**2)/2"
-                                 " + I_c*theta_dot**2/2",
+                      lagrangian="m*((x_dot - a*sin(theta)*theta_dot)**2 + (y_dot + "
+                                 "a*cos(theta)*theta_dot)**2)/2 + I_c*theta_dot**2/2",
                       constraints=["-sin(theta)*x_dot + cos(theta)*y_dot"], forces=forces,
                       parameters={"m": 1.0, "I_c": 0.2, "a": 0.3}, fiber=["x", "y", "theta"], name="sleigh")
     from nhgait.dynamics.numerics.specialisation import _agrees, _at_identity, _numeric_bound, _Reference
@@ -125,13 +128,15 @@ def test_a_force_that_breaks_the_symmetry_keeps_the_general_functions():
     for model, invariant in ((world, False), (body, True)):
         params = model.numeric.params()
         reference = _numeric_bound(model, params)
-        assert _agrees(_at_identity(model, reference), _Reference(reference, 5, 2, params), 1e-10) is invariant
+        assert (_agrees(_at_identity(model, reference), _Reference(reference, 5, 2, params), 1e-10)
+                is invariant)
 
 
 def test_choose_velocities(models):
     assert choose_velocities(models["snakeboard"]["reduced"], ("x", "forward_velocity", "psi", "phi_dot")) \
         == ("forward_velocity", "phi_dot", "psi_dot")
-    assert choose_velocities(models["unicycle"]["reduced"], ("phi_dot", "theta_dot")) == ("phi_dot", "theta_dot")
+    assert (choose_velocities(models["unicycle"]["reduced"], ("phi_dot", "theta_dot"))
+            == ("phi_dot", "theta_dot"))
 
 
 def test_bad_velocity_coordinates_are_listed(models):
@@ -152,6 +157,7 @@ def test_generated_chain_specialised_where_its_chart_is_singular():
     at random postures and at the straight one, on the chart's singular set: q̇ satisfies the
     constraints and has the velocity states as its components, and ẏ = (ẍ, ÿ, q̈₄) to 1e-8."""
     import experiment_scripts
+
     from nhgait.dynamics import derive
     from nhgait.dynamics.derivation.scene import scene_from_text
     gen, ref = experiment_scripts.load("robot_generator"), experiment_scripts.load("reference_dae_ocp")

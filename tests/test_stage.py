@@ -437,7 +437,8 @@ def test_inline_structured_gauss_newton_and_fatrop_reach_the_same_optimum(timed_
                                    (MultipleShooting(stage="structured"), SolverOptions(jit=False)),
                                    (None, SolverOptions(jit=False, hessian="gauss-newton"))):
         sol = OCPSolver(problem, transcription, options).solve(guess)
-        assert sol.success and sol.objective == pytest.approx(f_ref, rel=1e-8), (transcription, options.hessian)
+        assert sol.success and sol.objective == pytest.approx(f_ref, rel=1e-8), (transcription,
+                                                                                 options.hessian)
     fatrop = OCPSolver(problem, options=SolverOptions(jit=False, solver="fatrop")).solve(guess)
     assert fatrop.success and fatrop.objective == pytest.approx(f_ref, rel=1e-6)
 
@@ -458,8 +459,8 @@ def test_time_dependent_force_plans_and_verifies(timed_model, free):
         for k in range(problem.intervals):
             t0, t1 = sol.t[k], sol.t[k + 1]
             shift = t0 if restart else 0.0
-            run = solve_ivp(lambda t, zz: _rhs(t - shift, zz, sol.controls[:, k], True, np), (t0, t1), z,
-                            method="DOP853", rtol=1e-11, atol=1e-12)
+            run = solve_ivp(lambda t, zz, shift=shift, k=k: _rhs(t - shift, zz, sol.controls[:, k], True, np),
+                            (t0, t1), z, method="DOP853", rtol=1e-11, atol=1e-12)
             z = run.y[:, -1]
             out.append(z)
         return np.column_stack(out)

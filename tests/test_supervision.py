@@ -21,8 +21,14 @@ from pathlib import Path
 
 import pytest
 
-from nhgait.ocp.budget import (ATTEMPT_CAP_S, ATTEMPT_FLOOR_S, Budget, BudgetSpent, default_attempt_seconds,
-                               default_plan_seconds)
+from nhgait.ocp.budget import (
+    ATTEMPT_CAP_S,
+    ATTEMPT_FLOOR_S,
+    Budget,
+    BudgetSpent,
+    default_attempt_seconds,
+    default_plan_seconds,
+)
 from nhgait.ocp.supervision import Job, can_fork, supervise
 
 needs_fork = pytest.mark.skipif(not can_fork() or not Path("/proc/self/stat").exists(),
@@ -217,7 +223,8 @@ def test_the_alarm_inside_a_c_extension_is_still_the_budget():
                 try:
                     sum(range(100))
                 except BudgetSpent as exc:
-                    raise SystemError("<function DM.__array__> returned a result with an exception set") from exc
+                    raise SystemError("<function DM.__array__> returned a result with an "
+                                      "exception set") from exc
     assert spent.value.overrun.phase == "verification"
     with pytest.raises(SystemError):                 # any other error passes through unchanged
         with Budget(10.0, "test").stage("verification"):
@@ -298,7 +305,8 @@ def test_a_plan_whose_budget_runs_out_fails_naming_the_phase(tmp_path):
     assert result.files == () and not (tmp_path / "out" / "solution.json").exists()
     text = "\n".join(summary_lines(result))
     assert "FAILED (time budget spent)" in text
-    assert "the time budget of 0.001 s (--time-limit / plan(time_limit=...)) ran out during derivation" in text
+    assert ("the time budget of 0.001 s (--time-limit / plan(time_limit=...)) ran out "
+            "during derivation" in text)
     assert "--time-limit SECONDS" in text
 
 

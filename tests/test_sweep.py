@@ -8,16 +8,16 @@ import os
 import sqlite3
 import time
 
+import experiment_scripts
 import numpy as np
 import pytest
 
-from nhgait.gaits.sweeps.driver import Progress, RunOptions, load_sweep, run_sweep
 from nhgait.gaits.sweeps.backends import ProcessPool, SerialBackend, WorkerDied, make_backend
+from nhgait.gaits.sweeps.driver import Progress, RunOptions, load_sweep, run_sweep
 from nhgait.gaits.sweeps.grid import Grid, parse_grid
 from nhgait.gaits.sweeps.point import PointJob, SceneData, SweepCase, point_task
 from nhgait.gaits.sweeps.store import SweepStore
 from nhgait.ocp import ProblemError
-import experiment_scripts
 
 CASE = SweepCase(SceneData("fake"), task={"horizon": 4.0, "intervals": 10, "final": {"x": 1.0}},
                  params={"m": 1.0, "J_r": 0.2}, label="fake/task")
@@ -34,11 +34,13 @@ def fake_solve(job: PointJob) -> dict:
     ok = job.task["final"]["x"] >= 0
     J = fake_objective(job.task, job.params)
     trajectory = {"t": [0.0, 1.0], "q": [[J], [J]], "qdot": [[0.0], [0.0]], "u": [[0.0]]}
-    return {"id": job.point_id, "success": ok, "status": "Solve_Succeeded" if ok else "Infeasible_Problem_Detected",
+    return {"id": job.point_id, "success": ok,
+            "status": "Solve_Succeeded" if ok else "Infeasible_Problem_Detected",
             "message": "", "objective": J, "iterations": 5 if job.warm is not None else 20,
             "solve_time_s": 0.0, "wall_time_s": 0.0, "verification_error": 1e-9, "constraint_violation": 0.0,
             "start": "warm" if job.warm is not None else "cold", "worker": str(os.getpid()),
-            "solution": {"objective": J, "trajectory": trajectory}, "warm": {"trajectory": trajectory} if ok else None}
+            "solution": {"objective": J, "trajectory": trajectory},
+            "warm": {"trajectory": trajectory} if ok else None}
 
 
 def slow_solve(job: PointJob) -> dict:
@@ -83,8 +85,8 @@ def test_every_bad_axis_is_listed_in_one_error():
                     "initial.y=__import__('os')", "intervals=2.5", "nonsense"], parameters=("m",))
     text = str(info.value)
     for fragment in ("whole number ≥ 2, got 'one'", "unknown axis 'speed'", "a horizon must be positive",
-                     "unknown parameter 'k'", "'final.x' is given 2 times", "initial.y", "intervals must be whole",
-                     "expected NAME=lo:hi:n"):
+                     "unknown parameter 'k'", "'final.x' is given 2 times", "initial.y",
+                     "intervals must be whole", "expected NAME=lo:hi:n"):
         assert fragment in text, fragment
 
 
@@ -107,10 +109,10 @@ def test_continuation_tree_reaches_every_point_by_unit_steps():
         steps, index = 0, p.index
         while g.parent(index) is not None:
             parent = g.parent(index)
-            assert sum(abs(a - b) for a, b in zip(parent, index)) == 1      # a grid neighbour
+            assert sum(abs(a - b) for a, b in zip(parent, index, strict=True)) == 1      # a grid neighbour
             index, steps = parent, steps + 1
         assert index == g.centre
-        assert steps == sum(abs(a - b) for a, b in zip(p.index, g.centre))  # shortest path
+        assert steps == sum(abs(a - b) for a, b in zip(p.index, g.centre, strict=True))  # shortest path
 
 
 # ----------------------------------------------------------------------------- sweeps with the fake
@@ -246,7 +248,8 @@ def test_a_dead_worker_in_a_chain_costs_its_points_one_retry_each(tmp_path):
 
 def test_chain_must_be_a_whole_number(tmp_path):
     with SweepStore(tmp_path) as store, pytest.raises(ProblemError, match="chain must be a whole number"):
-        run_sweep(CASE, parse_grid(["final.x=0.5,1.0"]), SerialBackend(), store, RunOptions(solve=fake_solve, chain=0))
+        run_sweep(CASE, parse_grid(["final.x=0.5,1.0"]), SerialBackend(), store,
+                  RunOptions(solve=fake_solve, chain=0))
 
 
 @pytest.mark.parametrize("chain", [1, 3])

@@ -120,7 +120,8 @@ def test_cli_writes_store_table_and_plots(tmp_path, capsys):
 # ----------------------------------------------------------------------------- Dask
 @pytest.fixture(scope="module")
 def dask_backend():
-    pytest.importorskip("distributed", reason="Dask distributed is not installed (pip install 'nhgait[dask]')")
+    pytest.importorskip("distributed",
+                        reason="Dask distributed is not installed (pip install 'nhgait[dask]')")
     from nhgait.gaits.sweeps.backends import DaskBackend
     backend = DaskBackend("local:2")
     yield backend
@@ -131,7 +132,7 @@ def test_dask_sweep_gives_the_pool_objectives(pool_sweep, dask_backend, tmp_path
     r = sweep("unicycle", "parallel-park", GRID, out=tmp_path, overrides=SET, backend=dask_backend)
     assert r.complete and "Dask distributed (LocalCluster on 127.0.0.1" in r.backend
     assert len({x.worker for x in r.records}) == 2                       # both Dask workers solved points
-    for a, b in zip(r.records, pool_sweep.records):
+    for a, b in zip(r.records, pool_sweep.records, strict=True):
         assert a.id == b.id and a.success and a.objective == pytest.approx(b.objective, rel=1e-8, abs=0)
 
 

@@ -19,7 +19,8 @@ def particles(n, fiber=False, extra=""):
     names = ["x", "y", "theta"] + [f"z{i}" for i in range(n - 3)]
     kinetic = " + ".join(f"m*{c}_dot**2/2" for c in names if c != "theta")
     return System(coordinates=names, lagrangian=f"{kinetic} + I*theta_dot**2/2{extra}",
-                  constraints=["sin(theta)*x_dot - cos(theta)*y_dot"], parameters={"m": 1.0, "I": 0.1, "k": 0.5},
+                  constraints=["sin(theta)*x_dot - cos(theta)*y_dot"],
+                  parameters={"m": 1.0, "I": 0.1, "k": 0.5},
                   fiber=[c for c in names if c != "theta"] if fiber else None)
 
 
@@ -70,7 +71,8 @@ def test_a_search_over_its_budget_takes_the_best_found_with_a_note():
 def test_a_search_over_its_budget_without_an_admissible_fibre_asks_for_it():
     """Budget 5 at n = 12: even the 11 single coordinates that can be symmetries do not fit:
     one error naming the remedy."""
-    with pytest.raises(ModelError, match=r"symmetry search over 12 coordinates .* name the fibre coordinates"):
+    with pytest.raises(ModelError,
+                       match=r"symmetry search over 12 coordinates .* name the fibre coordinates"):
         symmetry.symmetry_test(particles(12), max_candidates=5)
 
 

@@ -42,7 +42,7 @@ def test_lambdified_functions_match_sympy_and_are_not_pickled():
     mass, omega, _ = system.numeric_functions()
     q = np.array([0.1, -0.2, 0.3, 0.4, -0.5])
     pv = system.param_vector()
-    subs = {**dict(zip(system.q, q)), **dict(zip(system.param_symbols, pv))}
+    subs = {**dict(zip(system.q, q, strict=True)), **dict(zip(system.param_symbols, pv, strict=True))}
     expected = np.array(system.mass_matrix().xreplace(subs).evalf(), dtype=float)
     np.testing.assert_allclose(mass(q, pv), expected, rtol=1e-14, atol=1e-14)
     copy = pickle.loads(pickle.dumps(system))

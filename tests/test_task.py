@@ -97,6 +97,7 @@ def test_resolve_names_the_missing_task(tmp_path):
 def test_a_task_is_the_problem_statement_in_the_tables_words():
     """The task parses into the ocp statement (no model yet); one validator speaks to both readers."""
     from dataclasses import replace
+
     from nhgait.gaits.task import TASK_WORDS
     from nhgait.ocp import ProblemStatement
     task = parse_task(P2)
@@ -107,4 +108,5 @@ def test_a_task_is_the_problem_statement_in_the_tables_words():
         **task.to_dict(), "intervals": 30, "bounds": {"phi": [-0.5, 0.5]}}
     bad = replace(task.statement, state_bounds={"phi": (1.0, -1.0)})
     assert bad.problems() == ["state_bounds['phi']: contradictory bounds lo = 1 > hi = -1"]
-    assert bad.problems(TASK_WORDS) == ["[task].bounds.phi: contradictory range, lower bound 1 > upper bound -1"]
+    assert bad.problems(TASK_WORDS) == ["[task].bounds.phi: contradictory range, lower bound 1 > "
+                                        "upper bound -1"]

@@ -42,11 +42,13 @@ def test_verification_is_judged_against_each_states_range():
     v = Verification(max_error=3.25e-6, state_errors={"x": 1e-8, "p": 3.25e-6}, states=nodes,
                      state_scales={"x": 1.0, "p": 1200.0}, condition_errors={"final.p": 2e-6},
                      condition_scales={"final.p": 1200.0})
-    assert v.passed and v.scaled_state_errors["p"] == pytest.approx(3.25e-6 / 1200) and v.max_scaled_error == 1e-8
+    assert (v.passed and v.scaled_state_errors["p"] == pytest.approx(3.25e-6 / 1200)
+            and v.max_scaled_error == 1e-8)
     tight = Verification(max_error=3.25e-6, state_errors={"x": 3.25e-6, "p": 1e-9}, states=nodes,
                          state_scales={"x": 1.0, "p": 1200.0})
     assert not tight.passed
-    assert tight.failures() == ["the re-simulated states leave the planned ones by up to 3.25e-06 (x; tolerance 1e-06)"]
+    assert tight.failures() == ["the re-simulated states leave the planned ones by up to 3.25e-06 (x; "
+                                "tolerance 1e-06)"]
     loose = Verification(max_error=2.4e-3, state_errors={"x": 1e-8, "p": 2.4e-3}, states=nodes,
                          state_scales={"x": 1.0, "p": 1200.0})
     assert "0.0024 (p, 2e-06 of its scale 1200; tolerance 1e-06)" in loose.failures()[0]
@@ -74,7 +76,7 @@ def test_forward_axis_of_the_body_frame():
     assert lateral == pytest.approx(-(qd[0] * math.cos(q[2]) + qd[1] * math.sin(q[2])), abs=1e-12)
     assert forward == pytest.approx(0.1 * qd[3], abs=1e-12) and lateral == pytest.approx(0.0, abs=1e-12)
     Y = velocity_rows(system, ["forward_velocity"])
-    row = np.array([float(e.subs(dict(zip(system.q, q)))) for e in Y.row(0)])
+    row = np.array([float(e.subs(dict(zip(system.q, q, strict=True)))) for e in Y.row(0)])
     assert row == pytest.approx([-math.sin(q[2]), math.cos(q[2]), 0, 0], abs=1e-14)
     fast = specialise(model, velocities=("forward_velocity", "theta_dot"))
     y = np.asarray(fast.numeric["state"](q, qd, [])).ravel()[4:]
@@ -89,6 +91,7 @@ def test_forward_axis_is_checked():
 
 def test_a_task_changed_by_set_is_renamed():
     from nhgait.gaits.task_library import resolve
-    assert resolve("unicycle", "parallel-park", overrides=["final.y=0.8"]).task.name == "parallel-park (final.y=0.8)"
+    assert (resolve("unicycle", "parallel-park", overrides=["final.y=0.8"]).task.name == "parallel-park "
+                                                                                         "(final.y=0.8)")
     assert resolve("unicycle", "parallel-park", overrides=["intervals=30"]).task.name == "parallel-park"
     assert resolve("unicycle", "parallel-park", overrides=["final.y=0.8", "name=wide"]).task.name == "wide"

@@ -80,7 +80,8 @@ def test_bad_tables_between_the_ends_are_listed_together(scene):
     with pytest.raises(ProblemError) as info:
         _parse(scene, bad)
     text = str(info.value)
-    for expected in ["[task].waypoints[0]: unknown key(s) ['when']", "[task].waypoints[0]: missing key 'time'",
+    for expected in ["[task].waypoints[0]: unknown key(s) ['when']",
+                     "[task].waypoints[0]: missing key 'time'",
                      "[task].phases[0].intervals = 'ten' must be an integer",
                      "with phases, each phase states its own horizon (remove horizon from [task])",
                      "with phases, each phase states its own waypoints",
@@ -90,8 +91,10 @@ def test_bad_tables_between_the_ends_are_listed_together(scene):
                      "unknown weight 'wrok'"]:
         assert expected in text, (expected, text)
     without_phases = {k: v for k, v in bad.items() if k != "phases"}
-    with pytest.raises(ProblemError, match=r"(?s)waypoints\[1\]: unknown name 'zz'.*waypoints\[1\]: time 2.05 is "
-                                           r"not a node \(every 0.1 s with T = 6, N = 60\): the nearest nodes are 2 and 2.1"):
+    with pytest.raises(ProblemError,
+                       match=r"(?s)waypoints\[1\]: unknown name 'zz'.*waypoints\[1\]: time 2.05 is "
+                                           r"not a node \(every 0.1 s with T = 6, N = 60\): the nearest "
+                                           r"nodes are 2 and 2.1"):
         _parse(scene, without_phases)
 
 
@@ -111,8 +114,8 @@ def _forward_acceleration(solution, k, steps=1000):
     t = solution.t[k] + np.array([0.0, 1.0, 2.0]) * h / steps
     nz = len(problem.model_state_names)
     z = simulate_piecewise_constant(problem.model, problem.params, t, solution.states[:nz, k],
-                                    np.repeat(solution.controls[:, k:k + 1], 2, axis=1), Integrator(rtol=1e-11,
-                                                                                                 atol=1e-13))[0]
+                                    np.repeat(solution.controls[:, k:k + 1], 2, axis=1),
+                                    Integrator(rtol=1e-11, atol=1e-13))[0]
     qdot = problem.model.numeric["qdot"]
     v = []
     for j in range(3):
@@ -154,6 +157,7 @@ def test_the_path_guess_passes_the_stated_places_heading_along_its_legs():
     the phase ends' boxes at the phase boundaries, the car (forward along its body y axis,
     α = π/2) heading along each leg at the leg's middle: atan2(Δy, Δx) − α, unwrapped."""
     import math
+
     from nhgait.gaits.guesses import candidates
     from nhgait.gaits.planner import prepare
     from nhgait.gaits.task_library import resolve
@@ -163,7 +167,7 @@ def test_the_path_guess_passes_the_stated_places_heading_along_its_legs():
     q = guess.states
     ends = [0, 140, 270, 400]
     places = [(0.0, 0.0), (10.0, 15.0), (-5.0, 10.0), (0.0, 0.0)]
-    for k, (x, y) in zip(ends, places):
+    for k, (x, y) in zip(ends, places, strict=True):
         assert (q[0, k], q[1, k]) == pytest.approx((x, y), abs=1e-12)
     t = problem.grid()
     previous = 0.0

@@ -26,7 +26,7 @@ def same(a, b, subs=None):
 
 def same_matrix(A, B, subs=None):
     A, B = sp.Matrix(A), sp.Matrix(B)
-    return A.shape == B.shape and all(same(a, b, subs) for a, b in zip(A, B))
+    return A.shape == B.shape and all(same(a, b, subs) for a, b in zip(A, B, strict=True))
 
 
 @pytest.fixture(scope="module")
@@ -68,7 +68,8 @@ def test_unicycle_momentum_and_reconstruction(uni_A, uni_B):
 
 def test_unicycle_lagrangian_hamiltonian_and_equations(uni_B):
     assert same(uni_B.steps[8].l_c, ((Jphi + m * r**2) * Om**2 + Jth * thd**2) / 2)             # 3.17
-    assert same(uni_B.hamiltonian, (p**2 / (Jphi + m * r**2) + pt_theta**2 / Jth) / 2)                   # 3.20
+    # 3.20
+    assert same(uni_B.hamiltonian, (p**2 / (Jphi + m * r**2) + pt_theta**2 / Jth) / 2)
     tau_th, tau_ph = sp.symbols("tau_theta tau_phi", real=True)
     D = Jphi + m * r**2
     expected = [r * sp.cos(th) * p / D, r * sp.sin(th) * p / D, pt_theta / Jth, p / D, tau_ph, tau_th]  # 3.33
@@ -101,7 +102,8 @@ def test_snakeboard_reconstruction_3_71_to_3_73(board):
     assert same_matrix(board.steps[5].Gamma, [1 / (2 * m * r), 0, sp.tan(phi) / (2 * m * r**2)], THESIS)
     assert same_matrix(board.steps[6].e, [2 * r * sp.cos(phi)**2, 0, sp.sin(2 * phi)])
     A = board.steps[5].A   # columns (psi, phi); 3.73 prints φ̇ where ψ̇ multiplies A
-    assert same_matrix(A[:, 0], [Jr * sp.sin(phi) * sp.cos(phi) / (m * r), 0, Jr * sp.sin(phi)**2 / (m * r**2)], THESIS)
+    assert same_matrix(A[:, 0], [Jr * sp.sin(phi) * sp.cos(phi) / (m * r), 0,
+                                 Jr * sp.sin(phi)**2 / (m * r**2)], THESIS)
     assert same_matrix(A[:, 1], [0, 0, 0])
 
 

@@ -23,9 +23,9 @@ import pytest
 from scipy.integrate import cumulative_simpson, solve_ivp
 
 from nhgait.dynamics import System, derive, load_scene, simulate
-from nhgait.dynamics.simulation.controllers import OpenLoop
 from nhgait.dynamics.derivation.reduction import derive_reduced
 from nhgait.dynamics.derivation.states import consistent_velocities, to_state
+from nhgait.dynamics.simulation.controllers import OpenLoop
 
 SCENE = Path(__file__).resolve().parents[1] / "examples" / "roller_racer.toml"
 #: the scene's parameter values, restated (kg, kg m², m)
@@ -44,14 +44,22 @@ def _hinge_torque(t, phi, phi_dot):
 # ------------------------------------------------------------------------------------------
 # the independent Kane model of the roller racer
 # ------------------------------------------------------------------------------------------
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _kane():
     """Numeric functions of the Kane model: qddot(t, q, q̇), residual(q, q̇) (the two axle
     side-slip velocities), energy(q, q̇) (kinetic energy), momentum(q, q̇) = ∂T/∂q̇ and its
     rate momentum_rate(q, q̇, q̈)."""
     import sympy as sp
-    from sympy.physics.mechanics import (KanesMethod, Point, ReferenceFrame, RigidBody,
-                                         dynamicsymbols, inertia, kinetic_energy, msubs)
+    from sympy.physics.mechanics import (
+        KanesMethod,
+        Point,
+        ReferenceFrame,
+        RigidBody,
+        dynamicsymbols,
+        inertia,
+        kinetic_energy,
+        msubs,
+    )
     t = dynamicsymbols._t
     q = dynamicsymbols("x y theta phi")
     x, y, th, ph = q
@@ -71,15 +79,15 @@ def _kane():
     bodies = [RigidBody("front", P1, B1, m1, (inertia(B1, 0, 0, I1), P1)),
               RigidBody("rear", P2, B2, m2, (inertia(B2, 0, 0, I2), P2))]
     qd = [qi.diff(t) for qi in q]
-    to_u = dict(zip(qd, u))
+    to_u = dict(zip(qd, u, strict=True))
     torque = 0.6 * sp.sin(2.5 * t) - 1.5 * ph - 0.1 * u[3]
     loads = [(B2, torque * N.z), (B1, -torque * N.z)]     # hinge torque and its reaction
     cons = [msubs(P1.vel(N).dot(B1.y), to_u), msubs(P2.vel(N).dot(B2.y), to_u)]
-    km = KanesMethod(N, q_ind=q, u_ind=[u[0], u[3]], kd_eqs=[a - b for a, b in zip(qd, u)],
+    km = KanesMethod(N, q_ind=q, u_ind=[u[0], u[3]], kd_eqs=[a - b for a, b in zip(qd, u, strict=True)],
                      u_dependent=[u[1], u[2]], velocity_constraints=cons)
     km.kanes_equations(bodies, loads)
     qs, us, ts = sp.symbols("q0:4"), sp.symbols("v0:4"), sp.Symbol("time")
-    plain = {**dict(zip(q, qs)), **dict(zip(u, us)), t: ts}
+    plain = {**dict(zip(q, qs, strict=True)), **dict(zip(u, us, strict=True)), t: ts}
 
     def lam(args, expr):
         return sp.lambdify(args, msubs(expr, to_u).xreplace(plain), modules="numpy", cse=True)
@@ -93,7 +101,8 @@ def _kane():
     order = [0, 3, 1, 2]
 
     def qddot(tt, qq, vv):
-        sol = np.linalg.solve(np.asarray(mass(tt, qq, vv), float), np.asarray(forcing(tt, qq, vv), float).ravel())
+        sol = np.linalg.solve(np.asarray(mass(tt, qq, vv), float),
+                              np.asarray(forcing(tt, qq, vv), float).ravel())
         out = np.empty(4)
         out[order] = sol
         return out
@@ -110,7 +119,7 @@ def _kane_qdot(q, forward, phi_dot):
     return np.linalg.solve(np.vstack([A, Y]), [0, 0, forward, phi_dot])
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _reference(t_final):
     """(q, q̇)(t_final) of the Kane model from the scene's initial state (the front axle rolling
     at 0.1 m/s, φ̇ = 0), integrated by scipy DOP853 at rtol 1e-12, atol 1e-13."""
@@ -165,8 +174,8 @@ def test_scene_is_the_physical_roller_racer(scene):
     for _ in range(10):
         q, v = rng.uniform(-2, 2, 4), rng.uniform(-2, 2, 4)
         assert T(q, v) == pytest.approx(float(k["energy"](q, v)), rel=1e-13)
-        np.testing.assert_allclose(np.asarray(W(q), float) @ v, np.asarray(k["residual"](q, v), float).ravel(),
-                                   rtol=0, atol=1e-13)
+        np.testing.assert_allclose(np.asarray(W(q), float) @ v,
+                                   np.asarray(k["residual"](q, v), float).ravel(), rtol=0, atol=1e-13)
 
 
 def test_forms_are_the_requested_ones(roller):
@@ -356,8 +365,10 @@ CASES = {
                        (lambda t, th, thd, ph, phd: 0.5 * np.sin(3 * t + ph),
                         lambda t, th, thd, ph, phd: 0.2 * np.cos(2.5 * t) - 0.1 * phd)),
     "two frequencies, sqrt, a parameter": (("0.3*sin(t) + 0.2*sin(2.5*t)", "sqrt(1 + t)*sin(omega*t)/5"),
-                                           (lambda t, th, thd, ph, phd: 0.3 * np.sin(t) + 0.2 * np.sin(2.5 * t),
-                                            lambda t, th, thd, ph, phd: np.sqrt(1 + t) * np.sin(1.3 * t) / 5)),
+                                           (lambda t, th, thd, ph, phd: 0.3 * np.sin(t)
+                                            + 0.2 * np.sin(2.5 * t),
+                                            lambda t, th, thd, ph, phd: np.sqrt(1 + t) * np.sin(1.3 * t)
+                                            / 5)),
     "t inside a coordinate's function": (("0.4*sin(t*phi)", "exp(-t*phi_dot)/4"),
                                          (lambda t, th, thd, ph, phd: 0.4 * np.sin(t * ph),
                                           lambda t, th, thd, ph, phd: np.exp(-t * phd) / 4)),
@@ -461,6 +472,7 @@ def test_specialised_momentum_coordinates_keep_t(roller):
 def test_agreement_check_samples_time(roller):
     """The specialisation's check rejects a candidate that evaluates the forces at one fixed t."""
     import casadi as ca
+
     from nhgait.dynamics.numerics.specialisation import _agrees, _numeric_bound, _Reference
     model = roller["reduced-explicit"]
     pv = model.numeric.params()

@@ -37,8 +37,8 @@ PARK = {"system": "unicycle", "task": "parallel-park", "overrides": ["intervals=
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
     out = tmp_path_factory.mktemp("track")
-    return track(PARK["system"], PARK["task"], overrides=PARK["overrides"], mismatch=PARK["mismatch"], samples=4,
-                 seed=3, out_dir=out), out
+    return track(PARK["system"], PARK["task"], overrides=PARK["overrides"], mismatch=PARK["mismatch"],
+                 samples=4, seed=3, out_dir=out), out
 
 
 def test_tracking_json_reports_both_loops_with_units(study):
@@ -68,23 +68,25 @@ def test_noise_is_seeded_and_the_back_ends_agree(study):
     finals = lambda r: r.report["closed_loop"]["final_position_error"]["samples"]  # noqa: E731
     here = track(PARK["system"], seed=3, **kwargs)
     assert finals(here) == pytest.approx(finals(result), rel=1e-9)
-    assert finals(track(PARK["system"], seed=3, workers=0, **kwargs)) == pytest.approx(finals(here), rel=1e-12)
-    assert finals(track(PARK["system"], seed=3, workers=2, **kwargs)) == pytest.approx(finals(here), rel=1e-12)
+    assert (finals(track(PARK["system"], seed=3, workers=0, **kwargs))
+            == pytest.approx(finals(here), rel=1e-12))
+    assert (finals(track(PARK["system"], seed=3, workers=2, **kwargs))
+            == pytest.approx(finals(here), rel=1e-12))
     assert finals(track(PARK["system"], seed=4, **kwargs)) != pytest.approx(finals(here), rel=1e-3)
 
 
 def test_cli_track_writes_the_study_and_reads_a_plan(study, tmp_path, capsys):
     _, out = study
-    code = main(["track", "unicycle", "--plan", str(out / "solution.json"), "--mismatch", "params.J_theta=1.2",
-                 "--samples", "2", "--out", str(tmp_path), "--quiet"])
+    code = main(["track", "unicycle", "--plan", str(out / "solution.json"), "--mismatch",
+                 "params.J_theta=1.2", "--samples", "2", "--out", str(tmp_path), "--quiet"])
     assert code == 0
     assert "closed-loop worst / open-loop median" in capsys.readouterr().out
     assert (tmp_path / "tracking.json").exists() and not (tmp_path / "solution.json").exists()
 
 
 def test_cli_track_lists_every_problem_of_its_request(tmp_path, capsys):
-    code = main(["track", "unicycle", "--gait", "parallel-park", "--mismatch", "params.mm=1.1", "--mismatch", "m=2",
-                 "--mismatch", "params.r=-1", "--samples", "0", "--out", str(tmp_path)])
+    code = main(["track", "unicycle", "--gait", "parallel-park", "--mismatch", "params.mm=1.1", "--mismatch",
+                 "m=2", "--mismatch", "params.r=-1", "--samples", "0", "--out", str(tmp_path)])
     err = capsys.readouterr().err
     assert code == 2
     assert "4 problem(s)" in err and "did you mean 'm'?" in err and "write params.NAME=FACTOR" in err
@@ -98,13 +100,14 @@ def test_the_robot_starts_on_its_own_constraints():
     robot's l 10 % longer lands on the robot's circle (the dependent coordinate solved) with
     px ṗx + py ṗy = 0; the snakeboard with its wheel base r 20 % longer gets velocities that
     meet the robot's two wheel constraints; with a mass changed nothing moves."""
-    from nhgait.dynamics.derivation.system import System
     from nhgait.dynamics.derivation.scene import load_scene
+    from nhgait.dynamics.derivation.system import System
     from nhgait.gaits.tracking.runs import robot_start
     cart = System(coordinates=["s", "px", "py"],
                   lagrangian="M*s_dot**2/2 + m*((s_dot + px_dot)**2 + py_dot**2)/2 - m*g*py",
                   holonomic=["px**2 + py**2 - l**2"], forces={"s": "F"},
-                  parameters={"M": 2.0, "m": 0.5, "g": 9.81, "l": 0.7}, planar_frame=None, name="cart_pendulum")
+                  parameters={"M": 2.0, "m": 0.5, "g": 9.81, "l": 0.7}, planar_frame=None,
+                  name="cart_pendulum")
     angle, rate = 0.4, 1.3
     q = np.array([0.2, 0.7 * np.sin(angle), -0.7 * np.cos(angle)])
     qdot = np.array([0.5, 0.7 * rate * np.cos(angle), 0.7 * rate * np.sin(angle)])
@@ -178,8 +181,8 @@ def test_a_study_whose_files_cannot_be_written_keeps_its_report(study, sandbox, 
     def no_space(*args, **kwargs):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
     monkeypatch.setattr(plots, "write_tracking_figures", no_space)
-    code = main(["track", "unicycle", "--plan", str(out / "solution.json"), "--mismatch", "params.J_theta=1.2",
-                 "--samples", "2", "--out", str(sandbox.out / "t"), "--quiet"])
+    code = main(["track", "unicycle", "--plan", str(out / "solution.json"), "--mismatch",
+                 "params.J_theta=1.2", "--samples", "2", "--out", str(sandbox.out / "t"), "--quiet"])
     text = capsys.readouterr().out
     assert code == 1 and re.search(r"NOT WRITTEN: writing .* failed: no space left", text)
     rescued = re.search(r"the tracking report was saved to (\S+tracking\.json)", text).group(1)
@@ -229,7 +232,8 @@ ENDLESS_SAMPLES = ("import signal, sys, time\n"
 
 
 @pytest.mark.skipif(not hasattr(os, "killpg"), reason="needs POSIX process groups")
-@pytest.mark.parametrize("signame, status, said", [("SIGTERM", 143, "terminated"), ("SIGINT", 130, "interrupted")])
+@pytest.mark.parametrize("signame, status, said",
+                         [("SIGTERM", 143, "terminated"), ("SIGINT", 130, "interrupted")])
 def test_a_study_stopped_during_its_samples_leaves_nothing(study, tmp_path, signame, status, said):
     """SIGTERM or Ctrl-C once the samples run: exit 143 or 130, nothing in --out (the files are
     written at the end, staged), no process of its session left."""

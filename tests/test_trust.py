@@ -140,7 +140,8 @@ def test_a_string_where_a_list_belongs_is_one_problem():
     with pytest.raises(ModelError) as info:
         System(**{**GOOD, "coordinates": "x phi"})
     assert len(info.value.problems) == 1
-    assert 'coordinates: expected a list of names, got a string (write coordinates = ["x", ...])' in str(info.value)
+    assert ('coordinates: expected a list of names, got a string (write coordinates = '
+            '["x", ...])' in str(info.value))
     with pytest.raises(ModelError) as info:
         System(**{**GOOD, "constraints": "x_dot - r*phi_dot"})
     assert len(info.value.problems) == 1 and "constraints: expected a list of expressions" in str(info.value)
@@ -202,6 +203,7 @@ r = 0.5
 def test_long_legitimate_expressions_parse():
     """A Lagrangian of thousands of terms is not 'nested': sums and products are chains."""
     import sympy as sp
+
     from nhgait.dynamics.derivation.expressions import expression_problems
     names = {f"x{i}": sp.Symbol(f"x{i}", real=True) for i in range(50)}
     text = " + ".join(f"x{i % 50}*x{(3 * i) % 50}/7" for i in range(2500))

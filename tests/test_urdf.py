@@ -12,8 +12,8 @@ import pytest
 import sympy as sp
 
 from nhgait.dynamics import derive, simulate
-from nhgait.dynamics.errors import ModelError
 from nhgait.dynamics.derivation.scene import load_scene, scene_from_text
+from nhgait.dynamics.errors import ModelError
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
@@ -27,7 +27,8 @@ def _subs(system):
 def test_urdf_scene_has_the_written_equations(written, urdf):
     a, b = load_scene(written).system, load_scene(EXAMPLES / urdf).system
     assert a.coordinates == b.coordinates and a.k == b.k and a.inputs == b.inputs
-    a_num = [sp.lambdify([a.q, a.q_dot, a.input_symbols, sp.Symbol("t", real=True)], e.xreplace(_subs(a)), "numpy")
+    a_num = [sp.lambdify([a.q, a.q_dot, a.input_symbols, sp.Symbol("t", real=True)],
+                         e.xreplace(_subs(a)), "numpy")
              for e in (a.mass_matrix(), a.potential(), a.omega(), sp.Matrix(a.tau))]
     b_num = [sp.lambdify([b.q, b.q_dot, b.input_symbols, sp.Symbol("t", real=True)], e, "numpy")
              for e in (b.mass_matrix(), b.potential(), b.omega(), sp.Matrix(b.tau))]
@@ -41,7 +42,7 @@ def test_urdf_scene_has_the_written_equations(written, urdf):
         np.testing.assert_allclose(Vb, Va, rtol=0, atol=1e-12)
         np.testing.assert_allclose(Fb, Fa, rtol=0, atol=1e-12)
         # the same constraint distribution: each row of one is ± the same row of the other
-        for row_a, row_b in zip(Wa, Wb):
+        for row_a, row_b in zip(Wa, Wb, strict=True):
             sign = np.sign(row_a @ row_b)
             np.testing.assert_allclose(sign * row_b, row_a, rtol=0, atol=1e-12)
 
@@ -75,7 +76,7 @@ WHEEL = """<link name="{name}"><inertial><mass value="0.5"/>
   </collision></link>
 <joint name="{name}_joint" type="continuous"><parent link="body"/><child link="{name}"/>
   <origin xyz="0 {y} 0.1" rpy="-1.5707963267948966 0 0"/><axis xyz="0 0 1"/><limit effort="3" velocity="9"/>
-</joint>"""
+</joint>"""  # noqa: E501 - the URDF as written, one link per line
 BODY = """<link name="body"><inertial><mass value="4"/>
   <inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.2"/></inertial></link>"""
 
@@ -119,10 +120,12 @@ def test_a_differential_drive_from_urdf(tmp_path):
 @pytest.mark.parametrize("urdf, keys, expected", [
     (_robot(BODY, WHEEL.format(name="left", y=0.2)), 'joints = ["left_joint", "nope"]\n',
      ["unknown joint 'nope'"]),
-    (_robot(BODY, "<link name='arm'/><joint name='lift' type='prismatic'><parent link='body'/><child link='arm'/>"
+    (_robot(BODY, "<link name='arm'/><joint name='lift' type='prismatic'><parent link='body'/><child "
+                  "link='arm'/>"
             "<axis xyz='0 0 1'/><limit lower='0' upper='0.3' effort='100' velocity='1'/></joint>"),
      'locked = {lift = 0.5}\n', ["locked.lift = 0.5 is outside the joint's limits [0, 0.3]"]),
-    (_robot(BODY, WHEEL.format(name="left", y=0.2).replace("<collision>", "<visual>").replace("</collision>", "</visual>")),
+    (_robot(BODY, WHEEL.format(name="left", y=0.2).replace("<collision>", "<visual>")
+            .replace("</collision>", "</visual>")),
      'joints = ["left_joint"]\nrolling = ["left_joint"]\n', ["has no collision cylinder; give radius"]),
     (_robot(BODY, WHEEL.format(name="left", y=0.2).replace('rpy="-1.5707963267948966 0 0"', 'rpy="0 0 0"')),
      'joints = ["left_joint"]\nrolling = ["left_joint"]\n', ["cannot roll on the ground plane"]),
@@ -138,7 +141,8 @@ def test_a_differential_drive_from_urdf(tmp_path):
             "<joint name='j1' type='fixed'><parent link='a'/><child link='b'/></joint>",
             "<joint name='j2' type='fixed'><parent link='b'/><child link='a'/></joint>"),
      '', ["no root link"]),
-    (_robot(BODY, "<link name='c'/>", "<joint name='j1' type='fixed'><parent link='body'/><child link='c'/></joint>",
+    (_robot(BODY, "<link name='c'/>",
+            "<joint name='j1' type='fixed'><parent link='body'/><child link='c'/></joint>",
             "<joint name='j2' type='fixed'><parent link='body'/><child link='c'/></joint>"),
      '', ["child of two joints ('j1' and 'j2'): a closed loop"]),
     (_robot(BODY, "<link name='broken'>"), '', ["malformed XML"]),
@@ -153,7 +157,8 @@ def test_bad_urdf_is_one_error_naming_the_problem(tmp_path, urdf, keys, expected
 
 def test_every_problem_is_listed_at_once(tmp_path):
     urdf = _robot(BODY, WHEEL.format(name="left", y=0.2), WHEEL.format(name="right", y=-0.2))
-    problems = _problems(_scene(tmp_path, urdf, 'joints = ["left_joint", "ghost"]\nrolling = ["right_joint"]\n'
+    problems = _problems(_scene(tmp_path, urdf,
+                                'joints = ["left_joint", "ghost"]\nrolling = ["right_joint"]\n'
                                 'inputs = {left = "u"}\nbase = "floating"\ncolour = "red"\n'
                                 'names = {left_joint = "2x"}\n'))
     for text in ("unknown key(s) ['colour']", 'only "planar"', "unknown joint 'ghost'",
@@ -221,7 +226,8 @@ def test_tiago_arm_swing_reduced_against_lagrange_dae():
         runs[form] = traj
     assert (scene.system.n, scene.system.k) == (6, 3)
     np.testing.assert_allclose(runs["reduced"].q, runs["lagrange"].q, rtol=0, atol=1e-9)
-    assert abs(runs["reduced"].q[-1, 2]) > 0.1 and np.hypot(*runs["reduced"].q[-1, :2]) > 0.1  # the base moved
+    # the base moved
+    assert abs(runs["reduced"].q[-1, 2]) > 0.1 and np.hypot(*runs["reduced"].q[-1, :2]) > 0.1
 
 
 def test_canonical_trig_form_applies_the_identities():
@@ -254,6 +260,7 @@ def test_a_malformed_urdf_and_bad_scene_keys_are_listed_together(tmp_path):
 
 def test_bench_urdf_smoke(capsys):
     import experiment_scripts
-    result = experiment_scripts.load("bench_urdf").main(["--robots", "snakeboard", "--repeats", "1", "--no-plan"])
+    result = experiment_scripts.load("bench_urdf").main(["--robots", "snakeboard", "--repeats",
+                                                         "1", "--no-plan"])
     assert result["robots"][0]["n"] == 5 and result["robots"][0]["k"] == 2
     assert "| snakeboard | 5 | 2 |" in capsys.readouterr().out

@@ -18,9 +18,9 @@ import sympy as sp
 
 pin = pytest.importorskip("pinocchio")
 
-from nhgait.dynamics.errors import ModelError               # noqa: E402
-from nhgait.dynamics.derivation.urdf import urdf_system              # noqa: E402
-from nhgait.dynamics.derivation.urdf.builder import resolve_path      # noqa: E402
+from nhgait.dynamics.derivation.urdf import urdf_system  # noqa: E402
+from nhgait.dynamics.derivation.urdf.builder import resolve_path  # noqa: E402
+from nhgait.dynamics.errors import ModelError  # noqa: E402
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 TIAGO = "example-robot-data:tiago_description/robots/tiago.urdf"

@@ -96,13 +96,15 @@ def test_name_clash_and_bad_parameter_value():
 
 def test_no_full_symmetry_group_shows_the_table():
     # a potential depending on every coordinate breaks every candidate group
-    with pytest.raises(ModelError, match=r"no full symmetry group[\s\S]*\| fibre coordinates \| group G \|") as info:
+    with pytest.raises(ModelError,
+                       match=r"no full symmetry group[\s\S]*\| fibre coordinates \| group G \|") as info:
         derive(uni(lagrangian=UNI_L + " - (x**2 + y**2 + theta**2 + phi**2)"), "reduced", use_cache=False)
     assert "not a symmetry" in str(info.value)
 
 
 def test_user_fiber_that_is_not_full_is_rejected():
-    with pytest.raises(ModelError, match=r"fiber coordinates \(x, y, theta\) do not give a full symmetry group: not full"):
+    with pytest.raises(ModelError, match=r"fiber coordinates \(x, y, theta\) do not give a full symmetry "
+                                         r"group: not full"):
         derive(uni(fiber=["x", "y", "theta"]), "reduced", use_cache=False)
 
 

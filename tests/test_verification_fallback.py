@@ -17,9 +17,9 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import casadi as ca
+import experiment_scripts
 import numpy as np
 
-import experiment_scripts
 from nhgait.dynamics.derivation.scene import scene_from_text
 from nhgait.gaits.planner import plan
 from nhgait.ocp.solution import simulate_piecewise_constant

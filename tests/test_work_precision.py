@@ -6,9 +6,9 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
+import experiment_scripts
 import pytest
 
-import experiment_scripts
 from nhgait.dynamics.numerics.compiler import compiler_command
 
 #: these compile C (the references use CasADi's jit with gcc); CI may have no compiler

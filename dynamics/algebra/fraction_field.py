@@ -6,8 +6,14 @@ from __future__ import annotations
 import sympy as sp
 
 from .matrix_ops import MatrixOps
-from .ring import (NotRational, WorkBudgetExceeded, add_fractions, collect_generators, reduce_poly,
-                   walk_fraction)
+from .ring import (
+    NotRational,
+    WorkBudgetExceeded,
+    add_fractions,
+    collect_generators,
+    reduce_poly,
+    walk_fraction,
+)
 from .trig import has_trig, tidy
 
 __all__ = ["FracField", "as_sympy", "check_trig"]
@@ -59,7 +65,7 @@ class FracField(MatrixOps):
         self.ZERO, self.ONE = (self.zero, self.one), (self.one, self.one)
         self.work = 0
         self.budget = budget
-        self.table = {x: (v, self.one) for x, v in zip(order, g)}
+        self.table = {x: (v, self.one) for x, v in zip(order, g, strict=True)}
         self.gens = g
         self.angle = {}
         pairs = []

@@ -59,8 +59,9 @@ class MatrixOps:
         return [[A[i][j] for i in range(len(A))] for j in range(len(A[0]))]
 
     def madd(self, A, B, normal=True):
-        return [[(self.normal if normal else (lambda x: x))(self.add_many([a, b])) for a, b in zip(ra, rb)]
-                for ra, rb in zip(A, B)]
+        return [[(self.normal if normal else (lambda x: x))(self.add_many([a, b]))
+                 for a, b in zip(ra, rb, strict=True)]
+                for ra, rb in zip(A, B, strict=True)]
 
     def mneg(self, A):
         return [[self.neg(x) for x in r] for r in A]
@@ -89,7 +90,8 @@ class MatrixOps:
             for r in range(n_):
                 if r != c and not self.is_zero(W[r][c]):
                     fct = W[r][c]
-                    W[r] = [self.normal(self.add_many([x, self.neg(self.mul(fct, y))])) for x, y in zip(W[r], W[c])]
+                    W[r] = [self.normal(self.add_many([x, self.neg(self.mul(fct, y))]))
+                            for x, y in zip(W[r], W[c], strict=True)]
         return [r[n_:] for r in W]
 
     def div(self, f, g):
@@ -103,7 +105,7 @@ class MatrixOps:
         """Σ_j ∂col_i/∂x_j · direction_j (the derivative of a column along a vector field)."""
         out = []
         for c in col:
-            terms = [self.mul(self.diff(c, x), dj) for x, dj in zip(xs, direction)
+            terms = [self.mul(self.diff(c, x), dj) for x, dj in zip(xs, direction, strict=True)
                      if not self.is_zero(dj) and not self.is_zero(c)]
             out.append(self.normal(self.add_many(terms)))
         return out

@@ -171,5 +171,5 @@ def to_field(e, extra) -> RingFraction:
     if not order:
         raise NotRational
     R, *g = make_ring(order, QQ)
-    num, den = walk_fraction(e, R, {k: (v, R.one) for k, v in zip(order, g)})
+    num, den = walk_fraction(e, R, {k: (v, R.one) for k, v in zip(order, g, strict=True)})
     return RingFraction(R, num, den)

@@ -99,7 +99,8 @@ def trig_normal(expr):
         return sp.nsimplify(expr) if expr.is_Float else sp.simplify(expr)
     e = expr
     if e.has(sp.tan, sp.cot, sp.sec, sp.csc):
-        e = e.replace(sp.tan, lambda a: sp.sin(a) / sp.cos(a)).replace(sp.cot, lambda a: sp.cos(a) / sp.sin(a))
+        e = (e.replace(sp.tan, lambda a: sp.sin(a) / sp.cos(a))
+             .replace(sp.cot, lambda a: sp.cos(a) / sp.sin(a)))
         e = e.replace(sp.sec, lambda a: 1 / sp.cos(a)).replace(sp.csc, lambda a: 1 / sp.sin(a))
     atoms = e.atoms(sp.sin, sp.cos)
     if any(not a.args[0].is_Symbol for a in atoms):

@@ -61,7 +61,8 @@ def jacobi_test(model, samples: int = 20, seed: int = 0, tol: float = 1e-9) -> J
     X = num["basis"](z, p)
     syms = list(system.q) + list(system.param_symbols)
     sx = [z[i] for i in range(n)] + [p[i] for i in range(p.shape[0])]
-    W = ca.reshape(ca.vertcat(*to_casadi(list(system.omega().T), syms, sx)), system.k, n) if system.k else ca.SX(0, n)
+    W = (ca.reshape(ca.vertcat(*to_casadi(list(system.omega().T), syms, sx)), system.k, n) if system.k
+         else ca.SX(0, n))
     q = z[:n]
     cols = X.shape[1]
     brackets = []

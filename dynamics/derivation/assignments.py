@@ -93,9 +93,11 @@ def apply_simulation_overrides(document: dict, assignments) -> dict:
             _set_initial(sim, assignment, coordinates, problems)
         else:
             table = "parameters" if head == "params" else head
-            known = (system.get("parameters") or {}) if table == "parameters" else (system.get("inputs") or [])
+            known = ((system.get("parameters") or {}) if table == "parameters"
+                     else (system.get("inputs") or []))
             if known and assignment.parts[1] not in known:
-                problems.append(f"--set {assignment.text!r}: unknown {'parameter' if table == 'parameters' else 'input'} "
+                problems.append(f"--set {assignment.text!r}: unknown "
+                                f"{'parameter' if table == 'parameters' else 'input'} "
                                 f"{assignment.parts[1]!r}{known_names(assignment.parts[1], list(known))}")
                 continue
             value = assignment.value if table == "inputs" else _scalar(assignment.value)
@@ -123,8 +125,10 @@ def _set_initial(sim: dict, assignment: Assignment, coordinates: list, problems:
         table = {k: v for k, v in dict(current or {}).items() if k not in (coordinate, f"{coordinate}_dot")}
         key = f"{coordinate}_dot" if head == "qdot0" else coordinate
         if head == "q0":
-            problems.append(f"--set {assignment.text!r}: [simulation].q0 must be a full list to change one entry")
+            problems.append(f"--set {assignment.text!r}: [simulation].q0 must be a full list to "
+                            "change one entry")
             return
         sim[head] = {**table, key: value}
     else:
-        problems.append(f"--set {assignment.text!r}: [simulation].{head} is not a list of {len(coordinates)} values")
+        problems.append(f"--set {assignment.text!r}: [simulation].{head} is not a list of "
+                        f"{len(coordinates)} values")

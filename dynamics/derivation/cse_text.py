@@ -52,7 +52,7 @@ def named_subexpressions(exprs) -> tuple:
             back[sym] = sub
         else:
             kept.append((sym, sub))
-    renamed = {old: new for (old, _), new in zip(kept, _fresh_names(taken))}
+    renamed = {old: new for (old, _), new in zip(kept, _fresh_names(taken), strict=False)}
     definitions = [(renamed[sym], sub.xreplace(renamed)) for sym, sub in kept]
     return definitions, [e.xreplace(back).xreplace(renamed) for e in reduced]
 
@@ -63,17 +63,18 @@ def cse_lines(lefts, exprs, *, printer=sp.sstr, indent: str = "  ") -> list:
     definitions, reduced = named_subexpressions(exprs)
     lines = ["where"] if definitions else []
     lines += [f"{indent}{printer(name)} = {printer(sub)}" for name, sub in definitions]
-    return lines + [f"{left} = {printer(e)}" for left, e in zip(lefts, reduced)]
+    return lines + [f"{left} = {printer(e)}" for left, e in zip(lefts, reduced, strict=True)]
 
 
 def equation_lines(lefts, rights, cse: bool | None = None, *, indent: str = "  ") -> list:
     """``left = right`` lines, indented; with ``cse`` (None: when long) both sides share
     named sub-expressions."""
-    plain = [f"{indent}{sp.sstr(a)} = {sp.sstr(b)}" for a, b in zip(lefts, rights)]
+    plain = [f"{indent}{sp.sstr(a)} = {sp.sstr(b)}" for a, b in zip(lefts, rights, strict=True)]
     if not (cse or (cse is None and wants_cse(plain))):
         return plain
     definitions, reduced = named_subexpressions(list(lefts) + list(rights))
     n = len(lefts)
     lines = [f"{indent}where"] if definitions else []
     lines += [f"{indent}  {sp.sstr(name)} = {sp.sstr(sub)}" for name, sub in definitions]
-    return lines + [f"{indent}{sp.sstr(a)} = {sp.sstr(b)}" for a, b in zip(reduced[:n], reduced[n:])]
+    return lines + [f"{indent}{sp.sstr(a)} = {sp.sstr(b)}"
+                    for a, b in zip(reduced[:n], reduced[n:], strict=True)]

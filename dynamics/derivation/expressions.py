@@ -30,8 +30,9 @@ import sympy as sp
 
 from ..errors import ModelError
 
-__all__ = ["FUNCTIONS", "CONSTANTS", "parse_expression", "parse_number", "expression_problems", "finite_or_nan",
-           "MAX_LENGTH", "MAX_NODES", "MAX_DEPTH", "MAX_EXPONENT", "MAX_MAGNITUDE", "magnitude_problem"]
+__all__ = ["FUNCTIONS", "CONSTANTS", "parse_expression", "parse_number", "expression_problems",
+           "finite_or_nan", "MAX_LENGTH", "MAX_NODES", "MAX_DEPTH", "MAX_EXPONENT", "MAX_MAGNITUDE",
+           "magnitude_problem"]
 
 #: function name → (sympy function, allowed argument counts; None = two or more)
 FUNCTIONS = {
@@ -145,9 +146,11 @@ class _Builder:
         if op in _OPERATOR_HINT:
             raise _Reject(f"{_OPERATOR_HINT[op]} (in {self.segment(node)!r})")
         if op in (ast.Add, ast.Sub):
-            return sp.Add(*[t if positive else -t for t, positive in self._chain(node, depth, ast.Add, ast.Sub)])
+            return sp.Add(*[t if positive
+                            else -t for t, positive in self._chain(node, depth, ast.Add, ast.Sub)])
         if op in (ast.Mult, ast.Div):
-            return sp.Mul(*[f if positive else sp.Pow(f, -1) for f, positive in self._chain(node, depth, ast.Mult, ast.Div)])
+            return sp.Mul(*[f if positive else sp.Pow(f, -1)
+                            for f, positive in self._chain(node, depth, ast.Mult, ast.Div)])
         if op is ast.Pow:
             return self._power(self.build(node.left, depth), self.build(node.right, depth), node)
         raise _Reject(f"operator in {self.segment(node)!r} is not allowed")
@@ -177,7 +180,8 @@ class _Builder:
                               f"{MAX_EXPONENT} in magnitude): {self.segment(node)!r}")
             if base.is_Number and base == 0 and exponent < 0:
                 raise _Reject(f"division by zero: {self.segment(node)!r}")
-            if base.is_Rational and abs(int(exponent)) * max(_digits(base.p), _digits(base.q)) > 2 * MAX_DIGITS:
+            if (base.is_Rational
+                and abs(int(exponent)) * max(_digits(base.p), _digits(base.q)) > 2 * MAX_DIGITS):
                 raise _Reject(f"number with more than {MAX_DIGITS} digits: {self.segment(node)!r}")
             return sp.Pow(base, exponent)
         if exponent.is_number:
@@ -316,8 +320,8 @@ def expression_problems(text: str, names: dict, where: str, problems: list, *,
         problems.append(f"{where}: a constant in {_shorten(source)!r} is too large or undefined")
         return None
     if any(abs(v) > MAX_MAGNITUDE for v in constants):
-        problems.append(f"{where}: a constant in {_shorten(source)!r} exceeds {MAX_MAGNITUDE:.0e} in magnitude, "
-                        "the largest number nhgait accepts")
+        problems.append(f"{where}: a constant in {_shorten(source)!r} exceeds {MAX_MAGNITUDE:.0e} "
+                        "in magnitude, the largest number nhgait accepts")
         return None
     return expr
 

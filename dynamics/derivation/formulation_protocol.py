@@ -11,8 +11,7 @@ first asked for: no sympy at import).
 """
 from __future__ import annotations
 
-from .formulation_base import (Formulation, LoopDynamics, LoopPoint,  # noqa: F401 - re-exported
-                               Stabilisation, StateLayout)
+from .formulation_base import Formulation, LoopDynamics, LoopPoint, Stabilisation, StateLayout  # noqa: F401 - re-exported
 
 #: (``REDUCED``, ``LAGRANGE``, ``HAMILTON``, ``PROTOCOLS``: module attributes resolved on first use)
 __all__ = ["FormulationProtocol", "StateLayout", "LoopPoint", "Stabilisation", "LoopDynamics",

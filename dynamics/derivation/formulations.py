@@ -14,11 +14,12 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 from ..algebra.determinism import seeded
-from ..numerics import cache as _cache
 from ..errors import ModelError
+from ..numerics import cache as _cache
 
 
 def _reduced(system, version):
@@ -99,7 +100,8 @@ def bind(model, system, provenance=None):
     them: given, or compiled and kept by ``model.numeric``), defaults rebound."""
     numeric = model.compiled if model.compiled is not None else model.__dict__.get("numeric")
     return dataclasses.replace(model, system=system, provenance=provenance,
-                               compiled=None if numeric is None else numeric.with_defaults(system.param_values))
+                               compiled=None if numeric is None
+                               else numeric.with_defaults(system.param_values))
 
 
 def derive(system, formulation: str = "reduced", *, version: str | None = None,

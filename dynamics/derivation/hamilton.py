@@ -20,9 +20,9 @@ import sympy as sp
 
 from nhgait.dynamics.derivation.cse_text import equation_lines
 from nhgait.dynamics.derivation.notation import method_name, system_names
-from .dae_model import DAEModel
 
 from ..algebra.trig import tidy
+from .dae_model import DAEModel
 from .system import System
 
 
@@ -64,22 +64,25 @@ class HamiltonianDAE(DAEModel):
     def equations(self) -> list:
         lam = sp.Matrix(self.multipliers) if self.multipliers else sp.zeros(0, 1)
         n = self.system.n
-        eqs = [sp.Eq(sp.Symbol(f"{nm}_dot"), e) for nm, e in zip(self.state_names[:n], self.dH_dp)]
+        eqs = [sp.Eq(sp.Symbol(f"{nm}_dot"), e)
+               for nm, e in zip(self.state_names[:n], self.dH_dp, strict=True)]
         pd = -self.dH_dq + self.omega.T * lam + self.tau
-        eqs += [sp.Eq(sp.Symbol(f"{nm}_dot"), e) for nm, e in zip(self.state_names[n:], pd)]
+        eqs += [sp.Eq(sp.Symbol(f"{nm}_dot"), e) for nm, e in zip(self.state_names[n:], pd, strict=True)]
         eqs += [sp.Eq(c, 0) for c in self.omega * self.dH_dp]
         return eqs
 
     def to_text(self, cse: bool | None = None) -> str:
         """The equations as text; ``cse``: name repeated sub-expressions once (None: when long)."""
-        lines = [f"Hamilton's equations with multipliers of {self.system.name} (index-{self.differentiation_index} DAE)", *self.system.holonomic_lines()]
+        lines = [f"Hamilton's equations with multipliers of {self.system.name} "
+                 f"(index-{self.differentiation_index} DAE)", *self.system.holonomic_lines()]
         eqs = self.equations()
         return "\n".join(lines + equation_lines([sp.Symbol("H"), *(e.lhs for e in eqs)],
                                                  [self.H, *(e.rhs for e in eqs)], cse))
 
     @cached_property
     def numeric(self):
-        """CasADi/numpy functions of this model (:func:`~nhgait.dynamics.numerics.numeric_model.compile_hamilton`)."""
+        """CasADi/numpy functions of this model
+        (:func:`~nhgait.dynamics.numerics.numeric_model.compile_hamilton`)."""
         if self.compiled is not None:
             return self.compiled
         from ..numerics.numeric_model import compile_hamilton

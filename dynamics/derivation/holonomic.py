@@ -75,7 +75,7 @@ def eliminate(q, q_dot, L, constraints, tau, holonomic, wanted) -> Elimination:
     none is kept (module docstring)."""
     q, q_dot, tau = list(q), list(q_dot), list(tau)
     constraints, kept, done = list(constraints), [], []
-    pending = list(zip(holonomic, wanted))
+    pending = list(zip(holonomic, wanted, strict=True))
     while pending:
         h, name = pending.pop(0)
         names = [c.name for c in q]
@@ -87,12 +87,13 @@ def eliminate(q, q_dot, L, constraints, tau, holonomic, wanted) -> Elimination:
         i, phi = solved[0]
         c = q[i]
         rest, rest_dot = q[:i] + q[i + 1:], q_dot[:i] + q_dot[i + 1:]
-        rate = sp.Add(*[sp.diff(phi, qj) * vj for qj, vj in zip(rest, rest_dot)])
+        rate = sp.Add(*[sp.diff(phi, qj) * vj for qj, vj in zip(rest, rest_dot, strict=True)])
         subs = {c: phi, q_dot[i]: rate}
         L = L.xreplace(subs)
         constraints = [e.xreplace(subs) for e in constraints]
         tau_c = tau[i]
-        tau = [(t + tau_c * sp.diff(phi, qj)).xreplace(subs) for t, qj in zip(tau[:i] + tau[i + 1:], rest)]
+        tau = [(t + tau_c * sp.diff(phi, qj)).xreplace(subs)
+               for t, qj in zip(tau[:i] + tau[i + 1:], rest, strict=True)]
         pending = [(e.xreplace(subs), d) for e, d in pending]
         kept = [(e.xreplace(subs), d) for e, d in kept]
         done.append((c.name, phi))
@@ -103,7 +104,7 @@ def eliminate(q, q_dot, L, constraints, tau, holonomic, wanted) -> Elimination:
 
 def velocity_row(h, q, q_dot) -> sp.Expr:
     """ḣ = ∇h(q)·q̇, the Pfaffian row of a kept holonomic constraint."""
-    return sp.Add(*[sp.diff(h, qj) * vj for qj, vj in zip(q, q_dot)])
+    return sp.Add(*[sp.diff(h, qj) * vj for qj, vj in zip(q, q_dot, strict=True)])
 
 
 def choose_dependent(h, q, params: dict) -> int:
@@ -194,7 +195,7 @@ def consistent_configuration(system, q, *, params=None, dependent=None) -> np.nd
         small = np.max(np.abs(step)) <= 4 * np.finfo(float).eps * max(1.0, float(np.max(np.abs(q[cols]))))
         if np.max(np.abs(r)) <= NEWTON_TOL * max(1.0, float(np.max(np.abs(q)))) and small:
             return q          # converged: the last step changed nothing but rounding
-    given = ", ".join(f"{c} = {v:.6g}" for c, v in zip(names, start) if c not in dependent)
+    given = ", ".join(f"{c} = {v:.6g}" for c, v in zip(names, start, strict=True) if c not in dependent)
     with np.errstate(all="ignore"):
         r = np.array(h(q, pv), dtype=float).ravel()
     raise ModelError([f"no configuration satisfies the holonomic constraint(s) "

@@ -20,8 +20,8 @@ import sympy as sp
 
 from nhgait.dynamics.derivation.cse_text import equation_lines
 from nhgait.dynamics.derivation.notation import method_name, system_names
-from .dae_model import DAEModel
 
+from .dae_model import DAEModel
 from .system import System
 
 
@@ -61,19 +61,21 @@ class LagrangianDAE(DAEModel):
         lam = sp.Matrix(self.multipliers) if self.multipliers else sp.zeros(0, 1)
         lhs = self.M * qdd
         rhs = self.F + self.omega.T * lam + self.tau
-        eqs = [sp.Eq(a, b) for a, b in zip(lhs, rhs)]
+        eqs = [sp.Eq(a, b) for a, b in zip(lhs, rhs, strict=True)]
         eqs += [sp.Eq(c, 0) for c in self.omega * sp.Matrix(self.system.q_dot)]
         return eqs
 
     def to_text(self, cse: bool | None = None) -> str:
         """The equations as text; ``cse``: name repeated sub-expressions once (None: when long)."""
-        lines = [f"Euler–Lagrange equations with multipliers of {self.system.name} (index-{self.differentiation_index} DAE)", *self.system.holonomic_lines()]
+        lines = [f"Euler–Lagrange equations with multipliers of {self.system.name} "
+                 f"(index-{self.differentiation_index} DAE)", *self.system.holonomic_lines()]
         eqs = self.equations()
         return "\n".join(lines + equation_lines([e.lhs for e in eqs], [e.rhs for e in eqs], cse))
 
     @cached_property
     def numeric(self):
-        """CasADi/numpy functions of this model (:func:`~nhgait.dynamics.numerics.numeric_model.compile_lagrange`)."""
+        """CasADi/numpy functions of this model
+        (:func:`~nhgait.dynamics.numerics.numeric_model.compile_lagrange`)."""
         if self.compiled is not None:
             return self.compiled
         from ..numerics.numeric_model import compile_lagrange

@@ -22,7 +22,6 @@ from ..errors import ModelError
 from .system import System
 
 
-
 def _from_scene(name: str, parameters: dict) -> System:
     """The system of the built-in scene ``name`` with ``parameters`` overriding its defaults."""
     from .scene import load_scene
@@ -31,7 +30,8 @@ def _from_scene(name: str, parameters: dict) -> System:
         return system
     unknown = sorted(set(parameters) - set(system.parameters))
     if unknown:
-        raise ModelError([f"unknown parameter {k!r} of {name}{known_names(k, system.parameters, label='parameters')}"
+        raise ModelError([f"unknown parameter {k!r} of "
+                          f"{name}{known_names(k, system.parameters, label='parameters')}"
                           for k in unknown], title="invalid parameters")
     return dataclasses.replace(system, parameters={**system.parameters, **parameters})
 

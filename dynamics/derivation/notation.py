@@ -54,7 +54,7 @@ def choice_reason(symmetry) -> str:
     """Why the symmetry test chose its candidate over the next admissible one."""
     system = symmetry.system
     names = list(system.coordinates)
-    forced = {c for c, f in zip(names, system.tau) if f != 0}
+    forced = {c for c, f in zip(names, system.tau, strict=True) if f != 0}
     chosen = symmetry.chosen
     others = [c for c in symmetry.candidates if c.admissible and c is not chosen]
     if not others:
@@ -62,7 +62,7 @@ def choice_reason(symmetry) -> str:
     mine = _key_parts(chosen, system.k, forced, names)
     runner = min(others, key=lambda c: _key_parts(c, system.k, forced, names))
     theirs = _key_parts(runner, system.k, forced, names)
-    which = next((i for i, (a, b) in enumerate(zip(mine, theirs)) if a != b), len(_REASONS) - 1)
+    which = next((i for i, (a, b) in enumerate(zip(mine, theirs, strict=True)) if a != b), len(_REASONS) - 1)
     return f"preferred to the next candidate {runner.group}: {_REASONS[which]} (rule: docs/reduction.md)"
 
 
@@ -73,15 +73,17 @@ def symmetry_choice_lines(symmetry, fiber, shape) -> list:
     lines = [f"  symmetry group {chosen.group} moves the fibre (group) coordinates ({', '.join(fiber)}); "
              f"shape coordinates ({', '.join(shape) or 'none'})"]
     if symmetry.chosen_by == "user":
-        lines.append(f"  chosen by the system's fiber = [{', '.join(repr(f) for f in fiber)}]; {chosen.reason}")
+        lines.append(f"  chosen by the system's fiber = [{', '.join(repr(f) for f in fiber)}]; "
+                     f"{chosen.reason}")
     else:
         lines.append(f"  chosen by the full-symmetry test ({chosen.reason}): {choice_reason(symmetry)}")
     system = symmetry.system
-    forced = {c for c, f in zip(system.coordinates, system.tau) if f != 0}
+    forced = {c for c, f in zip(system.coordinates, system.tau, strict=True) if f != 0}
     alternatives = sorted((c for c in admissible if c is not chosen),
                           key=lambda c: _key_parts(c, system.k, forced, list(system.coordinates)))
     if alternatives:
-        listed = "; ".join(f"fiber = [{', '.join(repr(f) for f in c.fiber)}] ({c.group}, {c.verdict.split(' (')[0]})"
+        listed = "; ".join(f"fiber = [{', '.join(repr(f) for f in c.fiber)}] ({c.group}, "
+                           f"{c.verdict.split(' (')[0]})"
                            for c in alternatives)
         lines.append(f"  to choose another, write it in [system] (or System(fiber=…)): {listed}; "
                      "all candidates: nhgait derive --table")

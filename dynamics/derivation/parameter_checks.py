@@ -9,7 +9,7 @@ with the system) and shared with the symmetry test and the initial-state checks.
 """
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 import sympy as sp
@@ -62,7 +62,8 @@ def parameter_problems(system, values=None, label: str = "the default parameters
         if pv.size != len(system.param_symbols):
             return [f"expected {len(system.param_symbols)} parameter values "
                     f"({', '.join(system.parameters)}), got {pv.size}"]
-        problems += [f"parameter {s.name!r}: {v!r} is not finite" for s, v in zip(system.param_symbols, pv)
+        problems += [f"parameter {s.name!r}: {v!r} is not finite"
+                     for s, v in zip(system.param_symbols, pv, strict=True)
                      if not np.isfinite(v)]
     return problems or numeric_checks(system, pv, label)
 
@@ -112,7 +113,7 @@ def _sampled_spectrum(system, pv) -> tuple:
 def _metric_problem(system, worst: tuple, tiny: float, label: str) -> str:
     """The sentence for a singular (|λ_min| ≤ tiny) or indefinite kinetic metric."""
     eigenvalue, where = worst
-    zero_rows = [c for c, v in zip(system.coordinates, system.q_dot)
+    zero_rows = [c for c, v in zip(system.coordinates, system.q_dot, strict=True)
                  if all(sp.diff(system.L, v, w) == 0 for w in system.q_dot)]
     extra = f" (no kinetic energy in {', '.join(zero_rows)})" if zero_rows else ""
     at = f"at q = {np.round(where, 3).tolist()} with {label}"

@@ -27,9 +27,11 @@ def motion_quantity_function(system, quantities: dict) -> ca.Function:
     n, m, npar = system.n, len(system.inputs), len(system.param_symbols)
     q, qd, qdd = ca.SX.sym("q", n), ca.SX.sym("qdot", n), ca.SX.sym("qddot", n)
     u, p = ca.SX.sym("u", m), ca.SX.sym("params", npar)
-    syms = (list(system.q) + list(system.q_dot) + list(acceleration_symbols(system)) + list(system.input_symbols)
+    syms = (list(system.q) + list(system.q_dot) + list(acceleration_symbols(system))
+            + list(system.input_symbols)
             + list(system.param_symbols))
-    sx = [q[i] for i in range(n)] + [qd[i] for i in range(n)] + [qdd[i] for i in range(n)] + [u[i] for i in range(m)]
+    sx = ([q[i] for i in range(n)] + [qd[i] for i in range(n)] + [qdd[i] for i in range(n)]
+          + [u[i] for i in range(m)])
     sx += [p[i] for i in range(npar)]
     values = to_casadi(list(quantities.values()), syms, sx) if quantities else []
     y = ca.vertcat(*values) if values else ca.SX(0, 1)

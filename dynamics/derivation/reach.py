@@ -26,7 +26,7 @@ reachable) — it refuses only the impossible.
 from __future__ import annotations
 
 import math
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 import sympy as sp
@@ -36,7 +36,8 @@ from ..algebra.trig import trig_normal
 __all__ = ["displacement_bounds"]
 
 
-def displacement_bounds(system, input_bounds: Mapping, horizon: float, params: Mapping | None = None) -> dict | None:
+def displacement_bounds(system, input_bounds: Mapping, horizon: float,
+                        params: Mapping | None = None) -> dict | None:
     """Coordinate name → an upper bound on |q_i(T) − q_i(0)| over every input with
     |u_j| ≤ max(|lo_j|, |hi_j|) (``input_bounds``: input name → (lo, hi)), starting at rest,
     for the horizon T; None when it cannot be judged cheaply (see the module docstring)."""
@@ -63,7 +64,7 @@ def displacement_bounds(system, input_bounds: Mapping, horizon: float, params: M
         power += u_max * math.sqrt(max(norm2, 0.0))
     diagonal = np.diag(np.array(Minv, dtype=float))
     return {name: float(math.sqrt(max(d, 0.0)) * power * horizon ** 2 / 2)
-            for name, d in zip(system.coordinates, diagonal)}
+            for name, d in zip(system.coordinates, diagonal, strict=True)}
 
 
 def _limit(bounds) -> float | None:

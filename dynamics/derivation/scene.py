@@ -18,8 +18,8 @@ from nhgait.dynamics.suggestions import known_names
 
 from ..errors import ModelError
 from .expressions import number_problems
+from .system import TIME, System, jump_times, parse_field
 from .textfiles import names_a_file, read_text_file
-from .system import TIME, System, parse_field, jump_times
 from .tomldata import read_toml
 
 SYSTEM_KEYS = {"name", "coordinates", "lagrangian", "constraints", "forces", "parameters", "inputs",
@@ -64,11 +64,13 @@ class ExpressionController:
         return np.array(times) if times else None
 
     def __call__(self, t, q, qdot):
-        return np.array(self._law(float(t), np.asarray(q, float), np.asarray(qdot, float)), dtype=float).ravel()
+        return np.array(self._law(float(t), np.asarray(q, float), np.asarray(qdot, float)),
+                        dtype=float).ravel()
 
     def casadi(self, t, q, qdot):
         """The same law as CasADi SX (for DAE solvers that need u symbolically)."""
         import casadi as ca
+
         from ..numerics.bridge import to_casadi
         s = self.system
         syms = [TIME] + list(s.q) + list(s.q_dot)
@@ -110,7 +112,8 @@ class Scene:
     drawing: dict | None = None
     quantities: dict = field(default_factory=dict)
     urdf: object = None          # the UrdfSystem of a scene with [system] urdf = "..." (else None)
-    #: the ``[quantities]`` that use inputs or accelerations ``<q>_ddot`` (path bounds and integrands of a task)
+    #: the ``[quantities]`` that use inputs or accelerations ``<q>_ddot`` (path bounds and integrands of a
+    #: task)
     motion_quantities: dict = field(default_factory=dict)
 
     @property
@@ -228,7 +231,8 @@ def _urdf_task_defaults(task: dict, urdf) -> dict:
 def _system(sysd, source, problems) -> System | None:
     """The ``[system]`` table as a :class:`System` (None after recording its problems)."""
     if not isinstance(sysd, dict):
-        problems.append("missing [system] table" if sysd is None else f"[system] must be a table, got {_kind(sysd)}")
+        problems.append("missing [system] table" if sysd is None
+                        else f"[system] must be a table, got {_kind(sysd)}")
         return None
     unknown = set(sysd) - SYSTEM_KEYS
     if unknown:
@@ -279,8 +283,8 @@ def _simulation(sim, system, problems) -> SimulationSpec | None:
         problems.append(f"[simulation]: t_final = {tf} must be greater than t0 = {t0}")
     samples = sim.get("samples", 2)
     if isinstance(samples, bool) or not isinstance(samples, int) or not 2 <= samples <= MAX_SAMPLES:
-        problems.append(f"[simulation].samples must be an integer from 2 to 10⁶, got {samples!r} (10⁶ samples "
-                        "already take about a gigabyte and a minute to evaluate and write)")
+        problems.append(f"[simulation].samples must be an integer from 2 to 10⁶, got {samples!r} "
+                        "(10⁶ samples already take about a gigabyte and a minute to evaluate and write)")
     sim_params = {k: _number(v, f"[simulation].parameters.{k}", problems)
                   for k, v in _table(sim.get("parameters"), "[simulation].parameters", problems).items()}
     for key in ("rtol", "atol"):
@@ -364,14 +368,16 @@ def _input_laws(inputs, system, params, problems):
     exprs, ok = [], True
     for u in system.inputs:
         value = inputs[u]
-        e = parse_field(value if isinstance(value, str) else value, names, f"[simulation].inputs.{u}", problems)
+        e = parse_field(value if isinstance(value, str) else value, names,
+                        f"[simulation].inputs.{u}", problems)
         if e is None:
             ok = False
             continue
         bad_syms = sorted(s.name for s in e.free_symbols if s.name not in names)
         if bad_syms:
+            allowed = "allowed: t, coordinates, velocities, parameters"
             problems.append(f"[simulation].inputs.{u}: unknown symbol(s) {bad_syms}"
-                            f"{known_names(bad_syms[0], list(names), label='allowed: t, coordinates, velocities, parameters')}")
+                            f"{known_names(bad_syms[0], list(names), label=allowed)}")
             ok = False
         exprs.append(e)
     return ExpressionController(system, tuple(exprs), params) if ok else None
@@ -415,8 +421,9 @@ def _quantities(system, table, problems) -> dict:
             continue
         bad = sorted(s.name for s in e.free_symbols if s.name not in names)
         if bad:
+            allowed = "allowed: coordinates, velocities, accelerations, inputs, parameters"
             problems.append(f"{where}: unknown symbol(s) {bad}"
-                            f"{known_names(bad[0], list(names), label='allowed: coordinates, velocities, accelerations, inputs, parameters')}")
+                            f"{known_names(bad[0], list(names), label=allowed)}")
             continue
         out[key] = e
     return out
@@ -446,12 +453,15 @@ def load_scene(path_or_name, overrides=()) -> Scene:
     if not names_a_file(p) and p.suffix != ".toml":
         name = str(path_or_name).replace("-", "_")
         try:
-            text = resources.files("nhgait.dynamics.derivation").joinpath("scenes", f"{name}.toml").read_text()
+            text = (resources.files("nhgait.dynamics.derivation").joinpath("scenes", f"{name}.toml")
+                    .read_text())
         except (FileNotFoundError, OSError):
-            available = sorted(f.name[:-5] for f in resources.files("nhgait.dynamics.derivation").joinpath("scenes").iterdir()
+            available = sorted(f.name[:-5] for f in resources.files("nhgait.dynamics.derivation")
+                               .joinpath("scenes").iterdir()
                                if f.name.endswith(".toml"))
             raise ModelError([f"{path_or_name!r} is neither a scene file nor a built-in scene"
-                              f"{known_names(name, available, label='built-ins')}"], title="unknown scene") from None
+                              f"{known_names(name, available, label='built-ins')}"],
+                             title="unknown scene") from None
         source = f"built-in scene {name}"
     else:
         text = read_text_file(p, "scene file", title="cannot read the scene")

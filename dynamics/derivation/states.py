@@ -42,8 +42,9 @@ def initial_state_map(model) -> ca.Function:
     return _state_map(model).function
 
 
-def _state_map(model) -> "_StateMap":
-    return INITIAL_STATE_MAPS.get(model.numeric, "initial_state", lambda: _StateMap(_build_initial_state_map(model)))
+def _state_map(model) -> _StateMap:
+    return INITIAL_STATE_MAPS.get(model.numeric,
+                                  "initial_state", lambda: _StateMap(_build_initial_state_map(model)))
 
 
 def _build_initial_state_map(model) -> ca.Function:
@@ -77,7 +78,7 @@ class _StateMap:
 
     def __call__(self, args) -> tuple:
         """(x, measure, residual) at ``args`` = (q, qdot, params), each a flat float array."""
-        for i, (a, size) in enumerate(zip(args, self.sizes_in)):
+        for i, (a, size) in enumerate(zip(args, self.sizes_in, strict=True)):
             if a.size != size:
                 raise ModelError([f"{self.function.name_in(i)} has {a.size} entries, expected {size}"],
                                  title="invalid state")
@@ -91,7 +92,7 @@ class _StateMap:
 def _pieces(array: np.ndarray, sizes) -> list:
     """Consecutive views of ``array`` of the given sizes."""
     ends = np.cumsum([0] + list(sizes))
-    return [array[a:b] for a, b in zip(ends[:-1], ends[1:])]
+    return [array[a:b] for a, b in zip(ends[:-1], ends[1:], strict=True)]
 
 
 def _evaluate(model, q, qdot, params) -> tuple:
@@ -116,7 +117,7 @@ def _check_measure(model, q, measure: float) -> None:
     measure other than 1, see :meth:`~.formulation_base.Formulation.configuration_measure`)."""
     if not math.isfinite(measure) or measure < SINGULAR_TOL:
         names = model.system.coordinates
-        where = ", ".join(f"{c} = {v:.6g}" for c, v in zip(names, q))
+        where = ", ".join(f"{c} = {v:.6g}" for c, v in zip(names, q, strict=True))
         raise SingularConfigurationError([
             f"q = ({where}) is on the singular set of the reduction: a matrix the reduction "
             f"inverts (the constraints on the fiber ({', '.join(model.fiber)}), their pivot "
@@ -166,11 +167,12 @@ def _checked(model, q, qdot, params, tol) -> tuple:
         limit = tol * max(1.0, math.hypot(*values[system.n:]))
         residuals = res.tolist()
         if any(abs(r) > limit for r in residuals) and not any(math.isnan(r) for r in residuals):
-            raise ModelError([f"the state violates the constraints ω(q)q̇ = 0 (tolerance {tol:g}·max(1, |q̇|)); "
-                              "give velocities in the constraint distribution D_q, or only some of them (the "
-                              "others follow from ω(q)q̇ = 0)"]
+            raise ModelError(["the state violates the constraints ω(q)q̇ = 0 (tolerance "
+                              f"{tol:g}·max(1, |q̇|)); give velocities in the constraint distribution D_q, "
+                              "or only some of them (the others follow from ω(q)q̇ = 0)"]
                              + [f"constraint {i + 1} ({expr} = 0): residual {r:.6g} at this configuration"
-                                for i, (expr, r) in enumerate(zip(system.constraint_exprs, residuals)) if abs(r) > limit],
+                                for i, (expr, r) in enumerate(zip(system.constraint_exprs, residuals,
+                                                                  strict=True)) if abs(r) > limit],
                              title="inconsistent state")
     return x, measure
 
@@ -184,7 +186,7 @@ def _check_holonomic(system, q, params, tol) -> None:
     if np.all(np.abs(residual) <= limit):
         return
     problems = [f"the configuration violates the holonomic constraint {h} = 0: residual {r:.6g}"
-                for h, r in zip(system.holonomic, residual) if not abs(r) <= limit]
+                for h, r in zip(system.holonomic, residual, strict=True) if not abs(r) <= limit]
     try:
         fixed = consistent_configuration(system, q, params=params)
         names = list(system.coordinates)
@@ -247,7 +249,8 @@ def consistent_velocities(system, q, given: dict, *, params=None, tol: float = 1
     if system.k == 0:
         if U:
             raise ModelError([f"without constraints every velocity must be given; missing "
-                              f"{', '.join(names[i] + '_dot' for i in U)}"], title="cannot solve for the velocities")
+                              f"{', '.join(names[i] + '_dot' for i in U)}"],
+                             title="cannot solve for the velocities")
         return qdot
     f_w = system.numeric_functions()[1]
     with np.errstate(all="ignore"):
@@ -263,7 +266,8 @@ def consistent_velocities(system, q, given: dict, *, params=None, tol: float = 1
         free = [names[i] + "_dot" for i in U if i not in pivots]
         raise ModelError([f"the given velocities ({', '.join(c + '_dot' for c in values) or 'none'}) do not "
                           f"determine the rest: {len(U)} unknown velocities but only {rank} independent "
-                          f"constraints on them at this q; give {len(U) - rank} more, for example {', '.join(free)}"],
+                          f"constraints on them at this q; give {len(U) - rank} more, for example "
+                          f"{', '.join(free)}"],
                          title="cannot solve for the velocities")
     rhs = -W[:, G] @ qdot[G]
     if U:

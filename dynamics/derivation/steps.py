@@ -186,7 +186,8 @@ class Step:
         return self.labels.get(key, key)
 
     def to_latex(self, symbol_names=None) -> str:
-        head = f"\\paragraph{{Step {self.number}: {tex_text(self.title)}}} ({tex_text(self.thesis)}) {tex_text(self.note)}"
+        head = (f"\\paragraph{{Step {self.number}: {tex_text(self.title)}}} ({tex_text(self.thesis)}) "
+                f"{tex_text(self.note)}")
         maths, text = [], []
         for key, obj in self.items.items():
             name = r"\text{" + tex_text(self.label(key)) + "}"

@@ -8,9 +8,15 @@ idea per module — :mod:`~nhgait.dynamics.algebra.trig` (the trig normal form),
 from __future__ import annotations
 
 from ..algebra.fraction_field import FracField, as_sympy  # noqa: F401 - re-exported
-from ..algebra.matrices import (LARGE_MATRIX_NODES, is_large, null_basis_adjugate,  # noqa: F401
-                                numeric_pivots, plain_adjugate, plain_det, strip_factors)
+from ..algebra.matrices import (  # noqa: F401
+                                LARGE_MATRIX_NODES,
+                                is_large,
+                                null_basis_adjugate,
+                                numeric_pivots,
+                                plain_adjugate,
+                                plain_det,
+                                strip_factors,
+)
 from ..algebra.matrix_ops import MatrixOps  # noqa: F401
 from ..algebra.ring import NotRational, WorkBudgetExceeded  # noqa: F401
-from ..algebra.trig import (TIDY_NODES, has_trig, independent_arguments, tidy, tree_size,  # noqa: F401
-                            trig_normal)
+from ..algebra.trig import TIDY_NODES, has_trig, independent_arguments, tidy, tree_size, trig_normal  # noqa: F401

@@ -17,7 +17,8 @@ For every candidate set of fiber coordinates s ⊂ q (the rest r are shape coord
   (Table 2.1), accepted only when no full candidate exists.
 
 Selection rule (documented in docs/reduction.md): fewest shape constraints k − rank ω_s first,
-then a full candidate before a principally kinematic one, then smallest dimension l; ties go to the candidate with fewer forced fiber coordinates, then to coordinate order.
+then a full candidate before a principally kinematic one, then smallest dimension l; ties go to the
+candidate with fewer forced fiber coordinates, then to coordinate order.
 
 How many candidates are tested
 ------------------------------
@@ -43,8 +44,8 @@ from functools import cached_property
 import numpy as np
 import sympy as sp
 
-from ..errors import ModelError
 from ..algebra.matrices import null_basis_adjugate, numeric_pivots
+from ..errors import ModelError
 from .system import System
 
 #: verdict labels
@@ -82,7 +83,8 @@ class Candidate:
         """l×d basis of S_q in the s-components (None when rank ω_s < k)."""
         if self.omega_s is None:
             return None
-        Ws = self.omega_s if self.rows is None else self.omega_s.extract(list(self.rows), list(range(len(self.fiber))))
+        Ws = self.omega_s if self.rows is None else self.omega_s.extract(list(self.rows),
+                                                                         list(range(len(self.fiber))))
         if Ws.shape[0] == 0:
             return sp.eye(len(self.fiber))
         return null_basis_adjugate(Ws, list(self.pivots))
@@ -135,12 +137,15 @@ class SymmetryTest:
                 "|---|---|---|---|---|---|---|---|"]
         for c in self.candidates:
             sq = "—" if c.S_q is None else ("{0}" if c.S_q.shape[1] == 0 else
-                                            "span{" + ", ".join(_vec(c.S_q[:, j]) for j in range(c.S_q.shape[1])) + "}")
+                                            "span{" + ", ".join(_vec(c.S_q[:, j])
+                                                                for j in range(c.S_q.shape[1])) + "}")
             xi = "—" if c.xi is None else ("0" if c.xi.shape[1] == 0 else
                                           "; ".join(_vec(c.xi[:, j]) for j in range(c.xi.shape[1])))
             mark = " **(chosen)**" if c is self.chosen else ""
-            rows.append(f"| ({', '.join(c.fiber)}) | {c.group} | span{{{', '.join('∂/∂' + s for s in c.orbit_tangent)}}}"
-                        f" | {c.rank} | {'yes' if c.invariant else 'no'} | {sq} | {xi} | {c.verdict}{mark}: {c.reason} |")
+            rows.append(f"| ({', '.join(c.fiber)}) | {c.group} | "
+                        f"span{{{', '.join('∂/∂' + s for s in c.orbit_tangent)}}}"
+                        f" | {c.rank} | {'yes' if c.invariant else 'no'} | {sq} | {xi} | {c.verdict}{mark}: "
+                        f"{c.reason} |")
         if self.search:
             rows.append(f"\n{self.search}")
         return "\n".join(rows)
@@ -196,7 +201,7 @@ def _invariance(system: System, fiber: tuple[str, ...], free: set) -> tuple[bool
     """Is (L, ω) invariant under the group acting on the fiber? Returns (ok, group label, why).
     ``free``: the free symbols of M, ω and V."""
     s_syms = {system.q[system.coordinates.index(c)] for c in fiber}
-    dep = sorted((s.name for s in s_syms & free))
+    dep = sorted(s.name for s in s_syms & free)
     label = f"R^{len(fiber)} ({', '.join(fiber)})"
     if not dep:
         return True, label, f"L and ω do not depend on {', '.join(fiber)}"
@@ -278,7 +283,8 @@ def _candidate(inputs: _TestInputs, idx) -> Candidate:
     rows = None
     if k and rank < k:   # the other k − rank constraints restrict the shape velocities
         rows = tuple(numeric_pivots(Wn[0][:, idx].T))
-    piv = numeric_pivots(Wn[0][np.ix_(list(rows), list(idx))] if rows is not None else Wn[0][:, idx]) if k and rank else []
+    piv = (numeric_pivots(Wn[0][np.ix_(list(rows), list(idx))] if rows is not None else Wn[0][:, idx]) if k
+           and rank else [])
     d = size - rank
     locked = _locked(inputs, idx, fiber, rank)
     if not inv:
@@ -313,7 +319,8 @@ def _choose(system: System, candidates: list, search: str = "") -> SymmetryTest:
     full = sorted((c for c in candidates if c.admissible), key=lambda c: _rank_key(system, c))
     if not full:
         table = (SymmetryTest(system, tuple(candidates), candidates[0], "test", search).table_markdown()
-                 if candidates else f"(no subset can be a symmetry: L or ω depends on every coordinate) {search}")
+                 if candidates
+                 else f"(no subset can be a symmetry: L or ω depends on every coordinate) {search}")
         raise ModelError(["no candidate group of fiber coordinates gives a full Lie algebra element "
                           "(and none is principally kinematic); the symmetry table:\n" + table],
                          title="no full symmetry group")
@@ -323,7 +330,7 @@ def _choose(system: System, candidates: list, search: str = "") -> SymmetryTest:
 def _rank_key(system: System, c: Candidate) -> tuple:
     """The selection rule as a sort key (smallest first; see the module docstring)."""
     names = system.coordinates
-    forced = {name for name, f in zip(names, system.tau) if f != 0}
+    forced = {name for name, f in zip(names, system.tau, strict=True) if f != 0}
     return (system.k - c.rank, c.verdict != FULL, len(c.fiber), len(set(c.fiber) & forced),
             [names.index(f) for f in c.fiber])
 
@@ -348,7 +355,8 @@ def symmetry_test(system: System, M: sp.Matrix | None = None, *,
     if system.fiber is not None:
         idx = tuple(sorted(system.coordinates.index(c) for c in system.fiber))
         return _choose(system, [_candidate(inputs, idx)],
-                       f"n = {n} > {FULL_TABLE_MAX_N}: the given fiber is tested alone (no table of the 2^{n} − 1 subsets)")
+                       f"n = {n} > {FULL_TABLE_MAX_N}: the given fiber is tested alone (no table of the "
+                       f"2^{n} − 1 subsets)")
     candidates, search = _pruned_candidates(inputs, max_candidates)
     return _choose(system, candidates, search)
 
@@ -362,7 +370,8 @@ def _symmetry_sets(inputs: _TestInputs, size: int, plain: list) -> list:
         frame = {system.coordinates.index(c) for c in system.planar_frame}
         others = [i for i in plain if i not in frame]
         if size >= len(frame):
-            sets.update(tuple(sorted(frame | set(rest))) for rest in itertools.combinations(others, size - len(frame)))
+            sets.update(tuple(sorted(frame | set(rest)))
+                        for rest in itertools.combinations(others, size - len(frame)))
     return sorted(sets)
 
 
@@ -373,7 +382,8 @@ def _pruned_candidates(inputs: _TestInputs, budget: int) -> tuple[list, str]:
     n, k = system.n, system.k
     plain = [i for i, q in enumerate(system.q) if q not in inputs.free]
     columns = sorted(set(plain) | {system.coordinates.index(c) for c in (system.planar_frame or ())})
-    best_rank = min((np.linalg.matrix_rank(w[:, columns], tol=1e-9 * max(1, np.abs(w).max())) if k and columns else 0)
+    best_rank = min((np.linalg.matrix_rank(w[:, columns], tol=1e-9 * max(1, np.abs(w).max())) if k
+                     and columns else 0)
                     for w in inputs.W_samples)
     candidates, tested = [], 0
     for size in range(1, n + 1):
@@ -385,8 +395,9 @@ def _pruned_candidates(inputs: _TestInputs, budget: int) -> tuple[list, str]:
         admissible = [c for c in candidates if c.admissible]
         if any(c.verdict == FULL and c.rank == best_rank for c in admissible):
             break
-    return candidates, (f"n = {n} > {FULL_TABLE_MAX_N}: {tested} of the 2^{n} − 1 subsets tested (those that can be "
-                        f"symmetries, up to {size} coordinates; no larger set comes first in the rule)")
+    return candidates, (f"n = {n} > {FULL_TABLE_MAX_N}: {tested} of the 2^{n} − 1 subsets tested (those "
+                        f"that can be symmetries, up to {size} coordinates; no larger set comes first "
+                        "in the rule)")
 
 
 def _over_budget(system: System, candidates: list, tested: int, size: int, budget: int) -> tuple[list, str]:
@@ -394,10 +405,13 @@ def _over_budget(system: System, candidates: list, tested: int, size: int, budge
     an error asking for the fiber."""
     admissible = sorted((c for c in candidates if c.admissible), key=lambda c: _rank_key(system, c))
     if not admissible:
-        raise ModelError([f"the symmetry search over {system.n} coordinates found no admissible fibre among the "
-                          f"{tested} candidate sets of up to {size - 1} coordinates, and testing sets of {size} "
-                          f"would exceed {budget} candidates: name the fibre coordinates in [system] "
-                          "(fiber = [...]; System(fiber=...))"], title="symmetry search too large")
-    return candidates, (f"n = {system.n} > {FULL_TABLE_MAX_N}: the search stopped after {tested} candidate sets of up "
-                        f"to {size - 1} coordinates (budget {budget}); the best found is taken — name another "
-                        "fibre in [system] (fiber = [...]) to choose")
+        raise ModelError([f"the symmetry search over {system.n} coordinates found no admissible "
+                          "fibre among the "
+                          f"{tested} candidate sets of up to {size - 1} coordinates, and testing "
+                          f"sets of {size} would exceed {budget} candidates: name the fibre coordinates "
+                          "in [system] (fiber = [...]; System(fiber=...))"],
+                         title="symmetry search too large")
+    return candidates, (f"n = {system.n} > {FULL_TABLE_MAX_N}: the search stopped after {tested} "
+                        "candidate sets of up "
+                        f"to {size - 1} coordinates (budget {budget}); the best found is taken — "
+                        "name another fibre in [system] (fiber = [...]) to choose")

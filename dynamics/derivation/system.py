@@ -18,8 +18,8 @@ Conventions
 """
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
-from typing import Mapping, Sequence
 
 import numpy as np
 import sympy as sp
@@ -175,7 +175,8 @@ class System:
         """What the holonomic constraints became, one indented line each (empty without)."""
         lines = [f"  holonomic: {c} = {sp.sstr(e)} (eliminated)" for c, e in self.eliminated]
         lines += [f"  holonomic: {sp.sstr(h)} = 0 kept as constraint {row + 1} (its velocity form); "
-                  f"{c} follows the other coordinates" for h, c, row in zip(self.holonomic, self.dependent, self.holonomic_rows)]
+                  f"{c} follows the other coordinates"
+                  for h, c, row in zip(self.holonomic, self.dependent, self.holonomic_rows, strict=True)]
         return lines
 
     def mass_matrix(self) -> sp.Matrix:
@@ -203,7 +204,8 @@ class System:
         return sp.Matrix(METRICS.get(self, "omega", self._omega_rows))
 
     def _omega_rows(self) -> list:
-        return [linear_split(c, self.q_dot) or [sp.diff(c, v) for v in self.q_dot] for c in self.constraint_exprs]
+        return [linear_split(c, self.q_dot) or [sp.diff(c, v) for v in self.q_dot]
+                for c in self.constraint_exprs]
 
     def force_jump_times(self, values=None) -> tuple:
         """Times at which a force jumps (Heaviside/sign of a·t + b): integration breakpoints
@@ -265,7 +267,8 @@ class System:
         if self.holonomic or self.eliminated:
             parts += ["holonomic=" + ";".join(sp.srepr(h, order="none") for h in self.holonomic),
                       "dependent=" + ",".join(self.dependent),
-                      "eliminated=" + ";".join(f"{c}:{sp.srepr(e, order='none')}" for c, e in self.eliminated)]
+                      "eliminated="
+                      + ";".join(f"{c}:{sp.srepr(e, order='none')}" for c, e in self.eliminated)]
         return "\n".join(parts)
 
     def __repr__(self) -> str:

@@ -25,15 +25,15 @@ from __future__ import annotations
 
 import keyword
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Mapping, NamedTuple
+from typing import NamedTuple
 
 import sympy as sp
 
 from nhgait.dynamics.suggestions import known_names
 
 from ..algebra.symbols import TIME
-
 from .expressions import CONSTANTS, FUNCTIONS, expression_problems, number_problems
 from .holonomic import choose_dependent, eliminate, velocity_row
 
@@ -67,7 +67,8 @@ def names_of(value, field_name: str, problems: list, *, required: bool = False) 
         return []
     if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
         kind = "a string" if isinstance(value, str) else type(value).__name__
-        hint = f' (write {field_name} = ["{value.split()[0]}", ...])' if isinstance(value, str) and value.split() else ""
+        hint = (f' (write {field_name} = ["{value.split()[0]}", ...])' if isinstance(value, str)
+                and value.split() else "")
         problems.append(f"{field_name}: expected a list of names, got {kind}{hint}")
         return []
     out = []
@@ -220,7 +221,7 @@ def parse_system(statement) -> ParsedSystem:
     coordinates = tuple(c.name for c in stated.q)
     fiber, planar_frame = _frames(statement, list(coordinates), problems)
     return ParsedSystem(
-        coordinates=coordinates, parameters=dict(zip(declared.parameters, declared.values)),
+        coordinates=coordinates, parameters=dict(zip(declared.parameters, declared.values, strict=True)),
         inputs=tuple(u.name for u in inputs), q=stated.q, q_dot=stated.q_dot, L=stated.L,
         constraint_exprs=tuple(c for c in stated.cons if c is not None), tau=stated.tau,
         param_symbols=symbols.params, param_values=tuple(declared.values), input_symbols=tuple(inputs),
@@ -253,19 +254,21 @@ def _holonomic(statement, declared: _Declared, symbols: _Symbols, problems: list
     if isinstance(raw, (str, sp.Expr)):
         problems.append("holonomic: expected a list of expressions (write holonomic = [\"...\"])")
         return [], []
-    exprs = [parse_field(h, symbols.names, f"holonomic constraint {i + 1}", problems) for i, h in enumerate(raw)]
+    exprs = [parse_field(h, symbols.names, f"holonomic constraint {i + 1}", problems)
+             for i, h in enumerate(raw)]
     dependent = getattr(statement, "dependent", None)
     wanted = [None] * len(exprs)
     if dependent is not None:
         named = names_of(dependent, "dependent", problems)
         if len(named) != len(exprs):
-            problems.append(f"dependent: one coordinate per holonomic constraint ({len(exprs)}), got {len(named)}")
+            problems.append(f"dependent: one coordinate per holonomic constraint ({len(exprs)}), got "
+                            f"{len(named)}")
         else:
             wanted = named
     if not declared.names_ok:
         return exprs, wanted
     known = frozenset(symbols.q) | frozenset(symbols.params)
-    for i, (h, c) in enumerate(zip(exprs, wanted)):
+    for i, (h, c) in enumerate(zip(exprs, wanted, strict=True)):
         if h is None:
             continue
         where = f"holonomic constraint {i + 1}"
@@ -284,7 +287,7 @@ def _holonomic(statement, declared: _Declared, symbols: _Symbols, problems: list
 def _constrained(stated: _Stated, holonomic, wanted, declared: _Declared, problems: list) -> _Stated:
     """Step 4b: eliminate what can be solved, keep the rest with its velocity rows (:mod:`.holonomic`)."""
     el = eliminate(stated.q, stated.q_dot, stated.L, stated.cons, stated.tau, holonomic, wanted)
-    params = dict(zip(declared.parameters, declared.values))
+    params = dict(zip(declared.parameters, declared.values, strict=True))
     kept = [h for h, _ in el.holonomic]
     names = [c.name for c in el.q]
     dependent = []
@@ -295,7 +298,7 @@ def _constrained(stated: _Stated, holonomic, wanted, declared: _Declared, proble
         dependent.append(c if c is not None else names[choose_dependent(h, el.q, params)])
     rows = tuple(velocity_row(h, el.q, el.q_dot) for h in kept)
     changed = bool(el.eliminated)
-    forces = {c: t for c, t in zip(names, el.tau) if t != 0} if changed else stated.forces
+    forces = {c: t for c, t in zip(names, el.tau, strict=True) if t != 0} if changed else stated.forces
     return _Stated(el.q, el.q_dot, el.L, el.constraints + rows, el.tau, tuple(kept), tuple(dependent),
                    stated.eliminated + el.eliminated, el.L if changed else stated.lagrangian,
                    list(el.constraints) if changed else stated.constraints, forces)
@@ -326,7 +329,8 @@ def _declare(statement, problems: list) -> _Declared:
                             " inputs and t must be distinct)")
         seen.add(nm)
     names_ok = not problems
-    values = [number_problems(v, f"parameter {nm!r}", problems) for nm, v in zip(param_names, params.values())]
+    values = [number_problems(v, f"parameter {nm!r}", problems)
+              for nm, v in zip(param_names, params.values(), strict=False)]
     return _Declared(coord_names, param_names, values, declared, names_ok)
 
 
@@ -351,7 +355,8 @@ def _expressions(statement, declared: _Declared, symbols: _Symbols, problems: li
     raw = statement.constraints if statement.constraints is not None else ()
     if isinstance(raw, (str, sp.Expr)):
         problems.append("constraints: expected a list of expressions, got a single "
-                        f"{'string' if isinstance(raw, str) else 'expression'} (write constraints = [\"...\"])")
+                        f"{'string' if isinstance(raw, str) else 'expression'} (write constraints "
+                        "= [\"...\"])")
         raw = ()
     cons = [parse_field(c, names, f"constraint {i + 1}", problems) for i, c in enumerate(raw)]
     tau = _forces(statement, declared, names, problems)
@@ -370,9 +375,9 @@ def _expressions(statement, declared: _Declared, symbols: _Symbols, problems: li
                 if s not in known and s != TIME and s not in found:
                     found.append(s)
         inputs = tuple(sp.Symbol(s.name, real=True) for s in found)   # API symbols may lack real=True
-        return L, cons, [e.xreplace(dict(zip(found, inputs))) for e in tau], inputs
+        return L, cons, [e.xreplace(dict(zip(found, inputs, strict=True))) for e in tau], inputs
     inputs = tuple(names[u] for u in declared.inputs)
-    for cname, e in zip(declared.coordinates, tau):
+    for cname, e in zip(declared.coordinates, tau, strict=True):
         _check_symbols(e, f"the force on {cname}", known | set(inputs) | {TIME}, names, problems)
     return L, cons, tau, inputs
 
@@ -511,7 +516,8 @@ def _frames(statement, coord_names: list, problems: list) -> tuple:
             problems.append(f"planar_frame: need three coordinate names (x, y, heading), got {frame}")
     forward = getattr(statement, "forward", "x")
     if forward not in ("x", "y", "-x", "-y"):
-        problems.append(f"forward: the body axis that points forward is \"x\", \"y\", \"-x\" or \"-y\", got {forward!r}")
+        problems.append("forward: the body axis that points forward is \"x\", \"y\", \"-x\" or \"-y\", got "
+                        f"{forward!r}")
     elif forward != "x" and frame is None:
         problems.append(f"forward = {forward!r} needs a planar frame (planar_frame = [x, y, heading])")
     return fiber, frame
@@ -532,8 +538,9 @@ def _check_symbols(expr, where: str, known, names: dict, problems: list) -> None
             hint = f" (no coordinate named {s.name[:-4]!r})"
         elif velocity_name(s.name) in names:
             hint = ""
+        allowed = [n for n, k in names.items() if k in known and k != TIME]
         problems.append(f"unknown symbol {s.name!r} in {where}: not a coordinate, velocity"
-                        f" or parameter{hint}{known_names(s.name, [n for n, k in names.items() if k in known and k != TIME], sep='; ')}")
+                        f" or parameter{hint}{known_names(s.name, allowed, sep='; ')}")
     for f in expr.atoms(sp.Function):
         if isinstance(f, sp.core.function.AppliedUndef):
             problems.append(f"unknown function {f.func.__name__!r} in {where}")

@@ -114,4 +114,5 @@ def decode_utf8(data: bytes, where: str, title: str) -> str:
 
 def _latin1_like(data: bytes) -> bool:
     """No NUL byte and mostly printable ASCII: 8-bit text in a legacy encoding."""
-    return b"\0" not in data and sum(32 <= b < 127 or b in (9, 10, 13) for b in data[:4096]) > 0.9 * min(len(data), 4096)
+    return (b"\0" not in data
+            and sum(32 <= b < 127 or b in (9, 10, 13) for b in data[:4096]) > 0.9 * min(len(data), 4096))

@@ -19,5 +19,6 @@ def read_toml(text: str, source: str, error=ModelError) -> dict:
     except tomllib.TOMLDecodeError as exc:
         raise error([f"TOML syntax error: {exc}"], title=f"invalid file {source}") from None
     except RecursionError:        # tomllib parses nested arrays and inline tables recursively
-        raise error(["TOML syntax error: arrays or inline tables nested too deeply (a scene needs a few levels)"],
+        raise error(["TOML syntax error: arrays or inline tables nested too deeply (a scene needs "
+                     "a few levels)"],
                     title=f"invalid file {source}") from None

@@ -63,11 +63,11 @@ class StabilityChart:
         or the grid's ends)."""
         edges = [float(self.speeds[0])] + [c.speed for c in self.changes] + [float(self.speeds[-1])]
         verdicts = [self.verdicts[0]] + [c.above for c in self.changes]
-        return [(a, b) for a, b, v in zip(edges[:-1], edges[1:], verdicts) if v == STABLE]
+        return [(a, b) for a, b, v in zip(edges[:-1], edges[1:], verdicts, strict=True) if v == STABLE]
 
     def to_text(self) -> str:
-        lines = [f"eigenvalues at {len(self.speeds)} speeds from {self.speeds[0]:g} to {self.speeds[-1]:g} m/s "
-                 f"(states {', '.join(self.states)})"]
+        lines = [f"eigenvalues at {len(self.speeds)} speeds from {self.speeds[0]:g} to "
+                 f"{self.speeds[-1]:g} m/s (states {', '.join(self.states)})"]
         if not self.changes:
             lines.append(f"  stability does not change: {self.verdicts[0]} at every speed")
         lines += [f"  stability changes at {c.sentence()}" for c in self.changes]
@@ -106,7 +106,8 @@ def parse_speeds(text: str) -> np.ndarray:
     raise ModelError(problems, title="invalid linearisation request")
 
 
-def stability_chart(model, speeds, *, configuration=None, inputs=None, params=None, progress=None) -> StabilityChart:
+def stability_chart(model, speeds, *, configuration=None, inputs=None, params=None,
+                    progress=None) -> StabilityChart:
     """Linearise the straight steady motion of ``model`` at each of ``speeds`` and refine the
     speeds where its stability changes (module docstring)."""
     speeds = np.asarray(speeds, dtype=float)

@@ -121,8 +121,8 @@ class Linearisation:
         """JSON-ready: ``eigenvalues`` as [re, im] pairs, A and B as nested lists."""
         ref = self.reference
         return {"reference": {"kind": ref.kind, "speed": ref.speed,
-                              "q": dict(zip(self.coordinates, ref.q.tolist())),
-                              "qdot": dict(zip(self.coordinates, ref.qdot.tolist()))},
+                              "q": dict(zip(self.coordinates, ref.q.tolist(), strict=True)),
+                              "qdot": dict(zip(self.coordinates, ref.qdot.tolist(), strict=True))},
                 "states": list(self.states), "inputs": list(self.inputs), "cyclic": list(self.cyclic),
                 "A": self.A.tolist(), "B": self.B.tolist(),
                 "eigenvalues": [[float(v.real), float(v.imag)] for v in self.eigenvalues],
@@ -181,7 +181,7 @@ def linearise(model, *, speed=None, configuration=None, inputs=None, params=None
     eigenvalues, vectors = _reduced_eigen(A, basis, family)
     tolerance = TOLERANCE * max(1.0, float(np.max(np.abs(eigenvalues), initial=0.0)))
     modes = tuple(_mode(lam, vec, names, model.system.n, keep, tolerance)
-                  for lam, vec in zip(eigenvalues, vectors.T))
+                  for lam, vec in zip(eigenvalues, vectors.T, strict=True))
     cyclic = tuple(model.state_names[i] for i in range(model.system.n) if i not in keep)
     return Linearisation(reference=ref, coordinates=tuple(model.system.coordinates), states=names,
                          inputs=tuple(model.system.inputs), A=A, B=B, cyclic=cyclic,
@@ -221,7 +221,8 @@ def _check_at_rest(num, ref, keep, names, A) -> None:
     """f_K(z*, u*) = 0, or one error naming the rates that are not."""
     f = np.asarray(num["rhs"](0.0, ref.z, ref.u, ref.params), dtype=float).ravel()[keep]
     limit = REST * (1.0 + float(np.max(np.abs(ref.z)))) * max(1.0, float(np.max(np.abs(A), initial=0.0)))
-    moving = [f"d{name}/dt = {value:.6g}" for name, value in zip(names, f) if not abs(value) <= limit]
+    moving = [f"d{name}/dt = {value:.6g}" for name, value in zip(names, f, strict=True)
+              if not abs(value) <= limit]
     if moving:
         what = "a steady motion" if ref.kind == STEADY else "an equilibrium"
         raise ModelError([f"the reference is not {what}: {', '.join(moving)} (should be 0; tolerance "
@@ -248,7 +249,8 @@ def _restriction(model, ref, keep, A) -> tuple:
         scale = max(1.0, float(np.max(np.abs(A), initial=0.0))) * float(np.linalg.norm(d))
         if np.linalg.norm(d) > 0 and np.linalg.norm(A @ d) <= 1e-9 * scale:
             family = d
-            removed.append("removed: λ = 0 along the family of straight steady motions (a neighbouring speed)")
+            removed.append("removed: λ = 0 along the family of straight steady motions (a "
+                           "neighbouring speed)")
         else:
             removed.append("kept: the direction of a neighbouring speed is not a null vector of A here")
     return basis, family, removed
@@ -263,7 +265,8 @@ def _tangent_basis(system, ref, keep) -> np.ndarray:
     outside = [j for j in range(n) if j not in keep and np.any(G[:, j] != 0)]
     if outside:
         raise ModelError([f"the holonomic constraints read the cyclic coordinates "
-                          f"{', '.join(system.coordinates[j] for j in outside)}"], title="invalid linearisation request")
+                          f"{', '.join(system.coordinates[j] for j in outside)}"],
+                         title="invalid linearisation request")
     G_K = np.zeros((G.shape[0], len(keep)))
     for col, state in enumerate(keep):
         if state < n:
@@ -319,5 +322,5 @@ def _matrix_text(M: np.ndarray, rows, columns) -> str:
     """A labelled matrix, 12 significant digits."""
     width = max(14, *(len(c) + 1 for c in columns))
     head = " " * 16 + "".join(f"{c:>{width}}" for c in columns)
-    body = [f"    {r:<12}" + "".join(f"{v:>{width}.6g}" for v in row) for r, row in zip(rows, M)]
+    body = [f"    {r:<12}" + "".join(f"{v:>{width}.6g}" for v in row) for r, row in zip(rows, M, strict=True)]
     return "\n".join([head] + body)

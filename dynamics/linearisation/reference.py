@@ -53,7 +53,8 @@ class ReferenceMotion:
 
     def describe(self, coordinates) -> str:
         """One line: which motion, at which configuration."""
-        where = ", ".join(f"{c} = {v:.6g}" for c, v in zip(coordinates, self.q) if v != 0) or "q = 0"
+        where = ", ".join(f"{c} = {v:.6g}"
+                          for c, v in zip(coordinates, self.q, strict=True) if v != 0) or "q = 0"
         if self.kind == STEADY:
             return f"straight steady motion at {self.speed:.6g} m/s ({where})"
         return f"equilibrium at rest ({where})"
@@ -92,7 +93,8 @@ def reference_motion(model, *, speed=None, configuration=None, inputs=None, para
         problems.append(f"the speed must be a finite number, got {speed}")
     if speed is not None and system.planar_frame is None:
         problems.append("a steady motion at a forward speed needs a planar frame (x, y, heading): "
-                        "write planar_frame = [...] in [system], or linearise about an equilibrium (no --speed)")
+                        "write planar_frame = [...] in [system], or linearise about an equilibrium "
+                        "(no --speed)")
     if problems:
         raise ModelError(problems, title="invalid linearisation request")
     if system.holonomic:

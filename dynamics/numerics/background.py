@@ -54,8 +54,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import STOP_SIGNALS, Terminated
-from .compiler import (STALE_BUILD_S, CompileJob, CompilerUnavailable, compile_in, compiler_command, library_dir,
-                       library_key)
+from .compiler import (
+    STALE_BUILD_S,
+    CompileJob,
+    CompilerUnavailable,
+    compile_in,
+    compiler_command,
+    library_dir,
+    library_key,
+)
 
 __all__ = ["BackgroundBuild", "Builders", "BUILDERS", "start_build", "wait_for_build", "background_allowed",
            "MEMORY_BYTES", "TIMEOUT_S", "NICENESS", "main"]
@@ -153,7 +160,8 @@ def start_build(source: str, *, flags: tuple, salt: str, libs: tuple = ("-lm",),
     flags, libs = tuple(flags), tuple(libs)
     command = compiler_command()
     if command is None:
-        return BackgroundBuild("unavailable", flags, reason="no C compiler found (looked for $NHGAIT_CC, $CC, "
+        return BackgroundBuild("unavailable", flags,
+                               reason="no C compiler found (looked for $NHGAIT_CC, $CC, "
                                                             "gcc and cc)")
     name = Path(command[0]).name
     if os.name != "posix":
@@ -173,7 +181,8 @@ def start_build(source: str, *, flags: tuple, salt: str, libs: tuple = ("-lm",),
     try:
         proc = _spawn(directory, job, source)
     except OSError as exc:
-        return BackgroundBuild("unavailable", flags, name, key, reason=f"cannot start the builder ({exc.strerror})")
+        return BackgroundBuild("unavailable", flags, name, key,
+                               reason=f"cannot start the builder ({exc.strerror})")
     builders.add(proc)
     return BackgroundBuild("started", flags, name, key, proc.pid)
 
@@ -187,8 +196,8 @@ def _spawn(directory: Path, job: dict, source: str) -> subprocess.Popen:
         mask = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
         try:
             return subprocess.Popen([sys.executable, "-m", __name__, json.dumps(job)], stdin=fh,
-                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
-                                    close_fds=True)
+                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                    start_new_session=True, close_fds=True)
         finally:
             signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 

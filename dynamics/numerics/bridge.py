@@ -41,7 +41,7 @@ def to_casadi(exprs, symbols, sx_args):
     list of SX
     """
     reps, reduced = sp.cse(list(exprs), optimizations=None, order="none")
-    convert = _Converter({s: x for s, x in zip(symbols, sx_args)})
+    convert = _Converter({s: x for s, x in zip(symbols, sx_args, strict=True)})
     for sym, sub in reps:
         convert.table[sym] = convert(sub)
     return [convert(e) for e in reduced]

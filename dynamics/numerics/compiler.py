@@ -58,7 +58,8 @@ from ..errors import STOP_SIGNALS
 from ..memo import LruMemo
 
 __all__ = ["Library", "CompilerUnavailable", "build_library", "cached_library", "compiler_command",
-           "library_key", "jit_dir", "library_dir", "compile_in", "CompileJob", "STALE_BUILD_S", "COMPILER_COMMANDS"]
+           "library_key", "jit_dir", "library_dir", "compile_in", "CompileJob", "STALE_BUILD_S",
+           "COMPILER_COMMANDS"]
 
 #: a build folder older than this (seconds) is left over from a process that died: removed
 STALE_BUILD_S = 3600.0
@@ -231,7 +232,8 @@ def _wait(proc, cmd, start, progress, label, timeout) -> subprocess.CompletedPro
         except subprocess.TimeoutExpired:
             elapsed = time.perf_counter() - start
             if timeout is not None and elapsed > timeout:
-                raise CompilerUnavailable(f"the C compiler took more than {timeout:.0f} s ({label})") from None
+                raise CompilerUnavailable(f"the C compiler took more than {timeout:.0f} "
+                                          f"s ({label})") from None
             if progress is not None:
                 progress.heartbeat(label, elapsed)
 
@@ -386,7 +388,8 @@ def _compile_privately(job: CompileJob) -> Library:
         return replace(_compile(job, private), private=True)
     except OSError as exc:
         shutil.rmtree(private, ignore_errors=True)
-        raise CompilerUnavailable(f"cannot write the C compiler's files in {private} ({exc.strerror})") from None
+        raise CompilerUnavailable(f"cannot write the C compiler's files in {private} "
+                                  f"({exc.strerror})") from None
     except BaseException:
         shutil.rmtree(private, ignore_errors=True)
         raise

@@ -112,6 +112,7 @@ def compiled_fast(function, *, salt: str):
     every library (:func:`~.compiler.build_library`) — or ``function`` itself when there is no
     fast compiler or it fails (same inputs, outputs and results)."""
     import casadi as ca
+
     from .compiler import CompilerUnavailable, build_library
     fast = fast_compiler()
     if fast is None:

@@ -83,9 +83,9 @@ def solve_rows(A, B) -> list:
         for r2 in rows:
             if not M[r2][c].is_zero():
                 f = M[r2][c] / M[r][c]
-                M[r2] = [x - f * y if not y.is_zero() else x for x, y in zip(M[r2], M[r])]
+                M[r2] = [x - f * y if not y.is_zero() else x for x, y in zip(M[r2], M[r], strict=True)]
                 M[r2][c] = ca.SX(0)
-                R[r2] = [x - f * y for x, y in zip(R[r2], R[r])]
+                R[r2] = [x - f * y for x, y in zip(R[r2], R[r], strict=True)]
     m = len(B[0]) if B else 0
     X = {}
     if rows:

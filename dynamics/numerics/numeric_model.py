@@ -45,7 +45,7 @@ class NumericModel:
     n_coordinates: int = 0
     n_multipliers: int = 0
 
-    def with_defaults(self, values) -> "NumericModel":
+    def with_defaults(self, values) -> NumericModel:
         """The same compiled functions with other default parameter values (a structure is
         compiled once; each system binds its own values)."""
         values = tuple(float(v) for v in values)
@@ -62,9 +62,11 @@ class NumericModel:
         if isinstance(values, dict):
             for k, v in values.items():
                 if k not in self.param_names:
-                    from ..errors import ModelError
                     from nhgait.dynamics.suggestions import known_names
-                    raise ModelError([f"unknown parameter {k!r}{known_names(k, self.param_names, label='parameters')}"])
+
+                    from ..errors import ModelError
+                    raise ModelError(["unknown parameter "
+                                      f"{k!r}{known_names(k, self.param_names, label='parameters')}"])
                 vec[self.param_names.index(k)] = float(v)
             return vec
         arr = np.asarray(values, dtype=float).ravel()
@@ -226,21 +228,25 @@ def _reduced_functions(system, symbols: _ReducedSymbols, e: _ReducedExpressions)
     qddot = ca.jtimes(e.qdot, z, e.rhs)
     W = system.omega()
     map_syms = list(system.q) + list(system.q_dot) + list(system.param_symbols)
-    map_sx = [q[i] for i in range(system.n)] + [q_dot[i] for i in range(system.n)] + [params[i] for i in range(params.shape[0])]
+    map_sx = ([q[i] for i in range(system.n)] + [q_dot[i] for i in range(system.n)]
+              + [params[i] for i in range(params.shape[0])])
     constraint = (ca.vertcat(*to_casadi(list(W * sp.Matrix(system.q_dot)), map_syms, map_sx)) if system.k
                   else ca.SX(0, 1))
     return {
         "rhs": ca.Function("rhs", [t, z, u, params], [e.rhs], ["t", "z", "u", "params"], ["zdot"]),
-        "jacobian": ca.Function("rhs_jacobian", [t, z, u, params], [ca.jacobian(e.rhs, z), ca.jacobian(e.rhs, u)],
+        "jacobian": ca.Function("rhs_jacobian", [t, z, u, params],
+                                [ca.jacobian(e.rhs, z), ca.jacobian(e.rhs, u)],
                                 ["t", "z", "u", "params"], ["dfdz", "dfdu"]),
         "qdot": ca.Function("qdot", [z, params], [e.qdot], ["z", "params"], ["qdot"]),
         "qddot": ca.Function("qddot", [t, z, u, params], [qddot], ["t", "z", "u", "params"], ["qddot"]),
         "energy": ca.Function("energy", [z, params], [e.hamiltonian], ["z", "params"], ["h"]),
         "state": ca.Function("state", [q, q_dot, params], [ca.vertcat(q, e.momenta_of_velocity)],
                              ["q", "qdot", "params"], ["z"]),
-        "constraint": ca.Function("constraint", [q, q_dot, params], [constraint], ["q", "qdot", "params"], ["residual"]),
+        "constraint": ca.Function("constraint", [q, q_dot, params], [constraint], ["q", "qdot", "params"],
+                                  ["residual"]),
         "singular": ca.Function("singular", [q, params], [e.singular], ["q", "params"], ["gram"]),
-        "power": ca.Function("power", [t, z, u, params], [ca.dot(e.tau, e.qdot)], ["t", "z", "u", "params"], ["power"]),
+        "power": ca.Function("power", [t, z, u, params], [ca.dot(e.tau, e.qdot)],
+                             ["t", "z", "u", "params"], ["power"]),
         "basis": ca.Function("basis", [z, params], [e.basis], ["z", "params"], ["X"]),
         "structure": ca.Function("structure", [z, params], [e.structure], ["z", "params"], ["J_z"]),
     }
@@ -263,15 +269,18 @@ def compile_reduced(model, casadi_steps=None) -> NumericModel:
     t, u, params = _time_inputs_params(system)
     z = ca.SX.sym("z", nz)
     state_syms = [TIME_SYM] + list(model.state) + list(system.input_symbols) + list(system.param_symbols)
-    state_sx = [t] + [z[i] for i in range(nz)] + [u[i] for i in range(u.shape[0])] + [params[i] for i in range(params.shape[0])]
+    state_sx = ([t] + [z[i] for i in range(nz)] + [u[i] for i in range(u.shape[0])]
+                + [params[i] for i in range(params.shape[0])])
     of_state = _matrix_converter(state_syms, state_sx)
     q, q_dot = ca.SX.sym("q", n), ca.SX.sym("qdot", n)
     map_syms = list(system.q) + list(system.q_dot) + list(system.param_symbols)
-    map_sx = [q[i] for i in range(n)] + [q_dot[i] for i in range(n)] + [params[i] for i in range(params.shape[0])]
+    map_sx = ([q[i] for i in range(n)] + [q_dot[i] for i in range(n)]
+              + [params[i] for i in range(params.shape[0])])
     of_velocity = _matrix_converter(map_syms, map_sx)
     tau = of_state(system.force_vector().xreplace({v: model.qdot[i] for i, v in enumerate(system.q_dot)}))
     expressions = _ReducedExpressions(
-        rhs=of_state(model.rhs), qdot=of_state(model.qdot), hamiltonian=of_state(sp.Matrix([model.hamiltonian]))[0],
+        rhs=of_state(model.rhs), qdot=of_state(model.qdot),
+        hamiltonian=of_state(sp.Matrix([model.hamiltonian]))[0],
         momenta_of_velocity=of_velocity(model.momenta_of_velocity), basis=of_state(model.X),
         structure=of_state(model.structure), singular=singular_measure(model.layout, of_velocity), tau=tau)
     functions = _reduced_functions(system, _ReducedSymbols(t, z, u, params, q, q_dot), expressions)
@@ -329,10 +338,13 @@ def _dae_functions(symbols, e: _DAEExpressions) -> dict:
     ``symbols`` = (t, x, λ, u, params)."""
     t, x, lam, u, params = symbols
     return {
-        "ode": ca.Function("ode", [t, x, u, params], [e.xdot, e.lam], ["t", "x", "u", "params"], ["xdot", "lam"]),
-        "jacobian": ca.Function("rhs_jacobian", [t, x, u, params], [ca.jacobian(e.xdot, x), ca.jacobian(e.xdot, u)],
+        "ode": ca.Function("ode", [t, x, u, params], [e.xdot, e.lam], ["t", "x", "u", "params"],
+                           ["xdot", "lam"]),
+        "jacobian": ca.Function("rhs_jacobian", [t, x, u, params],
+                                [ca.jacobian(e.xdot, x), ca.jacobian(e.xdot, u)],
                                 ["t", "x", "u", "params"], ["dfdx", "dfdu"]),
-        "dae_f": ca.Function("dae_f", [t, x, lam, u, params], [e.xdot_dae], ["t", "x", "lam", "u", "params"], ["xdot"]),
+        "dae_f": ca.Function("dae_f", [t, x, lam, u, params], [e.xdot_dae],
+                             ["t", "x", "lam", "u", "params"], ["xdot"]),
         "dae_g": ca.Function("dae_g", [t, x, lam, u, params], [e.g], ["t", "x", "lam", "u", "params"], ["g"]),
         "energy": ca.Function("energy", [x, params], [e.energy], ["x", "params"], ["E"]),
         "constraint": ca.Function("constraint", [x, params], [e.constraint], ["x", "params"], ["residual"]),
@@ -350,7 +362,8 @@ def _dae_symbols(model):
     x = ca.SX.sym("x", 2 * system.n)
     lam = ca.SX.sym("lam", system.k)
     syms = [TIME_SYM] + list(model.state) + list(system.input_symbols) + list(system.param_symbols)
-    sx = [t] + [x[i] for i in range(x.shape[0])] + [u[i] for i in range(u.shape[0])] + [params[i] for i in range(params.shape[0])]
+    sx = ([t] + [x[i] for i in range(x.shape[0])] + [u[i] for i in range(u.shape[0])]
+          + [params[i] for i in range(params.shape[0])])
     return t, x, lam, u, params, lambda exprs: to_casadi(list(exprs), syms, sx)
 
 

@@ -38,8 +38,8 @@ def parametric_rhs(specialised, quantities=None, *, varied=None) -> ca.Function:
     values = np.asarray(specialised.numeric.params(), dtype=float)
     t, z, u, theta = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", len(values))
     free = range(len(values)) if varied is None else sorted(set(varied))
-    p = ca.vertcat(*[theta[i] if i in free else ca.SX(values[i]) for i in range(len(values))]) if len(values) \
-        else theta
+    bound = [theta[i] if i in free else ca.SX(values[i]) for i in range(len(values))]
+    p = ca.vertcat(*bound) if len(values) else theta
     velocities = tuple(specialised.velocities)
     if not velocities:
         rhs = model.numeric["rhs"](t, z, u, p)

@@ -64,9 +64,17 @@ import casadi as ca
 import numpy as np
 
 from ..errors import ModelError
-from .velocity_coordinates import (BODY_VELOCITIES, body_velocity, choose_velocities, group_matrix,  # noqa: F401
-                                   row_function, velocity_map, velocity_measure, velocity_problems,
-                                   velocity_rows)
+from .velocity_coordinates import (  # noqa: F401
+    BODY_VELOCITIES,
+    body_velocity,
+    choose_velocities,
+    group_matrix,
+    row_function,
+    velocity_map,
+    velocity_measure,
+    velocity_problems,
+    velocity_rows,
+)
 
 __all__ = ["specialise", "SpecialisedModel", "body_velocity", "BODY_VELOCITIES", "velocity_rows",
            "choose_velocities", "model_form"]
@@ -168,7 +176,8 @@ def _numeric_velocity(model, params, names, quantities) -> dict:
     nu = len(model.numeric.input_names)
     Yf = row_function(model, names, quantities)
     Qf = _momentum_basis(model, params)
-    t, z, u, params_sx = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", len(params))
+    t, z, u, params_sx = (ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu),
+                          ca.SX.sym("params", len(params)))
     q, y = z[:n], z[n:]
     P = ca.solve(ca.mtimes(Yf(q, params), Qf(q)), y)
     zP = ca.vertcat(q, P)
@@ -179,11 +188,13 @@ def _numeric_velocity(model, params, names, quantities) -> dict:
     qdot = model.numeric["qdot"](zP, params)
     qs, qd = ca.SX.sym("q", n), ca.SX.sym("qdot", n)
     return {
-        "rhs": ca.Function("rhs", [t, z, u, params_sx], [ca.vertcat(qdot, ydot)], ["t", "z", "u", "params"], ["zdot"]),
+        "rhs": ca.Function("rhs", [t, z, u, params_sx], [ca.vertcat(qdot, ydot)],
+                           ["t", "z", "u", "params"], ["zdot"]),
         "qdot": ca.Function("qdot", [z, params_sx], [qdot], ["z", "params"], ["qdot"]),
         "state": ca.Function("state", [qs, qd, params_sx], [ca.vertcat(qs, ca.mtimes(Yf(qs, params), qd))],
                              ["q", "qdot", "params"], ["z"]),
-        "momentum_state": ca.Function("momentum_state", [z, params_sx], [zP], ["z", "params"], ["z_momentum"]),
+        "momentum_state": ca.Function("momentum_state", [z, params_sx], [zP], ["z", "params"],
+                                      ["z_momentum"]),
     }
 
 
@@ -205,15 +216,16 @@ def _maggi_velocity(model, params, names, quantities, basis: str = "chart") -> d
     (the velocity states y = B_v v, B_v = Y X: ẏ = (∂(B_v v)/∂q) q̇ + B_v v̇). The result is used
     only when it agrees with the 20-step functions at random states (:func:`_build`).
     """
+    from ..algebra.symbols import TIME
     from .bridge import to_casadi
     from .linsolve import solve_general, solve_spd
-    from ..algebra.symbols import TIME
     system = model.system
     n, nz = system.n, len(model.state_names)
     nu = len(model.numeric.input_names)
-    t, z, u, params_sx = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("params", len(params))
+    t, z, u, params_sx = (ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu),
+                          ca.SX.sym("params", len(params)))
     qs, qds = ca.SX.sym("q", n), ca.SX.sym("qdot", n)
-    subs = {s: float(v) for s, v in zip(system.param_symbols, params)}
+    subs = {s: float(v) for s, v in zip(system.param_symbols, params, strict=True)}
     syms = [TIME] + list(system.q) + list(system.q_dot) + list(system.input_symbols)
     sx = [t] + [qs[i] for i in range(n)] + [qds[i] for i in range(n)] + [u[i] for i in range(nu)]
     L = to_casadi([system.L.xreplace(subs)], syms, sx)[0]
@@ -257,7 +269,7 @@ def _velocity_basis(model, params, q, names, quantities):
     n, k = system.n, system.k
     A = velocity_map(model, params, names, quantities)(q)
     Xb = solve_general(A, ca.vertcat(ca.SX(k, n - k), ca.SX.eye(n - k)))
-    subs = {s: float(v) for s, v in zip(system.param_symbols, params)}
+    subs = {s: float(v) for s, v in zip(system.param_symbols, params, strict=True)}
     G = group_matrix(model.layout).xreplace(subs)
     G = ca.reshape(ca.vertcat(*to_casadi(list(G.T), list(system.q), [q[i] for i in range(n)])), n, n)
     return ca.mtimes(G, Xb)
@@ -273,7 +285,7 @@ def _body_basis(model, params, q):
     from .linsolve import solve_general
     layout, system = model.layout, model.system
     n, k = system.n, system.k
-    subs = {s: float(v) for s, v in zip(system.param_symbols, params)}
+    subs = {s: float(v) for s, v in zip(system.param_symbols, params, strict=True)}
     qs = [q[i] for i in range(n)]
     pivots = list(layout.pivots)
     free = [i for i in range(n) if i not in pivots]
@@ -285,7 +297,8 @@ def _body_basis(model, params, q):
         Xb[pivots, :] = -solve_general(Wb[:, pivots], Wb[:, free])
     G = ca.SX.eye(n)
     if layout.version == "B":
-        g = ca.reshape(ca.vertcat(*to_casadi(list(layout.g.T), list(system.q), qs)), len(layout.si), len(layout.si))
+        g = ca.reshape(ca.vertcat(*to_casadi(list(layout.g.T), list(system.q), qs)), len(layout.si),
+                       len(layout.si))
         G[list(layout.si), list(layout.si)] = g
     return ca.mtimes(G, Xb)
 
@@ -331,6 +344,7 @@ def _clean_polynomial(poly):
 def _normal(expr):
     """The trig normal form, round-off coefficients removed, and the normal form again."""
     import sympy as sp
+
     from ..algebra.trig import trig_normal
     e = trig_normal(expr)
     if e == 0:
@@ -344,10 +358,10 @@ def _normal(expr):
 
 def _symbolic_momentum(model, params) -> dict:
     """rhs and q̇ of z = (q, P) with the values substituted, in normal form."""
-    from .bridge import to_casadi
     from ..algebra.symbols import TIME
+    from .bridge import to_casadi
     system = model.system
-    subs = {s: _exact(float(v)) for s, v in zip(system.param_symbols, params)}
+    subs = {s: _exact(float(v)) for s, v in zip(system.param_symbols, params, strict=True)}
     rhs = [_normal(e.xreplace(subs)) for e in model.rhs]
     qdot = [_normal(e.xreplace(subs)) for e in model.qdot]
     nz, nu, npar = len(model.state), len(system.input_symbols), len(system.param_symbols)
@@ -357,33 +371,36 @@ def _symbolic_momentum(model, params) -> dict:
     fns = _numeric_bound(model, params)
     fns["rhs"] = ca.Function("rhs", [t, z, u, params_sx], [ca.vertcat(*to_casadi(rhs, syms, sx))],
                              ["t", "z", "u", "params"], ["zdot"])
-    fns["qdot"] = ca.Function("qdot", [z, params_sx], [ca.vertcat(*to_casadi(qdot, syms, sx))], ["z", "params"], ["qdot"])
+    fns["qdot"] = ca.Function("qdot", [z, params_sx], [ca.vertcat(*to_casadi(qdot, syms, sx))],
+                              ["z", "params"], ["qdot"])
     return fns
 
 
 def _symbolic_velocity(model, params, names, quantities) -> dict:
     """The velocity-coordinate ODE in normal form (see the module docstring)."""
     import sympy as sp
-    from .bridge import to_casadi
+
     from ..algebra.symbols import TIME
+    from .bridge import to_casadi
     system = model.system
     n, nv = system.n, len(model.state) - system.n
-    subs = {s: _exact(float(v)) for s, v in zip(system.param_symbols, params)}
+    subs = {s: _exact(float(v)) for s, v in zip(system.param_symbols, params, strict=True)}
     norm = lambda M: M.applyfunc(_normal)  # noqa: E731
     q, P = list(model.state[:n]), list(model.state[n:])
     K, X = norm(model.K.xreplace(subs)), norm(model.X.xreplace(subs))
-    Y = velocity_rows(system, names, quantities).xreplace(dict(zip(system.q, q))).xreplace(subs)
+    Y = velocity_rows(system, names, quantities).xreplace(dict(zip(system.q, q, strict=True))).xreplace(subs)
     ys, vs = sp.Matrix(sp.symbols(f"_y0:{nv}")), sp.Matrix(sp.symbols(f"_v0:{nv}"))
     B = norm(Y * X)                                                   # y = B v, v = K⁻¹P
     Binv, Kinv = norm(B.inv(method="LU")), norm(K.inv(method="LU"))
     qdot_v = list(X * vs)
-    Pdot = sp.Matrix([_normal(e.xreplace(subs)).xreplace(dict(zip(P, K * vs))) for e in model.rhs[n:]])
+    Pdot = sp.Matrix([_normal(e.xreplace(subs)).xreplace(dict(zip(P, K * vs, strict=True)))
+                      for e in model.rhs[n:]])
     Kdot, Bdot = sp.zeros(nv, nv), sp.zeros(nv, nv)
     for i, qi in enumerate(q):
         Kdot += K.diff(qi) * qdot_v[i]
         Bdot += B.diff(qi) * qdot_v[i]
     ydot = Bdot * vs + B * (Kinv * (Pdot - Kdot * vs))
-    back = dict(zip(vs, Binv * ys))
+    back = dict(zip(vs, Binv * ys, strict=True))
     qdot = [_normal(e.xreplace(back)) for e in qdot_v]
     ydot = [_normal(e.xreplace(back)) for e in ydot]
     nz, nu, npar = n + nv, len(system.input_symbols), len(system.param_symbols)
@@ -391,7 +408,8 @@ def _symbolic_velocity(model, params, names, quantities) -> dict:
     sx = [t] + [z[i] for i in range(nz)] + [u[i] for i in range(nu)]
     out = to_casadi(qdot + ydot, [TIME] + q + list(ys) + list(system.input_symbols), sx)
     fns = _numeric_velocity(model, params, names, quantities)   # state and momentum_state maps
-    fns["rhs"] = ca.Function("rhs", [t, z, u, params_sx], [ca.vertcat(*out)], ["t", "z", "u", "params"], ["zdot"])
+    fns["rhs"] = ca.Function("rhs", [t, z, u, params_sx], [ca.vertcat(*out)],
+                             ["t", "z", "u", "params"], ["zdot"])
     fns["qdot"] = ca.Function("qdot", [z, params_sx], [ca.vertcat(*out[:n])], ["z", "params"], ["qdot"])
     return fns
 
@@ -429,8 +447,10 @@ def _at_identity(model, fns: dict) -> dict | None:
             out[i] = s_rates[j]
         return ca.cse(ca.vertcat(*out))
     out = dict(fns)
-    out["rhs"] = ca.Function("rhs", [t, z, u, params_sx], [moved(rhs(t, at_e, u, params_sx))], ["t", "z", "u", "params"], ["zdot"])
-    out["qdot"] = ca.Function("qdot", [z, params_sx], [moved(qdot(at_e, params_sx))], ["z", "params"], ["qdot"])
+    out["rhs"] = ca.Function("rhs", [t, z, u, params_sx], [moved(rhs(t, at_e, u, params_sx))],
+                             ["t", "z", "u", "params"], ["zdot"])
+    out["qdot"] = ca.Function("qdot", [z, params_sx], [moved(qdot(at_e, params_sx))],
+                              ["z", "params"], ["qdot"])
     return out
 
 
@@ -466,10 +486,10 @@ def _agrees(fns: dict, reference: _Reference, tol: float = 1e-10) -> bool:
 
 
 def _compare(fns: dict, reference: _Reference) -> tuple:
-    """(largest gap, states used) between ``fns`` and the reference (rhs and q̇) at random states, inputs and times t ∈ [0, 10]
-    (the forces may depend on t), relative to 1 + |reference|. With the singular-set measure,
-    states within 1e-3 of that set are not used, and within 0.1 the tolerance grows as
-    0.1/measure: both sides solve the same ill-conditioned systems there, and their round-off
+    """(largest gap, states used) between ``fns`` and the reference (rhs and q̇) at random states,
+    inputs and times t ∈ [0, 10] (the forces may depend on t), relative to 1 + |reference|. With the
+    singular-set measure, states within 1e-3 of that set are not used, and within 0.1 the tolerance
+    grows as 0.1/measure: both sides solve the same ill-conditioned systems there, and their round-off
     grows with the condition number (snake_4: gaps of 6e-10 at measure 1.5e-3 between two
     correct evaluations, against O(1) for a wrong formula)."""
     ref, nz, nu = reference.functions, reference.n_state, reference.n_inputs
@@ -522,7 +542,8 @@ def _build(model, params, velocities, quantities) -> _Entry:
     old = model.numeric
     if "holonomic" in old.functions:                # h(q): the same in every route
         fns = {**fns, "holonomic": _bind(old["holonomic"], params)}
-    state_names = (tuple(model.system.coordinates) + tuple(velocities)) if velocities else tuple(old.state_names)
+    state_names = ((tuple(model.system.coordinates) + tuple(velocities)) if velocities
+                   else tuple(old.state_names))
     numeric = NumericModel(formulation="reduced-velocity" if velocities else old.formulation,
                            state_names=state_names, input_names=old.input_names,
                            param_names=old.param_names, param_defaults=tuple(float(v) for v in params),
@@ -583,6 +604,7 @@ def _cheapest(model, velocities, quantities, reference: _Reference) -> tuple:
 
 def _key(model, params, velocities, quantities) -> str:
     import sympy as sp
+
     from . import cache
     structure = cache.cache_key(model.system, "reduced", f"version={getattr(model, 'version', None)}")
     qtext = ";".join(f"{k}={sp.srepr(v)}" for k, v in sorted((quantities or {}).items()) if k in velocities)
@@ -591,7 +613,8 @@ def _key(model, params, velocities, quantities) -> str:
                           "velocities=" + ",".join(velocities), "quantities=" + qtext)
 
 
-def specialise(model, params=None, *, velocities=(), quantities=None, use_cache: bool = True) -> SpecialisedModel:
+def specialise(model, params=None, *, velocities=(), quantities=None,
+               use_cache: bool = True) -> SpecialisedModel:
     """``model`` (a reduced ODE) with its parameter values bound, optionally in velocity
     coordinates ``velocities`` (n − k names; see the module docstring).
 

@@ -85,7 +85,8 @@ def velocity_problems(system, names, quantities) -> list:
         if name in quantities:
             continue
         problems.append(f"velocities: {name!r} is not a velocity quantity (use <coordinate>_dot for "
-                        f"{', '.join(coords)}" + (", forward_velocity, lateral_velocity" if planar_frame(system)
+                        f"{', '.join(coords)}" + (", forward_velocity, lateral_velocity"
+                                                  if planar_frame(system)
                                                   else "") + (f" or a quantity {', '.join(quantities)}"
                                                              if quantities else "") + ")")
     if len(set(names)) != len(names):
@@ -116,7 +117,7 @@ def velocity_rows(system, names, quantities=None):
         elif name in quantities:
             expr = sp.expand(quantities[name])
             row = [sp.diff(expr, v) for v in qd]
-            rest = sp.expand(expr - sum(r * v for r, v in zip(row, qd)))
+            rest = sp.expand(expr - sum(r * v for r, v in zip(row, qd, strict=True)))
             if any(r.has(*qd) for r in row) or rest != 0:
                 problems.append(f"velocities: quantity {name!r} is not linear in the velocities "
                                 "(y = Y(q) q̇ is required for a velocity state)")
@@ -167,7 +168,7 @@ def velocity_map(model, params, names, quantities=None) -> ca.Function:
     from .bridge import to_casadi
     layout, system = model.layout, model.system
     n = system.n
-    subs = {s: float(v) for s, v in zip(system.param_symbols, params)}
+    subs = {s: float(v) for s, v in zip(system.param_symbols, params, strict=True)}
     rows = layout.Wb.xreplace(subs).col_join(body_rows(model, names, quantities).xreplace(subs))
     q = ca.SX.sym("q", n)
     entries = to_casadi(list(rows.T), list(system.q), [q[i] for i in range(n)])

@@ -88,7 +88,8 @@ def _controller_key(controller) -> str:
     data = ca.SX.sym("segment_data", int(controller.segment_size) if segmented else 0)
     method = "casadi_segment" if segmented else "casadi"
     try:
-        u = ca.vertcat(controller.casadi_segment(t, q, qd, data) if segmented else controller.casadi(t, q, qd))
+        u = ca.vertcat(controller.casadi_segment(t, q, qd, data) if segmented
+                       else controller.casadi(t, q, qd))
     except Exception as exc:  # the law could not be traced symbolically: refuse, with the cause
         raise ModelError([f"controller.{method} failed on symbolic arguments "
                           f"({type(exc).__name__}: {exc})"], title="invalid controller") from exc
@@ -186,7 +187,8 @@ class ClosedLoop:
         k = num.n_multipliers
         t_hi = ca.SX.sym("t_hi")
         z = ca.SX.sym("lam", k)
-        u_d = ca.substitute(pc["u"], pc["t_c"], ca.fmin(t, t_hi)) if (self.symbolic_u or self.segment_u) else pc["u"]
+        u_d = (ca.substitute(pc["u"], pc["t_c"], ca.fmin(t, t_hi)) if (self.symbolic_u or self.segment_u)
+               else pc["u"])
         xp = pc["params"]
         t_d = ca.fmin(t, t_hi)
         res = pc["stabilisation"].feedback(num["dae_g"](t_d, x, z, u_d, xp), pc["g"], pc["g_int"])
@@ -256,7 +258,7 @@ def _invariant_entries(expr, x, params, candidates, param_values, samples=6) -> 
             d, value = grad(rng.uniform(-1.2, 1.2, x.shape[0]), pv)
         d = np.abs(np.asarray(d, dtype=float)).ravel()
         free &= np.isfinite(d) & (d <= 1e-12 * (1.0 + abs(float(value))))
-    return [i for i, f in zip(candidates, free) if f]
+    return [i for i, f in zip(candidates, free, strict=True) if f]
 
 
 def _event_function(measure, y, p) -> ca.Function:
@@ -314,7 +316,8 @@ def _integrated(model, seeds, loop: _LoopExpressions):
     """(indices of x to integrate, measure, whether W is integrated): the closure of the seeds
     plus what the event, ∫g and an opaque controller read (see :mod:`.closure`)."""
     x, params, xdot, measure, qdot, g, power, n_int, opaque_u = (
-        loop.x, loop.params, loop.xdot, loop.measure, loop.qdot, loop.g, loop.power, loop.n_int, loop.opaque_u)
+        loop.x, loop.params, loop.xdot, loop.measure, loop.qdot, loop.g, loop.power, loop.n_int,
+        loop.opaque_u)
     nx, n = x.shape[0], model.system.n
     if seeds is None:
         return tuple(range(nx)), measure, True
@@ -344,8 +347,8 @@ def _build(model, controller, stabilisation: Stabilisation, seeds) -> ClosedLoop
     power = num["power"](t_c, x, u, params)
     energy = num["energy"](x, params)
     metric = ca.vec(_velocity_metric(energy, x[n:]))
-    index, measure, has_work = _integrated(model, seeds, _LoopExpressions(x, params, xdot, measure, qdot, g, power,
-                                                                          n_int, bool(u_args)))
+    index, measure, has_work = _integrated(model, seeds, _LoopExpressions(x, params, xdot, measure, qdot, g,
+                                                                          power, n_int, bool(u_args)))
     if len(index) == nx:
         x_s = x
 

@@ -153,7 +153,7 @@ class PDTracking:
 
     def _law(self, t, q, q_dot):
         out = []
-        for name, i in zip(self.coordinates, self._index):
+        for name, i in zip(self.coordinates, self._index, strict=True):
             ref = self.desired[name]
             u = self.kp * (ref.position(t) - q[i]) + self.kd * (ref.velocity(t) - q_dot[i])
             if self.feedforward:

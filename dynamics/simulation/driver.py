@@ -70,8 +70,18 @@ from ..memo import OwnerMemo
 from .closed_loop import closed_loop
 from .compiled import CompilerUnavailable
 from .failures import diagnose_failure
-from .integrators import (FAILED, FINISHED, MAX_STEPS, NONFINITE, SCIPY_METHODS, SINGULAR, RunRequest,
-                          Samples, integrate_scipy, left_of)
+from .integrators import (
+    FAILED,
+    FINISHED,
+    MAX_STEPS,
+    NONFINITE,
+    SCIPY_METHODS,
+    SINGULAR,
+    RunRequest,
+    Samples,
+    integrate_scipy,
+    left_of,
+)
 from .options import COMPILED_METHODS, METHODS, SINGULAR_EVENT_TOL, SimulationOptions, checked_span
 from .route_compiled import integrate_compiled
 from .route_sundials import integrate_sundials
@@ -170,7 +180,7 @@ def _segments(t0, tf, controller, system=None, params=None):
     if system is not None and hasattr(system, "force_jump_times"):
         cuts.update(system.force_jump_times(params))
     points = [t0] + sorted(b for b in cuts if t0 < b < tf) + [tf]
-    return list(zip(points[:-1], points[1:]))
+    return list(zip(points[:-1], points[1:], strict=True))
 
 
 # --------------------------------------------------------------------------------------------
@@ -266,7 +276,7 @@ def _prepare(call: _Call, resolved) -> tuple[_Prepared, RunRequest]:
     pv = num.params(call.params)
     t0, tf = float(call.t_span[0]), float(call.t_span[1])
     x0 = to_state(model, call.q0, call.qdot0, call.params)
-    named_params = dict(zip(num.param_names, pv.tolist()))
+    named_params = dict(zip(num.param_names, pv.tolist(), strict=True))
     segments = _segments(t0, tf, controller, system, named_params)
     if controller is not None:
         _check_first_input(call, t0)
@@ -446,7 +456,7 @@ def _outputs(loop, controller, library, points: Samples, seg_params) -> dict:
     P = np.asarray(seg_params, dtype=float).reshape(len(seg_params), loop.n_p)
     if library is not None:
         table = library.output_table(points.t, points.t_c, Y, P, points.seg)
-        out = dict(zip(_CHECKED_BLOCKS, library.blocks(table)), table=table)
+        out = dict(zip(_CHECKED_BLOCKS, library.blocks(table), strict=True), table=table)
         out["diagnostic"] = _DiagnosticBlocks(library, (points.t, points.t_c, Y, P, points.seg))
         return out
     P = P[points.seg]
@@ -459,7 +469,7 @@ def _outputs(loop, controller, library, points: Samples, seg_params) -> dict:
         res = loop.outputs.map(N)(T, Tc, Y.T, U, P.T)
     else:
         res = loop.outputs.map(N)(T, Tc, Y.T, P.T)
-    out = {k: np.asarray(v).T.reshape(N, -1) for k, v in zip(_BLOCKS, res)}
+    out = {k: np.asarray(v).T.reshape(N, -1) for k, v in zip(_BLOCKS, res, strict=True)}
     out["diagnostic"] = _DiagnosticBlocks(None, None, {k: out.pop(k) for k in _BLOCKS[6:]})
     return out
 
@@ -481,7 +491,7 @@ class _DiagnosticBlocks:
 
     def __getitem__(self, name: str) -> np.ndarray:
         if not self.blocks:
-            self.blocks.update(zip(_BLOCKS[6:], self.library.diagnostic_outputs(*self.points)))
+            self.blocks.update(zip(_BLOCKS[6:], self.library.diagnostic_outputs(*self.points), strict=True))
         return self.blocks[name]
 
     def size(self, name: str) -> int:
@@ -490,7 +500,7 @@ class _DiagnosticBlocks:
             return self.library.diag_sizes[_BLOCKS[6:].index(name)]
         return self.blocks[name].shape[1]
 
-    def rows(self, start: int, stop: int | None) -> "_DiagnosticBlocks":
+    def rows(self, start: int, stop: int | None) -> _DiagnosticBlocks:
         part = slice(start, stop)
         if self.library is not None and not self.blocks:
             t, t_c, Y, P, seg = self.points
@@ -502,7 +512,8 @@ def _first_nonfinite_row(out: dict) -> int | None:
     """First row after the initial one (counted from 0 after it) with a non-finite value in a
     column that is modelled (finite at the initial point)."""
     whole = out.get("table")                       # NaN and ±inf reach the sum
-    if np.isfinite(whole.sum()) if whole is not None else all(np.isfinite(out[k].sum()) for k in _CHECKED_BLOCKS):
+    if np.isfinite(whole.sum()) if whole is not None else all(np.isfinite(out[k].sum())
+                                                              for k in _CHECKED_BLOCKS):
         return None
     rows = []
     for key in _CHECKED_BLOCKS:
@@ -542,7 +553,8 @@ def _assemble(call: _Call, request: RunRequest, routed: Routed, prepared: _Prepa
                        + (f"; {run.message}" if run.message else ""))
     energy0 = float(out["energy"][0, 0])
     if prepared.with_initial:          # the points the outputs were evaluated at
-        samples = points if samples.lam is None else points.with_lam(np.concatenate([out["lam"][:1], samples.lam]))
+        samples = (points if samples.lam is None
+                   else points.with_lam(np.concatenate([out["lam"][:1], samples.lam])))
     else:
         out = _output_rows(out, 1, None)
     wall = time.perf_counter() - prepared.start
@@ -598,8 +610,8 @@ def _names(model, loop) -> dict:
     """``coordinates``, ``state_names`` (the integrated entries of x) and ``input_names``."""
     system = model.system
     return COLUMN_NAMES.get(loop, "names", lambda: dict(
-        coordinates=tuple(system.coordinates), state_names=tuple(model.state_names[i] for i in loop.state_index),
-        input_names=tuple(system.inputs)))
+        coordinates=tuple(system.coordinates),
+        state_names=tuple(model.state_names[i] for i in loop.state_index), input_names=tuple(system.inputs)))
 
 
 def _diagnostics(model, loop, run, out, extra) -> Diagnostics:
@@ -638,7 +650,8 @@ def _named_outputs(call: _Call, prepared: _Prepared, loop, out, Y) -> dict:
         from ..derivation.quantities import quantity_function
         N = out["q"].shape[0]
         f = quantity_function(model.system, quantities)
-        quantity_values = np.asarray(f.map(N)(out["q"].T, out["qdot"].T, np.repeat(prepared.pv[:, None], N, 1)))
+        quantity_values = np.asarray(f.map(N)(out["q"].T, out["qdot"].T,
+                                              np.repeat(prepared.pv[:, None], N, 1)))
     result = {}
     for name in names:
         if name in names_x and names_x.index(name) in loop.state_index:

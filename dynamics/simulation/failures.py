@@ -103,9 +103,10 @@ def _force_values(system, point: tuple, params):
     """τ(t, q, q̇, u) at ``point`` = (t, q, q̇, u) from the system's force expressions
     (evaluated only to explain a failure)."""
     t, q, qdot, u = point
-    from ..numerics.bridge import to_casadi
     from ..derivation.system import TIME
-    syms = [TIME] + list(system.q) + list(system.q_dot) + list(system.input_symbols) + list(system.param_symbols)
+    from ..numerics.bridge import to_casadi
+    syms = ([TIME] + list(system.q) + list(system.q_dot) + list(system.input_symbols)
+            + list(system.param_symbols))
     values = [t] + list(q) + list(qdot) + list(u) + list(params)
     try:
         sx = [ca.SX.sym(f"a{i}") for i in range(len(syms))]

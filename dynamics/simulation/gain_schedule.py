@@ -94,7 +94,8 @@ class GainSchedule(KnotSchedule):
                     "rates": (r, (N, 2, nz)), "lower": (self.lower, (m,)), "upper": (self.upper, (m,))}
         for name, (value, shape) in expected.items():
             if value.shape != shape:
-                problems.append(f"{name} has shape {value.shape}, expected {shape} (N = {N}, m = {m}, nz = {nz})")
+                problems.append(f"{name} has shape {value.shape}, expected {shape} (N = {N}, m = "
+                                f"{m}, nz = {nz})")
         for name in ("times", "controls", "gains", "reference", "rates"):
             if not np.all(np.isfinite(getattr(self, name))):
                 problems.append(f"{name} must be finite")
@@ -170,11 +171,11 @@ class GainSchedule(KnotSchedule):
         return hermite((float(t) - self.times[k]) / h, self.reference[k], self.reference[k + 1],
                        h * self.rates[k, 0], h * self.rates[k, 1])
 
-    def with_controls(self, controls) -> "GainSchedule":
+    def with_controls(self, controls) -> GainSchedule:
         """The same schedule with other inputs u_k (N, m), e.g. perturbed by input noise."""
         return replace(self, controls=controls)
 
-    def open_loop(self) -> "GainSchedule":
+    def open_loop(self) -> GainSchedule:
         """The same reference inputs and saturation with every gain zero (the open loop; same
         compiled closed loop as the schedule itself)."""
         return replace(self, gains=np.zeros_like(self.gains))

@@ -9,10 +9,10 @@ points reached, counters and a status — never raising for a numerical failure:
 * :func:`integrate_scipy`: scipy's step loop (RK23, RK45, DOP853, Radau, BDF, LSODA), driven one
   step at a time so that every accepted step is checked (non-finite values, the singular-set
   event, the step budget, stiffness) and projection can restart the solver;
-* :func:`~.route_sundials.integrate_sundials` (:mod:`.route_sundials`): CasADi's CVODES (BDF) on the ODE, or IDAS on the index-1 DAE with
-  λ algebraic, reporting on the output grid;
-* :func:`~.route_compiled.integrate_compiled` (:mod:`.route_compiled`): the compiled Dormand–Prince integrator of :mod:`.compiled`, one C
-  call per interval.
+* :func:`~.route_sundials.integrate_sundials` (:mod:`.route_sundials`): CasADi's CVODES (BDF) on the
+  ODE, or IDAS on the index-1 DAE with λ algebraic, reporting on the output grid;
+* :func:`~.route_compiled.integrate_compiled` (:mod:`.route_compiled`): the compiled Dormand–Prince
+  integrator of :mod:`.compiled`, one C call per interval.
 
 Statuses (``Run.status``): :data:`FINISHED` 0, :data:`FAILED` −1 (the method gave up: step size
 underflow, solver error), :data:`MAX_STEPS` −2, :data:`NONFINITE` −3 (a non-finite right-hand
@@ -23,14 +23,12 @@ dense output of the explicit methods, to the output grid for SUNDIALS).
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
-
 
 FINISHED, FAILED, MAX_STEPS, NONFINITE, SINGULAR = 0, -1, -2, -3, -4
 SCIPY_METHODS = {"RK23": RK23, "RK45": RK45, "DOP853": DOP853, "Radau": Radau, "BDF": BDF,
@@ -106,25 +104,26 @@ class Samples:
     def __len__(self) -> int:
         return self.t.size
 
-    def rows(self, start: int = 0, stop: int | None = None) -> "Samples":
+    def rows(self, start: int = 0, stop: int | None = None) -> Samples:
         """The points ``start:stop`` (views)."""
         part = slice(start, stop)
         return Samples(self.t[part], self.t_c[part], self.seg[part], self.y[part],
                        None if self.lam is None else self.lam[part])
 
-    def with_lam(self, lam) -> "Samples":
+    def with_lam(self, lam) -> Samples:
         """These points with the multipliers ``lam`` (N, k)."""
         return Samples(self.t, self.t_c, self.seg, self.y, lam)
 
     @classmethod
-    def join(cls, parts) -> "Samples":
+    def join(cls, parts) -> Samples:
         """The points of ``parts`` one after the other (multipliers only if all have them)."""
         lams = [part.lam for part in parts]
-        return cls(*(np.concatenate([getattr(part, name) for part in parts]) for name in ("t", "t_c", "seg", "y")),
+        return cls(*(np.concatenate([getattr(part, name) for part in parts])
+                     for name in ("t", "t_c", "seg", "y")),
                    None if any(lam is None for lam in lams) else np.concatenate(lams))
 
     @classmethod
-    def point(cls, t: float, t_c: float, seg: int, y, lam=None) -> "Samples":
+    def point(cls, t: float, t_c: float, seg: int, y, lam=None) -> Samples:
         """One point."""
         return cls(np.array([float(t)]), np.array([float(t_c)]), np.array([seg], dtype=np.intp),
                    np.array(y, dtype=float).reshape(1, -1),
@@ -171,7 +170,7 @@ class Run:
 
     def _flush(self) -> None:
         if self._rows:
-            t, t_c, seg, y, lam = zip(*self._rows)
+            t, t_c, seg, y, lam = zip(*self._rows, strict=True)
             self._blocks.append(Samples(np.array(t), np.array(t_c), np.array(seg, dtype=np.intp),
                                         np.array(y), np.array(lam) if self.with_lam else None))
             self._rows = []
@@ -228,7 +227,7 @@ class Fast:
             self._buffer.set_res(i, memoryview(r))
 
     def __call__(self, *args) -> np.ndarray:
-        for dst, a in zip(self._args, args):
+        for dst, a in zip(self._args, args, strict=True):
             dst[:] = a
         self._eval()
         rows, cols = self._shapes[0]
@@ -236,7 +235,7 @@ class Fast:
 
     def scalars(self, *args) -> tuple:
         """All outputs, each a scalar (for functions with scalar outputs only)."""
-        for dst, a in zip(self._args, args):
+        for dst, a in zip(self._args, args, strict=True):
             dst[:] = a
         self._eval()
         return tuple(float(r[0]) for r in self._res)
@@ -419,7 +418,7 @@ class _ScipyTools:
     budget: dict
 
     @classmethod
-    def build(cls, request: RunRequest, method: str, projection: bool) -> "_ScipyTools":
+    def build(cls, request: RunRequest, method: str, projection: bool) -> _ScipyTools:
         loop, options = request.loop, request.options
         implicit = method in IMPLICIT_METHODS and not request.python_inputs
         return cls(rhs=Fast(loop.rhs), qdot=Fast(loop.qdot), jac=Fast(loop.jac) if implicit else None,

@@ -255,7 +255,7 @@ def exact_tableau(name: str) -> dict:
     raise ValueError(f"unknown tableau {name!r} (choose from {', '.join(TABLEAU_NAMES)})")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def tableau(name: str) -> Tableau:
     """The double-precision :class:`Tableau` of ``"DOP853"`` or ``"DOPRI5"``."""
     ex = exact_tableau(name)

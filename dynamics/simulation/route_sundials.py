@@ -11,8 +11,7 @@ from typing import NamedTuple
 import casadi as ca
 import numpy as np
 
-from .integrators import (FAILED, MAX_STEPS, SINGULAR, WATCH, EventWatch, Measure, Run, RunRequest,
-                          Segment)
+from .integrators import FAILED, MAX_STEPS, SINGULAR, WATCH, EventWatch, Measure, Run, RunRequest, Segment
 
 __all__ = ["integrate_sundials"]
 
@@ -82,11 +81,12 @@ def integrate_sundials(request: RunRequest, kind: str, lam0=None) -> Run:
     for segment in request.intervals():
         a, b = segment.start, segment.end
         tol = 1e-12 * max(1.0, abs(b))
-        wanted = [] if te is None else [float(tt) for tt in te if a + 1e-12 * max(1.0, abs(a)) < tt <= b + tol]
+        wanted = [] if te is None else [float(tt) for tt in te
+                                        if a + 1e-12 * max(1.0, abs(a)) < tt <= b + tol]
         grid = [min(tt, b) for tt in wanted]
         if not grid or grid[-1] < b:
             grid.append(b)
-        names = dict(zip(grid, wanted)) if te is not None else {b: b}
+        names = dict(zip(grid, wanted, strict=False)) if te is not None else {b: b}
         watch = None if measure is None else EventWatch(measure, segment.params, options.singular_tol)
         call = _SundialsCall(kind, problem, opts, np.r_[segment.params, segment.t_hi], segment, watch,
                              options.max_steps)

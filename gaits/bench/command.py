@@ -30,7 +30,8 @@ def cmd_bench_precision(args) -> int:
     from nhgait.gaits.bench import work_precision as wp
     from nhgait.gaits.outputs import output_directory
     if args.repeats < 1:
-        raise ModelError([f"--repeats {args.repeats}: at least 1 timed run per point"], title="invalid request")
+        raise ModelError([f"--repeats {args.repeats}: at least 1 timed run per point"],
+                         title="invalid request")
     out = output_directory(args.out)        # before any derivation: exit 2 for a bad location
     scene = load_scene(args.scene)
     spec = scene.simulation

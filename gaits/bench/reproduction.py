@@ -71,7 +71,7 @@ def run_case(name, *, rtol=1e-10, formulations=FORMULATIONS, idas=True, params=N
     dict with ``t_eval`` (N,), ``q0``, ``qdot0`` (n,), ``controller`` and ``runs``
     (label → :class:`~nhgait.dynamics.simulation.driver.Trajectory`).
     """
-    from nhgait.dynamics import builtin, derive, simulate     # the derivations: loaded when a case runs
+    from nhgait.dynamics import builtin, derive, simulate  # the derivations: loaded when a case runs
     factory, t_final, n_points = CASES[name]
     controller = factory()
     system = builtin(name)
@@ -110,8 +110,8 @@ def summarize(case, references=None) -> dict:
         "t_final": float(case["t_eval"][-1]),
         "n_points": int(case["t_eval"].size),
         "params": runs[next(iter(runs))].settings["params"],
-        "q0": dict(zip(coords, case["q0"].tolist())),
-        "qdot0": dict(zip(coords, case["qdot0"].tolist())),
+        "q0": dict(zip(coords, case["q0"].tolist(), strict=True)),
+        "qdot0": dict(zip(coords, case["qdot0"].tolist(), strict=True)),
         "runs": {},
         "max_deviation_q": {},
         "max_deviation_lambda": {},
@@ -120,8 +120,8 @@ def summarize(case, references=None) -> dict:
         out["runs"][label] = {
             "success": bool(run.success), "message": run.message, "method": run.method,
             "dae": run.settings["dae"],
-            "final_q": dict(zip(coords, run.q[-1].tolist())),
-            "final_state": dict(zip(run.state_names, run.state[-1].tolist())),
+            "final_q": dict(zip(coords, run.q[-1].tolist(), strict=True)),
+            "final_state": dict(zip(run.state_names, run.state[-1].tolist(), strict=True)),
             "final_lambda": None if run.lam is None else run.lam[-1].tolist(),
             "max_abs_constraint_residual": _max_abs(run.constraint_residual),
             "max_abs_energy_balance": _max_abs(run.energy_balance),
@@ -129,7 +129,8 @@ def summarize(case, references=None) -> dict:
             "n_steps": run.n_steps,
         }
     for label, (_, q_ref, info) in (references or {}).items():
-        out["runs"][label] = {"final_q": dict(zip(coords, np.asarray(q_ref)[-1].tolist())), **info}
+        out["runs"][label] = {"final_q": dict(zip(coords, np.asarray(q_ref)[-1].tolist(), strict=True)),
+                              **info}
     for a, b in itertools.combinations(q_by_label, 2):
         if q_by_label[a].shape == q_by_label[b].shape:
             out["max_deviation_q"][f"{a} vs {b}"] = _max_abs(q_by_label[a] - q_by_label[b])

@@ -183,7 +183,7 @@ def measure(case: Case, setups, tolerances=TOLERANCES, repeats: int = 5, progres
                 rows.append(_skipped(case, setup, rtol, too_slow))
                 continue
 
-            def run(t_eval=(span[0], span[1])):
+            def run(t_eval=(span[0], span[1]), model=model, rtol=rtol, setup=setup):
                 return simulate(model, span, case.q0, case.qdot0, controller=case.controller,
                                 params=case.params, rtol=rtol, atol=rtol * 1e-2, t_eval=t_eval,
                                 outputs=case.outputs, **setup.options())

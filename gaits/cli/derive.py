@@ -41,8 +41,10 @@ def add_derive_parser(subparsers):
     p = subparsers.add_parser("derive", help="derive and print the equations of motion")
     p.add_argument("scene", help="scene file (.toml) or built-in name (unicycle, snakeboard, ...)")
     p.add_argument("--formulation", choices=["reduced", "lagrange", "hamilton", "all"], default="reduced")
-    p.add_argument("--steps", choices=["latex", "markdown"], help="also print every step of the 20-step method")
-    p.add_argument("--table", action="store_true", help="print the full-symmetry-group table (thesis Table 3.1)")
+    p.add_argument("--steps", choices=["latex", "markdown"],
+                   help="also print every step of the 20-step method")
+    p.add_argument("--table", action="store_true",
+                   help="print the full-symmetry-group table (thesis Table 3.1)")
     p.add_argument("--checks", action="store_true",
                    help="Jacobi/holonomy test, Table 2.1 class, the (q, q̇) → state map and the singular set")
     p.add_argument("--version", choices=["A", "B"], help="g = identity (A) or SE(2)-type (B)")

@@ -34,7 +34,8 @@ def parse_settings(assignments, system) -> dict:
     from nhgait.dynamics.suggestions import known_names
     problems: list = []
     out = {"configuration": {}, "inputs": {}, "params": {}}
-    known = {"q": tuple(system.coordinates), "inputs": tuple(system.inputs), "params": tuple(system.parameters)}
+    known = {"q": tuple(system.coordinates), "inputs": tuple(system.inputs),
+             "params": tuple(system.parameters)}
     target = {"q": "configuration", "inputs": "inputs", "params": "params"}
     for text in assignments:
         a = parse_assignment(text, problems, example="q.lean=0.1 or params.m=2")
@@ -42,7 +43,8 @@ def parse_settings(assignments, system) -> dict:
             continue
         head = "q" if a.parts[0] == "q0" else "params" if a.parts[0] == "parameters" else a.parts[0]
         if head not in SET_KEYS or len(a.parts) != 2:
-            problems.append(f"--set {a.text!r}: expected q.<coordinate>, inputs.<input> or params.<parameter>")
+            problems.append(f"--set {a.text!r}: expected q.<coordinate>, inputs.<input> or "
+                            "params.<parameter>")
             continue
         if a.parts[1] not in known[head]:
             problems.append(f"--set {a.text!r}: {a.parts[1]!r} is not one of the {head}"
@@ -62,7 +64,8 @@ def cmd_linearize(args) -> int:
     from nhgait.dynamics.linearisation.chart import parse_speeds
     from nhgait.dynamics.progress import Progress
     if args.speed is not None and args.speeds is not None:
-        raise ModelError(["give --speed V or --speeds start:stop:count, not both"], title="invalid linearisation request")
+        raise ModelError(["give --speed V or --speeds start:stop:count, not both"],
+                         title="invalid linearisation request")
     if args.out is not None and args.speeds is None:
         raise ModelError(["--out draws the eigenvalues against speed: give --speeds too"],
                          title="invalid linearisation request")
@@ -74,7 +77,8 @@ def cmd_linearize(args) -> int:
         model = derive(scene.system, "reduced", use_cache=not args.no_cache)
     if speeds is None:
         lin = linearise(model, speed=args.speed, **settings)
-        print(json.dumps(lin.to_dict(), indent=1) if args.json else lin.to_text(matrices=not args.no_matrices))
+        print(json.dumps(lin.to_dict(), indent=1) if args.json
+              else lin.to_text(matrices=not args.no_matrices))
         return 0
     with progress.phase(f"linearise at {len(speeds)} speeds and refine the changes of stability"):
         chart = stability_chart(model, speeds, progress=progress, **settings)
@@ -85,7 +89,8 @@ def cmd_linearize(args) -> int:
     if args.out is not None:
         from ..stability_plots import write_eigenvalue_figure
         out = Path(args.out)
-        path = write_eigenvalue_figure(chart, out, title=f"{scene.system.name}: eigenvalues of straight steady motion")
+        path = write_eigenvalue_figure(chart, out,
+                                       title=f"{scene.system.name}: eigenvalues of straight steady motion")
         (out / "eigenvalues.json").write_text(json.dumps(chart.to_dict(), indent=1))
         print(f"  wrote {path} and {out / 'eigenvalues.json'}", file=sys.stderr if args.json else sys.stdout)
     return 0
@@ -93,15 +98,20 @@ def cmd_linearize(args) -> int:
 
 def add_linearize_parser(subparsers):
     """Add the ``linearize`` subcommand to an argparse ``subparsers`` object."""
-    p = subparsers.add_parser("linearize", help="linearise about an equilibrium or a steady motion; eigenvalues")
+    p = subparsers.add_parser("linearize",
+                              help="linearise about an equilibrium or a steady motion; eigenvalues")
     p.add_argument("scene", help="scene file (.toml) or built-in name (rolling_disc, whipple_bicycle, ...)")
-    p.add_argument("--speed", type=float, help="straight steady motion of the planar frame at this forward speed [m/s]")
-    p.add_argument("--speeds", help="start:stop:count (e.g. 0:10:101) or v1,v2,...: eigenvalues against speed")
+    p.add_argument("--speed", type=float,
+                   help="straight steady motion of the planar frame at this forward speed [m/s]")
+    p.add_argument("--speeds",
+                   help="start:stop:count (e.g. 0:10:101) or v1,v2,...: eigenvalues against speed")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="q.<coordinate>=value, inputs.<input>=value, params.<parameter>=value (repeatable)")
-    p.add_argument("--json", action="store_true", help="print one JSON object (eigenvalues as [re, im] pairs)")
+    p.add_argument("--json", action="store_true",
+                   help="print one JSON object (eigenvalues as [re, im] pairs)")
     p.add_argument("--no-matrices", action="store_true", help="print the eigenvalues without A and B")
-    p.add_argument("--out", default=None, metavar="DIR", help="with --speeds: write eigenvalues.png and eigenvalues.json")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="with --speeds: write eigenvalues.png and eigenvalues.json")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.add_argument("--no-cache", action="store_true")
     p.set_defaults(func=cmd_linearize)

@@ -42,7 +42,8 @@ SUBCOMMANDS = (
 
 def build_parser() -> argparse.ArgumentParser:
     from nhgait import __version__
-    parser = argparse.ArgumentParser(prog="nhgait", description="Dynamics and gait planning of nonholonomic robots.")
+    parser = argparse.ArgumentParser(prog="nhgait",
+                                     description="Dynamics and gait planning of nonholonomic robots.")
     parser.add_argument("--version", action="version", version=f"nhgait {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     for module, adder in SUBCOMMANDS:
@@ -55,6 +56,7 @@ def main(argv=None) -> int:
     (``argv`` None: the ``nhgait`` command), a stop by SIGINT/SIGTERM ends the process as soon
     as its cleanup is done (:func:`~.stopping.exit_now`); called with ``argv`` it returns."""
     from nhgait.dynamics.errors import ModelError
+
     from .stopping import cancel_background_builds, exit_now, stop_signals
     parser = build_parser()
     args = parser.parse_args(argv)

@@ -28,7 +28,8 @@ def add_plan_parser(subparsers) -> argparse.ArgumentParser:
                     "  nhgait plan snakeboard --gait forward --out out/demo\n\n"
                     "Built-in gaits:\n" + describe_library())
     p.add_argument("system", help="scene file (.toml) or built-in scene name")
-    p.add_argument("--gait", default=None, help="a built-in gait of a built-in scene (default: the scene's [task])")
+    p.add_argument("--gait", default=None,
+                   help="a built-in gait of a built-in scene (default: the scene's [task])")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a task value, e.g. final.x=2.0, horizon=6.0, bounds.phi=-1,1 (repeatable)")
     p.add_argument("--intervals", type=int, default=None, help="control intervals N (default: the task's)")
@@ -47,12 +48,13 @@ def add_plan_parser(subparsers) -> argparse.ArgumentParser:
                    help="Lagrangian Hessian: exact (auto), Gauss-Newton (the stage curvature dropped) or "
                         "limited-memory (Ipopt's L-BFGS)")
     p.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
-                   help="seconds the whole plan may take (default: the task's time_limit, else 120 s + 30 s per "
-                        "coordinate); each solver attempt is also limited, from its measured cost; a plan that "
-                        "runs out fails cleanly (exit 1) naming the phase ('inf': unlimited)")
+                   help="seconds the whole plan may take (default: the task's time_limit, else 120 "
+                        "s + 30 s per "
+                        "coordinate); each solver attempt is also limited, from its measured cost; "
+                        "a plan that runs out fails cleanly (exit 1) naming the phase ('inf': unlimited)")
     p.add_argument("--guess", default=None, metavar="SOLUTION_JSON",
-                   help="start from a previous plan's solution.json (resampled onto this task's grid) before the "
-                        "planner's own guesses: a refinement with --intervals")
+                   help="start from a previous plan's solution.json (resampled onto this task's "
+                        "grid) before the planner's own guesses: a refinement with --intervals")
     p.add_argument("--max-guesses", type=positive_int, default=12,
                    help="initial guesses tried per solver before the continuation (default 12)")
     gif = p.add_mutually_exclusive_group()
@@ -72,6 +74,7 @@ def run(args) -> int:
     the plan failed or its files could not all be written (the summary says where the
     solution went)."""
     from nhgait.dynamics.progress import Progress
+
     from ..outputs import output_directory, output_lock
     from ..planner import plan, summary_lines
     started = time.perf_counter()
@@ -82,7 +85,8 @@ def run(args) -> int:
         result = plan(args.system, args.gait, overrides=args.overrides, intervals=args.intervals,
                       solver=args.solver, transcription=args.transcription, jit=args.jit, workers=workers,
                       out_dir=out, animate=args.gif, hessian=args.hessian,
-                      max_guesses=args.max_guesses, progress=progress, time_limit=args.time_limit, guess=args.guess)
+                      max_guesses=args.max_guesses, progress=progress, time_limit=args.time_limit,
+                      guess=args.guess)
     print("\n".join(summary_lines(result)))
     print(f"  wall time          {_wall_text(time.perf_counter() - started, result.timings)}")
     return 0 if result.success and not result.unwritten else 1
@@ -90,7 +94,8 @@ def run(args) -> int:
 
 def _wall_text(wall: float, timings: dict) -> str:
     """"4.3 s in all: model 1.1 s, NLP set-up and compilation 0.3 s, …" (the rest: files)."""
-    parts = [("model", "prepare_s"), ("NLP set-up and compilation", "setup_s"), ("guesses and solves", "solve_s"),
+    parts = [("model", "prepare_s"), ("NLP set-up and compilation", "setup_s"),
+             ("guesses and solves", "solve_s"),
              ("the robust plan", "robust_s"), ("verification", "verify_s"), ("feedback", "feedback_s")]
     shown = [(label, float(timings[key])) for label, key in parts if key in timings]
     rest = wall - sum(seconds for _, seconds in shown)

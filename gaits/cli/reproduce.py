@@ -18,8 +18,8 @@ def add_reproduce_parser(subparsers):
     parser.add_argument("--no-idas", action="store_true",
                         help="skip the CasADi IDAS runs of the DAE forms")
     parser.add_argument("--columns", choices=["q", "qdot", "all"], default=None,
-                        help="also write every run as <case>_<run>.csv: q (coordinates), qdot (and velocities) "
-                             "or all (and inputs, multipliers, energy, work)")
+                        help="also write every run as <case>_<run>.csv: q (coordinates), qdot (and "
+                             "velocities) or all (and inputs, multipliers, energy, work)")
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
     parser.set_defaults(func=run)
     return parser
@@ -27,10 +27,10 @@ def add_reproduce_parser(subparsers):
 
 def run(args) -> int:
     """Run the reproduction; print a summary table; 0 when every run reached the end."""
+    import sys
+
     from ..bench.reproduction import reproduce
     from ..outputs import output_directory
-
-    import sys
     out = output_directory(args.out)        # before any derivation: exit 2 for a bad location
     summary = reproduce(out, rtol=args.rtol, idas=not args.no_idas, columns=getattr(args, "columns", None),
                         progress=None if getattr(args, "quiet", False) else sys.stderr)
@@ -39,7 +39,8 @@ def run(args) -> int:
         print(f"NOT WRITTEN: {summary['unwritten']}")
         return 1
     n_csv = sum(len(summary[c].get("csv", [])) for c in ("unicycle", "snakeboard"))
-    print(f"wrote {args.out}/summary.json and {sum(len(summary[c].get('figures', [])) for c in ('unicycle', 'snakeboard'))} figures"
+    print(f"wrote {args.out}/summary.json and "
+          f"{sum(len(summary[c].get('figures', [])) for c in ('unicycle', 'snakeboard'))} figures"
           + (f" and {n_csv} CSV files ({args.columns} columns)" if n_csv else ""))
     ok = all(r.get("success", True) for c in ("unicycle", "snakeboard") for r in summary[c]["runs"].values())
     return 0 if ok else 1

@@ -99,7 +99,8 @@ def _check_arguments(args) -> None:
     from nhgait.dynamics.simulation.driver import METHODS
     if args.method is not None and args.method not in METHODS:
         from nhgait.dynamics.suggestions import known_names
-        raise ModelError([f"--method {args.method!r} is not a method{known_names(args.method, METHODS, label='methods')}"],
+        raise ModelError([f"--method {args.method!r} is not a "
+                          f"method{known_names(args.method, METHODS, label='methods')}"],
                          title="invalid simulation request")
     if args.out is None and args.plot is None:
         raise ModelError(["give --out FILE.csv, --plot DIR or both"], title="invalid simulation request")
@@ -121,8 +122,8 @@ def _run(args, scene) -> tuple:
     outputs = None if args.all_states else spec.outputs
     kwargs = {"dae": args.dae} if model.dae_options_apply else {}
     method = args.method or spec.method or "DOP853"
-    common = dict(controller=spec.controller, params=spec.parameters or None, method=method, rtol=rtol, atol=atol,
-                  outputs=outputs, quantities=scene.quantities or None, **kwargs)
+    common = dict(controller=spec.controller, params=spec.parameters or None, method=method, rtol=rtol,
+                  atol=atol, outputs=outputs, quantities=scene.quantities or None, **kwargs)
     compile_s = _estimate_first(simulate, model, spec, common)
     traj = simulate(model, (spec.t0, spec.t_final), spec.q0, spec.qdot0, t_eval=spec.t_eval, **common)
     return model, traj, outputs, compile_s
@@ -151,29 +152,33 @@ def _estimate_first(simulate, model, spec, common) -> float:
     from nhgait.dynamics.simulation.driver import MAX_STEPS as STOPPED_BY_MAX_STEPS
     if spec.samples > MANY_SAMPLES:
         print(f"nhgait simulate: {spec.samples:,} samples: about {spec.samples * 1.2e3 / 1e6:.0f} MB and "
-              f"{_duration(spec.samples * 50e-6)} to evaluate and write the outputs (measured for the unicycle; "
-              "more for more states)", file=sys.stderr, flush=True)
+              f"{_duration(spec.samples * 50e-6)} to evaluate and write the outputs (measured for "
+              "the unicycle; more for more states)", file=sys.stderr, flush=True)
     if str(common["method"]).upper() in ("CVODES", "IDAS", "AUTO"):
         return 0.0
     span = spec.t_final - spec.t0
-    probe = simulate(model, (spec.t0, spec.t_final), spec.q0, spec.qdot0, t_eval=None, max_steps=PROBE_STEPS, **common)
+    probe = simulate(model, (spec.t0, spec.t_final), spec.q0, spec.qdot0, t_eval=None,
+                     max_steps=PROBE_STEPS, **common)
     compile_s = float(probe.diagnostics.get("compile_time_s") or 0.0)
     if probe.status != STOPPED_BY_MAX_STEPS or not probe.t[-1] > spec.t0:
         return compile_s
     ratio = span / (probe.t[-1] - spec.t0)
     steps = PROBE_STEPS * ratio
     seconds = max(probe.wall_time_s - compile_s, 0.0) * ratio
-    first = (f"the first {PROBE_STEPS} steps of {common['method']} reached t = {probe.t[-1]:.4g} s of t_final = "
-             f"{spec.t_final:.4g} s")
+    first = (f"the first {PROBE_STEPS} steps of {common['method']} reached t = {probe.t[-1]:.4g} s "
+             f"of t_final = {spec.t_final:.4g} s")
     if steps > REFUSE_FACTOR * MAX_STEPS:
-        raise ModelError([f"{first}: the whole run needs about {steps:.1e} steps and {_duration(seconds)}, far beyond "
-                          f"max_steps = {MAX_STEPS:,}, which would stop it near t = {spec.t0 + span * MAX_STEPS / steps:.4g} s; "
+        raise ModelError([f"{first}: the whole run needs about {steps:.1e} steps and "
+                          f"{_duration(seconds)}, far beyond "
+                          f"max_steps = {MAX_STEPS:,}, which would stop it near t = "
+                          f"{spec.t0 + span * MAX_STEPS / steps:.4g} s; "
                           "shorten t_final (--set t_final=...)"], title="simulation beyond reach")
     if seconds > SAY_AFTER_S:
-        stop = (f"; max_steps = {MAX_STEPS:,} will probably stop it near t = {spec.t0 + span * MAX_STEPS / steps:.4g} s"
+        stop = (f"; max_steps = {MAX_STEPS:,} will probably stop it near t = "
+                f"{spec.t0 + span * MAX_STEPS / steps:.4g} s"
                 if steps > MAX_STEPS else "")
-        print(f"nhgait simulate: {first}: the whole run needs about {steps:.2g} steps and {_duration(seconds)} "
-              f"(an extrapolation){stop}", file=sys.stderr, flush=True)
+        print(f"nhgait simulate: {first}: the whole run needs about {steps:.2g} steps and "
+              f"{_duration(seconds)} (an extrapolation){stop}", file=sys.stderr, flush=True)
     return compile_s
 
 
@@ -195,7 +200,8 @@ def _print_summary(scene, traj, compile_s: float = 0.0) -> None:
     if "auto" in traj.settings:
         print(f"  auto: {traj.settings['auto']}")
     finite = np.isfinite(traj.q[-1])
-    q_end = ", ".join(f"{c}={v:.8g}" for c, v, ok in zip(scene.system.coordinates, traj.q[-1], finite) if ok)
+    q_end = ", ".join(f"{c}={v:.8g}"
+                      for c, v, ok in zip(scene.system.coordinates, traj.q[-1], finite, strict=True) if ok)
     print(f"  q(t_end): {q_end}")
     if traj.constraint_residual.size and np.isfinite(traj.constraint_residual).all():
         print(f"  max |ω(q)q̇| = {np.abs(traj.constraint_residual).max():.3g}, "

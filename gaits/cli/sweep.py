@@ -24,14 +24,17 @@ def add_sweep_parser(subparsers) -> argparse.ArgumentParser:
                     "verified by re-simulation; every point stored as it finishes (resumable); heat maps "
                     "of cost and feasibility. Back ends: a local process pool, or Dask distributed.")
     p.add_argument("scene", help="scene file (.toml) or built-in scene name (unicycle, snakeboard)")
-    p.add_argument("--task", default=None, help="built-in gait task (e.g. parallel-park); default: the scene's [task]")
+    p.add_argument("--task", default=None,
+                   help="built-in gait task (e.g. parallel-park); default: the scene's [task]")
     p.add_argument("--grid", action="append", required=True, metavar="NAME=lo:hi:n",
                    help="a grid axis: horizon, intervals, control_bounds, initial.<name>, final.<name>, "
-                        "objective.<weight> or params.<name>; values lo:hi:n, a,b,c or one value (repeatable)")
+                        "objective.<weight> or params.<name>; values lo:hi:n, a,b,c or one value "
+                        "(repeatable)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="overrides",
                    help="change the base task, e.g. --set intervals=50 (repeatable)")
     p.add_argument("--out", required=True, help="sweep directory (store, solutions, plots)")
-    p.add_argument("--resume", action="store_true", help="continue the sweep stored in --out: solve only missing points")
+    p.add_argument("--resume", action="store_true",
+                   help="continue the sweep stored in --out: solve only missing points")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run on Dask distributed: a scheduler address (tcp://host:8786) or local:N for a "
                         "LocalCluster of N workers on 127.0.0.1 (needs pip install 'nhgait[dask]')")
@@ -41,10 +44,14 @@ def add_sweep_parser(subparsers) -> argparse.ArgumentParser:
                    help="grid points per back-end task, solved in a row down the continuation tree "
                         "(default: 1 for the local pool, 4 for Dask, whose fixed cost per task they share)")
     p.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
-                   help="seconds each grid point may take (default: the task's time_limit, else the planner's "
-                        "default for the robot's size); a point that runs out is a failed point naming the budget")
-    p.add_argument("--cold", action="store_true", help="no continuation: start every point from the planner's guesses")
-    p.add_argument("--plot", default=None, metavar="X,Y", help="axes of the heat map (default: the first two)")
+                   help="seconds each grid point may take (default: the task's time_limit, else "
+                        "the planner's "
+                        "default for the robot's size); a point that runs out is a failed point "
+                        "naming the budget")
+    p.add_argument("--cold", action="store_true",
+                   help="no continuation: start every point from the planner's guesses")
+    p.add_argument("--plot", default=None, metavar="X,Y",
+                   help="axes of the heat map (default: the first two)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG files")
     p.add_argument("--quiet", action="store_true", help="no progress line")
     p.set_defaults(func=run)
@@ -106,9 +113,10 @@ def run(args) -> int:
     from ..sweeps.store import StoreWriteError
     out = Path(args.out)
     try:
-        result = sweep(args.scene, args.task, args.grid, out=args.out, scheduler=args.scheduler, workers=args.workers,
-                       resume=args.resume, warm_start=not args.cold, overrides=args.overrides, chain=args.chain,
-                       progress=None if args.quiet else _ProgressPrinter(),
+        result = sweep(args.scene, args.task, args.grid, out=args.out, scheduler=args.scheduler,
+                       workers=args.workers,
+                       resume=args.resume, warm_start=not args.cold, overrides=args.overrides,
+                       chain=args.chain, progress=None if args.quiet else _ProgressPrinter(),
                        options=None if args.time_limit is None else {"time_limit": args.time_limit})
     except KeyboardInterrupt:
         stored = len(load_sweep(out).records) if (out / "sweep.sqlite").exists() else 0
@@ -124,7 +132,8 @@ def run(args) -> int:
         try:
             files = write_plots(result, out, args.plot)
         except OSError as exc:                 # the points are stored; only the pictures are missing
-            print(f"  plots NOT WRITTEN: {write_failure(exc, out)} (the points are stored in {out / 'sweep.sqlite'})")
+            print(f"  plots NOT WRITTEN: {write_failure(exc, out)} (the points are stored in "
+                  f"{out / 'sweep.sqlite'})")
             return 1
         print("  files:  " + "  ".join(str(f) for f in [out / "sweep.sqlite", *files]))
     return 0 if all(r.success for r in result.records) and result.complete else 1

@@ -22,18 +22,23 @@ def add_track_parser(subparsers) -> argparse.ArgumentParser:
     from ..tracking.runs import Noise
     from ..tracking.study import SERIAL_SAMPLES
     p = subparsers.add_parser(
-        "track", help="track a planned gait with its feedback on a robot whose parameters differ from the model's",
+        "track",
+        help="track a planned gait with its feedback on a robot whose parameters differ from the model's",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Re-simulate a plan on the general model with changed parameters and noise, open loop and "
-                    "with the plan's time-varying LQR, and report the final position errors, the tracking error "
-                    "of every state and the time the inputs sit at their bounds.\n\n"
-                    "  nhgait track snakeboard --gait forward --mismatch params.m=1.1 --mismatch params.J_r=0.9 \\\n"
+        description="Re-simulate a plan on the general model with changed parameters and noise, "
+                    "open loop and "
+                    "with the plan's time-varying LQR, and report the final position errors, the "
+                    "tracking error of every state and the time the inputs sit at their bounds.\n\n"
+                    "  nhgait track snakeboard --gait forward --mismatch params.m=1.1 --mismatch "
+                    "params.J_r=0.9 \\\n"
                     "      --samples 20 --out out/track\n"
-                    "  nhgait track examples/tiago_park.toml --mismatch params.m_base=1.1 --out out/tiago-track\n"
-                    "  nhgait track snakeboard --gait forward --plan out/demo/solution.json --mismatch params.m=1.1 "
-                    "--out out/t2")
+                    "  nhgait track examples/tiago_park.toml --mismatch params.m_base=1.1 --out "
+                    "out/tiago-track\n"
+                    "  nhgait track snakeboard --gait forward --plan out/demo/solution.json --mismatch "
+                    "params.m=1.1 --out out/t2")
     p.add_argument("system", help="scene file (.toml) or built-in scene name")
-    p.add_argument("--gait", default=None, help="a built-in gait of a built-in scene (default: the scene's [task])")
+    p.add_argument("--gait", default=None,
+                   help="a built-in gait of a built-in scene (default: the scene's [task])")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a task value before planning, e.g. final.x=2.0 (repeatable)")
     p.add_argument("--plan", default=None, metavar="SOLUTION_JSON",
@@ -50,12 +55,12 @@ def add_track_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run the samples on Dask: local:N (a local cluster of N workers) or tcp://host:8786")
     p.add_argument("--workers", type=int, default=None,
-                   help=f"local worker processes (0: this process; default: this process up to {SERIAL_SAMPLES} "
-                        "samples, else one per core)")
+                   help="local worker processes (0: this process; default: this process up to "
+                        f"{SERIAL_SAMPLES} samples, else one per core)")
     p.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
                    help="seconds the whole study (the plan and the samples) may take (default: the task's "
-                        "time_limit, else 120 s + 30 s per coordinate); a study that runs out fails cleanly (exit 1) "
-                        "with the samples done in tracking.json ('inf': unlimited)")
+                        "time_limit, else 120 s + 30 s per coordinate); a study that runs out fails "
+                        "cleanly (exit 1) with the samples done in tracking.json ('inf': unlimited)")
     talk = p.add_mutually_exclusive_group()
     talk.add_argument("--quiet", action="store_true", help="no progress on stderr")
     talk.add_argument("--verbose", action="store_true", help="the solver's own iteration log as well")
@@ -69,13 +74,15 @@ def run(args) -> int:
     when the plan or a run failed, the time ran out or the files could not all be written."""
     from nhgait.dynamics.progress import Progress
     from nhgait.ocp import ProblemError
+
     from ..outputs import output_directory, output_lock
     from ..tracking.runs import Noise
     from ..tracking.study import summary_lines, track
     problems = [f"--{name} must be ≥ 0, got {value:g}" for name, value in
                 (("state-noise", args.state_noise), ("input-noise", args.input_noise)) if not value >= 0]
     if args.plan and (args.overrides or args.gait):
-        problems.append("--plan tracks the task stored in that solution.json: give no --gait or --set with it")
+        problems.append("--plan tracks the task stored in that solution.json: give no --gait or "
+                        "--set with it")
     if problems:
         raise ProblemError(problems, title="invalid tracking study")
     started = time.perf_counter()

@@ -302,7 +302,8 @@ class DaskBackend(_Backend):
         if scheduler.startswith("local:"):
             n = scheduler.partition(":")[2]
             if not n.isdigit() or int(n) < 1:
-                raise ProblemError([f"--scheduler {scheduler!r}: local:N needs a whole number N ≥ 1 of workers"],
+                raise ProblemError([f"--scheduler {scheduler!r}: local:N needs a whole number N ≥ "
+                                    "1 of workers"],
                                    title="invalid back end")
             self.cluster = LocalCluster(n_workers=int(n), threads_per_worker=1, processes=True,
                                         host="127.0.0.1", dashboard_address=None,

@@ -31,8 +31,9 @@ import concurrent.futures as cf
 import math
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -45,8 +46,8 @@ from .store import PointRecord, StoreWriteError, SweepStore
 
 __all__ = ["sweep", "run_sweep", "RunOptions", "load_sweep", "SweepResult", "Progress"]
 
-_RESULT_KEYS = ("success", "status", "message", "objective", "iterations", "total_iterations", "solve_time_s", "wall_time_s",
-                "verification_error", "constraint_violation", "start", "worker")
+_RESULT_KEYS = ("success", "status", "message", "objective", "iterations", "total_iterations", "solve_time_s",
+                "wall_time_s", "verification_error", "constraint_violation", "start", "worker")
 
 
 @dataclass(frozen=True)
@@ -255,7 +256,8 @@ class _Run:
         have work (``ready`` and in flight), since its other children wait for the whole chain."""
         points = [point]
         while len(points) < self.chain:
-            kids = sorted((c for c in self.tree.children.get(points[-1].index, ()) if c.index not in self.done),
+            kids = sorted((c for c in self.tree.children.get(points[-1].index, ())
+                           if c.index not in self.done),
                           key=lambda c: -self.tree.size[c.index])
             if not kids or (len(kids) > 1 and len(self.ready) + len(self.in_flight) < self.backend.workers):
                 break
@@ -291,14 +293,16 @@ class _Run:
                 self.second_try.update(p.index for p in points[1:])
                 self.submit(points[0], jobs[0], 2)
                 return
-            records = [_failure(p, j, f"{status} twice: {exc}", status, attempts) for p, j in zip(points, jobs)]
+            records = [_failure(p, j, f"{status} twice: {exc}", status, attempts)
+                       for p, j in zip(points, jobs, strict=True)]
             answers = [{"failure": r.message} for r in records]
         else:
             answers, records = ([answers] if len(points) == 1 else answers), None
         try:
             if records is None:
-                records = [self._record(p, j, a, attempts) for p, j, a in zip(points, jobs, answers)]
-            for point, record in zip(points, records):
+                records = [self._record(p, j, a, attempts)
+                           for p, j, a in zip(points, jobs, answers, strict=True)]
+            for point, record in zip(points, records, strict=True):
                 self._store(point, record)
         except StoreWriteError as exc:
             raise StoreWriteError(self._rescued(exc, points, answers)) from None
@@ -309,10 +313,10 @@ class _Run:
         answers of ``points`` (not stored) were saved instead."""
         from ..outputs import rescue
         unstored = [{"id": p.id, "axis_values": dict(p.values), "answer": a}
-                    for p, a in zip(points, answers) if p.index not in self.done]
+                    for p, a in zip(points, answers, strict=True) if p.index not in self.done]
         where = rescue("unstored_points.json", unstored, f"answer of {len(unstored)} unstored point(s)")
-        return (f"{exc}; {len(self.done)} points are stored in {self.store.directory}; {where}; free the space "
-                "and continue with --resume")
+        return (f"{exc}; {len(self.done)} points are stored in {self.store.directory}; {where}; "
+                "free the space and continue with --resume")
 
     def _store(self, point, record) -> None:
         self.store.add(record)
@@ -357,7 +361,8 @@ def run_sweep(case: SweepCase, grid: Grid, backend, store: SweepStore,
     if prepare is None and options.solve is solve_point:
         prepare = prepare_worker
     warming = []
-    if prepare is not None and options.warm_start and backend.workers > 1 and run.ready and run.ready[0] is run.root:
+    if (prepare is not None and options.warm_start and backend.workers > 1 and run.ready
+        and run.ready[0] is run.root):
         job = run.submit(run.ready.popleft())
         warming = [backend.submit(prepare, job) for _ in range(backend.workers - 1)]
     while run.ready or run.in_flight:
@@ -377,7 +382,8 @@ def run_sweep(case: SweepCase, grid: Grid, backend, store: SweepStore,
 
 def sweep(system, task=None, grid=(), *, out, overrides=(), params=None, scheduler: str | None = None,
           workers: int | None = None, backend=None, resume: bool = False, warm_start: bool = True,
-          options: dict | None = None, progress: Callable | None = None, chain: int | None = None) -> SweepResult:
+          options: dict | None = None, progress: Callable | None = None,
+          chain: int | None = None) -> SweepResult:
     """Sweep ``task`` on ``system`` over ``grid``, storing every point in ``out``.
 
     Parameters
@@ -427,7 +433,8 @@ def sweep(system, task=None, grid=(), *, out, overrides=(), params=None, schedul
         try:
             with SweepStore(out, lock=False) as store:
                 return run_sweep(case, the_grid, backend, store,
-                                 RunOptions(resume=resume, warm_start=warm_start, progress=progress, chain=chain))
+                                 RunOptions(resume=resume, warm_start=warm_start,
+                                            progress=progress, chain=chain))
         finally:
             if own:
                 backend.close()
@@ -458,16 +465,20 @@ def summary_lines(result: SweepResult, *, max_rows: int = 40) -> list:
     warm_it = [r.iterations for r in ok if r.start == "warm"]
     cold_it = [r.iterations for r in ok if r.start != "warm"]
     lines = [f"sweep {result.case.get('label', '')}: {len(recs)}/{result.grid.size} points, {len(ok)} solved "
-             f"and verified, {len(recs) - len(ok)} failed" + (f", {result.retried} retried" if result.retried else ""),
+             f"and verified, {len(recs) - len(ok)} failed"
+             + (f", {result.retried} retried" if result.retried else ""),
              f"  grid       {' × '.join(f'{a.name} ({len(a)})' for a in result.grid.axes)}",
-             f"  objective  min {_fmt(np.nanmin(J))}, median {_fmt(float(np.nanmedian(J)))}, max {_fmt(np.nanmax(J))}",
+             f"  objective  min {_fmt(np.nanmin(J))}, median {_fmt(float(np.nanmedian(J)))}, max "
+             f"{_fmt(np.nanmax(J))}",
              f"  iterations median {_fmt(float(np.median(warm_it)), '.0f') if warm_it else '—'} warm-started "
              f"({len(warm_it)} points), {_fmt(float(np.median(cold_it)), '.0f') if cold_it else '—'} cold "
              f"({len(cold_it)})",
-             f"  verification error max {_fmt(max((r.verification_error for r in ok), default=math.nan), '.2e')}"]
+             "  verification error max "
+             f"{_fmt(max((r.verification_error for r in ok), default=math.nan), '.2e')}"]
     if result.solved_now:
         lines.append(f"  this run   {result.solved_now} points in {result.wall_time_s:.1f} s "
-                     f"({result.solved_now / max(result.wall_time_s, 1e-9):.2f} points/s) on {result.backend}")
+                     f"({result.solved_now / max(result.wall_time_s, 1e-9):.2f} points/s) on "
+                     f"{result.backend}")
     names = result.grid.names
     head = f"  {'point':>8}  " + "  ".join(f"{n:>12}" for n in names) + \
         f"  {'status':<22} {'J':>11} {'iter':>5} {'start':>5} {'verif.':>8}"

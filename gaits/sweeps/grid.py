@@ -26,8 +26,8 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
-from typing import Iterator, Mapping
 
 import numpy as np
 
@@ -100,11 +100,12 @@ class Grid:
         for a in self.axes:
             if a.name == name:
                 return a
-        raise ProblemError([f"no grid axis {name!r} (axes: {', '.join(self.names)})"], title="invalid grid axis")
+        raise ProblemError([f"no grid axis {name!r} (axes: {', '.join(self.names)})"],
+                           title="invalid grid axis")
 
     def point(self, index) -> GridPoint:
         index = tuple(int(i) for i in index)
-        return GridPoint(index, tuple((a.name, a.values[i]) for a, i in zip(self.axes, index)))
+        return GridPoint(index, tuple((a.name, a.values[i]) for a, i in zip(self.axes, index, strict=True)))
 
     def points(self) -> Iterator[GridPoint]:
         for index in itertools.product(*(range(n) for n in self.shape)):
@@ -127,7 +128,7 @@ class Grid:
         return {"axes": [{"name": a.name, "values": list(a.values)} for a in self.axes]}
 
     @classmethod
-    def from_dict(cls, data: Mapping) -> "Grid":
+    def from_dict(cls, data: Mapping) -> Grid:
         return cls(tuple(Axis(a["name"], tuple(a["values"])) for a in data["axes"]))
 
 
@@ -225,7 +226,8 @@ def parse_grid(axes, *, parameters: tuple | None = None) -> Grid:
         axes = [f"{name}={','.join(repr(float(v)) for v in np.atleast_1d(values))}"
                 for name, values in axes.items()]
     if isinstance(axes, str) or not axes:
-        raise ProblemError([f"a sweep needs at least one axis NAME=lo:hi:n, got {axes!r}"], title="invalid grid")
+        raise ProblemError([f"a sweep needs at least one axis NAME=lo:hi:n, got {axes!r}"],
+                           title="invalid grid")
     parsed = [parse_axis(text, problems) for text in axes]
     names = [str(text).partition("=")[0].strip() for text in axes if "=" in str(text)]
     for name in sorted({n for n in names if names.count(n) > 1}):

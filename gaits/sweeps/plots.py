@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["plot_landscape", "LandscapeView", "plot_feasibility", "plot_shape_loops", "axis_label", "grid_slice"]
+__all__ = ["plot_landscape", "LandscapeView", "plot_feasibility", "plot_shape_loops", "axis_label",
+           "grid_slice"]
 
 
 def axis_label(name: str, units=None) -> str:
@@ -103,7 +104,8 @@ def _new_ax(ax, size=(5.5, 4.2)):
 
 def _slice_title(result, keep, fixed) -> str:
     index = grid_slice(result, keep, fixed)
-    rest = [f"{a.name} = {a.values[i]:g}" for a, i in zip(result.grid.axes, index) if not isinstance(i, slice)]
+    rest = [f"{a.name} = {a.values[i]:g}" for a, i in zip(result.grid.axes, index, strict=True)
+            if not isinstance(i, slice)]
     return f" ({', '.join(rest)})" if rest else ""
 
 
@@ -133,7 +135,8 @@ def plot_landscape(result, x: str, y: str, *, fixed=None, ax=None, view: Landsca
     if log is None:
         log = finite.size > 1 and finite.min() > 0 and finite.max() > 20 * finite.min()
     norm = LogNorm(finite.min(), finite.max()) if log and finite.size and finite.min() > 0 else None
-    mesh = ax.pcolormesh(_edges(xs), _edges(ys), np.ma.masked_invalid(Z), cmap=cmap, shading="flat", norm=norm)
+    mesh = ax.pcolormesh(_edges(xs), _edges(ys), np.ma.masked_invalid(Z), cmap=cmap,
+                         shading="flat", norm=norm)
     label = objective_label(result.case.get("inputs") or (), units) if column == "objective" else column
     ax.figure.colorbar(mesh, ax=ax, label=label)
     if contours and np.isfinite(Z).sum() >= 4 and min(Z.shape) >= 2:
@@ -160,11 +163,13 @@ def plot_feasibility(result, x: str, y: str, *, fixed=None, ax=None):
     codes = np.where(np.isnan(ok), 0, np.where(ok == 1, 2, 1))
     ax.pcolormesh(_edges(xs), _edges(ys), codes, cmap=ListedColormap(["0.85", "tab:red", "tab:green"]),
                   vmin=0, vmax=2, shading="flat", edgecolors="white", linewidth=0.5)
-    ax.legend(handles=[Patch(color="tab:green", label="solved, verified"), Patch(color="tab:red", label="failed"),
+    ax.legend(handles=[Patch(color="tab:green", label="solved, verified"),
+                       Patch(color="tab:red", label="failed"),
                        Patch(color="0.85", label="not solved")], loc="upper right", fontsize=7)
     ax.set_xlabel(axis_label(x, result.units))
     ax.set_ylabel(axis_label(y, result.units))
-    ax.set_title(f"{result.case.get('label', '')} feasibility{_slice_title(result, (x, y), fixed)}", fontsize=9)
+    ax.set_title(f"{result.case.get('label', '')} "
+                 f"feasibility{_slice_title(result, (x, y), fixed)}", fontsize=9)
     return ax
 
 
@@ -196,7 +201,7 @@ def plot_shape_loops(result, axis: str, *, shape=None, fixed=None, axes=None):
         fig = Figure(figsize=(2.4 * len(values) + 0.6, 3.0), layout="constrained")   # room for the suptitle
         axes = fig.subplots(1, len(values), sharex=True, sharey=True, squeeze=False)[0]
     units = result.units
-    for i, (value, ax) in enumerate(zip(values, axes)):
+    for i, (value, ax) in enumerate(zip(values, axes, strict=False)):
         index[k] = i
         record = result.record(tuple(index))
         traj = _load_trajectory(result, record)

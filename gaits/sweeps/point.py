@@ -24,8 +24,8 @@ import math
 import os
 import socket
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from typing import Mapping
 
 from nhgait.dynamics.memo import LruMemo
 from nhgait.ocp import ProblemError
@@ -33,8 +33,8 @@ from nhgait.ocp import ProblemError
 from ..search import WARM_IPOPT as _WARM
 from .grid import GridPoint
 
-__all__ = ["SceneData", "SweepCase", "PointJob", "point_task", "solve_point", "describe_case", "warm_data", "scene_of",
-           "prepare_worker", "WARM_IPOPT"]
+__all__ = ["SceneData", "SweepCase", "PointJob", "point_task", "solve_point", "describe_case", "warm_data",
+           "scene_of", "prepare_worker", "WARM_IPOPT"]
 
 
 @dataclass(frozen=True)
@@ -60,9 +60,9 @@ class SweepCase:
     ``task``: the base ``[task]`` table; ``params``: the scene's parameter values (name →
     value); ``label``: "<system>/<task>"; ``units``: the scene's ``[units]`` table;
     ``shape``: the two coordinates of the shape-loop plots (the shape variables, completed by
-    the last fiber coordinate when the shape is one-dimensional, e.g. the unicycle's (θ, φ)); ``coordinates``, ``inputs``: the
-    system's names; ``options``: planner options
-    (``transcription``, ``solver``, ``jit``, ``time_limit``: seconds per point, :func:`point_budget`).
+    the last fiber coordinate when the shape is one-dimensional, e.g. the unicycle's (θ, φ));
+    ``coordinates``, ``inputs``: the system's names; ``options``: planner options (``transcription``,
+    ``solver``, ``jit``, ``time_limit``: seconds per point, :func:`point_budget`).
     """
 
     scene: SceneData
@@ -77,7 +77,8 @@ class SweepCase:
 
     def describe(self) -> dict:
         return {"scene": self.scene.describe(), "task": self.task, "params": self.params, "label": self.label,
-                "options": self.options, "shape": list(self.shape), "coordinates": list(self.coordinates), "inputs": list(self.inputs)}
+                "options": self.options, "shape": list(self.shape), "coordinates": list(self.coordinates),
+                "inputs": list(self.inputs)}
 
 
 @dataclass(frozen=True, eq=False)
@@ -168,7 +169,8 @@ def solve_chain(solve, jobs, warm_start: bool = True) -> list:
     """
     answers, previous = [], None
     for job in jobs:
-        if warm_start and previous is not None and previous.get("success") and previous.get("warm") is not None:
+        if (warm_start and previous is not None and previous.get("success")
+            and previous.get("warm") is not None):
             job = replace(job, warm=previous["warm"], warm_from=previous["id"])
         answer = solve(job)
         answer["warm_from"] = job.warm_from
@@ -183,8 +185,8 @@ def _outcome(s, start: str) -> dict:
     """The plain-data answer of a verified solution (success needs the verification too)."""
     verified = s.verification is not None and s.verification.passed
     return {"success": bool(s.success) and verified, "status": str(s.status), "message": str(s.message),
-            "objective": _nan(s.objective), "iterations": int(s.iterations), "solve_time_s": _nan(s.solve_time_s),
-            "verification_error": _nan(s.verification_error),
+            "objective": _nan(s.objective), "iterations": int(s.iterations),
+            "solve_time_s": _nan(s.solve_time_s), "verification_error": _nan(s.verification_error),
             "constraint_violation": _nan(s.constraint_violation), "start": start,
             "solution": s.to_dict()}
 
@@ -192,12 +194,14 @@ def _outcome(s, start: str) -> dict:
 # ---- the planner adapter (the only code that knows the planner's API) -------------------
 def _scene_data(system) -> SceneData:
     from pathlib import Path
+
     from nhgait.dynamics.errors import ModelError
     if isinstance(system, SceneData):
         return system
     if not isinstance(system, (str, Path)):
-        raise ModelError([f"a sweep's system is a scene file or a built-in scene name, got {type(system).__name__} "
-                          "(a sweep sends the scene to its workers as data)"], title="invalid sweep")
+        raise ModelError(["a sweep's system is a scene file or a built-in scene name, got "
+                          f"{type(system).__name__} (a sweep sends the scene to its workers as data)"],
+                         title="invalid sweep")
     from nhgait.dynamics.derivation.textfiles import names_a_file, read_text_file
     path = Path(system)
     if names_a_file(path) or path.suffix == ".toml":
@@ -218,6 +222,7 @@ def describe_case(system, task=None, *, overrides=(), params=None, options=None)
     ``[task]``; a built-in gait name; a ``[task]`` dict), with ``--set`` overrides and
     parameter values; the planner checks the task on the model here, before any point runs."""
     from nhgait.dynamics import derive
+
     from ..task_library import resolve
     data = _scene_data(system)
     resolved = resolve(scene_of(data), task, overrides=overrides)
@@ -228,9 +233,10 @@ def describe_case(system, task=None, *, overrides=(), params=None, options=None)
     values = {**dict(sys_.parameters), **{k: float(v) for k, v in dict(params or {}).items()}}
     model = derive(sys_, "reduced")
     opts = {"jit": False, **dict(options or {})}
-    return SweepCase(data, resolved.task.to_dict(), values, label=resolved.label, units=_units(resolved, model),
-                     shape=(tuple(model.shape) + tuple(reversed(model.fiber)))[:2], coordinates=tuple(sys_.coordinates), inputs=tuple(sys_.inputs),
-                     options=opts)
+    return SweepCase(data, resolved.task.to_dict(), values, label=resolved.label,
+                     units=_units(resolved, model),
+                     shape=(tuple(model.shape) + tuple(reversed(model.fiber)))[:2],
+                     coordinates=tuple(sys_.coordinates), inputs=tuple(sys_.inputs), options=opts)
 
 
 def _units(resolved, model) -> dict:
@@ -284,9 +290,10 @@ def _solver_for(job: PointJob, *, warm: bool = False):
     functions, new bounds); ``warm``: the solver with :data:`WARM_IPOPT` (Ipopt only). A new
     solver gets the planner's time limit per attempt (:func:`~nhgait.gaits.time_limits.attempt_limited`)."""
     from nhgait.ocp import OCPSolver, SolverOptions
+
     from ..planner import prepare, state_problem
-    from ..time_limits import attempt_limited
     from ..task_library import resolve
+    from ..time_limits import attempt_limited
     case = job.case
     resolved = resolve(scene_of(case.scene), job.task)
     warm = warm and case.options.get("solver", "ipopt") == "ipopt"
@@ -319,8 +326,8 @@ def point_budget(job: PointJob):
     ``time_limit`` option (``--time-limit``), else the task's ``time_limit``, else the planner's
     default for the robot's size."""
     from ..time_limits import budget_for
-    return budget_for(len(job.case.coordinates), job.case.options.get("time_limit"), job.task.get("time_limit"),
-                      given_as="--time-limit per point")
+    return budget_for(len(job.case.coordinates), job.case.options.get("time_limit"),
+                      job.task.get("time_limit"), given_as="--time-limit per point")
 
 
 def _plan_point(job: PointJob) -> dict:
@@ -338,8 +345,8 @@ def _plan_point(job: PointJob) -> dict:
 
 
 def _solve_within(job: PointJob, budget, reached: dict) -> dict:
-    from ..guesses import candidates
     from ..gait_check import unsolved, verified_gait
+    from ..guesses import candidates
     from ..planner import warm_start
     from ..search import solve_attempts, solve_with_fallbacks
     solution = None

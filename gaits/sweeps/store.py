@@ -88,8 +88,10 @@ class PointRecord:
 _JSON = ("idx", "axis_values", "task", "params")
 _REAL = ("objective", "solve_time_s", "wall_time_s", "verification_error", "constraint_violation")
 _COLUMNS = tuple(f.name for f in fields(PointRecord))
-_TYPES = {"success": "INTEGER NOT NULL", "iterations": "INTEGER", "total_iterations": "INTEGER", "attempts": "INTEGER NOT NULL",
-          **{c: "REAL" for c in _REAL}, **{c: "TEXT NOT NULL" for c in ("idx", "axis_values", "task", "params",
+_TYPES = {"success": "INTEGER NOT NULL", "iterations": "INTEGER", "total_iterations": "INTEGER",
+          "attempts": "INTEGER NOT NULL",
+          **{c: "REAL" for c in _REAL}, **{c: "TEXT NOT NULL" for c in ("idx", "axis_values", "task",
+                                                                        "params",
                                                                           "status")}}
 
 
@@ -126,7 +128,8 @@ class SweepStore:
         self.directory = Path(directory)
         self.path = self.directory / STORE_NAME
         if not create and not self.path.exists():
-            raise ProblemError([f"{self.directory} holds no sweep ({STORE_NAME} not found)"], title="no sweep")
+            raise ProblemError([f"{self.directory} holds no sweep ({STORE_NAME} not found)"],
+                               title="no sweep")
         self._exit = contextlib.ExitStack()
         if create and lock:
             self._exit.enter_context(output_lock(self.directory, f"nhgait sweep --out {self.directory}"))
@@ -207,7 +210,8 @@ class SweepStore:
                                       {**meta, "format": FORMAT, "created": _now()}.items()])
             return
         if not stored:
-            raise ProblemError([f"--resume: {self.directory} holds no sweep to resume"], title="nothing to resume")
+            raise ProblemError([f"--resume: {self.directory} holds no sweep to resume"],
+                               title="nothing to resume")
         problems = []
         if stored.get("format") != FORMAT:
             problems.append(f"the store has format {stored.get('format')}, this nhgait writes {FORMAT}")
@@ -222,7 +226,8 @@ class SweepStore:
             raise ProblemError(problems, title="cannot resume this sweep")
         with self._db:
             self._db.executemany("INSERT OR REPLACE INTO meta VALUES (?, ?)",
-                                 [(k, json.dumps(v, sort_keys=True)) for k, v in meta.items() if k not in IDENTITY])
+                                 [(k, json.dumps(v, sort_keys=True)) for k, v in meta.items()
+                                  if k not in IDENTITY])
 
     # ------------------------------------------------------------------ rows
     def write_solution(self, point_id: str, solution: dict) -> str:
@@ -263,7 +268,8 @@ class SweepStore:
     def records(self) -> list:
         """Every stored :class:`PointRecord`, in grid order."""
         rows = self._db.execute(f"SELECT {', '.join(_COLUMNS)} FROM points")
-        out = [PointRecord(**{c: _from_sql(c, v) for c, v in zip(_COLUMNS, row)}) for row in rows]
+        out = [PointRecord(**{c: _from_sql(c, v) for c, v in zip(_COLUMNS, row, strict=True)})
+               for row in rows]
         return sorted(out, key=lambda r: r.idx)
 
     def load_solution(self, record: PointRecord) -> dict | None:

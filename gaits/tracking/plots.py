@@ -32,9 +32,9 @@ def plot_tracking_paths(result, axes, names=("x", "y")):
     """Two axes: each loop's sample paths (thin), its noise-free run (dashed) and the plan's
     reference path (black)."""
     report = result.report
-    reference = np.asarray(result.samples[0]["reference_position"]) if "reference_position" in result.samples[0] \
-        else None
-    for ax, loop in zip(axes, LOOPS):
+    reference = (np.asarray(result.samples[0]["reference_position"])
+                 if "reference_position" in result.samples[0] else None)
+    for ax, loop in zip(axes, LOOPS, strict=False):
         for answer in result.samples[1:]:
             p = np.asarray(answer[loop]["position"])
             if p.size:
@@ -60,7 +60,8 @@ def plot_final_positions(result, ax, names=("x", "y")):
     report = result.report
     end = np.asarray(result.samples[0]["reference_position"])[-1]
     for loop in LOOPS:
-        ends = np.array([answer[loop]["position"][-1] for answer in result.samples[1:] if answer[loop]["position"]])
+        ends = np.array([answer[loop]["position"][-1] for answer in result.samples[1:]
+                         if answer[loop]["position"]])
         if ends.size:
             ax.scatter(ends[:, 0] - end[0], ends[:, 1] - end[1], s=14, color=_COLOR[loop], alpha=0.7,
                        label=_TITLE[loop])
@@ -96,7 +97,7 @@ def plot_tracking_errors(result, axes, coordinates, units):
     axes[0].set_yscale("log")
     axes[0].legend(fontsize="small", loc="best")
     from ..plots import label
-    for ax, name in zip(axes[1:], coordinates):
+    for ax, name in zip(axes[1:], coordinates, strict=False):
         ax.set_ylabel(f"{label(name)} error [{units.get(name, '')}]")
     for ax in axes:
         ax.grid(alpha=0.3)

@@ -93,6 +93,7 @@ def schedule_of(feedback, specialised, system):
     :class:`~nhgait.ocp.feedback.Feedback` on the plan's (specialised) model: its state map
     (q, q̇) ↦ z with the nominal parameters bound."""
     import casadi as ca
+
     from nhgait.dynamics.simulation.gain_schedule import GainSchedule
     n = system.n
     q, qd = ca.SX.sym("q", n), ca.SX.sym("qdot", n)
@@ -106,6 +107,7 @@ def schedule_of(feedback, specialised, system):
 def _context(case: TrackingCase) -> _Context:
     def build():
         from nhgait.ocp.feedback import Feedback
+
         from ..planner import prepare
         from ..sweeps.point import scene_of
         from ..task_library import resolve
@@ -113,7 +115,8 @@ def _context(case: TrackingCase) -> _Context:
         feedback = Feedback.from_dict(case.feedback)
         system = prepared.model.system
         frame = tuple(system.planar_frame or ())[:2] or tuple(system.coordinates)
-        return _Context(prepared.model, prepared.specialised, schedule_of(feedback, prepared.specialised, system),
+        return _Context(prepared.model, prepared.specialised,
+                        schedule_of(feedback, prepared.specialised, system),
                         (feedback.weights.state_scale, feedback.weights.control_scale), frame)
     return CONTEXTS.get(case.key, build)
 
@@ -155,7 +158,7 @@ def run_sample(ctx: _Context, case: TrackingCase, index: int) -> dict:
         pos = [list(ctx.model.system.coordinates).index(c) for c in ctx.frame]
         out["reference_position"] = [sched.reference_state(tt)[pos].tolist() for tt in grid]
         out["position_names"] = list(ctx.frame)
-    for loop, law in zip(LOOPS, (sched.open_loop(), sched)):
+    for loop, law in zip(LOOPS, (sched.open_loop(), sched), strict=True):
         traj = simulate(ctx.model, (sched.times[0], sched.times[-1]), q0, qdot0,
                         controller=law.with_controls(sched.controls + du), params=robot, method="compiled",
                         t_eval=grid, rtol=1e-8, atol=1e-10)
@@ -193,10 +196,12 @@ def _measure(ctx: _Context, traj) -> dict:
     t = traj.t
     names = list(ctx.model.system.coordinates)
     pos = [names.index(c) for c in ctx.frame]
-    z = np.array([np.asarray(sched.state_map(q, qd), dtype=float).ravel() for q, qd in zip(traj.q, traj.qdot)])
+    z = np.array([np.asarray(sched.state_map(q, qd), dtype=float).ravel()
+                  for q, qd in zip(traj.q, traj.qdot, strict=True)])
     ref = np.array([sched.reference_state(tt) for tt in t])
     err = z - ref if len(t) else np.zeros((0, sched.n_states))
-    complete = bool(traj.success) and len(t) and abs(t[-1] - sched.times[-1]) <= 1e-9 * max(1.0, sched.times[-1])
+    complete = (bool(traj.success) and len(t)
+                and abs(t[-1] - sched.times[-1]) <= 1e-9 * max(1.0, sched.times[-1]))
     final = float(np.linalg.norm(traj.q[-1, pos] - sched.reference[-1, pos])) if complete else float("nan")
     return {"success": bool(traj.success), "status": int(traj.status), "message": str(traj.message),
             "final_position_error": final,

@@ -91,6 +91,7 @@ class TrackingResult:
 def _plan_data(plan_file):
     """The content of a ``solution.json`` to track (one with feedback), or None."""
     from nhgait.ocp import ProblemError
+
     from ..planner import read_solution
     if plan_file is None:
         return None
@@ -134,15 +135,15 @@ def _planned(system, task, overrides, data, progress, time_limit):
     from ..task_library import resolve
     if data is not None:
         resolved = resolve(system, data["task"])
-        return (data.get("system", resolved.label), data["task"], dict(data["problem"]["params"]), data["feedback"],
-                dict(resolved.units), None)
+        return (data.get("system", resolved.label), data["task"], dict(data["problem"]["params"]),
+                data["feedback"], dict(resolved.units), None)
     result = plan(system, task, overrides=overrides, progress=progress, time_limit=time_limit)
     if not result.success:
         raise _PlanFailed(result)
     p = result.solution.problem
-    params = dict(zip(p.model.numeric.param_names, map(float, p.params)))
-    return (result.label, result.task.to_dict(), params, result.solution.feedback.to_dict(), dict(result.plan.units),
-            result)
+    params = dict(zip(p.model.numeric.param_names, map(float, p.params), strict=True))
+    return (result.label, result.task.to_dict(), params, result.solution.feedback.to_dict(),
+            dict(result.plan.units), result)
 
 
 class _PlanFailed(Exception):
@@ -153,8 +154,8 @@ class _PlanFailed(Exception):
         self.result = result
 
 
-def track(system, task=None, *, overrides=(), mismatch=(), samples: int = 20, seed: int = 0, noise: Noise = Noise(),
-          plan_file=None, scheduler=None, workers=None, out_dir=None, progress=None,
+def track(system, task=None, *, overrides=(), mismatch=(), samples: int = 20, seed: int = 0,
+          noise: Noise = Noise(), plan_file=None, scheduler=None, workers=None, out_dir=None, progress=None,
           time_limit=None) -> TrackingResult:
     """A tracking study (module docstring).
 
@@ -172,6 +173,7 @@ def track(system, task=None, *, overrides=(), mismatch=(), samples: int = 20, se
     """
     from nhgait.dynamics.progress import Progress
     from nhgait.ocp.budget import BudgetSpent
+
     from ..outputs import output_directory
     from ..sweeps.point import describe_case
     from ..task_library import resolve
@@ -185,13 +187,15 @@ def track(system, task=None, *, overrides=(), mismatch=(), samples: int = 20, se
     scene_system = resolved.scene.system
     factors, budget = _checked_request(samples, mismatch, scene_system,
                                        lambda: budget_for(len(scene_system.coordinates), time_limit,
-                                                          resolved.task.time_limit, given_as=GIVEN, started=started),
+                                                          resolved.task.time_limit, given_as=GIVEN,
+                                                          started=started),
                                        (scheduler, workers))
     progress.note(f"time budget of the study (the plan and the samples): {budget.describe()}; "
                   "--time-limit SECONDS to change it")
     timings, t0 = {}, time.perf_counter()
     try:
-        label, task_table, params, feedback, units, planned = _planned(system, task, overrides, data, progress,
+        label, task_table, params, feedback, units, planned = _planned(system, task, overrides, data,
+                                                                       progress,
                                                                         time_limit)
     except _PlanFailed as failed:
         return _failed_plan(failed.result, out_dir)
@@ -229,7 +233,8 @@ GIVEN = "--time-limit / track(time_limit=...)"
 
 def _overrun_lines(overrun) -> list:
     """What ran out, where, and what to change (a study's version of ``Overrun.lines``)."""
-    return [overrun.lines()[0], "to give it more time: --time-limit SECONDS ('inf': unlimited); to need less: "
+    return [overrun.lines()[0],
+            "to give it more time: --time-limit SECONDS ('inf': unlimited); to need less: "
                                 "fewer --samples, or more --workers"]
 
 
@@ -238,13 +243,15 @@ def _checked_request(samples, mismatch, system, make_budget, backend) -> tuple:
     every problem of the request, the back end's (``backend``: (scheduler, workers)) included —
     before planning."""
     from nhgait.ocp import ProblemError
+
     from ..sweeps.backends import backend_problems
     ok = isinstance(samples, int) and samples >= 1
     problems = [] if ok else [f"--samples must be an integer ≥ 1, got {samples}"]
     problems += backend_problems(*backend)
     factors, budget = {}, None
     try:
-        factors = dict(mismatch) if isinstance(mismatch, dict) else parse_mismatch(mismatch, system.parameters)
+        factors = (dict(mismatch) if isinstance(mismatch, dict)
+                   else parse_mismatch(mismatch, system.parameters))
     except ProblemError as exc:
         problems += list(exc.problems)
     try:
@@ -272,7 +279,8 @@ def _failed_plan(result, out_dir) -> TrackingResult:
     else:
         why = result.solution.status if result.overrun is None else "time budget spent"
     report = {"system": result.label, "success": False,
-              "message": f"the plan did not succeed ({why}); nothing to track", "diagnosis": list(result.diagnosis)}
+              "message": f"the plan did not succeed ({why}); nothing to track",
+              "diagnosis": list(result.diagnosis)}
     failed = TrackingResult(result.label, report, (), (), {}, result, result.overrun)
     return failed if out_dir is None else _written(failed, out_dir, None, None)
 
@@ -307,6 +315,7 @@ def _context_for_report(system, case, units) -> dict:
     """Names and units the report needs: the plan's state names and their units (the scene's
     ``[units]``, else the plots' rules), the position's unit, the feedback's weights."""
     from nhgait.ocp.feedback import Feedback
+
     from ..plots import FigureContext, unit
     fb = Feedback.from_dict(case.feedback)
     ctx = FigureContext(system, dict(units), None, None, (), ())
@@ -339,14 +348,16 @@ def summarise(answers, case: TrackingCase, label: str, factors: dict, context: d
         report[loop] = {
             "final_position_error": {**_stats(finals), "unit": length, "samples": finals},
             "state_errors": {name: {"unit": units.get(name, ""), "rms_median": float(np.nanmedian(rms[:, i])),
-                                    "rms_max": float(np.nanmax(rms[:, i])), "max": float(np.nanmax(peak[:, i]))}
+                                    "rms_max": float(np.nanmax(rms[:, i])),
+                                    "max": float(np.nanmax(peak[:, i]))}
                              for i, name in enumerate(names)},
             "saturation_time_s": _stats([r["saturation_time_s"] for r in rows]),
             "noise_free_final_position_error": free[loop]["final_position_error"],
             "failed": len(failed), "failures": sorted({r["message"] for r in failed})[:5]}
     open_median = report["open_loop"]["final_position_error"]["median"]
     closed_max = report["closed_loop"]["final_position_error"]["max"]
-    report["closed_max_over_open_median"] = (closed_max / open_median if open_median and closed_max is not None
+    report["closed_max_over_open_median"] = (closed_max / open_median if open_median
+                                             and closed_max is not None
                                              else None)
     report["success"] = all(report[loop]["failed"] == 0 for loop in LOOPS)
     return report
@@ -361,9 +372,11 @@ def _written(result: TrackingResult, out: Path, units, progress) -> TrackingResu
     """``result`` with its files written to ``out`` (:func:`_write_files`, staged); a write that
     fails puts tracking.json in a fallback folder and says so in ``unwritten``."""
     from dataclasses import replace
+
     from ..outputs import rescue, staged, write_failure
     try:
-        return replace(result, files=tuple(staged(out, lambda folder: _write_files(result, folder, units, progress))))
+        return replace(result, files=tuple(staged(out, lambda folder: _write_files(result, folder,
+                                                                                   units, progress))))
     except OSError as exc:
         failed = write_failure(exc, getattr(exc, "filename", None) or out)
     return replace(result, unwritten=f"{failed}; {rescue('tracking.json', result.report, 'tracking report')}")
@@ -394,11 +407,12 @@ def summary_lines(result: TrackingResult) -> list:
         return lines + _file_lines(result)
     unit = r["position_unit"]
     mism = ", ".join(f"{k} ×{v:g}" for k, v in r["mismatch"].items()) or "none"
-    lines = [f"nhgait track {result.label}: {r['samples']} samples, mismatch {mism}, noise {r['noise']['state']:g} "
-             f"(state) / {r['noise']['input']:g} (input) of scale, seed {r['seed']}"]
+    lines = [f"nhgait track {result.label}: {r['samples']} samples, mismatch {mism}, noise "
+             f"{r['noise']['state']:g} (state) / {r['noise']['input']:g} (input) of scale, seed {r['seed']}"]
     for loop in LOOPS:
         f, s = r[loop]["final_position_error"], r[loop]["saturation_time_s"]
-        lines.append(f"  {loop.replace('_', ' '):12s} final position error median {_num(f['median'])} {unit}, "
+        lines.append(f"  {loop.replace('_', ' '):12s} final position error median "
+                     f"{_num(f['median'])} {unit}, "
                      f"max {_num(f['max'])} {unit}; inputs at a bound {_num(s['median'])} s (median), "
                      f"{r[loop]['failed']} run(s) stopped early")
     ratio = r["closed_max_over_open_median"]

@@ -44,7 +44,8 @@ def bodies_system(table: dict, source: str = "<scene>"):
     problems: list = []
     unknown = set(table) - KEYS
     if unknown:
-        problems.append(f"[system]: unknown key(s) {sorted(unknown)} with bodies (allowed: {', '.join(sorted(KEYS))})")
+        problems.append(f"[system]: unknown key(s) {sorted(unknown)} with bodies (allowed: "
+                        f"{', '.join(sorted(KEYS))})")
     params = table.get("parameters", {})
     if not isinstance(params, dict):
         problems.append("[system].parameters must be a table")
@@ -62,10 +63,12 @@ def bodies_system(table: dict, source: str = "<scene>"):
     holonomic = [*heights, *table.get("holonomic", [])]
     try:
         return System(coordinates=list(multibody.coordinates), lagrangian=lagrangian(M, V, q_dot),
-                      constraints=[in_qdot(r, q[2], q_dot) for r in rows] + list(table.get("constraints", [])),
+                      constraints=[in_qdot(r, q[2], q_dot) for r in rows]
+                      + list(table.get("constraints", [])),
                       forces=table.get("forces", {}), parameters=params, inputs=table.get("inputs"),
                       name=table.get("name", "system"), fiber=table.get("fiber"),
-                      planar_frame=list(multibody.base), holonomic=holonomic, dependent=table.get("dependent"))
+                      planar_frame=list(multibody.base), holonomic=holonomic,
+                      dependent=table.get("dependent"))
     except ModelError as exc:
         raise ModelError(list(exc.problems), title=f"invalid scene {source}") from None
 
@@ -115,7 +118,7 @@ def in_qdot(row_nu: sp.Matrix, psi, q_dot) -> sp.Expr:
     """A row in ν as an expression in q̇ (u = cos ψ ẋ + sin ψ ẏ, w = −sin ψ ẋ + cos ψ ẏ)."""
     c, s = sp.cos(psi), sp.sin(psi)
     coefficients = [c * row_nu[0] - s * row_nu[1], s * row_nu[0] + c * row_nu[1], *row_nu[2:]]
-    return sp.Add(*[k * v for k, v in zip(coefficients, q_dot)])
+    return sp.Add(*[k * v for k, v in zip(coefficients, q_dot, strict=True)])
 
 
 def wheel_contacts(multibody: Multibody, q, values: dict) -> tuple:

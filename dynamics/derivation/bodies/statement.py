@@ -85,12 +85,14 @@ def read_multibody(table: dict, names: dict, problems: list) -> Multibody | None
     start = len(problems)
     base = table.get("base", ["x", "y", "theta"])
     if not (isinstance(base, list) and len(base) == 3 and all(isinstance(c, str) for c in base)):
-        problems.append(f"[system].base must name the three planar base coordinates (x, y, heading), got {base!r}")
+        problems.append("[system].base must name the three planar base coordinates (x, y, heading), "
+                        f"got {base!r}")
         base = ["x", "y", "theta"]
     raw_bodies, raw_wheels = table.get("bodies", []), table.get("wheels", [])
     for key, value in (("bodies", raw_bodies), ("wheels", raw_wheels)):
         if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
-            problems.append(f"[system].{key} must be an array of tables ([[system.{key}]]), got {type(value).__name__}")
+            problems.append(f"[system].{key} must be an array of tables ([[system.{key}]]), got "
+                            f"{type(value).__name__}")
             return None
     reader = _Reader(names, problems)
     bodies = tuple(reader.body(b, i) for i, b in enumerate(raw_bodies))
@@ -108,7 +110,8 @@ class _Reader:
 
     def scalar(self, value, where):
         if isinstance(value, bool) or not isinstance(value, (int, float, str)):
-            self.problems.append(f"{where}: expected a number or an expression of the parameters, got {value!r}")
+            self.problems.append(f"{where}: expected a number or an expression of the parameters, "
+                                 f"got {value!r}")
             return sp.Integer(0)
         if isinstance(value, (int, float)):
             return sp.Integer(value) if isinstance(value, int) else sp.Float(repr(value))
@@ -139,10 +142,13 @@ class _Reader:
     def inertia(self, value, where):
         if value is None:
             return sp.zeros(3, 3)
-        if not (isinstance(value, list) and len(value) == 3 and all(isinstance(r, list) and len(r) == 3 for r in value)):
-            self.problems.append(f"{where}: expected a 3×3 list of lists (about the mass centre), got {value!r}")
+        if not (isinstance(value, list) and len(value) == 3
+                and all(isinstance(r, list) and len(r) == 3 for r in value)):
+            self.problems.append(f"{where}: expected a 3×3 list of lists (about the mass centre), "
+                                 f"got {value!r}")
             return sp.zeros(3, 3)
-        M = sp.Matrix([[self.scalar(v, f"{where}[{i}][{j}]") for j, v in enumerate(row)] for i, row in enumerate(value)])
+        M = sp.Matrix([[self.scalar(v, f"{where}[{i}][{j}]") for j, v in enumerate(row)]
+                       for i, row in enumerate(value)])
         if M != M.T:
             self.problems.append(f"{where}: the inertia matrix is not symmetric")
         return M
@@ -150,7 +156,8 @@ class _Reader:
     def keys(self, table, allowed, where):
         unknown = set(table) - allowed
         if unknown:
-            self.problems.append(f"{where}: unknown key(s) {sorted(unknown)} (allowed: {', '.join(sorted(allowed))})")
+            self.problems.append(f"{where}: unknown key(s) {sorted(unknown)} (allowed: "
+                                 f"{', '.join(sorted(allowed))})")
         for key in ("name", "parent"):
             if not isinstance(table.get(key), str):
                 self.problems.append(f"{where}: {key} must be a name, got {table.get(key)!r}")
@@ -164,7 +171,8 @@ class _Reader:
             joint = None
         moving = joint is not None
         return BodySpec(name=str(table.get("name")), parent=str(table.get("parent")), joint=joint,
-                        axis=self.direction(table.get("axis"), f"{where}.axis") if moving else sp.Matrix([1, 0, 0]),
+                        axis=self.direction(table.get("axis"), f"{where}.axis") if moving
+                        else sp.Matrix([1, 0, 0]),
                         point=self.vector(table.get("point"), f"{where}.point") if moving else sp.zeros(3, 1),
                         mass=self.scalar(table.get("mass", 0), f"{where}.mass"),
                         com=self.vector(table.get("com", [0, 0, 0]), f"{where}.com"),
@@ -174,15 +182,18 @@ class _Reader:
         where = f"[[system.wheels]] {table.get('name', i + 1)!r}"
         self.keys(table, WHEEL_KEYS, where)
         if not isinstance(table.get("spin"), str):
-            self.problems.append(f"{where}: spin must name the wheel's rotation coordinate, got {table.get('spin')!r}")
+            self.problems.append(f"{where}: spin must name the wheel's rotation coordinate, got "
+                                 f"{table.get('spin')!r}")
         inertia = table.get("inertia", [0, 0])
         if not (isinstance(inertia, list) and len(inertia) == 2):
-            self.problems.append(f"{where}.inertia: expected [about a diameter, about the axle], got {inertia!r}")
+            self.problems.append(f"{where}.inertia: expected [about a diameter, about the axle], got "
+                                 f"{inertia!r}")
             inertia = [0, 0]
         rolls = table.get("rolls", True)
         if not isinstance(rolls, bool):
             self.problems.append(f"{where}.rolls must be true or false, got {rolls!r}")
-        return WheelSpec(name=str(table.get("name")), parent=str(table.get("parent")), spin=str(table.get("spin")),
+        return WheelSpec(name=str(table.get("name")), parent=str(table.get("parent")),
+                         spin=str(table.get("spin")),
                          centre=self.vector(table.get("centre"), f"{where}.centre"),
                          axle=self.direction(table.get("axle"), f"{where}.axle"),
                          radius=self.scalar(table.get("radius"), f"{where}.radius"),
@@ -198,7 +209,8 @@ def _check_tree(base, bodies, wheels, problems) -> None:
         if b.name in seen:
             problems.append(f"body {b.name!r}: the name is used twice (or is {BASE!r}, the planar base)")
         if b.parent not in seen:
-            problems.append(f"body {b.name!r}: its parent {b.parent!r} is not {BASE!r} or a body declared before it")
+            problems.append(f"body {b.name!r}: its parent {b.parent!r} is not {BASE!r} or a body "
+                            "declared before it")
         seen.add(b.name)
     for w in wheels:
         if w.parent not in seen:

@@ -89,6 +89,7 @@ def _model(layout, first, run: StepsRun, t0) -> ReducedODE:
     steps 4–20: the explicit form holds sympy matrices; the implicit form holds CasADi text
     and the functions compiled from the run."""
     import sympy as sp
+
     from ..steps import Step, Steps
     from .model import symbol_names_for
     system, symbols = layout.system, run.symbols
@@ -104,7 +105,8 @@ def _model(layout, first, run: StepsRun, t0) -> ReducedODE:
         equations = dict(rhs=None, X=casadi_text(run.X), K=casadi_text(run.K), hamiltonian=casadi_text(run.h),
                          structure=casadi_text(run.J_z), qdot=casadi_text(run.qdot),
                          momenta_of_velocity=casadi_text(run.momenta_of_velocity))
-        later = [Step(s.number, s.title, s.thesis, {k: casadi_text(v) for k, v in s.items.items()}, s.note, s.labels)
+        later = [Step(s.number, s.title, s.thesis, {k: casadi_text(v) for k, v in s.items.items()},
+                      s.note, s.labels)
                  for s in run.steps]
         implicit = ImplicitForm.of(layout)
     model = ReducedODE(system=system, version=layout.version, fiber=layout.fiber, shape=layout.shape,
@@ -112,7 +114,8 @@ def _model(layout, first, run: StepsRun, t0) -> ReducedODE:
                        state_names=tuple(system.coordinates) + tuple(str(p) for p in symbols.P),
                        momenta=tuple(symbols.P), singular_set=singular_set(layout), symmetry=layout.symmetry,
                        layout=layout, form=layout.form, **equations,
-                       classification=classify(layout, run.A_zero), steps=Steps(list(first) + list(later), names),
+                       classification=classify(layout, run.A_zero),
+                       steps=Steps(list(first) + list(later), names),
                        implicit=implicit, derive_time_s=time.perf_counter() - t0, symbol_names=names)
     if layout.form == "implicit":
         from ...numerics.numeric_model import compile_reduced

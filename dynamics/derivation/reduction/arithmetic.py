@@ -23,10 +23,10 @@ from __future__ import annotations
 
 import sympy as sp
 
-from ...errors import ModelError
 from ...algebra.fraction_field import FracField, as_sympy
 from ...algebra.matrix_ops import MatrixOps
 from ...algebra.trig import tidy
+from ...errors import ModelError
 
 
 class SympyArithmetic(MatrixOps):

@@ -42,7 +42,7 @@ class Connection(Reconstruction):
     K: list
 
     @classmethod
-    def of(cls, reconstruction: Reconstruction, *, xi_c, l_red, K) -> "Connection":
+    def of(cls, reconstruction: Reconstruction, *, xi_c, l_red, K) -> Connection:
         parts = {f.name: getattr(reconstruction, f.name) for f in fields(Reconstruction)}
         return cls(**parts, xi_c=xi_c, l_red=l_red, K=K)
 
@@ -53,7 +53,8 @@ def momentum(arith, layout, symbols) -> Step:
     M = arith.mat(layout.M)
     p = []
     for j in range(layout.d):
-        terms = [(arith.normal(arith.add_many([arith.mul(arith.frac(layout.N[a, j]), M[i][c]) for a, i in enumerate(layout.si)
+        terms = [(arith.normal(arith.add_many([arith.mul(arith.frac(layout.N[a, j]), M[i][c])
+                                               for a, i in enumerate(layout.si)
                                        if not arith.is_zero(M[i][c])])), [qd[c]]) for c in range(layout.n)]
         p.append(arith.form(terms))
     items = {"p": arith.column(p)}
@@ -109,16 +110,18 @@ def reconstruction(arith, layout, symbols) -> Stepped:
     n, k, d, l = layout.n, layout.k, layout.d, len(layout.si)
     M, N = arith.mat(layout.M), arith.mat(layout.N)
     NT = arith.T(N) if d else []
-    K_nh = arith.matmul(arith.matmul(NT, [[M[i][j] for j in layout.si] for i in layout.si], normal=False), N) if d else []
+    K_nh = (arith.matmul(arith.matmul(NT, [[M[i][j] for j in layout.si] for i in layout.si], normal=False), N)
+            if d else [])
     K_nh_inv = arith.inv(K_nh, "kinetic metric K_Ω = NᵀM_ssN") if d else []
     W = arith.mat(layout.Wb) if k else []
     needs_B = k and any(not arith.is_zero(W[i][j]) for i in range(k) for j in layout.free)
     rhs = [alpha for alpha in layout.free if k and any(not arith.is_zero(W[i][alpha]) for i in range(k))]
-    sol = arith.solve([[W[i][pivot] for pivot in layout.pivots] for i in range(k)], [[W[i][alpha] for alpha in rhs] for i in range(k)],
+    sol = arith.solve([[W[i][pivot] for pivot in layout.pivots] for i in range(k)],
+                      [[W[i][alpha] for alpha in rhs] for i in range(k)],
                   "pivot block of ω") if needs_B and rhs else []
     lift = _LiftMatrices(M=M, N=N, NT=NT, K_nh_inv=K_nh_inv, g=arith.mat(layout.g))
-    cols = [_shape_column(arith, layout, lift, [[sol[i][rhs.index(alpha)]] for i in range(k)] if alpha in rhs else None,
-                          alpha)
+    cols = [_shape_column(arith, layout, lift,
+                          [[sol[i][rhs.index(alpha)]] for i in range(k)] if alpha in rhs else None, alpha)
             for alpha in layout.free]
     X = [[arith.ZERO] * (d + len(cols)) for _ in range(n)]
     for j in range(d):
@@ -128,16 +131,18 @@ def reconstruction(arith, layout, symbols) -> Stepped:
         for i in range(n):
             X[i][d + b] = col[i]
     ginv = arith.mat(layout.ginv)
-    A = arith.matmul(ginv, [[arith.neg(X[i][d + b]) for b in range(len(cols))] for i in layout.si]) if cols else [[] for _ in range(l)]
+    A = (arith.matmul(ginv, [[arith.neg(X[i][d + b]) for b in range(len(cols))] for i in layout.si]) if cols
+         else [[] for _ in range(l)])
     Gamma = arith.matmul(ginv, arith.matmul(N, K_nh_inv)) if d else [[] for _ in range(l)]
-    result = Reconstruction(X=X, K_nh=K_nh, K_nh_inv=K_nh_inv, A=A, e=arith.matmul(ginv, N) if d else [[] for _ in range(l)])
+    result = Reconstruction(X=X, K_nh=K_nh, K_nh_inv=K_nh_inv, A=A,
+                            e=arith.matmul(ginv, N) if d else [[] for _ in range(l)])
     rdot = arith.vec([layout.system.q_dot[i] for i in layout.free])
     sdot = arith.vec([layout.system.q_dot[i] for i in layout.si])
     xi = arith.madd(arith.mneg(arith.matmul(A, rdot, normal=False)) if cols else arith.zeros(l, 1),
                 arith.matmul(Gamma, arith.vec(symbols.P_nh), normal=False) if d else arith.zeros(l, 1))
     step = Step(5, "Reconstruction equation", "§3.2.2 (4), eqs. 2.47, 3.10–3.13, 3.36, 3.71", {
-        "g": layout.g, "xi_body": arith.show(arith.matmul(ginv, sdot), l, 1), "A": arith.show(A, l, len(cols)),
-        "Gamma": arith.show(Gamma, l, d), "xi": arith.show(xi, l, 1)},
+        "g": layout.g, "xi_body": arith.show(arith.matmul(ginv, sdot), l, 1),
+        "A": arith.show(A, l, len(cols)), "Gamma": arith.show(Gamma, l, d), "xi": arith.show(xi, l, 1)},
         "Solve ω_s ṡ + ω_r ṙ = 0 with the momentum definition for ṡ; ξ = g⁻¹ṡ.",
         labels={"xi_body": "g^-1 s_dot", "A": "A(r)", "Gamma": "Gamma(r)", "xi": "xi = -A r_dot + Gamma p"})
     return Stepped(step, result)
@@ -148,11 +153,14 @@ def body_basis(arith, layout, symbols, reconstruction: Reconstruction) -> Steppe
     ξ = −Aṙ + eΩ on the constraints."""
     l, d, m = len(layout.si), layout.d, len(layout.free)
     rdot = arith.vec([layout.system.q_dot[i] for i in layout.free])
-    xi_c = arith.madd(arith.mneg(arith.matmul(reconstruction.A, rdot, normal=False)) if m else arith.zeros(l, 1),
-                  arith.matmul(reconstruction.e, arith.vec(symbols.Om), normal=False) if d else arith.zeros(l, 1))
+    xi_c = arith.madd(arith.mneg(arith.matmul(reconstruction.A, rdot, normal=False)) if m
+                      else arith.zeros(l, 1),
+                  arith.matmul(reconstruction.e, arith.vec(symbols.Om), normal=False) if d
+                      else arith.zeros(l, 1))
     Omega = arith.matmul(reconstruction.K_nh_inv, arith.vec(symbols.P_nh)) if d else []
     step = Step(6, "Body-fixed basis e and Ω", "§3.2.2 (5), eqs. 3.14–3.15, 3.37–3.38, 3.72–3.73", {
-        "e": arith.show(reconstruction.e, l, d), "Omega": arith.show(Omega, d, 1), "xi": arith.show(xi_c, l, 1)}, "Γ(r)p = eΩ.",
+        "e": arith.show(reconstruction.e, l, d), "Omega": arith.show(Omega, d, 1),
+        "xi": arith.show(xi_c, l, 1)}, "Γ(r)p = eΩ.",
         labels={"e": "e = g^-1 xi_Q", "Omega": "Omega = K_Omega^-1 p", "xi": "xi = -A r_dot + e Omega"})
     return Stepped(step, xi_c)
 
@@ -161,7 +169,8 @@ def reduced_lagrangian(arith, layout, symbols) -> Stepped:
     """Step 7 (eqs. 3.16, 3.74): l(r, ṙ, ξ) = L with ṡ = gξ."""
     qd = layout.system.q_dot
     sdot = arith.matmul(arith.mat(layout.g), arith.vec(symbols.xi), normal=False)
-    l_red = arith.normal(arith.subs(arith.frac(layout.system.L), {arith.sub_key(qd[i]): sdot[a][0] for a, i in enumerate(layout.si)}))
+    l_red = arith.normal(arith.subs(arith.frac(layout.system.L),
+                                    {arith.sub_key(qd[i]): sdot[a][0] for a, i in enumerate(layout.si)}))
     step = Step(7, "Reduced Lagrangian l(r, ṙ, ξ)", "§3.2.2 (6), eqs. 3.16, 3.74",
                 {"l": arith.expr(l_red)}, "L with ṡ = gξ.")
     return Stepped(step, l_red)

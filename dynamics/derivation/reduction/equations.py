@@ -56,7 +56,8 @@ def gradient(arith, layout, symbols, connection, Kinv) -> Stepped:
         if any(not arith.is_zero(e) for r in dKinv for e in r):
             quad[i] = dKinv
         dV[i] = arith.normal(arith.diff(V, q[i]))
-    shown = [arith.quadratic(quad[i], symbols.P, half=True) + arith.expr(dV[i]) if i in quad else arith.expr(dV[i])
+    shown = [arith.quadratic(quad[i], symbols.P, half=True) + arith.expr(dV[i]) if i in quad
+             else arith.expr(dV[i])
              for i in layout.ri]
     dh_dP = [arith.form([(Kinv[a][b], [symbols.P[b]]) for b in range(nP)]) for a in range(nP)]
     step = Step(18, "Gradient of h", "§3.2.5, eqs. 3.32, 3.49, 3.92",
@@ -133,10 +134,11 @@ def _forces(arith, layout, symbols, connection, XKinv):
     for a in range(nP):
         total = XtT[a][0]
         c0, cs = arith.linear_split(total, symbols.P)
-        terms = [(c0, [])] + [(c, [v]) for c, v in zip(cs, symbols.P)]
+        terms = [(c0, [])] + [(c, [v]) for c, v in zip(cs, symbols.P, strict=True)]
         # a force need not be affine in the momenta (drag −c q̇², friction sign(q̇)): what the
         # affine split does not hold is kept as its own term, never dropped
-        affine = arith.add_many([c0] + [arith.mul(c, arith.sym(v)) for c, v in zip(cs, symbols.P)])
+        affine = arith.add_many([c0] + [arith.mul(c, arith.sym(v))
+                                        for c, v in zip(cs, symbols.P, strict=True)])
         rest = arith.normal(arith.add_many([total, arith.neg(affine)]))
         if not arith.is_zero(rest):
             terms.append((rest, []))
@@ -152,12 +154,15 @@ def equations(arith, layout, symbols, inputs: MomentumInputs) -> Stepped:
     connection, Kinv, XKinv = inputs.connection, inputs.Kinv, inputs.brackets.XKinv
     forces = _forces(arith, layout, symbols, connection, XKinv)
     Pdot = [_momentum_rate(arith, layout, symbols, inputs, forces, a) for a in range(nP)]
-    eA = [list(r1) + list(r2) for r1, r2 in zip(connection.e or [[] for _ in range(l)], arith.mneg(connection.A) if m else [[] for _ in range(l)])]
+    eA = [list(r1) + list(r2) for r1, r2 in zip(connection.e or [[] for _ in range(l)],
+                                                arith.mneg(connection.A) if m
+                                                else [[] for _ in range(l)], strict=True)]
     xi_coef = arith.matmul(eA, Kinv) if l and nP else arith.zeros(l, nP)
     xi = [arith.form([(xi_coef[i][j], [symbols.P[j]]) for j in range(nP)]) for i in range(l)]
     qdot = [arith.form([(XKinv[i][j], [symbols.P[j]]) for j in range(nP)]) for i in range(layout.n)]
     step = Step(19, "Reduced constrained Hamiltonian equations", "§3.2.5, eqs. 3.33, 3.50, 3.93", {
-        "xi": arith.column(xi), "P_dot": arith.column(Pdot[:d]), "r_dot": arith.column([qdot[i] for i in layout.ri]),
+        "xi": arith.column(xi), "P_dot": arith.column(Pdot[:d]),
+        "r_dot": arith.column([qdot[i] for i in layout.ri]),
         "Pt_dot": arith.column(Pdot[d:]), "F": arith.column(forces)},
         "(ξ, Ṗ, ṙ, dP̃/dt) = J∇h + (0, Xᵀτ).", labels={"F": "forces X^T tau"})
     return Stepped(step, MomentumEquations(Pdot=Pdot, qdot=qdot, xi_coef=xi_coef))
@@ -166,7 +171,8 @@ def equations(arith, layout, symbols, inputs: MomentumInputs) -> Stepped:
 def fiber_velocities(arith, layout, symbols, eqs) -> Step:
     """Step 20 (eqs. 3.51, 3.94): ṡ = gξ."""
     nP = len(symbols.P)
-    coef = arith.matmul(arith.mat(layout.g), eqs.xi_coef) if layout.si and nP else arith.zeros(len(layout.si), nP)
+    coef = (arith.matmul(arith.mat(layout.g), eqs.xi_coef) if layout.si and nP
+            else arith.zeros(len(layout.si), nP))
     sdot = [arith.form([(coef[i][j], [symbols.P[j]]) for j in range(nP)]) for i in range(len(layout.si))]
     return Step(20, "Reconstruction of the fiber velocities", "§3.2.5, eqs. 3.51, 3.94",
                 {"s_dot": arith.column(sdot)}, "ṡ = gξ.", labels={"s_dot": "s_dot = g xi"})
@@ -176,9 +182,10 @@ def momenta_of_velocity(arith, layout, symbols, connection) -> list:
     """P = XᵀM(q)q̇ (Tables 3.2–3.3), linear in q̇ with normal coefficients."""
     qd = layout.system.q_dot
     nP = len(symbols.P)
-    XTMq = arith.matmul(arith.matmul(arith.T(connection.X), arith.mat(layout.M), normal=False), arith.vec(qd), normal=False) if nP else []
+    XTMq = (arith.matmul(arith.matmul(arith.T(connection.X), arith.mat(layout.M), normal=False),
+                         arith.vec(qd), normal=False) if nP else [])
     out = []
     for a in range(nP):
         c0, cs = arith.linear_split(XTMq[a][0], list(qd))
-        out.append(arith.form([(c, [v]) for c, v in zip(cs, qd)]))
+        out.append(arith.form([(c, [v]) for c, v in zip(cs, qd, strict=True)]))
     return out

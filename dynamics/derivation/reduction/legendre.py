@@ -11,7 +11,8 @@ def legendre_transform(arith, layout, symbols, connection) -> Step:
     Kv = [arith.form([(connection.K[a][b], [symbols.v[b]]) for b in range(nP)]) for a in range(nP)]
     return Step(9, "Legendre transformation", "§3.2.3, eqs. 3.18, 3.76–3.77",
                 {"P": arith.column(Kv)}, "P = ∂l_c/∂v = Kv.",
-                labels={"P": "(" + ", ".join(map(str, symbols.P)) + ") = dl_c/d(" + ", ".join(map(str, symbols.v)) + ")"})
+                labels={"P": "(" + ", ".join(map(str, symbols.P)) + ") = dl_c/d("
+                        + ", ".join(map(str, symbols.v)) + ")"})
 
 
 def velocities(arith, layout, symbols, connection) -> Stepped:

@@ -12,9 +12,9 @@ from nhgait.dynamics.derivation.cse_text import cse_lines, wants_cse
 from nhgait.dynamics.derivation.notation import symmetry_choice_lines
 from nhgait.dynamics.reprs import ModelDisplay
 
+from ...algebra.trig import TIDY_NODES, tidy, tree_size
 from ..formulation_base import Formulation, LoopDynamics
 from ..steps import DISPLAY_OPS, Steps, default_symbol_names, text_of
-from ...algebra.trig import TIDY_NODES, tidy, tree_size
 from ..symmetry import SymmetryTest
 from ..system import System
 
@@ -52,7 +52,8 @@ def casadi_text(obj):
         obj = ca.vertcat(*obj) if obj else ca.SX(0, 1)
     if not isinstance(obj, ca.SX):
         return obj
-    ops = ca.Function("f", [ca.vertcat(*ca.symvar(obj)) if ca.symvar(obj) else ca.SX(0, 1)], [obj]).n_instructions()
+    ops = (ca.Function("f", [ca.vertcat(*ca.symvar(obj)) if ca.symvar(obj) else ca.SX(0, 1)], [obj])
+           .n_instructions())
     text = str(obj)
     if len(text) > CASADI_TEXT_MAX:
         text = text[:CASADI_TEXT_MAX] + f" … ({len(text)} characters; evaluate through model.numeric)"
@@ -83,7 +84,8 @@ class ImplicitForm:
     @classmethod
     def of(cls, layout):
         B = layout.Wb.extract(list(range(layout.k)), list(layout.pivots)) if layout.k else sp.zeros(0, 0)
-        return cls(B=B, N=layout.N, M=layout.M, omega=layout.W, pivots=tuple(layout.system.coordinates[i] for i in layout.pivots))
+        return cls(B=B, N=layout.N, M=layout.M, omega=layout.W,
+                   pivots=tuple(layout.system.coordinates[i] for i in layout.pivots))
 
 
 def classify(layout, A_zero: bool) -> str:
@@ -283,7 +285,7 @@ class ReducedODE(ModelDisplay, Formulation):
         """ż = f as sympy Eq objects (``<z>_dot``); explicit form only."""
         if self.rhs is None:
             return []
-        return [sp.Eq(sp.Symbol(f"{nm}_dot"), e) for nm, e in zip(self.state_names, self.rhs)]
+        return [sp.Eq(sp.Symbol(f"{nm}_dot"), e) for nm, e in zip(self.state_names, self.rhs, strict=True)]
 
     def pretty_rhs(self) -> list:
         """ż for display: each coefficient of a momentum/input monomial factored when it is
@@ -307,7 +309,7 @@ class ReducedODE(ModelDisplay, Formulation):
                          f"K: {self.K!r}; ż: {self.numeric['rhs'].n_instructions()} CasADi operations")
             return "\n".join(lines)
         rhs = self.pretty_rhs() if pretty else self.rhs
-        plain = [f"  d{nm}/dt = {text_of(e)}" for nm, e in zip(self.state_names, rhs)]
+        plain = [f"  d{nm}/dt = {text_of(e)}" for nm, e in zip(self.state_names, rhs, strict=True)]
         if cse or (cse is None and wants_cse(plain)):
             return "\n".join(lines + [f"  {line}" for line in
                                        cse_lines([f"d{nm}/dt" for nm in self.state_names], rhs)])
@@ -321,14 +323,17 @@ class ReducedODE(ModelDisplay, Formulation):
         bracket = ("a Poisson bracket (the Jacobi identity holds" if jacobi.jacobi_holds else
                    "almost-Poisson (the Jacobi identity does not hold, as expected of a nonholonomic bracket")
         out = [f"reduced bracket: {bracket}; max relative Jacobiator {jacobi.jacobiator:.2g}); constraints "
-               f"{'holonomic' if jacobi.holonomic else 'nonholonomic'} (max |ω[X_a, X_b]| {jacobi.holonomy:.2g}); "
-               f"thesis §2.2.2 (Jacobi ⇔ holonomic): {'consistent' if jacobi.consistent else 'INCONSISTENT'}",
+               f"{'holonomic' if jacobi.holonomic else 'nonholonomic'} (max |ω[X_a, X_b]| "
+               f"{jacobi.holonomy:.2g}); thesis §2.2.2 (Jacobi ⇔ holonomic): "
+               f"{'consistent' if jacobi.consistent else 'INCONSISTENT'}",
                f"classification (thesis Table 2.1): {self.classification}",
                "initial-state map (Tables 3.2–3.3), P = Xᵀ M(q) q̇ on ω(q)q̇ = 0:"]
         if self.rhs is None:
-            out.append(f"  P = X(q)ᵀ M(q) q̇, evaluated by model.numeric['state'] ({self.momenta_of_velocity!r})")
+            out.append("  P = X(q)ᵀ M(q) q̇, evaluated by model.numeric['state'] "
+                       f"({self.momenta_of_velocity!r})")
         else:
-            out += [f"  {s} = {text_of(e)}" for s, e in zip(self.momenta, self.momenta_of_velocity)]
+            out += [f"  {s} = {text_of(e)}"
+                    for s, e in zip(self.momenta, self.momenta_of_velocity, strict=True)]
         if self.singular_set:
             out.append("singular set: " + " or ".join(f"{text_of(e)} = 0" for e in self.singular_set))
         return "\n".join(out) + "\n"
@@ -360,5 +365,5 @@ def _pretty(e, gens):
     terms = []
     for mon, c in poly.terms():
         c = sp.factor(c) if sp.count_ops(c) <= FACTOR_OPS else c
-        terms.append(c * sp.Mul(*[g ** k for g, k in zip(gens, mon)]))
+        terms.append(c * sp.Mul(*[g ** k for g, k in zip(gens, mon, strict=True)]))
     return sp.Add(*terms)

@@ -59,7 +59,8 @@ def run_steps(arith, layout: Layout) -> StepsRun:
     step14 = steps_12_17.momenta_in_mu(arith, layout, symbols, connection)
     step15 = steps_12_17.brackets_in_mu(arith, layout, symbols, lie)
     step18, grad = steps_18_20.gradient(arith, layout, symbols, connection, Kinv)
-    step19, eqs = steps_18_20.equations(arith, layout, symbols, steps_18_20.MomentumInputs(connection, Kinv, brackets, grad))
+    step19, eqs = steps_18_20.equations(arith, layout, symbols,
+                                        steps_18_20.MomentumInputs(connection, Kinv, brackets, grad))
     step20 = steps_18_20.fiber_velocities(arith, layout, symbols, eqs)
     nP = len(symbols.P)
     X_shown, K_shown = arith.show(connection.X, layout.n, nP), arith.show(connection.K, nP, nP)
@@ -77,7 +78,8 @@ def arithmetic_for(kind, layout, budget=None):
     time t of the forces, which the steps carry along but never differentiate; ``budget``: the
     exact ring's work budget (None: no limit)."""
     system, symbols = layout.system, layout.symbols()
-    variables = (list(system.q) + list(system.q_dot) + symbols.p + symbols.P + symbols.xi + symbols.Om + symbols.mu
+    variables = (list(system.q) + list(system.q_dot) + symbols.p + symbols.P + symbols.xi + symbols.Om
+                 + symbols.mu
                  + list(system.input_symbols))
     expressions = [layout.M, layout.W, system.L, layout.V, system.force_vector(), layout.N, layout.g]
     return make_arithmetic(kind, expressions, variables, system.q, time=(TIME,), budget=budget)

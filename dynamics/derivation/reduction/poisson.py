@@ -8,9 +8,9 @@ The brackets are {P_a, P_b} = {X_aᵀp, X_bᵀp} = −pᵀ[X_a, X_b] with the Li
 """
 from __future__ import annotations
 
-import sympy as sp
-
 from dataclasses import dataclass
+
+import sympy as sp
 
 from ..steps import Step, Stepped
 
@@ -32,7 +32,7 @@ def body_momentum(arith, layout, symbols, connection) -> Step:
     mu = []
     for x in symbols.xi:
         c0, cs = arith.linear_split(arith.subs(arith.diff(connection.l_red, x), sub), symbols.v)
-        mu.append(arith.form([(c0, [])] + [(c, [v]) for c, v in zip(cs, symbols.v)]))
+        mu.append(arith.form([(c0, [])] + [(c, [v]) for c, v in zip(cs, symbols.v, strict=True)]))
     return Step(13, "Body momentum on the constraints", "§3.2.4, eqs. 3.24, 3.83",
                 {"mu": arith.column(mu) if l else arith.column([])}, "μ = ∂l/∂ξ; P̃_α = p_α − μ·A_α.",
                 labels={"mu": "mu = dl/dxi (on xi = -A r_dot + e Omega)"})
@@ -45,13 +45,14 @@ def momenta_in_mu(arith, layout, symbols, connection) -> Step:
     mu_of_p = arith.matmul(gT, arith.vec([symbols.p[i] for i in layout.si]))
     P_mu = []
     for a in range(nP):
-        terms = [arith.normal(arith.add_many([arith.mul(connection.X[i][a], ginvT[j][b]) for j, i in enumerate(layout.si)]))
+        terms = [arith.normal(arith.add_many([arith.mul(connection.X[i][a], ginvT[j][b])
+                                              for j, i in enumerate(layout.si)]))
                  for b in range(l)]
         P_mu.append(arith.form([(c, [symbols.mu[b]]) for b, c in enumerate(terms)]
                            + [(connection.X[i][a], [symbols.p[i]]) for i in layout.ri]))
     return Step(14, "Momenta in terms of μ", "§3.2.4, eqs. 3.25–3.27, 3.84–3.87",
-                {"mu": arith.show(mu_of_p, l, 1), "P": arith.column(P_mu)}, "P_i = e_iᵀμ, P̃_α = p_α − A_αᵀμ.",
-                labels={"mu": "mu = g^T p_s", "P": "P(mu)"})
+                {"mu": arith.show(mu_of_p, l, 1), "P": arith.column(P_mu)},
+                "P_i = e_iᵀμ, P̃_α = p_α − A_αᵀμ.", labels={"mu": "mu = g^T p_s", "P": "P(mu)"})
 
 
 def lie_brackets(arith, layout, connection) -> dict:
@@ -65,7 +66,8 @@ def lie_brackets(arith, layout, connection) -> dict:
         for b in range(a + 1, nP):
             d_b = arith.jvp(cols[b], q, cols[a])
             d_a = arith.jvp(cols[a], q, cols[b])
-            out[a, b] = [[arith.normal(arith.add_many([x, arith.neg(y)]))] for x, y in zip(d_b, d_a)]
+            out[a, b] = [[arith.normal(arith.add_many([x, arith.neg(y)]))]
+                         for x, y in zip(d_b, d_a, strict=True)]
     return out
 
 
@@ -103,14 +105,16 @@ def restricted_brackets(arith, layout, symbols, connection, Kinv, lie) -> Steppe
     M = arith.mat(layout.M)
     XKinv = arith.matmul(connection.X, Kinv)
     l = len(layout.si)
-    mu_coef = arith.matmul(arith.T(arith.mat(layout.g)), arith.matmul([M[i] for i in layout.si], XKinv, normal=False)) if l else []
+    mu_coef = (arith.matmul(arith.T(arith.mat(layout.g)), arith.matmul([M[i] for i in layout.si], XKinv,
+                                                                        normal=False)) if l else [])
     mu_M = [arith.form([(mu_coef[i][j], [symbols.P[j]]) for j in range(nP)]) for i in range(l)]
     XTM = arith.matmul(arith.T(connection.X), M, normal=False) if n else []
     coef, C = {}, [[arith.value(sp.Integer(0))] * nP for _ in range(nP)]
     for (a, b), v in lie.items():
         gam = arith.matmul(XTM, v)
         c = [arith.normal(arith.neg(arith.add_many([arith.mul(gam[c_][0], Kinv[c_][j]) for c_ in range(nP)
-                                         if not arith.is_zero(Kinv[c_][j]) and not arith.is_zero(gam[c_][0])])))
+                                         if not arith.is_zero(Kinv[c_][j])
+                                                    and not arith.is_zero(gam[c_][0])])))
              for j in range(nP)]
         coef[a, b], coef[b, a] = c, [arith.neg(x) for x in c]
         val = arith.form([(c[j], [symbols.P[j]]) for j in range(nP)])

@@ -17,9 +17,9 @@ import sympy as sp
 
 from nhgait.dynamics.derivation.notation import method_name, system_names
 
-from ..steps import Step
 from ...algebra.matrices import numeric_pivots, strip_factors
 from ...algebra.trig import tidy
+from ..steps import Step
 from ..symmetry import SymmetryTest, group_transform, symmetry_test
 from ..system import System
 
@@ -145,8 +145,8 @@ def distribution_and_group(system: System, symmetry: SymmetryTest, N: sp.Matrix,
         "G": chosen.group, "xi_Q": xi_Q, "xi": N, "chosen_by": symmetry.chosen_by},
         "Candidates: every set of fibre coordinates, T_q Orb = their span; S_q = D_q ∩ T_q Orb; chosen "
         "by the selection rule of docs/reduction.md.",
-        labels={"s": "fibre coordinates (step.s)", "r": "shape coordinates (step.r)", "xi_Q": "xi_Q^q (columns)",
-                "xi": "xi (Lie algebra element)", "chosen_by": "chosen by"})
+        labels={"s": "fibre coordinates (step.s)", "r": "shape coordinates (step.r)",
+                "xi_Q": "xi_Q^q (columns)", "xi": "xi (Lie algebra element)", "chosen_by": "chosen by"})
     return step2, step3
 
 

@@ -19,9 +19,9 @@ import numpy as np
 import sympy as sp
 
 from ...errors import ModelError
+from ..textfiles import read_text_file
 from . import energy, wheels
 from .mass_parameters import mass_problems, with_mass_parameters
-from ..textfiles import read_text_file
 from .reader import read_urdf
 from .tree import MOVING, build_bodies, tree_problems
 
@@ -51,7 +51,8 @@ class UrdfSystem:
                  f"({', '.join(s.coordinates)}), k = {s.k} constraints",
                  f"  L = {sp.sstr(s.L)}"]
         lines += [f"  0 = {sp.sstr(c)}" for c in s.constraint_exprs]
-        lines += [f"  force on {c}: {sp.sstr(f)}" for c, f in zip(s.coordinates, s.tau) if f != 0]
+        lines += [f"  force on {c}: {sp.sstr(f)}"
+                  for c, f in zip(s.coordinates, s.tau, strict=True) if f != 0]
         lines += [f"  {name} in [{lo:g}, {hi:g}] (URDF limit)" for name, (lo, hi) in
                   {**self.control_bounds, **self.bounds}.items()]
         lines += [f"  note: {note}" for note in self.notes]
@@ -130,10 +131,11 @@ def _numbers(table, key, problems) -> dict:
 def _check_keys(table, problems):
     unknown = set(table) - KEYS
     if unknown:
-        problems.append(f"[system]: unknown key(s) {sorted(unknown)} with urdf (allowed: {', '.join(sorted(KEYS))})")
+        problems.append(f"[system]: unknown key(s) {sorted(unknown)} with urdf (allowed: "
+                        f"{', '.join(sorted(KEYS))})")
     if table.get("base", "planar") != "planar":
-        problems.append(f"[system].base = {table.get('base')!r}: only \"planar\" (the root link moves in SE(2) "
-                        "on the ground plane) is supported")
+        problems.append(f"[system].base = {table.get('base')!r}: only \"planar\" (the root link "
+                        "moves in SE(2) on the ground plane) is supported")
     for key in ("forces", "parameters"):
         if not isinstance(table.get(key, {}), dict):
             problems.append(f"[system].{key} must be a table, got {table.get(key)!r}")
@@ -158,7 +160,8 @@ def _joint_problems(robot, spec, problems):
 
     for name in spec.joints:
         if check(name, "joints") and joints[name].mimic:
-            problems.append(f"[system].joints: joint {name!r} mimics {joints[name].mimic[0]!r}; keep that one")
+            problems.append(f"[system].joints: joint {name!r} mimics {joints[name].mimic[0]!r}; "
+                            "keep that one")
     for name, value in spec.locked.items():
         if not check(name, "locked"):
             continue
@@ -207,8 +210,8 @@ def wheel_radius(robot, joint, given, problems):
         return None
     radius, rotation = cylinders[0]
     if abs(abs(float(rotation[:, 2] @ joint.axis)) - 1) > 1e-6:
-        problems.append(f"wheel {joint.name!r}: the collision cylinder of {joint.child!r} is not coaxial with "
-                        f"the joint axis; give radius = {{{joint.name} = ...}}")
+        problems.append(f"wheel {joint.name!r}: the collision cylinder of {joint.child!r} is not "
+                        f"coaxial with the joint axis; give radius = {{{joint.name} = ...}}")
         return None
     return radius
 
@@ -354,8 +357,9 @@ def _wheel_rows(robot, bodies, kin, spec, q, problems) -> list:
             if radius is not None:
                 heights = wheels.centre_heights(kin[index], translation, q[3:], samples)
                 if np.max(np.abs(heights - radius)) > 1e-6 * max(radius, 1e-3):
-                    problems.append(f"wheel {name!r}: its centre is at height {heights[0]:.6g} m, its radius is "
-                                    f"{radius:.6g} m: it does not touch the ground (z = 0 of the root link)")
+                    problems.append(f"wheel {name!r}: its centre is at height {heights[0]:.6g} m, "
+                                    f"its radius is {radius:.6g} m: it does not touch the ground (z = 0 of "
+                                    "the root link)")
                     continue
             side, roll = wheels.wheel_rows(kin[index], rotation, translation, joint.axis, radius)
             rows += [side] + ([roll] if roll is not None else [])

@@ -138,7 +138,7 @@ def nested_kinetic_energy(bodies, kinematics, nu) -> sp.Expr:
     (not expanded): the form for trees whose expanded metric exceeds :data:`EXPANSION_BUDGET`."""
     nu = sp.Matrix(nu)
     total = sp.Integer(0)
-    for body, kin in zip(bodies, kinematics):
+    for body, kin in zip(bodies, kinematics, strict=True):
         if body.mass == 0 and not np.any(body.inertia):
             continue
         w = kin.Jw * nu
@@ -151,7 +151,7 @@ def metric_in_nu(bodies, kinematics) -> sp.Matrix:
     """K(s) of T = ½ νᵀ K ν, each entry simplified."""
     width = kinematics[0].Jv.shape[1]
     K = sp.zeros(width, width)
-    for body, kin in zip(bodies, kinematics):
+    for body, kin in zip(bodies, kinematics, strict=True):
         if body.mass == 0 and not np.any(body.inertia):
             continue
         c = body.com
@@ -178,7 +178,7 @@ def metric_in_qdot(K: sp.Matrix, theta, total_mass: float) -> sp.Matrix:
 def potential(bodies, kinematics, gravity: float):
     """V(s) = g Σ m_b z_b (heights in the root frame)."""
     total = sp.Integer(0)
-    for body, kin in zip(bodies, kinematics):
+    for body, kin in zip(bodies, kinematics, strict=True):
         if body.mass:
             total += body.mass * (kin.p + kin.R * snapped(body.com))[2]
     return clean(gravity * total)

@@ -196,7 +196,7 @@ def _joint(element, where, problems):
         problems.append(f"{where}: type {kind!r} is not a URDF joint type ({', '.join(JOINT_TYPES)})")
     parent, child = element.find("parent"), element.find("child")
     names = [e.get("link") if e is not None else None for e in (parent, child)]
-    for role, name in zip(("parent", "child"), names):
+    for role, name in zip(("parent", "child"), names, strict=True):
         if not name:
             problems.append(f"{where}: no <{role} link=...>")
     rotation, translation = _origin(element, where, problems)
@@ -216,7 +216,8 @@ def _joint(element, where, problems):
         if not mimic_el.get("joint"):
             problems.append(f"{where}: <mimic> names no joint")
         else:
-            mimic = (mimic_el.get("joint"), _number(mimic_el, "multiplier", f"{where} <mimic>", problems, 1.0),
+            mimic = (mimic_el.get("joint"),
+                     _number(mimic_el, "multiplier", f"{where} <mimic>", problems, 1.0),
                      _number(mimic_el, "offset", f"{where} <mimic>", problems, 0.0))
     return Joint(name=element.get("name"), type=kind or "", parent=names[0] or "", child=names[1] or "",
                  rotation=rotation, translation=translation, axis=axis, lower=lower, upper=upper,
@@ -225,7 +226,8 @@ def _joint(element, where, problems):
 
 
 def _link(element, where, problems) -> Link:
-    return Link(element.get("name"), _inertial(element, where, problems), _cylinders(element, where, problems))
+    return Link(element.get("name"), _inertial(element, where, problems),
+                _cylinders(element, where, problems))
 
 
 def _named_elements(root, tag, read, problems) -> dict:

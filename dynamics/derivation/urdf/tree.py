@@ -62,9 +62,11 @@ def tree_problems(robot: Robot) -> TreeCheck:
                 problems.append(f"joint {joint.name!r}: its {role} link {link!r} is not a <link> of the file")
         if joint.type in ("floating", "planar"):
             problems.append(f"joint {joint.name!r} is {joint.type}: nhgait gives the root link its planar "
-                            "motion (base = \"planar\"); remove the joint and root the URDF at its child link")
+                            "motion (base = \"planar\"); remove the joint and root the URDF at "
+                            "its child link")
         if joint.child in parent_of:
-            problems.append(f"link {joint.child!r} is the child of two joints ({parent_of[joint.child].name!r} "
+            problems.append(f"link {joint.child!r} is the child of two joints "
+                            f"({parent_of[joint.child].name!r} "
                             f"and {joint.name!r}): a closed loop, and a URDF states a tree")
         else:
             parent_of[joint.child] = joint
@@ -169,7 +171,7 @@ def build_bodies(robot: Robot, root: str, coordinates: dict, locked: dict) -> li
                              offset=motion[2])
             stack.append(("link", joint.child, index, np.eye(3), np.zeros(3)))
     bodies = []
-    for placement, body_frames in zip(placed, frames):
+    for placement, body_frames in zip(placed, frames, strict=True):
         mass, com, inertia = _mass_properties(body_frames, robot)
         bodies.append(Body(**placement, mass=mass, com=com, inertia=inertia, frames=body_frames))
     return bodies
@@ -184,7 +186,8 @@ def _mass_properties(frames: dict, robot: Robot) -> tuple:
         if inertial is None or (inertial.mass == 0 and not np.any(inertial.inertia)):
             continue
         frame = rotation @ inertial.rotation
-        parts.append((inertial.mass, translation + rotation @ inertial.com, frame @ inertial.inertia @ frame.T))
+        parts.append((inertial.mass, translation + rotation @ inertial.com,
+                      frame @ inertial.inertia @ frame.T))
     mass = sum(m for m, _, _ in parts)
     com = sum(m * c for m, c, _ in parts) / mass if mass > 0 else np.zeros(3)
     inertia = np.zeros((3, 3))

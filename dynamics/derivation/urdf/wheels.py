@@ -87,7 +87,7 @@ def in_qdot(row_nu: sp.Matrix, theta, q_dot) -> sp.Expr:
     c, s = sp.cos(theta), sp.sin(theta)
     coefficients = [clean(c * row_nu[0] - s * row_nu[1]), clean(s * row_nu[0] + c * row_nu[1])]
     coefficients += list(row_nu[2:])
-    return sp.Add(*[k * v for k, v in zip(coefficients, q_dot)])
+    return sp.Add(*[k * v for k, v in zip(coefficients, q_dot, strict=True)])
 
 
 def independent_rows(rows, theta_and_joints, count=4, seed=3):
