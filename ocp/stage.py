@@ -108,7 +108,8 @@ def stage_functions(ode: ca.Function, intervals: int | None = None, *, steps: in
                     free_horizon: bool = False, mode: str = "auto") -> StageFunctions:
     """The stage functions of ``ode`` (an SX Function ``(t, z, u) -> ż`` with the parameter
     values bound, or ``(t, z, u, θ) -> ż`` whose θ then follows (ν, t0) in ``phase``),
-    ``steps`` = M RK4 sub-steps per interval; the number of intervals enters as the argument ν = 1/N (``intervals`` is not needed: the same functions serve every N).
+    ``steps`` = M RK4 sub-steps per interval; the number of intervals enters as the argument
+    ν = 1/N (``intervals`` is not needed: the same functions serve every N).
 
     ``mode``: "inline", "structured" or "auto" (inline while 4 M · nx · ops(f) ≤
     :data:`INLINE_LIMIT`).
