@@ -34,18 +34,23 @@ def test_bench_ocp_smoke(tmp_path, capsys):
     assert bench.main(["--problems", "P1", "--N", "25", "--repeats", "1", "--out", str(out),
                        "--sections", "default,fatrop,collocation"]) == 0    # cold: bench_scale's smoke test
     text = capsys.readouterr().out
-    assert "P1" in text and "1.543703" in text and "FATROP" in text and "collocation" in text
+    assert "P1" in text
+    assert "1.543703" in text
+    assert "FATROP" in text
+    assert "collocation" in text
     rows = json.loads(out.read_text())["rows"]
     assert {r["section"] for r in rows} == {"default", "fatrop", "collocation"}
     fatrop = next(r for r in rows if r["section"] == "fatrop")
-    assert fatrop["rel_diff"] < 1e-6 and fatrop["fatrop"]["success"]
+    assert fatrop["rel_diff"] < 1e-6
+    assert fatrop["fatrop"]["success"]
 
 
 def test_thesis_printed_equations_script(capsys):
     script = _load("thesis_printed_equations")
     assert script.main() == 0
     out = capsys.readouterr().out
-    assert "x(10pi)=4.8299458" in out and "x(10pi)=2.2990248" in out
+    assert "x(10pi)=4.8299458" in out
+    assert "x(10pi)=2.2990248" in out
 
 
 def test_bench_bicycle_smoke(tmp_path, capsys):
@@ -53,8 +58,10 @@ def test_bench_bicycle_smoke(tmp_path, capsys):
     assert bench.main(["--out", str(tmp_path), "--speeds", "4:7:4", "--repeats", "1", "--no-cold",
                        "--no-commands"]) == 0
     data = json.loads((tmp_path / "bicycle.json").read_text())
-    assert data["table2_max_abs_error"] < 1e-10 and data["basu_mandal_max_abs_error"] < 1e-11
-    assert data["weave_error"] < 1e-10 and data["capsize_error"] < 1e-10
+    assert data["table2_max_abs_error"] < 1e-10
+    assert data["basu_mandal_max_abs_error"] < 1e-11
+    assert data["weave_error"] < 1e-10
+    assert data["capsize_error"] < 1e-10
     assert (tmp_path / "eigenvalues.png").stat().st_size > 10_000
     assert "linearise_median_s" in capsys.readouterr().out
 
@@ -64,6 +71,7 @@ def test_bench_tracking_smoke(tmp_path, capsys):
     out = tmp_path / "tracking.json"
     assert bench.main(["--quick", "--out", str(out)]) == 0
     data = json.loads(out.read_text())
-    assert data["snakeboard"]["ratio"] < 0.2 and data["six_coordinates"]["samples"] == 8
+    assert data["snakeboard"]["ratio"] < 0.2
+    assert data["six_coordinates"]["samples"] == 8
     assert data["floquet"]["closed_loop"]["max_multiplier_difference"] < 1e-6
     assert "Floquet (snakeboard forward gait)" in capsys.readouterr().out

@@ -27,15 +27,19 @@ def test_lane_change_is_planned_and_verified(lane_change):
     result = lane_change
     assert result.success if hasattr(result, "success") else result.solution.success
     verification = result.solution.verification
-    assert verification.success and verification.max_error <= 1e-6
+    assert verification.success
+    assert verification.max_error <= 1e-6
     sol = result.solution
     names = list(sol.state_names)
     q = sol.states[:8]
     assert q[names.index("y"), -1] == pytest.approx(1.0, abs=1e-6)
-    assert abs(q[names.index("yaw"), -1]) < 1e-6 and abs(q[names.index("lean"), -1]) < 1e-6
-    assert np.all(np.abs(q[names.index("lean")]) <= 0.3 + 1e-9) and np.all(np.abs(q[names.index("steer")]) <= 0.3 + 1e-9)
+    assert abs(q[names.index("yaw"), -1]) < 1e-6
+    assert abs(q[names.index("lean"), -1]) < 1e-6
+    assert np.all(np.abs(q[names.index("lean")]) <= 0.3 + 1e-9)
+    assert np.all(np.abs(q[names.index("steer")]) <= 0.3 + 1e-9)
     controls = dict(zip(sol.control_names, sol.controls))
-    assert np.all(controls["T_lean"] == 0.0) and np.max(np.abs(controls["T_steer"])) <= 20.0 + 1e-9
+    assert np.all(controls["T_lean"] == 0.0)
+    assert np.max(np.abs(controls["T_steer"])) <= 20.0 + 1e-9
     h = holonomic_residual(result.model.system, q.T)
     assert np.max(np.abs(h)) < 1e-8                                 # the pitch follows lean and steer
 

@@ -31,7 +31,8 @@ def bicycle():
 def test_disc_from_a_wheel_equals_the_hand_written_disc():
     built = scene_from_text(DISC).system
     by_hand = load_scene("rolling_disc").system
-    assert built.coordinates == by_hand.coordinates and built.holonomic == ()   # lowest point at the base
+    assert built.coordinates == by_hand.coordinates  # lowest point at the base
+    assert built.holonomic == ()
     (M1, W1, V1), (M2, W2, V2) = built.numeric_functions(), by_hand.numeric_functions()
     pv = built.param_vector()
     for q in np.random.default_rng(0).uniform(-1.2, 1.2, (10, 5)):
@@ -70,7 +71,9 @@ def _moore_pitch_constraint(q5, q4, q7, rF, rR, d1, d2, d3):
 
 def test_bicycle_is_built_from_bodies_with_one_kept_holonomic_constraint(bicycle):
     assert bicycle.coordinates == ("x", "y", "yaw", "lean", "pitch", "steer", "rear", "front")
-    assert bicycle.k == 5 and len(bicycle.holonomic) == 1 and bicycle.dependent == ("pitch",)
+    assert bicycle.k == 5
+    assert len(bicycle.holonomic) == 1
+    assert bicycle.dependent == ("pitch",)
     assert holonomic_residual(bicycle, np.zeros(8))[0] == pytest.approx(0.0, abs=1e-15)   # upright: pitch 0
 
 

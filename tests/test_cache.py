@@ -44,10 +44,12 @@ def test_second_derive_loads_from_disk(cache_dir, monkeypatch):
         raise AssertionError("symbolic work on a cache hit")
     monkeypatch.setattr(red, "derive_reduced", boom)
     again = derive(unicycle(), "reduced")
-    assert again.provenance.cache_hit is True and again.provenance.key == first.provenance.key
+    assert again.provenance.cache_hit is True
+    assert again.provenance.key == first.provenance.key
     assert again.provenance.created == first.provenance.created
     assert [str(e) for e in again.rhs] == [str(e) for e in first.rhs]
-    assert again.compiled is not None and again.numeric is again.compiled   # compiled functions came from the cache too
+    assert again.compiled is not None  # compiled functions came from the cache too
+    assert again.numeric is again.compiled
     with pytest.raises(AssertionError, match="symbolic work"):
         derive(unicycle(), "reduced", use_cache=False)
 
@@ -71,9 +73,12 @@ def test_name_and_provenance_come_from_this_call(cache_dir):
     first = derive(unicycle(), "lagrange")
     renamed = replace(unicycle(m=2.0), name="my unicycle")
     again = derive(renamed, "lagrange")
-    assert again.system.name == "my unicycle" and again.system.parameters["m"] == 2.0
-    assert again.provenance.cache_hit and not first.provenance.cache_hit
-    assert "sympy=" in again.provenance.versions and "casadi=" in again.provenance.versions
+    assert again.system.name == "my unicycle"
+    assert again.system.parameters["m"] == 2.0
+    assert again.provenance.cache_hit
+    assert not first.provenance.cache_hit
+    assert "sympy=" in again.provenance.versions
+    assert "casadi=" in again.provenance.versions
 
 
 SCENE = """
@@ -143,7 +148,8 @@ def test_corrupt_entry_is_reported_and_rebuilt(cache_dir):
     cache.path_for(key).write_bytes(b"not a pickle")
     with pytest.warns(UntrustedCacheWarning, match="ignoring unreadable cache entry"):
         model = derive(unicycle(), "lagrange")
-    assert model.formulation == "lagrange" and not model.provenance.cache_hit
+    assert model.formulation == "lagrange"
+    assert not model.provenance.cache_hit
     assert derive(unicycle(), "lagrange").provenance.cache_hit
 
 
@@ -202,7 +208,8 @@ def test_concurrent_derivations_leave_one_valid_entry(cache_dir):
     env = dict(os.environ, NHGAIT_CACHE_DIR=str(cache_dir))
     procs = [subprocess.Popen([sys.executable, "-c", code], env=env) for _ in range(3)]
     assert all(p.wait(timeout=120) == 0 for p in procs)
-    assert len(list(cache_dir.glob("*.pkl"))) == 1 and not list(cache_dir.glob(".tmp-*"))
+    assert len(list(cache_dir.glob("*.pkl"))) == 1
+    assert not list(cache_dir.glob(".tmp-*"))
     assert derive(unicycle(), "lagrange").provenance.cache_hit
 
 

@@ -74,7 +74,8 @@ def test_a_flipped_bit_anywhere_is_refused_before_anything_is_unpickled(private_
             assert cache.load(key, _Entry) is None
     assert unpickled == []
     path.write_bytes(good)
-    assert isinstance(cache.load(key, _Entry), _Entry) and len(unpickled) == 1
+    assert isinstance(cache.load(key, _Entry), _Entry)
+    assert len(unpickled) == 1
 
 
 DAMAGE = [
@@ -153,8 +154,11 @@ def test_a_cache_that_cannot_be_written_warns_once_and_the_run_goes_on(where, co
         first = derive(unicycle(), "lagrange")
         second = derive(unicycle(), "hamilton")
     said = [str(w.message) for w in seen if issubclass(w.category, cache.UntrustedCacheWarning)]
-    assert len(said) == 1 and os.strerror(code) in said[0] and "results are not cached" in said[0]
-    assert not first.provenance.cache_hit and not second.provenance.cache_hit
+    assert len(said) == 1
+    assert os.strerror(code) in said[0]
+    assert "results are not cached" in said[0]
+    assert not first.provenance.cache_hit
+    assert not second.provenance.cache_hit
     assert list(private_cache.iterdir()) == []
 
 
@@ -253,7 +257,8 @@ def test_the_compilers_temporaries_stay_in_nhgaits_build_folder(fake_cc, sandbox
     user's TMPDIR stays empty and the build folder is gone after the build."""
     from nhgait.dynamics.numerics.compiler import build_library, jit_dir
     lib = build_library("int nhgait_answer(void) { return 42; }")
-    assert lib.path.read_text() == "library\n" and not lib.private
+    assert lib.path.read_text() == "library\n"
+    assert not lib.private
     assert list(sandbox.tmp.iterdir()) == []
     assert sorted(p.suffix for p in jit_dir().iterdir()) == [".json", ".so"]
 
@@ -276,7 +281,8 @@ def test_an_interrupted_compile_leaves_nothing(fake_cc, sandbox, private_cache):
     threading.Thread(target=interrupt_when_started, daemon=True).start()
     with pytest.raises(KeyboardInterrupt):
         build_library("int f(void) { return 1; }", timeout=120)
-    assert list(jit_dir().iterdir()) == [] and list(sandbox.tmp.iterdir()) == []
+    assert list(jit_dir().iterdir()) == []
+    assert list(sandbox.tmp.iterdir()) == []
     assert children() == []
 
 
@@ -317,7 +323,8 @@ def test_a_signal_during_the_compile_leaves_nothing(signame, status, fake_cc, sa
     compiler = int((fake_cc / "started").read_text().split()[0])
     time.sleep(0.2)
     assert _gone(compiler)
-    assert list(sandbox.tmp.iterdir()) == [] and sandbox.leftovers() == []
+    assert list(sandbox.tmp.iterdir()) == []
+    assert sandbox.leftovers() == []
 
 
 @posix_only
@@ -335,7 +342,8 @@ def test_kill_9_during_the_compile_is_cleaned_by_the_next_build(fake_cc, sandbox
         os.kill(proc.pid, signal.SIGKILL)
         proc.communicate()
     left = [p.name for p in jit_dir().iterdir()]
-    assert len(left) == 1 and left[0].startswith(f".build-{cache.temporary_prefix().split('-')[1]}-{proc.pid}-")
+    assert len(left) == 1
+    assert left[0].startswith(f".build-{cache.temporary_prefix().split('-')[1]}-{proc.pid}-")
     (fake_cc / "slow").unlink()
     build_library("int g(void) { return 2; }")
     assert sorted(p.suffix for p in jit_dir().iterdir()) == [".json", ".so"]
@@ -358,7 +366,8 @@ def test_kill_9_during_a_cache_write_is_cleaned_by_the_next_write(sandbox, priva
     proc = subprocess.run([sys.executable, "-c", KILLED_WRITER], env=env, capture_output=True, timeout=120)
     assert proc.returncode == -signal.SIGKILL
     (left,) = [p.name for p in private_cache.iterdir()]
-    assert left.startswith(".tmp-") and left.endswith(".pkl")
+    assert left.startswith(".tmp-")
+    assert left.endswith(".pkl")
     assert cache.load(cache.make_key("killed"), dict) is None
     cache.store(cache.make_key("another"), {"answer": 1})
     assert [p.name for p in private_cache.iterdir()] == [cache.path_for(cache.make_key("another")).name]
@@ -378,8 +387,10 @@ def test_a_private_folder_of_a_dead_process_goes_with_the_next_private_build(fak
     (stale / "half.so").write_text("x")
     with pytest.warns(cache.UntrustedCacheWarning, match="writable by group or others"):
         lib = build_library("int h(void) { return 3; }")
-    assert lib.private and not stale.exists()
+    assert lib.private
+    assert not stale.exists()
     assert stat.S_ISREG(lib.path.stat().st_mode)
     import shutil
     shutil.rmtree(lib.path.parent)
-    assert list(sandbox.tmp.iterdir()) == [] and list(folder.iterdir()) == []
+    assert list(sandbox.tmp.iterdir()) == []
+    assert list(folder.iterdir()) == []

@@ -40,7 +40,8 @@ def test_output_names_resolve_to_states(models):
     assert [names[i] for i in momenta] == ["p", "pt_psi", "pt_phi"]
     with pytest.raises(ModelError, match="unknown output 'speed'") as err:
         resolve_outputs(model, ["speed", "psi", "torque"])
-    assert len(err.value.problems) == 2 and "velocities (<coordinate>_dot)" in str(err.value)
+    assert len(err.value.problems) == 2
+    assert "velocities (<coordinate>_dot)" in str(err.value)
 
 
 def test_shape_only_run_integrates_five_of_eight_states(models):
@@ -54,7 +55,7 @@ def test_shape_only_run_integrates_five_of_eight_states(models):
     t_eval = np.linspace(0.0, 3.0, 31)
     traj = simulate(model, (0.0, 3.0), SNAKE_Q0, SNAKE_QDOT0, controller=ctl, method="compiled",
                     rtol=1e-12, atol=1e-13, t_eval=t_eval, outputs=("shape", "momenta"))
-    assert traj.success
+    assert traj.success, traj.message
     assert traj.diagnostics["state_count"] == (5, 8)
     assert traj.state_names == ("psi", "phi", "p", "pt_psi", "pt_phi")
     assert list(traj.outputs) == ["psi", "phi", "p", "pt_psi", "pt_phi"]
@@ -105,7 +106,8 @@ def test_cli_prints_the_state_count_and_writes_the_outputs(tmp_path, capsys):
     assert main(["simulate", str(scene), "--all-states", "--columns", "qdot", "--out", str(out)]) == 0
     assert "8 of 8 states" in capsys.readouterr().out
     header = next(csv.reader(out.open()))
-    assert header[:3] == ["t [s]", "x [m]", "y [m]"] and header[-1] == "phi_dot [rad/s]"
+    assert header[:3] == ["t [s]", "x [m]", "y [m]"]
+    assert header[-1] == "phi_dot [rad/s]"
 
 
 def test_named_quantities_as_outputs_match_their_formula(models):
@@ -119,7 +121,8 @@ def test_named_quantities_as_outputs_match_their_formula(models):
     quantities = {"speed_sq": x_dot ** 2 + y_dot ** 2, "rotor_cos": sp.cos(psi)}
     traj = simulate(model, (0.0, 2.0), SNAKE_Q0, SNAKE_QDOT0, controller=snakeboard_pd(),
                     outputs=("speed_sq", "rotor_cos"), quantities=quantities, rtol=1e-9, atol=1e-11)
-    assert traj.success and set(traj.outputs) == {"speed_sq", "rotor_cos"}
+    assert traj.success, traj.message
+    assert set(traj.outputs) == {"speed_sq", "rotor_cos"}
     coords = list(system.coordinates)
     qdot_x, qdot_y = traj.qdot[:, coords.index("x")], traj.qdot[:, coords.index("y")]
     np.testing.assert_allclose(traj.outputs["speed_sq"], qdot_x ** 2 + qdot_y ** 2, rtol=1e-12, atol=1e-12)

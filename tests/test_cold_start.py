@@ -73,20 +73,29 @@ def test_first_plan_does_not_wait_for_the_optimised_build_and_the_next_run_uses_
     first = plan(PLAN["system"], PLAN["task"], intervals=PLAN["intervals"], solver=PLAN["solver"])
     compile_1 = first.solution.settings["compile"]
     later = compile_1["later"]
-    assert first.success and first.solution.verification.passed
-    assert compile_1["code"] == "fast" and later["state"] == "started" and later["flags"] == ["-O1"]
+    assert first.success
+    assert first.solution.verification.passed
+    assert compile_1["code"] == "fast"
+    assert later["state"] == "started"
+    assert later["flags"] == ["-O1"]
     # the plan returned while gcc was held: the optimised library cannot exist yet
-    assert not (jit_dir() / f"{later['key']}.so").exists() and BUILDERS.running()
+    assert not (jit_dir() / f"{later['key']}.so").exists()
+    assert BUILDERS.running()
     held.hold(False)
     assert BUILDERS.wait(timeout=300)
     record = json.loads((jit_dir() / f"{later['key']}.json").read_text())
-    assert record["flags"] == ["-O1"] and record["compile_s"] > 0 and record["compiler_peak_mb"] > 0
+    assert record["flags"] == ["-O1"]
+    assert record["compile_s"] > 0
+    assert record["compiler_peak_mb"] > 0
     assert held.runs() == 1
 
     second = plan(PLAN["system"], PLAN["task"], intervals=PLAN["intervals"], solver=PLAN["solver"])
     compile_2 = second.solution.settings["compile"]
-    assert compile_2["code"] == "optimised" and compile_2["cached"] and compile_2["later"] is None
-    assert second.success and held.runs() == 1                 # loaded, not compiled again
+    assert compile_2["code"] == "optimised"
+    assert compile_2["cached"]
+    assert compile_2["later"] is None
+    assert second.success  # loaded, not compiled again
+    assert held.runs() == 1
     # two compilers, one optimum: gcc -O1's code and tcc's agree to the solver's tolerance
     assert second.solution.objective == pytest.approx(first.solution.objective, rel=1e-8)
     assert not [p for p in jit_dir().iterdir() if p.name.startswith(".build-")]
@@ -107,10 +116,13 @@ def test_without_a_fast_compiler_one_clear_line_and_a_correct_plan(tmp_path, mon
                    "--solver", PLAN["solver"], "--out", str(out)])
     err = capsys.readouterr().err
     line = MISSING if optimiser else NO_COMPILER
-    assert status == 0 and err.count(line) == 1, err
+    assert status == 0, err
+    assert err.count(line) == 1, err
     data = json.loads((out / "solution.json").read_text())
-    assert data["success"] and data["verification"]["passed"]
-    assert data["settings"]["jit"] is False and data["settings"]["jit_fallback"] == line
+    assert data["success"]
+    assert data["verification"]["passed"]
+    assert data["settings"]["jit"] is False
+    assert data["settings"]["jit_fallback"] == line
 
 
 @needs_posix
@@ -120,10 +132,12 @@ def test_a_failed_background_build_is_recorded_once_and_not_started_again(cold, 
     monkeypatch.setenv("NHGAIT_CC", str(failing.script))
     source = "int nhgait_answer(void) { return 42; }\n"
     build = start_build(source, flags=("-O1",), salt="test")
-    assert build.state == "started" and BUILDERS.wait(timeout=120)
+    assert build.state == "started"
+    assert BUILDERS.wait(timeout=120)
     assert "out of memory" in json.loads((jit_dir() / f"{build.key}.failed").read_text())["reason"]
     again = start_build(source, flags=("-O1",), salt="test")
-    assert again.state == "failed before" and "out of memory" in again.reason
+    assert again.state == "failed before"
+    assert "out of memory" in again.reason
     assert sorted(p.name for p in jit_dir().iterdir()) == [f"{build.key}.failed"]   # no library, no folder
 
 

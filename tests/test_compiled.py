@@ -47,9 +47,11 @@ def test_closed_form_and_dense_output(models, method):
     t_eval = np.linspace(0.0, T, 41)
     traj = simulate(models["unicycle"]["reduced"], (0.0, T), np.zeros(4), np.zeros(4),
                     controller=_torques(T), method=method, rtol=1e-11, atol=1e-13, t_eval=t_eval)
-    assert traj.success and traj.method == f"compiled {'DOPRI5' if 'DOPRI5' in method else 'DOP853'}"
+    assert traj.success, traj.message
+    assert traj.method == f"compiled {'DOPRI5' if 'DOPRI5' in method else 'DOP853'}"
     assert np.max(np.abs(traj.q - _closed_form(t_eval))) < 1e-9
-    assert traj.t[-1] == T and traj.t.size == 41
+    assert traj.t[-1] == T
+    assert traj.t.size == 41
 
 
 @needs_cc
@@ -81,7 +83,7 @@ def test_agrees_with_kane_oracle(models):
     for form in ("reduced", "lagrange", "hamilton"):
         traj = simulate(models["snakeboard"][form], (0.0, 3.0), q0, qd0, controller=ctl,
                         method="compiled", rtol=1e-12, atol=1e-13, t_eval=t_eval)
-        assert traj.success
+        assert traj.success, traj.message
         assert np.max(np.abs(traj.q - ref.y[:5].T)) < 1e-9
         assert np.max(np.abs(traj.qdot - ref.y[5:].T)) < 1e-9
 
@@ -92,7 +94,8 @@ def test_every_step_output_grows_the_buffer(models):
     traj = simulate(models["unicycle"]["reduced"], (0.0, T), np.zeros(4), np.zeros(4),
                     controller=_torques(T), method="compiled", rtol=1e-13, atol=1e-15, max_step=4e-4)
     assert traj.t.size == traj.n_steps + 1 > 4097
-    assert np.all(np.diff(traj.t) > 0) and traj.t[-1] == T
+    assert np.all(np.diff(traj.t) > 0)
+    assert traj.t[-1] == T
     assert np.max(np.abs(traj.q - _closed_form(traj.t))) < 1e-10
 
 
@@ -108,7 +111,8 @@ def test_open_loop_segments_are_exact(models):
     for method in ("compiled", "CVODES"):
         traj = simulate(model, (0.0, 1.0), np.zeros(4), np.zeros(4), controller=ctl,
                         method=method, rtol=1e-12, atol=1e-14, t_eval=times)
-        assert traj.success and traj.settings["segments"] == 5
+        assert traj.success, traj.message
+        assert traj.settings["segments"] == 5
         assert traj.q[-1, 2] == pytest.approx(theta, abs=1e-10)
         assert traj.qdot[-1, 2] == pytest.approx(omega, abs=1e-10)
         assert traj.u[1, 0] == tau[0]                 # left limit at the switch t = 0.2
@@ -123,7 +127,9 @@ def test_every_step_output_over_several_segments_keeps_each_segment(models):
     ctl = OpenLoop(times, np.c_[tau, np.zeros(5)], inputs=("tau_theta", "tau_phi"))
     traj = simulate(model, (0.0, 1.0), np.zeros(4), np.zeros(4), controller=ctl, method="compiled",
                     rtol=1e-12, atol=1e-14)
-    assert traj.success and traj.settings["segments"] == 5 and np.all(np.diff(traj.t) >= 0)
+    assert traj.success, traj.message
+    assert traj.settings["segments"] == 5
+    assert np.all(np.diff(traj.t) >= 0)
     starts = [(0.0, 0.0)]                               # (θ, ω) at each switch time
     for dt, a in zip(np.diff(times), tau / J_THETA):
         theta, omega = starts[-1]
@@ -154,7 +160,8 @@ def test_python_controller_falls_back_with_a_note(models):
     model = models["unicycle"]["reduced"]
     traj = simulate(model, (0.0, 1.0), np.zeros(4), np.zeros(4), method="compiled",
                     controller=lambda t, q, qd: np.array([TAU_THETA, TAU_PHI]), rtol=1e-10, atol=1e-12)
-    assert traj.success and traj.method == "DOP853"
+    assert traj.success, traj.message
+    assert traj.method == "DOP853"
     assert "no casadi(t, q, qdot) method" in traj.settings["fallback"]
     assert np.max(np.abs(traj.q[-1] - _closed_form(1.0))) < 1e-8
 
@@ -165,8 +172,10 @@ def test_missing_compiler_falls_back_to_scipy(models, monkeypatch):
     with pytest.warns(UserWarning, match="no usable C compiler"):
         traj = simulate(model, (0.0, 1.0), np.zeros(4), np.zeros(4), controller=_torques(1.0),
                         method="compiled", rtol=1e-10, atol=1e-12)
-    assert traj.success and traj.method == "DOP853"
-    assert "not found" in traj.settings["fallback"] and "scipy DOP853" in traj.settings["fallback"]
+    assert traj.success, traj.message
+    assert traj.method == "DOP853"
+    assert "not found" in traj.settings["fallback"]
+    assert "scipy DOP853" in traj.settings["fallback"]
     assert np.max(np.abs(traj.q[-1] - _closed_form(1.0))) < 1e-8
 
 
@@ -211,12 +220,14 @@ def test_world_writable_jit_directory_is_refused(models, monkeypatch, tmp_path):
     model = models["unicycle"]["reduced"]
     with pytest.warns(UntrustedCacheWarning, match="writable by group or others"):
         lib = _fresh_build(model, _torques(1.0))
-    assert lib.compile_time_s > 0 and not list(jit.glob("*.so"))     # nothing written there
+    assert lib.compile_time_s > 0  # nothing written there
+    assert not list(jit.glob("*.so"))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UntrustedCacheWarning)
         traj = simulate(model, (0.0, 1.0), np.zeros(4), np.zeros(4), controller=_torques(1.0),
                         method="compiled", rtol=1e-10, atol=1e-12)
-    assert traj.success and np.max(np.abs(traj.q[-1] - _closed_form(1.0))) < 1e-8
+    assert traj.success, traj.message
+    assert np.max(np.abs(traj.q[-1] - _closed_form(1.0))) < 1e-8
     assert Path(tmp_path / "jit").stat().st_mode & 0o777 == 0o777    # left as the user set it
 
 
@@ -233,8 +244,10 @@ def test_auto_without_compiler_still_switches_when_stiff(models, monkeypatch):
         traj = simulate(models["snakeboard"]["reduced"], (0.0, 2.0), np.array([0, 0, 0, 0, 1.0]),
                         np.array([0, 0, 0, 1.0, 0]), controller=stiff, method="auto", rtol=1e-6,
                         atol=1e-8, t_eval=[0.0, 2.0])
-    assert traj.success and traj.method == "CVODES"
-    assert "DOP853 detected stiffness" in traj.settings["auto"] and "fallback" in traj.settings
+    assert traj.success, traj.message
+    assert traj.method == "CVODES"
+    assert "DOP853 detected stiffness" in traj.settings["auto"]
+    assert "fallback" in traj.settings
 
 
 @pytest.mark.parametrize("name", ["chaplygin_sleigh", "knife_edge_incline"])
@@ -252,5 +265,6 @@ def test_one_constraint_systems(models, name):
     for method, tol in (("compiled", 1e-8), ("CVODES", 1e-6)):     # BDF is less accurate per rtol
         traj = simulate(model, (0.0, 2.0), q0, qdot0, controller=ctl, method=method, rtol=1e-10,
                         atol=1e-12, t_eval=[0.0, 2.0])
-        assert traj.success and np.max(np.abs(traj.q[-1] - ref.q[-1])) < 10 * tol
+        assert traj.success, traj.message
+        assert np.max(np.abs(traj.q[-1] - ref.q[-1])) < 10 * tol
         assert np.max(np.abs(traj.energy_balance)) < tol * max(1.0, abs(traj.energy[-1]))

@@ -43,7 +43,8 @@ def test_rest_to_rest_written_as_full_states(minimal):
     assert "initial.x_dot: dropped, with x_dot = 0, y_dot = 0: exactly phi_dot = 0 (theta_dot free)" in lines
     # the verification checks the task as written: every one of its conditions, dropped or not
     checked = set(result.solution.verification.condition_errors)
-    assert {f"initial.{v}" for v in VELOCITIES} <= checked and {f"final.{v}" for v in VELOCITIES} <= checked
+    assert {f"initial.{v}" for v in VELOCITIES} <= checked
+    assert {f"final.{v}" for v in VELOCITIES} <= checked
 
 
 def test_rest_shorthand(minimal):
@@ -65,7 +66,9 @@ def test_full_state_violating_a_constraint_names_it():
     with pytest.raises(ProblemError) as info:
         prepare(resolve("unicycle", task))
     lines = [p for p in info.value.problems if "constraint 1" in p]
-    assert len(lines) == 1 and "x_dot" in lines[0] and "residual 1 " in lines[0]
+    assert len(lines) == 1
+    assert "x_dot" in lines[0]
+    assert "residual 1 " in lines[0]
     assert not any("constraint 2" in p for p in info.value.problems)
 
 
@@ -75,7 +78,8 @@ def test_inconsistent_partial_set_gives_the_value_the_others_imply():
     with pytest.raises(ProblemError, match="inconsistent boundary conditions") as info:
         prepare(resolve("unicycle", task))
     text = str(info.value)
-    assert "x_dot = 1 contradicts theta = 0, phi_dot = 0" in text and "x_dot = 0 (residual -1)" in text
+    assert "x_dot = 1 contradicts theta = 0, phi_dot = 0" in text
+    assert "x_dot = 0 (residual -1)" in text
 
 
 def test_fibre_at_rest_on_the_snakeboard():
@@ -155,4 +159,5 @@ def test_a_point_at_rest_is_its_velocity_state_stopped_and_one_velocity_alone_is
     assert dict(both.problem.final) == {"x": 0.0, "y": 0.5, "theta": 0.0, "forward_velocity": 0.0}
     assert any("exactly forward_velocity = 0 (phi_dot free)" in line for line in both.conditions.lines())
     alone = prepare(resolve(car, {**CAR_PARK, "final": {"x": 0.0, "y": 0.5, "x_dot": 0.0}}))
-    assert dict(alone.problem.final) == {"x": 0.0, "y": 0.5, "x_dot": 0.0} and not alone.conditions.lines()
+    assert dict(alone.problem.final) == {"x": 0.0, "y": 0.5, "x_dot": 0.0}
+    assert not alone.conditions.lines()

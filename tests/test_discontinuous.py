@@ -20,7 +20,7 @@ def test_step_force_matches_closed_form(formulation):
     assert model.system.force_jump_times() == (1.0,)
     t = np.array([0.0, 0.5, 1.0, 2.0, 3.0])
     traj = simulate(model, (0.0, 3.0), [0, 0], [0, 0], t_eval=t, rtol=1e-10, atol=1e-12)
-    assert traj.success
+    assert traj.success, traj.message
     expected = np.where(t > 1, (t - 1) ** 2 / 4.0, 0.0)
     np.testing.assert_allclose(traj.q[:, 0], expected, atol=1e-10)
 

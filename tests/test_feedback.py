@@ -31,7 +31,8 @@ def parked():
     """The unicycle's parallel park, N = 30, with its feedback (planned once)."""
     from nhgait.gaits.planner import plan, prepare
     result = plan("unicycle", "parallel-park", intervals=30, jit=False)
-    assert result.success and result.solution.feedback is not None
+    assert result.success
+    assert result.solution.feedback is not None
     return result, prepare(result.plan)
 
 
@@ -83,7 +84,8 @@ def test_stage_jacobians_of_a_linear_ode_are_its_exact_propagator():
     Ak, Bk, gap = stage_jacobians(problem, states, controls, T, steps=M)
     a = np.linalg.norm(A, 2)
     bound = M * (h / M) ** 5 * a ** 5 * np.exp(h * a) / 120
-    assert Ak.shape == (N, 3, 3) and Bk.shape == (N, 3, 2)
+    assert Ak.shape == (N, 3, 3)
+    assert Bk.shape == (N, 3, 2)
     assert np.max(np.abs(Ak - E)) <= bound
     assert np.max(np.abs(Bk - np.linalg.solve(A, (E - np.eye(3)) @ B))) <= bound * np.linalg.norm(B, 2)
     assert np.max(gap) <= 4 * bound
@@ -98,7 +100,8 @@ def test_state_scales_follow_the_documented_rules():
     s = state_scales(problem, states)
     assert s.tolist() == [1.0, 5.0, 5.0]        # a: range; b: bound width; c: flat → the largest velocity
     w = default_weights(problem, states, np.array([[0.2, -0.4], [0.0, 0.0]]))
-    assert np.allclose(w.state, 1 / (0.1 * s) ** 2) and np.allclose(w.final, 25 * w.state)
+    assert np.allclose(w.state, 1 / (0.1 * s) ** 2)
+    assert np.allclose(w.final, 25 * w.state)
     assert np.allclose(w.control_scale, [0.4, 1.0])   # the plan's peak; an unused input: the bound
 
 
@@ -157,7 +160,8 @@ def test_feedback_round_trips_through_its_json(parked):
     back = Feedback.from_dict(json.loads(json.dumps(fb.to_dict())))
     for name in ("t", "states", "controls", "gains", "rates", "lower", "upper"):
         assert np.array_equal(getattr(back, name), getattr(fb, name)), name
-    assert back.state_names == fb.state_names and np.array_equal(back.weights.final, fb.weights.final)
+    assert back.state_names == fb.state_names
+    assert np.array_equal(back.weights.final, fb.weights.final)
 
 
 def _robot_params(model, factor):
@@ -182,7 +186,8 @@ def test_compiled_closed_loop_agrees_with_scipy_at_tighter_tolerance(parked):
                     rtol=1e-8, atol=1e-10)
     tight = simulate(prepared.model, span, z0[:n], qd0, controller=sched, params=params, method="DOP853",
                      rtol=1e-11, atol=1e-13)
-    assert fast.success and tight.success
+    assert fast.success
+    assert tight.success
     assert np.max(np.abs(fast.q[-1] - tight.q[-1])) <= 1e-6
     assert np.max(np.abs(fast.qdot[-1] - tight.qdot[-1])) <= 1e-6
 
@@ -205,6 +210,7 @@ def test_nominal_closed_loop_follows_the_plan_and_feedback_cuts_a_mismatch(parke
             run = simulate(prepared.model, span, z0[:n], qd0, controller=law,
                            params=_robot_params(prepared.model, factor), method="compiled", rtol=1e-10, atol=1e-12)
             errors[name, factor] = float(np.linalg.norm(run.q[-1, :2] - sched.reference[-1, :2]))
-    assert errors["open", 1.0] <= 1e-6 and errors["closed", 1.0] <= 1e-6
+    assert errors["open", 1.0] <= 1e-6
+    assert errors["closed", 1.0] <= 1e-6
     assert errors["open", 1.2] >= 0.05
     assert errors["closed", 1.2] <= 0.1 * errors["open", 1.2]

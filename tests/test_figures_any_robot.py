@@ -113,12 +113,16 @@ def test_simulate_figures(figures):
 
 def test_plan_figures(figures):
     path = figures["plan/path.png"].axes[0]
-    assert path.get_title() == "path in the plane (to scale)" and len(_series(path)) == 7 * 3 + 3
+    assert path.get_title() == "path in the plane (to scale)"
+    assert len(_series(path)) == 7 * 3 + 3
     shape = figures["plan/shape.png"].axes[0]
-    assert shape.get_title() == "shape loop" and (shape.get_xlabel(), shape.get_ylabel()) == ("θ [rad]", "s [m]")
+    assert shape.get_title() == "shape loop"
+    assert (shape.get_xlabel(), shape.get_ylabel()) == ("θ [rad]", "s [m]")
     hist = figures["plan/histories.png"].axes
-    assert hist[0].get_ylabel() == "shape θ, s [rad, m]" and _labelled(hist[0]) == ["θ [rad]", "s [m]"]
-    assert hist[1].get_ylabel() == "input [N]" and _labelled(hist[1]) == ["F [N]", "f_s [N]"]
+    assert hist[0].get_ylabel() == "shape θ, s [rad, m]"
+    assert _labelled(hist[0]) == ["θ [rad]", "s [m]"]
+    assert hist[1].get_ylabel() == "input [N]"
+    assert _labelled(hist[1]) == ["F [N]", "f_s [N]"]
     mom = figures["plan/momentum.png"].axes
     assert [ax.get_ylabel() for ax in mom] == ["p [N·s]", "p̃_θ [N·m·s]", "p̃_s [N·s]"]
     assert all(len(_series(ax)) == 1 for ax in mom)
@@ -136,7 +140,8 @@ def test_sweep_figures(figures):
 
 def test_precision_figure_series_are_distinct(figures):
     ax = figures["bench/precision.png"].axes[0]
-    assert ax.get_xlabel() == "wall time per run, median [s]" and ax.get_ylabel().startswith("final-state error")
+    assert ax.get_xlabel() == "wall time per run, median [s]"
+    assert ax.get_ylabel().startswith("final-state error")
     assert "sleigh_slider" in ax.get_title()
     assert len(_labelled(ax)) == 4                                 # 2 formulations × 2 methods
 
@@ -150,12 +155,14 @@ def test_eighteen_series_get_eighteen_styles():
             for i in range(18) for tol in (1e-4, 1e-8)]
     ax = wp.plot_case(rows, Figure().add_subplot())
     styles = [(ln.get_color(), ln.get_marker(), ln.get_linestyle()) for ln in ax.get_lines()]
-    assert len(styles) == 18 and len(set(styles)) == 18
+    assert len(styles) == 18
+    assert len(set(styles)) == 18
     assert len({s[0] for s in styles}) == 10                      # the ten tab10 colours, then ...
     for i, a in enumerate(styles):                                # ... a series sharing a colour differs
         for b in styles[i + 1:]:                                  # in both marker and line style
             if a[0] == b[0]:
-                assert a[1] != b[1] and a[2] != b[2], (a, b)
+                assert a[1] != b[1], (a, b)
+                assert a[2] != b[2], (a, b)
 
 
 def test_result_reprs_are_short_and_say_where_the_arrays_are(figures, out):
@@ -165,14 +172,19 @@ def test_result_reprs_are_short_and_say_where_the_arrays_are(figures, out):
     from nhgait.gaits.sweeps.driver import load_sweep
     text = repr(load_sweep(out / "sweep"))
     assert text.startswith("<SweepResult sleigh_slider/sidestep: 4 of 4 points solved and verified, grid (2, 2)")
-    assert "result.objectives()" in text and len(text) < 400
+    assert "result.objectives()" in text
+    assert len(text) < 400
     result = plan(SLIDER, jit=False)
     text = repr(result)
-    assert text.startswith("<PlanResult sleigh_slider/sidestep: SUCCESS") and len(text) < 600
-    assert "states (7, 21) rows (x, y, theta, s, p, pt_theta, pt_s)" in text and "controls (2, 20)" in text
-    assert "verified to" in text and "t = 0 … 4 s (21 samples)" in text
+    assert text.startswith("<PlanResult sleigh_slider/sidestep: SUCCESS")
+    assert len(text) < 600
+    assert "states (7, 21) rows (x, y, theta, s, p, pt_theta, pt_s)" in text
+    assert "controls (2, 20)" in text
+    assert "verified to" in text
+    assert "t = 0 … 4 s (21 samples)" in text
     from nhgait.gaits.planner import summary_lines
     assert any("R^2 (x, y) moves the fibre (x, y); the guesses loop the shape (theta, s)" in line
                for line in summary_lines(result))
     md = result.solution._repr_markdown_()
-    assert "| verification | passed" in md and "`solution.states` (7, 21)" in md
+    assert "| verification | passed" in md
+    assert "`solution.states` (7, 21)" in md

@@ -124,7 +124,8 @@ def test_snakeboard_forward_gait_multipliers_match_finite_differences(forward, t
     opened = finite_difference_monodromy(ode, fb.t, fb.states, fb.controls, fb.rates, None)
     assert np.max(np.abs(opened - st.open_loop)) <= 1e-6
     assert st.periodic_states == ("psi", "phi", "forward_velocity", "psi_dot", "phi_dot")
-    assert np.max(np.abs(st.open_multipliers - 1)) <= 1e-3 and verdict(st.open_multipliers)[0] == "marginal"
+    assert np.max(np.abs(st.open_multipliers - 1)) <= 1e-3
+    assert verdict(st.open_multipliers)[0] == "marginal"
     data = json.loads(result.solution.to_json(tmp_path / "solution.json").read_text())
     assert data["stability"]["closed_loop"]["verdict"] == "stable"
     assert len(data["stability"]["closed_loop"]["multipliers"]) == 8
@@ -133,4 +134,5 @@ def test_snakeboard_forward_gait_multipliers_match_finite_differences(forward, t
 def test_a_plan_without_periodic_conditions_has_no_stability():
     from nhgait.gaits.planner import plan
     result = plan("unicycle", "parallel-park", intervals=20, jit=False)
-    assert result.solution.feedback is not None and result.solution.stability is None
+    assert result.solution.feedback is not None
+    assert result.solution.stability is None

@@ -71,15 +71,20 @@ def test_model_type_and_state_layout(models, name, form):
     model = models[name][form]
     system = model.system
     layout = model.state_layout()
-    assert model.formulation == form and isinstance(model, formulation_type(form))
+    assert model.formulation == form
+    assert isinstance(model, formulation_type(form))
     assert layout.names[:system.n] == tuple(system.coordinates)
     assert layout.velocity_names == layout.names[system.n:]
     if form == "reduced":
-        assert len(layout.names) == 2 * system.n - system.k and layout.n_multipliers == 0
+        assert len(layout.names) == 2 * system.n - system.k
+        assert layout.n_multipliers == 0
         assert not (model.has_multipliers or model.dae_options_apply or model.has_constraint_gram)
     else:
-        assert len(layout.names) == 2 * system.n and layout.n_multipliers == system.k
-        assert model.has_multipliers and model.dae_options_apply and model.has_constraint_gram
+        assert len(layout.names) == 2 * system.n
+        assert layout.n_multipliers == system.k
+        assert model.has_multipliers
+        assert model.dae_options_apply
+        assert model.has_constraint_gram
         prefix = "" if form == "lagrange" else "p_"
         suffix = "_dot" if form == "lagrange" else ""
         assert layout.velocity_names == tuple(f"{prefix}{c}{suffix}" for c in system.coordinates)
@@ -180,5 +185,6 @@ def test_stabilisation_options_resolve_to_objects():
 
 def test_derive_entry_returns_the_model_type(systems):
     model = derive(systems["unicycle"], "lagrange", use_cache=False)
-    assert isinstance(model, LagrangianDAE) and model.formulation == "lagrange"
+    assert isinstance(model, LagrangianDAE)
+    assert model.formulation == "lagrange"
     assert derive(systems["unicycle"], "hamilton", use_cache=False).formulation == "hamilton"

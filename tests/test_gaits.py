@@ -84,21 +84,24 @@ def test_plans_verify(planned, case):
     assert s.success, result.attempts
     assert s.intervals if hasattr(s, "intervals") else s.settings["intervals"] >= 50
     v = s.verification
-    assert v.success and v.max_error <= 1e-6, v.state_errors
+    assert v.success, v.state_errors
+    assert v.max_error <= 1e-6, v.state_errors
     assert v.max_condition_error <= 1e-6, v.condition_errors
     reference = case[3]
     if reference is not None:
         assert s.objective == pytest.approx(reference, rel=1e-4)
     for name in ("solution.json", "path.png", "shape.png", "histories.png", "momentum.png"):
         assert (folder / name).stat().st_size > 1000
-    assert result.guess != "none" and result.guess in [a.label for a in result.attempts]
+    assert result.guess != "none"
+    assert result.guess in [a.label for a in result.attempts]
 
 
 @pytest.mark.parametrize("case", CASES[4:], ids=["car", "cart_trailer", "rotor_sleigh"])
 def test_second_formulation_reaches_the_targets(planned, case):
     result, _ = planned(case)
     errors = lagrange_final_errors(result)
-    assert errors and max(errors.values()) <= 1e-6, errors
+    assert errors, errors
+    assert max(errors.values()) <= 1e-6, errors
 
 
 def test_solution_json_has_the_trajectory_task_and_guess(planned):
@@ -109,14 +112,19 @@ def test_solution_json_has_the_trajectory_task_and_guess(planned):
         assert key in data, key
     tr = data["trajectory"]
     N, n, m = 60, 4, 2
-    assert len(tr["t"]) == N + 1 and tr["coordinates"] == ["x", "y", "theta", "phi"]
-    assert np.shape(tr["q"]) == (N + 1, n) and np.shape(tr["qdot"]) == (N + 1, n)
-    assert np.shape(tr["u"]) == (N, m) and tr["inputs"] == ["F", "tau_phi"]
+    assert len(tr["t"]) == N + 1
+    assert tr["coordinates"] == ["x", "y", "theta", "phi"]
+    assert np.shape(tr["q"]) == (N + 1, n)
+    assert np.shape(tr["qdot"]) == (N + 1, n)
+    assert np.shape(tr["u"]) == (N, m)
+    assert tr["inputs"] == ["F", "tau_phi"]
     # the trajectory is the car's: rear wheel without side slip at every node, ω(q)q̇ = 0
     q, qd = np.array(tr["q"]), np.array(tr["qdot"])
     assert np.max(np.abs(-np.sin(q[:, 2]) * qd[:, 0] + np.cos(q[:, 2]) * qd[:, 1])) < 1e-9
-    assert data["task"]["final"]["y"] == 0.5 and data["task"]["intervals"] == N
-    assert data["guess"]["won"] == result.guess and data["guess"]["tried"][-1]["success"]
+    assert data["task"]["final"]["y"] == 0.5
+    assert data["task"]["intervals"] == N
+    assert data["guess"]["won"] == result.guess
+    assert data["guess"]["tried"][-1]["success"]
 
 
 #: files of other owners still naming sympy (cli/main.py: a docstring; cli/derive.py: printing)
@@ -136,7 +144,8 @@ def test_zero_guess_is_never_the_only_try(models):
     problem = prepare(resolve("snakeboard", "forward", overrides=["intervals=10"])).problem
     guesses = candidates(problem)
     moving = [g for g in guesses if np.ptp(g.states[3]) > 0.1]       # psi oscillates
-    assert len(moving) >= 10 and guesses[-1].label == "ramps only"
+    assert len(moving) >= 10
+    assert guesses[-1].label == "ramps only"
     labels = {g.label.split()[1] for g in guesses if g.label.startswith("psi:phi")}
     assert {"1:1", "2:1", "3:2"} <= labels
 
@@ -154,13 +163,16 @@ def test_continuation_grows_an_easier_problem():
     search = continuation(solver, candidates(problem)[0])
     sol, attempts = search.solution, search.attempts
     assert [a.label.split()[1] for a in attempts] == ["0.25", "0.5", "0.75", "1"]
-    assert sol is not None and sol.success and sol.state("x")[-1] == pytest.approx(2.0, abs=1e-8)
+    assert sol is not None
+    assert sol.success
+    assert sol.state("x")[-1] == pytest.approx(2.0, abs=1e-8)
 
 
 def test_parallel_candidates_agree_with_sequential():
     seq = plan("snakeboard", "rotate", intervals=25, jit=False, workers=1, verify=False)
     par = plan("snakeboard", "rotate", intervals=25, jit=False, workers=2, verify=False)
-    assert par.success and len(par.attempts) == 2
+    assert par.success
+    assert len(par.attempts) == 2
     best = min((a.objective for a in par.attempts if a.success))
     assert par.solution.objective == pytest.approx(best, rel=1e-12)
     # the first candidate is the same in both: its result does not depend on the process
@@ -178,7 +190,9 @@ def test_unknown_names_are_one_error(tmp_path):
                                                       "phi": 0, "x_dot": 0, "y_dot": 0, "psi_dot": 0},
                             "control_bounds": {"tau_q": [-1, 1]}, "objective": {"tau_z": 1.0}}, jit=False)
     text = str(info.value)
-    assert "unknown name 'zz'" in text and "unknown input 'tau_q'" in text and "unknown weight 'tau_z'" in text
+    assert "unknown name 'zz'" in text
+    assert "unknown input 'tau_q'" in text
+    assert "unknown weight 'tau_z'" in text
 
 
 def test_warm_start_from_a_previous_solution(tmp_path):
@@ -189,7 +203,8 @@ def test_warm_start_from_a_previous_solution(tmp_path):
     fine_own = plan("snakeboard", "rotate", intervals=50, jit=False, verify=False)
     for previous in (coarse, tmp_path / "solution.json"):
         fine = plan("snakeboard", "rotate", intervals=50, jit=False, guess=previous, verify=False)
-        assert fine.guess == "warm start" and fine.success
+        assert fine.guess == "warm start"
+        assert fine.success
         assert fine.solution.objective == pytest.approx(2.110183, rel=1e-4)       # reference, N = 50
         assert fine.solution.iterations < fine_own.solution.iterations
     assert pickle.loads(pickle.dumps(coarse.task)) == coarse.task
@@ -201,7 +216,8 @@ def test_auto_solver_falls_back_to_ipopt(monkeypatch):
     from dataclasses import replace as dc_replace
     from nhgait.gaits.planner import solver_order
     from nhgait.ocp import OCPSolver, ProblemError
-    assert solver_order("auto") == ("fatrop", "ipopt") and solver_order("auto", "collocation") == ("ipopt",)
+    assert solver_order("auto") == ("fatrop", "ipopt")
+    assert solver_order("auto", "collocation") == ("ipopt",)
     with pytest.raises(ProblemError, match="unknown solver 'snopt'"):
         solver_order("snopt")
     original = OCPSolver.solve
@@ -212,8 +228,11 @@ def test_auto_solver_falls_back_to_ipopt(monkeypatch):
     monkeypatch.setattr(OCPSolver, "solve", fatrop_fails)
     result = plan("snakeboard", "forward", intervals=25, jit=False, verify=False, max_iter=30)
     solvers = [a.solver for a in result.attempts]
-    assert result.success and result.solution.settings["solver"] == "ipopt"
-    assert solvers[0] == "fatrop" and solvers[-1] == "ipopt" and "fatrop" in solvers
+    assert result.success
+    assert result.solution.settings["solver"] == "ipopt"
+    assert solvers[0] == "fatrop"
+    assert solvers[-1] == "ipopt"
+    assert "fatrop" in solvers
     assert result.solution.objective == pytest.approx(0.110252, rel=1e-4)
 
 
@@ -229,7 +248,9 @@ def test_scene_quantities_in_a_task(tmp_path):
     scene.write_text(text)
     result = plan(str(scene), intervals=50, jit=False)
     s = result.solution
-    assert s.success and s.settings["velocities"] == ["v_rear", "phi_dot"]
-    assert s.verification.max_condition_error <= 1e-6 and s.verification.max_error <= 1e-6
+    assert s.success
+    assert s.settings["velocities"] == ["v_rear", "phi_dot"]
+    assert s.verification.max_condition_error <= 1e-6
+    assert s.verification.max_error <= 1e-6
     qd = s.velocities()
     assert np.max(qd[0] ** 2 + qd[1] ** 2) <= 0.16 + 1e-6          # the nonlinear path bound

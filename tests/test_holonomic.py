@@ -62,8 +62,10 @@ def _disc_states(system, orc, count=40, seed=0):
 def test_a_constraint_linear_in_a_coordinate_eliminates_it():
     system = scene_from_text(_eliminated_text()).system
     assert system.coordinates == ("x", "y", "yaw", "lean", "spin")
-    assert [c for c, _ in system.eliminated] == ["z"] and str(system.eliminated[0][1]) == "r*cos(lean)"
-    assert system.holonomic == () and system.k == 2
+    assert [c for c, _ in system.eliminated] == ["z"]
+    assert str(system.eliminated[0][1]) == "r*cos(lean)"
+    assert system.holonomic == ()
+    assert system.k == 2
     # the same M(q) and V(q) as the scene where z = r cos(lean) was substituted by hand
     by_hand = load_scene("rolling_disc").system
     M1, _, V1 = system.numeric_functions()
@@ -96,7 +98,9 @@ def test_eliminated_disc_equals_the_kane_oracle():
 
 def test_kept_constraint_in_all_three_formulations_equals_the_kane_oracle(kept):
     assert kept.coordinates == ("x", "y", "z", "yaw", "lean", "spin")
-    assert kept.dependent == ("lean",) and kept.k == 3 and kept.holonomic_rows == (2,)
+    assert kept.dependent == ("lean",)
+    assert kept.k == 3
+    assert kept.holonomic_rows == (2,)
     orc = oracle("disc_height")
     red, lag, ham = (derive(kept, f).numeric for f in ("reduced", "lagrange", "hamilton"))
     pv = kept.param_vector()

@@ -215,7 +215,8 @@ def test_a_hostile_urdf_gets_one_clear_answer(make, statuses, said, sandbox):
     text; its tree is walked without recursion (1000 fixed links merge into one body)."""
     got = answer(["derive", make(sandbox.root), "--no-cache"]).check(statuses, said, sandbox)
     if "outside" in (said or ""):
-        assert "malformed" not in got.err and "exist" not in got.err
+        assert "malformed" not in got.err
+        assert "exist" not in got.err
 
 
 def test_a_folder_the_user_allows_may_hold_the_urdf(sandbox, monkeypatch):
@@ -229,7 +230,8 @@ def test_a_folder_the_user_allows_may_hold_the_urdf(sandbox, monkeypatch):
     answer(["derive", scene]).check(2, r"outside the scene's folder.*NHGAIT_URDF_PATH", sandbox)
     monkeypatch.setenv("NHGAIT_URDF_PATH", str(elsewhere))
     got = answer(["derive", scene]).check(0, None, sandbox)
-    assert "theta" in got.out and "phi" in got.out       # the roller racer's q = (x, y, theta, phi)
+    assert "theta" in got.out  # the roller racer's q = (x, y, theta, phi)
+    assert "phi" in got.out
 
 
 def test_a_chain_of_fixed_links_merges_into_one_body_with_their_mass():
@@ -239,7 +241,8 @@ def test_a_chain_of_fixed_links_merges_into_one_body_with_their_mass():
     from nhgait.dynamics.derivation.urdf.tree import build_bodies, tree_problems
     robot = read_urdf(_chain(1000), "chain.urdf")
     problems, root = tree_problems(robot)
-    assert problems == [] and root == "l0"
+    assert problems == []
+    assert root == "l0"
     (body,) = build_bodies(robot, root, {}, {})
     assert body.mass == pytest.approx(1001 * 0.01, rel=1e-12)
     assert body.com[0] == pytest.approx(0.001 * 1000 / 2, rel=1e-9)    # mean of 0, 0.001, …, 1.0 m

@@ -93,7 +93,8 @@ def test_disc_lean_pair_matches_the_closed_form(disc, v):
     assert lin.states == ("lean", "p", "pt_yaw", "pt_lean")        # x, y, yaw, spin drift
     assert lin.cyclic == ("x", "y", "yaw", "spin")
     # the zero of a neighbouring speed is removed, the zero of a neighbouring steady turn is not
-    assert len(lin.eigenvalues) == 3 and min(abs(lin.eigenvalues)) < 1e-12
+    assert len(lin.eigenvalues) == 3
+    assert min(abs(lin.eigenvalues)) < 1e-12
     assert lin.stability == ("unstable" if c > 0 else "neutral")
 
 
@@ -110,7 +111,8 @@ def test_disc_stability_threshold_is_sqrt_g_r_over_3(disc):
     change = chart.changes[0]
     assert change.speed == pytest.approx(np.sqrt(G * R / 3), abs=1e-10)
     assert (change.below, change.above) == ("unstable", "neutral")
-    assert chart.verdicts[0] == "unstable" and chart.verdicts[-1] == "neutral"
+    assert chart.verdicts[0] == "unstable"
+    assert chart.verdicts[-1] == "neutral"
 
 
 def test_the_threshold_moves_with_the_parameters(disc):
@@ -138,7 +140,8 @@ def test_cli_prints_json_eigenvalues_and_draws_the_chart(tmp_path, capsys):
     data = json.loads(capsys.readouterr().out)
     lam = np.array([complex(*pair) for pair in data["eigenvalues"]])
     assert np.max(lam.imag) == pytest.approx(np.sqrt(-_closed_form_c(2.0)), rel=1e-12)
-    assert data["states"] == ["lean", "p", "pt_yaw", "pt_lean"] and len(data["A"]) == 4
+    assert data["states"] == ["lean", "p", "pt_yaw", "pt_lean"]
+    assert len(data["A"]) == 4
     assert main(["linearize", "rolling_disc", "--speeds", "0:3:16", "--out", str(tmp_path), "--quiet"]) == 0
     text = capsys.readouterr().out
     assert "stability changes at 0.922062904578" in text
@@ -150,6 +153,7 @@ def test_cli_prints_json_eigenvalues_and_draws_the_chart(tmp_path, capsys):
 def test_cli_bad_requests_exit_2(capsys):
     assert main(["linearize", "rolling_disc", "--set", "q.tilt=1", "--set", "params.mass=2"]) == 2
     err = capsys.readouterr().err
-    assert "'tilt'" in err and "'mass'" in err
+    assert "'tilt'" in err
+    assert "'mass'" in err
     assert main(["linearize", "rolling_disc", "--speeds", "3:0:5"]) == 2
     assert main(["linearize", "rolling_disc", "--out", "x"]) == 2

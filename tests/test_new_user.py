@@ -41,14 +41,16 @@ def slider():
 def test_derive_states_group_fibre_and_shape_in_the_users_names(slider):
     _, model = slider
     text = model.to_text()
-    assert "fiber s =" not in text and "shape r =" not in text        # the method's letters are gone
+    assert "fiber s =" not in text  # the method's letters are gone
+    assert "shape r =" not in text
     assert "symmetry group R^2 (x, y) moves the fibre (group) coordinates (x, y); shape coordinates (theta, s)" in text
     # the reason, and every other admissible choice written as the user would write it
     assert "chosen by the full-symmetry test (L and ω do not depend on x, y)" in text
     assert "preferred to the next candidate SE(2) (x, y, theta): it has fewer fibre coordinates" in text
     assert "fiber = ['x', 'y', 'theta'] (SE(2) (x, y, theta), full)" in text
     table = model.symmetry.table_markdown()
-    assert table.startswith("| fibre coordinates | group G |") and "do not depend on s" not in table
+    assert table.startswith("| fibre coordinates | group G |")
+    assert "do not depend on s" not in table
 
 
 def test_choosing_another_fibre_as_the_output_says(slider):
@@ -57,7 +59,8 @@ def test_choosing_another_fibre_as_the_output_says(slider):
     from nhgait.dynamics import derive
     scene, _ = slider
     model = derive(dataclasses.replace(scene.system, fiber=["x", "y", "theta"]))
-    assert model.fiber == ("x", "y", "theta") and model.shape == ("s",)
+    assert model.fiber == ("x", "y", "theta")
+    assert model.shape == ("s",)
     assert "chosen by the system's fiber = ['x', 'y', 'theta']" in model.to_text()
 
 
@@ -72,7 +75,8 @@ def test_method_symbols_never_capture_a_users_name():
                     constraints=["-sin(theta)*x_dot + cos(theta)*y_dot"], forces={"theta": "0.1*cos(t)"},
                     parameters={"p": 1.0, "p_x": 0.3, "I_c": 0.2}, name="renamed")
     reduced, hamilton = derive(system, "reduced", use_cache=False), derive(system, "hamilton", use_cache=False)
-    assert "p_nh" in reduced.state_names and "p" not in reduced.state_names
+    assert "p_nh" in reduced.state_names
+    assert "p" not in reduced.state_names
     assert "p_x_nh" in hamilton.state_names
     q0, qd0 = [0.0, 0.0, 0.0], [1.0, 0.0, 0.5]
     finals = [simulate(derive(system, f, use_cache=False), (0, 3), q0, qd0, rtol=1e-11, atol=1e-13).q[-1]
@@ -94,7 +98,8 @@ def test_named_subexpressions_are_the_plain_equations(slider):
     for plain, named in zip(rhs, reduced):
         assert sp.simplify(named.xreplace(back) - plain) == 0
     text = model.to_text()                          # long: named by default; --no-cse prints all
-    assert "\n  where\n    w1 = " in text and "where" not in model.to_text(cse=False)
+    assert "\n  where\n    w1 = " in text
+    assert "where" not in model.to_text(cse=False)
     assert len(text) < 0.6 * len(model.to_text(cse=False))
 
 
@@ -136,17 +141,20 @@ def test_every_unknown_name_gets_did_you_mean_and_the_known_names(tmp_path, caps
     assert main(["simulate", SLIDER, "--set", "t_fnal=6", "--set", "q0.tht=1", "--set", "params.mm=2",
                  "--out", str(tmp_path / "t.csv")]) == 2
     err = capsys.readouterr().err
-    assert "3 problem(s)" in err and "did you mean 't_final'?" in err
+    assert "3 problem(s)" in err
+    assert "did you mean 't_final'?" in err
     assert "'tht' is not a coordinate: did you mean 'theta'? (coordinates: x, y, theta, s)" in err
     assert "unknown parameter 'mm': did you mean 'm'?" in err
     assert main(["simulate", SLIDER, "--set", "q0=1", "--set", "t_final.x=2", "--out", str(tmp_path / "t.csv")]) == 2
     err = capsys.readouterr().err
-    assert "q0 needs a name: q0.<name>=value" in err and "t_final takes no .<name>" in err
+    assert "q0 needs a name: q0.<name>=value" in err
+    assert "t_final takes no .<name>" in err
     scene = tmp_path / "typo.toml"
     scene.write_text(Path(SLIDER).read_text().replace("I_c*theta_dot**2/2", "I_c*thetadot**2/2"))
     assert main(["derive", str(scene)]) == 2
     err = capsys.readouterr().err
-    assert "unknown symbol 'thetadot' in the Lagrangian" in err and "did you mean 'theta_dot'" in err
+    assert "unknown symbol 'thetadot' in the Lagrangian" in err
+    assert "did you mean 'theta_dot'" in err
     assert "(known: x, y, theta, s, x_dot, y_dot, theta_dot, s_dot, m, I_c, a, m_s, b)" in err
     assert main(["plan", "snakeboard", "--gait", "foward", "--out", str(tmp_path / "p")]) == 2
     assert "did you mean 'forward'?" in capsys.readouterr().err
@@ -167,7 +175,8 @@ def test_compile_time_reported_apart_from_run_time(tmp_path, monkeypatch, capsys
     assert re.search(r"run \d+\.\d{3} s \+ compiling the integrator \d+\.\d{3} s \(once per model", first)
     assert main(args) == 0
     second = capsys.readouterr().out
-    assert re.search(r"evaluations, run \d+\.\d{3} s\)", second) and "compiling" not in second
+    assert re.search(r"evaluations, run \d+\.\d{3} s\)", second)
+    assert "compiling" not in second
 
 
 def test_bench_says_how_many_points_and_how_long_is_left(tmp_path, capsys):
@@ -191,7 +200,8 @@ def test_countdown_estimate():
     countdown.step("first")
     assert countdown.remaining_s() == pytest.approx(30.0, rel=0.05)   # 10 s per point, 3 left
     assert "1/4 points: first — about 30 s left" in stream.getvalue()
-    assert duration(185) == "3 min 05 s" and duration(3720) == "1 h 02 min"
+    assert duration(185) == "3 min 05 s"
+    assert duration(3720) == "1 h 02 min"
 
 
 # ----------------------------------------------------------------------------- 3. the API
@@ -210,7 +220,8 @@ def test_help_lists_subpackages_the_first_five_things_and_the_true_default_solve
     lines = [ln.strip() for ln in code.strip().splitlines()]
     namespace = {}
     exec("\n".join(lines[:2] + [ln.replace("examples/", str(ROOT / "examples") + "/") for ln in lines[3:6]]), namespace)
-    assert namespace["traj"].success and namespace["traj"].q.shape[1] == 4
+    assert namespace["traj"].success
+    assert namespace["traj"].q.shape[1] == 4
 
 
 def test_short_reprs_and_notebook_markdown(slider):
@@ -219,12 +230,17 @@ def test_short_reprs_and_notebook_markdown(slider):
     spec = scene.simulation
     traj = simulate(model, (0, spec.t_final), spec.q0, spec.qdot0, controller=spec.controller, t_eval=spec.t_eval)
     text = repr(traj)
-    assert len(text) < 300 and "success" in text and "t = 0 … 4 s (81 samples)" in text
-    assert "q (81, 4)" in text and "state (81, 7)" in text
+    assert len(text) < 300
+    assert "success" in text
+    assert "t = 0 … 4 s (81 samples)" in text
+    assert "q (81, 4)" in text
+    assert "state (81, 7)" in text
     lagrange = derive(scene.system, "lagrange")
-    assert repr(lagrange).startswith("<LagrangianDAE of sleigh_slider: 8 states") and len(repr(lagrange)) < 200
+    assert repr(lagrange).startswith("<LagrangianDAE of sleigh_slider: 8 states")
+    assert len(repr(lagrange)) < 200
     md = model._repr_markdown_()
-    assert "| shape coordinates | theta, s |" in md and "```\nReduced constrained" in md
+    assert "| shape coordinates | theta, s |" in md
+    assert "```\nReduced constrained" in md
 
 
 def test_readme_snippet_reproduces_the_number_the_readme_quotes(capsys):

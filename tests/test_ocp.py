@@ -84,7 +84,8 @@ def test_p1_multiple_shooting_matches_reference(unicycle):
     # exact piecewise-constant objective: Σ h |u_k|²
     assert sol.objective == pytest.approx(problem.horizon / 25 * np.sum(sol.controls ** 2), rel=1e-12)
     v = sol.verify()
-    assert v.success and v.max_error < 1e-6   # RK4 (h = 0.04) vs DOP853 at rtol 1e-10
+    assert v.success  # RK4 (h = 0.04) vs DOP853 at rtol 1e-10
+    assert v.max_error < 1e-6
     assert sol.state("y")[-1] == pytest.approx(0.5, abs=1e-9)
 
 
@@ -100,12 +101,14 @@ def test_collocation_agrees_with_shooting(unicycle):
 def test_failure_is_a_solution_not_an_exception(unicycle):
     problem = p1(unicycle)
     sol = solve(problem, p1_guess(problem), max_iter=2, jit=False)
-    assert not sol.success and sol.status == "Maximum_Iterations_Exceeded"
+    assert not sol.success
+    assert sol.status == "Maximum_Iterations_Exceeded"
     # infeasible statement: reach y = 50 with |tau| <= 1e-3
     bad = OptimalControlProblem(unicycle, 1.0, 10, initial={n: 0.0 for n in unicycle.state_names},
                                 final={"y": 50.0}, control_bounds=1e-3)
     sol = solve(bad, p1_guess(p1(unicycle, N=10)), max_iter=50, jit=False)
-    assert sol.success is False and sol.status
+    assert sol.success is False
+    assert sol.status
 
 
 def test_solution_json_keys(unicycle, tmp_path):
@@ -117,9 +120,13 @@ def test_solution_json_keys(unicycle, tmp_path):
         assert key in data
     assert data["verification_error"] == pytest.approx(sol.verification_error)
     tr = data["trajectory"]
-    assert len(tr["t"]) == 26 and set(tr["controls"]) == {"tau_theta", "tau_phi"}
-    assert np.shape(tr["q"]) == (26, 4) and np.shape(tr["qdot"]) == (26, 4) and np.shape(tr["u"]) == (25, 2)
-    assert tr["coordinates"] == ["x", "y", "theta", "phi"] and tr["inputs"] == ["tau_theta", "tau_phi"]
+    assert len(tr["t"]) == 26
+    assert set(tr["controls"]) == {"tau_theta", "tau_phi"}
+    assert np.shape(tr["q"]) == (26, 4)
+    assert np.shape(tr["qdot"]) == (26, 4)
+    assert np.shape(tr["u"]) == (25, 2)
+    assert tr["coordinates"] == ["x", "y", "theta", "phi"]
+    assert tr["inputs"] == ["tau_theta", "tau_phi"]
     # q̇ from the unicycle's rolling constraint ẋ = r cos θ φ̇ (r = 0.1), independent of the model
     q, qd = np.array(tr["q"]), np.array(tr["qdot"])
     assert np.allclose(qd[:, 0], 0.1 * np.cos(q[:, 2]) * qd[:, 3], atol=1e-12)
@@ -132,12 +139,17 @@ def test_free_horizon_and_jit_cache(unicycle, tmp_path):
     guess = p1_guess(problem)
     s1 = OCPSolver(problem, options=SolverOptions(jit=True))
     s2 = OCPSolver(problem, options=SolverOptions(jit=True))
-    assert s1.jit_cached is False and s2.jit_cached is True and s2.compiled
+    assert s1.jit_cached is False
+    assert s2.jit_cached is True
+    assert s2.compiled
     a, b = s1.solve(guess), solve(problem, guess, jit=False)
-    assert a.success and a.objective == pytest.approx(b.objective, rel=1e-8)
+    assert a.success
+    assert a.objective == pytest.approx(b.objective, rel=1e-8)
     free = problem.replace(free_horizon=(2.0, 8.0), time_weight=0.1)
     sol = solve(free, guess, jit=False)
-    assert sol.success and 2.0 <= sol.horizon <= 8.0 and sol.horizon != pytest.approx(4.0)
+    assert sol.success
+    assert 2.0 <= sol.horizon <= 8.0
+    assert sol.horizon != pytest.approx(4.0)
 
 
 def test_compiled_is_the_default_and_falls_back_without_a_compiler(unicycle, monkeypatch):
@@ -146,13 +158,17 @@ def test_compiled_is_the_default_and_falls_back_without_a_compiler(unicycle, mon
     monkeypatch.setenv("CC", "/nonexistent/cc")
     monkeypatch.setenv("NHGAIT_FAST_CC", "/nonexistent/tcc")
     fallback = OCPSolver(problem)                      # jit=None: compiled when a compiler exists
-    assert not fallback.compiled and "no C compiler found" in fallback.jit_fallback
+    assert not fallback.compiled
+    assert "no C compiler found" in fallback.jit_fallback
     sol = fallback.solve(guess)
-    assert sol.success and sol.settings["jit"] is False and "no C compiler" in sol.settings["jit_fallback"]
+    assert sol.success
+    assert sol.settings["jit"] is False
+    assert "no C compiler" in sol.settings["jit_fallback"]
     monkeypatch.delenv("CC")
     monkeypatch.delenv("NHGAIT_FAST_CC")
     compiled = OCPSolver(problem)
-    assert compiled.compiled and compiled.jit_fallback is None
+    assert compiled.compiled
+    assert compiled.jit_fallback is None
     assert compiled.solve(guess).objective == pytest.approx(sol.objective, rel=1e-9)
 
 
@@ -190,9 +206,12 @@ def test_fatrop_reaches_the_ipopt_optimum(snakeboard):
     ipopt = solve(problem, guess, jit=False)
     stages = solve(problem, guess, transcription=StageShooting(), jit=False)
     fatrop = OCPSolver(problem, options=SolverOptions(jit=False, solver="fatrop"))
-    assert fatrop.nlp.structure["N"] == 25 and fatrop.nlp.structure["nx"][0] == 8 + 3   # ψ fixed at 0: φ, ψ̇, φ̇ carried
+    assert fatrop.nlp.structure["N"] == 25  # ψ fixed at 0: φ, ψ̇, φ̇ carried
+    assert fatrop.nlp.structure["nx"][0] == 8 + 3
     sol = fatrop.solve(guess)
-    assert ipopt.success and stages.success and sol.success, sol.status
+    assert ipopt.success, sol.status
+    assert stages.success, sol.status
+    assert sol.success, sol.status
     assert ipopt.objective == pytest.approx(REF_25["P2"], rel=1e-4)
     assert stages.objective == pytest.approx(ipopt.objective, rel=1e-9)
     assert sol.objective == pytest.approx(ipopt.objective, rel=1e-6)
@@ -208,8 +227,11 @@ def test_stage_transcription_free_horizon(unicycle):
     a = solve(problem, guess, jit=False)
     b = solve(problem, guess, transcription=StageShooting(), jit=False)
     c = solve(problem, guess, jit=False, solver="fatrop")
-    assert a.success and b.success and c.success
-    assert b.objective == pytest.approx(a.objective, rel=1e-8) and b.horizon == pytest.approx(a.horizon, rel=1e-6)
+    assert a.success
+    assert b.success
+    assert c.success
+    assert b.objective == pytest.approx(a.objective, rel=1e-8)
+    assert b.horizon == pytest.approx(a.horizon, rel=1e-6)
     assert c.objective == pytest.approx(a.objective, rel=1e-6)
 
 
@@ -220,5 +242,6 @@ def test_collocation_is_not_slowed_by_mumps_scaling(snakeboard):
     col = OCPSolver(problem, Collocation(), SolverOptions(jit=False))
     assert col.options.ipopt["mumps_scaling"] == 8
     sol = col.solve(p1_guess(problem))
-    assert sol.success and sol.iterations <= 12
+    assert sol.success
+    assert sol.iterations <= 12
     assert sol.objective == pytest.approx(0.109813, rel=1e-3)   # the continuous optimum, to O(h⁴)

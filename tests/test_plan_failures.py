@@ -25,13 +25,17 @@ def test_a_converged_plan_that_misses_the_task_is_a_failure():
     result = plan("unicycle", P1, jit=False, solver="ipopt")
     s = result.solution
     assert s.stats["solver_status"] == "Solve_Succeeded"          # the solver converged …
-    assert not result.success and s.status == "Verification_Failed"  # … but it is not a gait
+    assert not result.success  # … but it is not a gait
+    assert s.status == "Verification_Failed"
     v = s.verification
-    assert not v.passed and v.max_error > 1e-6
+    assert not v.passed
+    assert v.max_error > 1e-6
     text = "\n".join(result.diagnosis)
-    assert "does not meet the task to 1e-06" in text and "increase intervals (now 4" in text
+    assert "does not meet the task to 1e-06" in text
+    assert "increase intervals (now 4" in text
     loose = plan("unicycle", {**P1, "verify_tolerance": 1e-2}, jit=False, solver="ipopt")
-    assert loose.success and loose.solution.verification.max_error <= 1e-2
+    assert loose.success
+    assert loose.solution.verification.max_error <= 1e-2
     assert loose.solution.objective == pytest.approx(s.objective, rel=1e-9)   # same optimum, other verdict
 
 
@@ -59,10 +63,15 @@ def test_cli_exits_1_and_writes_a_failed_solution(tmp_path, capsys):
     code = main(["plan", str(_scene(tmp_path, TASK_TOML)), "--no-jit", "--solver", "ipopt", "--quiet",
                  "--out", str(out)])
     printed = capsys.readouterr().out
-    assert code == 1 and "FAILED (Verification_Failed)" in printed and "why:" in printed
+    assert code == 1
+    assert "FAILED (Verification_Failed)" in printed
+    assert "why:" in printed
     data = json.loads((out / "solution.json").read_text())
-    assert data["success"] is False and data["verification"]["passed"] is False and data["diagnosis"]
-    assert (out / "path.png").exists() and not (out / "motion.gif").exists()   # marked FAILED, no animation
+    assert data["success"] is False
+    assert data["verification"]["passed"] is False
+    assert data["diagnosis"]
+    assert (out / "path.png").exists()  # marked FAILED, no animation
+    assert not (out / "motion.gif").exists()
 
 
 def test_an_infeasible_task_names_what_is_violated(tmp_path):
@@ -70,10 +79,13 @@ def test_an_infeasible_task_names_what_is_violated(tmp_path):
     # is refused before any solve, test_numeric_extremes.py); the solver finds it infeasible
     task = {**P1, "intervals": 20, "control_bounds": 0.012}
     result = plan("unicycle", task, jit=False, solver="ipopt", max_guesses=2)
-    assert not result.success and result.solution.status != "Solve_Succeeded"
+    assert not result.success
+    assert result.solution.status != "Solve_Succeeded"
     text = "\n".join(result.diagnosis)
-    assert text.startswith("no guess converged:") and "at the closest point found" in text
-    assert "violated by" in text and "what to relax:" in text
+    assert text.startswith("no guess converged:")
+    assert "at the closest point found" in text
+    assert "violated by" in text
+    assert "what to relax:" in text
     # the closest point cannot meet the sideways target: final.y (or the dynamics) is named
     assert "final.y" in text or "shooting gaps" in text
     statuses = {a.status for a in result.attempts}

@@ -33,10 +33,12 @@ def hand_written():
 
 def test_six_coordinate_robot_is_planned_and_verified(planned):
     assert planned.success, planned.diagnosis
-    assert planned.model.system.n == 6 and planned.model.system.k == 2
+    assert planned.model.system.n == 6
+    assert planned.model.system.k == 2
     assert len(planned.solution.state_names) == 2 * 6 - 2
     verification = planned.solution.verification
-    assert verification.success and verification.max_error <= 1e-6
+    assert verification.success
+    assert verification.max_error <= 1e-6
 
 
 def test_objective_equals_the_independent_transcription(planned, hand_written):
@@ -59,7 +61,8 @@ def test_task_holds_on_the_plan(planned):
     np.testing.assert_allclose(q[-1, [names.index("x"), names.index("theta")]], [0.5, 0.0], atol=1e-6)
     for c in ("psi", "phi_f", "phi_b"):
         i = names.index(c)
-        assert q[-1, i] == pytest.approx(q[0, i], abs=1e-6) and qdot[-1, i] == pytest.approx(qdot[0, i], abs=1e-6)
+        assert q[-1, i] == pytest.approx(q[0, i], abs=1e-6)
+        assert qdot[-1, i] == pytest.approx(qdot[0, i], abs=1e-6)
     assert np.all(np.abs(q[:, [names.index("phi_f"), names.index("phi_b")]]) <= 1.0 + 1e-8)
 
 
@@ -85,7 +88,8 @@ def test_a_chart_that_covers_the_ends_is_chosen():
     assert result.success, result.diagnosis
     assert tuple(result.model.layout.fiber) == ("x", "y", "theta")
     hand = reference.build(member, N=N, jit=False, expand=False).solve()
-    assert hand["success"] and result.solution.objective == pytest.approx(hand["objective"], rel=1e-6)
+    assert hand["success"]
+    assert result.solution.objective == pytest.approx(hand["objective"], rel=1e-6)
 
 
 def test_fitted_roll_out_ends_where_the_task_ends():

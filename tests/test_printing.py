@@ -33,7 +33,8 @@ def _structural(tex: str):
         depth -= ch == "}"
         assert depth >= 0
     assert depth == 0
-    assert "_{dot}" not in tex and "\\paragraph{Step" in tex
+    assert "_{dot}" not in tex
+    assert "\\paragraph{Step" in tex
 
 
 def test_tex_text_transliterates_unicode():
@@ -49,7 +50,8 @@ def test_steps_print_without_arguments(which, models, trailer):
     assert all(f"### Step {i}:" in md for i in range(1, 21))
     _structural(tex)
     if which == "snakeboard":
-        assert "\\dot{\\theta}" in tex and "\\tilde{p}_{\\psi}" in tex
+        assert "\\dot{\\theta}" in tex
+        assert "\\tilde{p}_{\\psi}" in tex
 
 
 def _compile(tex: str, tmp_path):
@@ -69,10 +71,13 @@ def test_latex_export_compiles(which, models, trailer, tmp_path):
 
 def test_repr_is_one_line_and_text_of_the_implicit_form(trailer, models):
     for model in (trailer, models["unicycle"]["reduced"]):
-        assert "\n" not in repr(model) and repr(model).startswith("ReducedODE(")
+        assert "\n" not in repr(model)
+        assert repr(model).startswith("ReducedODE(")
     text = trailer.to_text()
-    assert "implicit form" in text and "K(q) v = (pt_theta0, pt_theta1)" in text
-    assert trailer.rhs is None and trailer.steps[5].A.operations > 0
+    assert "implicit form" in text
+    assert "K(q) v = (pt_theta0, pt_theta1)" in text
+    assert trailer.rhs is None
+    assert trailer.steps[5].A.operations > 0
 
 
 def test_cli_derive_scene_file_with_checks_and_steps(tmp_path, capsys):
@@ -83,7 +88,8 @@ def test_cli_derive_scene_file_with_checks_and_steps(tmp_path, capsys):
     assert main(["derive", str(scene), "--checks", "--steps", "latex"]) == 0
     out = capsys.readouterr().out
     assert "7 = 2n − k first-order ODEs, implicit form" in out
-    assert "reduced bracket: almost-Poisson (the Jacobi identity does not hold" in out and "singular set:" in out
+    assert "reduced bracket: almost-Poisson (the Jacobi identity does not hold" in out
+    assert "singular set:" in out
     assert "\\paragraph{Step 20: Reconstruction of the fiber velocities}" in out
 
 
@@ -92,4 +98,6 @@ def test_dataclasses_replace_keeps_every_field(models):
     from nhgait.dynamics import unicycle
     model = models["unicycle"]["reduced"]
     other = dataclasses.replace(model, system=unicycle(m=2.0))
-    assert other.system.parameters["m"] == 2.0 and other.form == model.form and other.rhs == model.rhs
+    assert other.system.parameters["m"] == 2.0
+    assert other.form == model.form
+    assert other.rhs == model.rhs

@@ -21,8 +21,10 @@ def snake3():
 def test_snake3_solves_and_resimulates(snake3):
     ref, res = snake3
     assert res["success"], res["status"]
-    assert ref.n_states == 2 * 5 - 3 and ref.c_bytes == 0
-    assert res["q"].shape == (21, 5) and res["u"].shape == (20, 2)
+    assert ref.n_states == 2 * 5 - 3
+    assert ref.c_bytes == 0
+    assert res["q"].shape == (21, 5)
+    assert res["u"].shape == (20, 2)
     assert res["coordinates"] == ["x", "y", "theta", "alpha1", "alpha2"]
     # effort objective: exactly sum_k h |u_k|^2
     h = ref.T / ref.N
@@ -30,7 +32,8 @@ def test_snake3_solves_and_resimulates(snake3):
     ver = reference.resimulate(ref, res)
     # RK4 x4 at h = 0.3 s: the re-simulation (another model, DOP853 rtol 1e-10) agrees to the
     # discretisation error (measured 8.5e-6 at N = 20)
-    assert ver["success"] and ver["node_error"] < 1e-4
+    assert ver["success"]
+    assert ver["node_error"] < 1e-4
     # every condition of the task as written, incl. the dropped redundant ones
     # (alpha1_dot, alpha2_dot periodic) holds on the re-simulated trajectory
     assert ver["condition_error"] < 1e-4, ver["worst_condition"]
@@ -46,7 +49,8 @@ def test_snake3_boundary_conditions_at_nodes(snake3):
     np.testing.assert_allclose(qT[:3], [0.3, 0.0, 0.0], atol=1e-9)
     np.testing.assert_allclose(qT[3:], q0[3:], atol=1e-7)                  # periodic joints
     np.testing.assert_allclose(res["z"][5:, -1], res["z"][5:, 0], atol=1e-7)  # periodic rates
-    assert np.all(res["q"][:, 3] >= 0.2 - 1e-8) and np.all(res["q"][:, 4] <= -0.2 + 1e-8)
+    assert np.all(res["q"][:, 3] >= 0.2 - 1e-8)
+    assert np.all(res["q"][:, 4] <= -0.2 + 1e-8)
     assert np.max(np.abs(res["u"])) <= 5.0 + 1e-8
 
 
@@ -70,7 +74,8 @@ def test_translation_of_redundant_conditions():
 
 def test_scene_with_task_round_trip():
     tomllib = pytest.importorskip("tomllib")
-    assert len(scale_tasks.MEMBERS) == 13 and set(scale_tasks.TASKS) == set(scale_tasks.MEMBERS)
+    assert len(scale_tasks.MEMBERS) == 13
+    assert set(scale_tasks.TASKS) == set(scale_tasks.MEMBERS)
     for member in ("snake_3", "cart_trailers_1", "snakeboard_two_steering"):
         data = tomllib.loads(scale_tasks.scene_with_task(member))
         assert data["task"] == scale_tasks.TASKS[member]
@@ -81,4 +86,5 @@ def test_scene_with_task_round_trip():
 @pytest.mark.parametrize("member", ["snake_3", "cart_trailers_1", "snakeboard_two_steering"])
 def test_reduced_ode_matches_oracle(member):
     check = reference.check_model(member, count=20)
-    assert check["vs_oracle"] < 1e-9 and check["vs_multiplier_dae"] < 1e-9
+    assert check["vs_oracle"] < 1e-9
+    assert check["vs_multiplier_dae"] < 1e-9

@@ -111,4 +111,8 @@ def test_cli_parser_registers_reproduce():
     parser = argparse.ArgumentParser()
     add_reproduce_parser(parser.add_subparsers())
     args = parser.parse_args(["reproduce", "--out", "x", "--rtol", "1e-8", "--no-idas", "--columns", "qdot"])
-    assert args.func is run and args.rtol == 1e-8 and args.no_idas and args.out == "x" and args.columns == "qdot"
+    assert args.func is run
+    assert args.rtol == 1e-8
+    assert args.no_idas
+    assert args.out == "x"
+    assert args.columns == "qdot"

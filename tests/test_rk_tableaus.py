@@ -121,6 +121,8 @@ def test_float_tableau_matches_exact():
     for name in ("DOPRI5", "DOP853"):
         tab, ex = tableau(name), exact_tableau(name)
         assert np.array_equal(tab.b, [float(x) for x in ex["b"]])
-        assert tab.a.shape == (tab.s_ext, tab.s_ext) and np.all(np.triu(tab.a) == 0)
-        assert tab.c[tab.i_new] == 1.0 and tab.c[tab.i_stiff] == 1.0
+        assert tab.a.shape == (tab.s_ext, tab.s_ext)
+        assert np.all(np.triu(tab.a) == 0)
+        assert tab.c[tab.i_new] == 1.0
+        assert tab.c[tab.i_stiff] == 1.0
         assert np.array_equal(tab.a[tab.i_new], tab.b)

@@ -210,4 +210,5 @@ def test_check_task_names_what_is_wrong():
     bad = dict(p.task, initial={**p.task["initial"], **{c: 9.0 for c in p.task.get("bounds", {})}},
                final=dict(p.task["initial"]))
     problems = " ".join(gen.check_task(p.robot, bad))
-    assert "outside its bound" in problems and "the target is the start" in problems
+    assert "outside its bound" in problems
+    assert "the target is the start" in problems

@@ -45,7 +45,9 @@ def test_family_member_equals_kane(name):
 def test_implicit_form_forced_on_the_snakeboard(systems):
     from nhgait.dynamics.derivation.reduction import derive_reduced
     model = derive_reduced(systems["snakeboard"], form="implicit")
-    assert model.form == "implicit" and model.rhs is None and model.implicit.pivots
+    assert model.form == "implicit"
+    assert model.rhs is None
+    assert model.implicit.pivots
     assert agreement(systems["snakeboard"], model, oracle("snakeboard")) < RTOL
 
 
@@ -69,8 +71,10 @@ def test_the_two_steering_snakeboard_keeps_the_thesis_structure():
     from nhgait.dynamics import derive
     fam = _families()
     board = derive(fam.system("snakeboard_two_steering"), "reduced")
-    assert board.form == "implicit" and board.dimension == 2 * 6 - 2
-    assert board.fiber == ("x", "y", "theta") and board.classification == "mixed"
+    assert board.form == "implicit"
+    assert board.dimension == 2 * 6 - 2
+    assert board.fiber == ("x", "y", "theta")
+    assert board.classification == "mixed"
 
 
 def test_constrained_shape_velocities_four_link_snake():
@@ -80,7 +84,8 @@ def test_constrained_shape_velocities_four_link_snake():
     from nhgait.dynamics import derive
     system = _families().system("snake_4")
     model = derive(system, "reduced")
-    assert model.dimension == 2 * 6 - 4 and len(model.layout.dependent) == 1
+    assert model.dimension == 2 * 6 - 4
+    assert len(model.layout.dependent) == 1
     num, pv = model.numeric, system.param_vector()
     rng = np.random.default_rng(2)
     for _ in range(10):

@@ -61,14 +61,16 @@ def test_missing_input_law_and_bad_sizes(tmp_path):
     with pytest.raises(ModelError) as info:
         load_scene(write(tmp_path, text))
     msg = str(info.value)
-    assert "q0 has 3 entries" in msg and "no law for input(s) ['tau']" in msg
+    assert "q0 has 3 entries" in msg
+    assert "no law for input(s) ['tau']" in msg
 
 
 def test_bad_horizon_and_samples(tmp_path):
     text = GOOD.replace('t_final = "pi"', "t_final = -1").replace("samples = 11", "samples = 1")
     with pytest.raises(ModelError) as info:
         load_scene(write(tmp_path, text))
-    assert "must be greater than t0" in str(info.value) and "samples must be an integer from 2" in str(info.value)
+    assert "must be greater than t0" in str(info.value)
+    assert "samples must be an integer from 2" in str(info.value)
 
 
 def test_toml_syntax_error(tmp_path):

@@ -101,7 +101,8 @@ def _check(sol, U, J):
     assert sol.objective == pytest.approx(J, rel=TOL)
     assert np.max(np.abs(sol.controls - U)) <= TOL * max(1.0, np.max(np.abs(U)))
     v = sol.verify()
-    assert v.success and v.max_error <= 1e-8, v
+    assert v.success, v
+    assert v.max_error <= 1e-8, v
 
 
 # ----------------------------------------------------------------------------- waypoints
@@ -135,7 +136,8 @@ def test_an_integral_state_meets_its_final_value_and_is_the_exact_integral(parti
     T, N = 3.0, 6
     problem = OptimalControlProblem(particle, T, N, initial=REST, final={**REST, "x": 1.0, "y": 0.0, "area": 2.0},
                                     integrals={"area": "x"})
-    assert problem.state_names[-1] == "area" and problem.initial["area"] == 0.0
+    assert problem.state_names[-1] == "area"
+    assert problem.initial["area"] == 0.0
     sol = _solve(problem, method)
     U, J = lq_oracle(np.full(N, T / N), _rest_to(1.0, 0.0, N) + [(lambda x, v, I, U: I[0, N], 2.0)])
     _check(sol, U, J)

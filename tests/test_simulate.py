@@ -49,10 +49,13 @@ def test_controller_casadi_form_equals_numeric():
 
 def test_open_loop_zoh_and_linear():
     zoh = OpenLoop([0.0, 1.0, 2.0], [[1.0], [3.0]])
-    assert zoh(0.5)[0] == 1.0 and zoh(1.0)[0] == 3.0 and zoh(5.0)[0] == 3.0
+    assert zoh(0.5)[0] == 1.0
+    assert zoh(1.0)[0] == 3.0
+    assert zoh(5.0)[0] == 3.0
     assert list(zoh.breakpoints) == [1.0]
     lin = OpenLoop([0.0, 1.0, 2.0], [[0.0], [2.0], [0.0]], kind="linear")
-    assert lin(0.25)[0] == pytest.approx(0.5) and lin(1.5)[0] == pytest.approx(1.0)
+    assert lin(0.25)[0] == pytest.approx(0.5)
+    assert lin(1.5)[0] == pytest.approx(1.0)
     with pytest.raises(ModelError, match="strictly increasing"):
         OpenLoop([0.0, 0.0], [[1.0]])
     with pytest.raises(ModelError, match=r"values must have shape \(2, m\)"):
@@ -76,7 +79,8 @@ def test_zoh_switching_is_exact(models):
     theta, omega = 0.0, 0.0
     for dt, a in zip(np.diff(times), tau / J):
         theta, omega = theta + omega * dt + 0.5 * a * dt ** 2, omega + a * dt
-    assert traj.success and traj.settings["segments"] == 5
+    assert traj.success, traj.message
+    assert traj.settings["segments"] == 5
     assert traj.q[-1, 2] == pytest.approx(theta, abs=1e-13)
     assert traj.qdot[-1, 2] == pytest.approx(omega, abs=1e-13)
 
@@ -97,7 +101,7 @@ def test_matches_kane_oracle_short_horizon(models, formulation):
                     atol=1e-12, t_eval=t_eval)
     traj = simulate(model, (0.0, 3.0), SNAKE_Q0, SNAKE_QDOT0, controller=ctl, rtol=1e-12,
                     atol=1e-13, t_eval=t_eval)
-    assert traj.success
+    assert traj.success, traj.message
     assert np.max(np.abs(traj.q - ref.y[:5].T)) < 1e-9
     assert np.max(np.abs(traj.qdot - ref.y[5:].T)) < 1e-9
 
@@ -109,7 +113,10 @@ def test_idas_agrees_with_index1(models, formulation):
     kw = dict(controller=snakeboard_pd(), rtol=1e-10, atol=1e-12, t_eval=t_eval)
     a = simulate(model, (0.0, 10.0), SNAKE_Q0, SNAKE_QDOT0, dae="index1", **kw)
     b = simulate(model, (0.0, 10.0), SNAKE_Q0, SNAKE_QDOT0, dae="idas", **kw)
-    assert a.success and b.success and b.method == "IDAS" and b.settings["dae"] == "idas"
+    assert a.success
+    assert b.success
+    assert b.method == "IDAS"
+    assert b.settings["dae"] == "idas"
     assert np.max(np.abs(a.q - b.q)) < 1e-6
     assert np.max(np.abs(a.lam - b.lam)) < 1e-6
     assert np.max(np.abs(b.constraint_residual)) < 1e-8
@@ -131,10 +138,12 @@ def test_stabilization_off_by_default_and_recorded(models):
     model = models["snakeboard"]["lagrange"]
     kw = dict(controller=snakeboard_pd(), rtol=1e-6, atol=1e-8, t_eval=np.linspace(0, 10, 21))
     plain = simulate(model, (0.0, 10.0), SNAKE_Q0, SNAKE_QDOT0, **kw)
-    assert plain.settings["stabilization"] is None and plain.settings["baumgarte"] is None
+    assert plain.settings["stabilization"] is None
+    assert plain.settings["baumgarte"] is None
     baum = simulate(model, (0.0, 10.0), SNAKE_Q0, SNAKE_QDOT0, stabilization="baumgarte",
                     baumgarte=(5.0, 1.0), **kw)
-    assert baum.settings["stabilization"] == "baumgarte" and baum.settings["baumgarte"] == (5.0, 1.0)
+    assert baum.settings["stabilization"] == "baumgarte"
+    assert baum.settings["baumgarte"] == (5.0, 1.0)
     proj = simulate(model, (0.0, 10.0), SNAKE_Q0, SNAKE_QDOT0, stabilization="projection", **kw)
     assert proj.settings["stabilization"] == "projection"
     # drift of ω q̇ at rtol 1e-6: ~1e-10 unstabilised, removed by projection
@@ -190,17 +199,21 @@ def test_integrator_failure_is_a_result(models):
     """A NaN input after t = 0.5 stops the run there (status −3), naming the controller."""
     traj = simulate(models["unicycle"]["reduced"], (0.0, 1.0), UNI_Q0, UNI_QDOT0,
                     controller=_BreaksAtHalf())
-    assert not traj.success and traj.status == NONFINITE
+    assert not traj.success
+    assert traj.status == NONFINITE
     assert "_BreaksAtHalf returned a non-finite input tau_theta" in traj.message
-    assert 0.5 - 1e-9 <= traj.t[-1] <= 0.5 + 1e-9 and traj.q.shape == (traj.t.size, 4)
-    assert np.all(np.isfinite(traj.q)) and np.all(np.isfinite(traj.energy_balance))
+    assert 0.5 - 1e-9 <= traj.t[-1] <= 0.5 + 1e-9
+    assert traj.q.shape == (traj.t.size, 4)
+    assert np.all(np.isfinite(traj.q))
+    assert np.all(np.isfinite(traj.energy_balance))
 
 
 def test_idas_failure_is_a_result(models):
     traj = simulate(models["unicycle"]["lagrange"], (0.0, 1.0), UNI_Q0, UNI_QDOT0,
                     controller=_BreaksAtHalf(), dae="idas", t_eval=np.linspace(0, 1, 11),
                     max_steps=500)
-    assert not traj.success and traj.status == NONFINITE
+    assert not traj.success
+    assert traj.status == NONFINITE
     assert "returned a non-finite input tau_theta" in traj.message
     # every output before the NaN onset at t = 0.5 is kept (the failed call's reached outputs),
     # then the last state reached, between 0.5 and the next output
@@ -219,7 +232,8 @@ def test_to_csv_columns(models, tmp_path):
     traj.to_csv(path)
     rows = list(csv.reader(open(path)))
     assert rows[0] == ["t", "x", "y", "theta", "psi", "phi"]
-    assert len(rows) == 12 and float(rows[-1][0]) == 1.0
+    assert len(rows) == 12
+    assert float(rows[-1][0]) == 1.0
     assert float(rows[-1][4]) == traj.q[-1, 3]
     traj.to_csv(path, columns="all")
     header = next(csv.reader(open(path)))
@@ -234,7 +248,8 @@ def test_to_csv_columns(models, tmp_path):
 
 def test_trajectory_arrays_are_read_only(models):
     traj = simulate(models["unicycle"]["reduced"], (0.0, 0.1), UNI_Q0, UNI_QDOT0)
-    assert traj.lam is None and traj.state.shape[1] == 6
+    assert traj.lam is None
+    assert traj.state.shape[1] == 6
     with pytest.raises(ValueError):
         traj.q[0, 0] = 1.0
 
@@ -251,7 +266,8 @@ def test_force_jump_is_a_breakpoint(method):
                     parameters={"m": 0.5, "r": 0.1, "J_phi": 0.2, "J_theta": 0.3})
     traj = simulate(derive(system, "reduced"), (0.0, 1.0), np.zeros(4), np.zeros(4), method=method,
                     rtol=1e-12, atol=1e-14, t_eval=[0.0, 0.3, 1.0])
-    assert traj.success and traj.settings["segments"] == 2
+    assert traj.success, traj.message
+    assert traj.settings["segments"] == 2
     assert traj.q[1, 2] == pytest.approx(0.0, abs=1e-14)
     assert traj.q[2, 2] == pytest.approx(0.7 ** 2 / (2 * 0.3), abs=1e-11)
     assert traj.qdot[2, 2] == pytest.approx(0.7 / 0.3, abs=1e-11)

@@ -36,7 +36,7 @@ def test_condition_numbers_read_on_request_match_an_independent_metric(formulati
     model = derive("snakeboard", formulation)
     traj = simulate(model, (0.0, 2 * math.pi), SNAKE_Q0, SNAKE_QDOT0, controller=snakeboard_pd(),
                     method="compiled", rtol=1e-9, atol=1e-11, t_eval=np.linspace(0, 2 * math.pi, 41))
-    assert traj.success
+    assert traj.success, traj.message
     metric, gram = _independent_conditions(model.system, traj.q)
     assert traj.diagnostics["max_cond_metric"] == pytest.approx(metric, rel=1e-8)
     assert traj.diagnostics["max_cond_gram"] == pytest.approx(gram, rel=1e-8)
@@ -105,7 +105,9 @@ def test_every_step_output_and_grid_output_agree(models):
                      method="compiled", rtol=1e-8, atol=1e-10)
     grid = simulate(model, (0.0, 5.0), SNAKE_Q0, SNAKE_QDOT0, controller=snakeboard_pd(),
                     method="compiled", rtol=1e-8, atol=1e-10, t_eval=steps.t)
-    assert steps.success and grid.success and len(steps.t) == steps.n_steps + 1
+    assert steps.success
+    assert grid.success
+    assert len(steps.t) == steps.n_steps + 1
     np.testing.assert_array_equal(grid.t, steps.t)
     np.testing.assert_allclose(grid.state, steps.state, rtol=0, atol=1e-12)
     np.testing.assert_allclose(grid.energy_balance, steps.energy_balance, rtol=0, atol=1e-12)
@@ -130,7 +132,7 @@ def test_singular_measure_read_on_request_matches_an_independent_hadamard_ratio(
     model = derive("snakeboard", "hamilton")
     traj = simulate(model, (0.0, 2 * math.pi), SNAKE_Q0, SNAKE_QDOT0, controller=snakeboard_pd(),
                     method=method, rtol=1e-9, atol=1e-11, t_eval=np.linspace(0.5, 2 * math.pi, 31))
-    assert traj.success
+    assert traj.success, traj.message
     expected = _hadamard_ratios(model.system, traj.q).min()
     assert traj.diagnostics["min_singular_measure"] == pytest.approx(expected, rel=1e-9)
 

@@ -68,7 +68,8 @@ def test_factors_that_never_vanish_are_not_listed():
     the stated set is J_φ + m r² = 0 alone; factors that can vanish are kept (square-free)."""
     from nhgait.dynamics.derivation.reduction.model import _drop_positive_factors, _positive_everywhere
     r, m, J, phi = sp.symbols("r m J_phi phi")
-    assert _positive_everywhere(r**2 + 1) and _positive_everywhere(sp.cos(phi)**2 + 2 * r**4 + 3)
+    assert _positive_everywhere(r**2 + 1)
+    assert _positive_everywhere(sp.cos(phi)**2 + 2 * r**4 + 3)
     for can_vanish in (r**2 - 1, r + 1, sp.cos(phi) + 1, J + m * r**2, r**2, sp.cos(phi)**2):
         assert not _positive_everywhere(can_vanish), can_vanish
     assert _drop_positive_factors(3 * (r**2 + 1) * (J + m * r**2) * sp.cos(phi)**2) == (J + m * r**2) * sp.cos(phi)

@@ -40,7 +40,8 @@ def test_velocity_model_is_small_and_has_the_momentum_flow(models):
     from nhgait.ocp.solution import simulate_piecewise_constant
     model = models["snakeboard"]["reduced"]
     fast = specialise(model, velocities=SNAKEBOARD_V, use_cache=False)
-    assert fast.route == "symbolic" and fast.state_names[5:] == SNAKEBOARD_V
+    assert fast.route == "symbolic"
+    assert fast.state_names[5:] == SNAKEBOARD_V
     assert fast.numeric["rhs"].n_instructions() <= 60     # hand-written reference: 49
     P = model.numeric.params()
     q0, qd0 = np.array([0.1, -0.2, 0.3, 0.1, 0.2]), np.array([0.0, 0.0, 0.0, 0.4, -0.3])
@@ -49,7 +50,8 @@ def test_velocity_model_is_small_and_has_the_momentum_flow(models):
     controls = np.random.default_rng(2).normal(size=(2, 8))
     zv, ok_v = simulate_piecewise_constant(fast, P, t, np.asarray(fast.numeric["state"](q0, qd0, P)).ravel(), controls)
     zp, ok_p = simulate_piecewise_constant(model, P, t, np.asarray(model.numeric["state"](q0, qd0, P)).ravel(), controls)
-    assert ok_v and ok_p
+    assert ok_v
+    assert ok_p
     assert np.max(np.abs(zv[:5] - zp[:5])) < 1e-8          # DOP853 at rtol 1e-10 over 2 s
     mapped = np.column_stack([np.asarray(fast.numeric["momentum_state"](zv[:, k], P)).ravel() for k in range(9)])
     assert np.max(np.abs(mapped - zp)) < 1e-8
@@ -66,7 +68,8 @@ def test_parameter_values_key_the_cache(models):
     ax = np.asarray(a.numeric["qdot"](z, a.numeric.params())).ravel()
     bx = np.asarray(b.numeric["qdot"](z, b.numeric.params())).ravel()
     # the rolling constraint ẋ = r cos θ φ̇ with each model's own r (closed form)
-    assert ax[0] == pytest.approx(0.1 * np.cos(0.3) * ax[3], rel=1e-12) and ax[0] != 0
+    assert ax[0] == pytest.approx(0.1 * np.cos(0.3) * ax[3], rel=1e-12)
+    assert ax[0] != 0
     assert bx[0] == pytest.approx(0.2 * np.cos(0.3) * bx[3], rel=1e-12)
     again = specialise(model, {"r": 0.2})                  # from the cache: same functions
     assert np.allclose(np.asarray(again.numeric["qdot"](z, 0)).ravel(), bx, rtol=0, atol=0)

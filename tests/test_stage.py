@@ -182,7 +182,8 @@ def test_stage_matches_rk4_differentiated_by_casadi(mode, timed, free, steps):
     N = 7
     f = _ode(timed)
     stage = stage_functions(f, N, steps=steps, free_horizon=free, mode=mode)
-    assert stage.mode == mode and stage.n_variables == 7 + free
+    assert stage.mode == mode
+    assert stage.n_variables == 7 + free
     rng = np.random.default_rng(1000 * steps + 10 * timed + free)
     for k in (0, 3, N - 1):
         ref = _reference_stage(f, 5, 2, N, k, steps, free)
@@ -387,7 +388,8 @@ def test_gauss_newton_drops_exactly_the_stage_curvature(timed_model, name):
 def test_collocation_has_no_stage_layout(timed_model):
     """Collocation differentiates its whole graph: no assembled functions."""
     nlp = Collocation(degree=2).build(_rich_problem(timed_model, 3, False))
-    assert nlp.layout is None and nlp_functions(nlp) == {}
+    assert nlp.layout is None
+    assert nlp_functions(nlp) == {}
 
 
 # ------------------------------------------------------------------------------------------
@@ -414,7 +416,8 @@ def test_assembled_derivatives_solve_like_casadi_ad(timed_model, name, free):
     guess = _park_guess(problem.intervals)
     transcription = None if name == "default" else TRANSCRIPTIONS[name]
     solver = OCPSolver(problem, transcription, SolverOptions(jit=False))
-    assert solver.functions and not solver.compiled     # the assembled functions are used
+    assert solver.functions  # the assembled functions are used
+    assert not solver.compiled
     sol = solver.solve(guess)
     assert sol.success, sol.message
     f_ref, iterations, w_ref = _plain_ipopt(solver.nlp, guess)
@@ -437,9 +440,11 @@ def test_inline_structured_gauss_newton_and_fatrop_reach_the_same_optimum(timed_
                                    (MultipleShooting(stage="structured"), SolverOptions(jit=False)),
                                    (None, SolverOptions(jit=False, hessian="gauss-newton"))):
         sol = OCPSolver(problem, transcription, options).solve(guess)
-        assert sol.success and sol.objective == pytest.approx(f_ref, rel=1e-8), (transcription, options.hessian)
+        assert sol.success, (transcription, options.hessian)
+        assert sol.objective == pytest.approx(f_ref, rel=1e-8), (transcription, options.hessian)
     fatrop = OCPSolver(problem, options=SolverOptions(jit=False, solver="fatrop")).solve(guess)
-    assert fatrop.success and fatrop.objective == pytest.approx(f_ref, rel=1e-6)
+    assert fatrop.success
+    assert fatrop.objective == pytest.approx(f_ref, rel=1e-6)
 
 
 @pytest.mark.parametrize("free", [False, True], ids=["fixed-T", "free-T"])
@@ -451,7 +456,8 @@ def test_time_dependent_force_plans_and_verifies(timed_model, free):
     problem = _park(timed_model, N=20, free=free)
     sol = OCPSolver(problem, options=SolverOptions(jit=False)).solve(_park_guess(20)).verified()
     assert sol.success, sol.message
-    assert sol.verification.passed and sol.verification.max_error <= 1e-6
+    assert sol.verification.passed
+    assert sol.verification.max_error <= 1e-6
 
     def resimulate(restart):
         z, out = sol.states[:, 0], [sol.states[:, 0]]
@@ -503,7 +509,8 @@ def test_violations_name_the_violated_rows(timed_model, transcription):
         "periodic.w": abs(zN[4] - states[4, 0]),
         "bounds.forward_velocity": np.max(np.abs(states[3])) - 0.5,
     }
-    assert np.max(np.abs(exact[3])) > 0.6 and min(expected.values()) > 1e-3   # all clearly violated
+    assert np.max(np.abs(exact[3])) > 0.6  # all clearly violated
+    assert min(expected.values()) > 1e-3
     found = nlp.violations(g, w)
     assert set(found) == set(expected)                       # initial.x_dot is met
     for label, value in expected.items():
@@ -574,8 +581,10 @@ def test_non_finite_guess_is_refused_before_the_solver_runs(solver):
     t0 = time.perf_counter()
     sol = ocp.solve(bad)
     assert time.perf_counter() - t0 < 5.0
-    assert sol.success is False and sol.status == "Invalid_Initial_Point"
-    assert "at intervals 3 " in sol.message and sol.iterations == 0
+    assert sol.success is False
+    assert sol.status == "Invalid_Initial_Point"
+    assert "at intervals 3 " in sol.message
+    assert sol.iterations == 0
 
 
 def test_refused_guess_after_a_solve_reports_its_own_outcome():
@@ -585,5 +594,7 @@ def test_refused_guess_after_a_solve_reports_its_own_outcome():
     ocp = OCPSolver(problem, options=SolverOptions(jit=False))
     assert ocp.solve(good).success
     sol = ocp.solve(bad)
-    assert sol.success is False and sol.status == "Invalid_Initial_Point"
-    assert sol.iterations == 0 and not sol.stats.get("success", False)
+    assert sol.success is False
+    assert sol.status == "Invalid_Initial_Point"
+    assert sol.iterations == 0
+    assert not sol.stats.get("success", False)

@@ -110,7 +110,8 @@ def test_a_child_killed_from_outside_is_a_failed_attempt_not_a_hang(tmp_path):
     killer.start()
     out = supervise([Job(_sleep_in_c(pid_file), 120.0, _failed), Job(lambda: "next", None, _failed)])
     killer.join()
-    assert out[0][:2] == ("failed", "Solver_Died") and "SIGKILL" in out[0][2]
+    assert out[0][:2] == ("failed", "Solver_Died")
+    assert "SIGKILL" in out[0][2]
     assert out[1] == "next"
 
 
@@ -210,16 +211,19 @@ def test_a_budget_limits_attempts_to_the_time_left():
     assert 39.0 < budget.limit(1000.0) <= 40.0
     assert budget.limit(5.0) == 5.0
     assert 39.0 < budget.limit(None) <= 40.0
-    assert Budget.unlimited().limit(None) is None and Budget.unlimited().limit(7.0) == 7.0
+    assert Budget.unlimited().limit(None) is None
+    assert Budget.unlimited().limit(7.0) == 7.0
     spent = Budget(1.0, "test", started=time.monotonic() - 2.0)
-    assert spent.spent() and spent.limit(5.0) == 0.0
+    assert spent.spent()
+    assert spent.limit(5.0) == 0.0
     with pytest.raises(BudgetSpent, match="ran out during the solves"):
         spent.check("the solves")
 
 
 def test_the_default_rules():
     """The documented rules: 120 s + 30 s per coordinate; max_iter × 5 evaluations, clipped."""
-    assert default_plan_seconds(5) == 270.0 and default_plan_seconds(10) == 420.0
+    assert default_plan_seconds(5) == 270.0
+    assert default_plan_seconds(10) == 420.0
     assert default_attempt_seconds(0.01, 500) == 25.0
     assert default_attempt_seconds(1e-6, 500) == ATTEMPT_FLOOR_S
     assert default_attempt_seconds(10.0, 500) == ATTEMPT_CAP_S
@@ -233,7 +237,8 @@ def test_the_task_states_its_time_limit():
     base = {"horizon": 2.0, "intervals": 10, "final": {"x": 1.0}}
     assert parse_task(base).time_limit is None
     task = parse_task({**base, "time_limit": 90})
-    assert task.time_limit == 90.0 and parse_task(task.to_dict()).time_limit == 90.0
+    assert task.time_limit == 90.0
+    assert parse_task(task.to_dict()).time_limit == 90.0
     assert parse_task({**base, "time_limit": "inf"}).time_limit == float("inf")
     with pytest.raises(ProblemError) as bad:
         parse_task({**base, "time_limit": -5, "intervals": 0})
@@ -246,9 +251,13 @@ def test_a_plan_whose_budget_runs_out_fails_naming_the_phase(tmp_path):
     names the budget, the phase and the option to change."""
     from nhgait.gaits.planner import plan, summary_lines
     result = plan("unicycle", "parallel-park", intervals=10, time_limit=1e-3, out_dir=tmp_path / "out")
-    assert not result.success and result.solution is None and result.attempts == ()
-    assert result.overrun.phase == "derivation" and result.overrun.seconds == 1e-3
-    assert result.files == () and not (tmp_path / "out" / "solution.json").exists()
+    assert not result.success
+    assert result.solution is None
+    assert result.attempts == ()
+    assert result.overrun.phase == "derivation"
+    assert result.overrun.seconds == 1e-3
+    assert result.files == ()
+    assert not (tmp_path / "out" / "solution.json").exists()
     text = "\n".join(summary_lines(result))
     assert "FAILED (time budget spent)" in text
     assert "the time budget of 0.001 s (--time-limit / plan(time_limit=...)) ran out during derivation" in text
@@ -263,7 +272,8 @@ def test_the_task_time_limit_is_the_plans_budget():
     stream = io.StringIO()
     budget = plan_budget(resolve("unicycle", "parallel-park", overrides=["time_limit=45"]),
                          progress=Progress(stream))
-    assert budget.seconds == 45.0 and budget.source == "[task] time_limit"
+    assert budget.seconds == 45.0
+    assert budget.source == "[task] time_limit"
     assert "time budget: 45 s ([task] time_limit)" in stream.getvalue()
     to_plan = resolve("unicycle", "parallel-park")
     n = len(to_plan.scene.system.coordinates)
@@ -277,9 +287,11 @@ def test_a_sweep_point_out_of_time_is_a_failed_point_naming_the_budget(tmp_path)
     from nhgait.gaits.sweeps.driver import sweep
     result = sweep("unicycle", "parallel-park", ["final.y=0.4,0.5"], out=tmp_path / "sweep", workers=0,
                    overrides=["intervals=10"], options={"time_limit": 1e-3})
-    assert result.complete and len(result.records) == 2
+    assert result.complete
+    assert len(result.records) == 2
     for record in result.records:
-        assert not record.success and record.status == "Time_Limit_Exceeded"
+        assert not record.success
+        assert record.status == "Time_Limit_Exceeded"
         assert "the time budget of 0.001 s (--time-limit per point) ran out during" in record.message
         assert "--time-limit SECONDS (per point)" in record.message
 
@@ -313,6 +325,7 @@ def test_a_stop_stays_a_stop_whatever_it_becomes_on_its_way_up(monkeypatch, caps
         monkeypatch.setattr(plan_command, "run", run)
         assert cli.main(["plan", "unicycle", "--out", "unused"]) == 143
         err = capsys.readouterr().err
-        assert "nhgait: terminated" in err and "internal error" not in err
+        assert "nhgait: terminated" in err
+        assert "internal error" not in err
     assert signal.getsignal(signal.SIGTERM) is before             # put back
     time.sleep(2.0)                             # the watchdog, past its 1.5 s, has not ended this process

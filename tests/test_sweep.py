@@ -74,7 +74,8 @@ def test_axis_specs_give_the_stated_values():
     assert g.axis("horizon").values == (4.0, 6.0, 8.0)
     assert g.axis("initial.theta").values == (math.pi / 2,)
     assert g.axis("params.J_r").values == (0.0, 0.1)
-    assert g.shape == (10, 3, 1, 2) and g.size == 60
+    assert g.shape == (10, 3, 1, 2)
+    assert g.size == 60
 
 
 def test_every_bad_axis_is_listed_in_one_error():
@@ -102,7 +103,8 @@ def test_point_task_sets_each_axis_on_a_copy():
 
 def test_continuation_tree_reaches_every_point_by_unit_steps():
     g = Grid(parse_grid(["a.x=0:1:5"] if False else ["final.x=0:1:5", "horizon=1:2:3"]).axes)
-    assert g.centre == (2, 1) and g.parent((2, 1)) is None
+    assert g.centre == (2, 1)
+    assert g.parent((2, 1)) is None
     for p in g.points():
         steps, index = 0, p.index
         while g.parent(index) is not None:
@@ -115,7 +117,8 @@ def test_continuation_tree_reaches_every_point_by_unit_steps():
 
 # ----------------------------------------------------------------------------- sweeps with the fake
 def _check_rows(result, grid):
-    assert result.complete and len(result.records) == grid.size
+    assert result.complete
+    assert len(result.records) == grid.size
     for r in result.records:
         task, params = point_task(CASE.task, CASE.params, grid.point(r.idx))
         assert r.objective == pytest.approx(fake_objective(task, params), rel=1e-15)
@@ -132,7 +135,8 @@ def test_fake_sweep_stores_every_point(tmp_path, backend_kind):
     with backend, SweepStore(tmp_path) as store:
         result = run_sweep(CASE, grid, backend, store, RunOptions(solve=fake_solve, progress=seen.append))
     _check_rows(result, grid)
-    assert [p.finished for p in seen] == list(range(1, 7)) and isinstance(seen[-1], Progress)
+    assert [p.finished for p in seen] == list(range(1, 7))
+    assert isinstance(seen[-1], Progress)
     assert "[6/6] 100%" in seen[-1].line()
     again = load_sweep(tmp_path)
     assert [r.objective for r in again.records] == [r.objective for r in result.records]
@@ -159,7 +163,8 @@ def test_resume_solves_only_missing_points(tmp_path):
             run_sweep(CASE, grid, Counting(), store, RunOptions(solve=fake_solve, progress=stop_after_four))
     with SweepStore(tmp_path) as store:
         first = store.done_ids()
-    assert len(first) == 4 and len(calls) >= 4          # a point in flight at the stop is not stored
+    assert len(first) == 4  # a point in flight at the stop is not stored
+    assert len(calls) >= 4
     calls.clear()
     with SweepStore(tmp_path) as store:
         with pytest.raises(ProblemError, match="already holds a sweep with 4 finished points"):
@@ -185,9 +190,11 @@ def test_a_dead_pool_worker_loses_only_its_point(tmp_path):
     with ProcessPool(2) as pool, SweepStore(tmp_path / "s") as store:
         result = run_sweep(case, grid, pool, store, RunOptions(solve=dying_solve))
     assert (tmp_path / "died").exists()
-    assert result.complete and result.retried == 1
+    assert result.complete
+    assert result.retried == 1
     attempts = {r.id: r.attempts for r in result.records}
-    assert attempts.pop("1-1") == 2 and set(attempts.values()) == {1}
+    assert attempts.pop("1-1") == 2
+    assert set(attempts.values()) == {1}
     assert all(r.success for r in result.records)
 
 
@@ -196,8 +203,11 @@ def test_a_point_that_kills_its_worker_twice_is_recorded_failed(tmp_path):
     with ProcessPool(2) as pool, SweepStore(tmp_path) as store:
         result = run_sweep(CASE, grid, pool, store, RunOptions(solve=always_dying_solve))
     bad = result.record((0,))
-    assert not bad.success and bad.status == "worker-died" and bad.attempts == 2
-    assert "died" in bad.message and "exit code" in bad.message
+    assert not bad.success
+    assert bad.status == "worker-died"
+    assert bad.attempts == 2
+    assert "died" in bad.message
+    assert "exit code" in bad.message
     assert sum(r.success for r in result.records) == 2
 
 
@@ -230,7 +240,8 @@ def test_chains_solve_several_points_per_task_each_warm_from_its_parent(tmp_path
         result = run_sweep(CASE, grid, backend, store, RunOptions(solve=fake_solve, chain=3))
     _check_rows(result, grid)                  # warm_from: the previous point of the chain = the parent
     if backend_kind == "serial":
-        assert sum(backend.tasks) == grid.size and max(backend.tasks) == 3
+        assert sum(backend.tasks) == grid.size
+        assert max(backend.tasks) == 3
         assert len(backend.tasks) <= grid.size / 2          # on average at least 2 points per task
 
 
@@ -239,9 +250,12 @@ def test_a_dead_worker_in_a_chain_costs_its_points_one_retry_each(tmp_path):
     case = SweepCase(CASE.scene, {**CASE.task, "marker": str(tmp_path / "died")}, CASE.params)
     with ProcessPool(2) as pool, SweepStore(tmp_path / "s") as store:
         result = run_sweep(case, grid, pool, store, RunOptions(solve=dying_solve, chain=3))
-    assert (tmp_path / "died").exists() and result.complete and all(r.success for r in result.records)
+    assert (tmp_path / "died").exists()
+    assert result.complete
+    assert all(r.success for r in result.records)
     retried = [r for r in result.records if r.attempts == 2]
-    assert "1-1" in {r.id for r in retried} and result.retried == len(retried) <= 3
+    assert "1-1" in {r.id for r in retried}
+    assert result.retried == len(retried) <= 3
 
 
 def test_chain_must_be_a_whole_number(tmp_path):
@@ -256,7 +270,8 @@ def test_failed_points_do_not_warm_start_their_children(tmp_path, chain):
         result = run_sweep(CASE, grid, SerialBackend(), store, RunOptions(solve=fake_solve, chain=chain))
     rows = {r.idx[0]: r for r in result.records}
     assert [rows[i].success for i in range(5)] == [False, False, True, True, True]
-    assert rows[1].warm_from == "2" and rows[0].warm_from == "2"    # skips the failed neighbour 1
+    assert rows[1].warm_from == "2"  # skips the failed neighbour 1
+    assert rows[0].warm_from == "2"
 
 
 def test_store_rows_survive_without_the_driver(tmp_path):
@@ -302,7 +317,8 @@ def test_landscape_shows_the_closed_form_and_marks_failures(tmp_path):
     expected = (xs[None, :] - 1) ** 2 / Ts[:, None] + 1.0 * 0.2
     expected[:, xs < 0] = np.nan                         # failed points are not coloured
     np.testing.assert_allclose(np.ma.filled(mesh, np.nan).reshape(3, 5), expected, rtol=1e-14)
-    assert ax.get_xlabel() == "final.x [m]" and ax.get_ylabel() == "horizon [s]"
+    assert ax.get_xlabel() == "final.x [m]"
+    assert ax.get_ylabel() == "horizon [s]"
     assert "params.J_r = 0.2" in ax.get_title()
     crosses = [line for line in ax.lines if line.get_marker() == "x"][0]
     assert list(crosses.get_xdata()) == [-0.5] * 3        # the failed column, every horizon
@@ -325,7 +341,8 @@ def test_bench_sweep_smoke(tmp_path, capsys):
     bench = experiment_scripts.load("bench_sweep")
     assert bench.main(["--quick", "--repeats", "1", "--out", str(tmp_path / "b.json")]) == 0
     text = capsys.readouterr().out
-    assert "speed-up 2 workers / 1 worker" in text and "iterations warm / cold" in text
+    assert "speed-up 2 workers / 1 worker" in text
+    assert "iterations warm / cold" in text
     import json
     report = json.loads((tmp_path / "b.json").read_text())
     assert report["throughput"]["solved"] == {"1": 2, "2": 2}

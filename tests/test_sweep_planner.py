@@ -37,7 +37,8 @@ def pool_sweep(tmp_path_factory):
 
 def test_pool_sweep_matches_direct_plans(pool_sweep):
     r = pool_sweep
-    assert r.complete and all(x.success for x in r.records)
+    assert r.complete
+    assert all(x.success for x in r.records)
     for index in [(1, 1), (0, 2), (2, 0)]:       # the cold centre and two corners reached by continuation
         rec = r.record(index)
         y, T = rec.axis_values["final.y"], rec.axis_values["horizon"]
@@ -46,8 +47,11 @@ def test_pool_sweep_matches_direct_plans(pool_sweep):
     again = load_sweep(r.directory)
     assert [x.objective for x in again.records] == [x.objective for x in r.records]
     centre = r.record((1, 1))
-    assert centre.start == "cold" and centre.warm_from is None
-    assert all(x.start == "warm" and x.warm_from for x in r.records if x.id != "1-1")
+    assert centre.start == "cold"
+    assert centre.warm_from is None
+    neighbours = [x for x in r.records if x.id != "1-1"]
+    assert all(x.start == "warm" for x in neighbours), [x.start for x in neighbours]
+    assert all(x.warm_from for x in neighbours), [x.warm_from for x in neighbours]
     assert max(x.verification_error for x in r.records) < 1e-6
 
 
@@ -92,11 +96,13 @@ def test_killed_sweep_resumes_where_it_stopped(tmp_path, capsys):
     code = main([*args, "--resume"])
     printed = capsys.readouterr().out
     after = load_sweep(out)
-    assert code == 0 and after.complete
+    assert code == 0
+    assert after.complete
     assert f"this run   {9 - len(before.records)} points" in printed
     kept = {r.id: r for r in after.records}
     for r in before.records:                     # rows of the killed run are kept, not re-solved
-        assert kept[r.id].finished_at == r.finished_at and kept[r.id].objective == r.objective
+        assert kept[r.id].finished_at == r.finished_at
+        assert kept[r.id].objective == r.objective
     rec = after.record((2, 2))
     assert rec.objective == pytest.approx(direct_objective(0.6, 4.5), rel=1e-6)
 
@@ -108,7 +114,8 @@ def test_cli_writes_store_table_and_plots(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert code == 0
     assert "2/2 points, 2 solved and verified, 0 failed" in printed
-    assert (out / "loops.png").exists() and (out / "sweep.sqlite").exists()
+    assert (out / "loops.png").exists()
+    assert (out / "sweep.sqlite").exists()
     assert main(["sweep", "unicycle", "--task", "parallel-park", "--grid", "final.y=0.45,0.55", "--out",
                  str(out), "--workers", "0"]) == 2       # the directory holds a sweep: bad input
     assert "use --resume" in capsys.readouterr().err
@@ -129,10 +136,13 @@ def dask_backend():
 
 def test_dask_sweep_gives_the_pool_objectives(pool_sweep, dask_backend, tmp_path):
     r = sweep("unicycle", "parallel-park", GRID, out=tmp_path, overrides=SET, backend=dask_backend)
-    assert r.complete and "Dask distributed (LocalCluster on 127.0.0.1" in r.backend
+    assert r.complete
+    assert "Dask distributed (LocalCluster on 127.0.0.1" in r.backend
     assert len({x.worker for x in r.records}) == 2                       # both Dask workers solved points
     for a, b in zip(r.records, pool_sweep.records):
-        assert a.id == b.id and a.success and a.objective == pytest.approx(b.objective, rel=1e-8, abs=0)
+        assert a.id == b.id
+        assert a.success
+        assert a.objective == pytest.approx(b.objective, rel=1e-8, abs=0)
 
 
 def test_killing_a_dask_worker_loses_no_row(dask_backend, tmp_path):
@@ -157,8 +167,11 @@ def test_killing_a_dask_worker_loses_no_row(dask_backend, tmp_path):
     r = sweep("unicycle", "parallel-park", ["params.m=0.47:0.53:3", "final.y=0.45,0.55"], out=tmp_path,
               overrides=SET, backend=dask_backend)
     watcher.join()
-    assert killed and r.complete and all(x.success for x in r.records)
-    assert r.retried == 1 and [x.attempts for x in r.records].count(2) == 1
+    assert killed
+    assert r.complete
+    assert all(x.success for x in r.records)
+    assert r.retried == 1
+    assert [x.attempts for x in r.records].count(2) == 1
     again = next(x for x in r.records if x.attempts == 2)
     from nhgait.gaits.planner import plan
     direct = plan("unicycle", "parallel-park", overrides=[*SET, f"final.y={again.axis_values['final.y']!r}"],

@@ -37,7 +37,9 @@ def test_a_given_fiber_is_tested_alone_at_twenty_coordinates():
     """n = 20 with the fibre given: one row (it enumerated 2²⁰ − 1 subsets, > 120 s), full,
     and the table says why it holds one row."""
     test = symmetry.symmetry_test(particles(20, fiber=True))
-    assert len(test.candidates) == 1 and test.chosen_by == "user" and test.chosen.verdict == symmetry.FULL
+    assert len(test.candidates) == 1
+    assert test.chosen_by == "user"
+    assert test.chosen.verdict == symmetry.FULL
     assert test.chosen.fiber == tuple(c for c in particles(20).coordinates if c != "theta")
     assert "the given fiber is tested alone" in test.table_markdown()
 
@@ -54,7 +56,8 @@ def test_the_pruned_search_chooses_what_the_full_enumeration_chooses(make):
     system = make()
     assert system.n > symmetry.FULL_TABLE_MAX_N
     pruned, full = symmetry.symmetry_test(system), _full(system)
-    assert pruned.chosen.fiber == full.chosen.fiber and pruned.chosen.group == full.chosen.group
+    assert pruned.chosen.fiber == full.chosen.fiber
+    assert pruned.chosen.group == full.chosen.group
     assert len(pruned.candidates) < len(full.candidates) == 2 ** system.n - 1
     assert "subsets tested" in pruned.search
 
@@ -63,8 +66,10 @@ def test_a_search_over_its_budget_takes_the_best_found_with_a_note():
     """Budget 50 at n = 12: the sets of two coordinates (66) do not fit; the best of the single
     coordinates (principally kinematic) is taken, and the note asks for the fibre."""
     test = symmetry.symmetry_test(particles(12), max_candidates=50)
-    assert len(test.chosen.fiber) == 1 and test.chosen.verdict == symmetry.KINEMATIC
-    assert "the search stopped after" in test.search and "fiber = [...]" in test.search
+    assert len(test.chosen.fiber) == 1
+    assert test.chosen.verdict == symmetry.KINEMATIC
+    assert "the search stopped after" in test.search
+    assert "fiber = [...]" in test.search
 
 
 def test_a_search_over_its_budget_without_an_admissible_fibre_asks_for_it():

@@ -18,8 +18,10 @@ def test_parse_system_reads_a_statement_without_building_a_system():
         constraints, forces = (), {"x": "F", "theta": "tau*sin(t)"}
         parameters, inputs, fiber, planar_frame = {"m": 2.0, "J": 0.5}, None, None, "auto"
     parsed = parse_system(Statement())
-    assert parsed.problems == () and parsed.complete
-    assert parsed.coordinates == ("x", "theta") and parsed.inputs == ("F", "tau")
+    assert parsed.problems == ()
+    assert parsed.complete
+    assert parsed.coordinates == ("x", "theta")
+    assert parsed.inputs == ("F", "tau")
     assert parsed.planar_frame is None                   # no y: no planar frame
     x_dot = sp.Symbol("x_dot", real=True)
     assert sp.diff(parsed.L, x_dot, 2) == sp.Symbol("m", real=True)

@@ -24,7 +24,8 @@ def test_builtin_tasks_are_library_data():
     assert rotate.final["theta"] == pytest.approx(math.pi / 2, abs=1e-15)    # "pi/2" parsed as data
     assert rotate.horizon == pytest.approx(2 * math.pi, abs=1e-15)
     assert rotate.periodic == ("psi", "phi", "psi_dot", "phi_dot")
-    assert rotate.control_bounds == 10.0 and rotate.bounds["phi"] == (-1.0, 1.0)
+    assert rotate.control_bounds == 10.0
+    assert rotate.bounds["phi"] == (-1.0, 1.0)
     with pytest.raises(ProblemError, match=r"unknown gait 'moonwalk'.*snakeboard forward"):
         get_task("snakeboard", "moonwalk")
 
@@ -38,7 +39,8 @@ def test_task_table_round_trip():
     with pytest.raises((TypeError, AttributeError)):
         task.final["x"] = 2.0
     free = parse_task({**P2, "horizon": [2.0, 8.0], "objective": {"effort": 1.0, "time": 0.1}})
-    assert free.horizon_bounds == (2.0, 8.0) and free.horizon == 5.0
+    assert free.horizon_bounds == (2.0, 8.0)
+    assert free.horizon == 5.0
     assert parse_task(free.to_dict()) == free
 
 
@@ -77,8 +79,11 @@ def test_set_overrides():
     data = apply_overrides(P2, ["final.x=2.0", "horizon=pi", "bounds.phi=-0.5,0.5", "periodic=psi,phi",
                                 "intervals=30", "objective=effort"])
     task = parse_task(data)
-    assert task.final["x"] == 2.0 and task.horizon == pytest.approx(math.pi)
-    assert task.bounds["phi"] == (-0.5, 0.5) and task.periodic == ("psi", "phi") and task.intervals == 30
+    assert task.final["x"] == 2.0
+    assert task.horizon == pytest.approx(math.pi)
+    assert task.bounds["phi"] == (-0.5, 0.5)
+    assert task.periodic == ("psi", "phi")
+    assert task.intervals == 30
     assert P2["final"]["x"] == 1.0                          # the original table is untouched
     with pytest.raises(ProblemError, match=r"(?s)expected key=value.*unknown key 'colour'"):
         apply_overrides(P2, ["final.x", "colour=red"])
@@ -91,7 +96,8 @@ def test_resolve_names_the_missing_task(tmp_path):
     with pytest.raises(ProblemError, match=r"robot.toml has no \[task\] table"):
         resolve(str(scene))
     to_plan = resolve(str(scene), {"horizon": 1.0, "final": {"x": 1.0}})
-    assert isinstance(to_plan.task, Task) and to_plan.label == "robot/task"
+    assert isinstance(to_plan.task, Task)
+    assert to_plan.label == "robot/task"
 
 
 def test_a_task_is_the_problem_statement_in_the_tables_words():
@@ -100,9 +106,12 @@ def test_a_task_is_the_problem_statement_in_the_tables_words():
     from nhgait.gaits.task import TASK_WORDS
     from nhgait.ocp import ProblemStatement
     task = parse_task(P2)
-    assert isinstance(task.statement, ProblemStatement) and task.statement.model is None
-    assert task.bounds == {"phi": (-1.0, 1.0)} and task.statement.state_bounds == task.bounds
-    assert task.statement.time_weight == 0.0 and task.horizon_bounds is None
+    assert isinstance(task.statement, ProblemStatement)
+    assert task.statement.model is None
+    assert task.bounds == {"phi": (-1.0, 1.0)}
+    assert task.statement.state_bounds == task.bounds
+    assert task.statement.time_weight == 0.0
+    assert task.horizon_bounds is None
     assert task.replace(intervals=30, bounds={"phi": (-0.5, 0.5)}).to_dict() == {
         **task.to_dict(), "intervals": 30, "bounds": {"phi": [-0.5, 0.5]}}
     bad = replace(task.statement, state_bounds={"phi": (1.0, -1.0)})

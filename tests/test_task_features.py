@@ -42,7 +42,9 @@ def test_verification_is_judged_against_each_states_range():
     v = Verification(max_error=3.25e-6, state_errors={"x": 1e-8, "p": 3.25e-6}, states=nodes,
                      state_scales={"x": 1.0, "p": 1200.0}, condition_errors={"final.p": 2e-6},
                      condition_scales={"final.p": 1200.0})
-    assert v.passed and v.scaled_state_errors["p"] == pytest.approx(3.25e-6 / 1200) and v.max_scaled_error == 1e-8
+    assert v.passed
+    assert v.scaled_state_errors["p"] == pytest.approx(3.25e-6 / 1200)
+    assert v.max_scaled_error == 1e-8
     tight = Verification(max_error=3.25e-6, state_errors={"x": 3.25e-6, "p": 1e-9}, states=nodes,
                          state_scales={"x": 1.0, "p": 1200.0})
     assert not tight.passed
@@ -72,7 +74,8 @@ def test_forward_axis_of_the_body_frame():
     lateral = float(quantities["lateral_velocity"].function(z, model.numeric.params()))
     assert forward == pytest.approx(-qd[0] * math.sin(q[2]) + qd[1] * math.cos(q[2]), abs=1e-12)
     assert lateral == pytest.approx(-(qd[0] * math.cos(q[2]) + qd[1] * math.sin(q[2])), abs=1e-12)
-    assert forward == pytest.approx(0.1 * qd[3], abs=1e-12) and lateral == pytest.approx(0.0, abs=1e-12)
+    assert forward == pytest.approx(0.1 * qd[3], abs=1e-12)
+    assert lateral == pytest.approx(0.0, abs=1e-12)
     Y = velocity_rows(system, ["forward_velocity"])
     row = np.array([float(e.subs(dict(zip(system.q, q)))) for e in Y.row(0)])
     assert row == pytest.approx([-math.sin(q[2]), math.cos(q[2]), 0, 0], abs=1e-14)

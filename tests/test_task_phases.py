@@ -52,7 +52,8 @@ def _parse(scene, table):
 
 
 def test_a_scene_quantity_of_accelerations_or_inputs_is_a_motion_quantity(scene):
-    assert set(scene.motion_quantities) == {"accel", "push"} and not scene.quantities
+    assert set(scene.motion_quantities) == {"accel", "push"}
+    assert not scene.quantities
 
 
 def test_tasks_between_the_ends_round_trip(scene):
@@ -68,8 +69,10 @@ def test_tasks_between_the_ends_round_trip(scene):
     task = _parse(scene, phased)
     assert (task.horizon, task.intervals, task.horizon_bounds) == (6.0, 60, (5.0, 8.0))
     refined = _parse(scene, {**phased, "intervals": 150})        # shared in proportion: 30:30 → 75:75
-    assert [p.intervals for p in refined.phases] == [75, 75] and refined.intervals == 150
-    assert "push" in task.names and "work" not in task.names
+    assert [p.intervals for p in refined.phases] == [75, 75]
+    assert refined.intervals == 150
+    assert "push" in task.names
+    assert "work" not in task.names
 
 
 def test_bad_tables_between_the_ends_are_listed_together(scene):
@@ -135,7 +138,8 @@ def test_the_integral_and_the_waypoint_of_a_plan(planned):
     work = s.states[list(s.state_names).index("work")]
     assert work[-1] == pytest.approx(np.sum(h * s.controls[0] ** 2), rel=1e-9)
     resimulated = s.verification.states
-    assert resimulated[0, 30] >= 0.3 - 1e-6 and s.t[30] == pytest.approx(3.0)
+    assert resimulated[0, 30] >= 0.3 - 1e-6
+    assert s.t[30] == pytest.approx(3.0)
 
 
 def test_two_phases_state_the_same_task_as_a_waypoint(scene, planned):

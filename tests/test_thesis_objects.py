@@ -129,12 +129,16 @@ def test_snakeboard_structure_matrix_is_skew(board):
     J_ = board.steps[17].J
     assert same_matrix(J_ + J_.T, sp.zeros(*J_.shape))
     Jz = board.structure
-    assert Jz.shape == (8, 8) and same_matrix(Jz + Jz.T, sp.zeros(8, 8))
+    assert Jz.shape == (8, 8)
+    assert same_matrix(Jz + Jz.T, sp.zeros(8, 8))
 
 
 def test_every_step_is_present_and_printable(board):
     assert [s.number for s in board.steps] == list(range(1, 21))
     md = board.steps.to_markdown()
     tex = board.steps.to_latex()
-    assert "Step 20" in md and "\\tilde{p}_{\\psi}" in tex and "\\dot{\\theta}" in tex
-    assert board.steps[5].label("A") == "A(r)" and board.steps[17].J.shape == (8, 8)
+    assert "Step 20" in md
+    assert "\\tilde{p}_{\\psi}" in tex
+    assert "\\dot{\\theta}" in tex
+    assert board.steps[5].label("A") == "A(r)"
+    assert board.steps[17].J.shape == (8, 8)

@@ -175,7 +175,9 @@ def test_forms_are_the_requested_ones(roller):
     values of the floats, whose denominators are 2⁵³-sized."""
     import sympy as sp
     ex, im = roller["reduced-explicit"], roller["reduced-implicit"]
-    assert ex.form == "explicit" and im.form == "implicit" and im.rhs is None
+    assert ex.form == "explicit"
+    assert im.form == "implicit"
+    assert im.rhs is None
     assert sp.sin(sp.Float(2.5) * sp.Symbol("t", real=True)) in ex.rhs.atoms(sp.sin)
     assert max(r.q for r in ex.rhs.atoms(sp.Rational)) <= 10
 
@@ -284,7 +286,8 @@ def test_lagrange_run_is_the_yardstick_of_every_route(scene, roller):
     runs = {kind: simulate(roller[kind], (0.0, T_FINAL), q0, qd0, rtol=1e-11, atol=1e-12) for kind in KINDS}
     base = _final(runs["lagrange"])
     for kind, traj in runs.items():
-        assert traj.success and np.max(np.abs(_final(traj) - base)) < SIM_TOL["DOP853"], kind
+        assert traj.success, kind
+        assert np.max(np.abs(_final(traj) - base)) < SIM_TOL["DOP853"], kind
 
 
 def _has_compiler():
@@ -301,9 +304,11 @@ def test_compiled_route(scene, roller, kind):
         traj = simulate(roller[kind], (0.0, T_FINAL), q0, qd0, method="compiled", rtol=1e-11, atol=1e-12)
     assert traj.success, traj.message
     if _has_compiler():
-        assert traj.method == "compiled DOP853" and "fallback" not in traj.settings
+        assert traj.method == "compiled DOP853"
+        assert "fallback" not in traj.settings
     else:
-        assert traj.method == "DOP853" and "no usable C compiler" in traj.settings["fallback"]
+        assert traj.method == "DOP853"
+        assert "no usable C compiler" in traj.settings["fallback"]
     assert np.max(np.abs(_final(traj) - _reference(T_FINAL)[1])) < SIM_TOL["compiled"]
 
 
@@ -313,7 +318,8 @@ def test_compiled_route_falls_back_without_a_compiler(scene, roller, monkeypatch
     with pytest.warns(UserWarning, match="no usable C compiler"):
         traj = simulate(roller["reduced-explicit"], (0.0, T_FINAL), q0, qd0, method="compiled",
                         rtol=1e-11, atol=1e-12)
-    assert traj.success and traj.method == "DOP853"
+    assert traj.success, traj.message
+    assert traj.method == "DOP853"
     assert np.max(np.abs(_final(traj) - _reference(T_FINAL)[1])) < SIM_TOL["DOP853"]
 
 
@@ -332,7 +338,7 @@ def test_reduced_run_keeps_the_constraint_and_the_energy_balance(scene, roller, 
     q0, qd0 = _initial(scene)
     t = np.linspace(0.0, T_FINAL, 12001)
     traj = simulate(roller[kind], (0.0, T_FINAL), q0, qd0, t_eval=t, rtol=1e-11, atol=1e-12)
-    assert traj.success
+    assert traj.success, traj.message
     k = _kane()
     residual = np.asarray(k["residual"](traj.q.T, traj.qdot.T), float)
     assert np.max(np.abs(residual)) < 1e-14
@@ -419,7 +425,8 @@ def test_time_expression_compiled_on_the_unicycle():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
         traj = simulate(derive(system), (0.0, 4.0), q0, qd0, method="compiled", rtol=1e-11, atol=1e-12)
-    assert traj.success and traj.method == ("compiled DOP853" if _has_compiler() else "DOP853")
+    assert traj.success, traj.message
+    assert traj.method == ("compiled DOP853" if _has_compiler() else "DOP853")
     assert np.max(np.abs(_final(traj) - _unicycle_reference(funcs, q0, qd0, 4.0))) < SIM_TOL["compiled"]
 
 
@@ -478,7 +485,8 @@ def test_cli_derive_and_simulate_the_example(tmp_path, capsys):
     from nhgait.gaits.cli.main import main
     assert main(["derive", str(SCENE), "--formulation", "all"]) == 0
     out = capsys.readouterr().out
-    assert "6 = 2n − k first-order ODEs" in out and "0.6*sin(2.5*t)" in out
+    assert "6 = 2n − k first-order ODEs" in out
+    assert "0.6*sin(2.5*t)" in out
     csv_path = tmp_path / "roller_racer.csv"
     assert main(["simulate", str(SCENE), "--method", "compiled", "--out", str(csv_path)]) == 0
     data = np.loadtxt(csv_path, delimiter=",", skiprows=1)

@@ -44,15 +44,20 @@ def study(tmp_path_factory):
 def test_tracking_json_reports_both_loops_with_units(study):
     result, out = study
     report = json.loads((out / "tracking.json").read_text())
-    assert report["samples"] == 4 and report["mismatch"] == {"J_theta": 1.2}
+    assert report["samples"] == 4
+    assert report["mismatch"] == {"J_theta": 1.2}
     assert report["params"]["robot"]["J_theta"] == pytest.approx(1.2 * report["params"]["nominal"]["J_theta"])
     for loop in ("open_loop", "closed_loop"):
         f = report[loop]["final_position_error"]
-        assert f["unit"] == "m" and len(f["samples"]) == 4 and 0 <= f["median"] <= f["max"]
+        assert f["unit"] == "m"
+        assert len(f["samples"]) == 4
+        assert 0 <= f["median"] <= f["max"]
         errors = report[loop]["state_errors"]
         assert sorted(errors) == sorted(["x", "y", "theta", "phi", "theta_dot", "phi_dot"])
-        assert errors["theta"]["unit"] == "rad" and errors["theta_dot"]["unit"] == "rad/s"
-        assert report[loop]["failed"] == 0 and report[loop]["saturation_time_s"]["max"] >= 0
+        assert errors["theta"]["unit"] == "rad"
+        assert errors["theta_dot"]["unit"] == "rad/s"
+        assert report[loop]["failed"] == 0
+        assert report[loop]["saturation_time_s"]["max"] >= 0
     closed, opened = (report[loop]["final_position_error"] for loop in ("closed_loop", "open_loop"))
     assert closed["max"] <= 0.1 * opened["median"]
     assert report["closed_max_over_open_median"] <= 0.1
@@ -79,7 +84,8 @@ def test_cli_track_writes_the_study_and_reads_a_plan(study, tmp_path, capsys):
                  "--samples", "2", "--out", str(tmp_path), "--quiet"])
     assert code == 0
     assert "closed-loop worst / open-loop median" in capsys.readouterr().out
-    assert (tmp_path / "tracking.json").exists() and not (tmp_path / "solution.json").exists()
+    assert (tmp_path / "tracking.json").exists()
+    assert not (tmp_path / "solution.json").exists()
 
 
 def test_cli_track_lists_every_problem_of_its_request(tmp_path, capsys):
@@ -87,8 +93,11 @@ def test_cli_track_lists_every_problem_of_its_request(tmp_path, capsys):
                  "--mismatch", "params.r=-1", "--samples", "0", "--out", str(tmp_path)])
     err = capsys.readouterr().err
     assert code == 2
-    assert "4 problem(s)" in err and "did you mean 'm'?" in err and "write params.NAME=FACTOR" in err
-    assert "positive number" in err and "--samples must be an integer ≥ 1" in err
+    assert "4 problem(s)" in err
+    assert "did you mean 'm'?" in err
+    assert "write params.NAME=FACTOR" in err
+    assert "positive number" in err
+    assert "--samples must be an integer ≥ 1" in err
     assert main(["track", "unicycle", "--plan", str(tmp_path / "none.json"), "--set", "final.y=0.3",
                  "--out", str(tmp_path)]) == 2
 
@@ -112,7 +121,8 @@ def test_the_robot_starts_on_its_own_constraints():
     assert np.hypot(q1[1], q1[2]) == pytest.approx(0.77, rel=1e-12)
     assert q1[1] * qdot1[1] + q1[2] * qdot1[2] == pytest.approx(0.0, abs=1e-12)
     q2, qdot2 = robot_start(cart, q, qdot, {**cart.parameters, "M": 2.2})
-    assert np.allclose(q2, q, rtol=0, atol=1e-14) and np.allclose(qdot2, qdot, rtol=0, atol=1e-14)
+    assert np.allclose(q2, q, rtol=0, atol=1e-14)
+    assert np.allclose(qdot2, qdot, rtol=0, atol=1e-14)
 
     board = load_scene("snakeboard").system
     r = board.parameters["r"]
@@ -126,7 +136,8 @@ def test_the_robot_starts_on_its_own_constraints():
     qdot[:2] = _on_both_wheels(q, qdot, r)
     assert np.allclose(wheels(qdot, r), 0.0, atol=1e-12)
     _, moved = robot_start(board, q, qdot, {**board.parameters, "r": 1.2 * r})
-    assert np.allclose(wheels(moved, 1.2 * r), 0.0, atol=1e-12) and not np.allclose(moved, qdot)
+    assert np.allclose(wheels(moved, 1.2 * r), 0.0, atol=1e-12)
+    assert not np.allclose(moved, qdot)
     _, same = robot_start(board, q, qdot, {**board.parameters, "m": 0.55})
     assert np.allclose(same, qdot, rtol=0, atol=1e-13)
 
@@ -164,7 +175,9 @@ def test_a_bad_plan_file_is_one_error(study, tmp_path, capsys, what, said):
     bad = _bad_plan_files(tmp_path, json.loads((out / "solution.json").read_text()))[what]
     code = main(["track", "unicycle", "--plan", str(bad), "--out", str(tmp_path / "o"), "--quiet"])
     err = capsys.readouterr().err
-    assert code == 2 and said in err and "Traceback" not in err
+    assert code == 2
+    assert said in err
+    assert "Traceback" not in err
     assert not (tmp_path / "o").exists()
 
 
@@ -181,7 +194,8 @@ def test_a_study_whose_files_cannot_be_written_keeps_its_report(study, sandbox, 
     code = main(["track", "unicycle", "--plan", str(out / "solution.json"), "--mismatch", "params.J_theta=1.2",
                  "--samples", "2", "--out", str(sandbox.out / "t"), "--quiet"])
     text = capsys.readouterr().out
-    assert code == 1 and re.search(r"NOT WRITTEN: writing .* failed: no space left", text)
+    assert code == 1
+    assert re.search(r"NOT WRITTEN: writing .* failed: no space left", text)
     rescued = re.search(r"the tracking report was saved to (\S+tracking\.json)", text).group(1)
     assert rescued.startswith(str(sandbox.tmp))
     report = json.loads(Path(rescued).read_text())
@@ -205,9 +219,12 @@ def test_a_study_that_runs_out_of_time_is_a_clean_failure(study, tmp_path, monke
     monkeypatch.setattr(runs, "run_sample", slow)
     result = track("unicycle", plan_file=out / "solution.json", mismatch=["params.J_theta=1.2"], samples=20,
                    time_limit=8.0, out_dir=tmp_path / "t")
-    assert not result.success and result.overrun.phase in ("the noise-free run", "the samples")
+    assert not result.success
+    assert result.overrun.phase in ("the noise-free run", "the samples")
     report = json.loads((tmp_path / "t" / "tracking.json").read_text())
-    assert report["success"] is False and report["samples_requested"] == 20 and report["samples"] < 20
+    assert report["success"] is False
+    assert report["samples_requested"] == 20
+    assert report["samples"] < 20
     assert "the time budget of 8 s (--time-limit / track(time_limit=...)) ran out" in report["time_budget"][0]
     assert "--time-limit SECONDS" in report["time_budget"][1]
     if report["samples"]:
@@ -242,7 +259,8 @@ def test_a_study_stopped_during_its_samples_leaves_nothing(study, tmp_path, sign
     try:
         deadline = time.monotonic() + 240.0
         while "3 samples in this process" not in err_path.read_text():
-            assert proc.poll() is None and time.monotonic() < deadline, err_path.read_text()
+            assert proc.poll() is None, err_path.read_text()
+            assert time.monotonic() < deadline, err_path.read_text()
             time.sleep(0.05)
         os.killpg(proc.pid, getattr(signal, signame))
         assert proc.wait(timeout=15.0) == status
@@ -302,5 +320,6 @@ def test_bad_mass_names_are_listed(tmp_path):
     with pytest.raises(ModelError) as info:
         load_scene(tmp_path / "bad.toml")
     text = str(info.value)
-    assert "unknown link 'boards'" in text and "link 'rotor' has no mass" in text
+    assert "unknown link 'boards'" in text
+    assert "link 'rotor' has no mass" in text
     assert "masses.board must be a parameter name" in text

@@ -131,8 +131,10 @@ def test_a_parse_error_does_not_hide_other_problems():
                   "parameters": {**GOOD["parameters"], "J": "heavy"}})
     msg = str(info.value)
     assert "lagrangian: cannot parse" in msg
-    assert "constraint 1" in msg and "not linear in the velocities" in msg
-    assert "'heavy' is not a number" in msg and "not finite" not in msg
+    assert "constraint 1" in msg
+    assert "not linear in the velocities" in msg
+    assert "'heavy' is not a number" in msg
+    assert "not finite" not in msg
     assert len(info.value.problems) == 3
 
 
@@ -143,7 +145,8 @@ def test_a_string_where_a_list_belongs_is_one_problem():
     assert 'coordinates: expected a list of names, got a string (write coordinates = ["x", ...])' in str(info.value)
     with pytest.raises(ModelError) as info:
         System(**{**GOOD, "constraints": "x_dot - r*phi_dot"})
-    assert len(info.value.problems) == 1 and "constraints: expected a list of expressions" in str(info.value)
+    assert len(info.value.problems) == 1
+    assert "constraints: expected a list of expressions" in str(info.value)
 
 
 def test_scene_reports_system_and_simulation_problems_together(tmp_path):
@@ -154,7 +157,8 @@ def test_scene_reports_system_and_simulation_problems_together(tmp_path):
     with pytest.raises(ModelError) as info:
         parse_scene(data, "s.toml")
     msg = str(info.value)
-    assert "unknown symbol 'k' in the Lagrangian" in msg and "t_final = -1.0 must be greater" in msg
+    assert "unknown symbol 'k' in the Lagrangian" in msg
+    assert "t_final = -1.0 must be greater" in msg
     assert "samples must be an integer" in msg
 
 

@@ -26,7 +26,9 @@ def _subs(system):
                                            (str(EXAMPLES / "roller_racer.toml"), "roller_racer_urdf.toml")])
 def test_urdf_scene_has_the_written_equations(written, urdf):
     a, b = load_scene(written).system, load_scene(EXAMPLES / urdf).system
-    assert a.coordinates == b.coordinates and a.k == b.k and a.inputs == b.inputs
+    assert a.coordinates == b.coordinates
+    assert a.k == b.k
+    assert a.inputs == b.inputs
     a_num = [sp.lambdify([a.q, a.q_dot, a.input_symbols, sp.Symbol("t", real=True)], e.xreplace(_subs(a)), "numpy")
              for e in (a.mass_matrix(), a.potential(), a.omega(), sp.Matrix(a.tau))]
     b_num = [sp.lambdify([b.q, b.q_dot, b.input_symbols, sp.Symbol("t", real=True)], e, "numpy")
@@ -221,7 +223,8 @@ def test_tiago_arm_swing_reduced_against_lagrange_dae():
         runs[form] = traj
     assert (scene.system.n, scene.system.k) == (6, 3)
     np.testing.assert_allclose(runs["reduced"].q, runs["lagrange"].q, rtol=0, atol=1e-9)
-    assert abs(runs["reduced"].q[-1, 2]) > 0.1 and np.hypot(*runs["reduced"].q[-1, :2]) > 0.1  # the base moved
+    assert abs(runs["reduced"].q[-1, 2]) > 0.1  # the base moved
+    assert np.hypot(*runs["reduced"].q[-1, :2]) > 0.1
 
 
 def test_canonical_trig_form_applies_the_identities():
@@ -242,18 +245,22 @@ def test_derive_shows_the_generated_system(capsys):
     from nhgait.gaits.cli.main import main
     assert main(["derive", str(EXAMPLES / "snakeboard_urdf.toml")]) == 0
     text = capsys.readouterr().out
-    assert "from the URDF" in text and "n = 5 coordinates" in text and "k = 2 constraints" in text
+    assert "from the URDF" in text
+    assert "n = 5 coordinates" in text
+    assert "k = 2 constraints" in text
     assert "0.35*theta_dot**2" in text            # (J + J_r + 2 J_w)/2: the written scene's θ̇² term
     assert "Reduced constrained Hamiltonian equations of snakeboard" in text
 
 
 def test_a_malformed_urdf_and_bad_scene_keys_are_listed_together(tmp_path):
     problems = _problems(_scene(tmp_path, _robot(BODY, "<link name='broken'>"), 'colour = "red"\n'))
-    assert any("malformed XML" in p for p in problems) and any("['colour']" in p for p in problems)
+    assert any("malformed XML" in p for p in problems)
+    assert any("['colour']" in p for p in problems)
 
 
 def test_bench_urdf_smoke(capsys):
     import experiment_scripts
     result = experiment_scripts.load("bench_urdf").main(["--robots", "snakeboard", "--repeats", "1", "--no-plan"])
-    assert result["robots"][0]["n"] == 5 and result["robots"][0]["k"] == 2
+    assert result["robots"][0]["n"] == 5
+    assert result["robots"][0]["k"] == 2
     assert "| snakeboard | 5 | 2 |" in capsys.readouterr().out

@@ -48,7 +48,8 @@ def test_unknown_symbol_and_missing_parameter_listed_together():
         uni(lagrangian=UNI_L + " + k*x**2", parameters={"m": 0.5, "J_phi": 0.2, "J_theta": 0.3})
     msg = str(info.value)
     assert "unknown symbol 'k' in the Lagrangian" in msg
-    assert "unknown symbol 'r' in constraint 1" in msg and "unknown symbol 'r' in constraint 2" in msg
+    assert "unknown symbol 'r' in constraint 1" in msg
+    assert "unknown symbol 'r' in constraint 2" in msg
     assert len(info.value.problems) == 3
 
 
@@ -91,7 +92,8 @@ def test_name_clash_and_bad_parameter_value():
     with pytest.raises(ModelError) as info:
         System(coordinates=["x", "x"], lagrangian="x_dot**2", parameters={"m": "heavy"})
     msg = str(info.value)
-    assert "used twice" in msg and "'heavy' is not a number" in msg
+    assert "used twice" in msg
+    assert "'heavy' is not a number" in msg
 
 
 def test_no_full_symmetry_group_shows_the_table():
@@ -118,7 +120,9 @@ def test_initial_state_violating_the_constraints(models):
     # ẋ = 1 with φ̇ = 0 at θ = 0 breaks the rolling constraint ẋ = r cos θ φ̇ by exactly 1 (and
     # nothing else: ẏ = r sin θ φ̇ holds); the message names it with its residual
     lines = [p for p in info.value.problems if p.startswith("constraint")]
-    assert len(lines) == 1 and "x_dot" in lines[0] and lines[0].endswith("residual 1 at this configuration")
+    assert len(lines) == 1
+    assert "x_dot" in lines[0]
+    assert lines[0].endswith("residual 1 at this configuration")
 
 
 @pytest.mark.parametrize("phi", [math.pi / 2, -math.pi / 2])

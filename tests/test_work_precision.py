@@ -44,7 +44,8 @@ def test_work_precision_smoke(tmp_path, capsys):
     assert {r["states"] for r in rows if r["case"] == "shape (all states)"} == {"8"}
     assert (out / "snakeboard.png").stat().st_size > 10_000
     md = (out / "work_precision.md").read_text()
-    assert md.startswith("Machine: ") and "| formulation/method | rtol | error |" in md
+    assert md.startswith("Machine: ")
+    assert "| formulation/method | rtol | error |" in md
     assert "Snakeboard PD 10π targets" in capsys.readouterr().out
 
 
@@ -59,4 +60,5 @@ def test_bench_precision_cli_smoke(tmp_path, capsys):
     assert len(rows) == 2 * 2 * 2
     for r in rows:
         assert float(r["error"]) < (1e-9 if float(r["rtol"]) == 1e-8 else 1e-4), r
-    assert (out / "precision.png").exists() and (out / "precision.md").exists()
+    assert (out / "precision.png").exists()
+    assert (out / "precision.md").exists()
