@@ -12,7 +12,7 @@ from nhgait.dynamics import System
 from nhgait.dynamics.derivation import symmetry
 from nhgait.dynamics.errors import ModelError
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "experiments"))
 
 
 def particles(n, fiber=False, extra=""):

@@ -9,7 +9,7 @@ import pytest
 
 from nhgait.dynamics import ModelError, System, load_scene
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parent.parent.parent
 
 
 def hostile(marker: Path) -> list:

@@ -14,7 +14,7 @@ from nhgait.dynamics.numerics.compiler import compiler_command
 #: these compile C (the references use CasADi's jit with gcc); CI may have no compiler
 needs_cc = pytest.mark.skipif(compiler_command() is None, reason="no C compiler")
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 _load = experiment_scripts.load

@@ -17,7 +17,7 @@ from matplotlib.figure import Figure
 from nhgait.gaits.cli.main import main
 
 matplotlib.use("Agg")
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SLIDER = str(ROOT / "tests" / "scenes" / "sleigh_slider.toml")
 
 

@@ -18,7 +18,7 @@ from oracles import agreement, oracle
 
 import experiment_scripts
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 RTOL = 1e-10
 
 

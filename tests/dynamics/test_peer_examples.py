@@ -15,7 +15,7 @@ import pytest
 
 from oracles import agreement, oracle
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 RTOL = 1e-10
 
 

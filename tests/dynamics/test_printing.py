@@ -12,7 +12,7 @@ from nhgait.dynamics.derivation.steps import latex_document, tex_text
 
 import experiment_scripts
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _family_system(name):

@@ -22,7 +22,7 @@ from nhgait.dynamics.errors import ModelError               # noqa: E402
 from nhgait.dynamics.derivation.urdf import urdf_system              # noqa: E402
 from nhgait.dynamics.derivation.urdf.builder import resolve_path      # noqa: E402
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 TIAGO = "example-robot-data:tiago_description/robots/tiago.urdf"
 WHEELS = ["wheel_left_joint", "wheel_right_joint"]
 

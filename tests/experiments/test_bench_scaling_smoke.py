@@ -4,7 +4,7 @@ from pathlib import Path
 
 import experiment_scripts
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_bench_scaling_smoke(tmp_path, capsys):

@@ -29,7 +29,7 @@ import sympy as sp
 from nhgait.gaits.cli.main import main
 from nhgait.gaits.tracking.study import track
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 PARK = {"system": "unicycle", "task": "parallel-park", "overrides": ["intervals=30"],
         "mismatch": ["params.J_theta=1.2"]}
 

@@ -25,7 +25,7 @@ import pytest
 
 from nhgait.gaits.planner import plan
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "examples"
 
 #: (scene, gait or None for the scene's [task], N, reference objective at that N or None)

@@ -15,7 +15,7 @@ from nhgait.dynamics import derive, simulate
 from nhgait.dynamics.errors import ModelError
 from nhgait.dynamics.derivation.scene import load_scene, scene_from_text
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
 def _subs(system):

@@ -24,7 +24,7 @@ from oracles import oracle
 
 from pathlib import Path
 
-SCENE = (Path(__file__).parent / "scenes" / "disc_height.toml").read_text()
+SCENE = (Path(__file__).parent.parent / "scenes" / "disc_height.toml").read_text()
 R = 0.26
 RTOL = 1e-10
 
@@ -37,7 +37,7 @@ def _eliminated_text():
 
 @pytest.fixture(scope="module")
 def kept():
-    return load_scene(str(Path(__file__).parent / "scenes" / "disc_height.toml")).system
+    return load_scene(str(Path(__file__).parent.parent / "scenes" / "disc_height.toml")).system
 
 
 def _cart_pendulum(**extra):
@@ -126,7 +126,7 @@ def test_consistent_configuration_solves_the_dependent_coordinate(kept):
     assert q[[0, 1, 2, 3, 5]].tolist() == [0.1, 0.2, 0.2, 0.3, 0.5]
     with pytest.raises(ModelError, match=r"no configuration satisfies .* with x = 0, y = 0, z = 0.3"):
         consistent_configuration(kept, [0, 0, 0.3, 0, 0.4, 0])               # z > r: none
-    scene = load_scene(str(Path(__file__).parent / "scenes" / "disc_height.toml"))
+    scene = load_scene(str(Path(__file__).parent.parent / "scenes" / "disc_height.toml"))
     assert scene.simulation.q0[4] == pytest.approx(np.arccos(0.25 / R), abs=1e-14)   # the scene's q0
 
 

@@ -20,7 +20,7 @@ from nhgait.dynamics.derivation.holonomic import consistent_configuration, holon
 from nhgait.dynamics.derivation.scene import scene_from_text
 from nhgait.dynamics.derivation.states import consistent_velocities
 
-DISC = (Path(__file__).parent / "scenes" / "disc_bodies.toml").read_text()
+DISC = (Path(__file__).parent.parent / "scenes" / "disc_bodies.toml").read_text()
 
 
 @pytest.fixture(scope="module")

@@ -17,7 +17,7 @@ import pytest
 
 from nhgait.ocp import ProblemError
 
-CAR = (Path(__file__).parents[1] / "examples" / "car.toml").read_text().split("[task]")[0]
+CAR = (Path(__file__).parents[2] / "examples" / "car.toml").read_text().split("[task]")[0]
 
 QUANTITIES = """
 [quantities]
@@ -161,7 +161,7 @@ def test_the_path_guess_passes_the_stated_places_heading_along_its_legs():
     from nhgait.gaits.guesses import candidates
     from nhgait.gaits.planner import prepare
     from nhgait.gaits.task_library import resolve
-    problem = prepare(resolve(str(Path(__file__).parents[1] / "examples" / "opty_pylons.toml"), None)).problem
+    problem = prepare(resolve(str(Path(__file__).parents[2] / "examples" / "opty_pylons.toml"), None)).problem
     guess = candidates(problem)[0]
     assert guess.label == "path through the stated places"
     q = guess.states

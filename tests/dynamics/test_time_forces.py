@@ -27,7 +27,7 @@ from nhgait.dynamics.simulation.controllers import OpenLoop
 from nhgait.dynamics.derivation.reduction import derive_reduced
 from nhgait.dynamics.derivation.states import consistent_velocities, to_state
 
-SCENE = Path(__file__).resolve().parents[1] / "examples" / "roller_racer.toml"
+SCENE = Path(__file__).resolve().parents[2] / "examples" / "roller_racer.toml"
 #: the scene's parameter values, restated (kg, kg m², m)
 PARAMS = {"m1": 1.5, "m2": 0.8, "I1": 0.04, "I2": 0.02, "d1": 0.3, "d2": 0.25}
 T_FINAL = 6.0

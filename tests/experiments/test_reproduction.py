@@ -16,7 +16,7 @@ from nhgait.gaits.bench.reproduction import reproduce
 
 import experiment_scripts
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 def _experiment():

@@ -154,7 +154,7 @@ def test_a_point_at_rest_is_its_velocity_state_stopped_and_one_velocity_alone_is
     the steering rate left free; ẋ = 0 alone also holds at θ = ±π/2 with v ≠ 0, so it is kept
     as written (replacing it by v = 0 would lose that branch)."""
     from pathlib import Path
-    car = str(Path(__file__).parents[1] / "examples" / "car.toml")
+    car = str(Path(__file__).parents[2] / "examples" / "car.toml")
     both = prepare(resolve(car, {**CAR_PARK, "final": {**CAR_PARK["final"], "x_dot": 0.0, "y_dot": 0.0}}))
     assert dict(both.problem.final) == {"x": 0.0, "y": 0.5, "theta": 0.0, "forward_velocity": 0.0}
     assert any("exactly forward_velocity = 0 (phi_dot free)" in line for line in both.conditions.lines())
