@@ -3,7 +3,7 @@ nhgait.dynamics.derivation.bodies). References:
 
 * the rolling disc built from one wheel against the built-in ``rolling_disc``, whose Lagrangian
   was written by hand and whose state derivatives equal sympy's test_kane5.py
-  (tests/test_linearisation.py): M(q), V(q), the constraint distribution and q̈;
+  (tests/dynamics/test_linearisation.py): M(q), V(q), the constraint distribution and q̈;
 * the Whipple bicycle's pitch against the closed-form front-contact constraint of Moore's
   derivation (Moore, PhD thesis 2012; ``dtk.bicycle.pitch_from_roll_and_steer`` and
   ``benchmark_to_moore`` of the DynamicistToolKit, transcribed below), including the value its

@@ -15,7 +15,7 @@ digits of margin; the reduced ODE satisfies ω(q)q̇ = 0 by construction (q̇ = 
 forms only up to the drift of an index-1 integration (no stabilisation by default).
 
 The Whipple bicycle (the sixth built-in scene) is not here: deriving its three formulations
-takes over a minute, and tests/test_bicycle.py checks it against the benchmark's published
+takes over a minute, and tests/dynamics/test_bicycle.py checks it against the benchmark's published
 eigenvalues and Basu-Mandal's published accelerations.
 """
 from __future__ import annotations
@@ -55,7 +55,7 @@ CASES = {
     "rolling_disc": Case("disc_height", (0.0, 0.1, 0.2, 0.2, 0.3), (0.4, 0.1, 5.0), (0.05,)),
 }
 #: built-in scenes this contract does not run, and why (see the module docstring)
-NOT_HERE = {"whipple_bicycle": "three derivations over a minute; tests/test_bicycle.py"}
+NOT_HERE = {"whipple_bicycle": "three derivations over a minute; tests/dynamics/test_bicycle.py"}
 
 
 def test_every_built_in_scene_has_a_case():

@@ -5,7 +5,7 @@
 integrated by CVODES through ``simulate`` (the planner's own check is DOP853 on the same
 model) — and against the holonomic constraint at every node (the pitch stays on the front
 wheel's contact surface). The model itself is checked against Meijaard's eigenvalues and
-Basu-Mandal's nonlinear accelerations (tests/test_bicycle.py). (The Lagrangian DAE of the
+Basu-Mandal's nonlinear accelerations (tests/dynamics/test_bicycle.py). (The Lagrangian DAE of the
 bicycle would be an independent path, but its symbolic derivation takes minutes.)"""
 import numpy as np
 import pytest

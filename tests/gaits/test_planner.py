@@ -183,7 +183,7 @@ def test_parallel_candidates_agree_with_sequential():
 
 def test_unknown_names_are_one_error(tmp_path):
     """Every unknown name in one error (a redundant set of values is not one: see
-    tests/test_conditions.py)."""
+    tests/ocp/test_conditions.py)."""
     from nhgait.ocp import ProblemError
     with pytest.raises(ProblemError) as info:
         plan("snakeboard", {"horizon": 1.0, "final": {"zz": 1.0, "x": 1.0, "y": 0, "theta": 0, "psi": 0,
