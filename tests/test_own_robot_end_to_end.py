@@ -26,7 +26,7 @@ import sympy as sp
 from nhgait.gaits.cli.main import main
 
 matplotlib.use("Agg")
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[1]
 SLIDER = str(ROOT / "tests" / "scenes" / "sleigh_slider.toml")
 
 
