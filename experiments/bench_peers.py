@@ -5,7 +5,7 @@ opty (direct collocation from sympy with Ipopt) has three nonholonomic wheeled-v
 examples in its gallery: a bicycle-model car parallel parking, a three-body car parking in a
 garage and the same car driving around two pylons. nhgait states them as scenes
 (``examples/opty_parallel_park.toml``, ``opty_garage.toml``, ``opty_pylons.toml``: the examples'
-equations — equal to their KanesMethod models, tests/test_peer_examples.py — parameters, bounds
+equations — equal to their KanesMethod models, tests/dynamics/test_peer_examples.py — parameters, bounds
 and objectives). For each task, in one run on this machine:
 
 * **opty as its authors wrote it**: the example file executed unchanged in opty's own

@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
 TIAGO = "example-robot-data:tiago_description/robots/tiago.urdf"
 WHEELS = ["wheel_left_joint", "wheel_right_joint"]
-#: tiago_3 is the 8-coordinate TIAGo of tests/test_urdf_pinocchio.py
+#: tiago_3 is the 8-coordinate TIAGo of tests/dynamics/test_urdf_pinocchio.py
 ROBOTS = {
     "snakeboard": {"urdf": "snakeboard.urdf", "joints": ["psi", "phi"],
                    "skates": ["back_wheels", "front_wheels"]},

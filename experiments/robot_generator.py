@@ -13,7 +13,7 @@ frames (and slides along rails), bodies (mass at a point, inertia about the vert
 (the point's velocity along its frame's y axis is zero) and the inputs' loads (torques between
 two frames, forces along a frame's axis). :func:`walk` places every point and heading with any
 math namespace (sympy for the scene text, CasADi for ``experiments/reference_dae_ocp.py``);
-``tests/test_robot_generator.py`` builds the same description independently with frames and
+``tests/experiments/test_robot_generator.py`` builds the same description independently with frames and
 points of ``sympy.physics.mechanics`` and checks nhgait's q̈ against ``KanesMethod``.
 
 Families (sizes, parameters and conventions drawn from the seed)

@@ -1,4 +1,4 @@
-"""Published values for the Whipple bicycle benchmark (data only; tests/test_bicycle.py and
+"""Published values for the Whipple bicycle benchmark (data only; tests/dynamics/test_bicycle.py and
 experiments/bench_bicycle.py compare nhgait's bicycle, built from bodies, against them).
 
 * Meijaard, Papadopoulos, Ruina, Schwab, "Linearized dynamics equations for the balance and

@@ -98,7 +98,8 @@ class Answer:
         output (stderr, then stdout) must contain."""
         statuses = (statuses,) if isinstance(statuses, int) else tuple(statuses)
         text = self.err + self.out
-        assert "internal error" not in text and "Traceback" not in text, text[-3000:]
+        assert "internal error" not in text, text[-3000:]
+        assert "Traceback" not in text, text[-3000:]
         assert self.status in statuses, (self.status, text[-3000:])
         if said is not None:
             assert re.search(said, text, re.S), (said, text[-3000:])

@@ -631,7 +631,8 @@ def _build(name: str) -> KaneOracle:
         km = kanes_method(mdl, dep)
         M = plain(km.mass_matrix)
         f = plain(km.forcing)
-        assert M.shape == (n, n) and f.shape == (n, 1)
+        assert M.shape == (n, n)
+        assert f.shape == (n, 1)
         variants.append(_Variant(
             independent_idx=ind, dependent_idx=tuple(dep),
             mass=lam([qs, us, inputs, params], M),

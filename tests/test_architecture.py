@@ -272,4 +272,5 @@ print(found, mutable)
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     found, _, mutable = out.stdout.strip().partition(" ")
-    assert int(found) >= 15 and mutable == "[]", out.stdout
+    assert int(found) >= 15, out.stdout
+    assert mutable == "[]", out.stdout

@@ -257,7 +257,9 @@ def test_plan_stopped_while_compiling_leaves_nothing_and_the_next_run_compiles(
     assert again.returncode == 0, again.stderr[-2000:]
     assert len(slow_cc.runs()) == 2                      # compiled, not taken from the cache
     names = sorted(p.name for p in jit.iterdir())
-    assert len(names) == 2 and names[0].endswith(".json") and names[1].endswith(".so")
+    assert len(names) == 2
+    assert names[0].endswith(".json")
+    assert names[1].endswith(".so")
     from nhgait.dynamics.numerics.cache import file_sha256
     assert json.loads((jit / names[0]).read_text())["library_sha256"] == file_sha256(jit / names[1])
 
@@ -291,7 +293,8 @@ def test_plan_stopped_while_its_background_build_compiles_leaves_nothing(
         raise
     wrapper = next(p for p in group if p.pid == p.pgrp)
     builder = next(p for p in _processes() if p.pid == wrapper.ppid)
-    assert builder.ppid == proc.pid and builder.session == builder.pid != proc.pid     # detached
+    assert builder.ppid == proc.pid  # detached
+    assert builder.session == builder.pid != proc.pid
     assert _signal_and_wait(proc, signame, to_group) == status
     assert f"nhgait: {said}" in (tmp_path / "stderr.txt").read_text()
     _assert_no_process_left(proc.pid)
@@ -316,7 +319,8 @@ def test_plan_stopped_while_a_solver_iterates_in_c(cache, tmp_path, signame, sta
     assert _signal_and_wait(proc, signame, to_group, timeout=EXIT_S) == status
     assert time.monotonic() - sent < STOP_S
     err = (tmp_path / "stderr.txt").read_text()
-    assert f"nhgait: {said}" in err and "solve with fatrop from up to 12 guesses: stopped after" in err
+    assert f"nhgait: {said}" in err
+    assert "solve with fatrop from up to 12 guesses: stopped after" in err
     assert "Traceback" not in err
     assert not any(_live(ppid=p.pid) for p in solvers)
     _assert_no_process_left(proc.pid)
@@ -353,7 +357,8 @@ def test_a_time_limit_ends_a_plan_that_needs_longer_as_a_clean_failure(cache, tm
     out = (tmp_path / "stdout.txt").read_text()
     wall = float(re.search(r"wall time +([0-9.]+) s in all", out).group(1))
     assert wall < 5.0 + 1.5                             # the budget, then the kill and solution.json
-    assert "FAILED (time budget spent" in out and "--time-limit SECONDS" in out
+    assert "FAILED (time budget spent" in out
+    assert "--time-limit SECONDS" in out
     phases = ("derivation", "the initial guesses", "the NLP set-up and compilation for fatrop",
               "the solves with fatrop")
     assert any(f"the time budget of 5 s (--time-limit / plan(time_limit=...)) ran out during {phase} " in out
@@ -363,7 +368,8 @@ def test_a_time_limit_ends_a_plan_that_needs_longer_as_a_clean_failure(cache, tm
     assert written == (["solution.json"] if attempted else [])
     if attempted:
         saved = json.loads((tmp_path / "out" / "solution.json").read_text())
-        assert saved["success"] is False and "time budget" in saved["diagnosis"][0]
+        assert saved["success"] is False
+        assert "time budget" in saved["diagnosis"][0]
     _assert_no_process_left(proc.pid)
 
 
@@ -416,7 +422,8 @@ def test_a_library_without_its_record_is_never_loaded(cache):
     record.unlink()                                       # a writer killed between the moves
     first.path.write_bytes(b"\x7fELF, half of it")        # ... or while writing the library
     again = build_library(SOURCE)
-    assert not again.cached and again.path == first.path
+    assert not again.cached
+    assert again.path == first.path
     assert json.loads(record.read_text())["library_sha256"] == file_sha256(again.path)
     assert ctypes.CDLL(str(again.path)).nhgait_answer() == 42
     assert build_library(SOURCE).cached
@@ -483,7 +490,8 @@ def test_the_watchdog_ends_a_process_whose_main_thread_is_stuck_in_c(tmp_path):
     finally:
         _kill_session(proc.pid)
     try:
-        assert status == 143 and time.monotonic() - sent < STOP_S
+        assert status == 143
+        assert time.monotonic() - sent < STOP_S
         assert "nhgait: terminated (forced: still running 1.5 s after the signal)" in proc.stderr.read()
         _wait_until(lambda: not [p for p in _processes() if p.pid == int(helper)], 5.0,
                     "the helper to be gone")

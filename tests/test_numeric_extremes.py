@@ -156,10 +156,13 @@ def test_the_bound_is_the_one_stated_and_values_within_it_pass():
 
     from nhgait.dynamics.derivation.expressions import MAX_MAGNITUDE, number_problems
     problems = []
-    assert number_problems(MAX_MAGNITUDE, "x", problems) == MAX_MAGNITUDE and problems == []
-    assert number_problems(-MAX_MAGNITUDE, "x", problems) == -MAX_MAGNITUDE and problems == []
+    assert number_problems(MAX_MAGNITUDE, "x", problems) == MAX_MAGNITUDE
+    assert problems == []
+    assert number_problems(-MAX_MAGNITUDE, "x", problems) == -MAX_MAGNITUDE
+    assert problems == []
     assert math.isnan(number_problems(math.nextafter(MAX_MAGNITUDE, math.inf), "x", problems))
-    assert len(problems) == 1 and "x: 1e+15 exceeds 1e+15" in problems[0]
+    assert len(problems) == 1
+    assert "x: 1e+15 exceeds 1e+15" in problems[0]
 
 
 def test_a_plan_of_many_intervals_says_its_size_first():
@@ -183,7 +186,8 @@ def test_a_long_simulation_says_its_estimate_first(sandbox):
         return
     assert 0 < float(said.group(1)) < 300
     rows = (sandbox.out / "t.csv").read_text().splitlines()
-    assert len(rows) == 202 and rows[-1].startswith("300.0")
+    assert len(rows) == 202
+    assert rows[-1].startswith("300.0")
 
 
 def test_the_sweep_store_and_grid_accept_the_bound_itself(tmp_path):

