@@ -347,8 +347,8 @@ def _plan_point(job: PointJob) -> dict:
 def _solve_within(job: PointJob, budget, reached: dict) -> dict:
     from ..gait_check import unsolved, verified_gait
     from ..guesses import candidates
-    from ..planner import warm_start
     from ..search import solve_attempts, solve_with_fallbacks
+    from ..warm_start import warm_start
     solution = None
     if job.warm is not None:
         with budget.stage("the derivation and the NLP set-up"):

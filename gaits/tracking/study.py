@@ -92,7 +92,7 @@ def _plan_data(plan_file):
     """The content of a ``solution.json`` to track (one with feedback), or None."""
     from nhgait.ocp import ProblemError
 
-    from ..planner import read_solution
+    from ..warm_start import read_solution
     if plan_file is None:
         return None
     data = read_solution(plan_file)             # a file that is not a solution: ModelError
