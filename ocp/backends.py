@@ -65,6 +65,13 @@ class SolverBackend:
                 "ng": st["ng"]}
 
 
+#: Ipopt's largest unscaled constraint violation of a point it stops at as "acceptable" (its own
+#: default, 1e-2, let a generated 3-link chain's gait stop 2e-5 off its end conditions: a
+#: converged status that the re-simulation, at 1e-6, then refuses — solving again with more RK4
+#: sub-steps cannot mend an NLP point that does not meet its own constraints)
+ACCEPTABLE_CONSTR_VIOL = 1e-8
+
+
 @dataclass(frozen=True)
 class IpoptBackend(SolverBackend):
     """Ipopt: its options are ``ipopt.``-prefixed keys of the nlpsol options."""
@@ -73,7 +80,8 @@ class IpoptBackend(SolverBackend):
         hessian = "limited-memory" if options.hessian == "limited-memory" else "exact"
         opts = {**opts, "ipopt.print_level": options.print_level, "ipopt.sb": "yes",
                 "ipopt.max_iter": int(options.max_iter), "ipopt.tol": float(options.tol),
-                "ipopt.hessian_approximation": hessian, "ipopt.linear_solver": options.linear_solver}
+                "ipopt.hessian_approximation": hessian, "ipopt.linear_solver": options.linear_solver,
+                "ipopt.acceptable_constr_viol_tol": ACCEPTABLE_CONSTR_VIOL}
         if options.time_limit is not None:
             opts["ipopt.max_wall_time"] = float(options.time_limit)
         opts.update({f"ipopt.{k}" if not k.startswith("ipopt.") else k: v for k, v in options.ipopt.items()})
