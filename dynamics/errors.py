@@ -6,6 +6,7 @@ Every validation collects *all* the problems it finds and raises them together i
 from __future__ import annotations
 
 import signal
+from contextlib import contextmanager
 
 
 class ModelError(ValueError):
@@ -62,6 +63,30 @@ def note_stop(signum: int) -> None:
 def clear_stops() -> None:
     """Forget the stops received (the command's stop handling is over)."""
     _RECEIVED_STOPS.clear()
+
+
+#: folders being written whose removal a forced end must not skip (:func:`temporary_folder`)
+_TEMPORARY_FOLDERS: set = set()
+
+
+@contextmanager
+def temporary_folder(path):
+    """Register ``path`` (a staging folder) while the block runs, so that a process ended by the
+    stop watchdog (``os._exit``: no ``finally`` runs) removes it first
+    (:func:`remove_temporary_folders`); its owner removes it as usual otherwise."""
+    _TEMPORARY_FOLDERS.add(str(path))
+    try:
+        yield path
+    finally:
+        _TEMPORARY_FOLDERS.discard(str(path))
+
+
+def remove_temporary_folders() -> None:
+    """Remove the folders registered by :class:`temporary_folder` (the watchdog's last act)."""
+    import shutil
+    for path in list(_TEMPORARY_FOLDERS):
+        shutil.rmtree(path, ignore_errors=True)
+    _TEMPORARY_FOLDERS.clear()
 
 
 def raise_if_stopped() -> None:

@@ -225,7 +225,8 @@ def staged(out, write) -> list:
     (created): each file whole or not at all (module docstring). Returns their paths in ``out``."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=out, prefix=".writing-") as staging:
+    from nhgait.dynamics.errors import temporary_folder
+    with tempfile.TemporaryDirectory(dir=out, prefix=".writing-") as staging, temporary_folder(staging):
         written = [Path(path) for path in write(Path(staging))]
         for path in written:
             os.replace(path, out / path.name)

@@ -463,6 +463,37 @@ def test_a_half_written_cache_entry_is_never_read(cache, monkeypatch):
         assert entries.load(key, dict) == {"answer": 42}
 
 
+def test_a_forced_end_removes_the_staging_folder_being_written(tmp_path):
+    """SIGTERM while the main thread is in C inside a staged write (the outputs' ``.writing-*``
+    folder): the watchdog ends the process (143) and the folder is gone with it."""
+    staging = tmp_path / ".writing-test"
+    script = ("import sys, numpy as np\n"
+              "from pathlib import Path\n"
+              "from nhgait.dynamics.errors import temporary_folder\n"
+              "from nhgait.gaits.cli.stopping import stop_signals\n"
+              f"staging = Path({str(staging)!r}); staging.mkdir()\n"
+              "(staging / 'solution.json').write_text('{')\n"
+              "a = np.ones((6000, 6000))\n"
+              "with stop_signals(), temporary_folder(staging):\n"
+              "    print('ready', flush=True)\n"
+              "    for _ in range(100):\n"
+              "        a @ a\n"
+              "sys.exit(0)\n")
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True, env={**os.environ, "OMP_NUM_THREADS": "1",
+                                                                    "OPENBLAS_NUM_THREADS": "1"})
+    try:
+        assert proc.stdout.readline().strip() == "ready"
+        time.sleep(0.2)                                  # inside the product
+        proc.send_signal(signal.SIGTERM)
+        status = proc.wait(timeout=EXIT_S)
+    finally:
+        _kill_session(proc.pid)
+    assert status == 143
+    assert "forced" in proc.stderr.read()
+    assert not staging.exists()
+
+
 def test_the_watchdog_ends_a_process_whose_main_thread_is_stuck_in_c(tmp_path):
     """The main thread in a long C call (a large matrix product) cannot run Python's handler:
     the watchdog ends the process with 143 within 2 s of SIGTERM, saying so, and takes along

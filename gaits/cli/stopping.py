@@ -21,12 +21,13 @@
   (``signal.set_wakeup_fd``) whatever the main thread is doing; a daemon thread reads it and,
   if the process is still alive :data:`FORCE_AFTER_S` seconds later, writes the same message
   and ends it with ``os._exit(128 + signal)``. A normal stop (kill the children, remove the
-  temporary files, print) takes milliseconds, so the watchdog only ever meets a process stuck
-  in C — where no temporary file is being written: every writer of one (the cache, the
-  outputs) is Python code in which the handler runs at once. Before it ends the process it
-  kills every process descended from it (Linux ``/proc``): supervised children and compilers
-  die with the main thread anyway (``PR_SET_PDEATHSIG``), but the compiler's own helpers (cc1,
-  as) would not. The one thing a forced end can leave is a compiler's build folder when the
+  temporary files, print) takes milliseconds, so the watchdog mostly meets a process stuck
+  in C; it also met one writing the figures of a plan on a loaded machine (1 of 60 runs of
+  ``experiments/stress_sigterm.py``), so it first removes the staging folders registered by
+  :func:`~nhgait.dynamics.errors.temporary_folder` (the outputs' ``.writing-*``). Before it ends
+  the process it kills every process descended from it (Linux ``/proc``): supervised children
+  and compilers die with the main thread anyway (``PR_SET_PDEATHSIG``), but the compiler's own
+  helpers (cc1, as) would not. The one thing a forced end can leave is a compiler's build folder when the
   signal came while the compiler was being started (its stop signals blocked, on a machine so
   loaded that starting it took 1.5 s: 1 of 54 runs of ``experiments/stress_sigterm.py``); the
   next build removes it once it is stale.
@@ -39,7 +40,7 @@ import sys
 import threading
 from contextlib import contextmanager
 
-from nhgait.dynamics.errors import Terminated, clear_stops, note_stop
+from nhgait.dynamics.errors import Terminated, clear_stops, note_stop, remove_temporary_folders
 
 __all__ = ["stop_signals", "Stop", "exit_now", "cancel_background_builds", "FORCE_AFTER_S", "EXIT_STATUS",
            "MESSAGES"]
@@ -175,6 +176,7 @@ def _force_exit(signum: int) -> None:  # pragma: no cover - measured by tests/te
     """End the process now: it has not stopped by itself (module docstring)."""
     try:
         _kill_descendants()
+        remove_temporary_folders()            # the staging folder of outputs being written
         sys.stderr.write(f"{MESSAGES[signum]} (forced: still running {FORCE_AFTER_S:g} s after the signal)\n")
         sys.stderr.flush()
     finally:
