@@ -20,7 +20,8 @@ in a session of its own with a private ``TMPDIR``. For each it records:
   after``), else the last thing it said;
 * **what is left** — live processes of its session half a second after its exit (a process
   sent SIGKILL vanishes when the kernel next schedules it), temporary files anywhere it
-  writes (``.tmp-*`` in the cache, ``jit/.build-*``, ``.writing-*`` in the output folder,
+  writes (``.tmp-*`` in the cache, ``jit/.build-*`` still there 20 s later — a background
+  build's folder, which its detached builder finishes or removes —, ``.writing-*`` in the output folder,
   ``nhgait-jit-*`` and anything else in its ``TMPDIR`` — gcc's own ``cc*.s``/``cc*.o`` among
   them, reported apart: where the compiler's temporaries go is issue 29's), half-written
   outputs (a ``solution.json`` that does not parse).
@@ -136,8 +137,21 @@ def _phase(stderr: str, status) -> str:
     return "between phases, after: " + re.sub(r"[\d.]+", "#", last)[:50]
 
 
+#: how long a background build's folder may outlive the plan: its builder is detached, finishes
+#: into the cache after a plan that ended, and removes the folder itself when the plan stopped
+BUILD_GRACE_S = 20.0
+
+
+def _builds_left(cache: Path) -> list:
+    """The ``jit/.build-*`` folders still there :data:`BUILD_GRACE_S` after the plan ended."""
+    deadline = time.monotonic() + BUILD_GRACE_S
+    while list(cache.glob("jit/.build-*")) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    return [str(p) for p in cache.glob("jit/.build-*")]
+
+
 def _leftovers(cache: Path, out: Path, tmp: Path) -> dict:
-    temporary = [str(p) for p in cache.glob(".tmp-*")] + [str(p) for p in cache.glob("jit/.build-*")]
+    temporary = [str(p) for p in cache.glob(".tmp-*")] + _builds_left(cache)
     temporary += [str(p) for p in out.glob(".writing-*")] if out.exists() else []
     in_tmp = [p.name for p in tmp.iterdir()] if tmp.exists() else []
     gcc = [name for name in in_tmp if GCC_TEMPORARY.match(name)]

@@ -177,6 +177,9 @@ def _force_exit(signum: int) -> None:  # pragma: no cover - measured by tests/te
     try:
         _kill_descendants()
         remove_temporary_folders()            # the staging folder of outputs being written
+        background = sys.modules.get("nhgait.dynamics.numerics.background")
+        if background is not None:            # the optimised builds: told to stop and clean up
+            background.BUILDERS.terminate()
         sys.stderr.write(f"{MESSAGES[signum]} (forced: still running {FORCE_AFTER_S:g} s after the signal)\n")
         sys.stderr.flush()
     finally:
