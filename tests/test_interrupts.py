@@ -463,19 +463,19 @@ def test_a_half_written_cache_entry_is_never_read(cache, monkeypatch):
         assert entries.load(key, dict) == {"answer": 42}
 
 
-def test_a_forced_end_removes_the_staging_folder_being_written(tmp_path):
-    """SIGTERM while the main thread is in C inside a staged write (the outputs' ``.writing-*``
-    folder): the watchdog ends the process (143) and the folder is gone with it."""
-    staging = tmp_path / ".writing-test"
-    script = ("import sys, numpy as np\n"
+def _stuck_in_c(setup: str, context: str, said: str = "") -> tuple:
+    """Run a script whose main thread, inside ``with stop_signals(), <context>:``, sits in a long
+    C call (a large matrix product), SIGTERM it there: (exit status, seconds from the signal to
+    the exit, its stderr, the words it printed after 'ready'). ``setup`` runs first; ``said`` is
+    an expression printed after 'ready'."""
+    script = ("import subprocess, sys, numpy as np\n"
               "from pathlib import Path\n"
               "from nhgait.dynamics.errors import temporary_folder\n"
               "from nhgait.gaits.cli.stopping import stop_signals\n"
-              f"staging = Path({str(staging)!r}); staging.mkdir()\n"
-              "(staging / 'solution.json').write_text('{')\n"
+              f"{setup}\n"
               "a = np.ones((6000, 6000))\n"
-              "with stop_signals(), temporary_folder(staging):\n"
-              "    print('ready', flush=True)\n"
+              f"with stop_signals(){', ' + context if context else ''}:\n"
+              f"    print('ready', {said or repr('')}, flush=True)\n"
               "    for _ in range(100):\n"
               "        a @ a\n"
               "sys.exit(0)\n")
@@ -483,14 +483,28 @@ def test_a_forced_end_removes_the_staging_folder_being_written(tmp_path):
                             text=True, start_new_session=True, env={**os.environ, "OMP_NUM_THREADS": "1",
                                                                     "OPENBLAS_NUM_THREADS": "1"})
     try:
-        assert proc.stdout.readline().strip() == "ready"
+        words = proc.stdout.readline().split()
+        assert words[:1] == ["ready"]
         time.sleep(0.2)                                  # inside the product
+        sent = time.monotonic()
         proc.send_signal(signal.SIGTERM)
         status = proc.wait(timeout=EXIT_S)
+        stopped = time.monotonic() - sent
     finally:
         _kill_session(proc.pid)
+    return status, stopped, proc.stderr.read(), words[1:]
+
+
+def test_a_forced_end_removes_the_staging_folder_being_written(tmp_path):
+    """SIGTERM while the main thread is in C inside a staged write (the outputs' ``.writing-*``
+    folder): the watchdog ends the process (143) within 2 s and the folder is gone with it."""
+    staging = tmp_path / ".writing-test"
+    status, stopped, stderr, _ = _stuck_in_c(f"staging = Path({str(staging)!r}); staging.mkdir()\n"
+                                             "(staging / 'solution.json').write_text('{')",
+                                             "temporary_folder(staging)")
     assert status == 143
-    assert "forced" in proc.stderr.read()
+    assert stopped < STOP_S
+    assert "forced" in stderr
     assert not staging.exists()
 
 
@@ -498,32 +512,12 @@ def test_the_watchdog_ends_a_process_whose_main_thread_is_stuck_in_c(tmp_path):
     """The main thread in a long C call (a large matrix product) cannot run Python's handler:
     the watchdog ends the process with 143 within 2 s of SIGTERM, saying so, and takes along
     the processes it started — here one in a process group of its own, as the compiler's."""
-    script = ("import subprocess, sys, numpy as np\n"
-              "from nhgait.gaits.cli.stopping import stop_signals\n"
-              "helper = subprocess.Popen(['sleep', '60'], start_new_session=True)\n"
-              "a = np.ones((6000, 6000))\n"
-              "with stop_signals():\n"
-              "    print('ready', helper.pid, flush=True)\n"
-              "    for _ in range(100):\n"
-              "        a @ a\n"
-              "sys.exit(0)\n")
-    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, start_new_session=True, env={**os.environ, "OMP_NUM_THREADS": "1",
-                                                                    "OPENBLAS_NUM_THREADS": "1"})
-    helper = None
-    try:
-        said, helper = proc.stdout.readline().split()
-        assert said == "ready"
-        time.sleep(0.2)                                  # inside the product
-        sent = time.monotonic()
-        proc.send_signal(signal.SIGTERM)
-        status = proc.wait(timeout=EXIT_S)
-    finally:
-        _kill_session(proc.pid)
+    status, stopped, stderr, (helper,) = _stuck_in_c(
+        "helper = subprocess.Popen(['sleep', '60'], start_new_session=True)", "", "helper.pid")
     try:
         assert status == 143
-        assert time.monotonic() - sent < STOP_S
-        assert "nhgait: terminated (forced: still running 1.5 s after the signal)" in proc.stderr.read()
+        assert stopped < STOP_S
+        assert "nhgait: terminated (forced: still running 1.5 s after the signal)" in stderr
         _wait_until(lambda: not [p for p in _processes() if p.pid == int(helper)], 5.0,
                     "the helper to be gone")
     finally:

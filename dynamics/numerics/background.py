@@ -129,17 +129,13 @@ class Builders:
     def terminate(self) -> None:
         """SIGTERM to every running builder, without waiting (each kills its compiler and
         removes its folder): the stop watchdog's way, which has no time to wait."""
-        for proc in self.running():
-            with contextlib.suppress(ProcessLookupError):
-                proc.send_signal(signal.SIGTERM)
+        _sigterm(self.running())
 
     def cancel(self) -> int:
         """Stop every running builder (SIGTERM: it kills its compiler and removes its folder;
         SIGKILL after :data:`CANCEL_WAIT_S`); how many were running."""
         running = self.running()
-        for proc in running:
-            with contextlib.suppress(ProcessLookupError):
-                proc.send_signal(signal.SIGTERM)
+        _sigterm(running)
         deadline = time.monotonic() + CANCEL_WAIT_S
         for proc in running:
             try:
@@ -149,6 +145,12 @@ class Builders:
                     os.killpg(proc.pid, signal.SIGKILL)
                 proc.wait()
         return len(running)
+
+
+def _sigterm(processes) -> None:
+    for proc in processes:
+        with contextlib.suppress(ProcessLookupError):
+            proc.send_signal(signal.SIGTERM)
 
 
 #: the builders of this process (see :class:`Builders`)
