@@ -55,21 +55,32 @@ class CompileBudget:
     """Generated C size → optimisation level, from ``experiments/bench_scale.py`` on the 2-core
     machine (loaded): gcc -O1 took 34.7 s for 2.56 MB, 63.4 s for 4.07 MB and 250 s for 7.02 MB
     of CasADi's straight-line code (superlinear: register allocation in huge functions; 0.47 GB
-    of memory for 2.56 MB, 1.1 GB for 7 MB); -O0 takes 1.5–5 s per MB but its code runs 3–4×
-    slower (the 8-link snake's NLP solved in 4.3 s compiled at -O1, 16.7 s at -O0). -O1 is kept
-    up to 5 MB, -O0 up to 20 MB, then there is no optimised build. The optimised build runs in
-    the background (:func:`choose_code`); its estimate is said beside it."""
+    of memory for 2.56 MB, 1.1 GB for 7 MB; -Og no better: 127 s, 1.08 GB); -O0 takes 1.5–5 s
+    per MB but its code runs 3–4× slower (the 8-link snake's NLP solved in 4.3 s compiled at
+    -O1, 16.7 s at -O0). -O2 (issue 25, measured on a quiet machine, 2026-11-26): 1.4–1.8× the
+    seconds of -O1 and ≤ 1.2× its memory for 0.4–2.9 MB of the scale benchmark's C (the cart
+    with six trailers, 2.90 MB: 45.7 s and 594 MB against 31.6 s and 577 MB), and solves in
+    0.78–0.95× the time of -O1's code (the two-steering snakeboard 0.78, the 5-link snake
+    0.90). No ``-march=native``: a cached library must run on every machine sharing the cache.
+    -O2 is kept up to 3 MB, -O1 up to 5 MB, -O0 up to 20 MB, then there is no optimised build.
+    The optimised build runs in the background (:func:`choose_code`); its estimate is said
+    beside it."""
 
     o1_bytes: float = 5e6
     o0_bytes: float = 20e6
     o1_s_per_mb: float = 15.0
     o0_s_per_mb: float = 1.5
+    o2_bytes: float = 3e6
+    o2_s_per_mb: float = 22.0
 
     def choose(self, c_bytes: int) -> tuple:
         """(flags or None for no optimised build, estimated seconds, reason)."""
         mb = c_bytes / 1e6
+        if c_bytes <= min(self.o2_bytes, self.o1_bytes):
+            return ("-O2",), mb * self.o2_s_per_mb, f"{mb:.2f} MB ≤ {self.o2_bytes / 1e6:g} MB: -O2"
         if c_bytes <= self.o1_bytes:
-            return ("-O1",), mb * self.o1_s_per_mb, f"{mb:.2f} MB ≤ {self.o1_bytes / 1e6:g} MB: -O1"
+            return ("-O1",), mb * self.o1_s_per_mb, (f"{mb:.2f} MB > {self.o2_bytes / 1e6:g} MB: -O1 "
+                                                      f"(-O2 would take about {mb * self.o2_s_per_mb:.0f} s)")
         if c_bytes <= self.o0_bytes:
             return ("-O0",), mb * self.o0_s_per_mb, (f"{mb:.2f} MB > {self.o1_bytes / 1e6:g} MB: -O0 "
                                                       f"(-O1 would take about {mb * self.o1_s_per_mb:.0f} s)")

@@ -78,14 +78,14 @@ def test_first_plan_does_not_wait_for_the_optimised_build_and_the_next_run_uses_
     assert first.solution.verification.passed
     assert compile_1["code"] == "fast"
     assert later["state"] == "started"
-    assert later["flags"] == ["-O1"]
+    assert later["flags"] == ["-O2"]      # a small NLP (well under 3 MB of C): -O2
     # the plan returned while gcc was held: the optimised library cannot exist yet
     assert not (jit_dir() / f"{later['key']}.so").exists()
     assert BUILDERS.running()
     held.hold(False)
     assert BUILDERS.wait(timeout=300)
     record = json.loads((jit_dir() / f"{later['key']}.json").read_text())
-    assert record["flags"] == ["-O1"]
+    assert record["flags"] == ["-O2"]
     assert record["compile_s"] > 0
     assert record["compiler_peak_mb"] > 0
     assert held.runs() == 1
@@ -97,7 +97,7 @@ def test_first_plan_does_not_wait_for_the_optimised_build_and_the_next_run_uses_
     assert compile_2["later"] is None
     assert second.success  # loaded, not compiled again
     assert held.runs() == 1
-    # two compilers, one optimum: gcc -O1's code and tcc's agree to the solver's tolerance
+    # two compilers, one optimum: gcc -O2's code and tcc's agree to the solver's tolerance
     assert second.solution.objective == pytest.approx(first.solution.objective, rel=1e-8)
     assert not [p for p in jit_dir().iterdir() if p.name.startswith(".build-")]
 
@@ -209,3 +209,15 @@ def test_compiled_fast_agrees_and_falls_back_to_the_function_itself(cold, monkey
             np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-13, atol=1e-13)
     monkeypatch.setenv("NHGAIT_FAST_CC", "/nonexistent/tcc")
     assert compiled_fast(f, salt="test") is f
+
+
+def test_compile_budget_levels_follow_the_c_size():
+    """The optimisation level per C size (``CompileBudget``, measured in bench_scale): -O2 up to
+    3 MB, -O1 up to 5 MB, -O0 up to 20 MB, none beyond; each choice names its reason; a
+    budget of 0 bytes never builds."""
+    from nhgait.ocp.nlp_code import COMPILE_BUDGET, CompileBudget
+    levels = {size: COMPILE_BUDGET.choose(size) for size in (400_000, 2_900_000, 4_000_000, 7_000_000, 25_000_000)}
+    assert [lv[0] for lv in levels.values()] == [("-O2",), ("-O2",), ("-O1",), ("-O0",), None]
+    assert "-O2 would take" in levels[4_000_000][2]
+    assert "-O1 would take" in levels[7_000_000][2]
+    assert CompileBudget(0, 0).choose(1)[0] is None
