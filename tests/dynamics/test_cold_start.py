@@ -216,7 +216,8 @@ def test_compile_budget_levels_follow_the_c_size():
     3 MB, -O1 up to 5 MB, -O0 up to 20 MB, none beyond; each choice names its reason; a
     budget of 0 bytes never builds."""
     from nhgait.ocp.nlp_code import COMPILE_BUDGET, CompileBudget
-    levels = {size: COMPILE_BUDGET.choose(size) for size in (400_000, 2_900_000, 4_000_000, 7_000_000, 25_000_000)}
+    sizes = (400_000, 2_900_000, 4_000_000, 7_000_000, 25_000_000)
+    levels = {size: COMPILE_BUDGET.choose(size) for size in sizes}
     assert [lv[0] for lv in levels.values()] == [("-O2",), ("-O2",), ("-O1",), ("-O0",), None]
     assert "-O2 would take" in levels[4_000_000][2]
     assert "-O1 would take" in levels[7_000_000][2]
