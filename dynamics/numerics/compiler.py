@@ -8,7 +8,8 @@
 
 * **Cache with trust rules.** The library lives in ``<cache dir>/jit/<key>.so`` with
   ``key`` = :func:`library_key`, the SHA-256 of the source, the compiler command, the flags,
-  the libraries and ``salt``; a record ``<key>.json`` holds the library's SHA-256. A cached
+  the libraries and ``salt`` (and the CPU, for code built for it: :data:`NATIVE_FLAGS`); a
+  record ``<key>.json`` holds the library's SHA-256. A cached
   library is used only when :func:`~.cache.trusted_file` accepts both (directory 0700, owned
   by the user, not group/world-writable, content hash unchanged); otherwise it is rebuilt. A
   cache directory refused by the trust rules is not used for libraries either (its ``jit/``
@@ -59,12 +60,18 @@ from ..memo import LruMemo
 
 __all__ = ["Library", "CompilerUnavailable", "build_library", "cached_library", "compiler_command",
            "library_key", "jit_dir", "library_dir", "compile_in", "CompileJob", "STALE_BUILD_S",
-           "COMPILER_COMMANDS"]
+           "COMPILER_COMMANDS", "NATIVE_FLAGS", "host_cpu"]
 
 #: a build folder older than this (seconds) is left over from a process that died: removed
 STALE_BUILD_S = 3600.0
 #: Linux prctl option: signal the child when the thread that forked it dies
 _PR_SET_PDEATHSIG = 1
+#: flags that tune the code to the compiling machine's CPU: a library built with one of them is
+#: keyed by that CPU too (:func:`host_cpu`), so a cache shared with other machines never serves
+#: it to a machine that cannot run it
+NATIVE_FLAGS = ("-march=native", "-mcpu=native", "-mtune=native")
+#: machines whose compilers (gcc, clang) accept ``-march=native`` and whose CPU :func:`host_cpu` reads
+_NATIVE_MACHINES = ("x86_64", "aarch64")
 
 
 class CompilerUnavailable(RuntimeError):
@@ -144,12 +151,39 @@ def jit_dir() -> Path:
     return cache_dir() / "jit"
 
 
+def host_cpu() -> str | None:
+    """This machine's instruction set as text, or None when it cannot be read: on Linux x86_64
+    and aarch64, the architecture with the first processor's vendor, model and feature flags
+    from ``/proc/cpuinfo`` (two machines with the same text run the same instructions); elsewhere
+    None, and nothing is built for the native CPU."""
+    import platform
+    machine = platform.machine()
+    if machine not in _NATIVE_MACHINES:
+        return None
+    try:
+        text = Path("/proc/cpuinfo").read_text(errors="replace")
+    except OSError:
+        return None
+    fields = {}
+    for line in text.splitlines():
+        if not line.strip():
+            break                                   # the first processor's block
+        name, _, value = line.partition(":")
+        fields.setdefault(name.strip(), value.strip())
+    found = [fields.get(k, "") for k in ("vendor_id", "model name", "flags", "CPU implementer", "CPU part",
+                                         "Features")]
+    return " | ".join([machine, *found]) if any(found) else None
+
+
 def library_key(source: str, *, flags: tuple = ("-O1",), salt: str = "", libs: tuple = ("-lm",),
                 command: list | tuple | None = None) -> str:
     """The cache key of ``source`` built by :func:`build_library` with these arguments and
-    ``command`` (None: the current compiler, :func:`compiler_command`): SHA-256 of all of them.
-    Raises :class:`CompilerUnavailable`."""
+    ``command`` (None: the current compiler, :func:`compiler_command`): SHA-256 of all of them,
+    and of :func:`host_cpu` when a flag tunes the code to it (:data:`NATIVE_FLAGS`). Raises
+    :class:`CompilerUnavailable`."""
     parts = [source, list(command) if command is not None else _command(), list(flags), list(libs), salt]
+    if any(f in NATIVE_FLAGS for f in flags):
+        parts.append(host_cpu() or "an unknown CPU")
     return hashlib.sha256(json.dumps(parts).encode()).hexdigest()
 
 

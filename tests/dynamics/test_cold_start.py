@@ -78,14 +78,14 @@ def test_first_plan_does_not_wait_for_the_optimised_build_and_the_next_run_uses_
     assert first.solution.verification.passed
     assert compile_1["code"] == "fast"
     assert later["state"] == "started"
-    assert later["flags"] == ["-O2"]      # a small NLP (well under 3 MB of C): -O2
+    assert later["flags"][0] == "-O2"      # a small NLP (well under 3 MB of C): -O2
     # the plan returned while gcc was held: the optimised library cannot exist yet
     assert not (jit_dir() / f"{later['key']}.so").exists()
     assert BUILDERS.running()
     held.hold(False)
     assert BUILDERS.wait(timeout=300)
     record = json.loads((jit_dir() / f"{later['key']}.json").read_text())
-    assert record["flags"] == ["-O2"]
+    assert record["flags"] == later["flags"]
     assert record["compile_s"] > 0
     assert record["compiler_peak_mb"] > 0
     assert held.runs() == 1
@@ -211,14 +211,49 @@ def test_compiled_fast_agrees_and_falls_back_to_the_function_itself(cold, monkey
     assert compiled_fast(f, salt="test") is f
 
 
-def test_compile_budget_levels_follow_the_c_size():
+def test_compile_budget_levels_follow_the_c_size(monkeypatch):
     """The optimisation level per C size (``CompileBudget``, measured in bench_scale): -O2 up to
     3 MB, -O1 up to 5 MB, -O0 up to 20 MB, none beyond; each choice names its reason; a
-    budget of 0 bytes never builds."""
+    budget of 0 bytes never builds; -O2 is built for the CPU only when the CPU can be read."""
+    import nhgait.ocp.nlp_code as nlp_code
     from nhgait.ocp.nlp_code import COMPILE_BUDGET, CompileBudget
+    monkeypatch.setattr(nlp_code, "host_cpu", lambda: None)
     sizes = (400_000, 2_900_000, 4_000_000, 7_000_000, 25_000_000)
     levels = {size: COMPILE_BUDGET.choose(size) for size in sizes}
     assert [lv[0] for lv in levels.values()] == [("-O2",), ("-O2",), ("-O1",), ("-O0",), None]
     assert "-O2 would take" in levels[4_000_000][2]
     assert "-O1 would take" in levels[7_000_000][2]
     assert CompileBudget(0, 0).choose(1)[0] is None
+    monkeypatch.setattr(nlp_code, "host_cpu", lambda: "x86_64 | GenuineIntel | some CPU | sse2 avx2")
+    assert COMPILE_BUDGET.choose(400_000)[0] == ("-O2", "-march=native")
+    assert CompileBudget(native=False).choose(400_000)[0] == ("-O2",)
+    assert COMPILE_BUDGET.choose(4_000_000)[0] == ("-O1",)
+
+
+def test_a_library_built_for_the_cpu_is_keyed_by_it(monkeypatch):
+    """A cache shared by two machines: code built with -march=native on one is not found by the
+    other (its key holds the CPU's text); portable flags give one key everywhere."""
+    import nhgait.dynamics.numerics.compiler as compiler
+    keys = {}
+    for cpu in ("x86_64 | AuthenticAMD | EPYC | sse2 avx2", "x86_64 | GenuineIntel | Xeon | sse2 avx512f"):
+        monkeypatch.setattr(compiler, "host_cpu", lambda cpu=cpu: cpu)
+        keys[cpu] = [compiler.library_key("int f(void){return 1;}", flags=flags, command=["cc"])
+                     for flags in (("-O2", "-march=native"), ("-O2",))]
+    native, portable = zip(*keys.values(), strict=True)
+    assert native[0] != native[1]
+    assert portable[0] == portable[1]
+
+
+@pytest.mark.skipif(not Path("/proc/cpuinfo").exists(), reason="reads /proc/cpuinfo (Linux)")
+def test_host_cpu_reads_this_machines_instruction_set():
+    import platform
+
+    from nhgait.dynamics.numerics.compiler import host_cpu
+    cpu = host_cpu()
+    if platform.machine() not in ("x86_64", "aarch64"):
+        assert cpu is None
+        return
+    assert cpu.startswith(platform.machine())
+    flags_line = next(line for line in Path("/proc/cpuinfo").read_text().splitlines()
+                      if line.split(":")[0].strip() in ("flags", "Features"))
+    assert flags_line.split(":", 1)[1].strip() in cpu
