@@ -633,5 +633,8 @@ def _compiled_text(settings) -> str:
     if c.get("code") == "fast":
         return f"compiled fast ({c.get('compiler')}, {size}, {c.get('compile_s', 0):.2f} s{after})"
     size += f", {' '.join(c.get('flags') or [])}"
+    if c.get("switched_from"):
+        return (f"compiled ({size}, built in the background during this plan; the attempts before it ran "
+                f"{c['switched_from']})")
     return f"compiled ({size}" + (", cached)" if settings.get("jit_cached")
                                   else f", {c.get('compile_s', 0):.1f} s)")

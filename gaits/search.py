@@ -79,8 +79,14 @@ def attempt_of(label, s, solver_name="") -> Attempt:
 #: lowest objective kept: one task can have many local optima (a snakeboard's sideways gait
 #: reached 0.0288 … 0.0479 from twelve guesses, the first 0.0331) ...
 EXPLORE_GUESSES = 6
-#: ... within this many times the seconds of the first success, at least EXPLORE_FLOOR_S, at
-#: most EXPLORE_BUDGET_SHARE of what is left of the plan's budget
+#: ... sharing, in order, an allowance of this many times the first success's iterations (at
+#: least EXPLORE_MIN_ITERATIONS): counted in iterations, not seconds, so that a cold plan (the
+#: fast compiler's slower code) and a warm one, a slow machine and a fast one, try the same
+#: guesses and keep the same optimum; at most EXPLORE_BUDGET_SHARE of what is left of the plan's
+#: budget in seconds. A solver without an iteration callback (FATROP) gets EXPLORE_TIME_RATIO
+#: times the first success's seconds instead, at least EXPLORE_FLOOR_S.
+EXPLORE_ITERATION_RATIO = 3.0
+EXPLORE_MIN_ITERATIONS = 100
 EXPLORE_TIME_RATIO = 3.0
 EXPLORE_FLOOR_S = 1.0
 EXPLORE_BUDGET_SHARE = 0.25
@@ -190,6 +196,7 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
         batch = _built(guesses, range(start, min(start + workers, total)), budget)
         if not batch:
             break
+        solver.adopt_optimised()
         t0 = time.monotonic()
         sols = solve_attempts(solver, batch, workers=workers, budget=budget, progress=progress)
         for k, (g, s) in enumerate(zip(batch, sols, strict=True)):
@@ -203,41 +210,75 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
             found = Search(sols[i], tuple(attempts), batch[i].label, closest)
             if not explore:
                 return found
+            window = _Window.after(found.solution, time.monotonic() - t0, solver, budget)
             return _explored(solver, guesses, found, range(start + len(batch), min(total, start + len(batch)
                                                                                   + EXPLORE_GUESSES)),
-                             _explore_seconds(time.monotonic() - t0, budget), workers, budget, progress)
+                             window, workers, budget, progress)
     return Search(None, tuple(attempts), None, closest)
 
 
-def _explore_seconds(first: float, budget) -> float:
-    """The exploration's time: :data:`EXPLORE_TIME_RATIO` × the first success's ``first``
-    seconds, at least :data:`EXPLORE_FLOOR_S`, at most :data:`EXPLORE_BUDGET_SHARE` of what is
-    left of ``budget``."""
-    seconds = max(EXPLORE_FLOOR_S, EXPLORE_TIME_RATIO * first)
-    return seconds if budget is None else min(seconds, EXPLORE_BUDGET_SHARE * budget.remaining())
+@dataclass(frozen=True)
+class _Window:
+    """What the exploration may still spend: ``iterations`` (None: not counted — a solver
+    without an iteration callback) and a ``deadline`` (``time.monotonic()``; None: none)."""
+
+    iterations: int | None
+    deadline: float | None
+
+    @classmethod
+    def after(cls, first, seconds: float, solver, budget) -> _Window:
+        """The window after a first success ``first`` that took ``seconds`` (:data:`EXPLORE_GUESSES`)."""
+        now = time.monotonic()
+        share = None if budget is None else EXPLORE_BUDGET_SHARE * budget.remaining()
+        if solver.options.backend.iteration_callback:
+            iterations = max(EXPLORE_MIN_ITERATIONS, math.ceil(EXPLORE_ITERATION_RATIO * first.iterations))
+            return cls(iterations, None if share is None else now + share)
+        spend = max(EXPLORE_FLOOR_S, EXPLORE_TIME_RATIO * seconds)
+        return cls(None, now + (spend if share is None else min(spend, share)))
+
+    def text(self) -> str:
+        if self.iterations is not None:
+            return f"{self.iterations} iterations in all"
+        return f"{self.deadline - time.monotonic():.0f} s"
+
+    def open(self) -> bool:
+        seconds = self.left_seconds()
+        return (self.iterations is None or self.iterations > 0) and (seconds is None or seconds > 0)
+
+    def left_seconds(self) -> float | None:
+        return None if self.deadline is None else self.deadline - time.monotonic()
+
+    def less(self, iterations: int) -> _Window:
+        """This window after attempts that took ``iterations`` in all."""
+        return self if self.iterations is None else replace(self, iterations=self.iterations - iterations)
+
+    def limited(self, solver):
+        """``solver`` bounded by what is left: the iterations and the seconds."""
+        left, own = self.left_seconds(), solver.options.time_limit
+        seconds = own if left is None else (left if own is None else min(left, own))
+        return solver.with_time_limit(seconds).with_iteration_limit(self.iterations)
 
 
-def _explored(solver, guesses, found: Search, indices, seconds: float, workers: int, budget,
+def _explored(solver, guesses, found: Search, indices, window: _Window, workers: int, budget,
               progress) -> Search:
-    """``found`` or a lower objective among the guesses at ``indices`` tried after it, each
-    attempt within what is left of ``seconds`` (the closest failure and every attempt kept)."""
-    deadline = time.monotonic() + seconds
+    """``found`` or a lower objective among the guesses at ``indices`` tried after it, in order,
+    each attempt within what is left of ``window`` (the closest failure and every attempt kept)."""
     name = solver.options.solver
     attempts, best, label = list(found.attempts), found.solution, found.won
     indices = list(indices)
-    if indices and seconds > 0:
+    if indices and window.open():
         progress.note(f"  looking for a lower objective: up to {len(indices)} more guesses within "
-                      f"{seconds:.0f} s")
+                      f"{window.text()}")
     for start in range(0, len(indices), workers):
-        left = deadline - time.monotonic()
-        if left <= 0 or _spent(budget):
+        if not window.open() or _spent(budget):
             break
         batch = _built(guesses, indices[start:start + workers], budget)
         if not batch:
             break
-        limit = left if solver.options.time_limit is None else min(left, solver.options.time_limit)
-        sols = solve_attempts(solver.with_time_limit(limit), batch, workers=workers, budget=budget,
+        solver.adopt_optimised()
+        sols = solve_attempts(window.limited(solver), batch, workers=workers, budget=budget,
                               progress=progress)
+        window = window.less(sum(s.iterations for s in sols))
         for k, (g, s) in enumerate(zip(batch, sols, strict=True)):
             attempts.append(attempt_of(g.label, s, name))
             _report(progress, indices[start] + k + 1, indices[-1] + 1, g.label, s)

@@ -28,7 +28,7 @@ which code solved (``code``: optimised, fast or interpreted; ``compiler``; ``fla
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from nhgait.dynamics.numerics.background import BackgroundBuild, start_build
@@ -39,11 +39,12 @@ from nhgait.dynamics.numerics.compiler import (
     cached_library,
     compiler_command,
     host_cpu,
+    library_by_key,
 )
 from nhgait.dynamics.numerics.fast_compiler import MISSING, fast_compiler
 
 __all__ = ["CompileBudget", "COMPILE_BUDGET", "CompileReport", "NlpCode", "choose_code", "CODES",
-           "NO_COMPILER"]
+           "NO_COMPILER", "optimised_ready"]
 
 #: what can run the NLP functions
 CODES = ("optimised", "fast", "interpreted")
@@ -114,12 +115,14 @@ class CompileReport:
     code: str = "optimised"
     compiler: str = ""
     later: BackgroundBuild | None = None
+    switched_from: str = ""
 
     def describe(self) -> dict:
         return {"c_bytes": self.c_bytes, "flags": list(self.flags) if self.flags else None,
                 "compile_s": round(self.compile_s, 3), "estimate_s": round(self.estimate_s, 1),
                 "cached": self.cached, "reason": self.reason, "code": self.code, "compiler": self.compiler,
-                "later": self.later.describe() if self.later is not None else None}
+                "later": self.later.describe() if self.later is not None else None,
+                "switched_from": self.switched_from}
 
 
 @dataclass(frozen=True)
@@ -162,6 +165,21 @@ def choose_code(source: str, options, progress, *, salt: str) -> NlpCode:
                            estimate, bool(lib is not None and lib.cached), reason,
                            None if lib is None else str(lib.path), kind, compiler, later)
     return NlpCode(lib, report, fallback)
+
+
+def optimised_ready(report: CompileReport | None) -> CompileReport | None:
+    """The report of the optimised library once the background build ``report`` started has
+    landed in the cache (found by its key, trusted), else None: a plan adopts it between its
+    attempts (:meth:`~.solver.OCPSolver.adopt_optimised`) instead of waiting for the next run.
+    ``switched_from`` keeps the code it replaces; ``later`` is then done."""
+    later = None if report is None or report.code == "optimised" else report.later
+    if later is None or later.state != "started":
+        return None
+    path = library_by_key(later.key)
+    if path is None:
+        return None
+    return replace(report, flags=later.flags, compile_s=0.0, cached=True, path=str(path), code="optimised",
+                   compiler=later.compiler, later=None, switched_from=report.code)
 
 
 def _ready_now(source, options, progress, salt, optimised) -> tuple:

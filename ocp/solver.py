@@ -38,6 +38,7 @@ import shutil
 import time
 import weakref
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -48,7 +49,7 @@ from nhgait.dynamics.progress import Progress
 
 from .backends import BACKENDS, SolverBackend
 from .derivatives import nlp_functions
-from .nlp_code import COMPILE_BUDGET, NO_COMPILER, CompileBudget, CompileReport, choose_code
+from .nlp_code import COMPILE_BUDGET, NO_COMPILER, CompileBudget, CompileReport, choose_code, optimised_ready
 from .problem import OptimalControlProblem, ProblemError
 from .solution import Solution
 from .transcription import Collocation, StageShooting, TranscribedNLP, get_transcription
@@ -83,7 +84,10 @@ class SolverOptions:
     solve (None: unbounded) — Ipopt's ``max_wall_time`` and a deadline in its iteration
     callback (:meth:`OCPSolver.with_time_limit` changes the latter only); FATROP has no time
     option: its attempts are bounded by the supervisor that runs them (:mod:`.supervision`). A
-    solve stopped by it has status ``"Time_Limit_Exceeded"``.
+    solve stopped by it has status ``"Time_Limit_Exceeded"``. ``iteration_limit``: at most this
+    many iterations per solve, below ``max_iter`` (which is fixed when the solver is made), through
+    the iteration callback (Ipopt; :meth:`OCPSolver.with_iteration_limit`); a solve stopped by it
+    has status ``"Maximum_Iterations_Exceeded"``. FATROP, without the callback, ignores it.
     """
 
     max_iter: int = 3000
@@ -99,6 +103,7 @@ class SolverOptions:
     fatrop: dict = field(default_factory=dict)
     budget: CompileBudget = COMPILE_BUDGET
     time_limit: float | None = None
+    iteration_limit: int | None = None
 
     def __post_init__(self):
         problems = []
@@ -106,6 +111,9 @@ class SolverOptions:
             problems.append(f"jit must be None, True, False or 'optimised', got {self.jit!r}")
         if self.time_limit is not None and not (float(self.time_limit) > 0):
             problems.append(f"time_limit must be a positive number of seconds, got {self.time_limit!r}")
+        if self.iteration_limit is not None and not (isinstance(self.iteration_limit, int)
+                                                     and self.iteration_limit > 0):
+            problems.append(f"iteration_limit must be a whole number ≥ 1, got {self.iteration_limit!r}")
         if self.solver not in SOLVERS:
             problems.append(f"unknown solver {self.solver!r} (known: {', '.join(SOLVERS)})")
         if self.hessian not in HESSIANS:
@@ -141,7 +149,7 @@ class SolverOptions:
         return {"solver": self.solver, "max_iter": self.max_iter, "tol": self.tol, "hessian": self.hessian,
                 "jit": self.jit, "jit_flags": list(self.jit_flags) if self.jit_flags else None,
                 "linear_solver": self.linear_solver, "expand": self.expand,
-                "time_limit": self.time_limit, **extra}
+                "time_limit": self.time_limit, "iteration_limit": self.iteration_limit, **extra}
 
 
 @dataclass(frozen=True)
@@ -170,10 +178,11 @@ class _Iterations(ca.Callback):
         self.start()
         self.construct(name, {"enable_fd": False})
 
-    def start(self, deadline: float | None = None):
-        """A new solve, asked to stop after ``deadline`` (``time.perf_counter()`` seconds)."""
-        self.count, self.last, self.deadline = 0, time.perf_counter(), deadline
-        self.timed_out, self.raised = False, None
+    def start(self, deadline: float | None = None, cap: int | None = None):
+        """A new solve, asked to stop after ``deadline`` (``time.perf_counter()`` seconds) or
+        after ``cap`` iterations (``capped``)."""
+        self.count, self.last, self.deadline, self.cap = 0, time.perf_counter(), deadline, cap
+        self.timed_out, self.capped, self.raised = False, False, None
 
     def get_n_in(self):
         return ca.nlpsol_n_out()
@@ -201,10 +210,13 @@ class _Iterations(ca.Callback):
 
     def _iteration(self, arg) -> int:
         """1 to stop the solver (past the deadline), else 0."""
-        self.count += 1
+        self.count += 1                 # the callback sees iteration 0 too: count − 1 iterations done
         now = time.perf_counter()
         if self.deadline is not None and now > self.deadline:
             self.timed_out = True
+            return 1
+        if self.cap is not None and self.count > self.cap:
+            self.capped = True
             return 1
         if self.progress.enabled and self.count % self.every == 0 and now - self.last >= self.seconds:
             self.last = now
@@ -314,6 +326,25 @@ class OCPSolver:
         self.compiled, self.jit_cached, self.jit_path = True, lib.cached, lib.path
         return self._nlpsol("ocp", ca.external("nlp", str(lib.path)), opts)
 
+    def adopt_optimised(self) -> bool:
+        """Switch to the optimised library once the background build this solver started has
+        landed in the cache (:func:`.nlp_code.optimised_ready`; issue 25): the solves from now
+        on run on it, and their ``settings["compile"]`` says so (``code`` "optimised",
+        ``switched_from`` the code before). True when it switched; a library that does not load
+        leaves the code as it was. The search calls it before each batch of attempts."""
+        report = optimised_ready(self.compile_report)
+        if report is None:
+            return False
+        try:
+            solver = self._nlpsol("ocp", ca.external("nlp", report.path), self.options.nlpsol_options())
+        except RuntimeError:
+            return False
+        self.solver, self.compile_report = solver, report
+        self.compiled, self.jit_cached, self.jit_path, self.jit_fallback = True, True, Path(report.path), None
+        self.progress.note(f"  the optimised library is ready ({report.compiler} {' '.join(report.flags)}, "
+                           "built in the background): the next attempts run on it")
+        return True
+
     def with_problem(self, problem: OptimalControlProblem) -> OCPSolver:
         """This solver for ``problem``, a problem of the same structure whose values (targets,
         bounds) differ: the NLP functions are reused, only the bounds are recomputed."""
@@ -358,13 +389,16 @@ class OCPSolver:
         callback = getattr(self, "_callback", None)
         if callback is not None:
             limit = self.options.time_limit
-            callback.start(None if limit is None else time.perf_counter() + float(limit))
+            callback.start(None if limit is None else time.perf_counter() + float(limit),
+                           self.options.iteration_limit)
         out, error, refused, wall = self._run(w0)
         if callback is not None and callback.raised is not None:
             raise callback.raised
         stats = {} if refused else self.solver.stats()     # a refused guess never ran the solver
         if callback is not None and callback.timed_out:
             stats = {**stats, "return_status": "Time_Limit_Exceeded"}
+        elif callback is not None and callback.capped:
+            stats = {**stats, "return_status": "Maximum_Iterations_Exceeded"}
         w, objective, viol, violated = self._outcome(out, w0)
         fn_time = sum(float(v) for k, v in stats.items() if k.startswith("t_wall_nlp_"))
         total = float(stats.get("t_wall_total", wall))
@@ -428,11 +462,19 @@ class OCPSolver:
         ``max_wall_time`` is fixed when the solver is made — remaking an interpreted solver costs
         as much as making it); FATROP, which has no time option, through the supervisor that
         runs the attempt (:mod:`.supervision`)."""
-        if seconds == self.options.time_limit:
+        return self._with_options(time_limit=seconds)
+
+    def with_iteration_limit(self, iterations: int | None) -> OCPSolver:
+        """This solver with ``options.iteration_limit = iterations`` (honoured by the iteration
+        callback), sharing its NLP functions and solver."""
+        return self._with_options(iteration_limit=iterations)
+
+    def _with_options(self, **changes) -> OCPSolver:
+        if all(getattr(self.options, k) == v for k, v in changes.items()):
             return self
         other = object.__new__(OCPSolver)
         other.__dict__.update(self.__dict__)
-        other.options = replace(self.options, time_limit=seconds)
+        other.options = replace(self.options, **changes)
         return other
 
     def _start(self, guess: InitialGuess) -> np.ndarray:

@@ -60,7 +60,7 @@ from ..memo import LruMemo
 
 __all__ = ["Library", "CompilerUnavailable", "build_library", "cached_library", "compiler_command",
            "library_key", "jit_dir", "library_dir", "compile_in", "CompileJob", "STALE_BUILD_S",
-           "COMPILER_COMMANDS", "NATIVE_FLAGS", "host_cpu"]
+           "COMPILER_COMMANDS", "NATIVE_FLAGS", "host_cpu", "library_by_key"]
 
 #: a build folder older than this (seconds) is left over from a process that died: removed
 STALE_BUILD_S = 3600.0
@@ -394,6 +394,14 @@ def cached_library(source: str, *, flags: tuple = ("-O1",), salt: str = "", libs
 def library_dir() -> Path | None:
     """``<cache dir>/jit`` when it may be used (:func:`_library_dir`), else None."""
     return _library_dir()
+
+
+def library_by_key(key: str) -> Path | None:
+    """The cached library of cache key ``key`` (:func:`library_key`) when it is there and
+    passes the trust rules, else None: how a plan finds the library its background build
+    (:mod:`.background`) has just finished."""
+    directory = _library_dir()
+    return None if directory is None or not key else _cached(directory, key)
 
 
 def _library_dir() -> Path | None:

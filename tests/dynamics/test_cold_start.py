@@ -257,3 +257,41 @@ def test_host_cpu_reads_this_machines_instruction_set():
     flags_line = next(line for line in Path("/proc/cpuinfo").read_text().splitlines()
                       if line.split(":")[0].strip() in ("flags", "Features"))
     assert flags_line.split(":", 1)[1].strip() in cpu
+
+
+@needs_posix
+@needs_cc
+@needs_fast
+def test_a_solver_adopts_the_optimised_library_once_its_background_build_lands(cold, tmp_path, monkeypatch):
+    """Issue 25: a long cold plan need not wait for the next run — once the background build has
+    landed, the next attempts run on the optimised library (not before: while the compiler is
+    held back, the fast code stays); both codes reach one optimum (to the solver's tolerance)."""
+    from nhgait.gaits.guesses import candidates
+    from nhgait.gaits.planner import prepare
+    from nhgait.gaits.task_library import resolve
+    from nhgait.ocp import OCPSolver, SolverOptions
+    held = HeldCompiler(tmp_path / "cc")
+    held.hold(True)
+    monkeypatch.setenv("NHGAIT_CC", str(held.script))
+    plan = resolve(PLAN["system"], PLAN["task"], overrides=[f"intervals={PLAN['intervals']}"])
+    problem = prepare(plan).problem
+    ocp = OCPSolver(problem, options=SolverOptions(max_iter=500))
+    guess = candidates(problem)[0]
+    assert ocp.compile_report.code == "fast"
+    assert ocp.compile_report.later.state == "started"
+    fast = ocp.solve(guess)
+    assert not ocp.adopt_optimised()                  # the build is held: nothing to adopt yet
+    held.hold(False)
+    assert BUILDERS.wait(timeout=300)
+    assert ocp.adopt_optimised()
+    assert not ocp.adopt_optimised()                  # once
+    optimised = ocp.solve(guess)
+    report = optimised.settings["compile"]
+    assert report["code"] == "optimised"
+    assert report["switched_from"] == "fast"
+    assert report["flags"][0] == "-O2"
+    assert fast.settings["compile"]["code"] == "fast"
+    assert fast.success
+    assert optimised.success
+    assert optimised.objective == pytest.approx(fast.objective, rel=1e-8)
+    np.testing.assert_allclose(optimised.states, fast.states, atol=1e-6)

@@ -1,0 +1,56 @@
+"""``SolverOptions.iteration_limit`` (issue 25): a solve stopped after that many iterations by
+Ipopt's iteration callback, below the ``max_iter`` the solver was made with; the planner's
+exploration shares such an allowance among its guesses (``gaits/search.py``), so that it tries
+the same guesses on slow code and on fast."""
+from __future__ import annotations
+
+import pytest
+
+from nhgait.gaits.guesses import candidates
+from nhgait.gaits.planner import prepare
+from nhgait.gaits.task_library import resolve
+from nhgait.ocp import OCPSolver, SolverOptions
+from nhgait.ocp.problem import ProblemError
+
+
+@pytest.fixture(scope="module")
+def parking():
+    """The unicycle's parallel park at N = 10, interpreted (no compiler needed), and its guesses."""
+    problem = prepare(resolve("unicycle", "parallel-park", overrides=["intervals=10"])).problem
+    return OCPSolver(problem, options=SolverOptions(max_iter=500, jit=False)), candidates(problem)
+
+
+def test_a_solve_stops_after_its_iteration_limit_and_says_so(parking):
+    ocp, guesses = parking
+    full = ocp.solve(guesses[0])
+    assert full.success
+    assert full.iterations > 3
+    capped = ocp.with_iteration_limit(3).solve(guesses[0])
+    assert capped.status == "Maximum_Iterations_Exceeded"
+    assert capped.iterations == 3
+    assert not capped.success
+    again = ocp.with_iteration_limit(None).solve(guesses[0])    # the limit belongs to the copy only
+    assert again.success
+    assert again.iterations == full.iterations
+    assert again.objective == pytest.approx(full.objective, rel=1e-10)
+
+
+@pytest.mark.parametrize("bad", [0, -3, 2.5, "10"])
+def test_an_iteration_limit_must_be_a_whole_number(bad):
+    with pytest.raises(ProblemError, match="iteration_limit"):
+        SolverOptions(iteration_limit=bad)
+
+
+def test_the_exploration_shares_an_iteration_allowance_in_order(parking, monkeypatch):
+    """With an allowance of half the first success's iterations the next guess is stopped at
+    exactly that many, and nothing after it runs: the window is spent."""
+    import nhgait.gaits.search as search
+    ocp, guesses = parking
+    first = ocp.solve(guesses[0])
+    monkeypatch.setattr(search, "EXPLORE_MIN_ITERATIONS", 1)
+    monkeypatch.setattr(search, "EXPLORE_ITERATION_RATIO", 0.5)
+    allowance = -(-first.iterations // 2)
+    found = search.solve_from_guesses(ocp, guesses, limit=4, explore=True)
+    assert found.won == guesses[0].label
+    explored = found.attempts[1:]
+    assert [(a.status, a.iterations) for a in explored] == [("Maximum_Iterations_Exceeded", allowance)]
