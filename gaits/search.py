@@ -241,20 +241,18 @@ class _Window:
             return f"{self.iterations} iterations in all"
         return f"{self.deadline - time.monotonic():.0f} s"
 
-    def open(self) -> bool:
-        seconds = self.left_seconds()
-        return (self.iterations is None or self.iterations > 0) and (seconds is None or seconds > 0)
-
-    def left_seconds(self) -> float | None:
-        return None if self.deadline is None else self.deadline - time.monotonic()
+    def left(self) -> float | None:
+        """Seconds left now (None: no deadline), or 0 when nothing is left of either kind."""
+        seconds = None if self.deadline is None else max(0.0, self.deadline - time.monotonic())
+        return 0.0 if self.iterations is not None and self.iterations <= 0 else seconds
 
     def less(self, iterations: int) -> _Window:
         """This window after attempts that took ``iterations`` in all."""
         return self if self.iterations is None else replace(self, iterations=self.iterations - iterations)
 
-    def limited(self, solver):
-        """``solver`` bounded by what is left: the iterations and the seconds."""
-        left, own = self.left_seconds(), solver.options.time_limit
+    def limited(self, solver, left: float | None):
+        """``solver`` bounded by what is left: the iterations and ``left`` seconds (:meth:`left`, > 0)."""
+        own = solver.options.time_limit
         seconds = own if left is None else (left if own is None else min(left, own))
         return solver.with_time_limit(seconds).with_iteration_limit(self.iterations)
 
@@ -266,17 +264,18 @@ def _explored(solver, guesses, found: Search, indices, window: _Window, workers:
     name = solver.options.solver
     attempts, best, label = list(found.attempts), found.solution, found.won
     indices = list(indices)
-    if indices and window.open():
+    if indices and window.left() != 0.0:
         progress.note(f"  looking for a lower objective: up to {len(indices)} more guesses within "
                       f"{window.text()}")
     for start in range(0, len(indices), workers):
-        if not window.open() or _spent(budget):
+        left = window.left()
+        if left == 0.0 or _spent(budget):
             break
         batch = _built(guesses, indices[start:start + workers], budget)
         if not batch:
             break
         solver.adopt_optimised()
-        sols = solve_attempts(window.limited(solver), batch, workers=workers, budget=budget,
+        sols = solve_attempts(window.limited(solver, left), batch, workers=workers, budget=budget,
                               progress=progress)
         window = window.less(sum(s.iterations for s in sols))
         for k, (g, s) in enumerate(zip(batch, sols, strict=True)):
