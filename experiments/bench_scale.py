@@ -55,13 +55,15 @@ def cold(member: str, folder: Path, cache: Path, timeout: float, extra: tuple = 
 @dataclasses.dataclass(frozen=True)
 class Settings:
     """How the planner's NLP is solved: ``solver`` and ``hessian`` (SolverOptions), ``intervals``
-    (None: the task's) and ``jit`` ("optimised": the optimised library, built now if the cold run's
-    background build did not finish; False: interpreted)."""
+    (None: the task's), ``jit`` ("optimised": the optimised library, built now if the cold run's
+    background build did not finish; False: interpreted) and ``coarse`` (the coarse grid first,
+    as the planner solves from its own guesses: :mod:`nhgait.ocp.coarse`)."""
 
     solver: str = "ipopt"
     hessian: str = "exact"
     intervals: int | None = None
     jit: bool | str | None = "optimised"
+    coarse: bool = True
 
 
 class Ours:
@@ -78,7 +80,8 @@ class Ours:
         overrides = [f"intervals={settings.intervals}"] if settings.intervals else []
         problem = prepare(resolve(scene, overrides=overrides)).problem
         self.solver = OCPSolver(problem, None, SolverOptions(solver=settings.solver, hessian=settings.hessian,
-                                                             max_iter=500, jit=settings.jit))
+                                                             max_iter=500, jit=settings.jit,
+                                                             coarse=settings.coarse))
         guesses = candidates(problem)
         self.guess = next((g for g in guesses if g.label == guess_label), guesses[0])
         if reference is not None:                 # the reference's own guess, when the states agree
@@ -92,7 +95,9 @@ class Ours:
         last = self.runs[-1]
         return {"solve_ms": statistics.median(r.solve_time_s for r in self.runs) * 1e3,
                 "function_ms": statistics.median(r.function_time_s for r in self.runs) * 1e3,
-                "iterations": last.iterations, "objective": last.objective, "success": last.success,
+                "iterations": last.iterations, "coarse_iterations": last.stats.get("coarse_iterations"),
+                "coarse_intervals": last.stats.get("coarse_intervals"),
+                "objective": last.objective, "success": last.success,
                 "status": last.status, "setup_s": self.solver.setup_time_s, "compiled": self.solver.compiled}
 
 

@@ -451,7 +451,7 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
                                     f"{s.hessian} Hessian)"):
                     ocp = OCPSolver(problem, s.transcription,
                                     SolverOptions(jit=s.jit, solver=name, max_iter=s.max_iter,
-                                                  hessian=s.hessian),
+                                                  hessian=s.hessian, coarse=explore),
                                     progress=progress)
                     ocp = attempt_limited(ocp, None, progress)
         finally:

@@ -28,6 +28,8 @@ import time
 from dataclasses import dataclass, replace
 from typing import Any
 
+from nhgait.ocp.coarse import WARM_IPOPT as _WARM_IPOPT
+
 __all__ = ["Attempt", "Search", "WARM_IPOPT", "attempt_of", "solve_attempts", "solve_from_guesses",
            "solve_with_fallbacks", "continuation"]
 
@@ -94,14 +96,8 @@ EXPLORE_BUDGET_SHARE = 0.25
 #: fraction (of max(1, |J|)): the same optimum reached from another guess is not a new one
 EXPLORE_GAIN = 1e-6
 
-#: Ipopt settings of warm-started solves (a sweep point from its neighbour, a refinement from the
-#: converged point): a small initial barrier parameter (the start is near the optimum: a large μ
-#: would first pull it back to the central path, and a refinement once wandered from J = 40.8 to
-#: a local optimum at 57.4) and the start kept close to its active bounds (Ipopt would push it
-#: 1e-2 inside). On the benchmark's P2 grid (15 points) a warm point takes 7 iterations with
-#: Ipopt's defaults, 5.1 with μ₀ = 1e-4 and bounds pushed 1e-6, 4.6 with these, against 8.5 from
-#: the planner's guesses.
-WARM_IPOPT = {"mu_init": 1e-6, "bound_push": 1e-8, "bound_frac": 1e-8}
+#: Ipopt settings of warm-started solves (:data:`nhgait.ocp.coarse.WARM_IPOPT`)
+WARM_IPOPT = _WARM_IPOPT
 
 #: statuses of attempts that gave no answer of their own (their supervisor's message says why)
 UNANSWERED = ("Time_Limit_Exceeded", "Solver_Died")
@@ -222,7 +218,7 @@ class _Window:
     """What the exploration may still spend: ``iterations`` (None: not counted — a solver
     without an iteration callback) and a ``deadline`` (``time.monotonic()``; None: none)."""
 
-    iterations: int | None
+    iterations: float | None
     deadline: float | None
 
     @classmethod
@@ -231,14 +227,14 @@ class _Window:
         now = time.monotonic()
         share = None if budget is None else EXPLORE_BUDGET_SHARE * budget.remaining()
         if solver.options.backend.iteration_callback:
-            iterations = max(EXPLORE_MIN_ITERATIONS, math.ceil(EXPLORE_ITERATION_RATIO * first.iterations))
+            iterations = max(EXPLORE_MIN_ITERATIONS, math.ceil(EXPLORE_ITERATION_RATIO * _cost(first)))
             return cls(iterations, None if share is None else now + share)
         spend = max(EXPLORE_FLOOR_S, EXPLORE_TIME_RATIO * seconds)
         return cls(None, now + (spend if share is None else min(spend, share)))
 
     def text(self) -> str:
         if self.iterations is not None:
-            return f"{self.iterations} iterations in all"
+            return f"{self.iterations:.0f} iterations in all"
         return f"{self.deadline - time.monotonic():.0f} s"
 
     def left(self) -> float | None:
@@ -246,7 +242,7 @@ class _Window:
         seconds = None if self.deadline is None else max(0.0, self.deadline - time.monotonic())
         return 0.0 if self.iterations is not None and self.iterations <= 0 else seconds
 
-    def less(self, iterations: int) -> _Window:
+    def less(self, iterations: float) -> _Window:
         """This window after attempts that took ``iterations`` in all."""
         return self if self.iterations is None else replace(self, iterations=self.iterations - iterations)
 
@@ -254,7 +250,16 @@ class _Window:
         """``solver`` bounded by what is left: the iterations and ``left`` seconds (:meth:`left`, > 0)."""
         own = solver.options.time_limit
         seconds = own if left is None else (left if own is None else min(left, own))
-        return solver.with_time_limit(seconds).with_iteration_limit(self.iterations)
+        iterations = None if self.iterations is None else max(1, math.ceil(self.iterations))
+        return solver.with_time_limit(seconds).with_iteration_limit(iterations)
+
+
+def _cost(solution) -> float:
+    """An attempt's iterations in the task grid's terms: a coarse grid's (:mod:`nhgait.ocp.coarse`)
+    in proportion to its intervals."""
+    n = solution.stats.get("coarse_intervals")
+    coarse = solution.stats.get("coarse_iterations", 0) * n / solution.problem.intervals if n else 0.0
+    return solution.iterations + coarse
 
 
 def _explored(solver, guesses, found: Search, indices, window: _Window, workers: int, budget,
@@ -277,7 +282,7 @@ def _explored(solver, guesses, found: Search, indices, window: _Window, workers:
         solver.adopt_optimised()
         sols = solve_attempts(window.limited(solver, left), batch, workers=workers, budget=budget,
                               progress=progress)
-        window = window.less(sum(s.iterations for s in sols))
+        window = window.less(sum(_cost(s) for s in sols))
         for k, (g, s) in enumerate(zip(batch, sols, strict=True)):
             attempts.append(attempt_of(g.label, s, name))
             _report(progress, indices[start] + k + 1, indices[-1] + 1, g.label, s)

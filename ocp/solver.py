@@ -48,6 +48,7 @@ from nhgait.dynamics.numerics.fast_compiler import fast_compiler
 from nhgait.dynamics.progress import Progress
 
 from .backends import BACKENDS, SolverBackend
+from .coarse import WARM_IPOPT, coarse_intervals, combined, interpolated, resampled
 from .derivatives import nlp_functions
 from .nlp_code import COMPILE_BUDGET, NO_COMPILER, CompileBudget, CompileReport, choose_code, optimised_ready
 from .problem import OptimalControlProblem, ProblemError
@@ -88,6 +89,8 @@ class SolverOptions:
     many iterations per solve, below ``max_iter`` (which is fixed when the solver is made), through
     the iteration callback (Ipopt; :meth:`OCPSolver.with_iteration_limit`); a solve stopped by it
     has status ``"Maximum_Iterations_Exceeded"``. FATROP, without the callback, ignores it.
+    ``coarse``: each solve starts on a coarse grid (:mod:`.coarse`; Ipopt, problems without
+    waypoints or phases, N ≥ 45) — for solves from generic guesses, not from warm starts.
     """
 
     max_iter: int = 3000
@@ -104,6 +107,7 @@ class SolverOptions:
     budget: CompileBudget = COMPILE_BUDGET
     time_limit: float | None = None
     iteration_limit: int | None = None
+    coarse: bool = False
 
     def __post_init__(self):
         problems = []
@@ -149,7 +153,8 @@ class SolverOptions:
         return {"solver": self.solver, "max_iter": self.max_iter, "tol": self.tol, "hessian": self.hessian,
                 "jit": self.jit, "jit_flags": list(self.jit_flags) if self.jit_flags else None,
                 "linear_solver": self.linear_solver, "expand": self.expand,
-                "time_limit": self.time_limit, "iteration_limit": self.iteration_limit, **extra}
+                "time_limit": self.time_limit, "iteration_limit": self.iteration_limit, "coarse": self.coarse,
+                **extra}
 
 
 @dataclass(frozen=True)
@@ -260,7 +265,7 @@ class OCPSolver:
         self.nlp: TranscribedNLP = self.transcription.build(problem)
         self.functions = nlp_functions(self.nlp, hessian=self.options.hessian, solver=self.options.solver)
         self.jit_cached, self.jit_fallback, self.compiled, self.jit_path = None, None, False, None
-        self.compile_report = None
+        self.compile_report, self.coarse = None, None
         if self.options.jit is None and compiler_command() is None and fast_compiler() is None:
             self.jit_fallback = NO_COMPILER
             self.progress.note_once("no-compiler", f"{NO_COMPILER}: the NLP functions run interpreted")
@@ -269,6 +274,9 @@ class OCPSolver:
         if not self.compiled:
             self.solver = self._nlpsol("ocp", *self._source())
         self.setup_time_s = time.perf_counter() - t0
+        if self.options.coarse:
+            self.coarse = self._coarse_start()
+            self.setup_time_s = time.perf_counter() - t0
 
     def nlp_structure_missing(self) -> bool:
         return not isinstance(self.transcription, StageShooting)
@@ -341,6 +349,10 @@ class OCPSolver:
             return False
         self.solver, self.compile_report = solver, report
         self.compiled, self.jit_cached, self.jit_path, self.jit_fallback = True, True, Path(report.path), None
+        if self.coarse is not None:
+            n, sub, _ = self.coarse
+            sub.adopt_optimised()
+            self.coarse = (n, sub, self._warm())
         self.progress.note(f"  the optimised library is ready ({report.compiler} {' '.join(report.flags)}, "
                            "built in the background): the next attempts run on it")
         return True
@@ -355,6 +367,7 @@ class OCPSolver:
         other.__dict__.update(self.__dict__)
         other.problem = problem
         other.nlp = replace(self.nlp, problem=problem, lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg)
+        other.coarse = None                     # a problem grown from another: no coarse grid
         return other
 
     def settings(self) -> dict:
@@ -382,9 +395,53 @@ class OCPSolver:
                 "(a configuration on the model's singular set?)")
 
     def solve(self, guess: InitialGuess) -> Solution:
-        """Run the solver from ``guess`` (projected into the bounds) in this process; failures
-        are returned as ``success=False``, a guess with non-finite dynamics without running the
-        solver. (The planner runs each solve in a supervised child: :mod:`.supervision`.)"""
+        """Run the solver from ``guess`` (projected into the bounds) in this process — on the
+        coarse grid first when the solver has one (:mod:`.coarse`); failures are returned as
+        ``success=False``, a guess with non-finite dynamics without running the solver. (The
+        planner runs each solve in a supervised child: :mod:`.supervision`.)"""
+        if self.coarse is not None:
+            return self._coarse_first(guess)
+        return self._solve(guess)
+
+    def _coarse_start(self) -> tuple | None:
+        """(N_c, the coarse grid's solver, this solver with Ipopt's warm-start settings — None
+        when interpreted: remaking an interpreted solver costs as much as making it) or None."""
+        n = coarse_intervals(self.problem, self.options.solver)
+        if n is None:
+            return None
+        sub = OCPSolver(self.problem.replace(intervals=n), self.transcription,
+                        replace(self.options, coarse=False), progress=Progress.silent())
+        self.progress.note(f"  coarse grid: each attempt first on {n} intervals, then on "
+                           f"{self.problem.intervals}")
+        return n, sub, (self._warm() if self.compiled else None)
+
+    def _warm(self) -> OCPSolver:
+        """This solver with :data:`.coarse.WARM_IPOPT`, on the same compiled NLP functions."""
+        other = object.__new__(OCPSolver)
+        other.__dict__.update(self.__dict__)
+        other.options = replace(self.options, ipopt={**WARM_IPOPT, **self.options.ipopt}, coarse=False)
+        other.coarse = None
+        other.solver = other._nlpsol("ocp_warm", ca.external("nlp", str(self.jit_path)),
+                                     other.options.nlpsol_options())
+        return other
+
+    def _coarse_first(self, guess: InitialGuess) -> Solution:
+        """:mod:`.coarse`, steps 1–3, within this solver's time and iteration limits."""
+        n, sub, warm = self.coarse
+        t0, limit = time.perf_counter(), self.options.time_limit
+        first = sub._with_options(time_limit=limit, iteration_limit=self.options.iteration_limit).solve(
+            resampled(guess, self.problem, sub.problem))
+        left = None if limit is None else max(limit - (time.perf_counter() - t0), 1e-3)
+        if first.success:
+            fine = (warm or self)._with_options(time_limit=left)._solve(
+                interpolated(first, sub.problem, self.problem, guess.label))
+        else:
+            fine = self._with_options(time_limit=left)._solve(guess)
+        settings = {**fine.settings, "coarse_intervals": n}
+        return combined(replace(fine, settings=settings, setup_time_s=self.setup_time_s), first, n)
+
+    def _solve(self, guess: InitialGuess) -> Solution:
+        """:meth:`solve` on this grid only."""
         w0 = self._start(guess)
         callback = getattr(self, "_callback", None)
         if callback is not None:
