@@ -348,9 +348,21 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
         guesses = candidates(problem, progress=progress)
         if guess is not None:
             guesses = guesses.with_first(warm_start(guess, problem))
+    verified = {}          # id(solution) → its verified gait: the exploration's check, kept for step 5
+
+    def verify_one(solution):
+        if id(solution) not in verified:
+            with budget.stage("verification"):
+                prepared = reached.prepared
+                verified[id(solution)] = verified_gait(solution, prepared.model, prepared.stated, to_plan,
+                                                       params, progress=progress)
+        return verified[id(solution)]
+
+    def accept(solution) -> bool:  # a lower objective found by the exploration is kept only verified
+        return not verify or verify_one(solution).verification.passed
     t0 = time.perf_counter()
     try:
-        _search(problem, guesses, settings, progress, budget, reached)
+        _search(problem, guesses, settings, progress, budget, reached, accept)
     finally:                       # a spent budget still reports where the time went and what was screened
         reached.timings["solve_s"] = time.perf_counter() - t0 - reached.timings.get("setup_s", 0.0)
         if reached.search is not None:
@@ -364,11 +376,6 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
     reached.solution = _in_momentum(search, reached.prepared, to_plan, params)
     if verify and search.solution is not None:
         t0 = time.perf_counter()
-
-        def verify_one(solution):
-            with budget.stage("verification"):
-                return verified_gait(solution, reached.prepared.model, reached.prepared.stated, to_plan,
-                                     params, progress=progress)
         reached.solution = verify_one(search.solution)
         # refined: nominal again
         if refinable(reached.solution) and "robust" not in search.solution.settings:
@@ -432,11 +439,13 @@ class SearchSettings:
     limit: int
 
 
-def _search(problem, guesses, settings: SearchSettings, progress, budget, reached: _Reached) -> None:
+def _search(problem, guesses, settings: SearchSettings, progress, budget, reached: _Reached,
+            accept=None) -> None:
     """The solvers of :func:`solver_order` in turn until one converges: the search so far in
     ``reached.search``, the set-up seconds in ``reached.timings["setup_s"]``. Building a solver
     is interrupted when the budget runs out; each attempt gets at most the time left
-    (:func:`~.time_limits.attempt_limited`)."""
+    (:func:`~.time_limits.attempt_limited`); ``accept``: the check a lower objective found by the
+    exploration must pass (:func:`~.search.solve_from_guesses`)."""
     from nhgait.ocp import OCPSolver, SolverOptions
 
     from .time_limits import attempt_limited
@@ -460,7 +469,8 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
             with progress.phase(f"solve with {name} from up to {min(s.limit, len(guesses))} guesses"):
                 reached.search = reached.search.then(solve_with_fallbacks(ocp, guesses, workers=s.workers,
                                                                           limit=s.limit, progress=progress,
-                                                                          budget=budget, explore=explore))
+                                                                          budget=budget, explore=explore,
+                                                                          accept=accept))
         if reached.search.solution is not None:
             break
 

@@ -176,10 +176,12 @@ def _built(guesses, indices, budget) -> list | None:
 
 # ----------------------------------------------------------------------------- the search
 def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None = None, progress=None,
-                       budget=None, explore: bool = False) -> Search:
+                       budget=None, explore: bool = False, accept=None) -> Search:
     """Try ``guesses`` (at most ``limit``) in batches of ``workers``; the best success of the
     first batch with one — with ``explore``, the best of that and of the next
-    :data:`EXPLORE_GUESSES` guesses tried within the exploration's time (:func:`_explored`).
+    :data:`EXPLORE_GUESSES` guesses tried within the exploration's window (:func:`_explored`;
+    ``accept``, when given, must pass a lower objective's solution before it replaces the best:
+    the planner's verification).
     With a ``budget`` (:class:`~nhgait.ocp.budget.Budget`) each attempt gets at most the time
     left, and no batch starts once it is spent."""
     from nhgait.dynamics.progress import Progress
@@ -209,7 +211,7 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
             window = _Window.after(found.solution, time.monotonic() - t0, solver, budget)
             return _explored(solver, guesses, found, range(start + len(batch), min(total, start + len(batch)
                                                                                   + EXPLORE_GUESSES)),
-                             window, workers, budget, progress)
+                             window, workers, budget, progress, accept)
     return Search(None, tuple(attempts), None, closest)
 
 
@@ -263,9 +265,10 @@ def _cost(solution) -> float:
 
 
 def _explored(solver, guesses, found: Search, indices, window: _Window, workers: int, budget,
-              progress) -> Search:
+              progress, accept=None) -> Search:
     """``found`` or a lower objective among the guesses at ``indices`` tried after it, in order,
-    each attempt within what is left of ``window`` (the closest failure and every attempt kept)."""
+    each attempt within what is left of ``window`` (the closest failure and every attempt kept);
+    a lower objective whose solution ``accept`` refuses is not kept (its progress line says so)."""
     name = solver.options.solver
     attempts, best, label = list(found.attempts), found.solution, found.won
     indices = list(indices)
@@ -287,7 +290,11 @@ def _explored(solver, guesses, found: Search, indices, window: _Window, workers:
             attempts.append(attempt_of(g.label, s, name))
             _report(progress, indices[start] + k + 1, indices[-1] + 1, g.label, s)
             if s.success and s.objective < best.objective - EXPLORE_GAIN * max(1.0, abs(best.objective)):
-                best, label = s, g.label
+                if accept is None or accept(s):
+                    best, label = s, g.label
+                else:
+                    progress.note(f"  {g.label!r}: J = {s.objective:.6g} is lower, but its gait fails the "
+                                  "verification: not kept")
     if label != found.won:
         progress.note(f"  kept {label!r}: J = {best.objective:.6g} (the first converged: "
                       f"{found.solution.objective:.6g})")
@@ -295,12 +302,12 @@ def _explored(solver, guesses, found: Search, indices, window: _Window, workers:
 
 
 def solve_with_fallbacks(solver, guesses, *, workers: int = 1, limit: int | None = None, progress=None,
-                         budget=None, explore: bool = False) -> Search:
+                         budget=None, explore: bool = False, accept=None) -> Search:
     """The guesses in order (:func:`solve_from_guesses`, exploring with ``explore``), then
     :func:`continuation` from the first one (for screened candidates, the first that passed its
     screening: a regular guess; not once ``budget`` is spent)."""
     search = solve_from_guesses(solver, guesses, workers=workers, limit=limit, progress=progress,
-                                budget=budget, explore=explore)
+                                budget=budget, explore=explore, accept=accept)
     first = None if search.solution is not None or _spent(budget) else _built(guesses, range(1), budget)
     if first:
         if progress is not None:

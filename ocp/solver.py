@@ -339,8 +339,18 @@ class OCPSolver:
         landed in the cache (:func:`.nlp_code.optimised_ready`; issue 25): the solves from now
         on run on it, and their ``settings["compile"]`` says so (``code`` "optimised",
         ``switched_from`` the code before). True when it switched; a library that does not load
-        leaves the code as it was. The search calls it before each batch of attempts."""
-        report = optimised_ready(self.compile_report)
+        leaves the code as it was. The coarse grid's solver (:mod:`.coarse`) adopts its own
+        library the same way, whenever it lands. The search calls it before each batch of
+        attempts."""
+        switched = self._switch(optimised_ready(self.compile_report))
+        if self.coarse is not None:
+            n, sub, warm = self.coarse
+            sub.adopt_optimised()
+            if switched:
+                self.coarse = (n, sub, self._warm())
+        return switched
+
+    def _switch(self, report: CompileReport | None) -> bool:
         if report is None:
             return False
         try:
@@ -349,10 +359,6 @@ class OCPSolver:
             return False
         self.solver, self.compile_report = solver, report
         self.compiled, self.jit_cached, self.jit_path, self.jit_fallback = True, True, Path(report.path), None
-        if self.coarse is not None:
-            n, sub, _ = self.coarse
-            sub.adopt_optimised()
-            self.coarse = (n, sub, self._warm())
         self.progress.note(f"  the optimised library is ready ({report.compiler} {' '.join(report.flags)}, "
                            "built in the background): the next attempts run on it")
         return True
