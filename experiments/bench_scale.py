@@ -56,14 +56,14 @@ def cold(member: str, folder: Path, cache: Path, timeout: float, extra: tuple = 
 class Settings:
     """How the planner's NLP is solved: ``solver`` and ``hessian`` (SolverOptions), ``intervals``
     (None: the task's), ``jit`` ("optimised": the optimised library, built now if the cold run's
-    background build did not finish; False: interpreted) and ``coarse`` (the coarse grid first,
-    as the planner solves from its own guesses: :mod:`nhgait.ocp.coarse`)."""
+    background build did not finish; False: interpreted) and ``coarse`` (the coarse grid first:
+    as the cold plan solved its winning guess, :mod:`nhgait.ocp.coarse`)."""
 
     solver: str = "ipopt"
     hessian: str = "exact"
     intervals: int | None = None
     jit: bool | str | None = "optimised"
-    coarse: bool = True
+    coarse: bool = False
 
 
 class Ours:
@@ -139,7 +139,7 @@ def warm(row: dict, repeats: int, reference: bool, hessians: bool, intervals=Non
     """The warm-cache solves of one member (module docstring)."""
     member = row["member"]
     cold = Settings(row.get("solver") or "ipopt", row.get("hessian") or "exact", intervals,
-                    "optimised" if jit else False)
+                    "optimised" if jit else False, bool(row.get("coarse", False)))
     runners = {"ours": Ours(member, row.get("guess"), cold)}
     if reference:
         runners["reference"] = Reference(member, intervals, jit)

@@ -76,6 +76,7 @@ def _solution_fields(data: dict) -> dict:
     return {"success": data["success"], "status": data["status"], "objective": data["objective"],
             "iterations": data["iterations"], "guess": data["guess"]["won"], "solver": st.get("solver"),
             "hessian": st.get("hessian"), "stage": st.get("stage"),
+            "coarse": st.get("coarse_intervals") is not None,
             "ode_operations": st.get("ode_operations"),
             "c_bytes": comp.get("c_bytes", 0),
             "code": comp.get("code", "interpreted" if not st.get("jit") else "?"),

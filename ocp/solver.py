@@ -417,7 +417,7 @@ class OCPSolver:
             return None
         sub = OCPSolver(self.problem.replace(intervals=n), self.transcription,
                         replace(self.options, coarse=False), progress=Progress.silent())
-        self.progress.note(f"  coarse grid: each attempt first on {n} intervals, then on "
+        self.progress.note(f"  coarse grid: each guess solved first on {n} intervals, then on "
                            f"{self.problem.intervals}")
         return n, sub, (self._warm() if self.compiled else None)
 
@@ -440,7 +440,7 @@ class OCPSolver:
         left = None if limit is None else max(limit - (time.perf_counter() - t0), 1e-3)
         if first.success:
             fine = (warm or self)._with_options(time_limit=left)._solve(
-                interpolated(first, sub.problem, self.problem, guess.label))
+                interpolated(first, sub.problem, self.problem, guess))
         else:
             fine = self._with_options(time_limit=left)._solve(guess)
         settings = {**fine.settings, "coarse_intervals": n}
@@ -531,6 +531,13 @@ class OCPSolver:
         """This solver with ``options.iteration_limit = iterations`` (honoured by the iteration
         callback), sharing its NLP functions and solver."""
         return self._with_options(iteration_limit=iterations)
+
+    def direct(self) -> OCPSolver:
+        """This solver without its coarse grid (:mod:`.coarse`), sharing its NLP functions."""
+        other = self._with_options(coarse=False)
+        if other is not self:
+            other.coarse = None
+        return other
 
     def _with_options(self, **changes) -> OCPSolver:
         if all(getattr(self.options, k) == v for k, v in changes.items()):

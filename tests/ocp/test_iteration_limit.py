@@ -1,7 +1,6 @@
 """``SolverOptions.iteration_limit`` (issue 25): a solve stopped after that many iterations by
-Ipopt's iteration callback, below the ``max_iter`` the solver was made with; the planner's
-exploration shares such an allowance among its guesses (``gaits/search.py``), so that it tries
-the same guesses on slow code and on fast."""
+Ipopt's iteration callback, below the ``max_iter`` the solver was made with (the planner's
+exploration shares such an allowance among its guesses: ``tests/gaits/test_exploration.py``)."""
 from __future__ import annotations
 
 import pytest
@@ -39,18 +38,3 @@ def test_a_solve_stops_after_its_iteration_limit_and_says_so(parking):
 def test_an_iteration_limit_must_be_a_whole_number(bad):
     with pytest.raises(ProblemError, match="iteration_limit"):
         SolverOptions(iteration_limit=bad)
-
-
-def test_the_exploration_shares_an_iteration_allowance_in_order(parking, monkeypatch):
-    """With an allowance of half the first success's iterations the next guess is stopped at
-    exactly that many, and nothing after it runs: the window is spent."""
-    import nhgait.gaits.search as search
-    ocp, guesses = parking
-    first = ocp.solve(guesses[0])
-    monkeypatch.setattr(search, "EXPLORE_MIN_ITERATIONS", 1)
-    monkeypatch.setattr(search, "EXPLORE_ITERATION_RATIO", 0.5)
-    allowance = -(-first.iterations // 2)
-    found = search.solve_from_guesses(ocp, guesses, limit=4, explore=True)
-    assert found.won == guesses[0].label
-    explored = found.attempts[1:]
-    assert [(a.status, a.iterations) for a in explored] == [("Maximum_Iterations_Exceeded", allowance)]

@@ -1,0 +1,49 @@
+"""The planner's exploration after its first success (``gaits/search.py``, issues 24 and 25): an
+allowance of iterations shared in order — the same guesses on slow code and on fast — and a
+lower objective kept only when the planner's check accepts its gait."""
+from __future__ import annotations
+
+import pytest
+
+import nhgait.gaits.search as search
+from nhgait.gaits.guesses import candidates
+from nhgait.gaits.planner import prepare
+from nhgait.gaits.task_library import resolve
+from nhgait.ocp import OCPSolver, SolverOptions
+
+
+@pytest.fixture(scope="module")
+def parking():
+    """The unicycle's parallel park at N = 10, interpreted (no compiler needed), and its guesses."""
+    problem = prepare(resolve("unicycle", "parallel-park", overrides=["intervals=10"])).problem
+    return OCPSolver(problem, options=SolverOptions(max_iter=500, jit=False)), candidates(problem)
+
+
+def test_the_exploration_shares_an_iteration_allowance_in_order(parking, monkeypatch):
+    """With an allowance of half the first success's iterations the next guess is stopped at
+    exactly that many, and nothing after it runs: the window is spent."""
+    ocp, guesses = parking
+    first = ocp.solve(guesses[0])
+    monkeypatch.setattr(search, "EXPLORE_MIN_ITERATIONS", 1)
+    monkeypatch.setattr(search, "EXPLORE_ITERATION_RATIO", 0.5)
+    allowance = -(-first.iterations // 2)
+    found = search.solve_from_guesses(ocp, guesses, limit=4, explore=True)
+    assert found.won == guesses[0].label
+    explored = found.attempts[1:]
+    assert [(a.status, a.iterations) for a in explored] == [("Maximum_Iterations_Exceeded", allowance)]
+
+
+def test_the_exploration_keeps_a_lower_objective_only_when_it_is_accepted(parking, monkeypatch):
+    """Every later success counts as lower here (EXPLORE_GAIN < 0): refused by the check, the
+    first success stays; accepted, the last one explored wins."""
+    ocp, guesses = parking
+    monkeypatch.setattr(search, "EXPLORE_GAIN", -1.0)
+    checked = []
+    refused = search.solve_from_guesses(ocp, guesses, limit=4, explore=True,
+                                        accept=lambda s: checked.append(s.objective) is not None)
+    assert refused.won == guesses[0].label
+    assert len(checked) >= 1
+    taken = search.solve_from_guesses(ocp, guesses, limit=4, explore=True, accept=lambda s: True)
+    successes = [a.label for a in taken.attempts[1:] if a.success]
+    assert successes
+    assert taken.won == successes[-1]
