@@ -23,8 +23,13 @@ def feedback_and_stability(solution, progress) -> dict:
     out = {"feedback": feedback}
     if problem.periodic:
         with progress.phase("stability: monodromy matrices of the open and the closed loop over one period"):
-            out["stability"] = stability(ode_function(problem), feedback,
-                                         fiber=getattr(problem.model, "fiber", ()))
+            try:
+                out["stability"] = stability(ode_function(problem), feedback,
+                                             fiber=getattr(problem.model, "fiber", ()))
+            except RuntimeError as exc:        # CVODES gave up on the variational equations
+                progress.note("  not computed: the variational equations could not be integrated over the "
+                              f"period ({str(exc).splitlines()[0][:160]})")
+                return out
         for line in out["stability"].summary():
             progress.note(f"  {line}")
     return out

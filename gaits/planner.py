@@ -348,21 +348,13 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
         guesses = candidates(problem, progress=progress)
         if guess is not None:
             guesses = guesses.with_first(warm_start(guess, problem))
-    verified = {}          # id(solution) → its verified gait: the exploration's check, kept for step 5
-
     def verify_one(solution):
-        if id(solution) not in verified:
-            with budget.stage("verification"):
-                prepared = reached.prepared
-                verified[id(solution)] = verified_gait(solution, prepared.model, prepared.stated, to_plan,
-                                                       params, progress=progress)
-        return verified[id(solution)]
-
-    def accept(solution) -> bool:  # a lower objective found by the exploration is kept only verified
-        return not verify or verify_one(solution).verification.passed
+        with budget.stage("verification"):
+            return verified_gait(solution, reached.prepared.model, reached.prepared.stated, to_plan, params,
+                                 progress=progress)
     t0 = time.perf_counter()
     try:
-        _search(problem, guesses, settings, progress, budget, reached, accept)
+        _search(problem, guesses, settings, progress, budget, reached)
     finally:                       # a spent budget still reports where the time went and what was screened
         reached.timings["solve_s"] = time.perf_counter() - t0 - reached.timings.get("setup_s", 0.0)
         if reached.search is not None:
@@ -380,12 +372,39 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
         # refined: nominal again
         if refinable(reached.solution) and "robust" not in search.solution.settings:
             _refined(reached, settings, budget, progress, verify_one)
+        if not _passed(reached.solution) and search.first is not None:
+            search = _first_instead(reached, search, settings, budget, progress, verify_one)
         reached.timings["verify_s"] = time.perf_counter() - t0
     if search.solution is not None:                                          # issue 28
         t0 = time.perf_counter()
         with budget.stage("the feedback and stability"):
             reached.solution = replace(reached.solution, **_feedback_and_stability(search, progress))
         reached.timings["feedback_s"] = time.perf_counter() - t0
+
+
+def _passed(solution) -> bool:
+    verification = getattr(solution, "verification", None)
+    return verification is not None and bool(verification.passed)
+
+
+def _first_instead(reached: _Reached, search, settings, budget, progress, verify_one):
+    """The exploration's lower objective failed its verification (refined or not): the first
+    converged gait instead, verified (and refined) the same way, when it passes — a verified gait
+    beats a lower objective that is not one; else the failure stands. Returns the search whose
+    solution the plan keeps."""
+    from .refinement import refinable
+    kept = (reached.search, reached.solution)
+    first = replace(reached.search, solution=search.first, won=search.first_won, first=None, first_won=None)
+    reached.search, reached.solution = first, verify_one(search.first)
+    if refinable(reached.solution):
+        _refined(reached, settings, budget, progress, verify_one)
+    if not _passed(reached.solution):
+        reached.search, reached.solution = kept
+        return search
+    progress.note(f"  kept the first converged gait {search.first_won!r} (J = {search.first.objective:.6g}): "
+                  f"the lower objective's, {search.won!r} (J = {search.solution.objective:.6g}), failed its "
+                  "verification")
+    return first
 
 
 def _refined(reached: _Reached, settings, budget, progress, verify_one) -> None:
@@ -439,13 +458,11 @@ class SearchSettings:
     limit: int
 
 
-def _search(problem, guesses, settings: SearchSettings, progress, budget, reached: _Reached,
-            accept=None) -> None:
+def _search(problem, guesses, settings: SearchSettings, progress, budget, reached: _Reached) -> None:
     """The solvers of :func:`solver_order` in turn until one converges: the search so far in
     ``reached.search``, the set-up seconds in ``reached.timings["setup_s"]``. Building a solver
     is interrupted when the budget runs out; each attempt gets at most the time left
-    (:func:`~.time_limits.attempt_limited`); ``accept``: the check a lower objective found by the
-    exploration must pass (:func:`~.search.solve_from_guesses`)."""
+    (:func:`~.time_limits.attempt_limited`)."""
     from nhgait.ocp import OCPSolver, SolverOptions
 
     from .time_limits import attempt_limited
@@ -469,8 +486,7 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
             with progress.phase(f"solve with {name} from up to {min(s.limit, len(guesses))} guesses"):
                 reached.search = reached.search.then(solve_with_fallbacks(ocp, guesses, workers=s.workers,
                                                                           limit=s.limit, progress=progress,
-                                                                          budget=budget, explore=explore,
-                                                                          accept=accept))
+                                                                          budget=budget, explore=explore))
         if reached.search.solution is not None:
             break
 

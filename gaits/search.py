@@ -51,17 +51,21 @@ class Attempt:
 @dataclass(frozen=True, eq=False)
 class Search:
     """What trying the guesses gave: the winning ``solution`` (None when none converged), its
-    label ``won``, every ``attempt`` and the ``closest`` failure (smallest violation)."""
+    label ``won``, every ``attempt`` and the ``closest`` failure (smallest violation); ``first``
+    and ``first_won``: the first converged solution when the exploration kept another (the
+    planner falls back to it when the kept one fails its verification)."""
 
     solution: Any
     attempts: tuple
     won: str | None
     closest: Any = None
+    first: Any = None               # the first converged solution, when the exploration kept another
+    first_won: str | None = None
 
     def then(self, other: Search) -> Search:
         """This search followed by ``other`` (attempts joined, the closer failure kept)."""
         return Search(other.solution, self.attempts + other.attempts, other.won,
-                      _closer(self.closest, other.closest))
+                      _closer(self.closest, other.closest), other.first, other.first_won)
 
 
 def _closer(a, b):
@@ -176,12 +180,10 @@ def _built(guesses, indices, budget) -> list | None:
 
 # ----------------------------------------------------------------------------- the search
 def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None = None, progress=None,
-                       budget=None, explore: bool = False, accept=None) -> Search:
+                       budget=None, explore: bool = False) -> Search:
     """Try ``guesses`` (at most ``limit``) in batches of ``workers``; the best success of the
     first batch with one — with ``explore``, the best of that and of the next
-    :data:`EXPLORE_GUESSES` guesses tried within the exploration's window (:func:`_explored`;
-    ``accept``, when given, must pass a lower objective's solution before it replaces the best:
-    the planner's verification).
+    :data:`EXPLORE_GUESSES` guesses tried within the exploration's window (:func:`_explored`).
     With a ``budget`` (:class:`~nhgait.ocp.budget.Budget`) each attempt gets at most the time
     left, and no batch starts once it is spent."""
     from nhgait.dynamics.progress import Progress
@@ -211,7 +213,7 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
             window = _Window.after(found.solution, time.monotonic() - t0, solver, budget)
             return _explored(solver, guesses, found, range(start + len(batch), min(total, start + len(batch)
                                                                                   + EXPLORE_GUESSES)),
-                             window, workers, budget, progress, accept)
+                             window, workers, budget, progress)
     return Search(None, tuple(attempts), None, closest)
 
 
@@ -265,10 +267,10 @@ def _cost(solution) -> float:
 
 
 def _explored(solver, guesses, found: Search, indices, window: _Window, workers: int, budget,
-              progress, accept=None) -> Search:
+              progress) -> Search:
     """``found`` or a lower objective among the guesses at ``indices`` tried after it, in order,
-    each attempt within what is left of ``window`` (the closest failure and every attempt kept);
-    a lower objective whose solution ``accept`` refuses is not kept (its progress line says so).
+    each attempt within what is left of ``window`` (the closest failure and every attempt kept;
+    the first success kept as ``first`` when another wins).
     The exploration solves on the task's grid directly (:meth:`~nhgait.ocp.solver.OCPSolver.direct`):
     a coarse grid (:mod:`nhgait.ocp.coarse`) leads a guess to the optimum it leads to, which need
     not be the direct solve's — the exploration keeps the optima the direct solves reach within
@@ -295,24 +297,22 @@ def _explored(solver, guesses, found: Search, indices, window: _Window, workers:
             attempts.append(attempt_of(g.label, s, name))
             _report(progress, indices[start] + k + 1, indices[-1] + 1, g.label, s)
             if s.success and s.objective < best.objective - EXPLORE_GAIN * max(1.0, abs(best.objective)):
-                if accept is None or accept(s):
-                    best, label = s, g.label
-                else:
-                    progress.note(f"  {g.label!r}: J = {s.objective:.6g} is lower, but its gait fails the "
-                                  "verification: not kept")
+                best, label = s, g.label
     if label != found.won:
         progress.note(f"  kept {label!r}: J = {best.objective:.6g} (the first converged: "
                       f"{found.solution.objective:.6g})")
-    return Search(best, tuple(attempts), label, found.closest)
+    if label == found.won:
+        return Search(best, tuple(attempts), label, found.closest)
+    return Search(best, tuple(attempts), label, found.closest, found.solution, found.won)
 
 
 def solve_with_fallbacks(solver, guesses, *, workers: int = 1, limit: int | None = None, progress=None,
-                         budget=None, explore: bool = False, accept=None) -> Search:
+                         budget=None, explore: bool = False) -> Search:
     """The guesses in order (:func:`solve_from_guesses`, exploring with ``explore``), then
     :func:`continuation` from the first one (for screened candidates, the first that passed its
     screening: a regular guess; not once ``budget`` is spent)."""
     search = solve_from_guesses(solver, guesses, workers=workers, limit=limit, progress=progress,
-                                budget=budget, explore=explore, accept=accept)
+                                budget=budget, explore=explore)
     first = None if search.solution is not None or _spent(budget) else _built(guesses, range(1), budget)
     if first:
         if progress is not None:

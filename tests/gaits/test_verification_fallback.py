@@ -40,7 +40,10 @@ def test_a_right_hand_side_that_is_not_finite_ends_the_re_simulation_there():
 def test_a_gait_through_the_charts_singular_set_is_verified_on_the_euler_lagrange_equations():
     gen = experiment_scripts.load("robot_generator")
     pair = gen.pair(24, 13)
-    result = plan(scene_from_text(pair.scene, pair.name), jit=False, intervals=20)
+    # one guess: this test is about the chart; exploring finds a lower objective (J = 0.68) whose
+    # gait the re-simulation refuses, and the planner's fallback to this first gait (J = 1.52)
+    # comes only after a refinement of that one (minutes, interpreted)
+    result = plan(scene_from_text(pair.scene, pair.name), jit=False, intervals=20, max_guesses=1)
     s = result.solution
     assert result.success, result.diagnosis
     assert s.verification.passed, result.diagnosis
