@@ -36,9 +36,9 @@ from nhgait.dynamics.numerics.compiler import (
     CompilerUnavailable,
     Library,
     build_library,
+    builds_for_cpu,
     cached_library,
     compiler_command,
-    host_cpu,
     library_by_key,
 )
 from nhgait.dynamics.numerics.fast_compiler import MISSING, fast_compiler
@@ -63,9 +63,9 @@ class CompileBudget:
     seconds of -O1 and ≤ 1.2× its memory for 0.4–2.9 MB of the scale benchmark's C (the cart
     with six trailers, 2.90 MB: 45.7 s and 594 MB against 31.6 s and 577 MB), and solves in
     0.78–0.95× the time of -O1's code (the two-steering snakeboard 0.78, the 5-link snake
-    0.90). With ``native`` (and a CPU :func:`~nhgait.dynamics.numerics.compiler.host_cpu` can
-    read: Linux x86_64 and aarch64) -O2 builds for this machine's CPU (``-march=native``, the
-    library keyed by that CPU): another 0.87–0.93× (the 3–5-link snakes, the two-steering
+    0.90). With ``native`` (when :func:`~nhgait.dynamics.numerics.compiler.builds_for_cpu`: a
+    CPU it can read — Linux x86_64 and aarch64 — and gcc, clang or cc) -O2 builds for this
+    machine's CPU (``-march=native``, the library keyed by that CPU): another 0.87–0.93× (the 3–5-link snakes, the two-steering
     snakeboard, the cart with three trailers). -O2 is kept up to 3 MB, -O1 up to 5 MB, -O0 up to
     20 MB, then there is no optimised build. The optimised build runs in the background
     (:func:`choose_code`); its estimate is said beside it."""
@@ -82,7 +82,7 @@ class CompileBudget:
         """(flags or None for no optimised build, estimated seconds, reason)."""
         mb = c_bytes / 1e6
         if c_bytes <= min(self.o2_bytes, self.o1_bytes):
-            flags = ("-O2", "-march=native") if self.native and host_cpu() is not None else ("-O2",)
+            flags = ("-O2", "-march=native") if self.native and builds_for_cpu() else ("-O2",)
             reason = f"{mb:.2f} MB ≤ {self.o2_bytes / 1e6:g} MB: {' '.join(flags)}"
             return flags, mb * self.o2_s_per_mb, reason
         if c_bytes <= self.o1_bytes:

@@ -34,6 +34,7 @@ An Ipopt/FATROP failure (infeasible, iteration limit, …) is returned as
 from __future__ import annotations
 
 import math
+import numbers
 import shutil
 import time
 import weakref
@@ -115,7 +116,8 @@ class SolverOptions:
             problems.append(f"jit must be None, True, False or 'optimised', got {self.jit!r}")
         if self.time_limit is not None and not (float(self.time_limit) > 0):
             problems.append(f"time_limit must be a positive number of seconds, got {self.time_limit!r}")
-        if self.iteration_limit is not None and not (isinstance(self.iteration_limit, int)
+        if self.iteration_limit is not None and not (isinstance(self.iteration_limit, numbers.Integral)
+                                                     and not isinstance(self.iteration_limit, bool)
                                                      and self.iteration_limit > 0):
             problems.append(f"iteration_limit must be a whole number ≥ 1, got {self.iteration_limit!r}")
         if self.solver not in SOLVERS:

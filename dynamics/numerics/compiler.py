@@ -45,6 +45,7 @@ import contextlib
 import hashlib
 import json
 import os
+import re
 import shlex
 import shutil
 import signal
@@ -60,7 +61,7 @@ from ..memo import LruMemo
 
 __all__ = ["Library", "CompilerUnavailable", "build_library", "cached_library", "compiler_command",
            "library_key", "jit_dir", "library_dir", "compile_in", "CompileJob", "STALE_BUILD_S",
-           "COMPILER_COMMANDS", "NATIVE_FLAGS", "host_cpu", "library_by_key"]
+           "COMPILER_COMMANDS", "NATIVE_FLAGS", "host_cpu", "builds_for_cpu", "library_by_key"]
 
 #: a build folder older than this (seconds) is left over from a process that died: removed
 STALE_BUILD_S = 3600.0
@@ -72,6 +73,8 @@ _PR_SET_PDEATHSIG = 1
 NATIVE_FLAGS = ("-march=native", "-mcpu=native", "-mtune=native")
 #: machines whose compilers (gcc, clang) accept ``-march=native`` and whose CPU :func:`host_cpu` reads
 _NATIVE_MACHINES = ("x86_64", "aarch64")
+#: compilers known to accept ``-march=native`` (a program's name, a version suffix allowed: gcc-12)
+_NATIVE_COMPILERS = re.compile(r"(x86_64-linux-gnu-|aarch64-linux-gnu-)?(gcc|clang|cc)(-\d+(\.\d+)*)?")
 
 
 class CompilerUnavailable(RuntimeError):
@@ -173,6 +176,17 @@ def host_cpu() -> str | None:
     found = [fields.get(k, "") for k in ("vendor_id", "model name", "flags", "CPU implementer", "CPU part",
                                          "Features")]
     return " | ".join([machine, *found]) if any(found) else None
+
+
+def builds_for_cpu(command: list | None = None) -> bool:
+    """Whether the optimised build may be tuned to this CPU: :func:`host_cpu` reads it and the
+    compiler ``command`` (None: :func:`compiler_command`) names gcc, clang or cc (a wrapper
+    such as ccache before it allowed). Another compiler named by ``$NHGAIT_CC`` may refuse
+    ``-march=native``, and a failed background build is not retried: it gets portable flags."""
+    command = compiler_command() if command is None else command
+    if not command or host_cpu() is None:
+        return False
+    return any(_NATIVE_COMPILERS.fullmatch(Path(part).name) for part in command[:2])
 
 
 def library_key(source: str, *, flags: tuple = ("-O1",), salt: str = "", libs: tuple = ("-lm",),

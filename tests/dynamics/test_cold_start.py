@@ -214,17 +214,18 @@ def test_compiled_fast_agrees_and_falls_back_to_the_function_itself(cold, monkey
 def test_compile_budget_levels_follow_the_c_size(monkeypatch):
     """The optimisation level per C size (``CompileBudget``, measured in bench_scale): -O2 up to
     3 MB, -O1 up to 5 MB, -O0 up to 20 MB, none beyond; each choice names its reason; a
-    budget of 0 bytes never builds; -O2 is built for the CPU only when the CPU can be read."""
+    budget of 0 bytes never builds; -O2 is built for the CPU only when it may be
+    (``builds_for_cpu``)."""
     import nhgait.ocp.nlp_code as nlp_code
     from nhgait.ocp.nlp_code import COMPILE_BUDGET, CompileBudget
-    monkeypatch.setattr(nlp_code, "host_cpu", lambda: None)
+    monkeypatch.setattr(nlp_code, "builds_for_cpu", lambda: False)
     sizes = (400_000, 2_900_000, 4_000_000, 7_000_000, 25_000_000)
     levels = {size: COMPILE_BUDGET.choose(size) for size in sizes}
     assert [lv[0] for lv in levels.values()] == [("-O2",), ("-O2",), ("-O1",), ("-O0",), None]
     assert "-O2 would take" in levels[4_000_000][2]
     assert "-O1 would take" in levels[7_000_000][2]
     assert CompileBudget(0, 0).choose(1)[0] is None
-    monkeypatch.setattr(nlp_code, "host_cpu", lambda: "x86_64 | GenuineIntel | some CPU | sse2 avx2")
+    monkeypatch.setattr(nlp_code, "builds_for_cpu", lambda: True)
     assert COMPILE_BUDGET.choose(400_000)[0] == ("-O2", "-march=native")
     assert CompileBudget(native=False).choose(400_000)[0] == ("-O2",)
     assert COMPILE_BUDGET.choose(4_000_000)[0] == ("-O1",)
@@ -295,3 +296,17 @@ def test_a_solver_adopts_the_optimised_library_once_its_background_build_lands(c
     assert optimised.success
     assert optimised.objective == pytest.approx(fast.objective, rel=1e-8)
     np.testing.assert_allclose(optimised.states, fast.states, atol=1e-6)
+
+
+def test_only_gcc_clang_or_cc_build_for_the_cpu(monkeypatch):
+    """-march=native goes only to compilers known to take it; a wrapper script or another
+    compiler named by $NHGAIT_CC gets portable flags (its failure would never be retried); a
+    CPU that cannot be read gives none either."""
+    import nhgait.dynamics.numerics.compiler as compiler
+    monkeypatch.setattr(compiler, "host_cpu", lambda: "x86_64 | GenuineIntel | Xeon | sse2 avx2")
+    accepted = [["/usr/bin/gcc"], ["gcc-12"], ["ccache", "clang"], ["x86_64-linux-gnu-gcc-12"], ["cc"]]
+    refused = [["/opt/tcc/bin/tcc", "-B/opt/tcc/lib"], ["/tmp/heldcc.sh"], ["icx"], []]
+    assert [compiler.builds_for_cpu(c) for c in accepted] == [True] * len(accepted)
+    assert [compiler.builds_for_cpu(c) for c in refused] == [False] * len(refused)
+    monkeypatch.setattr(compiler, "host_cpu", lambda: None)
+    assert not compiler.builds_for_cpu(["gcc"])

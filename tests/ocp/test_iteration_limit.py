@@ -34,7 +34,7 @@ def test_a_solve_stops_after_its_iteration_limit_and_says_so(parking):
     assert again.objective == pytest.approx(full.objective, rel=1e-10)
 
 
-@pytest.mark.parametrize("bad", [0, -3, 2.5, "10"])
+@pytest.mark.parametrize("bad", [0, -3, 2.5, "10", True])
 def test_an_iteration_limit_must_be_a_whole_number(bad):
     with pytest.raises(ProblemError, match="iteration_limit"):
         SolverOptions(iteration_limit=bad)
