@@ -65,8 +65,8 @@ class CompileBudget:
     0.78–0.95× the time of -O1's code (the two-steering snakeboard 0.78, the 5-link snake
     0.90). With ``native`` (when :func:`~nhgait.dynamics.numerics.compiler.builds_for_cpu`: a
     CPU it can read — Linux x86_64 and aarch64 — and gcc, clang or cc) -O2 builds for this
-    machine's CPU (``-march=native``, the library keyed by that CPU): another 0.87–0.93× (the 3–5-link snakes, the two-steering
-    snakeboard, the cart with three trailers). -O2 is kept up to 3 MB, -O1 up to 5 MB, -O0 up to
+    machine's CPU (``-march=native``, the library keyed by that CPU): another 0.87–0.93× (the
+    3–5-link snakes, the two-steering snakeboard, the cart with three trailers). -O2 is kept up to 3 MB, -O1 up to 5 MB, -O0 up to
     20 MB, then there is no optimised build. The optimised build runs in the background
     (:func:`choose_code`); its estimate is said beside it."""
 
