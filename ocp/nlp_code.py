@@ -55,19 +55,19 @@ NO_COMPILER = "no C compiler found (looked for $NHGAIT_CC, $CC, gcc and cc, and 
 @dataclass(frozen=True)
 class CompileBudget:
     """Generated C size → optimisation level, from ``experiments/bench_scale.py`` on the 2-core
-    machine (loaded): gcc -O1 took 34.7 s for 2.56 MB, 63.4 s for 4.07 MB and 250 s for 7.02 MB
-    of CasADi's straight-line code (superlinear: register allocation in huge functions; 0.47 GB
-    of memory for 2.56 MB, 1.1 GB for 7 MB; -Og no better: 127 s, 1.08 GB); -O0 takes 1.5–5 s
-    per MB but its code runs 3–4× slower (the 8-link snake's NLP solved in 4.3 s compiled at
-    -O1, 16.7 s at -O0). -O2 (issue 25, measured on a quiet machine, 2026-11-26): 1.4–1.8× the
-    seconds of -O1 and ≤ 1.2× its memory for 0.4–2.9 MB of the scale benchmark's C (the cart
-    with six trailers, 2.90 MB: 45.7 s and 594 MB against 31.6 s and 577 MB), and solves in
-    0.78–0.95× the time of -O1's code (the two-steering snakeboard 0.78, the 5-link snake
-    0.90). With ``native`` (when :func:`~nhgait.dynamics.numerics.compiler.builds_for_cpu`: a
-    CPU it can read — Linux x86_64 and aarch64 — and gcc, clang or cc) -O2 builds for this
-    machine's CPU (``-march=native``, the library keyed by that CPU): another 0.87–0.93× (the
-    3–5-link snakes, the two-steering snakeboard, the cart with three trailers). -O2 is kept up to 3 MB, -O1 up to 5 MB, -O0 up to
-    20 MB, then there is no optimised build. The optimised build runs in the background
+    machine (loaded): gcc -O1 took 34.7 s for 2.56 MB, 63.4 s for 4.07 MB and 250 s for 7.02 MB of
+    CasADi's straight-line code (superlinear: register allocation in huge functions; 0.47 GB of
+    memory for 2.56 MB, 1.1 GB for 7 MB; -Og no better: 127 s, 1.08 GB); -O0 takes 1.5–5 s per MB
+    but its code runs 3–4× slower (the 8-link snake's NLP solved in 4.3 s compiled at -O1, 16.7 s at
+    -O0). -O2 (issue 25, measured on a quiet machine, 2026-11-26): 1.4–1.8× the seconds of -O1 and ≤
+    1.2× its memory for 0.4–2.9 MB of the scale benchmark's C (the cart with six trailers, 2.90 MB:
+    45.7 s and 594 MB against 31.6 s and 577 MB), and solves in 0.78–0.95× the time of -O1's code
+    (the two-steering snakeboard 0.78, the 5-link snake 0.90). With ``native`` (when
+    :func:`~nhgait.dynamics.numerics.compiler.builds_for_cpu`: a CPU it can read — Linux x86_64 and
+    aarch64 — and gcc, clang or cc) -O2 builds for this machine's CPU (``-march=native``, the
+    library keyed by that CPU): another 0.87–0.93× (the 3–5-link snakes, the two-steering
+    snakeboard, the cart with three trailers). -O2 is kept up to 3 MB, -O1 up to 5 MB, -O0 up to 20
+    MB, then there is no optimised build. The optimised build runs in the background
     (:func:`choose_code`); its estimate is said beside it."""
 
     o1_bytes: float = 5e6
