@@ -74,14 +74,17 @@ ACCEPTABLE_CONSTR_VIOL = 1e-8
 
 @dataclass(frozen=True)
 class IpoptBackend(SolverBackend):
-    """Ipopt: its options are ``ipopt.``-prefixed keys of the nlpsol options."""
+    """Ipopt: its options are ``ipopt.``-prefixed keys of the nlpsol options. ``no_nlp_grad``:
+    CasADi's gradient of the Lagrangian serves only ``lam_p`` (the NLPs have no p; Ipopt gives
+    ``lam_x``); generated, its reverse sweep through the stage was 36 % of the 8-link snake's C
+    (issue 25). FATROP's interface calls it."""
 
     def nlpsol_options(self, options, opts: dict) -> dict:
         hessian = "limited-memory" if options.hessian == "limited-memory" else "exact"
         opts = {**opts, "ipopt.print_level": options.print_level, "ipopt.sb": "yes",
                 "ipopt.max_iter": int(options.max_iter), "ipopt.tol": float(options.tol),
                 "ipopt.hessian_approximation": hessian, "ipopt.linear_solver": options.linear_solver,
-                "ipopt.acceptable_constr_viol_tol": ACCEPTABLE_CONSTR_VIOL}
+                "ipopt.acceptable_constr_viol_tol": ACCEPTABLE_CONSTR_VIOL, "no_nlp_grad": True}
         if options.time_limit is not None:
             opts["ipopt.max_wall_time"] = float(options.time_limit)
         opts.update({f"ipopt.{k}" if not k.startswith("ipopt.") else k: v for k, v in options.ipopt.items()})

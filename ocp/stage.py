@@ -150,15 +150,7 @@ def _symbols(sym, nz, nu, n_phase=2):
 def _inline(g, nz, nu, steps, free):
     """One SX expression of the M sub-steps, differentiated by CasADi."""
     z, u, T, k, lam, phase = _symbols(ca.SX, nz, nu, int(g.size1_in(4)))
-    a, b, _ = RK4
-    ds = 1.0 / steps
-    zi = z
-    for i in range(steps):
-        kap = []
-        for j in range(4):
-            y = zi + ds * sum((a[j][l] * kap[l] for l in range(j)), ca.SX.zeros(nz))
-            kap.append(g(y, u, T, k + (i + RK4[2][j]) / steps, phase))
-        zi = zi + ds * sum(b[j] * kap[j] for j in range(4))
+    zi = _value(g, z, u, T, k, phase, steps)
     x = ca.vertcat(z, u, T) if free else ca.vertcat(z, u)
     ins, names = [z, u, T, k, phase], ["z", "u", "T", "k", "phase"]
     step = ca.Function("stage", ins, [zi], names, ["z_end"])
@@ -199,11 +191,28 @@ def _structured(g, nz, nu, steps, free):
         Zi = Zi + ds * sum(b[j] * K[j] for j in range(4))
         record.append((pts, Gs))
     ins, names = [z, u, T, k, phase], ["z", "u", "T", "k", "phase"]
-    step = ca.Function("stage", ins, [zi], names, ["z_end"])
+    step = ca.Function("stage", ins, [_value(g, z, u, T, k, phase, steps)], names, ["z_end"])
     jac = ca.Function("stage_jac", ins, [zi, Zi], names, ["z_end", "J"])
     H = _second_order_adjoint(record, g_hess, lam, u, T, k, phase)
     hess = ca.Function("stage_hess", ins + [lam], [H], names + ["lam"], ["H"])
     return step, jac, hess, sum(int(f.n_instructions()) for f in (g, g_jac, g_hess))
+
+
+def _value(g, z, u, T, k, phase, steps):
+    """F = z_M, the M RK4 sub-steps from calls of g (SX symbols: inline; MX: the structured
+    stage's value function, which evaluates no Jacobian — called through
+    g_jac, the constraint function cost 6 ops(f) per RK point instead of 1, and its reverse
+    derivative was a second-order function as large as g_hess)."""
+    a, b, c = RK4
+    ds = 1.0 / steps
+    zi = z
+    for i in range(steps):
+        kap = []
+        for j in range(4):
+            y = zi + ds * sum((a[j][l] * kap[l] for l in range(j)), type(z).zeros(z.shape[0]))
+            kap.append(g(y, u, T, k + (i + c[j]) / steps, phase))
+        zi = zi + ds * sum(b[j] * kap[j] for j in range(4))
+    return zi
 
 
 def _second_order_adjoint(record, g_hess, lam, u, T, k, phase):

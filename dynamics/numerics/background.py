@@ -30,7 +30,7 @@ standard input, an unlinked temporary file) is:
   second), one compiler process at a time per cache directory (the builders of one cache take
   an exclusive ``flock`` of its ``jit/`` folder in turn; one that finds its library built
   meanwhile leaves), its address space bounded (:data:`MEMORY_BYTES`, ``RLIMIT_AS``; the
-  compile budget of the caller keeps -O1 files ≤ 5 MB, measured ≤ 0.9 GB), a time limit
+  compile budget of the caller keeps -O1 files ≤ 4.2 MB, measured ≤ 0.99 GB), a time limit
   (:data:`TIMEOUT_S`).
 * **Accountable.** The record ``<key>.json`` holds the compiler's seconds and peak resident
   memory (``compile_s``, ``compiler_peak_mb``); a compiler that fails writes ``<key>.failed``
