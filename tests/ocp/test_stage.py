@@ -184,6 +184,8 @@ def test_stage_matches_rk4_differentiated_by_casadi(mode, timed, free, steps):
     stage = stage_functions(f, N, steps=steps, free_horizon=free, mode=mode)
     assert stage.mode == mode
     assert stage.n_variables == 7 + free
+    if mode == "structured":       # the value function evaluates g only, no Jacobian (issue 25)
+        assert stage.step.get_function() == ["g"]
     rng = np.random.default_rng(1000 * steps + 10 * timed + free)
     for k in (0, 3, N - 1):
         ref = _reference_stage(f, 5, 2, N, k, steps, free)
@@ -432,18 +434,19 @@ def test_assembled_derivatives_solve_like_casadi_ad(timed_model, name, free):
 def test_inline_structured_gauss_newton_and_fatrop_reach_the_same_optimum(timed_model):
     """The two stage realisations, the Gauss–Newton Hessian and FATROP on the stage-ordered
     NLP all reach plain Ipopt's optimum of the park problem (objective 1e-8; FATROP, whose
-    own termination test differs, 1e-6)."""
+    own termination test differs, 1e-6); Ipopt's solvers are made without CasADi's
+    ``nlp_grad`` (FATROP's interface calls it)."""
     problem = _park(timed_model)
     guess = _park_guess(problem.intervals)
     f_ref = _plain_ipopt(MultipleShooting().build(problem), guess)[0]
     for transcription, options in ((MultipleShooting(stage="inline"), SolverOptions(jit=False)),
                                    (MultipleShooting(stage="structured"), SolverOptions(jit=False)),
                                    (None, SolverOptions(jit=False, hessian="gauss-newton"))):
-        sol = OCPSolver(problem, transcription, options).solve(guess)
-        assert sol.success, (transcription,
-                                                                                 options.hessian)
-        assert sol.objective == pytest.approx(f_ref, rel=1e-8), (transcription,
-                                                                                 options.hessian)
+        ocp = OCPSolver(problem, transcription, options)
+        assert "nlp_grad" not in ocp.solver.get_function()    # serves only lam_p; there is no p
+        sol = ocp.solve(guess)
+        assert sol.success, (transcription, options.hessian)
+        assert sol.objective == pytest.approx(f_ref, rel=1e-8), (transcription, options.hessian)
     fatrop = OCPSolver(problem, options=SolverOptions(jit=False, solver="fatrop")).solve(guess)
     assert fatrop.success
     assert fatrop.objective == pytest.approx(f_ref, rel=1e-6)
