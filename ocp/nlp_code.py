@@ -68,7 +68,7 @@ class CompileBudget:
     library keyed by that CPU): another 0.87–0.93× (the 3–5-link snakes, the two-steering
     snakeboard, the cart with three trailers). -O2 is kept up to 3 MB, -O1 up to 4.2 MB (gcc's memory
     follows the largest function: the 8-link snake's 4.14 MB, 2.6 MB of it its stage Hessian g_hess,
-    took 71 s and 0.99 GB on a quiet machine — the same function alone in its own translation unit
+    took 56–71 s and 0.99 GB on a quiet machine — the same function alone in its own translation unit
     1.03 GB, so splitting the file does not lower it), -O0 up to 20 MB, then there is no optimised
     build. The optimised build runs in the background
     (:func:`choose_code`); its estimate is said beside it."""
