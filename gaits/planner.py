@@ -49,6 +49,7 @@ from pathlib import Path
 from typing import Any
 
 from .gait_check import momentum_problem, screening_report, to_momentum_coordinates, unsolved, verified_gait  # noqa: F401
+from .refinement import refinable, refine
 from .search import Attempt, Search, continuation, solve_from_guesses, solve_with_fallbacks  # noqa: F401
 from .task import quantity_objects  # noqa: F401
 from .warm_start import MAX_SOLUTION_BYTES, read_solution, warm_start  # noqa: F401
@@ -333,7 +334,6 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
 
     from .guesses import candidates
     from .reachability import unreachable_targets
-    from .refinement import refinable
     t0 = time.perf_counter()
     with budget.stage("derivation"):
         reached.prepared = prepare(to_plan, params=params, progress=progress)
@@ -392,7 +392,6 @@ def _first_instead(reached: _Reached, search, settings, budget, progress, verify
     converged gait instead, verified (and refined) the same way, when it passes — a verified gait
     beats a lower objective that is not one; else the failure stands. Returns the search whose
     solution the plan keeps."""
-    from .refinement import refinable
     kept = (reached.search, reached.solution)
     first = replace(reached.search, solution=search.first, won=search.first_won, first=None, first_won=None)
     reached.search, reached.solution = first, verify_one(search.first)
@@ -410,7 +409,6 @@ def _first_instead(reached: _Reached, search, settings, budget, progress, verify
 def _refined(reached: _Reached, settings, budget, progress, verify_one) -> None:
     """The converged solution solved again with more RK4 sub-steps (:mod:`.refinement`), in
     ``reached``: its search gets the refined solution (when one converged) and the attempts."""
-    from .refinement import refine
     search = reached.search
     solution, verified, attempts = refine(search.solution, reached.solution, settings, budget,
                                           progress, verify_one)

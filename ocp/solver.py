@@ -346,7 +346,7 @@ class OCPSolver:
         attempts."""
         switched = self._switch(optimised_ready(self.compile_report))
         if self.coarse is not None:
-            n, sub, warm = self.coarse
+            n, sub, _ = self.coarse
             sub.adopt_optimised()
             if switched:
                 self.coarse = (n, sub, self._warm())

@@ -199,10 +199,9 @@ def _structured(g, nz, nu, steps, free):
 
 
 def _value(g, z, u, T, k, phase, steps):
-    """F = z_M, the M RK4 sub-steps from calls of g (SX symbols: inline; MX: the structured
-    stage's value function, which evaluates no Jacobian — called through
-    g_jac, the constraint function cost 6 ops(f) per RK point instead of 1, and its reverse
-    derivative was a second-order function as large as g_hess)."""
+    """F = z_M: the M RK4 sub-steps from calls of g alone (SX symbols: the inline stage; MX: the
+    structured stage's value function — through g_jac it cost 6 ops(f) per RK point instead of 1,
+    and its reverse derivative was a second-order function as large as g_hess)."""
     a, b, c = RK4
     ds = 1.0 / steps
     zi = z
