@@ -180,14 +180,15 @@ class System:
         return lines
 
     def mass_matrix(self) -> sp.Matrix:
-        """Kinetic metric M(q) = ∂²L/∂q̇∂q̇ (eq. 2.5), n×n: read off L term by term when L is
-        written as Σ c_ij q̇_i q̇_j − V (:func:`~.system_parsing.quadratic_split`), else
-        differentiated; computed once per system (:data:`METRICS`)."""
-        return METRICS.get(self, "M", lambda: self._split()[0])
+        """Kinetic metric M(q) = ∂²L/∂q̇∂q̇ (eq. 2.5), n×n: read off L when L is written as a
+        polynomial in the velocities (:func:`~.velocity_forms.quadratic_split`: sums, products
+        and squares of velocity terms), else differentiated; computed once per system, with V
+        (:data:`METRICS`)."""
+        return METRICS.get(self, "split", self._split)[0]
 
     def potential(self) -> sp.Expr:
         """V(q) = −L(q, 0)."""
-        return METRICS.get(self, "V", lambda: self._split()[1])
+        return METRICS.get(self, "split", self._split)[1]
 
     def _split(self) -> tuple:
         split = quadratic_split(self.L, self.q_dot)
@@ -197,7 +198,7 @@ class System:
 
     def omega(self) -> sp.Matrix:
         """Pfaffian constraint matrix ω(q), k×n (eq. 2.11): each row read off its constraint
-        when written as Σ ω_i q̇_i (:func:`~.system_parsing.linear_split`), else differentiated;
+        when written as Σ ω_i q̇_i (:func:`~.velocity_forms.linear_split`), else differentiated;
         computed once per system (:data:`METRICS`)."""
         if not self.constraint_exprs:
             return sp.zeros(0, self.n)

@@ -27,7 +27,6 @@ import keyword
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import sympy as sp
 
@@ -36,6 +35,7 @@ from nhgait.dynamics.suggestions import known_names
 from ..algebra.symbols import TIME
 from .expressions import CONSTANTS, FUNCTIONS, expression_problems, number_problems
 from .holonomic import choose_dependent, eliminate, velocity_row
+from .velocity_forms import linear_split, quadratic_split
 
 #: (``TIME``, the time symbol t of forces and input laws, is :data:`nhgait.dynamics.algebra.symbols.TIME`)
 __all__ = ["TIME", "ParsedSystem", "parse_system", "parse_field", "velocity_name", "name_of", "names_of",
@@ -417,7 +417,7 @@ def _check_structure(L, cons, qd, problems: list) -> None:
             problems.append(f"constraint {i + 1} uses a discontinuous function (Heaviside, sign, "
                             "Min, Max): constraints must be smooth")
         elif linear_split(c, qd) is not None:
-            continue              # written as Σ c_i q̇_i: Pfaffian by inspection
+            continue              # read off as Σ ω_i(q) q̇_i (velocity_forms): Pfaffian
         elif any(sp.diff(c, a, b) != 0 for a in qd for b in qd):
             problems.append(f"constraint {i + 1} ({c} = 0) is not linear in the velocities")
         elif sp.expand(c.xreplace(zero_v)) != 0:
@@ -432,68 +432,13 @@ def _check_structure(L, cons, qd, problems: list) -> None:
                         "L must be twice differentiable (use such functions in forces)")
         return
     if quadratic_split(L, qd) is not None:
-        return                    # written as Σ M_ij q̇_i q̇_j − V: quadratic by inspection
+        return                    # read off as ½q̇ᵀMq̇ − V (velocity_forms): natural
     grad = [sp.diff(L, v) for v in qd]
     if any(sp.diff(g, v) != 0 for g in [sp.diff(gg, w) for gg in grad for w in qd] for v in qd):
         problems.append("the Lagrangian is not quadratic in the velocities (need L = ½q̇ᵀMq̇ − V)")
     elif any(sp.expand(g.xreplace(zero_v)) != 0 for g in grad):
         problems.append("the Lagrangian has terms linear in the velocities (gyroscopic terms "
                         "are not supported; need L = ½q̇ᵀM(q)q̇ − V(q))")
-
-
-def linear_split(c, q_dot):
-    """The coefficients [ω_1 … ω_n] read off ``c`` term by term when it is written as
-    Σ ω_i q̇_i with every coefficient free of the velocities and not all zero; else None."""
-    index = {v: i for i, v in enumerate(q_dot)}
-    row = [sp.Integer(0)] * len(q_dot)
-    for term in sp.Add.make_args(c):
-        found = [f for f in sp.Mul.make_args(term) if f in index]
-        rest = [f for f in sp.Mul.make_args(term) if f not in index]
-        coefficient = sp.Mul(*rest)
-        if len(found) != 1 or coefficient.free_symbols & set(index):
-            return None
-        row[index[found[0]]] += coefficient
-    return row if any(r != 0 for r in row) else None
-
-
-class QuadraticSplit(NamedTuple):
-    """L = ½q̇ᵀ``M``q̇ − ``V``, read off term by term."""
-
-    M: object
-    V: object
-
-
-def quadratic_split(L, q_dot) -> QuadraticSplit | None:
-    """(M, V) read off L term by term when L is written as Σ c_ij q̇_i q̇_j + c_0 with every
-    coefficient free of the velocities (the form generated from bodies, ``½ M_ii q̇_i² +
-    M_ij q̇_i q̇_j − V``): no differentiation, one pass over L. None when L is not written so
-    (e.g. ``m*(x_dot**2 + y_dot**2)/2``): then M = ∂²L/∂q̇² is differentiated."""
-    index = {v: i for i, v in enumerate(q_dot)}
-    n = len(q_dot)
-    M = [[sp.Integer(0)] * n for _ in range(n)]
-    V = []
-    for term in sp.Add.make_args(L):
-        coefficient, velocities = [], []
-        for factor in sp.Mul.make_args(term):
-            if factor in index:
-                velocities.append(factor)
-            elif factor.is_Pow and factor.base in index and factor.exp == 2:
-                velocities += [factor.base, factor.base]
-            else:
-                coefficient.append(factor)
-        c = sp.Mul(*coefficient)
-        if len(velocities) not in (0, 2) or c.free_symbols & set(index):
-            return None
-        if not velocities:
-            V.append(-c)
-            continue
-        i, j = index[velocities[0]], index[velocities[1]]
-        if i == j:
-            M[i][i] += 2 * c
-        else:
-            M[i][j] += c
-            M[j][i] += c
-    return QuadraticSplit(sp.Matrix(M), sp.Add(*V))
 
 
 def _frames(statement, coord_names: list, problems: list) -> tuple:
