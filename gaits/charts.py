@@ -123,7 +123,7 @@ def derive_for_task(system, task, params, progress):
     for candidate in _smaller_fibers(model):
         with progress.phase(f"fiber ({fiber}) is singular at the {' and '.join(bad)} configuration: "
                             f"trying fiber ({', '.join(candidate)})"):
-            other = derive(replace(system, fiber=candidate), "reduced")
+            other = derive(system.with_fiber(candidate), "reduced")
         if not _singular_ends(other, ends, params):
             progress.note(f"  using fiber ({', '.join(candidate)}), shape "
                           f"({', '.join(c for c in system.coordinates if c not in candidate)})")
@@ -170,7 +170,7 @@ def verification_chart(system, model, q_nodes, params, progress) -> tuple:
     for candidate in others:
         with progress.phase(f"the gait meets the singular set of fiber ({fiber}): deriving fiber "
                             f"({', '.join(candidate.fiber)}) to verify it in"):
-            other = derive(replace(system, fiber=tuple(candidate.fiber)), "reduced")
+            other = derive(system.with_fiber(candidate.fiber), "reduced")
         mine = _regularity(other, q_nodes, params)
         if mine > score:
             best, score = other, mine

@@ -39,7 +39,7 @@ from .velocity_forms import linear_split, quadratic_split
 
 #: (``TIME``, the time symbol t of forces and input laws, is :data:`nhgait.dynamics.algebra.symbols.TIME`)
 __all__ = ["TIME", "ParsedSystem", "parse_system", "parse_field", "velocity_name", "name_of", "names_of",
-           "from_sympy", "NON_SMOOTH", "linear_split", "quadratic_split"]
+           "from_sympy", "NON_SMOOTH", "linear_split", "quadratic_split", "fiber_problems"]
 
 #: functions that make L or ω non-smooth: their derivatives (DiracDelta) are not functions
 NON_SMOOTH = (sp.Heaviside, sp.sign, sp.Min, sp.Max)
@@ -441,17 +441,24 @@ def _check_structure(L, cons, qd, problems: list) -> None:
                         "are not supported; need L = ½q̇ᵀM(q)q̇ − V(q))")
 
 
+def fiber_problems(fiber: tuple, coord_names) -> list:
+    """What is wrong with the fiber's names ``fiber`` for these coordinates (empty: nothing)."""
+    problems = []
+    bad = [f for f in fiber if f not in coord_names]
+    if bad:
+        problems.append(f"fiber: {', '.join(bad)} not coordinates")
+    if len(set(fiber)) != len(fiber):
+        problems.append("fiber: repeated coordinate")
+    return problems
+
+
 def _frames(statement, coord_names: list, problems: list) -> tuple:
     """Step 4: (fiber, planar_frame) checked and normalised (``"auto"``: x, y, theta when the
     system has coordinates of those names)."""
     fiber = statement.fiber
     if fiber is not None:
         fiber = tuple(names_of(fiber, "fiber", problems))
-        bad = [f for f in fiber if f not in coord_names]
-        if bad:
-            problems.append(f"fiber: {', '.join(bad)} not coordinates")
-        if len(set(fiber)) != len(fiber):
-            problems.append("fiber: repeated coordinate")
+        problems += fiber_problems(fiber, coord_names)
     frame = statement.planar_frame
     if frame == "auto":
         frame = ("x", "y", "theta") if {"x", "y", "theta"} <= set(coord_names) else None

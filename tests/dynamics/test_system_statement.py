@@ -4,6 +4,7 @@ import gc
 import pickle
 
 import numpy as np
+import pytest
 import sympy as sp
 
 from nhgait.dynamics import builtin
@@ -62,3 +63,21 @@ def test_the_memo_drops_a_system_with_it():
     del system
     gc.collect()
     assert len(parameter_checks.LAMBDIFIED) == before
+
+
+def test_with_fiber_is_the_same_system_in_another_chart():
+    """System.with_fiber skips the statement's checks: every field equals replace()'s, which
+    re-reads and re-checks the whole statement; a bad fiber is still refused."""
+    import dataclasses
+
+    from nhgait.dynamics.derivation.models import snakeboard
+    from nhgait.dynamics.errors import ModelError
+    system = snakeboard()
+    fast = system.with_fiber(["x", "y", "theta"])
+    checked = dataclasses.replace(system, fiber=("x", "y", "theta"))
+    assert fast.fiber == ("x", "y", "theta") != system.fiber
+    for item in dataclasses.fields(system):
+        assert getattr(fast, item.name) == getattr(checked, item.name), item.name
+    with pytest.raises(ModelError, match="xi not coordinates") as bad:
+        system.with_fiber(["x", "xi", "x"])
+    assert "repeated coordinate" in str(bad.value)

@@ -72,3 +72,4 @@ def test_the_structural_check_still_names_the_problem():
                                   " + (y_dot + a*theta_dot*cos(theta))**2)/2 + theta_dot**2/2")
     arm, mass = sorted(s.param_symbols, key=str)
     assert _zero(s.mass_matrix()[0, 2] + mass * arm * sp.sin(s.q[2]))     # M_xθ = −m a sin θ
+
