@@ -14,7 +14,9 @@ For every member of ``experiments/scale_tasks.py`` (wheeled snakes with 3–8 li
   reference's own set-up (build + gcc; issue 25: ≤ 0.25 for n ≥ 6)
   (``experiments/plan_process.py``);
 * **warm solve** — in this process, the cache filled by the cold run: the planner's NLP solved again
-  from its winning guess (median of ``--repeats``), interleaved with the reference NLP of
+  from its winning guess (median of ``--repeats``) on the threads a plan's solver child gets
+  (``openmp.share(1)``: the stage maps' OpenMP loops) and on one thread, interleaved with the
+  reference NLP of
   ``experiments/reference_scale_ocp.py`` (independent model, Ipopt, exact Hessian, gcc -O1,
   its own guess); ratio of the medians, iterations, objectives (relative difference);
 * ``--hessians`` — the warm solve with each Hessian (exact, gauss-newton, limited-memory) and
@@ -70,7 +72,7 @@ class Ours:
     """The planner's NLP of a member, built from the warm cache; :meth:`run` solves it from the
     guess the cold run won with."""
 
-    def __init__(self, member, guess_label, settings: Settings, reference=None):
+    def __init__(self, member, guess_label, settings: Settings, reference=None, threads: int = 1):
         from nhgait.dynamics.derivation.scene import scene_from_text
         from nhgait.gaits.guesses import candidates
         from nhgait.gaits.planner import prepare
@@ -86,9 +88,11 @@ class Ours:
         self.guess = next((g for g in guesses if g.label == guess_label), guesses[0])
         if reference is not None:                 # the reference's own guess, when the states agree
             self.guess = _reference_guess(reference.ref, problem)
-        self.runs = []
+        self.runs, self.threads = [], threads
 
     def run(self):
+        from nhgait.dynamics.numerics import openmp
+        openmp.grant(self.threads)         # this process forks no solver child: it may use threads
         self.runs.append(self.solver.solve(self.guess))
 
     def result(self) -> dict:
@@ -98,7 +102,8 @@ class Ours:
                 "iterations": last.iterations, "coarse_iterations": last.stats.get("coarse_iterations"),
                 "coarse_intervals": last.stats.get("coarse_intervals"),
                 "objective": last.objective, "success": last.success,
-                "status": last.status, "setup_s": self.solver.setup_time_s, "compiled": self.solver.compiled}
+                "status": last.status, "setup_s": self.solver.setup_time_s, "compiled": self.solver.compiled,
+                "threads": self.threads}
 
 
 def _reference_guess(ref, problem):
@@ -140,11 +145,15 @@ def warm(row: dict, repeats: int, reference: bool, hessians: bool, intervals=Non
     member = row["member"]
     cold = Settings(row.get("solver") or "ipopt", row.get("hessian") or "exact", intervals,
                     "optimised" if jit else False, bool(row.get("coarse", False)))
-    runners = {"ours": Ours(member, row.get("guess"), cold)}
+    from nhgait.dynamics.numerics import openmp
+    threads = openmp.share(1)               # as a plan's solver child (its stage maps' OpenMP)
+    runners = {"ours": Ours(member, row.get("guess"), cold, threads=threads),
+               "ours, one thread": Ours(member, row.get("guess"), cold)}
     if reference:
         runners["reference"] = Reference(member, intervals, jit)
         try:
-            runners["ours, reference's guess"] = Ours(member, None, cold, reference=runners["reference"])
+            runners["ours, reference's guess"] = Ours(member, None, cold, reference=runners["reference"],
+                                                      threads=threads)
         except ValueError as exc:
             print(f"# {member}: no same-guess run ({exc})", file=sys.stderr)
     if hessians:
@@ -153,10 +162,11 @@ def warm(row: dict, repeats: int, reference: bool, hessians: bool, intervals=Non
             runners[f"{solver}/{hessian}"] = Ours(member, row.get("guess"),
                                                   dataclasses.replace(cold, solver=solver, hessian=hessian))
     results = dict(zip(runners, interleaved(list(runners.values()), repeats), strict=True))
-    out = {"warm_solve": results["ours"]}
+    out = {"warm_solve": results["ours"], "warm_solve_one_thread": results["ours, one thread"]}
     if reference:
         r = results["reference"]
         out.update(reference=r, ratio=results["ours"]["solve_ms"] / r["solve_ms"],
+                   ratio_one_thread=results["ours, one thread"]["solve_ms"] / r["solve_ms"],
                    rel_objective=(row.get("objective", float("nan")) - r["objective"]) / abs(r["objective"]),
                    cold_over_reference_setup=row["cold_s"] / r["setup_s"])
         same = results.get("ours, reference's guess")
@@ -180,7 +190,8 @@ def _line(r: dict) -> str:
             f"{bg.get('peak_mb') or nan:6.0f} "
             f"{r['c_bytes'] / 1e6:5.2f} {ref.get('c_bytes', 0) / 1e6:5.2f} "
             f"{r.get('warm_solve', {}).get('solve_ms', nan):8.1f} {ref.get('solve_ms', nan):8.1f} "
-            f"{r.get('ratio', nan):5.2f} {r.get('warm_solve', {}).get('iterations', -1):4d} "
+            f"{r.get('ratio', nan):5.2f} {r.get('ratio_one_thread', nan):5.2f} "
+            f"{r.get('warm_solve', {}).get('iterations', -1):4d} "
             f"{ref.get('iterations', -1):4d} {r.get('same_guess', {}).get('iterations', -1):4d} "
             f"{r.get('same_guess_ratio', nan):5.2f} {r['objective']:10.6f} "
             f"{r.get('rel_objective', nan):9.1e} "
@@ -189,7 +200,8 @@ def _line(r: dict) -> str:
 
 HEADER = (f"{'member':24s} {'cold s':>6s} {'warm s':>6s} {'c/w':>5s} {'ref su':>6s} {'c/rsu':>5s} "
           f"{'silent':>6s} {'RSS MB':>6s} {'code':>11s} {'now s':>5s} {'bg':>4s} {'bg s':>6s} {'bg MB':>6s} "
-          f"{'C MB':>5s} {'ref C':>5s} {'warm ms':>8s} {'ref ms':>8s} {'ratio':>5s} {'it':>4s} {'r it':>4s} "
+          f"{'C MB':>5s} {'ref C':>5s} {'warm ms':>8s} {'ref ms':>8s} {'ratio':>5s} {'1 thr':>5s} {'it':>4s} "
+          f"{'r it':>4s} "
           f"{'sg it':>4s} {'sg r':>5s} {'objective':>10s} {'rel J':>9s} {'verify':>8s} solver/hessian status")
 
 

@@ -12,8 +12,10 @@ Hence, with λ the multipliers of g and λ_f that of the objective f,
     ∇²_w L     = ∇²_w (λ_f f + λᵀ g_lin) + Σ_terms Σ_k P_kᵀ H_k P_k,  H_k = ∇²_x (σ E_kᵀλ)ᵀ F (x_k)
 
 The terms come from their functions mapped over their points (one call of ``jacobian`` /
-``hessian`` per point, code independent of N); CasADi differentiates only g_lin and f
-(conditions at single nodes, periodicity, the objective), which are small. The blocks are
+``hessian`` per point, code independent of N; with ``parallel`` an OpenMP map, whose C shares
+the points among the threads a solver child was granted, :mod:`nhgait.dynamics.numerics.openmp`);
+CasADi differentiates only g_lin and f (conditions at single nodes, periodicity, the
+objective), which are small. The blocks are
 placed by a constant sparse scatter of the structural nonzeros of one point's J and H.
 
 Hessians (``hessian``):
@@ -35,6 +37,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from nhgait.dynamics.numerics.openmp import parallel_map
+
 __all__ = ["nlp_functions", "HESSIANS"]
 
 HESSIANS = ("exact", "gauss-newton", "limited-memory")
@@ -53,7 +57,13 @@ def _scatter(n_rows: int, n_cols: int, rows: np.ndarray, cols: np.ndarray, value
     return ca.MX(sp, ca.mtimes(gather, values))
 
 
-def _jacobian(nlp, w) -> tuple:
+def _mapped(function, K: int, parallel: bool):
+    """``function`` over K points: CasADi's OpenMP map when ``parallel`` (its C runs the points
+    on the cores a solver child was granted, :mod:`~nhgait.dynamics.numerics.openmp`), else serial."""
+    return parallel_map(function, K) if parallel else function.map(K, "serial")
+
+
+def _jacobian(nlp, w, parallel: bool) -> tuple:
     """(g, ∂g/∂w), each term evaluated once by its mapped Jacobian."""
     lay = nlp.layout
     n_g = int(nlp.g.shape[0])
@@ -61,7 +71,7 @@ def _jacobian(nlp, w) -> tuple:
     for term in lay.terms:
         (m, K), fn = term.rows.shape, term.functions
         # m × K, m × (nx K) (K blocks of one sparsity)
-        F, J = fn.jacobian.map(K, "serial")(*term.arguments)
+        F, J = _mapped(fn.jacobian, K, parallel)(*term.arguments)
         place = ca.DM(ca.Sparsity.triplet(n_g, m * K, term.rows.T.ravel().tolist(),
                                           list(range(m * K))), term.sign)
         g = g + ca.mtimes(place, ca.vec(F))
@@ -75,13 +85,13 @@ def _jacobian(nlp, w) -> tuple:
     return g, jac
 
 
-def _stage_hessian(nlp, lam_g, upper: bool) -> ca.MX:
+def _stage_hessian(nlp, lam_g, upper: bool, parallel: bool) -> ca.MX:
     """Σ_terms Σ_k P_kᵀ H_k P_k (upper triangle for Ipopt)."""
     total = ca.MX(nlp.n_w, nlp.n_w)
     for term in nlp.layout.terms:
         (m, K), fn = term.rows.shape, term.functions
         Lam = term.sign * ca.reshape(lam_g[term.rows.T.ravel().tolist()], m, K)
-        H = fn.hessian.map(K, "serial")(*term.arguments, Lam)       # nx × (nx K)
+        H = _mapped(fn.hessian, K, parallel)(*term.arguments, Lam)       # nx × (nx K)
         a, b = (np.array(v, dtype=np.int64) for v in fn.hessian.sparsity_out(0).get_triplet())
         if a.size == 0:
             continue
@@ -94,9 +104,10 @@ def _stage_hessian(nlp, lam_g, upper: bool) -> ca.MX:
     return total
 
 
-def nlp_functions(nlp, *, hessian: str = "exact", solver: str = "ipopt") -> dict:
+def nlp_functions(nlp, *, hessian: str = "exact", solver: str = "ipopt", parallel: bool = False) -> dict:
     """``nlp_jac_g`` and ``nlp_hess_l`` of a shooting NLP (see the module docstring), or {}
-    when ``nlp`` has no stage layout (collocation: CasADi differentiates the whole graph)."""
+    when ``nlp`` has no stage layout (collocation: CasADi differentiates the whole graph);
+    ``parallel``: the stage terms mapped with OpenMP (for C compiled with it)."""
     if nlp.layout is None:
         return {}
     if hessian not in HESSIANS:
@@ -104,7 +115,7 @@ def nlp_functions(nlp, *, hessian: str = "exact", solver: str = "ipopt") -> dict
         raise ProblemError([f"unknown Hessian {hessian!r} (known: {', '.join(HESSIANS)})"])
     w, p = nlp.w, ca.MX.sym("p", 0)
     lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", nlp.g.shape[0])
-    g, jac = _jacobian(nlp, w)
+    g, jac = _jacobian(nlp, w, parallel)
     out = {"nlp_jac_g": ca.Function("nlp_jac_g", [w, p], [g, jac], ["x", "p"], ["g", "jac_g_x"])}
     if hessian == "limited-memory":
         return out
@@ -113,7 +124,7 @@ def nlp_functions(nlp, *, hessian: str = "exact", solver: str = "ipopt") -> dict
     H = ca.hessian(rest, w)[0]
     H = ca.triu(H) if upper else H
     if hessian == "exact":
-        H = H + _stage_hessian(nlp, lam_g, upper)
+        H = H + _stage_hessian(nlp, lam_g, upper, parallel)
     ins, names = [w, p, lam_f, lam_g], ["x", "p", "lam_f", "lam_g"]
     if upper:
         out["nlp_hess_l"] = ca.Function("nlp_hess_l", ins, [H], names, ["triu_hess_gamma_x_x"])

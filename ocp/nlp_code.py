@@ -9,7 +9,9 @@ one C file by :class:`~.solver.OCPSolver`; :func:`choose_code` decides what runs
 
 1. **The optimised library from the cache** when an earlier run (or its background build)
    made it: gcc (``$NHGAIT_CC``, ``$CC``, gcc, cc) with the flags :class:`CompileBudget` picks
-   from the C size (``SolverOptions.jit_flags`` forces them).
+   from the C size (``SolverOptions.jit_flags`` forces them), and ``-fopenmp`` when the source has
+   OpenMP stage maps (:func:`parallel_maps`: the compiler builds OpenMP) — a solver child then
+   runs the intervals on its share of the cores (:mod:`~nhgait.dynamics.numerics.openmp`).
 2. Otherwise **code ready at once**: the fast compiler (:mod:`~nhgait.dynamics.numerics.fast_compiler`,
    the Tiny C Compiler: 0.02–0.25 s for 0.4–7 MB of C, code 1.2–2.6× slower than gcc -O1),
    cached like any library; without one, the functions run **interpreted** (one line says
@@ -31,6 +33,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from nhgait.dynamics.numerics import openmp
 from nhgait.dynamics.numerics.background import BackgroundBuild, start_build
 from nhgait.dynamics.numerics.compiler import (
     CompilerUnavailable,
@@ -44,7 +47,7 @@ from nhgait.dynamics.numerics.compiler import (
 from nhgait.dynamics.numerics.fast_compiler import MISSING, fast_compiler
 
 __all__ = ["CompileBudget", "COMPILE_BUDGET", "CompileReport", "NlpCode", "choose_code", "CODES",
-           "NO_COMPILER", "optimised_ready"]
+           "NO_COMPILER", "optimised_ready", "parallel_maps", "external_nlp"]
 
 #: what can run the NLP functions
 CODES = ("optimised", "fast", "interpreted")
@@ -146,6 +149,8 @@ def choose_code(source: str, options, progress, *, salt: str) -> NlpCode:
     flags, estimate, reason = ((tuple(options.jit_flags), 0.0, "flags given") if options.jit_flags
                                else options.budget.choose(size))
     command = compiler_command()
+    if flags is not None and "#pragma omp" in source and openmp.supported(command):
+        flags = (*flags, openmp.FLAG)             # the stage maps on the cores (parallel_maps)
     optimiser = Path(command[0]).name if command else ""
     if flags is not None and command is not None:
         found = cached_library(source, flags=flags, salt=salt)
@@ -168,6 +173,22 @@ def choose_code(source: str, options, progress, *, salt: str) -> NlpCode:
                            estimate, bool(lib is not None and lib.cached), reason,
                            None if lib is None else str(lib.path), kind, compiler, later)
     return NlpCode(lib, report, fallback)
+
+
+def parallel_maps(options) -> bool:
+    """Whether to build the NLP's stage maps for OpenMP (:mod:`~nhgait.dynamics.numerics.openmp`):
+    compiled code is asked for and the optimising compiler builds OpenMP (its library then gets
+    :data:`~nhgait.dynamics.numerics.openmp.FLAG`; the fast compiler ignores the pragmas)."""
+    return options.compiled and openmp.supported(compiler_command())
+
+
+def external_nlp(path):
+    """The NLP oracle of the library at ``path``, this process's OpenMP grant applied (one
+    thread unless it is a solver child: a process that forks must not have run a team)."""
+    import casadi as ca
+    oracle = ca.external("nlp", str(path))
+    openmp.limit()
+    return oracle
 
 
 def optimised_ready(report: CompileReport | None) -> CompileReport | None:

@@ -51,7 +51,16 @@ from nhgait.dynamics.progress import Progress
 from .backends import BACKENDS, SolverBackend
 from .coarse import WARM_IPOPT, coarse_intervals, combined, interpolated, resampled
 from .derivatives import nlp_functions
-from .nlp_code import COMPILE_BUDGET, NO_COMPILER, CompileBudget, CompileReport, choose_code, optimised_ready
+from .nlp_code import (
+    COMPILE_BUDGET,
+    NO_COMPILER,
+    CompileBudget,
+    CompileReport,
+    choose_code,
+    external_nlp,
+    optimised_ready,
+    parallel_maps,
+)
 from .problem import OptimalControlProblem, ProblemError
 from .solution import Solution
 from .transcription import Collocation, StageShooting, TranscribedNLP, get_transcription
@@ -265,7 +274,8 @@ class OCPSolver:
         if isinstance(self.transcription, Collocation) and backend.mumps:
             self.options = replace(self.options, ipopt={**COLLOCATION_MUMPS, **self.options.ipopt})
         self.nlp: TranscribedNLP = self.transcription.build(problem)
-        self.functions = nlp_functions(self.nlp, hessian=self.options.hessian, solver=self.options.solver)
+        self.functions = nlp_functions(self.nlp, hessian=self.options.hessian, solver=self.options.solver,
+                                       parallel=parallel_maps(self.options))
         self.jit_cached, self.jit_fallback, self.compiled, self.jit_path = None, None, False, None
         self.compile_report, self.coarse = None, None
         if self.options.jit is None and compiler_command() is None and fast_compiler() is None:
@@ -290,7 +300,7 @@ class OCPSolver:
         """(oracle, nlpsol options) the solver is made from: the compiled library's oracle, or
         the symbolic one (expanded to SX for inline stages unless ``options.expand`` says)."""
         if self.compiled:
-            return ca.external("nlp", str(self.jit_path)), self.options.nlpsol_options()
+            return external_nlp(self.jit_path), self.options.nlpsol_options()
         inline = self.nlp.layout is None or self.nlp.layout.stage.mode == "inline"
         expand = inline if self.options.expand is None else self.options.expand
         return self._oracle(), self.options.nlpsol_options(expand=expand)
@@ -334,7 +344,7 @@ class OCPSolver:
         if lib.private:   # the library stays loaded; its private folder goes with this solver
             weakref.finalize(self, shutil.rmtree, lib.path.parent, True)
         self.compiled, self.jit_cached, self.jit_path = True, lib.cached, lib.path
-        return self._nlpsol("ocp", ca.external("nlp", str(lib.path)), opts)
+        return self._nlpsol("ocp", external_nlp(lib.path), opts)
 
     def adopt_optimised(self) -> bool:
         """Switch to the optimised library once the background build this solver started has
@@ -356,7 +366,7 @@ class OCPSolver:
         if report is None:
             return False
         try:
-            solver = self._nlpsol("ocp", ca.external("nlp", report.path), self.options.nlpsol_options())
+            solver = self._nlpsol("ocp", external_nlp(report.path), self.options.nlpsol_options())
         except RuntimeError:
             return False
         self.solver, self.compile_report = solver, report
@@ -429,7 +439,7 @@ class OCPSolver:
         other.__dict__.update(self.__dict__)
         other.options = replace(self.options, ipopt={**WARM_IPOPT, **self.options.ipopt}, coarse=False)
         other.coarse = None
-        other.solver = other._nlpsol("ocp_warm", ca.external("nlp", str(self.jit_path)),
+        other.solver = other._nlpsol("ocp_warm", external_nlp(self.jit_path),
                                      other.options.nlpsol_options())
         return other
 

@@ -17,6 +17,9 @@ forked for it, which the parent supervises::
   reaps every child before it propagates: no child outlives the call. The stop signals are
   blocked while a child is forked and registered, so that their handlers run in this code —
   never inside ``os.fork``'s at-fork hooks, where Python would drop their exception.
+* **Cores**: a child may run its NLP functions' OpenMP maps on its share of the cores (the
+  cores over ``workers``, :func:`~nhgait.dynamics.numerics.openmp.share`); the parent stays on
+  one thread (a process that forks must not have run a team of threads).
 * **A child** ignores SIGINT (Ctrl-C is the parent's to handle), dies on SIGTERM, gets SIGKILL
   when the parent thread that forked it dies (``PR_SET_PDEATHSIG`` on Linux; it exits at once
   if the parent is already gone), sends its result pickled through a pipe and leaves with
@@ -47,6 +50,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from nhgait.dynamics.errors import STOP_SIGNALS
+from nhgait.dynamics.numerics import openmp
 
 __all__ = ["Job", "supervise", "can_fork", "POLL_S", "HANDLER_PAUSE_S"]
 
@@ -84,12 +88,13 @@ def supervise(jobs, *, workers: int = 1, progress=None) -> list:
         _say_in_process(progress, "no fork here")
         return [job.run() for job in jobs]
     pending, running, results = list(enumerate(jobs)), {}, [None] * len(jobs)
+    threads = openmp.share(workers)
     try:
         while pending or running:
             while pending and len(running) < max(1, int(workers)):
                 index, job = pending.pop(0)
                 try:
-                    _start(job, index, running)
+                    _start(job, index, running, threads)
                 except OSError as exc:        # no process to be had (limits, memory): in this one
                     _say_in_process(progress, f"cannot start a process: {exc.strerror or exc}")
                     results[index] = _Returned(job.run())
@@ -103,14 +108,14 @@ def supervise(jobs, *, workers: int = 1, progress=None) -> list:
     return [_value(r) for r in results]
 
 
-def _start(job: Job, index: int, running: dict) -> None:
+def _start(job: Job, index: int, running: dict, threads: int) -> None:
     """Fork the child of ``job`` into ``running[index]`` with the stop signals blocked: a
     signal arriving meanwhile is handled once the child is registered (to be killed with the
     others), not inside ``os.fork``'s at-fork hooks — where Python ignores the handler's
     exception ("Exception ignored in: <function _releaseLock ...>") and the plan would go on."""
     blocked = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
     try:
-        running[index] = _Child.start(job, blocked)
+        running[index] = _Child.start(job, blocked, threads)
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
 
@@ -175,7 +180,7 @@ class _Child:
         self.reaped = self.closed = self.eof = False
 
     @classmethod
-    def start(cls, job: Job, mask) -> _Child:
+    def start(cls, job: Job, mask, threads: int = 1) -> _Child:
         _flush_python_streams()                      # nothing buffered is written twice
         parent = os.getpid()
         prctl = _prctl()
@@ -188,7 +193,7 @@ class _Child:
             raise
         if pid == 0:                                 # pragma: no cover - the child (measured by the tests)
             os.close(read)
-            _child(job, write, parent, prctl, mask)
+            _child(job, write, parent, prctl, mask, threads)
         os.close(write)
         os.set_blocking(read, False)
         return cls(job, pid, read)
@@ -277,9 +282,9 @@ def _prctl():
     return ctypes.CDLL(None).prctl
 
 
-def _child(job: Job, write: int, parent: int, prctl, mask) -> None:  # pragma: no cover - runs in the child
+def _child(job: Job, write: int, parent: int, prctl, mask, threads: int) -> None:  # pragma: no cover
     """The child's whole life (module docstring): never returns. ``mask``: the signal mask to
-    restore once its own handlers are set."""
+    restore once its own handlers are set; ``threads``: its OpenMP grant (it forks nothing)."""
     status = 0
     try:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -291,6 +296,7 @@ def _child(job: Job, write: int, parent: int, prctl, mask) -> None:  # pragma: n
             prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
         if os.getppid() != parent:                    # the parent ended before that
             os._exit(1)
+        openmp.grant(threads)
         try:
             answer = ("ok", job.run())
         except BaseException as exc:  # noqa: BLE001 - handed to the parent, raised there

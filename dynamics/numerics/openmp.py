@@ -1,0 +1,118 @@
+"""The NLP's stage maps on several cores: OpenMP in the optimised library, in solver children only.
+
+An iteration's function time is almost all the stage Jacobian and Hessian mapped over the N
+intervals (``ocp/derivatives.py``), N independent calls. CasADi generates such a map as a loop
+under ``#pragma omp parallel for`` (map mode ``"openmp"``, each call with its own work arrays):
+compiled with ``-fopenmp`` the calls share the cores, and without it (the fast compiler, a
+compiler without OpenMP) the pragma is ignored and the loop is the serial map's. Measured on the
+2-core machine (the cart with six trailers, gcc -O2 -march=native, best of 7 calls):
+``nlp_hess_l`` 10.6 → 5.4 ms and ``nlp_jac_g`` 2.8 → 2.1 ms on two threads, the same numbers to
+the last bit; on one thread the OpenMP source is 3–4 % slower than the serial one (the per-call
+work arrays).
+
+**Fork safety.** GNU OpenMP does not survive ``fork``: a child forked after its parent ran a
+parallel region on several threads hangs in its own first region (measured: every time). So a
+process runs the NLP functions on **one** thread unless it was **granted** more, and only the
+supervised solver children are (:mod:`nhgait.ocp.supervision`: they fork nothing): :func:`limit`
+after loading a library applies the process's grant (1 by default), :func:`grant` in a child sets
+it to its share of the cores (:func:`share`: the cores over the attempts running at once;
+``$OMP_NUM_THREADS`` caps it).
+
+The CasADi wheel is built without OpenMP, so making an ``"openmp"`` map prints a warning that it
+will evaluate serially (true of the interpreted map, not of its generated C):
+:func:`parallel_map` makes the map without it.
+"""
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import io
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from ..memo import LruMemo
+
+__all__ = ["FLAG", "supported", "parallel_map", "share", "grant", "limit", "threads"]
+
+#: the compiler flag (compile and link) of OpenMP's pragmas and runtime
+FLAG = "-fopenmp"
+#: the runtimes a library built with FLAG loads (GNU, LLVM, Intel)
+RUNTIMES = ("libgomp.so.1", "libomp.so", "libomp.so.5", "libiomp5.so", "libomp.dylib", "libgomp.1.dylib")
+#: whether a compiler builds OpenMP code, per command (a probe compile, once per process)
+SUPPORT = LruMemo("OpenMP support per compiler command", size=8)
+_PROBE = ("void nhgait_probe(double *x, int n) {\n#pragma omp parallel for\n"
+          "  for (int i = 0; i < n; ++i) x[i] *= 2;\n}\n")
+#: CasADi's warning for an "openmp" map (this wheel has no OpenMP: its own evaluation is serial)
+_WARNING = "was not compiled with WITH_OPENMP"
+
+_granted = 1      # threads this process may use (grant); 1 unless it is a supervised child
+
+
+def supported(command) -> bool:
+    """Whether ``command`` (a C compiler's argv prefix, or None) compiles and links a parallel
+    loop with :data:`FLAG` into a shared library (probed once per process: ~30 ms for gcc)."""
+    if not command:
+        return False
+    return SUPPORT.get(tuple(command), lambda: _probe(list(command)))
+
+
+def _probe(command: list) -> bool:
+    with tempfile.TemporaryDirectory(prefix="nhgait-openmp-") as folder:
+        source, target = Path(folder) / "probe.c", Path(folder) / "probe.so"
+        source.write_text(_PROBE)
+        try:
+            done = subprocess.run([*command, FLAG, "-fPIC", "-shared", str(source), "-o", str(target)],
+                                  capture_output=True, timeout=60)
+        except (OSError, subprocess.SubprocessError):
+            return False
+        return done.returncode == 0 and target.exists()
+
+
+def parallel_map(function, n: int):
+    """``function.map(n, "openmp")`` without CasADi's warning that its own evaluation is serial
+    (module docstring); any other message it prints is passed on."""
+    caught = io.StringIO()
+    with contextlib.redirect_stderr(caught), contextlib.redirect_stdout(caught):
+        mapped = function.map(n, "openmp")
+    rest = "".join(line for line in caught.getvalue().splitlines(True) if _WARNING not in line)
+    if rest:
+        sys.stderr.write(rest)
+    return mapped
+
+
+def share(workers: int) -> int:
+    """Threads for each of ``workers`` attempts running at once: the usable cores over them (at
+    least 1), at most ``$OMP_NUM_THREADS`` when set."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cores = os.cpu_count() or 1
+    n = max(1, cores // max(1, int(workers)))
+    cap = os.environ.get("OMP_NUM_THREADS", "").split(",")[0].strip()
+    return min(n, int(cap)) if cap.isdigit() and int(cap) > 0 else n
+
+
+def grant(n: int) -> None:
+    """Let this process — a supervised child, which forks nothing — run on ``n`` threads."""
+    global _granted
+    _granted = max(1, int(n))
+    limit()
+
+
+def threads() -> int:
+    """The threads this process's parallel regions use (its grant)."""
+    return _granted
+
+
+def limit() -> None:
+    """Apply this process's grant to every OpenMP runtime loaded in it (call after loading a
+    library built with :data:`FLAG`): one thread unless :func:`grant` said more."""
+    for name in RUNTIMES:
+        try:
+            runtime = ctypes.CDLL(name, mode=getattr(os, "RTLD_NOLOAD", 0) | ctypes.RTLD_GLOBAL)
+        except OSError:
+            continue                  # not loaded here
+        runtime.omp_set_num_threads(ctypes.c_int(_granted))
