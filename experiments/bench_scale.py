@@ -91,9 +91,12 @@ class Ours:
         self.runs, self.threads = [], threads
 
     def run(self):
-        from nhgait.dynamics.numerics import openmp
-        openmp.grant(self.threads)         # this process forks no solver child: it may use threads
-        self.runs.append(self.solver.solve(self.guess))
+        if self.threads == 1:
+            self.runs.append(self.solver.solve(self.guess))
+            return
+        # as the planner: in a solver child, on its share of the cores
+        from nhgait.gaits.search import solve_attempts
+        self.runs.append(solve_attempts(self.solver, [self.guess])[0])
 
     def result(self) -> dict:
         last = self.runs[-1]
@@ -146,7 +149,7 @@ def warm(row: dict, repeats: int, reference: bool, hessians: bool, intervals=Non
     cold = Settings(row.get("solver") or "ipopt", row.get("hessian") or "exact", intervals,
                     "optimised" if jit else False, bool(row.get("coarse", False)))
     from nhgait.dynamics.numerics import openmp
-    threads = openmp.share(1)               # as a plan's solver child (its stage maps' OpenMP)
+    threads = openmp.share(1)               # a plan's solver child's (its stage maps' OpenMP)
     runners = {"ours": Ours(member, row.get("guess"), cold, threads=threads),
                "ours, one thread": Ours(member, row.get("guess"), cold)}
     if reference:

@@ -17,6 +17,9 @@
   warning: the library is then built in a private temporary directory
   (``nhgait-jit-<host>-<pid>-…`` in ``$TMPDIR``, ``Library.private``; the caller removes it
   once the library is loaded).
+* **OpenMP where there is one.** A build asked for with ``-fopenmp`` (:mod:`.openmp`) whose
+  compiler fails with it is built again without it (its pragmas are then ignored): the key
+  keeps the flags asked for, the record and :class:`Library` the ones used.
 * **Atomic.** Compilation happens in ``jit/.build-<random>/``; the library and then its record
   are moved into place with ``os.replace``, so no reader ever sees half a library, and a
   library without its record is never loaded.
@@ -58,10 +61,12 @@ from pathlib import Path
 
 from ..errors import STOP_SIGNALS
 from ..memo import LruMemo
+from . import openmp
 
 __all__ = ["Library", "CompilerUnavailable", "build_library", "cached_library", "compiler_command",
            "library_key", "jit_dir", "library_dir", "compile_in", "CompileJob", "STALE_BUILD_S",
-           "COMPILER_COMMANDS", "NATIVE_FLAGS", "host_cpu", "builds_for_cpu", "library_by_key"]
+           "COMPILER_COMMANDS", "NATIVE_FLAGS", "host_cpu", "builds_for_cpu", "library_by_key",
+           "recorded_flags"]
 
 #: a build folder older than this (seconds) is left over from a process that died: removed
 STALE_BUILD_S = 3600.0
@@ -214,6 +219,15 @@ def _cached(directory: Path, key: str) -> Path | None:
     return so if trusted_file(so, recorded) else None
 
 
+def recorded_flags(library: Path, requested) -> tuple:
+    """The flags ``library`` was built with, from its record: ``requested`` less any the build
+    dropped (``-fopenmp`` where the compiler has no OpenMP, :func:`compile_in`)."""
+    try:
+        return tuple(json.loads(library.with_suffix(".json").read_text())["flags"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return tuple(requested)
+
+
 def _child_setup(mask=None, memory_bytes: int | None = None):
     """The preexec function of the compiler: its own process group, the signal mask ``mask``
     (the parent blocks the stop signals while it starts the compiler, :func:`_run`), at most
@@ -340,6 +354,10 @@ def compile_in(job: CompileJob, directory: Path, tmp: Path) -> Library:
     cmd = [*command, *flags, "-fPIC", "-shared", str(c_file), "-o", str(so_tmp), *libs]
     try:
         proc = _run(cmd, job.progress, job.label, job.timeout, tmp, job.memory_bytes)
+        if (proc.returncode != 0 or not so_tmp.exists()) and openmp.FLAG in flags:
+            flags = tuple(f for f in flags if f != openmp.FLAG)   # no OpenMP here: pragmas ignored
+            cmd = [*command, *flags, "-fPIC", "-shared", str(c_file), "-o", str(so_tmp), *libs]
+            proc = _run(cmd, job.progress, job.label, job.timeout, tmp, job.memory_bytes)
     except OSError as exc:
         raise CompilerUnavailable(f"cannot run the C compiler {command[0]!r} ({exc.strerror})") from None
     if proc.returncode != 0 or not so_tmp.exists():
@@ -385,7 +403,7 @@ def build_library(source: str, *, flags: tuple = ("-O1",), salt: str = "", libs:
     if directory is not None:
         found = _cached(directory, key)
         if found is not None:
-            return Library(found, key, True, 0.0, len(source), flags)
+            return Library(found, key, True, 0.0, len(source), recorded_flags(found, flags))
         remove_stale_temporaries(directory, ".build-", max_age_s=STALE_BUILD_S)
         try:
             return _compile(job, directory)
@@ -402,7 +420,9 @@ def cached_library(source: str, *, flags: tuple = ("-O1",), salt: str = "", libs
     key = library_key(source, flags=tuple(flags), salt=salt, libs=tuple(libs), command=command)
     directory = _library_dir()
     found = None if directory is None else _cached(directory, key)
-    return None if found is None else Library(found, key, True, 0.0, len(source), tuple(flags))
+    if found is None:
+        return None
+    return Library(found, key, True, 0.0, len(source), recorded_flags(found, flags))
 
 
 def library_dir() -> Path | None:

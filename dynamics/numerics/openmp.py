@@ -3,8 +3,10 @@
 An iteration's function time is almost all the stage Jacobian and Hessian mapped over the N
 intervals (``ocp/derivatives.py``), N independent calls. CasADi generates such a map as a loop
 under ``#pragma omp parallel for`` (map mode ``"openmp"``, each call with its own work arrays):
-compiled with ``-fopenmp`` the calls share the cores, and without it (the fast compiler, a
-compiler without OpenMP) the pragma is ignored and the loop is the serial map's. Measured on the
+compiled with :data:`FLAG` the calls share the cores, and without it (the fast compiler, a
+compiler without OpenMP: the build retries without the flag, :mod:`.compiler`) the pragma is
+ignored and the loop is the serial map's. No compiler runs to find out beforehand: that would
+put one on a cold plan's critical path. Measured on the
 2-core machine (the cart with six trailers, gcc -O2 -march=native, best of 7 calls):
 ``nlp_hess_l`` 10.6 → 5.4 ms and ``nlp_jac_g`` 2.8 → 2.1 ms on two threads, the same numbers to
 the last bit; on one thread the OpenMP source is 3–4 % slower than the serial one (the per-call
@@ -28,47 +30,18 @@ import contextlib
 import ctypes
 import io
 import os
-import subprocess
 import sys
-import tempfile
-from pathlib import Path
 
-from ..memo import LruMemo
-
-__all__ = ["FLAG", "supported", "parallel_map", "share", "grant", "limit", "threads"]
+__all__ = ["FLAG", "parallel_map", "share", "grant", "limit", "threads"]
 
 #: the compiler flag (compile and link) of OpenMP's pragmas and runtime
 FLAG = "-fopenmp"
 #: the runtimes a library built with FLAG loads (GNU, LLVM, Intel)
 RUNTIMES = ("libgomp.so.1", "libomp.so", "libomp.so.5", "libiomp5.so", "libomp.dylib", "libgomp.1.dylib")
-#: whether a compiler builds OpenMP code, per command (a probe compile, once per process)
-SUPPORT = LruMemo("OpenMP support per compiler command", size=8)
-_PROBE = ("void nhgait_probe(double *x, int n) {\n#pragma omp parallel for\n"
-          "  for (int i = 0; i < n; ++i) x[i] *= 2;\n}\n")
 #: CasADi's warning for an "openmp" map (this wheel has no OpenMP: its own evaluation is serial)
 _WARNING = "was not compiled with WITH_OPENMP"
 
 _granted = 1      # threads this process may use (grant); 1 unless it is a supervised child
-
-
-def supported(command) -> bool:
-    """Whether ``command`` (a C compiler's argv prefix, or None) compiles and links a parallel
-    loop with :data:`FLAG` into a shared library (probed once per process: ~30 ms for gcc)."""
-    if not command:
-        return False
-    return SUPPORT.get(tuple(command), lambda: _probe(list(command)))
-
-
-def _probe(command: list) -> bool:
-    with tempfile.TemporaryDirectory(prefix="nhgait-openmp-") as folder:
-        source, target = Path(folder) / "probe.c", Path(folder) / "probe.so"
-        source.write_text(_PROBE)
-        try:
-            done = subprocess.run([*command, FLAG, "-fPIC", "-shared", str(source), "-o", str(target)],
-                                  capture_output=True, timeout=60)
-        except (OSError, subprocess.SubprocessError):
-            return False
-        return done.returncode == 0 and target.exists()
 
 
 def parallel_map(function, n: int):
