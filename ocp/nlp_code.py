@@ -187,6 +187,7 @@ def external_nlp(path):
     """The NLP oracle of the library at ``path``, this process's OpenMP grant applied (one
     thread unless it is a solver child: a process that forks must not have run a team)."""
     import casadi as ca
+    openmp.before_load()
     oracle = ca.external("nlp", str(path))
     openmp.limit()
     return oracle

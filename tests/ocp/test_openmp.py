@@ -5,6 +5,7 @@ ran them (GNU OpenMP hangs a child forked after a team of threads ran: without t
 limit this test's child is killed at its time limit). A compiler without OpenMP builds the same
 source without -fopenmp (its pragmas ignored). The reference is the same NLP solved
 interpreted (CasADi's virtual machine, serial maps): the same iterations, J to 1e-9."""
+import os
 from dataclasses import dataclass
 
 import casadi as ca
@@ -65,6 +66,15 @@ def test_a_compiler_without_openmp_builds_without_the_flag(tmp_path, monkeypatch
     assert lib.flags == ("-O1",) and not lib.cached
     again = build_library(source, flags=("-O1", openmp.FLAG), salt="openmp test", command=[str(wrapper)])
     assert again.cached and again.flags == ("-O1",) and again.path == lib.path
+
+
+def test_idle_threads_sleep_unless_the_user_says(monkeypatch):
+    monkeypatch.delenv("OMP_WAIT_POLICY", raising=False)
+    openmp.before_load()
+    assert openmp.WAIT_POLICY == "PASSIVE" and os.environ["OMP_WAIT_POLICY"] == "PASSIVE"
+    monkeypatch.setenv("OMP_WAIT_POLICY", "ACTIVE")
+    openmp.before_load()
+    assert os.environ["OMP_WAIT_POLICY"] == "ACTIVE"
 
 
 def test_share_of_the_cores(monkeypatch):
