@@ -165,6 +165,26 @@ def test_cancelled_builder_leaves_no_compiler_and_no_folder(cold, tmp_path, monk
     assert list(jit_dir().iterdir()) == []
 
 
+@needs_posix
+@needs_cc
+@pytest.mark.skipif(not Path("/proc/self/autogroup").exists(), reason="no autogroups here")
+def test_the_builder_and_its_autogroup_run_at_the_lowest_priority(cold, tmp_path, monkeypatch):
+    """Its own session's autogroup at nice 19 too: niceness counts only within a group, and
+    groups share the cores equally (a nice-19 builder took a core from a plan's two threads)."""
+    folder = tmp_path / "cc"
+    probe = HeldCompiler(folder, "#!/bin/sh\n"
+                                 f"cat /proc/self/autogroup > '{folder}/autogroup'\n"
+                                 f"nice > '{folder}/nice'\n"
+                                 f"exec '{REAL_CC}' \"$@\"\n")
+    monkeypatch.setenv("NHGAIT_CC", str(probe.script))
+    build = start_build("int nhgait_answer(void) { return 42; }\n", flags=("-O1",), salt="priority test")
+    assert build.state == "started"
+    assert BUILDERS.wait(timeout=120)
+    assert (folder / "nice").read_text().split() == ["19"]
+    assert (folder / "autogroup").read_text().split()[-2:] == ["nice", "19"]
+    assert Path("/proc/self/autogroup").read_text() != (folder / "autogroup").read_text()   # its own group
+
+
 def _alive(pid: int) -> bool:
     try:
         state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
