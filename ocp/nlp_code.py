@@ -13,7 +13,8 @@ one C file by :class:`~.solver.OCPSolver`; :func:`choose_code` decides what runs
    OpenMP stage maps (:func:`parallel_maps`; dropped by a compiler without OpenMP) — a solver
    child then runs the intervals on its share of the cores (:mod:`~nhgait.dynamics.numerics.openmp`).
 2. Otherwise **code ready at once**: the fast compiler (:mod:`~nhgait.dynamics.numerics.fast_compiler`,
-   the Tiny C Compiler: 0.02–0.25 s for 0.4–7 MB of C, code 1.2–2.6× slower than gcc -O1),
+   the Tiny C Compiler: 0.02–0.25 s for 0.4–7 MB of C, code 1.2–2.6× slower than gcc -O1; its
+   stage maps on POSIX threads, :mod:`~nhgait.dynamics.numerics.thread_maps`),
    cached like any library; without one, the functions run **interpreted** (one line says
    so) — measured slower than the fast compiler's code at every size of the scale benchmark
    (the 6-link snake: 33 s against 8.6 s per solve), so a fast compiler present is always used.
@@ -45,6 +46,7 @@ from nhgait.dynamics.numerics.compiler import (
     library_by_key,
 )
 from nhgait.dynamics.numerics.fast_compiler import MISSING, fast_compiler
+from nhgait.dynamics.numerics.thread_maps import threaded_maps
 
 __all__ = ["CompileBudget", "COMPILE_BUDGET", "CompileReport", "NlpCode", "choose_code", "CODES",
            "NO_COMPILER", "optimised_ready", "parallel_maps", "external_nlp"]
@@ -178,8 +180,8 @@ def choose_code(source: str, options, progress, *, salt: str) -> NlpCode:
 def parallel_maps(options) -> bool:
     """Whether to build the NLP's stage maps for OpenMP (:mod:`~nhgait.dynamics.numerics.openmp`):
     when compiled code is asked for (the optimised library then gets
-    :data:`~nhgait.dynamics.numerics.openmp.FLAG`; the fast compiler ignores the pragmas, and
-    its code is 0–4 % slower than the serial map's)."""
+    :data:`~nhgait.dynamics.numerics.openmp.FLAG`; the fast compiler's source has the maps
+    rewritten onto POSIX threads, :mod:`~nhgait.dynamics.numerics.thread_maps`)."""
     return options.compiled
 
 
@@ -189,7 +191,7 @@ def external_nlp(path):
     import casadi as ca
     openmp.before_load()
     oracle = ca.external("nlp", str(path))
-    openmp.limit()
+    openmp.limit(path)
     return oracle
 
 
@@ -216,16 +218,20 @@ def _ready_now(source, options, progress, salt, optimised) -> tuple:
     fast = fast_compiler()
     failed = None
     if fast is not None:
-        try:
-            lib = build_library(source, command=fast.command, flags=fast.flags, libs=fast.libs, salt=salt,
-                                progress=progress, label=f"compile {mb:.2f} MB of C with {fast.name}")
+        threaded = threaded_maps(source)
+        for text in (threaded, source) if threaded else (source,):
+            try:
+                lib = build_library(text, command=fast.command, flags=fast.flags, libs=fast.libs, salt=salt,
+                                    progress=progress, label=f"compile {mb:.2f} MB of C with {fast.name}")
+            except CompilerUnavailable as exc:
+                failed = f"the fast C compiler failed: {exc}"
+                continue                   # the threaded source: try the plain one
+            maps = ", its stage maps on POSIX threads" if text is threaded else ""
             progress.note(f"  NLP functions: {mb:.2f} MB of C, " + ("fast library from the cache"
                                                                     if lib.cached else
-                          f"compiled with {fast.name} in {lib.compile_s:.2f} s"))
+                          f"compiled with {fast.name} in {lib.compile_s:.2f} s") + maps)
             return lib, "fast", fast.name, None
-        except CompilerUnavailable as exc:
-            failed = f"the fast C compiler failed: {exc}"
-            progress.note_once("fast-compiler-failed", f"{failed}; the NLP functions run interpreted")
+        progress.note_once("fast-compiler-failed", f"{failed}; the NLP functions run interpreted")
     else:
         progress.note_once("fast-compiler", MISSING)
     if options.jit is True and flags is not None and command is not None:

@@ -3,11 +3,12 @@
 An iteration's function time is almost all the stage Jacobian and Hessian mapped over the N
 intervals (``ocp/derivatives.py``), N independent calls. CasADi generates such a map as a loop
 under ``#pragma omp parallel for`` (map mode ``"openmp"``, each call with its own work arrays):
-compiled with :data:`FLAG` the calls share the cores, and without it (the fast compiler, a
-compiler without OpenMP: the build retries without the flag, :mod:`.compiler`) the pragma is
-ignored and the loop is the serial map's. No compiler runs to find out beforehand: that would
-put one on a cold plan's critical path. Measured on the
-2-core machine (the cart with six trailers, gcc -O2 -march=native, best of 7 calls):
+compiled with :data:`FLAG` the calls share the cores, and without it (a compiler without
+OpenMP: the build retries without the flag, :mod:`.compiler`) the pragma is ignored and the
+loop is the serial map's. The fast compiler's code has them on POSIX threads instead
+(:mod:`.thread_maps`: the source rewritten before it is compiled), under the same grant. No
+compiler runs to find out beforehand: that would put one on a cold plan's critical path.
+Measured on the 2-core machine (the cart with six trailers, gcc -O2 -march=native, best of 7 calls):
 ``nlp_hess_l`` 10.6 → 5.4 ms and ``nlp_jac_g`` 2.8 → 2.1 ms on two threads, the same numbers to
 the last bit; on one thread the OpenMP source is 3–4 % slower than the serial one (the per-call
 work arrays).
@@ -36,6 +37,8 @@ import io
 import os
 import sys
 
+from .thread_maps import THREADS_SYMBOL
+
 __all__ = ["FLAG", "parallel_map", "share", "grant", "limit", "threads", "before_load", "WAIT_POLICY"]
 
 #: the compiler flag (compile and link) of OpenMP's pragmas and runtime
@@ -52,6 +55,7 @@ WAIT_POLICY = "PASSIVE"
 _WARNING = "was not compiled with WITH_OPENMP"
 
 _granted = 1      # threads this process may use (grant); 1 unless it is a supervised child
+_threaded: set = set()   # paths of the loaded libraries with thread_maps' runtime (limit)
 
 
 def parallel_map(function, n: int):
@@ -96,12 +100,24 @@ def threads() -> int:
     return _granted
 
 
-def limit() -> None:
-    """Apply this process's grant to every OpenMP runtime loaded in it (call after loading a
-    library built with :data:`FLAG`): one thread unless :func:`grant` said more."""
+def limit(library=None) -> None:
+    """Apply this process's grant to every OpenMP runtime loaded in it and to every loaded
+    library whose maps run on POSIX threads (:mod:`.thread_maps`; ``library``: the path of one
+    just loaded, remembered if it is one): one thread unless :func:`grant` said more. Call after
+    loading a library."""
+    loaded = getattr(os, "RTLD_NOLOAD", 0)
     for name in RUNTIMES:
         try:
-            runtime = ctypes.CDLL(name, mode=getattr(os, "RTLD_NOLOAD", 0) | ctypes.RTLD_GLOBAL)
+            runtime = ctypes.CDLL(name, mode=loaded | ctypes.RTLD_GLOBAL)
         except OSError:
             continue                  # not loaded here
         runtime.omp_set_num_threads(ctypes.c_int(_granted))
+    if library is not None:
+        _threaded.add(str(library))
+    for path in sorted(_threaded):
+        try:
+            count = ctypes.c_int.in_dll(ctypes.CDLL(path, mode=loaded), THREADS_SYMBOL)
+        except (OSError, ValueError):     # unloaded since, or not one of them
+            _threaded.discard(path)
+            continue
+        count.value = _granted
