@@ -219,8 +219,10 @@ def test_the_optimised_library_computes_the_fast_compilers_bits(cold):
     weighted Hessian of products and transcendentals — the shape of a stage Hessian, full of
     a·b + c — equal to the last bit at 50 points: a cold plan and a warm one take the same
     iterations (with -march=native alone the 3-link snake's nlp_hess_l differed by 2.3e-6)."""
-    from nhgait.dynamics.numerics.compiler import compiler_command
+    from nhgait.dynamics.numerics.compiler import known_compiler
     from nhgait.ocp.nlp_code import COMPILE_BUDGET
+    if not known_compiler():
+        pytest.skip("the same bits are promised for gcc, clang and cc only")
     x, w = ca.SX.sym("x", 6), ca.SX.sym("w", 3)
     g = ca.vertcat(x[0] * x[1] * ca.sin(x[2]) + x[3] * x[4] * x[5],
                    ca.exp(x[0] * x[5]) * (x[1] + x[2] * x[3]),
@@ -230,8 +232,7 @@ def test_the_optimised_library_computes_the_fast_compilers_bits(cold):
     cg.add(ca.Function("h", [x, w], [H, ca.jacobian(g, x)]))
     source = cg.dump()
     flags = COMPILE_BUDGET.choose(len(source))[0]
-    if Path(compiler_command()[0]).name in ("gcc", "cc", "clang"):
-        assert "-ffp-contract=off" in flags
+    assert "-ffp-contract=off" in flags
     fast = fast_compiler()
     tcc = ca.external("h", str(build_library(source, command=fast.command, flags=fast.flags, libs=fast.libs,
                                              salt="bits").path))
