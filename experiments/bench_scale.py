@@ -11,7 +11,9 @@ For every member of ``experiments/scale_tasks.py`` (wheeled snakes with 3–8 li
   generated C, which code solved, the verdict; then **the background build** it started (gcc
   -O1/-O0, waited for: its seconds and the compiler's peak memory) and **the same plan warm**
   (the whole process again, the cache full): ``cold/warm`` (issue 25: ≤ 2) and cold against the
-  reference's own set-up (build + gcc; issue 25: ≤ 0.25 for n ≥ 6)
+  reference's own set-up (build + gcc; issue 25: ≤ 0.25 for n ≥ 6) — the whole plan
+  (``c/rsu``) and its set-up alone (``cs/rs``: derivation, specialisation, the NLP's build and
+  the code ready at once, in the plan's process, beside the reference's build and compile)
   (``experiments/plan_process.py``);
 * **warm solve** — in this process, the cache filled by the cold run: the planner's NLP solved again
   from its winning guess (median of ``--repeats``) on the threads a plan's solver child gets
@@ -171,13 +173,22 @@ def warm(row: dict, repeats: int, reference: bool, hessians: bool, intervals=Non
         out.update(reference=r, ratio=results["ours"]["solve_ms"] / r["solve_ms"],
                    ratio_one_thread=results["ours, one thread"]["solve_ms"] / r["solve_ms"],
                    rel_objective=(row.get("objective", float("nan")) - r["objective"]) / abs(r["objective"]),
-                   cold_over_reference_setup=row["cold_s"] / r["setup_s"])
+                   cold_over_reference_setup=row["cold_s"] / r["setup_s"],
+                   cold_setup_over_reference_setup=cold_setup_s(row) / r["setup_s"])
         same = results.get("ours, reference's guess")
         if same is not None:
             out.update(same_guess=same, same_guess_ratio=same["solve_ms"] / r["solve_ms"])
     if hessians:
         out["hessians"] = {k: v for k, v in results.items() if "/" in k}
     return out
+
+
+def cold_setup_s(row: dict) -> float:
+    """The cold plan's own set-up, in its process: derivation and specialisation (``prepare_s``)
+    and the NLP's build and the code that is ready at once (``setup_s``) — what the reference's
+    ``setup_s`` (its NLP built and compiled) is beside; NaN when the plan did not report them."""
+    phases = row.get("phases") or {}
+    return float(phases.get("prepare_s", float("nan"))) + float(phases.get("setup_s", float("nan")))
 
 
 def _line(r: dict) -> str:
@@ -188,6 +199,7 @@ def _line(r: dict) -> str:
     return (f"{r['member']:24s} {r['cold_s']:6.1f} {r.get('warm_s', nan):6.1f} "
             f"{r.get('cold_over_warm', nan):5.2f} "
             f"{ref.get('setup_s', nan):6.1f} {r.get('cold_over_reference_setup', nan):5.2f} "
+            f"{cold_setup_s(r):5.2f} {r.get('cold_setup_over_reference_setup', nan):5.3f} "
             f"{r['max_silent_s']:6.1f} {r['peak_mb']:6.0f} {r['code']:>11s} {r['compile_s']:5.2f} "
             f"{' '.join(bg.get('flags') or ['-']):>4s} {bg.get('compile_s') or nan:6.1f} "
             f"{bg.get('peak_mb') or nan:6.0f} "
@@ -202,6 +214,7 @@ def _line(r: dict) -> str:
 
 
 HEADER = (f"{'member':24s} {'cold s':>6s} {'warm s':>6s} {'c/w':>5s} {'ref su':>6s} {'c/rsu':>5s} "
+          f"{'c su':>5s} {'cs/rs':>5s} "
           f"{'silent':>6s} {'RSS MB':>6s} {'code':>11s} {'now s':>5s} {'bg':>4s} {'bg s':>6s} {'bg MB':>6s} "
           f"{'C MB':>5s} {'ref C':>5s} {'warm ms':>8s} {'ref ms':>8s} {'ratio':>5s} {'1 thr':>5s} {'it':>4s} "
           f"{'r it':>4s} "
