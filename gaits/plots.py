@@ -359,10 +359,13 @@ def _short(text: str, width: int = 90) -> str:
 def write_figures(solution, out: Path, *, units=None, drawing=None, model=None,
                   failed: str | None = None) -> list:
     """path.png, shape.png, histories.png, momentum.png in ``out``; with ``failed`` (the reason)
-    every figure is titled "FAILED — not a verified gait". The animation is
+    every figure is titled "FAILED — not a verified gait". Two figures each in two supervised
+    children side by side (:func:`nhgait.ocp.supervision.supervise`: two cores, stopped with the
+    plan; one after the other in this process where there is no fork). The animation is
     :func:`nhgait.gaits.animation.animate_solution`."""
-    from matplotlib.figure import Figure
+    from functools import partial
 
+    from nhgait.ocp.supervision import Job, supervise
     model = model if model is not None else solution.problem.model
     ctx = figure_context(solution, model, units, drawing)
     n_units = len({unit(ctx, c) for c in solution.control_names})
@@ -370,6 +373,14 @@ def write_figures(solution, out: Path, *, units=None, drawing=None, model=None,
     layouts = (("path.png", plot_path, (7, 4.8), 1), ("shape.png", plot_shape_loop, (5.2, 4.6), 1),
                ("histories.png", plot_histories, (7, 2.4 * (1 + n_units)), 1 + n_units),
                ("momentum.png", plot_momentum, (7, 1.9 * n_mom), n_mom))
+    jobs = [Job(partial(_drawn, solution, ctx, out, part, failed), None, _not_drawn)
+            for part in (layouts[0::2], layouts[1::2])]
+    return [path for paths in supervise(jobs, workers=2) for path in paths]
+
+
+def _drawn(solution, ctx, out: Path, layouts, failed) -> list:
+    """The figures of ``layouts`` ((file name, plot function, size, rows)) written to ``out``."""
+    from matplotlib.figure import Figure
     files = []
     for name, fn, size, rows in layouts:
         fig = Figure(figsize=size)          # no pyplot state: nothing global is touched
@@ -381,3 +392,9 @@ def write_figures(solution, out: Path, *, units=None, drawing=None, model=None,
         fig.savefig(out / name, dpi=110, bbox_inches="tight")
         files.append(out / name)
     return files
+
+
+def _not_drawn(status: str, message: str, seconds: float):
+    """A figures' child that died (killed, out of memory): the figures were not written — an
+    OSError, which a plan's writer reports as such (solution.json then goes to its fallback)."""
+    raise OSError(f"the figures' process ended without an answer ({status}: {message})")

@@ -195,18 +195,37 @@ class Stability:
                 "summary": self.summary()}
 
 
+def _monodromies(ode, args, gains, workers: int) -> list:
+    """Φ of each of ``gains`` (None: the open loop) along ``args``, in supervised children."""
+    from functools import partial
+
+    from .supervision import Job, supervise
+    jobs = [Job(partial(_phi, ode, args, g), None, _died) for g in gains]
+    return supervise(jobs, workers=workers)
+
+
+def _phi(ode, args, gains) -> np.ndarray:
+    return monodromy(ode, *args, gains)[0]
+
+
+def _died(status: str, message: str, seconds: float):
+    raise RuntimeError(f"the variational equations' process ended without an answer ({status}: {message})")
+
+
 def _sorted_eigenvalues(M) -> np.ndarray:
     mu = np.linalg.eigvals(M) if M.size else np.zeros(0)
     return mu[np.argsort(-np.abs(mu), kind="stable")]
 
 
-def stability(ode: ca.Function, feedback, fiber=()) -> Stability:
+def stability(ode: ca.Function, feedback, fiber=(), *, workers: int = 2) -> Stability:
     """The :class:`Stability` of the plan of ``feedback`` (:class:`~.feedback.Feedback`) on the
-    ODE f(t, z, u) it was designed on; ``fiber``: names of the fibre coordinates."""
+    ODE f(t, z, u) it was designed on; ``fiber``: names of the fibre coordinates. The open and
+    the closed loop's :func:`monodromy` are integrated side by side, each in a supervised child
+    (:mod:`.supervision`: on ``workers`` cores, stopped with the plan; in this process where
+    there is no fork). Raises RuntimeError when CVODES gives up on either."""
     fb = feedback
     args = (fb.t, fb.states, fb.controls, fb.rates)
-    open_loop, _ = monodromy(ode, *args, None)
-    closed_loop, _ = monodromy(ode, *args, fb.gains)
+    open_loop, closed_loop = _monodromies(ode, args, (None, fb.gains), workers)
     keep = [i for i, name in enumerate(fb.state_names) if name not in set(fiber)]
     block = open_loop[np.ix_(keep, keep)]
     return Stability(fb.horizon, tuple(fb.state_names), tuple(fb.state_names[i] for i in keep), open_loop,
