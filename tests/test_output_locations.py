@@ -244,6 +244,25 @@ def test_a_plan_whose_files_cannot_be_written_keeps_its_solution(sandbox, monkey
     assert data["success"] is True
 
 
+def _die(*args, **kwargs):
+    os._exit(3)
+
+
+def test_a_plan_whose_figures_process_dies_keeps_its_solution(sandbox, monkeypatch):
+    """The figures are drawn in supervised children (``plots.write_figures``); one that dies
+    without an answer (here: exits in the shape figure) is a failed write, said in one line,
+    and solution.json is rescued — not a traceback, not a hang, no child left."""
+    from nhgait.gaits import plots
+    from nhgait.ocp.supervision import can_fork
+    if not can_fork():
+        pytest.skip("the figures run in this process without fork")
+    monkeypatch.setattr(plots, "plot_shape_loop", _die)
+    got = answer([*PLAN, "--out", sandbox.out / "p"]).check(
+        1, r"NOT WRITTEN: writing .* failed: the figures' process ended without an answer", sandbox)
+    rescued = re.search(r"the solution was saved to (\S+solution\.json)", got.out).group(1)
+    assert json.loads(open(rescued).read())["success"] is True
+
+
 def test_a_simulation_whose_csv_cannot_be_written_keeps_its_run(sandbox, monkeypatch):
     """The CSV write fails at the end: exit 1 and the run's CSV, 201 samples and a header, in
     the fallback the summary names."""

@@ -74,6 +74,25 @@ def test_stability_reports_the_closed_form_multipliers_and_verdicts():
     assert np.allclose(np.abs(fibre.open_multipliers), np.exp(-0.1 * T), atol=1e-8)
 
 
+def test_a_variational_process_that_dies_is_a_runtime_error(monkeypatch):
+    """The two monodromies run in supervised children: one that dies without an answer is the
+    RuntimeError the planner reports as "not computed" — not a hang, not a wrong matrix."""
+    import os
+
+    from nhgait.ocp import floquet
+    from nhgait.ocp.supervision import can_fork
+    if not can_fork():
+        pytest.skip("the monodromies run in this process without fork")
+    ode = _linear_periodic()
+    t, ref, u, rates, gains = _zero_plan(K_GAIN)
+    ones = np.ones(3)
+    feedback = Feedback(t, ref, u, gains, rates, ("p", "q", "r"), ("u1", "u2", "u3"),
+                        Weights(ones, ones, ones, ones, ones), -np.inf * ones, np.inf * ones)
+    monkeypatch.setattr(floquet, "monodromy", lambda *a, **k: os._exit(3))
+    with pytest.raises(RuntimeError, match="variational equations' process ended without an answer"):
+        stability(ode, feedback)
+
+
 def test_verdict_thresholds():
     assert verdict([0.5, 0.99])[0] == "stable"
     assert verdict([1.0 + 1e-6j])[0] == "marginal"
