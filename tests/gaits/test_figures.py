@@ -37,8 +37,11 @@ def figures(out):
         path = Path(fname)        # <command>/<name>, or <command>/.writing-*/<name> (a plan's staging folder)
         caught[f"{path.relative_to(out).parts[0]}/{path.name}"] = fig
 
+    from nhgait.ocp import supervision
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(Figure, "savefig", catch)
+        # a plan draws its figures in supervised children: here in this process, to be caught
+        mp.setattr(supervision, "supervise", lambda jobs, **kwargs: [job.run() for job in jobs])
         runs = (["simulate", SLIDER, "--plot", str(out / "simulate")],
                 ["plan", SLIDER, "--no-jit", "--quiet", "--out", str(out / "plan")],
                 ["sweep", SLIDER, "--grid", "final.y=0.2,0.3", "--grid", "horizon=3.5,4", "--workers", "0",
