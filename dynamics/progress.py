@@ -60,11 +60,18 @@ class Progress:
 
     @contextmanager
     def phase(self, name: str):
-        """Announce ``name``; on exit say how long it took (or that it was interrupted)."""
+        """Announce ``name``; on exit say how long it took (or that it was interrupted). A stop
+        the command line received and whose exception was lost on its way up (inside a C
+        extension that clears Python errors: :func:`~nhgait.dynamics.errors.raise_if_stopped`)
+        is raised again when a phase begins or ends, so that the run ends there rather than
+        going on to its last phase."""
+        from .errors import raise_if_stopped
+        raise_if_stopped()
         start = time.perf_counter()
         self.note(f"{name} …")
         try:
             yield self
+            raise_if_stopped()
         except BaseException:
             self.note(f"  {name}: stopped after {time.perf_counter() - start:.1f} s")
             raise

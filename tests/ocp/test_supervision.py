@@ -385,3 +385,31 @@ def test_a_stop_stays_a_stop_whatever_it_becomes_on_its_way_up(monkeypatch, caps
         assert "internal error" not in err
     assert signal.getsignal(signal.SIGTERM) is before             # put back
     time.sleep(2.0)                             # the watchdog, past its 1.5 s, has not ended this process
+
+
+def test_a_stop_lost_in_one_phase_ends_the_run_before_the_next(monkeypatch, capsys):
+    """SIGTERM whose Terminated a C extension swallows inside one phase (here: dropped): the
+    run does not go on to its next phase (a plan would write its files) — the next phase is
+    never entered, the command exits 143."""
+    from nhgait.dynamics.errors import Terminated
+    from nhgait.dynamics.progress import Progress
+    from nhgait.gaits.cli import main as cli
+    from nhgait.gaits.cli import plan as plan_command
+    entered = []
+
+    def two_phases(args):
+        progress = Progress.silent()
+        with progress.phase("first"):
+            try:
+                os.kill(os.getpid(), signal.SIGTERM)
+                time.sleep(5.0)
+            except Terminated:
+                pass                              # lost, as inside CasADi's SWIG wrappers
+        with progress.phase("second"):
+            entered.append("second")
+        return 0
+
+    monkeypatch.setattr(plan_command, "run", two_phases)
+    assert cli.main(["plan", "unicycle", "--out", "unused"]) == 143
+    assert entered == []
+    assert "nhgait: terminated" in capsys.readouterr().err
