@@ -207,7 +207,10 @@ def table_problems(statement: ProblemStatement, words: Wording, known=None, inpu
     problems: list = []
     for where, mapping in (*_ends(statement), ("state_bounds", statement.state_bounds)):
         for name, value in mapping.items():
-            problems += _unknown(name, known, words.unknown_quantity, words.field(where))
+            problems += ((_misplaced(name, inputs, known, _prefix(words) + words.field(where),
+                                     _prefix(words) + words.field("control_bounds"))
+                          if where == "state_bounds" else [])
+                         or _unknown(name, known, words.unknown_quantity, words.field(where)))
             interval(value, words.at(where, name), problems, words)
     for name in statement.periodic:
         problems += _unknown(name, known, words.unknown_quantity, words.field("periodic"))
@@ -216,10 +219,21 @@ def table_problems(statement: ProblemStatement, words: Wording, known=None, inpu
                                               names_list=list(statement.periodic)))
     if isinstance(statement.control_bounds, Mapping):
         for name, value in statement.control_bounds.items():
-            problems += _unknown(name, inputs, words.unknown_input, words.field("control_bounds"),
-                                 label="inputs")
+            problems += (_misplaced(name, known, inputs, _prefix(words) + words.field("control_bounds"),
+                                    _prefix(words) + words.field("state_bounds"))
+                         or _unknown(name, inputs, words.unknown_input, words.field("control_bounds"),
+                                     label="inputs"))
             interval(value, words.at("control_bounds", name), problems, words)
     return problems
+
+
+def _misplaced(name, other, own, field: str, instead: str) -> list:
+    """A name of the other kind in ``field`` (an input among the state bounds, a state or
+    quantity among the input bounds): the one problem, naming the field ``instead`` it belongs in."""
+    if other is None or name not in other or (own is not None and name in own):
+        return []
+    return [f"{field}: {name!r} is {'an input' if 'control' in instead else 'not an input'}: "
+            f"bound it in {instead}"]
 
 
 def _unknown(name, known, template: str, where: str, label: str = "known") -> list:
@@ -339,10 +353,18 @@ def phase_problems(statement: ProblemStatement, words: Wording, known=None, inpu
                 problems.append(f"{where}.free_horizon: lower bound {lo:g} must be positive")
         for key, mapping in (("final", phase.final), ("state_bounds", phase.state_bounds)):
             for name, value in mapping.items():
-                problems += _unknown(name, known, words.unknown_quantity, f"{where}.{key}")
+                problems += ((_misplaced(name, inputs, known, f"{where}.{words.field(key)}",
+                                          f"{where}.{words.field('control_bounds')}")
+                              if key == "state_bounds" else [])
+                             or _unknown(name, known, words.unknown_quantity,
+                                         f"{where[len(prefix):]}.{words.field(key)}"))
                 interval(value, f"{where}.{key}[{name!r}]", problems, words)
         for name, value in phase.control_bounds.items():
-            problems += _unknown(name, inputs, words.unknown_input, f"{where}.control_bounds", label="inputs")
+            problems += (_misplaced(name, known, inputs, f"{where}.{words.field('control_bounds')}",
+                                    f"{where}.{words.field('state_bounds')}")
+                         or _unknown(name, inputs, words.unknown_input,
+                                     f"{where[len(prefix):]}.{words.field('control_bounds')}",
+                                     label="inputs"))
             interval(value, f"{where}.control_bounds[{name!r}]", problems, words)
         _waypoint_problems(phase.waypoints, phase.horizon, N, phase.free_horizon, f"{where}.waypoints", known,
                            problems)

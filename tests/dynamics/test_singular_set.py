@@ -76,3 +76,31 @@ def test_factors_that_never_vanish_are_not_listed():
             == (J + m * r**2) * sp.cos(phi))
     unicycle = derive("unicycle", "reduced")
     assert [str(sp.expand(e)) for e in unicycle.singular_set] == ["J_phi + m*r**2"]   # model's own symbols
+
+
+def test_a_quotient_keeps_the_factors_of_its_numerator_that_can_vanish():
+    """A differential drive's Gram determinant of ω_s is the quotient
+    (b²r² + 4b² + r²)/(4b²) (sympy's factor of it), which vanishes where its numerator does
+    (only at r = b = 0): the stated factor is that numerator, a polynomial — it used to stop the
+    derivation with sympy's "a polynomial expected" (a user's robot, 2026-11-29)."""
+    from nhgait.dynamics.derivation.reduction.model import _drop_positive_factors
+    r, b, phi = sp.symbols("r b phi")
+    kept = _drop_positive_factors((b**2 * r**2 + 4 * b**2 + r**2) / (4 * b**2))
+    assert sp.fraction(sp.together(kept))[1] == 1
+    assert kept.subs({r: 0, b: 0}) == 0 and kept.subs({r: 0.05, b: 0.15}) > 0
+    assert _drop_positive_factors(sp.sin(phi) * (r**2 + 1) / b**2) == sp.sin(phi)
+    drive = System(coordinates=["x", "y", "theta", "phiL", "phiR"],
+                   lagrangian="m/2*(x_dot**2 + y_dot**2) + I/2*theta_dot**2"
+                              " + Iw/2*(phiL_dot**2 + phiR_dot**2)",
+                   constraints=["cos(theta)*x_dot + sin(theta)*y_dot - r/2*(phiL_dot + phiR_dot)",
+                                "-sin(theta)*x_dot + cos(theta)*y_dot",
+                                "theta_dot - r/(2*b)*(phiR_dot - phiL_dot)"],
+                   forces={"phiL": "tauL", "phiR": "tauR"},
+                   parameters={"m": 4.0, "I": 0.08, "Iw": 0.002, "r": 0.05, "b": 0.15}, name="drive")
+    model = derive(drive, "reduced", use_cache=False)
+    theta, values = drive.q[2], {sp.Symbol(k): v for k, v in (("r", 0.05), ("b", 0.15), ("m", 4.0),
+                                                                ("I", 0.08), ("Iw", 0.002))}
+    # nothing the reduction inverts loses rank at any heading (the rows of ω are independent for r, b > 0)
+    at = [complex(e.subs({s: values[sp.Symbol(s.name)] for s in e.free_symbols if sp.Symbol(s.name) in values}
+                         ).subs(theta, v)) for e in model.singular_set for v in (0.0, 0.7, 2.0)]
+    assert model.singular_set and all(abs(a) > 1e-6 for a in at), model.singular_set

@@ -195,6 +195,30 @@ def test_unknown_names_are_one_error(tmp_path):
     assert "unknown weight 'tau_z'" in text
 
 
+def test_an_input_among_the_state_bounds_names_the_table_it_belongs_in():
+    """A user's first task bounded the wheel torques in ``bounds``: each name of the other kind
+    is one problem that says where it belongs, in both directions, and the phases' tables too."""
+    from nhgait.ocp import ProblemError
+    with pytest.raises(ProblemError) as info:
+        plan("snakeboard", {"horizon": 1.0, "final": {"x": 1.0},
+                            "bounds": {"tau_psi": [-1, 1], "phi": [-1, 1]},
+                            "control_bounds": {"psi": [-1, 1], "tau_phi": [-1, 1]}}, jit=False)
+    text = str(info.value)
+    assert "[task].bounds: 'tau_psi' is an input: bound it in [task].control_bounds" in text
+    assert "[task].control_bounds: 'psi' is not an input: bound it in [task].bounds" in text
+    assert "'phi'" not in text and "'tau_phi'" not in text and "unknown" not in text
+    with pytest.raises(ProblemError) as info:
+        plan("snakeboard", {"phases": [{"horizon": 1.0, "intervals": 10, "final": {"x": 0.5},
+                                        "bounds": {"tau_psi": [-1, 1], "zz": [0, 1]},
+                                        "control_bounds": {"q": 1}},
+                                       {"horizon": 1.0, "intervals": 10, "final": {"x": 1.0}}]}, jit=False)
+    text = str(info.value)
+    assert ("[task].phases[0].bounds: 'tau_psi' is an input: bound it in [task].phases[0].control_bounds"
+            in text)
+    assert "[task].phases[0].bounds: unknown name 'zz'" in text          # once "[task].[task]…state_bounds"
+    assert "[task].phases[0].control_bounds: unknown input 'q'" in text
+
+
 def test_warm_start_from_a_previous_solution(tmp_path):
     """A solution (object or solution.json) of a coarser grid starts a finer one: it is tried
     first, wins, and Ipopt needs fewer iterations than from the planner's own guess."""

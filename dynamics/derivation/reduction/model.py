@@ -124,10 +124,16 @@ def _positive_everywhere(f) -> bool:
 
 def _drop_positive_factors(e):
     """The square-free product of the factors of ``e`` that can vanish (the same zero set,
-    shorter to read: the singular set is stated, the numerics use the layout's matrices)."""
+    shorter to read: the singular set is stated, the numerics use the layout's matrices). Of a
+    quotient, its numerator's (a denominator of parameters, the 4 b² of a differential drive's
+    (r²b² + 4b² + r²)/(4b²), does not vanish); ``e`` itself when sympy cannot factor it."""
     if isinstance(e, sp.Determinant) or e.is_Number:
         return e
-    _, factors = sp.factor_list(e)
+    numerator, _ = sp.fraction(sp.together(e))
+    try:
+        _, factors = sp.factor_list(numerator)
+    except sp.PolynomialError:
+        return e
     kept = [f for f, _ in factors if not _positive_everywhere(f)]
     return sp.Mul(*kept) if kept else sp.Integer(1)
 
