@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -195,6 +196,7 @@ def prepare(to_plan, *, params=None, progress=None) -> Prepared:
 
     progress = progress or Progress.silent()
     task, scene = to_plan.task, to_plan.scene
+    check_params(scene.system, params)
     model = derive_for_task(scene.system, task, params, progress)
     prov = getattr(model, "provenance", None)
     progress.note(f"  n = {model.system.n} coordinates, {len(model.state_names)} states, {model.form} form"
@@ -212,6 +214,20 @@ def prepare(to_plan, *, params=None, progress=None) -> Prepared:
     for line in report.lines():
         progress.note(f"  conditions: {line}")
     return Prepared(model, specialised, problem, stated, report)
+
+
+def check_params(system, params) -> None:
+    """Parameter values overriding the scene's (``params``, a mapping or a vector) checked before
+    any derivation: names, numbers, a positive definite kinetic metric and independent
+    constraints at sampled configurations (:meth:`~nhgait.dynamics.System.parameter_problems`),
+    all problems in one ProblemError."""
+    from nhgait.ocp import ProblemError
+    if params is None:
+        return
+    named = ", ".join(f"{k} = {v}" for k, v in params.items()) if isinstance(params, Mapping) else ""
+    problems = system.parameter_problems(params, label=f"the given params ({named})" if named else "params")
+    if problems:
+        raise ProblemError(problems, title="invalid parameters")
 
 
 # ----------------------------------------------------------------------------- plan

@@ -195,6 +195,22 @@ def test_unknown_names_are_one_error(tmp_path):
     assert "unknown weight 'tau_z'" in text
 
 
+def test_bad_parameter_values_are_one_error_before_any_derivation():
+    """``params`` is checked like a scene's parameters: a zero mass made the reachability test
+    fail with numpy's LinAlgError, a negative one was reported as an unreachable target, NaN
+    without its name (a user's trial, 2026-11-29)."""
+    from nhgait.ocp import ProblemError
+    with pytest.raises(ProblemError) as info:
+        plan("unicycle", "parallel-park", params={"zz": 1.0, "r": "two", "J_phi": float("nan")})
+    text = str(info.value)
+    assert text.startswith("invalid parameters: 3 problem(s)")
+    assert "unknown parameter 'zz'" in text and "'two' is not a number" in text
+    assert "parameter 'J_phi': nan is not finite" in text
+    for mass, says in ((0.0, "is singular"), (-1.0, "not positive definite")):
+        with pytest.raises(ProblemError, match=f"kinetic metric .*{says}.*m = {mass}"):
+            plan("unicycle", "parallel-park", params={"m": mass})
+
+
 def test_an_input_among_the_state_bounds_names_the_table_it_belongs_in():
     """A user's first task bounded the wheel torques in ``bounds``: each name of the other kind
     is one problem that says where it belongs, in both directions, and the phases' tables too."""
