@@ -3,7 +3,8 @@
 Three kinds of failure (:func:`diagnose`):
 
 * **the time budget ran out** — the budget, where it came from, the phase it ran out in and
-  what to change (``--time-limit``), then what the attempts so far gave (as below);
+  what to change (``--time-limit``), then what the attempts so far gave: a converged one (kept,
+  not verified), else as below;
 * **no guess converged** — the attempts by outcome (the solvers' own status names); at the
   closest point found (smallest constraint violation) the conditions it violates by how much
   (the NLP's rows are labelled: "dynamics", "final.x", "periodic.psi", "bounds.phi"), how often
@@ -136,7 +137,12 @@ def _out_of_time(result) -> list:
     """The budget that ran out (where, what to change), then what the attempts gave and the
     singular postures the guesses met."""
     lines = list(result.overrun.lines())
-    if result.attempts:
+    converged = [a for a in result.attempts if a.success]
+    if converged:
+        best = min(converged, key=lambda a: a.objective)
+        lines.append(f"a guess had converged ({best.label!r}, {best.status}, J = {best.objective:.6g}): "
+                     "solution.json holds it, not verified")
+    elif result.attempts:
         lines += _not_converged(result)
     return lines + _singular(result)
 

@@ -245,7 +245,8 @@ class _Window:
     def text(self) -> str:
         if self.iterations is not None:
             return f"{self.iterations:.0f} iterations in all"
-        return f"{self.deadline - time.monotonic():.0f} s"
+        left = max(0.0, self.deadline - time.monotonic())
+        return f"{left:.0f} s" if left >= 10 else f"{left:.2g} s"
 
     def left(self) -> float | None:
         """Seconds left now (None: no deadline), or 0 when nothing is left of either kind."""

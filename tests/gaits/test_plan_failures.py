@@ -105,3 +105,24 @@ def test_an_infeasible_task_names_what_is_violated(tmp_path):
     assert "final.y" in text or "shooting gaps" in text
     statuses = {a.status for a in result.attempts}
     assert not any(s.startswith("fatrop_return_flag") or s.startswith("FATROP return flag") for s in statuses)
+
+
+def test_a_budget_spent_after_a_guess_converged_does_not_say_none_did():
+    """``--time-limit 2`` on the snakeboard: guess 1 converged, the budget ran out in the
+    exploration; the diagnosis said "no guess converged: 2 attempts (1 Solve_Succeeded, …)" and
+    "the solver stopped before reporting a point" (a user's trial, 2026-11-29). It names the
+    converged guess instead; without one it lists the attempts as before."""
+    from types import SimpleNamespace
+
+    from nhgait.gaits.diagnosis import _out_of_time
+    from nhgait.gaits.search import Attempt
+    overrun = SimpleNamespace(lines=lambda: ["the time budget of 2 s ran out during verification"])
+    tried = [Attempt("psi:phi 1:1", "Solve_Succeeded", True, 9, 0.109703, "fatrop"),
+             Attempt("fitted roll-out", "Line_Search_Failed", False, 3, 4.2, "fatrop", 0.16)]
+    result = SimpleNamespace(overrun=overrun, attempts=tried, solution=None, screening=())
+    lines = _out_of_time(result)
+    assert lines[1] == ("a guess had converged ('psi:phi 1:1', Solve_Succeeded, J = 0.109703): "
+                        "solution.json holds it, not verified")
+    assert not any("no guess converged" in line for line in lines)
+    lines = _out_of_time(SimpleNamespace(overrun=overrun, attempts=tried[1:], solution=None, screening=()))
+    assert lines[1] == "no guess converged: 1 attempts (1 Line_Search_Failed)"
