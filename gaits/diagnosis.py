@@ -52,6 +52,11 @@ def _not_converged(result) -> list:
     lines = [f"no guess converged: {len(result.attempts)} attempts ("
              + ", ".join(f"{n} {status}" for status, n in counts.most_common()) + ")"]
     s = result.solution
+    if s is not None and not s.violations and s.constraint_violation == s.constraint_violation:
+        return lines + [f"at the closest point found (guess {s.settings.get('guess', '?')!r}, "
+                        f"{s.settings.get('solver', '?')}, {s.status}) every condition holds (constraint "
+                        f"violation {s.constraint_violation:.2g}) but it is not optimal: raise max_iter, or "
+                        "use the exact Hessian (--hessian exact) if another was asked for"]
     if s is None or not s.violations:
         return lines + ["  the solver stopped before reporting a point (see the attempts in solution.json)"]
     lines.append(f"at the closest point found (guess {s.settings.get('guess', '?')!r}, "

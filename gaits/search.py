@@ -345,7 +345,9 @@ def _moved(problem, alpha):
 
 def continuation(solver, guess, steps=(0.25, 0.5, 0.75, 1.0), *, progress=None, budget=None) -> Search:
     """Grow an easier problem into ``solver.problem`` (module docstring); each step a
-    supervised attempt (:func:`solve_attempts`), none started once ``budget`` is spent."""
+    supervised attempt (:func:`solve_attempts`), none started once ``budget`` is spent. A
+    failed step is the search's ``closest`` only when it is the task itself (the last): an
+    easier problem's point is not one of the task's."""
     from nhgait.ocp import InitialGuess
     attempts, current, closest = [], guess, None
     solution = None
@@ -358,7 +360,7 @@ def continuation(solver, guess, steps=(0.25, 0.5, 0.75, 1.0), *, progress=None, 
         attempts.append(attempt_of(label, solution, solver.options.solver))
         if progress is not None:
             _report(progress, k, len(steps), label, solution)
-        if not solution.success:
-            return Search(None, tuple(attempts), None, solution)
+        if not solution.success:          # a step short of the task is not a point of it
+            return Search(None, tuple(attempts), None, solution if alpha == steps[-1] else None)
         current = InitialGuess(solution.states, solution.controls, solution.horizon, label)
     return Search(replace(solution, problem=solver.problem), tuple(attempts), attempts[-1].label, closest)

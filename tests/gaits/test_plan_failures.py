@@ -126,3 +126,40 @@ def test_a_budget_spent_after_a_guess_converged_does_not_say_none_did():
     assert not any("no guess converged" in line for line in lines)
     lines = _out_of_time(SimpleNamespace(overrun=overrun, attempts=tried[1:], solution=None, screening=()))
     assert lines[1] == "no guess converged: 1 attempts (1 Line_Search_Failed)"
+
+
+def test_a_failed_continuation_step_short_of_the_task_is_not_its_closest_point(monkeypatch):
+    """The continuation's first step solves an easier task (a quarter of the way to the final
+    values): its failed point was reported as the plan's closest one — J and trajectory of a
+    task with y(T) = 0.125 instead of 0.5 (a user's trial, 2026-11-29). Only the last step,
+    the task itself, may be."""
+    from types import SimpleNamespace
+
+    from nhgait.gaits import search
+
+    class Task:
+        initial, final = {"y": 0.0}, {"y": 0.5}
+
+        def bounds(self, mapping, name):
+            return mapping[name], mapping[name]
+
+        def replace(self, final):
+            easier = Task()
+            easier.final = final
+            return easier
+
+    class Solver:
+        options, problem = SimpleNamespace(solver="ipopt"), Task()
+
+        def with_problem(self, problem):
+            asked.append(problem.final["y"])
+            return self
+
+    asked = []
+    failed = SimpleNamespace(success=False, status="Maximum_Iterations_Exceeded", iterations=500,
+                             objective=0.22, constraint_violation=1e-7, solve_time_s=0.1)
+    monkeypatch.setattr(search, "solve_attempts", lambda solver, guesses, **kw: [failed])
+    found = search.continuation(Solver(), SimpleNamespace(label="fitted roll-out"))
+    assert asked == [0.125] and found.closest is None and len(found.attempts) == 1
+    found = search.continuation(Solver(), SimpleNamespace(label="fitted roll-out"), steps=(1.0,))
+    assert asked[-1] == 0.5 and found.closest is failed
