@@ -151,7 +151,7 @@ def resolve(system, task=None, *, overrides=()) -> Plan:
         table, where = {"name": task, **tasks[task]}, f"[tasks.{task}]"
     elif task is None:
         if scene.task is None:
-            known = [n for s, n in library_task_names() if s == name]
+            known = [n for s, n in library_task_names() if s == name] if lib is not None else []
             hint = (f" or choose a built-in gait with --gait ({', '.join(known)})" if known else "")
             raise ProblemError([f"{scene.source} has no [task] table: add one (docs/gait-planning.md){hint}"],
                                title="nothing to plan")

@@ -78,6 +78,12 @@ def test_plan_errors_are_one_message(tmp_path, capsys):
                      '[system.forces]\nx = "F"\n[system.parameters]\nm = 1.0\n')
     assert main(["plan", str(scene), "--out", str(tmp_path / "o")]) == 2
     assert "has no [task] table" in capsys.readouterr().err
+    # a scene file whose robot is named like a built-in scene is not offered its gaits (--gait
+    # refuses them for a file)
+    scene.write_text(scene.read_text().replace("[system]", '[system]\nname = "snakeboard"'))
+    assert main(["plan", str(scene), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "has no [task] table: add one (docs/gait-planning.md)\n" in err and "--gait" not in err
     code = main(["plan", SLEIGH, "--set", "final.zz=1", "--set", "bounds.alpha=2,1", "--no-jit",
                  "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err
