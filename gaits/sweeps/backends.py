@@ -30,6 +30,8 @@ import concurrent.futures as cf
 import multiprocessing
 import os
 import pickle
+import shutil
+import tempfile
 import threading
 import traceback
 from collections import deque
@@ -296,7 +298,7 @@ class DaskBackend(_Backend):
             raise ProblemError(["--scheduler needs Dask distributed, which is not installed "
                                 "(pip install 'nhgait[dask]')"], title="Dask not available")
         from distributed import Client, LocalCluster
-        self.cluster = None
+        self.cluster, self.scratch = None, None
         self._futures: dict = {}
         self._lock = threading.Lock()
         if scheduler.startswith("local:"):
@@ -305,8 +307,10 @@ class DaskBackend(_Backend):
                 raise ProblemError([f"--scheduler {scheduler!r}: local:N needs a whole number N ≥ "
                                     "1 of workers"],
                                    title="invalid back end")
+            self.scratch = tempfile.mkdtemp(prefix="nhgait-dask-")   # the workers' own, removed on close
             self.cluster = LocalCluster(n_workers=int(n), threads_per_worker=1, processes=True,
                                         host="127.0.0.1", dashboard_address=None,
+                                        local_directory=self.scratch,
                                         scheduler_kwargs={"allowed_failures": 0})
             self.client = Client(self.cluster)
         else:
@@ -359,6 +363,8 @@ class DaskBackend(_Backend):
         self.client.close()
         if self.cluster is not None:
             self.cluster.close()
+        if self.scratch is not None:       # not /tmp/dask-scratch-space: nothing left behind
+            shutil.rmtree(self.scratch, ignore_errors=True)
 
 
 def backend_problems(scheduler: str | None = None, workers: int | None = None) -> list:

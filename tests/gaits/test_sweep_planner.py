@@ -178,3 +178,21 @@ def test_killing_a_dask_worker_loses_no_row(dask_backend, tmp_path):
     direct = plan("unicycle", "parallel-park", overrides=[*SET, f"final.y={again.axis_values['final.y']!r}"],
                   params={"m": again.axis_values["params.m"]}, animate=False, jit=False)
     assert again.objective == pytest.approx(direct.solution.objective, rel=1e-6)
+
+
+def test_a_local_cluster_leaves_no_scratch_space():
+    """A LocalCluster's workers keep their scratch space (the lock files of
+    /tmp/dask-scratch-space by default, left behind by ``nhgait track --scheduler local:1``) in
+    a private folder that closing the back end removes."""
+    pytest.importorskip("distributed",
+                        reason="Dask distributed is not installed (pip install 'nhgait[dask]')")
+    from nhgait.gaits.sweeps.backends import DaskBackend
+    backend = DaskBackend("local:1")
+    try:
+        scratch = backend.scratch
+        assert os.path.isdir(scratch) and os.listdir(scratch)          # the workers' own, in use
+        where = backend.client.run(lambda dask_worker: dask_worker.local_directory)
+        assert all(path.startswith(scratch) for path in where.values())
+    finally:
+        backend.close()
+    assert not os.path.exists(scratch)
