@@ -90,6 +90,19 @@ def _plot_axes(result, requested):
     return names[:2]
 
 
+def _check_plot(requested, grid) -> None:
+    """``--plot X,Y`` checked against the ``--grid`` axes before any point is solved."""
+    from nhgait.ocp import ProblemError
+    if not requested or not grid:
+        return
+    chosen = [s.strip() for s in requested.split(",")]
+    names = [str(spec).partition("=")[0].strip() for spec in grid]
+    problems = ([f"--plot {requested!r}: give two axes X,Y"] if len(chosen) != 2 else []) + [
+        f"--plot: no grid axis {name!r} (axes: {', '.join(names)})" for name in chosen if name not in names]
+    if problems:
+        raise ProblemError(problems, title="invalid --plot")
+
+
 def write_plots(result, out: Path, requested=None) -> list:
     """landscape.png, feasibility.png (two axes) and loops.png (first axis); returns the paths."""
     from ..sweeps import plots as sp
@@ -112,6 +125,8 @@ def run(args) -> int:
     from ..sweeps.driver import load_sweep, sweep
     from ..sweeps.store import StoreWriteError
     out = Path(args.out)
+    if not args.no_plots:
+        _check_plot(args.plot, args.grid)
     try:
         result = sweep(args.scene, args.task, args.grid, out=args.out, scheduler=args.scheduler,
                        workers=args.workers,

@@ -122,6 +122,11 @@ def test_cli_writes_store_table_and_plots(tmp_path, capsys):
     assert main(["sweep", "unicycle", "--task", "parallel-park", "--grid", "horizon=-1:2:3", "--out",
                  str(tmp_path / "bad"), "--workers", "0"]) == 2
     assert "a horizon must be positive" in capsys.readouterr().err
+    # a --plot axis that is not on the grid: refused before any point is solved (it was after all)
+    assert main(["sweep", "unicycle", "--task", "parallel-park", "--grid", "final.y=0.45,0.55", "--out",
+                 str(tmp_path / "plot"), "--workers", "0", "--plot", "horizon,final.y"]) == 2
+    assert "--plot: no grid axis 'horizon' (axes: final.y)" in capsys.readouterr().err
+    assert not (tmp_path / "plot").exists()
 
 
 # ----------------------------------------------------------------------------- Dask
