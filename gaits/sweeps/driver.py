@@ -153,14 +153,16 @@ class _Tree:
             self.children.setdefault(grid.parent(p.index), []).append(p)
         self.warm: dict = {}          # index → warm data of a solved point (or its path)
         self.size: dict = {}          # index → points in its subtree (itself included)
-        for p in sorted(grid.points(), key=lambda p: -self._depth(p.index)):
-            self.size[p.index] = 1 + sum(self.size[c.index] for c in self.children.get(p.index, ()))
+        for index in reversed(self._top_down()):       # children before their parent
+            self.size[index] = 1 + sum(self.size[c.index] for c in self.children.get(index, ()))
 
-    def _depth(self, index) -> int:
-        depth = 0
-        while (index := self.grid.parent(index)) is not None:
-            depth += 1
-        return depth
+    def _top_down(self) -> list:
+        """Every index, each after its parent (breadth first from the centre): linear in the
+        points (walking each point's ancestors was quadratic: 182 s for 16 000 points)."""
+        order = [p.index for p in self.children.get(None, ())]
+        for index in order:                            # grows while it is walked
+            order.extend(c.index for c in self.children.get(index, ()))
+        return order
 
     def warm_source(self, index):
         """(warm data, id) of the nearest solved ancestor of ``index``, or (None, None)."""
