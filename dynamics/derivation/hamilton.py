@@ -21,7 +21,7 @@ import sympy as sp
 from nhgait.dynamics.derivation.cse_text import equation_lines
 from nhgait.dynamics.derivation.notation import method_name, system_names
 
-from ..algebra.trig import tidy
+from ..algebra.trig import TIDY_NODES, tidy, tree_size
 from .dae_model import DAEModel
 from .system import System
 
@@ -101,6 +101,14 @@ def _inverse_metric(M: sp.Matrix) -> sp.Matrix:
     return (M.adjugate(method="berkowitz") / det).applyfunc(tidy)
 
 
+def _dH_dq(M: sp.Matrix, V, q: sp.Matrix, v: sp.Matrix) -> sp.Matrix:
+    """∂H/∂q_i = ∂V/∂q_i − ½ vᵀ (∂M/∂q_i) v with v = M⁻¹p = ∂H/∂p (eq. 2.22), from
+    ∂(M⁻¹)/∂q_i = −M⁻¹ (∂M/∂q_i) M⁻¹: the small ∂M/∂q_i instead of differentiating M⁻¹'s
+    entries, whose derivatives a configuration-dependent 5 × 5 metric (a sleigh carrying a
+    mass on a ring) grew to 3 million nodes in 22 s after an expansion that did not end."""
+    return sp.Matrix([sp.diff(V, x) - (v.T * M.diff(x) * v)[0, 0] / 2 for x in q])
+
+
 def derive_hamiltonian(system: System) -> HamiltonianDAE:
     """Derive the Hamiltonian DAE (eqs. 2.19–2.24) of ``system``."""
     t0 = time.perf_counter()
@@ -110,9 +118,10 @@ def derive_hamiltonian(system: System) -> HamiltonianDAE:
     M = system.mass_matrix()
     Minv = _inverse_metric(M) if any(e.free_symbols & set(system.q) for e in M) else tidy(M.inv())
     V = system.potential()
-    H = sp.expand((p.T * Minv * p)[0, 0] / 2) + V
+    T = (p.T * Minv * p)[0, 0] / 2
+    H = (sp.expand(T) if tree_size(T, TIDY_NODES) <= TIDY_NODES else T) + V
     dH_dp = Minv * p
-    dH_dq = sp.Matrix([sp.diff(H, x) for x in q])
+    dH_dq = _dH_dq(M, V, q, dH_dp)
     tau = system.force_vector().xreplace({v: dH_dp[i] for i, v in enumerate(system.q_dot)})
     lam = tuple(sp.Symbol(method_name(f"lambda{i + 1}", taken), real=True) for i in range(system.k))
     names = tuple(system.coordinates) + tuple(s.name for s in p)

@@ -191,3 +191,39 @@ def test_simulate_cli_reports_the_drift(tmp_path, capsys):
     assert main(["simulate", str(scene), "--out", str(tmp_path / "t.csv"), "--columns", "all"]) == 0
     assert "max |h(q)|" in capsys.readouterr().out
     assert "holonomic1" in (tmp_path / "t.csv").read_text().splitlines()[0]
+
+
+_SLEIGH = ("m*((x_dot - a*sin(theta)*theta_dot)**2 + (y_dot + a*cos(theta)*theta_dot)**2)/2"
+           " + I_c*theta_dot**2/2"
+           " + m_s*((x_dot + {ud}*cos(theta) - {wd}*sin(theta)"
+           " - ((c + {u})*sin(theta) + {w}*cos(theta))*theta_dot)**2"
+           " + (y_dot + {ud}*sin(theta) + {wd}*cos(theta)"
+           " + ((c + {u})*cos(theta) - {w}*sin(theta))*theta_dot)**2)/2")
+_SLEIGH_PARAMETERS = {"m": 1.0, "I_c": 0.05, "a": 0.1, "m_s": 0.4, "c": 0.2, "R": 0.1}
+
+
+def test_hamiltonian_form_of_a_configuration_dependent_metric_with_a_kept_constraint():
+    """A Chaplygin sleigh carrying a mass on a ring of radius R, written in the mass's body
+    coordinates (u, w) with u² + w² = R² kept (w dependent): a 5 × 5 metric that depends on
+    the configuration, whose Hamiltonian form never finished deriving (a user's trial,
+    2026-11-29: sympy expanded pᵀM⁻¹p, then differentiated M⁻¹). Reference: the same robot
+    with the mass's angle ψ (u = R sin ψ, w = R cos ψ, no holonomic constraint), reduced
+    form, at a tighter tolerance; coasting for 2 s from a consistent state."""
+    kept = System(coordinates=["x", "y", "theta", "u", "w"],
+                  lagrangian=_SLEIGH.format(u="u", w="w", ud="u_dot", wd="w_dot"),
+                  constraints=["-sin(theta)*x_dot + cos(theta)*y_dot"], holonomic=["u**2 + w**2 - R**2"],
+                  dependent=["w"], forces={"u": "F"}, parameters=_SLEIGH_PARAMETERS, name="ring_uw")
+    angle = System(coordinates=["x", "y", "theta", "psi"],
+                   lagrangian=_SLEIGH.format(u="R*sin(psi)", w="R*cos(psi)", ud="R*cos(psi)*psi_dot",
+                                             wd="(-R*sin(psi)*psi_dot)"),
+                   constraints=["-sin(theta)*x_dot + cos(theta)*y_dot"], forces={"psi": "F"},
+                   parameters=_SLEIGH_PARAMETERS, name="ring_psi")
+    psi, psi_dot, R = 0.3, 1.0, 0.1
+    q0 = [0.0, 0.0, 0.0, R * np.sin(psi), R * np.cos(psi)]
+    qd0 = [0.2, 0.0, 0.5, R * np.cos(psi) * psi_dot, -R * np.sin(psi) * psi_dot]
+    reference = simulate(derive(angle, "reduced", use_cache=False), (0, 2), [0.0, 0.0, 0.0, psi],
+                         [0.2, 0.0, 0.5, psi_dot], rtol=1e-12, atol=1e-14, method="DOP853")
+    run = simulate(derive(kept, "hamilton", use_cache=False), (0, 2), q0, qd0, rtol=1e-10, atol=1e-12)
+    x, y, theta, psi_end = reference.q[-1]
+    np.testing.assert_allclose(run.q[-1], [x, y, theta, R * np.sin(psi_end), R * np.cos(psi_end)], atol=1e-7)
+    assert abs(run.q[-1, 2]) > 0.05                 # it turned: the test is not of a body at rest
