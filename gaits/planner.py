@@ -53,7 +53,7 @@ from .gait_check import momentum_problem, screening_report, to_momentum_coordina
 from .refinement import refinable, refine
 from .search import Attempt, Search, continuation, solve_from_guesses, solve_with_fallbacks  # noqa: F401
 from .task import quantity_objects  # noqa: F401
-from .warm_start import MAX_SOLUTION_BYTES, read_solution, warm_start  # noqa: F401
+from .warm_start import MAX_SOLUTION_BYTES, previous_answer, read_solution, warm_start  # noqa: F401
 
 __all__ = ["plan", "PlanResult", "prepare", "Prepared", "state_problem", "to_momentum_coordinates",
            "verified_gait", "unsolved", "known_names", "warm_start", "read_solution", "summary_lines"]
@@ -276,7 +276,9 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     params : parameter values overriding the scene's (mapping)
     max_iter : iteration limit of each candidate's solve
     guess : a previous result to start from (Solution, PlanResult, solution.json dict or path,
-        InitialGuess), tried before the planner's own candidates (:func:`warm_start`)
+        InitialGuess), tried before the planner's own candidates (:func:`warm_start`); one of
+        another robot, or a solution.json whose trajectory is not well formed, is a ProblemError
+        before any derivation
     out_dir : write solution.json and the figures there (``animate``: also motion.gif)
     hessian : "auto", "exact", "gauss-newton" or "limited-memory" (Ipopt)
     max_guesses : guesses tried per solver before the continuation
@@ -299,6 +301,8 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     if intervals is not None:
         overrides = [*overrides, f"intervals={int(intervals)}"]
     to_plan = resolve(system, task, overrides=overrides)
+    if guess is not None:              # checked before any derivation (exit 2 for a bad guess)
+        guess = previous_answer(guess, to_plan.system.coordinates, to_plan.system.inputs, to_plan.label)
     budget = plan_budget(to_plan, time_limit, started=started, progress=progress)
     workers = _default_workers() if workers in (None, "auto") else int(workers)
     settings = SearchSettings(solver, transcription, jit, choose_hessian(hessian), max_iter,

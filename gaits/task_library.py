@@ -23,7 +23,7 @@ from nhgait.ocp import ProblemError
 
 from .task import Task, apply_overrides, parse_task
 
-__all__ = ["Plan", "resolve", "library", "library_tasks", "library_task_names", "get_task"]
+__all__ = ["Plan", "resolve", "scene_of", "library", "library_tasks", "library_task_names", "get_task"]
 
 LIBRARY_KEYS = {"scene", "units", "drawing", "tasks"}
 
@@ -119,6 +119,13 @@ def _scene_name(scene) -> str:
     return scene.system.name
 
 
+def scene_of(system) -> tuple:
+    """(the Scene of ``system`` — a scene file path, built-in scene name, Scene or System —, its
+    name: the built-in's, else the system's), read before any task."""
+    scene = _load_scene(system)
+    return scene, _scene_name(scene)
+
+
 def resolve(system, task=None, *, overrides=()) -> Plan:
     """The :class:`Plan` for ``system`` and ``task`` (see the module docstring).
 
@@ -128,8 +135,7 @@ def resolve(system, task=None, *, overrides=()) -> Plan:
     task : None (the scene's ``[task]``), a library gait name (str), a ``[task]`` dict or a Task
     overrides : ``key.sub=value`` strings applied to the task table (``nhgait plan --set``)
     """
-    scene = _load_scene(system)
-    name = _scene_name(scene)
+    scene, name = scene_of(system)
     lib = library(name) if str(scene.source).startswith("built-in scene ") else None
     units = {**((lib or {}).get("units", {})), **dict(scene.units or {})}
     drawing = scene.drawing if scene.drawing is not None else (lib or {}).get("drawing")

@@ -58,6 +58,8 @@ def _read_bytes(path: Path, what: str, limit: int, title: str) -> bytes:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
     except FileNotFoundError:
         raise ModelError([f"{what} {path} does not exist"], title=title) from None
+    except ModelError:                  # _refuse_kind's own answer (a ValueError), not wrapped again
+        raise
     except (OSError, ValueError) as exc:
         raise ModelError([f"{what} {path} cannot be opened ({_reason(exc)})"], title=title) from None
     try:

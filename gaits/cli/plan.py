@@ -53,8 +53,9 @@ def add_plan_parser(subparsers) -> argparse.ArgumentParser:
                         "coordinate); each solver attempt is also limited, from its measured cost; "
                         "a plan that runs out fails cleanly (exit 1) naming the phase ('inf': unlimited)")
     p.add_argument("--guess", default=None, metavar="SOLUTION_JSON",
-                   help="start from a previous plan's solution.json (resampled onto this task's "
-                        "grid) before the planner's own guesses: a refinement with --intervals")
+                   help="start from a previous plan's solution.json of the same robot (resampled "
+                        "onto this task's grid) before the planner's own guesses: a refinement with "
+                        "--intervals")
     p.add_argument("--max-guesses", type=positive_int, default=12,
                    help="initial guesses tried per solver before the continuation (default 12)")
     gif = p.add_mutually_exclusive_group()

@@ -124,10 +124,11 @@ def point_task(task: Mapping, params: Mapping, point: GridPoint) -> tuple[dict, 
 # ----------------------------------------------------------------------------- warm starts
 def warm_data(solution: Mapping) -> dict:
     """The part of a solution dict (``Solution.to_dict()``, solution.json) a warm start needs:
-    ``trajectory.t``, ``q`` and ``q̇`` (coordinate order) and ``u`` — coordinate-free, so the
-    planner's :func:`~nhgait.gaits.planner.warm_start` maps it to any model's own state."""
+    ``trajectory.t``, ``q`` and ``q̇`` (coordinate order) and ``u``, and the names of the
+    coordinates and inputs — free of the state, so the planner's
+    :func:`~nhgait.gaits.planner.warm_start` maps it to any model's own state."""
     tr = solution["trajectory"]
-    return {"trajectory": {k: tr[k] for k in ("t", "q", "qdot", "u")}}
+    return {"trajectory": {k: tr[k] for k in ("t", "q", "qdot", "u", "coordinates", "inputs") if k in tr}}
 
 
 # ----------------------------------------------------------------------------- the worker

@@ -88,18 +88,23 @@ class TrackingResult:
         return bool(self.report.get("success")) and self.overrun is None
 
 
-def _plan_data(plan_file):
-    """The content of a ``solution.json`` to track (one with feedback), or None."""
+def _plan_data(plan_file, system):
+    """The content of a ``solution.json`` to track (one with feedback, planned for ``system``'s
+    robot: its coordinates and inputs), or None. One ProblemError lists every problem."""
     from nhgait.ocp import ProblemError
 
-    from ..warm_start import read_solution
+    from ..solution_file import file_robot_problems, read_solution
+    from ..task_library import scene_of
     if plan_file is None:
         return None
     data = read_solution(plan_file)             # a file that is not a solution: ModelError
+    scene, name = scene_of(system)
+    problems = file_robot_problems(data, scene.system.coordinates, scene.system.inputs, name, str(plan_file))
     if not data.get("feedback") or "task" not in data:
-        raise ProblemError([f"{plan_file} holds no feedback (a failed plan, or one written before nhgait "
-                            "stored feedback gains): plan it again"], title="invalid plan file")
-    problems = _plan_file_problems(data, plan_file)
+        problems.append(f"{plan_file} holds no feedback (a failed plan, or one written before nhgait "
+                        "stored feedback gains): plan it again")
+    elif not problems:                          # another robot's parameters and gains: said above
+        problems = _plan_file_problems(data, plan_file)
     if problems:
         raise ProblemError(problems, title="invalid plan file")
     return data
@@ -182,7 +187,7 @@ def track(system, task=None, *, overrides=(), mismatch=(), samples: int = 20, se
     progress = progress or Progress.silent()
     if out_dir is not None:
         out_dir = output_directory(out_dir, "out_dir")
-    data = _plan_data(plan_file)
+    data = _plan_data(plan_file, system)
     resolved = resolve(system, task, overrides=overrides) if data is None else resolve(system, data["task"])
     scene_system = resolved.scene.system
     factors, budget = _checked_request(samples, mismatch, scene_system,

@@ -142,6 +142,17 @@ def test_read_text_file_names_the_first_byte_that_is_not_utf8(tmp_path):
     assert f"byte 0xe9 at position {position} (line 3, column 6)" in str(err.value)
 
 
+def test_a_directory_is_one_problem_not_an_error_inside_an_error(tmp_path):
+    """A directory where a file is read: one sentence, the title said once (it was the whole
+    first error quoted inside a second: "cannot be opened (cannot read …: 1 problem(s) …)")."""
+    from nhgait.dynamics.derivation.textfiles import read_text_file
+    from nhgait.dynamics.errors import ModelError
+    with pytest.raises(ModelError) as err:
+        read_text_file(tmp_path, "solution file", title="cannot read the solution")
+    assert err.value.problems == (f"solution file {tmp_path} is a directory, not a regular file",)
+    assert str(err.value).count("problem(s)") == 1
+
+
 # ----------------------------------------------------------------------------- URDFs
 def _urdf_scene(folder: Path, urdf_line: str, urdf_text: str | None = RACER_URDF, name="robot.urdf") -> Path:
     if urdf_text is not None:

@@ -184,6 +184,20 @@ def test_a_bad_plan_file_is_one_error(study, tmp_path, capsys, what, said):
     assert not (tmp_path / "o").exists()
 
 
+def test_a_plan_of_another_robot_is_said_to_be_one(study, tmp_path, capsys):
+    """The unicycle's plan tracked on the snakeboard: the file is another robot's (it was "invalid
+    mismatch: unknown parameter 'J_phi'", the unicycle's parameters read as the snakeboard's)."""
+    _, out = study
+    code = main(["track", "snakeboard", "--plan", str(out / "solution.json"), "--mismatch", "params.m=1.1",
+                 "--out", str(tmp_path / "o"), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.startswith("nhgait: invalid plan file: 1 problem(s)\n")
+    assert (f"{out / 'solution.json'} is a plan of 'unicycle/parallel-park', not of 'snakeboard': its "
+            "coordinates (x, y, theta, phi) are not this robot's (x, y, theta, psi, phi)") in err
+    assert "unknown parameter" not in err
+
+
 def test_a_study_whose_files_cannot_be_written_keeps_its_report(study, sandbox, monkeypatch, capsys):
     """The disk fills while the figures are written: exit 1, the summary names the failure and
     the fallback, which holds the tracking.json of the summary's numbers; nothing half-written
