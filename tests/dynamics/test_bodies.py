@@ -116,3 +116,83 @@ def test_body_statement_errors_are_listed_together():
     assert "unknown name(s) rho" in text
     assert "unknown key(s) ['colour']" in text
     assert "its parent 'nowhere' is not 'base' or a body" in text
+
+
+_DRIVE = """[system]
+name = "segway_bodies"
+base = ["x", "y", "yaw"]
+inputs = ["tau_L", "tau_R"]
+gravity = "g"
+
+[system.forces]
+wL = "tau_L"
+wR = "tau_R"
+
+[system.parameters]
+r = 0.1
+b = 0.2
+mc = 5.0
+hc = 0.3
+mw = 0.5
+g = 9.81
+
+[[system.bodies]]
+name = "chassis"
+parent = "base"
+joint = "pitch"
+axis = [0, 1, 0]
+point = [0, 0, "r"]
+mass = "mc"
+com = [0, 0, "r + hc"]
+inertia = [[0.2, 0, 0], [0, 0.2, 0], [0, 0, 0.1]]
+
+[[system.wheels]]
+name = "left"
+parent = "chassis"
+spin = "wL"
+centre = [0, "b", "r"]
+axle = [0, 1, 0]
+radius = "r"
+mass = "mw"
+inertia = ["mw*r**2/4", "mw*r**2/2"]
+
+[[system.wheels]]
+name = "right"
+parent = "chassis"
+spin = "wR"
+centre = [0, "-b", "r"]
+axle = [0, 1, 0]
+radius = "r"
+mass = "mw"
+inertia = ["mw*r**2/4", "mw*r**2/2"]
+"""
+
+
+def test_a_differential_drive_from_two_wheels_on_one_axle_drops_the_dependent_side_slip_row():
+    """Two coaxial rolling wheels give four rows, two of them the same no-side-slip condition:
+    the dependent one is dropped as for a URDF's wheels (``nhgait derive`` of a user's
+    two-wheeled balancing robot stopped at "the constraints are dependent: rank ω(q) = 3 < k =
+    4 … remove redundant constraints", which the user had not written). Reference: the same
+    robot with the right wheel's rolling written by hand (cos ψ ẋ + sin ψ ẏ + b ψ̇ = r (θ̇ + φ̇_R),
+    the wheel not rolling by itself): the same metric, distribution and accelerations."""
+    built = scene_from_text(_DRIVE).system
+    rolling = 'constraints = ["cos(yaw)*x_dot + sin(yaw)*y_dot + b*yaw_dot - r*(pitch_dot + wR_dot)"]'
+    inputs = 'inputs = ["tau_L", "tau_R"]'
+    by_hand = scene_from_text(_DRIVE.replace(inputs, f"{inputs}\n{rolling}")
+                              .replace('spin = "wR"', 'spin = "wR"\nrolls = false')).system
+    assert built.k == by_hand.k == 3
+    (M1, W1, _), (M2, W2, _) = built.numeric_functions(), by_hand.numeric_functions()
+    pv = built.param_vector()
+    a, b = derive(built).numeric, derive(by_hand).numeric
+    rng = np.random.default_rng(4)
+    for _ in range(10):
+        q = rng.uniform(-1.2, 1.2, 6)
+        np.testing.assert_allclose(M1(q, pv), M2(q, pv), rtol=1e-13, atol=1e-13)
+        both = np.vstack([np.array(W1(q, pv), dtype=float), np.array(W2(q, pv), dtype=float)])
+        assert np.linalg.matrix_rank(both, tol=1e-10) == 3                      # the same distribution
+        qd = consistent_velocities(by_hand, q, dict(zip(("yaw", "pitch", "wL"), rng.uniform(-2, 2, 3),
+                                                        strict=True)))
+        u = rng.uniform(-1, 1, 2)
+        np.testing.assert_allclose(a.call("qddot", 0.0, a.call("state", q, qd, pv), u, pv),
+                                   b.call("qddot", 0.0, b.call("state", q, qd, pv), u, pv),
+                                   rtol=1e-10, atol=1e-10)

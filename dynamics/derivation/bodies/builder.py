@@ -63,14 +63,24 @@ def bodies_system(table: dict, source: str = "<scene>"):
     holonomic = [*heights, *table.get("holonomic", [])]
     try:
         return System(coordinates=list(multibody.coordinates), lagrangian=lagrangian(M, V, q_dot),
-                      constraints=[in_qdot(r, q[2], q_dot) for r in rows]
-                      + list(table.get("constraints", [])),
+                      constraints=_independent([in_qdot(r, q[2], q_dot) for r in rows], q, q_dot, names,
+                                               values) + list(table.get("constraints", [])),
                       forces=table.get("forces", {}), parameters=params, inputs=table.get("inputs"),
                       name=table.get("name", "system"), fiber=table.get("fiber"),
                       planar_frame=list(multibody.base), holonomic=holonomic,
                       dependent=table.get("dependent"))
     except ModelError as exc:
         raise ModelError(list(exc.problems), title=f"invalid scene {source}") from None
+
+
+def _independent(rows: list, q: list, q_dot: list, names: dict, values: dict) -> list:
+    """The wheels' rows less each that is a combination of the others (the second side-slip
+    row of two wheels on one axle: a differential drive), tested at random configurations
+    with the parameter values, as for a URDF's wheels (docs/scene-format.md)."""
+    from ..urdf.wheels import independent_rows
+    known = {names[k]: v for k, v in values.items() if isinstance(v, (int, float))}
+    kept = independent_rows([r.xreplace(known) for r in rows], (q[2:], q_dot)) if rows else []
+    return [rows[i] for i in kept]
 
 
 def _width(multibody: Multibody) -> int:
