@@ -67,8 +67,8 @@ def names_of(value, field_name: str, problems: list, *, required: bool = False) 
         return []
     if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
         kind = "a string" if isinstance(value, str) else type(value).__name__
-        hint = (f' (write {field_name} = ["{value.split()[0]}", ...])' if isinstance(value, str)
-                and value.split() else "")
+        words = value.replace(",", " ").split() if isinstance(value, str) else []
+        hint = f" (write {field_name} = [{', '.join(chr(34) + w + chr(34) for w in words)}])" if words else ""
         problems.append(f"{field_name}: expected a list of names, got {kind}{hint}")
         return []
     out = []

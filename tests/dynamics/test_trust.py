@@ -143,7 +143,10 @@ def test_a_string_where_a_list_belongs_is_one_problem():
         System(**{**GOOD, "coordinates": "x phi"})
     assert len(info.value.problems) == 1
     assert ('coordinates: expected a list of names, got a string (write coordinates = '
-            '["x", ...])' in str(info.value))
+            '["x", "phi"])' in str(info.value))
+    with pytest.raises(ModelError) as info:      # the hint was ["x,", ...] (a user's trial, 2026-11-29)
+        System(**{**GOOD, "coordinates": "x, phi"})
+    assert '(write coordinates = ["x", "phi"])' in str(info.value)
     with pytest.raises(ModelError) as info:
         System(**{**GOOD, "constraints": "x_dot - r*phi_dot"})
     assert len(info.value.problems) == 1
