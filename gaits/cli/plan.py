@@ -51,7 +51,8 @@ def add_plan_parser(subparsers) -> argparse.ArgumentParser:
                    help="seconds the whole plan may take (default: the task's time_limit, else 120 "
                         "s + 30 s per "
                         "coordinate); each solver attempt is also limited, from its measured cost; "
-                        "a plan that runs out fails cleanly (exit 1) naming the phase ('inf': unlimited)")
+                        "a plan that runs out fails cleanly (exit 1) naming the phase ('inf': "
+                        "unlimited; a huge number of seconds is in effect the same)")
     p.add_argument("--guess", default=None, metavar="SOLUTION_JSON",
                    help="start from a previous plan's solution.json (resampled onto this task's "
                         "grid) before the planner's own guesses: a refinement with --intervals")

@@ -60,7 +60,8 @@ def add_track_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
                    help="seconds the whole study (the plan and the samples) may take (default: the task's "
                         "time_limit, else 120 s + 30 s per coordinate); a study that runs out fails "
-                        "cleanly (exit 1) with the samples done in tracking.json ('inf': unlimited)")
+                        "cleanly (exit 1) with the samples done in tracking.json ('inf': unlimited;"
+                        " a huge number of seconds is in effect the same)")
     talk = p.add_mutually_exclusive_group()
     talk.add_argument("--quiet", action="store_true", help="no progress on stderr")
     talk.add_argument("--verbose", action="store_true", help="the solver's own iteration log as well")
