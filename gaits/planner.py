@@ -250,8 +250,9 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     ----------
     system : scene file, built-in scene name, Scene or System
     task : None (the scene's ``[task]``), a built-in gait name, a ``[task]`` dict or a Task
-    overrides : ``key.sub=value`` strings (``--set``), e.g. ``["final.x=2.0"]``
-    intervals : N, overriding the task's
+    overrides : ``key.sub=value`` strings (``--set``), e.g. ``["final.x=2.0"]``; one string is
+        one override
+    intervals : N, overriding the task's (a whole number)
     solver : "auto" (default: :func:`solver_order` — FATROP then Ipopt for small ODEs, Ipopt then
         FATROP for larger ones), "fatrop" or "ipopt"
     transcription : None (multiple shooting; stage-ordered for FATROP) or "collocation"
@@ -261,28 +262,30 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     max_iter : iteration limit of each candidate's solve
     guess : a previous result to start from (Solution, PlanResult, solution.json dict or path,
         InitialGuess), tried before the planner's own candidates (:func:`warm_start`)
-    out_dir : write solution.json and the figures there (``animate``: also motion.gif)
+    out_dir : write solution.json and the figures there (``animate``: also motion.gif, which
+        needs ``out_dir``)
     hessian : "auto", "exact", "gauss-newton" or "limited-memory" (Ipopt)
     max_guesses : guesses tried per solver before the continuation
     progress : a :class:`~nhgait.dynamics.progress.Progress` (None: silent)
     time_limit : seconds the whole plan may take (None: the task's ``time_limit``, else the
         default of :func:`plan_budget`); a plan that runs out is a failure whose ``overrun``
         says in which phase (step 7 of the module docstring)
+
+    Every problem of these arguments (:mod:`.plan_arguments`), of ``out_dir``, the scene and
+    the task is one :class:`~nhgait.ocp.ProblemError`, raised before any derivation.
     """
     from nhgait.dynamics.progress import Progress
     from nhgait.ocp.budget import BudgetSpent
 
     from .diagnosis import diagnose
-    from .outputs import output_directory
-    from .task_library import resolve
+    from .plan_arguments import checked_request
 
-    progress = progress or Progress.silent()
     started = time.monotonic()
-    if out_dir is not None:            # checked before any derivation (exit 2 for a bad location)
-        out_dir = output_directory(out_dir, "out_dir")
-    if intervals is not None:
-        overrides = [*overrides, f"intervals={int(intervals)}"]
-    to_plan = resolve(system, task, overrides=overrides)
+    to_plan, out_dir = checked_request(system, task, dict(   # one ProblemError, before any derivation
+        overrides=overrides, intervals=intervals, solver=solver, transcription=transcription, jit=jit,
+        workers=workers, params=params, max_iter=max_iter, out_dir=out_dir, animate=animate, verify=verify,
+        hessian=hessian, max_guesses=max_guesses, progress=progress, time_limit=time_limit))
+    progress = progress or Progress.silent()
     budget = plan_budget(to_plan, time_limit, started=started, progress=progress)
     workers = _default_workers() if workers in (None, "auto") else int(workers)
     settings = SearchSettings(solver, transcription, jit, choose_hessian(hessian), max_iter,
