@@ -124,6 +124,9 @@ def _choice_problems(solver, hessian, transcription) -> list:
                 for name, value, choices in (("solver", solver, SOLVER_CHOICES),
                                              ("hessian", hessian, HESSIAN_CHOICES))
                 if not (isinstance(value, str) and value in choices)]
+    if solver == "fatrop" and hessian == "limited-memory":
+        problems.append("solver = 'fatrop' has no limited-memory Hessian (Ipopt's L-BFGS): use "
+                        "hessian 'exact' or 'gauss-newton', or solver 'ipopt' or 'auto'")
     known = isinstance(transcription, str) and transcription in TRANSCRIPTIONS
     if not (transcription is None or known or (not isinstance(transcription, str)
                                                and callable(getattr(transcription, "build", None)))):

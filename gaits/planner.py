@@ -58,17 +58,18 @@ __all__ = ["plan", "PlanResult", "prepare", "Prepared", "state_problem", "to_mom
            "verified_gait", "unsolved", "known_names", "warm_start", "read_solution", "summary_lines"]
 
 
-def solver_order(solver: str, transcription=None, problem=None) -> tuple:
+def solver_order(solver: str, transcription=None, problem=None, hessian: str = "exact") -> tuple:
     """The solvers ``plan`` tries, the next one when the previous finds no solution.
 
-    "auto": Ipopt alone for collocation (FATROP does not take it); for shooting, FATROP first
+    "auto": Ipopt alone for collocation (FATROP does not take it) and for the limited-memory
+    Hessian (Ipopt's L-BFGS; FATROP has none); for shooting, FATROP first
     when the stage function is written inline (small ODEs: FATROP is the faster there), Ipopt
     first when it is structured (robots of 5–10 coordinates: Ipopt is the faster there; the
     measurements are in docs/gait-planning.md and docs/benchmarks.md)."""
     from nhgait.ocp import ProblemError
     from nhgait.ocp.solver import SOLVERS
     if solver == "auto":
-        if transcription == "collocation":
+        if transcription == "collocation" or hessian == "limited-memory":
             return ("ipopt",)
         return (("ipopt", "fatrop") if problem is not None and _structured_stage(problem)
                 else ("fatrop", "ipopt"))
@@ -470,7 +471,7 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
     s = settings
     explore = not getattr(guesses, "given_first", False)     # a warm start answers where the user asked
     reached.search = Search(None, (), None)
-    for name in solver_order(s.solver, s.transcription, problem):
+    for name in solver_order(s.solver, s.transcription, problem, s.hessian):
         t0 = time.perf_counter()
         try:
             with budget.stage(f"the NLP set-up and compilation for {name}"):

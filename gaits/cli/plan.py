@@ -46,7 +46,7 @@ def add_plan_parser(subparsers) -> argparse.ArgumentParser:
                                                                  "processes (a number or 'auto'; default 1)")
     p.add_argument("--hessian", choices=["auto", "exact", "gauss-newton", "limited-memory"], default="auto",
                    help="Lagrangian Hessian: exact (auto), Gauss-Newton (the stage curvature dropped) or "
-                        "limited-memory (Ipopt's L-BFGS)")
+                        "limited-memory (Ipopt's L-BFGS: with --solver auto, Ipopt alone)")
     p.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
                    help="seconds the whole plan may take (default: the task's time_limit, else 120 "
                         "s + 30 s per "

@@ -1,4 +1,5 @@
-"""``plan()``'s own arguments, checked before any work (gaits/plan_arguments.py).
+"""``plan()``'s own arguments, checked before any work (gaits/plan_arguments.py), and the
+solver that ``--hessian limited-memory`` gets with ``--solver auto``.
 
 Each bad argument once passed silently (``intervals=3.5`` truncated to 3, ``intervals=True`` taken
 for N = 1, ``time_limit=True`` for one second, ``overrides="final.y=0.3"`` split into 11
@@ -13,8 +14,9 @@ import numpy as np
 import pytest
 
 from nhgait.gaits import planner
+from nhgait.gaits.cli.main import main
 from nhgait.gaits.plan_arguments import argument_problems, checked_request, override_list
-from nhgait.gaits.planner import plan
+from nhgait.gaits.planner import plan, solver_order
 from nhgait.gaits.task_library import resolve
 from nhgait.ocp import ProblemError
 
@@ -44,6 +46,7 @@ BAD = [
     ({"animate": True}, "animate=True writes motion.gif into out_dir: give out_dir"),
     ({"solver": "snopt"}, "solver = 'snopt': use one of 'auto', 'fatrop', 'ipopt'"),
     ({"hessian": "bfgs"}, "hessian = 'bfgs': use one of 'auto', 'exact', 'gauss-newton', 'limited-memory'"),
+    ({"solver": "fatrop", "hessian": "limited-memory"}, "solver = 'fatrop' has no limited-memory Hessian"),
     ({"transcription": "ms"}, "transcription = 'ms': use None or one of 'multiple-shooting'"),
     ({"jit": "yes"}, "jit = 'yes' must be True or False or None"),
     ({"verify": 1}, "verify = 1 must be True or False"),
@@ -97,3 +100,26 @@ def test_a_single_override_string_is_one_override():
     assert to_plan.task.intervals == 20
     assert to_plan.task.to_dict()["final"]["y"] == pytest.approx(0.3)
     assert resolve(*PARK, overrides="final.y=0.3").task.to_dict()["final"]["y"] == pytest.approx(0.3)
+
+
+def test_limited_memory_with_auto_is_ipopt_alone():
+    """``--hessian limited-memory`` is Ipopt's L-BFGS: with solver auto the planner uses Ipopt
+    (it once tried FATROP first and stopped with "FATROP has no limited-memory Hessian")."""
+    assert solver_order("auto", None, None, "limited-memory") == ("ipopt",)
+    assert solver_order("auto", None, None, "exact") == ("fatrop", "ipopt")
+    result = plan(*PARK, intervals=20, jit=False, hessian="limited-memory", verify=False)
+    assert result.success
+    assert {a.solver for a in result.attempts} == {"ipopt"}
+    assert result.solution.settings["hessian"] == "limited-memory"
+
+
+def test_cli_plan_refuses_fatrop_with_limited_memory_at_once(tmp_path, capsys, no_derivation):
+    """Exit 2 with every problem (here two) before the derivation."""
+    code = main(["plan", "unicycle", "--gait", "parallel-park", "--solver", "fatrop", "--hessian",
+                 "limited-memory", "--time-limit", "-1", "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "invalid plan request: 2 problem(s)" in err
+    assert "solver = 'fatrop' has no limited-memory Hessian" in err
+    assert "time_limit = -1.0 must be a positive number of seconds" in err
+    assert "internal error" not in err
