@@ -1,12 +1,13 @@
-"""``plan()``'s own arguments, checked before any work (gaits/plan_arguments.py), and the
-solver that ``--hessian limited-memory`` gets with ``--solver auto``.
+"""``plan()``'s own arguments and a sweep's options, checked before any work
+(gaits/plan_arguments.py, gaits/sweeps/point.py ``option_problems``), and the solver that
+``--hessian limited-memory`` gets with ``--solver auto``.
 
 Each bad argument once passed silently (``intervals=3.5`` truncated to 3, ``intervals=True`` taken
 for N = 1, ``time_limit=True`` for one second, ``overrides="final.y=0.3"`` split into 11
-one-character overrides, ``animate=True`` without ``out_dir`` writing nothing) or failed deep
-inside (``workers="many"``, ``progress="yes"``, ``max_iter=-1`` in Ipopt's option dump); now
-every problem is one ProblemError naming the argument, before the derivation (a planner whose
-derivation raises proves it).
+one-character overrides, ``animate=True`` without ``out_dir`` writing nothing, an unknown sweep
+option ignored) or failed deep inside (``workers="many"``, ``progress="yes"``, ``max_iter=-1`` in
+Ipopt's option dump, a sweep's ``workers="2"``); now every problem is one ProblemError naming
+the argument, before the derivation (a planner whose derivation raises proves it).
 """
 from __future__ import annotations
 
@@ -123,3 +124,24 @@ def test_cli_plan_refuses_fatrop_with_limited_memory_at_once(tmp_path, capsys, n
     assert "solver = 'fatrop' has no limited-memory Hessian" in err
     assert "time_limit = -1.0 must be a positive number of seconds" in err
     assert "internal error" not in err
+
+
+def test_a_sweeps_workers_and_options_are_checked_before_the_derivation(tmp_path, monkeypatch):
+    from nhgait.gaits.sweeps import point
+    from nhgait.gaits.sweeps.driver import sweep
+
+    def described(*args, **kwargs):
+        raise AssertionError("derived before the request was checked")
+
+    monkeypatch.setattr(point, "describe_case", described)
+    with pytest.raises(ProblemError) as bad:
+        sweep(*PARK, ["final.y=0.3:0.5:2"], out=tmp_path / "s", workers="2",
+              options={"zzz": 1, "solver": "auto", "jit": "no", "time_limit": True})
+    text = str(bad.value)
+    assert "invalid sweep: 5 problem(s)" in text
+    assert "options: unknown option 'zzz' (options: transcription, solver, jit, time_limit)" in text
+    assert "options['solver'] = 'auto': use one of 'ipopt', 'fatrop'" in text
+    assert "options['jit'] = 'no' must be True, False or None" in text
+    assert "options['time_limit'] = True must be a positive number of seconds" in text
+    assert "--workers must be ≥ 0 (a whole number of worker processes), got '2'" in text
+    assert not (tmp_path / "s").exists()
