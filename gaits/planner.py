@@ -44,7 +44,6 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -59,17 +58,18 @@ __all__ = ["plan", "PlanResult", "prepare", "Prepared", "state_problem", "to_mom
            "verified_gait", "unsolved", "known_names", "warm_start", "read_solution", "summary_lines"]
 
 
-def solver_order(solver: str, transcription=None, problem=None) -> tuple:
+def solver_order(solver: str, transcription=None, problem=None, hessian: str = "exact") -> tuple:
     """The solvers ``plan`` tries, the next one when the previous finds no solution.
 
-    "auto": Ipopt alone for collocation (FATROP does not take it); for shooting, FATROP first
+    "auto": Ipopt alone for collocation (FATROP does not take it) and for the limited-memory
+    Hessian (Ipopt's L-BFGS; FATROP has none); for shooting, FATROP first
     when the stage function is written inline (small ODEs: FATROP is the faster there), Ipopt
     first when it is structured (robots of 5–10 coordinates: Ipopt is the faster there; the
     measurements are in docs/gait-planning.md and docs/benchmarks.md)."""
     from nhgait.ocp import ProblemError
     from nhgait.ocp.solver import SOLVERS
     if solver == "auto":
-        if transcription == "collocation":
+        if transcription == "collocation" or hessian == "limited-memory":
             return ("ipopt",)
         return (("ipopt", "fatrop") if problem is not None and _structured_stage(problem)
                 else ("fatrop", "ipopt"))
@@ -192,11 +192,12 @@ def prepare(to_plan, *, params=None, progress=None) -> Prepared:
     from nhgait.dynamics.progress import Progress
 
     from .charts import derive_for_task, end_postures
+    from .plan_arguments import check_params
     from .task import check_names
 
     progress = progress or Progress.silent()
     task, scene = to_plan.task, to_plan.scene
-    check_params(scene.system, params)
+    check_params(scene.system, params)      # values: names, numbers, the metric (before any derivation)
     model = derive_for_task(scene.system, task, params, progress)
     prov = getattr(model, "provenance", None)
     progress.note(f"  n = {model.system.n} coordinates, {len(model.state_names)} states, {model.form} form"
@@ -214,20 +215,6 @@ def prepare(to_plan, *, params=None, progress=None) -> Prepared:
     for line in report.lines():
         progress.note(f"  conditions: {line}")
     return Prepared(model, specialised, problem, stated, report)
-
-
-def check_params(system, params) -> None:
-    """Parameter values overriding the scene's (``params``, a mapping or a vector) checked before
-    any derivation: names, numbers, a positive definite kinetic metric and independent
-    constraints at sampled configurations (:meth:`~nhgait.dynamics.System.parameter_problems`),
-    all problems in one ProblemError."""
-    from nhgait.ocp import ProblemError
-    if params is None:
-        return
-    named = ", ".join(f"{k} = {v}" for k, v in params.items()) if isinstance(params, Mapping) else ""
-    problems = system.parameter_problems(params, label=f"the given params ({named})" if named else "params")
-    if problems:
-        raise ProblemError(problems, title="invalid parameters")
 
 
 # ----------------------------------------------------------------------------- plan
@@ -266,8 +253,9 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     ----------
     system : scene file, built-in scene name, Scene or System
     task : None (the scene's ``[task]``), a built-in gait name, a ``[task]`` dict or a Task
-    overrides : ``key.sub=value`` strings (``--set``), e.g. ``["final.x=2.0"]``
-    intervals : N, overriding the task's
+    overrides : ``key.sub=value`` strings (``--set``), e.g. ``["final.x=2.0"]``; one string is
+        one override
+    intervals : N, overriding the task's (a whole number)
     solver : "auto" (default: :func:`solver_order` — FATROP then Ipopt for small ODEs, Ipopt then
         FATROP for larger ones), "fatrop" or "ipopt"
     transcription : None (multiple shooting; stage-ordered for FATROP) or "collocation"
@@ -279,30 +267,32 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
         InitialGuess), tried before the planner's own candidates (:func:`warm_start`); one of
         another robot, or a solution.json whose trajectory is not well formed, is a ProblemError
         before any derivation
-    out_dir : write solution.json and the figures there (``animate``: also motion.gif)
+    out_dir : write solution.json and the figures there (``animate``: also motion.gif, which
+        needs ``out_dir``)
     hessian : "auto", "exact", "gauss-newton" or "limited-memory" (Ipopt)
     max_guesses : guesses tried per solver before the continuation
     progress : a :class:`~nhgait.dynamics.progress.Progress` (None: silent)
     time_limit : seconds the whole plan may take (None: the task's ``time_limit``, else the
         default of :func:`plan_budget`); a plan that runs out is a failure whose ``overrun``
         says in which phase (step 7 of the module docstring)
+
+    Every problem of these arguments (:mod:`.plan_arguments`), of ``out_dir``, the scene and
+    the task is one :class:`~nhgait.ocp.ProblemError`, raised before any derivation.
     """
     from nhgait.dynamics.progress import Progress
     from nhgait.ocp.budget import BudgetSpent
 
     from .diagnosis import diagnose
-    from .outputs import output_directory
-    from .task_library import resolve
+    from .plan_arguments import checked_request
 
-    progress = progress or Progress.silent()
     started = time.monotonic()
-    if out_dir is not None:            # checked before any derivation (exit 2 for a bad location)
-        out_dir = output_directory(out_dir, "out_dir")
-    if intervals is not None:
-        overrides = [*overrides, f"intervals={int(intervals)}"]
-    to_plan = resolve(system, task, overrides=overrides)
+    to_plan, out_dir = checked_request(system, task, dict(   # one ProblemError, before any derivation
+        overrides=overrides, intervals=intervals, solver=solver, transcription=transcription, jit=jit,
+        workers=workers, params=params, max_iter=max_iter, out_dir=out_dir, animate=animate, verify=verify,
+        hessian=hessian, max_guesses=max_guesses, progress=progress, time_limit=time_limit))
     if guess is not None:              # checked before any derivation (exit 2 for a bad guess)
         guess = previous_answer(guess, to_plan.system.coordinates, to_plan.system.inputs, to_plan.label)
+    progress = progress or Progress.silent()
     budget = plan_budget(to_plan, time_limit, started=started, progress=progress)
     workers = _default_workers() if workers in (None, "auto") else int(workers)
     settings = SearchSettings(solver, transcription, jit, choose_hessian(hessian), max_iter,
@@ -487,7 +477,7 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
     s = settings
     explore = not getattr(guesses, "given_first", False)     # a warm start answers where the user asked
     reached.search = Search(None, (), None)
-    for name in solver_order(s.solver, s.transcription, problem):
+    for name in solver_order(s.solver, s.transcription, problem, s.hessian):
         t0 = time.perf_counter()
         try:
             with budget.stage(f"the NLP set-up and compilation for {name}"):

@@ -296,11 +296,12 @@ def apply_overrides(data, assignments) -> dict:
 
     Values are data: numbers or constant expressions (checked by :func:`parse_task`), ranges
     written ``lo,hi`` or ``[lo, hi]``, name lists ``a,b`` for ``periodic``/``velocities``;
-    ``objective`` and ``name`` take words. A malformed assignment is a ProblemError.
+    ``objective`` and ``name`` take words. A malformed assignment is a ProblemError; a single
+    string is one assignment (not one per character).
     """
     out = {k: (dict(v) if isinstance(v, Mapping) else v) for k, v in dict(data or {}).items()}
     problems, changed = [], []
-    for text in assignments or ():
+    for text in [assignments] if isinstance(assignments, str) else assignments or ():
         assignment = parse_assignment(text, problems, example="final.x=2.0")
         if assignment is None:
             continue

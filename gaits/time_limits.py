@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["budget_for", "attempt_limited", "GIVEN"]
+__all__ = ["budget_for", "time_limit_problem", "attempt_limited", "GIVEN"]
 
 #: how a budget given by the caller is named in the progress output and in failures
 GIVEN = "--time-limit / plan(time_limit=...)"
@@ -30,15 +30,25 @@ def budget_for(n_coordinates: int, given=None, task_limit=None, *, given_as: str
         seconds = default_plan_seconds(n_coordinates)
         source = (f"default: {PLAN_BASE_S:g} s + {PLAN_PER_COORDINATE_S:g} s per coordinate, n = "
                   f"{n_coordinates}")
-    try:
-        seconds = float(seconds)
-    except (TypeError, ValueError):
-        seconds = math.nan
-    if not seconds > 0:
-        raise ProblemError([f"time_limit = {seconds if given is None else given!r} must be a "
-                            "positive number of seconds (inf: unlimited)"], title="invalid time limit")
+    problem = time_limit_problem(seconds)
+    if problem:
+        raise ProblemError([problem], title="invalid time limit")
+    seconds = float(seconds)
     return Budget(None if math.isinf(seconds) else seconds, source,
                   **({} if started is None else {"started": started}))
+
+
+def time_limit_problem(seconds) -> str:
+    """What keeps ``seconds`` from being a time limit ('' when nothing): a positive number
+    (or a string of one, as TOML's ``"inf"``), not a bool; any size (``1e300``: in effect
+    unlimited, :data:`~nhgait.ocp.budget.MAX_ALARM_S`)."""
+    try:
+        value = math.nan if isinstance(seconds, bool) else float(seconds)
+    except (TypeError, ValueError):
+        value = math.nan
+    if value > 0:
+        return ""
+    return f"time_limit = {seconds!r} must be a positive number of seconds (inf: unlimited)"
 
 
 def attempt_limited(ocp, guess=None, progress=None):

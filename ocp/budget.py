@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 
 __all__ = ["Budget", "BudgetSpent", "Overrun", "default_plan_seconds", "default_attempt_seconds",
            "PLAN_BASE_S", "PLAN_PER_COORDINATE_S", "ATTEMPT_FLOOR_S", "ATTEMPT_CAP_S",
-           "EVALUATIONS_PER_ITERATION", "KILL_GRACE_S"]
+           "EVALUATIONS_PER_ITERATION", "KILL_GRACE_S", "MAX_ALARM_S"]
 
 #: a plan's default budget: this much plus PLAN_PER_COORDINATE_S per coordinate (seconds)
 PLAN_BASE_S = 120.0
@@ -61,6 +61,10 @@ KILL_GRACE_S = 2.0
 #: a stage's alarm repeats this often (seconds) after its deadline until the stage is left: an
 #: exception raised by the handler can be swallowed on its way up (:func:`_arm`)
 REPEAT_S = 1.0
+#: the longest delay a stage's alarm is armed for (seconds, 30 days): a deadline further away
+#: (``--time-limit 1e10``) is approached in steps of this, each re-armed by the alarm itself —
+#: ``setitimer`` refuses delays past ~292 years (nanoseconds in 64 bits: "timestamp out of range")
+MAX_ALARM_S = 30 * 86400.0
 
 
 def default_plan_seconds(n_coordinates: int) -> float:
@@ -197,10 +201,19 @@ def _arm(budget: Budget, seconds: float) -> tuple:
     overload: a plan's verification once ran on for minutes past its one-shot alarm). Returns
     (previous handler, previous timer (delay, interval), the time armed) for :func:`_disarm`."""
     def ran_out(signum, frame):
+        left = budget.remaining()
+        if left > 0.0:                  # a far deadline, approached in steps of MAX_ALARM_S
+            signal.setitimer(signal.ITIMER_REAL, _alarm_delay(left), REPEAT_S)
+            return
         raise BudgetSpent(budget.overrun())
     handler = signal.signal(signal.SIGALRM, ran_out)
-    timer = signal.setitimer(signal.ITIMER_REAL, max(seconds, 1e-3), REPEAT_S)
+    timer = signal.setitimer(signal.ITIMER_REAL, _alarm_delay(seconds), REPEAT_S)
     return handler, timer, time.monotonic()
+
+
+def _alarm_delay(seconds: float) -> float:
+    """``seconds`` as a delay ``setitimer`` accepts: at least 1 ms, at most :data:`MAX_ALARM_S`."""
+    return min(max(seconds, 1e-3), MAX_ALARM_S)
 
 
 def _disarm(previous: tuple) -> None:
@@ -209,4 +222,4 @@ def _disarm(previous: tuple) -> None:
     signal.setitimer(signal.ITIMER_REAL, 0.0)
     signal.signal(signal.SIGALRM, handler)
     if delay > 0.0:
-        signal.setitimer(signal.ITIMER_REAL, max(delay - (time.monotonic() - armed), 1e-3), interval)
+        signal.setitimer(signal.ITIMER_REAL, _alarm_delay(delay - (time.monotonic() - armed)), interval)

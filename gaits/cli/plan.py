@@ -46,12 +46,13 @@ def add_plan_parser(subparsers) -> argparse.ArgumentParser:
                                                                  "processes (a number or 'auto'; default 1)")
     p.add_argument("--hessian", choices=["auto", "exact", "gauss-newton", "limited-memory"], default="auto",
                    help="Lagrangian Hessian: exact (auto), Gauss-Newton (the stage curvature dropped) or "
-                        "limited-memory (Ipopt's L-BFGS)")
+                        "limited-memory (Ipopt's L-BFGS: with --solver auto, Ipopt alone)")
     p.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
                    help="seconds the whole plan may take (default: the task's time_limit, else 120 "
                         "s + 30 s per "
                         "coordinate); each solver attempt is also limited, from its measured cost; "
-                        "a plan that runs out fails cleanly (exit 1) naming the phase ('inf': unlimited)")
+                        "a plan that runs out fails cleanly (exit 1) naming the phase ('inf': "
+                        "unlimited; a huge number of seconds is in effect the same)")
     p.add_argument("--guess", default=None, metavar="SOLUTION_JSON",
                    help="start from a previous plan's solution.json of the same robot (resampled "
                         "onto this task's grid) before the planner's own guesses: a refinement with "

@@ -47,7 +47,8 @@ def add_sweep_parser(subparsers) -> argparse.ArgumentParser:
                    help="seconds each grid point may take (default: the task's time_limit, else "
                         "the planner's "
                         "default for the robot's size); a point that runs out is a failed point "
-                        "naming the budget")
+                        "naming the budget ('inf': unlimited; a huge number of seconds is in effect "
+                        "the same)")
     p.add_argument("--cold", action="store_true",
                    help="no continuation: start every point from the planner's guesses")
     p.add_argument("--plot", default=None, metavar="X,Y",

@@ -44,9 +44,10 @@ def add_track_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--plan", default=None, metavar="SOLUTION_JSON",
                    help="track this solution.json (with its feedback) instead of planning")
     p.add_argument("--mismatch", action="append", default=[], metavar="params.NAME=FACTOR",
-                   help="the robot's parameter NAME is FACTOR times the model's (repeatable)")
+                   help="the robot's parameter NAME is FACTOR times the model's (repeatable, "
+                        "each parameter once)")
     p.add_argument("--samples", type=int, default=20, help="noisy samples K (default 20)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the noise (default 0)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the noise, an integer ≥ 0 (default 0)")
     p.add_argument("--state-noise", type=float, default=Noise.state,
                    help=f"std of each initial state, fraction of its scale (default {Noise.state:g})")
     p.add_argument("--input-noise", type=float, default=Noise.input,
@@ -60,7 +61,8 @@ def add_track_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
                    help="seconds the whole study (the plan and the samples) may take (default: the task's "
                         "time_limit, else 120 s + 30 s per coordinate); a study that runs out fails "
-                        "cleanly (exit 1) with the samples done in tracking.json ('inf': unlimited)")
+                        "cleanly (exit 1) with the samples done in tracking.json ('inf': unlimited;"
+                        " a huge number of seconds is in effect the same)")
     talk = p.add_mutually_exclusive_group()
     talk.add_argument("--quiet", action="store_true", help="no progress on stderr")
     talk.add_argument("--verbose", action="store_true", help="the solver's own iteration log as well")
@@ -73,18 +75,10 @@ def run(args) -> int:
     """The study with ``--out`` checked and locked first (:mod:`nhgait.gaits.outputs`); exit 1
     when the plan or a run failed, the time ran out or the files could not all be written."""
     from nhgait.dynamics.progress import Progress
-    from nhgait.ocp import ProblemError
 
     from ..outputs import output_directory, output_lock
     from ..tracking.runs import Noise
     from ..tracking.study import summary_lines, track
-    problems = [f"--{name} must be ≥ 0, got {value:g}" for name, value in
-                (("state-noise", args.state_noise), ("input-noise", args.input_noise)) if not value >= 0]
-    if args.plan and (args.overrides or args.gait):
-        problems.append("--plan tracks the task stored in that solution.json: give no --gait or "
-                        "--set with it")
-    if problems:
-        raise ProblemError(problems, title="invalid tracking study")
     started = time.perf_counter()
     progress = Progress.silent() if args.quiet else Progress.to_stderr(verbose=args.verbose)
     out = output_directory(args.out)

@@ -402,7 +402,8 @@ def sweep(system, task=None, grid=(), *, out, overrides=(), params=None, schedul
     backend : an open back end to use instead (not closed here)
     resume : continue the sweep stored in ``out`` (solve only its missing points)
     warm_start : continue from solved neighbours (False: every point cold, for comparison)
-    options : planner options (``transcription``, ``solver``, ``jit``)
+    options : planner options (``transcription``, ``solver``, ``jit``, ``time_limit``: seconds per
+        point); an unknown name is an error
     progress : callback receiving a :class:`Progress` after each point
     chain : points per back-end task down the continuation tree (None: the back end's choice;
         1 for the local pool, 4 for Dask)
@@ -423,6 +424,11 @@ def sweep(system, task=None, grid=(), *, out, overrides=(), params=None, schedul
     True
     """
     from ..outputs import output_directory, output_lock
+    from .backends import backend_problems
+    from .point import option_problems
+    problems = option_problems(options) + (backend_problems(scheduler, workers) if backend is None else [])
+    if problems:                                    # before any derivation, like the location
+        raise ProblemError(problems, title="invalid sweep")
     out = output_directory(out)                     # before any derivation: exit 2 for a bad location
     with output_lock(out, f"nhgait sweep {system} --out {out}"):   # one writer: a second run is refused now
         from .point import check_case, describe_case

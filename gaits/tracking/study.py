@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .request import parse_mismatch, request_problems
 from .runs import LOOPS, Noise, TrackingCase, run_samples
 
 __all__ = ["track", "TrackingResult", "parse_mismatch", "summarise", "summary_lines",
@@ -36,35 +37,6 @@ __all__ = ["track", "TrackingResult", "parse_mismatch", "summarise", "summary_li
 
 #: studies of at most this many samples run in this process unless a back end is named
 SERIAL_SAMPLES = 24
-
-
-def parse_mismatch(items, parameters: dict) -> dict:
-    """``["params.m=1.1", ...]`` → {"m": 1.1}: each named parameter multiplied by its factor
-    on the simulated robot. One :class:`~nhgait.ocp.ProblemError` lists every problem."""
-    from nhgait.dynamics.suggestions import known_names
-    from nhgait.ocp import ProblemError
-    out, problems = {}, []
-    for item in items:
-        key, sep, text = str(item).partition("=")
-        prefix, _, name = key.strip().partition(".")
-        if not sep or prefix != "params" or not name:
-            problems.append(f"--mismatch {item!r}: write params.NAME=FACTOR (e.g. params.m=1.1)")
-            continue
-        if name not in parameters:
-            problems.append(f"--mismatch {item!r}: unknown parameter {name!r}"
-                            + known_names(name, tuple(parameters), label="parameters"))
-            continue
-        try:
-            factor = float(text)
-        except ValueError:
-            factor = math.nan
-        if not (math.isfinite(factor) and factor > 0):
-            problems.append(f"--mismatch {item!r}: the factor must be a positive number, got {text!r}")
-            continue
-        out[name] = factor
-    if problems:
-        raise ProblemError(problems, title="invalid mismatch")
-    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -181,16 +153,15 @@ def track(system, task=None, *, overrides=(), mismatch=(), samples: int = 20, se
 
     from ..outputs import output_directory
     from ..sweeps.point import describe_case
-    from ..task_library import resolve
     from ..time_limits import budget_for
     started = time.monotonic()
     progress = progress or Progress.silent()
     if out_dir is not None:
         out_dir = output_directory(out_dir, "out_dir")
-    data = _plan_data(plan_file, system)
-    resolved = resolve(system, task, overrides=overrides) if data is None else resolve(system, data["task"])
+    early = request_problems(samples, seed, noise, plan_file=plan_file, task=task, overrides=overrides)
+    data, resolved = _read_request(system, task, overrides, plan_file, early)
     scene_system = resolved.scene.system
-    factors, budget = _checked_request(samples, mismatch, scene_system,
+    factors, budget = _checked_request(early, mismatch, scene_system,
                                        lambda: budget_for(len(scene_system.coordinates), time_limit,
                                                           resolved.task.time_limit, given_as=GIVEN,
                                                           started=started),
@@ -243,20 +214,36 @@ def _overrun_lines(overrun) -> list:
                                 "fewer --samples, or more --workers"]
 
 
-def _checked_request(samples, mismatch, system, make_budget, backend) -> tuple:
+def _read_request(system, task, overrides, plan_file, problems: list) -> tuple:
+    """(the plan file's content or None, the resolved scene and task); when they cannot be read,
+    one ProblemError that lists ``problems`` (the rest of the request's) as well."""
+    from nhgait.dynamics.errors import ModelError
+    from nhgait.ocp import ProblemError
+
+    from ..task_library import resolve
+    try:
+        data = _plan_data(plan_file, system)
+        resolved = (resolve(system, task, overrides=overrides) if data is None
+                    else resolve(system, data["task"]))
+    except ModelError as exc:
+        if not problems:
+            raise
+        raise ProblemError([*problems, *exc.problems], title="invalid tracking study") from exc
+    return data, resolved
+
+
+def _checked_request(problems: list, mismatch, system, make_budget, backend) -> tuple:
     """(the mismatch factors, the study's budget from ``make_budget()``); one ProblemError for
-    every problem of the request, the back end's (``backend``: (scheduler, workers)) included —
-    before planning."""
+    every problem of the request — ``problems`` (:func:`~.request.request_problems`), the
+    mismatch's, the budget's and the back end's (``backend``: (scheduler, workers)) — before
+    planning."""
     from nhgait.ocp import ProblemError
 
     from ..sweeps.backends import backend_problems
-    ok = isinstance(samples, int) and samples >= 1
-    problems = [] if ok else [f"--samples must be an integer ≥ 1, got {samples}"]
-    problems += backend_problems(*backend)
+    problems = [*problems, *backend_problems(*backend)]
     factors, budget = {}, None
     try:
-        factors = (dict(mismatch) if isinstance(mismatch, dict)
-                   else parse_mismatch(mismatch, system.parameters))
+        factors = parse_mismatch(mismatch, system.parameters)
     except ProblemError as exc:
         problems += list(exc.problems)
     try:

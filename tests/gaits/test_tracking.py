@@ -104,6 +104,66 @@ def test_cli_track_lists_every_problem_of_its_request(tmp_path, capsys):
                  "--out", str(tmp_path)]) == 2
 
 
+def test_cli_track_lists_every_bad_option_together_before_planning(tmp_path, capsys, monkeypatch):
+    """A negative seed, a factor of −1, no samples and a negative noise: one error listing all
+    four, exit 2, and no plan made (a negative seed was an internal error after the plan, and
+    --state-noise hid the others)."""
+    from nhgait.gaits import planner
+
+    def no_plan(*args, **kwargs):
+        raise AssertionError("planned before the request was checked")
+
+    monkeypatch.setattr(planner, "plan", no_plan)
+    code = main(["track", "unicycle", "--gait", "parallel-park", "--mismatch", "params.m=-1",
+                 "--samples", "0", "--seed", "-1", "--state-noise", "-0.1", "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "invalid tracking study: 4 problem(s)" in err
+    assert "--samples must be an integer ≥ 1, got 0" in err
+    assert "--seed must be an integer ≥ 0, got -1" in err
+    assert "--state-noise must be a finite number ≥ 0, got -0.1" in err
+    assert "--mismatch 'params.m=-1': the factor must be a positive number" in err
+    assert "internal error" not in err
+    code = main(["track", "unicycle", "--gait", "parallel-park", "--seed", "-1", "--samples", "2",
+                 "--out", str(tmp_path), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "1 problem(s)" in err and "--seed must be an integer ≥ 0, got -1" in err
+    code = main(["track", "unicycle", "--gait", "fowrard", "--seed", "-1", "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "2 problem(s)" in err and "unknown gait 'fowrard'" in err and "--seed" in err
+
+
+def test_a_parameter_mismatched_twice_is_refused_not_overwritten(tmp_path, capsys):
+    """``--mismatch params.m=1.1 --mismatch params.m=1.2`` once kept the last factor silently."""
+    code = main(["track", "unicycle", "--gait", "parallel-park", "--mismatch", "params.m=1.1",
+                 "--mismatch", "params.m=1.2", "--out", str(tmp_path)])
+    assert code == 2
+    assert ("--mismatch params.m given 2 times ('params.m=1.1', 'params.m=1.2'): give each "
+            "parameter once") in capsys.readouterr().err
+
+
+def test_track_checks_its_python_arguments_like_the_options():
+    """The API: a mapping of factors is checked like the strings, a single string is one item,
+    seeds and noise are checked, every problem in one ProblemError before planning."""
+    from nhgait.gaits.tracking.request import parse_mismatch
+    from nhgait.gaits.tracking.runs import Noise
+    from nhgait.ocp import ProblemError
+    assert parse_mismatch("params.m=1.1", {"m": 1.0}) == {"m": 1.1}
+    assert parse_mismatch({"m": 0.9}, {"m": 1.0}) == {"m": 0.9}
+    with pytest.raises(ProblemError) as bad:
+        track("unicycle", "parallel-park", mismatch={"m": -1.0, "mm": 2.0}, seed=2.5, samples=True,
+              noise=Noise(float("nan"), 0.05))
+    text = str(bad.value)
+    assert "5 problem(s)" in text
+    assert "--samples must be an integer ≥ 1, got True" in text
+    assert "--seed must be an integer ≥ 0, got 2.5" in text
+    assert "--state-noise must be a finite number ≥ 0, got nan" in text
+    assert "--mismatch 'params.m=-1.0': the factor must be a positive number" in text
+    assert "unknown parameter 'mm'" in text
+
+
 def test_the_robot_starts_on_its_own_constraints():
     """robot_start against closed forms: a pendulum on a cart kept on px² + py² = l² with the
     robot's l 10 % longer lands on the robot's circle (the dependent coordinate solved) with

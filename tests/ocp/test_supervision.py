@@ -261,6 +261,30 @@ def test_a_swallowed_alarm_comes_again():
     assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)
 
 
+def test_a_far_deadline_arms_a_timer_the_platform_accepts(monkeypatch):
+    """``--time-limit 1e10`` (or 1e300): a number of seconds, however large — kept as given,
+    never an OverflowError ("timestamp out of range for platform time_t") from ``setitimer``.
+    The alarm is armed for at most MAX_ALARM_S and re-arms itself while time is left; the
+    handler and timer before the stage are put back."""
+    from nhgait.ocp import budget as budget_module
+    for seconds in (1e10, 1e300):
+        budget = Budget(seconds, "test")
+        with budget.stage("derivation"):
+            delay, interval = signal.getitimer(signal.ITIMER_REAL)
+            assert 0.0 < delay <= budget_module.MAX_ALARM_S
+            assert budget.remaining() > 1e9
+        assert budget.seconds == seconds
+        assert budget.describe() == f"{seconds:g} s (test)"
+        assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)
+    monkeypatch.setattr(budget_module, "MAX_ALARM_S", 0.1)       # the steps, made short
+    budget = Budget(0.35, "test")
+    with pytest.raises(BudgetSpent) as spent:
+        with budget.stage("verification"):
+            while True:
+                sum(range(100))
+    assert 0.35 <= spent.value.overrun.elapsed < 2.0     # the early alarms re-armed, not raised
+
+
 def test_a_budget_limits_attempts_to_the_time_left():
     budget = Budget(100.0, "test", started=time.monotonic() - 60.0)
     assert 39.0 < budget.limit(1000.0) <= 40.0
@@ -318,6 +342,15 @@ def test_a_plan_whose_budget_runs_out_fails_naming_the_phase(tmp_path):
     assert ("the time budget of 0.001 s (--time-limit / plan(time_limit=...)) ran out "
             "during derivation" in text)
     assert "--time-limit SECONDS" in text
+
+
+def test_a_plan_with_a_huge_time_limit_runs_as_if_unlimited(tmp_path):
+    """``time_limit=1e300`` (``--time-limit 1e300``): the plan runs and succeeds, its budget the
+    number given — once an internal error (OverflowError) from the stage's alarm."""
+    from nhgait.gaits.planner import plan
+    result = plan("unicycle", "parallel-park", intervals=10, time_limit=1e300)
+    assert result.success
+    assert result.overrun is None
 
 
 def test_the_task_time_limit_is_the_plans_budget():
