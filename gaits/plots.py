@@ -70,15 +70,17 @@ def _is_angle(system, name) -> bool:
     return False
 
 
-def _input_unit(system, name) -> str:
-    """N·m for an input acting on angles only, N when it acts on a length (a guess; the
-    scene's [units] decide)."""
+def _input_unit(ctx, name) -> str:
+    """N·m for an input acting on angles only (a coordinate in rad by the scene's [units], or
+    inside a sine), N when it acts on a length (a guess; the scene's [units] decide)."""
+    system = ctx.system
     coords = tuple(system.coordinates)
     syms = [s for s in system.input_symbols if s.name == name]
     if not syms:
         return ""
     on = [c for c, f in zip(coords, system.tau, strict=True) if syms[0] in getattr(f, "free_symbols", ())]
-    if on and all(_is_angle(system, c) and not _is_frame_position(system, c) for c in on):
+    if on and all(_pretty_unit(ctx.units.get(c, "")) == "rad"
+                  or (_is_angle(system, c) and not _is_frame_position(system, c)) for c in on):
         return "N·m"
     return "N" if on else ""
 
@@ -101,7 +103,7 @@ def unit(ctx: FigureContext, name: str) -> str:
     if name in ("forward_velocity", "lateral_velocity"):
         return "m/s"
     if name in tuple(system.inputs):
-        return _input_unit(system, name)
+        return _input_unit(ctx, name)
     if name.startswith("pt_") and name[3:] in coords:
         return "N·m·s" if unit(ctx, name[3:]) == "rad" else "N·s"
     return ""

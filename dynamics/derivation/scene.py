@@ -188,6 +188,8 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
         raise ModelError(problems, title=f"invalid scene {source}")
     if urdf is not None and "task" in extra:
         extra["task"] = _urdf_task_defaults(extra["task"], urdf)
+    if "bodies" in (data.get("system") or {}):
+        extra["units"] = {**_bodies_units(data["system"]), **extra.get("units", {})}
     return Scene(system=system, simulation=spec, source=source, quantities=quantities, urdf=urdf,
                  motion_quantities=motion, **extra)
 
@@ -202,6 +204,19 @@ def _urdf_system(sysd, source, problems):
         problems.extend(exc.problems)
         return None, None
     return built, built.system
+
+
+def _bodies_units(sysd) -> dict:
+    """Units of a bodies robot's coordinates, which the statement knows (the scene's [units]
+    override them): the base position in m, its heading, every joint (revolute) and every
+    wheel's spin in rad (a spin enters no sine: the plots took it for a length)."""
+    base = sysd.get("base", ["x", "y", "theta"])
+    angles = [base[2]] if isinstance(base, list) and len(base) == 3 else []
+    angles += [part.get(key) for key, parts in (("joint", sysd.get("bodies")), ("spin", sysd.get("wheels")))
+               for part in (parts if isinstance(parts, list) else []) if isinstance(part, dict)]
+    lengths = base[:2] if isinstance(base, list) and len(base) == 3 else []
+    units = {c: "m" for c in lengths if isinstance(c, str)}
+    return {**units, **{c: "rad" for c in angles if isinstance(c, str)}}
 
 
 def _bodies_system(sysd, source, problems):

@@ -196,3 +196,15 @@ def test_a_differential_drive_from_two_wheels_on_one_axle_drops_the_dependent_si
         np.testing.assert_allclose(a.call("qddot", 0.0, a.call("state", q, qd, pv), u, pv),
                                    b.call("qddot", 0.0, b.call("state", q, qd, pv), u, pv),
                                    rtol=1e-10, atol=1e-10)
+
+
+def test_a_bodies_robot_knows_its_angles():
+    """The statement says which coordinates are angles (the heading, every revolute joint and
+    every wheel's spin): their unit is rad and a torque on a spin is in N·m — a user's plot
+    labelled the wheel angle "wR [m]" and its torque "τ_R [N]" (a spin enters no sine). The
+    scene's own [units] still decide."""
+    from nhgait.gaits.plots import FigureContext, unit
+    scene = scene_from_text(_DRIVE + '\n[units]\npitch = "deg"\n')
+    assert scene.units == {"x": "m", "y": "m", "yaw": "rad", "pitch": "deg", "wL": "rad", "wR": "rad"}
+    ctx = FigureContext(scene.system, dict(scene.units), None, None, (), ())
+    assert [unit(ctx, n) for n in ("wR", "wR_dot", "tau_L", "tau_R")] == ["rad", "rad/s", "N·m", "N·m"]
