@@ -76,3 +76,19 @@ def test_derive_checks(capsys):
     assert "reduced bracket: almost-Poisson (the Jacobi identity does not hold" in out
     assert "(Jacobi ⇔ holonomic): consistent" in out
     assert "p = J_phi*phi_dot + m*r*x_dot*cos(theta) + m*r*y_dot*sin(theta)" in out
+
+
+def test_a_long_simulation_says_it_is_still_integrating(capsys):
+    """A run whose first steps do not foresee its cost (a force with the sign of a velocity
+    chatters across it: a user's unicycle said nothing for 150 s before max_steps stopped it)
+    says every HEARTBEAT_S that it goes on, and nothing once it has ended."""
+    import time
+
+    from nhgait.gaits.cli.simulate import _still_integrating
+    with _still_integrating("unicycle with DOP853 to t = 6.28 s", every=0.05):
+        time.sleep(0.32)
+    said = capsys.readouterr().err.splitlines()
+    assert len(said) >= 4
+    assert said[0].startswith("nhgait simulate: still integrating unicycle with DOP853 to t = 6.28 s (0 s;")
+    time.sleep(0.15)
+    assert capsys.readouterr().err == ""

@@ -17,6 +17,9 @@ later runs load it from the cache).
 from __future__ import annotations
 
 import sys
+import threading
+import time
+from contextlib import contextmanager
 from pathlib import Path
 
 __all__ = ["add_simulate_parser", "cmd_simulate"]
@@ -124,9 +127,34 @@ def _run(args, scene) -> tuple:
     method = args.method or spec.method or "DOP853"
     common = dict(controller=spec.controller, params=spec.parameters or None, method=method, rtol=rtol,
                   atol=atol, outputs=outputs, quantities=scene.quantities or None, **kwargs)
-    compile_s = _estimate_first(simulate, model, spec, common)
-    traj = simulate(model, (spec.t0, spec.t_final), spec.q0, spec.qdot0, t_eval=spec.t_eval, **common)
+    with _still_integrating(f"{scene.system.name} with {method} to t = {spec.t_final:g} s"):
+        compile_s = _estimate_first(simulate, model, spec, common)
+        traj = simulate(model, (spec.t0, spec.t_final), spec.q0, spec.qdot0, t_eval=spec.t_eval, **common)
     return model, traj, outputs, compile_s
+
+
+#: seconds between the lines of a run that goes on (:func:`_still_integrating`)
+HEARTBEAT_S = 10.0
+
+
+@contextmanager
+def _still_integrating(what: str, every: float = HEARTBEAT_S):
+    """A line on stderr every ``every`` seconds while the block runs: a run whose first steps
+    did not foresee its cost (forces that switch with the sign of a velocity, chattering
+    across it) said nothing for 150 s before max_steps stopped it."""
+    stop, start = threading.Event(), time.perf_counter()
+
+    def beat():
+        while not stop.wait(every):
+            print(f"nhgait simulate: still integrating {what} ({time.perf_counter() - start:.0f} s; "
+                  f"max_steps = {MAX_STEPS:,} steps end it at the latest)", file=sys.stderr, flush=True)
+    thread = threading.Thread(target=beat, name="simulate-heartbeat", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join()
 
 
 #: steps of the first look at a run (methods whose max_steps counts every step: scipy, compiled)
