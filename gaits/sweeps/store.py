@@ -218,10 +218,10 @@ class SweepStore:
         for key, value in meta.items():
             if key not in IDENTITY:        # units, labels: descriptive, refreshed below
                 continue
-            if json.loads(json.dumps(value, sort_keys=True)) != stored.get(key):
+            now = json.loads(json.dumps(value, sort_keys=True))
+            if now != stored.get(key):
                 problems.append(f"--resume: the {key} differs from the stored sweep's "
-                                f"(stored {json.dumps(stored.get(key), sort_keys=True)[:200]}, "
-                                f"now {json.dumps(value, sort_keys=True)[:200]})")
+                                f"({'; '.join(_differences(stored.get(key), now, key))})")
         if problems:
             raise ProblemError(problems, title="cannot resume this sweep")
         with self._db:
@@ -280,3 +280,17 @@ class SweepStore:
             return json.loads(path.read_text())
         except (OSError, ValueError):
             return None
+
+
+def _differences(stored, now, path: str, limit: int = 5) -> list:
+    """Where ``now`` differs from ``stored`` (JSON values): "path: stored A, now B" for each
+    differing entry of nested tables, at most ``limit`` (a task's whole table cut at 200
+    characters hid the difference after a shared prefix)."""
+    if isinstance(stored, dict) and isinstance(now, dict):
+        out = []
+        for k in sorted(set(stored) | set(now)):
+            if stored.get(k) != now.get(k):
+                out += _differences(stored.get(k), now.get(k), f"{path}.{k}", limit)
+        return out[:limit]
+    before, after = (json.dumps(v, sort_keys=True)[:80] for v in (stored, now))
+    return [f"{path}: stored {before}, now {after}"]

@@ -184,6 +184,12 @@ def test_resume_refuses_another_sweep(tmp_path):
         other = parse_grid(["final.x=0.5:1.5:4"])
         with pytest.raises(ProblemError, match="the grid differs"):
             run_sweep(CASE, other, SerialBackend(), store, RunOptions(solve=fake_solve, resume=True))
+        # the entry that differs is named (a task cut at 200 characters hid it behind its prefix)
+        changed = SweepCase(CASE.scene, {**CASE.task, "intervals": 60}, CASE.params)
+        with pytest.raises(ProblemError) as info:
+            run_sweep(changed, grid, SerialBackend(), store, RunOptions(solve=fake_solve, resume=True))
+        said = str(info.value)
+        assert "the task differs from the stored sweep's (task.intervals: stored 10, now 60)" in said
 
 
 def test_a_dead_pool_worker_loses_only_its_point(tmp_path):
