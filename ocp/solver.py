@@ -244,6 +244,18 @@ class _Iterations(ca.Callback):
         return 0
 
 
+def _refuse_overdetermined(nlp: TranscribedNLP, problem: OptimalControlProblem) -> None:
+    """More equality constraints than free unknowns (a task's conditions on too few intervals:
+    the unicycle's parallel park on N = 1 or 2) is a ProblemError before any solve — CasADi's
+    "NLP is overconstrained" at every attempt, even with --quiet, then a failure."""
+    equalities = int(np.sum(np.asarray(nlp.lbg, float) == np.asarray(nlp.ubg, float)))
+    free = int(np.sum(np.asarray(nlp.lbx, float) < np.asarray(nlp.ubx, float)))
+    if equalities > free:
+        raise ProblemError([f"N = {problem.intervals} intervals: {equalities} equality conditions (the "
+                            f"dynamics between the nodes and the task's conditions) on {free} free "
+                            "unknowns — give the task more intervals"], title="overdetermined problem")
+
+
 class OCPSolver:
     """A problem transcribed and handed to its solver once; :meth:`solve` may be called many times.
 
@@ -274,6 +286,7 @@ class OCPSolver:
         if isinstance(self.transcription, Collocation) and backend.mumps:
             self.options = replace(self.options, ipopt={**COLLOCATION_MUMPS, **self.options.ipopt})
         self.nlp: TranscribedNLP = self.transcription.build(problem)
+        _refuse_overdetermined(self.nlp, problem)
         self.functions = nlp_functions(self.nlp, hessian=self.options.hessian, solver=self.options.solver,
                                        parallel=parallel_maps(self.options))
         self.jit_cached, self.jit_fallback, self.compiled, self.jit_path = None, None, False, None

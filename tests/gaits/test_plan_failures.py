@@ -163,3 +163,18 @@ def test_a_failed_continuation_step_short_of_the_task_is_not_its_closest_point(m
     assert asked == [0.125] and found.closest is None and len(found.attempts) == 1
     found = search.continuation(Solver(), SimpleNamespace(label="fitted roll-out"), steps=(1.0,))
     assert asked[-1] == 0.5 and found.closest is failed
+
+
+def test_too_few_intervals_for_the_task_is_refused_before_any_solve():
+    """The parallel park on N = 2: 12 equality rows (six states' dynamics twice) on 11 free
+    unknowns once the ends are fixed — no point meets them in general; CasADi said "NLP is
+    overconstrained" at each of 26 attempts, with --quiet too, before the plan failed. N = 3
+    has as many unknowns as rows and is planned."""
+    from nhgait.ocp import OCPSolver, ProblemError, SolverOptions
+    with pytest.raises(ProblemError, match=r"(?s)overdetermined problem.*N = 2 intervals: 12 equality conditions "
+                                           r".* on 11 free unknowns — give the task more intervals"):
+        plan("unicycle", "parallel-park", intervals=2, jit=False)
+    from nhgait.gaits.planner import prepare
+    from nhgait.gaits.task_library import resolve
+    problem = prepare(resolve("unicycle", "parallel-park", overrides=["intervals=3"])).problem
+    assert OCPSolver(problem, None, SolverOptions(jit=False)).nlp.n_w > 0
