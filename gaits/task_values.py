@@ -42,9 +42,10 @@ def table(data, key, problems, where: str = "[task]") -> dict:
         return {}
     out = {}
     for name, v in item.items():
+        if key == "bounds" and not isinstance(v, (list, tuple)):     # said once, not then used as
+            problems.append(f"{where}.bounds.{name}: a path bound is a range [lo, hi], got {v!r}")   # [v, v]
+            continue
         out[str(name)] = value(v, f"{where}.{key}.{name}", problems)
-        if key == "bounds" and not isinstance(v, (list, tuple)):
-            problems.append(f"{where}.bounds.{name}: a path bound is a range [lo, hi], got {v!r}")
     return out
 
 

@@ -59,6 +59,14 @@ def test_every_problem_is_listed_at_once():
     assert len(info.value.problems) >= 8
 
 
+def test_a_bound_that_is_not_a_range_is_one_problem():
+    """``--set bounds.theta=1``: the bound is refused once; it was also taken as [1, 1] and every
+    end value of theta reported outside it (a user's trial, 2026-11-29)."""
+    with pytest.raises(ProblemError) as info:
+        parse_task({**P2, "bounds": {"theta": 1.0}})           # theta(0) = theta(T) = 0
+    assert list(info.value.problems) == ["[task].bounds.theta: a path bound is a range [lo, hi], got 1.0"]
+
+
 def test_contradictions_and_time_objective():
     with pytest.raises(ProblemError, match=r"initial.phi = 3.0 lies outside bounds.phi"):
         parse_task({**P2, "initial": {**P2["initial"], "phi": 3.0}})
