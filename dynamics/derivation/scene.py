@@ -189,7 +189,7 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
     if urdf is not None and "task" in extra:
         extra["task"] = _urdf_task_defaults(extra["task"], urdf)
     if "bodies" in (data.get("system") or {}):
-        extra["units"] = {**_bodies_units(data["system"]), **extra.get("units", {})}
+        extra["units"] = {**_bodies_units(system), **extra.get("units", {})}
     return Scene(system=system, simulation=spec, source=source, quantities=quantities, urdf=urdf,
                  motion_quantities=motion, **extra)
 
@@ -206,17 +206,12 @@ def _urdf_system(sysd, source, problems):
     return built, built.system
 
 
-def _bodies_units(sysd) -> dict:
-    """Units of a bodies robot's coordinates, which the statement knows (the scene's [units]
-    override them): the base position in m, its heading, every joint (revolute) and every
+def _bodies_units(system) -> dict:
+    """Units of a bodies robot's coordinates, which its statement fixes (the scene's [units]
+    override them): the base position in m; the heading, every joint (all revolute) and every
     wheel's spin in rad (a spin enters no sine: the plots took it for a length)."""
-    base = sysd.get("base", ["x", "y", "theta"])
-    angles = [base[2]] if isinstance(base, list) and len(base) == 3 else []
-    angles += [part.get(key) for key, parts in (("joint", sysd.get("bodies")), ("spin", sysd.get("wheels")))
-               for part in (parts if isinstance(parts, list) else []) if isinstance(part, dict)]
-    lengths = base[:2] if isinstance(base, list) and len(base) == 3 else []
-    units = {c: "m" for c in lengths if isinstance(c, str)}
-    return {**units, **{c: "rad" for c in angles if isinstance(c, str)}}
+    position = tuple(system.planar_frame[:2])
+    return {c: "m" if c in position else "rad" for c in system.coordinates}
 
 
 def _bodies_system(sysd, source, problems):
