@@ -23,6 +23,7 @@ Three kinds of failure (:func:`diagnose`):
 """
 from __future__ import annotations
 
+import math
 from collections import Counter
 
 __all__ = ["diagnose", "SATURATED"]
@@ -52,7 +53,7 @@ def _not_converged(result) -> list:
     lines = [f"no guess converged: {len(result.attempts)} attempts ("
              + ", ".join(f"{n} {status}" for status, n in counts.most_common()) + ")"]
     s = result.solution
-    if s is not None and not s.violations and s.constraint_violation == s.constraint_violation:
+    if s is not None and not s.violations and not math.isnan(s.constraint_violation):
         return lines + [f"at the closest point found (guess {s.settings.get('guess', '?')!r}, "
                         f"{s.settings.get('solver', '?')}, {s.status}) every condition holds (constraint "
                         f"violation {s.constraint_violation:.2g}) but it is not optimal: raise max_iter, or "

@@ -20,11 +20,6 @@ from collections.abc import Mapping
 
 __all__ = ["checked_request", "argument_problems", "override_list", "check_params"]
 
-#: the values ``plan(solver=...)`` and ``plan(hessian=...)`` take ("auto": the planner's choice)
-SOLVER_CHOICES = ("auto", "fatrop", "ipopt")
-HESSIAN_CHOICES = ("auto", "exact", "gauss-newton", "limited-memory")
-
-
 def checked_request(system, task, arguments: dict) -> tuple:
     """(the :class:`~nhgait.gaits.task_library.Plan`, the output folder or None) for ``plan``'s
     keyword ``arguments``; one ProblemError listing every problem of the arguments, the output
@@ -121,10 +116,12 @@ def _switch_problems(**switches) -> list:
 def _choice_problems(solver, hessian, transcription) -> list:
     """``solver`` and ``hessian`` among their choices; ``transcription`` None, a known name or a
     transcription object (one with ``build``)."""
+    from nhgait.ocp.backends import BACKENDS
+    from nhgait.ocp.derivatives import HESSIANS
     from nhgait.ocp.transcription import TRANSCRIPTIONS
     problems = [f"{name} = {value!r}: use one of {', '.join(map(repr, choices))}"
-                for name, value, choices in (("solver", solver, SOLVER_CHOICES),
-                                             ("hessian", hessian, HESSIAN_CHOICES))
+                for name, value, choices in (("solver", solver, ("auto", *sorted(BACKENDS))),
+                                             ("hessian", hessian, ("auto", *HESSIANS)))
                 if not (isinstance(value, str) and value in choices)]
     if solver == "fatrop" and hessian == "limited-memory":
         problems.append("solver = 'fatrop' has no limited-memory Hessian (Ipopt's L-BFGS): use "
