@@ -28,7 +28,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 from nhgait.dynamics.memo import LruMemo
-from nhgait.ocp import ProblemError
 
 from ..search import WARM_IPOPT as _WARM
 from .grid import GridPoint
@@ -257,13 +256,12 @@ def describe_case(system, task=None, *, overrides=(), params=None, options=None)
     parameter values; the planner checks the task on the model here, before any point runs."""
     from nhgait.dynamics import derive
 
+    from ..plan_arguments import check_params
     from ..task_library import resolve
     data = _scene_data(system)
     resolved = resolve(scene_of(data), task, overrides=overrides)
     sys_ = resolved.scene.system
-    problems = sys_.parameter_problems(dict(params), label="params") if params else []
-    if problems:
-        raise ProblemError(problems, title="invalid sweep parameters")
+    check_params(sys_, dict(params) if params else None)      # as a plan's, before the derivation
     values = {**dict(sys_.parameters), **{k: float(v) for k, v in dict(params or {}).items()}}
     model = derive(sys_, "reduced")
     opts = {"jit": False, **dict(options or {})}
