@@ -10,6 +10,7 @@ for it; a Python caller gets the same checks here, every problem in one
 * :func:`checked_request` — (the resolved plan, the output folder) or one ProblemError;
 * :func:`argument_problems` — the problems of the arguments alone;
 * :func:`override_list` — ``overrides`` as a list: a single string is one override;
+* :func:`whole_number` — an integer (Python's or numpy's), not a bool (also for track and sweep);
 * :func:`check_params` — the parameter values themselves (names, numbers, a positive definite
   kinetic metric), once the scene is known.
 """
@@ -18,7 +19,7 @@ from __future__ import annotations
 import numbers
 from collections.abc import Mapping
 
-__all__ = ["checked_request", "argument_problems", "override_list", "check_params"]
+__all__ = ["checked_request", "argument_problems", "override_list", "check_params", "whole_number"]
 
 def checked_request(system, task, arguments: dict) -> tuple:
     """(the :class:`~nhgait.gaits.task_library.Plan`, the output folder or None) for ``plan``'s
@@ -62,7 +63,7 @@ def override_list(overrides, intervals=None) -> list | None:
         overrides = list(overrides)
     else:
         return None
-    if _whole(intervals):
+    if whole_number(intervals):
         overrides.append(f"intervals={int(intervals)}")
     return overrides
 
@@ -79,7 +80,7 @@ def argument_problems(*, overrides=(), intervals=None, solver="auto", transcript
     if override_list(overrides) is None:
         problems.append(f"overrides = {overrides!r}: give 'key=value' strings, a list of them or one "
                         "(e.g. ['final.y=0.3'])")
-    if not (workers in (None, "auto") or (_whole(workers) and workers >= 1)):
+    if not (workers in (None, "auto") or (whole_number(workers) and workers >= 1)):
         problems.append(f"workers = {workers!r} must be a whole number ≥ 1 or 'auto'")
     if params is not None and not isinstance(params, Mapping):
         problems.append(f"params = {params!r} must be a mapping of parameter names to values")
@@ -91,7 +92,7 @@ def argument_problems(*, overrides=(), intervals=None, solver="auto", transcript
     return problems
 
 
-def _whole(value) -> bool:
+def whole_number(value) -> bool:
     """Whether ``value`` is an integer (Python's or numpy's), not a bool."""
     return isinstance(value, numbers.Integral) and not isinstance(value, bool)
 
@@ -99,9 +100,10 @@ def _whole(value) -> bool:
 def _count_problems(intervals, max_iter, max_guesses) -> list:
     """``max_iter`` and ``max_guesses``: whole numbers ≥ 1; ``intervals``: None or a whole number
     (its range, 1 to 5000, is the task's check: ``--intervals 0`` says it)."""
-    problems = [f"{name} = {value!r} must be a whole number ≥ 1" for name, value in
-                (("max_iter", max_iter), ("max_guesses", max_guesses)) if not (_whole(value) and value >= 1)]
-    if intervals is not None and not _whole(intervals):
+    problems = [f"{name} = {value!r} must be a whole number ≥ 1"
+                for name, value in (("max_iter", max_iter), ("max_guesses", max_guesses))
+                if not (whole_number(value) and value >= 1)]
+    if intervals is not None and not whole_number(intervals):
         problems.insert(0, f"intervals = {intervals!r} must be a whole number (N control intervals) or None")
     return problems
 

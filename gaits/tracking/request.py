@@ -15,26 +15,23 @@ import math
 import numbers
 from collections.abc import Mapping
 
+from ..plan_arguments import whole_number
+
 __all__ = ["request_problems", "parse_mismatch"]
 
 
 def request_problems(samples, seed, noise, *, plan_file=None, task=None, overrides=()) -> list:
     """The problems of the scene-independent values of a request (module docstring)."""
     problems = []
-    if not _whole(samples) or samples < 1:
+    if not whole_number(samples) or samples < 1:
         problems.append(f"--samples must be an integer ≥ 1, got {samples!r}")
-    if not _whole(seed) or seed < 0:
+    if not whole_number(seed) or seed < 0:
         problems.append(f"--seed must be an integer ≥ 0, got {seed!r}")
     problems += _noise_problems(noise)
     if plan_file is not None and (overrides or task is not None):
         problems.append("--plan tracks the task stored in that solution.json: give no --gait or "
                         "--set with it")
     return problems
-
-
-def _whole(value) -> bool:
-    """Whether ``value`` is an integer (Python's or numpy's), not a bool."""
-    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
 
 
 def _noise_problems(noise) -> list:
