@@ -39,7 +39,7 @@ from .velocity_forms import linear_split, quadratic_split
 
 #: (``TIME``, the time symbol t of forces and input laws, is :data:`nhgait.dynamics.algebra.symbols.TIME`)
 __all__ = ["TIME", "ParsedSystem", "parse_system", "parse_field", "velocity_name", "name_of", "names_of",
-           "from_sympy", "NON_SMOOTH", "linear_split", "quadratic_split", "fiber_problems"]
+           "from_sympy", "is_time_function", "NON_SMOOTH", "linear_split", "quadratic_split", "fiber_problems"]
 
 #: functions that make L or ω non-smooth: their derivatives (DiracDelta) are not functions
 NON_SMOOTH = (sp.Heaviside, sp.sign, sp.Min, sp.Max)
@@ -50,14 +50,25 @@ def velocity_name(coordinate: str) -> str:
     return f"{coordinate}_dot"
 
 
+def is_time_function(obj) -> bool:
+    """``obj`` is an undefined function of time alone, q(t) — sympy.physics.mechanics'
+    ``dynamicsymbols("q")`` (whose t carries no assumptions, unlike :data:`TIME`)."""
+    return (isinstance(obj, sp.core.function.AppliedUndef) and len(obj.args) == 1
+            and isinstance(obj.args[0], sp.Symbol) and obj.args[0].name == TIME.name)
+
+
 def name_of(obj) -> str:
+    """The name a coordinate, parameter or input is given by: a string, a Symbol ``x`` or a
+    dynamicsymbol ``x(t)`` (whose velocity ``x(t).diff(t)`` is then ``x_dot`` everywhere)."""
     if isinstance(obj, str):
         return obj.strip()
     if isinstance(obj, sp.Symbol):
         return obj.name
-    if isinstance(obj, sp.Expr) and obj.is_Function and not obj.args[1:] and obj.args == (TIME,):
-        return type(obj).__name__  # dynamicsymbols('x') -> 'x'
-    raise TypeError(f"expected a name or a sympy Symbol, got {type(obj).__name__} {obj!r:.60}")
+    if is_time_function(obj):
+        return obj.func.__name__       # dynamicsymbols('x') -> 'x'
+    what = (f"the sympy expression {obj}" if isinstance(obj, sp.Basic)
+            else f"{type(obj).__name__} {obj!r:.60}")
+    raise TypeError(f"expected a name, a sympy Symbol or a dynamicsymbol such as x(t), got {what}")
 
 
 def names_of(value, field_name: str, problems: list, *, required: bool = False) -> list:
@@ -87,13 +98,12 @@ def from_sympy(expr, names: dict, where: str, problems: list):
     every symbol mapped onto the system's real symbol of the same name."""
     reps = {}
     for d in expr.atoms(sp.Derivative):
-        if d.expr.is_Function and len(d.variables) == 1 and d.variables[0].name == "t":
-            nm = velocity_name(type(d.expr).__name__)
+        if is_time_function(d.expr) and d.variables == d.expr.args:
+            nm = velocity_name(d.expr.func.__name__)
             reps[d] = names.get(nm, sp.Symbol(nm, real=True))
     expr = expr.xreplace(reps) if reps else expr
-    reps = {f: names[type(f).__name__] for f in expr.atoms(sp.Function)
-            if len(f.args) == 1 and isinstance(f.args[0], sp.Symbol) and f.args[0].name == "t"
-            and type(f).__name__ in names}
+    reps = {f: names[f.func.__name__] for f in expr.atoms(sp.core.function.AppliedUndef)
+            if is_time_function(f) and f.func.__name__ in names}
     expr = expr.xreplace(reps) if reps else expr
     reps = {s: names[s.name] for s in expr.free_symbols if s.name in names and s != names[s.name]}
     expr = expr.xreplace(reps) if reps else expr
