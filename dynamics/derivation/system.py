@@ -157,6 +157,39 @@ class System:
         if problems:
             raise ModelError(problems)
 
+    @classmethod
+    def from_mechanics(cls, source, parameters: Mapping, *, inputs=None, origin=None,
+                       name: str | None = None, **options) -> System:
+        """The System of a sympy.physics.mechanics model: a ``KanesMethod`` (any generalized
+        speeds with their kinematic differential equations, dependent speeds with their velocity
+        constraints), a ``LagrangesMethod`` (with its nonholonomic constraints) or a
+        ``sympy.physics.mechanics.System`` — the same System a scene stating that robot gives.
+        T and the generalized forces are read off the positions and orientations (valid at every
+        velocity), the constraints off the model's velocity constraints in q̇; the model's own
+        velocities are checked against them (:mod:`.from_mechanics`, docs/interop.md).
+
+        Parameters
+        ----------
+        source : KanesMethod, LagrangesMethod or sympy.physics.mechanics.System
+        parameters : mapping name (or Symbol) → float
+            A value for every constant of the kinetic energy and the constraints; the loads'
+            other symbols (and functions of time that are not coordinates) are inputs.
+        inputs : sequence of names, optional
+            The inputs in this order (default: those found, sorted by name).
+        origin : Point, optional
+            A point fixed in the inertial frame (default: the mechanics System's fixed point, else
+            a point whose velocity was set to 0, found from the bodies' mass centres).
+        name : str, optional
+            Default: the kind of the source in lower case.
+        options
+            Further fields (``fiber``, ``planar_frame``, ``forward``, ``dependent``).
+        """
+        from .from_mechanics import check_stated_velocities, read_statement   # loads sympy.physics.mechanics
+        statement = read_statement(source, parameters, inputs=inputs, origin=origin, name=name)
+        system = cls(**{**statement.fields, **options})
+        check_stated_velocities(statement, system)
+        return system
+
     def with_fiber(self, fiber: Sequence) -> System:
         """This system with another ``fiber`` (the chart of the reduction, thesis §3.1): the same
         statement, so its checks are not repeated (0.3–1 s for a robot of 8–10 coordinates) —
