@@ -1,4 +1,5 @@
-"""The statement of a :class:`~.system.System` (:meth:`~.system.System.from_mechanics`) from the objects of sympy.physics.mechanics: a ``KanesMethod``, a
+"""The statement of a :class:`~.system.System` (``System.from_mechanics``) from the objects of
+sympy.physics.mechanics: a ``KanesMethod``, a
 ``LagrangesMethod`` or a ``sympy.physics.mechanics.System``, with parameter values.
 
 nhgait states a system by q, L(q, q̇) = T − V, the Pfaffian constraints ω(q) q̇ = 0 and the
@@ -42,7 +43,8 @@ from ..algebra.trig import trig_normal
 from ..errors import ModelError
 from .system_parsing import velocity_name
 
-__all__ = ["read_statement", "check_stated_velocities", "MechanicsStatement", "MechanicsSource", "read_source"]
+__all__ = ["read_statement", "check_stated_velocities", "MechanicsStatement", "MechanicsSource",
+           "read_source"]
 
 T_SYMBOL = me.dynamicsymbols._t
 _SAMPLES = 6           # random consistent states at which the stated velocities are checked
@@ -365,7 +367,8 @@ def _symbol_problems(conv: Converted, values: dict) -> list:
 def _inputs(conv: Converted, values: dict) -> tuple:
     """The loads' inputs: their symbols without a value and their functions of time that are
     not coordinates (each replaced by a plain symbol of its name)."""
-    reps = {f: sp.Symbol(f.func.__name__, real=True) for e in conv.forces.values() for f in _time_functions(e)}
+    reps = {f: sp.Symbol(f.func.__name__, real=True)
+            for e in conv.forces.values() for f in _time_functions(e)}
     forces = {q: e.xreplace(reps) for q, e in conv.forces.items()}
     known = {s.name for s in conv.plain.q + conv.plain.q_dot} | set(values)
     names = sorted({s.name for e in forces.values() for s in _free(e)} - known)
@@ -414,8 +417,9 @@ def check_stated_velocities(statement: MechanicsStatement, system) -> None:
         return
     N, subs = src.frame, system.param_subs()
     names, stated, derived = [], [], []
-    for what, items, read in (("the velocity of", conv.kinematics.velocity, lambda p: p.vel(N)),
-                              ("the angular velocity of", conv.kinematics.angular, lambda f: f.ang_vel_in(N))):
+    kin = conv.kinematics
+    for what, items, read in (("the velocity of", kin.velocity, lambda p: p.vel(N)),
+                              ("the angular velocity of", kin.angular, lambda f: f.ang_vel_in(N))):
         for obj, value in items.items():
             try:
                 own = _in_qdot(read(obj).to_matrix(N), conv.plain, conv.speeds)

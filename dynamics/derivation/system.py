@@ -184,7 +184,7 @@ class System:
         options
             Further fields (``fiber``, ``planar_frame``, ``forward``, ``dependent``).
         """
-        from .from_mechanics import check_stated_velocities, read_statement   # loads sympy.physics.mechanics
+        from .from_mechanics import check_stated_velocities, read_statement  # loads sympy.physics.mechanics
         statement = read_statement(source, parameters, inputs=inputs, origin=origin, name=name)
         system = cls(**{**statement.fields, **options})
         check_stated_velocities(statement, system)

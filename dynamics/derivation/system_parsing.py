@@ -39,7 +39,8 @@ from .velocity_forms import linear_split, quadratic_split
 
 #: (``TIME``, the time symbol t of forces and input laws, is :data:`nhgait.dynamics.algebra.symbols.TIME`)
 __all__ = ["TIME", "ParsedSystem", "parse_system", "parse_field", "velocity_name", "name_of", "names_of",
-           "from_sympy", "is_time_function", "NON_SMOOTH", "linear_split", "quadratic_split", "fiber_problems"]
+           "from_sympy", "is_time_function", "NON_SMOOTH", "linear_split", "quadratic_split",
+           "fiber_problems"]
 
 #: functions that make L or ω non-smooth: their derivatives (DiracDelta) are not functions
 NON_SMOOTH = (sp.Heaviside, sp.sign, sp.Min, sp.Max)

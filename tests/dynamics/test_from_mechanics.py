@@ -41,8 +41,8 @@ class KanesReference:
         method._form_eoms() if isinstance(method, me.System) else method.kanes_equations()
         kane = method.eom_method if isinstance(method, me.System) else method
         self.q, self.u = list(kane.q), list(kane.u)
-        self.params = sorted(set().union(*(e.free_symbols for e in (kane.mass_matrix_full, kane.forcing_full)))
-                             - {me.dynamicsymbols._t} - set(inputs), key=lambda s: s.name)
+        free = kane.mass_matrix_full.free_symbols | kane.forcing_full.free_symbols
+        self.params = sorted(free - {me.dynamicsymbols._t} - set(inputs), key=lambda s: s.name)
         self.inputs = list(inputs)
         qd = sp.Matrix([kane.kindiffdict()[qi.diff()] for qi in self.q])
         args = (self.q, self.u, self.inputs, self.params)
