@@ -75,8 +75,8 @@ def solution_repr(solution) -> str:
     return (f"<Solution: {_status(solution.success, solution.status)}, J = {solution.objective:.6g}, "
             f"{solution.iterations} iterations, {verified}, {_span(solution.t)}, horizon "
             f"{solution.horizon:.4g} s\n"
-            f" arrays: t {shape_of(solution.t)}, states {shape_of(solution.states)} rows "
-            f"({', '.join(solution.state_names)}), controls {shape_of(solution.controls)} rows "
+            f" arrays (time first): t {shape_of(solution.t)}, z {shape_of(solution.z)} columns "
+            f"({', '.join(solution.state_names)}), u {shape_of(solution.u)} columns "
             f"({', '.join(solution.control_names)})>")
 
 
@@ -88,9 +88,9 @@ def solution_markdown(solution) -> str:
             ("solve time", f"{solution.solve_time_s * 1e3:.1f} ms"),
             ("verification", "not run" if v is None
              else f"{'passed' if v.passed else 'FAILED'}, max error {v.max_error:.2g}"),
-            ("states", f"`solution.states` {shape_of(solution.states)}: {', '.join(solution.state_names)}"),
+            ("states", f"`solution.z` {shape_of(solution.z)}: {', '.join(solution.state_names)}"),
             ("controls",
-             f"`solution.controls` {shape_of(solution.controls)}: {', '.join(solution.control_names)}")]
+             f"`solution.u` {shape_of(solution.u)}: {', '.join(solution.control_names)}")]
     return "**Solution**\n\n| | |\n|---|---|\n" + "\n".join(f"| {a} | {b} |" for a, b in rows) + "\n"
 
 

@@ -13,12 +13,12 @@ runs the NLP functions interpreted (no C compiler needed):
 >>> solution = result.solution                   # an nhgait.ocp.solution.Solution
 >>> solution.success, solution.state_names[:4], solution.control_names
 (True, ('x', 'y', 'theta', 'phi'), ('tau_theta', 'tau_phi'))
->>> float(solution.t[-1]) == solution.horizon == 4.0, solution.states.shape[1] == len(solution.t)
+>>> float(solution.t[-1]) == solution.horizon == 4.0, solution.z.shape[0] == len(solution.t)   # time first
 (True, True)
 >>> y = solution.state("y")                      # node values of one state
 >>> float(abs(y[0])) < 1e-9, float(abs(y[-1] - 0.5)) < 1e-9
 (True, True)
->>> float(abs(solution.controls).max()) <= 5.0 + 1e-9
+>>> float(abs(solution.u).max()) <= 5.0 + 1e-9
 True
 >>> solution.verification_error < 1e-6           # re-simulated by an independent integrator
 True

@@ -42,12 +42,13 @@ def unsolved(problem, guess=None):
     """A failed :class:`~nhgait.ocp.Solution` for a search that solved nothing (every candidate
     skipped by its screening): status ``Not_Solved``, the states of ``guess`` (zeros without one)."""
     from nhgait.ocp import Solution
+    from nhgait.ocp.solution import node_arrays
     t = problem.grid()
-    states = (np.asarray(guess.states, float) if guess is not None
+    states = (node_arrays(guess).states if guess is not None
               else np.zeros((len(problem.state_names), t.size)))
     return Solution(False, "Not_Solved",
                     "every candidate met the singular set of the equations and was skipped",
-                    0, float("nan"), t, states, np.zeros((problem.n_controls, problem.intervals)),
+                    0, float("nan"), t, states.T, np.zeros((problem.intervals, problem.n_controls)),
                     tuple(problem.state_names), tuple(problem.control_names), float(problem.horizon),
                     0.0, 0.0, 0.0, 0.0, problem=problem,
                     settings={"guess": getattr(guess, "label", "none"), "intervals": problem.intervals,
@@ -70,7 +71,7 @@ def verified_gait(solution, model, stated, to_plan, params, *, verify=True, prog
     n = len(model.system.coordinates)
     regular, default = False, model
     if verify and solution.success:
-        model, regular = verification_chart(to_plan.scene.system, model, solution.states[:n],
+        model, regular = verification_chart(to_plan.scene.system, model, solution.z[:, :n].T,
                                             params, progress)
         if not regular:
             model = lagrange_ode(to_plan.scene.system)
@@ -78,7 +79,7 @@ def verified_gait(solution, model, stated, to_plan, params, *, verify=True, prog
         return to_momentum_coordinates(solution, momentum_problem(lagrange_ode(to_plan.scene.system), stated,
                                                                   to_plan, params))
     moved = to_momentum_coordinates(solution, momentum_problem(model, stated, to_plan, params))
-    if not np.all(np.isfinite(moved.states)) and np.all(np.isfinite(solution.states)):
+    if not np.all(np.isfinite(moved.z)) and np.all(np.isfinite(solution.z)):
         # a chart singular at some node (where the momenta are not defined): (q, q̇) instead
         moved, regular = in_lagrange(), False
     if not verify:
@@ -137,11 +138,11 @@ def to_momentum_coordinates(solution, momentum):
         return replace(solution, problem=momentum, verification=None)
     n, nz = len(model.system.coordinates), len(model.state_names)    # integral states follow z, unchanged
     state = momentum.model.numeric["state"]
-    K = solution.states.shape[1]
+    K = solution.z.shape[0]
     with np.errstate(all="ignore"):
-        states = np.asarray(state.map(K)(solution.states[:n], solution.velocities(),
+        states = np.asarray(state.map(K)(solution.z[:, :n].T, solution.velocities(),
                                          momentum.model.numeric.params(momentum.params)))
-    states = np.vstack([states, solution.states[nz:]])
+    states = np.vstack([states, solution.z[:, nz:].T])
     settings = {**solution.settings, "transcribed_in": list(solution.state_names)}
-    return replace(solution, states=states, state_names=momentum.state_names,
+    return replace(solution, z=states.T, state_names=momentum.state_names,
                    problem=momentum, verification=None, settings=settings)

@@ -18,7 +18,7 @@ def feedback_and_stability(solution, progress) -> dict:
     from nhgait.ocp.transcription import ode_function
     problem = solution.problem
     with progress.phase("feedback: time-varying LQR on the plan's stage Jacobians"):
-        feedback = design_feedback(problem, solution.t, solution.states, solution.controls,
+        feedback = design_feedback(problem, solution.t, solution.z.T, solution.u.T,
                                    steps=int(solution.settings.get("rk4_steps", 4)))
     out = {"feedback": feedback}
     if problem.periodic:

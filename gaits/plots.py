@@ -149,12 +149,12 @@ def _axes(ax, **kw):
 
 def series(solution, name):
     """The history of state ``name`` at the nodes."""
-    return solution.states[list(solution.state_names).index(name)]
+    return solution.z[:, list(solution.state_names).index(name)]
 
 
 def _q(solution, k):
     n = len(solution.problem.model.system.coordinates)
-    return solution.states[:n, k]
+    return solution.z[k, :n]
 
 
 # ----------------------------------------------------------------------------- path
@@ -300,7 +300,7 @@ def plot_histories(solution, ctx: FigureContext, axes=None):
     for ax, u in zip(axes[1:], units, strict=False):
         for i, n in enumerate(solution.control_names):
             if unit(ctx, n) == u:
-                ax.step(solution.t, np.append(solution.controls[i], solution.controls[i, -1]), where="post",
+                ax.step(solution.t, np.append(solution.u[:, i], solution.u[-1, i]), where="post",
                         lw=1.5, label=with_unit(ctx, n))
         ax.set_ylabel(f"input [{u}]" if u else "input")
         ax.legend(fontsize="small")

@@ -117,7 +117,7 @@ def refine(solution, verified, search_settings, budget, progress, verify):
                       "from this point")
         with budget.stage(f"the refinement's NLP set-up ({transcription.steps} RK4 sub-steps)"):
             ocp = _solver(solution.problem, transcription, name, search_settings, progress)
-        guess = InitialGuess(solution.states, solution.controls, horizon=float(solution.horizon),
+        guess = InitialGuess(solution.z.T, solution.u.T, horizon=float(solution.horizon),
                              label=f"{settings.get('guess', 'solution')}, refined to "
                                    f"{transcription.steps} sub-steps")
         with budget.stage("the refinement's solve", interrupt=False):

@@ -48,7 +48,7 @@ def scenarios_for(spec, prepared, nominal, quantities):
                 for n in terminal if n not in problem.model_state_names]
     if problems:
         raise ProblemError(problems, title="invalid robust planning")
-    scale = state_scales(problem, nominal.states)[[problem.model_state_names.index(n) for n in terminal]]
+    scale = state_scales(problem, nominal.z.T)[[problem.model_state_names.index(n) for n in terminal]]
     labels = tuple(", ".join(f"{n} ×{c[n]:.4g}" for n in spec.parameters) for c in copies)
     weight = spec.weight * max(float(nominal.objective), 1e-12)
     ode = parametric_rhs(specialised, quantities, varied=varied)
@@ -77,7 +77,7 @@ def robust_search(search, prepared, to_plan, settings, budget, progress):
                                                                     hessian=settings.hessian),
                             progress=progress)
             ocp = attempt_limited(ocp, None, progress)
-    guess = InitialGuess(nominal.states, nominal.controls, nominal.horizon, "the nominal plan")
+    guess = InitialGuess(nominal.z.T, nominal.u.T, nominal.horizon, "the nominal plan")
     with budget.stage("the robust solve", interrupt=False):
         with progress.phase("robust: solve from the nominal plan"):
             solution = solve_attempts(ocp, [guess], budget=budget, progress=progress)[0]
@@ -109,9 +109,9 @@ def robust_record(sc, ocp, nominal, solution, spec) -> dict:
 def _deviations(sc, ocp, solution) -> dict:
     """e_s of each copy under ``solution``'s inputs (the copies rolled out from its z_0)."""
     from nhgait.ocp.scenarios import copy_states, terminal_deviations
-    w = ocp.nlp.pack(solution.states, solution.controls, solution.horizon)
+    w = ocp.nlp.pack(solution.z.T, solution.u.T, solution.horizon)
     copies = copy_states(ocp.nlp, sc, w)
-    e = terminal_deviations(sc, ocp.problem, solution.states[:, -1], copies[:, :, -1].T)
+    e = terminal_deviations(sc, ocp.problem, solution.z[-1], copies[:, :, -1].T)
     return {"deviations": [float(v) for v in e], "mean": float(np.mean(e)), "worst": float(np.max(e))}
 
 

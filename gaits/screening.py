@@ -30,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from nhgait.ocp.solution import node_arrays
+
 __all__ = ["Screen", "Check", "RATIO", "START_RATIO"]
 
 #: a configuration whose normalised |det A| (or chart measure) is below this fraction of the
@@ -131,7 +133,8 @@ class Screen:
         """(t (2N+1,), Z (nz × (2N+1)), U (nu × (2N+1))): the nodes and the midpoints, in time order
         (Z the model's states: a task's integral states, which follow them, are left out)."""
         nz = len(self.problem.model_state_names)
-        Z, U = np.asarray(guess.states, float)[:nz], np.asarray(guess.controls, float)
+        Z, U = node_arrays(guess)
+        Z = Z[:nz]
         T = float(guess.horizon if guess.horizon is not None else self.problem.horizon)
         N = Z.shape[1] - 1
         t = np.linspace(0.0, T, 2 * N + 1)

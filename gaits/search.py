@@ -362,5 +362,5 @@ def continuation(solver, guess, steps=(0.25, 0.5, 0.75, 1.0), *, progress=None, 
             _report(progress, k, len(steps), label, solution)
         if not solution.success:          # a step short of the task is not a point of it
             return Search(None, tuple(attempts), None, solution if alpha == steps[-1] else None)
-        current = InitialGuess(solution.states, solution.controls, solution.horizon, label)
+        current = InitialGuess(solution.z.T, solution.u.T, solution.horizon, label)
     return Search(replace(solution, problem=solver.problem), tuple(attempts), attempts[-1].label, closest)

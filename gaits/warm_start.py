@@ -18,8 +18,8 @@ def _of_solution(solution) -> PreviousTrajectory:
     """The trajectory of a :class:`~nhgait.ocp.Solution` (its own names; trusted)."""
     from nhgait.ocp.problem import model_coordinates
     coordinates = model_coordinates(solution.problem.model)
-    return PreviousTrajectory(solution.t, solution.states[:len(coordinates)], solution.velocities(),
-                              solution.controls, coordinates, tuple(solution.problem.control_names),
+    return PreviousTrajectory(solution.t, solution.z[:, :len(coordinates)].T, solution.velocities(),
+                              solution.u.T, coordinates, tuple(solution.problem.control_names),
                               solution.problem.name)
 
 

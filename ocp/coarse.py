@@ -37,6 +37,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from .solution import node_arrays
+
 __all__ = ["RATIO", "MIN_INTERVALS", "WARM_IPOPT", "coarse_intervals", "resampled", "interpolated",
            "combined"]
 
@@ -69,19 +71,19 @@ def resampled(guess, source, target):
     interval takes the input of the source interval holding its midpoint)."""
     T = guess.horizon
     ts, tt = source.grid(T), target.grid(T)
-    states = np.asarray(guess.states, float)
+    states, controls = node_arrays(guess)
     Z = np.vstack([np.interp(tt, ts, row) for row in states])
     mids = (tt[:-1] + tt[1:]) / 2
     k = np.clip(np.searchsorted(ts, mids, side="right") - 1, 0, ts.size - 2)
-    U = np.asarray(guess.controls, float)[:, k]
+    U = controls[:, k]
     return replace(guess, states=Z, controls=U)
 
 
 def interpolated(solution, source, target, guess):
     """A converged coarse ``solution`` of ``source`` as an InitialGuess of ``target`` (``guess``,
     the attempt's own, gives its type and label)."""
-    coarse = replace(guess, states=np.asarray(solution.states, float),
-                     controls=np.asarray(solution.controls, float),
+    coarse = replace(guess, states=np.asarray(solution.z, float).T,
+                     controls=np.asarray(solution.u, float).T,
                      horizon=float(solution.horizon) if source.free_horizon else None)
     return resampled(coarse, source, target)
 

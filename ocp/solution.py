@@ -1,8 +1,12 @@
 """The outcome of one solve: data, never an exception.
 
 A :class:`Solution` holds Ipopt's verdict (``success``, ``status``, ``message``), counters and
-timings, and the trajectory on the grid: ``t`` (N+1,), ``states`` (nz × (N+1)) at the nodes,
-``controls`` (nu × N), piecewise constant on [t_k, t_{k+1}). :meth:`Solution.verify`
+timings, and the trajectory on the grid, time first as in every public result of nhgait:
+``t`` (N+1,), ``z`` ((N+1) × nz) the states at the nodes, ``u`` (N × nu) the controls,
+piecewise constant on [t_k, t_{k+1}), and ``q``, ``qdot`` ((N+1) × n). ``states`` (nz × (N+1))
+and ``controls`` (nu × N), the former orientation, are kept for one release and warn
+(:class:`DeprecationWarning`). :meth:`Solution.to_numpy` and :meth:`Solution.to_csv` give the
+table of ``trajectory.csv``. :meth:`Solution.verify`
 re-simulates the optimal controls with an integrator independent of the transcription
 (scipy ``solve_ivp``, DOP853, restarted at every control switch) and returns a
 :class:`Verification` with the largest state error over the nodes;
@@ -12,15 +16,16 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import casadi as ca
 import numpy as np
 
 __all__ = ["Solution", "Verification", "Integrator", "simulate_piecewise_constant", "condition_errors",
-           "condition_scales", "scales"]
+           "condition_scales", "scales", "NodeArrays", "node_arrays"]
 
 
 @dataclass(frozen=True)
@@ -275,8 +280,10 @@ class Solution:
     iterations: int
     objective: float
     t: np.ndarray
-    states: np.ndarray
-    controls: np.ndarray
+    #: ((N+1) × nz) the states at the nodes, time first (columns: ``state_names``)
+    z: np.ndarray
+    #: (N × nu) the controls, constant on [t_k, t_{k+1}), time first (columns: ``control_names``)
+    u: np.ndarray
     state_names: tuple
     control_names: tuple
     horizon: float
@@ -310,7 +317,7 @@ class Solution:
         lo, hi = self.problem.control_bound_vectors()
         out = {}
         for i, name in enumerate(self.control_names):
-            u = self.controls[i]
+            u = self.u[:, i]
             at = np.zeros(u.shape, dtype=bool)
             for b in (lo[i], hi[i]):
                 if np.isfinite(b):
@@ -321,11 +328,45 @@ class Solution:
     # ---------------------------------------------------------------- access
     def state(self, name: str) -> np.ndarray:
         """Node values (N+1,) of state ``name``."""
-        return self.states[self.state_names.index(name)]
+        return self.z[:, self.state_names.index(name)]
 
     def control(self, name: str) -> np.ndarray:
         """Interval values (N,) of control ``name``."""
-        return self.controls[self.control_names.index(name)]
+        return self.u[:, self.control_names.index(name)]
+
+    @property
+    def states(self) -> np.ndarray:
+        """Deprecated: ``z.T`` (nz × (N+1)), the former orientation; use ``z`` (time first)."""
+        warnings.warn("Solution.states (states × nodes) is deprecated and goes in the next release: use "
+                      "Solution.z, time first ((N+1) × nz), or Solution.to_numpy()",
+                      DeprecationWarning, stacklevel=2)
+        return self.z.T
+
+    @property
+    def controls(self) -> np.ndarray:
+        """Deprecated: ``u.T`` (nu × N), the former orientation; use ``u`` (time first)."""
+        warnings.warn("Solution.controls (controls × intervals) is deprecated and goes in the next release: "
+                      "use Solution.u, time first (N × nu), or Solution.to_numpy()",
+                      DeprecationWarning, stacklevel=2)
+        return self.u.T
+
+    @property
+    def q(self) -> np.ndarray:
+        """((N+1) × n) the coordinates at the nodes, time first, in the system's order (the
+        first n states)."""
+        return self.z[:, :len(self.coordinates)]
+
+    @property
+    def qdot(self) -> np.ndarray:
+        """((N+1) × n) the velocities q̇ at the nodes, time first (:meth:`velocities`)."""
+        return self.velocities().T
+
+    @property
+    def coordinates(self) -> tuple:
+        """The system's coordinates, the first states (empty without a problem)."""
+        if self.problem is None:
+            return ()
+        return tuple(getattr(self.problem.model.system, "coordinates", ()))
 
     @property
     def verification_error(self) -> float:
@@ -335,8 +376,8 @@ class Solution:
         """Generalised velocities q̇ at the nodes (n × (N+1)) through the model's qdot(z)."""
         qdot = self.problem.model.numeric["qdot"]
         nz = len(self.problem.model.state_names)               # the model's states (integral states follow)
-        return np.column_stack([np.asarray(qdot(self.states[:nz, k], self.problem.params)).ravel()
-                                for k in range(self.states.shape[1])])
+        return np.column_stack([np.asarray(qdot(self.z[k, :nz], self.problem.params)).ravel()
+                                for k in range(self.z.shape[0])])
 
     # ---------------------------------------------------------------- checks
     def verify(self, rtol: float = 1e-10, atol: float = 1e-12, method: str = "DOP853",
@@ -348,21 +389,21 @@ class Solution:
             raise ValueError("this solution has no problem attached; cannot re-simulate")
         t0 = time.perf_counter()
         sim, ok = simulate_piecewise_constant(self.problem.model, self.problem.params, self.t,
-                                              self.states[:, 0], self.controls,
+                                              self.z[0], self.u.T,
                                               Integrator(method, rtol, atol), ode=self.problem.ode())
-        err = np.abs(sim - self.states)
+        err = np.abs(sim - self.z.T)
         err[np.isnan(err)] = np.inf                      # not reached (the integration stopped)
         return Verification(max_error=float(err.max()),
                             state_errors={n: float(e)
                                           for n, e in zip(self.state_names, err.max(axis=1), strict=True)},
                             states=sim, method=method, rtol=rtol, atol=atol, success=ok,
                             time_s=time.perf_counter() - t0,
-                            condition_errors=condition_errors(self.problem, sim, self.controls, self.t),
+                            condition_errors=condition_errors(self.problem, sim, self.u.T, self.t),
                             tolerance=float(tolerance),
                             state_scales=dict(zip(self.state_names,
-                                                  map(float, scales(self.states)), strict=True)),
-                            condition_scales=condition_scales(self.problem, self.states,
-                                                              self.controls, self.t))
+                                                  map(float, scales(self.z.T)), strict=True)),
+                            condition_scales=condition_scales(self.problem, self.z.T,
+                                                              self.u.T, self.t))
 
     def verified(self, **kwargs) -> Solution:
         """A copy of this solution carrying :meth:`verify`'s result. Success means verified: a
@@ -405,13 +446,11 @@ class Solution:
         [t_k, t_k+1)) in ``inputs`` order, and the states and controls by name."""
         out = {"t": self.t, "horizon": self.horizon,
                "state_names": list(self.state_names), "control_names": list(self.control_names),
-               "states": {n: self.states[i] for i, n in enumerate(self.state_names)},
-               "controls": {n: self.controls[i] for i, n in enumerate(self.control_names)},
-               "inputs": list(self.control_names), "u": self.controls.T}
+               "states": {n: self.z[:, i] for i, n in enumerate(self.state_names)},
+               "controls": {n: self.u[:, i] for i, n in enumerate(self.control_names)},
+               "inputs": list(self.control_names), "u": self.u}
         if self.problem is not None:
-            coords = tuple(getattr(self.problem.model.system, "coordinates", ()))
-            n = len(coords)
-            out.update({"coordinates": list(coords), "q": self.states[:n].T, "qdot": self.velocities().T})
+            out.update({"coordinates": list(self.coordinates), "q": self.q, "qdot": self.qdot})
         return out
 
     def to_json(self, path, extra: dict | None = None) -> Path:
@@ -430,3 +469,18 @@ class Solution:
                 f"(functions {self.function_time_s * 1e3:.1f} ms, solver {self.solver_time_s * 1e3:.1f} ms), "
                 f"setup {self.setup_time_s * 1e3:.1f} ms"
                 + ("" if math.isnan(v) else f", verification error {v:.2e}"))
+
+
+class NodeArrays(NamedTuple):
+    """A trajectory in the transcription's layout: ``states`` (nz × (N+1)), ``controls`` (nu × N)."""
+
+    states: np.ndarray
+    controls: np.ndarray
+
+
+def node_arrays(guess) -> NodeArrays:
+    """The node states and controls of an :class:`~nhgait.ocp.solver.InitialGuess` (as given) or
+    of a :class:`Solution` (its time-first ``z``, ``u`` transposed), as floats."""
+    if isinstance(guess, Solution):
+        return NodeArrays(np.asarray(guess.z, float).T, np.asarray(guess.u, float).T)
+    return NodeArrays(np.asarray(guess.states, float), np.asarray(guess.controls, float))

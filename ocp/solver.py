@@ -62,7 +62,7 @@ from .nlp_code import (
     parallel_maps,
 )
 from .problem import OptimalControlProblem, ProblemError
-from .solution import Solution
+from .solution import Solution, node_arrays
 from .transcription import Collocation, StageShooting, TranscribedNLP, get_transcription
 
 __all__ = ["SolverOptions", "OCPSolver", "solve", "InitialGuess", "SOLVERS", "HESSIANS", "CompileBudget",
@@ -520,7 +520,7 @@ class OCPSolver:
         wall, fn_time, solver_time = times
         return Solution(success=success, status=status, message=message,
                         iterations=int(stats.get("iter_count", 0)), objective=objective,
-                        t=self.nlp.times(w), states=Z, controls=U,
+                        t=self.nlp.times(w), z=np.asarray(Z).T, u=np.asarray(U).T,
                         state_names=problem.state_names, control_names=problem.control_names,
                         horizon=T, solve_time_s=wall, setup_time_s=self.setup_time_s,
                         function_time_s=fn_time, solver_time_s=solver_time,
@@ -576,8 +576,7 @@ class OCPSolver:
         """The guess packed into the decision vector and clipped into its bounds
         (:class:`ProblemError` for arrays of the wrong shape)."""
         problem, N = self.problem, self.problem.intervals
-        states = np.asarray(guess.states, dtype=float)
-        controls = np.asarray(guess.controls, dtype=float)
+        states, controls = node_arrays(guess)
         problems = []
         if states.shape not in ((problem.n_states, N + 1), (len(problem.model_state_names), N + 1)):
             # the model's states alone: the integral states are completed (TranscribedNLP.complete)
