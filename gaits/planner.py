@@ -48,6 +48,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from .exports import states_text, write_trajectory_csv
 from .gait_check import momentum_problem, screening_report, to_momentum_coordinates, unsolved, verified_gait  # noqa: F401
 from .refinement import refinable, refine
 from .search import Attempt, Search, continuation, solve_from_guesses, solve_with_fallbacks  # noqa: F401
@@ -562,7 +563,8 @@ def write_outputs(result: PlanResult, out: Path, *, animate: bool = True, progre
 
 def _write_files(result: PlanResult, out: Path, *, animate: bool, progress) -> list:
     from . import plots
-    files = [result.solution.to_json(out / "solution.json", extra=_solution_extra(result))]
+    files = [result.solution.to_json(out / "solution.json", extra=_solution_extra(result)),
+             write_trajectory_csv(result.solution, out, result.plan.units)]
     if result.overrun is not None:          # the budget is spent: the point, not the figures
         return files
     failed = None if result.success else (result.diagnosis[0] if result.diagnosis else result.solution.status)
@@ -602,7 +604,7 @@ def summary_lines(result: PlanResult) -> list:
     st = s.settings
     lines.append(f"  N = {st.get('intervals')}, T = {s.horizon:.4f} s, {st.get('transcription')}, "
                  f"{st.get('solver')}, {st.get('hessian', 'exact')} Hessian, {_compiled_text(st)}, "
-                 f"states ({', '.join(st.get('transcribed_in', s.state_names))})")
+                 f"{states_text(s)}")
     lines += [f"  conditions         {line}"
               for line in (result.conditions.lines() if result.conditions else ())]
     if s.feedback is not None:                                               # issue 28

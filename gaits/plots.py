@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from nhgait.dynamics.units import coordinate_unit, unit_of
+
 __all__ = ["plot_path", "plot_shape_loop", "plot_histories", "plot_momentum", "write_figures",
            "FigureContext", "figure_context", "label", "unit"]
 
@@ -39,10 +41,6 @@ def label(name: str) -> str:
     return "_".join(_GREEK.get(p, p) for p in parts)
 
 
-def _pretty_unit(u: str) -> str:
-    return u.replace("**2", "²").replace("^2", "²").replace("*", "·")
-
-
 @dataclass(frozen=True, eq=False)
 class FigureContext:
     """What the plots need to know about the system beyond the solution."""
@@ -59,69 +57,10 @@ class FigureContext:
         return unit(self, name)
 
 
-def _is_angle(system, name) -> bool:
-    """Does coordinate ``name`` appear inside a trigonometric function of L, ω or τ?"""
-    sym = system.q[tuple(system.coordinates).index(name)]
-    trig = ("sin", "cos", "tan", "cot", "sec", "csc")
-    for e in (system.L, *system.constraint_exprs, *system.tau):
-        for call in e.find(lambda x: getattr(getattr(x, "func", None), "__name__", "") in trig):
-            if sym in call.free_symbols:
-                return True
-    return False
-
-
-def _input_unit(ctx, name) -> str:
-    """N·m for an input acting on angles only (a coordinate in rad by the scene's [units], or
-    inside a sine), N when it acts on a length (a guess; the scene's [units] decide)."""
-    system = ctx.system
-    coords = tuple(system.coordinates)
-    syms = [s for s in system.input_symbols if s.name == name]
-    if not syms:
-        return ""
-    on = [c for c, f in zip(coords, system.tau, strict=True) if syms[0] in getattr(f, "free_symbols", ())]
-    if on and all(_pretty_unit(ctx.units.get(c, "")) == "rad"
-                  or (_is_angle(system, c) and not _is_frame_position(system, c)) for c in on):
-        return "N·m"
-    return "N" if on else ""
-
-
-def _is_frame_position(system, name) -> bool:
-    frame = getattr(system, "planar_frame", None)
-    return bool(frame) and name in tuple(frame)[:2]
-
-
 def unit(ctx: FigureContext, name: str) -> str:
-    """The unit of a coordinate, velocity, input or quantity (scene's [units] first)."""
-    if name in ctx.units:
-        return _pretty_unit(ctx.units[name])
-    system = ctx.system
-    coords = tuple(system.coordinates)
-    if name in coords:
-        return _coordinate_unit(ctx, name)
-    if name.endswith("_dot") and name[:-4] in coords:
-        return unit(ctx, name[:-4]) + "/s"
-    if name in ("forward_velocity", "lateral_velocity"):
-        return "m/s"
-    if name in tuple(system.inputs):
-        return _input_unit(ctx, name)
-    if name.startswith("pt_") and name[3:] in coords:
-        return "N·m·s" if unit(ctx, name[3:]) == "rad" else "N·s"
-    return ""
-
-
-def _coordinate_unit(ctx, name) -> str:
-    """m for the planar frame's position; rad for a coordinate named by a Greek letter, inside a
-    trigonometric function, or driven by an input in N·m; else m (the scene's [units] decide)."""
-    system = ctx.system
-    if _is_frame_position(system, name):
-        return "m"
-    if name.split("_")[0] in _GREEK or _is_angle(system, name):
-        return "rad"
-    i = tuple(system.coordinates).index(name)
-    driving = [s.name for s in getattr(system.tau[i], "free_symbols", ()) if s.name in tuple(system.inputs)]
-    if driving and all(_pretty_unit(ctx.units.get(u, "")) == "N·m" for u in driving):
-        return "rad"
-    return "m"
+    """The unit of a coordinate, velocity, input or quantity: the one inference of
+    :func:`nhgait.dynamics.units.unit_of` (the CSV files say the same)."""
+    return unit_of(name, ctx.units, ctx.system)
 
 
 def with_unit(ctx, name) -> str:
@@ -349,7 +288,7 @@ def _basis_momentum_unit(ctx, j) -> str:
     for i, c in enumerate(coords):
         entry = X[i, j]
         if entry != 0 and not (entry.free_symbols & params):
-            return "N·m·s" if _coordinate_unit(ctx, c) == "rad" else "N·s"
+            return "N·m·s" if coordinate_unit(ctx.system, c, ctx.units) == "rad" else "N·s"
     return ""
 
 

@@ -14,6 +14,7 @@ re-simulates the optimal controls with an integrator independent of the transcri
 """
 from __future__ import annotations
 
+import csv
 import json
 import math
 import warnings
@@ -25,7 +26,7 @@ import casadi as ca
 import numpy as np
 
 __all__ = ["Solution", "Verification", "Integrator", "simulate_piecewise_constant", "condition_errors",
-           "condition_scales", "scales", "NodeArrays", "node_arrays"]
+           "condition_scales", "scales", "NodeArrays", "node_arrays", "Table"]
 
 
 @dataclass(frozen=True)
@@ -462,6 +463,46 @@ class Solution:
         path.write_text(json.dumps(data, indent=1))
         return path
 
+    def table(self, units=None) -> Table:
+        """The gait as one time-first table, the rows of ``trajectory.csv``: columns ``t``, the
+        coordinates q, their velocities ``<q>_dot``, the solution's other states (the momenta or
+        velocity states it was solved in, then a task's integral states) and the controls.
+        A control is constant on [t_k, t_{k+1}); row k holds that value, and the last row
+        (t_N) the last interval's (its left limit at t_N). ``units`` (a scene's ``[units]``)
+        and the system give each column's unit by :func:`nhgait.dynamics.units.unit_of` — the
+        figures' units ("SI" where it cannot place one)."""
+        from nhgait.dynamics.units import unit_of
+        n = len(self.coordinates)
+        names = ["t"] + list(self.state_names[:n])
+        blocks = [self.t[:, None], self.z[:, :n]]
+        if n:
+            names += [f"{c}_dot" for c in self.coordinates]
+            blocks.append(self.qdot)
+        names += list(self.state_names[n:]) + list(self.control_names)
+        held = np.vstack([self.u, self.u[-1:]]) if len(self.u) else np.zeros((len(self.t), 0))
+        blocks += [self.z[:, n:], held]
+        system = getattr(getattr(self.problem, "model", None), "system", None)
+        return Table(tuple(names), tuple(unit_of(c, units, system) or "SI" for c in names),
+                     np.hstack(blocks).astype(float))
+
+    def to_numpy(self) -> np.ndarray:
+        """The :meth:`table` as a float array ((N+1) × columns), time first; its column names are
+        ``table().columns``."""
+        return self.table().values
+
+    def to_csv(self, path, units=None) -> Path:
+        """Write the :meth:`table` to ``path`` (parents created): a header ``name [unit]`` and one
+        row per node, every number written exactly (``repr``: ``np.loadtxt(path, delimiter=",",
+        skiprows=1)`` gives :meth:`to_numpy` bit for bit)."""
+        table = self.table(units)
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(path, "w", newline="", encoding="utf-8") as fh:
+            writer = csv.writer(fh)
+            writer.writerow(table.header())
+            writer.writerows([[repr(float(v)) for v in row] for row in table.values])
+        return path
+
     def summary(self) -> str:
         v = self.verification_error
         return (f"{'success' if self.success else 'FAILED'} ({self.status}): J = {self.objective:.6g}, "
@@ -484,3 +525,16 @@ def node_arrays(guess) -> NodeArrays:
     if isinstance(guess, Solution):
         return NodeArrays(np.asarray(guess.z, float).T, np.asarray(guess.u, float).T)
     return NodeArrays(np.asarray(guess.states, float), np.asarray(guess.controls, float))
+
+
+class Table(NamedTuple):
+    """A time-first table of a gait (:meth:`Solution.table`): ``columns`` and ``units`` per
+    column, ``values`` ((N+1) × columns)."""
+
+    columns: tuple
+    units: tuple
+    values: np.ndarray
+
+    def header(self) -> list:
+        """``["t [s]", "x [m]", …]``."""
+        return [f"{c} [{u}]" for c, u in zip(self.columns, self.units, strict=True)]

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ModelError
+from ..units import unit_of
 
 __all__ = ["Trajectory", "Diagnostics", "OnRead", "min_measure", "max_condition", "CSV_COLUMNS"]
 
@@ -130,7 +131,7 @@ class Trajectory:
             blocks += [self.energy[:, None], self.work[:, None], self.energy_balance[:, None]]
         return tuple(names), np.hstack(blocks)
 
-    def to_csv(self, path, columns: str = "q", units: dict | None = None) -> None:
+    def to_csv(self, path, columns: str = "q", units: dict | None = None, system=None) -> None:
         """Write column ``t`` and then, per ``columns``:
 
         * ``"q"``: one column per coordinate, named as in the system (``x``, ``y``, ``theta`` …);
@@ -141,29 +142,19 @@ class Trajectory:
           ``energy``, ``work``, ``energy_balance``;
         * ``"outputs"``: the run's requested outputs.
 
-        ``units``: optional mapping name → unit (e.g. a scene's ``[units]``). When given, every
-        header cell reads ``name [unit]``: t in s, energies in J, a velocity in its coordinate's
-        unit per second, and "SI" for a name the mapping does not cover.
+        ``units``: optional mapping name → unit (e.g. a scene's ``[units]``); with it or with
+        ``system`` (the simulated :class:`~nhgait.dynamics.System`), every header cell reads
+        ``name [unit]`` by the one inference of :func:`nhgait.dynamics.units.unit_of` (the
+        figures' labels say the same: ``x [m]``, ``theta [rad]``, t in s, energies in J), and
+        "SI" for a name it cannot place.
         """
         names, table = self.columns(columns)
-        if units is not None:
-            names = [f"{nm} [{_unit(nm, units, self)}]" for nm in names]
+        if units is not None or system is not None:
+            names = [f"{nm} [{unit_of(nm, units, system) or 'SI'}]" for nm in names]
         with open(path, "w", newline="") as fh:
             writer = csv.writer(fh)
             writer.writerow(names)
             writer.writerows([[repr(float(v)) for v in row] for row in table])
-
-
-def _unit(name: str, units: dict, traj) -> str:
-    if name in units:
-        return str(units[name])
-    if name == "t":
-        return "s"
-    if name in ("energy", "work", "energy_balance"):
-        return "J"
-    if name.endswith("_dot") and name[:-4] in units:
-        return f"{units[name[:-4]]}/s"
-    return "SI"
 
 
 class Diagnostics(Mapping):

@@ -2,7 +2,8 @@
 (registered by :mod:`nhgait.gaits.cli.main`).
 
 Integrates the scene's ``[simulation]`` table and writes a CSV whose header names each column's
-unit (``t [s]``, ``x [m]`` …: from the scene's ``[units]`` table, "SI" where it names none).
+unit (``t [s]``, ``x [m]`` …: the scene's ``[units]`` table, else the inference the figures use,
+:func:`nhgait.dynamics.units.unit_of`; "SI" where neither places it).
 When the scene states ``[simulation].outputs``, only the states those outputs depend on are
 integrated (``--all-states`` integrates everything) and the CSV holds t and the outputs. The
 summary line gives the number of states integrated, and the run time apart from the one-off
@@ -42,10 +43,10 @@ def cmd_simulate(args) -> int:
                          title="invalid request")
     _print_summary(scene, traj, compile_s)
     units = dict(scene.units or {})
-    written = _write_csv(traj, out, columns, units) if out is not None else True
+    written = _write_csv(traj, out, columns, units, model.system) if out is not None else True
     if plot is not None and not _write_figures(traj, model, scene, plot):
         if out is None:                       # the figures were the only output: keep the run
-            _write_csv(traj, None, columns, units)
+            _write_csv(traj, None, columns, units, model.system)
         written = False
     if not traj.success:
         print(f"simulation stopped: {traj.message}", file=sys.stderr)
@@ -62,14 +63,14 @@ def _checked_outputs(args) -> tuple:
     return out, plot
 
 
-def _write_csv(traj, out: Path | None, columns: str, units: dict) -> bool:
+def _write_csv(traj, out: Path | None, columns: str, units: dict, system) -> bool:
     """Write the CSV to ``out``; a write that fails (or ``out`` None) saves it to a fallback it
     names. True when written to ``out``."""
     from ..outputs import rescue, write_failure
 
     def write(path):
         Path(path).parent.mkdir(parents=True, exist_ok=True)
-        traj.to_csv(path, columns=columns, units=units)
+        traj.to_csv(path, columns=columns, units=units, system=system)
     if out is None:
         print(f"  the run is kept: {rescue('trajectory.csv', write, 'trajectory')}")
         return False

@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from nhgait.dynamics.units import pretty, unit_of
+
 __all__ = ["plot_landscape", "LandscapeView", "plot_feasibility", "plot_shape_loops", "axis_label",
            "grid_slice"]
 
@@ -29,17 +31,9 @@ def axis_label(name: str, units=None) -> str:
         return "intervals N"
     elif name.startswith("objective."):
         return f"weight {key}"
-    elif key in units:
-        unit = _pretty(units[key])
-    elif key.endswith("_dot") and key[:-4] in units:
-        unit = f"{_pretty(units[key[:-4]])}/s"
     else:
-        unit = "SI units"
+        unit = unit_of(key, units) or "SI units"      # the one inference (nhgait.dynamics.units)
     return f"{name} [{unit}]"
-
-
-def _pretty(unit: str) -> str:
-    return str(unit).replace("**2", "²").replace("^2", "²").replace("*", "·")
 
 
 def objective_label(inputs=(), units=None) -> str:
@@ -47,14 +41,14 @@ def objective_label(inputs=(), units=None) -> str:
     units = dict(units or {})
     found = {units.get(u) for u in inputs}
     if inputs and len(found) == 1 and None not in found:
-        return f"optimal cost J = ∫|u|² dt [({_pretty(found.pop())})²·s]"
+        return f"optimal cost J = ∫|u|² dt [({pretty(found.pop())})²·s]"
     return "optimal cost J = ∫|u|² dt [SI units]"
 
 
 def _coordinate_label(name: str, units) -> str:
     """``θ [rad]``: the planner's readable name and the unit."""
     from ..plots import label
-    return f"{label(name)} [{_pretty(dict(units or {}).get(name, 'SI units'))}]"
+    return f"{label(name)} [{unit_of(name, units) or 'SI units'}]"
 
 
 def grid_slice(result, keep: tuple, fixed=None) -> tuple:
