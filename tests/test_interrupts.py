@@ -393,7 +393,7 @@ def test_a_sweep_stopped_while_its_workers_solve_leaves_nothing(cache, tmp_path,
     worker), stopped once it has stored a point: 143 or 130 within 2 s, no worker and no
     solver process left."""
     out = tmp_path / "out"
-    proc = _start(["sweep", "unicycle", "--task", "parallel-park", "--grid", "final.y=0.3:0.7:21", "--set",
+    proc = _start(["sweep", "unicycle", "--gait", "parallel-park", "--grid", "final.y=0.3:0.7:21", "--set",
                    "intervals=50", "--workers", "2"], tmp_path)
     try:
         _wait_until(lambda: len(_live(ppid=proc.pid)) >= 2 and (out / "solutions").exists()

@@ -14,7 +14,7 @@ from adversarial import CAR, answer
 CAR_TEXT = Path(CAR).read_text()
 PARK = ["plan", "unicycle", "--gait", "parallel-park"]
 SIM = ["simulate", "unicycle"]
-SWEEP = ["sweep", "unicycle", "--task", "parallel-park", "--workers", "0", "--no-plots", "--quiet"]
+SWEEP = ["sweep", "unicycle", "--gait", "parallel-park", "--workers", "0", "--no-plots", "--quiet"]
 BOUND = r"exceeds 1e\+15 in magnitude"
 
 CASES = [
@@ -100,7 +100,7 @@ CASES = [
      r"more than 1000000"),
     ("--chain 0", [*SWEEP, "--grid", "final.y=0.3,0.4", "--chain", "0"], 2, r"chain must be a whole number"),
     ("--workers -1",
-     ["sweep", "unicycle", "--task", "parallel-park", "--grid", "final.y=0.3,0.4", "--workers", "-1"],
+     ["sweep", "unicycle", "--gait", "parallel-park", "--grid", "final.y=0.3,0.4", "--workers", "-1"],
      2, r"--workers must be ≥ 0"),
     ("bench --tols nan", ["bench", "precision", "unicycle", "--tols", "nan"], 2,
      r"tolerances must lie in \(0, 1\)"),

@@ -19,7 +19,7 @@ from adversarial import answer, run_process
 
 NOWHERE = "no_such_scene.toml"          # reported only if the location passed its checks
 PLAN = ["plan", "unicycle", "--gait", "parallel-park", "--intervals", "20", "--no-jit", "--quiet"]
-SWEEP = ["sweep", "unicycle", "--task", "parallel-park", "--set", "intervals=20", "--workers", "0",
+SWEEP = ["sweep", "unicycle", "--gait", "parallel-park", "--set", "intervals=20", "--workers", "0",
          "--no-plots", "--quiet"]
 
 

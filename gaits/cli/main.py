@@ -19,13 +19,14 @@ that does not return (:mod:`.stopping`).
 """
 from __future__ import annotations
 
-import argparse
 import importlib
 import os
 import sys
 import warnings
 
 from nhgait.dynamics.errors import Terminated  # noqa: F401 - nhgait.gaits.cli.main.Terminated, kept
+
+from .vocabulary import CommandParser
 
 #: (module, function adding the subcommand), in the order of ``nhgait --help``
 SUBCOMMANDS = (
@@ -40,10 +41,11 @@ SUBCOMMANDS = (
 )
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> CommandParser:
+    """The ``nhgait`` parser: every subcommand's parser a :class:`~.vocabulary.CommandParser`
+    (an unknown option answered with "did you mean …?")."""
     from nhgait import __version__
-    parser = argparse.ArgumentParser(prog="nhgait",
-                                     description="Dynamics and gait planning of nonholonomic robots.")
+    parser = CommandParser(prog="nhgait", description="Dynamics and gait planning of nonholonomic robots.")
     parser.add_argument("--version", action="version", version=f"nhgait {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     for module, adder in SUBCOMMANDS:

@@ -14,6 +14,8 @@ import sys
 import time
 from pathlib import Path
 
+from .vocabulary import renamed
+
 __all__ = ["add_sweep_parser", "run"]
 
 
@@ -24,8 +26,10 @@ def add_sweep_parser(subparsers) -> argparse.ArgumentParser:
                     "verified by re-simulation; every point stored as it finishes (resumable); heat maps "
                     "of cost and feasibility. Back ends: a local process pool, or Dask distributed.")
     p.add_argument("scene", help="scene file (.toml) or built-in scene name (unicycle, snakeboard)")
-    p.add_argument("--task", default=None,
-                   help="built-in gait task (e.g. parallel-park); default: the scene's [task]")
+    p.add_argument("--gait", default=None,
+                   help="built-in gait task (e.g. parallel-park), as in nhgait plan and track; default: "
+                        "the scene's [task]")
+    renamed(p, "--task", "--gait")
     p.add_argument("--grid", action="append", required=True, metavar="NAME=lo:hi:n",
                    help="a grid axis: horizon, intervals, control_bounds, initial.<name>, final.<name>, "
                         "objective.<weight> or params.<name>; values lo:hi:n, a,b,c or one value "
@@ -129,7 +133,7 @@ def run(args) -> int:
     if not args.no_plots:
         _check_plot(args.plot, args.grid)
     try:
-        result = sweep(args.scene, args.task, args.grid, out=args.out, scheduler=args.scheduler,
+        result = sweep(args.scene, args.gait, args.grid, out=args.out, scheduler=args.scheduler,
                        workers=args.workers,
                        resume=args.resume, warm_start=not args.cold, overrides=args.overrides,
                        chain=args.chain, progress=None if args.quiet else _ProgressPrinter(),

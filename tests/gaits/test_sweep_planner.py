@@ -80,7 +80,7 @@ def _rows(path) -> int:
 def test_killed_sweep_resumes_where_it_stopped(tmp_path, capsys):
     """Kill the sweep process mid-run; the rows it wrote survive and --resume solves the rest."""
     out = tmp_path / "sweep"
-    args = ["sweep", "unicycle", "--task", "parallel-park", "--grid", GRID[0], "--grid", GRID[1],
+    args = ["sweep", "unicycle", "--gait", "parallel-park", "--grid", GRID[0], "--grid", GRID[1],
             "--set", SET[0], "--out", str(out), "--workers", "1", "--no-plots"]
     proc = subprocess.Popen([sys.executable, "-m", "nhgait.gaits.cli.main", *args], start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -109,21 +109,21 @@ def test_killed_sweep_resumes_where_it_stopped(tmp_path, capsys):
 
 def test_cli_writes_store_table_and_plots(tmp_path, capsys):
     out = tmp_path / "cli"
-    code = main(["sweep", "unicycle", "--task", "parallel-park", "--grid", "final.y=0.45,0.55",
+    code = main(["sweep", "unicycle", "--gait", "parallel-park", "--grid", "final.y=0.45,0.55",
                  "--grid", "horizon=4", "--set", SET[0], "--out", str(out), "--workers", "0", "--quiet"])
     printed = capsys.readouterr().out
     assert code == 0
     assert "2/2 points, 2 solved and verified, 0 failed" in printed
     assert (out / "loops.png").exists()
     assert (out / "sweep.sqlite").exists()
-    assert main(["sweep", "unicycle", "--task", "parallel-park", "--grid", "final.y=0.45,0.55", "--out",
+    assert main(["sweep", "unicycle", "--gait", "parallel-park", "--grid", "final.y=0.45,0.55", "--out",
                  str(out), "--workers", "0"]) == 2       # the directory holds a sweep: bad input
     assert "use --resume" in capsys.readouterr().err
-    assert main(["sweep", "unicycle", "--task", "parallel-park", "--grid", "horizon=-1:2:3", "--out",
+    assert main(["sweep", "unicycle", "--gait", "parallel-park", "--grid", "horizon=-1:2:3", "--out",
                  str(tmp_path / "bad"), "--workers", "0"]) == 2
     assert "a horizon must be positive" in capsys.readouterr().err
     # a --plot axis that is not on the grid: refused before any point is solved (it was after all)
-    assert main(["sweep", "unicycle", "--task", "parallel-park", "--grid", "final.y=0.45,0.55", "--out",
+    assert main(["sweep", "unicycle", "--gait", "parallel-park", "--grid", "final.y=0.45,0.55", "--out",
                  str(tmp_path / "plot"), "--workers", "0", "--plot", "horizon,final.y"]) == 2
     assert "--plot: no grid axis 'horizon' (axes: final.y)" in capsys.readouterr().err
     assert not (tmp_path / "plot").exists()
