@@ -18,29 +18,56 @@ import sys
 
 from nhgait.dynamics.suggestions import close_matches
 
-__all__ = ["CommandParser", "renamed", "option_names", "unknown_arguments"]
+__all__ = ["CommandParser", "renamed", "option_names", "unknown_options"]
 
 
 class CommandParser(argparse.ArgumentParser):
     """An ArgumentParser whose unknown options get the close known ones as a suggestion (of
-    the subcommand they were given to), a usage error with exit status 2 as argparse's own."""
+    the subcommand they were given to), a usage error with exit status 2 as argparse's own —
+    checked before argparse's own checks, so a misspelt option is named even when it leaves
+    a required one missing."""
 
     def parse_args(self, args=None, namespace=None):
-        parsed, extras = self.parse_known_args(args, namespace)
+        argv = list(sys.argv[1:] if args is None else args)
+        parser, rest = _subcommand(self, argv)
+        unknown = [tok.split("=", 1)[0] for tok in _options(rest) if not _known(parser, tok.split("=", 1)[0])]
+        if unknown:
+            parser.error(unknown_options(parser, unknown))
+        parsed, extras = self.parse_known_args(argv, namespace)
         if extras:
-            parser = _subcommand_parser(self, parsed) or self
-            parser.error(unknown_arguments(parser, extras))
+            parser.error("; ".join(f"unexpected argument {extra!r}" for extra in extras))
         return parsed
 
 
-def _subcommand_parser(parser: argparse.ArgumentParser, parsed) -> argparse.ArgumentParser | None:
-    """The parser of the subcommand ``parsed`` ran (None for a parser without subcommands)."""
-    for action in parser._actions:
-        if isinstance(action, argparse._SubParsersAction):
-            chosen = action.choices.get(getattr(parsed, action.dest, None) or "")
-            if chosen is not None:
-                return _subcommand_parser(chosen, parsed) or chosen
-    return None
+def _subcommand(parser: argparse.ArgumentParser, argv: list) -> tuple:
+    """(the parser of the (sub)subcommand ``argv`` names, the tokens after its name)."""
+    action = next((a for a in parser._actions if isinstance(a, argparse._SubParsersAction)), None)
+    if action is None:
+        return parser, argv
+    for i, token in enumerate(argv):
+        if token == "--":
+            break
+        if not token.startswith("-") and token in action.choices:
+            return _subcommand(action.choices[token], argv[i + 1:])
+    return parser, argv
+
+
+def _options(tokens: list) -> list:
+    """The tokens that are long options (up to a ``--`` that ends the options)."""
+    out = []
+    for token in tokens:
+        if token == "--":
+            break
+        if token.startswith("--"):
+            out.append(token)
+    return out
+
+
+def _known(parser: argparse.ArgumentParser, flag: str) -> bool:
+    """``flag`` is an option of ``parser`` or the prefix argparse completes (an ambiguous prefix
+    is argparse's own error)."""
+    options = parser._option_string_actions
+    return flag in options or (parser.allow_abbrev and any(o.startswith(flag) for o in options))
 
 
 def option_names(parser: argparse.ArgumentParser) -> dict:
@@ -56,21 +83,16 @@ def option_names(parser: argparse.ArgumentParser) -> dict:
     return names
 
 
-def unknown_arguments(parser: argparse.ArgumentParser, extras: list) -> str:
-    """One sentence per unknown argument: an option with its close known ones, a stray value."""
+def unknown_options(parser: argparse.ArgumentParser, unknown: list) -> str:
+    """One sentence per unknown option: its close known ones and the options of the command."""
     names = option_names(parser)
+    known = ", ".join(sorted(set(names.values())))
     parts = []
-    for i, extra in enumerate(extras):
-        if not extra.startswith("-"):
-            if i == 0 or not extras[i - 1].startswith("-") or "=" in extras[i - 1]:
-                parts.append(f"unexpected argument {extra!r}")       # not the value of an unknown option
-            continue
-        flag = extra.split("=", 1)[0]
+    for flag in dict.fromkeys(unknown):
         found = list(dict.fromkeys(names[m] for m in close_matches(flag, list(names))))
         hint = (": did you mean " + " or ".join(found) + "?") if found else ""
-        known = ", ".join(sorted(set(names.values())))
-        parts.append(f"unknown option {flag}{hint} (options of {parser.prog}: {known})")
-    return "; ".join(parts)
+        parts.append(f"unknown option {flag}{hint}")
+    return "; ".join(parts) + f" (options of {parser.prog}: {known})"
 
 
 class _Renamed(argparse.Action):
