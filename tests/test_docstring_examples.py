@@ -15,7 +15,8 @@ import pytest
 MODULES = ("nhgait.dynamics.derivation.formulations", "nhgait.dynamics.derivation.scene",
            "nhgait.dynamics.simulation.driver", "nhgait.dynamics.simulation.options",
            "nhgait.dynamics.simulation.trajectory", "nhgait.dynamics.linearisation.linearised",
-           "nhgait.dynamics.suggestions", "nhgait.gaits", "nhgait.gaits.sweeps.driver")
+           "nhgait.dynamics.suggestions", "nhgait.gaits", "nhgait.gaits.sweeps.driver",
+           "nhgait.dynamics.units")
 FLAGS = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE
 
 
