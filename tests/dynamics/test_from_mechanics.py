@@ -219,3 +219,30 @@ def test_missing_values_and_wrong_objects_are_one_clear_error():
     with pytest.raises(ModelError, match=r"expected a KanesMethod, a LagrangesMethod or a "
                                          r"sympy.physics.mechanics.System, got str"):
         System.from_mechanics("disc", DISC_VALUES)
+
+
+def test_dynamicsymbols_as_coordinates():
+    """System(coordinates=[x(t), …]) with x(t)' in L, the constraint and the forces is the
+    System stated with names and strings (the string parser is the reference)."""
+    x, y, th = me.dynamicsymbols("x y theta")
+    t = me.dynamicsymbols._t
+    m, I = sp.symbols("m I")
+    F = sp.Symbol("F")
+    xd, yd, thd = (c.diff(t) for c in (x, y, th))
+    ours = System(coordinates=[x, y, th], lagrangian=m / 2 * (xd**2 + yd**2) + I / 2 * thd**2,
+                  constraints=[-sp.sin(th) * xd + sp.cos(th) * yd],
+                  forces={x: F * sp.cos(th), y: F * sp.sin(th)},
+                  parameters={"m": 1.0, "I": 0.5}, name="sleigh")
+    text = System(coordinates=["x", "y", "theta"], lagrangian="m/2*(x_dot**2 + y_dot**2) + I/2*theta_dot**2",
+                  constraints=["-sin(theta)*x_dot + cos(theta)*y_dot"],
+                  forces={"x": "F*cos(theta)", "y": "F*sin(theta)"}, parameters={"m": 1.0, "I": 0.5},
+                  name="sleigh")
+    assert ours.canonical_text() == text.canonical_text()
+
+
+def test_a_dynamicsymbol_expression_is_named_once_in_the_refusal():
+    x = me.dynamicsymbols("x")
+    with pytest.raises(ModelError) as exc:
+        System(coordinates=[x**2], lagrangian="0")
+    message = str(exc.value)
+    assert "got the sympy expression x(t)**2" in message and "x x(t)" not in message
