@@ -31,10 +31,10 @@ class _Problem:
 
 @dataclass(frozen=True, eq=False)
 class TrajectoryView:
-    """A trajectory seen as the plots see a solution: ``states`` (n, N) are the coordinates."""
+    """A trajectory seen as the plots see a solution: ``z`` (N, n), time first, the coordinates."""
 
     t: np.ndarray
-    states: np.ndarray
+    z: np.ndarray
     state_names: tuple
     qdot: np.ndarray
     problem: _Problem
@@ -42,7 +42,7 @@ class TrajectoryView:
     @classmethod
     def of(cls, traj, model, params=None) -> TrajectoryView:
         system = model.system
-        return cls(t=np.asarray(traj.t), states=np.asarray(traj.q).T, state_names=tuple(system.coordinates),
+        return cls(t=np.asarray(traj.t), z=np.asarray(traj.q), state_names=tuple(system.coordinates),
                    qdot=np.asarray(traj.qdot), problem=_Problem(model, system.param_vector(params or None)))
 
     def velocities(self) -> np.ndarray:

@@ -183,8 +183,8 @@ def test_result_reprs_are_short_and_say_where_the_arrays_are(figures, out):
     text = repr(result)
     assert text.startswith("<PlanResult sleigh_slider/sidestep: SUCCESS")
     assert len(text) < 600
-    assert "states (7, 21) rows (x, y, theta, s, p, pt_theta, pt_s)" in text
-    assert "controls (2, 20)" in text
+    assert "z (21, 7) columns (x, y, theta, s, p, pt_theta, pt_s)" in text      # time first
+    assert "u (20, 2) columns" in text
     assert "verified to" in text
     assert "t = 0 … 4 s (21 samples)" in text
     from nhgait.gaits.planner import summary_lines
@@ -192,4 +192,4 @@ def test_result_reprs_are_short_and_say_where_the_arrays_are(figures, out):
                for line in summary_lines(result))
     md = result.solution._repr_markdown_()
     assert "| verification | passed" in md
-    assert "`solution.states` (7, 21)" in md
+    assert "`solution.z` (21, 7)" in md
