@@ -100,7 +100,8 @@ def read_source(source, origin=None) -> MechanicsSource:
         if len(getattr(source, "_uaux", ())):
             raise ModelError(["KanesMethod: auxiliary speeds (u_auxiliary) measure constraint forces; "
                               "nhgait computes its own multipliers — build it without them"])
-        kdes = (source._k_kqdot_implicit * source.q.diff(T_SYMBOL)
+        kdes = (() if source._qdot_u_map is None       # built without kinematic differential equations
+                else source._k_kqdot_implicit * source.q.diff(T_SYMBOL)
                 + source._k_ku_implicit * source.u + source._f_k_implicit)
         rows = source._k_nh * source.u + source._f_nh if len(source._k_nh) else sp.Matrix()
         return MechanicsSource(
