@@ -23,20 +23,29 @@ __all__ = ["CommandParser", "renamed", "option_names", "unknown_options"]
 
 class CommandParser(argparse.ArgumentParser):
     """An ArgumentParser whose unknown options get the close known ones as a suggestion (of
-    the subcommand they were given to), a usage error with exit status 2 as argparse's own —
-    checked before argparse's own checks, so a misspelt option is named even when it leaves
-    a required one missing."""
+    the subcommand they were given to), a usage error with exit status 2 as argparse's own,
+    in one message with argparse's own problems (an invalid value, a required option missing:
+    named after the unknown options, which may be their cause)."""
+
+    _unknown = ""          # the unknown options of this parser's command line, as a sentence
 
     def parse_args(self, args=None, namespace=None):
         argv = list(sys.argv[1:] if args is None else args)
         parser, rest = _subcommand(self, argv)
         unknown = [tok.split("=", 1)[0] for tok in _options(rest) if not _known(parser, tok.split("=", 1)[0])]
-        if unknown:
-            parser.error(unknown_options(parser, unknown))
+        parser._unknown = unknown_options(parser, unknown) if unknown else ""
         parsed, extras = self.parse_known_args(argv, namespace)
+        if parser._unknown:
+            parser.error("")
         if extras:
             parser.error("; ".join(f"unexpected argument {extra!r}" for extra in extras))
         return parsed
+
+    def error(self, message):
+        unknown, self._unknown = self._unknown, ""
+        if unknown:
+            message = f"{unknown}; {message}" if message else unknown
+        super().error(message)
 
 
 def _subcommand(parser: argparse.ArgumentParser, argv: list) -> tuple:
