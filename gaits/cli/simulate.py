@@ -85,10 +85,12 @@ def _write_csv(traj, out: Path | None, columns: str, units: dict) -> bool:
 def _write_figures(traj, model, scene, plot: Path) -> bool:
     """time_series.png and path.png into ``plot``; a failure is reported (the CSV holds the run)."""
     from ..outputs import write_failure
+    from ..task_library import figure_tables
     from ..trajectory_plots import write_trajectory_figures
+    tables = figure_tables(scene)              # a built-in's [drawing] from its gait library, as plan's
     try:
-        files = write_trajectory_figures(traj, model, plot, units=dict(scene.units or {}),
-                                         drawing=scene.drawing, params=scene.simulation.parameters)
+        files = write_trajectory_figures(traj, model, plot, units=tables.units, drawing=tables.drawing,
+                                         params=scene.simulation.parameters)
     except OSError as exc:
         print(f"  figures NOT WRITTEN: {write_failure(exc, plot)}")
         return False
