@@ -12,7 +12,8 @@ from pathlib import Path
 
 import nhgait
 
-ROOT = Path(__file__).resolve().parents[1]
+#: the repository (its examples/gallery); a build from a copy of docs/ names it in $NHGAIT_REPO
+ROOT = Path(os.environ.get("NHGAIT_REPO") or Path(__file__).resolve().parents[1])
 
 project = "nhgait"
 author = "the nhgait authors"
@@ -34,7 +35,6 @@ myst_heading_anchors = 3
 # autodoc: the public names as a user imports them (nhgait.dynamics.derive, …), numpydoc sections
 autodoc_member_order = "bysource"
 autodoc_typehints = "description"
-autodoc_default_options = {"members": False}
 napoleon_google_docstring = False
 napoleon_numpy_docstring = True
 napoleon_use_rtype = False

@@ -276,6 +276,8 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
         default of :func:`plan_budget`); a plan that runs out is a failure whose ``overrun``
         says in which phase (step 7 of the module docstring)
 
+    Notes
+    -----
     Every problem of these arguments (:mod:`.plan_arguments`), of ``out_dir``, the scene and
     the task is one :class:`~nhgait.ocp.ProblemError`, raised before any derivation.
     """

@@ -132,6 +132,8 @@ def with_unit(ctx, name) -> str:
 
 
 def figure_context(solution, model, units=None, drawing=None) -> FigureContext:
+    """What the plots need beyond ``solution``: the system of ``model``, the scene's ``[units]``
+    (a mapping name → unit) and its parsed ``[drawing]`` (a table, or None: a heading arrow)."""
     from .drawing import default_frame, parse_drawing
     system = model.system
     parsed = parse_drawing(drawing, system) if drawing is not None else None

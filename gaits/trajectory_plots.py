@@ -6,8 +6,8 @@
   ``[drawing]`` (a built-in scene's from its gait library) at a few instants coloured by time
   (:func:`nhgait.gaits.plots.plot_path`, the same figure as a planned gait's); without a planar
   frame, the first two fiber coordinates;
-* ``checks.png`` — the run's own checks against time: the constraint residual |ω(q) q̇| of each
-  row (and |h(q)| of kept holonomic constraints) on a log scale, and the energy balance
+* ``checks.png`` — the run's own checks against time: the constraint residual ``|ω(q) q̇|`` of
+  each row (and ``|h(q)|`` of kept holonomic constraints) on a log scale, and the energy balance
   E(t) − E(t₀) − W(t) (W = ∫ τ·q̇ dt, the work of the inputs), zero for an exact solution.
 
 The plots of :mod:`nhgait.gaits.plots` read a solution's ``t``, ``states``, ``state_names`` and
@@ -103,7 +103,7 @@ def _row_unit(ctx, row) -> str:
 
 
 def plot_checks(traj, ctx, axes):
-    """The constraint residual |ω(q) q̇| of each row (log scale) on ``axes[0]`` and the energy
+    """The constraint residual ``|ω(q) q̇|`` of each row (log scale) on ``axes[0]`` and the energy
     balance E − E(t₀) − W on ``axes[1]``: the run's own checks, zero for an exact solution."""
     ax_res, ax_energy = axes
     residual = np.abs(np.asarray(traj.constraint_residual, dtype=float).reshape(len(traj.t), -1))
