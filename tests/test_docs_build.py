@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-pytest.importorskip("sphinx_gallery", reason="the docs extra: pip install -e '.[docs]' (make test installs it)")
+pytest.importorskip("sphinx_gallery", reason="the docs extra: pip install -e '.[docs]' (make test has it)")
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = sorted((ROOT / "examples" / "gallery").glob("plot_*.py"))
@@ -38,8 +38,9 @@ def built(tmp_path_factory):
                                                                           "_build"))
     html = folder / "html"
     env = dict(os.environ, NHGAIT_REPO=str(ROOT), MPLBACKEND="Agg")
-    done = subprocess.run([sys.executable, "-m", "sphinx", *_make_docs_command(), "-d", str(folder / "doctrees"),
-                           str(source), str(html)], capture_output=True, text=True, env=env, timeout=600)
+    command = [sys.executable, "-m", "sphinx", *_make_docs_command(), "-d", str(folder / "doctrees"),
+               str(source), str(html)]
+    done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=600)
     return done, html
 
 

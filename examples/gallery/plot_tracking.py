@@ -16,7 +16,8 @@ result = track("unicycle", "parallel-park", overrides=["intervals=40"], mismatch
 print("\n".join(summary_lines(result)))          # what nhgait track prints
 for loop in ("open_loop", "closed_loop"):
     error = result.report[loop]["final_position_error"]
-    print(f"{loop}: final position error median {1e3 * error['median']:.3g} mm, max {1e3 * error['max']:.3g} mm")
+    median, worst = 1e3 * error["median"], 1e3 * error["max"]
+    print(f"{loop}: final position error median {median:.3g} mm, max {worst:.3g} mm")
 
 # %%
 # The paths of the samples, open loop (left) and closed loop (right), and where they end.
