@@ -1,11 +1,15 @@
-# Quick start: `make demo` (plan + verify a snakeboard forward gait), `make test` (the test suite).
+# Quick start: `make demo` (plan + verify a snakeboard forward gait), `make test` (the test suite,
+# the docs build included), `make docs` (the documentation into out/docs/html).
 PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 LOG    := $(VENV)/install.log
 
-.PHONY: demo test bench reproduce clean
+DOCS_STAMP := $(VENV)/.docs-installed
+DOCS_OUT ?= out/docs
+
+.PHONY: demo test docs bench reproduce clean
 
 # The set-up's pip/setuptools output goes to $(LOG) (shown in full if the install fails).
 $(STAMP): pyproject.toml
@@ -15,12 +19,22 @@ $(STAMP): pyproject.toml
 	@$(PY) -m pip install -e ".[test,dask,pinocchio]" >> $(LOG) 2>&1 || (cat $(LOG); exit 1)
 	@touch $(STAMP)
 
+# The docs extra (Sphinx, MyST, sphinx-gallery, furo): for `make test` and `make docs`, not `make demo`.
+$(DOCS_STAMP): $(STAMP)
+	@$(PY) -m pip install -e ".[docs]" >> $(LOG) 2>&1 || (cat $(LOG); exit 1)
+	@touch $(DOCS_STAMP)
+
 demo: $(STAMP)
 	@$(VENV)/bin/nhgait plan snakeboard --gait forward --out out/demo
 
-test: $(STAMP)
+test: $(STAMP) $(DOCS_STAMP)
 	$(PY) -m ruff check .
 	$(PY) -m pytest -q
+
+# The documentation: pages (docs/*.md), the API reference (docstrings) and the gallery (each
+# examples/gallery/plot_*.py run); warnings are errors. tests/test_docs_build.py runs the same.
+docs: $(DOCS_STAMP)
+	$(PY) -m sphinx -W --keep-going -q -b html -d $(DOCS_OUT)/doctrees docs $(DOCS_OUT)/html
 
 reproduce: $(STAMP)
 	$(VENV)/bin/nhgait reproduce --out out/reproduce

@@ -277,6 +277,8 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
         default of :func:`plan_budget`); a plan that runs out is a failure whose ``overrun``
         says in which phase (step 7 of the module docstring)
 
+    Notes
+    -----
     Every problem of these arguments (:mod:`.plan_arguments`), of ``out_dir``, the scene and
     the task is one :class:`~nhgait.ocp.ProblemError`, raised before any derivation.
     """
@@ -646,9 +648,8 @@ def _closing_lines(result: PlanResult) -> list:
         lines.append("  files:")
         lines.extend(f"    {f}" for f in result.files)
         if result.success and not any(str(f).endswith(".gif") for f in result.files):
-            lines.append("  animation          not written: it is the longest part of the output (60 frames, "
-                         "about 5 s for the snakeboard); add --gif (plan(..., animate=True)) to "
-                         "write motion.gif")
+            lines.append("  animation          not written (made on request): add --gif "
+                         "(plan(..., animate=True)) to write motion.gif")
     if result.overrun is not None:
         lines.append("  figures            not written: the time budget was spent")
     return lines

@@ -23,7 +23,8 @@ import numpy as np
 from nhgait.dynamics.units import coordinate_unit, unit_of
 
 __all__ = ["plot_path", "plot_shape_loop", "plot_histories", "plot_momentum", "write_figures",
-           "FigureContext", "figure_context", "label", "unit"]
+           "FigureContext", "figure_context", "FigureLayout", "figure_layouts", "gait_figure",
+           "label", "unit", "strobe_nodes", "path_figure_size", "TIME_COLORMAP"]
 
 _GREEK = {g: c for g, c in zip(
     ("alpha", "beta", "gamma", "delta", "epsilon", "zeta", "eta", "theta", "iota", "kappa", "lambda",
@@ -70,6 +71,8 @@ def with_unit(ctx, name) -> str:
 
 
 def figure_context(solution, model, units=None, drawing=None) -> FigureContext:
+    """What the plots need beyond ``solution``: the system of ``model``, the scene's ``[units]``
+    (a mapping name → unit) and its parsed ``[drawing]`` (a table, or None: a heading arrow)."""
     from .drawing import default_frame, parse_drawing
     system = model.system
     parsed = parse_drawing(drawing, system) if drawing is not None else None
@@ -112,36 +115,66 @@ def _scale(solution, ctx) -> float:
     return max(float(np.ptp(x)), float(np.ptp(y)), 0.2)
 
 
-def plot_path(solution, ctx: FigureContext, ax=None, *, bodies: int = 7):
-    """The fiber path (see the module docstring), true to scale, with a legend."""
-    ax = _axes(ax, figsize=(7, 4.8))
+#: the colour map of time in the path strobe and its colour bar
+TIME_COLORMAP = "viridis"
+
+
+def strobe_nodes(count: int, bodies: int) -> np.ndarray:
+    """The ``bodies`` node indices (first and last included) at which the strobe draws the body."""
+    return np.unique(np.linspace(0, count - 1, max(2, min(bodies, count))).round().astype(int))
+
+
+def plot_path(solution, ctx: FigureContext, ax=None, *, bodies: int = 5):
+    """The fiber path as a strobe, true to scale: the body drawn at ``bodies`` instants coloured
+    by time (a colour bar in s beside the axes), the frame point's path, the start (an open
+    circle) and the end (a filled square, visible inside the circle when the gait returns to
+    its start), and a legend below the axes, clear of the drawing."""
+    ax = _axes(ax, figsize=(7, 5.2))
     if ctx.frame is None:
         return _plot_fiber(solution, ctx, ax)
+    import matplotlib as mpl
     fx, fy, fh = ctx.frame
-    x, y = series(solution, fx), series(solution, fy)
-    nodes = np.linspace(0, len(x) - 1, bodies).round().astype(int)
-    t = solution.t
+    x, y, t = series(solution, fx), series(solution, fy), np.asarray(solution.t)
+    cmap = mpl.colormaps[TIME_COLORMAP]
+    norm = mpl.colors.Normalize(float(t[0]), float(max(t[-1], t[0] + 1e-12)))
+    nodes = strobe_nodes(len(x), bodies)
     for j, k in enumerate(nodes):
-        alpha = 0.25 + 0.65 * j / max(1, len(nodes) - 1)
         for i, (xs, ys) in enumerate(body_segments(solution, ctx, k)):
             lw = ctx.drawing.widths[i] if ctx.drawing is not None else 2.0
-            lab = None
-            if j == len(nodes) - 1 and i == 0:
-                lab = (f"body at {bodies} instants t = 0 … {t[-1]:.3g} s (lighter = earlier)"
-                       if ctx.drawing is not None
-                       else f"heading {label(fh)} at {bodies} instants (lighter = earlier)")
-            ax.plot(xs, ys, "-", color="0.3", lw=lw, alpha=alpha, solid_capstyle="round", zorder=1, label=lab)
-    ax.plot(x, y, "-", color="C0", lw=2.0,
-            label=f"path of the frame point ({label(fx)}, {label(fy)})", zorder=3)
-    ax.plot(x[0], y[0], "o", color="C2", ms=8, label="start (t = 0)", zorder=4)
-    ax.plot(x[-1], y[-1], "s", color="C3", ms=8, label=f"end (t = {t[-1]:.3g} s)", zorder=4)
+            ax.plot(xs, ys, "-", color=cmap(norm(t[k])), lw=lw, alpha=0.9, solid_capstyle="round", zorder=1,
+                    label=_strobe_label(ctx, fh, len(nodes)) if j == 0 and i == 0 else None)
+    ax.plot(x, y, "-", color="0.15", lw=1.6, label=f"path of the frame point ({label(fx)}, {label(fy)})",
+            zorder=3)
+    _start_and_end(ax, (x[0], y[0]), (x[-1], y[-1]), (t[0], t[-1]))
+    bar = ax.figure.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.85, pad=0.02,
+                             label="time of the drawn body t [s]")
+    for k in nodes:                                     # the drawn instants marked on the bar
+        bar.ax.axhline(t[k], color="w", lw=1.2)
     ax.set_xlabel(with_unit(ctx, fx))
     ax.set_ylabel(with_unit(ctx, fy))
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(True, alpha=0.3)
-    ax.legend(loc="best", fontsize="small")
+    _legend_below(ax)
     ax.set_title("path in the plane (to scale)")
     return ax
+
+
+def _start_and_end(ax, start, end, times) -> None:
+    """The start as an open circle, the end as a small filled square: both visible when they
+    coincide (a periodic gait, a turn on the spot)."""
+    ax.plot(*start, "o", mfc="none", mec="C3", mew=2.0, ms=13, label=f"start (t = {times[0]:.3g} s)",
+            zorder=5)
+    ax.plot(*end, "s", color="k", ms=6, label=f"end (t = {times[1]:.3g} s)", zorder=6)
+
+
+def _strobe_label(ctx, heading, count) -> str:
+    what = "body" if ctx.drawing is not None else f"heading {label(heading)}"
+    return f"{what} at {count} instants (colour: time)"
+
+
+def _legend_below(ax, ncol: int = 2) -> None:
+    """The legend under the axes (outside: it never hides the drawing)."""
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.15), ncol=ncol, fontsize="small", frameon=False)
 
 
 def _plot_fiber(solution, ctx, ax):
@@ -149,8 +182,7 @@ def _plot_fiber(solution, ctx, ax):
     if len(fiber) >= 2:
         a, b = series(solution, fiber[0]), series(solution, fiber[1])
         ax.plot(a, b, "-", color="C0", lw=2, label="fiber path")
-        ax.plot(a[0], b[0], "o", color="C2", label="start (t = 0)")
-        ax.plot(a[-1], b[-1], "s", color="C3", label=f"end (t = {solution.t[-1]:.3g} s)")
+        _start_and_end(ax, (a[0], b[0]), (a[-1], b[-1]), (solution.t[0], solution.t[-1]))
         ax.set_xlabel(with_unit(ctx, fiber[0]))
         ax.set_ylabel(with_unit(ctx, fiber[1]))
     else:
@@ -158,7 +190,7 @@ def _plot_fiber(solution, ctx, ax):
         ax.set_xlabel("t [s]")
         ax.set_ylabel(with_unit(ctx, fiber[0]))
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize="small")
+    _legend_below(ax, ncol=3)
     ax.set_title("fiber path")
     return ax
 
@@ -293,8 +325,67 @@ def _basis_momentum_unit(ctx, j) -> str:
 
 
 # ----------------------------------------------------------------------------- files
-def _short(text: str, width: int = 90) -> str:
-    return text if len(text) <= width else text[:width - 1] + "…"
+def failed_banner(reason: str, width_in: float) -> str:
+    """"FAILED — not a verified gait" and the reason in at most two lines that fit a figure
+    ``width_in`` inches wide (about 8 characters an inch of the banner's bold font)."""
+    import textwrap
+    chars = max(30, int(8 * width_in))
+    lines = textwrap.wrap(reason, width=chars)
+    if len(lines) > 2:
+        lines = [lines[0], textwrap.shorten(" ".join(lines[1:]), width=chars, placeholder=" …")]
+    return "\n".join(["FAILED — not a verified gait", *lines])
+
+
+@dataclass(frozen=True)
+class FigureLayout:
+    """One figure file of a plan: its name, the plot function, its size (in) and its rows."""
+
+    name: str
+    draw: object             # plot function (solution, ctx, ax or axes)
+    size: tuple
+    rows: int = 1
+
+
+def figure_layouts(solution, ctx: FigureContext) -> tuple:
+    """The four figures of a plan: path.png, shape.png, histories.png, momentum.png."""
+    n_units = len({unit(ctx, c) for c in solution.control_names})
+    n_mom = max(1, len(solution.state_names) - len(ctx.system.coordinates))
+    return (FigureLayout("path.png", plot_path, path_figure_size(solution, ctx)),
+            # shape.png: the place of a background over the shape plane (a height function,
+            # drawn under the loop by the function that draws it on ``ax``) when there is one
+            FigureLayout("shape.png", plot_shape_loop, (5.4, 5.0)),
+            FigureLayout("histories.png", plot_histories, (7, 2.4 * (1 + n_units)), 1 + n_units),
+            FigureLayout("momentum.png", plot_momentum, (7, 1.9 * n_mom + 0.4), n_mom))
+
+
+def path_figure_size(solution, ctx: FigureContext, width: float = 7.4) -> tuple:
+    """(width, height) in inches of the path strobe: the axes' height follows the aspect of the
+    path and the drawn bodies (equal scales), within 0.35–1.1 of the axes' width, plus the
+    title and the legend below."""
+    if ctx.frame is None:
+        return (width, 5.6)
+    xs, ys = [series(solution, ctx.frame[0])], [series(solution, ctx.frame[1])]
+    for k in strobe_nodes(len(xs[0]), 5):
+        for sx, sy in body_segments(solution, ctx, k):
+            xs.append(np.ravel(sx))
+            ys.append(np.ravel(sy))
+    x, y = np.concatenate(xs), np.concatenate(ys)
+    ratio = float(np.clip((np.ptp(y) + 0.1) / max(float(np.ptp(x)) + 0.1, 1e-9), 0.35, 1.1))
+    return (width, round(0.78 * width * ratio + 1.9, 2))
+
+
+def gait_figure(solution, ctx: FigureContext, layout: FigureLayout, failed: str | None = None):
+    """The :class:`~matplotlib.figure.Figure` of ``layout`` (no pyplot state). With ``failed``
+    (the reason) the figure carries a red banner "FAILED — not a verified gait" above the
+    axes' titles: constrained layout gives the banner (the figure's suptitle) its own room."""
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=layout.size, layout="constrained")
+    axes = fig.subplots(layout.rows, 1, sharex=layout.rows > 1, squeeze=False)[:, 0]
+    layout.draw(solution, ctx, axes[0] if layout.rows == 1 else axes)
+    if failed:
+        fig.suptitle(failed_banner(failed, layout.size[0]), color="tab:red", fontsize="medium",
+                     fontweight="bold")
+    return fig
 
 
 def write_figures(solution, out: Path, *, units=None, drawing=None, model=None,
@@ -309,29 +400,18 @@ def write_figures(solution, out: Path, *, units=None, drawing=None, model=None,
     from nhgait.ocp.supervision import Job, supervise
     model = model if model is not None else solution.problem.model
     ctx = figure_context(solution, model, units, drawing)
-    n_units = len({unit(ctx, c) for c in solution.control_names})
-    n_mom = max(1, len(solution.state_names) - len(ctx.system.coordinates))
-    layouts = (("path.png", plot_path, (7, 4.8), 1), ("shape.png", plot_shape_loop, (5.2, 4.6), 1),
-               ("histories.png", plot_histories, (7, 2.4 * (1 + n_units)), 1 + n_units),
-               ("momentum.png", plot_momentum, (7, 1.9 * n_mom), n_mom))
+    layouts = figure_layouts(solution, ctx)
     jobs = [Job(partial(_drawn, solution, ctx, out, part, failed), None, _not_drawn)
             for part in (layouts[0::2], layouts[1::2])]
     return [path for paths in supervise(jobs, workers=2) for path in paths]
 
 
 def _drawn(solution, ctx, out: Path, layouts, failed) -> list:
-    """The figures of ``layouts`` ((file name, plot function, size, rows)) written to ``out``."""
-    from matplotlib.figure import Figure
+    """The figures of ``layouts`` (:class:`FigureLayout`) written to ``out``."""
     files = []
-    for name, fn, size, rows in layouts:
-        fig = Figure(figsize=size)          # no pyplot state: nothing global is touched
-        axes = fig.subplots(rows, 1, sharex=rows > 1, squeeze=False)[:, 0]
-        fn(solution, ctx, axes[0] if rows == 1 else axes)
-        if failed:
-            fig.suptitle(f"FAILED — not a verified gait\n{_short(failed)}", color="tab:red",
-                         fontsize="medium")
-        fig.savefig(out / name, dpi=110, bbox_inches="tight")
-        files.append(out / name)
+    for layout in layouts:
+        gait_figure(solution, ctx, layout, failed).savefig(out / layout.name, dpi=110)
+        files.append(out / layout.name)
     return files
 
 

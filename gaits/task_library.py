@@ -16,14 +16,15 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
-from typing import Any
+from typing import Any, NamedTuple
 
 from nhgait.dynamics.suggestions import did_you_mean
 from nhgait.ocp import ProblemError
 
 from .task import Task, apply_overrides, parse_task
 
-__all__ = ["Plan", "resolve", "scene_of", "library", "library_tasks", "library_task_names", "get_task"]
+__all__ = ["Plan", "resolve", "scene_of", "library", "library_tasks", "library_task_names", "get_task",
+           "FigureTables", "figure_tables"]
 
 LIBRARY_KEYS = {"scene", "units", "drawing", "tasks"}
 
@@ -119,6 +120,24 @@ def _scene_name(scene) -> str:
     return scene.system.name
 
 
+class FigureTables(NamedTuple):
+    """A scene's ``[units]`` and ``[drawing]`` for its figures."""
+
+    units: dict
+    drawing: Mapping | None
+
+
+def figure_tables(scene, lib: dict | None = None) -> FigureTables:
+    """The scene's ``[units]`` over its built-in library's, and its ``[drawing]``, else the
+    library's: ``nhgait simulate --plot`` and ``nhgait plan`` draw the same body. ``lib``: the
+    library entry when already read (None: read for a built-in scene)."""
+    if lib is None and str(scene.source).startswith("built-in scene "):
+        lib = library(_scene_name(scene))
+    units = {**((lib or {}).get("units", {})), **dict(scene.units or {})}
+    drawing = scene.drawing if scene.drawing is not None else (lib or {}).get("drawing")
+    return FigureTables(units, drawing)
+
+
 def scene_of(system) -> tuple:
     """(the Scene of ``system`` — a scene file path, built-in scene name, Scene or System —, its
     name: the built-in's, else the system's), read before any task."""
@@ -137,8 +156,7 @@ def resolve(system, task=None, *, overrides=()) -> Plan:
     """
     scene, name = scene_of(system)
     lib = library(name) if str(scene.source).startswith("built-in scene ") else None
-    units = {**((lib or {}).get("units", {})), **dict(scene.units or {})}
-    drawing = scene.drawing if scene.drawing is not None else (lib or {}).get("drawing")
+    units, drawing = figure_tables(scene, lib)
     check = {"system": scene.system, "quantities": scene.all_quantities,
              "motion": tuple(scene.motion_quantities)}
     if isinstance(task, Task):

@@ -31,7 +31,7 @@ forward one — and ū_j the largest |u_j| the plan uses (no larger than its bou
 bound's half-width, else 1. In words: a path deviation of 10 % of a state's scale costs as much
 as a correction of the size of the plan's own inputs, and at the end only 2 % is accepted (a
 gait is planned to arrive). The end's weight was chosen on the snakeboard's forward gait with
-m +10 % and J_r −10 % (docs/gait-planning.md: with Q_N = 3, 10, 25, 100, 300 Q the closed
+m +10 % and J_r −10 % (docs/tracking.md: with Q_N = 3, 10, 25, 100, 300 Q the closed
 loop's worst final error was 0.34, 0.12, 0.035, 0.07, 0.09 of the open loop's median; a larger
 end weight makes the linear law overreact in the last intervals).
 

@@ -36,7 +36,7 @@ class Verification:
     Attributes
     ----------
     max_error : float
-        max over nodes k and states i of |z_i^sim(t_k) − z_i(t_k)|.
+        max over nodes k and states i of ``|z_i^sim(t_k) − z_i(t_k)|``.
     condition_errors : dict "initial.<name>" / "final.<name>" / "periodic.<name>" → how far the
         re-simulated trajectory is from meeting that condition of the problem (0 when met).
     state_errors : dict name → max over nodes of the error of that state.

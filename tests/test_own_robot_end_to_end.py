@@ -7,7 +7,8 @@ coordinate ``s`` shares its name with the method's letter for fibre coordinates.
 2. a CLI that does what people try (``simulate --set`` against an independent simulation,
    ``--plot``, "did you mean", compile time apart, progress with an estimate);
 3. an API that introduces itself (``help(nhgait)``, short reprs, notebook Markdown, the
-   README's snippet against an independent, tighter computation of the number it quotes);
+   getting-started guide's snippet against an independent, tighter computation of the number
+   it quotes);
 4. every figure the CLI writes for this robot: titles, axis labels with units, series counts,
    no overlapping titles, distinct series styles.
 """
@@ -250,15 +251,17 @@ def test_short_reprs_and_notebook_markdown(slider):
     assert "```\nReduced constrained" in md
 
 
-def test_readme_snippet_reproduces_the_number_the_readme_quotes(capsys):
-    """The README's Python snippet run as written: x(10π) printed with 8 decimals equals the
-    number in the README's reproduction table, and so does an independent computation (the
-    Lagrange DAE integrated by scipy DOP853 at rtol 1e-12, tighter than the snippet's 1e-10)."""
+def test_guide_snippet_reproduces_the_number_the_guide_quotes(capsys):
+    """The Python snippet of docs/getting-started.md run as written: x(10π) printed with 8
+    decimals equals the number in the reproduction table (docs/simulation.md), and so does an
+    independent computation (the Lagrange DAE integrated by scipy DOP853 at rtol 1e-12, tighter
+    than the snippet's 1e-10)."""
     from nhgait.dynamics import derive, simulate
     from nhgait.dynamics.simulation.controllers import snakeboard_pd
-    readme = (ROOT / "README.md").read_text()
-    code = re.search(r"```python\n(.*?)```", readme, re.S).group(1)
-    quoted = float(re.search(r"\| snakeboard \(T = 10π\) \| ([0-9.]+) \|", readme).group(1))
+    guide = (ROOT / "docs" / "getting-started.md").read_text()
+    code = re.search(r"```python\n(.*?)```", guide, re.S).group(1)
+    table = (ROOT / "docs" / "simulation.md").read_text()
+    quoted = float(re.search(r"\| snakeboard \(T = 10π\) \| ([0-9.]+) \|", table).group(1))
     assert f"# {quoted:.8f}" in code                               # the snippet quotes the table
     namespace = {}
     exec(code, namespace)

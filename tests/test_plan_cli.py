@@ -124,7 +124,7 @@ def test_plots_use_the_scene_units_and_leave_global_state(car_solution):
     assert ax.get_xlabel() == "x [m]"
     assert ax.get_ylabel() == "y [m]"
     legend = [t.get_text() for t in ax.get_legend().get_texts()]
-    assert any("lighter = earlier" in t for t in legend)
+    assert any("colour: time" in t for t in legend)
     assert any(t.startswith("start") for t in legend)
     fig3, axes3 = plt.subplots(2, 1)
     plots.plot_momentum(car_solution.solution, ctx, axes=axes3)

@@ -112,7 +112,7 @@ class System:
     dependent : sequence of coordinate names, optional
         The coordinate each holonomic constraint is solved for (eliminated, or the one a
         consistent configuration adjusts); default: the last coordinate it can be solved for,
-        else the one with the largest |∂h/∂q| at q = 0. Normalised to the kept constraints'.
+        else the one with the largest ``|∂h/∂q|`` at q = 0. Normalised to the kept constraints'.
     eliminated : sequence of (name, expression), optional
         Set by the elimination: the coordinates removed and what they equal.
     """

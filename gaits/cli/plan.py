@@ -2,8 +2,8 @@
 
 Plans the scene file's ``[task]`` (or a built-in gait of a built-in scene), verifies the
 optimum by an independent simulation and writes solution.json and PNG plots; ``--gif`` also
-writes the animation motion.gif (60 frames, a few seconds: the longest part of the output, so
-it is made only on request and its time is reported apart). The plan runs within a time budget
+writes the animation motion.gif (60 frames in a frame fitted to the motion, made on request; its
+time is reported apart). The plan runs within a time budget
 (``--time-limit``; a budget that runs out is a clean failure, exit 1). Registered by
 :mod:`nhgait.gaits.cli.main`.
 """
@@ -61,7 +61,7 @@ def add_plan_parser(subparsers) -> argparse.ArgumentParser:
                    help="initial guesses tried per solver before the continuation (default 12)")
     gif = p.add_mutually_exclusive_group()
     gif.add_argument("--gif", action="store_true",
-                     help="also write motion.gif (60 frames, a few seconds: the longest part of the output)")
+                     help="also write motion.gif (60 frames, the body moving along its path)")
     gif.add_argument("--no-gif", action="store_true", help="no animation (the default; kept for old scripts)")
     talk = p.add_mutually_exclusive_group()
     talk.add_argument("--quiet", action="store_true", help="no progress on stderr")

@@ -13,7 +13,8 @@ later runs load it from the cache).
 ``--set KEY=VALUE`` changes the ``[simulation]`` table without editing the file (``t_final=20``,
 ``q0.x=0.5``, ``qdot0.theta=1``, ``inputs.F=0.2*sin(t)``, ``params.m=2``; the parser of
 :mod:`nhgait.dynamics.derivation.assignments`, shared with ``plan`` and ``sweep``). ``--plot DIR`` writes
-``time_series.png`` and ``path.png`` (:mod:`nhgait.gaits.trajectory_plots`).
+``time_series.png``, ``path.png`` and ``checks.png`` (the constraint residual and the energy
+balance; :mod:`nhgait.gaits.trajectory_plots`).
 """
 from __future__ import annotations
 
@@ -84,12 +85,15 @@ def _write_csv(traj, out: Path | None, columns: str, units: dict, system) -> boo
 
 
 def _write_figures(traj, model, scene, plot: Path) -> bool:
-    """time_series.png and path.png into ``plot``; a failure is reported (the CSV holds the run)."""
+    """time_series.png, path.png and checks.png into ``plot``; a failure is reported (the CSV
+    holds the run)."""
     from ..outputs import write_failure
+    from ..task_library import figure_tables
     from ..trajectory_plots import write_trajectory_figures
+    tables = figure_tables(scene)              # a built-in's [drawing] from its gait library, as plan's
     try:
-        files = write_trajectory_figures(traj, model, plot, units=dict(scene.units or {}),
-                                         drawing=scene.drawing, params=scene.simulation.parameters)
+        files = write_trajectory_figures(traj, model, plot, units=tables.units, drawing=tables.drawing,
+                                         params=scene.simulation.parameters)
     except OSError as exc:
         print(f"  figures NOT WRITTEN: {write_failure(exc, plot)}")
         return False
@@ -281,7 +285,8 @@ def add_simulate_parser(subparsers):
                         "qdot0.theta=1, inputs.F=0.2*sin(t), params.m=2, rtol=1e-10, method=compiled")
     p.add_argument("--out", default=None, help="CSV path, e.g. out/traj.csv")
     p.add_argument("--plot", default=None, metavar="DIR",
-                   help="write time_series.png (coordinates and inputs with units) and path.png (x-y path "
+                   help="write time_series.png (coordinates and inputs with units), checks.png (constraint "
+                        "residual, energy balance) and path.png (x-y path "
                         "with the scene's [drawing]) into DIR")
     p.add_argument("--no-cache", action="store_true")
     p.set_defaults(func=cmd_simulate)

@@ -54,7 +54,8 @@ def figures(out):
     return caught
 
 
-EXPECTED = {"simulate/time_series.png", "simulate/path.png", "plan/path.png", "plan/shape.png",
+EXPECTED = {"simulate/time_series.png", "simulate/path.png", "simulate/checks.png", "plan/path.png",
+            "plan/shape.png",
             "plan/histories.png", "plan/momentum.png", "sweep/landscape.png", "sweep/feasibility.png",
             "sweep/loops.png", "bench/precision.png"}
 
@@ -111,14 +112,14 @@ def test_simulate_figures(figures):
     path = figures["simulate/path.png"].axes[0]
     assert path.get_title().startswith("sleigh_slider: path in the plane")
     assert (path.get_xlabel(), path.get_ylabel()) == ("x [m]", "y [m]")
-    # 7 instants × 3 segments (sled, rail, sliding mass) of the scene's [drawing] + the path + start + end
-    assert len(_series(path)) == 7 * 3 + 3
+    # 5 instants × 3 segments (sled, rail, sliding mass) of the scene's [drawing] + the path + start + end
+    assert len(_series(path)) == 5 * 3 + 3
 
 
 def test_plan_figures(figures):
     path = figures["plan/path.png"].axes[0]
     assert path.get_title() == "path in the plane (to scale)"
-    assert len(_series(path)) == 7 * 3 + 3
+    assert len(_series(path)) == 5 * 3 + 3
     shape = figures["plan/shape.png"].axes[0]
     assert shape.get_title() == "shape loop"
     assert (shape.get_xlabel(), shape.get_ylabel()) == ("θ [rad]", "s [m]")
@@ -193,3 +194,131 @@ def test_result_reprs_are_short_and_say_where_the_arrays_are(figures, out):
     md = result.solution._repr_markdown_()
     assert "| verification | passed" in md
     assert "`solution.z` (21, 7)" in md
+
+
+# ----------------------------------------------------------------------------- figures to publish
+def _drawn(fig):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    return canvas.get_renderer()
+
+
+def test_simulate_checks_show_the_residual_and_the_energy_balance(figures, out):
+    """checks.png holds what the CSV's columns hold: |ω(q)q̇| per constraint row and E − E₀ − W,
+    read back from the drawn lines and compared with an independent run's own arrays."""
+    import numpy as np
+
+    from nhgait.dynamics import derive, load_scene, simulate
+    fig = figures["simulate/checks.png"]
+    residual_ax, energy_ax = fig.axes
+    assert residual_ax.get_yscale() == "log"
+    assert residual_ax.get_ylabel() == "constraint residual [m/s]"       # the sleigh's rows: velocities
+    assert energy_ax.get_ylabel() == "energy balance [J]"
+    assert energy_ax.get_xlabel() == "t [s]"
+    scene = load_scene(SLIDER)
+    spec = scene.simulation
+    traj = simulate(derive(scene.system), (spec.t0, spec.t_final), spec.q0, spec.qdot0, t_eval=spec.t_eval,
+                    controller=spec.controller, params=spec.parameters or None, rtol=1e-8, atol=1e-10)
+    drawn = np.asarray(energy_ax.get_lines()[0].get_ydata())
+    assert drawn.shape == traj.energy_balance.shape
+    # the same physical invariant: both runs keep it at rounding level (the reduced ODE)
+    assert np.abs(drawn).max() < 1e-8 and np.abs(traj.energy_balance).max() < 1e-8
+    rows = [ln for ln in residual_ax.get_lines() if ln.get_label().startswith("|ω_")]
+    assert len(rows) == traj.constraint_residual.shape[1]
+    assert all(np.asarray(ln.get_ydata()).max() < 1e-10 for ln in rows)
+
+
+def test_the_path_strobe_is_coloured_by_time_and_its_legend_outside(figures):
+    fig = figures["plan/path.png"]
+    ax, bar = fig.axes                                    # the path and its colour bar of time
+    assert bar.get_ylabel() == "time of the drawn body t [s]"
+    assert bar.get_ylim() == pytest.approx((0.0, 4.0))   # the sidestep's horizon
+    renderer = _drawn(fig)
+    legend = ax.get_legend().get_window_extent(renderer)
+    assert not legend.overlaps(ax.get_window_extent(renderer))
+    bodies = [ln for ln in ax.get_lines() if ln.get_zorder() == 1]
+    assert len({ln.get_color() for ln in bodies}) == 5                   # one colour per instant
+
+
+def test_start_and_end_are_both_visible_where_they_coincide():
+    """A gait that ends where it starts (P3 turns on the spot): both markers are seen in the
+    rendered image — red of the open start circle and black of the end square around the point."""
+    import numpy as np
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from nhgait.gaits import plots
+    from nhgait.gaits.planner import plan
+    result = plan("snakeboard", "rotate", intervals=20, jit=False, verify=False)
+    ctx = plots.figure_context(result.solution, result.model, result.plan.units, result.plan.drawing)
+    fig = plots.gait_figure(result.solution, ctx, plots.figure_layouts(result.solution, ctx)[0])
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    ax = fig.axes[0]
+    x, y = (plots.series(result.solution, c) for c in ctx.frame[:2])
+    assert np.hypot(x[-1] - x[0], y[-1] - y[0]) < 1e-6                  # the task: back at the start
+    px, py = ax.transData.transform((x[0], y[0]))
+    image = np.asarray(canvas.buffer_rgba())[..., :3].astype(int)
+    row = image.shape[0] - int(round(py))
+    window = image[row - 14:row + 15, int(round(px)) - 14:int(round(px)) + 15]
+    red = (np.abs(window - (214, 39, 40)).sum(axis=2) < 60).sum()        # C3, the start circle
+    black = (window.sum(axis=2) < 60).sum()                              # the end square
+    assert red > 20 and black > 10, (red, black)
+
+
+def test_the_failed_banner_is_clear_of_every_title(figures):
+    """A failed plan's figures: the banner (the figure's suptitle) and every axes' title have
+    disjoint bounding boxes, and the banner fits the figure's width."""
+    from nhgait.gaits import plots
+    from nhgait.gaits.planner import plan
+    result = plan(SLIDER, jit=False, verify=False, intervals=10)
+    ctx = plots.figure_context(result.solution, result.model, result.plan.units, result.plan.drawing)
+    reason = "Verification_Failed: the re-simulation misses the nodes by 3e-3 (tolerance 1e-6) " * 3
+    for layout in plots.figure_layouts(result.solution, ctx):
+        fig = plots.gait_figure(result.solution, ctx, layout, failed=reason)
+        renderer = _drawn(fig)
+        banner = fig._suptitle.get_window_extent(renderer)
+        assert fig._suptitle.get_text().startswith("FAILED — not a verified gait")
+        assert banner.x0 >= 0 and banner.x1 <= fig.bbox.x1, layout.name
+        for ax in fig.axes:
+            if ax.get_title():
+                assert not banner.overlaps(ax.title.get_window_extent(renderer)), layout.name
+            assert not banner.overlaps(ax.get_window_extent(renderer)), layout.name
+
+
+def test_the_gif_frame_holds_the_whole_motion(tmp_path):
+    """Every point of the path and of the body at every frame lies inside the GIF's axes, whose
+    box has equal scales; the GIF's size is the computed figure's."""
+    import numpy as np
+    from PIL import Image
+
+    from nhgait.gaits import animation, plots
+    from nhgait.gaits.planner import plan
+    result = plan("snakeboard", "forward", intervals=20, jit=False, verify=False)
+    ctx = plots.figure_context(result.solution, result.model, result.plan.units, result.plan.drawing)
+    path = animation.animate_solution(result.solution, ctx, tmp_path / "motion.gif", frames=12)
+    xs, ys = [plots.series(result.solution, "x")], [plots.series(result.solution, "y")]
+    for k in range(len(result.solution.t)):
+        for sx, sy in plots.body_segments(result.solution, ctx, k):
+            xs.append(np.ravel(sx))
+            ys.append(np.ravel(sy))
+    x, y = np.concatenate(xs), np.concatenate(ys)
+    geometry = animation.frame_geometry(x, y)
+    assert geometry.xlim[0] < x.min() and x.max() < geometry.xlim[1]
+    assert geometry.ylim[0] < y.min() and y.max() < geometry.ylim[1]
+    width, height = geometry.xlim[1] - geometry.xlim[0], geometry.ylim[1] - geometry.ylim[0]
+    assert height / width == pytest.approx(geometry.box[1] / geometry.box[0], rel=1e-12)   # equal scales
+    assert width / (x.max() - x.min()) < 1.3                  # the long side fits the motion (padding only)
+    gif = Image.open(path)
+    assert gif.n_frames == 12
+    assert gif.size == tuple(round(v * animation.DPI) for v in geometry.figsize)
+    assert gif.size[0] > 1.5 * gif.size[1]                    # a forward gait: a wide frame, not a tall one
+
+
+def test_simulate_draws_the_body_plan_draws(tmp_path):
+    """The built-in snakeboard has its [drawing] in its gait library: simulate --plot draws it too."""
+    from nhgait.dynamics import load_scene
+    from nhgait.gaits.task_library import figure_tables, resolve
+    scene = load_scene("snakeboard")
+    assert scene.drawing is None
+    assert figure_tables(scene).drawing == resolve("snakeboard", "forward").drawing is not None
