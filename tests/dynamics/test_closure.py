@@ -102,7 +102,8 @@ def test_cli_prints_the_state_count_and_writes_the_outputs(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "5 of 8 states integrated (psi, phi, p, pt_psi, pt_phi)" in printed
     rows = list(csv.reader(out.open()))
-    assert rows[0] == ["t [s]", "psi [rad]", "phi [rad]", "p [SI]", "pt_psi [N·m·s]", "pt_phi [N·m·s]"]   # as the figures
+    assert rows[0] == ["t [s]", "psi [rad]", "phi [rad]", "p [SI]",      # units as the figures'
+                       "pt_psi [N·m·s]", "pt_phi [N·m·s]"]
     assert len(rows) == 52
     assert main(["simulate", str(scene), "--all-states", "--columns", "qdot", "--out", str(out)]) == 0
     assert "8 of 8 states" in capsys.readouterr().out
