@@ -345,7 +345,7 @@ def test_a_time_limit_ends_a_plan_that_needs_longer_as_a_clean_failure(cache, tm
     started (the budget counts from the plan's start; the interpreter's start-up before it
     takes 1–2 s on a loaded machine), the summary naming the budget, the phase it ran out in
     (the solves, or earlier on a loaded machine) and the option; the closest point in
-    solution.json when an attempt was made, and nothing else; no process left."""
+    solution.json and trajectory.csv when an attempt was made, and nothing else; no process left."""
     proc = _start([*PLAN_SOLVES, "--time-limit", "5"], tmp_path, ENDLESS)
     try:
         status = proc.wait(timeout=60.0)
@@ -365,7 +365,7 @@ def test_a_time_limit_ends_a_plan_that_needs_longer_as_a_clean_failure(cache, tm
                for phase in phases), out
     attempted = "no attempt was made" not in out
     written = sorted(p.name for p in (tmp_path / "out").iterdir()) if (tmp_path / "out").exists() else []
-    assert written == (["solution.json"] if attempted else [])
+    assert written == (["solution.json", "trajectory.csv"] if attempted else [])
     if attempted:
         saved = json.loads((tmp_path / "out" / "solution.json").read_text())
         assert saved["success"] is False

@@ -138,7 +138,7 @@ class Plain:
         return cls(q, qd, reps)
 
     def of(self, expr):
-        return sp.sympify(expr).xreplace(self.reps)
+        return _expression(expr).xreplace(self.reps)
 
 
 def simplified(expr):
@@ -305,12 +305,25 @@ def _parameter_values(parameters) -> dict:
     return {(k.name if isinstance(k, sp.Symbol) else str(k)): v for k, v in parameters.items()}
 
 
+def _expression(expr):
+    """A sympy object as it is, a Python number as sympy's; anything else (text above all, which
+    sympify would evaluate) is refused with its type."""
+    if isinstance(expr, (sp.Basic, sp.MatrixBase)):
+        return expr
+    if isinstance(expr, int) and not isinstance(expr, bool):
+        return sp.Integer(expr)
+    if isinstance(expr, float):
+        return sp.Float(expr)
+    raise ModelError([f"from_mechanics: expected sympy expressions from the mechanics object, "
+                      f"got {type(expr).__name__} {expr!r}"])
+
+
 def _free(expr) -> set:
-    return {s for s in sp.sympify(expr).free_symbols if s != T_SYMBOL}
+    return {s for s in _expression(expr).free_symbols if s != T_SYMBOL}
 
 
 def _time_functions(expr) -> set:
-    return {f for f in sp.sympify(expr).atoms(sp.core.function.AppliedUndef)
+    return {f for f in _expression(expr).atoms(sp.core.function.AppliedUndef)
             if len(f.args) == 1 and f.args[0] == T_SYMBOL}
 
 
