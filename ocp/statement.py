@@ -126,7 +126,8 @@ OCP_WORDS = Wording(
 )
 
 
-def interval(value, where: str = "", problems: list | None = None, words: Wording = OCP_WORDS) -> tuple:
+def interval(value, where: str = "", problems: list | None = None,
+             words: Wording = OCP_WORDS) -> tuple[float, float]:
     """(lo, hi) of a bound given as a number (equality) or a (lo, hi) pair with None for
     unbounded; a malformed, NaN or contradictory one is appended to ``problems``."""
     problems = [] if problems is None else problems

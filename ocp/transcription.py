@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -100,6 +100,15 @@ def _single_entries(M: ca.DM, by: str):
 
 
 # ----------------------------------------------------------------------------- bookkeeping
+class PathRanges(NamedTuple):
+    """The path bounds of a transcription: state quantities by node, input quantities by interval."""
+
+    state_lo: np.ndarray   #: m_s × (N+1)
+    state_hi: np.ndarray
+    input_lo: np.ndarray   #: m_u × N
+    input_hi: np.ndarray
+
+
 class _Builder:
     """Shared bookkeeping: bounds on w, rows of g, objective terms, the path quantities."""
 
@@ -194,12 +203,12 @@ class _Builder:
                           args, n_var))
         return specs
 
-    def path_ranges(self) -> tuple:
+    def path_ranges(self) -> PathRanges:
         """(lo, hi) of the state path quantities (m_s × (N+1)) and of the input ones (m_u × N)."""
         p, sched = self.problem, self.schedule
         (slo, shi), (ulo, uhi) = (sched.node_ranges(p, self.state_paths),
                                   sched.node_ranges(p, self.input_paths))
-        return slo, shi, ulo[:, :-1], uhi[:, :-1]
+        return PathRanges(slo, shi, ulo[:, :-1], uhi[:, :-1])
 
     def horizons(self):
         """(the phase horizons as MX (a vector of P, variables or constants), their variable

@@ -292,7 +292,7 @@ class System:
         """Random configurations (count×n) used by numeric checks, uniform in [−1.2, 1.2]."""
         return parameter_checks.sample_configurations(self.n, count, seed)
 
-    def numeric_functions(self) -> tuple:
+    def numeric_functions(self) -> parameter_checks.NumericFunctions:
         """(M(q, params), ω(q, params) or None, V(q, params)) as numpy callables, lambdified once
         per system (:func:`~.parameter_checks.numeric_functions`)."""
         return parameter_checks.numeric_functions(self)

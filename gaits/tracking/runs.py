@@ -29,6 +29,7 @@ at a bound.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -166,7 +167,14 @@ def run_sample(ctx: _Context, case: TrackingCase, index: int) -> dict:
     return out
 
 
-def robot_start(system, q, qdot, robot: dict) -> tuple:
+class RobotStart(NamedTuple):
+    """What :func:`robot_start` returns."""
+
+    q: np.ndarray      #: configuration on the robot's holonomic constraints
+    qdot: np.ndarray   #: velocity on its constraints
+
+
+def robot_start(system, q, qdot, robot: dict) -> RobotStart:
     """(q, q̇) a robot with the parameter values ``robot`` can start in, nearest the sample's:
     the dependent coordinates solved onto its kept holonomic constraints h(q) = 0
     (:func:`~nhgait.dynamics.derivation.holonomic.consistent_configuration`; noise in the plan's
@@ -178,10 +186,10 @@ def robot_start(system, q, qdot, robot: dict) -> tuple:
     if system.holonomic:
         q = consistent_configuration(system, q, params=robot)
     if system.k:
-        omega = system.numeric_functions()[1]
+        omega = system.numeric_functions().omega
         W = np.array(omega(q, system.param_vector(robot)), dtype=float).reshape(system.k, system.n)
         qdot = qdot - np.linalg.pinv(W) @ (W @ qdot)
-    return q, qdot
+    return RobotStart(q, qdot)
 
 
 def _grid(times) -> np.ndarray:
