@@ -21,7 +21,7 @@ __all__ = ["robust_search", "scenarios_for", "summary_line", "END_FRACTION"]
 END_FRACTION = 0.02
 
 
-def default_terminal(problem, system) -> tuple:
+def default_terminal(problem, system) -> tuple[str, ...]:
     """The states the task's ``final`` names, then the planar frame's position (x, y)."""
     states = problem.model_state_names
     frame = tuple(getattr(system, "planar_frame", None) or ())[:2]

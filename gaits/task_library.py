@@ -83,7 +83,7 @@ def library_tasks() -> dict:
     return out
 
 
-def library_task_names() -> tuple:
+def library_task_names() -> tuple[str, ...]:
     """(scene, task name) of every built-in task, sorted (the library files read now)."""
     return tuple(sorted(library_tasks()))
 
