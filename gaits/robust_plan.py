@@ -52,7 +52,8 @@ def scenarios_for(spec, prepared, nominal, quantities):
     labels = tuple(", ".join(f"{n} ×{c[n]:.4g}" for n in spec.parameters) for c in copies)
     weight = spec.weight * max(float(nominal.objective), 1e-12)
     ode = parametric_rhs(specialised, quantities, varied=varied)
-    return Scenarios(ode, params, terminal, END_FRACTION * scale, weight, spec.aggregate, labels)
+    return Scenarios(ode=ode, params=params, terminal=terminal, scales=END_FRACTION * scale, weight=weight,
+                     aggregate=spec.aggregate, labels=labels)
 
 
 def robust_search(search, prepared, to_plan, settings, budget, progress):

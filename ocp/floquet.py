@@ -181,7 +181,7 @@ def _complex(values) -> list:
     return [[float(np.real(v)), float(np.imag(v))] for v in values]
 
 
-@dataclass(frozen=True)
+@dataclass(kw_only=True, frozen=True)
 class Stability:
     """Monodromy matrices and Floquet multipliers of a periodic plan (module docstring).
 
@@ -260,5 +260,7 @@ def stability(ode: ca.Function, feedback, fiber=(), *, workers: int = 2) -> Stab
     open_loop, closed_loop = _monodromies((closed.opened(), closed), workers)
     keep = [i for i, name in enumerate(fb.state_names) if name not in set(fiber)]
     block = open_loop[np.ix_(keep, keep)]
-    return Stability(fb.horizon, tuple(fb.state_names), tuple(fb.state_names[i] for i in keep), open_loop,
-                     closed_loop, _sorted_eigenvalues(block), _sorted_eigenvalues(closed_loop))
+    return Stability(period=fb.horizon, state_names=tuple(fb.state_names),
+                     periodic_states=tuple(fb.state_names[i] for i in keep), open_loop=open_loop,
+                     closed_loop=closed_loop, open_multipliers=_sorted_eigenvalues(block),
+                     closed_multipliers=_sorted_eigenvalues(closed_loop))

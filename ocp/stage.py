@@ -56,7 +56,7 @@ RK4 = (((), (0.5,), (0.0, 0.5), (0.0, 0.0, 1.0)), (1 / 6, 1 / 3, 1 / 3, 1 / 6), 
 INLINE_LIMIT = 20_000
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(kw_only=True, frozen=True, eq=False)
 class StageFunctions:
     """F, ∂F/∂x and ∇²_x(λᵀF) of one shooting interval (see the module docstring).
 
@@ -121,7 +121,8 @@ def stage_functions(ode: ca.Function, intervals: int | None = None, *, steps: in
     g = _scaled_ode(ode)
     build = {"inline": _inline, "structured": _structured}[mode]
     step, jac, hess, code = build(g, nz, nu, steps, free_horizon)
-    return StageFunctions(step, jac, hess, mode, nz, nu, free_horizon, steps, ops, code)
+    return StageFunctions(step=step, jacobian=jac, hessian=hess, mode=mode, n_states=nz, n_controls=nu,
+                          free_horizon=free_horizon, steps=steps, ode_operations=ops, code_operations=code)
 
 
 def phase_size(ode: ca.Function) -> int:

@@ -59,7 +59,7 @@ class Noise:
                            "noise constant on each plan interval"}
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(kw_only=True, frozen=True, eq=False)
 class TrackingCase:
     """What every sample shares, as picklable data (module docstring): ``robot`` the parameter
     values of the simulated robot, ``params`` the nominal ones the plan and its feedback use."""

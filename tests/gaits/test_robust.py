@@ -75,7 +75,8 @@ def kkt_optimum(copies, weight):
 
 def _scenarios(ode, copies, weight, aggregate="mean"):
     params = [[MASS, b] for b in copies]                      # the model's parameter order: m, b
-    return Scenarios(ode, params, TERMINAL, SCALES, weight, aggregate)
+    return Scenarios(ode=ode, params=params, terminal=TERMINAL, scales=SCALES, weight=weight,
+                     aggregate=aggregate)
 
 
 def _solve(model, scenarios):
@@ -118,14 +119,16 @@ def test_the_worst_case_of_one_copy_is_its_mean(coupled):
 def test_no_copies_is_the_nominal_problem(coupled):
     model, ode = coupled
     _, J = kkt_optimum((SPRING,), weight=0.0)
-    sol = _solve(model, Scenarios(ode, np.zeros((0, 2)), TERMINAL, SCALES, 1.0))
+    sol = _solve(model, Scenarios(ode=ode, params=np.zeros((0, 2)), terminal=TERMINAL, scales=SCALES,
+                                  weight=1.0))
     assert sol.success
     assert abs(sol.objective - J) <= TOL * J
 
 
 def test_bad_copies_are_listed_together(coupled):
     model, ode = coupled
-    bad = Scenarios(ode, [[MASS, np.nan]], ("x", "speed"), [1.0], -1.0, "median")
+    bad = Scenarios(ode=ode, params=[[MASS, np.nan]], terminal=("x", "speed"), scales=[1.0], weight=-1.0,
+                    aggregate="median")
     with pytest.raises(ProblemError) as info:
         _solve(model, bad)
     text = str(info.value)

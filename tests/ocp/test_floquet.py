@@ -59,8 +59,9 @@ def test_stability_reports_the_closed_form_multipliers_and_verdicts():
     ode = _linear_periodic()
     t, ref, u, rates, gains = _zero_plan(K_GAIN)
     ones = np.ones(3)
-    feedback = Feedback(t, ref, u, gains, rates, ("p", "q", "r"), ("u1", "u2", "u3"),
-                        Weights(ones, ones, ones, ones, ones), -np.inf * ones, np.inf * ones)
+    feedback = Feedback(t=t, states=ref, controls=u, gains=gains, rates=rates, state_names=("p", "q", "r"),
+                        control_names=("u1", "u2", "u3"), weights=Weights(ones, ones, ones, ones, ones),
+                        lower=-np.inf * ones, upper=np.inf * ones)
     result = stability(ode, feedback)
     expected = np.exp(np.linalg.eigvals(A0) * T)
     expected = expected[np.argsort(-np.abs(expected))]
@@ -86,8 +87,9 @@ def test_a_variational_process_that_dies_is_a_runtime_error(monkeypatch):
     ode = _linear_periodic()
     t, ref, u, rates, gains = _zero_plan(K_GAIN)
     ones = np.ones(3)
-    feedback = Feedback(t, ref, u, gains, rates, ("p", "q", "r"), ("u1", "u2", "u3"),
-                        Weights(ones, ones, ones, ones, ones), -np.inf * ones, np.inf * ones)
+    feedback = Feedback(t=t, states=ref, controls=u, gains=gains, rates=rates, state_names=("p", "q", "r"),
+                        control_names=("u1", "u2", "u3"), weights=Weights(ones, ones, ones, ones, ones),
+                        lower=-np.inf * ones, upper=np.inf * ones)
     monkeypatch.setattr(floquet, "monodromy", lambda *a, **k: os._exit(3))
     with pytest.raises(RuntimeError, match="variational equations' process ended without an answer"):
         stability(ode, feedback)
