@@ -35,6 +35,8 @@ __all__ = ["AnalysisPoint", "analysis_point", "GrowthVector", "growth_vector", "
 RANK_TOL = 1e-8
 #: a field (or covector) shorter than this at the point counts as zero there
 ZERO_TOL = 1e-10
+#: levels in a row that add no direction (at the point or a generic one) before the brackets stop
+STALL_LEVELS = 2
 #: seed of the generic points the engine keeps fields by (deterministic)
 GENERIC_SEED = 20260442
 
@@ -182,37 +184,39 @@ def bracket_levels(x: ca.SX, generators: dict, point: np.ndarray, generic: np.nd
     ``combine(a, b)`` forms the new element from a generator ``a`` and a kept element ``b``
     (a Lie bracket of fields, or a Lie derivative for covectors: then ``x``-columns are the
     gradients, see :mod:`.observability`). ``point``: where ranks are reported; ``generic``: a
-    generic nearby point where fields are kept (see the module docstring). Stops when the rank
-    at the point is full, a level adds nothing at the generic point, or at ``max_depth``.
+    generic nearby point. A level keeps, for the next, the fields that raise the rank at the
+    point or at the generic point, then others not zero at the generic point up to
+    ``len(x)`` fields (a field dependent at the point may still have brackets that are not).
+    Stops when the rank at the point is full, after :data:`STALL_LEVELS` levels that add
+    nothing at either point, or at ``max_depth``.
     """
     dim = x.shape[0]
     names, exprs = list(generators), [generators[k] for k in generators]
     fields, ranks = [], []
     at_point, at_generic = np.zeros((dim, 0)), np.zeros((dim, 0))
     level = list(zip(names, exprs, strict=True))
-    stalled = False
+    stalled, idle = False, 0
     for depth in range(1, max_depth + 1):
-        if not level:
-            stalled = True
-            break
         ev = _evaluator(x, [e for _, e in level])
         vp, vg = ev(point), ev(generic)
-        kept = []
-        grew = False
+        kept, spare, grew = [], [], False
         for j, (name, expr) in enumerate(level):
-            before_p, before_g = rank_of(at_point), rank_of(at_generic)
-            new_p = rank_of(np.column_stack([at_point, vp[:, j]])) > before_p
-            new_g = rank_of(np.column_stack([at_generic, vg[:, j]])) > before_g
+            new_p = rank_of(np.column_stack([at_point, vp[:, j]])) > rank_of(at_point)
+            new_g = rank_of(np.column_stack([at_generic, vg[:, j]])) > rank_of(at_generic)
             fields.append(Bracket(name=name, depth=depth, value=vp[:, j], new=new_p))
             if new_p or new_g:
                 at_point = np.column_stack([at_point, vp[:, j]])
                 at_generic = np.column_stack([at_generic, vg[:, j]])
                 kept.append((name, expr))
-                grew = grew or new_g
+                grew = True
+            elif np.linalg.norm(vg[:, j]) > ZERO_TOL or np.linalg.norm(vp[:, j]) > ZERO_TOL:
+                spare.append((name, expr))
+        kept += spare[:max(0, dim - len(kept))]
         ranks.append(rank_of(at_point))
+        idle = 0 if grew else idle + 1
         if ranks[-1] == dim:
             break
-        if depth > 1 and not grew:
+        if idle >= STALL_LEVELS or not kept:
             stalled = True
             break
         level = [(f"[{a}, {b}]", combine(ea, eb)) for a, ea in zip(names, exprs, strict=True)
