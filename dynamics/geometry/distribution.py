@@ -84,13 +84,7 @@ def analysis_point(model, at=None, *, q0=None) -> AnalysisPoint:
     velocities = [f"{c}_dot" for c in names]
     momenta = list(model.state_names[n:])
     params_names = [s.name for s in system.param_symbols]
-    known = list(names) + velocities + momenta + list(system.inputs) + params_names
-    problems = [f"unknown name {k!r} in --at{known_names(k, known)}" for k in at if k not in known]
-    if any(k in velocities for k in at) and any(k in momenta for k in at):
-        problems.append("give the velocities (<q>_dot) or the momenta (" + ", ".join(momenta) + "), not both")
-    for k, v in at.items():
-        if not np.isfinite(float(v)):
-            problems.append(f"{k} = {v} is not a finite number")
+    problems = point_problems(model, at)
     if problems:
         raise ModelError(problems, title="invalid point")
     q = np.array(q0 if q0 is not None else np.zeros(n), dtype=float)
@@ -113,6 +107,21 @@ def analysis_point(model, at=None, *, q0=None) -> AnalysisPoint:
         z = np.asarray(num.call("state", q, qdot, params), dtype=float).ravel()
     rest = bool(np.all(np.abs(qdot) <= ZERO_TOL))
     return AnalysisPoint(q=q, qdot=qdot, z=z, u=u, params=params, at_rest=rest)
+
+
+def point_problems(model, at: dict) -> list:
+    """One sentence per unknown name, conflicting choice or value that is not a finite number
+    of an ``at`` mapping (see :func:`analysis_point`), with "did you mean …?"."""
+    system, n = model.system, model.system.n
+    velocities = [f"{c}_dot" for c in system.coordinates]
+    momenta = list(model.state_names[n:])
+    known = (list(system.coordinates) + velocities + momenta + list(system.inputs)
+             + [s.name for s in system.param_symbols])
+    problems = [f"unknown name {k!r} in --at{known_names(k, known)}" for k in at if k not in known]
+    if any(k in velocities for k in at) and any(k in momenta for k in at):
+        problems.append("give the velocities (<q>_dot) or the momenta (" + ", ".join(momenta) + "), not both")
+    problems += [f"{k} = {v} is not a finite number" for k, v in at.items() if not np.isfinite(float(v))]
+    return problems
 
 
 def _admissible_velocity(model, q, params, given: dict) -> np.ndarray:
@@ -172,13 +181,15 @@ class BracketLevels:
     stalled: bool
 
 
-def _evaluator(x: ca.SX, exprs: list):
+def _evaluator(x: ca.SX, exprs: list, value_of=None):
+    if value_of is not None:
+        exprs = [value_of(e) for e in exprs]
     f = ca.Function("fields", [x], [ca.horzcat(*exprs)])
     return lambda point: np.asarray(f(point), dtype=float).reshape(x.shape[0], len(exprs), order="F")
 
 
 def bracket_levels(x: ca.SX, generators: dict, point: np.ndarray, generic: np.ndarray, *,
-                   combine, max_depth: int) -> BracketLevels:
+                   combine, max_depth: int, first: dict | None = None, value_of=None) -> BracketLevels:
     """Levels 1 … max_depth of brackets of ``generators`` (name → SX column of ``x``).
 
     ``combine(a, b)`` forms the new element from a generator ``a`` and a kept element ``b``
@@ -188,16 +199,18 @@ def bracket_levels(x: ca.SX, generators: dict, point: np.ndarray, generic: np.nd
     point or at the generic point, then others not zero at the generic point up to
     ``len(x)`` fields (a field dependent at the point may still have brackets that are not).
     Stops when the rank at the point is full, after :data:`STALL_LEVELS` levels that add
-    nothing at either point, or at ``max_depth``.
+    nothing at either point, or at ``max_depth``. ``first``: the elements of level 1 when they
+    are not the generators (the outputs of an observability test); ``value_of``: what an
+    element's value is (its gradient, for functions), the element itself by default.
     """
     dim = x.shape[0]
     names, exprs = list(generators), [generators[k] for k in generators]
     fields, ranks = [], []
     at_point, at_generic = np.zeros((dim, 0)), np.zeros((dim, 0))
-    level = list(zip(names, exprs, strict=True))
+    level = list((first or generators).items())
     stalled, idle = False, 0
     for depth in range(1, max_depth + 1):
-        ev = _evaluator(x, [e for _, e in level])
+        ev = _evaluator(x, [e for _, e in level], value_of)
         vp, vg = ev(point), ev(generic)
         kept, spare, grew = [], [], False
         for j, (name, expr) in enumerate(level):
@@ -219,14 +232,30 @@ def bracket_levels(x: ca.SX, generators: dict, point: np.ndarray, generic: np.nd
         if idle >= STALL_LEVELS or not kept:
             stalled = True
             break
-        level = [(f"[{a}, {b}]", combine(ea, eb)) for a, ea in zip(names, exprs, strict=True)
-                 for b, eb in kept if not (depth == 1 and names.index(b) <= names.index(a))]
+        # level 2 of the generators: [a, a] = 0 and [b, a] = −[a, b] are left out
+        pairs = [(a, ea, b, eb) for a, ea in zip(names, exprs, strict=True) for b, eb in kept
+                 if first is not None or depth > 1 or names.index(b) > names.index(a)]
+        level = [(combine.name(a, b), combine(ea, eb)) for a, ea, b, eb in pairs]
     return BracketLevels(ranks=tuple(ranks), fields=tuple(fields), stalled=stalled)
 
 
-def lie_bracket(x: ca.SX):
-    """[a, b] = (∂b/∂x)a − (∂a/∂x)b by forward AD."""
-    return lambda a, b: ca.jtimes(b, x, a) - ca.jtimes(a, x, b)
+@dataclass(frozen=True)
+class LieBracket:
+    """[a, b] = (∂b/∂x)a − (∂a/∂x)b by forward AD (``jtimes``) in the variables ``x``."""
+
+    x: ca.SX
+
+    def __call__(self, a, b):
+        return ca.jtimes(b, self.x, a) - ca.jtimes(a, self.x, b)
+
+    @staticmethod
+    def name(a, b) -> str:
+        return f"[{a}, {b}]"
+
+
+def lie_bracket(x: ca.SX) -> LieBracket:
+    """The Lie bracket of fields of ``x`` (see :class:`LieBracket`)."""
+    return LieBracket(x)
 
 
 def generic_point(point: np.ndarray, n_q: int, seed: int = GENERIC_SEED) -> np.ndarray:
