@@ -104,3 +104,31 @@ def test_bad_names_are_one_error_with_suggestions():
         observability(model, analysis_point(model, {}), ["yy"])
     with pytest.raises(ModelError, match="break the constraints"):
         analysis_point(model, {"y_dot": 1.0})                 # sideways at heading 0
+
+
+def _sympy_growth(system, q_values):
+    """A second route to the growth vector: a basis of D = null ω from sympy's own nullspace of ω
+    (not the reduction's basis), brackets by sympy differentiation, ranks by numpy SVD at q."""
+    import sympy as sp
+    q = sp.Matrix(system.q)
+    at = dict(zip(system.q, q_values, strict=True)) | dict(zip(system.param_symbols, system.param_vector(),
+                                                              strict=True))
+    omega = system.omega()
+    basis = [sp.simplify(v) for v in omega.nullspace(simplify=True)]
+    value = lambda f: np.array(f.xreplace(at).evalf(), dtype=float).ravel()   # noqa: E731
+    level, collected, ranks = list(basis), [value(b) for b in basis], []
+    ranks.append(np.linalg.matrix_rank(np.column_stack(collected), tol=1e-8))
+    while ranks[-1] < system.n and len(ranks) < system.n:
+        level = [b.jacobian(q) * a - a.jacobian(q) * b for a in basis for b in level]
+        collected += [value(f) for f in level]
+        ranks.append(np.linalg.matrix_rank(np.column_stack(collected), tol=1e-8))
+    return tuple(ranks)
+
+
+@pytest.mark.parametrize("name, at", [("car.toml", {"phi": 0.2, "theta": 0.3}),
+                                      ("snakeboard", {"phi": 0.7}),
+                                      ("car_trailer1.toml", {"phi": 0.1, "theta1": 0.2})])
+def test_growth_vector_by_a_second_route(name, at):
+    scene, model = _model(name)
+    point = analysis_point(model, at)
+    assert growth_vector(model, point).ranks == _sympy_growth(scene.system, point.q)
