@@ -14,6 +14,10 @@ thesis's reference [1]), each a function returning a frozen result:
 * :func:`observability` — the rank of the observability codistribution of named outputs and
   the states it cannot see (:mod:`.observability`).
 
+The height functions, connection vector fields and loop estimates of issue 42 items 3–4
+(:mod:`.connection_fields`, :mod:`.heights`, :mod:`.stokes`, :mod:`.prescribed`) live beside
+them, written by the ``heights`` helper.
+
 Imported lazily: ``import nhgait.dynamics.geometry`` does no symbolic work.
 """
 from __future__ import annotations
