@@ -89,7 +89,7 @@ def accessibility(model, point: AnalysisPoint) -> Accessibility:
     z, fields, affine = control_fields(model, point)
     dim = z.shape[0]
     generic = generic_point(point.z, system.n)
-    levels = bracket_levels(z, fields, point.z, generic, combine=lie_bracket(z), max_depth=dim)
+    levels = bracket_levels(z, fields, point.z, generic, combine=lie_bracket(z), max_depth=2 * dim)
     rank = levels.ranks[-1]
     depth = next(j + 1 for j, r in enumerate(levels.ranks) if r == rank)
     span = np.column_stack([b.value for b in levels.fields if b.new]) if rank else np.zeros((dim, 0))
