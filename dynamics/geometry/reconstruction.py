@@ -121,6 +121,16 @@ class ReconstructionEquation:
                                     sigma_rr=stack(out[2], m, m), sigma_rp=stack(out[3], m, d),
                                     sigma_pp=stack(out[4], d, d))
 
+    def _numeric_lines(self) -> list:
+        """A and Γ at q = 0, when they are finite there (the implicit form's display)."""
+        n = len(self.fiber) + len(self.shape) + len(self.dependent)
+        values = self.evaluate(np.zeros(n))
+        if not (np.all(np.isfinite(values.A)) and np.all(np.isfinite(values.Gamma))):
+            return []
+        xi = _xi_names(len(self.fiber))
+        return (["  at q = 0:"] + _numeric_entries("A", values.A, xi, [f"{r}_dot" for r in self.shape])
+                + _numeric_entries("Γ", values.Gamma, xi, list(self.momenta)))
+
     def to_text(self) -> str:
         """The equation in the user's names (``nhgait derive SCENE --reconstruction``)."""
         lines = [f"Reconstruction equation of {self.system} (thesis Table 2.1: {self.classification}, "
@@ -133,7 +143,8 @@ class ReconstructionEquation:
         if not self.symbolic:
             lines.append("  (implicit form: A, Γ and σ are CasADi expressions; evaluate them with "
                          "ReconstructionEquation.evaluate(q))")
-            return "\n".join(lines)
+            return "\n".join(lines + self._numeric_lines())
+        lines.append("  where ξ = g⁻¹ṡ in your velocities:")
         for i, name in enumerate(_xi_names(len(self.fiber))):
             lines.append(f"    {name} = {text_of(self.xi_of_velocity[i])}")
         xi = _xi_names(len(self.fiber))
@@ -150,6 +161,13 @@ class ReconstructionEquation:
                 if self.forcing[a] != 0:
                     lines.append(f"      + forces along ξ_Q: {text_of(self.forcing[a])}")
         return "\n".join(lines)
+
+
+def _numeric_entries(label, matrix, rows, cols) -> list:
+    """The entries of a numeric ``matrix`` above 1e-12 of its largest (rounding left out)."""
+    small = 1e-12 * max(1.0, float(np.abs(matrix).max(initial=0.0)))
+    return [f"    {label}[{r}, {c}] = {matrix[i, j]:.6g}"
+            for i, r in enumerate(rows) for j, c in enumerate(cols) if abs(matrix[i, j]) > small]
 
 
 def _entries(label, matrix, rows, cols, indent=2) -> list:
@@ -172,12 +190,11 @@ def _xi_names(l) -> list:
 
 
 def _form_line(classification) -> str:
-    return {MIXED: "ξ = g⁻¹ṡ = −A(r)ṙ + Γ(r)pᵀ, the first being the user's velocities:",
-            PRINCIPALLY_KINEMATIC: "ξ = g⁻¹ṡ = −𝔸(r)ṙ (principal connection), the first being the user's "
-                                   "velocities:",
+    return {MIXED: "ξ = g⁻¹ṡ = −A(r)ṙ + Γ(r)pᵀ",
+            PRINCIPALLY_KINEMATIC: "ξ = g⁻¹ṡ = −𝔸(r)ṙ (principal connection)",
             PURELY_MECHANICAL: "ξ = g⁻¹ṡ = −A(r)ṙ + Γ(r)pᵀ (mechanical connection; −A(r)ṙ at zero "
-                               "momentum), the first being the user's velocities:",
-            PURELY_DYNAMIC: "ξ = g⁻¹ṡ = Γ(r)pᵀ (A = 0), the first being the user's velocities:",
+                               "momentum)",
+            PURELY_DYNAMIC: "ξ = g⁻¹ṡ = Γ(r)pᵀ (A = 0)",
             }[classification]
 
 

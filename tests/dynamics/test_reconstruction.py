@@ -101,3 +101,24 @@ def test_table_types_and_text():
     assert "thesis Table 2.1: mixed" in text and "A(r)[ξ1, psi_dot]" in text and "dp/dt" in text
     snake = reconstruction(derive(load_scene(str(SCENES / "snake3.toml")).system, "reduced"))
     assert snake.classification == "principally kinematic" and snake.momenta == ()
+
+
+def test_purely_mechanical_connection_is_zero_momentum():
+    """ξ = −A(r)ṙ (eq. 2.49) of a free-floating two-link robot: at zero momentum ∂L/∂ṡ = 0,
+    solved for ṡ from the Lagrangian by sympy (the conservation law, not a step of the reduction)."""
+    model = derive(load_scene(str(SCENES / "free_two_link.toml")).system, "reduced")
+    system, layout = model.system, model.layout
+    eq = reconstruction(model)
+    assert eq.classification == "purely mechanical" and eq.shape == ("alpha",)
+    sdot = [system.q_dot[i] for i in layout.si]
+    momentum = sp.Matrix([sp.diff(system.L, v) for v in sdot])
+    rng = np.random.default_rng(5)
+    for _ in range(4):
+        q, alpha_dot = rng.uniform(-1.0, 1.0, system.n), rng.uniform(-1.0, 1.0)
+        values = dict(zip(system.q, q, strict=True)) | dict(zip(system.param_symbols, system.param_vector(),
+                                                               strict=True)) | {system.q_dot[3]: alpha_dot}
+        solved = sp.solve(list(momentum.xreplace(values)), sdot, dict=True)[0]
+        sd = np.array([float(solved[v]) for v in sdot])
+        g = np.array(layout.g.xreplace(values).evalf(), dtype=float)
+        xi = np.linalg.solve(g, sd)
+        assert np.allclose(-eq.evaluate(q).A @ [alpha_dot], xi, rtol=TOL, atol=TOL)
