@@ -19,7 +19,7 @@ Ranks are singular-value counts of the fields' values, each normalised to unit l
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
@@ -294,6 +294,7 @@ class GrowthVector:
     generators: tuple
     new_directions: tuple
     coordinates: tuple
+    symbolic: dict = field(default_factory=dict)
 
     @property
     def spans_everything(self) -> bool:
@@ -310,11 +311,25 @@ class GrowthVector:
             lines.append(f"  D and its brackets span only {self.ranks[-1]} of {self.n} directions: part of "
                          "the constraints is holonomic (the motion stays on a submanifold)")
         for name, value in self.generators:
-            lines.append(f"  {name} = {vector_text(value, self.coordinates)}")
+            lines.append(f"  {name} = {vector_text(value, self.coordinates)}{self._formula(name)}")
         for depth, found in enumerate(self.new_directions, start=2):
             for name, value in found:
-                lines.append(f"  depth {depth}: {name} = {vector_text(value, self.coordinates)} (new)")
+                lines.append(f"  depth {depth}: {name} = {vector_text(value, self.coordinates)} (new)"
+                             f"{self._formula(name)}")
         return "\n".join(lines)
+
+    def expression(self, name) -> dict:
+        """The symbolic components of bracket ``name`` (coordinate → text), {} when not computed."""
+        column = self.symbolic.get(name)
+        if column is None:
+            return {}
+        return {c: str(e) for c, e in zip(self.coordinates, column, strict=True) if e != 0}
+
+    def _formula(self, name) -> str:
+        parts = self.expression(name)
+        if not parts:
+            return ""
+        return "\n      in general: (" + ", ".join(f"{c}: {e}" for c, e in parts.items()) + ")"
 
 
 def distribution_fields(model, params: np.ndarray):
@@ -343,6 +358,37 @@ def growth_vector(model, point: AnalysisPoint) -> GrowthVector:
            for depth in range(2, len(levels.ranks) + 1)]
     while new and not new[-1]:
         new.pop()
+    generators = tuple((b.name, b.value) for b in levels.fields if b.depth == 1)
+    named = [name for name, _ in generators] + [name for found in new for name, _ in found]
     return GrowthVector(ranks=tuple(ranks), degree_of_nonholonomy=len(ranks), n=system.n,
-                        generators=tuple((b.name, b.value) for b in levels.fields if b.depth == 1),
-                        new_directions=tuple(new), coordinates=tuple(system.coordinates))
+                        generators=generators, new_directions=tuple(new),
+                        coordinates=tuple(system.coordinates), symbolic=symbolic_brackets(model, named))
+
+
+#: largest number of coordinates whose brackets are also written symbolically (explicit form)
+SYMBOLIC_MAX_N = 6
+
+
+def symbolic_brackets(model, names) -> dict:
+    """Bracket name (``[X_p, [X_p, X_phi]]``) → its sympy column, by sympy differentiation of the
+    explicit model's basis X(q) (simplified by the trigonometric normal form); {} for the
+    implicit form or more than :data:`SYMBOLIC_MAX_N` coordinates. "Symbolic where cheap": the
+    ranks stay numeric, the formulas say what each direction is everywhere."""
+    import sympy as sp
+
+    from ..algebra.trig import tidy
+    if model.form != "explicit" or model.system.n > SYMBOLIC_MAX_N:
+        return {}
+    system, d = model.system, model.layout.d
+    q = sp.Matrix(system.q)
+    labels = [f"X_{m}" for m in model.state_names[system.n:system.n + d]] + [
+        f"X_{system.coordinates[i]}" for i in model.layout.free]
+    memo = {label: model.X[:, j] for j, label in enumerate(labels)}
+
+    def column(name):
+        if name not in memo:
+            a, b = name[1:-1].split(", ", 1)            # "[a, b]": a generator, b a bracket
+            ca_, cb = column(a), column(b)
+            memo[name] = tidy(cb.jacobian(q) * ca_ - ca_.jacobian(q) * cb)
+        return memo[name]
+    return {name: column(name) for name in names}

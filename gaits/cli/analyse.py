@@ -102,7 +102,8 @@ def _as_dict(model, point, growth, access, observe, note, tol) -> dict:
                   "at_rest": point.at_rest},
         "growth_vector": list(growth.ranks), "degree_of_nonholonomy": growth.degree_of_nonholonomy,
         "brackets": [{"depth": depth, "bracket": name,
-                      "direction": _direction(value, growth.coordinates)}
+                      "direction": _direction(value, growth.coordinates),
+                      "expression": growth.expression(name)}
                      for depth, found in enumerate(growth.new_directions, start=2) for name, value in found],
         "accessibility": {"rank": access.rank, "dimension": access.dimension, "depth": access.depth,
                           "ranks": list(access.ranks), "full": access.full, "confined": access.confined,

@@ -132,3 +132,21 @@ def test_growth_vector_by_a_second_route(name, at):
     scene, model = _model(name)
     point = analysis_point(model, at)
     assert growth_vector(model, point).ranks == _sympy_growth(scene.system, point.q)
+
+
+def test_symbolic_brackets_of_the_car_agree_with_the_numeric_ones():
+    """The car's depth-3 direction is sideways everywhere: ±l(−sin θ, cos θ, 0, 0) by sympy; its value at
+    the point equals the AD bracket's."""
+    import sympy as sp
+    scene, model = _model("car.toml")
+    point = analysis_point(model, {"phi": 0.2, "theta": 0.3})
+    growth = growth_vector(model, point)
+    (name, value), = growth.new_directions[1]
+    column = growth.symbolic[name]
+    theta, l_ = sp.Symbol("theta", real=True), sp.Symbol("l", real=True)
+    assert sp.simplify(column[0] ** 2 + column[1] ** 2 - l_ ** 2) == 0 and column[2] == column[3] == 0
+    assert sp.simplify(column[0] * sp.cos(theta) + column[1] * sp.sin(theta)) == 0
+    at = dict(zip(scene.system.q, point.q, strict=True)) | dict(zip(scene.system.param_symbols,
+                                                                   scene.system.param_vector(), strict=True))
+    symbolic_value = np.array(column.xreplace(at).evalf(), dtype=float).ravel()
+    assert np.allclose(symbolic_value, value, rtol=1e-12, atol=1e-12)
