@@ -113,7 +113,7 @@ def observability(model, point: AnalysisPoint, outputs, quantities=None) -> Obse
     dim = z.shape[0]
     first = output_functions(model, list(outputs), z, point.params, quantities)
     generic = generic_point(point.z, model.system.n)
-    levels = bracket_levels(z, fields, point.z, generic, combine=LieDerivative(z), max_depth=dim,
+    levels = bracket_levels(z, fields, point.z, generic, combine=LieDerivative(z), max_depth=2 * dim,
                             first=first, value_of=lambda h: ca.gradient(h, z))
     rank = levels.ranks[-1]
     depth = next(j + 1 for j, r in enumerate(levels.ranks) if r == rank)
