@@ -100,9 +100,10 @@ def schedule_of(feedback, specialised, system):
     q, qd = ca.SX.sym("q", n), ca.SX.sym("qdot", n)
     state = specialised.numeric["state"]
     state_map = ca.Function("state_map", [q, qd], [state(q, qd, np.zeros(state.size1_in(2)))])
-    return GainSchedule(feedback.t, feedback.controls.T, feedback.gains, feedback.states.T,
-                        feedback.rates, state_map, feedback.lower, feedback.upper,
-                        inputs=tuple(system.inputs), system_coordinates=tuple(system.coordinates))
+    return GainSchedule(times=feedback.t, controls=feedback.controls.T, gains=feedback.gains,
+                        reference=feedback.states.T, rates=feedback.rates, state_map=state_map,
+                        lower=feedback.lower, upper=feedback.upper, inputs=tuple(system.inputs),
+                        system_coordinates=tuple(system.coordinates))
 
 
 def _context(case: TrackingCase) -> _Context:
