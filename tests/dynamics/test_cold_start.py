@@ -348,7 +348,7 @@ def test_a_solver_adopts_the_optimised_library_once_its_background_build_lands(c
     assert fast.success
     assert optimised.success
     assert optimised.objective == pytest.approx(fast.objective, rel=1e-8)
-    np.testing.assert_allclose(optimised.states, fast.states, atol=1e-6)
+    np.testing.assert_allclose(optimised.z, fast.z, atol=1e-6)
 
 
 def test_only_gcc_clang_or_cc_build_for_the_cpu(monkeypatch):
