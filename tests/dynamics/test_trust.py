@@ -1,12 +1,12 @@
 """Text from a scene file or the API is data, never code: hostile strings in every field are one
-ModelError each, with no side effect and no hang (a generous hang guard, tests/guards.py: evaluating
+ModelError each, with no side effect and no hang (a generous hang guard, ``adversarial.watchdog``: evaluating
 ``9**9**9**9`` would never return); no module evaluates user text."""
 import json
 import re
 from pathlib import Path
 
 import pytest
-from guards import no_hang
+from adversarial import watchdog
 
 from nhgait.dynamics import ModelError, System, load_scene
 
@@ -87,7 +87,7 @@ def test_hostile_strings_in_every_scene_field(field, tmp_path):
     from nhgait.dynamics.derivation.scene import parse_scene
     marker = tmp_path / "marker"
     for text in hostile(marker):
-        with no_hang(f"{field}: {text[:40]}"), pytest.raises(ModelError):
+        with watchdog(), pytest.raises(ModelError):
             parse_scene(_place(field, text), "hostile.toml")
         assert not marker.exists(), (field, text[:60])
 
@@ -107,7 +107,7 @@ def test_hostile_strings_in_every_system_argument(field, tmp_path):
             args["parameters"]["m"] = text
         else:
             args["coordinates"] = [text, "phi"]
-        with no_hang(f"{field}: {text[:40]}"), pytest.raises(ModelError):
+        with watchdog(), pytest.raises(ModelError):
             System(**args)
         assert not marker.exists()
 
