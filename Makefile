@@ -11,7 +11,9 @@ CORE_STAMP := $(VENV)/.core-installed
 STAMP      := $(VENV)/.installed
 DOCS_STAMP := $(VENV)/.docs-installed
 DOCS_OUT ?= out/docs
-# pytest-xdist workers of `make test` (the suite is written to run on any number; 2 fits a laptop)
+# pytest-xdist workers of `make test` (the suite is written to run on any number; 2 fits a laptop);
+# --dist loadfile keeps a module's tests on one worker, so its module-scoped fixtures (plans, the
+# docs build) are made once, not once per worker
 TEST_WORKERS ?= 2
 
 .PHONY: demo test docs bench reproduce clean
@@ -43,7 +45,7 @@ demo: $(CORE_STAMP)
 
 test: $(STAMP) $(DOCS_STAMP)
 	$(PY) -m ruff check .
-	$(PY) -m pytest -q -n $(TEST_WORKERS)
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 # The documentation: pages (docs/*.md), the API reference (docstrings) and the gallery (each
 # examples/gallery/plot_*.py run); warnings are errors. tests/test_docs_build.py runs the same.
