@@ -99,8 +99,8 @@ def test_the_mean_scenario_optimum_is_the_exact_lq_one(coupled, copies):
     sol = _solve(model, _scenarios(ode, copies, 30.0))
     assert sol.success, sol.message
     assert abs(sol.objective - J) <= TOL * J
-    assert np.max(np.abs(sol.controls - U)) <= TOL * np.max(np.abs(U))
-    np.testing.assert_allclose(sol.states[:, -1], TARGET, atol=1e-8)        # the nominal end stays hard
+    assert np.max(np.abs(sol.u.T - U)) <= TOL * np.max(np.abs(U))          # U: nu × N
+    np.testing.assert_allclose(sol.z[-1], TARGET, atol=1e-8)        # the nominal end stays hard
     nominal_U, nominal_J = kkt_optimum((SPRING,), weight=0.0)
     assert np.max(np.abs(U - nominal_U)) > 0.1 * np.max(np.abs(U))           # the copies matter
 
@@ -113,7 +113,7 @@ def test_the_worst_case_of_one_copy_is_its_mean(coupled):
     sol = _solve(model, _scenarios(ode, (1.0,), 2.0, aggregate="worst"))
     assert sol.success, sol.message
     assert abs(sol.objective - J) <= TOL * J
-    assert np.max(np.abs(sol.controls - U)) <= TOL * np.max(np.abs(U))
+    assert np.max(np.abs(sol.u.T - U)) <= TOL * np.max(np.abs(U))
 
 
 def test_no_copies_is_the_nominal_problem(coupled):
