@@ -25,6 +25,7 @@ import io
 import keyword
 import math
 import tokenize
+import unicodedata
 
 import sympy as sp
 
@@ -32,7 +33,7 @@ from ..errors import ModelError
 
 __all__ = ["FUNCTIONS", "CONSTANTS", "parse_expression", "parse_number", "expression_problems",
            "finite_or_nan", "MAX_LENGTH", "MAX_NODES", "MAX_DEPTH", "MAX_EXPONENT", "MAX_MAGNITUDE",
-           "magnitude_problem"]
+           "magnitude_problem", "name_clashes", "normalised_names"]
 
 #: function name → (sympy function, allowed argument counts; None = two or more)
 FUNCTIONS = {
@@ -77,7 +78,7 @@ class _Builder:
 
     def __init__(self, source: str, names: dict, allow_unknown: bool):
         self.source = source
-        self.names = names
+        self.names = names if all(str(k).isascii() for k in names) else normalised_names(names)
         self.allow_unknown = allow_unknown
         self.unknown: dict = {}
 
@@ -217,6 +218,25 @@ class _Builder:
             raise _Reject(f"{name}() takes {want} argument(s), got {count}: {self.segment(node)!r}")
         args = [self.build(a, depth) for a in node.args]
         return func(*args)
+
+
+def normalised_names(names: dict) -> dict:
+    """``names`` keyed by their NFKC normal form, the form Python's parser gives every
+    identifier it reads (the ligature "ﬁ" is read as "fi"): a name declared as "ﬁ" is found
+    where the text writes ﬁ. Two names of one normal form are refused where they are declared
+    (:func:`name_clashes`)."""
+    return {unicodedata.normalize("NFKC", str(k)): v for k, v in names.items()}
+
+
+def name_clashes(names) -> list:
+    """One sentence per group of ``names`` that differ only by Unicode normalisation (NFKC):
+    Python's parser reads them as one name, so the text could not tell them apart."""
+    groups: dict = {}
+    for name in names:
+        groups.setdefault(unicodedata.normalize("NFKC", name), []).append(name)
+    return [f"names {' and '.join(map(repr, group))} differ only by Unicode normalisation (both "
+            f"read as {key!r}): they are one name — rename one"
+            for key, group in groups.items() if len(set(group)) > 1]
 
 
 def _digits(value: int) -> int:
