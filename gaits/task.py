@@ -207,7 +207,7 @@ def _objective(value, problems) -> dict:
         out[str(name)] = number(w, f"[task].objective.{name}", problems)
         if out[str(name)] < 0:
             problems.append(f"[task].objective.{name} = {w!r} must be ≥ 0")
-    if all(w == 0 for w in out.values()):
+    if all(w == 0 for w in out.values()) and ("effort" in out or "time" in out):   # else unnamed inputs: 1
         problems.append(f"[task].objective = {_inline(value)}: {_NOTHING_TO_MINIMISE}")
     return out
 
