@@ -30,8 +30,9 @@ of reach (n = 20: a million subsets), so:
 * a ``fiber`` the user gives is tested alone (one row) — any n;
 * otherwise only the subsets that can be symmetries are tested — translations of coordinates
   L and ω do not depend on, or SE(2) on the planar frame times such translations — by
-  increasing size, stopping after the first size that holds a full candidate of the largest
-  rank ω_s those coordinates allow (no larger set can come before it in the selection rule),
+  increasing size, stopping after the first size (at least the planar frame's) that holds a
+  full candidate of the largest rank ω_s those coordinates allow (no larger set can come
+  before it in the selection rule),
   and after :data:`MAX_CANDIDATES` candidates at most: past that budget the search says so and
   asks for the fiber (``fiber = [...]`` in ``[system]``) unless it already found an admissible
   one, which it then takes with a note.
@@ -408,7 +409,8 @@ def _pruned_candidates(inputs: _TestInputs, budget: int) -> tuple[list, str]:
         candidates += [_candidate(inputs, idx) for idx in level]
         tested += len(level)
         admissible = [c for c in candidates if c.admissible]
-        if any(c.verdict == FULL and c.rank == best_rank for c in admissible):
+        frame_tested = system.planar_frame is None or size >= len(system.planar_frame)   # it comes first
+        if frame_tested and any(c.verdict == FULL and c.rank == best_rank for c in admissible):
             break
     return candidates, (f"n = {n} > {FULL_TABLE_MAX_N}: {tested} of the 2^{n} − 1 subsets tested (those "
                         f"that can be symmetries, up to {size} coordinates; no larger set comes first "
