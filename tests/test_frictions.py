@@ -104,3 +104,12 @@ def test_se2_on_the_planar_frame_is_preferred_and_the_others_named():
     text = model.to_text()
     assert "SE(2) on the planar frame (x, y, heading) comes first" in text
     assert "fiber = ['x', 'y'] (R^2 (x, y), full)" in text
+
+
+def test_an_unevaluated_determinant_of_the_singular_set_is_named_by_its_size():
+    """A determinant too large to write out (systems from bodies) is printed by its size, not
+    as a page of sub-expressions."""
+    from nhgait.dynamics.derivation.reduction.model import set_text
+    x = sp.Symbol("x")
+    text = set_text(sp.Determinant(sp.ImmutableMatrix([[x, 1], [2, sp.sin(x) + x ** 2]])))
+    assert text == "det of a 2×2 matrix (3 operations; model.singular_set holds it)"

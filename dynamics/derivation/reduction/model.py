@@ -144,7 +144,8 @@ def set_text(e) -> str:
     determinant (too large to write out) by its size."""
     if isinstance(e, sp.Determinant):
         n = e.arg.shape[0]
-        return f"det of a {n}×{n} matrix ({sp.count_ops(e.arg)} operations; model.singular_set holds it)"
+        ops = sum(int(sp.count_ops(entry)) for entry in e.arg)
+        return f"det of a {n}×{n} matrix ({ops} operations; model.singular_set holds it)"
     return sp.sstr(e)
 
 
