@@ -21,8 +21,10 @@ kernel releases the lock when its holder dies, even by kill -9 (the file stays, 
 the next run takes it over). Platforms without ``fcntl`` run unlocked.
 
 :func:`staged` writes a command's files whole or not at all: ``write(folder)`` writes them into a
-staging folder inside the output directory (removed whatever happens), then each is moved into
-place (a rename on the same file system).
+staging folder inside the output directory, ``.writing-<pid>-*`` (removed whatever happens),
+then each is moved into place (a rename on the same file system). A writer killed by kill -9
+cannot remove its folder: the next writer of that directory does (:func:`clear_stale_staging`,
+the folders of processes no longer running).
 
 :func:`rescue` writes a result whose location failed at the end (disk full, removed, made
 read-only meanwhile) to a fallback it names — ``$TMPDIR/nhgait-rescued-<time>-<pid>/``, else
@@ -35,6 +37,7 @@ import contextlib
 import errno
 import json
 import os
+import shutil
 import socket
 import stat
 import sys
@@ -50,10 +53,13 @@ except ImportError:  # pragma: no cover - Windows
     fcntl = None
 
 __all__ = ["output_directory", "output_file", "output_lock", "staged", "rescue", "write_failure", "LOCK_NAME",
+           "STAGING_PREFIX", "clear_stale_staging",
            "PROBE_BYTES"]
 
 #: bytes written by the probe (one block): a full, read-only or over-quota location cannot take them
 PROBE_BYTES = 4096
+#: the name of a staging folder inside an output directory starts with this, then the writer's pid
+STAGING_PREFIX = ".writing-"
 #: the lock file a writer holds in its output directory
 LOCK_NAME = ".nhgait-lock"
 _TITLE = "invalid output location"
@@ -173,6 +179,7 @@ def output_lock(directory, command: str):
             os.ftruncate(fd, 0)
             os.pwrite(fd, json.dumps({"pid": os.getpid(), "host": socket.gethostname(), "command": command,
                                       "started": time.strftime("%Y-%m-%d %H:%M:%S")}).encode(), 0)
+            clear_stale_staging(directory)    # the one writer now: a killed run's staging goes
             yield
         finally:
             with contextlib.suppress(OSError):
@@ -226,11 +233,37 @@ def staged(out, write) -> list:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     from nhgait.dynamics.errors import temporary_folder
-    with tempfile.TemporaryDirectory(dir=out, prefix=".writing-") as staging, temporary_folder(staging):
+    clear_stale_staging(out)
+    with tempfile.TemporaryDirectory(dir=out, prefix=f"{STAGING_PREFIX}{os.getpid()}-") as staging, \
+            temporary_folder(staging):
         written = [Path(path) for path in write(Path(staging))]
         for path in written:
             os.replace(path, out / path.name)
     return [out / path.name for path in written]
+
+
+def clear_stale_staging(out) -> list:
+    """Remove the staging folders ``out/.writing-<pid>-*`` of writers that no longer run (a run
+    killed by kill -9 cannot remove its own), and those of no stated pid; a live writer's
+    folder is kept. Returns the folders removed."""
+    removed = []
+    for folder in Path(out).glob(f"{STAGING_PREFIX}*"):
+        pid = folder.name[len(STAGING_PREFIX):].split("-", 1)[0]
+        if folder.is_dir() and not folder.is_symlink() and not (pid.isdigit() and _running(int(pid))):
+            shutil.rmtree(folder, ignore_errors=True)
+            removed.append(folder)
+    return removed
+
+
+def _running(pid: int) -> bool:
+    """Whether process ``pid`` exists on this machine (signal 0 probes without sending)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True
+    return True
 
 
 # ----------------------------------------------------------------------------- rescue

@@ -207,7 +207,31 @@ def _objective(value, problems) -> dict:
         out[str(name)] = number(w, f"[task].objective.{name}", problems)
         if out[str(name)] < 0:
             problems.append(f"[task].objective.{name} = {w!r} must be ≥ 0")
+    if all(w == 0 for w in out.values()) and ("effort" in out or "time" in out):   # else unnamed inputs: 1
+        problems.append(f"[task].objective = {_inline(value)}: {_NOTHING_TO_MINIMISE}")
     return out
+
+
+#: the sentence for an objective whose every weight is 0 (the NLP's objective would be empty)
+_NOTHING_TO_MINIMISE = ("every weight is 0, so there is nothing to minimise (give one a positive "
+                        "weight, e.g. objective = \"effort\")")
+
+
+def _inline(value: Mapping) -> str:
+    """A table of weights as TOML writes it inline: {effort = 0.0, time = 0}."""
+    return "{" + ", ".join(f"{k} = {v!r}" for k, v in value.items()) + "}"
+
+
+def objective_problems(task: Task, inputs: tuple) -> list:
+    """The objective's problem on a model with ``inputs``: weights that are each 0 on this
+    model (``{effort = 0, u = 1}`` weighs every u_j² by 0) with no time or end term."""
+    weights = control_weights(task.objective, inputs)
+    if any(w > 0 for w in weights.values()) or task.objective.get("time", 0) > 0 or any(
+            w > 0 for w in task.statement.end_weights.values()):
+        return []
+    return [f"[task].objective = {_inline(task.objective)}: every term weighs 0 (effort = 0 "
+            "multiplies each input's weight), so there is nothing to minimise (give effort a "
+            "positive weight, e.g. objective = \"effort\")"]
 
 
 def _statement(data, problems) -> tuple:
@@ -460,6 +484,9 @@ def to_problem(task: Task, model, *, quantities=None, params=None, name: str = "
     velocity form keeps h(q) = 0 after; without it the dependent coordinate — the bicycle's
     pitch — would be free at t = 0)."""
     from nhgait.ocp.problem import holonomic_quantities
+    problems = objective_problems(task, tuple(model.system.inputs))
+    if problems:
+        raise ProblemError(problems, title="invalid task")
     ends = at_rest(task, model)
     for holonomic in holonomic_quantities(model):
         ends["initial"].setdefault(holonomic, 0.0)

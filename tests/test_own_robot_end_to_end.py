@@ -44,12 +44,14 @@ def test_derive_states_group_fibre_and_shape_in_the_users_names(slider):
     text = model.to_text()
     assert "fiber s =" not in text  # the method's letters are gone
     assert "shape r =" not in text
-    assert ("symmetry group R^2 (x, y) moves the fibre (group) coordinates (x, y); shape "
-            "coordinates (theta, s)" in text)
-    # the reason, and every other admissible choice written as the user would write it
-    assert "chosen by the full-symmetry test (L and ω do not depend on x, y)" in text
-    assert "preferred to the next candidate SE(2) (x, y, theta): it has fewer fibre coordinates" in text
-    assert "fiber = ['x', 'y', 'theta'] (SE(2) (x, y, theta), full)" in text
+    assert ("symmetry group SE(2) (x, y, theta) moves the fibre (group) coordinates (x, y, theta); shape "
+            "coordinates (s)" in text)
+    # the reason, and every other admissible choice written as the user would write it (issue 41:
+    # SE(2) on the planar frame first, the translations still named)
+    assert "chosen by the full-symmetry test (L and ω are SE(2)-invariant" in text
+    assert ("preferred to the next candidate R^2 (x, y): SE(2) on the planar frame (x, y, heading) comes "
+            "first" in text)
+    assert "fiber = ['x', 'y'] (R^2 (x, y), full)" in text
     table = model.symmetry.table_markdown()
     assert table.startswith("| fibre coordinates | group G |")
     assert "do not depend on s" not in table
@@ -60,10 +62,10 @@ def test_choosing_another_fibre_as_the_output_says(slider):
 
     from nhgait.dynamics import derive
     scene, _ = slider
-    model = derive(dataclasses.replace(scene.system, fiber=["x", "y", "theta"]))
-    assert model.fiber == ("x", "y", "theta")
-    assert model.shape == ("s",)
-    assert "chosen by the system's fiber = ['x', 'y', 'theta']" in model.to_text()
+    model = derive(dataclasses.replace(scene.system, fiber=["x", "y"]))
+    assert model.fiber == ("x", "y")
+    assert model.shape == ("theta", "s")
+    assert "chosen by the system's fiber = ['x', 'y']" in model.to_text()
 
 
 def test_method_symbols_never_capture_a_users_name():
@@ -75,7 +77,8 @@ def test_method_symbols_never_capture_a_users_name():
                     lagrangian="p*((x_dot - p_x*sin(theta)*theta_dot)**2 + (y_dot + "
                                "p_x*cos(theta)*theta_dot)**2)/2 + I_c*theta_dot**2/2",
                     constraints=["-sin(theta)*x_dot + cos(theta)*y_dot"], forces={"theta": "0.1*cos(t)"},
-                    parameters={"p": 1.0, "p_x": 0.3, "I_c": 0.2}, name="renamed")
+                    parameters={"p": 1.0, "p_x": 0.3, "I_c": 0.2}, name="renamed",
+                    fiber=["x", "y"])                          # one nonholonomic momentum, named p
     reduced, hamilton = derive(system, "reduced", use_cache=False), derive(system, "hamilton",
                                                                            use_cache=False)
     assert "p_nh" in reduced.state_names
@@ -90,8 +93,12 @@ def test_method_symbols_never_capture_a_users_name():
 
 
 def test_named_subexpressions_are_the_plain_equations(slider):
+    import dataclasses
+
+    from nhgait.dynamics import derive
     from nhgait.dynamics.derivation.cse_text import named_subexpressions
-    _, model = slider
+    scene, _ = slider
+    model = derive(dataclasses.replace(scene.system, fiber=["x", "y"]))    # the explicit form
     rhs = list(model.pretty_rhs())
     definitions, reduced = named_subexpressions(rhs)
     assert len(definitions) >= 3
@@ -247,7 +254,7 @@ def test_short_reprs_and_notebook_markdown(slider):
                                      "sleigh_slider: 8 states")
     assert len(repr(lagrange)) < 200
     md = model._repr_markdown_()
-    assert "| shape coordinates | theta, s |" in md
+    assert "| shape coordinates | s |" in md
     assert "```\nReduced constrained" in md
 
 

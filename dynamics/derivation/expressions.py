@@ -25,6 +25,7 @@ import io
 import keyword
 import math
 import tokenize
+import unicodedata
 
 import sympy as sp
 
@@ -32,7 +33,7 @@ from ..errors import ModelError
 
 __all__ = ["FUNCTIONS", "CONSTANTS", "parse_expression", "parse_number", "expression_problems",
            "finite_or_nan", "MAX_LENGTH", "MAX_NODES", "MAX_DEPTH", "MAX_EXPONENT", "MAX_MAGNITUDE",
-           "magnitude_problem"]
+           "magnitude_problem", "name_clashes", "normalised_names"]
 
 #: function name → (sympy function, allowed argument counts; None = two or more)
 FUNCTIONS = {
@@ -77,7 +78,7 @@ class _Builder:
 
     def __init__(self, source: str, names: dict, allow_unknown: bool):
         self.source = source
-        self.names = names
+        self.names = names if all(str(k).isascii() for k in names) else normalised_names(names)
         self.allow_unknown = allow_unknown
         self.unknown: dict = {}
 
@@ -93,7 +94,18 @@ class _Builder:
         out = method(node, depth + 1)
         if out.is_Rational and max(_digits(out.p), _digits(out.q)) > MAX_DIGITS:
             raise _Reject(f"number with more than {MAX_DIGITS} digits: {self.segment(node)!r}")
+        if not out.free_symbols:
+            self._judge_magnitude(out, node)
         return out
+
+    def _judge_magnitude(self, value, node):
+        """The magnitude guard on a number the user wrote (a literal or a constant part such as
+        ``1e10*1e10``), not on one sympy folds: 50*(x + 0.75) inside exp becomes
+        1.93e16*exp(50*x), which is the user's smooth wall, not a number beyond the bound."""
+        number = _float_value(value)
+        if math.isfinite(number) and abs(number) > MAX_MAGNITUDE:
+            raise _Reject(f"a constant in {_shorten(self.source)!r} exceeds {MAX_MAGNITUDE:.0e} in "
+                          f"magnitude, the largest number nhgait accepts ({self.segment(node)!r})")
 
     @staticmethod
     def _describe(node) -> str:
@@ -149,8 +161,10 @@ class _Builder:
             return sp.Add(*[t if positive
                             else -t for t, positive in self._chain(node, depth, ast.Add, ast.Sub)])
         if op in (ast.Mult, ast.Div):
-            return sp.Mul(*[f if positive else sp.Pow(f, -1)
-                            for f, positive in self._chain(node, depth, ast.Mult, ast.Div)])
+            factors = [f if positive else sp.Pow(f, -1)
+                       for f, positive in self._chain(node, depth, ast.Mult, ast.Div)]
+            self._judge_magnitude(sp.Mul(*[f for f in factors if not f.free_symbols]), node)
+            return sp.Mul(*factors)
         if op is ast.Pow:
             return self._power(self.build(node.left, depth), self.build(node.right, depth), node)
         raise _Reject(f"operator in {self.segment(node)!r} is not allowed")
@@ -204,6 +218,25 @@ class _Builder:
             raise _Reject(f"{name}() takes {want} argument(s), got {count}: {self.segment(node)!r}")
         args = [self.build(a, depth) for a in node.args]
         return func(*args)
+
+
+def normalised_names(names: dict) -> dict:
+    """``names`` keyed by their NFKC normal form, the form Python's parser gives every
+    identifier it reads (the ligature "ﬁ" is read as "fi"): a name declared as "ﬁ" is found
+    where the text writes ﬁ. Two names of one normal form are refused where they are declared
+    (:func:`name_clashes`)."""
+    return {unicodedata.normalize("NFKC", str(k)): v for k, v in names.items()}
+
+
+def name_clashes(names) -> list:
+    """One sentence per group of ``names`` that differ only by Unicode normalisation (NFKC):
+    Python's parser reads them as one name, so the text could not tell them apart."""
+    groups: dict = {}
+    for name in names:
+        groups.setdefault(unicodedata.normalize("NFKC", name), []).append(name)
+    return [f"names {' and '.join(map(repr, group))} differ only by Unicode normalisation (both "
+            f"read as {key!r}): they are one name — rename one"
+            for key, group in groups.items() if len(set(group)) > 1]
 
 
 def _digits(value: int) -> int:
@@ -316,12 +349,8 @@ def expression_problems(text: str, names: dict, where: str, problems: list, *,
         return None
     constants = [float(x) for x in expr.atoms(sp.Float, sp.Integer)] + [
         _float_value(c) for c in expr.atoms(sp.Function, sp.Pow) if not c.free_symbols]
-    if any(not math.isfinite(v) for v in constants):
+    if any(not math.isfinite(v) for v in constants):   # folded constants: finite doubles only
         problems.append(f"{where}: a constant in {_shorten(source)!r} is too large or undefined")
-        return None
-    if any(abs(v) > MAX_MAGNITUDE for v in constants):
-        problems.append(f"{where}: a constant in {_shorten(source)!r} exceeds {MAX_MAGNITUDE:.0e} "
-                        "in magnitude, the largest number nhgait accepts")
         return None
     return expr
 

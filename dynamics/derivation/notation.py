@@ -38,13 +38,15 @@ def method_name(base: str, taken) -> str:
     return f"{base}_nh{k}"
 
 
-def _key_parts(candidate, k, forced, names):
-    return (k - candidate.rank, candidate.verdict != "full", len(candidate.fiber),
-            len(set(candidate.fiber) & forced), [names.index(f) for f in candidate.fiber])
+def _key_parts(candidate, system):
+    """The selection rule's key of ``candidate`` (:func:`~.symmetry.selection_key`)."""
+    from .symmetry import selection_key
+    return selection_key(system, candidate)
 
 
 _REASONS = ("fewer constraints restrict its shape velocities",
             "a full group (with nonholonomic momenta) comes before a principally kinematic one",
+            "SE(2) on the planar frame (x, y, heading) comes first, the convention for a planar robot",
             "it has fewer fibre coordinates",
             "fewer of its fibre coordinates are driven by forces",
             "first in coordinate order among equals")
@@ -53,15 +55,13 @@ _REASONS = ("fewer constraints restrict its shape velocities",
 def choice_reason(symmetry) -> str:
     """Why the symmetry test chose its candidate over the next admissible one."""
     system = symmetry.system
-    names = list(system.coordinates)
-    forced = {c for c, f in zip(names, system.tau, strict=True) if f != 0}
     chosen = symmetry.chosen
     others = [c for c in symmetry.candidates if c.admissible and c is not chosen]
     if not others:
         return "the only admissible group"
-    mine = _key_parts(chosen, system.k, forced, names)
-    runner = min(others, key=lambda c: _key_parts(c, system.k, forced, names))
-    theirs = _key_parts(runner, system.k, forced, names)
+    mine = _key_parts(chosen, system)
+    runner = min(others, key=lambda c: _key_parts(c, system))
+    theirs = _key_parts(runner, system)
     which = next((i for i, (a, b) in enumerate(zip(mine, theirs, strict=True)) if a != b), len(_REASONS) - 1)
     return f"preferred to the next candidate {runner.group}: {_REASONS[which]} (rule: docs/reduction.md)"
 
@@ -78,9 +78,8 @@ def symmetry_choice_lines(symmetry, fiber, shape) -> list:
     else:
         lines.append(f"  chosen by the full-symmetry test ({chosen.reason}): {choice_reason(symmetry)}")
     system = symmetry.system
-    forced = {c for c, f in zip(system.coordinates, system.tau, strict=True) if f != 0}
     alternatives = sorted((c for c in admissible if c is not chosen),
-                          key=lambda c: _key_parts(c, system.k, forced, list(system.coordinates)))
+                          key=lambda c: _key_parts(c, system))
     if alternatives:
         listed = "; ".join(f"fiber = [{', '.join(repr(f) for f in c.fiber)}] ({c.group}, "
                            f"{c.verdict.split(' (')[0]})"

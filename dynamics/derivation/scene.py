@@ -137,7 +137,16 @@ def _table(value, where, problems) -> dict:
 
 
 def _kind(value) -> str:
-    return "a string" if isinstance(value, str) else f"a {type(value).__name__}"
+    """The TOML kind of ``value`` with its article: "a string", "an integer (5)", "a table"."""
+    if isinstance(value, str):
+        return "a string"
+    if isinstance(value, bool):
+        return f"a boolean ({str(value).lower()})"
+    if isinstance(value, int):
+        return f"an integer ({value})"
+    if isinstance(value, float):
+        return f"a number ({value!r})"
+    return {dict: "a table", list: "an array"}.get(type(value), f"a {type(value).__name__}")
 
 
 def _vector(value, where, n, problems):
@@ -254,6 +263,8 @@ def _system(sysd, source, problems) -> System | None:
     if not isinstance(name, str):
         problems.append(f"[system].name must be a string, got {_kind(name)}")
         name = "system"
+    if not isinstance(sysd.get("description", ""), str):
+        problems.append(f"[system].description must be a string, got {_kind(sysd['description'])}")
     if missing:
         return None
     try:

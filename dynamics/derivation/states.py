@@ -122,7 +122,7 @@ def _check_measure(model, q, measure: float) -> None:
             f"q = ({where}) is on the singular set of the reduction: a matrix the reduction "
             f"inverts (the constraints on the fiber ({', '.join(model.fiber)}), their pivot "
             f"block or the momentum basis) loses rank there (singular measure {measure:.3g}); "
-            "singular set: " + " or ".join(f"{e} = 0" for e in model.singular_set)])
+            + model.singular_set_text()])
 
 
 def to_state(model, q, qdot, params=None, *, tol: float = CONSTRAINT_TOL) -> np.ndarray:

@@ -120,6 +120,36 @@ def latex_of(obj, symbol_names=None) -> str:
     return sp.latex(body, symbol_names=names) + (r" \quad\text{with } " + where if reps else "")
 
 
+#: expressions with more tree nodes than this are not rearranged by :func:`readable` (a
+#: system built from bodies has metric entries of thousands of nodes: they are printed with
+#: common subexpressions, and rearranging them cost more than the rest of the derivation)
+READABLE_NODES = 400
+
+
+def readable(obj):
+    """``obj`` (an expression or a matrix) in a form to read, computed once where a derivation
+    stores what it shows (the displayed M(q) of step 1, the singular set), never at print time:
+    the trig normal form (:func:`~nhgait.dynamics.algebra.trig.tidy`: m_s(sin²θ + cos²θ) → m_s),
+    then collected in the trig monomials with each coefficient's common factors pulled out
+    (−(a m + b m_s) sin θ − m_s s cos θ; ``factor_terms``, no polynomial factorisation, so it
+    stays cheap). Expressions above :data:`READABLE_NODES` nodes keep the normal form."""
+    from ..algebra.trig import has_trig, tidy, tree_size
+    if isinstance(obj, sp.MatrixBase):
+        return obj.applyfunc(readable)
+    if (not isinstance(obj, sp.Expr) or obj.is_Atom or not has_trig(obj)     # no identity to apply
+            or tree_size(obj, READABLE_NODES) > READABLE_NODES):
+        return obj
+    e = tidy(obj)
+    if not isinstance(e, sp.Expr) or e.is_Atom or tree_size(e, READABLE_NODES) > READABLE_NODES:
+        return e
+    numerator, denominator = sp.fraction(e)
+    monomials = sorted(numerator.atoms(sp.sin, sp.cos), key=sp.default_sort_key)
+    if not monomials or not numerator.is_Add or len(numerator.args) < 3:
+        return e
+    groups = sp.collect(numerator, monomials, evaluate=False)
+    return sp.Add(*[sp.factor_terms(c) * m for m, c in groups.items()]) / sp.factor_terms(denominator)
+
+
 def text_of(obj) -> str:
     """Plain text of an artefact: ``sstr`` when small, else with common subexpressions."""
     if not _symbolic(obj):

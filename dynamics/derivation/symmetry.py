@@ -17,8 +17,9 @@ For every candidate set of fiber coordinates s ⊂ q (the rest r are shape coord
   (Table 2.1), accepted only when no full candidate exists.
 
 Selection rule (documented in docs/reduction.md): fewest shape constraints k − rank ω_s first,
-then a full candidate before a principally kinematic one, then smallest dimension l; ties go to the
-candidate with fewer forced fiber coordinates, then to coordinate order.
+then a full candidate before a principally kinematic one, then SE(2) on the planar frame
+(x, y, heading) before other groups (:func:`is_planar_group`), then smallest dimension l; ties go
+to the candidate with fewer forced fiber coordinates, then to coordinate order.
 
 How many candidates are tested
 ------------------------------
@@ -29,8 +30,9 @@ of reach (n = 20: a million subsets), so:
 * a ``fiber`` the user gives is tested alone (one row) — any n;
 * otherwise only the subsets that can be symmetries are tested — translations of coordinates
   L and ω do not depend on, or SE(2) on the planar frame times such translations — by
-  increasing size, stopping after the first size that holds a full candidate of the largest
-  rank ω_s those coordinates allow (no larger set can come before it in the selection rule),
+  increasing size, stopping after the first size (at least the planar frame's) that holds a
+  full candidate of the largest rank ω_s those coordinates allow (no larger set can come
+  before it in the selection rule),
   and after :data:`MAX_CANDIDATES` candidates at most: past that budget the search says so and
   asks for the fiber (``fiber = [...]`` in ``[system]``) unless it already found an admissible
   one, which it then takes with a note.
@@ -157,12 +159,17 @@ def _vec(v) -> str:
 
 def constraint_distribution(system: System) -> sp.Matrix:
     """Step 2: a basis (columns) of D_q = null ω(q), computed without divisions (entries are
-    k×k minors of ω)."""
+    k×k minors of ω; :func:`distribution_pivots` names the pivot block)."""
     W = system.omega()
     if system.k == 0:
         return sp.eye(system.n)
-    piv = numeric_pivots(omega_samples(system, 1)[0])
-    return null_basis_adjugate(W, piv)
+    return null_basis_adjugate(W, distribution_pivots(system))
+
+
+def distribution_pivots(system: System) -> list:
+    """The pivot columns of ω whose k×k block B spans the basis of :func:`constraint_distribution`
+    (chosen numerically at one seeded configuration): its columns span D_q where det B ≠ 0."""
+    return numeric_pivots(omega_samples(system, 1)[0]) if system.k else []
 
 
 def omega_samples(system: System, count: int, seed: int = 3) -> list:
@@ -316,7 +323,7 @@ def _choose(system: System, candidates: list, search: str = "") -> SymmetryTest:
                               f"group: {chosen.verdict}: {chosen.reason}\n{table}"],
                              title="no full symmetry group")
         return SymmetryTest(system, tuple(candidates), chosen, "user", search)
-    full = sorted((c for c in candidates if c.admissible), key=lambda c: _rank_key(system, c))
+    full = sorted((c for c in candidates if c.admissible), key=lambda c: selection_key(system, c))
     if not full:
         table = (SymmetryTest(system, tuple(candidates), candidates[0], "test", search).table_markdown()
                  if candidates
@@ -327,12 +334,21 @@ def _choose(system: System, candidates: list, search: str = "") -> SymmetryTest:
     return SymmetryTest(system, tuple(candidates), full[0], "test", search)
 
 
-def _rank_key(system: System, c: Candidate) -> tuple:
+def selection_key(system: System, c: Candidate) -> tuple:
     """The selection rule as a sort key (smallest first; see the module docstring)."""
     names = system.coordinates
     forced = {name for name, f in zip(names, system.tau, strict=True) if f != 0}
-    return (system.k - c.rank, c.verdict != FULL, len(c.fiber), len(set(c.fiber) & forced),
-            [names.index(f) for f in c.fiber])
+    return (system.k - c.rank, c.verdict != FULL, not is_planar_group(system, c), len(c.fiber),
+            len(set(c.fiber) & forced), [names.index(f) for f in c.fiber])
+
+
+def is_planar_group(system: System, c: Candidate) -> bool:
+    """Whether ``c`` is SE(2) on the planar frame: its fibre is exactly (x, y, heading). A
+    planar robot's convention (the snakeboard's, the car's): the heading is a group
+    coordinate, not a shape one, so a sleigh with a sliding mass is reduced by SE(2) rather
+    than by the translations R²(x, y) with θ a shape coordinate."""
+    frame = system.planar_frame
+    return frame is not None and set(c.fiber) == set(frame)
 
 
 def symmetry_test(system: System, M: sp.Matrix | None = None, *,
@@ -393,7 +409,8 @@ def _pruned_candidates(inputs: _TestInputs, budget: int) -> tuple[list, str]:
         candidates += [_candidate(inputs, idx) for idx in level]
         tested += len(level)
         admissible = [c for c in candidates if c.admissible]
-        if any(c.verdict == FULL and c.rank == best_rank for c in admissible):
+        frame_tested = system.planar_frame is None or size >= len(system.planar_frame)   # it comes first
+        if frame_tested and any(c.verdict == FULL and c.rank == best_rank for c in admissible):
             break
     return candidates, (f"n = {n} > {FULL_TABLE_MAX_N}: {tested} of the 2^{n} − 1 subsets tested (those "
                         f"that can be symmetries, up to {size} coordinates; no larger set comes first "
@@ -403,7 +420,7 @@ def _pruned_candidates(inputs: _TestInputs, budget: int) -> tuple[list, str]:
 def _over_budget(system: System, candidates: list, tested: int, size: int, budget: int) -> tuple[list, str]:
     """The search stopped at ``budget``: the best admissible candidate so far, with a note, or
     an error asking for the fiber."""
-    admissible = sorted((c for c in candidates if c.admissible), key=lambda c: _rank_key(system, c))
+    admissible = sorted((c for c in candidates if c.admissible), key=lambda c: selection_key(system, c))
     if not admissible:
         raise ModelError([f"the symmetry search over {system.n} coordinates found no admissible "
                           "fibre among the "

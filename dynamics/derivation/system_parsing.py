@@ -33,7 +33,7 @@ import sympy as sp
 from nhgait.dynamics.suggestions import known_names
 
 from ..algebra.symbols import TIME
-from .expressions import CONSTANTS, FUNCTIONS, expression_problems, number_problems
+from .expressions import CONSTANTS, FUNCTIONS, expression_problems, name_clashes, number_problems
 from .holonomic import choose_dependent, eliminate, velocity_row
 from .velocity_forms import linear_split, quadratic_split
 
@@ -228,6 +228,8 @@ def parse_system(statement) -> ParsedSystem:
                      tuple(getattr(statement, "eliminated", ()) or ()),
                      statement.lagrangian, statement.constraints, statement.forces)
     if holonomic and complete and not problems:
+        problems += _motion_left(holonomic, declared.coordinates)
+    if holonomic and complete and not problems:
         stated = _constrained(stated, holonomic, wanted, declared, problems)
     coordinates = tuple(c.name for c in stated.q)
     fiber, planar_frame = _frames(statement, list(coordinates), problems)
@@ -256,6 +258,16 @@ class _Stated:
     lagrangian: object
     constraints: object
     forces: object
+
+
+def _motion_left(holonomic, coordinates) -> list:
+    """The problem of holonomic constraints that fix every coordinate: each removes one of the
+    n coordinates, so h ≥ n leaves no motion (and no coordinate to integrate)."""
+    h, n = len(holonomic), len(coordinates)
+    if h < n:
+        return []
+    return [f"holonomic: {h} holonomic constraint(s) on {n} coordinate(s) ({', '.join(coordinates)}) "
+            f"fix every coordinate: no motion is left (each removes one coordinate; keep at most {n - 1})"]
 
 
 def _holonomic(statement, declared: _Declared, symbols: _Symbols, problems: list) -> tuple:
@@ -339,6 +351,7 @@ def _declare(statement, problems: list) -> _Declared:
             problems.append(f"name {nm!r} is used twice (coordinates, velocities, parameters,"
                             " inputs and t must be distinct)")
         seen.add(nm)
+    problems += name_clashes(all_names)
     names_ok = not problems
     values = [number_problems(v, f"parameter {nm!r}", problems)
               for nm, v in zip(param_names, params.values(), strict=False)]
@@ -477,6 +490,10 @@ def _frames(statement, coord_names: list, problems: list) -> tuple:
         frame = tuple(names_of(frame, "planar_frame", problems))
         if len(frame) != 3 or any(c not in coord_names for c in frame):
             problems.append(f"planar_frame: need three coordinate names (x, y, heading), got {frame}")
+        elif len(set(frame)) < 3:
+            twice = sorted({c for c in frame if frame.count(c) > 1})
+            problems.append(f"planar_frame = {list(frame)}: {', '.join(map(repr, twice))} named twice "
+                            "(need three different coordinates: x, y, heading)")
     forward = getattr(statement, "forward", "x")
     if forward not in ("x", "y", "-x", "-y"):
         problems.append("forward: the body axis that points forward is \"x\", \"y\", \"-x\" or \"-y\", got "

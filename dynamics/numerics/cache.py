@@ -18,8 +18,10 @@ Trust rules (as pip's and Python's bytecode caches)
 * a directory or entry that is group- or world-writable or owned by another user is refused
   with a warning (the result is recomputed and not written there);
 * an entry is a format line, a JSON header (key, type, size and SHA-256 of the payload) and
-  the pickled payload; the header and the payload's SHA-256 are checked *before* anything is
-  unpickled, so an entry written for another key or type, truncated, or with one bit flipped on
+  the payload — its key, a newline and the pickle, so the SHA-256 covers the key and an entry
+  proves which input it belongs to; the header, the payload's SHA-256 and the key inside it are
+  checked *before* anything is unpickled, so an entry written for another key or type (or
+  another scene's entry with its header key rewritten), truncated, or with one bit flipped on
   disk is refused with a warning and rebuilt — never deserialised (a damaged pickle of CasADi
   objects can crash the interpreter);
 * compiled libraries are loaded only through :func:`trusted_file` with their recorded SHA-256.
@@ -220,7 +222,7 @@ def trusted_file(path: Path, sha256: str | None = None) -> bool:
 
 # ------------------------------------------------------------------------------ entries
 #: first line of an entry: the format (an entry of another format is not read)
-_MAGIC = b"NHGAIT-CACHE-ENTRY 2\n"
+_MAGIC = b"NHGAIT-CACHE-ENTRY 3\n"
 #: longest header line read (the header is JSON: key, type, size and SHA-256 of the payload)
 _HEADER_MAX = 4096
 #: an entry's temporary file: ``.tmp-<host>-<pid>-<random><suffix>``, so that the next run can
@@ -259,7 +261,24 @@ def _read_entry(path: Path, key: str, types: tuple):
         raise ValueError(f"it is truncated or extended ({len(payload)} payload bytes, {size} written)")
     if hashlib.sha256(payload).hexdigest() != header.get("sha256"):
         raise ValueError("its bytes do not match the SHA-256 written with them (damaged on disk)")
-    return payload
+    return _unkeyed(key, payload)
+
+
+def _keyed(key: str, pickled: bytes) -> bytes:
+    """The checked payload of an entry: its key, a newline, then the pickle. The SHA-256 of
+    the header covers the key too, so an entry proves which input it belongs to: one whose
+    header key was rewritten to another scene's is refused (:func:`_unkeyed`)."""
+    return key.encode() + b"\n" + pickled
+
+
+def _unkeyed(key: str, payload: bytes) -> bytes:
+    """The pickle of a checked payload (:func:`_keyed`) once the key inside it is ``key``; else
+    :class:`ValueError` (the header names one key, the checked payload another)."""
+    inside, newline, pickled = payload.partition(b"\n")
+    if not newline or inside != key.encode():
+        raise ValueError("it was written for another key (its checked payload names "
+                         f"{inside[:16].decode('utf-8', 'replace')}…, not {key[:16]}…)")
+    return pickled
 
 
 def load(key: str, expected_type: type | tuple, *, suffix: str = ".pkl"):
@@ -302,7 +321,7 @@ def store(key: str, obj, *, suffix: str = ".pkl") -> Path | None:
     if folder is None:
         return None
     remove_stale_temporaries(folder)
-    payload = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
+    payload = _keyed(key, pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL))
     header = json.dumps({"key": key, "type": _type_name(type(obj)), "size": len(payload),
                          "sha256": hashlib.sha256(payload).hexdigest()}).encode() + b"\n"
     path, tmp = path_for(key, suffix), None

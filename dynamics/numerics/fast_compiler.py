@@ -123,6 +123,12 @@ def compiled_fast(function, *, salt: str):
     try:
         lib = build_library(cg.dump(), command=fast.command, flags=fast.flags, libs=fast.libs, salt=salt,
                             label=f"compile {name} with {fast.name}")
-        return ca.external(name, str(lib.path))
-    except (CompilerUnavailable, RuntimeError):     # RuntimeError: CasADi cannot load the library
+    except CompilerUnavailable:
         return function
+    try:
+        return ca.external(name, str(lib.path))
+    except RuntimeError:                            # CasADi cannot load the library
+        return function
+    finally:     # a private build (unwritable cache): its folder goes once loaded (the mapping stays)
+        if lib.private:
+            shutil.rmtree(lib.path.parent, ignore_errors=True)

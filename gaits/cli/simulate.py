@@ -22,6 +22,7 @@ import sys
 import threading
 import time
 from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 
 __all__ = ["add_simulate_parser", "cmd_simulate"]
@@ -135,7 +136,50 @@ def _run(args, scene) -> tuple:
     with _still_integrating(f"{scene.system.name} with {method} to t = {spec.t_final:g} s"):
         compile_s = _estimate_first(simulate, model, spec, common)
         traj = simulate(model, (spec.t0, spec.t_final), spec.q0, spec.qdot0, t_eval=spec.t_eval, **common)
-    return model, traj, outputs, compile_s
+    through = _chart_singularity(model, traj, spec.parameters)
+    if through is None:
+        return model, traj, outputs, compile_s
+    if args.formulation is not None or spec.formulation is not None:    # pinned: say what runs through
+        return model, replace(traj, message=f"{traj.message}; {through}"), outputs, compile_s
+    print(f"nhgait simulate: {traj.message}\nnhgait simulate: {through}: integrating again with it "
+          "(--formulation reduced keeps the stop)", file=sys.stderr, flush=True)
+    model = derive(scene.system, "lagrange", use_cache=not args.no_cache)
+    kwargs = {"dae": args.dae} if model.dae_options_apply else {}
+    with _still_integrating(f"{scene.system.name} (lagrange) with {method} to t = {spec.t_final:g} s"):
+        traj = simulate(model, (spec.t0, spec.t_final), spec.q0, spec.qdot0, t_eval=spec.t_eval,
+                        **{**common, **kwargs})
+    return model, traj, outputs, 0.0
+
+
+def _chart_singularity(model, traj, parameters) -> str | None:
+    """The sentence naming the formulation that runs through where the reduced run stopped —
+    "--formulation lagrange runs through it …" — when the run stopped at the reduced chart's
+    singular set (status SINGULAR) and the robot itself is regular there: ω(q) keeps rank k
+    and M(q) stays positive definite at the last configuration (the set is the chart's, the
+    pivot block B = ω[:, pivots] or the locked inertia, not the robot's). Else None."""
+    import numpy as np
+
+    from nhgait.dynamics.derivation.parameter_checks import numeric_functions
+    from nhgait.dynamics.simulation.driver import SINGULAR
+    if traj.status != SINGULAR or traj.formulation != "reduced":
+        return None
+    system = model.system
+    q, pv = np.asarray(traj.q[-1], dtype=float), system.param_vector(parameters or None)
+    mass, omega, _ = numeric_functions(system)
+    M = np.array(mass(q, pv), dtype=float)
+    W = (np.array(omega(q, pv), dtype=float).reshape(system.k, system.n) if system.k
+         else np.zeros((0, system.n)))
+    if not (np.all(np.isfinite(M)) and np.all(np.isfinite(W))):
+        return None
+    sv = np.linalg.svd(W, compute_uv=False) if system.k else np.ones(1)
+    if sv.min() <= 1e-8 * max(1.0, sv.max()) or np.linalg.eigvalsh(0.5 * (M + M.T))[0] <= 0:
+        return None
+    named = {str(x) for e in getattr(model, "singular_set", ()) for x in getattr(e, "free_symbols", ())}
+    where = ", ".join(f"{c} = {v:.6g}" for c, v in zip(system.coordinates, q, strict=True)
+                      if c in named or not named)
+    return (f"--formulation lagrange runs through it: the set is the reduced chart's, not the robot's "
+            f"(at {where} the constraints keep rank {system.k}, smallest singular value of ω(q) "
+            f"{sv.min():.3g}, and M(q) is positive definite)")
 
 
 #: seconds between the lines of a run that goes on (:func:`_still_integrating`)

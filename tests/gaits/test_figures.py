@@ -120,16 +120,16 @@ def test_plan_figures(figures):
     path = figures["plan/path.png"].axes[0]
     assert path.get_title() == "path in the plane (to scale)"
     assert len(_series(path)) == 5 * 3 + 3
-    shape = figures["plan/shape.png"].axes[0]
-    assert shape.get_title() == "shape loop"
-    assert (shape.get_xlabel(), shape.get_ylabel()) == ("θ [rad]", "s [m]")
+    shape = figures["plan/shape.png"].axes[0]          # SE(2) on (x, y, theta): one shape coordinate, s
+    assert shape.get_title() == "shape motion: s against its rate"
+    assert (shape.get_xlabel(), shape.get_ylabel()) == ("s [m]", "s\u0307 [m/s]")
     hist = figures["plan/histories.png"].axes
-    assert hist[0].get_ylabel() == "shape θ, s [rad, m]"
-    assert _labelled(hist[0]) == ["θ [rad]", "s [m]"]
+    assert hist[0].get_ylabel() == "shape s [m]"
+    assert _labelled(hist[0]) == ["s [m]"]
     assert hist[1].get_ylabel() == "input [N]"
     assert _labelled(hist[1]) == ["F [N]", "f_s [N]"]
     mom = figures["plan/momentum.png"].axes
-    assert [ax.get_ylabel() for ax in mom] == ["p [N·s]", "p̃_θ [N·m·s]", "p̃_s [N·s]"]
+    assert [ax.get_ylabel() for ax in mom] == ["p1 [unit of XᵀMq̇]", "p2 [unit of XᵀMq̇]", "p̃_s [N·s]"]
     assert all(len(_series(ax)) == 1 for ax in mom)
 
 
@@ -184,12 +184,12 @@ def test_result_reprs_are_short_and_say_where_the_arrays_are(figures, out):
     text = repr(result)
     assert text.startswith("<PlanResult sleigh_slider/sidestep: SUCCESS")
     assert len(text) < 600
-    assert "z (21, 7) columns (x, y, theta, s, p, pt_theta, pt_s)" in text      # time first
+    assert "z (21, 7) columns (x, y, theta, s, p1, p2, pt_s)" in text      # time first
     assert "u (20, 2) columns" in text
     assert "verified to" in text
     assert "t = 0 … 4 s (21 samples)" in text
     from nhgait.gaits.planner import summary_lines
-    assert any("R^2 (x, y) moves the fibre (x, y); the guesses loop the shape (theta, s)" in line
+    assert any("SE(2) (x, y, theta) moves the fibre (x, y, theta); the guesses loop the shape (s)" in line
                for line in summary_lines(result))
     md = result.solution._repr_markdown_()
     assert "| verification | passed" in md

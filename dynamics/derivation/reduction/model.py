@@ -14,7 +14,7 @@ from nhgait.dynamics.reprs import ModelDisplay
 
 from ...algebra.trig import TIDY_NODES, tidy, tree_size
 from ..formulation_base import Formulation, LoopDynamics
-from ..steps import DISPLAY_OPS, Steps, default_symbol_names, text_of
+from ..steps import DISPLAY_OPS, Steps, default_symbol_names, readable, text_of
 from ..symmetry import SymmetryTest
 from ..system import System
 
@@ -138,6 +138,17 @@ def _drop_positive_factors(e):
     return sp.Mul(*kept) if kept else sp.Integer(1)
 
 
+def set_text(e) -> str:
+    """One expression of a singular set as text: as stored (factored and collected by
+    :func:`~..steps.readable`), never with common subexpressions pulled out; an unevaluated
+    determinant (too large to write out) by its size."""
+    if isinstance(e, sp.Determinant):
+        n = e.arg.shape[0]
+        ops = sum(int(sp.count_ops(entry)) for entry in e.arg)
+        return f"det of a {n}×{n} matrix ({ops} operations; model.singular_set holds it)"
+    return sp.sstr(e)
+
+
 def singular_set(layout) -> tuple:
     """Where a matrix the reduction inverts loses rank: the Gram determinant of ω_s (when
     rank ω_s = k), the pivot block B of ω (step 5) and K_Ω = NᵀM_ssN (the basis N, steps
@@ -158,6 +169,7 @@ def singular_set(layout) -> tuple:
         e = _drop_positive_factors(e)
         if e.is_Number:
             continue
+        e = sp.Mul(*[readable(f) for f in e.args]) if e.is_Mul else readable(e)   # once, stored
         key = sp.srepr(e)
         if key not in seen:
             seen.add(key)
@@ -266,7 +278,7 @@ class ReducedODE(ModelDisplay, Formulation):
     def singular_set_text(self) -> str:
         sset = self.singular_set
         if sset:
-            return "singular set: " + " or ".join(f"{e} = 0" for e in sset)
+            return "singular set: " + " or ".join(f"{set_text(e)} = 0" for e in sset)
         return "the reduction is singular there"
 
     @classmethod
@@ -341,7 +353,7 @@ class ReducedODE(ModelDisplay, Formulation):
             out += [f"  {s} = {text_of(e)}"
                     for s, e in zip(self.momenta, self.momenta_of_velocity, strict=True)]
         if self.singular_set:
-            out.append("singular set: " + " or ".join(f"{text_of(e)} = 0" for e in self.singular_set))
+            out.append("singular set: " + " or ".join(f"{set_text(e)} = 0" for e in self.singular_set))
         return "\n".join(out) + "\n"
 
     @cached_property

@@ -18,9 +18,9 @@ import sympy as sp
 from nhgait.dynamics.derivation.notation import method_name, system_names
 
 from ...algebra.matrices import numeric_pivots, strip_factors
-from ...algebra.trig import tidy
-from ..steps import Step
-from ..symmetry import SymmetryTest, group_transform, symmetry_test
+from ...algebra.trig import TIDY_NODES, tidy, tree_size
+from ..steps import Step, readable
+from ..symmetry import SymmetryTest, distribution_pivots, group_transform, symmetry_test
 from ..system import System
 
 #: largest matrix the explicit form inverts symbolically (pivot block, K_Ω, K_r); larger
@@ -122,10 +122,32 @@ def set_up(system: System, M: sp.Matrix) -> Step:
     """Step 1 (§3.2.1, Fig. 3.3): q, L, ω, τ, M = ∂²L/∂q̇² (eq. 2.5), V and the parameters."""
     return Step(1, "Set-up", "§3.2.1, Fig. 3.3", {
         "q": sp.Matrix(system.q).T, "L": system.L, "omega": system.omega(),
-        "tau": system.force_vector().T, "M": M, "V": system.potential(),
+        "tau": system.force_vector().T, "M": readable(M), "V": system.potential(),
         "parameters": ", ".join(f"{k_}={v}" for k_, v in system.parameters.items())},
         "Coordinates, Lagrangian, Pfaffian constraints ω(q)q̇ = 0, forces and parameters.",
         labels={"omega": "omega (k x n)", "tau": "tau"})
+
+
+def distribution_sentence(system: System) -> str:
+    """What step 2's columns are and where they span D_q: built from the pivot block
+    B = ω[:, pivots] without divisions, column j = det B·e_j − adj(B)ω_j, they span D_q where
+    det B ≠ 0 — and may vanish where det B = 0 even though rank ω = k there (the sleigh's
+    (0, 0, sin θ, 0) at θ = 0): a chart of D_q, not a basis everywhere."""
+    if not system.k:
+        return "No constraints: D_q is the whole tangent space (the unit columns)."
+    pivots = distribution_pivots(system)
+    B = system.omega().extract(list(range(system.k)), pivots)
+    names = ", ".join(system.coordinates[i] for i in pivots)
+    head = (f"Each column is det B·e_j − adj(B)·ω_j for a free coordinate j, with B = ω[:, ({names})] "
+            "(entries k×k minors of ω, no divisions).")
+    if system.k > 3 or sum(tree_size(e, TIDY_NODES) for e in B) > TIDY_NODES:   # det B: too costly to state
+        return (f"{head} The columns span D_q where det B ≠ 0; where det B = 0 some may vanish although "
+                "rank ω = k.")
+    det = sp.factor(tidy(B.det(method="berkowitz")))
+    if det.is_Number:
+        return f"{head} det B = {sp.sstr(det)} is constant: the columns span D_q at every q."
+    return (f"{head} The columns span D_q where det B ≠ 0; where det B = {sp.sstr(det)} = 0 some may "
+            "vanish although rank ω = k there.")
 
 
 def distribution_and_group(system: System, symmetry: SymmetryTest, N: sp.Matrix, si, ri) -> tuple[Step, Step]:
@@ -137,8 +159,7 @@ def distribution_and_group(system: System, symmetry: SymmetryTest, N: sp.Matrix,
         xi_Q[i, :] = N[a, :]
     names = system.coordinates
     step2 = Step(2, "Constraint distribution D_q = null ω(q)", "§3.2.2, eqs. 3.3–3.4, 3.62–3.64",
-                 {"D": symmetry.distribution},
-                 "Basis vectors are k×k minors of ω, so they vanish only where rank ω < k.",
+                 {"D": symmetry.distribution}, distribution_sentence(system),
                  labels={"D": "D_q (columns)"})
     step3 = Step(3, "Full symmetry group", "§3.2.2, Table 3.1, eqs. 3.5–3.8, 3.65–3.68", {
         "table": symmetry, "s": ", ".join(chosen.fiber), "r": ", ".join(names[i] for i in ri),
