@@ -500,9 +500,9 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
             reached.timings["setup_s"] = reached.timings.get("setup_s", 0.0) + time.perf_counter() - t0
         with budget.stage(f"the solves with {name}", interrupt=False):
             with progress.phase(f"solve with {name} from up to {min(s.limit, len(guesses))} guesses"):
-                reached.search = reached.search.then(solve_with_fallbacks(ocp, guesses, workers=s.workers,
-                                                                          limit=s.limit, progress=progress,
-                                                                          budget=budget, explore=explore))
+                reached.search = reached.search.then(solve_with_fallbacks(
+                    ocp, guesses, workers=s.workers, limit=s.limit, progress=progress, budget=budget,
+                    explore=explore, explore_workers=max(s.workers, _default_workers())))
         if reached.search.solution is not None:
             break
 

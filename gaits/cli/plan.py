@@ -105,7 +105,7 @@ def run(args) -> int:
 def _figure_lines(before, after) -> list:
     """The figures written after the result (or why they were not)."""
     if after.unwritten and not before.unwritten:
-        return [f"  figures            NOT WRITTEN: {after.unwritten}"]
+        return [f"  figures            NOT WRITTEN: {after.unwritten} (the result is written)"]
     added = after.files[len(before.files):]
     return ["  figures:", *(f"    {f}" for f in added)] if added else []
 
