@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -51,15 +52,22 @@ def _env(cache: Path) -> dict:
     return {**os.environ, "NHGAIT_CACHE_DIR": str(cache), "NHGAIT_BACKGROUND_BUILDS": "1"}
 
 
-def _timed(cmd: list, env: dict) -> float:
-    """Wall seconds of ``cmd`` (its output discarded); an error when it fails."""
-    t0 = time.perf_counter()
+def _cpu(who) -> float:
+    usage = resource.getrusage(who)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _timed(cmd: list, env: dict) -> tuple:
+    """(wall seconds, CPU seconds) of ``cmd`` (its output discarded) — the CPU time of its
+    whole process tree (every process it waited for), which a loaded machine does not inflate
+    as it does the wall time; an error when it fails."""
+    c0, t0 = _cpu(resource.RUSAGE_CHILDREN), time.perf_counter()
     proc = subprocess.run(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                           timeout=TIMEOUT_S, check=False)
-    seconds = time.perf_counter() - t0
+    seconds, cpu = time.perf_counter() - t0, _cpu(resource.RUSAGE_CHILDREN) - c0
     if proc.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed ({proc.returncode}): {proc.stderr[-2000:]}")
-    return seconds
+    return seconds, cpu
 
 
 def _command(args: list, out: Path) -> list:
@@ -79,55 +87,72 @@ def warm_up(cache: Path, folder: Path) -> None:
             _timed(_command(args, folder), _env(cache))
 
 
+def _row(what: str, runs: list, floor: tuple | None, target, **extra) -> dict:
+    """A row: the medians of wall and CPU seconds of ``runs`` [(wall, cpu)], their ratios to
+    ``floor`` (medians; None: this is the floor)."""
+    wall, cpu = (statistics.median(r[i] for r in runs) for i in (0, 1))
+    base = floor or (wall, cpu)
+    return {"what": what, "median_s": wall, "cpu_s": cpu, "ratio": wall / base[0], "cpu_ratio": cpu / base[1],
+            "target": target, "runs": runs, **extra}
+
+
 def measure_processes(cache: Path, folder: Path, repeats: int) -> list:
-    """Rows (label, median s, ratio to the floor's median, target) of the whole-process runs."""
+    """Rows of the whole-process runs against the floor, each command's runs taking turns."""
     env = _env(cache)
     times = {"floor": []} | {label: [] for label, _, _ in COMMANDS}
     for _ in range(repeats):
         times["floor"].append(_timed([sys.executable, "-c", FLOOR], env))
         for label, args, _ in COMMANDS:
             times[label].append(_timed(_command(args, folder / "runs"), env))
-    floor = statistics.median(times["floor"])
-    rows = [{"what": f'python -c "{FLOOR}" (the floor)', "median_s": floor, "ratio": 1.0, "target": None}]
-    for label, _, target in COMMANDS:
-        median = statistics.median(times[label])
-        rows.append({"what": f"nhgait {label}, warm", "median_s": median, "ratio": median / floor,
-                     "target": target, "runs_s": times[label]})
-    return rows
+    floor = _row(f'python -c "{FLOOR}" (the floor)', times["floor"], None, None)
+    return [floor] + [_row(f"nhgait {label}, warm", times[label], (floor["median_s"], floor["cpu_s"]), target)
+                      for label, _, target in COMMANDS]
+
+
+def _both() -> tuple:
+    return time.perf_counter(), _cpu(resource.RUSAGE_SELF) + _cpu(resource.RUSAGE_CHILDREN)
+
+
+def _since(start: tuple) -> tuple:
+    now = _both()
+    return now[0] - start[0], now[1] - start[1]
 
 
 def measure_in_process(cache: Path, repeats: int) -> list:
-    """Rows of the in-process warm P2 plan against the reference's solve, taking turns."""
+    """Rows of the in-process warm P2 plan against the reference's solve, taking turns (CPU:
+    this process and the attempts' children)."""
     os.environ["NHGAIT_CACHE_DIR"] = str(cache)
     from nhgait.gaits.planner import plan
     ref = sibling.load("reference_casadi_ocp")
     run_ours = lambda: plan(P2["system"], P2["gait"], intervals=P2["intervals"], verify=False)  # noqa: E731
     ours = run_ours()                                     # warm-up: the process's first plan
     theirs = ref.solve("P2", P2["intervals"], jit=True)   # builds (and compiles) the reference once
-    ours_s, theirs_s = [], []
+    ours_runs, theirs_runs = [], []
     for _ in range(repeats):
-        t0 = time.perf_counter()
+        start = _both()
         ours = run_ours()
-        ours_s.append(time.perf_counter() - t0)
+        ours_runs.append(_since(start))
+        start = _both()
         theirs = ref.solve("P2", P2["intervals"], jit=True)
-        theirs_s.append(theirs["solve_time_s"])
-    reference = statistics.median(theirs_s)
-    median = statistics.median(ours_s)
-    return [{"what": "reference jit CasADi solve of P2 (N = 100; NLP built once)", "median_s": reference,
-             "ratio": 1.0, "target": None, "objective": theirs["objective"]},
-            {"what": 'plan("snakeboard", "forward", intervals=100, verify=False), in process, warm',
-             "median_s": median, "ratio": median / reference, "target": 3.0,
-             "objective": ours.solution.objective if ours.solution is not None else None,
-             "success": ours.success, "runs_s": ours_s}]
+        theirs_runs.append((theirs["solve_time_s"], _since(start)[1]))
+    reference = _row("reference jit CasADi solve of P2 (N = 100; NLP built once)", theirs_runs, None, None,
+                     objective=theirs["objective"])
+    return [reference,
+            _row('plan("snakeboard", "forward", intervals=100, verify=False), in process, warm', ours_runs,
+                 (reference["median_s"], reference["cpu_s"]), 3.0,
+                 objective=ours.solution.objective if ours.solution is not None else None,
+                 success=ours.success)]
 
 
 def table(rows: list) -> str:
     """The Markdown table of ``rows``."""
-    lines = ["| what | median | ratio | target | objective |", "|---|---:|---:|---:|---:|"]
+    lines = ["| what | wall, median | ratio | CPU, median | CPU ratio | target | objective |",
+             "|---|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         target = "" if r["target"] is None else f"≤ {r['target']:g}×"
         objective = "" if r.get("objective") is None else f"{r['objective']:.6f}"
-        lines.append(f"| {r['what']} | {r['median_s']:.3f} s | {r['ratio']:.2f}× | {target} | {objective} |")
+        lines.append(f"| {r['what']} | {r['median_s']:.3f} s | {r['ratio']:.2f}× | {r['cpu_s']:.3f} s | "
+                     f"{r['cpu_ratio']:.2f}× | {target} | {objective} |")
     return "\n".join(lines)
 
 

@@ -302,7 +302,7 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     budget = plan_budget(to_plan, time_limit, started=started, progress=progress)
     workers = _default_workers() if workers in (None, "auto") else int(workers)
     settings = SearchSettings(solver, transcription, jit, choose_hessian(hessian), max_iter,
-                              workers, max_guesses)
+                              workers, max_guesses, warm_figures=out_dir is not None)
     reached = _Reached()
     try:
         _run_plan(to_plan, reached, settings, budget, params=params, guess=guess, verify=verify,
@@ -472,6 +472,7 @@ class SearchSettings:
     max_iter: int
     workers: int
     limit: int
+    warm_figures: bool = False
 
 
 def _search(problem, guesses, settings: SearchSettings, progress, budget, reached: _Reached) -> None:
@@ -502,9 +503,20 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
             with progress.phase(f"solve with {name} from up to {min(s.limit, len(guesses))} guesses"):
                 reached.search = reached.search.then(solve_with_fallbacks(
                     ocp, guesses, workers=s.workers, limit=s.limit, progress=progress, budget=budget,
-                    explore=explore, explore_workers=max(s.workers, _default_workers())))
+                    explore=explore, explore_workers=max(s.workers, _default_workers()),
+                    meanwhile=_figure_modules if s.warm_figures else None))
         if reached.search.solution is not None:
             break
+
+
+def _figure_modules() -> None:
+    """Import what the figures' children will use (matplotlib's Figure, the Agg canvas, the PNG
+    writer): run while the first attempts work (:func:`~nhgait.ocp.supervision.supervise`'s
+    ``meanwhile``), so that the children forked for the figures after the result have it
+    already — half a second a child, off the critical path (issue 40)."""
+    import matplotlib.figure  # noqa: F401
+    import PIL.PngImagePlugin  # noqa: F401
+    from matplotlib.backends import backend_agg  # noqa: F401
 
 
 def _in_momentum(search, prepared, to_plan, params):

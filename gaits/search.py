@@ -151,18 +151,20 @@ def _limit(solver, budget) -> float | None:
     return limit if budget is None else budget.limit(limit)
 
 
-def solve_attempts(solver, guesses, *, workers: int = 1, budget=None, progress=None) -> list:
+def solve_attempts(solver, guesses, *, workers: int = 1, budget=None, progress=None, meanwhile=None) -> list:
     """The solutions of ``guesses`` (in order), each solved in a child process that
     :func:`~nhgait.ocp.supervision.supervise` bounds in time and kills on any interrupt, up to
     ``workers`` at once; an attempt killed at its limit (or within what is left of ``budget``)
     is a failed solution with status ``Time_Limit_Exceeded``, one whose process died
-    ``Solver_Died``."""
+    ``Solver_Died``. ``meanwhile``: run in this process while the attempts work
+    (:func:`~nhgait.ocp.supervision.supervise`)."""
     from functools import partial
 
     from nhgait.ocp.supervision import Job, supervise
     limit = _limit(solver, budget)
     jobs = [Job(partial(_detached, solver, g), limit, partial(solver.unsolved, g)) for g in guesses]
-    return [replace(s, problem=solver.problem) for s in supervise(jobs, workers=workers, progress=progress)]
+    return [replace(s, problem=solver.problem)
+            for s in supervise(jobs, workers=workers, progress=progress, meanwhile=meanwhile)]
 
 
 def _spent(budget) -> bool:
@@ -196,11 +198,13 @@ def _built(guesses, indices, budget) -> list | None:
 
 # ----------------------------------------------------------------------------- the search
 def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None = None, progress=None,
-                       budget=None, explore: bool = False, explore_workers: int | None = None) -> Search:
+                       budget=None, explore: bool = False, explore_workers: int | None = None,
+                       meanwhile=None) -> Search:
     """Try ``guesses`` (at most ``limit``) in batches of ``workers``; the best success of the
     first batch with one — with ``explore``, the best of that and of the next
     :data:`EXPLORE_GUESSES` guesses tried within the exploration's window (:func:`_explored`),
-    ``explore_workers`` at once (None: ``workers``).
+    ``explore_workers`` at once (None: ``workers``). ``meanwhile``: run in this process while
+    the first attempts work (:func:`solve_attempts`).
     With a ``budget`` (:class:`~nhgait.ocp.budget.Budget`) each attempt gets at most the time
     left, and no batch starts once it is spent."""
     from nhgait.dynamics.progress import Progress
@@ -215,7 +219,9 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
             break
         solver.adopt_optimised()
         t0 = time.monotonic()
-        sols = solve_attempts(solver, batch, workers=workers, budget=budget, progress=progress)
+        sols = solve_attempts(solver, batch, workers=workers, budget=budget, progress=progress,
+                              meanwhile=meanwhile)
+        meanwhile = None
         for k, (g, s) in enumerate(zip(batch, sols, strict=True)):
             attempts.append(attempt_of(g.label, s, name))
             _report(progress, start + k + 1, total, g.label, s)
@@ -333,12 +339,14 @@ def _explored(solver, guesses, found: Search, indices, window: _Window, workers:
 
 
 def solve_with_fallbacks(solver, guesses, *, workers: int = 1, limit: int | None = None, progress=None,
-                         budget=None, explore: bool = False, explore_workers: int | None = None) -> Search:
+                         budget=None, explore: bool = False, explore_workers: int | None = None,
+                         meanwhile=None) -> Search:
     """The guesses in order (:func:`solve_from_guesses`, exploring with ``explore``), then
     :func:`continuation` from the first one (for screened candidates, the first that passed its
     screening: a regular guess; not once ``budget`` is spent)."""
     search = solve_from_guesses(solver, guesses, workers=workers, limit=limit, progress=progress,
-                                budget=budget, explore=explore, explore_workers=explore_workers)
+                                budget=budget, explore=explore, explore_workers=explore_workers,
+                                meanwhile=meanwhile)
     first = None if search.solution is not None or _spent(budget) else _built(guesses, range(1), budget)
     if first:
         if progress is not None:

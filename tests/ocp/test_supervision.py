@@ -446,3 +446,27 @@ def test_a_stop_lost_in_one_phase_ends_the_run_before_the_next(monkeypatch, caps
     assert cli.main(["plan", "unicycle", "--out", "unused"]) == 143
     assert entered == []
     assert "nhgait: terminated" in capsys.readouterr().err
+
+
+@needs_fork
+def test_meanwhile_runs_once_in_the_parent_while_the_children_work(tmp_path):
+    """``meanwhile`` (the planner's imports for its figures) runs once, in this process, after
+    the first children started and before their results are collected: the children each
+    wait for a file that only ``meanwhile`` writes, so they can answer only if it ran while
+    they were alive."""
+    flag = tmp_path / "meanwhile-ran"
+    calls = []
+
+    def waits_for_flag():
+        while not flag.exists():
+            os.sched_yield()
+        return os.getpid()
+
+    def meanwhile():
+        calls.append(os.getpid())
+        flag.write_text("ran")
+
+    jobs = [Job(waits_for_flag, 60.0, lambda status, message, seconds: None) for _ in range(3)]
+    pids = supervise(jobs, workers=2, meanwhile=meanwhile)
+    assert calls == [os.getpid()]                          # once, here
+    assert all(pid is not None and pid != os.getpid() for pid in pids)
