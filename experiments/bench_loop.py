@@ -19,8 +19,11 @@ The cache is a private folder (``--cache``; default: a new temporary one, warmed
 run of each command, the optimised library's background build waited for). Writes
 ``--out`` (JSON) and prints the table.
 
+Each row also gives the CPU seconds of the whole process tree (``getrusage``, every process
+waited for), which a loaded machine inflates far less than the wall time, and their ratio.
+
 Usage: python experiments/bench_loop.py [--repeats 5] [--sections process,inprocess]
-       [--cache DIR] [--out out/bench_loop.json]
+       [--commands plan-unicycle,plan-snakeboard,derive] [--cache DIR] [--out out/bench_loop.json]
 """
 from __future__ import annotations
 
@@ -39,10 +42,13 @@ import plan_process  # experiments/plan_process.py: nhgait as a user runs it
 import sibling  # experiments/sibling.py: the other scripts, loaded by file path
 
 FLOOR = "import casadi, sympy, numpy"
-#: (label, nhgait arguments, target ratio to the floor)
-COMMANDS = (("plan unicycle parallel-park", ["plan", "unicycle", "--gait", "parallel-park", "--quiet"], 2.0),
-            ("plan snakeboard forward", ["plan", "snakeboard", "--gait", "forward", "--quiet"], 2.0),
-            ("derive snakeboard", ["derive", "snakeboard"], 1.5))
+#: key (``--commands``) → (label, nhgait arguments, target ratio to the floor)
+ALL_COMMANDS = {
+    "plan-unicycle": ("plan unicycle parallel-park",
+                      ["plan", "unicycle", "--gait", "parallel-park", "--quiet"], 2.0),
+    "plan-snakeboard": ("plan snakeboard forward",
+                        ["plan", "snakeboard", "--gait", "forward", "--quiet"], 2.0),
+    "derive": ("derive snakeboard", ["derive", "snakeboard"], 1.5)}
 P2 = dict(system="snakeboard", gait="forward", intervals=100)
 P2_OBJECTIVE = 0.109703
 TIMEOUT_S = 600.0
@@ -75,10 +81,10 @@ def _command(args: list, out: Path) -> list:
     return [*plan_process.nhgait_command(), *args, *extra]
 
 
-def warm_up(cache: Path, folder: Path) -> None:
+def warm_up(cache: Path, folder: Path, commands: tuple) -> None:
     """One run of each plan (its background build of the optimised library waited for) and of
     derive: the cache then holds what a warm run uses."""
-    for label, args, _ in COMMANDS:
+    for label, args, _ in commands:
         if args[0] == "plan":
             out = folder / f"warm-{label.replace(' ', '-')}"
             row = plan_process.run_plan(args[1:], out, cache, TIMEOUT_S)
@@ -96,17 +102,17 @@ def _row(what: str, runs: list, floor: tuple | None, target, **extra) -> dict:
             "target": target, "runs": runs, **extra}
 
 
-def measure_processes(cache: Path, folder: Path, repeats: int) -> list:
+def measure_processes(cache: Path, folder: Path, repeats: int, commands: tuple) -> list:
     """Rows of the whole-process runs against the floor, each command's runs taking turns."""
     env = _env(cache)
-    times = {"floor": []} | {label: [] for label, _, _ in COMMANDS}
+    times = {"floor": []} | {label: [] for label, _, _ in commands}
     for _ in range(repeats):
         times["floor"].append(_timed([sys.executable, "-c", FLOOR], env))
-        for label, args, _ in COMMANDS:
+        for label, args, _ in commands:
             times[label].append(_timed(_command(args, folder / "runs"), env))
     floor = _row(f'python -c "{FLOOR}" (the floor)', times["floor"], None, None)
     return [floor] + [_row(f"nhgait {label}, warm", times[label], (floor["median_s"], floor["cpu_s"]), target)
-                      for label, _, target in COMMANDS]
+                      for label, _, target in commands]
 
 
 def _both() -> tuple:
@@ -160,18 +166,23 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--sections", default="process,inprocess")
+    ap.add_argument("--commands", default=",".join(ALL_COMMANDS),
+                    help=f"the whole-process commands ({', '.join(ALL_COMMANDS)})")
     ap.add_argument("--cache", default=None, help="cache folder (default: a new temporary one, warmed first)")
     ap.add_argument("--out", default="out/bench_loop.json")
     args = ap.parse_args(argv)
     sections = {s.strip() for s in args.sections.split(",") if s.strip()}
+    commands = tuple(ALL_COMMANDS[c.strip()] for c in args.commands.split(",") if c.strip())
+    if "inprocess" in sections and not any(a[0] == "plan" and "snakeboard" in a for _, a, _ in commands):
+        commands += (ALL_COMMANDS["plan-snakeboard"],)     # its warm-up: the cache P2 plans from
     with tempfile.TemporaryDirectory(prefix="nhgait-bench-loop-") as tmp:
         folder = Path(tmp)
         cache = Path(args.cache) if args.cache else folder / "cache"
         print(f"warming the cache {cache} ...", file=sys.stderr, flush=True)
-        warm_up(cache, folder)
+        warm_up(cache, folder, commands)
         rows = []
         if "process" in sections:
-            rows += measure_processes(cache, folder, args.repeats)
+            rows += measure_processes(cache, folder, args.repeats, commands)
         if "inprocess" in sections:
             rows += measure_in_process(cache, args.repeats)
     print(f"# the designer's loop: medians of {args.repeats} runs, ratios in this run "
