@@ -515,8 +515,9 @@ def _figure_modules() -> None:
     ``meanwhile``), so that the children forked for the figures after the result have it
     already — half a second a child, off the critical path (issue 40)."""
     import matplotlib.figure  # noqa: F401
-    import PIL.PngImagePlugin  # noqa: F401
     from matplotlib.backends import backend_agg  # noqa: F401
+    from PIL import Image
+    Image.preinit()                  # the image plugins a first save imports (PNG, GIF, BMP, ...)
 
 
 def _in_momentum(search, prepared, to_plan, params):
