@@ -247,7 +247,8 @@ def choose_hessian(hessian: str) -> str:
 
 def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", transcription=None,
          jit=None, workers=1, params=None, max_iter=500, guess=None, out_dir=None, animate=False,
-         verify=True, hessian="auto", max_guesses=12, progress=None, time_limit=None) -> PlanResult:
+         verify=True, hessian="auto", max_guesses=12, progress=None, time_limit=None,
+         figures=True) -> PlanResult:
     """Plan a gait: see the module docstring.
 
     Parameters
@@ -270,6 +271,8 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
         before any derivation
     out_dir : write solution.json and the figures there (``animate``: also motion.gif, which
         needs ``out_dir``)
+    figures : False: in ``out_dir`` only solution.json and trajectory.csv (the result); the
+        figures are then :func:`with_figures`'s (``nhgait plan`` prints the result line first)
     hessian : "auto", "exact", "gauss-newton" or "limited-memory" (Ipopt)
     max_guesses : guesses tried per solver before the continuation
     progress : a :class:`~nhgait.dynamics.progress.Progress` (None: silent)
@@ -299,7 +302,7 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     budget = plan_budget(to_plan, time_limit, started=started, progress=progress)
     workers = _default_workers() if workers in (None, "auto") else int(workers)
     settings = SearchSettings(solver, transcription, jit, choose_hessian(hessian), max_iter,
-                              workers, max_guesses)
+                              workers, max_guesses, warm_figures=out_dir is not None)
     reached = _Reached()
     try:
         _run_plan(to_plan, reached, settings, budget, params=params, guess=guess, verify=verify,
@@ -310,7 +313,9 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     result = _result(to_plan, reached, settings, params)
     result = replace(result, diagnosis=diagnose(result))
     if out_dir is not None:
-        result = written(result, out_dir, animate=animate, progress=progress)
+        result = written(result, out_dir, progress=progress)
+        if figures:
+            result = with_figures(result, out_dir, animate=animate, progress=progress)
     return result
 
 
@@ -467,6 +472,7 @@ class SearchSettings:
     max_iter: int
     workers: int
     limit: int
+    warm_figures: bool = False
 
 
 def _search(problem, guesses, settings: SearchSettings, progress, budget, reached: _Reached) -> None:
@@ -495,11 +501,23 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
             reached.timings["setup_s"] = reached.timings.get("setup_s", 0.0) + time.perf_counter() - t0
         with budget.stage(f"the solves with {name}", interrupt=False):
             with progress.phase(f"solve with {name} from up to {min(s.limit, len(guesses))} guesses"):
-                reached.search = reached.search.then(solve_with_fallbacks(ocp, guesses, workers=s.workers,
-                                                                          limit=s.limit, progress=progress,
-                                                                          budget=budget, explore=explore))
+                reached.search = reached.search.then(solve_with_fallbacks(
+                    ocp, guesses, workers=s.workers, limit=s.limit, progress=progress, budget=budget,
+                    explore=explore, explore_workers=max(s.workers, _default_workers()),
+                    meanwhile=_figure_modules if s.warm_figures else None))
         if reached.search.solution is not None:
             break
+
+
+def _figure_modules() -> None:
+    """Import what the figures' children will use (matplotlib's Figure, the Agg canvas, the PNG
+    writer): run while the first attempts work (:func:`~nhgait.ocp.supervision.supervise`'s
+    ``meanwhile``), so that the children forked for the figures after the result have it
+    already — half a second a child, off the critical path (issue 40)."""
+    import matplotlib.figure  # noqa: F401
+    from matplotlib.backends import backend_agg  # noqa: F401
+    from PIL import Image
+    Image.preinit()                  # the image plugins a first save imports (PNG, GIF, BMP, ...)
 
 
 def _in_momentum(search, prepared, to_plan, params):
@@ -522,21 +540,35 @@ def _feedback_and_stability(search, progress) -> dict:
 
 
 # ----------------------------------------------------------------------------- outputs
-def written(result: PlanResult, out: Path, *, animate: bool = True, progress=None) -> PlanResult:
-    """``result`` with its files written to ``out`` (:func:`write_outputs`). A write that fails
-    (disk full, folder removed or made read-only meanwhile) does not lose the plan: solution.json
-    goes to a fallback (:func:`nhgait.gaits.outputs.rescue`) and ``unwritten`` says what failed
-    and where the solution is."""
+def written(result: PlanResult, out: Path, *, progress=None) -> PlanResult:
+    """``result`` with its result files — solution.json and trajectory.csv — written to ``out``
+    (:func:`write_outputs`), before anything optional (the figures: :func:`with_figures`). A
+    write that fails (disk full, folder removed or made read-only meanwhile) does not lose the
+    plan: solution.json goes to a fallback (:func:`nhgait.gaits.outputs.rescue`) and
+    ``unwritten`` says what failed and where the solution is."""
     from .outputs import rescue, write_failure
     try:
-        return replace(result, files=tuple(write_outputs(result, Path(out), animate=animate,
-                                                         progress=progress)))
+        return replace(result, files=tuple(write_outputs(result, Path(out), progress=progress)))
     except OSError as exc:
         failed = write_failure(exc, getattr(exc, "filename", None) or out)
     if result.solution is None:
         return replace(result, unwritten=failed)
     data = {**result.solution.to_dict(), **_solution_extra(result)}
     return replace(result, unwritten=f"{failed}; {rescue('solution.json', data, 'solution')}")
+
+
+def with_figures(result: PlanResult, out: Path, *, animate: bool = False, progress=None) -> PlanResult:
+    """``result`` with its figures (and, with ``animate``, motion.gif) written to ``out`` after
+    its result files (:func:`write_figure_files`); a write that fails adds to ``unwritten``
+    (the solution is already written)."""
+    from .outputs import write_failure
+    if result.unwritten or result.solution is None or result.overrun is not None:
+        return result               # nothing to draw, or the result itself went elsewhere
+    try:
+        files = write_figure_files(result, Path(out), animate=animate, progress=progress)
+    except OSError as exc:
+        return replace(result, unwritten=write_failure(exc, getattr(exc, "filename", None) or out))
+    return replace(result, files=result.files + tuple(files))
 
 
 def _solution_extra(result: PlanResult) -> dict:
@@ -549,32 +581,39 @@ def _solution_extra(result: PlanResult) -> dict:
                       "screened": [screened_dict(x) for x in result.screening]}}
 
 
-def write_outputs(result: PlanResult, out: Path, *, animate: bool = True, progress=None) -> list:
-    """solution.json (with ``task``, ``guess``, ``success`` and ``diagnosis``) and the figures;
-    a failed plan's figures are titled FAILED and it gets no animation; a plan whose time budget
-    ran out gets solution.json only (nothing without a point). Each file is written whole or
-    not at all (:func:`nhgait.gaits.outputs.staged`). Returns the paths."""
+def write_outputs(result: PlanResult, out: Path, *, progress=None) -> list:
+    """solution.json (with ``task``, ``guess``, ``success`` and ``diagnosis``) and
+    trajectory.csv: the result, nothing optional (a plan whose time budget ran out, too; nothing
+    without a point). Each file is written whole or not at all
+    (:func:`nhgait.gaits.outputs.staged`). Returns the paths."""
+    from .outputs import staged
+    if result.solution is None:
+        return []
+
+    def write(folder):
+        return [result.solution.to_json(folder / "solution.json", extra=_solution_extra(result)),
+                write_trajectory_csv(result.solution, folder, result.plan.units)]
+    return staged(out, write)
+
+
+def write_figure_files(result: PlanResult, out: Path, *, animate: bool = False, progress=None) -> list:
+    """The figures of a plan (:func:`nhgait.gaits.plots.write_figures`); a failed plan's are
+    titled FAILED and it gets no animation; with ``animate`` a successful one also gets
+    motion.gif. Written whole or not at all, like the result. Returns the paths."""
     from nhgait.dynamics.progress import Progress
 
     from .outputs import staged
     progress = progress or Progress.silent()
-    if result.solution is None:
-        return []
-    return staged(out, lambda folder: _write_files(result, folder, animate=animate, progress=progress))
+    return staged(out, lambda folder: _draw_files(result, folder, animate=animate, progress=progress))
 
 
-def _write_files(result: PlanResult, out: Path, *, animate: bool, progress) -> list:
+def _draw_files(result: PlanResult, out: Path, *, animate: bool, progress) -> list:
     from . import plots
-    files = [result.solution.to_json(out / "solution.json", extra=_solution_extra(result)),
-             write_trajectory_csv(result.solution, out, result.plan.units)]
-    if result.overrun is not None:          # the budget is spent: the point, not the figures
-        return files
     failed = None if result.success else (result.diagnosis[0] if result.diagnosis else result.solution.status)
-    animate = animate and result.success
-    with progress.phase("write solution.json and the figures"):
-        files.extend(plots.write_figures(result.solution, out, units=result.plan.units,
+    with progress.phase("write the figures"):
+        files = list(plots.write_figures(result.solution, out, units=result.plan.units,
                                          drawing=result.plan.drawing, model=result.model, failed=failed))
-    if animate:
+    if animate and result.success:
         from .animation import animate_solution
         with progress.phase("write the animation motion.gif (60 frames; the longest part of the output)"):
             ctx = plots.figure_context(result.solution, result.model, result.plan.units, result.plan.drawing)

@@ -9,9 +9,12 @@
   process supervised by :func:`~nhgait.ocp.supervision.supervise` (:func:`solve_attempts`: bounded
   in time, killed at once on an interrupt; ``workers`` children at once); within the first
   batch with a success the lowest objective wins; at most ``limit`` guesses are tried. With
-  ``explore`` (the planner) the next few guesses are tried too, within a time tied to the
-  first success's, and the lowest objective of all is kept: the first local optimum found is
-  often not the best (:data:`EXPLORE_GUESSES`).
+  ``explore`` (the planner) the next few guesses are tried too, two at once on two cores
+  (``explore_workers``), within an allowance tied to the first success's iterations — turned
+  into seconds at its own cost per iteration for a solver without an iteration callback — and
+  the lowest objective of all is kept: the first local optimum found is often not the best
+  (:data:`EXPLORE_GUESSES`). The exploration stops early once :data:`EXPLORE_REPEATS` further
+  guesses converge to the best objective again (within :data:`EXPLORE_GAIN`).
 * :func:`continuation` — when every guess fails: easier versions of the problem (the end
   values fixed at both ends moved a fraction 1/4, 1/2, 3/4 of the way from their initial
   values) grown to the task, each warm-started from the last.
@@ -89,8 +92,7 @@ EXPLORE_GUESSES = 6
 #: least EXPLORE_MIN_ITERATIONS): counted in iterations, not seconds, so that a cold plan (the
 #: fast compiler's slower code) and a warm one, a slow machine and a fast one, try the same
 #: guesses and keep the same optimum; at most EXPLORE_BUDGET_SHARE of what is left of the plan's
-#: budget in seconds. A solver without an iteration callback (FATROP) gets EXPLORE_TIME_RATIO
-#: times the first success's seconds instead, at least EXPLORE_FLOOR_S. Measured (46 plans: the
+#: budget in seconds (a solver without an iteration callback: below). Measured (46 plans: the
 #: scale benchmark's 13 robots, P1–P4, 8 user scenes, 20 unseen robots, the user's 3-link snake;
 #: docs/gait-planning.md): of 90 attempts 6 found a lower objective, each within 2.6× the first
 #: success's iterations of the exploration's start. Of the plans whose first success took under
@@ -99,12 +101,20 @@ EXPLORE_GUESSES = 6
 #: let a failing guess run on (the cart with six trailers: 99 iterations, 5 s of a 13 s plan).
 EXPLORE_ITERATION_RATIO = 3.0
 EXPLORE_MIN_ITERATIONS = 50
-EXPLORE_TIME_RATIO = 3.0
-EXPLORE_FLOOR_S = 1.0
 EXPLORE_BUDGET_SHARE = 0.25
+#: A solver without an iteration callback (FATROP) gets the same allowance of iterations turned
+#: into seconds at the first success's own cost per iteration (its solver-measured time over its
+#: iterations), plus the first attempt's overhead outside the solver (its process, its guess),
+#: and at least EXPLORE_FLOOR_S: the exploration costs what the solves it makes cost, on a slow
+#: machine and a fast one (issue 40: the 0.05 s parallel park of the unicycle had 1 s before).
+EXPLORE_FLOOR_S = 0.1
 #: a later guess replaces the best so far when its objective is lower by more than this
 #: fraction (of max(1, |J|)): the same optimum reached from another guess is not a new one
 EXPLORE_GAIN = 1e-6
+#: the exploration stops once this many further guesses have converged to the best objective
+#: so far (within EXPLORE_GAIN) without one lower: the optimum found is the one the guesses
+#: lead to (issue 40; the parallel park's 2nd and 3rd guesses reach the 1st's J = 1.53444)
+EXPLORE_REPEATS = 2
 
 #: Ipopt settings of warm-started solves (:data:`nhgait.ocp.coarse.WARM_IPOPT`)
 WARM_IPOPT = _WARM_IPOPT
@@ -141,18 +151,20 @@ def _limit(solver, budget) -> float | None:
     return limit if budget is None else budget.limit(limit)
 
 
-def solve_attempts(solver, guesses, *, workers: int = 1, budget=None, progress=None) -> list:
+def solve_attempts(solver, guesses, *, workers: int = 1, budget=None, progress=None, meanwhile=None) -> list:
     """The solutions of ``guesses`` (in order), each solved in a child process that
     :func:`~nhgait.ocp.supervision.supervise` bounds in time and kills on any interrupt, up to
     ``workers`` at once; an attempt killed at its limit (or within what is left of ``budget``)
     is a failed solution with status ``Time_Limit_Exceeded``, one whose process died
-    ``Solver_Died``."""
+    ``Solver_Died``. ``meanwhile``: run in this process while the attempts work
+    (:func:`~nhgait.ocp.supervision.supervise`)."""
     from functools import partial
 
     from nhgait.ocp.supervision import Job, supervise
     limit = _limit(solver, budget)
     jobs = [Job(partial(_detached, solver, g), limit, partial(solver.unsolved, g)) for g in guesses]
-    return [replace(s, problem=solver.problem) for s in supervise(jobs, workers=workers, progress=progress)]
+    return [replace(s, problem=solver.problem)
+            for s in supervise(jobs, workers=workers, progress=progress, meanwhile=meanwhile)]
 
 
 def _spent(budget) -> bool:
@@ -186,10 +198,13 @@ def _built(guesses, indices, budget) -> list | None:
 
 # ----------------------------------------------------------------------------- the search
 def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None = None, progress=None,
-                       budget=None, explore: bool = False) -> Search:
+                       budget=None, explore: bool = False, explore_workers: int | None = None,
+                       meanwhile=None) -> Search:
     """Try ``guesses`` (at most ``limit``) in batches of ``workers``; the best success of the
     first batch with one — with ``explore``, the best of that and of the next
-    :data:`EXPLORE_GUESSES` guesses tried within the exploration's window (:func:`_explored`).
+    :data:`EXPLORE_GUESSES` guesses tried within the exploration's window (:func:`_explored`),
+    ``explore_workers`` at once (None: ``workers``). ``meanwhile``: run in this process while
+    the first attempts work (:func:`solve_attempts`).
     With a ``budget`` (:class:`~nhgait.ocp.budget.Budget`) each attempt gets at most the time
     left, and no batch starts once it is spent."""
     from nhgait.dynamics.progress import Progress
@@ -204,7 +219,9 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
             break
         solver.adopt_optimised()
         t0 = time.monotonic()
-        sols = solve_attempts(solver, batch, workers=workers, budget=budget, progress=progress)
+        sols = solve_attempts(solver, batch, workers=workers, budget=budget, progress=progress,
+                              meanwhile=meanwhile)
+        meanwhile = None
         for k, (g, s) in enumerate(zip(batch, sols, strict=True)):
             attempts.append(attempt_of(g.label, s, name))
             _report(progress, start + k + 1, total, g.label, s)
@@ -219,7 +236,7 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
             window = _Window.after(found.solution, time.monotonic() - t0, solver, budget)
             return _explored(solver, guesses, found, range(start + len(batch), min(total, start + len(batch)
                                                                                   + EXPLORE_GUESSES)),
-                             window, workers, budget, progress)
+                             window, max(1, int(explore_workers or workers)), budget, progress)
     return Search(None, tuple(attempts), None, closest)
 
 
@@ -236,10 +253,12 @@ class _Window:
         """The window after a first success ``first`` that took ``seconds`` (:data:`EXPLORE_GUESSES`)."""
         now = time.monotonic()
         share = None if budget is None else EXPLORE_BUDGET_SHARE * budget.remaining()
+        iterations = max(EXPLORE_MIN_ITERATIONS, math.ceil(EXPLORE_ITERATION_RATIO * _cost(first)))
         if solver.options.backend.iteration_callback:
-            iterations = max(EXPLORE_MIN_ITERATIONS, math.ceil(EXPLORE_ITERATION_RATIO * _cost(first)))
             return cls(iterations, None if share is None else now + share)
-        spend = max(EXPLORE_FLOOR_S, EXPLORE_TIME_RATIO * seconds)
+        solving = float(first.solve_time_s)
+        per_iteration = solving / max(1.0, _cost(first))
+        spend = max(EXPLORE_FLOOR_S, iterations * per_iteration + max(0.0, seconds - solving))
         return cls(None, now + (spend if share is None else min(spend, share)))
 
     def text(self) -> str:
@@ -284,7 +303,7 @@ def _explored(solver, guesses, found: Search, indices, window: _Window, workers:
     its reach (the user's 3-link snake: the coarse grid led the first guess to J = 0.01105, the
     direct solve of the second reaches 0.008693)."""
     name = solver.options.solver
-    attempts, best, label = list(found.attempts), found.solution, found.won
+    attempts, best, label, repeats = list(found.attempts), found.solution, found.won, 0
     indices = list(indices)
     if indices and window.left() != 0.0:
         progress.note(f"  looking for a lower objective: up to {len(indices)} more guesses within "
@@ -303,8 +322,14 @@ def _explored(solver, guesses, found: Search, indices, window: _Window, workers:
         for k, (g, s) in enumerate(zip(batch, sols, strict=True)):
             attempts.append(attempt_of(g.label, s, name))
             _report(progress, indices[start] + k + 1, indices[-1] + 1, g.label, s)
-            if s.success and s.objective < best.objective - EXPLORE_GAIN * max(1.0, abs(best.objective)):
-                best, label = s, g.label
+            tolerance = EXPLORE_GAIN * max(1.0, abs(best.objective))
+            if s.success and s.objective < best.objective - tolerance:
+                best, label, repeats = s, g.label, 0
+            elif s.success and abs(s.objective - best.objective) <= tolerance:
+                repeats += 1
+        if repeats >= EXPLORE_REPEATS:
+            progress.note(f"  {repeats} more guesses reached J = {best.objective:.6g} again: no more")
+            break
     if label != found.won:
         progress.note(f"  kept {label!r}: J = {best.objective:.6g} (the first converged: "
                       f"{found.solution.objective:.6g})")
@@ -314,12 +339,14 @@ def _explored(solver, guesses, found: Search, indices, window: _Window, workers:
 
 
 def solve_with_fallbacks(solver, guesses, *, workers: int = 1, limit: int | None = None, progress=None,
-                         budget=None, explore: bool = False) -> Search:
+                         budget=None, explore: bool = False, explore_workers: int | None = None,
+                         meanwhile=None) -> Search:
     """The guesses in order (:func:`solve_from_guesses`, exploring with ``explore``), then
     :func:`continuation` from the first one (for screened candidates, the first that passed its
     screening: a regular guess; not once ``budget`` is spent)."""
     search = solve_from_guesses(solver, guesses, workers=workers, limit=limit, progress=progress,
-                                budget=budget, explore=explore)
+                                budget=budget, explore=explore, explore_workers=explore_workers,
+                                meanwhile=meanwhile)
     first = None if search.solution is not None or _spent(budget) else _built(guesses, range(1), budget)
     if first:
         if progress is not None:

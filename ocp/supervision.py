@@ -80,9 +80,11 @@ def can_fork() -> bool:
     return os.name == "posix" and hasattr(os, "fork") and hasattr(signal, "pthread_sigmask")
 
 
-def supervise(jobs, *, workers: int = 1, progress=None) -> list:
+def supervise(jobs, *, workers: int = 1, progress=None, meanwhile=None) -> list:
     """The results of ``jobs`` in order, each run in a supervised child, up to ``workers`` at
-    once (see the module docstring)."""
+    once (see the module docstring). ``meanwhile``: a callable run once in this process while
+    the first children work (the planner imports what its figures will need there: time the
+    parent would spend waiting; its signal handlers still run, a limit is checked after it)."""
     jobs = list(jobs)
     if not can_fork():
         _say_in_process(progress, "no fork here")
@@ -98,6 +100,9 @@ def supervise(jobs, *, workers: int = 1, progress=None) -> list:
                 except OSError as exc:        # no process to be had (limits, memory): in this one
                     _say_in_process(progress, f"cannot start a process: {exc.strerror or exc}")
                     results[index] = _Returned(job.run())
+            if meanwhile is not None and running:
+                meanwhile, then = None, meanwhile
+                then()
             for index, outcome in _poll(running):
                 results[index] = outcome
                 del running[index]

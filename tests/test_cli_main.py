@@ -30,7 +30,7 @@ def test_bad_input_exits_2_without_traceback(capsys, monkeypatch):
     parser = cli.build_parser()
     args = parser.parse_args(["derive", "unicycle"])
     monkeypatch.setattr(cli, "build_parser",
-                        lambda: _Parser(args, _boom(BridgeError(["cannot convert Foo"]))))
+                        lambda *_: _Parser(args, _boom(BridgeError(["cannot convert Foo"]))))
     assert cli.main([]) == 2
     err = capsys.readouterr().err
     assert "cannot convert Foo" in err
@@ -39,7 +39,7 @@ def test_bad_input_exits_2_without_traceback(capsys, monkeypatch):
 
 def test_internal_error_exits_3_with_one_line(capsys, monkeypatch):
     args = cli.build_parser().parse_args(["derive", "unicycle"])
-    monkeypatch.setattr(cli, "build_parser", lambda: _Parser(args, _boom(ZeroDivisionError("x"))))
+    monkeypatch.setattr(cli, "build_parser", lambda *_: _Parser(args, _boom(ZeroDivisionError("x"))))
     monkeypatch.delenv("NHGAIT_DEBUG", raising=False)
     assert cli.main([]) == 3
     err = capsys.readouterr().err

@@ -39,9 +39,11 @@ def numeric_functions(system) -> NumericFunctions:
     """(M(q, params), ω(q, params) or None, V(q, params)) as numpy callables (:data:`LAMBDIFIED`)."""
     def lambdify():
         args = [system.q, system.param_symbols]     # cse: a system built from bodies repeats much
-        return NumericFunctions(sp.lambdify(args, system.mass_matrix(), "numpy", cse=True),
-                sp.lambdify(args, system.omega(), "numpy", cse=True) if system.k else None,
-                sp.lambdify(args, system.potential(), "numpy", cse=True))
+        # numpy the module, not "numpy": the same printer and functions, without sympy's
+        # ``from numpy import *`` (which imports numpy.f2py, .testing, .ma, ...: 0.1-0.3 s a process)
+        return NumericFunctions(sp.lambdify(args, system.mass_matrix(), [np], cse=True),
+                                sp.lambdify(args, system.omega(), [np], cse=True) if system.k else None,
+                                sp.lambdify(args, system.potential(), [np], cse=True))
     return LAMBDIFIED.get(system, None, lambdify)
 
 

@@ -1,10 +1,12 @@
 """``nhgait derive <scene.toml | built-in> ...``: print the equations of motion (registered by
-:mod:`nhgait.gaits.cli.main`). No symbolic work here: the models print themselves."""
+:mod:`nhgait.gaits.cli.main`). No symbolic work here: the models print themselves, and the
+text a cached model printed is cached with it (:func:`model_text`): a warm ``derive`` prints
+from the cache, without sympy's ``factor`` for display."""
 from __future__ import annotations
 
 import time
 
-__all__ = ["add_derive_parser", "cmd_derive"]
+__all__ = ["add_derive_parser", "cmd_derive", "model_text"]
 
 
 def cmd_derive(args) -> int:
@@ -20,7 +22,7 @@ def cmd_derive(args) -> int:
         t0 = time.perf_counter()
         model = derive(system, form, version=args.version, use_cache=not args.no_cache)
         dt = time.perf_counter() - t0
-        print(model.to_text(cse=args.cse))
+        print(model_text(model, args.cse, use_cache=not args.no_cache))
         print(f"  ({form}: {dt:.3f} s{', no cache' if args.no_cache else ''})\n")
         if form == "reduced":
             if args.table:
@@ -41,6 +43,28 @@ def cmd_derive(args) -> int:
     if args.table and "reduced" not in forms:
         print(symmetry_test(system).table_markdown())
     return 0
+
+
+#: the cache entries of the printed equations end with this
+TEXT_SUFFIX = ".text.pkl"
+
+
+def model_text(model, cse=None, *, use_cache: bool = True) -> str:
+    """``model.to_text(cse=cse)``, read from the cache when this model came from it and printed
+    before: the entry's key is the model's own cache key (its structure, the code and the
+    versions: :class:`~nhgait.dynamics.numerics.cache.Provenance`) with the system's name and
+    ``cse``; the text is stored the first time (nothing is stored for a model derived without
+    the cache)."""
+    provenance = getattr(model, "provenance", None)
+    if not use_cache or provenance is None:
+        return model.to_text(cse=cse)
+    from nhgait.dynamics.numerics import cache
+    key = cache.make_key("printed equations", provenance.key, model.system.name, repr(cse))
+    text = cache.load(key, str, suffix=TEXT_SUFFIX)
+    if text is None:
+        text = model.to_text(cse=cse)
+        cache.store(key, text, suffix=TEXT_SUFFIX)
+    return text
 
 
 def add_derive_parser(subparsers):

@@ -29,29 +29,36 @@ from nhgait.dynamics.errors import Terminated  # noqa: F401 - nhgait.gaits.cli.m
 
 from .vocabulary import CommandParser
 
-#: (module, function adding the subcommand), in the order of ``nhgait --help``
+#: (name, module, function adding the subcommand), in the order of ``nhgait --help``
 SUBCOMMANDS = (
-    ("nhgait.gaits.cli.derive", "add_derive_parser"),
-    ("nhgait.gaits.cli.simulate", "add_simulate_parser"),
-    ("nhgait.gaits.bench.command", "add_bench_parser"),
-    ("nhgait.gaits.cli.reproduce", "add_reproduce_parser"),
-    ("nhgait.gaits.cli.plan", "add_plan_parser"),
-    ("nhgait.gaits.cli.sweep", "add_sweep_parser"),
-    ("nhgait.gaits.cli.linearize", "add_linearize_parser"),
-    ("nhgait.gaits.cli.analyse", "add_analyse_parser"),
-    ("nhgait.gaits.cli.track", "add_track_parser"),
+    ("derive", "nhgait.gaits.cli.derive", "add_derive_parser"),
+    ("simulate", "nhgait.gaits.cli.simulate", "add_simulate_parser"),
+    ("bench", "nhgait.gaits.bench.command", "add_bench_parser"),
+    ("reproduce", "nhgait.gaits.cli.reproduce", "add_reproduce_parser"),
+    ("plan", "nhgait.gaits.cli.plan", "add_plan_parser"),
+    ("sweep", "nhgait.gaits.cli.sweep", "add_sweep_parser"),
+    ("linearize", "nhgait.gaits.cli.linearize", "add_linearize_parser"),
+    ("analyse", "nhgait.gaits.cli.analyse", "add_analyse_parser"),
+    ("track", "nhgait.gaits.cli.track", "add_track_parser"),
 )
 
 
-def build_parser() -> CommandParser:
+def build_parser(argv=None) -> CommandParser:
     """The ``nhgait`` parser: every subcommand's parser a :class:`~.vocabulary.CommandParser`
-    (an unknown option answered with "did you mean …?")."""
+    (an unknown option answered with "did you mean …?"). With ``argv`` naming a subcommand
+    (its first word that is not an option), only that one's module is imported and its parser
+    built in full, the others named only: a command imports what it uses (issue 40)."""
     from nhgait import __version__
     parser = CommandParser(prog="nhgait", description="Dynamics and gait planning of nonholonomic robots.")
     parser.add_argument("--version", action="version", version=f"nhgait {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
-    for module, adder in SUBCOMMANDS:
-        getattr(importlib.import_module(module), adder)(sub)
+    words = [tok for tok in (argv or ()) if not tok.startswith("-")]
+    chosen = words[0] if words and words[0] in {name for name, _, _ in SUBCOMMANDS} else None
+    for name, module, adder in SUBCOMMANDS:
+        if chosen is None or name == chosen:
+            getattr(importlib.import_module(module), adder)(sub)
+        else:
+            sub.add_parser(name)
     return parser
 
 
@@ -62,7 +69,7 @@ def main(argv=None) -> int:
     from nhgait.dynamics.errors import ModelError
 
     from .stopping import cancel_background_builds, exit_now, stop_signals
-    parser = build_parser()
+    parser = build_parser(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(argv)
     stopped = (lambda status: status) if argv is not None else exit_now
     formatter, warnings.formatwarning = warnings.formatwarning, _format_warning

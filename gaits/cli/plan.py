@@ -72,13 +72,14 @@ def add_plan_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    """Plan with ``--out`` checked and locked first (:mod:`nhgait.gaits.outputs`); exit 1 when
-    the plan failed or its files could not all be written (the summary says where the
-    solution went)."""
+    """Plan with ``--out`` checked and locked first (:mod:`nhgait.gaits.outputs`); the result
+    first — solution.json and trajectory.csv written, the summary printed — then the figures
+    (and ``--gif``'s animation). Exit 1 when the plan failed or its files could not all be
+    written (the summary says where the solution went)."""
     from nhgait.dynamics.progress import Progress
 
     from ..outputs import output_directory, output_lock
-    from ..planner import plan, summary_lines
+    from ..planner import plan, summary_lines, with_figures
     started = time.perf_counter()
     workers = args.workers
     progress = Progress.silent() if args.quiet else Progress.to_stderr(verbose=args.verbose)
@@ -88,17 +89,33 @@ def run(args) -> int:
                       solver=args.solver, transcription=args.transcription, jit=args.jit, workers=workers,
                       out_dir=out, animate=args.gif, hessian=args.hessian,
                       max_guesses=args.max_guesses, progress=progress, time_limit=args.time_limit,
-                      guess=args.guess)
-    print("\n".join(summary_lines(result)))
-    print(f"  wall time          {_wall_text(time.perf_counter() - started, result.timings)}")
-    return 0 if result.success and not result.unwritten else 1
+                      guess=args.guess, figures=False)
+        lines = [line for line in summary_lines(result)      # the animation comes with the figures
+                 if not (args.gif and line.startswith("  animation "))]
+        print("\n".join(lines), flush=True)                           # the result, before anything optional
+        t0 = time.perf_counter()
+        drawn = with_figures(result, out, animate=args.gif, progress=progress)
+        figures_s = time.perf_counter() - t0
+    print("\n".join(_figure_lines(result, drawn)))
+    timings = {**drawn.timings, "figures_s": figures_s} if drawn.files != result.files else drawn.timings
+    print(f"  wall time          {_wall_text(time.perf_counter() - started, timings)}")
+    return 0 if drawn.success and not drawn.unwritten else 1
+
+
+def _figure_lines(before, after) -> list:
+    """The figures written after the result (or why they were not)."""
+    if after.unwritten and not before.unwritten:
+        return [f"  figures            NOT WRITTEN: {after.unwritten} (the result is written)"]
+    added = after.files[len(before.files):]
+    return ["  figures:", *(f"    {f}" for f in added)] if added else []
 
 
 def _wall_text(wall: float, timings: dict) -> str:
     """"4.3 s in all: model 1.1 s, NLP set-up and compilation 0.3 s, …" (the rest: files)."""
     parts = [("model", "prepare_s"), ("NLP set-up and compilation", "setup_s"),
              ("guesses and solves", "solve_s"),
-             ("the robust plan", "robust_s"), ("verification", "verify_s"), ("feedback", "feedback_s")]
+             ("the robust plan", "robust_s"), ("verification", "verify_s"), ("feedback", "feedback_s"),
+             ("figures", "figures_s")]
     shown = [(label, float(timings[key])) for label, key in parts if key in timings]
     rest = wall - sum(seconds for _, seconds in shown)
     items = [f"{label} {seconds:.1f} s" for label, seconds in shown] + [f"files and start-up {rest:.1f} s"]

@@ -82,3 +82,18 @@ def test_bench_tracking_smoke(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "Floquet (snakeboard forward gait)" in printed
     assert "robust / nominal open loop" in printed
+
+
+def test_bench_loop_smoke(tmp_path, capsys):
+    """experiments/bench_loop.py at its smallest: the floor and one warm `nhgait derive`, one
+    run each; the table has both rows with their wall and CPU ratios."""
+    bench = _load("bench_loop")
+    out = tmp_path / "loop.json"
+    assert bench.main(["--sections", "process", "--commands", "derive", "--repeats", "1",
+                       "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "(the floor)" in text
+    assert "nhgait derive snakeboard, warm" in text
+    rows = json.loads(out.read_text())["rows"]
+    assert [r["ratio"] for r in rows][0] == 1.0
+    assert all(r["median_s"] > 0 and r["cpu_s"] > 0 for r in rows)

@@ -354,7 +354,7 @@ def test_a_plan_with_a_huge_time_limit_runs_as_if_unlimited(tmp_path):
     assert result.overrun is None
 
 
-def test_the_task_time_limit_is_the_plans_budget():
+def test_the_task_time_limit_is_the_plans_budget(monkeypatch):
     """``time_limit`` in the task is used when no ``time_limit`` is given, and said."""
     from nhgait.dynamics.progress import Progress
     from nhgait.gaits.planner import plan_budget
@@ -367,7 +367,27 @@ def test_the_task_time_limit_is_the_plans_budget():
     assert "time budget: 45 s ([task] time_limit)" in stream.getvalue()
     to_plan = resolve("unicycle", "parallel-park")
     n = len(to_plan.scene.system.coordinates)
+    monkeypatch.setattr(os, "getloadavg", lambda: (0.0, 0.0, 0.0))       # an idle machine
     assert plan_budget(to_plan).seconds == default_plan_seconds(n) == 120.0 + 30.0 * n
+
+
+def test_the_default_budget_grows_with_a_busy_machine(monkeypatch):
+    """On a machine whose load average is L on C cores each process gets about C/L of a core:
+    the default budget is scaled by L/C (at least 1, at most CONTENTION_CAP) and says so; a
+    time given by the caller or the task is kept as given (issue 40)."""
+    from nhgait.gaits import time_limits
+    from nhgait.gaits.planner import plan_budget
+    from nhgait.gaits.task_library import resolve
+    to_plan = resolve("unicycle", "parallel-park")
+    n = len(to_plan.scene.system.coordinates)
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(os, "getloadavg", lambda: (5.0, 5.0, 5.0))       # 2.5 runnable per core
+    budget = plan_budget(to_plan)
+    assert budget.seconds == pytest.approx(2.5 * default_plan_seconds(n), rel=1e-12)
+    assert "busy machine (load average 5.0 on 2 cores)" in budget.source
+    assert plan_budget(to_plan, 30.0).seconds == 30.0
+    monkeypatch.setattr(os, "getloadavg", lambda: (40.0, 40.0, 40.0))
+    assert plan_budget(to_plan).seconds == pytest.approx(time_limits.CONTENTION_CAP * default_plan_seconds(n))
 
 
 def test_a_sweep_point_out_of_time_is_a_failed_point_naming_the_budget(tmp_path):
@@ -447,3 +467,27 @@ def test_a_stop_lost_in_one_phase_ends_the_run_before_the_next(monkeypatch, caps
     assert cli.main(["plan", "unicycle", "--out", "unused"]) == 143
     assert entered == []
     assert "nhgait: terminated" in capsys.readouterr().err
+
+
+@needs_fork
+def test_meanwhile_runs_once_in_the_parent_while_the_children_work(tmp_path):
+    """``meanwhile`` (the planner's imports for its figures) runs once, in this process, after
+    the first children started and before their results are collected: the children each
+    wait for a file that only ``meanwhile`` writes, so they can answer only if it ran while
+    they were alive."""
+    flag = tmp_path / "meanwhile-ran"
+    calls = []
+
+    def waits_for_flag():
+        while not flag.exists():
+            os.sched_yield()
+        return os.getpid()
+
+    def meanwhile():
+        calls.append(os.getpid())
+        flag.write_text("ran")
+
+    jobs = [Job(waits_for_flag, 60.0, lambda status, message, seconds: None) for _ in range(3)]
+    pids = supervise(jobs, workers=2, meanwhile=meanwhile)
+    assert calls == [os.getpid()]                          # once, here
+    assert all(pid is not None and pid != os.getpid() for pid in pids)
