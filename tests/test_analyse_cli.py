@@ -31,7 +31,8 @@ def test_text_names_brackets_and_confinement(capsys):
     text = capsys.readouterr().out
     assert "purely mechanical" in text and "confined" in text and "conserved" in text
     assert main(["analyse", str(SCENES / "knife_edge.toml"), "--quiet"]) == 0
-    assert "depth 2: [X_p, X_theta]" in capsys.readouterr().out
+    # [cos θ ∂x + sin θ ∂y, ∂θ] = sin θ ∂x − cos θ ∂y: at θ = 0 the new direction is −∂y
+    assert "depth 2: [X_p1, X_p2] = (y: -1) (new)" in capsys.readouterr().out
 
 
 def test_bad_names_in_one_message(capsys):

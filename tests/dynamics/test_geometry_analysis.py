@@ -53,7 +53,7 @@ def test_knife_edge_bracket_is_sideways():
     (name, value), = growth.new_directions[0]
     direction = value / np.linalg.norm(value)
     assert abs(abs(direction @ np.array([-np.sin(0.5), np.cos(0.5), 0.0])) - 1) < 1e-12
-    assert name == "[X_p, X_theta]"
+    assert name == "[X_p1, X_p2]"          # the SE(2) chart: p1 forward, p2 the turn
 
 
 @pytest.mark.parametrize("name, at", [
