@@ -19,7 +19,9 @@ Three kinds of failure (:func:`diagnose`):
 * **converged but not verified** — the independent re-simulation misses the planned states or
   the task's conditions by more than the task's ``verify_tolerance``: the misses, and the likely
   cause (bang-bang inputs at their bounds whose switching the intervals do not resolve, or RK4
-  steps too coarse for the tolerance).
+  steps too coarse for the tolerance); for an unstable gait (:mod:`.verification_checks`) the
+  interval or closed-loop check that failed and what helps (more intervals, wider bounds —
+  never more time).
 """
 from __future__ import annotations
 
@@ -100,8 +102,33 @@ def _relax(result, s, saturated) -> list:
     return out or ["check the task's values against the robot's reach"]
 
 
+def _unstable_not_verified(result, checks) -> list:
+    """A gait unstable for verification (:mod:`.verification_checks`) whose interval or
+    closed-loop check fails: which, and what helps (never more time: the open loop cannot
+    verify it at any budget)."""
+    s, N = result.solution, result.task.intervals
+    lines = [f"the solver converged (J = {s.objective:.6g}); the gait is unstable (largest growth rate "
+             f"{checks.growth_rate:.3g} /s, the open loop amplifies errors by "
+             f"e^{checks.amplification:.1f} over "
+             f"T = {checks.horizon:g} s), so the interval and closed-loop checks decide, and:"]
+    lines += [f"  {x}" for x in checks.failures()]
+    if not checks.interval_passed:
+        lines.append(f"what to change: more intervals (now {N}, e.g. --set intervals={2 * N}); more time "
+                     "does not help")
+    else:
+        sat, _ = _saturation_line(s)
+        lines.append("what to change: the plan's time-varying LQR does not hold the robot on the gait"
+                     + (f" ({sat})" if sat else "") + ": widen control_bounds, or a gait that keeps "
+                     "further from the bounds (a longer horizon)")
+    return lines
+
+
 def _not_verified(result) -> list:
+    from .verification_checks import checks_of
     s, v = result.solution, result.solution.verification
+    checks = checks_of(s)
+    if checks is not None and not checks.stable:
+        return _unstable_not_verified(result, checks)
     lines = [f"the solver converged ({s.stats.get('solver_status', 'Solve_Succeeded')}, J = "
              f"{s.objective:.6g}) but the independent re-simulation (DOP853, rtol {v.rtol:g}) does not meet "
              f"the task to {v.tolerance:g}:"]

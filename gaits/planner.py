@@ -396,8 +396,8 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
 
 
 def _passed(solution) -> bool:
-    verification = getattr(solution, "verification", None)
-    return verification is not None and bool(verification.passed)
+    from .gait_check import passed  # the deciding checks (issue 41)
+    return passed(solution)
 
 
 def _first_instead(reached: _Reached, search, settings, budget, progress, verify_one):
@@ -597,12 +597,13 @@ def summary_lines(result: PlanResult) -> list:
              f"{s.function_time_s * 1e3:.1f} ms, "
              f"solver {s.solver_time_s * 1e3:.1f} ms); set-up {s.setup_time_s * 1e3:.1f} ms"]
     if v is not None:
-        lines.append(f"  verification       {'passed' if v.passed else 'FAILED'}: max state error "
+        lines.append(f"  {_open_loop_label(s)}{'passed' if v.passed else 'FAILED'}: max state error "
                      f"{v.max_error:.2e}, conditions met to {v.max_condition_error:.2e}; relative to each "
                      f"state's range {v.max_scaled_error:.2e}, {v.max_scaled_condition_error:.2e} (tolerance "
                      f"{v.tolerance:g}; DOP853, rtol {v.rtol:g})")
     else:
         lines.append("  verification       not run")
+    lines += [f"  {line}" for line in _check_lines(s)]                      # issue 41
     st = s.settings
     lines.append(f"  N = {st.get('intervals')}, T = {s.horizon:.4f} s, {st.get('transcription')}, "
                  f"{st.get('solver')}, {st.get('hessian', 'exact')} Hessian, {_compiled_text(st)}, "
@@ -634,6 +635,20 @@ def summary_lines(result: PlanResult) -> list:
                      f"singular set of fiber ({', '.join(result.model.fiber)}), where its momenta "
                      "are not defined")
     return lines + _closing_lines(result)
+
+
+def _open_loop_label(solution) -> str:
+    """"verification", or for a gait whose interval and closed-loop checks decide, the open loop's
+    re-simulation named as reported (issue 41)."""
+    from .verification_checks import checks_of
+    checks = checks_of(solution)
+    return "verification       " if checks is None or checks.stable else "open loop, reported "
+
+
+def _check_lines(solution) -> list:
+    from .verification_checks import check_lines, checks_of
+    checks = checks_of(solution)
+    return [] if checks is None else check_lines(checks)
 
 
 def _closing_lines(result: PlanResult) -> list:
