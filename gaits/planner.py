@@ -53,6 +53,7 @@ from .gait_check import momentum_problem, screening_report, to_momentum_coordina
 from .refinement import refinable, refine
 from .search import Attempt, Search, continuation, solve_from_guesses, solve_with_fallbacks  # noqa: F401
 from .task import quantity_objects  # noqa: F401
+from .verification_checks import open_loop_label, solution_check_lines
 from .warm_start import MAX_SOLUTION_BYTES, previous_answer, read_solution, warm_start  # noqa: F401
 
 __all__ = ["plan", "PlanResult", "prepare", "Prepared", "state_problem", "to_momentum_coordinates",
@@ -597,13 +598,13 @@ def summary_lines(result: PlanResult) -> list:
              f"{s.function_time_s * 1e3:.1f} ms, "
              f"solver {s.solver_time_s * 1e3:.1f} ms); set-up {s.setup_time_s * 1e3:.1f} ms"]
     if v is not None:
-        lines.append(f"  {_open_loop_label(s)}{'passed' if v.passed else 'FAILED'}: max state error "
+        lines.append(f"  {open_loop_label(s)}{'passed' if v.passed else 'FAILED'}: max state error "
                      f"{v.max_error:.2e}, conditions met to {v.max_condition_error:.2e}; relative to each "
                      f"state's range {v.max_scaled_error:.2e}, {v.max_scaled_condition_error:.2e} (tolerance "
                      f"{v.tolerance:g}; DOP853, rtol {v.rtol:g})")
     else:
         lines.append("  verification       not run")
-    lines += [f"  {line}" for line in _check_lines(s)]                      # issue 41
+    lines += [f"  {line}" for line in solution_check_lines(s)]              # issue 41
     st = s.settings
     lines.append(f"  N = {st.get('intervals')}, T = {s.horizon:.4f} s, {st.get('transcription')}, "
                  f"{st.get('solver')}, {st.get('hessian', 'exact')} Hessian, {_compiled_text(st)}, "
@@ -635,20 +636,6 @@ def summary_lines(result: PlanResult) -> list:
                      f"singular set of fiber ({', '.join(result.model.fiber)}), where its momenta "
                      "are not defined")
     return lines + _closing_lines(result)
-
-
-def _open_loop_label(solution) -> str:
-    """"verification", or for a gait whose interval and closed-loop checks decide, the open loop's
-    re-simulation named as reported (issue 41)."""
-    from .verification_checks import checks_of
-    checks = checks_of(solution)
-    return "verification       " if checks is None or checks.stable else "open loop, reported "
-
-
-def _check_lines(solution) -> list:
-    from .verification_checks import check_lines, checks_of
-    checks = checks_of(solution)
-    return [] if checks is None else check_lines(checks)
 
 
 def _closing_lines(result: PlanResult) -> list:

@@ -13,8 +13,8 @@ faster than the sub-steps resolve).
 :func:`refinable` says whether a verified failure is of that kind — the re-simulation ran
 through and misses the planned nodes (finite errors); for a gait unstable for verification
 (:mod:`.verification_checks`: its open loop amplifies errors by more than 10³ over the horizon)
-only a failed *interval* check is refined, sized on its miss (:func:`miss`): no number of
-sub-steps brings an unstable open loop to the tolerance, and no budget is spent trying;
+only a failed interval or closed-loop check is refined, sized on its miss (:func:`miss`): no
+number of sub-steps brings an unstable open loop to the tolerance, and no budget is spent trying;
 :func:`refined_steps` chooses M' from the miss e and the tolerance τ with the h⁴ law and a
 margin of :data:`MARGIN`::
 
@@ -62,27 +62,31 @@ def refinable(solution) -> bool:
     if v is None or solution.status != "Verification_Failed":
         return False
     checks = checks_of(solution)
-    if checks is not None and not checks.stable:       # unstable: only the interval check can be refined
-        return bool(math.isfinite(checks.interval_error) and not checks.interval_passed)
+    if checks is not None and not checks.stable:       # unstable: the interval and closed-loop checks
+        return bool(checks.closed_loop_ran and math.isfinite(miss(solution)) and not checks.passed)
     if not v.success:
         return False
     return math.isfinite(v.max_error) and math.isfinite(v.max_condition_error) and v.max_error > v.tolerance
 
 
 def miss(verified) -> float:
-    """The miss a refinement is sized on: the interval check's for an unstable gait (the open
-    loop's cannot shrink below e^{λT} × the integrator's error), else the open loop's."""
+    """The miss a refinement is sized on: for an unstable gait the larger of the interval and
+    closed-loop checks' (both made of the transcription's defects, the second carried by the
+    stable closed loop; the open loop's cannot shrink below e^{λT} × the integrator's error),
+    else the open loop's."""
     from .verification_checks import checks_of
     v, checks = verified.verification, checks_of(verified)
     if checks is not None and not checks.stable:
-        return checks.interval_error
+        return max(checks.interval_error, checks.closed_loop_error,
+                   *checks.closed_loop_conditions.values())
     return max(v.max_error, v.max_condition_error)
 
 
 def _which(verified) -> str:
     from .verification_checks import checks_of
     checks = checks_of(verified)
-    return "interval check" if checks is not None and not checks.stable else "re-simulation"
+    return ("interval or closed-loop check" if checks is not None and not checks.stable
+            else "re-simulation")
 
 
 def refined_steps(steps: int, miss: float, tolerance: float) -> int:

@@ -38,7 +38,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["GaitChecks", "gait_checks", "checks_of", "STABLE_AMPLIFICATION", "check_lines"]
+__all__ = ["GaitChecks", "gait_checks", "checks_of", "STABLE_AMPLIFICATION", "check_lines",
+           "solution_check_lines", "open_loop_label"]
 
 #: an open loop that multiplies errors by at most this factor over the horizon decides
 STABLE_AMPLIFICATION = 1e3
@@ -270,5 +271,18 @@ def check_lines(checks: GaitChecks) -> list:
             f"errors by e^{amp:.1f} = {math.exp(min(amp, 700.0)):.2g} over T = {checks.horizon:g} s "
             f"({'stable' if checks.stable else 'unstable'} for verification)",
             f"decided by         the {checks.decided_by} check{'s' if not checks.stable else ''}"
-            + ("" if checks.stable else " (an open-loop re-simulation of an unstable gait cannot verify it; "
-               "reported, not refined)")]
+            + ("" if checks.stable else " (an open-loop re-simulation of an unstable gait cannot verify it "
+               "at any step size: reported; no refinement aims at it)")]
+
+
+def solution_check_lines(solution) -> list:
+    """:func:`check_lines` of the checks ``solution`` carries (none: [])."""
+    checks = checks_of(solution)
+    return [] if checks is None else check_lines(checks)
+
+
+def open_loop_label(solution) -> str:
+    """The summary's label of the open-loop line: "verification", or for a gait whose interval and
+    closed-loop checks decide, the open loop named as reported."""
+    checks = checks_of(solution)
+    return "verification       " if checks is None or checks.stable else "open loop, reported "
