@@ -8,7 +8,10 @@ Three kinds of failure (:func:`diagnose`):
 * **no guess converged** — the attempts by outcome (the solvers' own status names); at the
   closest point found (smallest constraint violation) the conditions it violates by how much
   (the NLP's rows are labelled: "dynamics", "final.x", "periodic.psi", "bounds.phi"), how often
-  the inputs sit at their bounds, and what to relax;
+  the inputs sit at their bounds, and what to change: the minimum-violation (elastic) solve's
+  answer — each stated condition the nearest gait moves, by how much, "possibly infeasible"
+  where no gait was found (:mod:`.infeasibility`) — else what to relax (never the start the
+  user gave when another condition is violated);
 * **singular postures** (with either of the above) — where the guesses or the closest point met the
   singular set of the planner's equations (:mod:`.screening`: the velocity states stop
   determining the motion, or the reduction's chart divides by zero): each posture in the
@@ -71,7 +74,11 @@ def _not_converged(result) -> list:
     sat, saturated = _saturation_line(s)
     if sat:
         lines.append(f"  {sat}")
-    return lines + ["what to relax:"] + [f"  {x}" for x in _relax(result, s, saturated)]
+    elastic = s.settings.get("elastic")
+    if elastic is not None and elastic.get("converged"):        # the minimum-violation solve (issue 41)
+        return lines + list(elastic["lines"])
+    return (lines + list((elastic or {}).get("lines", [])) + ["what to relax:"]
+            + [f"  {x}" for x in _relax(result, s, saturated)])
 
 
 def _relax(result, s, saturated) -> list:
@@ -81,7 +88,9 @@ def _relax(result, s, saturated) -> list:
     if saturated:
         out.append("widen control_bounds (the inputs saturate) or lengthen the horizon "
                    f"(now T = {task.horizon:g} s)")
-    ends = [k for k in named if k.startswith(("initial.", "final.", "periodic."))]
+    ends = [k for k in named if k.startswith(("final.", "periodic."))]
+    if not ends and not out:          # the start the user gave is advice only when nothing else is violated
+        ends = [k for k in named if k.startswith("initial.")]
     if ends:
         out.append("the end conditions " + ", ".join(ends) + " (make them ranges, or move them)")
     paths = [k for k in named if k.startswith("bounds.")]

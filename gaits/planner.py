@@ -50,6 +50,7 @@ from typing import Any
 
 from .exports import states_text, write_trajectory_csv
 from .gait_check import momentum_problem, screening_report, to_momentum_coordinates, unsolved, verified_gait  # noqa: F401
+from .infeasibility import stalled, with_elastic
 from .refinement import refinable, refine
 from .search import Attempt, Search, continuation, solve_from_guesses, solve_with_fallbacks  # noqa: F401
 from .task import quantity_objects  # noqa: F401
@@ -309,6 +310,7 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
         reached.overrun = exc.overrun
         progress.note(f"  the time budget of {exc.overrun.seconds:g} s ran out during {exc.overrun.phase}")
     result = _result(to_plan, reached, settings, params)
+    result = with_elastic(result, reached.prepared, reached.search, budget, progress)     # issue 41
     result = replace(result, diagnosis=diagnose(result))
     if out_dir is not None:
         result = written(result, out_dir, animate=animate, progress=progress)
@@ -499,7 +501,7 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
                 reached.search = reached.search.then(solve_with_fallbacks(ocp, guesses, workers=s.workers,
                                                                           limit=s.limit, progress=progress,
                                                                           budget=budget, explore=explore))
-        if reached.search.solution is not None:
+        if reached.search.solution is not None or stalled(reached.search.attempts):    # issue 41
             break
 
 

@@ -30,6 +30,8 @@ from typing import Any
 
 from nhgait.ocp.coarse import WARM_IPOPT as _WARM_IPOPT
 
+from .infeasibility import STALL_ATTEMPTS, stalled
+
 __all__ = ["Attempt", "Search", "WARM_IPOPT", "attempt_of", "solve_attempts", "solve_from_guesses",
            "solve_with_fallbacks", "continuation"]
 
@@ -211,6 +213,10 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
             if not s.success:
                 closest = _closer(closest, s)
         good = [(s.objective, i) for i, s in enumerate(sols) if s.success]
+        if not good and stalled(attempts):                 # issue 41: the same infeasibility again
+            progress.note(f"  the last {STALL_ATTEMPTS} attempts stopped at the same infeasible point: "
+                          "no more guesses")
+            break
         if good:
             _, i = min(good)
             found = Search(sols[i], tuple(attempts), batch[i].label, closest)
@@ -320,7 +326,8 @@ def solve_with_fallbacks(solver, guesses, *, workers: int = 1, limit: int | None
     screening: a regular guess; not once ``budget`` is spent)."""
     search = solve_from_guesses(solver, guesses, workers=workers, limit=limit, progress=progress,
                                 budget=budget, explore=explore)
-    first = None if search.solution is not None or _spent(budget) else _built(guesses, range(1), budget)
+    first = (None if search.solution is not None or _spent(budget) or stalled(search.attempts)
+             else _built(guesses, range(1), budget))
     if first:
         if progress is not None:
             progress.note(f"  no guess converged: continuation from {first[0].label!r} (the "
