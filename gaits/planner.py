@@ -48,6 +48,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from .convergence_plots import write_convergence_figure
 from .exports import states_text, write_trajectory_csv
 from .gait_check import momentum_problem, screening_report, to_momentum_coordinates, unsolved, verified_gait  # noqa: F401
 from .infeasibility import stalled, with_elastic
@@ -577,6 +578,7 @@ def _write_files(result: PlanResult, out: Path, *, animate: bool, progress) -> l
     with progress.phase("write solution.json and the figures"):
         files.extend(plots.write_figures(result.solution, out, units=result.plan.units,
                                          drawing=result.plan.drawing, model=result.model, failed=failed))
+        files.append(write_convergence_figure(result.attempts, out / "convergence.png", title=result.label))
     if animate:
         from .animation import animate_solution
         with progress.phase("write the animation motion.gif (60 frames; the longest part of the output)"):

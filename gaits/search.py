@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from nhgait.ocp.coarse import WARM_IPOPT as _WARM_IPOPT
@@ -48,6 +48,8 @@ class Attempt:
     solver: str = ""
     constraint_violation: float = math.nan
     seconds: float = 0.0
+    #: objective and constraint violation per iteration (Ipopt; {} for FATROP): the convergence figure
+    history: dict = field(default_factory=dict, repr=False)
 
 
 @dataclass(frozen=True, eq=False)
@@ -80,7 +82,7 @@ def _closer(a, b):
 def attempt_of(label, s, solver_name="") -> Attempt:
     """The :class:`Attempt` record of solution ``s`` of the guess ``label``."""
     return Attempt(label, s.status, bool(s.success), int(s.iterations), float(s.objective), solver_name,
-                   float(s.constraint_violation), float(s.solve_time_s))
+                   float(s.constraint_violation), float(s.solve_time_s), dict(s.stats.get("history") or {}))
 
 
 #: guesses tried after the first converged one when the search explores (the planner), the

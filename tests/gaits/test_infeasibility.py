@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from nhgait.gaits.convergence_plots import plot_convergence, write_convergence_figure
 from nhgait.gaits.infeasibility import Elastic, elastic_solve, stalled
 from nhgait.gaits.planner import plan, prepare
 from nhgait.gaits.search import Attempt
@@ -47,8 +48,13 @@ def test_a_feasible_task_needs_no_move():
     assert "a gait exists" in elastic.lines()[0]
 
 
-def test_a_plan_that_stalls_stops_and_says_what_must_move():
-    result = plan(SCENE, TASK, jit=False, params={"k": 0.0})
+@pytest.fixture(scope="module")
+def stalling():
+    return plan(SCENE, TASK, jit=False, params={"k": 0.0})
+
+
+def test_a_plan_that_stalls_stops_and_says_what_must_move(stalling):
+    result = stalling
     assert not result.success
     ipopt = [a for a in result.attempts if a.solver == "ipopt"]
     assert len(ipopt) == 3 and stalled(ipopt)                 # stopped at the third, not twelve
@@ -71,3 +77,17 @@ def test_stalled_needs_the_same_infeasible_point_three_times():
     assert not stalled(same[:2] + [_attempt("Infeasible_Problem_Detected", 0.08)])   # another point
     assert not stalled(same[:2] + [_attempt("Maximum_Iterations_Exceeded", 0.056)])  # not infeasible
     assert not stalled(same[:2] + [_attempt("Solve_Succeeded", 0.0, True)])
+
+
+def test_the_convergence_figure_draws_each_attempt(stalling, tmp_path):
+    attempts = stalling.attempts
+    top, bottom = plot_convergence(attempts)
+    assert len(bottom.get_lines()) == len(attempts) == len(top.get_lines())
+    for a, line in zip(attempts, bottom.get_lines(), strict=True):
+        if a.solver == "ipopt":        # every iterate (restoration's too); an infeasible one levels off
+            assert len(line.get_ydata()) > a.iterations
+            assert line.get_ydata()[-1] > 1e-3
+        else:                          # FATROP keeps no history: its final point
+            assert len(line.get_ydata()) == 1
+    path = write_convergence_figure(attempts, tmp_path / "convergence.png", title="unstable_line")
+    assert path.stat().st_size > 10_000
