@@ -81,3 +81,24 @@ def test_the_checks_round_trip_through_solution_json(unstable):
     assert GaitChecks.from_dict(checks.to_dict()) == checks
     data = unstable.solution.to_dict()["settings"]["checks"]
     assert data["decided_by"] == "interval and closed loop" and data["stability"]["stable"] is False
+
+
+COIN = Path(__file__).resolve().parents[1] / "scenes" / "coin_park.toml"
+
+
+@pytest.mark.slow          # about 15-30 s: a 5-coordinate robot, derived and compiled once
+def test_the_coin_parallel_park_is_verified_by_the_interval_and_closed_loop_checks():
+    """Issue 41's target: a thin coin (r = 0.2 m) rolling upright, parked 1 m sideways in 6 s.
+    Upright at rest its lean is an inverted pendulum, (I + m r²) lean'' = m g r lean with
+    I = m r²/4: growth rate √(4g/(5r)) = 6.264 /s at the first node (rest), e^{38} over 6 s."""
+    result = plan(str(COIN), max_guesses=1)
+    checks = checks_of(result.solution)
+    assert result.success, result.solution.message
+    assert checks.decided_by == "interval and closed loop"
+    assert checks.interval_error <= 1e-6 and checks.closed_loop_error <= 1e-6
+    assert checks.open_loop_error > 1e-3                     # the open loop falls over
+    assert int(result.solution.settings.get("rk4_steps", 4)) == 4      # nothing spent refining
+    s = result.solution
+    at_rest = verification_checks.growth_rate(s.problem.ode(), s.t[:1], s.z[:1].T, s.u[:1].T)
+    assert at_rest == pytest.approx(math.sqrt(4 * 9.81 / (5 * 0.2)), abs=1e-9)
+    assert checks.growth_rate >= at_rest - 1e-12
