@@ -4,7 +4,7 @@
 Problem (the task's states z, inputs u, N intervals of h = T/N; the dynamics hard, each stated
 condition c elastic with a slack s_c ≥ 0)::
 
-    minimise    Σ_c w_c s_c                                   (an L1 penalty: exact — a condition
+    minimise    Σ_c s_c / size_c                              (an L1 penalty: exact — a condition
                                                                moves only when it must)
     subject to  z_{k+1} = F(z_k, u_k)                         (M RK4 sub-steps of ż = f(t, z, u))
                 lo_c − s_c ≤ y_c(z_0) ≤ hi_c + s_c            initial.<y>
@@ -13,7 +13,11 @@ condition c elastic with a slack s_c ≥ 0)::
                 lo_c − s_c ≤ u_{j,k} ≤ hi_c + s_c         ∀k   control_bounds.<u>
                 |y_c(z_N) − y_c(z_0)| ≤ s_c                   periodic.<y>
 
-with every w_c = 1 in the user's SI units. The **start is moved last**: the solve is made first
+with size_c the largest finite |bound| of condition c (1, SI, for a condition on 0): each move
+is measured relative to the value the user wrote (widening |τ| ≤ 0.012 by 0.0015 is a move of
+12 %; moving y(T) = 0.5 m by 0.5 m one of 100 %). The solve is local: it is made from the
+closest point of the attempts and from a plain start (every unknown 0), and the smaller total
+kept. The **start is moved last**: the solve is made first
 with the ``initial`` conditions hard (the rest the user wants to start from is not advice to give);
 only when no gait exists even then are they made elastic too (``start_moved``). The result names
 each condition the nearest gait moves, by how much, and the value it then takes (:class:`Elastic`).
@@ -46,6 +50,8 @@ INFEASIBLE = ("Infeasible_Problem_Detected", "Restoration_Failed", "Local_Infeas
 STALL_SPREAD = 0.05
 #: seconds the elastic solve may take at most (within the plan's budget)
 ELASTIC_SECONDS = 60.0
+#: conditions moved one at a time at most (:meth:`Elastic.lines`: "each alone")
+ALONE = 6
 
 
 def stalled(attempts) -> bool:
@@ -92,6 +98,7 @@ class Elastic:
     tolerance: float
     seconds: float
     units: dict = field(default_factory=dict)
+    alone: tuple = ()
 
     @property
     def moved(self) -> tuple:
@@ -119,8 +126,12 @@ class Elastic:
                 "nearest one moves" if self.start_moved else
                 "possibly infeasible: no gait meets every stated condition near the attempts; the least "
                 "total move (L1) that gives one, the start kept as stated")
+        unit = lambda label: self.units.get(label.split(".", 1)[-1], "")  # noqa: E731
+        alone = [f"  {m.text(unit(label))}" if m is not None else
+                 f"  {label}: no gait found by moving it alone" for label, m in self.alone]
         return ([f"{head} ({self.seconds:.1f} s):"]
-                + [f"  {m.text(self.units.get(m.label.split('.', 1)[-1], ''))}" for m in self.moved]
+                + [f"  {m.text(unit(m.label))}" for m in self.moved]
+                + (["each alone, the others as stated:"] + alone if alone else [])
                 + ["  (a local answer: a gait may exist elsewhere; moving these conditions by these amounts "
                    "gives one)"])
 
@@ -129,7 +140,9 @@ class Elastic:
                 "tolerance": self.tolerance, "seconds": self.seconds, "feasible": self.feasible,
                 "total_move": self.total, "lines": self.lines(),
                 "moves": [{"condition": m.label, "asked": list(m.asked), "by": m.by, "reached": m.reached}
-                          for m in self.moves]}
+                          for m in self.moves],
+                "alone": [{"condition": label, "by": None if m is None else m.by,
+                           "reached": None if m is None else m.reached} for label, m in self.alone]}
 
 
 # ----------------------------------------------------------------------------- the NLP
@@ -178,8 +191,9 @@ def _guess(opti, Z, U, problem, closest) -> None:
         opti.set_initial(U, np.nan_to_num(closest.u.T))
 
 
-def _solve(problem, closest, *, start_elastic: bool, steps: int, seconds: float) -> tuple:
-    """(converged, status, moves) of one elastic NLP."""
+def _solve(problem, closest, *, elastic, steps: int, seconds: float) -> tuple:
+    """(converged, status, moves) of one elastic NLP; ``elastic(label, is_start)`` says which
+    conditions get a slack (the others are hard)."""
     import casadi as ca
     N, T = problem.intervals, float(problem.horizon)
     t = np.linspace(0.0, T, N + 1)
@@ -189,7 +203,7 @@ def _solve(problem, closest, *, start_elastic: bool, steps: int, seconds: float)
     opti.subject_to(Z[:, 1:] == F(Z[:, :N], U, ca.DM(t[:N]).T, T / N))
     cost, slacks = 0, []
     for label, exprs, (lo, hi), start in _conditions(problem, Z, U, t):
-        if start and not start_elastic:
+        if not elastic(label, start):
             for e in exprs:
                 opti.subject_to(opti.bounded(lo, e, hi) if lo < hi else e == lo)
             continue
@@ -200,8 +214,11 @@ def _solve(problem, closest, *, start_elastic: bool, steps: int, seconds: float)
                 opti.subject_to(e >= lo - s)
             if math.isfinite(hi):
                 opti.subject_to(e <= hi + s)
-        cost, slacks = cost + s, slacks + [(label, exprs, (lo, hi), s)]
+        cost, slacks = cost + s / _size(lo, hi), slacks + [(label, exprs, (lo, hi), s)]
     for name in problem.periodic:
+        if not elastic(f"periodic.{name}", False):
+            opti.subject_to(y_end(problem, Z, name) == y_start(problem, Z, name))
+            continue
         s = opti.variable()
         opti.subject_to(opti.bounded(-s, y_end(problem, Z, name) - y_start(problem, Z, name), s))
         cost, slacks = cost + s, slacks + [(f"periodic.{name}", [], (0.0, 0.0), s)]
@@ -216,6 +233,13 @@ def _solve(problem, closest, *, start_elastic: bool, steps: int, seconds: float)
         value, status = opti.debug.value, str(opti.stats().get("return_status", "failed"))
     return status == "Solve_Succeeded", status, tuple(_move(label, exprs, bounds, value(s), value)
                                                       for label, exprs, bounds, s in slacks)
+
+
+def _size(lo: float, hi: float) -> float:
+    """The size a move of a condition [lo, hi] is measured against: its largest finite |bound|,
+    1 (SI) for a condition on 0."""
+    size = max((abs(b) for b in (lo, hi) if math.isfinite(b)), default=0.0)
+    return size if size > 0 else 1.0
 
 
 def y_start(problem, Z, name):
@@ -234,20 +258,51 @@ def _move(label, exprs, bounds, slack, value) -> Move:
     return Move(label, (float(lo), float(hi)), max(float(slack), 0.0), float(reached))
 
 
+def _alone(problem, closest, moves, tolerance, steps, left) -> tuple:
+    """((label, Move or None), …): the move of each of at most :data:`ALONE` conditions when it
+    alone is elastic (the others as stated): the conditions the L1 answer moved and every path and
+    input bound — when the L1 answer moved anything. None: no gait found by moving it alone."""
+    moved = [m.label for m in moves if m.by > tolerance]
+    if not moved:
+        return ()
+    labels = list(dict.fromkeys(moved + [m.label for m in moves
+                                         if m.label.startswith(("bounds.", "control_bounds."))]))
+    if len(moved) == 1 and len(labels) == 1:
+        return ()
+    out = []
+    for label in labels[:ALONE]:
+        converged, _, found = _solve(problem, closest, elastic=lambda lab, start, c=label: lab == c,
+                                     steps=steps, seconds=left() / 2)
+        out.append((label, next((m for m in found if m.label == label), None) if converged else None))
+    return tuple(out)
+
+
+def _cost(answer) -> float:
+    """The weighted total move of one elastic answer (converged, status, moves)."""
+    return sum(m.by / _size(*m.asked) for m in answer[2])
+
+
 def elastic_solve(problem, closest=None, *, tolerance: float = 1e-6, steps: int = 4,
                   seconds: float = ELASTIC_SECONDS, units=None) -> Elastic:
     """The minimum-violation solve of the module docstring on ``problem`` (the task as stated,
     in the planner's states), started from ``closest`` (a failed Solution on the same grid, or
     None); moves below ``tolerance`` count as met."""
     t0 = time.perf_counter()
-    converged, status, moves = _solve(problem, closest, start_elastic=False, steps=steps, seconds=seconds)
+    left = lambda: max(1.0, seconds - (time.perf_counter() - t0))  # noqa: E731
     start_moved = False
-    if not converged:
-        left = max(1.0, seconds - (time.perf_counter() - t0))
-        converged, status, moves = _solve(problem, closest, start_elastic=True, steps=steps, seconds=left)
-        start_moved = True
+    for start_elastic in (False, True):
+        elastic = lambda label, start, e=start_elastic: e or not start  # noqa: E731
+        tries = [_solve(problem, start, elastic=elastic, steps=steps, seconds=left() / 2)
+                 for start in ((closest, None) if closest is not None else (None,))]
+        done = [x for x in tries if x[0]]
+        converged, status, moves = min(done, key=_cost) if done else tries[0]
+        start_moved = start_elastic
+        if converged:
+            break
     moves = tuple(sorted(moves, key=lambda m: -m.by))
-    return Elastic(converged=converged, status=status, moves=moves, tolerance=float(tolerance),
+    alone = (_alone(problem, closest, moves, tolerance, steps, left) if converged and not start_moved
+             else ())
+    return Elastic(converged=converged, status=status, moves=moves, tolerance=float(tolerance), alone=alone,
                    start_moved=start_moved and any(m.by > tolerance and m.label.startswith("initial.")
                                                    for m in moves),
                    seconds=time.perf_counter() - t0, units=dict(units or {}))

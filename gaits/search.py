@@ -81,8 +81,9 @@ def _closer(a, b):
 
 def attempt_of(label, s, solver_name="") -> Attempt:
     """The :class:`Attempt` record of solution ``s`` of the guess ``label``."""
+    history = (getattr(s, "stats", None) or {}).get("history") or {}
     return Attempt(label, s.status, bool(s.success), int(s.iterations), float(s.objective), solver_name,
-                   float(s.constraint_violation), float(s.solve_time_s), dict(s.stats.get("history") or {}))
+                   float(s.constraint_violation), float(s.solve_time_s), dict(history))
 
 
 #: guesses tried after the first converged one when the search explores (the planner), the

@@ -4,9 +4,11 @@ on a task whose least move is known in closed form.
 The robot: tests/scenes/unstable_line.toml with k = 0, a double integrator x'' = F beside a free
 cart. The task: from rest, x = 3 m in T = 2 s with |ẋ| ≤ 1 m/s at the nodes (N = 20, h = 0.1 s)
 and |F| ≤ 1000 N. Inputs are held on each interval, so ẋ is linear between nodes and the fastest
-motion reaches ẋ = v in the first interval and keeps it: x(T) = v (T − h/2) = 1.95 v. Moving the
-target by a (1 per metre) or widening the speed bound by b (1.95 m per unit) — the least L1 move
-is b = 3/1.95 − 1 = 0.538461…, a = 0, the start (at rest, as stated) untouched.
+motion reaches ẋ = v in the first interval and keeps it: x(T) = v (T − h/2) = 1.95 v. Each move
+is measured relative to the value stated: moving the target by a costs a/3 (1/3 per metre
+gained), widening the speed bound by b costs b (1/1.95 per metre gained) — the least total move
+is a = 3 − 1.95 = 1.05 m, b = 0, the start (at rest, as stated) untouched; the speed bound alone
+must widen by 3/1.95 − 1 = 0.538461…
 """
 from __future__ import annotations
 
@@ -25,7 +27,9 @@ T, N, TARGET = 2.0, 20, 3.0
 TASK = {"horizon": T, "intervals": N, "initial": {"s": 0.0, "s_dot": 0.0, "x": 0.0, "x_dot": 0.0},
         "final": {"x": TARGET}, "bounds": {"x_dot": [-1.0, 1.0]}, "control_bounds": 1000.0,
         "objective": "effort"}
-LEAST = TARGET / (T - T / N / 2) - 1.0          # 0.538461…
+REACH = T - T / N / 2                            # 1.95 m at |ẋ| ≤ 1
+LEAST = TARGET - REACH                           # 1.05 m: the target moves
+ALONE = TARGET / REACH - 1.0                     # 0.538461…: the speed bound alone
 
 
 def test_the_elastic_solve_moves_the_cheapest_condition_by_the_closed_form_amount():
@@ -33,10 +37,13 @@ def test_the_elastic_solve_moves_the_cheapest_condition_by_the_closed_form_amoun
     elastic = elastic_solve(prepared.stated, tolerance=1e-6)
     assert isinstance(elastic, Elastic) and elastic.converged and not elastic.feasible
     moved = {m.label: m for m in elastic.moved}
-    assert set(moved) == {"bounds.x_dot"}
-    assert moved["bounds.x_dot"].by == pytest.approx(LEAST, abs=1e-6)
-    assert moved["bounds.x_dot"].reached == pytest.approx(1.0 + LEAST, abs=1e-6)
+    assert set(moved) == {"final.x"}
+    assert moved["final.x"].by == pytest.approx(LEAST, abs=1e-6)
+    assert moved["final.x"].reached == pytest.approx(REACH, abs=1e-6)
     assert elastic.total == pytest.approx(LEAST, abs=1e-6) and not elastic.start_moved
+    alone = dict(elastic.alone)
+    assert alone["final.x"].by == pytest.approx(LEAST, abs=1e-6)
+    assert alone["bounds.x_dot"].by == pytest.approx(ALONE, abs=1e-6)
     assert elastic.lines()[0].startswith("possibly infeasible")
 
 
@@ -59,10 +66,11 @@ def test_a_plan_that_stalls_stops_and_says_what_must_move(stalling):
     ipopt = [a for a in result.attempts if a.solver == "ipopt"]
     assert len(ipopt) == 3 and stalled(ipopt)                 # stopped at the third, not twelve
     text = "\n".join(result.diagnosis)
-    assert "possibly infeasible" in text and "bounds.x_dot in [-1, 1]: widen by 0.5385" in text
+    assert "possibly infeasible" in text and "final.x = 3: move by 1.05" in text
+    assert "bounds.x_dot in [-1, 1]: widen by 0.5385" in text
     assert "initial." not in text                             # the start as the user gave it
     data = result.solution.to_dict()["settings"]["elastic"]
-    assert data["moves"][0]["condition"] == "bounds.x_dot"
+    assert data["moves"][0]["condition"] == "final.x"
     assert data["moves"][0]["by"] == pytest.approx(LEAST, abs=1e-6)
 
 
