@@ -259,9 +259,10 @@ def _move(label, exprs, bounds, slack, value) -> Move:
 
 
 def _alone(problem, closest, moves, tolerance, steps, left) -> tuple:
-    """((label, Move or None), …): the move of each of at most :data:`ALONE` conditions when it
-    alone is elastic (the others as stated): the conditions the L1 answer moved and every path and
-    input bound — when the L1 answer moved anything. None: no gait found by moving it alone."""
+    """((label, Move or None, answer), …): the move of each of at most :data:`ALONE` conditions
+    when it alone is elastic (the others as stated), and that solve's answer: the conditions the
+    L1 answer moved and every path and input bound — when the L1 answer moved anything. None: no
+    gait found by moving it alone."""
     moved = [m.label for m in moves if m.by > tolerance]
     if not moved:
         return ()
@@ -271,9 +272,10 @@ def _alone(problem, closest, moves, tolerance, steps, left) -> tuple:
         return ()
     out = []
     for label in labels[:ALONE]:
-        converged, _, found = _solve(problem, closest, elastic=lambda lab, start, c=label: lab == c,
-                                     steps=steps, seconds=left() / 2)
-        out.append((label, next((m for m in found if m.label == label), None) if converged else None))
+        answer = _solve(problem, closest, elastic=lambda lab, start, c=label: lab == c,
+                        steps=steps, seconds=left() / 2)
+        out.append((label, next((m for m in answer[2] if m.label == label), None) if answer[0] else None,
+                    answer))
     return tuple(out)
 
 
@@ -302,6 +304,10 @@ def elastic_solve(problem, closest=None, *, tolerance: float = 1e-6, steps: int 
     moves = tuple(sorted(moves, key=lambda m: -m.by))
     alone = (_alone(problem, closest, moves, tolerance, steps, left) if converged and not start_moved
              else ())
+    better = [a for _, m, a in alone if m is not None and _cost(a) < _cost((True, "", moves))]
+    if better:                      # a one-condition answer the L1 solve missed (it is local)
+        moves = tuple(sorted(min(better, key=_cost)[2], key=lambda m: -m.by))
+    alone = tuple((label, m) for label, m, _ in alone)
     return Elastic(converged=converged, status=status, moves=moves, tolerance=float(tolerance), alone=alone,
                    start_moved=start_moved and any(m.by > tolerance and m.label.startswith("initial.")
                                                    for m in moves),
