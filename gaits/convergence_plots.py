@@ -42,7 +42,7 @@ def plot_convergence(attempts, axes=None):
     violation axes) sharing the iteration axis (a new Figure without them); returns the axes."""
     if axes is None:
         from matplotlib.figure import Figure
-        axes = Figure(figsize=(8.0, 6.0), layout="constrained").subplots(2, 1, sharex=True)
+        axes = Figure(figsize=(11.0, 6.0), layout="constrained").subplots(2, 1, sharex=True)
     top, bottom = axes
     shown = list(attempts)[:MAX_ATTEMPTS]
     for a, style in zip(shown, series_styles(len(shown), markers=True), strict=True):
@@ -57,8 +57,8 @@ def plot_convergence(attempts, axes=None):
     bottom.set_xlabel("solver iteration [1]")
     top.grid(alpha=0.3)
     bottom.grid(alpha=0.3, which="both")
-    if shown:
-        top.legend(fontsize=7, loc="best")
+    if shown:                          # beside the axes: the curves stay visible
+        top.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     return axes
 
 
@@ -66,7 +66,7 @@ def write_convergence_figure(attempts, path, *, title: str = "") -> Path:
     """``path`` (a PNG): :func:`plot_convergence` with a title naming the plan and how many
     attempts were made (and drawn); returns the path."""
     from matplotlib.figure import Figure
-    fig = Figure(figsize=(8.0, 6.0), layout="constrained")
+    fig = Figure(figsize=(11.0, 6.0), layout="constrained")
     axes = fig.subplots(2, 1, sharex=True)
     plot_convergence(attempts, axes)
     n = len(list(attempts))
