@@ -48,6 +48,7 @@ def test_an_unstable_plan_verifies_by_the_interval_and_closed_loop_checks_and_fa
     assert checks.growth_rate == pytest.approx(math.sqrt(K / M), abs=1e-9)
     text = "\n".join(summary_lines(unstable))
     assert "largest growth rate 4 /s" in text and "decided by         the interval and closed loop" in text
+    assert "verified by the interval and closed-loop checks" in repr(unstable.solution)
 
 
 def test_the_amplification_is_that_of_the_exact_transition(unstable):
