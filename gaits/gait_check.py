@@ -145,7 +145,7 @@ def decided(solution, opened, checks):
     """``opened`` (the open-loop verified copy of the converged ``solution``) carrying ``checks``
     in ``settings["checks"]``, its success as the deciding checks say."""
     settings = {**opened.settings, "checks": checks.to_dict()}
-    if checks.stable:
+    if checks.stable or checks.open_loop_passed:
         return replace(opened, settings=settings)
     if checks.passed:
         return replace(opened, success=True, status=solution.status, settings=settings,
