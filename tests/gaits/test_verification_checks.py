@@ -103,3 +103,14 @@ def test_the_coin_parallel_park_is_verified_by_the_interval_and_closed_loop_chec
     at_rest = verification_checks.growth_rate(s.problem.ode(), s.t[:1], s.z[:1].T, s.u[:1].T)
     assert at_rest == pytest.approx(math.sqrt(4 * 9.81 / (5 * 0.2)), abs=1e-9)
     assert checks.growth_rate >= at_rest - 1e-12
+
+
+def test_an_unstable_gait_that_fails_its_deciding_checks_says_what_helps():
+    # a tolerance below what 128 RK4 sub-steps give: the interval check fails after both refinements
+    result = plan(str(SCENE), overrides=["verify_tolerance=1e-15"], jit=False, max_guesses=1)
+    checks = checks_of(result.solution)
+    assert not result.success and not checks.stable and not checks.interval_passed
+    assert checks.growth_rate == pytest.approx(math.sqrt(K / M), abs=1e-9)
+    text = "\n".join(result.diagnosis)
+    assert "the gait is unstable (largest growth rate 4 /s" in text
+    assert "more intervals" in text and "more time does not help" in text and "--time-limit" not in text
