@@ -351,8 +351,16 @@ def _terminated(signum, frame):
 
 
 def main(argv=None) -> int:
-    args = _args(argv)
-    signal.signal(signal.SIGTERM, _terminated)
+    """The benchmark; SIGTERM ends it through ``_terminated`` while it runs (the previous handler
+    is restored on return, so a test calling ``main`` in-process stays stoppable)."""
+    previous = signal.signal(signal.SIGTERM, _terminated)
+    try:
+        return _run(_args(argv))
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _run(args) -> int:
     gen = sibling.load("robot_generator")
     families = tuple(f.strip() for f in args.families.split(",") if f.strip())
     indices = ([int(i) for i in args.indices.split(",")] if args.indices

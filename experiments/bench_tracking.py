@@ -86,7 +86,7 @@ def six_coordinates(samples: int, workers: int, folder: Path) -> dict:
 
 def floquet(overrides) -> dict:
     from nhgait.gaits.planner import plan, prepare
-    from nhgait.ocp.floquet import finite_difference_monodromy
+    from nhgait.ocp.floquet import Loop, finite_difference_monodromy
     from nhgait.ocp.transcription import ode_function
     result = plan("snakeboard", "forward", overrides=overrides)
     st, fb = result.solution.stability, result.solution.feedback
@@ -95,7 +95,7 @@ def floquet(overrides) -> dict:
     t0 = time.perf_counter()
     for loop, gains, analytic, mu in (("closed_loop", fb.gains, st.closed_loop, st.closed_multipliers),
                                       ("open_loop", None, st.open_loop, None)):
-        fd = finite_difference_monodromy(ode, fb.t, fb.states, fb.controls, fb.rates, gains)
+        fd = finite_difference_monodromy(Loop(ode, fb.t, fb.states, fb.controls, fb.rates, gains))
         row = {"max_entry_difference": float(np.max(np.abs(fd - analytic))),
                "max_abs_multiplier": float(np.max(np.abs(np.linalg.eigvals(analytic))))}
         if mu is not None:

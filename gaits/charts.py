@@ -32,6 +32,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 from itertools import combinations
+from typing import NamedTuple
 
 import numpy as np
 
@@ -153,7 +154,14 @@ def _regularity(model, q_nodes, params) -> float:
     return float(m.min() / median) if median > 0 else 0.0
 
 
-def verification_chart(system, model, q_nodes, params, progress) -> tuple:
+class VerificationChart(NamedTuple):
+    """What :func:`verification_chart` returns."""
+
+    model: object   #: the reduced model to verify in
+    regular: bool   #: whether it stays regular along the gait
+
+
+def verification_chart(system, model, q_nodes, params, progress) -> VerificationChart:
     """(model, regular): the chart of the same system to verify a gait through ``q_nodes`` in —
     ``model`` unless its measure along the gait falls below :data:`CHART_MARGIN` of its median
     there; then the first other admissible chart (at most :data:`MAX_CHARTS` derived) that stays
@@ -162,7 +170,7 @@ def verification_chart(system, model, q_nodes, params, progress) -> tuple:
     from nhgait.dynamics import derive
     best, score = model, _regularity(model, q_nodes, params)
     if score >= CHART_MARGIN:
-        return model, True
+        return VerificationChart(model, True)
     symmetry = getattr(model, "symmetry", None)
     others = [c for c in (symmetry.candidates if symmetry is not None else ())
               if c.admissible and tuple(c.fiber) != tuple(model.fiber)][:MAX_CHARTS]
@@ -179,10 +187,10 @@ def verification_chart(system, model, q_nodes, params, progress) -> tuple:
     if score >= CHART_MARGIN:
         progress.note(f"  verifying in the chart with fiber ({', '.join(best.fiber)}), shape "
                       f"({', '.join(best.shape)}): regular along the gait")
-        return best, True
+        return VerificationChart(best, True)
     progress.note("  no chart of the reduction is regular along the gait: verifying on the Euler–Lagrange "
                   "equations (index-1 form, x = (q, q̇)), which have none")
-    return best, False
+    return VerificationChart(best, False)
 
 
 def lagrange_ode(system):

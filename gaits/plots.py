@@ -346,7 +346,7 @@ class FigureLayout:
     rows: int = 1
 
 
-def figure_layouts(solution, ctx: FigureContext) -> tuple:
+def figure_layouts(solution, ctx: FigureContext) -> tuple[FigureLayout, ...]:
     """The four figures of a plan: path.png, shape.png, histories.png, momentum.png."""
     n_units = len({unit(ctx, c) for c in solution.control_names})
     n_mom = max(1, len(solution.state_names) - len(ctx.system.coordinates))
@@ -358,7 +358,7 @@ def figure_layouts(solution, ctx: FigureContext) -> tuple:
             FigureLayout("momentum.png", plot_momentum, (7, 1.9 * n_mom + 0.4), n_mom))
 
 
-def path_figure_size(solution, ctx: FigureContext, width: float = 7.4) -> tuple:
+def path_figure_size(solution, ctx: FigureContext, width: float = 7.4) -> tuple[float, float]:
     """(width, height) in inches of the path strobe: the axes' height follows the aspect of the
     path and the drawn bodies (equal scales), within 0.35–1.1 of the axes' width, plus the
     title and the legend below."""

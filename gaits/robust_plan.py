@@ -21,7 +21,7 @@ __all__ = ["robust_search", "scenarios_for", "summary_line", "END_FRACTION"]
 END_FRACTION = 0.02
 
 
-def default_terminal(problem, system) -> tuple:
+def default_terminal(problem, system) -> tuple[str, ...]:
     """The states the task's ``final`` names, then the planar frame's position (x, y)."""
     states = problem.model_state_names
     frame = tuple(getattr(system, "planar_frame", None) or ())[:2]
@@ -52,7 +52,8 @@ def scenarios_for(spec, prepared, nominal, quantities):
     labels = tuple(", ".join(f"{n} ×{c[n]:.4g}" for n in spec.parameters) for c in copies)
     weight = spec.weight * max(float(nominal.objective), 1e-12)
     ode = parametric_rhs(specialised, quantities, varied=varied)
-    return Scenarios(ode, params, terminal, END_FRACTION * scale, weight, spec.aggregate, labels)
+    return Scenarios(ode=ode, params=params, terminal=terminal, scales=END_FRACTION * scale, weight=weight,
+                     aggregate=spec.aggregate, labels=labels)
 
 
 def robust_search(search, prepared, to_plan, settings, budget, progress):

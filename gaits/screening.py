@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -74,6 +75,14 @@ class Check:
         if self.what == "not finite":
             return f"the equations are not finite at {where}"
         return f"it meets the singular set at {where}"
+
+
+class SamplePoints(NamedTuple):
+    """What :meth:`Screen.points` returns."""
+
+    t: np.ndarray   #: (2N+1,) the nodes and the midpoints in time order
+    Z: np.ndarray   #: nz × (2N+1) the model's states
+    U: np.ndarray   #: nu × (2N+1)
 
 
 class Screen:
@@ -129,7 +138,7 @@ class Screen:
         return out
 
     # ------------------------------------------------------------------ checks
-    def points(self, guess) -> tuple:
+    def points(self, guess) -> SamplePoints:
         """(t (2N+1,), Z (nz × (2N+1)), U (nu × (2N+1))): the nodes and the midpoints, in time order
         (Z the model's states: a task's integral states, which follow them, are left out)."""
         nz = len(self.problem.model_state_names)
@@ -142,7 +151,7 @@ class Screen:
         pts[:, 0::2], pts[:, 1::2] = Z, (Z[:, :-1] + Z[:, 1:]) / 2
         Uk = np.empty((U.shape[0], 2 * N + 1))
         Uk[:, 0::2], Uk[:, 1::2] = U[:, np.minimum(np.arange(N + 1), N - 1)], U
-        return t, pts, Uk
+        return SamplePoints(t, pts, Uk)
 
     def check(self, guess) -> Check:
         """The verdict on ``guess`` (an InitialGuess on the problem's grid; module docstring)."""

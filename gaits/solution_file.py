@@ -48,7 +48,7 @@ def read_solution(path) -> dict:
     return data
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(kw_only=True, frozen=True, eq=False)
 class PreviousTrajectory:
     """A previous answer, checked: ``t`` (K+1,) strictly increasing, ``q`` and ``qdot``
     (n × K+1), ``u`` (m × K), all finite; ``coordinates`` (n names) and ``inputs`` (m names),
@@ -89,9 +89,9 @@ def previous_trajectory(data: dict, source: str) -> PreviousTrajectory:
     if problems:
         raise ProblemError(problems, title=GUESS_TITLE)
     system = data.get("system")
-    return PreviousTrajectory(arrays["t"], arrays["q"].T, arrays["qdot"].T, arrays["u"].T,
-                              names["coordinates"], names["inputs"],
-                              system if isinstance(system, str) else "")
+    return PreviousTrajectory(t=arrays["t"], q=arrays["q"].T, qdot=arrays["qdot"].T, u=arrays["u"].T,
+                              coordinates=names["coordinates"], inputs=names["inputs"],
+                              system=system if isinstance(system, str) else "")
 
 
 def _json_type(value) -> str:

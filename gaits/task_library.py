@@ -83,7 +83,7 @@ def library_tasks() -> dict:
     return out
 
 
-def library_task_names() -> tuple:
+def library_task_names() -> tuple[str, ...]:
     """(scene, task name) of every built-in task, sorted (the library files read now)."""
     return tuple(sorted(library_tasks()))
 
@@ -138,11 +138,18 @@ def figure_tables(scene, lib: dict | None = None) -> FigureTables:
     return FigureTables(units, drawing)
 
 
-def scene_of(system) -> tuple:
+class NamedScene(NamedTuple):
+    """What :func:`scene_of` returns."""
+
+    scene: Any   #: the Scene
+    name: str    #: the built-in's name, else the system's
+
+
+def scene_of(system) -> NamedScene:
     """(the Scene of ``system`` — a scene file path, built-in scene name, Scene or System —, its
     name: the built-in's, else the system's), read before any task."""
     scene = _load_scene(system)
-    return scene, _scene_name(scene)
+    return NamedScene(scene, _scene_name(scene))
 
 
 def resolve(system, task=None, *, overrides=()) -> Plan:

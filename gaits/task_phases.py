@@ -63,7 +63,7 @@ def _name(item, at, problems) -> str:
     return name
 
 
-def parse_waypoints(data, problems, where: str = "[task]") -> tuple:
+def parse_waypoints(data, problems, where: str = "[task]") -> tuple[Waypoint, ...]:
     """The :class:`~nhgait.ocp.statement.Waypoint` s of ``data["waypoints"]`` (their times
     are checked against the horizon by the statement)."""
     out = []
@@ -82,7 +82,7 @@ def parse_waypoints(data, problems, where: str = "[task]") -> tuple:
     return tuple(out)
 
 
-def parse_phases(data, problems, where: str = "[task]") -> tuple:
+def parse_phases(data, problems, where: str = "[task]") -> tuple[Phase, ...]:
     """The :class:`~nhgait.ocp.statement.Phase` s of ``data["phases"]``."""
     out = []
     for i, item in enumerate(_tables(data, "phases", where, problems)):

@@ -49,7 +49,7 @@ def table(data, key, problems, where: str = "[task]") -> dict:
     return out
 
 
-def names_list(data, key, problems, *, repeats: bool = True, where: str = "[task]") -> tuple:
+def names_list(data, key, problems, *, repeats: bool = True, where: str = "[task]") -> tuple[str, ...]:
     """``data[key]``: a list of names (repeats refused unless ``repeats`` is False)."""
     item = data.get(key, [])
     if isinstance(item, str) or not isinstance(item, (list, tuple)) or not all(isinstance(v, str)

@@ -18,9 +18,9 @@ def _of_solution(solution) -> PreviousTrajectory:
     """The trajectory of a :class:`~nhgait.ocp.Solution` (its own names; trusted)."""
     from nhgait.ocp.problem import model_coordinates
     coordinates = model_coordinates(solution.problem.model)
-    return PreviousTrajectory(solution.t, solution.z[:, :len(coordinates)].T, solution.velocities(),
-                              solution.u.T, coordinates, tuple(solution.problem.control_names),
-                              solution.problem.name)
+    return PreviousTrajectory(t=solution.t, q=solution.z[:, :len(coordinates)].T, qdot=solution.velocities(),
+                              u=solution.u.T, coordinates=coordinates,
+                              inputs=tuple(solution.problem.control_names), system=solution.problem.name)
 
 
 def _source(previous) -> str:

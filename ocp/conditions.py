@@ -51,6 +51,7 @@ reproducible); a sample where the model is not finite (the singular set) is skip
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -446,7 +447,14 @@ def _determined_velocities(problem, states, derived, kept, jac) -> tuple:
     return tuple(velocity)
 
 
-def normalise(problem: OptimalControlProblem, *, seed: int = 0) -> tuple:
+class Normalised(NamedTuple):
+    """What :func:`normalise` returns."""
+
+    problem: OptimalControlProblem   #: with independent conditions
+    report: ConditionReport          #: what was dropped or moved, and why
+
+
+def normalise(problem: OptimalControlProblem, *, seed: int = 0) -> Normalised:
     """``problem`` with independent boundary and periodicity conditions (module docstring),
     and a :class:`ConditionReport`. Raises ProblemError for an inconsistent set."""
     rng = np.random.default_rng(seed)
@@ -470,6 +478,6 @@ def normalise(problem: OptimalControlProblem, *, seed: int = 0) -> tuple:
     if pinned:
         changes["initial"] = {**changes.get("initial", current.initial), **{name: 0.0 for name in pinned}}
     if not dropped and not solved and not pinned:
-        return problem, ConditionReport()
-    return (current.replace(periodic=periodic, **changes),
+        return Normalised(problem, ConditionReport())
+    return Normalised(current.replace(periodic=periodic, **changes),
             ConditionReport(tuple(dropped), tuple(solved), tuple(pinned)))

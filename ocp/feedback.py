@@ -160,7 +160,7 @@ def node_rates(problem: OptimalControlProblem, t, states, controls) -> np.ndarra
     return np.stack([start, end], axis=1)
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(kw_only=True, frozen=True, eq=False)
 class Feedback:
     """The LQR of a plan, in the problem's state.
 
@@ -208,11 +208,11 @@ class Feedback:
         weights = Weights(vec(w["state"], names), vec(w["control"], cnames), vec(w["final"], names),
                           vec(w["state_scale"], names), vec(w["control_scale"], cnames), w.get("rule", ""))
         bound = lambda v, inf: np.array([inf if b is None else float(b) for b in v])  # noqa: E731
-        return cls(np.asarray(data["t"], float), np.asarray(data["reference"], float),
-                   np.asarray(data["controls"], float),
-                   np.asarray(data["gains"], float), np.asarray(data["rates"], float), names, cnames, weights,
-                   bound(data["lower"], -np.inf), bound(data["upper"], np.inf),
-                   float(data.get("defect", 0.0)))
+        return cls(t=np.asarray(data["t"], float), states=np.asarray(data["reference"], float),
+                   controls=np.asarray(data["controls"], float), gains=np.asarray(data["gains"], float),
+                   rates=np.asarray(data["rates"], float), state_names=names, control_names=cnames,
+                   weights=weights, lower=bound(data["lower"], -np.inf), upper=bound(data["upper"], np.inf),
+                   defect=float(data.get("defect", 0.0)))
 
 
 def design_feedback(problem: OptimalControlProblem, t, states, controls, *, weights: Weights | None = None,
@@ -225,6 +225,7 @@ def design_feedback(problem: OptimalControlProblem, t, states, controls, *, weig
     A, B, gap = stage_jacobians(problem, states, controls, horizon, steps)
     K, _ = riccati(A, B, weights.state, weights.control, weights.final, weight=1.0 / problem.intervals)
     lo, hi = problem.control_bound_vectors()
-    return Feedback(t, states, controls, K, node_rates(problem, t, states, controls),
-                    tuple(problem.state_names), tuple(problem.control_names), weights, lo, hi,
-                    float(gap.max(initial=0.0)))
+    return Feedback(t=t, states=states, controls=controls, gains=K,
+                    rates=node_rates(problem, t, states, controls), state_names=tuple(problem.state_names),
+                    control_names=tuple(problem.control_names), weights=weights, lower=lo, upper=hi,
+                    defect=float(gap.max(initial=0.0)))

@@ -31,17 +31,47 @@ periodic; with a turn (θ(T) ≠ θ(0)) the multipliers describe the first perio
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
 
 from nhgait.dynamics.simulation.gain_schedule import hermite
 
-__all__ = ["Stability", "monodromy", "finite_difference_monodromy", "flow", "stability", "MARGIN", "verdict"]
+__all__ = ["Loop", "Stability", "Verdict", "monodromy", "finite_difference_monodromy", "flow", "stability",
+           "MARGIN", "verdict"]
 
 #: |max |μ| − 1| within this is "marginal"
 MARGIN = 1e-4
+
+
+@dataclass(frozen=True)
+class Loop:
+    """A loop along a plan (module docstring): ``ode`` f(t, z, u) (SX Function); ``t`` (N+1,);
+    ``reference`` nz × (N+1); ``controls`` nu × N; ``rates`` (N, 2, nz) the reference's ż at
+    both ends of each interval; ``gains`` (N, nu, nz) the feedback K_k, None for the open loop."""
+
+    ode: ca.Function
+    t: np.ndarray
+    reference: np.ndarray
+    controls: np.ndarray
+    rates: np.ndarray
+    gains: np.ndarray | None = None
+
+    @property
+    def nz(self) -> int:
+        return self.reference.shape[0]
+
+    def opened(self) -> Loop:
+        """The same loop without feedback."""
+        return replace(self, gains=None)
+
+    def pieces(self) -> list:
+        """Per interval k: (t_k, t_{k+1}, d) with d the numbers read by :func:`_loop_function`."""
+        gains = (np.zeros((self.controls.shape[1], self.controls.shape[0], self.nz)) if self.gains is None
+                 else np.asarray(self.gains, float))
+        return _interval_data(np.asarray(self.t, float), self.controls, gains, self.reference, self.rates)
 
 
 def _loop_function(ode: ca.Function, nz: int, nu: int, variational: bool) -> ca.Function:
@@ -71,28 +101,27 @@ def _interval_data(t, controls, gains, reference, rates) -> list:
     return out
 
 
-def _gains(gains, controls, nz):
-    return np.zeros((controls.shape[1], controls.shape[0], nz)) if gains is None else np.asarray(gains, float)
+class Monodromy(NamedTuple):
+    """What :func:`monodromy` returns."""
+
+    Phi: np.ndarray      #: Φ = ∂z(T)/∂z(0), nz × nz
+    final: np.ndarray    #: z(T)
 
 
-def monodromy(ode: ca.Function, t, reference, controls, rates, gains=None, *, z0=None, rtol: float = 1e-10,
-              atol: float = 1e-12) -> tuple:
-    """(Φ (nz × nz), z(T)): the variational equation of the module docstring along the loop
-    from ``z0`` (default: the reference's first node), by CVODES in scaled time per interval.
-    ``ode``: f(t, z, u) (SX Function); ``reference`` nz × (N+1), ``controls`` nu × N, ``rates``
-    (N, 2, nz), ``gains`` (N, nu, nz) (None: the open loop)."""
-    nz = reference.shape[0]
-    fn = _loop_function(ode, nz, controls.shape[0], variational=True)
+def monodromy(loop: Loop, *, z0=None, rtol: float = 1e-10, atol: float = 1e-12) -> Monodromy:
+    """(Φ (nz × nz), z(T)): the variational equation of the module docstring along ``loop``
+    from ``z0`` (default: the reference's first node), by CVODES in scaled time per interval."""
+    nz, reference = loop.nz, loop.reference
+    fn = _loop_function(loop.ode, nz, loop.controls.shape[0], variational=True)
     X, s = ca.SX.sym("X", nz * (nz + 1)), ca.SX.sym("s")
     d = ca.SX.sym("d", fn.size1_in(2))
     scaled = d[1] * fn(d[0] + s * d[1], X, d)             # dX/ds on s ∈ [0, 1], t = t_k + s h
     step = ca.integrator("variational", "cvodes", {"x": X, "p": d, "t": s, "ode": scaled}, 0.0, 1.0,
                          {"abstol": atol, "reltol": rtol, "nonlinear_solver_iteration": "functional"})
     state = np.r_[reference[:, 0] if z0 is None else np.asarray(z0, float), np.eye(nz).ravel(order="F")]
-    for _, _, data in _interval_data(np.asarray(t, float), controls, _gains(gains, controls, nz),
-                                     reference, rates):
+    for _, _, data in loop.pieces():
         state = np.asarray(step(x0=state, p=data)["xf"]).ravel()
-    return state[nz:].reshape(nz, nz, order="F"), state[:nz]
+    return Monodromy(state[nz:].reshape(nz, nz, order="F"), state[:nz])
 
 
 def _integrate(fn, X0, pieces, method: str, rtol: float, atol: float) -> np.ndarray:
@@ -108,48 +137,51 @@ def _integrate(fn, X0, pieces, method: str, rtol: float, atol: float) -> np.ndar
     return X
 
 
-def flow(ode: ca.Function, t, reference, controls, rates, gains, z0, *, method: str = "DOP853",
-         rtol: float = 1e-12, atol: float = 1e-14) -> np.ndarray:
-    """z(T) of the loop from ``z0`` by scipy's ``method`` (another integrator than :func:`monodromy`'s)."""
-    nz = reference.shape[0]
-    fn = _loop_function(ode, nz, controls.shape[0], variational=False)
-    pieces = _interval_data(np.asarray(t, float), controls, _gains(gains, controls, nz), reference, rates)
-    return _integrate(fn, z0, pieces, method, rtol, atol)
+def flow(loop: Loop, z0, *, method: str = "DOP853", rtol: float = 1e-12, atol: float = 1e-14) -> np.ndarray:
+    """z(T) of ``loop`` from ``z0`` by scipy's ``method`` (another integrator than :func:`monodromy`'s)."""
+    fn = _loop_function(loop.ode, loop.nz, loop.controls.shape[0], variational=False)
+    return _integrate(fn, z0, loop.pieces(), method, rtol, atol)
 
 
-def finite_difference_monodromy(ode, t, reference, controls, rates, gains=None, *, step=None,
-                                method: str = "DOP853", rtol: float = 1e-13,
+def finite_difference_monodromy(loop: Loop, *, step=None, method: str = "DOP853", rtol: float = 1e-13,
                                 atol: float = 1e-15) -> np.ndarray:
     """Φ by central differences of :func:`flow`, column i from z0 ± ε_i e_i with
     ε_i = ``step`` or √rtol · max(1, |z0_i|) (the O(ε²) truncation is then at the level of rtol
     times the flow's third derivative; the integration errors, smooth in z0, largely cancel in
     the difference: on the snakeboard's forward gait the two monodromies agree to 3e-9)."""
-    z0 = reference[:, 0]
+    z0 = loop.reference[:, 0]
     nz = z0.size
     Phi = np.empty((nz, nz))
     for i in range(nz):
         eps = step if step is not None else np.sqrt(rtol) * max(1.0, abs(z0[i]))
         e = np.zeros(nz)
         e[i] = eps
-        plus = flow(ode, t, reference, controls, rates, gains, z0 + e, method=method, rtol=rtol, atol=atol)
-        minus = flow(ode, t, reference, controls, rates, gains, z0 - e, method=method, rtol=rtol, atol=atol)
+        plus = flow(loop, z0 + e, method=method, rtol=rtol, atol=atol)
+        minus = flow(loop, z0 - e, method=method, rtol=rtol, atol=atol)
         Phi[:, i] = (plus - minus) / (2 * eps)
     return Phi
 
 
-def verdict(multipliers) -> tuple:
+class Verdict(NamedTuple):
+    """What :func:`verdict` returns."""
+
+    word: str        #: "stable", "marginal" or "unstable"
+    radius: float    #: max |μ|
+
+
+def verdict(multipliers) -> Verdict:
     """("stable" | "marginal" | "unstable", max |μ|)."""
     radius = float(np.max(np.abs(multipliers))) if len(multipliers) else 0.0
     if radius < 1 - MARGIN:
-        return "stable", radius
-    return ("unstable" if radius > 1 + MARGIN else "marginal"), radius
+        return Verdict("stable", radius)
+    return Verdict("unstable" if radius > 1 + MARGIN else "marginal", radius)
 
 
 def _complex(values) -> list:
     return [[float(np.real(v)), float(np.imag(v))] for v in values]
 
 
-@dataclass(frozen=True)
+@dataclass(kw_only=True, frozen=True)
 class Stability:
     """Monodromy matrices and Floquet multipliers of a periodic plan (module docstring).
 
@@ -195,17 +227,17 @@ class Stability:
                 "summary": self.summary()}
 
 
-def _monodromies(ode, args, gains, workers: int) -> list:
-    """Φ of each of ``gains`` (None: the open loop) along ``args``, in supervised children."""
+def _monodromies(loops, workers: int) -> list:
+    """Φ of each of ``loops``, in supervised children."""
     from functools import partial
 
     from .supervision import Job, supervise
-    jobs = [Job(partial(_phi, ode, args, g), None, _died) for g in gains]
+    jobs = [Job(partial(_phi, loop), None, _died) for loop in loops]
     return supervise(jobs, workers=workers)
 
 
-def _phi(ode, args, gains) -> np.ndarray:
-    return monodromy(ode, *args, gains)[0]
+def _phi(loop: Loop) -> np.ndarray:
+    return monodromy(loop).Phi
 
 
 def _died(status: str, message: str, seconds: float):
@@ -224,9 +256,11 @@ def stability(ode: ca.Function, feedback, fiber=(), *, workers: int = 2) -> Stab
     (:mod:`.supervision`: on ``workers`` cores, stopped with the plan; in this process where
     there is no fork). Raises RuntimeError when CVODES gives up on either."""
     fb = feedback
-    args = (fb.t, fb.states, fb.controls, fb.rates)
-    open_loop, closed_loop = _monodromies(ode, args, (None, fb.gains), workers)
+    closed = Loop(ode, fb.t, fb.states, fb.controls, fb.rates, fb.gains)
+    open_loop, closed_loop = _monodromies((closed.opened(), closed), workers)
     keep = [i for i, name in enumerate(fb.state_names) if name not in set(fiber)]
     block = open_loop[np.ix_(keep, keep)]
-    return Stability(fb.horizon, tuple(fb.state_names), tuple(fb.state_names[i] for i in keep), open_loop,
-                     closed_loop, _sorted_eigenvalues(block), _sorted_eigenvalues(closed_loop))
+    return Stability(period=fb.horizon, state_names=tuple(fb.state_names),
+                     periodic_states=tuple(fb.state_names[i] for i in keep), open_loop=open_loop,
+                     closed_loop=closed_loop, open_multipliers=_sorted_eigenvalues(block),
+                     closed_multipliers=_sorted_eigenvalues(closed_loop))

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import NamedTuple
 
 from nhgait.dynamics.numerics import openmp
 from nhgait.dynamics.numerics.background import BackgroundBuild, start_build
@@ -57,6 +58,14 @@ __all__ = ["CompileBudget", "COMPILE_BUDGET", "CompileReport", "NlpCode", "choos
 CODES = ("optimised", "fast", "interpreted")
 #: why the functions run interpreted when no compiler at all is found
 NO_COMPILER = "no C compiler found (looked for $NHGAIT_CC, $CC, gcc and cc, and a fast compiler)"
+
+
+class BuildChoice(NamedTuple):
+    """What :meth:`CompileBudget.choose` returns."""
+
+    flags: tuple | None   #: compiler flags, None for no optimised build
+    seconds: float        #: the estimated compile time
+    reason: str           #: why
 
 
 @dataclass(frozen=True)
@@ -92,14 +101,14 @@ class CompileBudget:
     o2_s_per_mb: float = 22.0
     native: bool = True
 
-    def choose(self, c_bytes: int) -> tuple:
+    def choose(self, c_bytes: int) -> BuildChoice:
         """(flags or None for no optimised build, estimated seconds, reason); a
         :func:`~nhgait.dynamics.numerics.compiler.known_compiler` also gets
         :data:`~nhgait.dynamics.numerics.compiler.SAME_BITS_FLAGS` (the fast compiler's bits)."""
         flags, seconds, reason = self._level(c_bytes)
         if flags is not None and known_compiler():
             flags = (*flags, *SAME_BITS_FLAGS)
-        return flags, seconds, reason
+        return BuildChoice(flags, seconds, reason)
 
     def _level(self, c_bytes: int) -> tuple:
         mb = c_bytes / 1e6

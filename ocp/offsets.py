@@ -26,7 +26,7 @@ def _named_by_value(problem) -> set:
     return names | {name for name in problem.periodic if not problem.is_state(name)}
 
 
-def free_offsets(problem) -> tuple:
+def free_offsets(problem) -> tuple[str, ...]:
     """The names of the state components of ``problem`` (module docstring) whose value nothing
     depends on, in state order."""
     rhs = problem.model.numeric["rhs"]

@@ -65,7 +65,7 @@ def _require_model(model) -> None:
                             for attr in missing])
 
 
-def model_coordinates(model) -> tuple:
+def model_coordinates(model) -> tuple[str, ...]:
     """The coordinate names of ``model``: its system's, else the first ``numeric.n_coordinates`` states."""
     system = getattr(model, "system", None)
     coords = getattr(system, "coordinates", None)
@@ -208,17 +208,17 @@ class OptimalControlProblem(ProblemStatement):
 
     # ------------------------------------------------------------------ names
     @property
-    def state_names(self) -> tuple:
+    def state_names(self) -> tuple[str, ...]:
         """The model's states, then the integral states (``integrals``), in that order."""
         return tuple(self.model.state_names) + tuple(self.integrals)
 
     @property
-    def model_state_names(self) -> tuple:
+    def model_state_names(self) -> tuple[str, ...]:
         """The model's own states z (the first entries of :attr:`state_names`)."""
         return tuple(self.model.state_names)
 
     @property
-    def control_names(self) -> tuple:
+    def control_names(self) -> tuple[str, ...]:
         system = getattr(self.model, "system", None)
         if system is not None and hasattr(system, "inputs"):
             return tuple(system.inputs)
@@ -240,7 +240,7 @@ class OptimalControlProblem(ProblemStatement):
         return FrozenMap(out)
 
     @property
-    def quantity_names(self) -> tuple:
+    def quantity_names(self) -> tuple[str, ...]:
         return self.state_names + tuple(n for n in self.derived_quantities if n not in self.state_names)
 
     def is_state(self, name: str) -> bool:

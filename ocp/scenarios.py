@@ -49,7 +49,7 @@ __all__ = ["Scenarios", "ScenarioShooting", "AGGREGATES", "terminal_deviations",
 AGGREGATES = ("mean", "worst")
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(kw_only=True, frozen=True, eq=False)
 class Scenarios:
     """The copies of a scenario problem (module docstring).
 

@@ -24,6 +24,7 @@ bounds** of an interval are the problem's intersected with its phase's.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -41,6 +42,13 @@ class Event:
     node: int
     label: str
     conditions: dict
+
+
+class Ranges(NamedTuple):
+    """Path bounds (lo, hi) by name and node or interval: :meth:`Schedule.node_ranges` and the others."""
+
+    lo: np.ndarray   #: lower bounds, one row per name
+    hi: np.ndarray   #: upper bounds
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,7 +122,7 @@ class Schedule:
         return range(int(self.starts[p]), int(self.starts[p + 1]) + 1)
 
     # ------------------------------------------------------------------ bounds by node and interval
-    def node_ranges(self, problem, names) -> tuple:
+    def node_ranges(self, problem, names) -> Ranges:
         """(lo, hi), each len(names) × (N + 1): the path bound of each name at each node (±inf
         where none) — the problem's ``state_bounds`` intersected with its phases'."""
         N = self.intervals
@@ -128,9 +136,9 @@ class Schedule:
                     nodes = list(nodes)
                     lo[i, nodes] = np.maximum(lo[i, nodes], a)
                     hi[i, nodes] = np.minimum(hi[i, nodes], b)
-        return lo, hi
+        return Ranges(lo, hi)
 
-    def interval_ranges(self, problem, names) -> tuple:
+    def interval_ranges(self, problem, names) -> Ranges:
         """(lo, hi), each len(names) × N: the path bound of each name inside each interval (the
         problem's and its phase's; collocation points)."""
         lo, hi = np.full((len(names), self.intervals), -np.inf), np.full((len(names), self.intervals), np.inf)
@@ -141,9 +149,9 @@ class Schedule:
                 if name in mapping:
                     a, b = interval(mapping[name])
                     lo[i, cols], hi[i, cols] = np.maximum(lo[i, cols], a), np.minimum(hi[i, cols], b)
-        return lo, hi
+        return Ranges(lo, hi)
 
-    def control_ranges(self, problem) -> tuple:
+    def control_ranges(self, problem) -> Ranges:
         """(lo, hi), each nu × N: the bounds of each input on each interval."""
         lo0, hi0 = problem.control_bound_vectors()
         lo, hi = np.repeat(lo0[:, None], self.intervals, 1), np.repeat(hi0[:, None], self.intervals, 1)
@@ -153,7 +161,7 @@ class Schedule:
                 i = problem.control_names.index(name)
                 a, b = interval(value)
                 lo[i, cols], hi[i, cols] = np.maximum(lo[i, cols], a), np.minimum(hi[i, cols], b)
-        return lo, hi
+        return Ranges(lo, hi)
 
     def path_names(self, problem) -> list:
         """Every name bounded on the path somewhere (the problem's and the phases' bounds)."""

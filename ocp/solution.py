@@ -363,7 +363,7 @@ class Solution:
         return self.velocities().T
 
     @property
-    def coordinates(self) -> tuple:
+    def coordinates(self) -> tuple[str, ...]:
         """The system's coordinates, the first states (empty without a problem)."""
         if self.problem is None:
             return ()

@@ -37,6 +37,7 @@ Two realisations of the same three functions ``step``, ``jacobian``, ``hessian``
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -56,7 +57,7 @@ RK4 = (((), (0.5,), (0.0, 0.5), (0.0, 0.0, 1.0)), (1 / 6, 1 / 3, 1 / 3, 1 / 6), 
 INLINE_LIMIT = 20_000
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(kw_only=True, frozen=True, eq=False)
 class StageFunctions:
     """F, ∂F/∂x and ∇²_x(λᵀF) of one shooting interval (see the module docstring).
 
@@ -121,7 +122,8 @@ def stage_functions(ode: ca.Function, intervals: int | None = None, *, steps: in
     g = _scaled_ode(ode)
     build = {"inline": _inline, "structured": _structured}[mode]
     step, jac, hess, code = build(g, nz, nu, steps, free_horizon)
-    return StageFunctions(step, jac, hess, mode, nz, nu, free_horizon, steps, ops, code)
+    return StageFunctions(step=step, jacobian=jac, hessian=hess, mode=mode, n_states=nz, n_controls=nu,
+                          free_horizon=free_horizon, steps=steps, ode_operations=ops, code_operations=code)
 
 
 def phase_size(ode: ca.Function) -> int:
@@ -150,7 +152,7 @@ def _symbols(sym, nz, nu, n_phase=2):
 def _inline(g, nz, nu, steps, free):
     """One SX expression of the M sub-steps, differentiated by CasADi."""
     z, u, T, k, lam, phase = _symbols(ca.SX, nz, nu, int(g.size1_in(4)))
-    zi = _value(g, z, u, T, k, phase, steps)
+    zi = _value(g, z, _Held(u, T, k, phase), steps)
     x = ca.vertcat(z, u, T) if free else ca.vertcat(z, u)
     ins, names = [z, u, T, k, phase], ["z", "u", "T", "k", "phase"]
     step = ca.Function("stage", ins, [zi], names, ["z_end"])
@@ -191,14 +193,24 @@ def _structured(g, nz, nu, steps, free):
         Zi = Zi + ds * sum(b[j] * K[j] for j in range(4))
         record.append((pts, Gs))
     ins, names = [z, u, T, k, phase], ["z", "u", "T", "k", "phase"]
-    step = ca.Function("stage", ins, [_value(g, z, u, T, k, phase, steps)], names, ["z_end"])
+    held = _Held(u, T, k, phase)
+    step = ca.Function("stage", ins, [_value(g, z, held, steps)], names, ["z_end"])
     jac = ca.Function("stage_jac", ins, [zi, Zi], names, ["z_end", "J"])
-    H = _second_order_adjoint(record, g_hess, lam, u, T, k, phase)
+    H = _second_order_adjoint(record, g_hess, lam, held)
     hess = ca.Function("stage_hess", ins + [lam], [H], names + ["lam"], ["H"])
     return step, jac, hess, sum(int(f.n_instructions()) for f in (g, g_jac, g_hess))
 
 
-def _value(g, z, u, T, k, phase, steps):
+class _Held(NamedTuple):
+    """The stage's arguments held over its sub-steps: u, T, the interval's k and phase row."""
+
+    u: object
+    T: object
+    k: object
+    phase: object
+
+
+def _value(g, z, held: _Held, steps):
     """F = z_M: the M RK4 sub-steps from calls of g alone (SX symbols: the inline stage; MX: the
     structured stage's value function — through g_jac it cost 6 ops(f) per RK point instead of 1,
     and its reverse derivative was a second-order function as large as g_hess)."""
@@ -209,12 +221,12 @@ def _value(g, z, u, T, k, phase, steps):
         kap = []
         for j in range(4):
             y = zi + ds * sum((a[j][l] * kap[l] for l in range(j)), type(z).zeros(z.shape[0]))
-            kap.append(g(y, u, T, k + (i + c[j]) / steps, phase))
+            kap.append(g(y, held.u, held.T, held.k + (i + c[j]) / steps, held.phase))
         zi = zi + ds * sum(b[j] * kap[j] for j in range(4))
     return zi
 
 
-def _second_order_adjoint(record, g_hess, lam, u, T, k, phase):
+def _second_order_adjoint(record, g_hess, lam, held: _Held):
     """Σ L_ijᵀ ∇²(ν_ijᵀ g) L_ij with the adjoints ν_ij of a backward sweep (module docstring);
     ``record`` holds one entry per sub-step, each point's L is nx × nx, λ has the nz entries of z."""
     a, b, _ = RK4
@@ -235,6 +247,6 @@ def _second_order_adjoint(record, g_hess, lam, u, T, k, phase):
         lz = lz + sum(ybar)
         for j in range(4):
             y, L = pts[j]
-            Hj = g_hess(y, u, T, k + (i + RK4[2][j]) / steps, phase, nus[j])
+            Hj = g_hess(y, held.u, held.T, held.k + (i + RK4[2][j]) / steps, held.phase, nus[j])
             H = H + ca.mtimes([L.T, Hj, L])
     return H

@@ -126,7 +126,8 @@ OCP_WORDS = Wording(
 )
 
 
-def interval(value, where: str = "", problems: list | None = None, words: Wording = OCP_WORDS) -> tuple:
+def interval(value, where: str = "", problems: list | None = None,
+             words: Wording = OCP_WORDS) -> tuple[float, float]:
     """(lo, hi) of a bound given as a number (equality) or a (lo, hi) pair with None for
     unbounded; a malformed, NaN or contradictory one is appended to ``problems``."""
     problems = [] if problems is None else problems
@@ -332,8 +333,7 @@ def phase_problems(statement: ProblemStatement, words: Wording, known=None, inpu
     problems: list = []
     prefix = _prefix(words)
     if not statement.phases:
-        return _waypoint_problems(statement.waypoints, statement.horizon, statement.intervals,
-                                  statement.free_horizon, f"{prefix}waypoints", known, problems)
+        return _waypoint_problems(statement, statement.intervals, f"{prefix}waypoints", known, problems)
     if statement.waypoints:
         problems.append(f"{prefix}waypoints: with phases, each phase states its own waypoints (times "
                         "from its start)")
@@ -366,8 +366,7 @@ def phase_problems(statement: ProblemStatement, words: Wording, known=None, inpu
                                      f"{where[len(prefix):]}.{words.field('control_bounds')}",
                                      label="inputs"))
             interval(value, f"{where}.control_bounds[{name!r}]", problems, words)
-        _waypoint_problems(phase.waypoints, phase.horizon, N, phase.free_horizon, f"{where}.waypoints", known,
-                           problems)
+        _waypoint_problems(phase, N, f"{where}.waypoints", known, problems)
     return problems
 
 
@@ -376,8 +375,11 @@ def _prefix(words: Wording) -> str:
     return words.place.split("{field}")[0]
 
 
-def _waypoint_problems(waypoints, horizon, intervals, free_horizon, where, known, problems) -> list:
-    for j, point in enumerate(waypoints):
+def _waypoint_problems(owner, intervals, where, known, problems) -> list:
+    """The problems of the waypoints of ``owner`` (a statement or a phase: its ``waypoints``,
+    ``horizon`` and ``free_horizon``) on ``intervals`` intervals, appended to ``problems``."""
+    horizon, free_horizon = owner.horizon, owner.free_horizon
+    for j, point in enumerate(owner.waypoints):
         at = f"{where}[{j}]" + (f" ({point.name})" if point.name else "")
         for name, value in point.conditions.items():
             problems += _unknown(name, known, "{field}: unknown name {name!r}{hint}", at)

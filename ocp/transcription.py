@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -100,6 +100,15 @@ def _single_entries(M: ca.DM, by: str):
 
 
 # ----------------------------------------------------------------------------- bookkeeping
+class PathRanges(NamedTuple):
+    """The path bounds of a transcription: state quantities by node, input quantities by interval."""
+
+    state_lo: np.ndarray   #: m_s × (N+1)
+    state_hi: np.ndarray
+    input_lo: np.ndarray   #: m_u × N
+    input_hi: np.ndarray
+
+
 class _Builder:
     """Shared bookkeeping: bounds on w, rows of g, objective terms, the path quantities."""
 
@@ -194,12 +203,12 @@ class _Builder:
                           args, n_var))
         return specs
 
-    def path_ranges(self) -> tuple:
+    def path_ranges(self) -> PathRanges:
         """(lo, hi) of the state path quantities (m_s × (N+1)) and of the input ones (m_u × N)."""
         p, sched = self.problem, self.schedule
         (slo, shi), (ulo, uhi) = (sched.node_ranges(p, self.state_paths),
                                   sched.node_ranges(p, self.input_paths))
-        return slo, shi, ulo[:, :-1], uhi[:, :-1]
+        return PathRanges(slo, shi, ulo[:, :-1], uhi[:, :-1])
 
     def horizons(self):
         """(the phase horizons as MX (a vector of P, variables or constants), their variable
@@ -272,15 +281,18 @@ def objective_scale(problem) -> float:
     return 1.0 if not (J_ref > OBJECTIVE_REFERENCE and math.isfinite(J_ref)) else OBJECTIVE_REFERENCE / J_ref
 
 
-def _bounds_on(w, node_index, lo, hi, control_index, ulo, uhi, horizon_indices=(), Tbounds=None):
-    """lbx, ubx of w: the node bounds, the control bounds, the horizons' bounds."""
-    n_w = int(w.shape[0])
+def _bounds_on(n_w: int, *blocks) -> tuple[np.ndarray, np.ndarray]:
+    """lbx, ubx of a decision vector of ``n_w`` entries, each block ``(index, lo, hi)`` placed: the
+    node bounds, the control bounds, each horizon's (:func:`_horizon_blocks`); ±inf elsewhere."""
     lbx, ubx = np.full(n_w, -np.inf), np.full(n_w, np.inf)
-    lbx[node_index], ubx[node_index] = lo, hi
-    lbx[control_index], ubx[control_index] = ulo, uhi
-    for index, (a, b) in zip(horizon_indices, Tbounds or (), strict=False):
-        lbx[index], ubx[index] = a, b
+    for index, lo, hi in blocks:
+        lbx[index], ubx[index] = lo, hi
     return lbx, ubx
+
+
+def _horizon_blocks(horizon_indices, Tbounds) -> list:
+    """The ``(index, lo, hi)`` block of each phase horizon for :func:`_bounds_on`."""
+    return [(i, lo, hi) for i, (lo, hi) in zip(horizon_indices, Tbounds or (), strict=False)]
 
 
 # ----------------------------------------------------------------------------- multiple shooting
@@ -343,8 +355,9 @@ class MultipleShooting:
         control_index = idx[nz:, :]
         h_index = (tuple(range(int(w.shape[0]) - b.schedule.n_phases, int(w.shape[0])))
                    if Tsym is not None else ())
-        lbx, ubx = _bounds_on(w, node_index, lo, hi, control_index, *b.schedule.control_ranges(problem),
-                              h_index, Tbounds)
+        lbx, ubx = _bounds_on(int(w.shape[0]), (node_index, lo, hi),
+                              (control_index, *b.schedule.control_ranges(problem)),
+                              *_horizon_blocks(h_index, Tbounds))
         return b.finish(self, Decisions(w, lbx, ubx, node_index, control_index, h_index), f,
                         Assembly(stage.step, g=g, layout=layout))
 
@@ -451,8 +464,9 @@ class Collocation:
         control_index = idx[nz + nz * d:, :]
         h_index = (tuple(range(int(w.shape[0]) - b.schedule.n_phases, int(w.shape[0])))
                    if Tsym is not None else ())
-        lbx, ubx = _bounds_on(w, node_index, lo, hi, control_index, *b.schedule.control_ranges(problem),
-                              h_index, Tbounds)
+        lbx, ubx = _bounds_on(int(w.shape[0]), (node_index, lo, hi),
+                              (control_index, *b.schedule.control_ranges(problem)),
+                              *_horizon_blocks(h_index, Tbounds))
         # path bounds on states also hold at the collocation points (those of the interval's phase)
         state_lo, state_hi = b.schedule.interval_ranges(problem, problem.state_names)
         lbx[coll_index] = np.tile(state_lo, (d, 1))
@@ -537,7 +551,7 @@ class StageShooting(MultipleShooting):
             for k in special:
                 if start < k:            # the stages start … k−1: no rows of their own, one vectorised block
                     self._run(b, gaps, blocks, start, k, counts)
-                self._stage(b, gaps, blocks, k, N, events.get(k, []) + ends.get(k, []), counts)
+                self._stage(b, gaps, blocks, k, events.get(k, []) + ends.get(k, []), counts)
                 start = k + 1
             return ca.vertcat(*b.g)
 
@@ -568,9 +582,10 @@ class StageShooting(MultipleShooting):
             counts[k] = sum(len(names) for names, *_ in blocks)
 
     @staticmethod
-    def _stage(b, gaps, blocks, k, N, rows, counts):
-        """Stage k alone: its gap (k < N), its path rows, its events' and ends' rows."""
-        if k < N:
+    def _stage(b, gaps, blocks, k, rows, counts):
+        """Stage k alone: its gap (k < N, the columns of ``gaps``), its path rows, its events' and
+        ends' rows."""
+        if k < int(gaps.shape[1]):
             b.add_g(gaps[:, k], 0.0, 0.0, "dynamics")
         n = 0
         for names, C, blo, bhi in blocks:
@@ -593,7 +608,7 @@ class StageShooting(MultipleShooting):
         node_index = starts[None, :] + np.arange(nz)[:, None]
         control_index = starts[None, :N] + nx + np.arange(nu)[:, None]
         ulo, uhi = sched.control_ranges(problem)
-        lbx, ubx = _bounds_on(w, node_index, lo, hi, control_index, ulo, uhi)
+        lbx, ubx = _bounds_on(int(w.shape[0]), (node_index, lo, hi), (control_index, ulo, uhi))
         h_index = ()
         if sched.variable_horizons:
             for p, (a, c) in enumerate(sched.horizon_bounds()):

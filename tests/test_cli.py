@@ -81,14 +81,21 @@ def test_derive_checks(capsys):
 def test_a_long_simulation_says_it_is_still_integrating(capsys):
     """A run whose first steps do not foresee its cost (a force with the sign of a velocity
     chatters across it: a user's unicycle said nothing for 150 s before max_steps stopped it)
-    says every HEARTBEAT_S that it goes on, and nothing once it has ended."""
+    says every HEARTBEAT_S that it goes on, and nothing once it has ended: the block waits for
+    four lines (polled; 120 s is a hang guard), and once it is left the heartbeat thread is gone."""
+    import threading
     import time
 
     from nhgait.gaits.cli.simulate import _still_integrating
+    said, deadline = [], time.monotonic() + 120.0
     with _still_integrating("unicycle with DOP853 to t = 6.28 s", every=0.05):
-        time.sleep(0.32)
-    said = capsys.readouterr().err.splitlines()
+        while len(said) < 4:
+            said += capsys.readouterr().err.splitlines()
+            assert time.monotonic() < deadline, said
+            time.sleep(0.01)
+    said += capsys.readouterr().err.splitlines()
     assert len(said) >= 4
     assert said[0].startswith("nhgait simulate: still integrating unicycle with DOP853 to t = 6.28 s (0 s;")
-    time.sleep(0.15)
+    assert all(line.startswith("nhgait simulate: still integrating") for line in said)
+    assert "simulate-heartbeat" not in {t.name for t in threading.enumerate()}
     assert capsys.readouterr().err == ""

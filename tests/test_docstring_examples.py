@@ -16,7 +16,7 @@ MODULES = ("nhgait.dynamics.derivation.formulations", "nhgait.dynamics.derivatio
            "nhgait.dynamics.simulation.driver", "nhgait.dynamics.simulation.options",
            "nhgait.dynamics.simulation.trajectory", "nhgait.dynamics.linearisation.linearised",
            "nhgait.dynamics.suggestions", "nhgait.gaits", "nhgait.gaits.sweeps.driver",
-           "nhgait.dynamics.units")
+           "nhgait.dynamics.units", "nhgait.dynamics.geometry.reconstruction", "nhgait.gaits.plan_options")
 FLAGS = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE
 
 

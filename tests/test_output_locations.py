@@ -170,25 +170,28 @@ def test_a_store_that_is_not_ours_is_refused_and_left_alone(kind, said, sandbox)
 
 # ----------------------------------------------------------------------------- one writer
 HOLDER = textwrap.dedent("""
-    import sys, time
+    import sys
     from nhgait.gaits.outputs import output_lock
     with output_lock(sys.argv[1], "nhgait sweep unicycle --grid final.y=0.2:0.6:3"):
         print("HOLDING", flush=True)
-        time.sleep(120)
+        sys.stdin.read()                 # held until the test closes the pipe (or kills it)
 """)
 
 
 @pytest.fixture
 def held(sandbox):
-    """A directory whose writer lock another process holds (as a first sweep would)."""
+    """A directory whose writer lock another process holds (as a first sweep would) for as long
+    as the test runs: the holder waits on its stdin, not on a clock."""
     folder = sandbox.out / "shared"
-    proc = subprocess.Popen([sys.executable, "-c", HOLDER, str(folder)], stdout=subprocess.PIPE, text=True,
-                            start_new_session=True)
+    proc = subprocess.Popen([sys.executable, "-c", HOLDER, str(folder)], stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, text=True, start_new_session=True)
     assert proc.stdout.readline().strip() == "HOLDING"
     yield folder, proc
     if proc.poll() is None:
         os.killpg(proc.pid, signal.SIGKILL)
     proc.wait()
+    proc.stdin.close()
+    proc.stdout.close()
 
 
 @pytest.mark.parametrize("command", [SWEEP + ["--grid", "final.y=0.3:0.7:4"], PLAN], ids=["sweep", "plan"])

@@ -14,6 +14,8 @@ the command line: on when the plain text is long.
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import sympy as sp
 
 __all__ = ["cse_lines", "equation_lines", "wants_cse", "LONG_TEXT"]
@@ -38,7 +40,14 @@ def _fresh_names(taken: set, prefix: str = "w"):
         k += 1
 
 
-def named_subexpressions(exprs) -> tuple:
+class Subexpressions(NamedTuple):
+    """The result of :func:`named_subexpressions`."""
+
+    definitions: list    #: [(name, expr)] in order of use
+    reduced: list        #: the expressions rewritten in the names
+
+
+def named_subexpressions(exprs) -> Subexpressions:
     """(definitions [(name, expr)], exprs rewritten in the names): :func:`sympy.cse` with the
     short sub-expressions put back and the names renumbered w1, w2 … in order of use."""
     exprs = list(exprs)                      # sympy expressions of the models (no user text)
@@ -54,7 +63,7 @@ def named_subexpressions(exprs) -> tuple:
             kept.append((sym, sub))
     renamed = {old: new for (old, _), new in zip(kept, _fresh_names(taken), strict=False)}
     definitions = [(renamed[sym], sub.xreplace(renamed)) for sym, sub in kept]
-    return definitions, [e.xreplace(back).xreplace(renamed) for e in reduced]
+    return Subexpressions(definitions, [e.xreplace(back).xreplace(renamed) for e in reduced])
 
 
 def cse_lines(lefts, exprs, *, printer=sp.sstr, indent: str = "  ") -> list:

@@ -150,7 +150,7 @@ class Baumgarte(Stabilisation):
         return residual
 
     @property
-    def gains(self) -> tuple:
+    def gains(self) -> tuple[float, float]:
         return (self.alpha, self.beta)
 
 

@@ -51,7 +51,7 @@ _SAMPLES = 6           # random consistent states at which the stated velocities
 _AGREE = 1e-9          # relative agreement of a stated velocity with the configuration's
 
 
-@dataclass(frozen=True)
+@dataclass(kw_only=True, frozen=True)
 class MechanicsSource:
     """What nhgait reads from a sympy.physics.mechanics object.
 
@@ -91,11 +91,11 @@ def read_source(source, origin=None) -> MechanicsSource:
     KanesMethod fields are held only in its private attributes: read there)."""
     if isinstance(source, me.System):
         actuated = tuple(load for actuator in source.actuators for load in actuator.to_loads())
-        return MechanicsSource(
-            "System", source.frame, origin or source.fixed_point, tuple(source.q), tuple(source.q_dep),
-            tuple(source.u), tuple(source.kdes), tuple(source.velocity_constraints),
-            tuple(source.holonomic_constraints), tuple(source.bodies),
-            _loads(source.loads) + _loads(actuated))
+        return MechanicsSource(kind="System", frame=source.frame, origin=origin or source.fixed_point,
+                               q=tuple(source.q), q_dep=tuple(source.q_dep), u=tuple(source.u),
+                               kdes=tuple(source.kdes), velocity_rows=tuple(source.velocity_constraints),
+                               holonomic=tuple(source.holonomic_constraints), bodies=tuple(source.bodies),
+                               loads=_loads(source.loads) + _loads(actuated))
     if isinstance(source, me.KanesMethod):
         if len(getattr(source, "_uaux", ())):
             raise ModelError(["KanesMethod: auxiliary speeds (u_auxiliary) measure constraint forces; "
@@ -104,16 +104,17 @@ def read_source(source, origin=None) -> MechanicsSource:
                 else source._k_kqdot_implicit * source.q.diff(T_SYMBOL)
                 + source._k_ku_implicit * source.u + source._f_k_implicit)
         rows = source._k_nh * source.u + source._f_nh if len(source._k_nh) else sp.Matrix()
-        return MechanicsSource(
-            "KanesMethod", source._inertial, origin, tuple(source.q), tuple(source._qdep),
-            tuple(source.u), tuple(kdes), tuple(rows), tuple(source._f_h),
-            tuple(source.bodies or ()), _loads(source.loads))
+        return MechanicsSource(kind="KanesMethod", frame=source._inertial, origin=origin, q=tuple(source.q),
+                               q_dep=tuple(source._qdep), u=tuple(source.u), kdes=tuple(kdes),
+                               velocity_rows=tuple(rows), holonomic=tuple(source._f_h),
+                               bodies=tuple(source.bodies or ()), loads=_loads(source.loads))
     if isinstance(source, me.LagrangesMethod):
         holonomic = tuple(source._hol_coneqs)
-        return MechanicsSource(
-            "LagrangesMethod", source.inertial, origin, tuple(source.q), (), (), (),
-            tuple(source.coneqs[len(holonomic):]), holonomic, tuple(source.bodies or ()),
-            _loads(source.loads), lagrangian=source._L[0])
+        return MechanicsSource(kind="LagrangesMethod", frame=source.inertial, origin=origin,
+                               q=tuple(source.q), q_dep=(), u=(), kdes=(),
+                               velocity_rows=tuple(source.coneqs[len(holonomic):]), holonomic=holonomic,
+                               bodies=tuple(source.bodies or ()), loads=_loads(source.loads),
+                               lagrangian=source._L[0])
     raise ModelError([f"from_mechanics: expected a KanesMethod, a LagrangesMethod or a "
                       f"sympy.physics.mechanics.System, got {type(source).__name__}"])
 
@@ -327,7 +328,7 @@ def _time_functions(expr) -> set:
             if len(f.args) == 1 and f.args[0] == T_SYMBOL}
 
 
-@dataclass(frozen=True)
+@dataclass(kw_only=True, frozen=True)
 class Converted:
     """The statement read off the model, in the plain q, q̇: L, the constraints (each ``= 0``),
     the generalized forces by coordinate, the configuration constraints h(q) = 0 and the
@@ -357,9 +358,10 @@ def convert(src: MechanicsSource, values: dict) -> Converted:
         L = kinetic_energy(src, kin, plain)
     cons = velocity_constraints(src, plain, u_map, values)
     tau = generalized_forces(src, kin, plain, u_map)
-    return Converted(plain, L, cons, {q: t for q, t in zip(plain.q, tau, strict=True) if t != 0},
-                     [simplified(plain.of(h)) for h in src.holonomic],
-                     None if src.lagrangian is not None else kin, u_map)
+    return Converted(plain=plain, lagrangian=L, constraints=cons,
+                     forces={q: t for q, t in zip(plain.q, tau, strict=True) if t != 0},
+                     holonomic=[simplified(plain.of(h)) for h in src.holonomic],
+                     kinematics=None if src.lagrangian is not None else kin, speeds=u_map)
 
 
 def _symbol_problems(conv: Converted, values: dict) -> list:

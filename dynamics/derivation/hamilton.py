@@ -58,7 +58,7 @@ class HamiltonianDAE(DAEModel):
 
 
     @property
-    def momenta(self) -> tuple:
+    def momenta(self) -> tuple[sp.Symbol, ...]:
         return self.state[self.system.n:]
 
     def equations(self) -> list:

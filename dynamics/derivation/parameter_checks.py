@@ -10,6 +10,7 @@ with the system) and shared with the symmetry test and the initial-state checks.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import NamedTuple
 
 import numpy as np
 import sympy as sp
@@ -26,11 +27,19 @@ __all__ = ["parameter_problems", "numeric_checks", "numeric_functions", "sample_
 LAMBDIFIED = OwnerMemo("lambdified M, ω and V per system")
 
 
-def numeric_functions(system) -> tuple:
+class NumericFunctions(NamedTuple):
+    """M(q, params), ω(q, params) (None when k = 0) and V(q, params) as numpy callables."""
+
+    mass: object
+    omega: object
+    potential: object
+
+
+def numeric_functions(system) -> NumericFunctions:
     """(M(q, params), ω(q, params) or None, V(q, params)) as numpy callables (:data:`LAMBDIFIED`)."""
     def lambdify():
         args = [system.q, system.param_symbols]     # cse: a system built from bodies repeats much
-        return (sp.lambdify(args, system.mass_matrix(), "numpy", cse=True),
+        return NumericFunctions(sp.lambdify(args, system.mass_matrix(), "numpy", cse=True),
                 sp.lambdify(args, system.omega(), "numpy", cse=True) if system.k else None,
                 sp.lambdify(args, system.potential(), "numpy", cse=True))
     return LAMBDIFIED.get(system, None, lambdify)

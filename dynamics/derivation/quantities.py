@@ -15,7 +15,7 @@ from ..numerics.bridge import to_casadi
 __all__ = ["quantity_function", "motion_quantity_function", "acceleration_symbols"]
 
 
-def acceleration_symbols(system) -> tuple:
+def acceleration_symbols(system) -> tuple:  # of sympy Symbols
     """The accelerations ``<q>_ddot`` of the coordinates, as real sympy symbols."""
     import sympy as sp
     return tuple(sp.Symbol(f"{c}_ddot", real=True) for c in system.coordinates)

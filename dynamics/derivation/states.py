@@ -252,7 +252,7 @@ def consistent_velocities(system, q, given: dict, *, params=None, tol: float = 1
                               f"{', '.join(names[i] + '_dot' for i in U)}"],
                              title="cannot solve for the velocities")
         return qdot
-    f_w = system.numeric_functions()[1]
+    f_w = system.numeric_functions().omega
     with np.errstate(all="ignore"):
         W = np.array(f_w(q, system.param_vector(params)), dtype=float).reshape(system.k, system.n)
     if not np.all(np.isfinite(W)):

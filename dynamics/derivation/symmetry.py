@@ -167,7 +167,7 @@ def constraint_distribution(system: System) -> sp.Matrix:
 
 def omega_samples(system: System, count: int, seed: int = 3) -> list:
     """ω(q) (k×n numpy arrays) at ``count`` random configurations, default parameters."""
-    f = system.numeric_functions()[1]
+    f = system.numeric_functions().omega
     pv = system.param_vector()
     out = []
     for qv in system.sample_configurations(count, seed):

@@ -53,7 +53,7 @@ METRICS = OwnerMemo("kinetic metric and potential per system")
 FORCE_JUMP_TIMES = OwnerMemo("force jump times per system and parameter values", limit=256)
 
 
-def jump_times(exprs, subs=None) -> tuple:
+def jump_times(exprs, subs=None) -> tuple[float, ...]:
     """Times at which ``exprs`` jump: the roots t = −b/a of the arguments a·t + b (a, b numbers
     after ``subs``) of Heaviside and sign. A simulation restarts its integrator there (a
     breakpoint), so a jump in a force or an input law is never stepped over."""
@@ -220,7 +220,7 @@ class System:
         return len(self.constraint_exprs)
 
     @property
-    def holonomic_rows(self) -> tuple:
+    def holonomic_rows(self) -> tuple[int, ...]:
         """Indices of the constraint rows that are velocity forms ∇h·q̇ of kept holonomic
         constraints (the last ``len(holonomic)`` rows)."""
         return tuple(range(self.k - len(self.holonomic), self.k))
@@ -262,7 +262,7 @@ class System:
         return [linear_split(c, self.q_dot) or [sp.diff(c, v) for v in self.q_dot]
                 for c in self.constraint_exprs]
 
-    def force_jump_times(self, values=None) -> tuple:
+    def force_jump_times(self, values=None) -> tuple[float, ...]:
         """Times at which a force jumps (Heaviside/sign of a·t + b): integration breakpoints
         (remembered per system and parameter values, :data:`FORCE_JUMP_TIMES`)."""
         key = tuple(sorted((name, float(v)) for name, v in values.items())) if values else ()
@@ -292,7 +292,7 @@ class System:
         """Random configurations (count×n) used by numeric checks, uniform in [−1.2, 1.2]."""
         return parameter_checks.sample_configurations(self.n, count, seed)
 
-    def numeric_functions(self) -> tuple:
+    def numeric_functions(self) -> parameter_checks.NumericFunctions:
         """(M(q, params), ω(q, params) or None, V(q, params)) as numpy callables, lambdified once
         per system (:func:`~.parameter_checks.numeric_functions`)."""
         return parameter_checks.numeric_functions(self)

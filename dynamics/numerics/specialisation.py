@@ -120,15 +120,15 @@ class SpecialisedModel:
         return self.base.system
 
     @property
-    def state_names(self) -> tuple:
+    def state_names(self) -> tuple[str, ...]:
         return tuple(self.numeric.state_names)
 
     @property
-    def fiber(self) -> tuple:
+    def fiber(self) -> tuple[str, ...]:
         return tuple(self.base.fiber)
 
     @property
-    def shape(self) -> tuple:
+    def shape(self) -> tuple[str, ...]:
         """The shape coordinates a planner may move freely: the reduced model's shape without
         the dependent coordinates of kept holonomic constraints (the bicycle's pitch follows
         lean and steer)."""

@@ -220,7 +220,8 @@ def _signed_measures(A: np.ndarray, rows: list) -> np.ndarray:
         return np.linalg.det(sub) / np.prod(np.linalg.norm(sub, axis=2), axis=1)
 
 
-def choose_velocities(model, preferred=(), quantities=None, params=None, bounds=None, points=()) -> tuple:
+def choose_velocities(model, preferred=(), quantities=None, params=None, bounds=None,
+                      points=()) -> tuple[str, ...]:
     """n − k velocity quantities that determine the allowed velocities, ``preferred`` first.
 
     Candidates, in order: ``preferred`` (names a task uses), the shape velocities, the planar

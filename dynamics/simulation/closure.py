@@ -27,7 +27,7 @@ __all__ = ["closure", "resolve_outputs", "expand_outputs", "OutputSeeds", "GROUP
 GROUPS = ("shape", "fiber", "momenta")
 
 
-def closure(depends: np.ndarray, seeds) -> tuple:
+def closure(depends: np.ndarray, seeds) -> tuple[int, ...]:
     """Smallest index set S ⊇ seeds with ``depends[i, j]`` false for i ∈ S, j ∉ S.
 
     Parameters
@@ -130,7 +130,7 @@ def _group(model, name) -> list:
     return list(range(n, len(model.state_names)))          # momenta / velocities
 
 
-def expand_outputs(model, names) -> tuple:
+def expand_outputs(model, names) -> tuple[str, ...]:
     """The output names with each group replaced by its members (coordinates or state names)."""
     out = []
     state_names = list(model.state_names)

@@ -204,7 +204,7 @@ class KnotSchedule:
         return self.times[1:-1]
 
     @property
-    def domain(self) -> tuple:
+    def domain(self) -> tuple[float, float]:
         return float(self.times[0]), float(self.times[-1])
 
     def interval(self, t: float) -> int:

@@ -45,7 +45,7 @@ def _frozen(array) -> np.ndarray:
     return a
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(kw_only=True, frozen=True, eq=False)
 class GainSchedule(KnotSchedule):
     """u = sat(u_k − K_k (σ(q, q̇) − z_ref(t))) on [t_k, t_{k+1}) (module docstring).
 

@@ -233,7 +233,7 @@ class Fast:
         rows, cols = self._shapes[0]
         return self._res[0].reshape(cols, rows).T.copy() if cols > 1 else self._res[0].copy()
 
-    def scalars(self, *args) -> tuple:
+    def scalars(self, *args) -> tuple[float, ...]:
         """All outputs, each a scalar (for functions with scalar outputs only)."""
         for dst, a in zip(self._args, args, strict=True):
             dst[:] = a
@@ -251,7 +251,7 @@ class Measure:
     def __call__(self, y, p) -> float:
         return self._fast.scalars(y, self._zeros, p)[0]
 
-    def with_rate(self, y, ydot, p) -> tuple:
+    def with_rate(self, y, ydot, p) -> tuple[float, ...]:
         return self._fast.scalars(y, ydot, p)
 
 
@@ -267,7 +267,7 @@ class EventWatch:
     def __call__(self, y) -> float:
         return self.measure(y, self.params)
 
-    def with_rate(self, y, ydot) -> tuple:
+    def with_rate(self, y, ydot) -> tuple[float, ...]:
         return self.measure.with_rate(y, ydot, self.params)
 
     def clear(self, value) -> bool:

@@ -7,6 +7,7 @@ from __future__ import annotations
 import csv
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -16,6 +17,13 @@ from ..units import unit_of
 __all__ = ["Trajectory", "Diagnostics", "OnRead", "min_measure", "max_condition", "CSV_COLUMNS"]
 
 CSV_COLUMNS = ("q", "qdot", "state", "all", "outputs")
+
+
+class Columns(NamedTuple):
+    """What :meth:`Trajectory.columns` returns."""
+
+    names: list        #: the column names, t first
+    table: np.ndarray  #: (N, c)
 
 
 @dataclass(frozen=True, eq=False)
@@ -98,7 +106,7 @@ class Trajectory:
         from nhgait.dynamics.reprs import trajectory_repr
         return trajectory_repr(self)
 
-    def columns(self, columns: str = "q") -> tuple:
+    def columns(self, columns: str = "q") -> Columns:
         """(names, (N, c) table) for ``columns`` (see :meth:`to_csv`)."""
         if columns not in CSV_COLUMNS:
             raise ModelError([f"unknown columns {columns!r} (choose from {', '.join(CSV_COLUMNS)})"],
@@ -129,7 +137,7 @@ class Trajectory:
                 blocks.append(self.holonomic_residual)
             names += ["energy", "work", "energy_balance"]
             blocks += [self.energy[:, None], self.work[:, None], self.energy_balance[:, None]]
-        return tuple(names), np.hstack(blocks)
+        return Columns(tuple(names), np.hstack(blocks))
 
     def to_csv(self, path, columns: str = "q", units: dict | None = None, system=None) -> None:
         """Write column ``t`` and then, per ``columns``:

@@ -25,6 +25,7 @@ import math
 import statistics
 import time
 from dataclasses import asdict, dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -252,13 +253,20 @@ def read_csv(path) -> list:
     return rows
 
 
-def time_at_error(rows, level: float) -> tuple:
+class FastestAtError(NamedTuple):
+    """What :func:`time_at_error` returns."""
+
+    wall_s: float   #: the fastest median wall time with error ≤ level (nan: none)
+    row: object     #: its row, or None
+
+
+def time_at_error(rows, level: float) -> FastestAtError:
     """(fastest median wall time with error ≤ level, its row) among ``rows``, or (nan, None)."""
     ok = [r for r in rows if r.success and np.isfinite(r.error) and r.error <= level]
     if not ok:
-        return math.nan, None
+        return FastestAtError(math.nan, None)
     best = min(ok, key=lambda r: r.wall_s)
-    return best.wall_s, best
+    return FastestAtError(best.wall_s, best)
 
 
 def plot_case(rows, ax=None, *, title: str = "", anchor=None):

@@ -27,10 +27,17 @@ def cmd_derive(args) -> int:
                 print(model.symmetry.table_markdown() + "\n")
             if args.checks:
                 print(model.checks_text())
+            if args.reconstruction:
+                from nhgait.dynamics.geometry import reconstruction
+                print(reconstruction(model).to_text() + "\n")
             if args.steps == "markdown":
                 print(model.steps.to_markdown())
             elif args.steps == "latex":
                 print(model.steps.to_latex())
+    if args.reconstruction and "reduced" not in forms:
+        from nhgait.dynamics.geometry import reconstruction
+        print(reconstruction(derive(system, "reduced", version=args.version,
+                                    use_cache=not args.no_cache)).to_text() + "\n")
     if args.table and "reduced" not in forms:
         print(symmetry_test(system).table_markdown())
     return 0
@@ -47,6 +54,9 @@ def add_derive_parser(subparsers):
                    help="print the full-symmetry-group table (thesis Table 3.1)")
     p.add_argument("--checks", action="store_true",
                    help="Jacobi/holonomy test, Table 2.1 class, the (q, q̇) → state map and the singular set")
+    p.add_argument("--reconstruction", action="store_true",
+                   help="the reconstruction equation ξ = −A(r)ṙ + Γ(r)pᵀ of the chosen fibre, its thesis "
+                        "Table 2.1 type and (mixed systems) the momentum equation")
     p.add_argument("--version", choices=["A", "B"], help="g = identity (A) or SE(2)-type (B)")
     cse = p.add_mutually_exclusive_group()
     cse.add_argument("--cse", dest="cse", action="store_true", default=None,

@@ -5,6 +5,7 @@
     nhgait reproduce [--out DIR] ...               (gaits/cli_reproduce.py)
     nhgait plan <system> ... --out DIR             (gaits/cli_plan.py)
     nhgait track <system> --mismatch ... --out DIR (gaits/cli/track.py)
+    nhgait analyse <scene.toml | built-in> ...     (gaits/cli/analyse.py)
 
 Exit status: 0 success; 1 the job ran but did not succeed (an integration that stopped early,
 an optimisation that did not converge or was not verified); 2 bad input — one message listing
@@ -37,6 +38,7 @@ SUBCOMMANDS = (
     ("nhgait.gaits.cli.plan", "add_plan_parser"),
     ("nhgait.gaits.cli.sweep", "add_sweep_parser"),
     ("nhgait.gaits.cli.linearize", "add_linearize_parser"),
+    ("nhgait.gaits.cli.analyse", "add_analyse_parser"),
     ("nhgait.gaits.cli.track", "add_track_parser"),
 )
 

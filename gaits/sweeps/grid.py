@@ -85,11 +85,11 @@ class Grid:
     axes: tuple
 
     @property
-    def shape(self) -> tuple:
+    def shape(self) -> tuple[int, ...]:
         return tuple(len(a) for a in self.axes)
 
     @property
-    def names(self) -> tuple:
+    def names(self) -> tuple[str, ...]:
         return tuple(a.name for a in self.axes)
 
     @property
@@ -112,7 +112,7 @@ class Grid:
             yield self.point(index)
 
     @property
-    def centre(self) -> tuple:
+    def centre(self) -> tuple[int, ...]:
         return tuple((n - 1) // 2 for n in self.shape)
 
     def parent(self, index) -> tuple | None:

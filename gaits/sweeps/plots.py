@@ -51,7 +51,7 @@ def _coordinate_label(name: str, units) -> str:
     return f"{label(name)} [{unit_of(name, units) or 'SI units'}]"
 
 
-def grid_slice(result, keep: tuple, fixed=None) -> tuple:
+def grid_slice(result, keep: tuple, fixed=None) -> tuple[int | slice, ...]:
     """Indices selecting the 2-D (or 1-D) slice of the axes ``keep`` (other axes at ``fixed``)."""
     fixed = dict(fixed or {})
     grid = result.grid

@@ -29,6 +29,7 @@ at a bound.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -58,7 +59,7 @@ class Noise:
                            "noise constant on each plan interval"}
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(kw_only=True, frozen=True, eq=False)
 class TrackingCase:
     """What every sample shares, as picklable data (module docstring): ``robot`` the parameter
     values of the simulated robot, ``params`` the nominal ones the plan and its feedback use."""
@@ -99,9 +100,10 @@ def schedule_of(feedback, specialised, system):
     q, qd = ca.SX.sym("q", n), ca.SX.sym("qdot", n)
     state = specialised.numeric["state"]
     state_map = ca.Function("state_map", [q, qd], [state(q, qd, np.zeros(state.size1_in(2)))])
-    return GainSchedule(feedback.t, feedback.controls.T, feedback.gains, feedback.states.T,
-                        feedback.rates, state_map, feedback.lower, feedback.upper,
-                        inputs=tuple(system.inputs), system_coordinates=tuple(system.coordinates))
+    return GainSchedule(times=feedback.t, controls=feedback.controls.T, gains=feedback.gains,
+                        reference=feedback.states.T, rates=feedback.rates, state_map=state_map,
+                        lower=feedback.lower, upper=feedback.upper, inputs=tuple(system.inputs),
+                        system_coordinates=tuple(system.coordinates))
 
 
 def _context(case: TrackingCase) -> _Context:
@@ -166,7 +168,14 @@ def run_sample(ctx: _Context, case: TrackingCase, index: int) -> dict:
     return out
 
 
-def robot_start(system, q, qdot, robot: dict) -> tuple:
+class RobotStart(NamedTuple):
+    """What :func:`robot_start` returns."""
+
+    q: np.ndarray      #: configuration on the robot's holonomic constraints
+    qdot: np.ndarray   #: velocity on its constraints
+
+
+def robot_start(system, q, qdot, robot: dict) -> RobotStart:
     """(q, q̇) a robot with the parameter values ``robot`` can start in, nearest the sample's:
     the dependent coordinates solved onto its kept holonomic constraints h(q) = 0
     (:func:`~nhgait.dynamics.derivation.holonomic.consistent_configuration`; noise in the plan's
@@ -178,10 +187,10 @@ def robot_start(system, q, qdot, robot: dict) -> tuple:
     if system.holonomic:
         q = consistent_configuration(system, q, params=robot)
     if system.k:
-        omega = system.numeric_functions()[1]
+        omega = system.numeric_functions().omega
         W = np.array(omega(q, system.param_vector(robot)), dtype=float).reshape(system.k, system.n)
         qdot = qdot - np.linalg.pinv(W) @ (W @ qdot)
-    return q, qdot
+    return RobotStart(q, qdot)
 
 
 def _grid(times) -> np.ndarray:

@@ -39,7 +39,7 @@ __all__ = ["track", "TrackingResult", "parse_mismatch", "summarise", "summary_li
 SERIAL_SAMPLES = 24
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(kw_only=True, frozen=True, eq=False)
 class TrackingResult:
     """What :func:`track` produced: ``report`` (the content of tracking.json), ``samples`` (the
     answers of :func:`~.tracking_runs.run_samples`, the noise-free run first), ``files``,
@@ -180,7 +180,8 @@ def track(system, task=None, *, overrides=(), mismatch=(), samples: int = 20, se
     base = describe_case(system, task_table, params=params)
     key = hashlib.sha256(json.dumps([base.scene.sha256, task_table, params, robot, feedback["gains"]],
                                     sort_keys=True, default=str).encode()).hexdigest()
-    case = TrackingCase(base.scene, base.task, params, robot, feedback, noise, int(seed), key)
+    case = TrackingCase(scene=base.scene, task=base.task, params=params, robot=robot, feedback=feedback,
+                        noise=noise, seed=int(seed), key=key)
     t0, answers, overrun = time.perf_counter(), [], None
     try:
         _run(case, int(samples), scheduler, workers, progress, budget, answers)
@@ -197,7 +198,8 @@ def track(system, task=None, *, overrides=(), mismatch=(), samples: int = 20, se
         report.update(success=False, message=f"the time budget ran out after {len(answers[1:])} of {samples} "
                                              "samples", time_budget=_overrun_lines(overrun))
     report["timings"] = {k: round(v, 3) for k, v in timings.items()}
-    result = TrackingResult(label, report, tuple(answers), (), timings, planned, overrun)
+    result = TrackingResult(label=label, report=report, samples=tuple(answers), files=(), timings=timings,
+                            plan=planned, overrun=overrun)
     if out_dir is not None:
         result = _written(result, out_dir, units, progress)
     return result
@@ -273,7 +275,8 @@ def _failed_plan(result, out_dir) -> TrackingResult:
     report = {"system": result.label, "success": False,
               "message": f"the plan did not succeed ({why}); nothing to track",
               "diagnosis": list(result.diagnosis)}
-    failed = TrackingResult(result.label, report, (), (), {}, result, result.overrun)
+    failed = TrackingResult(label=result.label, report=report, samples=(), files=(), timings={}, plan=result,
+                            overrun=result.overrun)
     return failed if out_dir is None else _written(failed, out_dir, None, None)
 
 

@@ -150,7 +150,7 @@ def test_to_state_from_many_threads_equals_one_at_a_time():
         given = {name: rng.uniform(-1, 1) for name in ("phi", "theta", "psi")}
         states.append((q, consistent_velocities(model.system, q, given)))
     one_at_a_time = [to_state(model, q, qd) for q, qd in states]
-    mass = model.system.numeric_functions()[0]
+    mass = model.system.numeric_functions().mass
     pv = model.system.param_vector()
     for (q, qd), x in zip(states, one_at_a_time, strict=True):       # p = M(q) q̇, independently
         assert np.allclose(x, np.r_[q, np.asarray(mass(q, pv), dtype=float) @ qd], rtol=1e-12, atol=1e-12)

@@ -1,11 +1,12 @@
 """Text from a scene file or the API is data, never code: hostile strings in every field are one
-ModelError each, within a second, with no side effect; no module evaluates user text."""
+ModelError each, with no side effect and no hang (a generous hang guard, ``adversarial.watchdog``: evaluating
+``9**9**9**9`` would never return); no module evaluates user text."""
 import json
 import re
-import time
 from pathlib import Path
 
 import pytest
+from adversarial import watchdog
 
 from nhgait.dynamics import ModelError, System, load_scene
 
@@ -86,11 +87,8 @@ def test_hostile_strings_in_every_scene_field(field, tmp_path):
     from nhgait.dynamics.derivation.scene import parse_scene
     marker = tmp_path / "marker"
     for text in hostile(marker):
-        start = time.perf_counter()
-        with pytest.raises(ModelError):
+        with watchdog(), pytest.raises(ModelError):
             parse_scene(_place(field, text), "hostile.toml")
-        elapsed = time.perf_counter() - start
-        assert elapsed < 1.0, (field, text[:40], elapsed)
         assert not marker.exists(), (field, text[:60])
 
 
@@ -109,10 +107,8 @@ def test_hostile_strings_in_every_system_argument(field, tmp_path):
             args["parameters"]["m"] = text
         else:
             args["coordinates"] = [text, "phi"]
-        start = time.perf_counter()
-        with pytest.raises(ModelError):
+        with watchdog(), pytest.raises(ModelError):
             System(**args)
-        assert time.perf_counter() - start < 1.0, text[:40]
         assert not marker.exists()
 
 

@@ -31,14 +31,14 @@ def test_lane_change_is_planned_and_verified(lane_change):
     assert verification.max_error <= 1e-6
     sol = result.solution
     names = list(sol.state_names)
-    q = sol.states[:8]
+    q = sol.z[:, :8].T                                              # 8 × (N+1)
     assert q[names.index("y"), -1] == pytest.approx(1.0, abs=1e-6)
     assert abs(q[names.index("yaw"), -1]) < 1e-6
     assert abs(q[names.index("lean"), -1]) < 1e-6
     assert np.all(np.abs(q[names.index("lean")]) <= 0.3 + 1e-9)
     assert np.all(np.abs(q[names.index("steer")])
                                                                            <= 0.3 + 1e-9)
-    controls = dict(zip(sol.control_names, sol.controls, strict=True))
+    controls = dict(zip(sol.control_names, sol.u.T, strict=True))
     assert np.all(controls["T_lean"] == 0.0)
     assert np.max(np.abs(controls["T_steer"])) <= 20.0 + 1e-9
     h = holonomic_residual(result.model.system, q.T)
@@ -47,12 +47,12 @@ def test_lane_change_is_planned_and_verified(lane_change):
 
 def test_the_planned_torque_steers_the_bicycle_the_same_way_under_cvodes(lane_change):
     sol, system = lane_change.solution, lane_change.model.system
-    q0, qdot0 = sol.states[:8, 0], sol.velocities()[:, 0]
-    controller = OpenLoop(sol.t, sol.controls.T, kind="zoh", inputs=tuple(sol.control_names))
+    q0, qdot0 = sol.z[0, :8], sol.velocities()[:, 0]
+    controller = OpenLoop(sol.t, sol.u, kind="zoh", inputs=tuple(sol.control_names))
     run = simulate(derive(system), (sol.t[0], sol.t[-1]), q0, qdot0, controller=controller,
                    method="CVODES", rtol=1e-10, atol=1e-12, t_eval=sol.t)
     assert run.success
-    planned = sol.states[:8].T
+    planned = sol.z[:, :8]
     keep = [i for i, c in enumerate(system.coordinates) if c not in ("rear", "front")]
     assert np.max(np.abs(run.q[:, keep] - planned[:, keep])) < 1e-6
     speed = np.hypot(run.qdot[:, 0], run.qdot[:, 1])

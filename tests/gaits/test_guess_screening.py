@@ -81,7 +81,7 @@ def test_a_guess_through_the_singular_set_is_repaired_and_the_plan_verified():
                                     guess=_arc_guess())
     assert reference["status"] == "Solve_Succeeded"
     assert s.objective == pytest.approx(reference["objective"], rel=1e-3)
-    assert np.all(s.states[3] > 0.05)                 # the optimum itself stays off φ = 0
+    assert np.all(s.z[:, 3] > 0.05)                 # the optimum itself stays off φ = 0
 
 
 def test_a_plan_whose_guesses_all_meet_the_singular_set_names_the_posture(tmp_path):
@@ -159,7 +159,7 @@ def test_the_users_snake_is_planned_through_the_charts_singular_set_and_verified
     s = result.solution
     assert result.success
     assert s.verification.max_error <= 1e-6
-    q = s.states[:5]
+    q = s.z[:, :5].T                                      # 5 × (N+1)
     gap = q[3] - q[4]
     assert gap.min() < -0.1  # crosses α₁ = α₂
     assert gap.max() > 0.1
@@ -169,7 +169,7 @@ def test_the_users_snake_is_planned_through_the_charts_singular_set_and_verified
     fixed0 = {i: 0.0 for i in (0, 1, 2, 5, 6, 7, 8, 9)}
     reference = dae_reference.solve(f, n_u=2, T=6.0, N=50, fixed0=fixed0, fixedT={0: 0.3, 1: 0.0, 2: 0.0},
                                     periodic=(3, 4, 8, 9), bounds={3: (-1.0, 1.0), 4: (-1.0, 1.0)},
-                                    u_bound=2.0, guess=(Z, s.controls))
+                                    u_bound=2.0, guess=(Z, s.u.T))
     assert reference["status"] == "Solve_Succeeded"
     assert s.objective == pytest.approx(reference["objective"], rel=1e-3)
     assert s.objective <= 0.009992 * 1.01       # the hand-written reference of the issue: J = 0.009992

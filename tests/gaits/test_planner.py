@@ -43,9 +43,9 @@ def lagrange_final_errors(result) -> dict:
     system = result.plan.scene.system
     lag = derive(system, "lagrange")
     n = system.n
-    q, v = s.states[:n, 0].copy(), s.velocities()[:, 0].copy()
+    q, v = s.z[0, :n].copy(), s.velocities()[:, 0].copy()
     for k in range(len(s.t) - 1):
-        u = s.controls[:, k]
+        u = s.u[k]
         run = simulate(lag, (s.t[k], s.t[k + 1]), q, v, controller=lambda t, qq, vv, u=u: u,
                        rtol=1e-11, atol=1e-12, t_eval=[s.t[k + 1]])
         assert run.success

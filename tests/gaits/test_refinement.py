@@ -47,7 +47,7 @@ def test_a_gait_four_sub_steps_do_not_resolve_is_refined_and_verified():
     assert steps > 4
     assert f"refined ({steps} RK4 sub-steps)" in result.guess
     f = dae_reference.car_ode()
-    t, q, qd, u = s.t, s.states[:4], s.velocities(), s.controls
+    t, q, qd, u = s.t, s.z[:, :4].T, s.velocities(), s.u.T       # q, q̇: n × (N+1); u: nu × N
     z = np.concatenate([q[:, 0], qd[:, 0]])
     for k in range(t.size - 1):
         sol = solve_ivp(lambda _, x, uk=u[:, k]: np.asarray(f(x, uk)).ravel(), (t[k], t[k + 1]), z,

@@ -75,7 +75,8 @@ def kkt_optimum(copies, weight):
 
 def _scenarios(ode, copies, weight, aggregate="mean"):
     params = [[MASS, b] for b in copies]                      # the model's parameter order: m, b
-    return Scenarios(ode, params, TERMINAL, SCALES, weight, aggregate)
+    return Scenarios(ode=ode, params=params, terminal=TERMINAL, scales=SCALES, weight=weight,
+                     aggregate=aggregate)
 
 
 def _solve(model, scenarios):
@@ -98,8 +99,8 @@ def test_the_mean_scenario_optimum_is_the_exact_lq_one(coupled, copies):
     sol = _solve(model, _scenarios(ode, copies, 30.0))
     assert sol.success, sol.message
     assert abs(sol.objective - J) <= TOL * J
-    assert np.max(np.abs(sol.controls - U)) <= TOL * np.max(np.abs(U))
-    np.testing.assert_allclose(sol.states[:, -1], TARGET, atol=1e-8)        # the nominal end stays hard
+    assert np.max(np.abs(sol.u.T - U)) <= TOL * np.max(np.abs(U))          # U: nu × N
+    np.testing.assert_allclose(sol.z[-1], TARGET, atol=1e-8)        # the nominal end stays hard
     nominal_U, nominal_J = kkt_optimum((SPRING,), weight=0.0)
     assert np.max(np.abs(U - nominal_U)) > 0.1 * np.max(np.abs(U))           # the copies matter
 
@@ -112,20 +113,22 @@ def test_the_worst_case_of_one_copy_is_its_mean(coupled):
     sol = _solve(model, _scenarios(ode, (1.0,), 2.0, aggregate="worst"))
     assert sol.success, sol.message
     assert abs(sol.objective - J) <= TOL * J
-    assert np.max(np.abs(sol.controls - U)) <= TOL * np.max(np.abs(U))
+    assert np.max(np.abs(sol.u.T - U)) <= TOL * np.max(np.abs(U))
 
 
 def test_no_copies_is_the_nominal_problem(coupled):
     model, ode = coupled
     _, J = kkt_optimum((SPRING,), weight=0.0)
-    sol = _solve(model, Scenarios(ode, np.zeros((0, 2)), TERMINAL, SCALES, 1.0))
+    sol = _solve(model, Scenarios(ode=ode, params=np.zeros((0, 2)), terminal=TERMINAL, scales=SCALES,
+                                  weight=1.0))
     assert sol.success
     assert abs(sol.objective - J) <= TOL * J
 
 
 def test_bad_copies_are_listed_together(coupled):
     model, ode = coupled
-    bad = Scenarios(ode, [[MASS, np.nan]], ("x", "speed"), [1.0], -1.0, "median")
+    bad = Scenarios(ode=ode, params=[[MASS, np.nan]], terminal=("x", "speed"), scales=[1.0], weight=-1.0,
+                    aggregate="median")
     with pytest.raises(ProblemError) as info:
         _solve(model, bad)
     text = str(info.value)

@@ -6,7 +6,6 @@ from __future__ import annotations
 import math
 import os
 import sqlite3
-import time
 
 import experiment_scripts
 import numpy as np
@@ -41,11 +40,6 @@ def fake_solve(job: PointJob) -> dict:
             "start": "warm" if job.warm is not None else "cold", "worker": str(os.getpid()),
             "solution": {"objective": J, "trajectory": trajectory},
             "warm": {"trajectory": trajectory} if ok else None}
-
-
-def slow_solve(job: PointJob) -> dict:
-    time.sleep(0.3)
-    return fake_solve(job)
 
 
 def dying_solve(job: PointJob) -> dict:

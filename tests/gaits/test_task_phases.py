@@ -116,8 +116,8 @@ def _forward_acceleration(solution, k, steps=1000):
     h = solution.t[k + 1] - solution.t[k]
     t = solution.t[k] + np.array([0.0, 1.0, 2.0]) * h / steps
     nz = len(problem.model_state_names)
-    z = simulate_piecewise_constant(problem.model, problem.params, t, solution.states[:nz, k],
-                                    np.repeat(solution.controls[:, k:k + 1], 2, axis=1),
+    z = simulate_piecewise_constant(problem.model, problem.params, t, solution.z[k, :nz],
+                                    np.repeat(solution.u[k][:, None], 2, axis=1),
                                     Integrator(rtol=1e-11, atol=1e-13))[0]
     qdot = problem.model.numeric["qdot"]
     v = []
@@ -130,7 +130,7 @@ def _forward_acceleration(solution, k, steps=1000):
 def test_a_planned_acceleration_bound_holds_in_an_independent_resimulation(planned):
     assert planned.success, planned.solution.message
     s = planned.solution
-    a = np.array([_forward_acceleration(s, k) for k in range(s.controls.shape[1])])
+    a = np.array([_forward_acceleration(s, k) for k in range(len(s.u))])
     assert np.max(np.abs(a)) <= BOUND + 1e-5
     assert np.sum(np.abs(a) > BOUND - 1e-5) >= 10         # the bound is active: it shaped the answer
 
@@ -138,8 +138,8 @@ def test_a_planned_acceleration_bound_holds_in_an_independent_resimulation(plann
 def test_the_integral_and_the_waypoint_of_a_plan(planned):
     s = planned.solution
     h = np.diff(s.t)
-    work = s.states[list(s.state_names).index("work")]
-    assert work[-1] == pytest.approx(np.sum(h * s.controls[0] ** 2), rel=1e-9)
+    work = s.z[:, list(s.state_names).index("work")]
+    assert work[-1] == pytest.approx(np.sum(h * s.u[:, 0] ** 2), rel=1e-9)
     resimulated = s.verification.states
     assert resimulated[0, 30] >= 0.3 - 1e-6
     assert s.t[30] == pytest.approx(3.0)

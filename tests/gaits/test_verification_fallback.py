@@ -48,10 +48,10 @@ def test_a_gait_through_the_charts_singular_set_is_verified_on_the_euler_lagrang
     assert result.success, result.diagnosis
     assert s.verification.passed, result.diagnosis
     assert type(s.problem.model).__name__ == "LagrangianDAE"          # verified in x = (q, q̇)
-    q = s.states[:7]
+    q = s.z[:, :7].T                                                     # 7 × (N+1)
     assert np.max(np.abs(q[1:])) < 1e-9                                  # straight: y, θ and every angle 0
     masses = sum(pair.robot.parameters[b.mass] for b in pair.robot.bodies if b.mass)
-    F = s.controls[list(pair.robot.inputs).index(pair.robot.pushes[0].input)]
+    F = s.u[:, list(pair.robot.inputs).index(pair.robot.pushes[0].input)]
     h = s.t[1] - s.t[0]
     x, v = 0.0, 0.0
     for k, force in enumerate(F):                                        # ẍ = F/Σm, exact per interval

@@ -51,7 +51,7 @@ def test_coarse_first_reaches_the_direct_solves_optimum(parking):
     assert two.stats["coarse_iterations"] > 0
     assert two.settings["coarse_intervals"] == 15
     assert two.objective == pytest.approx(direct.objective, rel=1e-6)
-    np.testing.assert_allclose(two.states, direct.states, atol=1e-4)
+    np.testing.assert_allclose(two.z, direct.z, atol=1e-4)
     assert two.constraint_violation < 1e-8
 
 

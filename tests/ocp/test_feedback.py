@@ -114,9 +114,9 @@ def _schedule(N=4, seed=1):
     rates = np.stack([np.stack([dref(t[k]), dref(t[k + 1])]) for k in range(N)])
     q, qd = ca.SX.sym("q", 2), ca.SX.sym("qd", 2)
     state_map = ca.Function("s", [q, qd], [ca.vertcat(q, 2 * qd + ca.sin(q))])
-    sched = GainSchedule(t, rng.normal(size=(N, 2)), rng.normal(size=(N, 2, 4)),
-                         np.array([ref(tt) for tt in t]), rates, state_map, np.array([-0.5, -np.inf]),
-                         np.array([0.5, np.inf]))
+    sched = GainSchedule(times=t, controls=rng.normal(size=(N, 2)), gains=rng.normal(size=(N, 2, 4)),
+                         reference=np.array([ref(tt) for tt in t]), rates=rates, state_map=state_map,
+                         lower=np.array([-0.5, -np.inf]), upper=np.array([0.5, np.inf]))
     return sched, ref
 
 

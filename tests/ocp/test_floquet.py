@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 from nhgait.ocp.feedback import Feedback, Weights
-from nhgait.ocp.floquet import finite_difference_monodromy, monodromy, stability, verdict
+from nhgait.ocp.floquet import Loop, finite_difference_monodromy, monodromy, stability, verdict
 
 A0 = np.array([[-0.1, 1.0, 0.0], [-1.0, -0.1, 0.0], [0.0, 0.0, 0.05]])
 T, N, B_GAIN, K_GAIN = 2.0, 16, 1.5, 0.4
@@ -46,8 +46,8 @@ def test_monodromy_of_a_linear_periodic_system_is_its_closed_form():
     from scipy.linalg import expm
     ode = _linear_periodic()
     t, ref, u, rates, gains = _zero_plan(K_GAIN)
-    open_loop, _ = monodromy(ode, t, ref, u, rates, None)
-    closed_loop, _ = monodromy(ode, t, ref, u, rates, gains)
+    open_loop, _ = monodromy(Loop(ode, t, ref, u, rates, None))
+    closed_loop, _ = monodromy(Loop(ode, t, ref, u, rates, gains))
     exact = expm(A0 * T)
     assert np.max(np.abs(open_loop - exact)) <= 1e-7
     assert np.max(np.abs(closed_loop - np.exp(-B_GAIN * K_GAIN * T) * exact)) <= 1e-7
@@ -59,8 +59,9 @@ def test_stability_reports_the_closed_form_multipliers_and_verdicts():
     ode = _linear_periodic()
     t, ref, u, rates, gains = _zero_plan(K_GAIN)
     ones = np.ones(3)
-    feedback = Feedback(t, ref, u, gains, rates, ("p", "q", "r"), ("u1", "u2", "u3"),
-                        Weights(ones, ones, ones, ones, ones), -np.inf * ones, np.inf * ones)
+    feedback = Feedback(t=t, states=ref, controls=u, gains=gains, rates=rates, state_names=("p", "q", "r"),
+                        control_names=("u1", "u2", "u3"), weights=Weights(ones, ones, ones, ones, ones),
+                        lower=-np.inf * ones, upper=np.inf * ones)
     result = stability(ode, feedback)
     expected = np.exp(np.linalg.eigvals(A0) * T)
     expected = expected[np.argsort(-np.abs(expected))]
@@ -86,8 +87,9 @@ def test_a_variational_process_that_dies_is_a_runtime_error(monkeypatch):
     ode = _linear_periodic()
     t, ref, u, rates, gains = _zero_plan(K_GAIN)
     ones = np.ones(3)
-    feedback = Feedback(t, ref, u, gains, rates, ("p", "q", "r"), ("u1", "u2", "u3"),
-                        Weights(ones, ones, ones, ones, ones), -np.inf * ones, np.inf * ones)
+    feedback = Feedback(t=t, states=ref, controls=u, gains=gains, rates=rates, state_names=("p", "q", "r"),
+                        control_names=("u1", "u2", "u3"), weights=Weights(ones, ones, ones, ones, ones),
+                        lower=-np.inf * ones, upper=np.inf * ones)
     monkeypatch.setattr(floquet, "monodromy", lambda *a, **k: os._exit(3))
     with pytest.raises(RuntimeError, match="variational equations' process ended without an answer"):
         stability(ode, feedback)
@@ -112,8 +114,8 @@ def test_monodromy_of_a_nonlinear_time_varying_loop_matches_finite_differences()
     rates = np.stack([np.stack([[np.cos(a), -np.sin(a)], [np.cos(b), -np.sin(b)]]) for a, b in
                       zip(times[:-1], times[1:], strict=True)])
     controls, gains = rng.normal(size=(1, n)), rng.uniform(0.2, 1.5, (n, 1, 2))
-    analytic, _ = monodromy(ode, times, ref, controls, rates, gains)
-    reference = finite_difference_monodromy(ode, times, ref, controls, rates, gains)
+    analytic, _ = monodromy(Loop(ode, times, ref, controls, rates, gains))
+    reference = finite_difference_monodromy(Loop(ode, times, ref, controls, rates, gains))
     assert np.max(np.abs(analytic - reference)) <= 1e-6 * max(1.0, np.max(np.abs(reference)))
 
 
@@ -135,13 +137,13 @@ def test_snakeboard_forward_gait_multipliers_match_finite_differences(forward, t
     result, prepared = forward
     st, fb = result.solution.stability, result.solution.feedback
     ode = ode_function(prepared.problem)
-    closed = finite_difference_monodromy(ode, fb.t, fb.states, fb.controls, fb.rates, fb.gains)
+    closed = finite_difference_monodromy(Loop(ode, fb.t, fb.states, fb.controls, fb.rates, fb.gains))
     assert np.max(np.abs(closed - st.closed_loop)) <= 1e-6
     mu = np.linalg.eigvals(closed)
     mu = mu[np.argsort(-np.abs(mu), kind="stable")]
     assert np.max(np.abs(mu - st.closed_multipliers)) <= 1e-6
     assert verdict(st.closed_multipliers)[0] == "stable"
-    opened = finite_difference_monodromy(ode, fb.t, fb.states, fb.controls, fb.rates, None)
+    opened = finite_difference_monodromy(Loop(ode, fb.t, fb.states, fb.controls, fb.rates, None))
     assert np.max(np.abs(opened - st.open_loop)) <= 1e-6
     assert st.periodic_states == ("psi", "phi", "forward_velocity", "psi_dot", "phi_dot")
     assert np.max(np.abs(st.open_multipliers - 1)) <= 1e-3

@@ -110,7 +110,7 @@ def test_child_solves_on_its_cores_after_the_parent_ran_the_library():
 
     def child():                                  # ... then a child on its share of the cores
         s = solver.solve(guess)
-        return openmp.threads(), s.success, s.iterations, s.objective, np.asarray(s.states)
+        return openmp.threads(), s.success, s.iterations, s.objective, np.asarray(s.z)
 
     threads, success, iterations, objective, states = supervise(
         [Job(child, 30.0, lambda status, message, seconds: (0, False, 0, float("nan"), None))])[0]
@@ -120,4 +120,4 @@ def test_child_solves_on_its_cores_after_the_parent_ran_the_library():
     assert iterations == parent.iterations == reference.iterations
     assert objective == pytest.approx(reference.objective, rel=1e-9)
     assert objective == parent.objective          # one thread or several: the same sums
-    np.testing.assert_allclose(states, np.asarray(reference.states), rtol=0, atol=1e-8)
+    np.testing.assert_allclose(states, np.asarray(reference.z), rtol=0, atol=1e-8)

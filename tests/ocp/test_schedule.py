@@ -99,7 +99,7 @@ def _solve(problem, method):
 def _check(sol, U, J):
     assert sol.success, sol.message
     assert sol.objective == pytest.approx(J, rel=TOL)
-    assert np.max(np.abs(sol.controls - U)) <= TOL * max(1.0, np.max(np.abs(U)))
+    assert np.max(np.abs(sol.u.T - U)) <= TOL * max(1.0, np.max(np.abs(U)))        # U: nu × N
     v = sol.verify()
     assert v.success, v
     assert v.max_error <= 1e-8, v
@@ -143,7 +143,7 @@ def test_an_integral_state_meets_its_final_value_and_is_the_exact_integral(parti
     _check(sol, U, J)
     # the integral state against the trapezoid-free exact integral of the oracle's nodes
     _, _, I = _nodes(np.full(N, T / N), U)
-    assert np.max(np.abs(sol.states[-1] - I[0])) <= TOL
+    assert np.max(np.abs(sol.z[:, -1] - I[0])) <= TOL
 
 
 def test_an_integral_in_the_objective_is_its_final_value(particle):
@@ -155,7 +155,7 @@ def test_an_integral_in_the_objective_is_its_final_value(particle):
     assert sol.success, sol.message
     # stationarity of the oracle's objective at the solution: the KKT system with the linear term
     h = np.full(N, T / N)
-    U = sol.controls
+    U = sol.u.T                                       # nu × N, the oracle's layout
     _, _, I = _nodes(h, U)
     assert sol.objective == pytest.approx(np.sum(h * np.sum(U ** 2, axis=0)) + w * I[0, N], rel=1e-9)
     J0 = sol.objective

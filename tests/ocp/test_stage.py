@@ -426,8 +426,8 @@ def test_assembled_derivatives_solve_like_casadi_ad(timed_model, name, free):
     assert sol.objective == pytest.approx(f_ref, rel=1e-8)
     assert sol.iterations == iterations
     Z, U, T = solver.nlp.unpack(w_ref)
-    _assert_close(sol.states, Z, 1e-6, "states")
-    _assert_close(sol.controls, U, 1e-6, "controls")
+    _assert_close(sol.z.T, Z, 1e-6, "states")                   # Z, U: the NLP layout (nz × (N+1), nu × N)
+    _assert_close(sol.u.T, U, 1e-6, "controls")
     assert sol.horizon == pytest.approx(T, rel=1e-8)
 
 
@@ -465,18 +465,18 @@ def test_time_dependent_force_plans_and_verifies(timed_model, free):
     assert sol.verification.max_error <= 1e-6
 
     def resimulate(restart):
-        z, out = sol.states[:, 0], [sol.states[:, 0]]
+        z, out = sol.z[0], [sol.z[0]]
         for k in range(problem.intervals):
             t0, t1 = sol.t[k], sol.t[k + 1]
             shift = t0 if restart else 0.0
-            run = solve_ivp(lambda t, zz, shift=shift, k=k: _rhs(t - shift, zz, sol.controls[:, k], True, np),
+            run = solve_ivp(lambda t, zz, shift=shift, k=k: _rhs(t - shift, zz, sol.u[k], True, np),
                             (t0, t1), z, method="DOP853", rtol=1e-11, atol=1e-12)
             z = run.y[:, -1]
             out.append(z)
-        return np.column_stack(out)
+        return np.vstack(out)                                    # (N+1) × nz, like sol.z
 
-    assert np.max(np.abs(resimulate(False) - sol.states)) <= 1e-6
-    assert np.max(np.abs(resimulate(True) - sol.states)) >= 1e-3
+    assert np.max(np.abs(resimulate(False) - sol.z)) <= 1e-6
+    assert np.max(np.abs(resimulate(True) - sol.z)) >= 1e-3
 
 
 # ------------------------------------------------------------------------------------------

@@ -19,6 +19,8 @@ for a wheel whose contact point is the base point (the bicycle's rear wheel).
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 import sympy as sp
 
@@ -91,7 +93,14 @@ def _columns(multibody: Multibody) -> dict:
     return {c: i for i, c in enumerate(multibody.coordinates)}
 
 
-def multibody_energy(multibody: Multibody) -> tuple:
+class MultibodyEnergy(NamedTuple):
+    """What :func:`multibody_energy` returns."""
+
+    K: sp.Matrix   #: T = ½ νᵀ K ν
+    V: sp.Expr     #: the potential
+
+
+def multibody_energy(multibody: Multibody) -> MultibodyEnergy:
     """(K(s), V(s)): T = ½ νᵀ K ν and the potential (module docstring)."""
     width, columns = _width(multibody), _columns(multibody)
     placed = frames(multibody, columns)
@@ -111,7 +120,7 @@ def multibody_energy(multibody: Multibody) -> tuple:
         inertia = wheel.diametral * sp.eye(3) + (wheel.axial - wheel.diametral) * axle * axle.T
         K += wheel.mass * Jv.T * Jv + Jw.T * inertia * Jw
         height += wheel.mass * centre[2]
-    return K, multibody.gravity * height
+    return MultibodyEnergy(K, multibody.gravity * height)
 
 
 def metric_in_qdot(K: sp.Matrix, psi) -> sp.Matrix:
@@ -131,7 +140,14 @@ def in_qdot(row_nu: sp.Matrix, psi, q_dot) -> sp.Expr:
     return sp.Add(*[k * v for k, v in zip(coefficients, q_dot, strict=True)])
 
 
-def wheel_contacts(multibody: Multibody, q, values: dict) -> tuple:
+class WheelContacts(NamedTuple):
+    """What :func:`wheel_contacts` returns."""
+
+    rows: list      #: Pfaffian rows in ν, two per rolling wheel
+    heights: list   #: contact heights h(q) that do not vanish identically
+
+
+def wheel_contacts(multibody: Multibody, q, values: dict) -> WheelContacts:
     """(Pfaffian rows in ν — two per rolling wheel —, holonomic contact heights h(q) that do not
     vanish identically)."""
     width, columns = _width(multibody), _columns(multibody)
@@ -151,7 +167,7 @@ def wheel_contacts(multibody: Multibody, q, values: dict) -> tuple:
         height = centre[2] - wheel.radius * flat
         if not _vanishes(height, q, values):
             heights.append(height)
-    return rows, heights
+    return WheelContacts(rows, heights)
 
 
 def _vanishes(expr, q, values: dict) -> bool:

@@ -69,12 +69,12 @@ class Multibody:
     gravity: sp.Expr
 
     @property
-    def joints(self) -> tuple:
+    def joints(self) -> tuple[str, ...]:
         """Joint coordinate names in the order of the bodies."""
         return tuple(b.joint for b in self.bodies if b.joint)
 
     @property
-    def coordinates(self) -> tuple:
+    def coordinates(self) -> tuple[str, ...]:
         """q = (base, body joints, wheel spins)."""
         return tuple(self.base) + self.joints + tuple(w.spin for w in self.wheels)
 

@@ -16,6 +16,7 @@ exact, and L(m) is the URDF's own Lagrangian.
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import NamedTuple
 
 import sympy as sp
 
@@ -43,7 +44,14 @@ def mass_problems(robot, masses: dict, parameters: dict) -> list:
     return problems
 
 
-def with_mass_parameters(L, robot, masses: dict, lagrangian_of) -> tuple:
+class MassParameters(NamedTuple):
+    """What :func:`with_mass_parameters` returns."""
+
+    L: sp.Expr     #: the Lagrangian, each named link's mass a parameter
+    values: dict   #: {parameter: URDF mass}
+
+
+def with_mass_parameters(L, robot, masses: dict, lagrangian_of) -> MassParameters:
     """(L with each named link's mass a parameter, {parameter: URDF mass}); ``lagrangian_of``
     builds the Lagrangian of a :class:`~.reader.Robot` on the same coordinates."""
     values = {}
@@ -53,4 +61,4 @@ def with_mass_parameters(L, robot, masses: dict, lagrangian_of) -> tuple:
                                       for k, v in robot.links.items()})
         L = L + (sp.Symbol(name, real=True) / sp.Float(mass) - 1) * lagrangian_of(alone)
         values[name] = mass
-    return L, values
+    return MassParameters(L, values)
