@@ -68,10 +68,22 @@ def model_markdown(model) -> str:
     return f"**{type(model).__name__}** of `{model.system.name}`\n\n{table}\n\n```\n{model.to_text()}\n```\n"
 
 
+def _checked(solution) -> str | None:
+    """How an unstable gait was verified (``settings["checks"]``, nhgait.gaits.verification_checks),
+    None when the open loop decides."""
+    checks = (getattr(solution, "settings", None) or {}).get("checks") or {}
+    if checks.get("decided_by") != "interval and closed loop":
+        return None
+    worst = max(checks["interval"]["error"] or float("inf"), checks["closed_loop"]["error"] or float("inf"))
+    return (f"verified by the interval and closed-loop checks to {worst:.2g} (unstable: open loop reported)"
+            if checks.get("passed") else f"verification FAILED (interval and closed loop: {worst:.2g})")
+
+
 def solution_repr(solution) -> str:
     v = solution.verification
     verified = "not verified" if v is None else (f"verified to {v.max_error:.2g}" if v.passed
                                                  else f"verification FAILED ({v.max_error:.2g})")
+    verified = _checked(solution) or verified
     return (f"<Solution: {_status(solution.success, solution.status)}, J = {solution.objective:.6g}, "
             f"{solution.iterations} iterations, {verified}, {_span(solution.t)}, horizon "
             f"{solution.horizon:.4g} s\n"
@@ -87,7 +99,7 @@ def solution_markdown(solution) -> str:
             ("iterations", str(solution.iterations)), ("horizon", f"{solution.horizon:.4g} s"),
             ("solve time", f"{solution.solve_time_s * 1e3:.1f} ms"),
             ("verification", "not run" if v is None
-             else f"{'passed' if v.passed else 'FAILED'}, max error {v.max_error:.2g}"),
+             else _checked(solution) or f"{'passed' if v.passed else 'FAILED'}, max error {v.max_error:.2g}"),
             ("states", f"`solution.z` {shape_of(solution.z)}: {', '.join(solution.state_names)}"),
             ("controls",
              f"`solution.u` {shape_of(solution.u)}: {', '.join(solution.control_names)}")]

@@ -8,7 +8,10 @@ Three kinds of failure (:func:`diagnose`):
 * **no guess converged** — the attempts by outcome (the solvers' own status names); at the
   closest point found (smallest constraint violation) the conditions it violates by how much
   (the NLP's rows are labelled: "dynamics", "final.x", "periodic.psi", "bounds.phi"), how often
-  the inputs sit at their bounds, and what to relax;
+  the inputs sit at their bounds, and what to change: the minimum-violation (elastic) solve's
+  answer — each stated condition the nearest gait moves, by how much, "possibly infeasible"
+  where no gait was found (:mod:`.infeasibility`) — else what to relax (never the start the
+  user gave when another condition is violated);
 * **singular postures** (with either of the above) — where the guesses or the closest point met the
   singular set of the planner's equations (:mod:`.screening`: the velocity states stop
   determining the motion, or the reduction's chart divides by zero): each posture in the
@@ -19,7 +22,9 @@ Three kinds of failure (:func:`diagnose`):
 * **converged but not verified** — the independent re-simulation misses the planned states or
   the task's conditions by more than the task's ``verify_tolerance``: the misses, and the likely
   cause (bang-bang inputs at their bounds whose switching the intervals do not resolve, or RK4
-  steps too coarse for the tolerance).
+  steps too coarse for the tolerance); for an unstable gait (:mod:`.verification_checks`) the
+  interval or closed-loop check that failed and what helps (more intervals, wider bounds —
+  never more time).
 """
 from __future__ import annotations
 
@@ -69,7 +74,11 @@ def _not_converged(result) -> list:
     sat, saturated = _saturation_line(s)
     if sat:
         lines.append(f"  {sat}")
-    return lines + ["what to relax:"] + [f"  {x}" for x in _relax(result, s, saturated)]
+    elastic = s.settings.get("elastic")
+    if elastic is not None and elastic.get("converged"):        # the minimum-violation solve (issue 41)
+        return lines + list(elastic["lines"])
+    return (lines + list((elastic or {}).get("lines", [])) + ["what to relax:"]
+            + [f"  {x}" for x in _relax(result, s, saturated)])
 
 
 def _relax(result, s, saturated) -> list:
@@ -79,7 +88,9 @@ def _relax(result, s, saturated) -> list:
     if saturated:
         out.append("widen control_bounds (the inputs saturate) or lengthen the horizon "
                    f"(now T = {task.horizon:g} s)")
-    ends = [k for k in named if k.startswith(("initial.", "final.", "periodic."))]
+    ends = [k for k in named if k.startswith(("final.", "periodic."))]
+    if not ends and not out:          # the start the user gave is advice only when nothing else is violated
+        ends = [k for k in named if k.startswith("initial.")]
     if ends:
         out.append("the end conditions " + ", ".join(ends) + " (make them ranges, or move them)")
     paths = [k for k in named if k.startswith("bounds.")]
@@ -100,8 +111,33 @@ def _relax(result, s, saturated) -> list:
     return out or ["check the task's values against the robot's reach"]
 
 
+def _unstable_not_verified(result, checks) -> list:
+    """A gait unstable for verification (:mod:`.verification_checks`) whose interval or
+    closed-loop check fails: which, and what helps (never more time: the open loop cannot
+    verify it at any budget)."""
+    s, N = result.solution, result.task.intervals
+    lines = [f"the solver converged (J = {s.objective:.6g}); the gait is unstable (largest growth rate "
+             f"{checks.growth_rate:.3g} /s, the open loop amplifies errors by "
+             f"e^{checks.amplification:.1f} over "
+             f"T = {checks.horizon:g} s), so the interval and closed-loop checks decide, and:"]
+    lines += [f"  {x}" for x in checks.failures()]
+    if not checks.interval_passed:
+        lines.append(f"what to change: more intervals (now {N}, e.g. --set intervals={2 * N}); more time "
+                     "does not help")
+    else:
+        sat, _ = _saturation_line(s)
+        lines.append("what to change: the plan's time-varying LQR does not hold the robot on the gait"
+                     + (f" ({sat})" if sat else "") + ": widen control_bounds, or a gait that keeps "
+                     "further from the bounds (a longer horizon)")
+    return lines
+
+
 def _not_verified(result) -> list:
+    from .verification_checks import checks_of
     s, v = result.solution, result.solution.verification
+    checks = checks_of(s)
+    if checks is not None and not checks.stable:
+        return _unstable_not_verified(result, checks)
     lines = [f"the solver converged ({s.stats.get('solver_status', 'Solve_Succeeded')}, J = "
              f"{s.objective:.6g}) but the independent re-simulation (DOP853, rtol {v.rtol:g}) does not meet "
              f"the task to {v.tolerance:g}:"]

@@ -15,8 +15,10 @@ from dataclasses import replace
 import numpy as np
 
 from .task import quantity_objects
+from .verification_checks import check_lines, checks_of, gait_checks
 
-__all__ = ["verified_gait", "to_momentum_coordinates", "momentum_problem", "screening_report", "unsolved"]
+__all__ = ["verified_gait", "passed", "decided", "to_momentum_coordinates", "momentum_problem",
+           "screening_report", "unsolved"]
 
 
 def screening_report(guesses, search, problem) -> tuple:
@@ -104,18 +106,53 @@ def _lagrange_first(solution, to_plan, progress):
     chart near its own singular set can take minutes to re-simulate a trajectory that is not a
     solution (a 5-link chain: 0.3 s on these equations, over 10 minutes in the chart)."""
     checked = _verified_once(solution, to_plan, progress)
-    return None if checked.verification.passed else checked
+    return None if passed(checked) else checked
+
+
+def passed(solution) -> bool:
+    """Whether ``solution``'s deciding verification passed: the open loop for a stable gait, the
+    interval and closed-loop checks for an unstable one (:mod:`.verification_checks`)."""
+    checks = checks_of(solution)
+    if checks is not None:
+        return checks.passed
+    v = getattr(solution, "verification", None)
+    return v is not None and bool(v.passed)
 
 
 def _verified_once(solution, to_plan, progress):
+    """``solution`` verified by the three checks of :mod:`.verification_checks`; success as
+    the deciding checks say (an unstable gait whose open loop misses can pass)."""
+    tolerance = to_plan.task.verify_tolerance
     with progress.phase("verify: re-simulate the optimal inputs on the general model (DOP853, rtol 1e-10)"):
-        solution = solution.verified(tolerance=to_plan.task.verify_tolerance)
-    v = solution.verification
-    progress.note(f"  {'passed' if v.passed else 'FAILED'}: nodes met to {v.max_error:.2e}, conditions to "
-                  f"{v.max_condition_error:.2e}; relative to each state's range {v.max_scaled_error:.2e} and "
+        opened = solution.verified(tolerance=tolerance)
+    v = opened.verification
+    progress.note(f"  open loop {'passed' if v.passed else 'FAILED'}: nodes met to {v.max_error:.2e}, "
+                  f"conditions to {v.max_condition_error:.2e}; relative to each state's range "
+                  f"{v.max_scaled_error:.2e} and "
                   f"{v.max_scaled_condition_error:.2e} (tolerance {v.tolerance:g})"
                   + ("" if v.success else "; the re-simulation stopped early"))
-    return solution
+    if not solution.success:
+        return opened
+    with progress.phase("verify: each interval from its own node, and the whole gait with the plan's "
+                        "time-varying LQR (DOP853, rtol 1e-10)"):
+        checks = gait_checks(opened, tolerance, steps=int(solution.settings.get("rk4_steps", 4)))
+    for line in check_lines(checks):
+        progress.note(f"  {line}")
+    return decided(solution, opened, checks)
+
+
+def decided(solution, opened, checks):
+    """``opened`` (the open-loop verified copy of the converged ``solution``) carrying ``checks``
+    in ``settings["checks"]``, its success as the deciding checks say."""
+    settings = {**opened.settings, "checks": checks.to_dict()}
+    if checks.stable or checks.open_loop_passed:
+        return replace(opened, settings=settings)
+    if checks.passed:
+        return replace(opened, success=True, status=solution.status, settings=settings,
+                       message=f"{solution.message} (verified by the interval and closed-loop checks; the "
+                               f"open loop, unstable, misses by {checks.open_loop_error:.3g})")
+    return replace(opened, success=False, status="Verification_Failed", settings=settings,
+                   message=f"{solution.status}, but the verification failed: " + "; ".join(checks.failures()))
 
 
 def momentum_problem(model, problem, to_plan, params):

@@ -48,11 +48,14 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from .convergence_plots import write_convergence_figure
 from .exports import states_text, write_trajectory_csv
 from .gait_check import momentum_problem, screening_report, to_momentum_coordinates, unsolved, verified_gait  # noqa: F401
+from .infeasibility import stalled, with_elastic
 from .refinement import refinable, refine
 from .search import Attempt, Search, continuation, solve_from_guesses, solve_with_fallbacks  # noqa: F401
 from .task import quantity_objects  # noqa: F401
+from .verification_checks import open_loop_label, solution_check_lines
 from .warm_start import MAX_SOLUTION_BYTES, previous_answer, read_solution, warm_start  # noqa: F401
 
 __all__ = ["plan", "PlanResult", "prepare", "Prepared", "state_problem", "to_momentum_coordinates",
@@ -311,6 +314,7 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
         reached.overrun = exc.overrun
         progress.note(f"  the time budget of {exc.overrun.seconds:g} s ran out during {exc.overrun.phase}")
     result = _result(to_plan, reached, settings, params)
+    result = with_elastic(result, reached.prepared, reached.search, budget, progress)     # issue 41
     result = replace(result, diagnosis=diagnose(result))
     if out_dir is not None:
         result = written(result, out_dir, progress=progress)
@@ -401,8 +405,8 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
 
 
 def _passed(solution) -> bool:
-    verification = getattr(solution, "verification", None)
-    return verification is not None and bool(verification.passed)
+    from .gait_check import passed  # the deciding checks (issue 41)
+    return passed(solution)
 
 
 def _first_instead(reached: _Reached, search, settings, budget, progress, verify_one):
@@ -505,7 +509,7 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
                     ocp, guesses, workers=s.workers, limit=s.limit, progress=progress, budget=budget,
                     explore=explore, explore_workers=max(s.workers, _default_workers()),
                     meanwhile=_figure_modules if s.warm_figures else None))
-        if reached.search.solution is not None:
+        if reached.search.solution is not None or stalled(reached.search.attempts):    # issue 41
             break
 
 
@@ -613,6 +617,7 @@ def _draw_files(result: PlanResult, out: Path, *, animate: bool, progress) -> li
     with progress.phase("write the figures"):
         files = list(plots.write_figures(result.solution, out, units=result.plan.units,
                                          drawing=result.plan.drawing, model=result.model, failed=failed))
+        files.append(write_convergence_figure(result.attempts, out / "convergence.png", title=result.label))
     if animate and result.success:
         from .animation import animate_solution
         with progress.phase("write the animation motion.gif (60 frames; the longest part of the output)"):
@@ -636,12 +641,13 @@ def summary_lines(result: PlanResult) -> list:
              f"{s.function_time_s * 1e3:.1f} ms, "
              f"solver {s.solver_time_s * 1e3:.1f} ms); set-up {s.setup_time_s * 1e3:.1f} ms"]
     if v is not None:
-        lines.append(f"  verification       {'passed' if v.passed else 'FAILED'}: max state error "
+        lines.append(f"  {open_loop_label(s)}{'passed' if v.passed else 'FAILED'}: max state error "
                      f"{v.max_error:.2e}, conditions met to {v.max_condition_error:.2e}; relative to each "
                      f"state's range {v.max_scaled_error:.2e}, {v.max_scaled_condition_error:.2e} (tolerance "
                      f"{v.tolerance:g}; DOP853, rtol {v.rtol:g})")
     else:
         lines.append("  verification       not run")
+    lines += [f"  {line}" for line in solution_check_lines(s)]              # issue 41
     st = s.settings
     lines.append(f"  N = {st.get('intervals')}, T = {s.horizon:.4f} s, {st.get('transcription')}, "
                  f"{st.get('solver')}, {st.get('hessian', 'exact')} Hessian, {_compiled_text(st)}, "

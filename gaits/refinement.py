@@ -11,7 +11,10 @@ re-simulation (DOP853, rtol 1e-10) misses the nodes by more than the task's
 faster than the sub-steps resolve).
 
 :func:`refinable` says whether a verified failure is of that kind — the re-simulation ran
-through and misses the planned nodes (finite errors);
+through and misses the planned nodes (finite errors); for a gait unstable for verification
+(:mod:`.verification_checks`: its open loop amplifies errors by more than 10³ over the horizon)
+only a failed interval or closed-loop check is refined, sized on its miss (:func:`miss`): no
+number of sub-steps brings an unstable open loop to the tolerance, and no budget is spent trying;
 :func:`refined_steps` chooses M' from the miss e and the tolerance τ with the h⁴ law and a
 margin of :data:`MARGIN`::
 
@@ -30,7 +33,7 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
-__all__ = ["refinable", "refined_steps", "refine", "MARGIN", "MAX_STEPS", "REFINEMENTS"]
+__all__ = ["refinable", "miss", "refined_steps", "refine", "MARGIN", "MAX_STEPS", "REFINEMENTS"]
 
 #: the refined transcription aims at this fraction of the verification tolerance (the next
 #: optimum is not the point whose miss was measured)
@@ -54,10 +57,40 @@ def refinable(solution) -> bool:
     what the RK4 transcription's error does — with a re-simulation that ran through and finite
     errors. (Nodes met and a condition missed is another failure: one the normalisation dropped
     as implied, which more sub-steps do not bring back.)"""
+    from .verification_checks import checks_of
     v = getattr(solution, "verification", None)
-    if v is None or solution.status != "Verification_Failed" or not v.success:
+    if v is None or solution.status != "Verification_Failed":
+        return False
+    checks = checks_of(solution)
+    if checks is not None and not checks.stable:       # unstable: the interval and closed-loop checks
+        # the defects can add up to N e_int along the closed loop: below a tenth of the tolerance
+        # they are not what the closed loop misses by, and more sub-steps would not help
+        defects = checks.interval_error * getattr(getattr(solution, "problem", None), "intervals", 1)
+        return bool(checks.closed_loop_ran and math.isfinite(miss(solution)) and not checks.passed
+                    and defects > 0.1 * checks.tolerance)
+    if not v.success:
         return False
     return math.isfinite(v.max_error) and math.isfinite(v.max_condition_error) and v.max_error > v.tolerance
+
+
+def miss(verified) -> float:
+    """The miss a refinement is sized on: for an unstable gait the larger of the interval and
+    closed-loop checks' (both made of the transcription's defects, the second carried by the
+    stable closed loop; the open loop's cannot shrink below e^{λT} × the integrator's error),
+    else the open loop's."""
+    from .verification_checks import checks_of
+    v, checks = verified.verification, checks_of(verified)
+    if checks is not None and not checks.stable:
+        return max(checks.interval_error, checks.closed_loop_error,
+                   *checks.closed_loop_conditions.values())
+    return max(v.max_error, v.max_condition_error)
+
+
+def _which(verified) -> str:
+    from .verification_checks import checks_of
+    checks = checks_of(verified)
+    return ("interval or closed-loop check" if checks is not None and not checks.stable
+            else "re-simulation")
 
 
 def refined_steps(steps: int, miss: float, tolerance: float) -> int:
@@ -107,11 +140,11 @@ def refine(solution, verified, search_settings, budget, progress, verify):
     for _ in range(REFINEMENTS):
         v, settings = verified.verification, solution.settings
         steps = int(settings.get("rk4_steps", 4))
-        transcription = _transcription(settings, refined_steps(steps, v.max_error, v.tolerance))
+        transcription = _transcription(settings, refined_steps(steps, miss(verified), v.tolerance))
         if transcription is None or transcription.steps <= steps or budget.spent():
             break
         name = settings.get("solver", "ipopt")
-        progress.note(f"  the re-simulation misses by {max(v.max_error, v.max_condition_error):.2g} "
+        progress.note(f"  the {_which(verified)} misses by {miss(verified):.2g} "
                       f"with {steps} "
                       f"RK4 sub-steps per interval: solving again with {transcription.steps}, "
                       "from this point")

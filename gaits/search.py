@@ -28,10 +28,12 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from nhgait.ocp.coarse import WARM_IPOPT as _WARM_IPOPT
+
+from .infeasibility import STALL_ATTEMPTS, stalled
 
 __all__ = ["Attempt", "Search", "WARM_IPOPT", "attempt_of", "solve_attempts", "solve_from_guesses",
            "solve_with_fallbacks", "continuation"]
@@ -49,6 +51,8 @@ class Attempt:
     solver: str = ""
     constraint_violation: float = math.nan
     seconds: float = 0.0
+    #: objective and constraint violation per iteration (Ipopt; {} for FATROP): the convergence figure
+    history: dict = field(default_factory=dict, repr=False)
 
 
 @dataclass(frozen=True, eq=False)
@@ -80,8 +84,9 @@ def _closer(a, b):
 
 def attempt_of(label, s, solver_name="") -> Attempt:
     """The :class:`Attempt` record of solution ``s`` of the guess ``label``."""
+    history = (getattr(s, "stats", None) or {}).get("history") or {}
     return Attempt(label, s.status, bool(s.success), int(s.iterations), float(s.objective), solver_name,
-                   float(s.constraint_violation), float(s.solve_time_s))
+                   float(s.constraint_violation), float(s.solve_time_s), dict(history))
 
 
 #: guesses tried after the first converged one when the search explores (the planner), the
@@ -228,6 +233,10 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
             if not s.success:
                 closest = _closer(closest, s)
         good = [(s.objective, i) for i, s in enumerate(sols) if s.success]
+        if not good and stalled(attempts):                 # issue 41: the same infeasibility again
+            progress.note(f"  the last {STALL_ATTEMPTS} attempts stopped at the same infeasible point: "
+                          "no more guesses")
+            break
         if good:
             _, i = min(good)
             found = Search(sols[i], tuple(attempts), batch[i].label, closest)
@@ -347,7 +356,8 @@ def solve_with_fallbacks(solver, guesses, *, workers: int = 1, limit: int | None
     search = solve_from_guesses(solver, guesses, workers=workers, limit=limit, progress=progress,
                                 budget=budget, explore=explore, explore_workers=explore_workers,
                                 meanwhile=meanwhile)
-    first = None if search.solution is not None or _spent(budget) else _built(guesses, range(1), budget)
+    first = (None if search.solution is not None or _spent(budget) or stalled(search.attempts)
+             else _built(guesses, range(1), budget))
     if first:
         if progress is not None:
             progress.note(f"  no guess converged: continuation from {first[0].label!r} (the "

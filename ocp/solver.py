@@ -244,6 +244,18 @@ class _Iterations(ca.Callback):
         return 0
 
 
+def iteration_history(stats: dict, objective_scale: float = 1.0) -> dict:
+    """{"history": {"objective": [...], "violation": [...]}} per iteration from Ipopt's
+    ``stats["iterations"]`` (``obj`` unscaled by ``objective_scale``; ``inf_pr``, Ipopt's primal
+    infeasibility of the iterate); {} for a solver that keeps none (FATROP). For the convergence
+    figure (:mod:`nhgait.gaits.convergence_plots`)."""
+    it = stats.get("iterations")
+    if not isinstance(it, dict) or "obj" not in it or "inf_pr" not in it:
+        return {}
+    return {"history": {"objective": [float(v) / objective_scale for v in it["obj"]],
+                        "violation": [float(v) for v in it["inf_pr"]]}}
+
+
 def _refuse_overdetermined(nlp: TranscribedNLP, problem: OptimalControlProblem) -> None:
     """More equality constraints than free unknowns (a task's conditions on too few intervals:
     the unicycle's parallel park on N = 1 or 2) is a ProblemError before any solve — CasADi's
@@ -524,8 +536,9 @@ class OCPSolver:
                         state_names=problem.state_names, control_names=problem.control_names,
                         horizon=T, solve_time_s=wall, setup_time_s=self.setup_time_s,
                         function_time_s=fn_time, solver_time_s=solver_time,
-                        stats={k: (v if isinstance(v, (int, float, str, bool)) else str(v))
-                               for k, v in stats.items() if not isinstance(v, dict)},
+                        stats={**{k: (v if isinstance(v, (int, float, str, bool)) else str(v))
+                                  for k, v in stats.items() if not isinstance(v, dict)},
+                               **iteration_history(stats, self.nlp.objective_scale)},
                         settings={**self.settings(), "guess": guess.label}, problem=problem,
                         constraint_violation=viol, violations=violated)
 

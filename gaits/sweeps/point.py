@@ -182,8 +182,10 @@ def solve_chain(solve, jobs, warm_start: bool = True) -> list:
 
 
 def _outcome(s, start: str) -> dict:
-    """The plain-data answer of a verified solution (success needs the verification too)."""
-    verified = s.verification is not None and s.verification.passed
+    """The plain-data answer of a verified solution (success needs the deciding verification
+    too: :func:`~nhgait.gaits.gait_check.passed`)."""
+    from ..gait_check import passed
+    verified = passed(s)
     return {"success": bool(s.success) and verified, "status": str(s.status), "message": str(s.message),
             "objective": _nan(s.objective), "iterations": int(s.iterations),
             "solve_time_s": _nan(s.solve_time_s), "verification_error": _nan(s.verification_error),

@@ -56,7 +56,8 @@ def figures(out):
 
 EXPECTED = {"simulate/time_series.png", "simulate/path.png", "simulate/checks.png", "plan/path.png",
             "plan/shape.png",
-            "plan/histories.png", "plan/momentum.png", "sweep/landscape.png", "sweep/feasibility.png",
+            "plan/histories.png", "plan/momentum.png", "plan/convergence.png",
+            "sweep/landscape.png", "sweep/feasibility.png",
             "sweep/loops.png", "bench/precision.png"}
 
 
