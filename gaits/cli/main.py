@@ -5,11 +5,13 @@
     nhgait reproduce [--out DIR] ...               (gaits/cli_reproduce.py)
     nhgait plan <system> ... --out DIR             (gaits/cli_plan.py)
     nhgait track <system> --mismatch ... --out DIR (gaits/cli/track.py)
+    nhgait cache [list | clean | stop]             (gaits/cli/cache.py)
 
 Exit status: 0 success; 1 the job ran but did not succeed (an integration that stopped early,
 an optimisation that did not converge or was not verified); 2 bad input — one message listing
 every problem, no traceback; 3 an internal error (a bug: one line naming it; ``NHGAIT_DEBUG=1``
-shows the traceback); 130 interrupted (Ctrl-C), 143 terminated (SIGTERM, e.g. ``timeout``).
+shows the traceback); 130 interrupted (Ctrl-C), 143 terminated (SIGTERM, e.g. ``timeout``), 129
+hung up (SIGHUP: the terminal closed).
 
 Interrupts clean up, at once: SIGTERM is turned into an exception like Ctrl-C, so that a running
 C compiler is killed and its temporary files removed (:mod:`nhgait.dynamics.numerics.compiler`),
@@ -38,6 +40,7 @@ SUBCOMMANDS = (
     ("nhgait.gaits.cli.sweep", "add_sweep_parser"),
     ("nhgait.gaits.cli.linearize", "add_linearize_parser"),
     ("nhgait.gaits.cli.track", "add_track_parser"),
+    ("nhgait.gaits.cli.cache", "add_cache_parser"),
 )
 
 
@@ -81,8 +84,9 @@ def main(argv=None) -> int:
         return stopped(130)
     except Terminated:
         cancel_background_builds()
-        print("nhgait: terminated", file=sys.stderr)
-        return stopped(143)
+        status, message = stop.ending()             # SIGTERM's or SIGHUP's
+        print(message, file=sys.stderr)
+        return stopped(status)
     except ModelError as exc:            # bad input (ProblemError and BridgeError included)
         print(f"nhgait: {exc}", file=sys.stderr)
         return 2

@@ -1,8 +1,9 @@
-"""How ``nhgait`` stops on SIGINT and SIGTERM: at once, in any phase, leaving nothing behind.
+"""How ``nhgait`` stops on SIGINT, SIGTERM and SIGHUP: at once, in any phase, leaving nothing behind.
 
 :func:`stop_signals` is the context the command line runs each subcommand in:
 
-* **SIGTERM** raises :class:`~nhgait.dynamics.errors.Terminated` (exit 143), **SIGINT**
+* **SIGTERM** raises :class:`~nhgait.dynamics.errors.Terminated` (exit 143), as does **SIGHUP**
+  (exit 129: the terminal closed; left alone when ignored, as under ``nohup``), **SIGINT**
   KeyboardInterrupt (exit 130; left ignored when the shell started us with it ignored, as a
   background job): they unwind like any exception, so a running C compiler is killed and its
   files removed (:mod:`nhgait.dynamics.numerics.compiler`), supervised solver processes are killed
@@ -48,9 +49,10 @@ __all__ = ["stop_signals", "Stop", "exit_now", "cancel_background_builds", "FORC
 #: how long after a stop signal the watchdog ends a process that is still running (s)
 FORCE_AFTER_S = 1.5
 #: exit status per signal (the shell's 128 + signal number)
-EXIT_STATUS = {signal.SIGINT: 130, signal.SIGTERM: 143}
+EXIT_STATUS = {signal.SIGINT: 130, signal.SIGTERM: 143, signal.SIGHUP: 129}
 #: what ``nhgait`` says when it stops on a signal
-MESSAGES = {signal.SIGINT: "nhgait: interrupted", signal.SIGTERM: "nhgait: terminated"}
+MESSAGES = {signal.SIGINT: "nhgait: interrupted", signal.SIGTERM: "nhgait: terminated",
+            signal.SIGHUP: "nhgait: hung up"}
 
 
 class Stop:
@@ -61,8 +63,13 @@ class Stop:
         self.signal: int | None = None
 
     def exception(self) -> BaseException:
-        """The exception the signal stands for: Terminated (SIGTERM) or KeyboardInterrupt."""
-        return Terminated() if self.signal == signal.SIGTERM else KeyboardInterrupt()
+        """The exception the signal stands for: Terminated (SIGTERM, SIGHUP) or KeyboardInterrupt."""
+        return Terminated() if self.signal in (signal.SIGTERM, signal.SIGHUP) else KeyboardInterrupt()
+
+    def ending(self) -> tuple:
+        """(exit status, message) of a :class:`Terminated` stop: SIGHUP's or SIGTERM's."""
+        signum = signal.SIGHUP if self.signal == signal.SIGHUP else signal.SIGTERM
+        return EXIT_STATUS[signum], MESSAGES[signum]
 
     def handler(self, signum, frame):
         self.signal = signum
@@ -98,11 +105,13 @@ def stop_signals():
 
 
 def _install(stop: Stop) -> dict:
-    """The handlers of ``stop`` for SIGTERM (always) and SIGINT (unless ignored or someone
-    else's); the previous handlers by signal."""
+    """The handlers of ``stop`` for SIGTERM (always), SIGINT (unless ignored or someone
+    else's) and SIGHUP (unless ignored: ``nohup``); the previous handlers by signal."""
     previous = {signal.SIGTERM: signal.signal(signal.SIGTERM, stop.handler)}
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         previous[signal.SIGINT] = signal.signal(signal.SIGINT, stop.handler)
+    if signal.getsignal(signal.SIGHUP) is signal.SIG_DFL:
+        previous[signal.SIGHUP] = signal.signal(signal.SIGHUP, stop.handler)
     return previous
 
 
