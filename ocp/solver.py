@@ -361,11 +361,12 @@ class OCPSolver:
         return self._nlpsol("ocp", external_nlp(lib.path), opts)
 
     def _build_slot(self) -> str:
-        """The robot, task and grid this solver's optimised build is asked for (its newest
+        """The robot, task, grid and solver this solver's optimised build is asked for (its newest
         request replaces older ones: :mod:`~nhgait.dynamics.numerics.build_queue`); empty for
         a problem without a name (then the build's key alone)."""
         name = self.problem.name
-        return f"{name} | {type(self.transcription).__name__} N={self.problem.intervals}" if name else ""
+        return (f"{name} | {type(self.transcription).__name__} N={self.problem.intervals} | "
+                f"{self.options.solver}") if name else ""
 
     def adopt_optimised(self) -> bool:
         """Switch to the optimised library once the background build this solver started has

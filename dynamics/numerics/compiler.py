@@ -244,8 +244,10 @@ def recorded_flags(library: Path, requested) -> tuple:
         return tuple(requested)
 
 
-def _child_setup(mask=None, memory_bytes: int | None = None, cpu_seconds: float | None = None):
-    """The preexec function of the compiler: its own process group, the signal mask ``mask``
+def _child_setup(mask=None, memory_bytes: int | None = None, cpu_seconds: float | None = None,
+                 niceness: int | None = None):
+    """The preexec function of the compiler: its own process group (with ``niceness``: its own
+    session at that niceness, and so its own autogroup, set to it too), the signal mask ``mask``
     (the parent blocks the stop signals while it starts the compiler, :func:`_run`), at most
     ``memory_bytes`` of address space (``RLIMIT_AS``; None: unlimited), at most ``cpu_seconds``
     of CPU time per process (``RLIMIT_CPU``, inherited by gcc's cc1 and as; None: unlimited) and,
@@ -260,7 +262,14 @@ def _child_setup(mask=None, memory_bytes: int | None = None, cpu_seconds: float 
     cpu = None if cpu_seconds is None else max(1, int(cpu_seconds))
 
     def setup() -> None:  # pragma: no cover - runs in the child
-        os.setpgrp()
+        if niceness is None:
+            os.setpgrp()
+        else:
+            os.setsid()
+            with contextlib.suppress(OSError):
+                os.nice(niceness - os.nice(0))
+            with contextlib.suppress(OSError), open("/proc/self/autogroup", "w") as fh:
+                fh.write(str(niceness))
         if mask is not None:
             signal.pthread_sigmask(signal.SIG_SETMASK, mask)
         if memory_bytes is not None:
@@ -282,7 +291,8 @@ def _run(cmd: list, job: CompileJob, tmpdir: Path) -> subprocess.CompletedProces
     start = time.perf_counter()
     env = {**os.environ, "TMPDIR": str(tmpdir), "TMP": str(tmpdir), "TEMP": str(tmpdir)}
     mask = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS) if os.name == "posix" else None
-    setup = _child_setup(mask, job.memory_bytes, job.cpu_seconds) if os.name == "posix" else None
+    setup = (_child_setup(mask, job.memory_bytes, job.cpu_seconds, job.niceness) if os.name == "posix"
+             else None)
     try:
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
                                 errors="replace", preexec_fn=setup)
@@ -340,7 +350,9 @@ class CompileJob:
     """One compilation: the C ``source``, the compiler ``command``, ``flags`` (before the
     source), ``libs`` (after it), the key's ``salt`` and the ``key`` itself; ``progress``,
     ``label`` and ``timeout`` (wall seconds) for the waiting; ``memory_bytes``, the compiler's
-    address space, and ``cpu_seconds``, its CPU time per process (None: unlimited); ``measure``:
+    address space, and ``cpu_seconds``, its CPU time per process (None: unlimited); ``niceness``:
+    the compiler in a session of its own at that niceness (its autogroup too; None: as this
+    process, in a process group of its own); ``measure``:
     record the compiler's peak resident memory (meaningful in a process whose only children are
     its compilers: the background builder); ``watch``: called every :data:`WATCH_S` while the
     compiler runs, it raises to stop it (the builder: its cache folder gone, its request stale)."""
@@ -356,6 +368,7 @@ class CompileJob:
     timeout: float | None = None
     memory_bytes: int | None = None
     cpu_seconds: float | None = None
+    niceness: int | None = None
     measure: bool = False
     watch: Callable[[], None] | None = None
 
