@@ -143,9 +143,9 @@ def session(plans: int, work: Path) -> dict:
     sampler.done.set()
     sampler.join()
     jit = cache / "jit"
-    records = sorted((p.stat().st_mtime, p) for p in jit.glob("*.json"))
     asked_keys = {a["key"] for a in asked if a["state"] in ("started", "queued")}
-    built = {p.stem for _, p in records} & asked_keys
+    records = sorted((p.stat().st_mtime, p) for p in jit.glob("*.json") if p.stem in asked_keys)
+    built = {p.stem for _, p in records}
     last_landed_ago = time.time() - records[-1][0] if records else None
     lingered = (gone - time.monotonic() + last_landed_ago) if last_landed_ago is not None else None
     compile_s = [json.loads(p.read_text()).get("compile_s") for _, p in records if p.stem in asked_keys]

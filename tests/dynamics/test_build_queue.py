@@ -277,3 +277,19 @@ def test_the_queue_is_listed_with_its_builder(queue, capsys):
     assert not list((cache / "builds").glob("*.req"))
     assert main(["cache", "clean"]) == 0
     assert not cache.exists() or not any(cache.iterdir())
+
+
+def test_no_background_build_asks_for_none_and_puts_the_setting_back(queue, monkeypatch):
+    """``nhgait plan --no-background-build`` (:func:`builds_off`) as $NHGAIT_BACKGROUND_BUILDS=0,
+    for that command only."""
+    from nhgait.dynamics.numerics.background import builds_off
+    from nhgait.gaits.cli.main import build_parser
+    cache, _ = queue
+    args = build_parser().parse_args(["plan", "unicycle", "--no-background-build", "--out", "x"])
+    assert args.no_background_build
+    with builds_off(args.no_background_build):
+        build = start_build(source("off"), flags=("-O1",), salt="t", slot="x", builders=Builders())
+    assert build.state == "off" and "NHGAIT_BACKGROUND_BUILDS" in build.reason
+    assert os.environ["NHGAIT_BACKGROUND_BUILDS"] == "1"
+    assert not builders_of(cache)
+    assert not list((cache / "builds").glob("*.req")) if (cache / "builds").exists() else True

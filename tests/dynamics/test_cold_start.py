@@ -82,6 +82,10 @@ def test_first_plan_does_not_wait_for_the_optimised_build_and_the_next_run_uses_
     # the plan returned while gcc was held: the optimised library cannot exist yet
     assert not (jit_dir() / f"{later['key']}.so").exists()
     assert BUILDERS.running()
+    from nhgait.gaits.planner import summary_lines            # the summary names it and how to skip it
+    summary = "\n".join(summary_lines(first))
+    assert f"pending in the background for the next run (builder pid {later['pid']}" in summary
+    assert "--no-background-build" in summary and "NHGAIT_BACKGROUND_BUILDS=0" in summary
     held.hold(False)
     assert BUILDERS.wait(timeout=300)
     record = json.loads((jit_dir() / f"{later['key']}.json").read_text())
