@@ -340,7 +340,7 @@ def _ask(directory: Path, folder: Path, request: tuple, built: dict, builders: B
     lock = queue.claim(folder)
     if lock is None:                    # a builder runs: it takes the request
         builders.add(None, (folder, path, inode))
-        info = queue.holder(folder)
+        info = queue.holder(folder, under_mutex=True)
         return BackgroundBuild(**{**built, "state": "queued", "pid": info.pid if info else None})
     try:
         proc = _spawn(directory, folder, lock)

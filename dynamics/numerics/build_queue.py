@@ -170,8 +170,16 @@ def record_holder(fd: int, pid: int) -> None:
         os.pwrite(fd, json.dumps({"pid": pid, "started": time.time()}).encode(), 0)
 
 
-def holder(folder: Path) -> BuilderInfo | None:
-    """The running builder of the queue ``folder`` (its lock is held), or None."""
+def holder(folder: Path, *, under_mutex: bool = False) -> BuilderInfo | None:
+    """The running builder of the queue ``folder`` (its lock is held), or None. The test takes
+    the lock (shared) for an instant, so it is made under the :func:`mutex` (taken here unless
+    the caller holds it): a requester's :func:`claim` never meets it."""
+    if not under_mutex:
+        try:
+            with mutex(folder):
+                return holder(folder, under_mutex=True)
+        except OSError:
+            return None
     import fcntl
     try:
         fd = os.open(folder / LOCK_FILE, os.O_RDONLY | os.O_CLOEXEC)

@@ -67,7 +67,7 @@ def cold(tmp_path, monkeypatch):
 @needs_fast
 def test_first_plan_does_not_wait_for_the_optimised_build_and_the_next_run_uses_it(cold, tmp_path,
                                                                                    monkeypatch):
-    from nhgait.gaits.planner import plan
+    from nhgait.gaits.planner import plan, summary_lines
     held = HeldCompiler(tmp_path / "cc")
     held.hold(True)
     monkeypatch.setenv("NHGAIT_CC", str(held.script))
@@ -82,8 +82,7 @@ def test_first_plan_does_not_wait_for_the_optimised_build_and_the_next_run_uses_
     # the plan returned while gcc was held: the optimised library cannot exist yet
     assert not (jit_dir() / f"{later['key']}.so").exists()
     assert BUILDERS.running()
-    from nhgait.gaits.planner import summary_lines            # the summary names it and how to skip it
-    summary = "\n".join(summary_lines(first))
+    summary = "\n".join(summary_lines(first))                # it names the build and how to skip it
     assert f"pending in the background for the next run (builder pid {later['pid']}" in summary
     assert "--no-background-build" in summary and "NHGAIT_BACKGROUND_BUILDS=0" in summary
     held.hold(False)
