@@ -110,7 +110,7 @@ def _plan_args(scene, gait, edit, out) -> list:
             "--quiet", "--out", str(out)]
 
 
-def session(plans: int, work: Path) -> dict:
+def session(plans: int, work: Path, drain_s: float = 1800.0) -> dict:
     """Part 1 (module docstring)."""
     cache = work / "session-cache"
     env = {**os.environ, "NHGAIT_CACHE_DIR": str(cache), "NHGAIT_BACKGROUND_BUILDS": "1"}
@@ -136,10 +136,11 @@ def session(plans: int, work: Path) -> dict:
         print(f"  plan {k + 1}/{plans} {Path(scene).stem} --set {edit}: exit {proc.returncode}, "
               f"{wall[-1]:.1f} s, build {later.get('state')} (builder {later.get('pid')})", file=sys.stderr)
     last_exit = time.monotonic()
-    deadline = last_exit + 1800
+    deadline = last_exit + drain_s
     while builders(cache) and time.monotonic() < deadline:
         time.sleep(0.05)
     gone = time.monotonic()
+    still = len(builders(cache))               # alive at the end of the wait: a builder past its budgets
     sampler.done.set()
     sampler.join()
     jit = cache / "jit"
@@ -153,7 +154,8 @@ def session(plans: int, work: Path) -> dict:
     return {"plans": plans, "plan_wall_s": [round(w, 1) for w in wall],
             "max_builders_alive": max((n for _, n in sampler.samples), default=0),
             "samples": len(sampler.samples),
-            "builder_after_last_plan_s": round(gone - last_exit, 2),
+            "builder_after_last_plan_s": round(gone - last_exit, 2), "builders_alive_after_wait": still,
+            "budgets_of_pending_s": [a["budget_s"] for a in asked if a["state"] in ("started", "queued")],
             "builder_after_last_library_s": None if lingered is None else round(max(lingered, 0.0), 2),
             "builds_asked": len(asked_keys), "builds_built": len(built),
             "builds_dropped_or_unbuilt": len(asked_keys - built),
@@ -276,6 +278,9 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--plans", type=int, default=20)
     parser.add_argument("--json", default=None)
+    parser.add_argument("--drain", type=float, default=1800.0,
+                        help="the longest wait for the builder after the last plan (s)")
+    parser.add_argument("--skip-signals", action="store_true", help="the session only")
     args = parser.parse_args(argv)
     if not Path("/proc/self/stat").exists() or not (shutil.which("gcc") or shutil.which("cc")):
         print("needs Linux /proc and a C compiler", file=sys.stderr)
@@ -283,11 +288,12 @@ def main(argv=None) -> int:
     report = {"load_before": os.getloadavg()}
     with tempfile.TemporaryDirectory(prefix="bench-builders-") as tmp:
         work = Path(tmp)
-        report["sighup_plan"] = sighup_plan(work)
-        report["deleted_cache"] = deleted_cache(work)
-        report["builder_sigterm"] = signal_builder(work, "SIGTERM")
-        report["builder_sighup"] = signal_builder(work, "SIGHUP")
-        report["session"] = session(args.plans, work)
+        if not args.skip_signals:
+            report["sighup_plan"] = sighup_plan(work)
+            report["deleted_cache"] = deleted_cache(work)
+            report["builder_sigterm"] = signal_builder(work, "SIGTERM")
+            report["builder_sighup"] = signal_builder(work, "SIGHUP")
+        report["session"] = session(args.plans, work, args.drain)
     report["load_after"] = os.getloadavg()
     s = report["session"]
     print(f"load average {report['load_before'][0]:.1f} → {report['load_after'][0]:.1f}")
@@ -298,10 +304,11 @@ def main(argv=None) -> int:
           "left "
           f"{s['builder_after_last_plan_s']} s after the last plan and {s['builder_after_last_library_s']} s "
           f"after its last library landed (compile_s of the builds: {s['compile_s']})")
-    print(f"deleted cache: builder and compiler gone in {report['deleted_cache']}")
-    print(f"SIGHUP to a cold plan: {report['sighup_plan']}")
-    print(f"SIGTERM to a builder: {report['builder_sigterm']}; "
-          f"SIGHUP to a builder: {report['builder_sighup']}")
+    if not args.skip_signals:
+        print(f"deleted cache: builder and compiler gone in {report['deleted_cache']}")
+        print(f"SIGHUP to a cold plan: {report['sighup_plan']}")
+        print(f"SIGTERM to a builder: {report['builder_sigterm']}; "
+              f"SIGHUP to a builder: {report['builder_sighup']}")
     if args.json:
         Path(args.json).write_text(json.dumps(report, indent=1))
     return 0

@@ -364,7 +364,7 @@ class OCPSolver:
         """The robot, task, grid and solver this solver's optimised build is asked for (its newest
         request replaces older ones: :mod:`~nhgait.dynamics.numerics.build_queue`); empty for
         a problem without a name (then the build's key alone)."""
-        name = self.problem.name
+        name = self.problem.name.split(" (", 1)[0]     # "robot/task", without its edits "(horizon=2.0)"
         return (f"{name} | {type(self.transcription).__name__} N={self.problem.intervals} | "
                 f"{self.options.solver}") if name else ""
 

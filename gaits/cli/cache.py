@@ -90,7 +90,7 @@ def _text(report: dict) -> list:
     lines.append(f"  {len(pending)} pending build{'s' if len(pending) != 1 else ''}"
                  + (":" if pending else ""))
     for p in pending:
-        lines.append(f"    {p['key'][:12]}  {p['slot'][:60]}  {' '.join(p['flags'])}, about "
+        lines.append(f"    {p['key'][:12]}  {p['slot']}, about "
                      f"{p['estimate_s'] or 0:.0f} s (at most {p['budget_s'] or 0:.0f} s), asked "
                      f"{p['age_s']:.0f} s ago")
     lines.append(f"  builder pid {builder['pid']}, running for {builder['age_s']:.0f} s" if builder
