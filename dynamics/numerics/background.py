@@ -58,6 +58,7 @@ import contextlib
 import hashlib
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -86,7 +87,7 @@ MEMORY_BYTES = 2 * 1024 ** 3
 #: the builder's niceness (the lowest priority)
 NICENESS = 19
 #: how long :meth:`Builders.cancel` lets a builder clean up before it is killed (s)
-CANCEL_WAIT_S = 1.5
+CANCEL_WAIT_S = 2.0
 #: the states of a build that is still to come (a builder started for it, or queued to the running one)
 PENDING = ("started", "queued")
 #: how to do without the build (said with every pending build)
@@ -505,22 +506,33 @@ def _build(folders: Folders, request) -> None:
             raise Abandoned("a newer request replaced it, or it was withdrawn")
         if time.monotonic() > deadline:
             raise Abandoned(f"over its budget of {h['budget_s']:.0f} s")
-    if source is not None:
-        with tempfile.TemporaryDirectory(dir=folders.jit, prefix=temporary_prefix(".build-"),
-                                         ignore_cleanup_errors=True) as tmp:
-            task = CompileJob(source=source, command=list(h["command"]), flags=tuple(h["flags"]),
-                              libs=tuple(h["libs"]), salt=h["salt"], key=request.key,
-                              label="background build",
-                              memory_bytes=MEMORY_BYTES, cpu_seconds=float(h["cpu_s"]), niceness=NICENESS,
-                              measure=True, watch=watch)
-            try:
-                compile_in(task, folders.jit, Path(tmp))
-            except CompilerUnavailable as exc:
-                if request.current() and folders.intact():
-                    _write_failure(folders.jit, request.key, str(exc), Path(tmp))
-            except (Abandoned, OSError):
-                pass
-    queue.withdraw(folders.queue, request.path, request.inode)
+    if source is None:
+        queue.withdraw(folders.queue, request.path, request.inode)
+        return
+    try:
+        tmp = Path(tempfile.mkdtemp(dir=folders.jit, prefix=temporary_prefix(".build-")))
+    except OSError:                       # the cache folder went: the loop ends
+        return
+    task = CompileJob(source=source, command=list(h["command"]), flags=tuple(h["flags"]),
+                      libs=tuple(h["libs"]), salt=h["salt"], key=request.key, label="background build",
+                      memory_bytes=MEMORY_BYTES, cpu_seconds=float(h["cpu_s"]), niceness=NICENESS,
+                      measure=True, watch=watch)
+    failure = None
+    try:
+        compile_in(task, folders.jit, tmp)
+    except CompilerUnavailable as exc:
+        failure = str(exc)
+    except (Abandoned, OSError):
+        pass
+    finally:          # a stop signal waits until the build folder is gone (then it ends the builder)
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+        try:
+            if failure is not None and request.current() and folders.intact():
+                _write_failure(folders.jit, request.key, failure, tmp)
+            shutil.rmtree(tmp, ignore_errors=True)
+            queue.withdraw(folders.queue, request.path, request.inode)
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
 
 def _write_failure(directory: Path, key: str, reason: str, tmp: Path) -> None:

@@ -74,6 +74,8 @@ __all__ = ["Library", "CompilerUnavailable", "build_library", "cached_library", 
 STALE_BUILD_S = 3600.0
 #: how often (s) a compile with a ``watch`` (:class:`CompileJob`) calls it
 WATCH_S = 0.2
+#: how long (s) :func:`_kill` waits for a killed compiler's process group to be gone
+KILL_WAIT_S = 1.0
 #: Linux prctl option: signal the child when the thread that forked it dies
 _PR_SET_PDEATHSIG = 1
 #: flags that tune the code to the compiling machine's CPU: a library built with one of them is
@@ -334,8 +336,10 @@ def _wait(proc, cmd, start, job) -> subprocess.CompletedProcess:
 
 
 def _kill(proc: subprocess.Popen) -> None:
-    """SIGKILL the compiler's process group (the compiler and every process it started), then
-    reap the compiler."""
+    """SIGKILL the compiler's process group (the compiler and every process it started), reap
+    the compiler, and wait up to :data:`KILL_WAIT_S` for the rest of its group to be gone: a
+    killed process still has to be scheduled to die, and a nice-19 one on a loaded machine may
+    wait seconds for that (its orphans — cc1, as — would outlive the caller's return)."""
     if os.name == "posix":
         # the group may be gone already (ProcessLookupError), or hold only zombies (EPERM on macOS)
         with contextlib.suppress(ProcessLookupError, PermissionError):
@@ -343,6 +347,13 @@ def _kill(proc: subprocess.Popen) -> None:
     else:  # pragma: no cover
         proc.kill()
     proc.wait()
+    deadline = time.monotonic() + KILL_WAIT_S
+    while os.name == "posix" and time.monotonic() < deadline:
+        try:
+            os.killpg(proc.pid, 0)
+        except (ProcessLookupError, PermissionError):
+            return
+        time.sleep(0.005)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -26,8 +26,9 @@
   in C; it also met one writing the figures of a plan on a loaded machine (1 of 60 runs of
   ``experiments/stress_sigterm.py``), so it first removes the staging folders registered by
   :func:`~nhgait.dynamics.errors.temporary_folder` (the outputs' ``.writing-*``). Before it ends
-  the process it kills every process descended from it (Linux ``/proc``): supervised children
-  and compilers die with the main thread anyway (``PR_SET_PDEATHSIG``), but the compiler's own
+  the process it kills every process descended from it (Linux ``/proc``) but the background
+  builders (told to stop by SIGTERM, they remove their build folders themselves): supervised
+  children and compilers die with the main thread anyway (``PR_SET_PDEATHSIG``), but the compiler's own
   helpers (cc1, as) would not. The one thing a forced end can leave is a compiler's build folder when the
   signal came while the compiler was being started (its stop signals blocked, on a machine so
   loaded that starting it took 1.5 s: 1 of 54 runs of ``experiments/stress_sigterm.py``); the
@@ -130,9 +131,10 @@ def _watch(read: int, ours: frozenset, done: threading.Event) -> None:
         os.close(read)
 
 
-def _kill_descendants() -> None:
+def _kill_descendants(spare=()) -> None:
     """SIGKILL every live process descended from this one (read from ``/proc``; elsewhere
-    nothing)."""
+    nothing), except the processes ``spare`` and theirs (the background builders: told to stop
+    by SIGTERM, they remove their build folders themselves)."""
     children: dict = {}
     try:
         entries = [e.name for e in os.scandir("/proc") if e.name.isdigit()]
@@ -148,6 +150,8 @@ def _kill_descendants() -> None:
     stack, found = [os.getpid()], []
     while stack:
         for child in children.get(stack.pop(), ()):
+            if child in spare:
+                continue
             found.append(child)
             stack.append(child)
     for pid in found:
@@ -184,11 +188,13 @@ def exit_now(status: int) -> int:
 def _force_exit(signum: int) -> None:  # pragma: no cover - measured by tests/test_interrupts.py
     """End the process now: it has not stopped by itself (module docstring)."""
     try:
-        _kill_descendants()
-        remove_temporary_folders()            # the staging folder of outputs being written
         background = sys.modules.get("nhgait.dynamics.numerics.background")
+        spare = set()
         if background is not None:            # the optimised builds: told to stop and clean up
             background.BUILDERS.terminate()
+            spare = {p.pid for p in background.BUILDERS.running()}
+        _kill_descendants(spare)
+        remove_temporary_folders()            # the staging folder of outputs being written
         sys.stderr.write(f"{MESSAGES[signum]} (forced: still running {FORCE_AFTER_S:g} s after the signal)\n")
         sys.stderr.flush()
     finally:
