@@ -68,8 +68,9 @@ def builders(cache: Path, table: dict | None = None) -> list:
     """The live builder processes of ``cache``."""
     table = _processes() if table is None else table
     mark = str(cache).encode()
-    return [pid for pid, (_, _, state, cmd) in table.items()
-            if BUILDER in cmd and mark in cmd and state not in ("Z", "X")]
+    found = {pid: ppid for pid, (ppid, _, state, cmd) in table.items()
+             if BUILDER in cmd and mark in cmd and state not in ("Z", "X")}
+    return [pid for pid, ppid in found.items() if ppid not in found]    # not a compiler being forked
 
 
 def descendants(pids, table: dict) -> list:

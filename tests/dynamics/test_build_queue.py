@@ -73,19 +73,21 @@ def alive(pid: int) -> bool:
 
 
 def builders_of(cache: Path) -> list:
-    """The pids of the live builder processes of ``cache`` (their command line names its folders)."""
-    found = []
+    """The pids of the live builder processes of ``cache`` (their command line names its folders;
+    a compiler the builder is forking has its command line until it runs the compiler: not counted)."""
+    found = {}
     for entry in os.scandir("/proc"):
         if not entry.name.isdigit():
             continue
         try:
             cmdline = Path(entry.path, "cmdline").read_bytes()
-        except OSError:
+            ppid = int(Path(entry.path, "stat").read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, ValueError, IndexError):
             continue
         if b"nhgait.dynamics.numerics.background" in cmdline and str(cache).encode() in cmdline \
                 and alive(int(entry.name)):
-            found.append(int(entry.name))
-    return found
+            found[int(entry.name)] = ppid
+    return sorted(pid for pid, ppid in found.items() if ppid not in found)
 
 
 def until(condition, what: str, guard: float = GUARD_S):
