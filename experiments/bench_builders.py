@@ -46,7 +46,7 @@ ROBOTS = [("unicycle", "parallel-park",
            ["horizon=3.2", "horizon=3.4", "final.y=0.7", "horizon=3.6", "final.y=0.9"]),
           (str(ROOT / "examples" / "rotor_sleigh.toml"), None,
            ["horizon=9.0", "horizon=9.5", "final.x=0.9", "horizon=10.5", "final.x=1.1"])]
-BUILDER = b"nhgait.dynamics.numerics.background"
+BUILDER = b"nhgait.dynamics.numerics.builder"
 
 
 def _processes() -> dict:

@@ -9,7 +9,7 @@ build, which **the cache's one builder** compiles into the content-hash cache of
     build = start_build(source, flags=("-O1",), salt="nlp …", slot="snakeboard/forward", estimate_s=37)
     build.state, build.pid, build.key            # "started" or "queued", the builder's pid, "ab12…"
 
-The builder (``python -m nhgait.dynamics.numerics.background``) is:
+The builder (``python -m nhgait.dynamics.numerics.builder``, :mod:`.builder`) is:
 
 * **One per cache, fed by a queue.** :func:`start_build` writes a request into the cache's queue
   (:mod:`.build_queue`: ``<cache dir>/builds/<slot>.req``) and starts a builder only when none
@@ -58,30 +58,27 @@ import contextlib
 import hashlib
 import json
 import os
-import shutil
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import STOP_SIGNALS, Terminated
+from ..errors import STOP_SIGNALS
 from . import build_queue as queue
 from .compiler import (
-    STALE_BUILD_S,
-    CompileJob,
-    CompilerUnavailable,
-    compile_in,
     compiler_command,
     library_dir,
     library_key,
 )
 
 __all__ = ["BackgroundBuild", "Builders", "BUILDERS", "start_build", "wait_for_build", "background_allowed",
-           "builds_off", "budgets", "stop_builds", "MEMORY_BYTES", "NICENESS", "PENDING", "SKIP", "main"]
+           "builds_off", "budgets", "stop_builds", "MEMORY_BYTES", "NICENESS", "PENDING", "SKIP",
+           "BUILDER_MODULE"]
 
+#: the builder process's module (:mod:`.builder`), run with ``python -m``
+BUILDER_MODULE = "nhgait.dynamics.numerics.builder"
 #: the compiler's address space limit (bytes; gcc -O1 on 4 MB of CasADi's C: 0.66 GB resident)
 MEMORY_BYTES = 2 * 1024 ** 3
 #: the builder's niceness (the lowest priority)
@@ -259,7 +256,7 @@ def _has_requests(folder: Path) -> bool:
 def _is_builder(pid: int) -> bool:
     """Whether ``pid`` runs this module (read from ``/proc``; elsewhere taken to be so)."""
     try:
-        return __name__.encode() in Path(f"/proc/{pid}/cmdline").read_bytes()
+        return BUILDER_MODULE.encode() in Path(f"/proc/{pid}/cmdline").read_bytes()
     except FileNotFoundError:
         return not Path("/proc/self").exists() and _alive(pid)
     except OSError:
@@ -363,7 +360,7 @@ def _spawn(directory: Path, folder: Path, lock: int) -> subprocess.Popen:
     job = json.dumps({"jit": str(directory), "queue": str(folder), "lock": lock})
     mask = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
     try:
-        proc = subprocess.Popen([sys.executable, "-m", __name__, job], stdin=subprocess.DEVNULL,
+        proc = subprocess.Popen([sys.executable, "-m", BUILDER_MODULE, job], stdin=subprocess.DEVNULL,
                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                 start_new_session=True, close_fds=True, pass_fds=(lock,))
         queue.record_holder(lock, proc.pid)
@@ -414,133 +411,3 @@ def _alive(pid: int) -> bool:
             os.waitpid(pid, os.WNOHANG)
         return False
     return True
-
-
-# ----------------------------------------------------------------------------- the builder
-class Abandoned(Exception):
-    """The compile is no longer wanted (its cache folder is gone, its request stale, its budget spent)."""
-
-
-@dataclass(frozen=True)
-class Folders:
-    """The builder's ``jit`` and ``queue`` folders and their identities (device, inode) when it started."""
-
-    jit: Path
-    queue: Path
-    identity: tuple
-
-    @staticmethod
-    def of(jit: Path, folder: Path) -> Folders:
-        return Folders(jit, folder, _identity(jit, folder))
-
-    def intact(self) -> bool:
-        """Whether both folders are still the ones the builder started with."""
-        return _identity(self.jit, self.queue) == self.identity
-
-
-def _identity(*paths) -> tuple | None:
-    try:
-        return tuple((st.st_dev, st.st_ino) for st in (os.stat(p) for p in paths))
-    except OSError:
-        return None
-
-
-def main(argv=None) -> int:
-    """The builder: its folders and lock (JSON) in ``argv[0]`` (module docstring).
-    0: the queue is empty or its cache gone, 143: stopped by a signal."""
-    job = json.loads((sys.argv[1:] if argv is None else argv)[0])
-
-    def stop(signum, frame):
-        raise Terminated()
-    for signum in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
-        signal.signal(signum, stop)
-    try:          # started with the stop signals blocked (:func:`_spawn`): a pending one raises here
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
-        folders = Folders.of(Path(job["jit"]), Path(job["queue"]))
-        if folders.identity is None:
-            return 0
-        return _serve(folders, int(job["lock"]))
-    except Terminated:
-        return 143
-
-
-def _serve(folders: Folders, lock: int) -> int:
-    """Build the newest request until the queue is empty (seen so under its mutex, where the
-    lock is let go) or the cache folder is gone."""
-    from .cache import remove_stale_temporaries
-    remove_stale_temporaries(folders.jit, ".build-", max_age_s=STALE_BUILD_S)
-    while folders.intact():
-        request = _next(folders)
-        if request is not None:
-            _build(folders, request)
-            continue
-        with queue.mutex(folders.queue):
-            if not _has_requests(folders.queue):
-                os._exit(0)     # the lock and the mutex go with the process: never two builders alive
-    return 0
-
-
-def _next(folders: Folders):
-    """The newest request still to build; those built or failed meanwhile are dropped."""
-    for request in queue.pending(folders.queue):
-        key = request.key
-        if (folders.jit / f"{key}.failed").exists() or ((folders.jit / f"{key}.json").exists()
-                                                        and (folders.jit / f"{key}.so").exists()):
-            queue.withdraw(folders.queue, request.path, request.inode)
-            continue
-        return request
-    return None
-
-
-def _build(folders: Folders, request) -> None:
-    """Compile ``request`` into the cache within its budgets, watched (module docstring); the
-    request is withdrawn whatever happens (a failure leaves ``<key>.failed``)."""
-    from .cache import temporary_prefix
-    source, h = request.source(), request.header
-    deadline = time.monotonic() + float(h["budget_s"])
-
-    def watch() -> None:
-        if not folders.intact():
-            raise Abandoned("its cache folder is gone")
-        if not request.current():
-            raise Abandoned("a newer request replaced it, or it was withdrawn")
-        if time.monotonic() > deadline:
-            raise Abandoned(f"over its budget of {h['budget_s']:.0f} s")
-    if source is None:
-        queue.withdraw(folders.queue, request.path, request.inode)
-        return
-    try:
-        tmp = Path(tempfile.mkdtemp(dir=folders.jit, prefix=temporary_prefix(".build-")))
-    except OSError:                       # the cache folder went: the loop ends
-        return
-    task = CompileJob(source=source, command=list(h["command"]), flags=tuple(h["flags"]),
-                      libs=tuple(h["libs"]), salt=h["salt"], key=request.key, label="background build",
-                      memory_bytes=MEMORY_BYTES, cpu_seconds=float(h["cpu_s"]), niceness=NICENESS,
-                      measure=True, watch=watch)
-    failure = None
-    try:
-        compile_in(task, folders.jit, tmp)
-    except CompilerUnavailable as exc:
-        failure = str(exc)
-    except (Abandoned, OSError):
-        pass
-    finally:          # a stop signal waits until the build folder is gone (then it ends the builder)
-        mask = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
-        try:
-            if failure is not None and request.current() and folders.intact():
-                _write_failure(folders.jit, request.key, failure, tmp)
-            shutil.rmtree(tmp, ignore_errors=True)
-            queue.withdraw(folders.queue, request.path, request.inode)
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
-
-
-def _write_failure(directory: Path, key: str, reason: str, tmp: Path) -> None:
-    record = tmp / f"{key}.failed"
-    with contextlib.suppress(OSError):
-        record.write_text(json.dumps({"reason": reason, "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}))
-        os.replace(record, directory / f"{key}.failed")
-
-
-if __name__ == "__main__":
-    sys.exit(main())

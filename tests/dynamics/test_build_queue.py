@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-from nhgait.dynamics.numerics import background, build_queue
+from nhgait.dynamics.numerics import background, build_queue, builder  # noqa: F401 - the builder imports
 from nhgait.dynamics.numerics.background import Builders, start_build
 
 pytestmark = pytest.mark.skipif(not Path("/proc/self/cmdline").exists() or os.name != "posix",
@@ -84,7 +84,7 @@ def builders_of(cache: Path) -> list:
             ppid = int(Path(entry.path, "stat").read_text().rsplit(")", 1)[1].split()[1])
         except (OSError, ValueError, IndexError):
             continue
-        if b"nhgait.dynamics.numerics.background" in cmdline and str(cache).encode() in cmdline \
+        if b"nhgait.dynamics.numerics.builder" in cmdline and str(cache).encode() in cmdline \
                 and alive(int(entry.name)):
             found[int(entry.name)] = ppid
     return sorted(pid for pid, ppid in found.items() if ppid not in found)
