@@ -5,9 +5,10 @@ Started by :func:`~.background.start_build` as ``python -m nhgait.dynamics.numer
 it compiles the newest request of :mod:`.build_queue` until the queue is empty, one compile at
 a time, each within its budgets and watched every :data:`~.compiler.WATCH_S` — its cache folder
 gone, its request replaced or withdrawn, or its wall budget spent stop the compiler at once
-(:class:`Abandoned`); SIGTERM, SIGINT and SIGHUP end it (exit 143), its compiler's process group
-killed and its build folder removed (with the stop signals held, so that a signal during the
-cleanup waits for it). It leaves with ``os._exit`` while it holds the queue's mutex, having seen
+(:class:`Abandoned`; a compile out of its wall budget means a machine too busy for the
+builds: the builder then drops the queue and leaves); SIGTERM, SIGINT and SIGHUP end it (exit
+143), its compiler's process group killed and its build folder removed (with the stop signals
+held, so that a signal during the cleanup waits for it). It leaves with ``os._exit`` while it holds the queue's mutex, having seen
 the queue empty: the builder lock and the mutex go with the process, so that there is never a
 second builder alive and never a request left without one. Its compiler runs at nice
 :data:`~.background.NICENESS` in a session (and autogroup) of its own; the builder keeps the
@@ -88,9 +89,11 @@ def _serve(folders: Folders, lock: int) -> int:
     remove_stale_temporaries(folders.jit, ".build-", max_age_s=STALE_BUILD_S)
     while folders.intact():
         request = _next(folders)
-        if request is not None:
-            _build(folders, request)
+        if request is not None and _build(folders, request):
             continue
+        if request is not None:           # over its wall budget: the machine is too busy for them all
+            for other in queue.pending(folders.queue):
+                queue.withdraw(folders.queue, other.path, other.inode)
         with queue.mutex(folders.queue):
             if not _has_requests(folders.queue):
                 os._exit(0)     # the lock and the mutex go with the process: never two builders alive
@@ -109,9 +112,12 @@ def _next(folders: Folders):
     return None
 
 
-def _build(folders: Folders, request) -> None:
+def _build(folders: Folders, request) -> bool:
     """Compile ``request`` into the cache within its budgets, watched (module docstring); the
-    request is withdrawn whatever happens (a failure leaves ``<key>.failed``)."""
+    request is withdrawn whatever happens (a failure leaves ``<key>.failed``). False when the
+    compile ran out of its wall budget: a compiler at nice 19 that cannot finish in 10× its
+    estimate is starved by the machine's load (0 s of CPU in 200 s at load 17, measured), and the
+    builder drops the whole queue and leaves — the next plan asks again."""
     from .cache import temporary_prefix
     source, h = request.source(), request.header
     deadline = time.monotonic() + float(h["budget_s"])
@@ -125,21 +131,23 @@ def _build(folders: Folders, request) -> None:
             raise Abandoned(f"over its budget of {h['budget_s']:.0f} s")
     if source is None:
         queue.withdraw(folders.queue, request.path, request.inode)
-        return
+        return True
     try:
         tmp = Path(tempfile.mkdtemp(dir=folders.jit, prefix=temporary_prefix(".build-")))
     except OSError:                       # the cache folder went: the loop ends
-        return
+        return True
     task = CompileJob(source=source, command=list(h["command"]), flags=tuple(h["flags"]),
                       libs=tuple(h["libs"]), salt=h["salt"], key=request.key, label="background build",
                       memory_bytes=MEMORY_BYTES, cpu_seconds=float(h["cpu_s"]), niceness=NICENESS,
                       measure=True, watch=watch)
-    failure = None
+    failure, in_time = None, True
     try:
         compile_in(task, folders.jit, tmp)
     except CompilerUnavailable as exc:
         failure = str(exc)
-    except (Abandoned, OSError):
+    except Abandoned:
+        in_time = time.monotonic() <= deadline
+    except OSError:
         pass
     finally:          # a stop signal waits until the build folder is gone (then it ends the builder)
         mask = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
@@ -150,6 +158,7 @@ def _build(folders: Folders, request) -> None:
             queue.withdraw(folders.queue, request.path, request.inode)
         finally:
             signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+    return in_time
 
 
 def _write_failure(directory: Path, key: str, reason: str, tmp: Path) -> None:

@@ -211,13 +211,16 @@ def test_a_signal_ends_the_builder_and_its_compiler(queue, signame):
 def test_a_compile_over_its_budget_is_killed_and_not_recorded_as_failed(queue, monkeypatch):
     """No builder outlives its compile budget: the budget (wall seconds) travels with the
     request; at it the compiler is killed, the request dropped, nothing recorded as failed (a
-    loaded machine is no reason never to try again)."""
+    loaded machine is no reason never to try again) — and the other requests waiting are
+    dropped too (a machine too busy for one build is too busy for the next)."""
     cache, fake = queue
     monkeypatch.setattr(background, "budgets", lambda estimate: (0.5, 30.0))
     build = start_build(source("slow"), flags=("-O1",), salt="t", slot="x", builders=Builders())
+    start_build(source("next"), flags=("-O1",), salt="t", slot="y", builders=Builders())
     assert build.budget_s == 0.5
     until(lambda: not alive(build.pid), "the builder to give up at its budget")
     assert not any(alive(pid) for pid, _ in fake.runs())
+    assert len(fake.runs()) <= 1                          # the next request was dropped with it
     assert [p.name for p in (cache / "jit").iterdir()] == []
     assert not list((cache / "builds").glob("*.req"))
 
