@@ -1,18 +1,18 @@
 """The builder process of a cache: it drains the queue of optimised builds (issue 40).
 
-Started by :func:`~.background.start_build` as ``python -m nhgait.dynamics.numerics.builder JOB``
-(JOB: its ``jit`` and ``queue`` folders and the descriptor of the builder lock it was handed),
-it compiles the newest request of :mod:`.build_queue` until the queue is empty, one compile at
-a time, each within its budgets and watched every :data:`~.compiler.WATCH_S` — its cache folder
-gone, its request replaced or withdrawn, or its wall budget spent stop the compiler at once
-(:class:`Abandoned`; a compile out of its wall budget means a machine too busy for the
+Started by :func:`~.background.start_build` as ``python -m nhgait.dynamics.numerics.builder
+JOB`` (JOB: its ``jit`` and ``queue`` folders and the descriptor of the builder lock it was
+handed), it compiles the newest request of :mod:`.build_queue` until the queue is empty, one
+compile at a time, each within its budgets and watched every :data:`~.compiler.WATCH_S` — its
+cache folder gone, its request replaced or withdrawn, or its wall budget spent stop the compiler
+at once (:class:`Abandoned`; a compile out of its wall budget means a machine too busy for the
 builds: the builder then drops the queue and leaves); SIGTERM, SIGINT and SIGHUP end it (exit
 143), its compiler's process group killed and its build folder removed (with the stop signals
-held, so that a signal during the cleanup waits for it). It leaves with ``os._exit`` while it holds the queue's mutex, having seen
-the queue empty: the builder lock and the mutex go with the process, so that there is never a
-second builder alive and never a request left without one. Its compiler runs at nice
-:data:`~.background.NICENESS` in a session (and autogroup) of its own; the builder keeps the
-priority it was started with (:mod:`.background`).
+held, so that a signal during the cleanup waits for it). It leaves with ``os._exit`` while it
+holds the queue's mutex, having seen the queue empty: the builder lock and the mutex go with the
+process, so that there is never a second builder alive and never a request left without one. Its
+compiler runs at nice :data:`~.background.NICENESS` in a session (and autogroup) of its own; the
+builder keeps the priority it was started with (:mod:`.background`).
 """
 from __future__ import annotations
 
