@@ -41,11 +41,11 @@ class Terminated(BaseException):
 
 
 #: the signals whose Python handlers end a run by raising — Ctrl-C (KeyboardInterrupt), the
-#: command line's SIGTERM (:class:`Terminated`), a time budget's SIGALRM (``BudgetSpent``). Code
+#: command line's SIGTERM and SIGHUP (:class:`Terminated`), a time budget's SIGALRM (``BudgetSpent``). Code
 #: that starts a child process blocks them until the child is registered to be killed (and the
 #: child restores the mask), so that the exception cannot land between the two and leave the
 #: child running (:mod:`nhgait.dynamics.numerics.compiler`, :mod:`nhgait.ocp.supervision`).
-STOP_SIGNALS = frozenset(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGALRM")
+STOP_SIGNALS = frozenset(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP", "SIGALRM")
                          if hasattr(signal, name))
 
 

@@ -91,7 +91,7 @@ def background_build(later: dict | None, cache: Path, timeout: float) -> dict:
     """Wait for the optimised build a cold plan started (``later`` from its solution.json) and
     read its record: flags, compile seconds, compiler peak memory, how long it was waited for."""
     from nhgait.dynamics.numerics.background import wait_for_build
-    if not later or later.get("state") != "started":
+    if not later or later.get("state") not in ("started", "queued"):
         return {"state": (later or {}).get("state", "none"), "reason": (later or {}).get("reason", "")}
     jit = Path(cache) / "jit"
     t0 = time.monotonic()

@@ -705,9 +705,8 @@ def _compiled_text(settings) -> str:
     c = settings.get("compile") or {}
     later = c.get("later") or {}
     after = ""
-    if later.get("state") == "started":
-        after = (f"; {later.get('compiler')} {' '.join(later.get('flags') or [])} building in the background "
-                 "for the next run")
+    if later.get("summary"):
+        after = f"; {later['summary']}"
     if not settings.get("jit"):
         reason = settings.get("jit_fallback")
         return "interpreted" + (f" ({reason}{after})" if reason else (f" ({after[2:]})" if after else ""))

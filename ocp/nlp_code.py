@@ -36,7 +36,7 @@ from pathlib import Path
 from typing import NamedTuple
 
 from nhgait.dynamics.numerics import openmp
-from nhgait.dynamics.numerics.background import BackgroundBuild, start_build
+from nhgait.dynamics.numerics.background import PENDING, BackgroundBuild, start_build
 from nhgait.dynamics.numerics.compiler import (
     SAME_BITS_FLAGS,
     CompilerUnavailable,
@@ -166,10 +166,11 @@ class NlpCode:
     fallback: str | None = None
 
 
-def choose_code(source: str, options, progress, *, salt: str) -> NlpCode:
+def choose_code(source: str, options, progress, *, salt: str, slot: str = "") -> NlpCode:
     """The code that runs the NLP functions of ``source`` now, and the optimised build started
     for later (module docstring); ``options`` a :class:`~.solver.SolverOptions` (``jit``,
-    ``jit_flags``, ``budget``); ``salt`` separates the keys (the CasADi version)."""
+    ``jit_flags``, ``budget``); ``salt`` separates the keys (the CasADi version); ``slot`` names
+    the robot and task, whose newest build request replaces the older ones (issue 40)."""
     size = len(source)
     flags, estimate, reason = ((tuple(options.jit_flags), 0.0, "flags given") if options.jit_flags
                                else options.budget.choose(size))
@@ -190,10 +191,10 @@ def choose_code(source: str, options, progress, *, salt: str) -> NlpCode:
                                                    (flags, estimate, command))
     later = None
     if kind != "optimised":
-        later = (start_build(source, flags=flags, salt=salt) if flags is not None else
-                 BackgroundBuild("unavailable", (), optimiser, reason=reason))
-        progress.note(f"  {later.text()}"
-                      + (f" (about {estimate:.0f} s)" if later.state == "started" else ""))
+        later = (start_build(source, flags=flags, salt=salt, slot=slot, estimate_s=estimate)
+                 if flags is not None else
+                 BackgroundBuild(state="unavailable", flags=(), compiler=optimiser, reason=reason))
+        progress.note(f"  {later.text()}")
     report = CompileReport(size, None if lib is None else lib.flags, 0.0 if lib is None else lib.compile_s,
                            estimate, bool(lib is not None and lib.cached), reason,
                            None if lib is None else str(lib.path), kind, compiler, later)
@@ -224,7 +225,7 @@ def optimised_ready(report: CompileReport | None) -> CompileReport | None:
     attempts (:meth:`~.solver.OCPSolver.adopt_optimised`) instead of waiting for the next run.
     ``switched_from`` keeps the code it replaces; ``later`` is then done."""
     later = None if report is None or report.code == "optimised" else report.later
-    if later is None or later.state != "started":
+    if later is None or later.state not in PENDING:
         return None
     path = library_by_key(later.key)
     if path is None:

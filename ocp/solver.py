@@ -361,7 +361,8 @@ class OCPSolver:
         cg = ca.CodeGenerator("nhgait_nlp.c", {"with_header": False})
         for f in [oracle] + [plain.get_function(name) for name in plain.get_function()]:
             cg.add(f)
-        code = choose_code(cg.dump(), self.options, self.progress, salt=f"nlp casadi {ca.__version__}")
+        code = choose_code(cg.dump(), self.options, self.progress, salt=f"nlp casadi {ca.__version__}",
+                           slot=self._build_slot())
         self.compile_report, self.jit_fallback = code.report, code.fallback
         lib = code.library
         if lib is None:
@@ -370,6 +371,14 @@ class OCPSolver:
             weakref.finalize(self, shutil.rmtree, lib.path.parent, True)
         self.compiled, self.jit_cached, self.jit_path = True, lib.cached, lib.path
         return self._nlpsol("ocp", external_nlp(lib.path), opts)
+
+    def _build_slot(self) -> str:
+        """The robot, task, grid and solver this solver's optimised build is asked for (its newest
+        request replaces older ones: :mod:`~nhgait.dynamics.numerics.build_queue`); empty for
+        a problem without a name (then the build's key alone)."""
+        name = self.problem.name.split(" (", 1)[0]     # "robot/task", without its edits "(horizon=2.0)"
+        return (f"{name} | {type(self.transcription).__name__} N={self.problem.intervals} | "
+                f"{self.options.solver}") if name else ""
 
     def adopt_optimised(self) -> bool:
         """Switch to the optimised library once the background build this solver started has

@@ -279,13 +279,15 @@ def _when_solving(proc: subprocess.Popen, children: int) -> list[Proc]:
 
 
 @needs_cc
-@pytest.mark.parametrize("signame, status, to_group, said", SIGNALS)
+@pytest.mark.parametrize("signame, status, to_group, said",
+                         [*SIGNALS, pytest.param("SIGHUP", 129, False, "hung up", id="SIGHUP")])
 def test_plan_stopped_while_its_background_build_compiles_leaves_nothing(
         slow_cc, cache, tmp_path, monkeypatch, signame, status, to_group, said):
     """The plan solves (its attempts endless) while its optimised build compiles in the
-    background, in a builder of another session (issue 25): SIGTERM or Ctrl-C to the plan ends
-    the builder and the compiler's whole process group too, and leaves no build folder (the
-    plan itself ran interpreted: no fast compiler here, nothing else in the jit folder)."""
+    background, in a builder of another session (issue 25): SIGTERM, Ctrl-C or SIGHUP (issue 40:
+    the terminal closed) to the plan ends the builder and the compiler's whole process group
+    too, and leaves no build folder (the plan itself ran interpreted: no fast compiler here,
+    nothing else in the jit folder)."""
     monkeypatch.setenv("NHGAIT_BACKGROUND_BUILDS", "1")
     slow_cc.slow(True)
     proc = _start(PLAN_BACKGROUND, tmp_path, ENDLESS)

@@ -56,6 +56,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -66,11 +67,15 @@ from . import openmp
 __all__ = ["Library", "CompilerUnavailable", "build_library", "cached_library", "compiler_command",
            "library_key", "jit_dir", "library_dir", "compile_in", "CompileJob", "STALE_BUILD_S",
            "COMPILER_COMMANDS", "NATIVE_FLAGS", "host_cpu", "builds_for_cpu", "library_by_key",
-           "known_compiler", "SAME_BITS_FLAGS",
+           "known_compiler", "SAME_BITS_FLAGS", "WATCH_S",
            "recorded_flags"]
 
 #: a build folder older than this (seconds) is left over from a process that died: removed
 STALE_BUILD_S = 3600.0
+#: how often (s) a compile with a ``watch`` (:class:`CompileJob`) calls it
+WATCH_S = 0.2
+#: how long (s) :func:`_kill` waits for a killed compiler's process group to be gone
+KILL_WAIT_S = 1.0
 #: Linux prctl option: signal the child when the thread that forked it dies
 _PR_SET_PDEATHSIG = 1
 #: flags that tune the code to the compiling machine's CPU: a library built with one of them is
@@ -241,25 +246,38 @@ def recorded_flags(library: Path, requested) -> tuple:
         return tuple(requested)
 
 
-def _child_setup(mask=None, memory_bytes: int | None = None):
-    """The preexec function of the compiler: its own process group, the signal mask ``mask``
+def _child_setup(mask=None, memory_bytes: int | None = None, cpu_seconds: float | None = None,
+                 niceness: int | None = None):
+    """The preexec function of the compiler: its own process group (with ``niceness``: its own
+    session at that niceness, and so its own autogroup, set to it too), the signal mask ``mask``
     (the parent blocks the stop signals while it starts the compiler, :func:`_run`), at most
-    ``memory_bytes`` of address space (``RLIMIT_AS``; None: unlimited) and, on Linux, SIGKILL
-    when the parent thread dies (exit at once if the parent died before). ``prctl`` is looked
-    up here, in the parent: the forked child only calls it."""
+    ``memory_bytes`` of address space (``RLIMIT_AS``; None: unlimited), at most ``cpu_seconds``
+    of CPU time per process (``RLIMIT_CPU``, inherited by gcc's cc1 and as; None: unlimited) and,
+    on Linux, SIGKILL when the parent thread dies (exit at once if the parent died before).
+    ``prctl`` is looked up here, in the parent: the forked child only calls it."""
     import resource
     parent = os.getpid()
     prctl = None
     if sys.platform.startswith("linux"):
         import ctypes
         prctl = ctypes.CDLL(None).prctl
+    cpu = None if cpu_seconds is None else max(1, int(cpu_seconds))
 
     def setup() -> None:  # pragma: no cover - runs in the child
-        os.setpgrp()
+        if niceness is None:
+            os.setpgrp()
+        else:
+            os.setsid()
+            with contextlib.suppress(OSError):
+                os.nice(niceness - os.nice(0))
+            with contextlib.suppress(OSError), open("/proc/self/autogroup", "w") as fh:
+                fh.write(str(niceness))
         if mask is not None:
             signal.pthread_sigmask(signal.SIG_SETMASK, mask)
         if memory_bytes is not None:
             resource.setrlimit(resource.RLIMIT_AS, (memory_bytes, memory_bytes))
+        if cpu is not None:
+            resource.setrlimit(resource.RLIMIT_CPU, (cpu, cpu + 1))
         if prctl is not None:
             prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
             if os.getppid() != parent:
@@ -267,26 +285,26 @@ def _child_setup(mask=None, memory_bytes: int | None = None):
     return setup
 
 
-def _run(cmd: list, progress, label: str, timeout: float | None, tmpdir: Path,
-         memory_bytes: int | None = None) -> subprocess.CompletedProcess:
-    """Run the compiler with its temporaries in ``tmpdir`` and at most ``memory_bytes`` of
-    address space, killing its process group on any exception (see the module docstring). The
-    stop signals are blocked until the compiler is started and their exception would kill it
-    (one raised inside ``Popen`` itself left the compiler's group running)."""
+def _run(cmd: list, job: CompileJob, tmpdir: Path) -> subprocess.CompletedProcess:
+    """Run the compiler of ``job`` with its temporaries in ``tmpdir`` and its limits
+    (``memory_bytes``, ``cpu_seconds``), killing its process group on any exception (see the
+    module docstring). The stop signals are blocked until the compiler is started and their
+    exception would kill it (one raised inside ``Popen`` itself left the compiler's group running)."""
     start = time.perf_counter()
     env = {**os.environ, "TMPDIR": str(tmpdir), "TMP": str(tmpdir), "TEMP": str(tmpdir)}
     mask = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS) if os.name == "posix" else None
+    setup = (_child_setup(mask, job.memory_bytes, job.cpu_seconds, job.niceness) if os.name == "posix"
+             else None)
     try:
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
-                                errors="replace",
-                                preexec_fn=_child_setup(mask, memory_bytes) if os.name == "posix" else None)
+                                errors="replace", preexec_fn=setup)
     except BaseException:
         _unblock(mask)
         raise
     with proc:
         try:
             _unblock(mask)
-            return _wait(proc, cmd, start, progress, label, timeout)
+            return _wait(proc, cmd, start, job)
         except BaseException:
             _kill(proc)
             raise
@@ -297,25 +315,31 @@ def _unblock(mask) -> None:
         signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
 
-def _wait(proc, cmd, start, progress, label, timeout) -> subprocess.CompletedProcess:
-    """The compiler's result, with a heartbeat every second while it runs; a ``timeout`` raises
-    :class:`CompilerUnavailable` (the caller kills the compiler)."""
+def _wait(proc, cmd, start, job) -> subprocess.CompletedProcess:
+    """The compiler's result, with a heartbeat every second while it runs (``job.progress``)
+    and ``job.watch()`` called every :data:`WATCH_S` (it raises to stop the compile); a
+    ``job.timeout`` raises :class:`CompilerUnavailable` (the caller kills the compiler)."""
+    poll = WATCH_S if job.watch is not None else 1.0
     while True:
         try:
-            out, _ = proc.communicate(timeout=1.0)
+            out, _ = proc.communicate(timeout=poll)
             return subprocess.CompletedProcess(cmd, proc.returncode, out, "")
         except subprocess.TimeoutExpired:
             elapsed = time.perf_counter() - start
-            if timeout is not None and elapsed > timeout:
-                raise CompilerUnavailable(f"the C compiler took more than {timeout:.0f} "
-                                          f"s ({label})") from None
-            if progress is not None:
-                progress.heartbeat(label, elapsed)
+            if job.timeout is not None and elapsed > job.timeout:
+                raise CompilerUnavailable(f"the C compiler took more than {job.timeout:.0f} "
+                                          f"s ({job.label})") from None
+            if job.watch is not None:
+                job.watch()
+            if job.progress is not None:
+                job.progress.heartbeat(job.label, elapsed)
 
 
 def _kill(proc: subprocess.Popen) -> None:
-    """SIGKILL the compiler's process group (the compiler and every process it started), then
-    reap the compiler."""
+    """SIGKILL the compiler's process group (the compiler and every process it started), reap
+    the compiler, and wait up to :data:`KILL_WAIT_S` for the rest of its group to be gone: a
+    killed process still has to be scheduled to die, and a nice-19 one on a loaded machine may
+    wait seconds for that (its orphans — cc1, as — would outlive the caller's return)."""
     if os.name == "posix":
         # the group may be gone already (ProcessLookupError), or hold only zombies (EPERM on macOS)
         with contextlib.suppress(ProcessLookupError, PermissionError):
@@ -323,15 +347,26 @@ def _kill(proc: subprocess.Popen) -> None:
     else:  # pragma: no cover
         proc.kill()
     proc.wait()
+    deadline = time.monotonic() + KILL_WAIT_S
+    while os.name == "posix" and time.monotonic() < deadline:
+        try:
+            os.killpg(proc.pid, 0)
+        except (ProcessLookupError, PermissionError):
+            return
+        time.sleep(0.005)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class CompileJob:
     """One compilation: the C ``source``, the compiler ``command``, ``flags`` (before the
     source), ``libs`` (after it), the key's ``salt`` and the ``key`` itself; ``progress``,
-    ``label`` and ``timeout`` for the waiting; ``memory_bytes``, the compiler's address space
-    (None: unlimited); ``measure``: record the compiler's peak resident memory (meaningful in
-    a process whose only children are its compilers: the background builder)."""
+    ``label`` and ``timeout`` (wall seconds) for the waiting; ``memory_bytes``, the compiler's
+    address space, and ``cpu_seconds``, its CPU time per process (None: unlimited); ``niceness``:
+    the compiler in a session of its own at that niceness (its autogroup too; None: as this
+    process, in a process group of its own); ``measure``:
+    record the compiler's peak resident memory (meaningful in a process whose only children are
+    its compilers: the background builder); ``watch``: called every :data:`WATCH_S` while the
+    compiler runs, it raises to stop it (the builder: its cache folder gone, its request stale)."""
 
     source: str
     command: list
@@ -343,7 +378,10 @@ class CompileJob:
     label: str = "compiling"
     timeout: float | None = None
     memory_bytes: int | None = None
+    cpu_seconds: float | None = None
+    niceness: int | None = None
     measure: bool = False
+    watch: Callable[[], None] | None = None
 
 
 def _compile(job: CompileJob, directory: Path) -> Library:
@@ -366,11 +404,11 @@ def compile_in(job: CompileJob, directory: Path, tmp: Path) -> Library:
     c_file.write_text(job.source)
     cmd = [*command, *flags, "-fPIC", "-shared", str(c_file), "-o", str(so_tmp), *libs]
     try:
-        proc = _run(cmd, job.progress, job.label, job.timeout, tmp, job.memory_bytes)
+        proc = _run(cmd, job, tmp)
         if (proc.returncode != 0 or not so_tmp.exists()) and openmp.FLAG in flags:
             flags = tuple(f for f in flags if f != openmp.FLAG)   # no OpenMP here: pragmas ignored
             cmd = [*command, *flags, "-fPIC", "-shared", str(c_file), "-o", str(so_tmp), *libs]
-            proc = _run(cmd, job.progress, job.label, job.timeout, tmp, job.memory_bytes)
+            proc = _run(cmd, job, tmp)
     except OSError as exc:
         raise CompilerUnavailable(f"cannot run the C compiler {command[0]!r} ({exc.strerror})") from None
     if proc.returncode != 0 or not so_tmp.exists():

@@ -6,11 +6,13 @@
     nhgait plan <system> ... --out DIR             (gaits/cli_plan.py)
     nhgait track <system> --mismatch ... --out DIR (gaits/cli/track.py)
     nhgait analyse <scene.toml | built-in> ...     (gaits/cli/analyse.py)
+    nhgait cache [list | clean | stop]             (gaits/cli/cache.py)
 
 Exit status: 0 success; 1 the job ran but did not succeed (an integration that stopped early,
 an optimisation that did not converge or was not verified); 2 bad input — one message listing
 every problem, no traceback; 3 an internal error (a bug: one line naming it; ``NHGAIT_DEBUG=1``
-shows the traceback); 130 interrupted (Ctrl-C), 143 terminated (SIGTERM, e.g. ``timeout``).
+shows the traceback); 130 interrupted (Ctrl-C), 143 terminated (SIGTERM, e.g. ``timeout``), 129
+hung up (SIGHUP: the terminal closed).
 
 Interrupts clean up, at once: SIGTERM is turned into an exception like Ctrl-C, so that a running
 C compiler is killed and its temporary files removed (:mod:`nhgait.dynamics.numerics.compiler`),
@@ -40,6 +42,7 @@ SUBCOMMANDS = (
     ("linearize", "nhgait.gaits.cli.linearize", "add_linearize_parser"),
     ("analyse", "nhgait.gaits.cli.analyse", "add_analyse_parser"),
     ("track", "nhgait.gaits.cli.track", "add_track_parser"),
+    ("cache", "nhgait.gaits.cli.cache", "add_cache_parser"),
 )
 
 
@@ -90,8 +93,9 @@ def main(argv=None) -> int:
         return stopped(130)
     except Terminated:
         cancel_background_builds()
-        print("nhgait: terminated", file=sys.stderr)
-        return stopped(143)
+        status, message = stop.ending()             # SIGTERM's or SIGHUP's
+        print(message, file=sys.stderr)
+        return stopped(status)
     except ModelError as exc:            # bad input (ProblemError and BridgeError included)
         print(f"nhgait: {exc}", file=sys.stderr)
         return 2

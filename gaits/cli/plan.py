@@ -66,6 +66,9 @@ def add_plan_parser(subparsers) -> argparse.ArgumentParser:
     talk = p.add_mutually_exclusive_group()
     talk.add_argument("--quiet", action="store_true", help="no progress on stderr")
     talk.add_argument("--verbose", action="store_true", help="the solver's own iteration log as well")
+    p.add_argument("--no-background-build", action="store_true",
+                   help="ask for no optimised build in the background for the next run (as "
+                        "NHGAIT_BACKGROUND_BUILDS=0; `nhgait cache` lists the builds pending)")
     p.add_argument("--out", required=True, help="output directory")
     p.set_defaults(func=run)
     return p
@@ -76,6 +79,7 @@ def run(args) -> int:
     first — solution.json and trajectory.csv written, the summary printed — then the figures
     (and ``--gif``'s animation). Exit 1 when the plan failed or its files could not all be
     written (the summary says where the solution went)."""
+    from nhgait.dynamics.numerics.background import builds_off
     from nhgait.dynamics.progress import Progress
 
     from ..outputs import output_directory, output_lock
@@ -84,7 +88,7 @@ def run(args) -> int:
     workers = args.workers
     progress = Progress.silent() if args.quiet else Progress.to_stderr(verbose=args.verbose)
     out = output_directory(args.out)
-    with output_lock(out, f"nhgait plan {args.system}"):
+    with output_lock(out, f"nhgait plan {args.system}"), builds_off(args.no_background_build):
         result = plan(args.system, args.gait, overrides=args.overrides, intervals=args.intervals,
                       solver=args.solver, transcription=args.transcription, jit=args.jit, workers=workers,
                       out_dir=out, animate=args.gif, hessian=args.hessian,

@@ -1,8 +1,9 @@
-"""How ``nhgait`` stops on SIGINT and SIGTERM: at once, in any phase, leaving nothing behind.
+"""How ``nhgait`` stops on SIGINT, SIGTERM and SIGHUP: at once, in any phase, leaving nothing behind.
 
 :func:`stop_signals` is the context the command line runs each subcommand in:
 
-* **SIGTERM** raises :class:`~nhgait.dynamics.errors.Terminated` (exit 143), **SIGINT**
+* **SIGTERM** raises :class:`~nhgait.dynamics.errors.Terminated` (exit 143), as does **SIGHUP**
+  (exit 129: the terminal closed; left alone when ignored, as under ``nohup``), **SIGINT**
   KeyboardInterrupt (exit 130; left ignored when the shell started us with it ignored, as a
   background job): they unwind like any exception, so a running C compiler is killed and its
   files removed (:mod:`nhgait.dynamics.numerics.compiler`), supervised solver processes are killed
@@ -25,8 +26,9 @@
   in C; it also met one writing the figures of a plan on a loaded machine (1 of 60 runs of
   ``experiments/stress_sigterm.py``), so it first removes the staging folders registered by
   :func:`~nhgait.dynamics.errors.temporary_folder` (the outputs' ``.writing-*``). Before it ends
-  the process it kills every process descended from it (Linux ``/proc``): supervised children
-  and compilers die with the main thread anyway (``PR_SET_PDEATHSIG``), but the compiler's own
+  the process it kills every process descended from it (Linux ``/proc``) but the background
+  builders (told to stop by SIGTERM, they remove their build folders themselves): supervised
+  children and compilers die with the main thread anyway (``PR_SET_PDEATHSIG``), but the compiler's own
   helpers (cc1, as) would not. The one thing a forced end can leave is a compiler's build folder when the
   signal came while the compiler was being started (its stop signals blocked, on a machine so
   loaded that starting it took 1.5 s: 1 of 54 runs of ``experiments/stress_sigterm.py``); the
@@ -48,9 +50,10 @@ __all__ = ["stop_signals", "Stop", "exit_now", "cancel_background_builds", "FORC
 #: how long after a stop signal the watchdog ends a process that is still running (s)
 FORCE_AFTER_S = 1.5
 #: exit status per signal (the shell's 128 + signal number)
-EXIT_STATUS = {signal.SIGINT: 130, signal.SIGTERM: 143}
+EXIT_STATUS = {signal.SIGINT: 130, signal.SIGTERM: 143, signal.SIGHUP: 129}
 #: what ``nhgait`` says when it stops on a signal
-MESSAGES = {signal.SIGINT: "nhgait: interrupted", signal.SIGTERM: "nhgait: terminated"}
+MESSAGES = {signal.SIGINT: "nhgait: interrupted", signal.SIGTERM: "nhgait: terminated",
+            signal.SIGHUP: "nhgait: hung up"}
 
 
 class Stop:
@@ -61,8 +64,13 @@ class Stop:
         self.signal: int | None = None
 
     def exception(self) -> BaseException:
-        """The exception the signal stands for: Terminated (SIGTERM) or KeyboardInterrupt."""
-        return Terminated() if self.signal == signal.SIGTERM else KeyboardInterrupt()
+        """The exception the signal stands for: Terminated (SIGTERM, SIGHUP) or KeyboardInterrupt."""
+        return Terminated() if self.signal in (signal.SIGTERM, signal.SIGHUP) else KeyboardInterrupt()
+
+    def ending(self) -> tuple:
+        """(exit status, message) of a :class:`Terminated` stop: SIGHUP's or SIGTERM's."""
+        signum = signal.SIGHUP if self.signal == signal.SIGHUP else signal.SIGTERM
+        return EXIT_STATUS[signum], MESSAGES[signum]
 
     def handler(self, signum, frame):
         self.signal = signum
@@ -98,11 +106,13 @@ def stop_signals():
 
 
 def _install(stop: Stop) -> dict:
-    """The handlers of ``stop`` for SIGTERM (always) and SIGINT (unless ignored or someone
-    else's); the previous handlers by signal."""
+    """The handlers of ``stop`` for SIGTERM (always), SIGINT (unless ignored or someone
+    else's) and SIGHUP (unless ignored: ``nohup``); the previous handlers by signal."""
     previous = {signal.SIGTERM: signal.signal(signal.SIGTERM, stop.handler)}
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         previous[signal.SIGINT] = signal.signal(signal.SIGINT, stop.handler)
+    if signal.getsignal(signal.SIGHUP) is signal.SIG_DFL:
+        previous[signal.SIGHUP] = signal.signal(signal.SIGHUP, stop.handler)
     return previous
 
 
@@ -121,9 +131,10 @@ def _watch(read: int, ours: frozenset, done: threading.Event) -> None:
         os.close(read)
 
 
-def _kill_descendants() -> None:
+def _kill_descendants(spare=()) -> None:
     """SIGKILL every live process descended from this one (read from ``/proc``; elsewhere
-    nothing)."""
+    nothing), except the processes ``spare`` and theirs (the background builders: told to stop
+    by SIGTERM, they remove their build folders themselves)."""
     children: dict = {}
     try:
         entries = [e.name for e in os.scandir("/proc") if e.name.isdigit()]
@@ -139,6 +150,8 @@ def _kill_descendants() -> None:
     stack, found = [os.getpid()], []
     while stack:
         for child in children.get(stack.pop(), ()):
+            if child in spare:
+                continue
             found.append(child)
             stack.append(child)
     for pid in found:
@@ -175,11 +188,13 @@ def exit_now(status: int) -> int:
 def _force_exit(signum: int) -> None:  # pragma: no cover - measured by tests/test_interrupts.py
     """End the process now: it has not stopped by itself (module docstring)."""
     try:
-        _kill_descendants()
-        remove_temporary_folders()            # the staging folder of outputs being written
         background = sys.modules.get("nhgait.dynamics.numerics.background")
+        spare = set()
         if background is not None:            # the optimised builds: told to stop and clean up
             background.BUILDERS.terminate()
+            spare = {p.pid for p in background.BUILDERS.running()}
+        _kill_descendants(spare)
+        remove_temporary_folders()            # the staging folder of outputs being written
         sys.stderr.write(f"{MESSAGES[signum]} (forced: still running {FORCE_AFTER_S:g} s after the signal)\n")
         sys.stderr.flush()
     finally:

@@ -335,6 +335,7 @@ def _solver_for(job: PointJob, *, warm: bool = False):
            tuple(sorted(case.options.items())), warm)
     if key in SOLVERS:
         model, specialised, solver = SOLVERS.get(key, None)
+        solver.adopt_optimised()      # a long-lived worker: the optimised library once it has landed
         stated, problem, _ = state_problem(resolved.task, specialised, resolved.scene, params=job.params,
                                            name=resolved.label)
         return model, (stated, problem), solver.with_problem(problem), resolved

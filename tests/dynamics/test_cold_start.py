@@ -100,7 +100,7 @@ def cold(tmp_path, monkeypatch):
 @needs_fast
 def test_first_plan_does_not_wait_for_the_optimised_build_and_the_next_run_uses_it(cold, tmp_path,
                                                                                    monkeypatch):
-    from nhgait.gaits.planner import plan
+    from nhgait.gaits.planner import plan, summary_lines
     held = HeldCompiler(tmp_path / "cc")
     held.hold(True)
     monkeypatch.setenv("NHGAIT_CC", str(held.script))
@@ -115,6 +115,9 @@ def test_first_plan_does_not_wait_for_the_optimised_build_and_the_next_run_uses_
     # the plan returned while gcc was held: the optimised library cannot exist yet
     assert not (jit_dir() / f"{later['key']}.so").exists()
     assert BUILDERS.running()
+    summary = "\n".join(summary_lines(first))                # it names the build and how to skip it
+    assert f"pending in the background for the next run (builder pid {later['pid']}" in summary
+    assert "--no-background-build" in summary and "NHGAIT_BACKGROUND_BUILDS=0" in summary
     assert held.compile_here() == 0
     assert BUILDERS.wait()                            # the builder's end (it records and moves the library)
     record = json.loads((jit_dir() / f"{later['key']}.json").read_text())
