@@ -1,9 +1,9 @@
 """The ``nhgait`` command line: one module per subcommand, registered here.
 
-    nhgait derive <scene.toml | built-in> ...      (gaits/cli_derive.py)
-    nhgait simulate <scene.toml | built-in> ...    (gaits/cli_simulate.py)
-    nhgait reproduce [--out DIR] ...               (gaits/cli_reproduce.py)
-    nhgait plan <system> ... --out DIR             (gaits/cli_plan.py)
+    nhgait derive <scene.toml | built-in> ...      (gaits/cli/derive.py)
+    nhgait simulate <scene.toml | built-in> ...    (gaits/cli/simulate.py)
+    nhgait reproduce [--out DIR] ...               (gaits/cli/reproduce.py)
+    nhgait plan <system> ... --out DIR             (gaits/cli/plan.py)
     nhgait track <system> --mismatch ... --out DIR (gaits/cli/track.py)
     nhgait analyse <scene.toml | built-in> ...     (gaits/cli/analyse.py)
     nhgait cache [list | clean | stop]             (gaits/cli/cache.py)
