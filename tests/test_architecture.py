@@ -26,7 +26,7 @@ LAYERS = (
     ("nhgait.dynamics.algebra",),                           # sympy algebra, no physics
     ("nhgait.dynamics.numerics",),
     ("nhgait.dynamics.derivation",),
-    ("nhgait.dynamics.simulation", "nhgait.dynamics.linearisation"),
+    ("nhgait.dynamics.simulation", "nhgait.dynamics.linearisation", "nhgait.dynamics.geometry"),
     ("nhgait.ocp",),
     ("nhgait.gaits",),
     ("nhgait.gaits.sweeps", "nhgait.gaits.bench", "nhgait.gaits.tracking"),
