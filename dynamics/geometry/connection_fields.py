@@ -67,7 +67,8 @@ class LocalConnection:
     def _index(self, name: str) -> int:
         if name not in self.shape:
             raise ModelError([f"{name!r} is not a shape coordinate of {self.system.name} "
-                              f"(shape: {', '.join(self.shape) or 'none'})"], title="invalid shape coordinate")
+                              f"(shape: {', '.join(self.shape) or 'none'})"],
+                             title="invalid shape coordinate")
         return self.shape.index(name)
 
 
