@@ -9,7 +9,7 @@ from nhgait.dynamics import derive
 from nhgait.dynamics.derivation.models import snakeboard
 from nhgait.dynamics.geometry.connection_fields import local_connection
 from nhgait.dynamics.geometry.heights import evaluate_heights
-from nhgait.gaits.geometry_plots import heights_figure, moved_component, plot_height_function
+from nhgait.gaits.geometry_plots import heights_figure, moved_component
 
 
 @pytest.fixture(scope="module")
