@@ -1,12 +1,10 @@
 """Shape loops ranked before any solve, by the displacement the local connection predicts.
 
 For a reduced model with a local connection (ξ = −A(r)ṙ + Γ(r)p, thesis step 5), a shape-loop
-candidate r(t) (:mod:`.waves`: sines around the ramps) moves the fibre, with the nonholonomic
-momentum held at zero, by integrating
-
-    ṡ = g(s)·(−A(q)ṙ),   s(0) the task's initial fibre values          (midpoint rule)
-
-(exact for a principally kinematic robot, the geometric part of a mixed one). The target
+candidate r(t) (:mod:`.waves`: sines around the ramps) moves the fibre by the reconstruction
+equation with its momentum equation, from the task's initial fibre values and p = 0
+(:func:`~nhgait.dynamics.geometry.prescribed.fibre_motion`: the exact fibre motion when the
+shape follows r(t), for principally kinematic and mixed robots alike). The target
 direction d is the change of the fibre coordinates the task fixes at both ends (the planar
 position alone when it changes, else every fixed fibre coordinate); a candidate's score is how
 much nearer the target it ends (Δs restricted to the components of d), per unit effort
@@ -95,21 +93,19 @@ def _path(problem, guess, coordinates):
     return t, q
 
 
-def _predicted(connection, t, q):
-    """(Δs, ‖ṙ‖, trusted) of the path q(t): ṡ = g(s)(−A ṙ) by the midpoint rule; ``trusted``
-    as in the module docstring."""
-    s = q[list(connection.fiber_index), 0].copy()
+def _predicted(problem, connection, t, q):
+    """(Δs, ‖ṙ‖, trusted) of the path q(t) (module docstring); ``trusted`` as there."""
+    from nhgait.dynamics.geometry.prescribed import fibre_motion
     r = q[list(connection.shape_index)]
-    start, sizes = s.copy(), []
-    for k in range(t.size - 1):
-        mid = 0.5 * (q[:, k] + q[:, k + 1])
-        mid[list(connection.fiber_index)] = s
-        A = connection.A(mid)
-        sizes.append(np.linalg.norm(A))
-        s = s + connection.frame(mid) @ (-A @ (r[:, k + 1] - r[:, k]))
+    sizes = [np.linalg.norm(connection.A(q[:, k])) for k in range(0, t.size, 4)]
     rate = np.diff(r, axis=1) / np.diff(t)
-    trusted = bool(np.all(np.isfinite(sizes)) and max(sizes) <= TRUSTED_PEAK * np.median(sizes))
-    return s - start, math.sqrt(float(np.sum(rate ** 2 * np.diff(t)))), trusted
+    effort = math.sqrt(float(np.sum(rate ** 2 * np.diff(t))))
+    trusted = bool(np.all(np.isfinite(sizes)) and max(sizes) <= TRUSTED_PEAK * max(np.median(sizes), 1e-12))
+    if not trusted:
+        return None, effort, False
+    base = getattr(problem.model, "base", problem.model)
+    s = fibre_motion(base, t, q, params=problem.model.numeric.params(problem.params)).fiber
+    return s[:, -1] - s[:, 0], effort, bool(np.all(np.isfinite(s)))
 
 
 def loop_scores(problem, guesses) -> list:
@@ -130,7 +126,7 @@ def loop_scores(problem, guesses) -> list:
             continue
         t, q = _path(problem, g, coordinates)
         with np.errstate(all="ignore"):
-            moved, effort, trusted = _predicted(connection, t, q)
+            moved, effort, trusted = _predicted(problem, connection, t, q)
         if not trusted:
             out.append(None)
             continue
@@ -152,7 +148,7 @@ def rank_loops(problem, guesses: list, progress=None) -> list:
     out = list(guesses)
     for slot, i in zip(slots, order, strict=True):
         out[slot] = guesses[i]
-    if progress is not None:
+    if progress is not None and order != slots:
         best = scores[order[0]]
         progress.note(f"  shape loops ranked by the connection's prediction: {best.label!r} first "
                       f"({best.progress:.3g} toward the target per {best.effort:.3g} of ‖ṙ‖)")

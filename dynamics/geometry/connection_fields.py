@@ -78,7 +78,7 @@ def structure_constants(g: sp.Matrix, s: list) -> np.ndarray:
     l = g.shape[0]
     c = np.zeros((l, l, l))
     ginv = g.inv() if g != sp.eye(l) else g
-    J = [g[:, i].jacobian(s) for i in range(l)]
+    J = [g[:, i].jacobian(s) for i in range(l)]      # a frame turning with the shape: constant in s
     for i in range(l):
         for j in range(i + 1, l):
             vec = sp.simplify(ginv * (J[j] * g[:, i] - J[i] * g[:, j]))
@@ -146,7 +146,7 @@ class NumericConnection:
         return -np.linalg.solve(self.frame(q), Xs)
 
     def frame(self, q) -> np.ndarray:
-        return np.asarray(self.g_function(*np.asarray(q, float)[list(self.fiber_index)]), float).reshape(
+        return np.asarray(self.g_function(*np.asarray(q, float), *self.params), float).reshape(
             len(self.fiber), len(self.fiber))
 
     def bracket(self, u, v) -> np.ndarray:
@@ -165,5 +165,6 @@ def numeric_connection(model, params=None) -> NumericConnection:
     return NumericConnection(fiber=tuple(layout.fiber), shape=shape,
                              fiber_index=tuple(layout.si), shape_index=tuple(layout.free),
                              structure=structure_constants(g, s), basis=model.numeric["basis"],
-                             g_function=sp.lambdify(s, g, "numpy"), params=values,
+                             g_function=sp.lambdify(list(layout.system.q) + list(layout.system.param_symbols), g,
+                                                    "numpy"), params=values,
                              n_momenta=nP - len(layout.free))
