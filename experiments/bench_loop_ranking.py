@@ -83,7 +83,8 @@ def main(argv=None) -> int:
         mine = [r for r in rows if r["arm"] == arm]
         summary[arm] = {"verified": sum(r["verified"] for r in mine), "of": len(mine),
                         "median_time_s": statistics.median(r["time_s"] for r in mine)}
-    summary["median_ratio_after_before"] = summary["after"]["median_time_s"] / summary["before"]["median_time_s"]
+    before, after = summary["before"]["median_time_s"], summary["after"]["median_time_s"]
+    summary["median_ratio_after_before"] = after / before
     ranked = {r["scene"] for r in rows if r["ranked"]}
     summary["scenes_reordered"] = len(ranked)
     changed = [r for r in rows if r["scene"] in ranked]

@@ -213,7 +213,7 @@ def plot_shape_loop(solution, ctx: FigureContext, ax=None):
         if draw_height_under_loop(ax, ctx.model or solution.problem.model, q[:, 0], q[:, -1], (u, v), (a, b),
                                   units=ctx.units, params=getattr(solution.problem, "params", None),
                                   draw_loop=False):
-            title = "shape loop over the height function of the direction it moves"
+            title = "shape loop over the height function"
     else:
         a = shape[0] if shape else solution.state_names[0]
         u = series(solution, a)

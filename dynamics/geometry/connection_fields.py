@@ -165,6 +165,6 @@ def numeric_connection(model, params=None) -> NumericConnection:
     return NumericConnection(fiber=tuple(layout.fiber), shape=shape,
                              fiber_index=tuple(layout.si), shape_index=tuple(layout.free),
                              structure=structure_constants(g, s), basis=model.numeric["basis"],
-                             g_function=sp.lambdify(list(layout.system.q) + list(layout.system.param_symbols), g,
+                             g_function=sp.lambdify([*layout.system.q, *layout.system.param_symbols], g,
                                                     "numpy"), params=values,
                              n_momenta=nP - len(layout.free))

@@ -80,7 +80,9 @@ class HeightFunctions:
 def _numeric(expr: sp.Matrix, system, at: dict, params, a, b):
     """``expr`` as a numpy function of (a, b) with every other coordinate at ``at`` and the
     parameters bound."""
-    sub = dict(zip(system.param_symbols, system.param_vector(params), strict=True))
+    vector = (system.param_vector(params) if params is None or isinstance(params, dict)
+              else np.asarray(params, float))
+    sub = dict(zip(system.param_symbols, vector, strict=True))
     sub.update({s: at.get(str(s), 0.0) for s in system.q if str(s) not in (a, b)})
     qa, qb = (next(s for s in system.q if str(s) == n) for n in (a, b))
     return sp.lambdify((qa, qb), expr.subs(sub), "numpy")
@@ -89,8 +91,9 @@ def _numeric(expr: sp.Matrix, system, at: dict, params, a, b):
 def evaluate_heights(connection: LocalConnection, a: str, b: str, *, bounds: dict, at=None, params=None,
                      points: int = 41, units=None) -> HeightFunctions:
     """H_ab and the fields of −A over the grid ``bounds[a] × bounds[b]`` (``points`` each way),
-    the other coordinates at ``at`` (default 0), the parameters ``params`` (default the
-    system's); ``units``: the scene's units (name → text) for the figures."""
+    the other coordinates at ``at`` (default 0), the parameters ``params`` (a mapping or a vector
+    in ``system.param_symbols`` order; default the system's); ``units``: the scene's units
+    (name → text) for the figures."""
     problems = [f"{n!r} is not a shape coordinate (shape: {', '.join(connection.shape)})"
                 for n in (a, b) if n not in connection.shape]
     problems += [f"the pair needs two different shape coordinates, got {a!r} twice"] if a == b else []

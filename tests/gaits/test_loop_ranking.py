@@ -50,14 +50,16 @@ def test_ranking_puts_the_loop_predicted_toward_the_target_first():
             return np.eye(3)
 
     class Problem:
-        horizon, initial, final, periodic, state_bounds, params = 1.0, {"x": 0.0}, {"x": 0.05}, (), {}, None
+        horizon, initial, final, periodic, state_bounds = 1.0, {"x": 0.0}, {"x": 0.05}, (), {}
+        params = None
 
         class model:
             class system:
                 coordinates, planar_frame = ("x", "y", "theta", "a", "b"), None
 
         def fixed_value(self, where, name):
-            return where.get(name, 0.0 if name in ("y", "theta", "a", "b") and where is self.initial else None)
+            start = name in ("y", "theta", "a", "b") and where is self.initial
+            return where.get(name, 0.0 if start else None)
 
     ccw = ShapeGuess("ccw", (("a", 0.1, 1, np.pi / 2), ("b", 0.1, 1, 0.0)))       # a = cos, b = sin
     cw = ShapeGuess("cw", (("a", 0.1, 1, np.pi / 2), ("b", -0.1, 1, 0.0)))
