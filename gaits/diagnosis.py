@@ -26,6 +26,8 @@ from __future__ import annotations
 import math
 from collections import Counter
 
+from .loop_reach import reach_lines
+
 __all__ = ["diagnose", "SATURATED"]
 
 #: inputs at a bound on more than this fraction of the intervals count as saturated
@@ -244,4 +246,4 @@ def diagnose(result) -> tuple:
     s = result.solution
     if s is not None and s.verification is not None and s.status == "Verification_Failed":
         return tuple(_not_verified(result))
-    return tuple(_not_converged(result) + _singular(result))
+    return tuple(_not_converged(result) + _singular(result) + reach_lines(result))

@@ -29,7 +29,7 @@ import numpy as np
 
 from .waves import ends
 
-__all__ = ["LoopScore", "loop_scores", "rank_loops"]
+__all__ = ["LoopScore", "loop_scores", "rank_loops", "model_motion", "numeric_connection_of", "target_of"]
 
 #: samples per horizon of a predicted loop (midpoint rule)
 SAMPLES = 240
@@ -49,7 +49,7 @@ class LoopScore:
     score: float
 
 
-def _connection(problem):
+def numeric_connection_of(problem):
     """The :class:`~nhgait.dynamics.geometry.connection_fields.NumericConnection` of the problem's
     model, or None when it has none (no reduced model, no shape, a fibre that is no group)."""
     from nhgait.dynamics.errors import ModelError
@@ -63,7 +63,7 @@ def _connection(problem):
         return None
 
 
-def _target(problem, fiber: tuple):
+def target_of(problem, fiber: tuple):
     """(d, mask) in fibre order: the planar position's change when the task fixes both ends of
     it and it changes (mask: x, y), else the change of every fibre coordinate fixed at both ends
     (mask: those); None when d = 0."""
@@ -93,9 +93,17 @@ def _path(problem, guess, coordinates):
     return t, q
 
 
-def _predicted(problem, connection, t, q):
-    """(Δs, ‖ṙ‖, trusted) of the path q(t) (module docstring); ``trusted`` as there."""
+def model_motion(problem):
+    """The fibre path (l×K) along configurations q (n×K) at times t, by the problem's model
+    (:func:`~nhgait.dynamics.geometry.prescribed.fibre_motion`, from rest)."""
     from nhgait.dynamics.geometry.prescribed import fibre_motion
+    base = getattr(problem.model, "base", problem.model)
+    params = problem.model.numeric.params(problem.params)
+    return lambda t, q: fibre_motion(base, t, q, params=params).fiber
+
+
+def _predicted(motion, connection, t, q):
+    """(Δs, ‖ṙ‖, trusted) of the path q(t) (module docstring); ``trusted`` as there."""
     r = q[list(connection.shape_index)]
     sizes = [np.linalg.norm(connection.A(q[:, k])) for k in range(0, t.size, 4)]
     rate = np.diff(r, axis=1) / np.diff(t)
@@ -103,22 +111,23 @@ def _predicted(problem, connection, t, q):
     trusted = bool(np.all(np.isfinite(sizes)) and max(sizes) <= TRUSTED_PEAK * max(np.median(sizes), 1e-12))
     if not trusted:
         return None, effort, False
-    base = getattr(problem.model, "base", problem.model)
-    s = fibre_motion(base, t, q, params=problem.model.numeric.params(problem.params)).fiber
+    s = motion(t, q)
     return s[:, -1] - s[:, 0], effort, bool(np.all(np.isfinite(s)))
 
 
-def loop_scores(problem, guesses) -> list:
+def loop_scores(problem, guesses, motion=None) -> list:
     """:class:`LoopScore` of every two-variable loop in ``guesses`` (others: None); [] when the
-    model has no connection or the task no target direction."""
-    connection = _connection(problem)
+    model has no connection or the task no target direction. ``motion(t, q)`` → the fibre path
+    (default :func:`model_motion`)."""
+    connection = numeric_connection_of(problem)
     if connection is None:
         return []
-    target = _target(problem, connection.fiber)
+    target = target_of(problem, connection.fiber)
     if target is None:
         return []
     d, mask = target
     coordinates = tuple(problem.model.system.coordinates)
+    motion = motion or model_motion(problem)
     out = []
     for g in guesses:
         if len(g.waves) != 2 or g.rates or any(w[0] not in connection.shape for w in g.waves):
@@ -126,7 +135,7 @@ def loop_scores(problem, guesses) -> list:
             continue
         t, q = _path(problem, g, coordinates)
         with np.errstate(all="ignore"):
-            moved, effort, trusted = _predicted(problem, connection, t, q)
+            moved, effort, trusted = _predicted(motion, connection, t, q)
         if not trusted:
             out.append(None)
             continue
@@ -137,10 +146,10 @@ def loop_scores(problem, guesses) -> list:
     return out
 
 
-def rank_loops(problem, guesses: list, progress=None) -> list:
+def rank_loops(problem, guesses: list, progress=None, motion=None) -> list:
     """``guesses`` with the two-variable loops reordered by decreasing score (module
     docstring), in the slots the loops held; ``progress`` hears the best prediction."""
-    scores = loop_scores(problem, guesses)
+    scores = loop_scores(problem, guesses, motion)
     slots = [i for i, s in enumerate(scores) if s is not None]
     if not slots:
         return list(guesses)

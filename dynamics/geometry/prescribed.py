@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import casadi as ca
 import numpy as np
 
 __all__ = ["FibreMotion", "fibre_motion"]
@@ -31,40 +32,44 @@ class FibreMotion:
     momentum: np.ndarray
 
 
-def fibre_motion(model, t, q_path, *, params=None, p0=None) -> FibreMotion:
-    """Integrate the fibre and momentum of ``model`` (a ReducedODE) along the configurations
-    ``q_path`` (n×K at times ``t``; the fibre rows give only the start values) from ``p0``."""
-    layout = model.layout
-    numeric = model.numeric
-    values = np.asarray(numeric.params(params), float)
+def _step(model, values):
+    """The midpoint step (s, p) → (s, p) over [t, t + h] with the shape from q_a to q_b, as a
+    CasADi Function of ((s, p), (q_a, q_b, t, h)) (one graph: the integration is one
+    ``mapaccum`` call)."""
+    layout, numeric = model.layout, model.numeric
     si, ri, d = list(layout.si), list(layout.free), layout.d
-    n = len(model.system.coordinates)
+    n, l, nP = len(model.system.coordinates), len(si), len(model.momenta)
     basis, state, rhs = numeric["basis"], numeric["state"], numeric["rhs"]
-    u0 = np.zeros(len(model.system.inputs))
-    nP = len(model.momenta)
-    t = np.asarray(t, float)
-    q_path = np.asarray(q_path, float)
+    u0 = ca.DM.zeros(len(model.system.inputs))
+    x, w = ca.MX.sym("x", l + d), ca.MX.sym("w", 2 * n + 2)
+    qa, qb, t, h = w[:n], w[n:2 * n], w[2 * n], w[2 * n + 1]
+    r_dot = (qb[ri] - qa[ri]) / h
 
-    def derivative(tk, q, r_dot, p):
-        X = np.asarray(basis(np.concatenate([q, np.zeros(nP)]), values))
-        P_r = np.asarray(state(q, X[:, d:] @ r_dot, values)).ravel()[n + d:]
-        z = np.concatenate([q, p, P_r])
-        zdot = np.asarray(rhs(tk, z, u0, values)).ravel()
+    def derivative(tk, q_shape, s, p):
+        q = ca.vertcat(*[s[si.index(i)] if i in si else q_shape[i] for i in range(n)])
+        X = basis(ca.vertcat(q, ca.DM.zeros(nP)), values)
+        P_r = state(q, ca.mtimes(X[:, d:], r_dot), values)[n + d:]
+        zdot = rhs(tk, ca.vertcat(q, p, P_r), u0, values)
         return zdot[si], zdot[n:n + d]
 
-    s = q_path[si, 0].copy()
+    s, p = x[:l], x[l:]
+    ds, dp = derivative(t, qa, s, p)
+    ds, dp = derivative(t + h / 2, (qa + qb) / 2, s + h / 2 * ds, p + h / 2 * dp)
+    return ca.Function("midpoint_step", [x, w], [ca.vertcat(s + h * ds, p + h * dp)])
+
+
+def fibre_motion(model, t, q_path, *, params=None, p0=None) -> FibreMotion:
+    """Integrate the fibre and momentum of ``model`` (a ReducedODE) along the configurations
+    ``q_path`` (n×K at times ``t``; the fibre rows give only the start values) from ``p0``
+    (default 0), by the explicit midpoint rule on the intervals of ``t``."""
+    layout = model.layout
+    values = ca.DM(np.asarray(model.numeric.params(params), float))
+    si, d = list(layout.si), layout.d
+    t = np.asarray(t, float)
+    q_path = np.asarray(q_path, float)
     p = np.zeros(d) if p0 is None else np.asarray(p0, float)
-    S, Pm = [s.copy()], [p.copy()]
-    for k in range(t.size - 1):
-        h = t[k + 1] - t[k]
-        r_dot = (q_path[ri, k + 1] - q_path[ri, k]) / h
-        q = q_path[:, k].copy()
-        q[si] = s
-        ds, dp = derivative(t[k], q, r_dot, p)
-        qm = 0.5 * (q_path[:, k] + q_path[:, k + 1])
-        qm[si] = s + 0.5 * h * ds
-        ds, dp = derivative(t[k] + 0.5 * h, qm, r_dot, p + 0.5 * h * dp)
-        s, p = s + h * ds, p + h * dp
-        S.append(s.copy())
-        Pm.append(p.copy())
-    return FibreMotion(t, np.array(S).T, np.array(Pm).T)
+    x0 = np.concatenate([q_path[si, 0], p])
+    w = np.vstack([q_path[:, :-1], q_path[:, 1:], t[:-1], np.diff(t)])
+    X = np.asarray(_step(model, values).mapaccum(t.size - 1)(x0, w))
+    X = np.hstack([x0[:, None], X])
+    return FibreMotion(t, X[:len(si)], X[len(si):])

@@ -63,13 +63,19 @@ def test_ranking_puts_the_loop_predicted_toward_the_target_first():
 
     ccw = ShapeGuess("ccw", (("a", 0.1, 1, np.pi / 2), ("b", 0.1, 1, 0.0)))       # a = cos, b = sin
     cw = ShapeGuess("cw", (("a", 0.1, 1, np.pi / 2), ("b", -0.1, 1, 0.0)))
-    original = loop_ranking._connection
-    loop_ranking._connection = lambda problem: Connection()
+    def motion(t, q):                     # ṡ = −A ṙ, trapezoidal (s does not enter A)
+        rdot = np.diff(q[3:], axis=1)
+        A = [Connection().A(0.5 * (q[:, k] + q[:, k + 1])) for k in range(t.size - 1)]
+        steps = np.array([-a @ dr for a, dr in zip(A, rdot.T, strict=True)]).T
+        return np.hstack([np.zeros((3, 1)), np.cumsum(steps, axis=1)])
+
+    original = loop_ranking.numeric_connection_of
+    loop_ranking.numeric_connection_of = lambda problem: Connection()
     try:
-        scores = loop_ranking.loop_scores(Problem(), [cw, ccw])
-        ranked = loop_ranking.rank_loops(Problem(), [cw, ccw])
+        scores = loop_ranking.loop_scores(Problem(), [cw, ccw], motion)
+        ranked = loop_ranking.rank_loops(Problem(), [cw, ccw], motion=motion)
     finally:
-        loop_ranking._connection = original
+        loop_ranking.numeric_connection_of = original
     assert scores[1].moved[0] == pytest.approx(np.pi * 0.01, rel=1e-3)       # H·area = π ε²
     assert scores[0].moved[0] == pytest.approx(-np.pi * 0.01, rel=1e-3)
     assert [g.label for g in ranked] == ["ccw", "cw"]
