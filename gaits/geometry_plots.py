@@ -20,6 +20,19 @@ import numpy as np
 
 __all__ = ["plot_height_function", "heights_figure", "draw_height_under_loop", "moved_component"]
 
+#: colours saturate at this percentile of |H| (near the singular set of A, H is unbounded)
+CLIP_PERCENTILE = 95.0
+
+
+def _capped(U, V):
+    """Arrows no longer than the 90th percentile of their lengths (directions kept; non-finite
+    arrows dropped), so the singular set does not shrink every other arrow to a dot."""
+    length = np.hypot(U, V)
+    finite = np.isfinite(length)
+    cap = float(np.percentile(length[finite], 90)) if finite.any() else 1.0
+    scale = np.where(finite & (length > cap), cap / np.where(length > 0, length, 1.0), 1.0)
+    return np.where(finite, U * scale, np.nan), np.where(finite, V * scale, np.nan)
+
 
 def _label(heights, name: str) -> str:
     unit = heights.units.get(name, "")
@@ -29,8 +42,9 @@ def _label(heights, name: str) -> str:
 def _height_unit(heights, k: int) -> str:
     a, b = heights.pair
     top = heights.units.get(heights.fiber[k], "")
-    bottom = "·".join(u for u in (heights.units.get(a, ""), heights.units.get(b, "")) if u)
-    return f"{top or '1'}/({bottom})" if bottom else top
+    units = [u for u in (heights.units.get(a, ""), heights.units.get(b, "")) if u]
+    bottom = f"{units[0]}²" if len(units) == 2 and units[0] == units[1] else "·".join(units)
+    return f"{top or '1'}/{bottom}" if bottom else top
 
 
 def plot_height_function(heights, component: str, ax=None, *, loop=None, arrows: bool = True, colorbar=True):
@@ -42,20 +56,24 @@ def plot_height_function(heights, component: str, ax=None, *, loop=None, arrows:
         ax = Figure(figsize=(5.6, 4.8), layout="constrained").subplots()
     k = heights.component(component)
     H = heights.heights[k]
-    finite = H[np.isfinite(H)]
-    top = float(np.max(np.abs(finite))) if finite.size else 1.0
-    top = top if top > 0 else 1.0
+    finite = np.abs(H[np.isfinite(H)])
+    peak = float(np.max(finite)) if finite.size else 0.0
+    top = float(np.percentile(finite, CLIP_PERCENTILE)) if finite.size else 1.0
+    top = top if top > 0 else (peak if peak > 0 else 1.0)
+    clipped = peak > 1.5 * top
     A, B = np.meshgrid(heights.a_values, heights.b_values)
     filled = ax.contourf(A, B, np.clip(H, -top, top), levels=21, cmap="RdBu_r",
                          norm=TwoSlopeNorm(0.0, -top, top))
     ax.contour(A, B, H, levels=[0.0], colors="k", linewidths=1.0)
     if colorbar:
         unit = _height_unit(heights, k)
-        ax.figure.colorbar(filled, ax=ax, label=f"height of {component}" + (f" [{unit}]" if unit else "")
-                           + "\n(per unit area, counter-clockwise loop)")
+        text = (f"height of {component}" + (f" [{unit}]" if unit else "")
+                + "\nper unit area of a counter-clockwise loop"
+                + (f"\n(colours clipped at the {CLIP_PERCENTILE:g}th percentile)" if clipped else ""))
+        ax.figure.colorbar(filled, ax=ax, label=text)
     if arrows:
         step = max(1, len(heights.a_values) // 12)
-        U, V = heights.fields[k, 0], heights.fields[k, 1]
+        U, V = _capped(heights.fields[k, 0], heights.fields[k, 1])
         ax.quiver(A[::step, ::step], B[::step, ::step], U[::step, ::step], V[::step, ::step],
                   color="0.25", alpha=0.8, angles="xy")
     if loop is not None:
@@ -69,8 +87,7 @@ def plot_height_function(heights, component: str, ax=None, *, loop=None, arrows:
         ax.legend(fontsize="small", loc="upper right")
     ax.set_xlabel(_label(heights, heights.pair[0]))
     ax.set_ylabel(_label(heights, heights.pair[1]))
-    ax.set_title(f"height function of {component} over ({heights.pair[0]}, {heights.pair[1]}); "
-                 f"arrows: −A row of {component}", fontsize="small")
+    ax.set_title(f"height of {component}; arrows: −A row of {component}", fontsize="medium")
     return ax
 
 

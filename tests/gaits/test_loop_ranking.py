@@ -24,7 +24,7 @@ def test_height_figure_has_names_units_colour_bar_and_arrows(board_heights, tmp_
                                               0.5 * np.sin(np.linspace(0, 6.3, 50))))
     ax = fig.axes[0]
     assert ax.get_xlabel() == "psi [rad]" and ax.get_ylabel() == "phi [rad]"
-    assert any("height of x [m/(rad·rad)]" in a.get_ylabel() for a in fig.axes)   # the colour bars
+    assert any("height of x [m/rad²]" in a.get_ylabel() for a in fig.axes)   # the colour bars
     assert any(type(c).__name__ == "Quiver" for c in ax.collections)
     fig.savefig(tmp_path / "h.png")
     assert (tmp_path / "h.png").stat().st_size > 10_000
