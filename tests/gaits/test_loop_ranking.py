@@ -79,3 +79,29 @@ def test_ranking_puts_the_loop_predicted_toward_the_target_first():
     assert scores[1].moved[0] == pytest.approx(np.pi * 0.01, rel=1e-3)       # H·area = π ε²
     assert scores[0].moved[0] == pytest.approx(-np.pi * 0.01, rel=1e-3)
     assert [g.label for g in ranked] == ["ccw", "cw"]
+
+
+def _problem(text):
+    from nhgait.gaits.planner import prepare
+    from nhgait.gaits.task_library import resolve
+    return prepare(resolve(text)).problem
+
+
+def test_reach_says_a_sideways_target_is_not_reachable_by_the_snakeboards_loops(tmp_path):
+    """The snakeboard's connection has no y row and [A_ψ, A_φ] = 0 (A_φ = 0): H_y ≡ 0, so no
+    loop in the bounded (ψ, φ) box moves it sideways — and the sentence says so and what to do."""
+    from pathlib import Path
+
+    from nhgait.gaits.loop_reach import reach_sentence
+    root = Path(__file__).resolve().parents[2]
+    text = (root / "experiments" / "user_robots" / "snakeboard_fwd.toml").read_text()
+    text = text.replace("final = {x = 0.6, y = 0.0,", "final = {x = 0.0, y = 0.3,")
+    text = text.replace("bounds = {phi = [-0.8, 0.8]}", "bounds = {phi = [-0.8, 0.8], psi = [-1.5, 1.5]}")
+    scene = tmp_path / "sideways.toml"
+    scene.write_text(text)
+    sentence = reach_sentence(_problem(str(scene)))
+    assert sentence.startswith("not reachable by shape loops within the bounds")
+    assert "y by +0.3" in sentence and "widen the shape bounds" in sentence
+    forward = scene.with_name("forward.toml")
+    forward.write_text(text.replace("final = {x = 0.0, y = 0.3,", "final = {x = 0.6, y = 0.0,"))
+    assert reach_sentence(_problem(str(forward))).startswith("reachable within the bounds")
