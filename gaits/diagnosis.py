@@ -242,7 +242,7 @@ def diagnose(result) -> tuple:
     if result.success:
         return ()
     if getattr(result, "overrun", None) is not None:
-        return tuple(_out_of_time(result))
+        return tuple(_out_of_time(result) + reach_lines(result))
     s = result.solution
     if s is not None and s.verification is not None and s.status == "Verification_Failed":
         return tuple(_not_verified(result))

@@ -71,7 +71,7 @@ def plot_height_function(heights, component: str, ax=None, *, loop=None, arrows:
                 + "\nper unit area of a counter-clockwise loop"
                 + (f"\n(colours clipped at the {CLIP_PERCENTILE:g}th percentile)" if clipped else ""))
         ax.figure.colorbar(filled, ax=ax, label=text)
-    if arrows:
+    if arrows and np.any(np.hypot(*heights.fields[k]) > 0):
         step = max(1, len(heights.a_values) // 12)
         U, V = _capped(heights.fields[k, 0], heights.fields[k, 1])
         ax.quiver(A[::step, ::step], B[::step, ::step], U[::step, ::step], V[::step, ::step],
