@@ -35,6 +35,9 @@ __all__ = ["LoopScore", "loop_scores", "rank_loops", "model_motion", "numeric_co
 SAMPLES = 240
 #: a prediction is trusted when max ‖A‖ along the loop ≤ this times its median
 TRUSTED_PEAK = 10.0
+#: at most this many loops are scored (in their generated order; the rest keep their places),
+#: so a robot with many shape pairs does not spend seconds before its first solve
+MAX_SCORED = 80
 
 
 @dataclass(frozen=True)
@@ -96,16 +99,16 @@ def _path(problem, guess, coordinates):
 def model_motion(problem):
     """The fibre path (l×K) along configurations q (n×K) at times t, by the problem's model
     (:func:`~nhgait.dynamics.geometry.prescribed.fibre_motion`, from rest)."""
-    from nhgait.dynamics.geometry.prescribed import fibre_motion
-    base = getattr(problem.model, "base", problem.model)
-    params = problem.model.numeric.params(problem.params)
-    return lambda t, q: fibre_motion(base, t, q, params=params).fiber
+    from nhgait.dynamics.geometry.prescribed import FibreIntegrator
+    integrate = FibreIntegrator(getattr(problem.model, "base", problem.model),
+                                problem.model.numeric.params(problem.params))
+    return lambda t, q: integrate(t, q).fiber
 
 
 def _predicted(motion, connection, t, q):
     """(Δs, ‖ṙ‖, trusted) of the path q(t) (module docstring); ``trusted`` as there."""
     r = q[list(connection.shape_index)]
-    sizes = [np.linalg.norm(connection.A(q[:, k])) for k in range(0, t.size, 4)]
+    sizes = connection.lift_sizes(q)
     rate = np.diff(r, axis=1) / np.diff(t)
     effort = math.sqrt(float(np.sum(rate ** 2 * np.diff(t))))
     trusted = bool(np.all(np.isfinite(sizes)) and max(sizes) <= TRUSTED_PEAK * max(np.median(sizes), 1e-12))
@@ -129,10 +132,13 @@ def loop_scores(problem, guesses, motion=None) -> list:
     coordinates = tuple(problem.model.system.coordinates)
     motion = motion or model_motion(problem)
     out = []
+    scored = 0
     for g in guesses:
-        if len(g.waves) != 2 or g.rates or any(w[0] not in connection.shape for w in g.waves):
+        if (len(g.waves) != 2 or g.rates or any(w[0] not in connection.shape for w in g.waves)
+                or scored >= MAX_SCORED):
             out.append(None)
             continue
+        scored += 1
         t, q = _path(problem, g, coordinates)
         with np.errstate(all="ignore"):
             moved, effort, trusted = _predicted(motion, connection, t, q)

@@ -145,6 +145,17 @@ class NumericConnection:
         Xs = X[np.ix_(self.fiber_index, range(X.shape[1] - len(self.shape), X.shape[1]))]
         return -np.linalg.solve(self.frame(q), Xs)
 
+    def lift_sizes(self, q_samples) -> np.ndarray:
+        """‖gA‖ (Frobenius) at each column of ``q_samples`` (n×K), in one mapped call of the
+        basis: the size of the fibre velocity per unit shape velocity (= ‖A‖ when g is a rotation)."""
+        q = np.asarray(q_samples, float)
+        K, m = q.shape[1], len(self.shape)
+        Z = np.vstack([q, np.zeros((self.n_momenta + m, K))])
+        X = np.asarray(self.basis.map(K)(Z, self.params))          # n × (K·columns), sample by sample
+        cols = X.shape[1] // K
+        blocks = X[list(self.fiber_index)].reshape(len(self.fiber_index), K, cols)[:, :, cols - m:]
+        return np.sqrt(np.sum(blocks ** 2, axis=(0, 2)))
+
     def frame(self, q) -> np.ndarray:
         return np.asarray(self.g_function(*np.asarray(q, float), *self.params), float).reshape(
             len(self.fiber), len(self.fiber))

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-__all__ = ["FibreMotion", "fibre_motion"]
+__all__ = ["FibreMotion", "FibreIntegrator", "fibre_motion"]
 
 
 @dataclass(frozen=True)
@@ -58,18 +58,30 @@ def _step(model, values):
     return ca.Function("midpoint_step", [x, w], [ca.vertcat(s + h * ds, p + h * dp)])
 
 
+class FibreIntegrator:
+    """:func:`fibre_motion` for one model and parameter values, its CasADi step built once
+    (and its ``mapaccum`` once per number of intervals): call it with (t, q_path[, p0])."""
+
+    def __init__(self, model, params=None):
+        self._l, self._d, self._si = len(model.layout.si), model.layout.d, list(model.layout.si)
+        self._step = _step(model, ca.DM(np.asarray(model.numeric.params(params), float)))
+        self._accumulated: dict = {}
+
+    def __call__(self, t, q_path, p0=None) -> FibreMotion:
+        t = np.asarray(t, float)
+        q_path = np.asarray(q_path, float)
+        p = np.zeros(self._d) if p0 is None else np.asarray(p0, float)
+        x0 = np.concatenate([q_path[self._si, 0], p])
+        w = np.vstack([q_path[:, :-1], q_path[:, 1:], t[:-1], np.diff(t)])
+        K = t.size - 1
+        if K not in self._accumulated:
+            self._accumulated[K] = self._step.mapaccum(K)
+        X = np.hstack([x0[:, None], np.asarray(self._accumulated[K](x0, w))])
+        return FibreMotion(t, X[:self._l], X[self._l:])
+
+
 def fibre_motion(model, t, q_path, *, params=None, p0=None) -> FibreMotion:
     """Integrate the fibre and momentum of ``model`` (a ReducedODE) along the configurations
     ``q_path`` (n×K at times ``t``; the fibre rows give only the start values) from ``p0``
     (default 0), by the explicit midpoint rule on the intervals of ``t``."""
-    layout = model.layout
-    values = ca.DM(np.asarray(model.numeric.params(params), float))
-    si, d = list(layout.si), layout.d
-    t = np.asarray(t, float)
-    q_path = np.asarray(q_path, float)
-    p = np.zeros(d) if p0 is None else np.asarray(p0, float)
-    x0 = np.concatenate([q_path[si, 0], p])
-    w = np.vstack([q_path[:, :-1], q_path[:, 1:], t[:-1], np.diff(t)])
-    X = np.asarray(_step(model, values).mapaccum(t.size - 1)(x0, w))
-    X = np.hstack([x0[:, None], X])
-    return FibreMotion(t, X[:len(si)], X[len(si):])
+    return FibreIntegrator(model, params)(t, q_path, p0)
