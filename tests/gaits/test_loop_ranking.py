@@ -49,6 +49,9 @@ def test_ranking_puts_the_loop_predicted_toward_the_target_first():
         def frame(self, q):
             return np.eye(3)
 
+        def lift_sizes(self, q):
+            return np.array([np.linalg.norm(self.A(q[:, k])) for k in range(q.shape[1])])
+
     class Problem:
         horizon, initial, final, periodic, state_bounds = 1.0, {"x": 0.0}, {"x": 0.05}, (), {}
         params = None
