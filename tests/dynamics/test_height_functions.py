@@ -83,8 +83,12 @@ def test_numeric_connection_equals_step5(snake3):
     system = snake3.system
     f = sp.lambdify(list(system.q) + list(system.param_symbols), local_connection(snake3).A, "numpy")
     nc = numeric_connection(snake3)
-    for q in np.random.default_rng(1).uniform(-0.9, 0.9, size=(4, system.n)):
+    qs = np.random.default_rng(1).uniform(-0.9, 0.9, size=(4, system.n))
+    for q in qs:
         assert np.allclose(nc.A(q), np.array(f(*q, *system.param_vector()), float), atol=1e-12)
+    # ‖gA‖ in one mapped call = ‖A‖ (g a rotation)
+    sizes = [np.linalg.norm(np.array(f(*q, *system.param_vector()), float)) for q in qs]
+    assert np.allclose(nc.lift_sizes(qs.T), sizes, rtol=1e-12)
 
 
 def _log_se2(x, y, th):
