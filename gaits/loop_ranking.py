@@ -12,7 +12,8 @@ much nearer the target it ends (Δs restricted to the components of d), per unit
 
     score = (|d| − |d − Δs|) / ‖ṙ‖
 
-(a loop that overshoots or moves sideways scores low). A loop along which ‖A‖ peaks above
+(a loop that overshoots or moves sideways scores low; one whose progress is below
+:data:`SIGNIFICANT` |d| keeps its place). A loop along which ‖A‖ peaks above
 :data:`TRUSTED_PEAK` times its median (it passes near the singular set of A, where the
 prediction means nothing: the 3-link snake's α₁ = α₂) gets no score and keeps its place.
 
@@ -38,6 +39,9 @@ TRUSTED_PEAK = 10.0
 #: at most this many loops are scored (in their generated order; the rest keep their places),
 #: so a robot with many shape pairs does not spend seconds before its first solve
 MAX_SCORED = 80
+#: a loop counts as moving toward the target when its progress exceeds this fraction of |d|
+#: (below it the prediction is rounding: a 4-link chain's loops of 1e-12 m)
+SIGNIFICANT = 1e-3
 
 
 @dataclass(frozen=True)
@@ -147,7 +151,8 @@ def loop_scores(problem, guesses, motion=None) -> list:
             continue
         progress = float(np.linalg.norm(d) - np.linalg.norm(d - np.where(mask, moved, 0.0)))
         ok = math.isfinite(progress) and effort > 0
-        score = progress / effort if ok else -math.inf
+        significant = abs(progress) > SIGNIFICANT * np.linalg.norm(d)
+        score = (progress if significant else 0.0) / effort if ok else -math.inf
         out.append(LoopScore(g.label, tuple(moved), progress, effort, score))
     return out
 
