@@ -64,7 +64,11 @@ def plot_height_function(heights, component: str, ax=None, *, loop=None, arrows:
     A, B = np.meshgrid(heights.a_values, heights.b_values)
     filled = ax.contourf(A, B, np.clip(H, -top, top), levels=21, cmap="RdBu_r",
                          norm=TwoSlopeNorm(0.0, -top, top))
-    ax.contour(A, B, H, levels=[0.0], colors="k", linewidths=1.0)
+    if peak > 0:
+        ax.contour(A, B, H, levels=[0.0], colors="k", linewidths=1.0)
+    else:
+        ax.text(0.5, 0.5, f"H = 0 over this plane:\nno loop here moves {component}", transform=ax.transAxes,
+                ha="center", va="center")
     if colorbar:
         unit = _height_unit(heights, k)
         text = (f"height of {component}" + (f" [{unit}]" if unit else "")
