@@ -12,13 +12,14 @@ Prints the verified counts and the median times to answer of both arms and their
 writes ``results.json`` into ``--out``. Progress on stderr (``--quiet``: none).
 
 Usage: python experiments/bench_loop_ranking.py [--seed 24] [--pairs 6] [--scene FILE ...]
-       [--budget 90] [--out out/loop_ranking] [--quiet]
+       [--budget 90] [--repeat 1] [--out out/loop_ranking] [--quiet]
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import signal
 import statistics
 import subprocess
 import sys
@@ -42,10 +43,16 @@ def run(scene: Path, out: Path, arm: str, budget: float) -> dict:
         cmd = [sys.executable, "-c", BEFORE if arm == "before" else AFTER, "plan", str(scene), "--no-gif",
                "--out", str(out), "--time-limit", f"{budget:g}"]
         t0 = time.monotonic()
-        proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=budget + 120)
+        with open(out / "plan.log", "w") as log_file:
+            proc = subprocess.Popen(cmd, env=env, stdout=log_file, stderr=subprocess.STDOUT,
+                                    start_new_session=True)
+            try:
+                proc.wait(timeout=budget + 120)
+            except subprocess.TimeoutExpired:          # the plan's whole process group
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
         wall = time.monotonic() - t0
-    log = proc.stdout + proc.stderr
-    (out / "plan.log").write_text(log)
+    log = (out / "plan.log").read_text(errors="replace")
     solution = out / "solution.json"
     won = json.loads(solution.read_text()).get("guess", {}).get("won") if solution.exists() else None
     return {"scene": str(scene), "arm": arm, "exit": proc.returncode, "verified": proc.returncode == 0,
@@ -59,6 +66,7 @@ def main(argv=None) -> int:
     ap.add_argument("--scene", nargs="*", default=[])
     ap.add_argument("--budget", type=float, default=90.0)
     ap.add_argument("--out", default="out/loop_ranking")
+    ap.add_argument("--repeat", type=int, default=1, help="runs of each arm per scene")
     ap.add_argument("--quiet", action="store_true")
     args = ap.parse_args(argv)
     out = Path(args.out)
@@ -71,9 +79,10 @@ def main(argv=None) -> int:
         path.write_text(p.scene)
         scenes.append(path)
     rows = []
-    for i, scene in enumerate(scenes):
+    runs = [(scene, k) for scene in scenes for k in range(args.repeat)]
+    for i, (scene, k) in enumerate(runs):
         for arm in (("before", "after") if i % 2 == 0 else ("after", "before")):
-            row = run(scene, out / "runs" / scene.stem / arm, arm, args.budget)
+            row = run(scene, out / "runs" / scene.stem / f"{arm}{k}", arm, args.budget)
             rows.append(row)
             if not args.quiet:
                 print(f"{scene.stem:32s} {arm:6s} exit {row['exit']} {row['time_s']:7.1f} s "
