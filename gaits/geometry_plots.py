@@ -120,13 +120,13 @@ def draw_height_under_loop(ax, model, q_start, q_end, loop, pair, *, units=None,
     the connection's arrows (and the loop, with ``draw_loop``). False (nothing drawn) when
     ``model`` has no local connection."""
     from nhgait.dynamics.errors import ModelError
-    from nhgait.dynamics.geometry.connection_fields import local_connection
-    from nhgait.dynamics.geometry.heights import evaluate_heights
+    from nhgait.dynamics.geometry.connection_fields import numeric_connection
+    from nhgait.dynamics.geometry.heights import evaluate_heights_numeric
     base = getattr(model, "base", model)
     if getattr(base, "layout", None) is None:
         return False
     try:
-        connection = local_connection(base)
+        connection = numeric_connection(base, params)
     except ModelError:
         return False
     names = tuple(base.system.coordinates)
@@ -134,14 +134,13 @@ def draw_height_under_loop(ax, model, q_start, q_end, loop, pair, *, units=None,
         return False
     idx = [names.index(c) for c in connection.fiber]
     q0, q1 = np.asarray(q_start, float), np.asarray(q_end, float)
-    from nhgait.dynamics.geometry.connection_fields import numeric_connection
-    g0 = numeric_connection(base, params).frame(q0)
+    g0 = connection.frame(q0)
     moved = np.linalg.solve(g0, q1[idx] - q0[idx])
     u, v = (np.asarray(x, float) for x in loop)
     pad_u, pad_v = 0.25 * max(np.ptp(u), 1e-3), 0.25 * max(np.ptp(v), 1e-3)
     bounds = {pair[0]: (u.min() - pad_u, u.max() + pad_u), pair[1]: (v.min() - pad_v, v.max() + pad_v)}
-    heights = evaluate_heights(connection, *pair, bounds=bounds, at=dict(zip(names, q0, strict=True)),
-                               params=params, points=31, units=units)
+    heights = evaluate_heights_numeric(connection, *pair, bounds=bounds, at=dict(zip(names, q0, strict=True)),
+                                       points=31, units=units)
     plot_height_function(heights, moved_component(connection.fiber, moved), ax,
                          loop=(u, v) if draw_loop else None)
     return True

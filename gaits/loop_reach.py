@@ -28,10 +28,10 @@ POINTS = 25
 SINGULAR_RATIO = 50.0
 
 
-def _plane_reach(connection, pair, bounds, at, params, direction) -> tuple:
+def _plane_reach(connection, pair, bounds, at, direction) -> tuple:
     """(P+, P−, cells left out) of one bounded plane (module docstring, :data:`SINGULAR_RATIO`)."""
-    from nhgait.dynamics.geometry.heights import evaluate_heights
-    grid = evaluate_heights(connection, *pair, bounds=bounds, at=at, params=params, points=POINTS)
+    from nhgait.dynamics.geometry.heights import evaluate_heights_numeric
+    grid = evaluate_heights_numeric(connection, *pair, bounds=bounds, at=at, points=POINTS)
     with np.errstate(all="ignore"):
         h = np.tensordot(direction, grid.heights, axes=1)
         size = np.abs(h[np.isfinite(h)])
@@ -46,9 +46,6 @@ def _plane_reach(connection, pair, bounds, at, params, direction) -> tuple:
 def reach_sentence(problem) -> str:
     """The sentence of the module docstring for ``problem`` ('' when it does not apply: no local
     connection, no target direction, fewer than two bounded shape coordinates)."""
-    from nhgait.dynamics.errors import ModelError
-    from nhgait.dynamics.geometry.connection_fields import local_connection
-
     from .loop_ranking import numeric_connection_of, target_of
     numeric = numeric_connection_of(problem)
     target = None if numeric is None else target_of(problem, numeric.fiber)
@@ -57,28 +54,21 @@ def reach_sentence(problem) -> str:
     bounded = {c: b for c, b in bounded.items() if all(map(math.isfinite, b)) and b[0] < b[1]}
     if target is None or len(bounded) < 2:
         return ""
-    base = getattr(problem.model, "base", problem.model)
-    try:
-        connection = local_connection(base)
-    except ModelError:
-        return ""
-    names = tuple(base.system.coordinates)
+    names = numeric.names
     q0 = np.array([problem.fixed_value(problem.initial, c) or 0.0 for c in names])
     d, _ = target
     body = np.linalg.solve(numeric.frame(q0), d)
     direction = body / np.linalg.norm(body)
-    params = problem.model.numeric.params(problem.params)
     best, dropped = None, 0
     for pair in combinations(bounded, 2):
-        plus, minus, out = _plane_reach(connection, pair, bounded, dict(zip(names, q0, strict=True)), params,
-                                        direction)
+        plus, minus, out = _plane_reach(numeric, pair, bounded, dict(zip(names, q0, strict=True)), direction)
         dropped += out
         if best is None or max(plus, minus) > best[0]:
             best = (max(plus, minus), pair, "counter-clockwise" if plus >= minus else "clockwise")
     distance = float(np.linalg.norm(d))
     wanted = " and ".join(f"{c} by {v:+.3g}" for c, v in zip(numeric.fiber, d, strict=True) if v)
     boxes = ", ".join(f"{c} in [{lo:g}, {hi:g}]" for c, (lo, hi) in bounded.items())
-    mixed = " (the shape loops' geometric part, momentum held at zero)" if connection.Gamma.shape[1] else ""
+    mixed = " (the shape loops' geometric part, momentum held at zero)" if numeric.n_momenta else ""
     mixed += " (away from the singular set of the connection)" if dropped else ""
     if best[0] <= 1e-9 * distance:
         return (f"not reachable by shape loops within the bounds{mixed}: the height function of the target "

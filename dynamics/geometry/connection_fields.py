@@ -124,11 +124,13 @@ def _step5_in_sympy(layout):
 class NumericConnection:
     """A(q) from a model's compiled basis, parameters bound (module docstring).
 
-    ``fiber_index``, ``shape_index``: positions of s and r in q; ``structure`` as in
+    ``names``: the coordinates q; ``fiber_index``, ``shape_index``: positions of s and r in q;
+    ``structure`` as in
     :class:`LocalConnection`; ``frame(q)`` is g(s) (l×l), ``A(q)`` the l×m local connection."""
 
     fiber: tuple
     shape: tuple
+    names: tuple
     fiber_index: tuple
     shape_index: tuple
     structure: np.ndarray
@@ -173,7 +175,7 @@ def numeric_connection(model, params=None) -> NumericConnection:
     values = np.asarray(model.numeric.params(params), float)
     nP = len(model.momenta)
     shape = tuple(model.system.coordinates[i] for i in layout.free)
-    return NumericConnection(fiber=tuple(layout.fiber), shape=shape,
+    return NumericConnection(fiber=tuple(layout.fiber), shape=shape, names=tuple(model.system.coordinates),
                              fiber_index=tuple(layout.si), shape_index=tuple(layout.free),
                              structure=structure_constants(g, s), basis=model.numeric["basis"],
                              g_function=sp.lambdify([*layout.system.q, *layout.system.param_symbols], g,

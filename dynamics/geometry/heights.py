@@ -29,7 +29,7 @@ import sympy as sp
 from ..errors import ModelError
 from .connection_fields import LocalConnection
 
-__all__ = ["HeightFunctions", "curvature", "height_function", "evaluate_heights"]
+__all__ = ["HeightFunctions", "curvature", "height_function", "evaluate_heights", "evaluate_heights_numeric"]
 
 
 def curvature(connection: LocalConnection, a: str, b: str) -> sp.Matrix:
@@ -120,3 +120,49 @@ def evaluate_heights(connection: LocalConnection, a: str, b: str, *, bounds: dic
     units = dict(units or {})
     return HeightFunctions(fiber=connection.fiber, pair=(a, b), a_values=av, b_values=bv, heights=heights,
                            fields=fields, at=at, units=units)
+
+
+#: relative step of the central differences of :func:`evaluate_heights_numeric`
+DIFFERENCE_STEP = 1e-5
+
+
+def evaluate_heights_numeric(connection, a: str, b: str, *, bounds: dict, at=None, points: int = 41,
+                             units=None) -> HeightFunctions:
+    """:func:`evaluate_heights` from a
+    :class:`~.connection_fields.NumericConnection` (the compiled basis: no symbolic work, for a
+    plan's figures and failure report): ∂A/∂r by central differences (step
+    :data:`DIFFERENCE_STEP` × max(1, |r|); error about 1e-10 relative), the bracket from the
+    structure constants."""
+    problems = [f"{n!r} is not a shape coordinate (shape: {', '.join(connection.shape)})"
+                for n in (a, b) if n not in connection.shape]
+    problems += [f"bounds of {n!r}: give (low, high) with low < high" for n in (a, b)
+                 if n in connection.shape and not (n in bounds and float(bounds[n][0]) < float(bounds[n][1]))]
+    if problems:
+        raise ModelError(problems, title="invalid height-function request")
+    names = connection.names
+    q0 = np.array([float(dict(at or {}).get(c, 0.0)) for c in names])
+    ia, ib = names.index(a), names.index(b)
+    ja, jb = connection.shape.index(a), connection.shape.index(b)
+    av = np.linspace(*map(float, bounds[a]), points)
+    bv = np.linspace(*map(float, bounds[b]), points)
+    l = len(connection.fiber)
+    heights, fields = np.zeros((l, points, points)), np.zeros((l, 2, points, points))
+
+    def column(q, i, j):
+        h = DIFFERENCE_STEP * max(1.0, abs(q[i]))
+        up, down = q.copy(), q.copy()
+        up[i] += h
+        down[i] -= h
+        return (connection.A(up)[:, j] - connection.A(down)[:, j]) / (2 * h)
+
+    with np.errstate(all="ignore"):
+        for i, vb in enumerate(bv):
+            for j, va in enumerate(av):
+                q = q0.copy()
+                q[ia], q[ib] = va, vb
+                A = connection.A(q)
+                curl = column(q, ia, jb) - column(q, ib, ja)
+                heights[:, i, j] = -curl + connection.bracket(A[:, ja], A[:, jb])
+                fields[:, :, i, j] = -A[:, [ja, jb]]
+    return HeightFunctions(fiber=connection.fiber, pair=(a, b), a_values=av, b_values=bv, heights=heights,
+                           fields=fields, at=dict(zip(names, q0, strict=True)), units=dict(units or {}))

@@ -175,3 +175,18 @@ def test_the_snakeboard_drive_loop_moves_it_and_the_momentum_returns(board):
         assert abs(motion.momentum[0, -1]) < 1e-6
     assert abs(ends[1][0]) > 0.1 and np.max(np.abs(ends[1][1:])) < 1e-6
     assert np.max(np.abs(ends[1] - ends[0])) < 1e-5
+
+
+@pytest.mark.parametrize("name,pair,box", [
+    ("snake3", ("alpha1", "alpha2"), {"alpha1": (0.2, 0.9), "alpha2": (-0.9, -0.2)}),
+    ("board", ("psi", "phi"), {"psi": (-1, 1), "phi": (-1, 1)})])
+def test_numeric_heights_equal_the_symbolic_ones(name, pair, box, request):
+    """evaluate_heights_numeric (compiled basis, central differences) = evaluate_heights (sympy)
+    to 1e-7 of the largest height on the grid (differences of step 1e-5: error ~1e-10)."""
+    from nhgait.dynamics.geometry.heights import evaluate_heights_numeric
+    model = request.getfixturevalue(name)
+    symbolic = evaluate_heights(local_connection(model), *pair, bounds=box, points=7)
+    numeric = evaluate_heights_numeric(numeric_connection(model), *pair, bounds=box, points=7)
+    scale = np.max(np.abs(symbolic.heights))
+    assert np.max(np.abs(numeric.heights - symbolic.heights)) <= 1e-7 * scale
+    assert np.allclose(numeric.fields, symbolic.fields, atol=1e-12)
