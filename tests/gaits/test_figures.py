@@ -121,7 +121,8 @@ def test_plan_figures(figures):
     assert path.get_title() == "path in the plane (to scale)"
     assert len(_series(path)) == 5 * 3 + 3
     shape = figures["plan/shape.png"].axes[0]
-    assert shape.get_title() == "shape loop"
+    assert shape.get_title() == "shape loop over the height function"    # issue 42: the loop over H
+    assert figures["plan/shape.png"].axes[1].get_ylabel().startswith("height of ")   # its colour bar
     assert (shape.get_xlabel(), shape.get_ylabel()) == ("θ [rad]", "s [m]")
     hist = figures["plan/histories.png"].axes
     assert hist[0].get_ylabel() == "shape θ, s [rad, m]"
