@@ -30,7 +30,8 @@ import numpy as np
 
 from .waves import ends
 
-__all__ = ["LoopScore", "loop_scores", "rank_loops", "model_motion", "numeric_connection_of", "target_of"]
+__all__ = ["LoopScore", "Target", "loop_scores", "rank_loops", "model_motion", "numeric_connection_of",
+           "target_of"]
 
 #: samples per horizon of a predicted loop (midpoint rule)
 SAMPLES = 240
@@ -70,10 +71,19 @@ def numeric_connection_of(problem):
         return None
 
 
-def target_of(problem, fiber: tuple):
-    """(d, mask) in fibre order: the planar position's change when the task fixes both ends of
-    it and it changes (mask: x, y), else the change of every fibre coordinate fixed at both ends
-    (mask: those); None when d = 0."""
+@dataclass(frozen=True, eq=False)
+class Target:
+    """The task's target direction ``d`` (fibre order) and the fibre components it concerns
+    (``mask``)."""
+
+    d: np.ndarray
+    mask: np.ndarray
+
+
+def target_of(problem, fiber: tuple) -> Target | None:
+    """The :class:`Target`: the planar position's change when the task fixes both ends of it and
+    it changes (mask: x, y), else the change of every fibre coordinate fixed at both ends (mask:
+    those); None when d = 0."""
     d, mask = np.zeros(len(fiber)), np.zeros(len(fiber), bool)
     for i, name in enumerate(fiber):
         a, b = problem.fixed_value(problem.initial, name), problem.fixed_value(problem.final, name)
@@ -83,7 +93,7 @@ def target_of(problem, fiber: tuple):
     planar = np.isin(np.arange(d.size), [fiber.index(c) for c in frame[:2] if c in fiber]) & mask
     if planar.any() and np.linalg.norm(d[planar]) > 0:
         d, mask = np.where(planar, d, 0.0), planar
-    return (d, mask) if np.linalg.norm(d) > 0 else None
+    return Target(d, mask) if np.linalg.norm(d) > 0 else None
 
 
 def _path(problem, guess, coordinates):
@@ -132,7 +142,7 @@ def loop_scores(problem, guesses, motion=None) -> list:
     target = target_of(problem, connection.fiber)
     if target is None:
         return []
-    d, mask = target
+    d, mask = target.d, target.mask
     coordinates = tuple(problem.model.system.coordinates)
     motion = motion or model_motion(problem)
     out = []

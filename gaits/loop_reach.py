@@ -56,7 +56,7 @@ def reach_sentence(problem) -> str:
         return ""
     names = numeric.names
     q0 = np.array([problem.fixed_value(problem.initial, c) or 0.0 for c in names])
-    d, _ = target
+    d = target.d
     body = np.linalg.solve(numeric.frame(q0), d)
     direction = body / np.linalg.norm(body)
     best, dropped = None, 0
