@@ -12,9 +12,10 @@ term ½∫∫[ξ(s), ξ(t)]; Hatton & Choset's "total Lie bracket", Shammas's he
 clockwise loop moves it by −S·H_ab. The sign of H_k over a region therefore says which way a
 loop there can move the fibre coordinate k.
 
-For a mixed system (d > 0) ξ = −A(r)ṙ + Γ(r)p: H here is the curvature of A, the motion shape
-loops give with the nonholonomic momentum p kept at zero (Shammas's scaled-momentum form with
-the scaled momentum zero); the momentum's drift Γp is not included.
+For a mixed system (d > 0) ξ = −A(r)ṙ + Γ(r)p: H here is the curvature of A alone, the motion
+shape loops give with the nonholonomic momentum p held at zero; the momentum's drift Γp is not
+in it (Shammas's scaled-momentum height functions are not computed here; the motion with the
+momentum equation along a given loop is :func:`~.prescribed.fibre_motion`).
 
 :func:`height_function` gives H_ab as sympy; :func:`evaluate_heights` the arrays over a grid
 (:class:`HeightFunctions`), with the connection's fields (rows of −A) for the figures.
