@@ -31,6 +31,8 @@ from __future__ import annotations
 import math
 from collections import Counter
 
+from .loop_reach import reach_lines
+
 __all__ = ["diagnose", "SATURATED"]
 
 #: inputs at a bound on more than this fraction of the intervals count as saturated
@@ -276,8 +278,8 @@ def diagnose(result) -> tuple:
     if result.success:
         return ()
     if getattr(result, "overrun", None) is not None:
-        return tuple(_out_of_time(result))
+        return tuple(_out_of_time(result) + reach_lines(result))
     s = result.solution
     if s is not None and s.verification is not None and s.status == "Verification_Failed":
         return tuple(_not_verified(result))
-    return tuple(_not_converged(result) + _singular(result))
+    return tuple(_not_converged(result) + _singular(result) + reach_lines(result))

@@ -45,6 +45,7 @@ from itertools import combinations
 
 import numpy as np
 
+from .loop_ranking import rank_loops
 from .screening import RATIO, Check, Screen
 from .waves import (
     FITTED_LABEL,
@@ -302,7 +303,7 @@ def candidates(problem, *, shape=None, screen=True, progress=None) -> Candidates
     start, moved = (_regular_start(problem, checks, coords, shape, progress) if checks is not None
                     else ((), None))
     n_pairs = len(shape) * (len(shape) - 1) // 2
-    loops = _order(shape_guesses(problem, shape, start), n_pairs)
+    loops = rank_loops(problem, _order(shape_guesses(problem, shape, start), n_pairs), progress)
     rollouts = rollout_guesses(problem, shape, _rate_states(model, shape), start)
     from .fitted import applies, leads
     ordered = _interleave(loops[:-1], rollouts) + loops[-1:]

@@ -14,9 +14,14 @@ thesis's reference [1]), each a function returning a frozen result:
 * :func:`observability` — the rank of the observability codistribution of named outputs and
   the states it cannot see (:mod:`.observability`).
 
-The height functions, connection vector fields and loop estimates of issue 42 items 3–4
-(:mod:`.connection_fields`, :mod:`.heights`, :mod:`.stokes`, :mod:`.prescribed`) live beside
-them, written by the ``heights`` helper.
+and why a shape loop moves it:
+
+* :func:`local_connection` — A(r), Γ(r) and the fibre group's bracket (:mod:`.connection_fields`);
+* :func:`height_function`, :func:`evaluate_heights` — the curvature H = −(dA − [A, A]) of the
+  connection over two shape coordinates, as expressions and arrays (:mod:`.heights`);
+* :func:`loop_displacement` — the Stokes and body-velocity-integral estimates of a shape loop's
+  net displacement (:mod:`.stokes`); :func:`fibre_motion` — the fibre and momentum motion along
+  a prescribed shape path (:mod:`.prescribed`).
 
 Imported lazily: ``import nhgait.dynamics.geometry`` does no symbolic work.
 """
@@ -30,6 +35,10 @@ _EXPORTS = {
     "Accessibility": "accessibility", "accessibility": "accessibility",
     "Observability": "observability", "observability": "observability",
     "AnalysisPoint": "distribution", "analysis_point": "distribution",
+    "LocalConnection": "connection_fields", "local_connection": "connection_fields",
+    "HeightFunctions": "heights", "height_function": "heights", "evaluate_heights": "heights",
+    "LoopDisplacement": "stokes", "loop_displacement": "stokes",
+    "FibreMotion": "prescribed", "fibre_motion": "prescribed",
 }
 
 __all__ = sorted(_EXPORTS)
