@@ -5,8 +5,9 @@ intervals (``ocp/derivatives.py``), N independent calls. CasADi generates such a
 under ``#pragma omp parallel for`` (map mode ``"openmp"``, each call with its own work arrays):
 compiled with :data:`FLAG` the calls share the cores, and without it (a compiler without
 OpenMP: the build retries without the flag, :mod:`.compiler`) the pragma is ignored and the
-loop is the serial map's. The fast compiler's code has them on POSIX threads instead
-(:mod:`.thread_maps`: the source rewritten before it is compiled), under the same grant. No
+loop is the serial map's. (The planner's stage maps are now CasADi's threaded maps,
+:mod:`.thread_maps`, which every compiler runs on several threads; this module keeps the OpenMP
+runtime's grant for libraries built with :data:`FLAG`.) No
 compiler runs to find out beforehand: that would put one on a cold plan's critical path.
 Measured on the 2-core machine (the cart with six trailers, gcc -O2 -march=native, best of 7 calls):
 ``nlp_hess_l`` 10.6 → 5.4 ms and ``nlp_jac_g`` 2.8 → 2.1 ms on two threads, the same numbers to
@@ -37,8 +38,6 @@ import io
 import os
 import sys
 
-from .thread_maps import THREADS_SYMBOL
-
 __all__ = ["FLAG", "parallel_map", "share", "grant", "limit", "threads", "before_load", "WAIT_POLICY"]
 
 #: the compiler flag (compile and link) of OpenMP's pragmas and runtime
@@ -55,7 +54,6 @@ WAIT_POLICY = "PASSIVE"
 _WARNING = "was not compiled with WITH_OPENMP"
 
 _granted = 1      # threads this process may use (grant); 1 unless it is a supervised child
-_threaded: set = set()   # paths of the loaded libraries with thread_maps' runtime (limit)
 
 
 def parallel_map(function, n: int):
@@ -101,10 +99,9 @@ def threads() -> int:
 
 
 def limit(library=None) -> None:
-    """Apply this process's grant to every OpenMP runtime loaded in it and to every loaded
-    library whose maps run on POSIX threads (:mod:`.thread_maps`; ``library``: the path of one
-    just loaded, remembered if it is one): one thread unless :func:`grant` said more. Call after
-    loading a library."""
+    """Apply this process's grant to every OpenMP runtime loaded in it: one thread unless
+    :func:`grant` said more. Call after loading a library (``library``: its path, unused — the
+    runtimes are found by name)."""
     loaded = getattr(os, "RTLD_NOLOAD", 0)
     for name in RUNTIMES:
         try:
@@ -112,12 +109,3 @@ def limit(library=None) -> None:
         except OSError:
             continue                  # not loaded here
         runtime.omp_set_num_threads(ctypes.c_int(_granted))
-    if library is not None:
-        _threaded.add(str(library))
-    for path in sorted(_threaded):
-        try:
-            count = ctypes.c_int.in_dll(ctypes.CDLL(path, mode=loaded), THREADS_SYMBOL)
-        except (OSError, ValueError):     # unloaded since, or not one of them
-            _threaded.discard(path)
-            continue
-        count.value = _granted
