@@ -18,7 +18,7 @@ Each variant's answer is checked against CasADi's virtual machine (serial map) t
 it is timed. Prints the median of ``--repeats`` calls (interleaved) and the ratio serial/variant
 per compiler. Ratios are measured in one run on one machine; compare ratios, not absolute times.
 
-Usage: python experiments/bench_thread_maps.py [--links 8] [--intervals 50] [--substeps 4]
+Usage: python experiments/bench_thread_maps.py [--links 5] [--intervals 50] [--substeps 2]
        [--repeats 21]
 """
 from __future__ import annotations
@@ -99,9 +99,9 @@ def median_ms(function, args, repeats: int) -> float:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--links", type=int, default=8)
+    parser.add_argument("--links", type=int, default=5)
     parser.add_argument("--intervals", type=int, default=50)
-    parser.add_argument("--substeps", type=int, default=4)
+    parser.add_argument("--substeps", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=21)
     args = parser.parse_args(argv)
     os.environ.setdefault("NHGAIT_CACHE_DIR", tempfile.mkdtemp(prefix="nhgait-bench-thread-maps-"))
