@@ -10,7 +10,8 @@ points — generated as C by CasADi and compiled by each compiler found:
 
 * ``serial`` — ``Function.map(N, "serial")``: one loop;
 * ``thread`` — ``Function.map(N, "thread", T)``: CasADi's own threaded map (its generated C
-  starts T POSIX threads per call and joins them, CasADi ≥ 3.8), T = the usable cores;
+  starts T POSIX threads per call and joins them, CasADi ≥ 3.8), T = the usable cores, with the
+  planner's thread macros in front (``thread_maps.with_grant``; this process is granted T);
 * ``openmp`` — ``Function.map(N, "openmp")`` compiled with ``-fopenmp`` (gcc only; the Tiny C
   Compiler ignores the pragma: the serial loop).
 
@@ -36,7 +37,7 @@ import numpy as np
 from nhgait.dynamics.numerics import openmp
 from nhgait.dynamics.numerics.compiler import CompilerUnavailable, build_library, compiler_command
 from nhgait.dynamics.numerics.fast_compiler import fast_compiler
-from nhgait.dynamics.numerics.thread_maps import threaded_map
+from nhgait.dynamics.numerics.thread_maps import threaded_map, with_grant
 
 
 def stage(links: int, substeps: int, h: float = 0.05) -> tuple:
@@ -82,7 +83,8 @@ def mapped(jac, hess, n: int, mode: str, threads: int) -> ca.Function:
 def compiled(function: ca.Function, command, flags, libs) -> ca.Function:
     generator = ca.CodeGenerator("maps.c", {"with_header": False})
     generator.add(function)
-    lib = build_library(generator.dump(), command=command, flags=flags, libs=libs, salt="bench_thread_maps")
+    lib = build_library(with_grant(generator.dump()), command=command, flags=flags, libs=libs,
+                        salt="bench_thread_maps")
     out = ca.external("maps", str(lib.path))
     openmp.limit(lib.path)
     return out

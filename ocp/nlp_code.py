@@ -12,7 +12,8 @@ one C file by :class:`~.solver.OCPSolver`; :func:`choose_code` decides what runs
    from the C size (``SolverOptions.jit_flags`` forces them), and ``-fopenmp`` when the source has
    OpenMP pragmas (dropped by a compiler without OpenMP, :mod:`~nhgait.dynamics.numerics.openmp`);
    the stage maps themselves are CasADi's threaded maps (:func:`parallel_maps`), which run the
-   intervals on the cores with any compiler (:mod:`~nhgait.dynamics.numerics.thread_maps`).
+   intervals on the cores with any compiler, a solver child on its share of them
+   (:mod:`~nhgait.dynamics.numerics.thread_maps`: the source gets its thread macros in front).
 2. Otherwise **code ready at once**: the fast compiler (:mod:`~nhgait.dynamics.numerics.fast_compiler`,
    the Tiny C Compiler: 0.02–0.25 s for 0.4–7 MB of C, code 1.2–2.6× slower than gcc -O1; its
    stage maps on POSIX threads too),
@@ -50,6 +51,7 @@ from nhgait.dynamics.numerics.compiler import (
     library_by_key,
 )
 from nhgait.dynamics.numerics.fast_compiler import MISSING, fast_compiler
+from nhgait.dynamics.numerics.thread_maps import with_grant
 
 __all__ = ["CompileBudget", "COMPILE_BUDGET", "CompileReport", "NlpCode", "choose_code", "CODES",
            "NO_COMPILER", "optimised_ready", "parallel_maps", "external_nlp"]
@@ -170,6 +172,7 @@ def choose_code(source: str, options, progress, *, salt: str) -> NlpCode:
     """The code that runs the NLP functions of ``source`` now, and the optimised build started
     for later (module docstring); ``options`` a :class:`~.solver.SolverOptions` (``jit``,
     ``jit_flags``, ``budget``); ``salt`` separates the keys (the CasADi version)."""
+    source = with_grant(source)     # threaded stage maps follow the process's grant
     size = len(source)
     flags, estimate, reason = ((tuple(options.jit_flags), 0.0, "flags given") if options.jit_flags
                                else options.budget.choose(size))

@@ -6,8 +6,8 @@ under ``#pragma omp parallel for`` (map mode ``"openmp"``, each call with its ow
 compiled with :data:`FLAG` the calls share the cores, and without it (a compiler without
 OpenMP: the build retries without the flag, :mod:`.compiler`) the pragma is ignored and the
 loop is the serial map's. (The planner's stage maps are now CasADi's threaded maps,
-:mod:`.thread_maps`, which every compiler runs on several threads; this module keeps the OpenMP
-runtime's grant for libraries built with :data:`FLAG`.) No
+:mod:`.thread_maps`, which every compiler runs on several threads, under the same grant:
+:data:`THREADS_SYMBOL`.) No
 compiler runs to find out beforehand: that would put one on a cold plan's critical path.
 Measured on the 2-core machine (the cart with six trailers, gcc -O2 -march=native, best of 7 calls):
 ``nlp_hess_l`` 10.6 → 5.4 ms and ``nlp_jac_g`` 2.8 → 2.1 ms on two threads, the same numbers to
@@ -38,7 +38,8 @@ import io
 import os
 import sys
 
-__all__ = ["FLAG", "parallel_map", "share", "grant", "limit", "threads", "before_load", "WAIT_POLICY"]
+__all__ = ["FLAG", "parallel_map", "share", "grant", "limit", "threads", "before_load", "WAIT_POLICY",
+           "THREADS_SYMBOL"]
 
 #: the compiler flag (compile and link) of OpenMP's pragmas and runtime
 FLAG = "-fopenmp"
@@ -53,7 +54,12 @@ WAIT_POLICY = "PASSIVE"
 #: CasADi's warning for an "openmp" map (this wheel has no OpenMP: its own evaluation is serial)
 _WARNING = "was not compiled with WITH_OPENMP"
 
+#: the exported ``int`` of a library whose stage maps are CasADi's threaded maps (:mod:`.thread_maps`):
+#: its blocks run on threads when it is above 1, else in the calling thread (:func:`limit` sets it)
+THREADS_SYMBOL = "nhgait_threads"
+
 _granted = 1      # threads this process may use (grant); 1 unless it is a supervised child
+_threaded: set = set()   # paths of the loaded libraries with THREADS_SYMBOL (limit)
 
 
 def parallel_map(function, n: int):
@@ -99,9 +105,10 @@ def threads() -> int:
 
 
 def limit(library=None) -> None:
-    """Apply this process's grant to every OpenMP runtime loaded in it: one thread unless
-    :func:`grant` said more. Call after loading a library (``library``: its path, unused — the
-    runtimes are found by name)."""
+    """Apply this process's grant to every OpenMP runtime loaded in it and to every loaded
+    library with threaded maps (:data:`THREADS_SYMBOL`, :mod:`.thread_maps`; ``library``: the
+    path of one just loaded, remembered if it is one): one thread unless :func:`grant` said
+    more. Call after loading a library."""
     loaded = getattr(os, "RTLD_NOLOAD", 0)
     for name in RUNTIMES:
         try:
@@ -109,3 +116,12 @@ def limit(library=None) -> None:
         except OSError:
             continue                  # not loaded here
         runtime.omp_set_num_threads(ctypes.c_int(_granted))
+    if library is not None:
+        _threaded.add(str(library))
+    for path in sorted(_threaded):
+        try:
+            count = ctypes.c_int.in_dll(ctypes.CDLL(path, mode=loaded), THREADS_SYMBOL)
+        except (OSError, ValueError):     # unloaded since, or without threaded maps
+            _threaded.discard(path)
+            continue
+        count.value = _granted

@@ -5,25 +5,50 @@ intervals (``ocp/derivatives.py``), N independent calls. :func:`threaded_map` ma
 with CasADi's ``Function.map(N, "thread", T)``: T blocks of about N/T consecutive points (a
 serial map each; when T does not divide N the last block repeats the last point and the extra
 results are dropped), whose generated C (CasADi ≥ 3.8: ``ThreadMap::codegen_body``) starts one
-POSIX thread per block and joins them all before the call returns — so no thread outlives a
-call and a process may fork after it (GNU OpenMP's pool forbids that), and every compiler runs
-it, the Tiny C Compiler of a cold plan (:mod:`.fast_compiler`) as well as gcc. Each block
-writes its own slices of the work arrays, so the results are those of the serial map to the
-last bit. Older CasADi (3.6, 3.7) generates the serial loop for the same map: the same answers
-on one core.
+POSIX thread per block through CasADi's macros ``CASADI_THREAD_CREATE`` / ``CASADI_THREAD_JOIN``
+and joins them all before the call returns — so no thread outlives a call and a process may
+fork after it (GNU OpenMP's pool forbids that), and every compiler runs it: the Tiny C Compiler
+of a cold plan (:mod:`.fast_compiler`) as well as gcc. Each block writes its own slices of the
+work arrays, so the results are those of the serial map to the last bit. CasADi 3.6–3.7
+generate the serial loop for the same map: the same answers on one core.
 
-T is fixed when the map is made (it is part of the generated C and hence of the library's
-key): :func:`map_threads`, the usable cores (``$OMP_NUM_THREADS`` caps them, as it caps
-OpenMP, :func:`.openmp.share`), at most N. Attempts running at once each start their T
-threads; idle ones block in ``pthread_join`` (no spinning).
+**The grant.** CasADi's generated C defines those macros only where they are not defined
+already (``#ifndef CASADI_THREAD_CREATE``: its documented way to choose the threads). The NLP's
+source gets :data:`PRELUDE` in front (:func:`with_grant`: text added, none of CasADi's
+rewritten): a block runs on its own thread only while the library's exported ``int``
+:data:`~.openmp.THREADS_SYMBOL` is above 1, else in the calling thread — and also when a thread
+cannot be started, where CasADi's own macros would join a thread that does not exist.
+:func:`.openmp.limit` sets that count to the process's grant, as it sets OpenMP's: one thread
+unless the process is a supervised solver child (:func:`.openmp.grant`: its share of the
+cores), so attempts running at once do not share cores they were not given.
 
-Measured with ``experiments/bench_thread_maps.py`` (the numbers are in ``docs/benchmarks.md``).
+T is fixed when the map is made (it is part of the generated C, hence of the library's key):
+:func:`map_threads`, the usable cores (``$OMP_NUM_THREADS`` caps them, as it caps OpenMP,
+:func:`.openmp.share`), at most N.
+
+Measured with ``experiments/bench_thread_maps.py`` (docs/benchmarks.md).
 """
 from __future__ import annotations
 
-from .openmp import share
+from .openmp import THREADS_SYMBOL, share
 
-__all__ = ["threaded_map", "map_threads"]
+__all__ = ["threaded_map", "map_threads", "with_grant", "PRELUDE", "CREATE"]
+
+#: the macro CasADi's threaded maps start their threads with (its generated C calls it)
+CREATE = "CASADI_THREAD_CREATE("
+
+#: CasADi's thread macros for the stage maps under the process's grant (module docstring)
+PRELUDE = r"""/* nhgait (dynamics/numerics/thread_maps.py): CasADi's threaded maps under a thread grant */
+int NHGAIT_THREADS = 1;
+#if !defined(_WIN32) && !defined(CASADI_THREAD_CREATE)
+#include <pthread.h>
+typedef struct { pthread_t id; int started; } nhgait_thread;
+#define CASADI_THREAD_HANDLE nhgait_thread
+#define CASADI_THREAD_CREATE(t, f, a) \
+  (((t).started = NHGAIT_THREADS > 1 && pthread_create(&(t).id, 0, f, a) == 0) ? 0 : ((void) f(a), 0))
+#define CASADI_THREAD_JOIN(t) ((t).started ? pthread_join((t).id, 0) : 0)
+#endif
+""".replace("NHGAIT_THREADS", THREADS_SYMBOL)
 
 
 def map_threads(n: int) -> int:
@@ -40,3 +65,9 @@ def threaded_map(function, n: int, threads: int | None = None):
     if threads == 1:
         return function.map(n, "serial")
     return function.map(n, "thread", threads)
+
+
+def with_grant(source: str) -> str:
+    """``source`` (generated C) with :data:`PRELUDE` in front when it starts threads (its
+    threaded maps then follow the process's grant), else as it is."""
+    return PRELUDE + source if CREATE in source else source

@@ -1,10 +1,11 @@
 """The stage maps on threads: CasADi's own threaded map (dynamics/numerics/thread_maps.py).
 
-The reference is CasADi's virtual machine evaluating the same function through a serial map,
-to 1e-13 — and any thread count gives the same bits as one thread, since each point's
-arithmetic is unchanged (blocks of consecutive points, the last padded when the count does not
-divide the points). Compiled by every compiler found (the fast one and the optimising one);
-none found: those tests skip, and the map still evaluates in CasADi's virtual machine.
+The reference is a closed form written with numpy (and CasADi's virtual machine), to 1e-13 —
+and any block count, run on threads or in the calling thread (the grant), gives the same bits
+as the serial map, since each point's arithmetic is unchanged (blocks of consecutive points,
+the last padded when the count does not divide the points). Compiled by every compiler found
+(the fast one and the optimising one); none found: those tests skip, and the map still
+evaluates in CasADi's virtual machine.
 """
 from __future__ import annotations
 
@@ -15,9 +16,10 @@ import pytest
 from nhgait.dynamics.numerics import openmp
 from nhgait.dynamics.numerics.compiler import build_library, compiler_command
 from nhgait.dynamics.numerics.fast_compiler import fast_compiler
-from nhgait.dynamics.numerics.thread_maps import map_threads, threaded_map
+from nhgait.dynamics.numerics.thread_maps import CREATE, map_threads, threaded_map, with_grant
 
 POINTS = 7      # an odd count: blocks of unequal length, the last one padded
+CASADI_3_8 = tuple(int(v) for v in ca.__version__.split(".")[:2]) >= (3, 8)
 
 
 def _point() -> ca.Function:
@@ -74,8 +76,19 @@ def test_the_threaded_map_agrees_with_a_closed_form_in_casadis_virtual_machine()
             np.testing.assert_allclose(np.asarray(got), want, rtol=1e-13, atol=1e-14)
 
 
+@pytest.fixture
+def granted():
+    """Restore the process's grant (one thread) after a test that changes it."""
+    yield openmp.grant
+    openmp.grant(1)
+
+
 @pytest.mark.parametrize("compiler", _compilers())
-def test_compiled_threaded_maps_give_the_serial_bits_on_any_thread_count(compiler, tmp_path, monkeypatch):
+def test_compiled_threaded_maps_give_the_serial_bits_on_any_grant(compiler, tmp_path, monkeypatch, granted):
+    """Blocks 1, 2, 3 and 7, the library's count set by the grant (1: the blocks in the calling
+    thread; 2 and 64: on threads): the same bits as the serial map, which meets the closed form."""
+    import ctypes
+    import os
     monkeypatch.setenv("NHGAIT_CACHE_DIR", str(tmp_path / "cache"))
     command, flags, libs = compiler
     X, P = _inputs()
@@ -83,22 +96,33 @@ def test_compiled_threaded_maps_give_the_serial_bits_on_any_thread_count(compile
     for want, closed in zip(reference, _closed_form(X, P), strict=True):
         np.testing.assert_allclose(want, closed, rtol=1e-13, atol=1e-14)
     for threads in (1, 2, 3, POINTS):
-        source = _source(_mapped(threads))
+        source = with_grant(_source(_mapped(threads)))
         lib = build_library(source, command=command, flags=flags, libs=libs, salt="thread maps test")
         compiled = ca.external("stage_sum", str(lib.path))
-        answer = [np.asarray(v) for v in compiled(X, P)]
-        assert all(np.array_equal(a, b) for a, b in zip(answer, reference, strict=True)), threads
-
-
-CASADI_3_8 = tuple(int(v) for v in ca.__version__.split(".")[:2]) >= (3, 8)
+        openmp.limit(lib.path)
+        for grant in (1, 2, 64):
+            granted(grant)
+            if threads > 1 and CASADI_3_8:                    # the grant reaches the loaded library
+                count = ctypes.c_int.in_dll(ctypes.CDLL(str(lib.path), mode=os.RTLD_NOLOAD),
+                                            openmp.THREADS_SYMBOL)
+                assert count.value == grant
+            answer = [np.asarray(v) for v in compiled(X, P)]
+            assert all(np.array_equal(a, b) for a, b in zip(answer, reference, strict=True)), (threads, grant)
 
 
 @pytest.mark.skipif(not CASADI_3_8, reason="CasADi < 3.8 generates the serial loop")
 def test_casadi_generates_threads_for_the_map():
-    """The speed rests on CasADi's ThreadMap code generation (CasADi ≥ 3.8): fail loudly if a
-    CasADi release stops generating the thread creation for a threaded map."""
-    assert "CASADI_THREAD_CREATE(threads[i]" in _source(_mapped(2))
-    assert "CASADI_THREAD_CREATE" not in _source(_mapped(1))       # one thread: the serial map
+    """The speed rests on CasADi's ThreadMap code generation (CasADi ≥ 3.8) and the grant on its
+    macros being overridable: fail loudly if a CasADi release stops generating the thread
+    creation for a threaded map or defines the macros unconditionally (then the prelude's are
+    not used and the library ignores the grant)."""
+    source = _source(_mapped(2))
+    assert CREATE + "threads[i]" in source and "CASADI_THREAD_JOIN(threads[i])" in source
+    for macro in ("CASADI_THREAD_HANDLE", "CASADI_THREAD_CREATE", "CASADI_THREAD_JOIN"):
+        assert f"#ifndef {macro}" in source, macro
+    assert CREATE not in _source(_mapped(1))                         # one thread: the serial map
+    serial = _source(_mapped(1))
+    assert with_grant(source).startswith("/* nhgait") and with_grant(serial) == serial
 
 
 def test_the_thread_count_is_the_usable_cores_capped_by_the_points_and_the_user(monkeypatch):
