@@ -20,7 +20,7 @@ it is timed. Prints the median of ``--repeats`` calls (interleaved) and the rati
 per compiler. Ratios are measured in one run on one machine; compare ratios, not absolute times.
 
 Usage: python experiments/bench_thread_maps.py [--links 5] [--intervals 50] [--substeps 2]
-       [--repeats 21]
+       [--repeats 21] [--no-gcc]
 """
 from __future__ import annotations
 
@@ -105,6 +105,7 @@ def main(argv=None) -> int:
     parser.add_argument("--intervals", type=int, default=50)
     parser.add_argument("--substeps", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=21)
+    parser.add_argument("--no-gcc", action="store_true", help="the fast compiler only (gcc takes minutes)")
     args = parser.parse_args(argv)
     os.environ.setdefault("NHGAIT_CACHE_DIR", tempfile.mkdtemp(prefix="nhgait-bench-thread-maps-"))
     threads = openmp.share(1)
@@ -120,7 +121,7 @@ def main(argv=None) -> int:
     fast = fast_compiler()
     if fast is not None:
         compilers.append((fast.name, fast.command, fast.flags, fast.libs, ("serial", "thread")))
-    if compiler_command() is not None:
+    if compiler_command() is not None and not args.no_gcc:
         compilers.append(("gcc -O1", None, ("-O1",), ("-lm",), ("serial", "thread")))
         compilers.append(("gcc -O1 -fopenmp", None, ("-O1", openmp.FLAG), ("-lm",), ("openmp",)))
     print(f"stage maps: {args.links} links ({2 * args.links} states), RK4 x {args.substeps}, "
