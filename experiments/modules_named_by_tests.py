@@ -3,17 +3,20 @@
 
 A test module (``tests/**/test_*.py``) *names* a library module when it imports it — ``import
 nhgait.x.y``, ``from nhgait.x.y import name`` or ``from nhgait.x import y`` (``y`` a module),
-at the top or inside a function; a package (``__init__``) is named by any import from it. The
-library modules are every ``*.py`` under ``api/``, ``dynamics/``, ``ocp/`` and ``gaits/``
-(pyproject's package-dir: ``api`` is ``nhgait``).
+at the top or inside a function; a package (``__init__``) is named by any import from it. A
+public name a package re-exports (``from nhgait.dynamics import jacobi_test``, a lazy name)
+also names the module that defines it (its ``__module__``; ``--strict`` leaves these out, and
+resolving them imports the library). The library modules are every ``*.py`` under ``api/``,
+``dynamics/``, ``ocp/`` and ``gaits/`` (pyproject's package-dir: ``api`` is ``nhgait``).
 
-Usage: python experiments/modules_named_by_tests.py [--all]   (``--all``: every module with the
-test modules that name it)
+Usage: python experiments/modules_named_by_tests.py [--all] [--strict]   (``--all``: every
+module with the test modules that name it)
 """
 from __future__ import annotations
 
 import argparse
 import ast
+import importlib
 import sys
 from pathlib import Path
 
@@ -44,12 +47,28 @@ def imported_names(path: Path) -> set:
     return names
 
 
-def named_by(root: Path = ROOT) -> dict:
+def defining_module(dotted: str) -> str | None:
+    """``nhgait.dynamics.jacobi_test`` → the module that defines that object (its
+    ``__module__``), or None (not an attribute of a package, or a value without one)."""
+    package, _, attribute = dotted.rpartition(".")
+    try:
+        value = getattr(importlib.import_module(package), attribute)
+    except (ImportError, AttributeError, ValueError):
+        return None
+    return getattr(value, "__module__", None)
+
+
+def named_by(root: Path = ROOT, *, strict: bool = False) -> dict:
     """Library module → sorted test modules (paths relative to ``root``) that name it."""
     library = library_modules(root)
     named = {name: [] for name in library}
     for test in sorted((root / "tests").rglob("test_*.py")):
-        for name in imported_names(test) & set(library):
+        names = imported_names(test)
+        found = names & set(library)
+        if not strict:
+            found |= {defining_module(n) for n in names
+                      if n.startswith("nhgait.") and n not in library and n.rpartition(".")[0] in library}
+        for name in sorted(found & set(library)):
             named[name].append(str(test.relative_to(root)))
     return named
 
@@ -57,8 +76,9 @@ def named_by(root: Path = ROOT) -> dict:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--all", action="store_true", help="every module with the tests naming it")
+    parser.add_argument("--strict", action="store_true", help="module imports only (no public names)")
     args = parser.parse_args(argv)
-    named = named_by()
+    named = named_by(strict=args.strict)
     unnamed = [name for name, tests in named.items() if not tests]
     for name, tests in named.items():
         if args.all:
