@@ -3,7 +3,8 @@
 
 A test module (``tests/**/test_*.py``) *names* a library module when it imports it — ``import
 nhgait.x.y``, ``from nhgait.x.y import name`` or ``from nhgait.x import y`` (``y`` a module),
-at the top or inside a function; a package (``__init__``) is named by any import from it. A
+at the top or inside a function; a package (``__init__``) is named by any import from it or
+from one of its modules (importing ``nhgait.ocp.schedule`` runs ``nhgait/ocp/__init__``). A
 public name a package re-exports (``from nhgait.dynamics import jacobi_test``, a lazy name)
 also names the module that defines it (its ``__module__``; ``--strict`` leaves these out, and
 resolving them imports the library). The library modules are every ``*.py`` under ``api/``,
@@ -68,6 +69,8 @@ def named_by(root: Path = ROOT, *, strict: bool = False) -> dict:
         if not strict:
             found |= {defining_module(n) for n in names
                       if n.startswith("nhgait.") and n not in library and n.rpartition(".")[0] in library}
+        found = {name for name in found if name in library}
+        found |= {name.rsplit(".", k)[0] for name in found for k in range(1, name.count(".") + 1)}
         for name in sorted(found & set(library)):
             named[name].append(str(test.relative_to(root)))
     return named
