@@ -30,12 +30,19 @@ Measured with ``experiments/bench_thread_maps.py`` (docs/benchmarks.md).
 """
 from __future__ import annotations
 
+import contextlib
+import io
+import sys
+
 from .openmp import THREADS_SYMBOL, share
 
 __all__ = ["threaded_map", "map_threads", "with_grant", "PRELUDE", "CREATE"]
 
 #: the macro CasADi's threaded maps start their threads with (its generated C calls it)
 CREATE = "CASADI_THREAD_CREATE("
+#: CasADi's warning for a "thread" map from a build without threads (true of its own
+#: evaluation, which is then serial, not of the generated C)
+_WARNING = "was not compiled with WITH_THREAD"
 
 #: CasADi's thread macros for the stage maps under the process's grant (module docstring)
 PRELUDE = r"""/* nhgait (dynamics/numerics/thread_maps.py): CasADi's threaded maps under a thread grant */
@@ -60,11 +67,19 @@ def map_threads(n: int) -> int:
 def threaded_map(function, n: int, threads: int | None = None):
     """``function`` (a CasADi Function) mapped over ``n`` points on ``threads`` threads
     (default :func:`map_threads`) with CasADi's ``map(n, "thread", threads)``; one thread is
-    the serial map (no thread started)."""
+    the serial map (no thread started). A CasADi built without threads warns that its own
+    evaluation of the map is serial: that line is dropped (the generated C still threads),
+    any other message passed on."""
     threads = map_threads(n) if threads is None else max(1, min(int(threads), int(n)))
     if threads == 1:
         return function.map(n, "serial")
-    return function.map(n, "thread", threads)
+    caught = io.StringIO()
+    with contextlib.redirect_stderr(caught), contextlib.redirect_stdout(caught):
+        mapped = function.map(n, "thread", threads)
+    rest = "".join(line for line in caught.getvalue().splitlines(True) if _WARNING not in line)
+    if rest:
+        sys.stderr.write(rest)
+    return mapped
 
 
 def with_grant(source: str) -> str:
