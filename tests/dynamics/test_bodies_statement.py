@@ -44,5 +44,6 @@ def test_every_problem_of_every_table():
                   "unknown key(s) ['colour']", "'arm'.axis: the axis is zero",
                   "the inertia matrix is not symmetric", "unknown name(s) k",
                   "spin must name the wheel's rotation coordinate", "expected a list of 3 numbers",
-                  "rolls must be true or false", "'hand'"):
+                  "rolls must be true or false",
+                  "body 'arm': its parent 'hand' is not 'base' or a body declared"):
         assert words in said, words
