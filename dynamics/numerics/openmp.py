@@ -1,15 +1,15 @@
-"""The NLP's stage maps on several cores: OpenMP in the optimised library, in solver children only.
+"""The threads a process may use for the NLP's stage maps (its grant), and OpenMP's maps.
 
 An iteration's function time is almost all the stage Jacobian and Hessian mapped over the N
-intervals (``ocp/derivatives.py``), N independent calls. CasADi generates such a map as a loop
-under ``#pragma omp parallel for`` (map mode ``"openmp"``, each call with its own work arrays):
-compiled with :data:`FLAG` the calls share the cores, and without it (a compiler without
-OpenMP: the build retries without the flag, :mod:`.compiler`) the pragma is ignored and the
-loop is the serial map's. (The planner's stage maps are now CasADi's threaded maps,
-:mod:`.thread_maps`, which every compiler runs on several threads, under the same grant:
-:data:`THREADS_SYMBOL`.) No
-compiler runs to find out beforehand: that would put one on a cold plan's critical path.
-Measured on the 2-core machine (the cart with six trailers, gcc -O2 -march=native, best of 7 calls):
+intervals (``ocp/derivatives.py``), N independent calls. The planner makes those maps CasADi's
+threaded maps (:mod:`.thread_maps`: any compiler runs them on several threads, their library's
+count :data:`THREADS_SYMBOL` set by :func:`limit`). This module holds the grant they follow and
+CasADi's other parallel map, ``"openmp"`` (:func:`parallel_map`): a loop under ``#pragma omp
+parallel for`` (each call with its own work arrays), compiled with :data:`FLAG` the calls share
+the cores, and without it (a compiler without OpenMP: the build retries without the flag,
+:mod:`.compiler`) the pragma is ignored and the loop is the serial map's. No compiler runs to
+find out beforehand: that would put one on a cold plan's critical path. Measured on the 2-core
+machine (the cart with six trailers, gcc -O2 -march=native, best of 7 calls, OpenMP maps):
 ``nlp_hess_l`` 10.6 → 5.4 ms and ``nlp_jac_g`` 2.8 → 2.1 ms on two threads, the same numbers to
 the last bit; on one thread the OpenMP source is 3–4 % slower than the serial one (the per-call
 work arrays).
