@@ -12,8 +12,8 @@ Hence, with λ the multipliers of g and λ_f that of the objective f,
     ∇²_w L     = ∇²_w (λ_f f + λᵀ g_lin) + Σ_terms Σ_k P_kᵀ H_k P_k,  H_k = ∇²_x (σ E_kᵀλ)ᵀ F (x_k)
 
 The terms come from their functions mapped over their points (one call of ``jacobian`` /
-``hessian`` per point, code independent of N; with ``parallel`` an OpenMP map, whose C shares
-the points among the threads a solver child was granted, :mod:`nhgait.dynamics.numerics.openmp`);
+``hessian`` per point, code independent of N; with ``parallel`` CasADi's threaded map, whose C
+shares the points among the usable cores, :mod:`nhgait.dynamics.numerics.thread_maps`);
 CasADi differentiates only g_lin and f (conditions at single nodes, periodicity, the
 objective), which are small. The blocks are
 placed by a constant sparse scatter of the structural nonzeros of one point's J and H.
@@ -37,7 +37,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from nhgait.dynamics.numerics.openmp import parallel_map
+from nhgait.dynamics.numerics.thread_maps import threaded_map
 
 __all__ = ["nlp_functions", "HESSIANS"]
 
@@ -58,9 +58,9 @@ def _scatter(n_rows: int, n_cols: int, rows: np.ndarray, cols: np.ndarray, value
 
 
 def _mapped(function, K: int, parallel: bool):
-    """``function`` over K points: CasADi's OpenMP map when ``parallel`` (its C runs the points
-    on the cores a solver child was granted, :mod:`~nhgait.dynamics.numerics.openmp`), else serial."""
-    return parallel_map(function, K) if parallel else function.map(K, "serial")
+    """``function`` over K points: CasADi's threaded map when ``parallel`` (its C runs the points
+    on the usable cores, :mod:`~nhgait.dynamics.numerics.thread_maps`), else serial."""
+    return threaded_map(function, K) if parallel else function.map(K, "serial")
 
 
 def _jacobian(nlp, w, parallel: bool) -> tuple:
@@ -107,7 +107,7 @@ def _stage_hessian(nlp, lam_g, upper: bool, parallel: bool) -> ca.MX:
 def nlp_functions(nlp, *, hessian: str = "exact", solver: str = "ipopt", parallel: bool = False) -> dict:
     """``nlp_jac_g`` and ``nlp_hess_l`` of a shooting NLP (see the module docstring), or {}
     when ``nlp`` has no stage layout (collocation: CasADi differentiates the whole graph);
-    ``parallel``: the stage terms mapped with OpenMP (for C compiled with it)."""
+    ``parallel``: the stage terms mapped on threads (for compiled C)."""
     if nlp.layout is None:
         return {}
     if hessian not in HESSIANS:

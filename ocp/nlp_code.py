@@ -10,11 +10,13 @@ one C file by :class:`~.solver.OCPSolver`; :func:`choose_code` decides what runs
 1. **The optimised library from the cache** when an earlier run (or its background build)
    made it: gcc (``$NHGAIT_CC``, ``$CC``, gcc, cc) with the flags :class:`CompileBudget` picks
    from the C size (``SolverOptions.jit_flags`` forces them), and ``-fopenmp`` when the source has
-   OpenMP stage maps (:func:`parallel_maps`; dropped by a compiler without OpenMP) — a solver
-   child then runs the intervals on its share of the cores (:mod:`~nhgait.dynamics.numerics.openmp`).
+   OpenMP pragmas (dropped by a compiler without OpenMP, :mod:`~nhgait.dynamics.numerics.openmp`);
+   the stage maps themselves are CasADi's threaded maps (:func:`parallel_maps`), which run the
+   intervals on the cores with any compiler, a solver child on its share of them
+   (:mod:`~nhgait.dynamics.numerics.thread_maps`: the source gets its thread macros in front).
 2. Otherwise **code ready at once**: the fast compiler (:mod:`~nhgait.dynamics.numerics.fast_compiler`,
    the Tiny C Compiler: 0.02–0.25 s for 0.4–7 MB of C, code 1.2–2.6× slower than gcc -O1; its
-   stage maps on POSIX threads, :mod:`~nhgait.dynamics.numerics.thread_maps`),
+   stage maps on POSIX threads too),
    cached like any library; without one, the functions run **interpreted** (one line says
    so) — measured slower than the fast compiler's code at every size of the scale benchmark
    (the 6-link snake: 33 s against 8.6 s per solve), so a fast compiler present is always used.
@@ -49,7 +51,7 @@ from nhgait.dynamics.numerics.compiler import (
     library_by_key,
 )
 from nhgait.dynamics.numerics.fast_compiler import MISSING, fast_compiler
-from nhgait.dynamics.numerics.thread_maps import threaded_maps
+from nhgait.dynamics.numerics.thread_maps import with_grant
 
 __all__ = ["CompileBudget", "COMPILE_BUDGET", "CompileReport", "NlpCode", "choose_code", "CODES",
            "NO_COMPILER", "optimised_ready", "parallel_maps", "external_nlp"]
@@ -171,6 +173,7 @@ def choose_code(source: str, options, progress, *, salt: str, slot: str = "") ->
     for later (module docstring); ``options`` a :class:`~.solver.SolverOptions` (``jit``,
     ``jit_flags``, ``budget``); ``salt`` separates the keys (the CasADi version); ``slot`` names
     the robot and task, whose newest build request replaces the older ones (issue 40)."""
+    source = with_grant(source)     # threaded stage maps follow the process's grant
     size = len(source)
     flags, estimate, reason = ((tuple(options.jit_flags), 0.0, "flags given") if options.jit_flags
                                else options.budget.choose(size))
@@ -202,10 +205,9 @@ def choose_code(source: str, options, progress, *, salt: str, slot: str = "") ->
 
 
 def parallel_maps(options) -> bool:
-    """Whether to build the NLP's stage maps for OpenMP (:mod:`~nhgait.dynamics.numerics.openmp`):
-    when compiled code is asked for (the optimised library then gets
-    :data:`~nhgait.dynamics.numerics.openmp.FLAG`; the fast compiler's source has the maps
-    rewritten onto POSIX threads, :mod:`~nhgait.dynamics.numerics.thread_maps`)."""
+    """Whether to build the NLP's stage maps on threads (CasADi's threaded map,
+    :mod:`~nhgait.dynamics.numerics.thread_maps`): when compiled code is asked for (its C starts
+    the threads; both the fast compiler and the optimising one build it)."""
     return options.compiled
 
 
@@ -242,18 +244,15 @@ def _ready_now(source, options, progress, salt, optimised) -> tuple:
     fast = fast_compiler()
     failed = None
     if fast is not None:
-        threaded = threaded_maps(source)
-        for text in (threaded, source) if threaded else (source,):
-            try:
-                lib = build_library(text, command=fast.command, flags=fast.flags, libs=fast.libs, salt=salt,
-                                    progress=progress, label=f"compile {mb:.2f} MB of C with {fast.name}")
-            except CompilerUnavailable as exc:
-                failed = f"the fast C compiler failed: {exc}"
-                continue                   # the threaded source: try the plain one
-            maps = ", its stage maps on POSIX threads" if text is threaded else ""
+        try:
+            lib = build_library(source, command=fast.command, flags=fast.flags, libs=fast.libs, salt=salt,
+                                progress=progress, label=f"compile {mb:.2f} MB of C with {fast.name}")
+        except CompilerUnavailable as exc:
+            failed = f"the fast C compiler failed: {exc}"
+        else:
             progress.note(f"  NLP functions: {mb:.2f} MB of C, " + ("fast library from the cache"
                                                                     if lib.cached else
-                          f"compiled with {fast.name} in {lib.compile_s:.2f} s") + maps)
+                          f"compiled with {fast.name} in {lib.compile_s:.2f} s"))
             return lib, "fast", fast.name, None
         progress.note_once("fast-compiler-failed", f"{failed}; the NLP functions run interpreted")
     else:

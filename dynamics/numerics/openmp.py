@@ -1,14 +1,15 @@
-"""The NLP's stage maps on several cores: OpenMP in the optimised library, in solver children only.
+"""The threads a process may use for the NLP's stage maps (its grant), and OpenMP's maps.
 
 An iteration's function time is almost all the stage Jacobian and Hessian mapped over the N
-intervals (``ocp/derivatives.py``), N independent calls. CasADi generates such a map as a loop
-under ``#pragma omp parallel for`` (map mode ``"openmp"``, each call with its own work arrays):
-compiled with :data:`FLAG` the calls share the cores, and without it (a compiler without
-OpenMP: the build retries without the flag, :mod:`.compiler`) the pragma is ignored and the
-loop is the serial map's. The fast compiler's code has them on POSIX threads instead
-(:mod:`.thread_maps`: the source rewritten before it is compiled), under the same grant. No
-compiler runs to find out beforehand: that would put one on a cold plan's critical path.
-Measured on the 2-core machine (the cart with six trailers, gcc -O2 -march=native, best of 7 calls):
+intervals (``ocp/derivatives.py``), N independent calls. The planner makes those maps CasADi's
+threaded maps (:mod:`.thread_maps`: any compiler runs them on several threads, their library's
+count :data:`THREADS_SYMBOL` set by :func:`limit`). This module holds the grant they follow and
+CasADi's other parallel map, ``"openmp"`` (:func:`parallel_map`): a loop under ``#pragma omp
+parallel for`` (each call with its own work arrays), compiled with :data:`FLAG` the calls share
+the cores, and without it (a compiler without OpenMP: the build retries without the flag,
+:mod:`.compiler`) the pragma is ignored and the loop is the serial map's. No compiler runs to
+find out beforehand: that would put one on a cold plan's critical path. Measured on the 2-core
+machine (the cart with six trailers, gcc -O2 -march=native, best of 7 calls, OpenMP maps):
 ``nlp_hess_l`` 10.6 → 5.4 ms and ``nlp_jac_g`` 2.8 → 2.1 ms on two threads, the same numbers to
 the last bit; on one thread the OpenMP source is 3–4 % slower than the serial one (the per-call
 work arrays).
@@ -37,9 +38,8 @@ import io
 import os
 import sys
 
-from .thread_maps import THREADS_SYMBOL
-
-__all__ = ["FLAG", "parallel_map", "share", "grant", "limit", "threads", "before_load", "WAIT_POLICY"]
+__all__ = ["FLAG", "parallel_map", "share", "grant", "limit", "threads", "before_load", "WAIT_POLICY",
+           "THREADS_SYMBOL"]
 
 #: the compiler flag (compile and link) of OpenMP's pragmas and runtime
 FLAG = "-fopenmp"
@@ -54,8 +54,12 @@ WAIT_POLICY = "PASSIVE"
 #: CasADi's warning for an "openmp" map (this wheel has no OpenMP: its own evaluation is serial)
 _WARNING = "was not compiled with WITH_OPENMP"
 
+#: the exported ``int`` of a library whose stage maps are CasADi's threaded maps (:mod:`.thread_maps`):
+#: its blocks run on threads when it is above 1, else in the calling thread (:func:`limit` sets it)
+THREADS_SYMBOL = "nhgait_threads"
+
 _granted = 1      # threads this process may use (grant); 1 unless it is a supervised child
-_threaded: set = set()   # paths of the loaded libraries with thread_maps' runtime (limit)
+_threaded: set = set()   # paths of the loaded libraries with THREADS_SYMBOL (limit)
 
 
 def parallel_map(function, n: int):
@@ -102,9 +106,9 @@ def threads() -> int:
 
 def limit(library=None) -> None:
     """Apply this process's grant to every OpenMP runtime loaded in it and to every loaded
-    library whose maps run on POSIX threads (:mod:`.thread_maps`; ``library``: the path of one
-    just loaded, remembered if it is one): one thread unless :func:`grant` said more. Call after
-    loading a library."""
+    library with threaded maps (:data:`THREADS_SYMBOL`, :mod:`.thread_maps`; ``library``: the
+    path of one just loaded, remembered if it is one): one thread unless :func:`grant` said
+    more. Call after loading a library."""
     loaded = getattr(os, "RTLD_NOLOAD", 0)
     for name in RUNTIMES:
         try:
@@ -117,7 +121,7 @@ def limit(library=None) -> None:
     for path in sorted(_threaded):
         try:
             count = ctypes.c_int.in_dll(ctypes.CDLL(path, mode=loaded), THREADS_SYMBOL)
-        except (OSError, ValueError):     # unloaded since, or not one of them
+        except (OSError, ValueError):     # unloaded since, or without threaded maps
             _threaded.discard(path)
             continue
         count.value = _granted

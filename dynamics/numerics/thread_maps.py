@@ -1,105 +1,88 @@
-"""The stage maps on POSIX threads, for C compiled without OpenMP (the fast compiler).
+"""The NLP's stage maps on several threads: CasADi's own threaded map (issue 44).
 
-A planner's NLP functions map the stage Jacobian and Hessian over the N intervals
-(``ocp/derivatives.py``); with OpenMP maps CasADi generates each as a loop under
-``#pragma omp parallel for``, which gcc's ``-fopenmp`` runs on the cores (:mod:`.openmp`) and
-the Tiny C Compiler ignores: a cold plan's code (:mod:`.fast_compiler`) ran its intervals on
-one core. :func:`threaded_maps` rewrites each such loop into a function of one point,
+A planner's NLP function time is almost all the stage Jacobian and Hessian mapped over the N
+intervals (``ocp/derivatives.py``), N independent calls. :func:`threaded_map` makes that map
+with CasADi's ``Function.map(N, "thread", T)``: T blocks of about N/T consecutive points (a
+serial map each; when T does not divide N the last block repeats the last point and the extra
+results are dropped), whose generated C (CasADi ≥ 3.8: ``ThreadMap::codegen_body``) starts one
+POSIX thread per block through CasADi's macros ``CASADI_THREAD_CREATE`` / ``CASADI_THREAD_JOIN``
+and joins them all before the call returns — so no thread outlives a call and a process may
+fork after it (GNU OpenMP's pool forbids that), and every compiler runs it: the Tiny C Compiler
+of a cold plan (:mod:`.fast_compiler`) as well as gcc. Each block writes its own slices of the
+work arrays, so the results are those of the serial map to the last bit. CasADi 3.6–3.7
+generate the serial loop for the same map: the same answers on one core.
 
-    static int casadi_fK_point(arg, res, iw, w, i) { <the loop's body for point i> }
-    static int casadi_fK(arg, res, iw, w, mem) { return nhgait_parallel_for(N, casadi_fK_point, …); }
+**The grant.** CasADi's generated C defines those macros only where they are not defined
+already (``#ifndef CASADI_THREAD_CREATE``: its documented way to choose the threads). The NLP's
+source gets :data:`PRELUDE` in front (:func:`with_grant`: text added, none of CasADi's
+rewritten): a block runs on its own thread only while the library's exported ``int``
+:data:`~.openmp.THREADS_SYMBOL` is above 1, else in the calling thread — and also when a thread
+cannot be started, where CasADi's own macros would join a thread that does not exist.
+:func:`.openmp.limit` sets that count to the process's grant, as it sets OpenMP's: one thread
+unless the process is a supervised solver child (:func:`.openmp.grant`: its share of the
+cores), so attempts running at once do not share cores they were not given.
 
-and adds :data:`RUNTIME`, which splits the N points into contiguous blocks, one per thread —
-threads started and joined within the call, so none outlives it (a process may fork after it,
-which GNU OpenMP's pool forbids). The points write disjoint slices of ``arg``, ``res``, ``iw``
-and ``w`` (CasADi gives each its own, as it does for OpenMP), so the results are those of the
-serial loop to the last bit. The library's thread count is its exported ``int``
-:data:`THREADS_SYMBOL` (1 until set: :func:`.openmp.limit` gives it the process's grant).
+T is fixed when the map is made (it is part of the generated C, hence of the library's key):
+:func:`map_threads`, the usable cores (``$OMP_NUM_THREADS`` caps them, as it caps OpenMP,
+:func:`.openmp.share`), at most N.
 
-Measured (the 2-core machine, the Tiny C Compiler, ``nlp_hess_l`` + ``nlp_jac_g``, median of 7,
-a nice-19 busy loop on the other core as a background build): the 8-link snake 244 ms serial,
-243 ms on one thread, 129 ms on two; the cart with six trailers 65.7, 65.9 and 35.8 ms.
-
-The rewrite recognises the loop CasADi writes (:data:`MAP`; CasADi 3.8, checked by the tests on
-the installed version); for any other shape it returns None and the caller compiles the source
-as it is (serial, as before).
+Measured with ``experiments/bench_thread_maps.py`` (docs/benchmarks.md).
 """
 from __future__ import annotations
 
-import re
+import contextlib
+import io
+import sys
 
-__all__ = ["threaded_maps", "THREADS_SYMBOL", "RUNTIME", "MAP", "MAX_THREADS"]
+from .openmp import THREADS_SYMBOL, share
 
-#: the library's exported thread count (an ``int``; 1 until set)
-THREADS_SYMBOL = "nhgait_threads"
-#: at most this many threads per map call
-MAX_THREADS = 64
+__all__ = ["threaded_map", "map_threads", "with_grant", "PRELUDE", "CREATE"]
 
-#: the parallel loop over one map's points, inserted before the first rewritten map
-RUNTIME = r"""
-/* nhgait (dynamics/numerics/thread_maps.py): the maps' points on POSIX threads */
+#: the macro CasADi's threaded maps start their threads with (its generated C calls it)
+CREATE = "CASADI_THREAD_CREATE("
+#: CasADi's warning for a "thread" map from a build without threads (true of its own
+#: evaluation, which is then serial, not of the generated C)
+_WARNING = "was not compiled with WITH_THREAD"
+
+#: CasADi's thread macros for the stage maps under the process's grant (module docstring)
+PRELUDE = r"""/* nhgait (dynamics/numerics/thread_maps.py): CasADi's threaded maps under a thread grant */
+int NHGAIT_THREADS = 1;
+#if !defined(_WIN32) && !defined(CASADI_THREAD_CREATE)
 #include <pthread.h>
-int nhgait_threads = 1;
-typedef int (*nhgait_point)(const casadi_real**, casadi_real**, casadi_int*, casadi_real*, casadi_int);
-struct nhgait_block { nhgait_point point; const casadi_real** arg; casadi_real** res; casadi_int* iw;
-                      casadi_real* w; casadi_int lo, hi; int flag; };
-static void* nhgait_run(void* p) {
-  struct nhgait_block* b = (struct nhgait_block*) p;
-  casadi_int i;
-  for (i = b->lo; i < b->hi; ++i) b->flag = b->point(b->arg, b->res, b->iw, b->w, i) || b->flag;
-  return 0;
-}
-static int nhgait_parallel_for(casadi_int n, nhgait_point point, const casadi_real** arg,
-                               casadi_real** res, casadi_int* iw, casadi_real* w) {
-  struct nhgait_block block[MAX_THREADS];
-  pthread_t thread[MAX_THREADS];
-  int started[MAX_THREADS], t, flag, T = nhgait_threads;
-  if (T > MAX_THREADS) T = MAX_THREADS;
-  if (T > n) T = (int) n;
-  if (T < 1) T = 1;
-  for (t = 0; t < T; ++t) {
-    block[t].point = point; block[t].arg = arg; block[t].res = res; block[t].iw = iw; block[t].w = w;
-    block[t].lo = n * t / T; block[t].hi = n * (t + 1) / T; block[t].flag = 0;
-  }
-  for (t = 1; t < T; ++t) started[t] = pthread_create(&thread[t], 0, nhgait_run, &block[t]) == 0;
-  nhgait_run(&block[0]);
-  flag = block[0].flag;
-  for (t = 1; t < T; ++t) {
-    if (started[t]) pthread_join(thread[t], 0); else nhgait_run(&block[t]);
-    flag = flag || block[t].flag;
-  }
-  return flag;
-}
-""".replace("MAX_THREADS", str(MAX_THREADS))
-
-#: one OpenMP map as CasADi generates it: its declarations, its count and its loop's body
-MAP = re.compile(
-    r"static int (?P<name>casadi_f\d+)\(const casadi_real\*\* arg, casadi_real\*\* res, casadi_int\* iw, "
-    r"casadi_real\* w, int mem\) \{\n"
-    r"  casadi_int cflag=0, i;\n"
-    r"(?P<declarations>(?:  [^\n]*;\n)*?)"
-    r"  #pragma omp parallel for private\(i,arg1,res1\) reduction\(\|\|:cflag\)\n"
-    r"  for \(i=0; i<(?P<n>\d+); \+\+i\) \{\n"
-    r"(?P<body>(?:    [^\n]*\n)+)"
-    r"  \}\n"
-    r"  if \(cflag\) return 1;\n"
-    r"  return 0;\n"
-    r"\}\n")
+typedef struct { pthread_t id; int started; } nhgait_thread;
+#define CASADI_THREAD_HANDLE nhgait_thread
+#define CASADI_THREAD_CREATE(t, f, a) \
+  (((t).started = NHGAIT_THREADS > 1 && pthread_create(&(t).id, 0, f, a) == 0) ? 0 : ((void) f(a), 0))
+#define CASADI_THREAD_JOIN(t) ((t).started ? pthread_join((t).id, 0) : 0)
+#endif
+""".replace("NHGAIT_THREADS", THREADS_SYMBOL)
 
 
-def _point_and_map(m: re.Match) -> str:
-    name, signature = m["name"], "const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w"
-    return (f"static int {name}_point({signature}, casadi_int i) {{\n"
-            f"  casadi_int cflag=0;\n{m['declarations']}{m['body']}  return cflag;\n}}\n"
-            f"static int {name}({signature}, int mem) {{\n"
-            f"  return nhgait_parallel_for({m['n']}, {name}_point, arg, res, iw, w);\n}}\n")
+def map_threads(n: int) -> int:
+    """The threads of a map over ``n`` points: the usable cores (:func:`.openmp.share` of one
+    worker), at most ``n``, at least 1."""
+    return max(1, min(int(n), share(1)))
 
 
-def threaded_maps(source: str) -> str | None:
-    """``source`` with every OpenMP map's loop on POSIX threads (module docstring), or None when
-    it has none or one that :data:`MAP` does not recognise (then nothing is rewritten)."""
-    maps = list(MAP.finditer(source))
-    if not maps or source.count("#pragma omp") != len(maps):
-        return None
-    first = maps[0].start()
-    return source[:first] + RUNTIME + MAP.sub(_point_and_map, source[first:])
+def threaded_map(function, n: int, threads: int | None = None):
+    """``function`` (a CasADi Function) mapped over ``n`` points on ``threads`` threads
+    (default :func:`map_threads`) with CasADi's ``map(n, "thread", threads)``; one thread is
+    the serial map (no thread started). A CasADi built without threads warns that its own
+    evaluation of the map is serial: that line is dropped (the generated C still threads),
+    any other message passed on."""
+    threads = map_threads(n) if threads is None else max(1, min(int(threads), int(n)))
+    if threads == 1:
+        return function.map(n, "serial")
+    caught = io.StringIO()
+    with contextlib.redirect_stderr(caught), contextlib.redirect_stdout(caught):
+        mapped = function.map(n, "thread", threads)
+    rest = "".join(line for line in caught.getvalue().splitlines(True) if _WARNING not in line)
+    if rest:
+        sys.stderr.write(rest)
+    return mapped
+
+
+def with_grant(source: str) -> str:
+    """``source`` (generated C) with :data:`PRELUDE` in front when it starts threads (its
+    threaded maps then follow the process's grant), else as it is."""
+    return PRELUDE + source if CREATE in source else source
