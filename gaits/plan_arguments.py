@@ -7,37 +7,54 @@ for it; a Python caller gets the same checks here, every problem in one
 (``intervals=3.5``), taken for a number (``intervals=True``), or an error deep inside
 (``workers="many"``, ``max_iter=-1`` in Ipopt's option dump).
 
-* :func:`checked_request` — (the resolved plan, the output folder) or one ProblemError;
-* :func:`argument_problems` — the problems of the arguments alone;
+* :func:`checked_request` — (the resolved plan, the output folder, the options) or one ProblemError;
+* :func:`argument_problems` — the problems of the arguments alone (the options' are
+  :class:`~.plan_options.PlanOptions`'s own);
 * :func:`override_list` — ``overrides`` as a list: a single string is one override;
-* :func:`whole_number` — an integer (Python's or numpy's), not a bool (also for track and sweep);
 * :func:`check_params` — the parameter values themselves (names, numbers, a positive definite
   kinetic metric), once the scene is known.
 """
 from __future__ import annotations
 
-import numbers
 from collections.abc import Mapping
+from typing import Any, NamedTuple
 
-__all__ = ["checked_request", "argument_problems", "override_list", "check_params", "whole_number"]
+from .plan_options import PlanOptions, whole_number
 
-def checked_request(system, task, arguments: dict) -> tuple:
-    """(the :class:`~nhgait.gaits.task_library.Plan`, the output folder or None) for ``plan``'s
-    keyword ``arguments``; one ProblemError listing every problem of the arguments, the output
-    folder, the scene and the task."""
+__all__ = ["checked_request", "argument_problems", "override_list", "check_params", "PlanRequest"]
+
+#: ``plan``'s own arguments; the other keywords are its options (:class:`~.plan_options.PlanOptions`)
+OWN = ("overrides", "params", "out_dir", "animate", "progress", "options", "values")
+
+
+class PlanRequest(NamedTuple):
+    """What :func:`checked_request` returns."""
+
+    plan: Any                       #: the :class:`~nhgait.gaits.task_library.Plan`
+    out_dir: Any                    #: the output folder (a Path) or None
+    options: PlanOptions            #: how the plan is solved
+
+
+def checked_request(system, task, arguments: dict) -> PlanRequest:
+    """The plan, the output folder and the options of ``plan``'s keyword ``arguments``
+    (:func:`argument_problems`' names); one ProblemError listing every problem of the arguments,
+    the options, the output folder, the scene and the task."""
     from nhgait.dynamics.errors import ModelError
     from nhgait.ocp import ProblemError
 
     from .outputs import output_directory
     from .task_library import resolve
     problems = argument_problems(**arguments)
-    out_dir, to_plan, caught = arguments["out_dir"], None, []
+    values = {**(arguments.get("values") or {}), **{k: v for k, v in arguments.items() if k not in OWN}}
+    options = PlanOptions.collect(arguments.get("options"), **values).options
+    out_dir, to_plan, caught = arguments.get("out_dir"), None, []
     try:
         if out_dir is not None:            # before any derivation (a bad location: exit 2)
             out_dir = output_directory(out_dir, "out_dir")
     except ModelError as exc:
         caught.append(exc)
-    overrides = override_list(arguments["overrides"], arguments["intervals"])
+    intervals = options.intervals if options is not None else None
+    overrides = override_list(arguments.get("overrides", ()), intervals)
     try:
         if overrides is not None:          # else their type is among the problems
             to_plan = resolve(system, task, overrides=overrides)
@@ -48,7 +65,7 @@ def checked_request(system, task, arguments: dict) -> tuple:
     problems += [p for exc in caught for p in exc.problems]
     if problems:
         raise ProblemError(problems, title="invalid plan request")
-    return to_plan, out_dir
+    return PlanRequest(to_plan, out_dir, options)
 
 
 def override_list(overrides, intervals=None) -> list | None:
@@ -68,72 +85,28 @@ def override_list(overrides, intervals=None) -> list | None:
     return overrides
 
 
-def argument_problems(*, overrides=(), intervals=None, solver="auto", transcription=None, jit=None,
-                      workers=1, params=None, max_iter=500, out_dir=None, animate=False, verify=True,
-                      hessian="auto", max_guesses=12, progress=None, time_limit=None) -> list:
+def argument_problems(*, overrides=(), params=None, out_dir=None, animate=False, progress=None,
+                      options=None, values=None, **more) -> list:
     """What is wrong with ``plan``'s arguments (the names and meanings of
-    :func:`~nhgait.gaits.planner.plan`; the values a command-line option can give pass)."""
-    from .time_limits import time_limit_problem
-    problems = [*_count_problems(intervals, max_iter, max_guesses),
-                *_choice_problems(solver, hessian, transcription),
-                *_switch_problems(jit=jit, animate=animate, verify=verify)]
+    :func:`~nhgait.gaits.planner.plan`): its own, and its options — ``options`` (a
+    :class:`~.plan_options.PlanOptions`, a mapping or None) with ``values`` and ``more`` (option
+    names as keywords) on top (:meth:`~.plan_options.PlanOptions.collect`)."""
+    problems = list(PlanOptions.collect(options, **(values or {}), **more).problems)
+    problems += _switch_problems(animate=animate)
     if override_list(overrides) is None:
         problems.append(f"overrides = {overrides!r}: give 'key=value' strings, a list of them or one "
                         "(e.g. ['final.y=0.3'])")
-    if not (workers in (None, "auto") or (whole_number(workers) and workers >= 1)):
-        problems.append(f"workers = {workers!r} must be a whole number ≥ 1 or 'auto'")
     if params is not None and not isinstance(params, Mapping):
         problems.append(f"params = {params!r} must be a mapping of parameter names to values")
     if animate is True and out_dir is None:
         problems.append("animate=True writes motion.gif into out_dir: give out_dir (or leave animate False)")
-    problems += _progress_problems(progress)
-    if time_limit is not None and time_limit_problem(time_limit):
-        problems.append(time_limit_problem(time_limit))
-    return problems
-
-
-def whole_number(value) -> bool:
-    """Whether ``value`` is an integer (Python's or numpy's), not a bool."""
-    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
-
-
-def _count_problems(intervals, max_iter, max_guesses) -> list:
-    """``max_iter`` and ``max_guesses``: whole numbers ≥ 1; ``intervals``: None or a whole number
-    (its range, 1 to 5000, is the task's check: ``--intervals 0`` says it)."""
-    problems = [f"{name} = {value!r} must be a whole number ≥ 1"
-                for name, value in (("max_iter", max_iter), ("max_guesses", max_guesses))
-                if not (whole_number(value) and value >= 1)]
-    if intervals is not None and not whole_number(intervals):
-        problems.insert(0, f"intervals = {intervals!r} must be a whole number (N control intervals) or None")
-    return problems
+    return problems + _progress_problems(progress)
 
 
 def _switch_problems(**switches) -> list:
-    """Each of ``jit`` (or None: when a C compiler is found), ``animate`` and ``verify``: a bool."""
-    return [f"{name} = {value!r} must be True or False" + (" or None" if name == "jit" else "")
-            for name, value in switches.items()
-            if not (isinstance(value, bool) or (name == "jit" and value is None))]
-
-
-def _choice_problems(solver, hessian, transcription) -> list:
-    """``solver`` and ``hessian`` among their choices; ``transcription`` None, a known name or a
-    transcription object (one with ``build``)."""
-    from nhgait.ocp.backends import BACKENDS
-    from nhgait.ocp.derivatives import HESSIANS
-    from nhgait.ocp.transcription import TRANSCRIPTIONS
-    problems = [f"{name} = {value!r}: use one of {', '.join(map(repr, choices))}"
-                for name, value, choices in (("solver", solver, ("auto", *sorted(BACKENDS))),
-                                             ("hessian", hessian, ("auto", *HESSIANS)))
-                if not (isinstance(value, str) and value in choices)]
-    if solver == "fatrop" and hessian == "limited-memory":
-        problems.append("solver = 'fatrop' has no limited-memory Hessian (Ipopt's L-BFGS): use "
-                        "hessian 'exact' or 'gauss-newton', or solver 'ipopt' or 'auto'")
-    known = isinstance(transcription, str) and transcription in TRANSCRIPTIONS
-    if not (transcription is None or known or (not isinstance(transcription, str)
-                                               and callable(getattr(transcription, "build", None)))):
-        problems.append(f"transcription = {transcription!r}: use None or one of "
-                        f"{', '.join(map(repr, TRANSCRIPTIONS))}")
-    return problems
+    """Each of ``switches`` (``animate``): a bool."""
+    return [f"{name} = {value!r} must be True or False" for name, value in switches.items()
+            if not isinstance(value, bool)]
 
 
 def _progress_problems(progress) -> list:

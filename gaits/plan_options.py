@@ -29,14 +29,21 @@ from __future__ import annotations
 import numbers
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields, replace
-from typing import Any
+from typing import Any, NamedTuple
 
-__all__ = ["PlanOptions", "whole_number"]
+__all__ = ["PlanOptions", "Collected", "whole_number"]
 
 
 def whole_number(value) -> bool:
     """Whether ``value`` is an integer (Python's or numpy's), not a bool."""
     return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+class Collected(NamedTuple):
+    """What :meth:`PlanOptions.collect` returns."""
+
+    options: PlanOptions | None    #: None when a name is unknown
+    problems: list                 #: every problem of the values, in words
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -81,8 +88,18 @@ class PlanOptions:
         """``options`` (a PlanOptions, a mapping of option names or None) with ``values`` on top,
         checked: an unknown name or a wrong value is one :class:`~nhgait.ocp.ProblemError`
         naming every problem (with the close matches of an unknown name)."""
-        from nhgait.dynamics.suggestions import known_names
         from nhgait.ocp import ProblemError
+        made, problems = cls.collect(options, **values)
+        if problems:
+            raise ProblemError(problems, title="invalid plan options")
+        return made
+
+    @classmethod
+    def collect(cls, options=None, **values) -> Collected:
+        """(the options, their problems) — as :meth:`of`, with the problems listed instead of
+        raised (a caller that checks more than the options lists them all in one error); the
+        options are None when a name is unknown or ``options`` is not one of its kinds."""
+        from nhgait.dynamics.suggestions import known_names
         if isinstance(options, PlanOptions):
             given = asdict(options)
         elif options is None:
@@ -90,18 +107,22 @@ class PlanOptions:
         elif isinstance(options, Mapping):
             given = dict(options)
         else:
-            raise ProblemError([f"options = {options!r} must be a PlanOptions, a mapping of option "
-                                f"names or None"], title="invalid plan options")
+            return Collected(None, [f"options = {options!r} must be a PlanOptions, a mapping of option "
+                                    "names or None"])
         given.update(values)
         unknown = [f"unknown option {name!r}" + known_names(str(name), cls.names(), label="options")
                    for name in given if name not in cls.names()]
         if unknown:
-            raise ProblemError(unknown, title="invalid plan options")
+            return Collected(None, unknown)
         made = cls(**given)
-        problems = made.problems()
-        if problems:
-            raise ProblemError(problems, title="invalid plan options")
-        return made
+        return Collected(made, made.problems())
+
+    @classmethod
+    def values_of(cls, args) -> dict:
+        """The option values a parsed command line holds: its attributes named as the options (the
+        ones it has not stay the defaults), unchecked — :func:`~nhgait.gaits.planner.plan` checks
+        them with the rest of the request, every problem in one error."""
+        return {name: getattr(args, name) for name in cls.names() if hasattr(args, name)}
 
     def replace(self, **values) -> PlanOptions:
         """A copy with ``values`` changed, checked (:meth:`of`)."""

@@ -248,10 +248,8 @@ def choose_hessian(hessian: str) -> str:
     return "exact" if hessian == "auto" else hessian
 
 
-def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", transcription=None,
-         jit=None, workers=1, params=None, max_iter=500, guess=None, out_dir=None, animate=False,
-         verify=True, hessian="auto", max_guesses=12, progress=None, time_limit=None,
-         figures=True) -> PlanResult:
+def plan(system, task=None, *, overrides=(), params=None, guess=None, out_dir=None, animate=False,
+         figures=True, progress=None, options=None, **values) -> PlanResult:
     """Plan a gait: see the module docstring.
 
     Parameters
@@ -260,14 +258,7 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     task : None (the scene's ``[task]``), a built-in gait name, a ``[task]`` dict or a Task
     overrides : ``key.sub=value`` strings (``--set``), e.g. ``["final.x=2.0"]``; one string is
         one override
-    intervals : N, overriding the task's (a whole number)
-    solver : "auto" (default: :func:`solver_order` — FATROP then Ipopt for small ODEs, Ipopt then
-        FATROP for larger ones), "fatrop" or "ipopt"
-    transcription : None (multiple shooting; stage-ordered for FATROP) or "collocation"
-    jit : compile the NLP functions (None: when a C compiler is found, within the compile budget)
-    workers : candidates tried at once (separate processes); "auto" for up to 2 per machine
     params : parameter values overriding the scene's (mapping)
-    max_iter : iteration limit of each candidate's solve
     guess : a previous result to start from (Solution, PlanResult, solution.json dict or path,
         InitialGuess), tried before the planner's own candidates (:func:`warm_start`); one of
         another robot, or a solution.json whose trajectory is not well formed, is a ProblemError
@@ -276,12 +267,14 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
         needs ``out_dir``)
     figures : False: in ``out_dir`` only solution.json and trajectory.csv (the result); the
         figures are then :func:`with_figures`'s (``nhgait plan`` prints the result line first)
-    hessian : "auto", "exact", "gauss-newton" or "limited-memory" (Ipopt)
-    max_guesses : guesses tried per solver before the continuation
     progress : a :class:`~nhgait.dynamics.progress.Progress` (None: silent)
-    time_limit : seconds the whole plan may take (None: the task's ``time_limit``, else the
-        default of :func:`plan_budget`); a plan that runs out is a failure whose ``overrun``
-        says in which phase (step 7 of the module docstring)
+    options : how the plan is solved, a :class:`~.plan_options.PlanOptions` (or a mapping of its
+        names; None: the defaults) — the grid (``intervals``), ``solver``, ``transcription``,
+        ``jit``, ``workers``, ``max_iter``, ``hessian``, ``max_guesses``, ``verify`` and
+        ``time_limit`` (a plan that runs out is a failure whose ``overrun`` says in which phase:
+        step 7 of the module docstring)
+    **values : the same options as keywords, on top of ``options``: ``plan(..., intervals=40,
+        verify=False)``
 
     Notes
     -----
@@ -295,20 +288,17 @@ def plan(system, task=None, *, overrides=(), intervals=None, solver="auto", tran
     from .plan_arguments import checked_request
 
     started = time.monotonic()
-    to_plan, out_dir = checked_request(system, task, dict(   # one ProblemError, before any derivation
-        overrides=overrides, intervals=intervals, solver=solver, transcription=transcription, jit=jit,
-        workers=workers, params=params, max_iter=max_iter, out_dir=out_dir, animate=animate, verify=verify,
-        hessian=hessian, max_guesses=max_guesses, progress=progress, time_limit=time_limit))
+    to_plan, out_dir, options = checked_request(system, task, dict(   # one ProblemError, before any work
+        overrides=overrides, params=params, out_dir=out_dir, animate=animate, progress=progress,
+        options=options, values=values))
     if guess is not None:              # checked before any derivation (exit 2 for a bad guess)
         guess = previous_answer(guess, to_plan.system.coordinates, to_plan.system.inputs, to_plan.label)
     progress = progress or Progress.silent()
-    budget = plan_budget(to_plan, time_limit, started=started, progress=progress)
-    workers = _default_workers() if workers in (None, "auto") else int(workers)
-    settings = SearchSettings(solver, transcription, jit, choose_hessian(hessian), max_iter,
-                              workers, max_guesses, warm_figures=out_dir is not None)
+    budget = plan_budget(to_plan, options.time_limit, started=started, progress=progress)
+    settings = SearchSettings.of(options, warm_figures=out_dir is not None)
     reached = _Reached()
     try:
-        _run_plan(to_plan, reached, settings, budget, params=params, guess=guess, verify=verify,
+        _run_plan(to_plan, reached, settings, budget, params=params, guess=guess, verify=options.verify,
                   progress=progress)
     except BudgetSpent as exc:
         reached.overrun = exc.overrun
@@ -463,7 +453,7 @@ def _result(to_plan, reached: _Reached, settings, params) -> PlanResult:
                       screening=reached.screening)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class SearchSettings:
     """How :func:`plan` searches: the ``solver`` choice (:func:`solver_order`), the
     ``transcription``, ``jit``, the ``hessian`` (already chosen), ``max_iter`` per solve,
@@ -477,6 +467,15 @@ class SearchSettings:
     workers: int
     limit: int
     warm_figures: bool = False
+
+    @classmethod
+    def of(cls, options, *, warm_figures: bool = False) -> SearchSettings:
+        """The settings of a plan's :class:`~.plan_options.PlanOptions` (the Hessian chosen, the
+        workers counted)."""
+        workers = _default_workers() if options.workers in (None, "auto") else int(options.workers)
+        return cls(solver=options.solver, transcription=options.transcription, jit=options.jit,
+                   hessian=choose_hessian(options.hessian), max_iter=options.max_iter, workers=workers,
+                   limit=options.max_guesses, warm_figures=warm_figures)
 
 
 def _search(problem, guesses, settings: SearchSettings, progress, budget, reached: _Reached) -> None:

@@ -83,17 +83,15 @@ def run(args) -> int:
     from nhgait.dynamics.progress import Progress
 
     from ..outputs import output_directory, output_lock
+    from ..plan_options import PlanOptions
     from ..planner import plan, summary_lines, with_figures
     started = time.perf_counter()
-    workers = args.workers
     progress = Progress.silent() if args.quiet else Progress.to_stderr(verbose=args.verbose)
     out = output_directory(args.out)
     with output_lock(out, f"nhgait plan {args.system}"), builds_off(args.no_background_build):
-        result = plan(args.system, args.gait, overrides=args.overrides, intervals=args.intervals,
-                      solver=args.solver, transcription=args.transcription, jit=args.jit, workers=workers,
-                      out_dir=out, animate=args.gif, hessian=args.hessian,
-                      max_guesses=args.max_guesses, progress=progress, time_limit=args.time_limit,
-                      guess=args.guess, figures=False)
+        result = plan(args.system, args.gait, overrides=args.overrides, out_dir=out, animate=args.gif,
+                      progress=progress, guess=args.guess, figures=False,
+                      options=PlanOptions.values_of(args))
         lines = [line for line in summary_lines(result)      # the animation comes with the figures
                  if not (args.gif and line.startswith("  animation "))]
         print("\n".join(lines), flush=True)                           # the result, before anything optional

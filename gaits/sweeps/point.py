@@ -225,30 +225,21 @@ OPTIONS = ("transcription", "solver", "jit", "time_limit")
 
 def option_problems(options) -> list:
     """What is wrong with a sweep's planner ``options`` (None or a mapping of :data:`OPTIONS`):
-    an unknown name (once silently ignored), a solver or transcription nhgait does not know,
-    a ``jit`` that is not a bool or None, a time limit that is not a positive number."""
+    an unknown name (once silently ignored), then the values as a plan's
+    (:class:`~..plan_options.PlanOptions`), and a solver a point can run (one: no ``auto``)."""
     from nhgait.dynamics.suggestions import known_names
-    from nhgait.ocp.solver import SOLVERS
-    from nhgait.ocp.transcription import TRANSCRIPTIONS
 
-    from ..time_limits import time_limit_problem
+    from ..plan_options import PlanOptions
     if options is None:
         return []
     if not isinstance(options, Mapping):
         return [f"options = {options!r} must be a mapping ({', '.join(OPTIONS)})"]
     problems = [f"options: unknown option {name!r}" + known_names(str(name), OPTIONS, label="options")
                 for name in options if name not in OPTIONS]
-    for name, choices in (("solver", tuple(SOLVERS)), ("transcription", (None, *TRANSCRIPTIONS))):
-        if name in options and options[name] not in choices:
-            problems.append(f"options[{name!r}] = {options[name]!r}: use one of "
-                            f"{', '.join(map(repr, choices))}")
-    jit = options.get("jit")
-    if not (jit is None or isinstance(jit, bool)):
-        problems.append(f"options['jit'] = {jit!r} must be True, False or None")
-    limit = options.get("time_limit")
-    if limit is not None and time_limit_problem(limit):
-        problems.append(f"options['time_limit'] = {limit!r} must be a positive number of seconds "
-                        "(inf: unlimited) or None")
+    known = {k: v for k, v in options.items() if k in OPTIONS}
+    problems += [f"options: {p}" for p in PlanOptions.collect(**known).problems]
+    if known.get("solver") == "auto":
+        problems.append("options: solver = 'auto': a sweep point runs one solver: use 'ipopt' or 'fatrop'")
     return problems
 
 

@@ -96,7 +96,8 @@ def test_a_single_override_string_is_one_override():
     assert override_list(("a=1",), 40) == ["a=1", "intervals=40"]
     assert override_list(None) == []
     assert override_list([1]) is None
-    to_plan, out = checked_request(*PARK, dict(overrides="final.y=0.3", intervals=20, out_dir=None))
+    to_plan, out, options = checked_request(*PARK, dict(overrides="final.y=0.3", intervals=20, out_dir=None))
+    assert options.intervals == 20
     assert out is None
     assert to_plan.task.intervals == 20
     assert to_plan.task.to_dict()["final"]["y"] == pytest.approx(0.3)
@@ -140,8 +141,8 @@ def test_a_sweeps_workers_and_options_are_checked_before_the_derivation(tmp_path
     text = str(bad.value)
     assert "invalid sweep: 5 problem(s)" in text
     assert "options: unknown option 'zzz' (options: transcription, solver, jit, time_limit)" in text
-    assert "options['solver'] = 'auto': use one of 'ipopt', 'fatrop'" in text
-    assert "options['jit'] = 'no' must be True, False or None" in text
-    assert "options['time_limit'] = True must be a positive number of seconds" in text
+    assert "options: solver = 'auto': a sweep point runs one solver: use 'ipopt' or 'fatrop'" in text
+    assert "options: jit = 'no' must be True or False or None" in text
+    assert "options: time_limit = True must be a positive number of seconds" in text
     assert "--workers must be ≥ 0 (a whole number of worker processes), got '2'" in text
     assert not (tmp_path / "s").exists()
