@@ -54,8 +54,13 @@ P2_OBJECTIVE = 0.109703
 TIMEOUT_S = 600.0
 
 
-def _env(cache: Path) -> dict:
-    return {**os.environ, "NHGAIT_CACHE_DIR": str(cache), "NHGAIT_BACKGROUND_BUILDS": "1"}
+def _env(cache: Path, background: bool) -> dict:
+    """The runs' environment: the private cache; ``background``: the optimised library built in
+    the background (the warm-up waits for it); else (``--no-background``) none is started and
+    the warm runs use the fast compiler's library — a quick run on a busy machine, where gcc -O2
+    of the snakeboard's NLP took over 10 min."""
+    return {**os.environ, "NHGAIT_CACHE_DIR": str(cache),
+            "NHGAIT_BACKGROUND_BUILDS": "1" if background else "0"}
 
 
 def _cpu(who) -> float:
@@ -81,16 +86,16 @@ def _command(args: list, out: Path) -> list:
     return [*plan_process.nhgait_command(), *args, *extra]
 
 
-def warm_up(cache: Path, folder: Path, commands: tuple) -> None:
+def warm_up(cache: Path, folder: Path, commands: tuple, background: bool = True) -> None:
     """One run of each plan (its background build of the optimised library waited for) and of
     derive: the cache then holds what a warm run uses."""
     for label, args, _ in commands:
         if args[0] == "plan":
             out = folder / f"warm-{label.replace(' ', '-')}"
-            row = plan_process.run_plan(args[1:], out, cache, TIMEOUT_S)
+            row = _warm_plan(args[1:], out, cache, background)
             plan_process.background_build(row.get("later"), cache, TIMEOUT_S)
         else:
-            _timed(_command(args, folder), _env(cache))
+            _timed(_command(args, folder), _env(cache, background))
 
 
 def _row(what: str, runs: list, floor: tuple | None, target, **extra) -> dict:
@@ -102,9 +107,21 @@ def _row(what: str, runs: list, floor: tuple | None, target, **extra) -> dict:
             "target": target, "runs": runs, **extra}
 
 
-def measure_processes(cache: Path, folder: Path, repeats: int, commands: tuple) -> list:
+def _warm_plan(args: list, out: Path, cache: Path, background: bool) -> dict:
+    """One plan (:func:`plan_process.run_plan`, its background build started unless
+    ``background`` is false)."""
+    if background:
+        return plan_process.run_plan(args, out, cache, TIMEOUT_S)
+    cmd = _command(["plan", *args], out)
+    subprocess.run(cmd, env=_env(cache, False), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                   timeout=TIMEOUT_S, check=False)
+    return {}
+
+
+def measure_processes(cache: Path, folder: Path, repeats: int, commands: tuple,
+                      background: bool = True) -> list:
     """Rows of the whole-process runs against the floor, each command's runs taking turns."""
-    env = _env(cache)
+    env = _env(cache, background)
     times = {"floor": []} | {label: [] for label, _, _ in commands}
     for _ in range(repeats):
         times["floor"].append(_timed([sys.executable, "-c", FLOOR], env))
@@ -170,7 +187,10 @@ def main(argv=None) -> int:
                     help=f"the whole-process commands ({', '.join(ALL_COMMANDS)})")
     ap.add_argument("--cache", default=None, help="cache folder (default: a new temporary one, warmed first)")
     ap.add_argument("--out", default="out/bench_loop.json")
+    ap.add_argument("--no-background", action="store_true",
+                    help="no optimised background build: the warm runs use the fast compiler's library")
     args = ap.parse_args(argv)
+    background = not args.no_background
     sections = {s.strip() for s in args.sections.split(",") if s.strip()}
     commands = tuple(ALL_COMMANDS[c.strip()] for c in args.commands.split(",") if c.strip())
     if "inprocess" in sections and not any(a[0] == "plan" and "snakeboard" in a for _, a, _ in commands):
@@ -179,10 +199,10 @@ def main(argv=None) -> int:
         folder = Path(tmp)
         cache = Path(args.cache) if args.cache else folder / "cache"
         print(f"warming the cache {cache} ...", file=sys.stderr, flush=True)
-        warm_up(cache, folder, commands)
+        warm_up(cache, folder, commands, background)
         rows = []
         if "process" in sections:
-            rows += measure_processes(cache, folder, args.repeats, commands)
+            rows += measure_processes(cache, folder, args.repeats, commands, background)
         if "inprocess" in sections:
             rows += measure_in_process(cache, args.repeats)
     print(f"# the designer's loop: medians of {args.repeats} runs, ratios in this run "

@@ -45,12 +45,11 @@ from __future__ import annotations
 import os
 import time
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from typing import Any
 
-from .convergence_plots import write_convergence_figure
-from .exports import states_text, write_trajectory_csv
+from .exports import states_text
 from .gait_check import momentum_problem, screening_report, to_momentum_coordinates, unsolved, verified_gait  # noqa: F401
+from .plan_files import figure_modules, with_figures, write_figure_files, write_outputs, written  # noqa: F401
 from .infeasibility import stalled, with_elastic
 from .refinement import refinable, refine
 from .search import Attempt, Search, continuation, solve_from_guesses, solve_with_fallbacks  # noqa: F401
@@ -507,20 +506,9 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
                 reached.search = reached.search.then(solve_with_fallbacks(
                     ocp, guesses, workers=s.workers, limit=s.limit, progress=progress, budget=budget,
                     explore=explore, explore_workers=max(s.workers, _default_workers()),
-                    meanwhile=_figure_modules if s.warm_figures else None))
+                    meanwhile=figure_modules if s.warm_figures else None))
         if reached.search.solution is not None or stalled(reached.search.attempts):    # issue 41
             break
-
-
-def _figure_modules() -> None:
-    """Import what the figures' children will use (matplotlib's Figure, the Agg canvas, the PNG
-    writer): run while the first attempts work (:func:`~nhgait.ocp.supervision.supervise`'s
-    ``meanwhile``), so that the children forked for the figures after the result have it
-    already — half a second a child, off the critical path (issue 40)."""
-    import matplotlib.figure  # noqa: F401
-    from matplotlib.backends import backend_agg  # noqa: F401
-    from PIL import Image
-    Image.preinit()                  # the image plugins a first save imports (PNG, GIF, BMP, ...)
 
 
 def _in_momentum(search, prepared, to_plan, params):
@@ -540,89 +528,6 @@ def _feedback_and_stability(search, progress) -> dict:
         return {}
     from .plan_feedback import feedback_and_stability
     return feedback_and_stability(search.solution, progress)
-
-
-# ----------------------------------------------------------------------------- outputs
-def written(result: PlanResult, out: Path, *, progress=None) -> PlanResult:
-    """``result`` with its result files — solution.json and trajectory.csv — written to ``out``
-    (:func:`write_outputs`), before anything optional (the figures: :func:`with_figures`). A
-    write that fails (disk full, folder removed or made read-only meanwhile) does not lose the
-    plan: solution.json goes to a fallback (:func:`nhgait.gaits.outputs.rescue`) and
-    ``unwritten`` says what failed and where the solution is."""
-    from .outputs import rescue, write_failure
-    try:
-        return replace(result, files=tuple(write_outputs(result, Path(out), progress=progress)))
-    except OSError as exc:
-        failed = write_failure(exc, getattr(exc, "filename", None) or out)
-    if result.solution is None:
-        return replace(result, unwritten=failed)
-    data = {**result.solution.to_dict(), **_solution_extra(result)}
-    return replace(result, unwritten=f"{failed}; {rescue('solution.json', data, 'solution')}")
-
-
-def with_figures(result: PlanResult, out: Path, *, animate: bool = False, progress=None) -> PlanResult:
-    """``result`` with its figures (and, with ``animate``, motion.gif) written to ``out`` after
-    its result files (:func:`write_figure_files`); a write that fails adds to ``unwritten``
-    (the solution is already written)."""
-    from .outputs import write_failure
-    if result.unwritten or result.solution is None or result.overrun is not None:
-        return result               # nothing to draw, or the result itself went elsewhere
-    try:
-        files = write_figure_files(result, Path(out), animate=animate, progress=progress)
-    except OSError as exc:
-        return replace(result, unwritten=write_failure(exc, getattr(exc, "filename", None) or out))
-    return replace(result, files=result.files + tuple(files))
-
-
-def _solution_extra(result: PlanResult) -> dict:
-    """What solution.json holds beyond the Solution: the task, the guess (tried, screened),
-    success, diagnosis."""
-    from .guesses import screened_dict
-    return {"task": result.task.to_dict(), "system": result.label, "success": result.success,
-            "diagnosis": list(result.diagnosis),
-            "guess": {"won": result.guess, "tried": [a.__dict__ for a in result.attempts],
-                      "screened": [screened_dict(x) for x in result.screening]}}
-
-
-def write_outputs(result: PlanResult, out: Path, *, progress=None) -> list:
-    """solution.json (with ``task``, ``guess``, ``success`` and ``diagnosis``) and
-    trajectory.csv: the result, nothing optional (a plan whose time budget ran out, too; nothing
-    without a point). Each file is written whole or not at all
-    (:func:`nhgait.gaits.outputs.staged`). Returns the paths."""
-    from .outputs import staged
-    if result.solution is None:
-        return []
-
-    def write(folder):
-        return [result.solution.to_json(folder / "solution.json", extra=_solution_extra(result)),
-                write_trajectory_csv(result.solution, folder, result.plan.units)]
-    return staged(out, write)
-
-
-def write_figure_files(result: PlanResult, out: Path, *, animate: bool = False, progress=None) -> list:
-    """The figures of a plan (:func:`nhgait.gaits.plots.write_figures`); a failed plan's are
-    titled FAILED and it gets no animation; with ``animate`` a successful one also gets
-    motion.gif. Written whole or not at all, like the result. Returns the paths."""
-    from nhgait.dynamics.progress import Progress
-
-    from .outputs import staged
-    progress = progress or Progress.silent()
-    return staged(out, lambda folder: _draw_files(result, folder, animate=animate, progress=progress))
-
-
-def _draw_files(result: PlanResult, out: Path, *, animate: bool, progress) -> list:
-    from . import plots
-    failed = None if result.success else (result.diagnosis[0] if result.diagnosis else result.solution.status)
-    with progress.phase("write the figures"):
-        files = list(plots.write_figures(result.solution, out, units=result.plan.units,
-                                         drawing=result.plan.drawing, model=result.model, failed=failed))
-        files.append(write_convergence_figure(result.attempts, out / "convergence.png", title=result.label))
-    if animate and result.success:
-        from .animation import animate_solution
-        with progress.phase("write the animation motion.gif (60 frames; the longest part of the output)"):
-            ctx = plots.figure_context(result.solution, result.model, result.plan.units, result.plan.drawing)
-            files.append(animate_solution(result.solution, ctx, out / "motion.gif"))
-    return files
 
 
 def summary_lines(result: PlanResult) -> list:

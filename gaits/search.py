@@ -223,9 +223,9 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
         if not batch:
             break
         solver.adopt_optimised()
-        t0 = time.monotonic()
+        t0, aside = time.monotonic(), _Aside(meanwhile)
         sols = solve_attempts(solver, batch, workers=workers, budget=budget, progress=progress,
-                              meanwhile=meanwhile)
+                              meanwhile=aside if meanwhile is not None else None)
         meanwhile = None
         for k, (g, s) in enumerate(zip(batch, sols, strict=True)):
             attempts.append(attempt_of(g.label, s, name))
@@ -242,11 +242,26 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
             found = Search(sols[i], tuple(attempts), batch[i].label, closest)
             if not explore:
                 return found
-            window = _Window.after(found.solution, time.monotonic() - t0, solver, budget)
+            window = _Window.after(found.solution, time.monotonic() - t0 - aside.seconds, solver, budget)
             return _explored(solver, guesses, found, range(start + len(batch), min(total, start + len(batch)
                                                                                   + EXPLORE_GUESSES)),
                              window, max(1, int(explore_workers or workers)), budget, progress)
     return Search(None, tuple(attempts), None, closest)
+
+
+class _Aside:
+    """``work`` (a callable, or None) timed: ``seconds`` it took — this process's time spent
+    aside while the attempts ran, not theirs."""
+
+    def __init__(self, work):
+        self.work, self.seconds = work, 0.0
+
+    def __call__(self):
+        t0 = time.monotonic()
+        try:
+            self.work()
+        finally:
+            self.seconds += time.monotonic() - t0
 
 
 @dataclass(frozen=True)
@@ -317,10 +332,11 @@ def _explored(solver, guesses, found: Search, indices, window: _Window, workers:
     if indices and window.left() != 0.0:
         progress.note(f"  looking for a lower objective: up to {len(indices)} more guesses within "
                       f"{window.text()}")
+    first_s = float(found.solution.solve_time_s)
     for start in range(0, len(indices), workers):
         left = window.left()
-        if left == 0.0 or _spent(budget):
-            break
+        if left == 0.0 or _spent(budget) or (left is not None and left < first_s):
+            break                            # nothing left that could pay for an attempt
         batch = _built(guesses, indices[start:start + workers], budget)
         if not batch:
             break

@@ -4,8 +4,14 @@ from __future__ import annotations
 
 import json
 
-from nhgait.gaits import plots
+from nhgait.gaits import plan_files, planner, plots
 from nhgait.gaits.cli.main import main
+
+
+def test_the_planner_writes_through_plan_files():
+    """The planner's writers are the plan files' (one implementation, issue 40)."""
+    assert planner.written is plan_files.written
+    assert planner.with_figures is plan_files.with_figures
 
 
 def test_the_result_line_and_solution_json_exist_before_the_figures(tmp_path, capsys, monkeypatch):
