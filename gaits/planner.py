@@ -49,8 +49,8 @@ from typing import Any
 
 from .exports import states_text
 from .gait_check import momentum_problem, screening_report, to_momentum_coordinates, unsolved, verified_gait  # noqa: F401
-from .plan_files import figure_modules, with_figures, write_figure_files, write_outputs, written  # noqa: F401
 from .infeasibility import stalled, with_elastic
+from .plan_files import figure_modules, with_figures, write_figure_files, write_outputs, written  # noqa: F401
 from .refinement import refinable, refine
 from .search import Attempt, Search, continuation, solve_from_guesses, solve_with_fallbacks  # noqa: F401
 from .task import quantity_objects  # noqa: F401
