@@ -1,5 +1,5 @@
 """The formulations' vocabulary on the models (dynamics/derivation/formulation_base.py, the
-model types, the registry in formulations.py and the aliases of formulation_protocol.py): every
+model types and the registry in formulations.py): every
 formulation answers the same questions, and its answers agree with an independent evaluation of
 the system's own sympy expressions (M(q), ω(q), V(q)) at constraint-consistent states.
 
@@ -14,7 +14,6 @@ import scipy.linalg
 import sympy as sp
 
 from nhgait.dynamics import HamiltonianDAE, LagrangianDAE, ModelError, ReducedODE, derive
-from nhgait.dynamics.derivation import formulation_protocol
 from nhgait.dynamics.derivation.formulation_base import (
     Baumgarte,
     LoopPoint,
@@ -58,16 +57,6 @@ def test_every_formulation_name_resolves_to_its_model_type():
     with pytest.raises(ModelError,
                        match=r"unknown formulation 'euler' \(choose from reduced, lagrange, hamilton\)"):
         formulation_type("euler")
-
-
-def test_the_former_protocol_names_are_aliases_of_the_model_types(models):
-    """``protocol_of(model).f(model, …)`` still means ``model.f(…)``."""
-    model = models["snakeboard"]["reduced"]
-    assert formulation_protocol.protocol_of(model) is ReducedODE
-    assert formulation_protocol.protocol_named("hamilton") is formulation_protocol.HAMILTON is HamiltonianDAE
-    assert formulation_protocol.PROTOCOLS == {"reduced": ReducedODE, "lagrange": LagrangianDAE,
-                                              "hamilton": HamiltonianDAE}
-    assert formulation_protocol.protocol_of(model).singular_set_text(model) == model.singular_set_text()
 
 
 @pytest.mark.parametrize("name, form", CASES)
