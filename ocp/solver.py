@@ -248,7 +248,7 @@ def iteration_history(stats: dict, objective_scale: float = 1.0) -> dict:
     """{"history": {"objective": [...], "violation": [...]}} per iteration from Ipopt's
     ``stats["iterations"]`` (``obj`` unscaled by ``objective_scale``; ``inf_pr``, Ipopt's primal
     infeasibility of the iterate); {} for a solver that keeps none (FATROP). For the convergence
-    figure (:mod:`nhgait.gaits.convergence_plots`)."""
+    figure (:mod:`nhgait.gaits.figures.convergence`)."""
     it = stats.get("iterations")
     if not isinstance(it, dict) or "obj" not in it or "inf_pr" not in it:
         return {}
