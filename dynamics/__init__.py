@@ -20,7 +20,7 @@ _EXPORTS = {
     "derive": "derivation.formulations", "FORMULATIONS": "derivation.formulations",
     "ReducedODE": "derivation.reduction", "LagrangianDAE": "derivation.lagrange",
     "HamiltonianDAE": "derivation.hamilton",
-    "load_scene": "derivation.scene", "Scene": "derivation.scene",
+    "load_scene": "derivation.input.scene", "Scene": "derivation.input.scene",
     "simulate": "simulation.driver", "SimulationOptions": "simulation.options",
     "Trajectory": "simulation.trajectory",
     "jacobi_test": "derivation.analysis", "to_state": "derivation.states",

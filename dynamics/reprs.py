@@ -69,7 +69,7 @@ def model_markdown(model) -> str:
 
 
 def _checked(solution) -> str | None:
-    """How an unstable gait was verified (``settings["checks"]``, nhgait.gaits.verification_checks),
+    """How an unstable gait was verified (``settings["checks"]``, nhgait.gaits.verification.checks),
     None when the open loop decides."""
     checks = (getattr(solution, "settings", None) or {}).get("checks") or {}
     if checks.get("decided_by") != "interval and closed loop":

@@ -120,7 +120,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     from nhgait.dynamics import derive, load_scene
     from nhgait.dynamics.linearisation.chart import parse_speeds
-    from nhgait.gaits.stability_plots import write_eigenvalue_figure
+    from nhgait.gaits.figures.stability import write_eigenvalue_figure
     model = derive(load_scene("whipple_bicycle").system)
     found, chart = accuracy(model, parse_speeds(args.speeds))
     found.update(costs(model, args.repeats, not args.no_cold, not args.no_commands))

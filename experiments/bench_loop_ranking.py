@@ -4,7 +4,7 @@
 For each scene — ``--pairs`` robot-and-task pairs of ``experiments/robot_generator.py`` (seed
 ``--seed``) and the user scenes given with ``--scene`` — two cold ``nhgait plan SCENE --no-gif``
 processes, each with a fresh empty ``NHGAIT_CACHE_DIR`` and ``--time-limit`` ``--budget`` s:
-``before`` with :func:`nhgait.gaits.loop_ranking.rank_loops` replaced by the identity (the
+``before`` with :func:`nhgait.gaits.planning.loop_ranking.rank_loops` replaced by the identity (the
 candidates in their generated order), ``after`` as shipped. The arms alternate per scene. A row
 per (scene, arm): the exit code (0: a verified gait), the time to the answer, whether the
 ranking changed the order (the plan's log says "shape loops ranked"), the winning guess.
@@ -29,7 +29,7 @@ from pathlib import Path
 
 import sibling  # experiments/sibling.py
 
-BEFORE = ("import sys\nimport nhgait.gaits.guesses as g\n"
+BEFORE = ("import sys\nimport nhgait.gaits.planning.guesses as g\n"
           "g.rank_loops = lambda problem, guesses, progress=None: list(guesses)\n"
           "from nhgait.gaits.cli.main import main\nsys.exit(main(sys.argv[1:]))\n")
 AFTER = "import sys\nfrom nhgait.gaits.cli.main import main\nsys.exit(main(sys.argv[1:]))\n"

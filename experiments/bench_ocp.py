@@ -53,10 +53,10 @@ class Ours:
     solves it once more from that guess."""
 
     def __init__(self, key, N, *, solver=None, transcription=None, jit=None, guess_label=None):
-        from nhgait.gaits.guesses import candidates
         from nhgait.gaits.planner import prepare, solver_order
-        from nhgait.gaits.search import solve_from_guesses
-        from nhgait.gaits.task_library import resolve
+        from nhgait.gaits.planning.guesses import candidates
+        from nhgait.gaits.planning.search import solve_from_guesses
+        from nhgait.gaits.tasks.sources import resolve
         from nhgait.ocp import OCPSolver, SolverOptions
         solver = solver or solver_order("auto", transcription)[0]
         system, gait = PROBLEMS[key]

@@ -75,10 +75,10 @@ class Ours:
     guess the cold run won with."""
 
     def __init__(self, member, guess_label, settings: Settings, reference=None, threads: int = 1):
-        from nhgait.dynamics.derivation.scene import scene_from_text
-        from nhgait.gaits.guesses import candidates
+        from nhgait.dynamics.derivation.input.scene import scene_from_text
         from nhgait.gaits.planner import prepare
-        from nhgait.gaits.task_library import resolve
+        from nhgait.gaits.planning.guesses import candidates
+        from nhgait.gaits.tasks.sources import resolve
         from nhgait.ocp import OCPSolver, SolverOptions
         scene = scene_from_text(sibling.load("scale_tasks").scene_with_task(member), member)
         overrides = [f"intervals={settings.intervals}"] if settings.intervals else []
@@ -97,7 +97,7 @@ class Ours:
             self.runs.append(self.solver.solve(self.guess))
             return
         # as the planner: in a solver child, on its share of the cores
-        from nhgait.gaits.search import solve_attempts
+        from nhgait.gaits.planning.search import solve_attempts
         self.runs.append(solve_attempts(self.solver, [self.guess])[0])
 
     def result(self) -> dict:

@@ -33,9 +33,9 @@ STAGE_PIECES = ("stage", "stage_jac", "stage_hess", "g_jac", "g_hess")
 
 
 def _problem(member: str):
-    from nhgait.dynamics.derivation.scene import scene_from_text
+    from nhgait.dynamics.derivation.input.scene import scene_from_text
     from nhgait.gaits.planner import prepare
-    from nhgait.gaits.task_library import resolve
+    from nhgait.gaits.tasks.sources import resolve
     scene = scene_from_text(sibling.load("scale_tasks").scene_with_task(member), member)
     return prepare(resolve(scene)).problem
 

@@ -115,7 +115,7 @@ ROBUST = {"parameters": {"m": [0.9, 1.1], "J_r": [0.9, 1.1]}}
 
 def robust(samples: int, overrides) -> dict:
     """Part 5: the nominal and the robust plan of the forward gait, tracked under one mismatch."""
-    from nhgait.gaits.task_library import resolve
+    from nhgait.gaits.tasks.sources import resolve
     from nhgait.gaits.tracking.study import track
     task = resolve("snakeboard", "forward", overrides=overrides).task.to_dict()
     out = {}

@@ -29,13 +29,13 @@ def main(argv=None) -> int:
     import sympy as sp
 
     from nhgait.dynamics import derive
+    from nhgait.dynamics.derivation.input.scene import load_scene
     from nhgait.dynamics.derivation.models import snakeboard
-    from nhgait.dynamics.derivation.scene import load_scene
     from nhgait.dynamics.geometry.connection_fields import local_connection, numeric_connection
     from nhgait.dynamics.geometry.heights import evaluate_heights, height_function
     from nhgait.dynamics.geometry.prescribed import fibre_motion
     from nhgait.dynamics.geometry.stokes import loop_displacement, stokes_displacement
-    from nhgait.gaits.geometry_plots import heights_figure
+    from nhgait.gaits.figures.geometry import heights_figure
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     scene = load_scene(str(ROOT / "tests" / "scenes" / "snake3.toml"))

@@ -24,9 +24,9 @@ TASKS = [("unicycle", "parallel-park"), ("snakeboard", "forward"), ("snakeboard"
 
 
 def main(argv=None) -> int:
-    from nhgait.gaits.guesses import candidates
     from nhgait.gaits.planner import prepare
-    from nhgait.gaits.task_library import resolve
+    from nhgait.gaits.planning.guesses import candidates
+    from nhgait.gaits.tasks.sources import resolve
     from nhgait.ocp import OCPSolver, SolverOptions
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -232,7 +232,7 @@ def system(name: str):
         import tomllib
     except ModuleNotFoundError:  # pragma: no cover - Python 3.10
         import tomli as tomllib
-    from nhgait.dynamics.derivation.scene import parse_scene
+    from nhgait.dynamics.derivation.input.scene import parse_scene
     return parse_scene(tomllib.loads(scene_text(name)), f"<{name}>").system
 
 

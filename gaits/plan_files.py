@@ -2,13 +2,13 @@
 
 * :func:`written` — ``solution.json`` (the solution, the task, the guesses tried and screened,
   success, diagnosis) and ``trajectory.csv``: the result, written before anything optional
-  (:func:`write_outputs`), to a fallback when ``out`` fails (:func:`nhgait.gaits.outputs.rescue`).
-* :func:`with_figures` — then the figures (:func:`nhgait.gaits.plots.write_figures`) and, on
+  (:func:`write_outputs`), to a fallback when ``out`` fails (:func:`nhgait.gaits.files.outputs.rescue`).
+* :func:`with_figures` — then the figures (:func:`nhgait.gaits.figures.plots.write_figures`) and, on
   request, the animation (:func:`write_figure_files`); a failure there leaves the result written.
 * :func:`figure_modules` — the imports the figures' processes need, made while the solver
   attempts run (:func:`nhgait.ocp.supervision.supervise`'s ``meanwhile``).
 
-Each file is written whole or not at all (:func:`nhgait.gaits.outputs.staged`). ``nhgait plan``
+Each file is written whole or not at all (:func:`nhgait.gaits.files.outputs.staged`). ``nhgait plan``
 prints its result line between the two steps.
 """
 from __future__ import annotations
@@ -16,8 +16,8 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-from .convergence_plots import write_convergence_figure
-from .exports import write_trajectory_csv
+from .figures.convergence import write_convergence_figure
+from .files.exports import write_trajectory_csv
 
 __all__ = ["written", "with_figures", "write_outputs", "write_figure_files", "figure_modules"]
 
@@ -26,9 +26,9 @@ def written(result, out: Path, *, progress=None) -> object:
     """``result`` with its result files — solution.json and trajectory.csv — written to ``out``
     (:func:`write_outputs`), before anything optional (the figures: :func:`with_figures`). A
     write that fails (disk full, folder removed or made read-only meanwhile) does not lose the
-    plan: solution.json goes to a fallback (:func:`nhgait.gaits.outputs.rescue`) and
+    plan: solution.json goes to a fallback (:func:`nhgait.gaits.files.outputs.rescue`) and
     ``unwritten`` says what failed and where the solution is."""
-    from .outputs import rescue, write_failure
+    from .files.outputs import rescue, write_failure
     try:
         return replace(result, files=tuple(write_outputs(result, Path(out), progress=progress)))
     except OSError as exc:
@@ -43,7 +43,7 @@ def with_figures(result, out: Path, *, animate: bool = False, progress=None) -> 
     """``result`` with its figures (and, with ``animate``, motion.gif) written to ``out`` after
     its result files (:func:`write_figure_files`); a write that fails adds to ``unwritten``
     (the solution is already written)."""
-    from .outputs import write_failure
+    from .files.outputs import write_failure
     if result.unwritten or result.solution is None or result.overrun is not None:
         return result               # nothing to draw, or the result itself went elsewhere
     try:
@@ -56,7 +56,7 @@ def with_figures(result, out: Path, *, animate: bool = False, progress=None) -> 
 def _solution_extra(result) -> dict:
     """What solution.json holds beyond the Solution: the task, the guess (tried, screened),
     success, diagnosis."""
-    from .guesses import screened_dict
+    from .planning.guesses import screened_dict
     return {"task": result.task.to_dict(), "system": result.label, "success": result.success,
             "diagnosis": list(result.diagnosis),
             "guess": {"won": result.guess, "tried": [a.__dict__ for a in result.attempts],
@@ -67,8 +67,8 @@ def write_outputs(result, out: Path, *, progress=None) -> list:
     """solution.json (with ``task``, ``guess``, ``success`` and ``diagnosis``) and
     trajectory.csv: the result, nothing optional (a plan whose time budget ran out, too; nothing
     without a point). Each file is written whole or not at all
-    (:func:`nhgait.gaits.outputs.staged`). Returns the paths."""
-    from .outputs import staged
+    (:func:`nhgait.gaits.files.outputs.staged`). Returns the paths."""
+    from .files.outputs import staged
     if result.solution is None:
         return []
 
@@ -79,25 +79,25 @@ def write_outputs(result, out: Path, *, progress=None) -> list:
 
 
 def write_figure_files(result, out: Path, *, animate: bool = False, progress=None) -> list:
-    """The figures of a plan (:func:`nhgait.gaits.plots.write_figures`); a failed plan's are
+    """The figures of a plan (:func:`nhgait.gaits.figures.plots.write_figures`); a failed plan's are
     titled FAILED and it gets no animation; with ``animate`` a successful one also gets
     motion.gif. Written whole or not at all, like the result. Returns the paths."""
     from nhgait.dynamics.progress import Progress
 
-    from .outputs import staged
+    from .files.outputs import staged
     progress = progress or Progress.silent()
     return staged(out, lambda folder: _draw_files(result, folder, animate=animate, progress=progress))
 
 
 def _draw_files(result, out: Path, *, animate: bool, progress) -> list:
-    from . import plots
+    from .figures import plots
     failed = None if result.success else (result.diagnosis[0] if result.diagnosis else result.solution.status)
     with progress.phase("write the figures"):
         files = list(plots.write_figures(result.solution, out, units=result.plan.units,
                                          drawing=result.plan.drawing, model=result.model, failed=failed))
         files.append(write_convergence_figure(result.attempts, out / "convergence.png", title=result.label))
     if animate and result.success:
-        from .animation import animate_solution
+        from .figures.animation import animate_solution
         with progress.phase("write the animation motion.gif (60 frames; the longest part of the output)"):
             ctx = plots.figure_context(result.solution, result.model, result.plan.units, result.plan.drawing)
             files.append(animate_solution(result.solution, ctx, out / "motion.gif"))

@@ -9,7 +9,7 @@ scene file take the same path::
 
 Steps
 -----
-1. :func:`~nhgait.gaits.task_library.resolve`: the scene and the parsed task (one ProblemError for
+1. :func:`~nhgait.gaits.tasks.sources.resolve`: the scene and the parsed task (one ProblemError for
    every problem of the task's form).
 2. ``derive(system, "reduced")`` (cached; in a chart whose singular set misses the task's
    fixed end configurations, :mod:`.charts`) and :func:`~nhgait.dynamics.numerics.specialisation.specialise`:
@@ -17,7 +17,7 @@ Steps
    velocity quantities when they parametrise the allowed velocities (else chosen by
    :func:`~nhgait.dynamics.numerics.specialisation.choose_velocities`). Conditions on velocities are
    then bounds or linear rows.
-3. :func:`~nhgait.gaits.task.to_problem`: the :class:`~nhgait.ocp.OptimalControlProblem`
+3. :func:`~nhgait.gaits.tasks.statement.to_problem`: the :class:`~nhgait.ocp.OptimalControlProblem`
    (unknown names and impossible counts are one ProblemError).
 4. :func:`solve_from_guesses`: the candidates of :mod:`.guesses` in batches of ``workers``,
    each attempt in a supervised child process (step 7); within the first batch with a success the lowest
@@ -47,15 +47,21 @@ import time
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from .exports import states_text
-from .gait_check import momentum_problem, screening_report, to_momentum_coordinates, unsolved, verified_gait  # noqa: F401
-from .infeasibility import stalled, with_elastic
+from .files.exports import states_text
 from .plan_files import figure_modules, with_figures, write_figure_files, write_outputs, written  # noqa: F401
-from .refinement import refinable, refine
-from .search import Attempt, Search, continuation, solve_from_guesses, solve_with_fallbacks  # noqa: F401
-from .task import quantity_objects  # noqa: F401
-from .verification_checks import open_loop_label, solution_check_lines
-from .warm_start import MAX_SOLUTION_BYTES, previous_answer, read_solution, warm_start  # noqa: F401
+from .planning.infeasibility import stalled, with_elastic
+from .planning.search import Attempt, Search, continuation, solve_from_guesses, solve_with_fallbacks  # noqa: F401
+from .planning.warm_start import MAX_SOLUTION_BYTES, previous_answer, read_solution, warm_start  # noqa: F401
+from .tasks.statement import quantity_objects  # noqa: F401
+from .verification.checks import open_loop_label, solution_check_lines
+from .verification.gait_check import (  # noqa: F401
+    momentum_problem,
+    screening_report,
+    to_momentum_coordinates,
+    unsolved,
+    verified_gait,
+)
+from .verification.refinement import refinable, refine
 
 __all__ = ["plan", "PlanResult", "prepare", "Prepared", "state_problem", "to_momentum_coordinates",
            "verified_gait", "unsolved", "known_names", "warm_start", "read_solution", "summary_lines"]
@@ -98,7 +104,7 @@ class PlanResult:
     winning candidate; attempts : every candidate tried; files : written files; timings :
     seconds per step; plan : the Plan; conditions : what was dropped from the task's
     conditions and why (:class:`~nhgait.ocp.conditions.ConditionReport`); diagnosis : why a
-    failure failed and what to change (:func:`~nhgait.gaits.diagnosis.diagnose`); overrun : None,
+    failure failed and what to change (:func:`~nhgait.gaits.verification.diagnosis.diagnose`); overrun : None,
     or where the time budget ran out (:class:`~nhgait.ocp.budget.Overrun`: the plan failed;
     ``solution`` is then the closest point reached, or None before any attempt); unwritten :
     empty, or what could not be written to ``out_dir`` and where solution.json went instead.
@@ -131,8 +137,8 @@ class PlanResult:
 
 
 def known_names(model, quantities) -> tuple:
-    """The names a task may use on ``model`` (see :func:`~nhgait.gaits.task.task_names`)."""
-    from .task import task_names
+    """The names a task may use on ``model`` (see :func:`~nhgait.gaits.tasks.statement.task_names`)."""
+    from .tasks.statement import task_names
     return task_names(model.system, quantities)
 
 
@@ -159,7 +165,7 @@ def state_problem(task, specialised, scene, *, params=None, name: str = ""):
     against ω(q)q̇ = 0 first (the error names each violated constraint)."""
     from nhgait.ocp.conditions import normalise
 
-    from .task import to_problem
+    from .tasks.statement import to_problem
     _check_full_states(task, specialised.base, params)
     stated = to_problem(task, specialised, quantities=quantity_objects(specialised, scene), params=params,
                         name=name)
@@ -190,13 +196,13 @@ def _check_full_states(task, model, params) -> None:
 
 
 def prepare(to_plan, *, params=None, progress=None) -> Prepared:
-    """The :class:`Prepared` model and problems of a :class:`~nhgait.gaits.task_library.Plan`."""
+    """The :class:`Prepared` model and problems of a :class:`~nhgait.gaits.tasks.sources.Plan`."""
     from nhgait.dynamics.numerics.specialisation import choose_velocities, specialise
     from nhgait.dynamics.progress import Progress
 
-    from .charts import derive_for_task, end_postures
-    from .plan_arguments import check_params
-    from .task import check_names
+    from .planning.arguments import check_params
+    from .planning.charts import derive_for_task, end_postures
+    from .tasks.statement import check_names
 
     progress = progress or Progress.silent()
     task, scene = to_plan.task, to_plan.scene
@@ -283,8 +289,8 @@ def plan(system, task=None, *, overrides=(), params=None, guess=None, out_dir=No
     from nhgait.dynamics.progress import Progress
     from nhgait.ocp.budget import BudgetSpent
 
-    from .diagnosis import diagnose
-    from .plan_arguments import checked_request
+    from .planning.arguments import checked_request
+    from .verification.diagnosis import diagnose
 
     started = time.monotonic()
     to_plan, out_dir, options = checked_request(system, task, dict(   # one ProblemError, before any work
@@ -313,9 +319,10 @@ def plan(system, task=None, *, overrides=(), params=None, guess=None, out_dir=No
 
 
 def plan_budget(to_plan, time_limit=None, *, started=None, progress=None):
-    """The :class:`~nhgait.ocp.budget.Budget` of a plan (:func:`~nhgait.gaits.time_limits.budget_for`:
+    """The :class:`~nhgait.ocp.budget.Budget` of a plan
+    (:func:`~nhgait.gaits.planning.time_limits.budget_for`:
     ``time_limit``, else the task's, else the default for the robot's size), said on ``progress``."""
-    from .time_limits import budget_for
+    from .planning.time_limits import budget_for
     budget = budget_for(len(to_plan.scene.system.coordinates), time_limit, to_plan.task.time_limit,
                         started=started)
     if progress is not None:
@@ -343,8 +350,8 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
     ``budget``, recorded in ``reached``."""
     from nhgait.ocp import ProblemError
 
-    from .guesses import candidates
-    from .reachability import unreachable_targets
+    from .planning.guesses import candidates
+    from .tasks.reachability import unreachable_targets
     t0 = time.perf_counter()
     with budget.stage("derivation"):
         reached.prepared = prepare(to_plan, params=params, progress=progress)
@@ -371,7 +378,7 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
         if reached.search is not None:
             reached.search, reached.screening = screening_report(guesses, reached.search, problem)
     if to_plan.task.robust is not None and reached.search.solution is not None:    # [task.robust]
-        from .robust_plan import robust_search
+        from .planning.robust import robust_search
         t0 = time.perf_counter()
         reached.search = robust_search(reached.search, reached.prepared, to_plan, settings, budget, progress)
         reached.timings["robust_s"] = time.perf_counter() - t0
@@ -394,7 +401,7 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
 
 
 def _passed(solution) -> bool:
-    from .gait_check import passed  # the deciding checks (issue 41)
+    from .verification.gait_check import passed  # the deciding checks (issue 41)
     return passed(solution)
 
 
@@ -484,7 +491,7 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
     (:func:`~.time_limits.attempt_limited`)."""
     from nhgait.ocp import OCPSolver, SolverOptions
 
-    from .time_limits import attempt_limited
+    from .planning.time_limits import attempt_limited
     s = settings
     explore = not getattr(guesses, "given_first", False)     # a warm start answers where the user asked
     reached.search = Search(None, (), None)
@@ -526,7 +533,7 @@ def _feedback_and_stability(search, progress) -> dict:
     the closed loop (:mod:`nhgait.ocp.floquet`); {} for a failed plan."""
     if search.solution is None:
         return {}
-    from .plan_feedback import feedback_and_stability
+    from .verification.feedback import feedback_and_stability
     return feedback_and_stability(search.solution, progress)
 
 
@@ -565,7 +572,7 @@ def summary_lines(result: PlanResult) -> list:
     if s.stability is not None:
         lines += [f"  stability          {line}" for line in s.stability.summary()]
     if st.get("robust"):                                                     # [task.robust]
-        from .robust_plan import summary_line
+        from .planning.robust import summary_line
         lines.append(f"  robust             {summary_line(st['robust'])}")
     symmetry = getattr(result.model, "symmetry", None)
     if symmetry is not None:

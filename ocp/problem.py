@@ -112,7 +112,7 @@ def builtin_quantities(model) -> dict:
 def holonomic_quantities(model) -> dict:
     """``holonomic1``, ``holonomic2`` …: h_i(q) of a model whose system keeps holonomic
     constraints (its ``numeric["holonomic"]``); a plan starts on h = 0 (the velocity form keeps
-    it there), see :func:`nhgait.gaits.task.to_problem`."""
+    it there), see :func:`nhgait.gaits.tasks.statement.to_problem`."""
     numeric = model.numeric
     if "holonomic" not in getattr(numeric, "functions", {}):
         return {}

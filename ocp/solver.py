@@ -40,6 +40,7 @@ import time
 import weakref
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -248,7 +249,7 @@ def iteration_history(stats: dict, objective_scale: float = 1.0) -> dict:
     """{"history": {"objective": [...], "violation": [...]}} per iteration from Ipopt's
     ``stats["iterations"]`` (``obj`` unscaled by ``objective_scale``; ``inf_pr``, Ipopt's primal
     infeasibility of the iterate); {} for a solver that keeps none (FATROP). For the convergence
-    figure (:mod:`nhgait.gaits.convergence_plots`)."""
+    figure (:mod:`nhgait.gaits.figures.convergence`)."""
     it = stats.get("iterations")
     if not isinstance(it, dict) or "obj" not in it or "inf_pr" not in it:
         return {}
@@ -508,13 +509,12 @@ class OCPSolver:
             stats = {**stats, "return_status": "Time_Limit_Exceeded"}
         elif callback is not None and callback.capped:
             stats = {**stats, "return_status": "Maximum_Iterations_Exceeded"}
-        w, objective, viol, violated = self._outcome(out, w0)
+        outcome = self._outcome(out, w0)
         fn_time = sum(float(v) for k, v in stats.items() if k.startswith("t_wall_nlp_"))
         total = float(stats.get("t_wall_total", wall))
-        success, status, stats = self._verdict(stats, error, refused, viol)
-        return self._solution(guess, w, success=success, status=status,
-                              message=status if error is None else f"{status}: {error}", objective=objective,
-                              viol=viol, violated=violated, stats=stats,
+        verdict = self._verdict(stats, error, refused, outcome.violation)
+        message = verdict.status if error is None else f"{verdict.status}: {error}"
+        return self._solution(guess, outcome, verdict, message,
                               times=(wall, fn_time, max(total - fn_time, 0.0)))
 
     def unsolved(self, guess: InitialGuess, status: str, message: str, seconds: float = 0.0) -> Solution:
@@ -525,22 +525,21 @@ class OCPSolver:
         try:
             out = {"x": w0, "f": self.solver.get_function("nlp_f")(w0, [])[0],
                    "g": self.solver.get_function("nlp_g")(w0, [])}
-            _, objective, viol, violated = self._outcome(out, w0)
+            outcome = self._outcome(out, w0)
         except RuntimeError:                   # an evaluation error at the guess
-            objective, viol, violated = math.nan, math.nan, {}
-        stats = {"solver_status": status, "success": False}
-        return self._solution(guess, w0, success=False, status=status, message=f"{status}: {message}",
-                              objective=objective, viol=viol, violated=violated, stats=stats,
+            outcome = _Outcome(w0, math.nan, math.nan, {})
+        verdict = _Verdict(False, status, {"solver_status": status, "success": False})
+        return self._solution(guess, outcome, verdict, f"{status}: {message}",
                               times=(float(seconds), 0.0, float(seconds)))
 
-    def _solution(self, guess, w, *, success, status, message, objective, viol, violated, stats,
-                  times) -> Solution:
-        """A Solution at the decision vector ``w``; ``times``: (wall, in the functions, in the solver) [s]."""
-        problem = self.problem
+    def _solution(self, guess, outcome: _Outcome, verdict: _Verdict, message: str, *, times) -> Solution:
+        """A Solution at the decision vector of ``outcome``; ``times``: (wall, in the functions, in
+        the solver) [s]."""
+        problem, w, stats = self.problem, outcome.w, verdict.stats
         Z, U, T = self.nlp.unpack(w)
         wall, fn_time, solver_time = times
-        return Solution(success=success, status=status, message=message,
-                        iterations=int(stats.get("iter_count", 0)), objective=objective,
+        return Solution(success=verdict.success, status=verdict.status, message=message,
+                        iterations=int(stats.get("iter_count", 0)), objective=outcome.objective,
                         t=self.nlp.times(w), z=np.asarray(Z).T, u=np.asarray(U).T,
                         state_names=problem.state_names, control_names=problem.control_names,
                         horizon=T, solve_time_s=wall, setup_time_s=self.setup_time_s,
@@ -549,7 +548,7 @@ class OCPSolver:
                                   for k, v in stats.items() if not isinstance(v, dict)},
                                **iteration_history(stats, self.nlp.objective_scale)},
                         settings={**self.settings(), "guess": guess.label}, problem=problem,
-                        constraint_violation=viol, violations=violated)
+                        constraint_violation=outcome.violation, violations=outcome.violated)
 
     def evaluation_seconds(self, guess: InitialGuess | None = None) -> float:
         """Seconds of one evaluation of every NLP function the solver uses (objective,
@@ -623,12 +622,12 @@ class OCPSolver:
                 error = exc
         return out, error, bool(refused), time.perf_counter() - start
 
-    def _outcome(self, out, w0: np.ndarray) -> tuple:
+    def _outcome(self, out, w0: np.ndarray) -> _Outcome:
         """(decision vector, objective, largest bound/constraint violation, the violated
         constraints by name) of a solver output; the start and NaNs without one."""
         nlp = self.nlp
         if out is None:
-            return w0, float("nan"), float("nan"), {}
+            return _Outcome(w0, float("nan"), float("nan"), {})
         w = np.asarray(out["x"]).ravel()
         g = np.asarray(out["g"]).ravel()
         viol = float(max(np.max(np.maximum(nlp.lbg - g, 0), initial=0.0),
@@ -636,9 +635,9 @@ class OCPSolver:
                          np.max(np.maximum(nlp.lbx - w, 0), initial=0.0),
                          np.max(np.maximum(w - nlp.ubx, 0), initial=0.0)))
         objective = float(out["f"]) / nlp.objective_scale        # the NLP's f is s·J (transcription)
-        return w, objective, viol, nlp.violations(g, w, tol=max(1e-6, 10 * self.options.tol))
+        return _Outcome(w, objective, viol, nlp.violations(g, w, tol=max(1e-6, 10 * self.options.tol)))
 
-    def _verdict(self, stats: dict, error, refused: bool, violation: float) -> tuple:
+    def _verdict(self, stats: dict, error, refused: bool, violation: float) -> _Verdict:
         """(success, status, stats with ``solver_status``): Ipopt's return status; FATROP's
         return flag, or convergence read from its own measures (:func:`_fatrop_converged`)."""
         status = ("Invalid_Initial_Point" if refused else
@@ -651,7 +650,25 @@ class OCPSolver:
             stats = {**stats, "success": ok, "fatrop_return_flag": flag}
             status = "Solve_Succeeded" if ok else FATROP_FLAGS.get(flag, f"FATROP return flag {flag}")
         success = bool(stats.get("success", False)) and error is None
-        return success, status, {**stats, "solver_status": status}
+        return _Verdict(success, status, {**stats, "solver_status": status})
+
+
+class _Outcome(NamedTuple):
+    """Where a solve ended: the decision vector, J, the largest bound/constraint violation and
+    the violated constraints by name."""
+
+    w: np.ndarray
+    objective: float
+    violation: float
+    violated: dict
+
+
+class _Verdict(NamedTuple):
+    """What the solver says of a solve: success, its status, its stats (``solver_status`` added)."""
+
+    success: bool
+    status: str
+    stats: dict
 
 
 def _seconds(f, args) -> float:

@@ -4,11 +4,11 @@
 horizon, grid, boundary and periodicity conditions, path and control bounds, weights.
 :class:`~nhgait.ocp.problem.OptimalControlProblem` is a statement bound to a model (it adds
 the model's own checks: names, parameters, quantities); a gait task
-(:class:`nhgait.gaits.task.Task`) is a statement parsed from a ``[task]`` table, with what
+(:class:`nhgait.gaits.tasks.statement.Task`) is a statement parsed from a ``[task]`` table, with what
 only a task says (objective words, ends at rest, velocity states, the verification
 tolerance). Each field is checked by one small validator below; the two speak to their
 readers in their own words (:class:`Wording`: :data:`OCP_WORDS` here, the ``[task]`` table's
-in :mod:`nhgait.gaits.task`). A validator appends to one list, so every problem found is
+in :mod:`nhgait.gaits.tasks.statement`). A validator appends to one list, so every problem found is
 listed in one :class:`ProblemError`.
 
 Values of conditions and bounds are a number (equality) or a ``(lo, hi)`` pair (``None`` for
@@ -435,7 +435,7 @@ class ProblemStatement:
     Parameters
     ----------
     model : the model the problem is stated on; None for a statement not yet bound to one (a
-        gait task's, :class:`nhgait.gaits.task.Task`)
+        gait task's, :class:`nhgait.gaits.tasks.statement.Task`)
     horizon : float
         T > 0 (the initial value of T when ``free_horizon`` is given).
     intervals : int
@@ -461,7 +461,7 @@ class ProblemStatement:
 
     Making a statement checks nothing: :meth:`problems` lists what is wrong with it in a
     reader's words (:class:`~nhgait.ocp.problem.OptimalControlProblem` and
-    :func:`nhgait.gaits.task.parse_task` raise them in one ProblemError).
+    :func:`nhgait.gaits.tasks.statement.parse_task` raise them in one ProblemError).
     """
 
     model: Any

@@ -28,7 +28,11 @@ LAYERS = (
     ("nhgait.dynamics.derivation",),
     ("nhgait.dynamics.simulation", "nhgait.dynamics.linearisation", "nhgait.dynamics.geometry"),
     ("nhgait.ocp",),
-    ("nhgait.gaits",),
+    ("nhgait.gaits.tasks",),                                # the task and its statement
+    ("nhgait.gaits.figures", "nhgait.gaits.files"),        # figures; what a plan writes
+    ("nhgait.gaits.planning",),                             # guesses, the search
+    ("nhgait.gaits.verification",),                         # checks, refinement, diagnosis
+    ("nhgait.gaits",),                                      # the planner
     ("nhgait.gaits.sweeps", "nhgait.gaits.bench", "nhgait.gaits.tracking"),
     ("nhgait.gaits.cli",),
 )

@@ -69,7 +69,7 @@ def test_the_api_reference_holds_the_public_names_and_their_docstrings(built):
     done, html = built
     page = (html / "api.html").read_text()
     for name in ("nhgait.dynamics.derive", "nhgait.dynamics.simulate", "nhgait.dynamics.System",
-                 "nhgait.gaits.plan", "nhgait.ocp.Solution", "nhgait.gaits.plots.plot_path"):
+                 "nhgait.gaits.plan", "nhgait.ocp.Solution", "nhgait.gaits.figures.plots.plot_path"):
         assert f'id="{name}"' in page, name
     # a sentence of a docstring, rendered: the reference is made from the code, not written apart
     assert "Plan a gait" in page

@@ -12,11 +12,12 @@ import importlib
 import pytest
 
 #: the modules whose docstrings hold the examples
-MODULES = ("nhgait.dynamics.derivation.formulations", "nhgait.dynamics.derivation.scene",
+MODULES = ("nhgait.dynamics.derivation.formulations", "nhgait.dynamics.derivation.input.scene",
            "nhgait.dynamics.simulation.driver", "nhgait.dynamics.simulation.options",
            "nhgait.dynamics.simulation.trajectory", "nhgait.dynamics.linearisation.linearised",
            "nhgait.dynamics.suggestions", "nhgait.gaits", "nhgait.gaits.sweeps.driver",
-           "nhgait.dynamics.units", "nhgait.dynamics.geometry.reconstruction", "nhgait.gaits.plan_options")
+           "nhgait.dynamics.units", "nhgait.dynamics.geometry.reconstruction",
+           "nhgait.gaits.planning.options")
 FLAGS = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE
 
 

@@ -1,7 +1,7 @@
 """Values beyond what a double or the machine can carry are refused at once with their name and
 the bound; hostile command-line values get argparse's usage error or one clear message — never
 an internal error, a hang or a silently wrong run (contract: tests/adversarial.py). The bound
-is :data:`nhgait.dynamics.derivation.expressions.MAX_MAGNITUDE` (1e15); the largest requests
+is :data:`nhgait.dynamics.derivation.input.expressions.MAX_MAGNITUDE` (1e15); the largest requests
 are :data:`nhgait.ocp.statement.MAX_INTERVALS` intervals and 10⁶ simulation samples."""
 from __future__ import annotations
 
@@ -154,7 +154,7 @@ def test_the_bound_is_the_one_stated_and_values_within_it_pass():
     """1e15 passes and the next double above it is refused, in every reader."""
     import math
 
-    from nhgait.dynamics.derivation.expressions import MAX_MAGNITUDE, number_problems
+    from nhgait.dynamics.derivation.input.expressions import MAX_MAGNITUDE, number_problems
     problems = []
     assert number_problems(MAX_MAGNITUDE, "x", problems) == MAX_MAGNITUDE
     assert problems == []

@@ -110,7 +110,7 @@ def test_a_location_that_cannot_take_a_write_is_refused_with_the_reason(command,
                                                                         monkeypatch):
     """The probe write meets the file system's error (as a read-only or full disk raises it):
     exit 2 with the reason, and the probe file is removed."""
-    from nhgait.gaits import outputs
+    from nhgait.gaits.files import outputs
 
     def fail(*args, **kwargs):
         raise OSError(code, os.strerror(code))
@@ -171,7 +171,7 @@ def test_a_store_that_is_not_ours_is_refused_and_left_alone(kind, said, sandbox)
 # ----------------------------------------------------------------------------- one writer
 HOLDER = textwrap.dedent("""
     import sys
-    from nhgait.gaits.outputs import output_lock
+    from nhgait.gaits.files.outputs import output_lock
     with output_lock(sys.argv[1], "nhgait sweep unicycle --grid final.y=0.2:0.6:3"):
         print("HOLDING", flush=True)
         sys.stdin.read()                 # held until the test closes the pipe (or kills it)
@@ -207,7 +207,7 @@ def test_a_second_writer_is_refused_at_once_naming_the_first(command, held, sand
 def test_a_lock_left_by_a_killed_writer_is_taken_over(held, sandbox):
     """kill -9 of the writer: the kernel drops its lock; the next writer takes the directory
     and removes the lock file when it is done."""
-    from nhgait.gaits.outputs import LOCK_NAME, output_lock
+    from nhgait.gaits.files.outputs import LOCK_NAME, output_lock
     folder, proc = held
     os.killpg(proc.pid, signal.SIGKILL)
     proc.wait()
@@ -236,7 +236,7 @@ def test_a_plan_whose_files_cannot_be_written_keeps_its_solution(sandbox, monkey
     """The disk fills while the figures are written: exit 1, the summary says what failed; the
     result was written before the figures (issue 40), so solution.json is in place and holds
     the objective the summary printed."""
-    from nhgait.gaits import plots
+    from nhgait.gaits.figures import plots
     monkeypatch.setattr(plots, "write_figures", _no_space)
     got = answer([*PLAN, "--out", sandbox.out / "p"]).check(1, r"figures +NOT WRITTEN: writing .* failed: "
                                                                r"no space left", sandbox)
@@ -255,7 +255,7 @@ def test_a_plan_whose_figures_process_dies_keeps_its_solution(sandbox, monkeypat
     without an answer (here: exits in the shape figure) is a failed write, said in one line,
     and solution.json, written before the figures, stays — not a traceback, not a hang, no
     child left."""
-    from nhgait.gaits import plots
+    from nhgait.gaits.figures import plots
     from nhgait.ocp.supervision import can_fork
     if not can_fork():
         pytest.skip("the figures run in this process without fork")
@@ -311,7 +311,7 @@ def test_a_result_with_nowhere_to_go_is_printed(tmp_path, monkeypatch, capfd):
     """No fallback folder takes it (TMPDIR and home are files): the text is printed."""
     from types import SimpleNamespace
 
-    from nhgait.gaits import outputs
+    from nhgait.gaits.files import outputs
     blocker = tmp_path / "a_file"
     blocker.write_text("x")
     monkeypatch.setattr(outputs, "tempfile", SimpleNamespace(gettempdir=lambda: str(blocker)))
@@ -329,7 +329,7 @@ def test_a_table_with_nowhere_to_go_is_printed_through_memory(tmp_path, monkeypa
     printed; standard output is never reopened (that truncated a redirected one)."""
     from types import SimpleNamespace
 
-    from nhgait.gaits import outputs
+    from nhgait.gaits.files import outputs
     blocker = tmp_path / "a_file"
     blocker.write_text("x")
     monkeypatch.setattr(outputs, "tempfile", SimpleNamespace(gettempdir=lambda: str(blocker)))

@@ -127,8 +127,8 @@ def test_simulate_set_against_an_independent_run(tmp_path, capsys):
     equals the Lagrange DAE (another formulation) integrated by scipy DOP853 at rtol 1e-12 with
     the same values given through the Python API."""
     from nhgait.dynamics import derive, load_scene, simulate
-    from nhgait.dynamics.derivation.expressions import parse_expression
-    from nhgait.dynamics.derivation.scene import ExpressionController
+    from nhgait.dynamics.derivation.input.expressions import parse_expression
+    from nhgait.dynamics.derivation.input.scene import ExpressionController
     out = tmp_path / "t.csv"
     assert main(["simulate", SLIDER, "--set", "t_final=3", "--set", "params.m_s=0.8", "--set", "q0.theta=0.2",
                  "--set", "inputs.f_s=0.5*cos(3*t)", "--set", "qdot0.x=0.7", "--rtol", "1e-10",

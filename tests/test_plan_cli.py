@@ -103,14 +103,14 @@ def car_solution():
 
 
 def _ctx(result):
-    from nhgait.gaits.plots import figure_context
+    from nhgait.gaits.figures.plots import figure_context
     return figure_context(result.solution, result.model, result.plan.units, result.plan.drawing)
 
 
 def test_plots_use_the_scene_units_and_leave_global_state(car_solution):
     import matplotlib.pyplot as plt
 
-    from nhgait.gaits import plots
+    from nhgait.gaits.figures import plots
     before = dict(matplotlib.rcParams)
     ctx = _ctx(car_solution)
     fig, axes = plt.subplots(3, 1)
@@ -140,7 +140,7 @@ def test_plots_use_the_scene_units_and_leave_global_state(car_solution):
 def test_shape_views_for_one_two_and_more_shape_variables(car_solution):
     import matplotlib.pyplot as plt
 
-    from nhgait.gaits import plots
+    from nhgait.gaits.figures import plots
     ctx = _ctx(car_solution)
     fig, axes = plt.subplots(1, 2)
     plots.plot_shape_loop(car_solution.solution, ctx, ax=axes[0])          # one: φ against φ̇
@@ -156,7 +156,7 @@ def test_shape_views_for_one_two_and_more_shape_variables(car_solution):
 def test_gif_has_time_unit_and_scale(car_solution, tmp_path):
     from PIL import Image
 
-    from nhgait.gaits.animation import _nice, animate_solution
+    from nhgait.gaits.figures.animation import _nice, animate_solution
     path = animate_solution(car_solution.solution, _ctx(car_solution), tmp_path / "m.gif", frames=5)
     assert Image.open(path).n_frames == 5
     assert _nice(2.0) == 0.5
@@ -165,7 +165,7 @@ def test_gif_has_time_unit_and_scale(car_solution, tmp_path):
 
 
 def test_drawing_problems_are_listed(car_solution):
-    from nhgait.gaits.drawing import parse_drawing
+    from nhgait.gaits.figures.drawing import parse_drawing
     from nhgait.ocp import ProblemError
     bad = {"frame": ["x", "y"], "colour": 1,
            "segment": [{"from": ["l", "zz"], "to": [0]},

@@ -60,7 +60,7 @@ def test_an_objective_of_zero_weight_is_refused_before_any_work(sandbox):
 
 def test_an_objective_whose_inputs_all_weigh_zero_is_refused():
     """``{effort = 0, F = 1}``: effort multiplies each input's weight, so every term is 0."""
-    from nhgait.gaits.task import objective_problems, parse_task
+    from nhgait.gaits.tasks.statement import objective_problems, parse_task
     task = parse_task({"horizon": 1.0, "objective": {"effort": 0.0, "F": 1.0}})
     assert objective_problems(task, ("F", "tau_phi")) == [
         "[task].objective = {effort = 0.0, F = 1.0}: every term weighs 0 (effort = 0 multiplies each "
@@ -127,7 +127,7 @@ def test_the_magnitude_guard_judges_the_numbers_written_not_those_sympy_folds():
     legitimate scene (opty's car in garage); a number the user writes beyond 1e15 is not."""
     import sympy as sp
 
-    from nhgait.dynamics.derivation.expressions import parse_expression
+    from nhgait.dynamics.derivation.input.expressions import parse_expression
     from nhgait.dynamics.errors import ModelError
     x, y = sp.symbols("x y", real=True)
     wall = parse_expression("y - 5*(1/(1 + exp(50*(x + 0.75))) + 1/(1 + exp(-50*(x - 0.75))))",
@@ -143,7 +143,7 @@ def test_the_magnitude_guard_judges_the_numbers_written_not_those_sympy_folds():
 
 def test_the_garage_with_its_walls_written_as_numbers_is_accepted(sandbox):
     """The probe's garage: x1, x2 and y12 written as numbers (−0.75, 0.75, 5) in the walls."""
-    from nhgait.dynamics.derivation.scene import load_scene
+    from nhgait.dynamics.derivation.input.scene import load_scene
     text = (GARAGE_TEXT.replace("exp(50*(x - x1))", "exp(50*(x + 0.75))")
             .replace("exp(-50*(x - x2))", "exp(-50*(x - 0.75))")
             .replace('wall0 = "y - y12*', 'wall0 = "y - 5*'))
@@ -157,7 +157,7 @@ def test_a_killed_writers_staging_folder_goes_with_the_next_writer(tmp_path):
     """kill -9 while a plan writes leaves ``--out/.writing-<pid>-*/``: the next writer removes
     those of processes that are gone (and of no stated pid), keeps a live writer's, and its
     own staging folder goes too."""
-    from nhgait.gaits.outputs import output_lock, staged
+    from nhgait.gaits.files.outputs import output_lock, staged
     out = tmp_path / "out"
     out.mkdir()
     dead = out / f".writing-{_dead_pid()}-k9x2"
@@ -205,7 +205,7 @@ def test_another_scenes_entry_with_its_header_key_rewritten_is_refused(sandbox, 
     """The unicycle's entry copied under the car's key with the key in its header rewritten:
     the key inside the checked payload is the unicycle's, so it is refused and the car derived."""
     from nhgait.dynamics import derive, unicycle
-    from nhgait.dynamics.derivation.scene import load_scene
+    from nhgait.dynamics.derivation.input.scene import load_scene
     from nhgait.dynamics.numerics import cache
     sandbox.use_cache(monkeypatch, sandbox.root / "cache")
     uni = derive(unicycle(), "reduced").provenance.key

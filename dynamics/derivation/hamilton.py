@@ -19,7 +19,7 @@ import casadi as ca
 import sympy as sp
 
 from nhgait.dynamics.derivation.cse_text import equation_lines
-from nhgait.dynamics.derivation.notation import method_name, system_names
+from nhgait.dynamics.derivation.input.notation import method_name, system_names
 
 from ..algebra.trig import TIDY_NODES, tidy, tree_size
 from .dae_model import DAEModel

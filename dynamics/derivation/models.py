@@ -24,7 +24,7 @@ from .system import System
 
 def _from_scene(name: str, parameters: dict) -> System:
     """The system of the built-in scene ``name`` with ``parameters`` overriding its defaults."""
-    from .scene import load_scene
+    from .input.scene import load_scene
     system = load_scene(name).system
     if not parameters:
         return system

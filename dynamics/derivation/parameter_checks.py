@@ -18,7 +18,7 @@ import sympy as sp
 from nhgait.dynamics.suggestions import known_names
 
 from ..memo import OwnerMemo
-from .expressions import number_problems
+from .input.expressions import number_problems
 
 __all__ = ["parameter_problems", "numeric_checks", "numeric_functions", "sample_configurations", "LAMBDIFIED"]
 

@@ -30,7 +30,7 @@ from nhgait.dynamics.suggestions import known_names
 from ..errors import ModelError
 from ..memo import OwnerMemo
 from . import parameter_checks
-from .system_parsing import (
+from .input.system_parsing import (
     TIME,
     fiber_problems,
     linear_split,
@@ -184,7 +184,10 @@ class System:
         options
             Further fields (``fiber``, ``planar_frame``, ``forward``, ``dependent``).
         """
-        from .from_mechanics import check_stated_velocities, read_statement  # loads sympy.physics.mechanics
+        from .input.from_mechanics import (  # loads sympy.physics.mechanics
+            check_stated_velocities,
+            read_statement,
+        )
         statement = read_statement(source, parameters, inputs=inputs, origin=origin, name=name)
         system = cls(**{**statement.fields, **options})
         check_stated_velocities(statement, system)

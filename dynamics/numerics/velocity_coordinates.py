@@ -243,7 +243,7 @@ def choose_velocities(model, preferred=(), quantities=None, params=None, bounds=
        ends, where every guess starts or ends (a car whose base is its last trailer, turned by
        π/2: ẋ of that trailer does not determine the motion there, its forward velocity does);
        else the first regular at every sample — the planner's guesses are then screened
-       against its singular set (:mod:`nhgait.gaits.screening`).
+       against its singular set (:mod:`nhgait.gaits.planning.screening`).
 
     Raises :class:`ModelError` when no set is regular at the samples.
     """

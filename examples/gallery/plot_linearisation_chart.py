@@ -12,7 +12,7 @@ import numpy as np
 
 from nhgait.dynamics import derive, load_scene
 from nhgait.dynamics.linearisation import stability_chart
-from nhgait.gaits.stability_plots import plot_eigenvalues
+from nhgait.gaits.figures.stability import plot_eigenvalues
 
 model = derive(load_scene("rolling_disc").system)      # a built-in scene
 chart = stability_chart(model, np.linspace(0.0, 3.0, 31))

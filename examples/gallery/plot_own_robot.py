@@ -13,7 +13,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 
 from nhgait.gaits import plan
-from nhgait.gaits.plots import figure_context, plot_path, plot_shape_loop
+from nhgait.gaits.figures.plots import figure_context, plot_path, plot_shape_loop
 
 SCENE = '''
 [system]

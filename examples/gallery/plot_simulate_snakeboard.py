@@ -10,9 +10,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from nhgait.dynamics import derive, load_scene, simulate
-from nhgait.gaits.plots import figure_context, plot_path
-from nhgait.gaits.task_library import figure_tables
-from nhgait.gaits.trajectory_plots import TrajectoryView, plot_checks
+from nhgait.gaits.figures.plots import figure_context, plot_path
+from nhgait.gaits.figures.trajectory import TrajectoryView, plot_checks
+from nhgait.gaits.tasks.sources import figure_tables
 
 scene = load_scene("snakeboard")                 # the built-in scene: system, units, [simulation]
 model = derive(scene.system)                     # the reduced ODE, cached on disk

@@ -9,7 +9,7 @@ its own guesses, solves, and re-simulates the optimum with an independent integr
 import matplotlib.pyplot as plt
 
 from nhgait.gaits import plan
-from nhgait.gaits.plots import figure_context, plot_histories, plot_path
+from nhgait.gaits.figures.plots import figure_context, plot_histories, plot_path
 
 result = plan("unicycle", "parallel-park", intervals=40, jit=False)
 print(result)

@@ -28,7 +28,7 @@ def cmd_bench_precision(args) -> int:
     from nhgait.dynamics import derive, load_scene
     from nhgait.dynamics.errors import ModelError
     from nhgait.gaits.bench import work_precision as wp
-    from nhgait.gaits.outputs import output_directory
+    from nhgait.gaits.files.outputs import output_directory
     if args.repeats < 1:
         raise ModelError([f"--repeats {args.repeats}: at least 1 timed run per point"],
                          title="invalid request")
@@ -60,7 +60,7 @@ def cmd_bench_precision(args) -> int:
     try:
         _write_report(rows, case, f"{label} (spread {spread:.2g})", out)
     except OSError as exc:                  # the measurements are kept: the CSV goes to a fallback
-        from nhgait.gaits.outputs import rescue, write_failure
+        from nhgait.gaits.files.outputs import rescue, write_failure
         where = rescue("precision.csv", lambda path: wp.write_csv(rows, path), "measurements")
         print(f"NOT WRITTEN: {write_failure(exc, out)}; {where}")
         return 1

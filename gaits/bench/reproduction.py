@@ -229,7 +229,7 @@ def reproduce(out_dir, *, rtol=1e-10, formulations=FORMULATIONS, idas=True, refe
             if columns is not None:
                 summary[name]["csv"] = write_csv(name, case, out_dir, columns)
         except OSError as exc:              # the runs are kept: the summary goes on (and to a fallback)
-            from ..outputs import write_failure
+            from ..files.outputs import write_failure
             summary.setdefault("unwritten", write_failure(exc, out_dir))
         countdown.step(f"{name} ({len(summary[name]['runs'])} runs{', figures' if figures else ''})")
     return _written_summary(summary, out_dir)
@@ -238,7 +238,7 @@ def reproduce(out_dir, *, rtol=1e-10, formulations=FORMULATIONS, idas=True, refe
 def _written_summary(summary: dict, out_dir: Path) -> dict:
     """``summary`` written to ``out_dir/summary.json``; when a write failed, it also goes to a
     fallback and ``summary["unwritten"]`` says what failed and where it is."""
-    from ..outputs import rescue, write_failure
+    from ..files.outputs import rescue, write_failure
     try:
         if "unwritten" not in summary:
             with open(out_dir / "summary.json", "w") as fh:

@@ -275,7 +275,7 @@ def plot_case(rows, ax=None, *, title: str = "", anchor=None):
     if ax is None:
         import matplotlib.pyplot as plt
         _, ax = plt.subplots(figsize=(7.5, 5.5))
-    from nhgait.gaits.plot_style import series_styles
+    from nhgait.gaits.figures.style import series_styles
     labels = list(dict.fromkeys(r.label for r in rows))
     styles = series_styles(len(labels), markers=True)      # distinct colour/marker/line per series
     for i, label in enumerate(labels):

@@ -27,8 +27,8 @@ __all__ = ["add_analyse_parser", "cmd_analyse"]
 
 def _point_values(texts, problems) -> dict:
     """``--at`` texts ``name=value`` → {name: number}; values may be constant expressions."""
-    from nhgait.dynamics.derivation.assignments import parse_assignment
-    from nhgait.dynamics.derivation.expressions import number_problems
+    from nhgait.dynamics.derivation.input.assignments import parse_assignment
+    from nhgait.dynamics.derivation.input.expressions import number_problems
     out = {}
     for text in texts:
         a = parse_assignment(text, problems, example="phi=0.5 or x_dot=1")

@@ -11,7 +11,7 @@ __all__ = ["add_derive_parser", "cmd_derive", "model_text"]
 
 def cmd_derive(args) -> int:
     from nhgait.dynamics import FORMULATIONS, derive
-    from nhgait.dynamics.derivation.scene import load_scene
+    from nhgait.dynamics.derivation.input.scene import load_scene
     from nhgait.dynamics.derivation.symmetry import symmetry_test
     scene = load_scene(args.scene)
     system = scene.system

@@ -28,8 +28,8 @@ SET_KEYS = ("q", "inputs", "params")
 def parse_settings(assignments, system) -> dict:
     """``--set`` texts → {"configuration": {...}, "inputs": {...}, "params": {...}}; one error
     lists every problem."""
-    from nhgait.dynamics.derivation.assignments import parse_assignment
-    from nhgait.dynamics.derivation.expressions import number_problems
+    from nhgait.dynamics.derivation.input.assignments import parse_assignment
+    from nhgait.dynamics.derivation.input.expressions import number_problems
     from nhgait.dynamics.errors import ModelError
     from nhgait.dynamics.suggestions import known_names
     problems: list = []
@@ -87,7 +87,7 @@ def cmd_linearize(args) -> int:
     else:
         print(chart.to_text())
     if args.out is not None:
-        from ..stability_plots import write_eigenvalue_figure
+        from ..figures.stability import write_eigenvalue_figure
         out = Path(args.out)
         path = write_eigenvalue_figure(chart, out,
                                        title=f"{scene.system.name}: eigenvalues of straight steady motion")

@@ -16,7 +16,7 @@ __all__ = ["add_plan_parser", "run"]
 
 
 def add_plan_parser(subparsers) -> argparse.ArgumentParser:
-    from ..task_library import describe_library
+    from ..tasks.sources import describe_library
     from .arguments import positive_int, workers
     p = subparsers.add_parser(
         "plan", help="plan an optimal gait of a scene's [task] (or a built-in gait) and verify it",
@@ -75,16 +75,16 @@ def add_plan_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    """Plan with ``--out`` checked and locked first (:mod:`nhgait.gaits.outputs`); the result
+    """Plan with ``--out`` checked and locked first (:mod:`nhgait.gaits.files.outputs`); the result
     first — solution.json and trajectory.csv written, the summary printed — then the figures
     (and ``--gif``'s animation). Exit 1 when the plan failed or its files could not all be
     written (the summary says where the solution went)."""
     from nhgait.dynamics.numerics.background import builds_off
     from nhgait.dynamics.progress import Progress
 
-    from ..outputs import output_directory, output_lock
-    from ..plan_options import PlanOptions
+    from ..files.outputs import output_directory, output_lock
     from ..planner import plan, summary_lines, with_figures
+    from ..planning.options import PlanOptions
     started = time.perf_counter()
     progress = Progress.silent() if args.quiet else Progress.to_stderr(verbose=args.verbose)
     out = output_directory(args.out)

@@ -30,7 +30,7 @@ def run(args) -> int:
     import sys
 
     from ..bench.reproduction import reproduce
-    from ..outputs import output_directory
+    from ..files.outputs import output_directory
     out = output_directory(args.out)        # before any derivation: exit 2 for a bad location
     summary = reproduce(out, rtol=args.rtol, idas=not args.no_idas, columns=getattr(args, "columns", None),
                         progress=None if getattr(args, "quiet", False) else sys.stderr)

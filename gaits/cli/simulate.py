@@ -12,9 +12,10 @@ later runs load it from the cache).
 
 ``--set KEY=VALUE`` changes the ``[simulation]`` table without editing the file (``t_final=20``,
 ``q0.x=0.5``, ``qdot0.theta=1``, ``inputs.F=0.2*sin(t)``, ``params.m=2``; the parser of
-:mod:`nhgait.dynamics.derivation.assignments`, shared with ``plan`` and ``sweep``). ``--plot DIR`` writes
+:mod:`~nhgait.dynamics.derivation.input.assignments`, shared with ``plan`` and ``sweep``).
+``--plot DIR`` writes
 ``time_series.png``, ``path.png`` and ``checks.png`` (the constraint residual and the energy
-balance; :mod:`nhgait.gaits.trajectory_plots`).
+balance; :mod:`nhgait.gaits.figures.trajectory`).
 """
 from __future__ import annotations
 
@@ -58,8 +59,8 @@ def cmd_simulate(args) -> int:
 
 def _checked_outputs(args) -> tuple:
     """(the CSV path or None, the figure folder or None), checked before any derivation
-    (:mod:`nhgait.gaits.outputs`: exit 2 for a location that cannot be written)."""
-    from ..outputs import output_directory, output_file
+    (:mod:`nhgait.gaits.files.outputs`: exit 2 for a location that cannot be written)."""
+    from ..files.outputs import output_directory, output_file
     out = output_file(args.out) if args.out is not None else None
     plot = output_directory(args.plot, "--plot") if args.plot is not None else None
     return out, plot
@@ -68,7 +69,7 @@ def _checked_outputs(args) -> tuple:
 def _write_csv(traj, out: Path | None, columns: str, units: dict, system) -> bool:
     """Write the CSV to ``out``; a write that fails (or ``out`` None) saves it to a fallback it
     names. True when written to ``out``."""
-    from ..outputs import rescue, write_failure
+    from ..files.outputs import rescue, write_failure
 
     def write(path):
         Path(path).parent.mkdir(parents=True, exist_ok=True)
@@ -88,9 +89,9 @@ def _write_csv(traj, out: Path | None, columns: str, units: dict, system) -> boo
 def _write_figures(traj, model, scene, plot: Path) -> bool:
     """time_series.png, path.png and checks.png into ``plot``; a failure is reported (the CSV
     holds the run)."""
-    from ..outputs import write_failure
-    from ..task_library import figure_tables
-    from ..trajectory_plots import write_trajectory_figures
+    from ..figures.trajectory import write_trajectory_figures
+    from ..files.outputs import write_failure
+    from ..tasks.sources import figure_tables
     tables = figure_tables(scene)              # a built-in's [drawing] from its gait library, as plan's
     try:
         files = write_trajectory_figures(traj, model, plot, units=tables.units, drawing=tables.drawing,

@@ -126,7 +126,7 @@ def write_plots(result, out: Path, requested=None) -> list:
 
 
 def run(args) -> int:
-    from ..outputs import write_failure
+    from ..files.outputs import write_failure
     from ..sweeps.driver import load_sweep, sweep
     from ..sweeps.store import StoreWriteError
     out = Path(args.out)

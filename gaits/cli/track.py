@@ -72,11 +72,11 @@ def add_track_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    """The study with ``--out`` checked and locked first (:mod:`nhgait.gaits.outputs`); exit 1
+    """The study with ``--out`` checked and locked first (:mod:`nhgait.gaits.files.outputs`); exit 1
     when the plan or a run failed, the time ran out or the files could not all be written."""
     from nhgait.dynamics.progress import Progress
 
-    from ..outputs import output_directory, output_lock
+    from ..files.outputs import output_directory, output_lock
     from ..tracking.runs import Noise
     from ..tracking.study import summary_lines, track
     started = time.perf_counter()

@@ -371,7 +371,7 @@ def backend_problems(scheduler: str | None = None, workers: int | None = None) -
     """What is wrong with a ``--scheduler``/``--workers`` request (checked before any work)."""
     if scheduler and workers:
         return ["give either --scheduler or --workers: a Dask cluster has its own workers"]
-    from ..plan_options import whole_number
+    from ..planning.options import whole_number
     if not scheduler and workers is not None and not (whole_number(workers) and workers >= 0):
         return [f"--workers must be ≥ 0 (a whole number of worker processes), got {workers!r}"]
     return []

@@ -313,7 +313,7 @@ class _Run:
     def _rescued(self, exc, points, answers) -> str:
         """The message of a store that could not be written: why, what is stored, and where the
         answers of ``points`` (not stored) were saved instead."""
-        from ..outputs import rescue
+        from ..files.outputs import rescue
         unstored = [{"id": p.id, "axis_values": dict(p.values), "answer": a}
                     for p, a in zip(points, answers, strict=True) if p.index not in self.done]
         where = rescue("unstored_points.json", unstored, f"answer of {len(unstored)} unstored point(s)")
@@ -423,7 +423,7 @@ def sweep(system, task=None, grid=(), *, out, overrides=(), params=None, schedul
     >>> bool(result.records[0].objective < result.records[1].objective)
     True
     """
-    from ..outputs import output_directory, output_lock
+    from ..files.outputs import output_directory, output_lock
     from .backends import backend_problems
     from .point import option_problems
     problems = option_problems(options) + (backend_problems(scheduler, workers) if backend is None else [])

@@ -7,7 +7,7 @@ An axis is written ``NAME=SPEC`` (``nhgait sweep --grid``):
   ``params.<name>``;
 * ``SPEC`` is ``lo:hi:n`` (n evenly spaced values from lo to hi, both included), a list
   ``a,b,c`` or one value ``a``. Each number is a TOML-style number or a constant expression
-  (``pi/2``, ``2*sqrt(2)``) read by :func:`nhgait.dynamics.derivation.expressions.number_problems` —
+  (``pi/2``, ``2*sqrt(2)``) read by :func:`nhgait.dynamics.derivation.input.expressions.number_problems` —
   data, never evaluated as code; ``n`` is a whole number ≥ 2.
 
 Every problem of every axis (syntax, unknown kinds of name, repeated axes, counts, values
@@ -156,7 +156,7 @@ def _count(text: str, where: str, problems: list) -> int:
 
 
 def _values(spec: str, where: str, problems: list) -> tuple:
-    from nhgait.dynamics.derivation.expressions import number_problems
+    from nhgait.dynamics.derivation.input.expressions import number_problems
     if not spec.strip():
         problems.append(f"{where}: no values (use lo:hi:n, a,b,c or one value)")
         return ()

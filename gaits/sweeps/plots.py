@@ -47,7 +47,7 @@ def objective_label(inputs=(), units=None) -> str:
 
 def _coordinate_label(name: str, units) -> str:
     """``θ [rad]``: the planner's readable name and the unit."""
-    from ..plots import label
+    from ..figures.plots import label
     return f"{label(name)} [{unit_of(name, units) or 'SI units'}]"
 
 

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field, replace
 
 from nhgait.dynamics.memo import LruMemo
 
-from ..search import WARM_IPOPT as _WARM
+from ..planning.search import WARM_IPOPT as _WARM
 from .grid import GridPoint
 
 __all__ = ["SceneData", "SweepCase", "PointJob", "point_task", "solve_point", "describe_case", "warm_data",
@@ -183,8 +183,8 @@ def solve_chain(solve, jobs, warm_start: bool = True) -> list:
 
 def _outcome(s, start: str) -> dict:
     """The plain-data answer of a verified solution (success needs the deciding verification
-    too: :func:`~nhgait.gaits.gait_check.passed`)."""
-    from ..gait_check import passed
+    too: :func:`~nhgait.gaits.verification.gait_check.passed`)."""
+    from ..verification.gait_check import passed
     verified = passed(s)
     return {"success": bool(s.success) and verified, "status": str(s.status), "message": str(s.message),
             "objective": _nan(s.objective), "iterations": int(s.iterations),
@@ -204,7 +204,7 @@ def _scene_data(system) -> SceneData:
         raise ModelError(["a sweep's system is a scene file or a built-in scene name, got "
                           f"{type(system).__name__} (a sweep sends the scene to its workers as data)"],
                          title="invalid sweep")
-    from nhgait.dynamics.derivation.textfiles import names_a_file, read_text_file
+    from nhgait.dynamics.derivation.input.textfiles import names_a_file, read_text_file
     path = Path(system)
     if names_a_file(path) or path.suffix == ".toml":
         return SceneData(str(path), text=read_text_file(path, "scene file", title="cannot read the scene"))
@@ -215,7 +215,7 @@ def scene_of(data: SceneData):
     """What the planner's ``resolve`` takes: the built-in name, or the Scene parsed from the text."""
     if data.builtin is not None:
         return data.builtin
-    from nhgait.dynamics.derivation.scene import scene_from_text
+    from nhgait.dynamics.derivation.input.scene import scene_from_text
     return scene_from_text(data.text, data.source)
 
 
@@ -229,7 +229,7 @@ def option_problems(options) -> list:
     (:class:`~..plan_options.PlanOptions`), and a solver a point can run (one: no ``auto``)."""
     from nhgait.dynamics.suggestions import known_names
 
-    from ..plan_options import PlanOptions
+    from ..planning.options import PlanOptions
     if options is None:
         return []
     if not isinstance(options, Mapping):
@@ -249,8 +249,8 @@ def describe_case(system, task=None, *, overrides=(), params=None, options=None)
     parameter values; the planner checks the task on the model here, before any point runs."""
     from nhgait.dynamics import derive
 
-    from ..plan_arguments import check_params
-    from ..task_library import resolve
+    from ..planning.arguments import check_params
+    from ..tasks.sources import resolve
     data = _scene_data(system)
     resolved = resolve(scene_of(data), task, overrides=overrides)
     sys_ = resolved.scene.system
@@ -267,7 +267,7 @@ def describe_case(system, task=None, *, overrides=(), params=None, options=None)
 def _units(resolved, model) -> dict:
     """Units of the coordinates, their rates and the inputs by the planner's plot rules (the
     scene's ``[units]`` first, then rad/m from the model), and every ``[units]`` entry."""
-    from ..plots import FigureContext, unit
+    from ..figures.plots import FigureContext, unit
     sys_ = model.system
     ctx = FigureContext(sys_, dict(resolved.units), None, None, tuple(model.fiber), tuple(model.shape))
     names = [*sys_.coordinates, *(f"{c}_dot" for c in sys_.coordinates), *sys_.inputs]
@@ -279,7 +279,7 @@ def check_case(case: SweepCase, job: PointJob) -> None:
     """Raise the planner's error when ``job``'s task or parameters do not fit the model (run
     once by the driver on the centre point, so bad input stops the sweep before it starts)."""
     from ..planner import prepare
-    from ..task_library import resolve
+    from ..tasks.sources import resolve
     prepare(resolve(scene_of(case.scene), job.task), params=job.params)
 
 
@@ -304,7 +304,7 @@ def _structure(task: Mapping) -> str:
     return json.dumps(shape, sort_keys=True, default=str)
 
 
-#: Ipopt settings of a sweep point's warm start (:data:`nhgait.gaits.search.WARM_IPOPT`); a warm
+#: Ipopt settings of a sweep point's warm start (:data:`nhgait.gaits.planning.search.WARM_IPOPT`); a warm
 #: start that fails falls back to the planner's guesses.
 WARM_IPOPT = _WARM
 
@@ -313,12 +313,13 @@ def _solver_for(job: PointJob, *, warm: bool = False):
     """(derived model, (stated problem, problem solved), OCPSolver, plan) of ``job``, reusing
     this process's solver of the same structure (``OCPSolver.with_problem``: same NLP
     functions, new bounds); ``warm``: the solver with :data:`WARM_IPOPT` (Ipopt only). A new
-    solver gets the planner's time limit per attempt (:func:`~nhgait.gaits.time_limits.attempt_limited`)."""
+    solver gets the planner's time limit per attempt
+    (:func:`~nhgait.gaits.planning.time_limits.attempt_limited`)."""
     from nhgait.ocp import OCPSolver, SolverOptions
 
     from ..planner import prepare, state_problem
-    from ..task_library import resolve
-    from ..time_limits import attempt_limited
+    from ..planning.time_limits import attempt_limited
+    from ..tasks.sources import resolve
     case = job.case
     resolved = resolve(scene_of(case.scene), job.task)
     warm = warm and case.options.get("solver", "ipopt") == "ipopt"
@@ -348,10 +349,10 @@ def prepare_worker(job: PointJob) -> bool:
 
 
 def point_budget(job: PointJob):
-    """The time budget of one point (:func:`~nhgait.gaits.time_limits.budget_for`): the sweep's
+    """The time budget of one point (:func:`~nhgait.gaits.planning.time_limits.budget_for`): the sweep's
     ``time_limit`` option (``--time-limit``), else the task's ``time_limit``, else the planner's
     default for the robot's size."""
-    from ..time_limits import budget_for
+    from ..planning.time_limits import budget_for
     return budget_for(len(job.case.coordinates), job.case.options.get("time_limit"),
                       job.task.get("time_limit"), given_as="--time-limit per point")
 
@@ -371,10 +372,10 @@ def _plan_point(job: PointJob) -> dict:
 
 
 def _solve_within(job: PointJob, budget, reached: dict) -> dict:
-    from ..gait_check import unsolved, verified_gait
-    from ..guesses import candidates
-    from ..search import solve_attempts, solve_with_fallbacks
-    from ..warm_start import warm_start
+    from ..planning.guesses import candidates
+    from ..planning.search import solve_attempts, solve_with_fallbacks
+    from ..planning.warm_start import warm_start
+    from ..verification.gait_check import unsolved, verified_gait
     solution = None
     if job.warm is not None:
         with budget.stage("the derivation and the NLP set-up"):

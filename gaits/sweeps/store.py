@@ -21,13 +21,13 @@ whole point in its worker: set-up, solve, verification), ``verification_error`` 
 ``solutions/<id>.json``, the full solution) and ``finished_at`` (UTC ISO time).
 
 One writer per store: an open store holds the directory's writer lock
-(:func:`nhgait.gaits.outputs.output_lock`; ``lock=False`` when the caller holds it already),
+(:func:`nhgait.gaits.files.outputs.output_lock`; ``lock=False`` when the caller holds it already),
 so a second sweep on the same ``--out`` is refused at once, naming the first. A store file, a
 journal or a ``solutions`` folder that is a symbolic link is refused (writing through it would
 turn the link's target into a database), and so is a file that is not an SQLite database. A
 write that fails while the sweep runs (disk full, folder removed) raises
 :class:`StoreWriteError`: the points already stored stay, the driver saves the unstored
-answers to a fallback (:func:`nhgait.gaits.outputs.rescue`) and ``--resume`` continues.
+answers to a fallback (:func:`nhgait.gaits.files.outputs.rescue`) and ``--resume`` continues.
 """
 from __future__ import annotations
 
@@ -124,7 +124,7 @@ class SweepStore:
     """The store of one sweep directory (see the module docstring). Use as a context manager."""
 
     def __init__(self, directory, *, create: bool = True, lock: bool = True):
-        from ..outputs import output_lock
+        from ..files.outputs import output_lock
         self.directory = Path(directory)
         self.path = self.directory / STORE_NAME
         if not create and not self.path.exists():

@@ -7,6 +7,6 @@
 * :mod:`.runs` — one sample (the worker side; picklable :class:`~.runs.TrackingCase`);
 * :mod:`.plots` — tracking_paths.png, tracking_errors.png.
 
-The feedback itself is planned with every gait (:mod:`nhgait.gaits.plan_feedback`,
+The feedback itself is planned with every gait (:mod:`nhgait.gaits.verification.feedback`,
 :mod:`nhgait.ocp.feedback`); its stability over a period is in :mod:`nhgait.ocp.floquet`.
 """

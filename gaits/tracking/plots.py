@@ -24,7 +24,7 @@ _TITLE = {"open_loop": "open loop", "closed_loop": "closed loop (the plan's LQR)
 
 
 def _position_label(report, axis: int, names, prefix: str = "") -> str:
-    from ..plots import label
+    from ..figures.plots import label
     return f"{prefix}{label(names[axis])} [{report['position_unit']}]"
 
 
@@ -96,7 +96,7 @@ def plot_tracking_errors(result, axes, coordinates, units):
     axes[0].set_ylabel(f"position error [{report['position_unit']}]")
     axes[0].set_yscale("log")
     axes[0].legend(fontsize="small", loc="best")
-    from ..plots import label
+    from ..figures.plots import label
     for ax, name in zip(axes[1:], coordinates, strict=False):
         ax.set_ylabel(f"{label(name)} error [{units.get(name, '')}]")
     for ax in axes:

@@ -15,7 +15,7 @@ import math
 import numbers
 from collections.abc import Mapping
 
-from ..plan_options import whole_number
+from ..planning.options import whole_number
 
 __all__ = ["request_problems", "parse_mismatch"]
 

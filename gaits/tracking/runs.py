@@ -112,7 +112,7 @@ def _context(case: TrackingCase) -> _Context:
 
         from ..planner import prepare
         from ..sweeps.point import scene_of
-        from ..task_library import resolve
+        from ..tasks.sources import resolve
         prepared = prepare(resolve(scene_of(case.scene), case.task), params=case.params)
         feedback = Feedback.from_dict(case.feedback)
         system = prepared.model.system

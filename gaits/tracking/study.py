@@ -1,15 +1,15 @@
 """A tracking study, ``nhgait track``: :func:`track` plans (or reads a ``solution.json``), then
 re-simulates the plan on the general model with the parameters changed (``mismatch``: name →
 factor) and with initial-state and input noise, open loop and with the plan's feedback
-(:mod:`nhgait.gaits.plan_feedback`), for K samples (:mod:`.runs`; in this process, or on the
+(:mod:`nhgait.gaits.verification.feedback`), for K samples (:mod:`.runs`; in this process, or on the
 sweep back ends — a process pool or Dask — when K is large or a back end is named), and writes
 ``tracking.json`` and the figures (:mod:`.plots`).
 
 Like ``nhgait plan``: the output directory is checked before any work
-(:func:`~nhgait.gaits.outputs.output_directory`), the files are written whole or not at all
-(:func:`~nhgait.gaits.outputs.staged`) and a write that fails puts tracking.json in a fallback
-folder (:func:`~nhgait.gaits.outputs.rescue`, ``unwritten`` says where). The study runs within
-one time budget (:func:`~nhgait.gaits.time_limits.budget_for`: ``time_limit``, else the task's,
+(:func:`~nhgait.gaits.files.outputs.output_directory`), the files are written whole or not at all
+(:func:`~nhgait.gaits.files.outputs.staged`) and a write that fails puts tracking.json in a fallback
+folder (:func:`~nhgait.gaits.files.outputs.rescue`, ``unwritten`` says where). The study runs within
+one time budget (:func:`~nhgait.gaits.planning.time_limits.budget_for`: ``time_limit``, else the task's,
 else the planner's default for the robot's size), shared by the plan and the samples; samples
 that run out of it end the study as a failure whose tracking.json summarises the samples done.
 
@@ -65,8 +65,8 @@ def _plan_data(plan_file, system):
     robot: its coordinates and inputs), or None. One ProblemError lists every problem."""
     from nhgait.ocp import ProblemError
 
-    from ..solution_file import file_robot_problems, read_solution
-    from ..task_library import scene_of
+    from ..files.solution_file import file_robot_problems, read_solution
+    from ..tasks.sources import scene_of
     if plan_file is None:
         return None
     data = read_solution(plan_file)             # a file that is not a solution: ModelError
@@ -109,7 +109,7 @@ def _planned(system, task, overrides, data, progress, time_limit):
     """(label, task table, nominal parameters, Feedback dict, units, PlanResult or None);
     the plan within ``time_limit`` (the planner's rule; it counts from the plan's start)."""
     from ..planner import plan
-    from ..task_library import resolve
+    from ..tasks.sources import resolve
     if data is not None:
         resolved = resolve(system, data["task"])
         return (data.get("system", resolved.label), data["task"], dict(data["problem"]["params"]),
@@ -151,9 +151,9 @@ def track(system, task=None, *, overrides=(), mismatch=(), samples: int = 20, se
     from nhgait.dynamics.progress import Progress
     from nhgait.ocp.budget import BudgetSpent
 
-    from ..outputs import output_directory
+    from ..files.outputs import output_directory
+    from ..planning.time_limits import budget_for
     from ..sweeps.point import describe_case
-    from ..time_limits import budget_for
     started = time.monotonic()
     progress = progress or Progress.silent()
     if out_dir is not None:
@@ -222,7 +222,7 @@ def _read_request(system, task, overrides, plan_file, problems: list) -> tuple:
     from nhgait.dynamics.errors import ModelError
     from nhgait.ocp import ProblemError
 
-    from ..task_library import resolve
+    from ..tasks.sources import resolve
     try:
         data = _plan_data(plan_file, system)
         resolved = (resolve(system, task, overrides=overrides) if data is None
@@ -311,7 +311,7 @@ def _context_for_report(system, case, units) -> dict:
     ``[units]``, else the plots' rules), the position's unit, the feedback's weights."""
     from nhgait.ocp.feedback import Feedback
 
-    from ..plots import FigureContext, unit
+    from ..figures.plots import FigureContext, unit
     fb = Feedback.from_dict(case.feedback)
     ctx = FigureContext(system, dict(units), None, None, (), ())
     frame = tuple(system.planar_frame or ())[:1] or tuple(system.coordinates)[:1]
@@ -368,7 +368,7 @@ def _written(result: TrackingResult, out: Path, units, progress) -> TrackingResu
     fails puts tracking.json in a fallback folder and says so in ``unwritten``."""
     from dataclasses import replace
 
-    from ..outputs import rescue, staged, write_failure
+    from ..files.outputs import rescue, staged, write_failure
     try:
         return replace(result, files=tuple(staged(out, lambda folder: _write_files(result, folder,
                                                                                    units, progress))))

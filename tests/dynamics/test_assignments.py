@@ -1,4 +1,4 @@
-"""``--set KEY=VALUE`` on a scene's ``[simulation]`` (dynamics/derivation/assignments.py): values
+"""``--set KEY=VALUE`` on a scene's ``[simulation]`` (dynamics/derivation/input/assignments.py): values
 land where the file would have them (numbers as numbers, words and input laws as text, one
 entry of a list in coordinate order), and every malformed or unknown key is named in one
 ModelError, with the close matches."""
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from nhgait.dynamics.derivation.assignments import apply_simulation_overrides, parse_assignment
+from nhgait.dynamics.derivation.input.assignments import apply_simulation_overrides, parse_assignment
 from nhgait.dynamics.errors import ModelError
 
 DOCUMENT = {"system": {"coordinates": ["x", "y", "theta"], "inputs": ["tau"], "parameters": {"m": 1.0}},

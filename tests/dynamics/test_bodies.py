@@ -17,7 +17,7 @@ import pytest
 
 from nhgait.dynamics import ModelError, derive, load_scene
 from nhgait.dynamics.derivation.holonomic import consistent_configuration, holonomic_residual
-from nhgait.dynamics.derivation.scene import scene_from_text
+from nhgait.dynamics.derivation.input.scene import scene_from_text
 from nhgait.dynamics.derivation.states import consistent_velocities
 
 DISC = (Path(__file__).parent.parent / "scenes" / "disc_bodies.toml").read_text()
@@ -203,7 +203,7 @@ def test_a_bodies_robot_knows_its_angles():
     every wheel's spin): their unit is rad and a torque on a spin is in N·m — a user's plot
     labelled the wheel angle "wR [m]" and its torque "τ_R [N]" (a spin enters no sine). The
     scene's own [units] still decide."""
-    from nhgait.gaits.plots import FigureContext, unit
+    from nhgait.gaits.figures.plots import FigureContext, unit
     scene = scene_from_text(_DRIVE + '\n[units]\npitch = "deg"\n')
     assert scene.units == {"x": "m", "y": "m", "yaw": "rad", "pitch": "deg", "wL": "rad", "wR": "rad"}
     ctx = FigureContext(scene.system, dict(scene.units), None, None, (), ())

@@ -355,9 +355,9 @@ def test_a_solver_adopts_the_optimised_library_once_its_background_build_lands(c
     """Issue 25: a long cold plan need not wait for the next run — once the background build has
     landed, the next attempts run on the optimised library (not before: while the compiler is
     held back, the fast code stays); both codes reach one optimum (to the solver's tolerance)."""
-    from nhgait.gaits.guesses import candidates
     from nhgait.gaits.planner import prepare
-    from nhgait.gaits.task_library import resolve
+    from nhgait.gaits.planning.guesses import candidates
+    from nhgait.gaits.tasks.sources import resolve
     from nhgait.ocp import OCPSolver, SolverOptions
     held = HeldCompiler(tmp_path / "cc")
     held.hold(True)

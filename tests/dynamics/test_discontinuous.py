@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from nhgait.dynamics import System, derive, simulate
-from nhgait.dynamics.derivation.scene import parse_scene
+from nhgait.dynamics.derivation.input.scene import parse_scene
 
 
 def _particle(force):

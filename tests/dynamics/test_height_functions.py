@@ -12,8 +12,8 @@ import sympy as sp
 from scipy.integrate import solve_ivp
 
 from nhgait.dynamics import derive
+from nhgait.dynamics.derivation.input.scene import load_scene
 from nhgait.dynamics.derivation.models import snakeboard
-from nhgait.dynamics.derivation.scene import load_scene
 from nhgait.dynamics.errors import ModelError
 from nhgait.dynamics.geometry.connection_fields import local_connection, numeric_connection
 from nhgait.dynamics.geometry.heights import evaluate_heights, height_function

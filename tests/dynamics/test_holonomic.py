@@ -20,7 +20,7 @@ from oracles import oracle
 
 from nhgait.dynamics import ModelError, System, derive, load_scene, simulate
 from nhgait.dynamics.derivation.holonomic import consistent_configuration
-from nhgait.dynamics.derivation.scene import scene_from_text
+from nhgait.dynamics.derivation.input.scene import scene_from_text
 from nhgait.dynamics.derivation.states import consistent_velocities, to_state
 from nhgait.dynamics.linearisation import linearise
 

@@ -132,7 +132,7 @@ def test_a_hostile_scene_file_gets_one_clear_answer(make, statuses, said, sandbo
 
 def test_read_text_file_names_the_first_byte_that_is_not_utf8(tmp_path):
     """The byte, its position, line and column, counted from the file itself."""
-    from nhgait.dynamics.derivation.textfiles import read_text_file
+    from nhgait.dynamics.derivation.input.textfiles import read_text_file
     from nhgait.dynamics.errors import ModelError
     data = b"[system]\nname = 'ok'\n# caf\xe9\n"
     (tmp_path / "s.toml").write_bytes(data)
@@ -145,7 +145,7 @@ def test_read_text_file_names_the_first_byte_that_is_not_utf8(tmp_path):
 def test_a_directory_is_one_problem_not_an_error_inside_an_error(tmp_path):
     """A directory where a file is read: one sentence, the title said once (it was the whole
     first error quoted inside a second: "cannot be opened (cannot read …: 1 problem(s) …)")."""
-    from nhgait.dynamics.derivation.textfiles import read_text_file
+    from nhgait.dynamics.derivation.input.textfiles import read_text_file
     from nhgait.dynamics.errors import ModelError
     with pytest.raises(ModelError) as err:
         read_text_file(tmp_path, "solution file", title="cannot read the solution")

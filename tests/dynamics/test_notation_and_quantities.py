@@ -1,4 +1,4 @@
-"""The method's symbols kept apart from the user's (dynamics/derivation/notation.py) and named
+"""The method's symbols kept apart from the user's (dynamics/derivation/input/notation.py) and named
 quantities as numbers (dynamics/derivation/quantities.py).
 
 References: the qualification rule of the notation module written out (``p`` → ``p_nh`` →
@@ -11,7 +11,7 @@ import pytest
 import sympy as sp
 
 from nhgait.dynamics import System
-from nhgait.dynamics.derivation.notation import method_name, system_names
+from nhgait.dynamics.derivation.input.notation import method_name, system_names
 from nhgait.dynamics.derivation.quantities import motion_quantity_function, quantity_function
 
 

@@ -22,7 +22,7 @@ RTOL = 1e-10
                                          ("opty_pylons", "opty_car3")])
 def test_scene_equals_optys_kanes_method(scene, name):
     from nhgait.dynamics import derive
-    from nhgait.dynamics.derivation.scene import load_scene
+    from nhgait.dynamics.derivation.input.scene import load_scene
     system = load_scene(str(EXAMPLES / f"{scene}.toml")).system
     worst = agreement(system, derive(system, "reduced"), oracle(name))
     assert worst < RTOL, f"{scene}: max relative q̈ error {worst:.3g}"

@@ -162,7 +162,7 @@ def test_generated_chain_specialised_where_its_chart_is_singular():
     import experiment_scripts
 
     from nhgait.dynamics import derive
-    from nhgait.dynamics.derivation.scene import scene_from_text
+    from nhgait.dynamics.derivation.input.scene import scene_from_text
     gen, ref = experiment_scripts.load("robot_generator"), experiment_scripts.load("reference_dae_ocp")
     pair = gen.pair(24, 4)
     scene = scene_from_text(pair.scene, pair.name)

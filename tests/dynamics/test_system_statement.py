@@ -9,8 +9,8 @@ import sympy as sp
 
 from nhgait.dynamics import builtin
 from nhgait.dynamics.derivation import parameter_checks
+from nhgait.dynamics.derivation.input.system_parsing import parse_system
 from nhgait.dynamics.derivation.system import System
-from nhgait.dynamics.derivation.system_parsing import parse_system
 
 
 def test_parse_system_reads_a_statement_without_building_a_system():

@@ -1,11 +1,11 @@
-"""TOML text as data (dynamics/derivation/tomldata.py): a document as a dict; a syntax error and
+"""TOML text as data (dynamics/derivation/input/tomldata.py): a document as a dict; a syntax error and
 a document nested too deeply are each one error naming the file, never a traceback from the
 parser."""
 from __future__ import annotations
 
 import pytest
 
-from nhgait.dynamics.derivation.tomldata import read_toml
+from nhgait.dynamics.derivation.input.tomldata import read_toml
 from nhgait.dynamics.errors import ModelError
 
 

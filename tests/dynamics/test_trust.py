@@ -84,7 +84,7 @@ def _place(field, text):
 
 @pytest.mark.parametrize("field", SCENE_FIELDS, ids=lambda f: ".".join(map(str, f)))
 def test_hostile_strings_in_every_scene_field(field, tmp_path):
-    from nhgait.dynamics.derivation.scene import parse_scene
+    from nhgait.dynamics.derivation.input.scene import parse_scene
     marker = tmp_path / "marker"
     for text in hostile(marker):
         with watchdog(), pytest.raises(ModelError):
@@ -150,7 +150,7 @@ def test_a_string_where_a_list_belongs_is_one_problem():
 
 
 def test_scene_reports_system_and_simulation_problems_together(tmp_path):
-    from nhgait.dynamics.derivation.scene import parse_scene
+    from nhgait.dynamics.derivation.input.scene import parse_scene
     data = _scene_with(("system", "lagrangian"), "m*x_dot**2/2 + J*phi_dot**2/2 + k*x")
     data["simulation"]["t_final"] = -1
     data["simulation"]["samples"] = "many"
@@ -207,7 +207,7 @@ def test_long_legitimate_expressions_parse():
     """A Lagrangian of thousands of terms is not 'nested': sums and products are chains."""
     import sympy as sp
 
-    from nhgait.dynamics.derivation.expressions import expression_problems
+    from nhgait.dynamics.derivation.input.expressions import expression_problems
     names = {f"x{i}": sp.Symbol(f"x{i}", real=True) for i in range(50)}
     text = " + ".join(f"x{i % 50}*x{(3 * i) % 50}/7" for i in range(2500))
     problems = []

@@ -12,7 +12,7 @@ import pytest
 import sympy as sp
 
 from nhgait.dynamics import derive, simulate
-from nhgait.dynamics.derivation.scene import load_scene, scene_from_text
+from nhgait.dynamics.derivation.input.scene import load_scene, scene_from_text
 from nhgait.dynamics.errors import ModelError
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"

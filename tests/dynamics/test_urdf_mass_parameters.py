@@ -13,7 +13,7 @@ from types import SimpleNamespace
 import pytest
 import sympy as sp
 
-from nhgait.dynamics.derivation.scene import load_scene
+from nhgait.dynamics.derivation.input.scene import load_scene
 from nhgait.dynamics.derivation.urdf.mass_parameters import mass_problems
 from nhgait.dynamics.errors import ModelError
 

@@ -128,7 +128,7 @@ def _worst_qddot_error(pair, count=30, seed=0) -> tuple:
     Kane oracle over ``count`` consistent states (random q in ±1.2, q̇ a random combination of
     the null space of A(q), random inputs), drawn off nhgait's singular set (measure ≥ 1e-3)."""
     from nhgait.dynamics import derive
-    from nhgait.dynamics.derivation.scene import scene_from_text
+    from nhgait.dynamics.derivation.input.scene import scene_from_text
     robot = pair.robot
     orc = _KaneMultiplierOracle(robot)
     system = scene_from_text(pair.scene, pair.name).system
@@ -188,8 +188,8 @@ def test_every_task_is_meaningful_and_loads():
     """The benchmark's first 8 pairs: each task passes the generator's checks and nhgait's own
     task checks (the scene parses, the task binds to the system), every end value lies inside
     its path bounds, and the pairs cover every family and every kind of task."""
-    from nhgait.dynamics.derivation.scene import scene_from_text
-    from nhgait.gaits.task_library import resolve
+    from nhgait.dynamics.derivation.input.scene import scene_from_text
+    from nhgait.gaits.tasks.sources import resolve
     pairs = gen.pairs(24, 8)
     labels = set()
     for p in pairs:

@@ -1,14 +1,14 @@
-"""The planner's exploration after its first success (``gaits/search.py``, issues 24 and 25): an
+"""The planner's exploration after its first success (``gaits/planning/search.py``, issues 24 and 25): an
 allowance of iterations shared in order — the same guesses on slow code and on fast — and a
 first success kept beside the winner (the planner's fallback when the winner fails its check)."""
 from __future__ import annotations
 
 import pytest
 
-import nhgait.gaits.search as search
-from nhgait.gaits.guesses import candidates
+import nhgait.gaits.planning.search as search
 from nhgait.gaits.planner import prepare
-from nhgait.gaits.task_library import resolve
+from nhgait.gaits.planning.guesses import candidates
+from nhgait.gaits.tasks.sources import resolve
 from nhgait.ocp import OCPSolver, SolverOptions
 
 

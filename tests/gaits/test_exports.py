@@ -87,7 +87,7 @@ def test_csv_and_figures_say_the_same_units(tmp_path):
     """nhgait simulate's CSV header and the figures' axis labels: one inference. The snakeboard
     scene names no unit for x, θ, φ̇ (only for the inputs): x in m, θ in rad, φ̇ in rad/s."""
     from nhgait.dynamics import derive, load_scene, simulate
-    from nhgait.gaits.plots import figure_context, with_unit
+    from nhgait.gaits.figures.plots import figure_context, with_unit
     scene = load_scene("snakeboard")
     units = {k: v for k, v in dict(scene.units or {}).items() if k in scene.system.inputs}
     model = derive(scene.system, "reduced")

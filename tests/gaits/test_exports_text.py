@@ -1,11 +1,11 @@
-"""What a plan gives out beside solution.json (gaits/exports.py): the summary's sentence on the
+"""What a plan gives out beside solution.json (gaits/files/exports.py): the summary's sentence on the
 states a gait was solved in and stored in, and trajectory.csv where the plan's folder is."""
 from __future__ import annotations
 
 from pathlib import Path
 from types import SimpleNamespace
 
-from nhgait.gaits.exports import TRAJECTORY_CSV, states_text, write_trajectory_csv
+from nhgait.gaits.files.exports import TRAJECTORY_CSV, states_text, write_trajectory_csv
 
 
 def test_one_list_when_the_solve_and_the_file_agree():

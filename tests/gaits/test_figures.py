@@ -248,7 +248,7 @@ def test_start_and_end_are_both_visible_where_they_coincide():
     import numpy as np
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-    from nhgait.gaits import plots
+    from nhgait.gaits.figures import plots
     from nhgait.gaits.planner import plan
     result = plan("snakeboard", "rotate", intervals=20, jit=False, verify=False)
     ctx = plots.figure_context(result.solution, result.model, result.plan.units, result.plan.drawing)
@@ -270,7 +270,7 @@ def test_start_and_end_are_both_visible_where_they_coincide():
 def test_the_failed_banner_is_clear_of_every_title(figures):
     """A failed plan's figures: the banner (the figure's suptitle) and every axes' title have
     disjoint bounding boxes, and the banner fits the figure's width."""
-    from nhgait.gaits import plots
+    from nhgait.gaits.figures import plots
     from nhgait.gaits.planner import plan
     result = plan(SLIDER, jit=False, verify=False, intervals=10)
     ctx = plots.figure_context(result.solution, result.model, result.plan.units, result.plan.drawing)
@@ -293,7 +293,7 @@ def test_the_gif_frame_holds_the_whole_motion(tmp_path):
     import numpy as np
     from PIL import Image
 
-    from nhgait.gaits import animation, plots
+    from nhgait.gaits.figures import animation, plots
     from nhgait.gaits.planner import plan
     result = plan("snakeboard", "forward", intervals=20, jit=False, verify=False)
     ctx = plots.figure_context(result.solution, result.model, result.plan.units, result.plan.drawing)
@@ -319,7 +319,7 @@ def test_the_gif_frame_holds_the_whole_motion(tmp_path):
 def test_simulate_draws_the_body_plan_draws(tmp_path):
     """The built-in snakeboard has its [drawing] in its gait library: simulate --plot draws it too."""
     from nhgait.dynamics import load_scene
-    from nhgait.gaits.task_library import figure_tables, resolve
+    from nhgait.gaits.tasks.sources import figure_tables, resolve
     scene = load_scene("snakeboard")
     assert scene.drawing is None
     assert figure_tables(scene).drawing == resolve("snakeboard", "forward").drawing is not None

@@ -24,9 +24,9 @@ import dae_reference
 import numpy as np
 import pytest
 
-from nhgait.gaits.guesses import candidates
 from nhgait.gaits.planner import plan, prepare
-from nhgait.gaits.task_library import resolve
+from nhgait.gaits.planning.guesses import candidates
+from nhgait.gaits.tasks.sources import resolve
 
 ROOT = Path(__file__).resolve().parents[2]
 CAR = str(ROOT / "examples" / "car.toml")
@@ -175,8 +175,8 @@ def test_the_users_snake_is_planned_through_the_charts_singular_set_and_verified
     assert s.objective <= 0.009992 * 1.01       # the hand-written reference of the issue: J = 0.009992
     # the verification that needs no chart: the same gait in x = (q, q̇) on the Euler–Lagrange
     # equations, whose right-hand side is the hand-written DAE's
-    from nhgait.gaits.charts import lagrange_ode
-    from nhgait.gaits.gait_check import momentum_problem, to_momentum_coordinates
+    from nhgait.gaits.planning.charts import lagrange_ode
+    from nhgait.gaits.verification.gait_check import momentum_problem, to_momentum_coordinates
     lagrange = lagrange_ode(result.plan.scene.system)
     x = np.concatenate([q[:, 7], s.velocities()[:, 7]])
     u = np.array([0.3, -0.2])
@@ -221,9 +221,9 @@ def test_velocity_states_are_chosen_regular_at_the_tasks_end_postures():
     import experiment_scripts
 
     from nhgait.dynamics import derive
-    from nhgait.dynamics.derivation.scene import scene_from_text
+    from nhgait.dynamics.derivation.input.scene import scene_from_text
     from nhgait.dynamics.numerics.velocity_coordinates import choose_velocities, velocity_map
-    from nhgait.gaits.charts import end_postures
+    from nhgait.gaits.planning.charts import end_postures
     gen = experiment_scripts.load("robot_generator")
     pair = gen.pair(28, 0, "car")
     to_plan = resolve(scene_from_text(pair.scene, pair.name))
@@ -255,14 +255,14 @@ def test_velocity_states_regular_over_the_region_are_also_well_conditioned():
     import experiment_scripts
 
     from nhgait.dynamics import derive
-    from nhgait.dynamics.derivation.scene import scene_from_text
+    from nhgait.dynamics.derivation.input.scene import scene_from_text
     from nhgait.dynamics.numerics.velocity_coordinates import (
         CONDITION_RATIO,
         choose_velocities,
         region_samples,
         velocity_map,
     )
-    from nhgait.gaits.charts import end_postures
+    from nhgait.gaits.planning.charts import end_postures
     gen = experiment_scripts.load("robot_generator")
     pair = gen.pair(24, 4)
     to_plan = resolve(scene_from_text(pair.scene, pair.name))

@@ -1,4 +1,4 @@
-"""The minimum-violation (elastic) solve and the stall of a search (gaits/infeasibility.py, issue 41)
+"""The minimum-violation (elastic) solve and the stall of a search (gaits/planning/infeasibility.py, issue 41)
 on a task whose least move is known in closed form.
 
 The robot: tests/scenes/unstable_line.toml with k = 0, a double integrator x'' = F beside a free
@@ -16,11 +16,11 @@ from pathlib import Path
 
 import pytest
 
-from nhgait.gaits.convergence_plots import plot_convergence, write_convergence_figure
-from nhgait.gaits.infeasibility import Elastic, elastic_solve, stalled
+from nhgait.gaits.figures.convergence import plot_convergence, write_convergence_figure
 from nhgait.gaits.planner import plan, prepare
-from nhgait.gaits.search import Attempt
-from nhgait.gaits.task_library import resolve
+from nhgait.gaits.planning.infeasibility import Elastic, elastic_solve, stalled
+from nhgait.gaits.planning.search import Attempt
+from nhgait.gaits.tasks.sources import resolve
 
 SCENE = str(Path(__file__).resolve().parents[1] / "scenes" / "unstable_line.toml")
 T, N, TARGET = 2.0, 20, 3.0

@@ -9,7 +9,7 @@ from nhgait.dynamics import derive
 from nhgait.dynamics.derivation.models import snakeboard
 from nhgait.dynamics.geometry.connection_fields import local_connection
 from nhgait.dynamics.geometry.heights import evaluate_heights
-from nhgait.gaits.geometry_plots import heights_figure, moved_component
+from nhgait.gaits.figures.geometry import heights_figure, moved_component
 
 
 @pytest.fixture(scope="module")
@@ -37,8 +37,8 @@ def test_plot_takes_an_axes_and_the_moved_component_is_the_largest():
 def test_ranking_puts_the_loop_predicted_toward_the_target_first():
     """Two circles in (psi, phi) of opposite orientation around phi = 0.5 for a kinematic
     stand-in: the one whose predicted x motion is toward x = +1 ranks first, whatever the order."""
-    from nhgait.gaits import loop_ranking
-    from nhgait.gaits.waves import ShapeGuess
+    from nhgait.gaits.planning import loop_ranking
+    from nhgait.gaits.planning.waves import ShapeGuess
 
     class Connection:                     # ξ = −A ṙ with A = [[0, -r_a], [0, 0], [0, 0]]: H_x = 1
         fiber, shape, fiber_index, shape_index = ("x", "y", "theta"), ("a", "b"), (0, 1, 2), (3, 4)
@@ -86,7 +86,7 @@ def test_ranking_puts_the_loop_predicted_toward_the_target_first():
 
 def _problem(text):
     from nhgait.gaits.planner import prepare
-    from nhgait.gaits.task_library import resolve
+    from nhgait.gaits.tasks.sources import resolve
     return prepare(resolve(text)).problem
 
 
@@ -95,7 +95,7 @@ def test_reach_says_a_sideways_target_is_not_reachable_by_the_snakeboards_loops(
     loop in the bounded (ψ, φ) box moves it sideways — and the sentence says so and what to do."""
     from pathlib import Path
 
-    from nhgait.gaits.loop_reach import reach_sentence
+    from nhgait.gaits.verification.loop_reach import reach_sentence
     root = Path(__file__).resolve().parents[2]
     text = (root / "experiments" / "user_robots" / "snakeboard_fwd.toml").read_text()
     text = text.replace("final = {x = 0.6, y = 0.0,", "final = {x = 0.0, y = 0.3,")

@@ -1,5 +1,5 @@
 """``plan()``'s own arguments and a sweep's options, checked before any work
-(gaits/plan_arguments.py, gaits/sweeps/point.py ``option_problems``), and the solver that
+(gaits/planning/arguments.py, gaits/sweeps/point.py ``option_problems``), and the solver that
 ``--hessian limited-memory`` gets with ``--solver auto``.
 
 Each bad argument once passed silently (``intervals=3.5`` truncated to 3, ``intervals=True`` taken
@@ -16,9 +16,9 @@ import pytest
 
 from nhgait.gaits import planner
 from nhgait.gaits.cli.main import main
-from nhgait.gaits.plan_arguments import argument_problems, checked_request, override_list
 from nhgait.gaits.planner import plan, solver_order
-from nhgait.gaits.task_library import resolve
+from nhgait.gaits.planning.arguments import argument_problems, checked_request, override_list
+from nhgait.gaits.tasks.sources import resolve
 from nhgait.ocp import ProblemError
 
 PARK = ("unicycle", "parallel-park")

@@ -23,7 +23,7 @@ P1 = {"horizon": 4.0, "intervals": 4, "control_bounds": 5.0,
 
 def test_a_converged_plan_that_misses_the_task_is_refined_or_a_failure():
     """4 intervals of 1 s: with 4 RK4 sub-steps the optimum misses its re-simulation; the planner
-    solves it again with more sub-steps (gaits.refinement) and verifies that. A tolerance no
+    solves it again with more sub-steps (gaits.verification.refinement) and verifies that. A tolerance no
     refinement reaches (below the re-simulation's own rtol) leaves a converged, unverified
     plan: a failure that says so; a loose one accepts the first optimum as it is."""
     result = plan("unicycle", P1, jit=False, solver="ipopt")
@@ -115,8 +115,8 @@ def test_a_budget_spent_after_a_guess_converged_does_not_say_none_did():
     converged guess instead; without one it lists the attempts as before."""
     from types import SimpleNamespace
 
-    from nhgait.gaits.diagnosis import _out_of_time
-    from nhgait.gaits.search import Attempt
+    from nhgait.gaits.planning.search import Attempt
+    from nhgait.gaits.verification.diagnosis import _out_of_time
     overrun = SimpleNamespace(lines=lambda: ["the time budget of 2 s ran out during verification"])
     tried = [Attempt("psi:phi 1:1", "Solve_Succeeded", True, 9, 0.109703, "fatrop"),
              Attempt("fitted roll-out", "Line_Search_Failed", False, 3, 4.2, "fatrop", 0.16)]
@@ -136,7 +136,7 @@ def test_a_failed_continuation_step_short_of_the_task_is_not_its_closest_point(m
     the task itself, may be."""
     from types import SimpleNamespace
 
-    from nhgait.gaits import search
+    from nhgait.gaits.planning import search
 
     class Task:
         initial, final = {"y": 0.0}, {"y": 0.5}
@@ -176,6 +176,6 @@ def test_too_few_intervals_for_the_task_is_refused_before_any_solve():
     with pytest.raises(ProblemError, match=said + " — give the task more intervals"):
         plan("unicycle", "parallel-park", intervals=2, jit=False)
     from nhgait.gaits.planner import prepare
-    from nhgait.gaits.task_library import resolve
+    from nhgait.gaits.tasks.sources import resolve
     problem = prepare(resolve("unicycle", "parallel-park", overrides=["intervals=3"])).problem
     assert OCPSolver(problem, None, SolverOptions(jit=False)).nlp.n_w > 0

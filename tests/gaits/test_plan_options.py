@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from nhgait.gaits.plan_options import PlanOptions
+from nhgait.gaits.planning.options import PlanOptions
 from nhgait.ocp import ProblemError
 
 

@@ -72,7 +72,7 @@ def test_a_chart_that_covers_the_ends_is_chosen():
     that fiber have rank 3 (rows: cart no-slip, rolling, two trailer no-slips; the last three
     act on (y, θ) only) — evaluated here from the scene's ω, not by the reduction. The planner
     takes fiber (x, y, θ) instead and reaches the independent transcription's optimum."""
-    from nhgait.dynamics.derivation.scene import scene_from_text
+    from nhgait.dynamics.derivation.input.scene import scene_from_text
     member = "cart_trailers_2"
     scene = scene_from_text(scale_tasks.scene_with_task(member), member)
     system = scene.system
@@ -96,12 +96,12 @@ def test_fitted_roll_out_ends_where_the_task_ends():
     """The cart with one trailer (velocity states θ̇, φ̇ driven by the inputs): the first guess
     is the kinematic roll-out fitted to the task, and its last node is the task's final
     configuration (x = 3, y = 0.3, θ = β₁ = 0) to 1e-3 (the fit trades the last digits for a
-    gentler motion, module ``nhgait.gaits.fitted``; the ends are 3 m apart); for the 3-link snake
+    gentler motion, module ``nhgait.gaits.planning.fitted``; the ends are 3 m apart); for the 3-link snake
     (states are shape rates) a shape loop stays first."""
-    from nhgait.dynamics.derivation.scene import scene_from_text
-    from nhgait.gaits.guesses import candidates
+    from nhgait.dynamics.derivation.input.scene import scene_from_text
     from nhgait.gaits.planner import prepare
-    from nhgait.gaits.task_library import resolve
+    from nhgait.gaits.planning.guesses import candidates
+    from nhgait.gaits.tasks.sources import resolve
     cart = prepare(resolve(scene_from_text(scale_tasks.scene_with_task("cart_trailers_1"), "c"))).problem
     first = candidates(cart)[0]
     assert first.label == "fitted roll-out"
@@ -120,10 +120,10 @@ def test_a_chart_whose_reconstruction_fails_at_the_ends_is_replaced():
     finite at q = 0 (the pivot block on (x, y, θ, φ) loses rank there, as for two trailers;
     its singular measure once reported 1.0 there by dropping a NaN); the planner's chart is
     regular there and its reconstruction finite."""
-    from nhgait.dynamics.derivation.scene import scene_from_text
+    from nhgait.dynamics.derivation.input.scene import scene_from_text
     from nhgait.dynamics.progress import Progress
-    from nhgait.gaits.charts import derive_for_task
-    from nhgait.gaits.task_library import resolve
+    from nhgait.gaits.planning.charts import derive_for_task
+    from nhgait.gaits.tasks.sources import resolve
     scene = scene_from_text(scale_tasks.scene_with_task("cart_trailers_3"), "c3")
     model = derive_for_task(scene.system, resolve(scene).task, None, Progress.silent())
     assert tuple(model.layout.fiber) == ("x", "y", "theta")

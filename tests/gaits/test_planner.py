@@ -138,9 +138,9 @@ def test_gaits_layer_has_no_sympy():
 
 
 def test_zero_guess_is_never_the_only_try(models):
-    from nhgait.gaits.guesses import candidates
     from nhgait.gaits.planner import prepare
-    from nhgait.gaits.task_library import resolve
+    from nhgait.gaits.planning.guesses import candidates
+    from nhgait.gaits.tasks.sources import resolve
     problem = prepare(resolve("snakeboard", "forward", overrides=["intervals=10"])).problem
     guesses = candidates(problem)
     moving = [g for g in guesses if np.ptp(g.states[3]) > 0.1]       # psi oscillates
@@ -153,10 +153,10 @@ def test_zero_guess_is_never_the_only_try(models):
 def test_continuation_grows_an_easier_problem():
     """Continuation solves the task with its end values a quarter, half, three quarters of the
     way and then all the way, each from the last solution, and reaches the full target."""
-    from nhgait.gaits.guesses import candidates
     from nhgait.gaits.planner import prepare
-    from nhgait.gaits.search import continuation
-    from nhgait.gaits.task_library import resolve
+    from nhgait.gaits.planning.guesses import candidates
+    from nhgait.gaits.planning.search import continuation
+    from nhgait.gaits.tasks.sources import resolve
     from nhgait.ocp import OCPSolver, SolverOptions
     problem = prepare(resolve("snakeboard", "forward", overrides=["intervals=25", "final.x=2.0"])).problem
     solver = OCPSolver(problem, options=SolverOptions(jit=False, max_iter=200))

@@ -1,11 +1,11 @@
-"""Distinct styles for many series (gaits/plot_style.py): no two of up to 40 series share
+"""Distinct styles for many series (gaits/figures/style.py): no two of up to 40 series share
 colour, marker and line style together; the first ten are tab10's plain lines; nothing global
 (matplotlib's rcParams) changes."""
 from __future__ import annotations
 
 import pytest
 
-from nhgait.gaits.plot_style import COLORS, series_styles
+from nhgait.gaits.figures.style import COLORS, series_styles
 
 
 @pytest.mark.parametrize("markers", [False, True])

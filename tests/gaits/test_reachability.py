@@ -1,4 +1,4 @@
-"""Targets no admissible input can reach (gaits/reachability.py), on a particle of mass m = 2 in
+"""Targets no admissible input can reach (gaits/tasks/reachability.py), on a particle of mass m = 2 in
 the plane with |F_x| ≤ 3, |F_y| ≤ 1 over T = 2 s from rest. By hand: full thrust moves x at most
 ½ (3/m) T² = 3 m and y at most 1 m — reachable, so never refused; a target beyond the module's
 energy bound (which must be ≥ those maxima) is refused in one sentence naming the coordinate."""
@@ -8,7 +8,7 @@ import re
 
 import pytest
 
-from nhgait.gaits.reachability import unreachable_targets
+from nhgait.gaits.tasks.reachability import unreachable_targets
 from nhgait.ocp import OptimalControlProblem
 
 MASS, T = 2.0, 2.0

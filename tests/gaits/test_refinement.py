@@ -1,4 +1,4 @@
-"""Accuracy refinement (gaits.refinement): a converged gait that the re-simulation misses is
+"""Accuracy refinement (gaits.verification.refinement): a converged gait that the re-simulation misses is
 solved again with more RK4 sub-steps per interval, at the task's N, and then verified.
 
 References: the sub-step rule is the h⁴ law of RK4 written out; the refined gait is checked by
@@ -16,7 +16,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from nhgait.gaits.planner import plan
-from nhgait.gaits.refinement import MARGIN, MAX_STEPS, refined_steps
+from nhgait.gaits.verification.refinement import MARGIN, MAX_STEPS, refined_steps
 
 CAR = str(Path(__file__).resolve().parents[2] / "examples" / "car.toml")
 

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import json
 
-from nhgait.gaits import plan_files, planner, plots
+from nhgait.gaits import plan_files, planner
 from nhgait.gaits.cli.main import main
+from nhgait.gaits.figures import plots
 
 
 def test_the_planner_writes_through_plan_files():

@@ -139,13 +139,13 @@ def test_bad_copies_are_listed_together(coupled):
 
 # ----------------------------------------------------------------------------- [task.robust]
 def _task(robust, **extra):
-    from nhgait.gaits.task_library import resolve
+    from nhgait.gaits.tasks.sources import resolve
     table = {**resolve("unicycle", "parallel-park").task.to_dict(), **extra}
     return table if robust is None else {**table, "robust": robust}
 
 
 def test_bad_robust_tables_are_one_error_naming_every_problem():
-    from nhgait.gaits.task_library import resolve
+    from nhgait.gaits.tasks.sources import resolve
     robust = {"parameters": {"m": [0.9, -1.0], "mass": [1.1]}, "samples": 0, "aggregate": "median",
               "weight": -2, "terminal": ["x", "speed"], "extra": 1}
     with pytest.raises(ProblemError) as info:
@@ -158,7 +158,7 @@ def test_bad_robust_tables_are_one_error_naming_every_problem():
 
 
 def test_a_robust_task_round_trips_through_its_table():
-    from nhgait.gaits.task_library import resolve
+    from nhgait.gaits.tasks.sources import resolve
     robust = {"parameters": {"m": [0.9, 1.1], "J_theta": [1.2]}, "aggregate": "worst", "weight": 0.5}
     task = resolve("unicycle", _task(robust)).task
     assert resolve("unicycle", task).task.robust == task.robust
@@ -191,7 +191,7 @@ def test_the_robust_plan_spreads_less_under_the_mismatch_it_was_planned_for():
     """The snakeboard's forward gait (N = 50) planned against m ×1.1 (weight 10), then both plans
     re-simulated open loop on the general model by nhgait track (its compiled loop, rtol 1e-8,
     no noise) with m ×1.1: the robust plan ends closer to where it was planned to."""
-    from nhgait.gaits.task_library import resolve
+    from nhgait.gaits.tasks.sources import resolve
     from nhgait.gaits.tracking.runs import Noise
     from nhgait.gaits.tracking.study import track
     task = {**resolve("snakeboard", "forward").task.to_dict(), "intervals": 50}

@@ -1,4 +1,4 @@
-"""A solution.json read as data (gaits/solution_file.py): a well-formed trajectory comes back
+"""A solution.json read as data (gaits/files/solution_file.py): a well-formed trajectory comes back
 state-first (the file is time-first, as nhgait plan writes it: K+1 rows of n columns); every
 problem of its form is one sentence of one ProblemError; a file that is not a plan's is a
 ModelError naming it; another robot's plan is named as such."""
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from nhgait.dynamics.errors import ModelError
-from nhgait.gaits.solution_file import previous_trajectory, read_solution, robot_problems
+from nhgait.gaits.files.solution_file import previous_trajectory, read_solution, robot_problems
 from nhgait.ocp import ProblemError
 
 

@@ -1,4 +1,4 @@
-"""The eigenvalue chart figure (gaits/stability_plots.py), drawn from a chart written here: a
+"""The eigenvalue chart figure (gaits/figures/stability.py), drawn from a chart written here: a
 pair λ = a(v) ± i b(v) with a(v) = 1 − v (stable above v = 1) and one real λ = −2. The figure's
 points are exactly the chart's values (real parts of all, |imaginary parts| of the pairs once),
 the change is a vertical line at v = 1, the stable range [1, 3] is shaded; no global state
@@ -11,7 +11,7 @@ from matplotlib.figure import Figure
 
 from nhgait.dynamics.linearisation.chart import StabilityChange, StabilityChart
 from nhgait.dynamics.linearisation.linearised import STABLE, UNSTABLE
-from nhgait.gaits.stability_plots import plot_eigenvalues, write_eigenvalue_figure
+from nhgait.gaits.figures.stability import plot_eigenvalues, write_eigenvalue_figure
 
 
 def _chart():

@@ -6,8 +6,8 @@ import math
 
 import pytest
 
-from nhgait.gaits.task import Task, apply_overrides, parse_task
-from nhgait.gaits.task_library import get_task, library_task_names, resolve
+from nhgait.gaits.tasks.sources import get_task, library_task_names, resolve
+from nhgait.gaits.tasks.statement import Task, apply_overrides, parse_task
 from nhgait.ocp import ProblemError
 
 P2 = {"horizon": "2*pi", "intervals": 50,
@@ -112,7 +112,7 @@ def test_a_task_is_the_problem_statement_in_the_tables_words():
     """The task parses into the ocp statement (no model yet); one validator speaks to both readers."""
     from dataclasses import replace
 
-    from nhgait.gaits.task import TASK_WORDS
+    from nhgait.gaits.tasks.statement import TASK_WORDS
     from nhgait.ocp import ProblemStatement
     task = parse_task(P2)
     assert isinstance(task.statement, ProblemStatement)

@@ -60,7 +60,7 @@ def test_forward_axis_of_the_body_frame():
     (the frame turned by 90°), in the OCP's quantities and in the velocity rows of the
     specialisation; a velocity state along it is the wheel's rolling speed r φ̇."""
     from nhgait.dynamics import derive
-    from nhgait.dynamics.derivation.scene import scene_from_text
+    from nhgait.dynamics.derivation.input.scene import scene_from_text
     from nhgait.dynamics.numerics.specialisation import specialise, velocity_rows
     from nhgait.ocp.problem import builtin_quantities
     system = scene_from_text(UNICYCLE_Y, "<unicycle_y>").system
@@ -86,13 +86,13 @@ def test_forward_axis_of_the_body_frame():
 
 
 def test_forward_axis_is_checked():
-    from nhgait.dynamics.derivation.scene import scene_from_text
+    from nhgait.dynamics.derivation.input.scene import scene_from_text
     with pytest.raises(ModelError, match=r"forward: the body axis that points forward is \"x\", \"y\""):
         scene_from_text(UNICYCLE_Y.replace('forward = "y"', 'forward = "z"'), "<bad>")
 
 
 def test_a_task_changed_by_set_is_renamed():
-    from nhgait.gaits.task_library import resolve
+    from nhgait.gaits.tasks.sources import resolve
     assert (resolve("unicycle", "parallel-park", overrides=["final.y=0.8"]).task.name == "parallel-park "
                                                                                          "(final.y=0.8)")
     assert resolve("unicycle", "parallel-park", overrides=["intervals=30"]).task.name == "parallel-park"

@@ -1,4 +1,4 @@
-"""What a ``[task]`` says between its ends (nhgait.gaits.task_phases): waypoints, phases,
+"""What a ``[task]`` says between its ends (nhgait.gaits.tasks.phases): waypoints, phases,
 integral states, and scene quantities of the inputs and accelerations, parsed and planned.
 
 References: the car's forward acceleration differentiated numerically (a one-sided
@@ -41,12 +41,12 @@ BOUND = 0.5
 
 @pytest.fixture(scope="module")
 def scene():
-    from nhgait.dynamics.derivation.scene import scene_from_text
+    from nhgait.dynamics.derivation.input.scene import scene_from_text
     return scene_from_text(CAR + QUANTITIES)
 
 
 def _parse(scene, table):
-    from nhgait.gaits.task import parse_task
+    from nhgait.gaits.tasks.statement import parse_task
     return parse_task(table, system=scene.system, quantities=scene.all_quantities,
                       motion=tuple(scene.motion_quantities))
 
@@ -57,7 +57,7 @@ def test_a_scene_quantity_of_accelerations_or_inputs_is_a_motion_quantity(scene)
 
 
 def test_tasks_between_the_ends_round_trip(scene):
-    from nhgait.gaits.task import parse_task
+    from nhgait.gaits.tasks.statement import parse_task
     phased = {k: v for k, v in TASK.items() if k not in ("horizon", "intervals", "waypoints")}
     phased["phases"] = [{"name": "out", "horizon": 3.0, "intervals": 30, "final": {"x": [0.3, 10.0]}},
                         {"horizon": {"initial": 3.0, "min": 2.0, "max": 5.0}, "intervals": 30,
@@ -162,9 +162,9 @@ def test_the_path_guess_passes_the_stated_places_heading_along_its_legs():
     α = π/2) heading along each leg at the leg's middle: atan2(Δy, Δx) − α, unwrapped."""
     import math
 
-    from nhgait.gaits.guesses import candidates
     from nhgait.gaits.planner import prepare
-    from nhgait.gaits.task_library import resolve
+    from nhgait.gaits.planning.guesses import candidates
+    from nhgait.gaits.tasks.sources import resolve
     problem = prepare(resolve(str(Path(__file__).parents[2] / "examples" / "opty_pylons.toml"), None)).problem
     guess = candidates(problem)[0]
     assert guess.label == "path through the stated places"

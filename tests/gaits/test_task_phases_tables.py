@@ -1,4 +1,4 @@
-"""Waypoints, phases and integrals of a ``[task]`` (gaits/task_phases.py): the format of the
+"""Waypoints, phases and integrals of a ``[task]`` (gaits/tasks/phases.py): the format of the
 module docstring (docs/gait-planning.md) read into Waypoint and Phase values; the intervals of
 ``--intervals N`` shared in proportion (40 : 20 of 30 → 20 : 10); a table back out of a phase
 reads in again to the same phase; every problem named in the table's words."""
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 
-from nhgait.gaits.task_phases import parse_integrals, parse_phases, parse_waypoints, phase_table
+from nhgait.gaits.tasks.phases import parse_integrals, parse_phases, parse_waypoints, phase_table
 from nhgait.ocp.statement import Waypoint
 
 TASK = {"phases": [{"name": "to the pylon", "horizon": [1.0, 10.0], "intervals": 40, "final": {"x": 10.0},

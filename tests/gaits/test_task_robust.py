@@ -1,4 +1,4 @@
-"""``[task.robust]`` (gaits/task_robust.py): the copies are the grid of the listed factors
+"""``[task.robust]`` (gaits/tasks/robust.py): the copies are the grid of the listed factors
 without the nominal (2 × 2 factors: 3 copies, by hand), or K seeded draws uniform in each list's
 [min, max] (numpy's generator with the same seed is the reference); the table reads back to
 itself; every problem is named."""
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from nhgait.gaits.task_robust import MAX_COPIES, RobustTask, parse_robust
+from nhgait.gaits.tasks.robust import MAX_COPIES, RobustTask, parse_robust
 
 
 def test_the_grid_of_factors_without_the_nominal():

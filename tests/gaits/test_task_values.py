@@ -1,4 +1,4 @@
-"""The values of a ``[task]`` table (gaits/task_values.py): numbers and constant expressions
+"""The values of a ``[task]`` table (gaits/tasks/values.py): numbers and constant expressions
 (pi/2 = 1.5707963267948966, math.pi's own value), ranges, tables, lists and horizons, each
 parser recording what is wrong in the table's words and returning a usable value."""
 from __future__ import annotations
@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from nhgait.gaits.task_values import control_bounds, horizon, names_list, number, table, value
+from nhgait.gaits.tasks.values import control_bounds, horizon, names_list, number, table, value
 
 
 def test_numbers_expressions_and_ranges():

@@ -1,4 +1,4 @@
-"""A plan's time budget (gaits/time_limits.py), by the rules of docs/gait-planning.md "Time
+"""A plan's time budget (gaits/planning/time_limits.py), by the rules of docs/gait-planning.md "Time
 limits": the seconds given win over the task's, the task's over the default 120 s + 30 s per
 coordinate (written out here as the page states it), scaled by the machine's contention factor;
 ``inf`` is unlimited; anything but a positive number is one ProblemError naming the value."""
@@ -8,12 +8,12 @@ import math
 
 import pytest
 
-from nhgait.gaits.time_limits import GIVEN, budget_for, time_limit_problem
+from nhgait.gaits.planning.time_limits import GIVEN, budget_for, time_limit_problem
 from nhgait.ocp import ProblemError
 
 
 def test_given_then_task_then_the_default_rule(monkeypatch):
-    import nhgait.gaits.time_limits as time_limits
+    import nhgait.gaits.planning.time_limits as time_limits
     monkeypatch.setattr(time_limits, "contention", lambda: (1.0, 0.5, 2))        # a quiet machine
     b = budget_for(5, given=60, task_limit=300)
     assert (b.seconds, b.source) == (60.0, GIVEN)

@@ -169,7 +169,7 @@ def test_the_robot_starts_on_its_own_constraints():
     robot's l 10 % longer lands on the robot's circle (the dependent coordinate solved) with
     px ṗx + py ṗy = 0; the snakeboard with its wheel base r 20 % longer gets velocities that
     meet the robot's two wheel constraints; with a mass changed nothing moves."""
-    from nhgait.dynamics.derivation.scene import load_scene
+    from nhgait.dynamics.derivation.input.scene import load_scene
     from nhgait.dynamics.derivation.system import System
     from nhgait.gaits.tracking.runs import robot_start
     cart = System(coordinates=["s", "px", "py"],
@@ -361,7 +361,7 @@ def test_a_study_stopped_during_its_samples_leaves_nothing(study, tmp_path, sign
 
 # ------------------------------------------------------------------------------ URDF masses
 def _lagrangian_at(scene_path, values, rng):
-    from nhgait.dynamics.derivation.scene import load_scene
+    from nhgait.dynamics.derivation.input.scene import load_scene
     system = load_scene(scene_path).system
     symbols = {**{s.name: s for s in system.L.free_symbols}}
     subs = {symbols[k]: v for k, v in values.items() if k in symbols}
@@ -394,7 +394,7 @@ def test_a_named_link_mass_is_a_parameter_equal_to_the_edited_urdf(tmp_path):
 
 
 def test_bad_mass_names_are_listed(tmp_path):
-    from nhgait.dynamics.derivation.scene import load_scene
+    from nhgait.dynamics.derivation.input.scene import load_scene
     from nhgait.dynamics.errors import ModelError
     scene = (EXAMPLES / "snakeboard_urdf.toml").read_text()
     (tmp_path / "snakeboard.urdf").write_text((EXAMPLES / "snakeboard.urdf").read_text())

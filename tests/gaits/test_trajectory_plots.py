@@ -1,4 +1,4 @@
-"""Figures of a simulated trajectory (gaits/trajectory_plots.py), for the thesis's unicycle
+"""Figures of a simulated trajectory (gaits/figures/trajectory.py), for the thesis's unicycle
 under constant torques: the time series panels draw the run's own coordinates and inputs (the
 same numbers, one panel per unit: m, rad, N·m), the checks panel the run's residual |ω(q) q̇| of
 each row and its energy balance, and the three files are written."""
@@ -9,8 +9,8 @@ import pytest
 from matplotlib.figure import Figure
 
 from nhgait.dynamics import load_scene, simulate
-from nhgait.gaits.plots import figure_context, with_unit
-from nhgait.gaits.trajectory_plots import (
+from nhgait.gaits.figures.plots import figure_context, with_unit
+from nhgait.gaits.figures.trajectory import (
     RESIDUAL_FLOOR,
     TrajectoryView,
     plot_checks,

@@ -1,4 +1,4 @@
-"""The three verification checks (gaits/verification_checks.py, issue 41) on an unstable linear
+"""The three verification checks (gaits/verification/checks.py, issue 41) on an unstable linear
 robot whose growth rate and open-loop amplification are known in closed form.
 
 tests/scenes/unstable_line.toml: x'' = (k/m) x + F/m beside a free cart s; in the momentum
@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from nhgait.gaits import verification_checks
 from nhgait.gaits.planner import plan, summary_lines
-from nhgait.gaits.verification_checks import GaitChecks, checks_of, log_amplification
+from nhgait.gaits.verification import checks as verification_checks
+from nhgait.gaits.verification.checks import GaitChecks, checks_of, log_amplification
 
 SCENE = Path(__file__).resolve().parents[1] / "scenes" / "unstable_line.toml"
 M, K, T = 1.0, 16.0, 5.0

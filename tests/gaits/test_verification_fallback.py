@@ -20,7 +20,7 @@ import casadi as ca
 import experiment_scripts
 import numpy as np
 
-from nhgait.dynamics.derivation.scene import scene_from_text
+from nhgait.dynamics.derivation.input.scene import scene_from_text
 from nhgait.gaits.planner import plan
 from nhgait.ocp.solution import simulate_piecewise_constant
 

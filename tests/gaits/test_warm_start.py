@@ -1,5 +1,6 @@
 """A previous answer as a guess (``plan(..., guess=)``, ``nhgait plan --guess``;
-gaits/warm_start.py, gaits/solution_file.py): a solution.json whose trajectory is not well formed,
+gaits/planning/warm_start.py, gaits/files/solution_file.py): a solution.json whose trajectory is
+not well formed,
 or that belongs to another robot, is one ProblemError listing every problem — before any
 derivation — never numpy's or CasADi's exception; a good one is resampled faithfully.
 
@@ -16,8 +17,8 @@ import pytest
 
 from nhgait.gaits.cli.main import main
 from nhgait.gaits.planner import plan, prepare
-from nhgait.gaits.task_library import resolve
-from nhgait.gaits.warm_start import warm_start
+from nhgait.gaits.planning.warm_start import warm_start
+from nhgait.gaits.tasks.sources import resolve
 from nhgait.ocp import ProblemError
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"

@@ -1,4 +1,4 @@
-"""A guess as data (gaits/waves.py) on a particle of mass m in the plane, whose reduced state is
+"""A guess as data (gaits/planning/waves.py) on a particle of mass m in the plane, whose reduced state is
 (x, y, p = m ẋ, pt_y = m ẏ): the ramps and waves written out by hand, c(t) = a + (b − a) t/T +
 A sin(k 2π t/T + φ), and the rules for where a free coordinate sits and how far a wave may swing."""
 from __future__ import annotations
@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from nhgait.gaits.waves import ShapeGuess, amplitude, centre, ends, free_start, guess_from_shape
+from nhgait.gaits.planning.waves import ShapeGuess, amplitude, centre, ends, free_start, guess_from_shape
 from nhgait.ocp import OptimalControlProblem
 
 MASS = 2.0

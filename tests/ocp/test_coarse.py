@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from nhgait.gaits.guesses import candidates
 from nhgait.gaits.planner import prepare
-from nhgait.gaits.task_library import resolve
+from nhgait.gaits.planning.guesses import candidates
+from nhgait.gaits.tasks.sources import resolve
 from nhgait.ocp import OCPSolver, SolverOptions
 from nhgait.ocp.coarse import coarse_intervals, resampled
 from nhgait.ocp.solver import InitialGuess

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from nhgait.gaits.planner import prepare
-from nhgait.gaits.task_library import resolve
+from nhgait.gaits.tasks.sources import resolve
 from nhgait.ocp.offsets import free_offsets
 
 CAR = str(Path(__file__).resolve().parents[2] / "examples" / "car.toml")

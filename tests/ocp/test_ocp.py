@@ -45,13 +45,13 @@ def p1(model, N=25, **kw):
 
 
 def p1_guess(problem):
-    from nhgait.gaits.guesses import candidates
+    from nhgait.gaits.planning.guesses import candidates
     return candidates(problem)[0]
 
 
 def p2(model, N=25, **kw):
-    from nhgait.gaits.task import to_problem
-    from nhgait.gaits.task_library import get_task
+    from nhgait.gaits.tasks.sources import get_task
+    from nhgait.gaits.tasks.statement import to_problem
     return to_problem(get_task("snakeboard", "forward").replace(intervals=N, **kw), model)
 
 

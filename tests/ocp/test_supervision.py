@@ -312,7 +312,7 @@ def test_the_default_rules():
 def test_the_task_states_its_time_limit():
     """``time_limit`` in [task]: parsed with the other keys, refused unless positive, kept in
     the table written back."""
-    from nhgait.gaits.task import parse_task
+    from nhgait.gaits.tasks.statement import parse_task
     from nhgait.ocp import ProblemError
     base = {"horizon": 2.0, "intervals": 10, "final": {"x": 1.0}}
     assert parse_task(base).time_limit is None
@@ -358,7 +358,7 @@ def test_the_task_time_limit_is_the_plans_budget(monkeypatch):
     """``time_limit`` in the task is used when no ``time_limit`` is given, and said."""
     from nhgait.dynamics.progress import Progress
     from nhgait.gaits.planner import plan_budget
-    from nhgait.gaits.task_library import resolve
+    from nhgait.gaits.tasks.sources import resolve
     stream = io.StringIO()
     budget = plan_budget(resolve("unicycle", "parallel-park", overrides=["time_limit=45"]),
                          progress=Progress(stream))
@@ -375,9 +375,9 @@ def test_the_default_budget_grows_with_a_busy_machine(monkeypatch):
     """On a machine whose load average is L on C cores each process gets about C/L of a core:
     the default budget is scaled by L/C (at least 1, at most CONTENTION_CAP) and says so; a
     time given by the caller or the task is kept as given (issue 40)."""
-    from nhgait.gaits import time_limits
     from nhgait.gaits.planner import plan_budget
-    from nhgait.gaits.task_library import resolve
+    from nhgait.gaits.planning import time_limits
+    from nhgait.gaits.tasks.sources import resolve
     to_plan = resolve("unicycle", "parallel-park")
     n = len(to_plan.scene.system.coordinates)
     monkeypatch.setattr(os, "cpu_count", lambda: 2)

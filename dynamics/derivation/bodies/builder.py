@@ -41,7 +41,7 @@ KEYS = {"name", "description", "base", "bodies", "wheels", "gravity", "constrain
 def bodies_system(table: dict, source: str = "<scene>"):
     """The System of a ``[system]`` table with ``bodies`` (and ``wheels``); one
     :class:`ModelError` lists every problem."""
-    from ..expressions import number_problems
+    from ..input.expressions import number_problems
     from ..system import System
     problems: list = []
     unknown = set(table) - KEYS

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from ..expressions import expression_problems
+from ..input.expressions import expression_problems
 
 __all__ = ["BodySpec", "WheelSpec", "Multibody", "read_multibody", "BODY_KEYS", "WHEEL_KEYS", "BASE"]
 

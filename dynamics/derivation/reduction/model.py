@@ -9,7 +9,7 @@ import casadi as ca
 import sympy as sp
 
 from nhgait.dynamics.derivation.cse_text import cse_lines, wants_cse
-from nhgait.dynamics.derivation.notation import symmetry_choice_lines
+from nhgait.dynamics.derivation.input.notation import symmetry_choice_lines
 from nhgait.dynamics.reprs import ModelDisplay
 
 from ...algebra.trig import TIDY_NODES, tidy, tree_size

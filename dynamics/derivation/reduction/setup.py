@@ -15,7 +15,7 @@ from typing import NamedTuple
 import numpy as np
 import sympy as sp
 
-from nhgait.dynamics.derivation.notation import method_name, system_names
+from nhgait.dynamics.derivation.input.notation import method_name, system_names
 
 from ...algebra.matrices import numeric_pivots, strip_factors
 from ...algebra.trig import TIDY_NODES, tidy, tree_size

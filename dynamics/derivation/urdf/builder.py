@@ -19,7 +19,7 @@ import numpy as np
 import sympy as sp
 
 from ...errors import ModelError
-from ..textfiles import read_text_file
+from ..input.textfiles import read_text_file
 from . import energy, wheels
 from .mass_parameters import mass_problems, with_mass_parameters
 from .reader import read_urdf

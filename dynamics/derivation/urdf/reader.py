@@ -22,7 +22,7 @@ from xml.parsers import expat
 import numpy as np
 
 from ...errors import ModelError
-from ..expressions import MAX_MAGNITUDE, finite_or_nan, magnitude_problem
+from ..input.expressions import MAX_MAGNITUDE, finite_or_nan, magnitude_problem
 
 #: joint types of the URDF specification
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")

@@ -1,0 +1,2 @@
+"""nhgait.gaits.figures — Figures of a plan: trajectories, paths, shape loops, stability, drawings
+and the animation."""

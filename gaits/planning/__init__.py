@@ -1,0 +1,2 @@
+"""nhgait.gaits.planning — Planning: the request's arguments, guesses and their screening, the
+search over attempts."""
