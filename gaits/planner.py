@@ -93,7 +93,7 @@ def _structured_stage(problem) -> bool:
     return stage_mode(ode_function(problem), free_horizon=problem.free_horizon is not None) == "structured"
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(kw_only=True, frozen=True, eq=False)
 class PlanResult:
     """What :func:`plan` produced.
 
@@ -255,7 +255,7 @@ def choose_hessian(hessian: str) -> str:
 
 def plan(system, task=None, *, overrides=(), params=None, guess=None, out_dir=None, animate=False,
          figures=True, progress=None, options=None, **values) -> PlanResult:
-    """Plan a gait: see the module docstring.
+    r"""Plan a gait: see the module docstring.
 
     Parameters
     ----------
@@ -278,8 +278,8 @@ def plan(system, task=None, *, overrides=(), params=None, guess=None, out_dir=No
         ``jit``, ``workers``, ``max_iter``, ``hessian``, ``max_guesses``, ``verify`` and
         ``time_limit`` (a plan that runs out is a failure whose ``overrun`` says in which phase:
         step 7 of the module docstring)
-    **values : the same options as keywords, on top of ``options``: ``plan(..., intervals=40,
-        verify=False)``
+    \*\*values : the same options as keywords, on top of ``options``, e.g.
+        ``plan(..., intervals=40, verify=False)``
 
     Notes
     -----
@@ -452,11 +452,13 @@ def _result(to_plan, reached: _Reached, settings, params) -> PlanResult:
                  **{k: round(v, 6) for k, v in reached.timings.items()}}
         solution = replace(solution, settings={**solution.settings, **extra})
     task = to_plan.task if prepared is None else to_plan.task.replace(intervals=prepared.problem.intervals)
-    return PlanResult(to_plan.label, task, solution, (search.won if search is not None else None) or "none",
-                      search.attempts if search is not None else (), (), dict(reached.timings), to_plan,
-                      prepared.model if prepared is not None else None,
-                      prepared.conditions if prepared is not None else None, overrun=reached.overrun,
-                      screening=reached.screening)
+    return PlanResult(label=to_plan.label, task=task, solution=solution,
+                      guess=(search.won if search is not None else None) or "none",
+                      attempts=search.attempts if search is not None else (), files=(),
+                      timings=dict(reached.timings), plan=to_plan,
+                      model=prepared.model if prepared is not None else None,
+                      conditions=prepared.conditions if prepared is not None else None,
+                      overrun=reached.overrun, screening=reached.screening)
 
 
 @dataclass(frozen=True, kw_only=True)

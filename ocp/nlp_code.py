@@ -130,7 +130,7 @@ class CompileBudget:
 COMPILE_BUDGET = CompileBudget()
 
 
-@dataclass(frozen=True)
+@dataclass(kw_only=True, frozen=True)
 class CompileReport:
     """What runs the NLP functions and why: the C size; ``flags`` of that code (None:
     interpreted); the compiler's seconds (0 when the library came from the cache); the
@@ -185,8 +185,9 @@ def choose_code(source: str, options, progress, *, salt: str, slot: str = "") ->
         found = cached_library(source, flags=flags, salt=salt)
         if found is not None:
             progress.note(f"  optimised library ({optimiser} {' '.join(flags)}) from the cache")
-            return NlpCode(found, CompileReport(size, flags, 0.0, estimate, True, reason, str(found.path),
-                                                "optimised", optimiser))
+            return NlpCode(found, CompileReport(c_bytes=size, flags=flags, compile_s=0.0,
+                                                estimate_s=estimate, cached=True, reason=reason,
+                                                path=str(found.path), code="optimised", compiler=optimiser))
     if options.jit == "optimised" and flags is not None and command is not None:
         lib, kind, compiler, fallback = _optimised_now(source, progress, salt, (flags, estimate, command))
     else:
@@ -198,9 +199,11 @@ def choose_code(source: str, options, progress, *, salt: str, slot: str = "") ->
                  if flags is not None else
                  BackgroundBuild(state="unavailable", flags=(), compiler=optimiser, reason=reason))
         progress.note(f"  {later.text()}")
-    report = CompileReport(size, None if lib is None else lib.flags, 0.0 if lib is None else lib.compile_s,
-                           estimate, bool(lib is not None and lib.cached), reason,
-                           None if lib is None else str(lib.path), kind, compiler, later)
+    report = CompileReport(c_bytes=size, flags=None if lib is None else lib.flags,
+                           compile_s=0.0 if lib is None else lib.compile_s, estimate_s=estimate,
+                           cached=bool(lib is not None and lib.cached), reason=reason,
+                           path=None if lib is None else str(lib.path), code=kind, compiler=compiler,
+                           later=later)
     return NlpCode(lib, report, fallback)
 
 

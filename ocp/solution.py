@@ -271,7 +271,7 @@ def _jsonable(obj):
     return obj
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(kw_only=True, frozen=True, eq=False)
 class Solution:
     """Result of :func:`nhgait.ocp.solve` (see the module docstring for array shapes)."""
 

@@ -87,9 +87,11 @@ def robust_search(search, prepared, to_plan, settings, budget, progress):
                   f"(mean over copies, in units of {END_FRACTION:g} s_i) "
                   f"{record['nominal_plan']['mean']:.3g} → {record['robust_plan']['mean']:.3g}")
     solution = replace(solution, settings={**solution.settings, "robust": record})
-    attempt = Attempt("robust: from the nominal plan", solution.status, bool(solution.success),
-                      int(solution.iterations), float(solution.objective), "ipopt",
-                      float(solution.constraint_violation), float(solution.solve_time_s))
+    attempt = Attempt(label="robust: from the nominal plan", status=solution.status,
+                      success=bool(solution.success), iterations=int(solution.iterations),
+                      objective=float(solution.objective), solver="ipopt",
+                      constraint_violation=float(solution.constraint_violation),
+                      seconds=float(solution.solve_time_s))
     return Search(solution if solution.success else None, search.attempts + (attempt,),
                   "robust: from the nominal plan" if solution.success else None,
                   None if solution.success else solution)

@@ -39,7 +39,7 @@ __all__ = ["Attempt", "Search", "WARM_IPOPT", "attempt_of", "solve_attempts", "s
            "solve_with_fallbacks", "continuation"]
 
 
-@dataclass(frozen=True)
+@dataclass(kw_only=True, frozen=True)
 class Attempt:
     """One candidate tried: its label, the solver and its verdict."""
 
@@ -85,8 +85,10 @@ def _closer(a, b):
 def attempt_of(label, s, solver_name="") -> Attempt:
     """The :class:`Attempt` record of solution ``s`` of the guess ``label``."""
     history = (getattr(s, "stats", None) or {}).get("history") or {}
-    return Attempt(label, s.status, bool(s.success), int(s.iterations), float(s.objective), solver_name,
-                   float(s.constraint_violation), float(s.solve_time_s), dict(history))
+    return Attempt(label=label, status=s.status, success=bool(s.success), iterations=int(s.iterations),
+                   objective=float(s.objective), solver=solver_name,
+                   constraint_violation=float(s.constraint_violation), seconds=float(s.solve_time_s),
+                   history=dict(history))
 
 
 #: guesses tried after the first converged one when the search explores (the planner), the

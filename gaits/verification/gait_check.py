@@ -48,11 +48,13 @@ def unsolved(problem, guess=None):
     t = problem.grid()
     states = (node_arrays(guess).states if guess is not None
               else np.zeros((len(problem.state_names), t.size)))
-    return Solution(False, "Not_Solved",
-                    "every candidate met the singular set of the equations and was skipped",
-                    0, float("nan"), t, states.T, np.zeros((problem.intervals, problem.n_controls)),
-                    tuple(problem.state_names), tuple(problem.control_names), float(problem.horizon),
-                    0.0, 0.0, 0.0, 0.0, problem=problem,
+    return Solution(success=False, status="Not_Solved",
+                    message="every candidate met the singular set of the equations and was skipped",
+                    iterations=0, objective=float("nan"), t=t, z=states.T,
+                    u=np.zeros((problem.intervals, problem.n_controls)),
+                    state_names=tuple(problem.state_names), control_names=tuple(problem.control_names),
+                    horizon=float(problem.horizon), solve_time_s=0.0, setup_time_s=0.0,
+                    function_time_s=0.0, solver_time_s=0.0, problem=problem,
                     settings={"guess": getattr(guess, "label", "none"), "intervals": problem.intervals,
                               "transcription": "none", "solver": "none (no candidate solved)"})
 

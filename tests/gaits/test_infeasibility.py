@@ -75,7 +75,8 @@ def test_a_plan_that_stalls_stops_and_says_what_must_move(stalling):
 
 
 def _attempt(status, violation, success=False):
-    return Attempt("g", status, success, 10, 1.0, "ipopt", violation)
+    return Attempt(label="g", status=status, success=success, iterations=10, objective=1.0, solver="ipopt",
+                   constraint_violation=violation)
 
 
 def test_stalled_needs_the_same_infeasible_point_three_times():

@@ -118,8 +118,10 @@ def test_a_budget_spent_after_a_guess_converged_does_not_say_none_did():
     from nhgait.gaits.planning.search import Attempt
     from nhgait.gaits.verification.diagnosis import _out_of_time
     overrun = SimpleNamespace(lines=lambda: ["the time budget of 2 s ran out during verification"])
-    tried = [Attempt("psi:phi 1:1", "Solve_Succeeded", True, 9, 0.109703, "fatrop"),
-             Attempt("fitted roll-out", "Line_Search_Failed", False, 3, 4.2, "fatrop", 0.16)]
+    tried = [Attempt(label="psi:phi 1:1", status="Solve_Succeeded", success=True, iterations=9,
+                     objective=0.109703, solver="fatrop"),
+             Attempt(label="fitted roll-out", status="Line_Search_Failed", success=False, iterations=3,
+                     objective=4.2, solver="fatrop", constraint_violation=0.16)]
     result = SimpleNamespace(overrun=overrun, attempts=tried, solution=None, screening=())
     lines = _out_of_time(result)
     assert lines[1] == ("a guess had converged ('psi:phi 1:1', Solve_Succeeded, J = 0.109703): "
