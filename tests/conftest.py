@@ -73,3 +73,15 @@ def sandbox(tmp_path, monkeypatch):
     hostile-input tests (tests/adversarial.py)."""
     from adversarial import make_sandbox
     return make_sandbox(tmp_path, monkeypatch)
+
+
+@pytest.fixture(scope="session")
+def particle(_temporary_cache):
+    """A free particle in the plane (x, y), m = 2 kg, driven by forces Fx, Fy: its reduced model
+    specialised for planning (``particle.system`` the System). The tests that use it state the
+    mass they expect (MASS = 2.0) as their reference."""
+    from nhgait.dynamics import System, derive
+    from nhgait.dynamics.numerics.specialisation import specialise
+    system = System(["x", "y"], "m*(x_dot**2 + y_dot**2)/2", [], forces={"x": "Fx", "y": "Fy"},
+                    parameters={"m": 2.0}, inputs=["Fx", "Fy"])
+    return specialise(derive(system, "reduced"))

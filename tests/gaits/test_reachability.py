@@ -6,22 +6,11 @@ from __future__ import annotations
 
 import re
 
-import pytest
-
 from nhgait.gaits.tasks.reachability import unreachable_targets
 from nhgait.ocp import OptimalControlProblem
 
 MASS, T = 2.0, 2.0
 REST = {"x": 0.0, "y": 0.0, "p": 0.0, "pt_y": 0.0}
-
-
-@pytest.fixture(scope="module")
-def particle():
-    from nhgait.dynamics import System, derive
-    from nhgait.dynamics.numerics.specialisation import specialise
-    system = System(["x", "y"], "m*(x_dot**2 + y_dot**2)/2", [], forces={"x": "Fx", "y": "Fy"},
-                    parameters={"m": MASS}, inputs=["Fx", "Fy"])
-    return system, specialise(derive(system, "reduced"))
 
 
 def _problem(model, final, initial=REST):
@@ -30,13 +19,13 @@ def _problem(model, final, initial=REST):
 
 
 def test_reachable_targets_are_never_refused(particle):
-    system, model = particle
+    system, model = particle.system, particle
     assert unreachable_targets(_problem(model, {"x": 0.5 * 3 / MASS * T ** 2, "y": 0.5 * 1 / MASS * T ** 2}),
                                system) == []
 
 
 def test_a_target_beyond_every_input_is_refused(particle):
-    system, model = particle
+    system, model = particle.system, particle
     found = unreachable_targets(_problem(model, {"x": 40.0, "y": 0.5}), system)
     assert len(found) == 1 and found[0].startswith("final x is 40 from initial x = 0")
     bound = float(re.search(r"more than ([0-9.e+-]+) in T", found[0]).group(1))

@@ -14,15 +14,6 @@ from nhgait.ocp import OptimalControlProblem
 MASS = 2.0
 
 
-@pytest.fixture(scope="module")
-def particle():
-    from nhgait.dynamics import System, derive
-    from nhgait.dynamics.numerics.specialisation import specialise
-    system = System(["x", "y"], "m*(x_dot**2 + y_dot**2)/2", [], forces={"x": "Fx", "y": "Fy"},
-                    parameters={"m": MASS}, inputs=["Fx", "Fy"])
-    return specialise(derive(system, "reduced"))
-
-
 def _problem(particle, **extra):
     return OptimalControlProblem(particle, 2.0, 8, **{"initial": {"x": 0.0, "p": 0.0, "pt_y": 0.0},
                                                       "final": {"x": 1.0}, **extra})

@@ -12,15 +12,6 @@ from nhgait.ocp.conditions import ConditionReport, normalise
 MASS = 2.0
 
 
-@pytest.fixture(scope="module")
-def particle():
-    from nhgait.dynamics import System, derive
-    from nhgait.dynamics.numerics.specialisation import specialise
-    system = System(["x", "y"], "m*(x_dot**2 + y_dot**2)/2", [], forces={"x": "Fx", "y": "Fy"},
-                    parameters={"m": MASS}, inputs=["Fx", "Fy"])
-    return specialise(derive(system, "reduced"))
-
-
 def test_at_rest_as_velocities_becomes_the_momenta_fixed_to_zero(particle):
     rest = {"x": 0.0, "y": 0.0, "x_dot": 0.0, "y_dot": 0.0}
     problem = OptimalControlProblem(particle, 1.0, 5, initial=rest, final={**rest, "x": 1.0})

@@ -22,15 +22,6 @@ MASS = 2.0
 TOL = 1e-6
 
 
-@pytest.fixture(scope="module")
-def particle():
-    from nhgait.dynamics import System, derive
-    from nhgait.dynamics.numerics.specialisation import specialise
-    system = System(["x", "y"], "m*(x_dot**2 + y_dot**2)/2", [], forces={"x": "Fx", "y": "Fy"},
-                    parameters={"m": MASS}, inputs=["Fx", "Fy"])
-    return specialise(derive(system, "reduced"))
-
-
 # ----------------------------------------------------------------------------- the oracle
 def _nodes(h, U):
     """Exact node values from rest at the origin: x, v (2 × (N+1) each) and I = ∫x dt

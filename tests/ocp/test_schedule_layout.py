@@ -4,22 +4,12 @@ t0_p + κ T_p / N_p, ν = 1 / N_p, the events at their nodes in order."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from nhgait.ocp import OptimalControlProblem
 from nhgait.ocp.schedule import schedule
 from nhgait.ocp.statement import Phase, Waypoint
 
 REST = {"x": 0.0, "y": 0.0, "x_dot": 0.0, "y_dot": 0.0}
-
-
-@pytest.fixture(scope="module")
-def particle():
-    from nhgait.dynamics import System, derive
-    from nhgait.dynamics.numerics.specialisation import specialise
-    system = System(["x", "y"], "m*(x_dot**2 + y_dot**2)/2", [], forces={"x": "Fx", "y": "Fy"},
-                    parameters={"m": 2.0}, inputs=["Fx", "Fy"])
-    return specialise(derive(system, "reduced"))
 
 
 def test_two_phases_of_fixed_horizons(particle):
