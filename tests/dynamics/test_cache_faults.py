@@ -270,24 +270,33 @@ def test_the_compilers_temporaries_stay_in_nhgaits_build_folder(fake_cc, sandbox
 @posix_only
 def test_an_interrupted_compile_leaves_nothing(fake_cc, sandbox, private_cache):
     """Ctrl-C while the compiler waits: KeyboardInterrupt, the compiler killed, no build folder,
-    no temporary in TMPDIR, no child process."""
-    import _thread
+    no temporary in TMPDIR, no child process. A real SIGINT to the main thread (as a terminal
+    sends it), which the compiler's start holds back until the compiler is registered —
+    ``_thread.interrupt_main`` ignores the signal mask and could land inside ``Popen``."""
+    import signal
 
     from nhgait.dynamics.numerics.compiler import build_library, jit_dir
     (fake_cc / "slow").touch()
     started = fake_cc / "started"
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)   # xdist workers ignore it
+    main = threading.main_thread().ident
 
     def interrupt_when_started():
         deadline = time.monotonic() + 120                    # a hang guard
         while time.monotonic() < deadline and not started.exists():
             time.sleep(0.01)
-        _thread.interrupt_main()
+        signal.pthread_kill(main, signal.SIGINT)
     threading.Thread(target=interrupt_when_started, daemon=True).start()
-    with pytest.raises(KeyboardInterrupt):
-        build_library("int f(void) { return 1; }", timeout=120)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            build_library("int f(void) { return 1; }", timeout=120)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert list(jit_dir().iterdir()) == []
     assert list(sandbox.tmp.iterdir()) == []
     assert children() == []
+
+
 
 
 def _wait_for(path: Path, seconds: float = 120) -> None:
