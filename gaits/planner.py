@@ -300,6 +300,8 @@ def plan(system, task=None, *, overrides=(), params=None, guess=None, out_dir=No
         guess = previous_answer(guess, to_plan.system.coordinates, to_plan.system.inputs, to_plan.label)
     progress = progress or Progress.silent()
     budget = plan_budget(to_plan, options.time_limit, started=started, progress=progress)
+    if options.changed():
+        progress.note(f"options: {options.summary()}")
     settings = SearchSettings.of(options, warm_figures=out_dir is not None)
     reached = _Reached()
     try:

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numbers
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass, fields
 from typing import Any, NamedTuple
 
 __all__ = ["PlanOptions", "Collected", "whole_number"]
@@ -124,10 +124,6 @@ class PlanOptions:
         them with the rest of the request, every problem in one error."""
         return {name: getattr(args, name) for name in cls.names() if hasattr(args, name)}
 
-    def replace(self, **values) -> PlanOptions:
-        """A copy with ``values`` changed, checked (:meth:`of`)."""
-        return PlanOptions.of(self, **values)
-
     def problems(self) -> list[str]:
         """What is wrong with these values (the command line's types hold for a Python caller
         too: no ``intervals=3.5`` silently truncated, no ``workers="many"`` deep inside)."""
@@ -181,7 +177,3 @@ class PlanOptions:
         """One line: the options that differ from the defaults (``defaults`` when none do)."""
         changed = self.changed()
         return ", ".join(f"{k}={v!r}" for k, v in changed.items()) if changed else "defaults"
-
-    def with_intervals(self, intervals) -> PlanOptions:
-        """The same options on ``intervals`` intervals (unchecked: the task checks the range)."""
-        return replace(self, intervals=intervals)
