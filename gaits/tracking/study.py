@@ -26,6 +26,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -208,17 +209,22 @@ def track(system, task=None, *, out_dir=None, progress=None, options: TrackingOp
     return result
 
 
-def _collected(task, options, values: dict) -> tuple:
-    """(the study's :class:`~.request.TrackingOptions`, the problems of its values that need no
-    scene, :func:`~.request.request_problems`, with the plan options'); an unknown name: one
+class _Collected(NamedTuple):
+    options: TrackingOptions     #: the study's options
+    problems: list               #: the problems of its values that need no scene
+
+
+def _collected(task, options, values: dict) -> _Collected:
+    """The study's :class:`~.request.TrackingOptions` and the problems of its values that need
+    no scene (:func:`~.request.request_problems`, with the plan options'); an unknown name: one
     ProblemError at once."""
     from nhgait.ocp import ProblemError
     options, problems = TrackingOptions.collect(options, **values)
     if options is None:
         raise ProblemError(problems, title="invalid tracking study")
-    return options, problems + request_problems(options.samples, options.seed, options.noise,
-                                                plan_file=options.plan_file, task=task,
-                                                overrides=options.overrides)
+    return _Collected(options, problems + request_problems(options.samples, options.seed, options.noise,
+                                                           plan_file=options.plan_file, task=task,
+                                                           overrides=options.overrides))
 
 
 def _budget(system, task, options: TrackingOptions, started: float):
