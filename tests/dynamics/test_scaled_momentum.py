@@ -127,8 +127,8 @@ def _circle(integrator, eps, phase=0.0, steps=2000):
 def _height_of(board, momentum=None):
     system = board.system
     H = height_function(local_connection(board), "psi", "phi", momentum=momentum)
-    return sp.lambdify(system.q[3:5], H.subs(dict(zip(system.param_symbols, system.param_vector(), strict=True))),
-                       "numpy")
+    values = dict(zip(system.param_symbols, system.param_vector(), strict=True))
+    return sp.lambdify(system.q[3:5], H.subs(values), "numpy")
 
 
 def test_stokes_estimate_of_a_circle_from_rest_converges_linearly(board, momentum, integrator):

@@ -17,7 +17,8 @@ def board_heights():
     model = derive(snakeboard(), "reduced")
     return evaluate_heights(local_connection(model), "psi", "phi",
                             HeightGrid(bounds={"psi": (-1, 1), "phi": (-1, 1)}, points=11,
-                                       units={"x": "m", "y": "m", "theta": "rad", "psi": "rad", "phi": "rad"}))
+                                       units={"x": "m", "y": "m", "theta": "rad", "psi": "rad",
+                                              "phi": "rad"}))
 
 
 def test_height_figure_has_names_units_colour_bar_and_arrows(board_heights, tmp_path):
