@@ -79,12 +79,12 @@ def plot_height_function(heights, component: str, ax=None, *, loop=None, arrows:
     else:
         ax.text(0.5, 0.5, f"H = 0 over this plane:\nno loop here moves {component}", transform=ax.transAxes,
                 ha="center", va="center")
-    what = _FORM_WORDS.get(getattr(heights, "form", "connection"), "height")
+    what = _FORM_WORDS.get(heights.form, "height")
     if colorbar:
         unit = _height_unit(heights, k)
         text = (f"{what} of {component}" + (f" [{unit}]" if unit else "")
                 + "\nper unit area of a counter-clockwise loop"
-                + (" from rest" if what != "height" else "")
+                + (" from rest" if heights.form in ("scaled momentum", "momentum part") else "")
                 + (f"\n(colours clipped at the {CLIP_PERCENTILE:g}th percentile)" if clipped else ""))
         ax.figure.colorbar(filled, ax=ax, label=text)
     if arrows and np.any(np.hypot(*heights.fields[k]) > 0):
