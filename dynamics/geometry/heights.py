@@ -181,9 +181,11 @@ def evaluate_heights(connection: LocalConnection, a: str, b: str, grid: HeightGr
 DIFFERENCE_STEP = 1e-5
 
 
-def _momentum_part(equation, names, a, b):
-    """q ↦ −σ_abΓ (l,) from a ReconstructionEquation's numbers (one momentum, σ_aa = σ_bb = 0:
-    :mod:`.scaled_momentum`); the problems of the request otherwise."""
+def _momentum_part(equation, connection, a, b):
+    """q ↦ −σ_abΓ (l,) from a ReconstructionEquation's numbers at the connection's parameters
+    (one momentum, σ_aa = σ_bb = 0: :mod:`.scaled_momentum`); the problems of the request
+    otherwise."""
+    names, params = connection.names, connection.params
     problems = []
     if len(equation.momenta) != 1:
         problems.append(f"the scaled-momentum heights need one nonholonomic momentum, "
@@ -192,7 +194,7 @@ def _momentum_part(equation, names, a, b):
     ja, jb = equation.shape.index(a), equation.shape.index(b)
 
     def part(q):
-        values = equation.evaluate(q)
+        values = equation.evaluate(q, params)
         rr = values.sigma_rr[0]
         scale = max(abs(rr[ja, jb]), 1.0)
         if max(abs(rr[ja, ja]), abs(rr[jb, jb]), abs(values.sigma_pp[0][0, 0])) > 1e-12 * scale:
@@ -218,7 +220,7 @@ def evaluate_heights_numeric(connection, a: str, b: str, grid: HeightGrid, *,
                  "(numeric_connection(model, params))"] if grid.params is not None else []
     part_of = None
     if equation is not None and not problems:
-        part_of, more = _momentum_part(equation, connection.names, a, b)
+        part_of, more = _momentum_part(equation, connection, a, b)
         problems += more
     if problems:
         raise ModelError(problems, title="invalid height-function request")
