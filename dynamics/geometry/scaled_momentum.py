@@ -162,6 +162,16 @@ def scaled_momentum(model, a: str, b: str, *, at=None, params=None) -> ScaledMom
     Every problem in one ModelError: not a shape pair, not mixed with one momentum, σ_pp ≠ 0,
     forces along ξ_Q, σ_rp not closed on the plane (then F depends on the path and (2) is not
     exact).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from nhgait.dynamics import derive, snakeboard
+    >>> momentum = scaled_momentum(derive(snakeboard(), "reduced"), "psi", "phi")
+    >>> momentum.momentum, momentum.returns_to_zero
+    ('p', True)
+    >>> bool(np.isclose(momentum.factor(0.0, 0.5), np.log(np.cos(0.5))))      # F = ln cos φ
+    True
     """
     equation = reconstruction(model)
     problems = _problems(model, equation, a, b)

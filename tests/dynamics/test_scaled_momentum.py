@@ -225,3 +225,12 @@ def test_parts_figure_has_names_units_and_three_columns(board, momentum, tmp_pat
     assert fig.axes[0].get_xlabel() == "psi [rad]"
     fig.savefig(tmp_path / "parts.png")
     assert (tmp_path / "parts.png").stat().st_size > 10_000
+
+
+def test_the_docstring_example_runs():
+    """The ``>>>`` example of :func:`scaled_momentum` (F = ln cos φ, the closed form above)."""
+    import doctest
+
+    import nhgait.dynamics.geometry.scaled_momentum as module
+    result = doctest.testmod(module, optionflags=doctest.ELLIPSIS)
+    assert result.attempted >= 4 and result.failed == 0
