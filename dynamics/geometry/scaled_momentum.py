@@ -26,25 +26,27 @@ the fibre moves by exp(Ω) with
     Ω = ∬ H_ab dr_a dr_b + ∫₀ᵀ Γ̄(r(t)) p̄(t) dt + O(ε³)                               (3)
 
 (H_ab the connection's height, :mod:`.heights`; p̄ = O(ε²), so its brackets with ξ are O(ε³)).
-The second term is not an area integral for every timing: it is Γ̄(r⁰)∫₀ᵀ(T − t)ṙᵀσ̄_rr ṙ dt +
-O(ε³), and a rectangle traced side by side builds no momentum at all. It is one for the
-elliptical gait r = r⁰ + (α cos ωt, β sin ωt) traced at a constant rate from rest, when
-σ̄_aa = σ̄_bb = 0 on the plane (else ṙᵀσ̄ṙ has a sign and the momentum does not return to
-zero): then ṙ_a = −(αω/β)(r_b − r_b⁰), so p̄ = −(αω/β)σ̄_ab(r_b − r_b⁰)² + O(ε³ω) — zero at the
-start and at the end — and p̄ dt = σ̄_ab(r_b − r_b⁰) dr_a, whence by Stokes
+The second term is not an area integral for every timing: it is Γ̄(c)∫₀ᵀ(T − t)ṙᵀσ̄_rr(c)ṙ dt
++ O(ε³) (c the loop's centre), and a rectangle traced side by side builds no momentum at all.
+It is one for the elliptical gait r = c + (α cos ωt, β sin ωt) traced at a constant rate from
+rest, when σ̄_aa = σ̄_bb = 0 on the plane (else ṙᵀσ̄ṙ has a sign and the momentum does not
+return to zero): then ṙ_a = −(αω/β)(r_b − c_b), so p̄ = −(αω/β)σ̄_ab(c)(r_b − c_b)² + O(ε³ω) —
+zero at the start and at the end — and p̄ dt = σ̄_ab(c)(r_b − c_b) dr_a, whence by Stokes
 
-    ∫₀ᵀ Γ̄ p̄ dt = ∮ Γ̄σ̄_ab(r_b − r_b⁰) dr_a = −∬ σ̄_ab Γ̄ dr_a dr_b + O(ε³):
+    ∫₀ᵀ Γ̄ p̄ dt = ∮ Γ̄σ̄_ab(r_b − c_b) dr_a = −∬ σ̄_ab Γ̄ dr_a dr_b + O(ε³):
 
 the momentum part is the curvature of the scaled momentum distribution Γ̄ carried by the form
-σ̄_ab(r_b − r_b⁰)dr_a. The height function of the scaled-momentum form is therefore
+σ̄_ab(r_b − c_b)dr_a. The height function of the scaled-momentum form is therefore
 
     H̄_ab = H_ab − σ̄_ab Γ̄ = H_ab − σ_ab Γ          (σ̄_ab Γ̄ = σ_ab Γ: the factors e^{∓F} cancel)
 
 (l×1; σ_ab the off-diagonal entry of σ_rr, ṙᵀσ_rr ṙ ∋ 2σ_ab ṙ_a ṙ_b), and ∬H̄ estimates the
 loop's displacement with a relative error O(ε), independent of ω. Conventions: the loop is
 counter-clockwise in (r_a, r_b) (clockwise: both parts change sign) and starts on the line
-r_b = r_b⁰ (moving along r_b); starting at the phase θ₀ of the ellipse multiplies the momentum
-part by cos 2θ₀ (the momentum builds from where the loop starts).
+r_b = c_b (moving along r_b); starting at the phase θ₀, r = c + (α cos(ωt + θ₀), β sin(ωt + θ₀)),
+multiplies the momentum part by cos 2θ₀ (the momentum builds from where the loop starts; the
+mean of p̄ over the loop changes). Both orders are checked against the full reduced ODE in
+``tests/dynamics/test_scaled_momentum.py``.
 
 :func:`scaled_momentum` returns the pieces (:class:`ScaledMomentum`): σ_rr, σ_rp, Γ on the
 plane (sympy), F by quadrature, p̄, σ̄, Γ̄ as numbers, and :meth:`ScaledMomentum.height` the
