@@ -147,7 +147,7 @@ def test_stokes_estimate_of_a_circle_from_rest_converges_linearly(board, momentu
     assert np.all(errors[:, 1] > 0.5)
 
 
-def test_the_convergence_does_not_hang_on_the_default_wheel_radius():
+def test_the_convergence_holds_for_another_wheel_radius():
     """With r = 0.7 m (m r² ≠ J + J_r + 2J_w: no common denominator, F ≠ ln cos φ) the error
     still falls at least linearly (3.6 %, 1.3 %, 0.58 % measured)."""
     board = derive(snakeboard(r=0.7), "reduced")
