@@ -202,7 +202,7 @@ def scaled_momentum(model, a: str, b: str, *, at=None, params=None) -> ScaledMom
 
     def numeric(expr):
         return sp.lambdify((qa, qb), expr.subs(sub), "numpy")
-    numbers = {"sigma_a": numeric(sp.sympify(sigma_rp[0])), "sigma_b": numeric(sp.sympify(sigma_rp[1])),
+    numbers = {"sigma_a": numeric(sigma_rp[0]), "sigma_b": numeric(sigma_rp[1]),
                "sigma_rr": numeric(sigma_rr), "Gamma": numeric(equation.Gamma)}
     return ScaledMomentum(pair=(a, b), fiber=tuple(equation.fiber), momentum=equation.momenta[0],
                           sigma_rr=sigma_rr, sigma_rp=sigma_rp, Gamma=sp.Matrix(equation.Gamma), at=at,

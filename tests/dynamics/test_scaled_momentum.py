@@ -7,6 +7,7 @@ error falls at least linearly in the loop's radius ε."""
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -217,8 +218,8 @@ def test_numeric_scaled_heights_equal_the_symbolic_ones(board, momentum):
 
 
 def test_bad_requests_name_every_problem(board):
-    snake = derive(load_scene(str(__import__("pathlib").Path(__file__).resolve().parents[1] / "scenes"
-                                  / "snake3.toml")).system, "reduced")
+    snake = derive(load_scene(str(Path(__file__).resolve().parents[1] / "scenes" / "snake3.toml")).system,
+                   "reduced")
     with pytest.raises(ModelError, match=r"(?s)'x' is not a shape coordinate.*one nonholonomic momentum"):
         scaled_momentum(snake, "x", "alpha1")
     with pytest.raises(ModelError, match="two different shape coordinates"):
