@@ -50,7 +50,14 @@ from typing import Any
 from .files.exports import states_text
 from .plan_files import figure_modules, with_figures, write_figure_files, write_outputs, written  # noqa: F401
 from .planning.infeasibility import stalled, with_elastic
-from .planning.search import Attempt, Search, continuation, solve_from_guesses, solve_with_fallbacks  # noqa: F401
+from .planning.search import (  # noqa: F401
+    Attempt,
+    Search,
+    SearchRun,
+    continuation,
+    solve_from_guesses,
+    solve_with_fallbacks,
+)
 from .planning.warm_start import MAX_SOLUTION_BYTES, previous_answer, read_solution, warm_start  # noqa: F401
 from .tasks.statement import quantity_objects  # noqa: F401
 from .verification.checks import open_loop_label, solution_check_lines
@@ -254,7 +261,7 @@ def choose_hessian(hessian: str) -> str:
 
 
 def plan(system, task=None, *, overrides=(), params=None, guess=None, out_dir=None, animate=False,
-         figures=True, progress=None, options=None, **values) -> PlanResult:
+         figures=True, progress=None, options=None, memo=None, **values) -> PlanResult:
     r"""Plan a gait: see the module docstring.
 
     Parameters
@@ -273,6 +280,12 @@ def plan(system, task=None, *, overrides=(), params=None, guess=None, out_dir=No
     figures : False: in ``out_dir`` only solution.json and trajectory.csv (the result); the
         figures are then :func:`with_figures`'s (``nhgait plan`` prints the result line first)
     progress : a :class:`~nhgait.dynamics.progress.Progress` (None: silent)
+    memo : what this process keeps between plans, a
+        :class:`~nhgait.gaits.planning.plan_memo.PlanMemo` (None: the module's
+        :data:`~nhgait.gaits.planning.plan_memo.PLAN_MEMO`, bounded and clearable; False: none):
+        the built solver of each plan structure, reused by a plan of the same structure (also with
+        changed boundary values), and the last optimum of each task, from which a repeated plan
+        starts (without the exploration when it had been explored)
     options : how the plan is solved, a :class:`~.plan_options.PlanOptions` (or a mapping of its
         names; None: the defaults) — the grid (``intervals``), ``solver``, ``transcription``,
         ``jit``, ``workers``, ``max_iter``, ``hessian``, ``max_guesses``, ``verify`` and
@@ -304,9 +317,10 @@ def plan(system, task=None, *, overrides=(), params=None, guess=None, out_dir=No
         progress.note(f"options: {options.summary()}")
     settings = SearchSettings.of(options, warm_figures=out_dir is not None)
     reached = _Reached()
+    request = _Request(to_plan=to_plan, settings=settings, budget=budget, params=params, guess=guess,
+                       verify=options.verify, progress=progress, memo=_memo(memo))
     try:
-        _run_plan(to_plan, reached, settings, budget, params=params, guess=guess, verify=options.verify,
-                  progress=progress)
+        _run_plan(request, reached)
     except BudgetSpent as exc:
         reached.overrun = exc.overrun
         progress.note(f"  the time budget of {exc.overrun.seconds:g} s ran out during {exc.overrun.phase}")
@@ -347,13 +361,42 @@ class _Reached:
     screening: tuple = ()
 
 
-def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, verify, progress) -> None:
+@dataclass(frozen=True, kw_only=True)
+class _Request:
+    """One plan as :func:`plan` checked it: what to plan (``to_plan``), how to search
+    (``settings``), within which ``budget``, the parameter values, the user's ``guess``
+    (or None), whether to ``verify``, where to talk (``progress``) and the process's ``memo``
+    (:class:`~.planning.plan_memo.PlanMemo`, or None: none)."""
+
+    to_plan: Any
+    settings: Any
+    budget: Any
+    params: Any
+    guess: Any
+    verify: bool
+    progress: Any
+    memo: Any = None
+
+
+def _memo(memo):
+    """The :class:`~.planning.plan_memo.PlanMemo` of ``plan(memo=...)``: None → the default one,
+    False → none."""
+    if memo is False:
+        return None
+    if memo is None:
+        from .planning.plan_memo import PLAN_MEMO
+        return PLAN_MEMO
+    return memo
+
+
+def _run_plan(request: _Request, reached: _Reached) -> None:
     """Steps 2–5 of the module docstring and the feedback along a converged plan, each within
-    ``budget``, recorded in ``reached``."""
+    ``request.budget``, recorded in ``reached``."""
     from nhgait.ocp import ProblemError
 
-    from .planning.guesses import candidates
     from .tasks.reachability import unreachable_targets
+    to_plan, settings, budget, progress = request.to_plan, request.settings, request.budget, request.progress
+    params, verify = request.params, request.verify
     t0 = time.perf_counter()
     with budget.stage("derivation"):
         reached.prepared = prepare(to_plan, params=params, progress=progress)
@@ -364,21 +407,15 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
         raise ProblemError(unreachable, title="unreachable task")
     if problem.intervals > LARGE_INTERVALS:
         progress.note(large_request_note(problem))
-    with budget.stage("the initial guesses"):
-        guesses = candidates(problem, progress=progress)
-        if guess is not None:
-            guesses = guesses.with_first(warm_start(guess, problem))
     def verify_one(solution):
         with budget.stage("verification"):
             return verified_gait(solution, reached.prepared.model, reached.prepared.stated, to_plan, params,
                                  progress=progress)
     t0 = time.perf_counter()
     try:
-        _search(problem, guesses, settings, progress, budget, reached)
-    finally:                       # a spent budget still reports where the time went and what was screened
+        _searched(request, problem, reached)
+    finally:                       # a spent budget still reports where the time went
         reached.timings["solve_s"] = time.perf_counter() - t0 - reached.timings.get("setup_s", 0.0)
-        if reached.search is not None:
-            reached.search, reached.screening = screening_report(guesses, reached.search, problem)
     if to_plan.task.robust is not None and reached.search.solution is not None:    # [task.robust]
         from .planning.robust import robust_search
         t0 = time.perf_counter()
@@ -488,36 +525,122 @@ class SearchSettings:
                    limit=options.max_guesses, warm_figures=warm_figures)
 
 
-def _search(problem, guesses, settings: SearchSettings, progress, budget, reached: _Reached) -> None:
+def _cold_guesses(request: _Request, problem):
+    """The planner's own candidates (:mod:`.planning.guesses`), the user's guess first."""
+    from .planning.guesses import candidates
+    with request.budget.stage("the initial guesses"):
+        guesses = candidates(problem, progress=request.progress)
+        if request.guess is not None:
+            guesses = guesses.with_first(warm_start(request.guess, problem))
+    return guesses
+
+
+def _searched(request: _Request, problem, reached: _Reached):
+    """The search of :func:`_search` in ``reached.search``, from the last optimum of this task
+    when the memo keeps one (:mod:`.planning.plan_memo`): alone when it had been explored (the
+    candidates built only when it fails), else in front of the candidates with the exploration.
+    The screening report of the guesses searched in ``reached.screening``; the optimum found is
+    remembered."""
+    memo, progress = request.memo, request.progress
+    keys = _memo_keys(request, reached.prepared)
+    last = memo.optimum(keys[1]) if memo is not None and request.guess is None else None
+    explore = request.guess is None               # a user's warm start answers where the user asked
+    guesses = []
+    if last is not None:
+        progress.note(f"  warm start from the last optimum of this task (J = {last.objective:.6g})"
+                      + ("; explored before: no exploration" if last.explored else ""))
+    try:
+        if last is not None and last.explored:
+            guesses = [last.guess]
+            _search(request, guesses, reached, explore=False, fallbacks=False)
+            if reached.search.solution is None:
+                progress.note("  the last optimum did not converge again: the planner's own guesses")
+        if reached.search is None or reached.search.solution is None:
+            guesses = _cold_guesses(request, problem)
+            if last is not None and not last.explored:
+                guesses = guesses.with_first(last.guess)
+            _search(request, guesses, reached, explore=explore)
+    finally:                       # a spent budget still reports what was screened
+        if reached.search is not None:
+            reached.search, reached.screening = screening_report(guesses, reached.search, problem)
+    found = reached.search.solution
+    if memo is not None and found is not None:
+        from nhgait.ocp import InitialGuess
+
+        from .planning.plan_memo import LAST_OPTIMUM, Optimum
+        explored = explore or (last is not None and last.explored)
+        memo.remember(keys[1], Optimum(InitialGuess(found.z.T, found.u.T, found.horizon, LAST_OPTIMUM),
+                                       float(found.objective), explored))
+
+
+def _memo_keys(request: _Request, prepared) -> tuple:
+    """(structure key of the first solver, task key) of :mod:`.planning.plan_memo` (None, None
+    without a memo)."""
+    if request.memo is None:
+        return None, None
+    from .planning.plan_memo import structure_key, task_key
+    structure = structure_key(prepared, request.to_plan.scene, request.to_plan.task, request.settings, "")
+    return structure, task_key(structure, request.to_plan.task)
+
+
+def _built_solver(request: _Request, prepared, name: str, explore: bool):
+    """The solver ``name`` of ``problem``: the memo's of this structure (with this problem's
+    values), else built (with its time limit per attempt) and kept."""
+    from nhgait.ocp import OCPSolver, ProblemError, SolverOptions
+
+    from .planning.plan_memo import structure_key
+    from .planning.time_limits import attempt_limited
+    s, progress, problem = request.settings, request.progress, prepared.problem
+
+    def build():
+        with progress.phase(f"build the NLP for {name} ({problem.intervals} intervals, {s.hessian} Hessian)"):
+            ocp = OCPSolver(problem, s.transcription,
+                            SolverOptions(jit=s.jit, solver=name, max_iter=s.max_iter, hessian=s.hessian,
+                                          coarse=True), progress=progress)
+            return attempt_limited(ocp, None, progress)
+    memo = request.memo
+    if memo is None:
+        ocp = build()
+    else:
+        key = structure_key(prepared, request.to_plan.scene, request.to_plan.task, s, name)
+        ocp, reused = memo.solver(key, build)
+        if reused:
+            try:
+                ocp = ocp.for_values(problem)
+            except ProblemError:            # not the NLP it seemed: built anew (and kept)
+                memo.solvers.clear()
+                ocp, _ = memo.solver(key, build)
+            else:
+                ocp.adopt_optimised()
+                progress.note(f"  the NLP and the {name} solver of this structure, built before in this "
+                              "process: reused")
+    return ocp if explore else ocp.direct()
+
+
+def _search(request: _Request, guesses, reached: _Reached, *, explore: bool, fallbacks: bool = True) -> None:
     """The solvers of :func:`solver_order` in turn until one converges: the search so far in
     ``reached.search``, the set-up seconds in ``reached.timings["setup_s"]``. Building a solver
     is interrupted when the budget runs out; each attempt gets at most the time left
-    (:func:`~.time_limits.attempt_limited`)."""
-    from nhgait.ocp import OCPSolver, SolverOptions
-
-    from .planning.time_limits import attempt_limited
-    s = settings
-    explore = not getattr(guesses, "given_first", False)     # a warm start answers where the user asked
-    reached.search = Search(None, (), None)
+    (:func:`~.time_limits.attempt_limited`). ``explore``: solves from generic guesses (the
+    coarse grid, the exploration after a first success); else from a warm start (neither).
+    ``fallbacks``: the continuation when no guess converges (:func:`solve_with_fallbacks`)."""
+    s, progress, budget = request.settings, request.progress, request.budget
+    problem = reached.prepared.problem
+    reached.search = reached.search if reached.search is not None else Search(None, (), None)
     for name in solver_order(s.solver, s.transcription, problem, s.hessian):
         t0 = time.perf_counter()
         try:
             with budget.stage(f"the NLP set-up and compilation for {name}"):
-                with progress.phase(f"build the NLP for {name} ({problem.intervals} intervals, "
-                                    f"{s.hessian} Hessian)"):
-                    ocp = OCPSolver(problem, s.transcription,
-                                    SolverOptions(jit=s.jit, solver=name, max_iter=s.max_iter,
-                                                  hessian=s.hessian, coarse=explore),
-                                    progress=progress)
-                    ocp = attempt_limited(ocp, None, progress)
+                ocp = _built_solver(request, reached.prepared, name, explore)
         finally:
             reached.timings["setup_s"] = reached.timings.get("setup_s", 0.0) + time.perf_counter() - t0
         with budget.stage(f"the solves with {name}", interrupt=False):
             with progress.phase(f"solve with {name} from up to {min(s.limit, len(guesses))} guesses"):
-                reached.search = reached.search.then(solve_with_fallbacks(
-                    ocp, guesses, workers=s.workers, limit=s.limit, progress=progress, budget=budget,
-                    explore=explore, explore_workers=max(s.workers, _default_workers()),
-                    meanwhile=figure_modules if s.warm_figures else None))
+                run = SearchRun(workers=s.workers, limit=s.limit, progress=progress, budget=budget,
+                                explore=explore, explore_workers=max(s.workers, _default_workers()),
+                                meanwhile=figure_modules if s.warm_figures else None)
+                searched = (solve_with_fallbacks if fallbacks else solve_from_guesses)(ocp, guesses, run)
+                reached.search = reached.search.then(searched)
         if reached.search.solution is not None or stalled(reached.search.attempts):    # issue 41
             break
 

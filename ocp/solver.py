@@ -414,13 +414,29 @@ class OCPSolver:
         """This solver for ``problem``, a problem of the same structure whose values (targets,
         bounds) differ: the NLP functions are reused, only the bounds are recomputed."""
         nlp = self.transcription.build(problem)
-        if nlp.n_w != self.nlp.n_w or nlp.lbg.shape != self.nlp.lbg.shape:
+        if (nlp.n_w != self.nlp.n_w or nlp.lbg.shape != self.nlp.lbg.shape
+                or nlp.row_labels != self.nlp.row_labels or nlp.objective_scale != self.nlp.objective_scale):
             raise ProblemError(["with_problem: the new problem has another structure"])
         other = object.__new__(OCPSolver)
         other.__dict__.update(self.__dict__)
         other.problem = problem
         other.nlp = replace(self.nlp, problem=problem, lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg)
         other.coarse = None                     # a problem grown from another: no coarse grid
+        return other
+
+    def for_values(self, problem: OptimalControlProblem) -> OCPSolver:
+        """This solver for ``problem`` of the same structure whose boundary and bound values
+        differ (:meth:`with_problem`), keeping its coarse grid (:mod:`.coarse`), whose solvers
+        get the new values too: the solver a cold plan of ``problem`` builds, without building
+        it (a long-lived process's memo, :mod:`nhgait.gaits.planning.plan_memo`). ``problem``
+        itself when it is this solver's. A problem of another structure is a ProblemError."""
+        if problem is self.problem:
+            return self
+        other = self.with_problem(problem)
+        if self.coarse is not None:
+            n, sub, warm = self.coarse
+            other.coarse = (n, sub.with_problem(problem.replace(intervals=n)),
+                            None if warm is None else warm.with_problem(problem))
         return other
 
     def settings(self) -> dict:

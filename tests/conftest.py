@@ -85,3 +85,14 @@ def particle(_temporary_cache):
     system = System(["x", "y"], "m*(x_dot**2 + y_dot**2)/2", [], forces={"x": "Fx", "y": "Fy"},
                     parameters={"m": 2.0}, inputs=["Fx", "Fy"])
     return specialise(derive(system, "reduced"))
+
+
+@pytest.fixture(autouse=True)
+def _fresh_plan_memo():
+    """Each test plans as a new process would: the planner's default memo of built solvers and
+    last optima (:mod:`nhgait.gaits.planning.plan_memo`) emptied after it, so that no test's
+    plan starts from another test's optimum (tests/gaits/test_plan_memo.py tests the memo)."""
+    yield
+    memo = sys.modules.get("nhgait.gaits.planning.plan_memo")
+    if memo is not None:
+        memo.PLAN_MEMO.clear()

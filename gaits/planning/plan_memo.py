@@ -1,0 +1,182 @@
+"""What a long-lived process keeps between plans (issue 40): the built NLP solver of each plan
+structure and the last optimum of each task.
+
+A designer iterates — plan, look, change a value, plan again — and in a notebook or a sweep
+worker every turn used to rebuild the NLP and its solver, build and screen every initial guess
+and explore further guesses after the first success, for a solve of a few hundredths of a
+second. A :class:`PlanMemo` keeps, per process:
+
+* **solvers** — the :class:`~nhgait.ocp.solver.OCPSolver` (NLP functions, compiled code, the
+  solver plugin, its coarse grid and time limit) of each *structure*: :func:`structure_key`,
+  the SHA-256 of the derived model's cache key and chart, the velocity coordinates, the
+  parameter values, the scene's extra quantities, the task with the values that only enter the
+  NLP's bounds (initial, final and path bounds) replaced by their names, and the solver
+  settings. A plan of the same structure reuses it; one whose boundary values changed
+  (``overrides=["final.y=0.61"]``) reuses it with the new bounds
+  (:meth:`~nhgait.ocp.solver.OCPSolver.for_values`, which checks that the new problem has the
+  same NLP — else the solver is built anew);
+* **optima** — the last converged solution of each *task* (:func:`task_key`: the structure and
+  every value of the task), as an initial guess on the task's grid, with whether the planner's
+  exploration of further guesses had been run for it. A repeated plan starts from it; when it
+  had been explored, no exploration runs again (the progress line says so); the planner's own
+  guesses are built only when that start fails.
+
+Neither is a source of results: the solver is the one a cold plan builds, and a warm start from
+the last optimum converges to that optimum (tests/gaits/test_plan_memo.py checks both against a
+cold plan). Both are bounded (least recently used entries dropped: :data:`SOLVER_ENTRIES`,
+:data:`OPTIMUM_ENTRIES`) and :meth:`PlanMemo.clear` empties them.
+
+:data:`PLAN_MEMO` is the memo :func:`~nhgait.gaits.planner.plan` uses unless given another
+(``plan(..., memo=PlanMemo())`` for a private one, ``memo=False`` for none); it is the only
+module-level one, documented here, bounded and clearable like a ``functools`` cache.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from nhgait.dynamics.memo import LruMemo
+
+__all__ = ["PlanMemo", "Optimum", "PLAN_MEMO", "structure_key", "task_key", "SOLVER_ENTRIES",
+           "OPTIMUM_ENTRIES"]
+
+#: built solvers kept (each holds its NLP functions and loaded library: a few MB)
+SOLVER_ENTRIES = 8
+#: last optima kept (each one trajectory on its grid)
+OPTIMUM_ENTRIES = 32
+#: the label of a warm start from the last optimum
+LAST_OPTIMUM = "last optimum"
+
+
+@dataclass(frozen=True)
+class Optimum:
+    """The last converged solution of a task: ``guess`` (an
+    :class:`~nhgait.ocp.solver.InitialGuess` on the task's grid, labelled :data:`LAST_OPTIMUM`),
+    its ``objective`` J, and ``explored``: whether it is the optimum the planner's exploration
+    kept (the further guesses were tried), so that a repeated plan need not explore again."""
+
+    guess: Any
+    objective: float
+    explored: bool
+
+
+class _Newest:
+    """The one entry of a task in :attr:`PlanMemo.optima`: its newest optimum (``replaced``)."""
+
+    def __init__(self, optimum: Optimum):
+        self.replaced = optimum
+
+
+class PlanMemo:
+    """A process's built solvers by structure and last optima by task (module docstring).
+
+    Attributes
+    ----------
+    solvers, optima : :class:`~nhgait.dynamics.memo.LruMemo` — the entries
+    builds : solvers built through :meth:`solver` (a memo hit builds none)
+    reuses : solvers handed out again
+    """
+
+    def __init__(self, solvers: int = SOLVER_ENTRIES, optima: int = OPTIMUM_ENTRIES):
+        self.solvers = LruMemo("built NLP solvers by plan structure", solvers)
+        self.optima = LruMemo("last optimum by task", optima)
+        self.builds = 0
+        self.reuses = 0
+
+    def solver(self, key: str | None, build: Callable[[], Any]) -> tuple:
+        """(solver, reused): the solver kept for ``key``, else ``build()`` kept (``key`` None:
+        built and not kept)."""
+        if key is not None and key in self.solvers:
+            self.reuses += 1
+            return self.solvers.get(key), True
+        solver = build()
+        self.builds += 1
+        if key is not None:
+            self.solvers.get(key, lambda: solver)
+        return solver, False
+
+    def optimum(self, key: str | None) -> Optimum | None:
+        """The last optimum of the task ``key`` (None: none kept)."""
+        return self.optima.get(key).replaced if key is not None and key in self.optima else None
+
+    def remember(self, key: str | None, optimum: Optimum) -> None:
+        """Keep ``optimum`` as the last of the task ``key`` (replacing the one before)."""
+        if key is not None:
+            if key in self.optima:
+                self.optima.get(key).replaced = optimum        # one entry per task, the newest
+            else:
+                self.optima.get(key, lambda: _Newest(optimum))
+
+    def clear(self) -> None:
+        """Forget every solver and optimum (the counters too)."""
+        self.solvers.clear()
+        self.optima.clear()
+        self.builds = self.reuses = 0
+
+    def __repr__(self) -> str:
+        return (f"PlanMemo({len(self.solvers)}/{self.solvers.size} solvers, {len(self.optima)}/"
+                f"{self.optima.size} optima; {self.builds} built, {self.reuses} reused)")
+
+
+#: the memo :func:`~nhgait.gaits.planner.plan` uses by default (module docstring)
+PLAN_MEMO = PlanMemo()
+
+
+def _digest(data) -> str:
+    return hashlib.sha256(json.dumps(data, sort_keys=True, default=repr).encode()).hexdigest()
+
+
+def _floats(values) -> list:
+    """Exact floats (hex), so that equal keys mean equal numbers, never rounded ones."""
+    return [float(v).hex() for v in values]
+
+
+def _quantities(scene) -> list | None:
+    """The scene's extra quantities as text, or None when they have no stable text (then no key)."""
+    items = []
+    for name, q in sorted(dict(getattr(scene, "quantities", {}) or {}).items()):
+        text = repr(q)
+        if " at 0x" in text:
+            return None
+        items.append((name, text))
+    return items
+
+
+def _task_structure(task: Mapping) -> dict:
+    """The task with the values that only enter the NLP's bounds (initial, final, path bounds)
+    replaced by their names (whether each is fixed or a range kept)."""
+    shape = {}
+    for key, value in task.items():
+        if key in ("initial", "final", "bounds") and isinstance(value, Mapping):
+            shape[key] = sorted((k, isinstance(v, (list, tuple))) for k, v in value.items())
+        elif key not in ("name", "description"):
+            shape[key] = value
+    return shape
+
+
+def structure_key(prepared, scene, task, settings, solver_name: str) -> str | None:
+    """The SHA-256 of what the NLP of ``prepared.problem`` is built from (module docstring), or
+    None when the derived model has no cache key (then nothing is kept)."""
+    model, specialised = prepared.model, prepared.specialised
+    provenance = getattr(model, "provenance", None)
+    quantities = _quantities(scene)
+    if provenance is None or not getattr(provenance, "key", "") or quantities is None:
+        return None
+    return _digest({"model": provenance.key, "fiber": list(getattr(model, "fiber", ()) or ()),
+                    "shape": list(getattr(model, "shape", ()) or ()),
+                    "velocities": list(specialised.velocities), "route": str(specialised.route),
+                    "params": _floats(prepared.problem.params), "quantities": quantities,
+                    "task": _task_structure(task.to_dict()), "solver": solver_name,
+                    "transcription": repr(settings.transcription), "jit": repr(settings.jit),
+                    "hessian": settings.hessian, "max_iter": settings.max_iter})
+
+
+def task_key(structure: str | None, task) -> str | None:
+    """The SHA-256 of a structure and every value of ``task`` (None without a structure)."""
+    if structure is None:
+        return None
+    values = {k: v for k, v in task.to_dict().items() if k not in ("name", "description")}
+    return _digest({"structure": structure, "task": values})

@@ -1,0 +1,79 @@
+"""The planner's memo in a long-lived process (:mod:`nhgait.gaits.planning.plan_memo`, issue 40).
+
+Behaviour, not time: a second plan of one structure builds no solver (counted by the memo); a
+repeated plan starts from the last optimum and reaches the cold plan's optimum; a plan with a
+changed final value reuses the solver and still reaches the new end state (checked against the
+task's own value). The unicycle's parallel park (a small robot) keeps the tests fast.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from nhgait.gaits.planner import plan
+from nhgait.gaits.planning.plan_memo import LAST_OPTIMUM, PlanMemo, structure_key, task_key
+
+pytestmark = pytest.mark.usefixtures("_temporary_cache")
+
+TASK = dict(system="unicycle", task="parallel-park")
+OPTIONS = dict(intervals=30, verify=False, workers=1)
+#: the solver's tolerance (tol 1e-8 on a scaled objective) allows this much between two optima
+OBJECTIVE_TOLERANCE = 1e-6
+
+
+def _plan(memo, **extra):
+    return plan(TASK["system"], TASK["task"], memo=memo, **OPTIONS, **extra)
+
+
+@pytest.fixture(scope="module")
+def cold():
+    return _plan(False)
+
+
+def test_second_plan_reuses_the_solver_and_the_optimum(cold):
+    memo = PlanMemo()
+    first = _plan(memo)
+    assert (memo.builds, memo.reuses) == (1, 0)
+    second = _plan(memo)
+    assert (memo.builds, memo.reuses) == (1, 1)           # no solver built the second time
+    assert second.guess == LAST_OPTIMUM and len(second.attempts) == 1    # no exploration again
+    for result in (first, second):
+        assert result.solution.success
+        assert abs(result.solution.objective - cold.solution.objective) <= OBJECTIVE_TOLERANCE * max(
+            1.0, abs(cold.solution.objective))
+    np.testing.assert_allclose(second.solution.z[-1], cold.solution.z[-1], atol=1e-6)
+
+
+def test_changed_final_value_reuses_the_solver_and_reaches_it():
+    memo = PlanMemo()
+    _plan(memo)
+    moved = _plan(memo, overrides=["final.y=0.6"])
+    assert (memo.builds, memo.reuses) == (1, 1)
+    assert moved.solution.success
+    y = moved.solution.state_names.index("y")
+    assert moved.solution.z[-1, y] == pytest.approx(0.6, abs=1e-6)     # the task's new end value
+    assert moved.guess != LAST_OPTIMUM                  # another task: no other task's optimum
+
+
+def test_no_memo_builds_every_time():
+    memo = PlanMemo()
+    _plan(False)
+    assert memo.builds == 0 and len(memo.solvers) == 0
+
+
+def test_memo_is_bounded_and_clearable():
+    memo = PlanMemo(solvers=1, optima=1)
+    memo.solver("a", lambda: "A")
+    memo.solver("b", lambda: "B")
+    assert len(memo.solvers) == 1 and memo.builds == 2
+    memo.clear()
+    assert len(memo.solvers) == 0 and memo.builds == 0
+
+
+def test_keys_without_a_cached_model_are_none():
+    assert task_key(None, object()) is None
+
+    class Bare:
+        provenance = None
+    prepared = type("P", (), {"model": Bare(), "specialised": None})()
+    assert structure_key(prepared, None, None, None, "") is None
