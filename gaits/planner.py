@@ -359,6 +359,7 @@ class _Reached:
     timings: dict = field(default_factory=dict)
     overrun: Any = None
     screening: tuple = ()
+    optimum: tuple | None = None     # (task key, Optimum) of the search's solution, for the memo
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -432,11 +433,23 @@ def _run_plan(request: _Request, reached: _Reached) -> None:
         if not _passed(reached.solution) and search.first is not None:
             search = _first_instead(reached, search, settings, budget, progress, verify_one)
         reached.timings["verify_s"] = time.perf_counter() - t0
+        _keep_verified(reached)
     if search.solution is not None:                                          # issue 28
         t0 = time.perf_counter()
         with budget.stage("the feedback and stability"):
             reached.solution = replace(reached.solution, **_feedback_and_stability(search, progress))
         reached.timings["feedback_s"] = time.perf_counter() - t0
+
+
+def _keep_verified(reached: _Reached) -> None:
+    """The search's optimum in the disk cache for the next process (:mod:`.planning.plan_memo`)
+    when it is the solution kept and it passed its verification."""
+    if reached.optimum is None or reached.solution is None or not _passed(reached.solution):
+        return
+    key, optimum = reached.optimum
+    if reached.search.solution is not None and float(reached.search.solution.objective) == optimum.objective:
+        from .planning.plan_memo import store_optimum
+        store_optimum(key, optimum)
 
 
 def _passed(solution) -> bool:
@@ -544,6 +557,9 @@ def _searched(request: _Request, problem, reached: _Reached):
     memo, progress = request.memo, request.progress
     keys = _memo_keys(request, reached.prepared)
     last = memo.optimum(keys[1]) if memo is not None and request.guess is None else None
+    if last is None and memo is not None and request.guess is None:
+        from .planning.plan_memo import stored_optimum
+        last = stored_optimum(keys[1])               # a verified optimum of an earlier process
     explore = request.guess is None               # a user's warm start answers where the user asked
     guesses = []
     if last is not None:
@@ -569,8 +585,9 @@ def _searched(request: _Request, problem, reached: _Reached):
 
         from .planning.plan_memo import LAST_OPTIMUM, Optimum
         explored = explore or (last is not None and last.explored)
-        memo.remember(keys[1], Optimum(InitialGuess(found.z.T, found.u.T, found.horizon, LAST_OPTIMUM),
-                                       float(found.objective), explored))
+        reached.optimum = (keys[1], Optimum(InitialGuess(found.z.T, found.u.T, found.horizon, LAST_OPTIMUM),
+                                            float(found.objective), explored))
+        memo.remember(*reached.optimum)
 
 
 def _memo_keys(request: _Request, prepared) -> tuple:

@@ -15,13 +15,15 @@ sys.path.insert(0, str(Path(__file__).parent))  # the Kane oracle (tests/oracles
 def _no_background_builds():
     """No optimised build left running after a test (nhgait.dynamics.numerics.background):
     the tests of the background build turn it on for themselves and wait for or cancel it."""
-    old = os.environ.get("NHGAIT_BACKGROUND_BUILDS")
+    old = {name: os.environ.get(name) for name in ("NHGAIT_BACKGROUND_BUILDS", "NHGAIT_WARM_OPTIMA")}
     os.environ["NHGAIT_BACKGROUND_BUILDS"] = "0"
+    os.environ["NHGAIT_WARM_OPTIMA"] = "0"     # no plan starts from another test's verified optimum
     yield
-    if old is None:
-        os.environ.pop("NHGAIT_BACKGROUND_BUILDS", None)
-    else:
-        os.environ["NHGAIT_BACKGROUND_BUILDS"] = old
+    for name, value in old.items():
+        if value is None:
+            os.environ.pop(name, None)
+        else:
+            os.environ[name] = value
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -21,6 +21,13 @@ second. A :class:`PlanMemo` keeps, per process:
   had been explored, no exploration runs again (the progress line says so); the planner's own
   guesses are built only when that start fails.
 
+**Across processes** (``nhgait plan`` run again): the last *verified* optimum of each task is
+also kept in the disk cache next to the derived model (:func:`store_optimum`, under the task
+key, with the cache's trust rules and checksums), and a new process's first plan of that task
+starts from it (:func:`stored_optimum`), building the planner's own guesses only when it fails.
+``NHGAIT_WARM_OPTIMA=0`` turns this off (the test suite does, so that no test starts from
+another's answer).
+
 Neither is a source of results: the solver is the one a cold plan builds, and a warm start from
 the last optimum converges to that optimum (tests/gaits/test_plan_memo.py checks both against a
 cold plan). Both are bounded (least recently used entries dropped: :data:`SOLVER_ENTRIES`,
@@ -34,14 +41,15 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
 from nhgait.dynamics.memo import LruMemo
 
-__all__ = ["PlanMemo", "Optimum", "PLAN_MEMO", "structure_key", "task_key", "SOLVER_ENTRIES",
-           "OPTIMUM_ENTRIES"]
+__all__ = ["PlanMemo", "Optimum", "PLAN_MEMO", "structure_key", "task_key", "stored_optimum",
+           "store_optimum", "SOLVER_ENTRIES", "OPTIMUM_ENTRIES"]
 
 #: built solvers kept (each holds its NLP functions and loaded library: a few MB)
 SOLVER_ENTRIES = 8
@@ -49,6 +57,10 @@ SOLVER_ENTRIES = 8
 OPTIMUM_ENTRIES = 32
 #: the label of a warm start from the last optimum
 LAST_OPTIMUM = "last optimum"
+#: the disk cache's suffix of a task's last verified optimum
+OPTIMUM_SUFFIX = ".optimum"
+#: the environment variable that turns the disk cache's optima off ("0")
+WARM_OPTIMA_ENV = "NHGAIT_WARM_OPTIMA"
 
 
 @dataclass(frozen=True)
@@ -180,3 +192,40 @@ def task_key(structure: str | None, task) -> str | None:
         return None
     values = {k: v for k, v in task.to_dict().items() if k not in ("name", "description")}
     return _digest({"structure": structure, "task": values})
+
+
+def _disk_optima() -> bool:
+    return os.environ.get(WARM_OPTIMA_ENV, "1").strip() != "0"
+
+
+def stored_optimum(key: str | None) -> Optimum | None:
+    """The last verified optimum of the task ``key`` in the disk cache (None: none, turned off
+    by ``NHGAIT_WARM_OPTIMA=0``, or an entry the cache refuses)."""
+    if key is None or not _disk_optima():
+        return None
+    import numpy as np
+
+    from nhgait.dynamics.numerics import cache
+    from nhgait.ocp import InitialGuess
+    data = cache.load(key, dict, suffix=OPTIMUM_SUFFIX)
+    try:
+        guess = InitialGuess(np.asarray(data["states"], dtype=float),
+                             np.asarray(data["controls"], dtype=float), float(data["horizon"]), LAST_OPTIMUM)
+        return Optimum(guess, float(data["objective"]), bool(data["explored"]))
+    except (TypeError, KeyError, ValueError):
+        return None
+
+
+def store_optimum(key: str | None, optimum: Optimum) -> None:
+    """Keep ``optimum`` (verified) as the last of the task ``key`` in the disk cache (nothing
+    when turned off, or when the cache cannot be written)."""
+    if key is None or not _disk_optima():
+        return
+    import numpy as np
+
+    from nhgait.dynamics.numerics import cache
+    g = optimum.guess
+    cache.store(key, {"states": np.asarray(g.states, dtype=float),
+                      "controls": np.asarray(g.controls, dtype=float), "horizon": float(g.horizon),
+                      "objective": float(optimum.objective),
+                      "explored": bool(optimum.explored)}, suffix=OPTIMUM_SUFFIX)

@@ -77,3 +77,15 @@ def test_keys_without_a_cached_model_are_none():
         provenance = None
     prepared = type("P", (), {"model": Bare(), "specialised": None})()
     assert structure_key(prepared, None, None, None, "") is None
+
+
+def test_a_new_process_starts_from_the_last_verified_optimum(cold, monkeypatch, tmp_path):
+    monkeypatch.setenv("NHGAIT_WARM_OPTIMA", "1")
+    monkeypatch.setenv("NHGAIT_CACHE_DIR", str(tmp_path))     # its own cache: nothing stored before
+    options = {**OPTIONS, "verify": True}
+    first = plan(TASK["system"], TASK["task"], memo=PlanMemo(), **options)     # a process
+    again = plan(TASK["system"], TASK["task"], memo=PlanMemo(), **options)     # the next one
+    assert first.success and again.success
+    assert first.guess != LAST_OPTIMUM and again.guess == LAST_OPTIMUM
+    assert len(again.attempts) == 1
+    assert again.solution.objective == pytest.approx(cold.solution.objective, rel=OBJECTIVE_TOLERANCE)
