@@ -400,7 +400,7 @@ def _run_plan(request: _Request, reached: _Reached) -> None:
     params, verify = request.params, request.verify
     t0 = time.perf_counter()
     with budget.stage("derivation"):
-        reached.prepared = prepare(to_plan, params=params, progress=progress)
+        reached.prepared = _prepared(request)
     reached.timings["prepare_s"] = time.perf_counter() - t0
     problem = reached.prepared.problem
     unreachable = unreachable_targets(problem, reached.prepared.model.system, params)
@@ -536,6 +536,21 @@ class SearchSettings:
         return cls(solver=options.solver, transcription=options.transcription, jit=options.jit,
                    hessian=choose_hessian(options.hessian), max_iter=options.max_iter, workers=workers,
                    limit=options.max_guesses, warm_figures=warm_figures)
+
+
+def _prepared(request: _Request) -> Prepared:
+    """:func:`prepare`, or the memo's :class:`Prepared` of the same plan (:mod:`.planning.plan_memo`)."""
+    to_plan, params, progress = request.to_plan, request.params, request.progress
+    if request.memo is None:
+        return prepare(to_plan, params=params, progress=progress)
+    from .planning.plan_memo import prepared_key
+    prepared, reused = request.memo.prepare(prepared_key(to_plan, params),
+                                            lambda: prepare(to_plan, params=params, progress=progress))
+    if reused:
+        velocities = ", ".join(prepared.specialised.velocities)
+        progress.note(f"  the model, its specialisation ({velocities}) and the problem of this plan, "
+                      "prepared before in this process: reused")
+    return prepared
 
 
 def _cold_guesses(request: _Request, problem):

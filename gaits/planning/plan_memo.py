@@ -6,6 +6,10 @@ worker every turn used to rebuild the NLP and its solver, build and screen every
 and explore further guesses after the first success, for a solve of a few hundredths of a
 second. A :class:`PlanMemo` keeps, per process:
 
+* **prepared** — the derived model, its specialisation and the problem of each plan
+  (:func:`prepared_key`: the system's canonical text, every value of the task, the parameter
+  values and the scene's extra quantities), so that a repeated plan neither loads nor
+  specialises the model again;
 * **solvers** — the :class:`~nhgait.ocp.solver.OCPSolver` (NLP functions, compiled code, the
   solver plugin, its coarse grid and time limit) of each *structure*: :func:`structure_key`,
   the SHA-256 of the derived model's cache key and chart, the velocity coordinates, the
@@ -48,7 +52,7 @@ from typing import Any
 
 from nhgait.dynamics.memo import LruMemo
 
-__all__ = ["PlanMemo", "Optimum", "PLAN_MEMO", "structure_key", "task_key", "stored_optimum",
+__all__ = ["PlanMemo", "Optimum", "PLAN_MEMO", "prepared_key", "structure_key", "task_key", "stored_optimum",
            "store_optimum", "SOLVER_ENTRIES", "OPTIMUM_ENTRIES"]
 
 #: built solvers kept (each holds its NLP functions and loaded library: a few MB)
@@ -93,6 +97,7 @@ class PlanMemo:
     """
 
     def __init__(self, solvers: int = SOLVER_ENTRIES, optima: int = OPTIMUM_ENTRIES):
+        self.prepared = LruMemo("prepared models and problems by plan", solvers)
         self.solvers = LruMemo("built NLP solvers by plan structure", solvers)
         self.optima = LruMemo("last optimum by task", optima)
         self.builds = 0
@@ -110,6 +115,16 @@ class PlanMemo:
             self.solvers.get(key, lambda: solver)
         return solver, False
 
+    def prepare(self, key: str | None, make: Callable[[], Any]) -> tuple:
+        """(prepared, reused): the :class:`~nhgait.gaits.planner.Prepared` kept for ``key``,
+        else ``make()`` kept (``key`` None: made and not kept)."""
+        if key is not None and key in self.prepared:
+            return self.prepared.get(key), True
+        value = make()
+        if key is not None:
+            self.prepared.get(key, lambda: value)
+        return value, False
+
     def optimum(self, key: str | None) -> Optimum | None:
         """The last optimum of the task ``key`` (None: none kept)."""
         return self.optima.get(key).replaced if key is not None and key in self.optima else None
@@ -123,7 +138,8 @@ class PlanMemo:
                 self.optima.get(key, lambda: _Newest(optimum))
 
     def clear(self) -> None:
-        """Forget every solver and optimum (the counters too)."""
+        """Forget every prepared plan, solver and optimum (the counters too)."""
+        self.prepared.clear()
         self.solvers.clear()
         self.optima.clear()
         self.builds = self.reuses = 0
@@ -167,6 +183,19 @@ def _task_structure(task: Mapping) -> dict:
         elif key not in ("name", "description"):
             shape[key] = value
     return shape
+
+
+def prepared_key(to_plan, params) -> str | None:
+    """The SHA-256 of what :func:`~nhgait.gaits.planner.prepare` makes a plan from: the
+    system's canonical text, the plan's label, every value of its task, the parameter values
+    and the scene's extra quantities (None when these have no stable text)."""
+    quantities = _quantities(to_plan.scene)
+    canonical = getattr(to_plan.scene.system, "canonical_text", None)
+    if quantities is None or canonical is None:
+        return None
+    values = None if params is None else sorted((str(k), repr(v)) for k, v in dict(params).items())
+    return _digest({"system": canonical(), "label": to_plan.label, "task": to_plan.task.to_dict(),
+                    "params": values, "quantities": quantities})
 
 
 def structure_key(prepared, scene, task, settings, solver_name: str) -> str | None:
