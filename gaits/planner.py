@@ -360,6 +360,7 @@ class _Reached:
     overrun: Any = None
     screening: tuple = ()
     optimum: tuple | None = None     # (task key, Optimum) of the search's solution, for the memo
+    task_key: str | None = None      # the task's key in the memo (:mod:`.planning.plan_memo`)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -410,8 +411,9 @@ def _run_plan(request: _Request, reached: _Reached) -> None:
         progress.note(large_request_note(problem))
     def verify_one(solution):
         with budget.stage("verification"):
-            return verified_gait(solution, reached.prepared.model, reached.prepared.stated, to_plan, params,
-                                 progress=progress)
+            prepared = reached.prepared
+            return _derived(request, reached, solution, "verification", lambda: verified_gait(
+                solution, prepared.model, prepared.stated, to_plan, params, progress=progress))
     t0 = time.perf_counter()
     try:
         _searched(request, problem, reached)
@@ -423,7 +425,8 @@ def _run_plan(request: _Request, reached: _Reached) -> None:
         reached.search = robust_search(reached.search, reached.prepared, to_plan, settings, budget, progress)
         reached.timings["robust_s"] = time.perf_counter() - t0
     search = reached.search
-    reached.solution = _in_momentum(search, reached.prepared, to_plan, params)
+    reached.solution = _derived(request, reached, search.solution, "momentum coordinates",
+                                lambda: _in_momentum(search, reached.prepared, to_plan, params))
     if verify and search.solution is not None:
         t0 = time.perf_counter()
         reached.solution = verify_one(search.solution)
@@ -437,8 +440,23 @@ def _run_plan(request: _Request, reached: _Reached) -> None:
     if search.solution is not None:                                          # issue 28
         t0 = time.perf_counter()
         with budget.stage("the feedback and stability"):
-            reached.solution = replace(reached.solution, **_feedback_and_stability(search, progress))
+            extra = _derived(request, reached, search.solution, "feedback and stability",
+                             lambda: _feedback_and_stability(search, progress))
+            reached.solution = replace(reached.solution, **extra)
         reached.timings["feedback_s"] = time.perf_counter() - t0
+
+
+def _derived(request: _Request, reached: _Reached, solution, what: str, make):
+    """``make()``, the value ``what`` of ``solution``, or the memo's of the same solution
+    (:func:`~.planning.plan_memo.solution_key`: the same content), said on the progress stream."""
+    if request.memo is None:
+        return make()
+    from .planning.plan_memo import solution_key
+    value, reused = request.memo.of_solution(solution_key(reached.task_key, solution, what), make)
+    if reused:
+        request.progress.note(f"  {what}: those of this same solution (bit for bit), computed before in "
+                              "this process")
+    return value
 
 
 def _keep_verified(reached: _Reached) -> None:
@@ -594,14 +612,17 @@ def _searched(request: _Request, problem, reached: _Reached):
     finally:                       # a spent budget still reports what was screened
         if reached.search is not None:
             reached.search, reached.screening = screening_report(guesses, reached.search, problem)
-    found = reached.search.solution
+    found, reached.task_key = reached.search.solution, keys[1]
     if memo is not None and found is not None:
         from nhgait.ocp import InitialGuess
 
         from .planning.plan_memo import LAST_OPTIMUM, Optimum
-        explored = explore or (last is not None and last.explored)
-        reached.optimum = (keys[1], Optimum(InitialGuess(found.z.T, found.u.T, found.horizon, LAST_OPTIMUM),
-                                            float(found.objective), explored))
+        if reached.search.won == LAST_OPTIMUM:     # kept as it was: every repetition starts there
+            reached.optimum = (keys[1], last)
+        else:
+            explored = explore or (last is not None and last.explored)
+            guess = InitialGuess(found.z.T, found.u.T, found.horizon, LAST_OPTIMUM)
+            reached.optimum = (keys[1], Optimum(guess, float(found.objective), explored))
         memo.remember(*reached.optimum)
 
 

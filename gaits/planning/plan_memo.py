@@ -19,6 +19,12 @@ second. A :class:`PlanMemo` keeps, per process:
   (``overrides=["final.y=0.61"]``) reuses it with the new bounds
   (:meth:`~nhgait.ocp.solver.OCPSolver.for_values`, which checks that the new problem has the
   same NLP — else the solver is built anew);
+* **derived** — what is computed from a converged solution alone (its momentum coordinates,
+  its verification, the feedback along it and its Floquet multipliers), by the solution's content
+  (:func:`solution_key`: the task key and the exact bytes of its grid, states and inputs): the
+  same solution again gets the same values without computing them. A warm start from the last
+  optimum (below) starts every repetition at the same point, so it returns the same solution,
+  bit for bit, and these are reused;
 * **optima** — the last converged solution of each *task* (:func:`task_key`: the structure and
   every value of the task), as an initial guess on the task's grid, with whether the planner's
   exploration of further guesses had been run for it. A repeated plan starts from it; when it
@@ -52,8 +58,8 @@ from typing import Any
 
 from nhgait.dynamics.memo import LruMemo
 
-__all__ = ["PlanMemo", "Optimum", "PLAN_MEMO", "prepared_key", "structure_key", "task_key", "stored_optimum",
-           "store_optimum", "SOLVER_ENTRIES", "OPTIMUM_ENTRIES"]
+__all__ = ["PlanMemo", "Optimum", "PLAN_MEMO", "prepared_key", "structure_key", "solution_key", "task_key",
+           "stored_optimum", "store_optimum", "SOLVER_ENTRIES", "OPTIMUM_ENTRIES"]
 
 #: built solvers kept (each holds its NLP functions and loaded library: a few MB)
 SOLVER_ENTRIES = 8
@@ -100,6 +106,7 @@ class PlanMemo:
         self.prepared = LruMemo("prepared models and problems by plan", solvers)
         self.solvers = LruMemo("built NLP solvers by plan structure", solvers)
         self.optima = LruMemo("last optimum by task", optima)
+        self.derived = LruMemo("values derived from a converged solution, by its content", optima)
         self.builds = 0
         self.reuses = 0
 
@@ -125,6 +132,16 @@ class PlanMemo:
             self.prepared.get(key, lambda: value)
         return value, False
 
+    def of_solution(self, key: str | None, make: Callable[[], Any]) -> tuple:
+        """(value, reused): the value kept for the solution key ``key`` (:func:`solution_key`),
+        else ``make()`` kept (``key`` None: made and not kept)."""
+        if key is not None and key in self.derived:
+            return self.derived.get(key), True
+        value = make()
+        if key is not None:
+            self.derived.get(key, lambda: value)
+        return value, False
+
     def optimum(self, key: str | None) -> Optimum | None:
         """The last optimum of the task ``key`` (None: none kept)."""
         return self.optima.get(key).replaced if key is not None and key in self.optima else None
@@ -141,6 +158,7 @@ class PlanMemo:
         """Forget every prepared plan, solver and optimum (the counters too)."""
         self.prepared.clear()
         self.solvers.clear()
+        self.derived.clear()
         self.optima.clear()
         self.builds = self.reuses = 0
 
@@ -258,3 +276,19 @@ def store_optimum(key: str | None, optimum: Optimum) -> None:
                       "controls": np.asarray(g.controls, dtype=float), "horizon": float(g.horizon),
                       "objective": float(optimum.objective),
                       "explored": bool(optimum.explored)}, suffix=OPTIMUM_SUFFIX)
+
+
+def solution_key(task: str | None, solution, what: str) -> str | None:
+    """The SHA-256 of ``what`` is derived (a name), the task key and the exact content of a
+    converged ``solution`` (its grid, states, inputs, horizon and RK4 sub-steps); None without a
+    task key or a converged solution."""
+    if task is None or solution is None or not solution.success:
+        return None
+    import numpy as np
+    h = hashlib.sha256(f"{what}\0{task}\0{float(solution.horizon).hex()}\0"
+                       f"{solution.settings.get('rk4_steps')}\0".encode())
+    for array in (solution.t, solution.z, solution.u):
+        a = np.ascontiguousarray(array, dtype=float)
+        h.update(repr(a.shape).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()

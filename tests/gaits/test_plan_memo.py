@@ -42,6 +42,11 @@ def test_second_plan_reuses_the_solver_and_the_optimum(cold):
         assert abs(result.solution.objective - cold.solution.objective) <= OBJECTIVE_TOLERANCE * max(
             1.0, abs(cold.solution.objective))
     np.testing.assert_allclose(second.solution.z[-1], cold.solution.z[-1], atol=1e-6)
+    # every repetition starts at the same optimum: the same solution, bit for bit, whose
+    # feedback is then not computed again
+    third = _plan(memo)
+    np.testing.assert_array_equal(third.solution.z, second.solution.z)
+    assert third.solution.feedback is second.solution.feedback
 
 
 def test_changed_final_value_reuses_the_solver_and_reaches_it():
