@@ -456,7 +456,15 @@ def _derived(request: _Request, reached: _Reached, solution, what: str, make):
     if reused:
         request.progress.note(f"  {what}: those of this same solution (bit for bit), computed before in "
                               "this process")
+        if hasattr(value, "solve_time_s"):       # a Solution: this attempt's own record, not the earlier's
+            own = {k: value.settings[k] for k in ("transcribed_in",) if k in value.settings}
+            value = replace(value, **{name: getattr(solution, name) for name in ATTEMPT_RECORD},
+                            settings={**value.settings, **solution.settings, **own})
     return value
+
+
+#: what a Solution records of the attempt that produced it (not of its trajectory)
+ATTEMPT_RECORD = ("iterations", "solve_time_s", "setup_time_s", "function_time_s", "solver_time_s", "stats")
 
 
 def _keep_verified(reached: _Reached) -> None:
@@ -601,7 +609,7 @@ def _searched(request: _Request, problem, reached: _Reached):
     try:
         if last is not None and last.explored:
             guesses = [last.guess]
-            _search(request, guesses, reached, explore=False, fallbacks=False)
+            _search(request, guesses, reached, explore=False, fallbacks=False, in_process=last.iteration_s)
             if reached.search.solution is None:
                 progress.note("  the last optimum did not converge again: the planner's own guesses")
         if reached.search is None or reached.search.solution is None:
@@ -617,12 +625,13 @@ def _searched(request: _Request, problem, reached: _Reached):
         from nhgait.ocp import InitialGuess
 
         from .planning.plan_memo import LAST_OPTIMUM, Optimum
+        per_iteration = float(found.solve_time_s) / max(1, int(found.iterations))
         if reached.search.won == LAST_OPTIMUM:     # kept as it was: every repetition starts there
-            reached.optimum = (keys[1], last)
+            reached.optimum = (keys[1], replace(last, iteration_s=per_iteration))
         else:
             explored = explore or (last is not None and last.explored)
             guess = InitialGuess(found.z.T, found.u.T, found.horizon, LAST_OPTIMUM)
-            reached.optimum = (keys[1], Optimum(guess, float(found.objective), explored))
+            reached.optimum = (keys[1], Optimum(guess, float(found.objective), explored, per_iteration))
         memo.remember(*reached.optimum)
 
 
@@ -670,13 +679,16 @@ def _built_solver(request: _Request, prepared, name: str, explore: bool):
     return ocp if explore else ocp.direct()
 
 
-def _search(request: _Request, guesses, reached: _Reached, *, explore: bool, fallbacks: bool = True) -> None:
+def _search(request: _Request, guesses, reached: _Reached, *, explore: bool, fallbacks: bool = True,
+            in_process: float | None = None) -> None:
     """The solvers of :func:`solver_order` in turn until one converges: the search so far in
     ``reached.search``, the set-up seconds in ``reached.timings["setup_s"]``. Building a solver
     is interrupted when the budget runs out; each attempt gets at most the time left
     (:func:`~.time_limits.attempt_limited`). ``explore``: solves from generic guesses (the
     coarse grid, the exploration after a first success); else from a warm start (neither).
-    ``fallbacks``: the continuation when no guess converges (:func:`solve_with_fallbacks`)."""
+    ``fallbacks``: the continuation when no guess converges (:func:`solve_with_fallbacks`);
+    ``in_process``: the seconds per iteration of the solve a warm start comes from (its solve
+    may then run in this process: :class:`~.planning.search.SearchRun`)."""
     s, progress, budget = request.settings, request.progress, request.budget
     problem = reached.prepared.problem
     reached.search = reached.search if reached.search is not None else Search(None, (), None)
@@ -691,7 +703,8 @@ def _search(request: _Request, guesses, reached: _Reached, *, explore: bool, fal
             with progress.phase(f"solve with {name} from up to {min(s.limit, len(guesses))} guesses"):
                 run = SearchRun(workers=s.workers, limit=s.limit, progress=progress, budget=budget,
                                 explore=explore, explore_workers=max(s.workers, _default_workers()),
-                                meanwhile=figure_modules if s.warm_figures else None)
+                                meanwhile=figure_modules if s.warm_figures else None,
+                                in_process=in_process)
                 searched = (solve_with_fallbacks if fallbacks else solve_from_guesses)(ocp, guesses, run)
                 reached.search = reached.search.then(searched)
         if reached.search.solution is not None or stalled(reached.search.attempts):    # issue 41

@@ -304,6 +304,7 @@ class OCPSolver:
                                        parallel=parallel_maps(self.options))
         self.jit_cached, self.jit_fallback, self.compiled, self.jit_path = None, None, False, None
         self.compile_report, self.coarse = None, None
+        self._capped: dict = {}               # capped copies (:meth:`capped`), shared by this solver's copies
         if self.options.jit is None and compiler_command() is None and fast_compiler() is None:
             self.jit_fallback = NO_COMPILER
             self.progress.note_once("no-compiler", f"{NO_COMPILER}: the NLP functions run interpreted")
@@ -438,6 +439,25 @@ class OCPSolver:
             other.coarse = (n, sub.with_problem(problem.replace(intervals=n)),
                             None if warm is None else warm.with_problem(problem))
         return other
+
+    def capped(self, iterations: int) -> OCPSolver | None:
+        """This solver whose solver plugin stops after ``iterations`` (its own ``max_iter``, for
+        a solver without an iteration callback too — FATROP), on the same compiled library; the
+        options (and the settings a solution reports) unchanged. Until the cap the iterates are
+        those of this solver, so a capped solve that converges is this solver's solve; one that
+        reaches the cap reports ``Maximum_Iterations_Exceeded``. None when interpreted (remaking
+        an interpreted solver costs as much as making it). Made once per cap and kept."""
+        if not self.compiled or self.jit_path is None:
+            return None
+        key = (int(iterations), repr(self.options), str(self.jit_path))
+        if key not in self._capped:      # one dict shared by this solver's copies (direct, time limits)
+            other = object.__new__(OCPSolver)
+            other.__dict__.update(self.__dict__)
+            other.coarse = None
+            opts = replace(self.options, max_iter=int(iterations)).nlpsol_options()
+            other.solver = other._nlpsol(f"ocp_capped_{int(iterations)}", external_nlp(self.jit_path), opts)
+            self._capped[key] = other
+        return self._capped[key]
 
     def settings(self) -> dict:
         stage = self.nlp.layout.stage.describe() if self.nlp.layout is not None else {}

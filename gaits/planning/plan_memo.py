@@ -77,12 +77,16 @@ WARM_OPTIMA_ENV = "NHGAIT_WARM_OPTIMA"
 class Optimum:
     """The last converged solution of a task: ``guess`` (an
     :class:`~nhgait.ocp.solver.InitialGuess` on the task's grid, labelled :data:`LAST_OPTIMUM`),
-    its ``objective`` J, and ``explored``: whether it is the optimum the planner's exploration
-    kept (the further guesses were tried), so that a repeated plan need not explore again."""
+    its ``objective`` J, ``explored``: whether it is the optimum the planner's exploration
+    kept (the further guesses were tried), so that a repeated plan need not explore again, and
+    ``iteration_s``: the seconds per iteration of the solve that found it."""
 
     guess: Any
     objective: float
     explored: bool
+    #: seconds per iteration of the solve that found it (a warm start from it may then be solved
+    #: in the planner's own process: :func:`~nhgait.gaits.planning.search._in_process`)
+    iteration_s: float = float("inf")
 
 
 class _Newest:
@@ -258,7 +262,8 @@ def stored_optimum(key: str | None) -> Optimum | None:
     try:
         guess = InitialGuess(np.asarray(data["states"], dtype=float),
                              np.asarray(data["controls"], dtype=float), float(data["horizon"]), LAST_OPTIMUM)
-        return Optimum(guess, float(data["objective"]), bool(data["explored"]))
+        return Optimum(guess, float(data["objective"]), bool(data["explored"]),
+                       float(data.get("iteration_s", float("inf"))))
     except (TypeError, KeyError, ValueError):
         return None
 
@@ -274,7 +279,7 @@ def store_optimum(key: str | None, optimum: Optimum) -> None:
     g = optimum.guess
     cache.store(key, {"states": np.asarray(g.states, dtype=float),
                       "controls": np.asarray(g.controls, dtype=float), "horizon": float(g.horizon),
-                      "objective": float(optimum.objective),
+                      "objective": float(optimum.objective), "iteration_s": float(optimum.iteration_s),
                       "explored": bool(optimum.explored)}, suffix=OPTIMUM_SUFFIX)
 
 

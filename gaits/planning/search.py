@@ -210,7 +210,10 @@ class SearchRun:
     ``workers`` attempts at once, at most ``limit`` guesses (None: all), ``progress`` (None:
     silent), the plan's ``budget`` (None: none), ``explore`` (the next guesses after a first
     success, :func:`_explored`) with ``explore_workers`` at once (None: ``workers``), and
-    ``meanwhile``: run in this process while the first attempts work (:func:`solve_attempts`)."""
+    ``meanwhile``: run in this process while the first attempts work (:func:`solve_attempts`);
+    ``in_process``: the seconds per iteration measured on the solve a warm start comes from — a
+    batch of one guess is then first solved in this process when that cannot delay a stop
+    (:func:`_in_process`); None: never."""
 
     workers: int = 1
     limit: int | None = None
@@ -219,6 +222,7 @@ class SearchRun:
     explore: bool = False
     explore_workers: int | None = None
     meanwhile: Any = None
+    in_process: float | None = None
 
     @classmethod
     def of(cls, run: SearchRun | None, fields: dict) -> SearchRun:
@@ -248,8 +252,9 @@ def solve_from_guesses(solver, guesses, run: SearchRun | None = None, **fields) 
             break
         solver.adopt_optimised()
         t0, aside = time.monotonic(), _Aside(meanwhile)
-        sols = solve_attempts(solver, batch, workers=workers, budget=budget, progress=progress,
-                              meanwhile=aside if meanwhile is not None else None)
+        here = _in_process(solver, batch, run) if run.in_process is not None else None
+        sols = here or solve_attempts(solver, batch, workers=workers, budget=budget, progress=progress,
+                                      meanwhile=aside if meanwhile is not None else None)
         meanwhile = None
         for k, (g, s) in enumerate(zip(batch, sols, strict=True)):
             attempts.append(attempt_of(g.label, s, name))
@@ -272,6 +277,45 @@ def solve_from_guesses(solver, guesses, run: SearchRun | None = None, **fields) 
                              window, replace(run, progress=progress,
                                              workers=max(1, int(run.explore_workers or workers))))
     return Search(None, tuple(attempts), None, closest)
+
+
+#: a warm start is solved in this process, not in a supervised child, when its solver stops by
+#: itself within this many iterations (:meth:`~nhgait.ocp.solver.OCPSolver.capped`) ...
+IN_PROCESS_ITERATIONS = 50
+#: ... and so many iterations took at most this long at the cost per iteration measured on the
+#: solve it starts from: a stop signal, whose handler runs once the solver returns (FATROP has no
+#: callback), then waits at most about that long (the command line's watchdog ends a process
+#: still running 1.5 s after one, :mod:`nhgait.gaits.cli.stopping`); a loaded machine, whose
+#: iterations take longer, solves in a supervised child
+IN_PROCESS_MAX_S = 0.5
+
+
+def _in_process(solver, batch, run: SearchRun) -> list | None:
+    """[the converged solution of the one guess in ``batch``] solved in this process, or None:
+    not one guess, interpreted code, a cap (:data:`IN_PROCESS_ITERATIONS`) whose iterations could
+    take longer than :data:`IN_PROCESS_MAX_S` (at ``run.in_process`` seconds each), less than
+    twice that left of ``run.budget``, or no convergence within the cap (then the caller's
+    supervised attempt solves it as ever). Until the cap the iterates are the supervised solve's,
+    so a converged answer is the same one; the supervised child costs a fork and a pickled
+    solution, more than a warm start's solve (issue 40)."""
+    budget, progress = run.budget, run.progress
+    worst = IN_PROCESS_ITERATIONS * float(run.in_process)
+    if len(batch) != 1 or worst > IN_PROCESS_MAX_S or (budget is not None
+                                                      and budget.remaining() < 2 * IN_PROCESS_MAX_S):
+        return None
+    capped = solver.capped(IN_PROCESS_ITERATIONS)
+    if capped is None:
+        return None
+    solution = capped.solve(batch[0])
+    if not solution.success:
+        if progress is not None:
+            progress.note(f"  in this process: {solution.status} within {IN_PROCESS_ITERATIONS} iterations; "
+                          "solved again in a supervised child")
+        return None
+    if progress is not None:
+        progress.note(f"  solved in this process (a warm start: at most {IN_PROCESS_ITERATIONS} iterations, "
+                      f"about {worst:.2g} s at most; no supervised child)")
+    return [solution]
 
 
 class _Aside:

@@ -94,3 +94,30 @@ def test_a_new_process_starts_from_the_last_verified_optimum(cold, monkeypatch, 
     assert first.guess != LAST_OPTIMUM and again.guess == LAST_OPTIMUM
     assert len(again.attempts) == 1
     assert again.solution.objective == pytest.approx(cold.solution.objective, rel=OBJECTIVE_TOLERANCE)
+
+
+def test_a_warm_start_solved_in_this_process_is_the_supervised_solve(monkeypatch):
+    """A warm start whose iterations are cheap runs in this process (no supervised attempt:
+    counted) and gives the supervised solve's answer; a costly one stays supervised."""
+    import nhgait.gaits.planning.search as search
+    from nhgait.gaits.planner import prepare
+    from nhgait.gaits.planning.guesses import candidates
+    from nhgait.gaits.tasks.sources import resolve
+    from nhgait.ocp import InitialGuess, OCPSolver, SolverOptions
+    problem = prepare(resolve("unicycle", "parallel-park", overrides=["intervals=10"])).problem
+    ocp = OCPSolver(problem, options=SolverOptions(max_iter=500, jit=True, solver="ipopt"))
+    if not ocp.compiled:
+        pytest.skip(f"no compiled NLP functions here ({ocp.jit_fallback})")
+    optimum = search.solve_from_guesses(ocp, candidates(problem), limit=3).solution
+    assert optimum.success
+    start = InitialGuess(optimum.z.T, optimum.u.T, optimum.horizon, LAST_OPTIMUM)
+    supervised = search.solve_from_guesses(ocp, [start]).solution
+    calls = []
+    real = search.solve_attempts
+    monkeypatch.setattr(search, "solve_attempts", lambda *a, **k: calls.append(1) or real(*a, **k))
+    here = search.solve_from_guesses(ocp, [start], in_process=1e-6).solution
+    assert calls == [] and here.success
+    np.testing.assert_array_equal(here.z, supervised.z)
+    assert here.iterations == supervised.iterations
+    costly = search.solve_from_guesses(ocp, [start], in_process=1.0).solution     # 50 × 1 s: not here
+    assert calls == [1] and costly.success
