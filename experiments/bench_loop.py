@@ -10,6 +10,8 @@ of ``--repeats`` runs.
   runs them (a fresh process each; the cache already holding the derivation and the optimised
   library), against the floor of any such tool: a bare ``python -c "import casadi, sympy,
   numpy"``. Targets: plan ≤ 2×, derive ≤ 1.5× the floor.
+  Each plan also runs with ``NHGAIT_WARM_OPTIMA=0``: without the last verified optimum of
+  its task from the cache, as every warm run did before it (issue 40).
 * **in process, warm** — ``plan("snakeboard", "forward", intervals=100, verify=False)`` (P2) in
   a long-lived process, against the hand-written jit CasADi multiple-shooting reference's solve
   of the same problem (``experiments/reference_casadi_ocp.py``, Ipopt, gcc -O1; its NLP built
@@ -122,17 +124,28 @@ def _warm_plan(args: list, out: Path, cache: Path, background: bool) -> dict:
 
 
 def measure_processes(cache: Path, folder: Path, repeats: int, commands: tuple,
-                      background: bool = True) -> list:
-    """Rows of the whole-process runs against the floor, each command's runs taking turns."""
+                      background: bool = True, cold_guesses: bool = True) -> list:
+    """Rows of the whole-process runs against the floor, each command's runs taking turns;
+    ``cold_guesses``: each plan also with ``NHGAIT_WARM_OPTIMA=0`` (no last verified optimum
+    from the cache: the planner's guesses built, the exploration run — every warm run before
+    :mod:`nhgait.gaits.planning.plan_memo`)."""
     env = _env(cache, background)
+    cold_env = {**env, "NHGAIT_WARM_OPTIMA": "0"}
+    plans = [(label, args) for label, args, _ in commands if args[0] == "plan"] if cold_guesses else []
     times = {"floor": []} | {label: [] for label, _, _ in commands}
+    times |= {f"{label} cold": [] for label, _ in plans}
     for _ in range(repeats):
         times["floor"].append(_timed([sys.executable, "-c", FLOOR], env))
         for label, args, _ in commands:
             times[label].append(_timed(_command(args, folder / "runs"), env))
+        for label, args in plans:
+            times[f"{label} cold"].append(_timed(_command(args, folder / "runs"), cold_env))
     floor = _row(f'python -c "{FLOOR}" (the floor)', times["floor"], None, None)
-    return [floor] + [_row(f"nhgait {label}, warm", times[label], (floor["median_s"], floor["cpu_s"]), target)
+    base = (floor["median_s"], floor["cpu_s"])
+    rows = [floor] + [_row(f"nhgait {label}, warm", times[label], base, target)
                       for label, _, target in commands]
+    return rows + [_row(f"nhgait {label}, warm, NHGAIT_WARM_OPTIMA=0 (guesses built, exploration run)",
+                        times[f"{label} cold"], base, None) for label, _ in plans]
 
 
 def _both() -> tuple:
@@ -203,7 +216,8 @@ def main(argv=None) -> int:
                     help=f"the whole-process commands ({', '.join(ALL_COMMANDS)})")
     ap.add_argument("--cache", default=None, help="cache folder (default: a new temporary one, warmed first)")
     ap.add_argument("--out", default="out/bench_loop.json")
-    ap.add_argument("--no-bare", action="store_true", help="no row of the in-process plan without the memo")
+    ap.add_argument("--no-bare", action="store_true",
+                    help="no rows without the memo (in process) or without the cache's optima (processes)")
     ap.add_argument("--no-background", action="store_true",
                     help="no optimised background build: the warm runs use the fast compiler's library")
     args = ap.parse_args(argv)
@@ -219,7 +233,8 @@ def main(argv=None) -> int:
         warm_up(cache, folder, commands, background)
         rows = []
         if "process" in sections:
-            rows += measure_processes(cache, folder, args.repeats, commands, background)
+            rows += measure_processes(cache, folder, args.repeats, commands, background,
+                                      cold_guesses=not args.no_bare)
         if "inprocess" in sections:
             rows += measure_in_process(cache, args.repeats, with_bare=not args.no_bare)
     print(f"# the designer's loop: medians of {args.repeats} runs, ratios in this run "

@@ -382,13 +382,13 @@ class _Request:
 
 def _memo(memo):
     """The :class:`~.planning.plan_memo.PlanMemo` of ``plan(memo=...)``: None → the default one,
-    False → none."""
+    False → none; none either in a thread the memo does not serve."""
     if memo is False:
         return None
     if memo is None:
         from .planning.plan_memo import PLAN_MEMO
-        return PLAN_MEMO
-    return memo
+        memo = PLAN_MEMO
+    return memo if memo.serves_this_thread() else None
 
 
 def _run_plan(request: _Request, reached: _Reached) -> None:

@@ -38,6 +38,9 @@ starts from it (:func:`stored_optimum`), building the planner's own guesses only
 ``NHGAIT_WARM_OPTIMA=0`` turns this off (the test suite does, so that no test starts from
 another's answer).
 
+A memo serves the thread that used it first (:meth:`PlanMemo.serves_this_thread`): a plan in
+another thread runs without it (a built solver must not run in two threads at once).
+
 Neither is a source of results: the solver is the one a cold plan builds, and a warm start from
 the last optimum converges to that optimum (tests/gaits/test_plan_memo.py checks both against a
 cold plan). Both are bounded (least recently used entries dropped: :data:`SOLVER_ENTRIES`,
@@ -52,6 +55,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -113,6 +117,16 @@ class PlanMemo:
         self.derived = LruMemo("values derived from a converged solution, by its content", optima)
         self.builds = 0
         self.reuses = 0
+        self._thread: int | None = None
+
+    def serves_this_thread(self) -> bool:
+        """Whether plans in the calling thread may use this memo: a memo serves the one thread
+        that used it first (a solver must not run in two threads at once); a plan in another
+        thread runs without it."""
+        ident = threading.get_ident()
+        if self._thread is None:
+            self._thread = ident
+        return self._thread == ident
 
     def solver(self, key: str | None, build: Callable[[], Any]) -> tuple:
         """(solver, reused): the solver kept for ``key``, else ``build()`` kept (``key`` None:
@@ -165,6 +179,7 @@ class PlanMemo:
         self.derived.clear()
         self.optima.clear()
         self.builds = self.reuses = 0
+        self._thread = None
 
     def __repr__(self) -> str:
         return (f"PlanMemo({len(self.solvers)}/{self.solvers.size} solvers, {len(self.optima)}/"

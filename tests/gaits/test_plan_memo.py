@@ -121,3 +121,14 @@ def test_a_warm_start_solved_in_this_process_is_the_supervised_solve(monkeypatch
     assert here.iterations == supervised.iterations
     costly = search.solve_from_guesses(ocp, [start], in_process=1.0).solution     # 50 × 1 s: not here
     assert calls == [1] and costly.success
+
+
+def test_a_memo_serves_one_thread():
+    import threading
+    memo = PlanMemo()
+    assert memo.serves_this_thread()
+    seen = []
+    worker = threading.Thread(target=lambda: seen.append(memo.serves_this_thread()))
+    worker.start()
+    worker.join()
+    assert seen == [False] and memo.serves_this_thread()
