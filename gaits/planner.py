@@ -435,6 +435,7 @@ def _run_plan(request: _Request, reached: _Reached) -> None:
             _refined(reached, settings, budget, progress, verify_one)
         if not _passed(reached.solution) and search.first is not None:
             search = _first_instead(reached, search, settings, budget, progress, verify_one)
+            _remember_kept(request, reached)
         reached.timings["verify_s"] = time.perf_counter() - t0
         _keep_verified(reached)
     if search.solution is not None:                                          # issue 28
@@ -465,6 +466,23 @@ def _derived(request: _Request, reached: _Reached, solution, what: str, make):
 
 #: what a Solution records of the attempt that produced it (not of its trajectory)
 ATTEMPT_RECORD = ("iterations", "solve_time_s", "setup_time_s", "function_time_s", "solver_time_s", "stats")
+
+
+def _remember_kept(request: _Request, reached: _Reached) -> None:
+    """After the verification kept the first converged gait instead of the exploration's lower
+    objective (:func:`_first_instead`): that gait is the task's last optimum in the memo (a warm
+    start from the other would fail its verification again, with no first gait to fall back on)."""
+    if request.memo is None or reached.optimum is None or reached.search.solution is None:
+        return
+    from nhgait.ocp import InitialGuess
+
+    from .planning.plan_memo import LAST_OPTIMUM
+    kept = reached.search.solution
+    key, optimum = reached.optimum
+    if float(kept.objective) != optimum.objective:
+        guess = InitialGuess(kept.z.T, kept.u.T, kept.horizon, LAST_OPTIMUM)
+        reached.optimum = (key, replace(optimum, guess=guess, objective=float(kept.objective)))
+        request.memo.remember(*reached.optimum)
 
 
 def _keep_verified(reached: _Reached) -> None:
