@@ -682,16 +682,17 @@ def _built_solver(request: _Request, prepared, name: str, explore: bool):
     if memo is None:
         ocp = build()
     else:
-        key = structure_key(prepared, request.to_plan.scene, request.to_plan.task, s, name)
+        key = structure_key(prepared, request.to_plan.scene, request.to_plan.task, s,
+                            f"{name}{' (its own log)' if progress.verbose else ''}")
         ocp, reused = memo.solver(key, build)
         if reused:
+            ocp.talk_to(progress).adopt_optimised()     # kept switched: its copies inherit the library
             try:
                 ocp = ocp.for_values(problem)
             except ProblemError:            # not the NLP it seemed: built anew (and kept)
                 memo.solvers.clear()
                 ocp, _ = memo.solver(key, build)
             else:
-                ocp.adopt_optimised()
                 progress.note(f"  the NLP and the {name} solver of this structure, built before in this "
                               "process: reused")
     return ocp if explore else ocp.direct()

@@ -423,6 +423,7 @@ class OCPSolver:
         other.problem = problem
         other.nlp = replace(self.nlp, problem=problem, lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg)
         other.coarse = None                     # a problem grown from another: no coarse grid
+        other._capped = {}                      # its capped copies solve its own bounds
         return other
 
     def for_values(self, problem: OptimalControlProblem) -> OCPSolver:
@@ -439,6 +440,19 @@ class OCPSolver:
             other.coarse = (n, sub.with_problem(problem.replace(intervals=n)),
                             None if warm is None else warm.with_problem(problem))
         return other
+
+    def talk_to(self, progress: Progress | None) -> OCPSolver:
+        """This solver (and its capped copies, :meth:`capped`) saying its notes and Ipopt's
+        iteration lines on ``progress`` from now on (None: silent) — a solver kept between plans
+        talks on each plan's own stream. The solver's own log (``progress.verbose``) is fixed
+        when it is made. Returns this solver."""
+        self.progress = progress or Progress.silent()
+        for solver in (self, *self._capped.values()):
+            solver.progress = self.progress
+            callback = getattr(solver, "_callback", None)
+            if callback is not None:
+                callback.progress = Progress.silent() if self.progress.verbose else self.progress
+        return self
 
     def capped(self, iterations: int) -> OCPSolver | None:
         """This solver whose solver plugin stops after ``iterations`` (its own ``max_iter``, for

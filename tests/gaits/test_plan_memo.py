@@ -132,3 +132,20 @@ def test_a_memo_serves_one_thread():
     worker.start()
     worker.join()
     assert seen == [False] and memo.serves_this_thread()
+
+
+def test_a_kept_solver_talks_on_each_plans_own_stream():
+    """A solver built under one plan's progress says nothing there during a later quiet plan;
+    the later plan's own stream says what was reused."""
+    import io
+
+    from nhgait.dynamics.progress import Progress
+    memo, first, later = PlanMemo(), io.StringIO(), io.StringIO()
+    options = {**OPTIONS, "solver": "ipopt"}            # Ipopt: the iteration callback talks too
+    plan(TASK["system"], TASK["task"], memo=memo, progress=Progress(first, interval=0.0), **options)
+    said = first.getvalue()
+    plan(TASK["system"], TASK["task"], memo=memo, **options)
+    assert first.getvalue() == said
+    plan(TASK["system"], TASK["task"], memo=memo, progress=Progress(later), **options)
+    assert "built before in this process: reused" in later.getvalue()
+    assert "explored before: no exploration" in later.getvalue()
