@@ -672,13 +672,14 @@ def _built_solver(request: _Request, prepared, name: str, explore: bool):
     from .planning.time_limits import attempt_limited
     s, progress, problem = request.settings, request.progress, prepared.problem
 
-    def build():
+    memo = request.memo
+
+    def build():                    # a kept solver has the coarse grid a later cold plan uses
         with progress.phase(f"build the NLP for {name} ({problem.intervals} intervals, {s.hessian} Hessian)"):
             ocp = OCPSolver(problem, s.transcription,
                             SolverOptions(jit=s.jit, solver=name, max_iter=s.max_iter, hessian=s.hessian,
-                                          coarse=True), progress=progress)
+                                          coarse=explore or memo is not None), progress=progress)
             return attempt_limited(ocp, None, progress)
-    memo = request.memo
     if memo is None:
         ocp = build()
     else:
