@@ -616,13 +616,14 @@ def _searched(request: _Request, problem, reached: _Reached):
     memo, progress = request.memo, request.progress
     keys = _memo_keys(request, reached.prepared)
     last = memo.optimum(keys[1]) if memo is not None and request.guess is None else None
+    where = "kept in this process"
     if last is None and memo is not None and request.guess is None:
         from .planning.plan_memo import stored_optimum
-        last = stored_optimum(keys[1])               # a verified optimum of an earlier process
+        last, where = stored_optimum(keys[1]), "verified, kept in the cache"      # an earlier process's
     explore = request.guess is None               # a user's warm start answers where the user asked
     guesses = []
     if last is not None:
-        progress.note(f"  warm start from the last optimum of this task (J = {last.objective:.6g})"
+        progress.note(f"  warm start from the last optimum of this task ({where}; J = {last.objective:.6g})"
                       + ("; explored before: no exploration" if last.explored else ""))
     try:
         if last is not None and last.explored:
