@@ -149,3 +149,26 @@ def test_a_kept_solver_talks_on_each_plans_own_stream():
     plan(TASK["system"], TASK["task"], memo=memo, progress=Progress(later), **options)
     assert "built before in this process: reused" in later.getvalue()
     assert "explored before: no exploration" in later.getvalue()
+
+
+def test_a_last_optimum_that_fails_gives_way_to_the_planners_guesses(cold):
+    """An optimum kept for the task that no longer converges (here: not finite, refused before
+    any solve) is followed by the planner's own guesses and exploration: the cold optimum."""
+    import io
+
+    from nhgait.dynamics.progress import Progress
+    from nhgait.gaits.planning.plan_memo import Optimum
+    from nhgait.ocp import InitialGuess
+    memo = PlanMemo()
+    _plan(memo)
+    (key,) = list(memo.optima._entries)         # the one task planned
+    good = memo.optimum(key)
+    broken = InitialGuess(np.full_like(good.guess.states, np.nan), good.guess.controls, good.guess.horizon,
+                          LAST_OPTIMUM)
+    memo.remember(key, Optimum(broken, good.objective, True))
+    said = io.StringIO()
+    again = _plan(memo, progress=Progress(said))
+    assert "did not converge again: the planner's own guesses" in said.getvalue()
+    assert again.success and again.guess != LAST_OPTIMUM
+    assert again.attempts[0].label == LAST_OPTIMUM and not again.attempts[0].success
+    assert again.solution.objective == pytest.approx(cold.solution.objective, rel=OBJECTIVE_TOLERANCE)
