@@ -286,7 +286,9 @@ IN_PROCESS_ITERATIONS = 50
 #: solve it starts from: a stop signal, whose handler runs once the solver returns (FATROP has no
 #: callback), then waits at most about that long (the command line's watchdog ends a process
 #: still running 1.5 s after one, :mod:`nhgait.gaits.cli.stopping`); a loaded machine, whose
-#: iterations take longer, solves in a supervised child
+#: iterations take longer, solves in a supervised child. (The cost per iteration may have been
+#: measured in a child granted two threads, :mod:`nhgait.dynamics.numerics.openmp`; this process
+#: runs its maps on one, so the bound can be up to twice this: still below the watchdog's.)
 IN_PROCESS_MAX_S = 0.5
 
 
