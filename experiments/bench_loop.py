@@ -157,12 +157,13 @@ def _since(start: tuple) -> tuple:
     return now[0] - start[0], now[1] - start[1]
 
 
-def measure_in_process(cache: Path, repeats: int, with_bare: bool = True) -> list:
+def measure_in_process(cache: Path, repeats: int, with_bare: bool = True, background: bool = True) -> list:
     """Rows of the in-process warm P2 plan against the reference's solve, taking turns (CPU:
     this process and the attempts' children); ``with_bare``: also the same plan without the
     process's memo (``plan(..., memo=False)``, :mod:`nhgait.gaits.planning.plan_memo`), as every
     plan ran before it."""
     os.environ["NHGAIT_CACHE_DIR"] = str(cache)
+    os.environ["NHGAIT_BACKGROUND_BUILDS"] = "1" if background else "0"   # --no-background: none here either
     from nhgait.gaits.planner import plan
     ref = sibling.load("reference_casadi_ocp")
     run_ours = lambda: plan(P2["system"], P2["gait"], intervals=P2["intervals"], verify=False)  # noqa: E731
@@ -236,7 +237,7 @@ def main(argv=None) -> int:
             rows += measure_processes(cache, folder, args.repeats, commands, background,
                                       cold_guesses=not args.no_bare)
         if "inprocess" in sections:
-            rows += measure_in_process(cache, args.repeats, with_bare=not args.no_bare)
+            rows += measure_in_process(cache, args.repeats, with_bare=not args.no_bare, background=background)
     print(f"# the designer's loop: medians of {args.repeats} runs, ratios in this run "
           f"(load average {os.getloadavg()[0]:.1f})")
     print(table(rows))
