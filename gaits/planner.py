@@ -48,13 +48,22 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 from .files.exports import states_text
-from .plan_files import figure_modules, with_figures, write_figure_files, write_outputs, written  # noqa: F401
+from .plan_files import (  # noqa: F401
+    FigureStaging,
+    draw_ahead,
+    modules_for_later,
+    with_figures,
+    write_figure_files,
+    write_outputs,
+    written,
+)
 from .planning.infeasibility import stalled, with_elastic
 from .planning.search import Attempt, Search, continuation, solve_from_guesses, solve_with_fallbacks  # noqa: F401
 from .planning.warm_start import MAX_SOLUTION_BYTES, previous_answer, read_solution, warm_start  # noqa: F401
 from .tasks.statement import quantity_objects  # noqa: F401
 from .verification.checks import open_loop_label, solution_check_lines
 from .verification.gait_check import (  # noqa: F401
+    GaitReference,
     momentum_problem,
     screening_report,
     to_momentum_coordinates,
@@ -254,7 +263,7 @@ def choose_hessian(hessian: str) -> str:
 
 
 def plan(system, task=None, *, overrides=(), params=None, guess=None, out_dir=None, animate=False,
-         figures=True, progress=None, options=None, **values) -> PlanResult:
+         figures=True, on_result=None, progress=None, options=None, **values) -> PlanResult:
     r"""Plan a gait: see the module docstring.
 
     Parameters
@@ -271,7 +280,10 @@ def plan(system, task=None, *, overrides=(), params=None, guess=None, out_dir=No
     out_dir : write solution.json and the figures there (``animate``: also motion.gif, which
         needs ``out_dir``)
     figures : False: in ``out_dir`` only solution.json and trajectory.csv (the result); the
-        figures are then :func:`with_figures`'s (``nhgait plan`` prints the result line first)
+        figures are then :func:`with_figures`'s. True: the figures too, after the result, drawn
+        while the gait is verified (:func:`~.plan_files.draw_ahead`) where they can be
+    on_result : called with the PlanResult once its result files are written, before its
+        figures are (``nhgait plan`` prints its result line there)
     progress : a :class:`~nhgait.dynamics.progress.Progress` (None: silent)
     options : how the plan is solved, a :class:`~.plan_options.PlanOptions` (or a mapping of its
         names; None: the defaults) — the grid (``intervals``), ``solver``, ``transcription``,
@@ -302,21 +314,29 @@ def plan(system, task=None, *, overrides=(), params=None, guess=None, out_dir=No
     budget = plan_budget(to_plan, options.time_limit, started=started, progress=progress)
     if options.changed():
         progress.note(f"options: {options.summary()}")
-    settings = SearchSettings.of(options, warm_figures=out_dir is not None)
     reached = _Reached()
-    try:
-        _run_plan(to_plan, reached, settings, budget, params=params, guess=guess, verify=options.verify,
-                  progress=progress)
-    except BudgetSpent as exc:
-        reached.overrun = exc.overrun
-        progress.note(f"  the time budget of {exc.overrun.seconds:g} s ran out during {exc.overrun.phase}")
-    result = _result(to_plan, reached, settings, params)
-    result = with_elastic(result, reached.prepared, reached.search, budget, progress)     # issue 41
-    result = replace(result, diagnosis=diagnose(result))
-    if out_dir is not None:
-        result = written(result, out_dir, progress=progress)
-        if figures:
-            result = with_figures(result, out_dir, animate=animate, progress=progress)
+    with FigureStaging(out_dir if figures else None) as staging:     # figures drawn ahead go there first
+        settings = SearchSettings.of(options, warm_figures=out_dir is not None, figures_ahead=staging)
+        try:
+            _run_plan(to_plan, reached, settings, budget, params=params, guess=guess, verify=options.verify,
+                      progress=progress)
+        except BudgetSpent as exc:
+            reached.overrun = exc.overrun
+            progress.note(f"  the time budget of {exc.overrun.seconds:g} s ran out during "
+                          f"{exc.overrun.phase}")
+        result = _result(to_plan, reached, settings, params)
+        result = with_elastic(result, reached.prepared, reached.search, budget, progress)     # issue 41
+        result = replace(result, diagnosis=diagnose(result))
+        if out_dir is not None:
+            result = written(result, out_dir, progress=progress)
+            if on_result is not None:
+                on_result(result)
+            if figures:
+                t0 = time.perf_counter()
+                drawn = with_figures(result, out_dir, animate=animate, progress=progress, ahead=reached.ahead)
+                timings = {**drawn.timings,
+                           "figures_s": drawn.timings.get("figures_s", 0.0) + time.perf_counter() - t0}
+                result = replace(drawn, timings=timings) if drawn.files != result.files else drawn
     return result
 
 
@@ -336,7 +356,8 @@ def plan_budget(to_plan, time_limit=None, *, started=None, progress=None):
 class _Reached:
     """How far a plan got (kept when its budget runs out): the prepared model and problem, the
     guesses' search, the solution in momentum coordinates (verified when ``verified``), the
-    seconds per step, what the screening of the guesses found (``screening``) and, when the
+    seconds per step, what the screening of the guesses found (``screening``), the figures drawn
+    while the gait was verified (``ahead``, :class:`~.plan_files.FiguresAhead`) and, when the
     budget ran out, where."""
 
     prepared: Any = None
@@ -345,6 +366,7 @@ class _Reached:
     timings: dict = field(default_factory=dict)
     overrun: Any = None
     screening: tuple = ()
+    ahead: Any = None
 
 
 def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, verify, progress) -> None:
@@ -370,8 +392,7 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
             guesses = guesses.with_first(warm_start(guess, problem))
     def verify_one(solution):
         with budget.stage("verification"):
-            return verified_gait(solution, reached.prepared.model, reached.prepared.stated, to_plan, params,
-                                 progress=progress)
+            return verified_gait(solution, _reference(reached.prepared, to_plan, params), progress=progress)
     t0 = time.perf_counter()
     try:
         _search(problem, guesses, settings, progress, budget, reached)
@@ -384,8 +405,24 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
         t0 = time.perf_counter()
         reached.search = robust_search(reached.search, reached.prepared, to_plan, settings, budget, progress)
         reached.timings["robust_s"] = time.perf_counter() - t0
+    reached.solution = _in_momentum(reached.search, reached.prepared, to_plan, params)
+
+    def checked():
+        _checked(reached, settings, budget, progress, verify_one, verify)
+    if reached.search.solution is not None and settings.figures_ahead is not None:     # issue 40
+        t0 = time.perf_counter()
+        reached.ahead = draw_ahead(_provisional(to_plan, reached), settings.figures_ahead, checked, progress)
+        hidden = reached.timings.get("verify_s", 0.0) + reached.timings.get("feedback_s", 0.0)
+        reached.timings["figures_s"] = max(0.0, time.perf_counter() - t0 - hidden)  # beyond the checks
+    else:
+        checked()
+
+
+def _checked(reached: _Reached, settings, budget, progress, verify_one, verify: bool) -> None:
+    """Step 5 and the feedback, in ``reached``: the converged gait verified (refined when its
+    deciding check misses its nodes; the first converged gait instead when the exploration's
+    lower objective fails), then the feedback and stability along the gait kept."""
     search = reached.search
-    reached.solution = _in_momentum(search, reached.prepared, to_plan, params)
     if verify and search.solution is not None:
         t0 = time.perf_counter()
         reached.solution = verify_one(search.solution)
@@ -393,13 +430,22 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
         if refinable(reached.solution) and "robust" not in search.solution.settings:
             _refined(reached, settings, budget, progress, verify_one)
         if not _passed(reached.solution) and search.first is not None:
-            search = _first_instead(reached, search, settings, budget, progress, verify_one)
+            _first_instead(reached, search, settings, budget, progress, verify_one)
         reached.timings["verify_s"] = time.perf_counter() - t0
-    if search.solution is not None:                                          # issue 28
+    if reached.search.solution is not None:                                  # issue 28
         t0 = time.perf_counter()
         with budget.stage("the feedback and stability"):
-            reached.solution = replace(reached.solution, **_feedback_and_stability(search, progress))
+            reached.solution = replace(reached.solution, **_feedback_and_stability(reached.search, progress))
         reached.timings["feedback_s"] = time.perf_counter() - t0
+
+
+def _provisional(to_plan, reached: _Reached) -> PlanResult:
+    """The PlanResult of the converged gait before its verification (what the figures drawn
+    ahead show; :func:`~.plan_files.draw_ahead`)."""
+    search = reached.search
+    return PlanResult(label=to_plan.label, task=to_plan.task, solution=reached.solution,
+                      guess=search.won or "none", attempts=search.attempts, plan=to_plan,
+                      model=reached.prepared.model)
 
 
 def _passed(solution) -> bool:
@@ -477,15 +523,18 @@ class SearchSettings:
     workers: int
     limit: int
     warm_figures: bool = False
+    figures_ahead: Any = None
 
     @classmethod
-    def of(cls, options, *, warm_figures: bool = False) -> SearchSettings:
+    def of(cls, options, *, warm_figures: bool = False, figures_ahead=None) -> SearchSettings:
         """The settings of a plan's :class:`~.plan_options.PlanOptions` (the Hessian chosen, the
-        workers counted)."""
+        workers counted); ``warm_figures``: the figures' modules imported while the attempts
+        run; ``figures_ahead``: the :class:`~.plan_files.FigureStaging` of figures drawn while
+        the gait is verified (None: drawn after the result, if at all)."""
         workers = _default_workers() if options.workers in (None, "auto") else int(options.workers)
         return cls(solver=options.solver, transcription=options.transcription, jit=options.jit,
                    hessian=choose_hessian(options.hessian), max_iter=options.max_iter, workers=workers,
-                   limit=options.max_guesses, warm_figures=warm_figures)
+                   limit=options.max_guesses, warm_figures=warm_figures, figures_ahead=figures_ahead)
 
 
 def _search(problem, guesses, settings: SearchSettings, progress, budget, reached: _Reached) -> None:
@@ -517,7 +566,7 @@ def _search(problem, guesses, settings: SearchSettings, progress, budget, reache
                 reached.search = reached.search.then(solve_with_fallbacks(
                     ocp, guesses, workers=s.workers, limit=s.limit, progress=progress, budget=budget,
                     explore=explore, explore_workers=max(s.workers, _default_workers()),
-                    meanwhile=figure_modules if s.warm_figures else None))
+                    meanwhile=modules_for_later if s.warm_figures else None))
         if reached.search.solution is not None or stalled(reached.search.attempts):    # issue 41
             break
 
@@ -528,7 +577,12 @@ def _in_momentum(search, prepared, to_plan, params):
     solution = search.solution if search.solution is not None else search.closest
     if solution is None:
         return None
-    return verified_gait(solution, prepared.model, prepared.stated, to_plan, params, verify=False)
+    return verified_gait(solution, _reference(prepared, to_plan, params), verify=False)
+
+
+def _reference(prepared: Prepared, to_plan, params) -> GaitReference:
+    """What a plan's gaits are verified against (:class:`~.verification.gait_check.GaitReference`)."""
+    return GaitReference(prepared.model, prepared.stated, to_plan, params)
 
 
 def _feedback_and_stability(search, progress) -> dict:
