@@ -46,8 +46,10 @@ class BufferedCall:
             return np.asarray(out[0] if isinstance(out, (tuple, list)) else out, float).ravel()
         if len(args) != len(self._inputs):
             raise TypeError(f"{self.function.name()} takes {len(self._inputs)} arguments, got {len(args)}")
-        for array, value in zip(self._inputs, args, strict=True):
-            array[:] = np.ravel(value, order="F")    # CasADi stores column-major
+        for array, value in zip(self._inputs, args, strict=True):   # lengths checked above
+            if getattr(value, "ndim", 0) > 1:
+                value = np.ravel(value, order="F")    # CasADi stores a matrix column-major
+            array[:] = value                          # a scalar, or the n values of a vector
         self._run()
         if self._buffer.ret() != 0:
             raise RuntimeError(f"evaluation of {self.function.name()} failed")
