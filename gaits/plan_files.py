@@ -3,10 +3,10 @@
 * :func:`written` — ``solution.json`` (the solution, the task, the guesses tried and screened,
   success, diagnosis) and ``trajectory.csv``: the result, written before anything optional
   (:func:`write_outputs`), to a fallback when ``out`` fails (:func:`nhgait.gaits.files.outputs.rescue`).
-* :func:`draw_ahead` — the figures drawn while the gait is verified: two supervised children draw
-  them from the converged solution into a staging folder of the output directory
-  (:class:`FigureStaging`) while this process verifies the gait and designs its feedback (the
-  children's ``meanwhile``); nothing is in the output directory yet.
+* :func:`draw_ahead` — the figures drawn while the gait is verified: supervised children (one per
+  figure, two at a time) draw them from the converged solution into a staging folder of the
+  output directory (:class:`FigureStaging`) while this process verifies the gait and designs its
+  feedback (the children's ``meanwhile``); nothing is in the output directory yet.
 * :func:`with_figures` — then, after the result, the figures: those drawn ahead moved into place
   when the verified result is what they show (:meth:`FiguresAhead.shows`: the same nodes and
   inputs in the same chart, a success, the same attempts), else drawn now (a failed
@@ -127,9 +127,10 @@ def _draw_files(result, out: Path, *, animate: bool, progress, figures: bool = T
 
 
 def _drawn(result, out: Path, meanwhile=None) -> list:
-    """The five figures of ``result`` drawn into ``out`` by supervised children, two at a time
-    (:func:`nhgait.gaits.figures.plots.figure_jobs` and convergence.png); ``meanwhile`` runs in this
-    process while they draw. Their paths; an OSError when a child failed."""
+    """The five figures of ``result`` drawn into ``out`` by supervised children, one per figure,
+    two at a time (:func:`nhgait.gaits.figures.plots.figure_jobs` and convergence.png);
+    ``meanwhile`` runs in this process while they draw. Their paths; an OSError when a child
+    failed."""
     from nhgait.ocp.supervision import Job, supervise
 
     from .figures import plots
