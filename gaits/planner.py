@@ -280,8 +280,8 @@ def plan(system, task=None, *, overrides=(), params=None, guess=None, out_dir=No
     out_dir : write solution.json and the figures there (``animate``: also motion.gif, which
         needs ``out_dir``)
     figures : False: in ``out_dir`` only solution.json and trajectory.csv (the result); the
-        figures are then :func:`with_figures`'s. True: the figures too, after the result, drawn
-        while the gait is verified (:func:`~.plan_files.draw_ahead`) where they can be
+        figures are then :func:`with_figures`'s. True: the figures too, after the result — drawn
+        while the gait is verified where processes can be forked (:func:`~.plan_files.draw_ahead`)
     on_result : called with the PlanResult once its result files are written, before its
         figures are (``nhgait plan`` prints its result line there)
     progress : a :class:`~nhgait.dynamics.progress.Progress` (None: silent)
