@@ -53,8 +53,9 @@ class Ours:
     solves it once more from that guess."""
 
     def __init__(self, key, N, *, solver=None, transcription=None, jit=None, guess_label=None):
-        from nhgait.gaits.planner import prepare, solver_order
+        from nhgait.gaits.planner import prepare
         from nhgait.gaits.planning.guesses import candidates
+        from nhgait.gaits.planning.options import solver_order
         from nhgait.gaits.planning.search import solve_from_guesses
         from nhgait.gaits.tasks.sources import resolve
         from nhgait.ocp import OCPSolver, SolverOptions

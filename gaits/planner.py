@@ -47,9 +47,17 @@ import time
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from .files.exports import states_text
-from .plan_files import figure_modules, with_figures, write_figure_files, write_outputs, written  # noqa: F401
+from .plan_files import (  # noqa: F401
+    FigureStaging,
+    draw_ahead,
+    modules_for_later,
+    with_figures,
+    write_figure_files,
+    write_outputs,
+    written,
+)
 from .planning.infeasibility import stalled, with_elastic
+from .planning.options import solver_order
 from .planning.search import (  # noqa: F401
     Attempt,
     Search,
@@ -60,8 +68,8 @@ from .planning.search import (  # noqa: F401
 )
 from .planning.warm_start import MAX_SOLUTION_BYTES, previous_answer, read_solution, warm_start  # noqa: F401
 from .tasks.statement import quantity_objects  # noqa: F401
-from .verification.checks import open_loop_label, solution_check_lines
 from .verification.gait_check import (  # noqa: F401
+    GaitReference,
     momentum_problem,
     screening_report,
     to_momentum_coordinates,
@@ -71,33 +79,7 @@ from .verification.gait_check import (  # noqa: F401
 from .verification.refinement import refinable, refine
 
 __all__ = ["plan", "PlanResult", "prepare", "Prepared", "state_problem", "to_momentum_coordinates",
-           "verified_gait", "unsolved", "known_names", "warm_start", "read_solution", "summary_lines"]
-
-
-def solver_order(solver: str, transcription=None, problem=None, hessian: str = "exact") -> tuple:
-    """The solvers ``plan`` tries, the next one when the previous finds no solution.
-
-    "auto": Ipopt alone for collocation (FATROP does not take it) and for the limited-memory
-    Hessian (Ipopt's L-BFGS; FATROP has none); for shooting, FATROP first
-    when the stage function is written inline (small ODEs: FATROP is the faster there), Ipopt
-    first when it is structured (robots of 5–10 coordinates: Ipopt is the faster there; the
-    measurements are in docs/gait-planning.md and docs/benchmarks.md)."""
-    from nhgait.ocp import ProblemError
-    from nhgait.ocp.solver import SOLVERS
-    if solver == "auto":
-        if transcription == "collocation" or hessian == "limited-memory":
-            return ("ipopt",)
-        return (("ipopt", "fatrop") if problem is not None and _structured_stage(problem)
-                else ("fatrop", "ipopt"))
-    if solver not in SOLVERS:
-        raise ProblemError([f"unknown solver {solver!r} (auto, {', '.join(SOLVERS)})"])
-    return (solver,)
-
-
-def _structured_stage(problem) -> bool:
-    from nhgait.ocp.stage import stage_mode
-    from nhgait.ocp.transcription import ode_function
-    return stage_mode(ode_function(problem), free_horizon=problem.free_horizon is not None) == "structured"
+           "verified_gait", "unsolved", "known_names", "warm_start", "read_solution"]
 
 
 @dataclass(kw_only=True, frozen=True, eq=False)
@@ -261,7 +243,8 @@ def choose_hessian(hessian: str) -> str:
 
 
 def plan(system, task=None, *, overrides=(), params=None, guess=None, out_dir=None, animate=False,
-         figures=True, progress=None, options=None, memo=None, **values) -> PlanResult:
+         figures=True, on_result=None, progress=None, options=None, memo=None,
+         **values) -> PlanResult:
     r"""Plan a gait: see the module docstring.
 
     Parameters
@@ -278,7 +261,10 @@ def plan(system, task=None, *, overrides=(), params=None, guess=None, out_dir=No
     out_dir : write solution.json and the figures there (``animate``: also motion.gif, which
         needs ``out_dir``)
     figures : False: in ``out_dir`` only solution.json and trajectory.csv (the result); the
-        figures are then :func:`with_figures`'s (``nhgait plan`` prints the result line first)
+        figures are then :func:`with_figures`'s. True: the figures too, after the result — drawn
+        while the gait is verified where processes can be forked (:func:`~.plan_files.draw_ahead`)
+    on_result : called with the PlanResult once its result files are written, before its
+        figures are (``nhgait plan`` prints its result line there)
     progress : a :class:`~nhgait.dynamics.progress.Progress` (None: silent)
     memo : what this process keeps between plans, a
         :class:`~nhgait.gaits.planning.plan_memo.PlanMemo` (None: the module's
@@ -315,22 +301,30 @@ def plan(system, task=None, *, overrides=(), params=None, guess=None, out_dir=No
     budget = plan_budget(to_plan, options.time_limit, started=started, progress=progress)
     if options.changed():
         progress.note(f"options: {options.summary()}")
-    settings = SearchSettings.of(options, warm_figures=out_dir is not None)
     reached = _Reached()
-    request = _Request(to_plan=to_plan, settings=settings, budget=budget, params=params, guess=guess,
-                       verify=options.verify, progress=progress, memo=_memo(memo))
-    try:
-        _run_plan(request, reached)
-    except BudgetSpent as exc:
-        reached.overrun = exc.overrun
-        progress.note(f"  the time budget of {exc.overrun.seconds:g} s ran out during {exc.overrun.phase}")
-    result = _result(to_plan, reached, settings, params)
-    result = with_elastic(result, reached.prepared, reached.search, budget, progress)     # issue 41
-    result = replace(result, diagnosis=diagnose(result))
-    if out_dir is not None:
-        result = written(result, out_dir, progress=progress)
-        if figures:
-            result = with_figures(result, out_dir, animate=animate, progress=progress)
+    with FigureStaging(out_dir if figures else None) as staging:     # figures drawn ahead go there first
+        settings = SearchSettings.of(options, warm_figures=out_dir is not None, figures_ahead=staging)
+        request = _Request(to_plan=to_plan, settings=settings, budget=budget, params=params, guess=guess,
+                           verify=options.verify, progress=progress, memo=_memo(memo))
+        try:
+            _run_plan(request, reached)
+        except BudgetSpent as exc:
+            reached.overrun = exc.overrun
+            progress.note(f"  the time budget of {exc.overrun.seconds:g} s ran out during "
+                          f"{exc.overrun.phase}")
+        result = _result(to_plan, reached, settings, params)
+        result = with_elastic(result, reached.prepared, reached.search, budget, progress)     # issue 41
+        result = replace(result, diagnosis=diagnose(result))
+        if out_dir is not None:
+            result = written(result, out_dir, progress=progress)
+            if on_result is not None:
+                on_result(result)
+            if figures:
+                t0 = time.perf_counter()
+                drawn = with_figures(result, out_dir, animate=animate, progress=progress, ahead=reached.ahead)
+                timings = {**drawn.timings,
+                           "figures_s": drawn.timings.get("figures_s", 0.0) + time.perf_counter() - t0}
+                result = replace(drawn, timings=timings) if drawn.files != result.files else drawn
     return result
 
 
@@ -350,7 +344,8 @@ def plan_budget(to_plan, time_limit=None, *, started=None, progress=None):
 class _Reached:
     """How far a plan got (kept when its budget runs out): the prepared model and problem, the
     guesses' search, the solution in momentum coordinates (verified when ``verified``), the
-    seconds per step, what the screening of the guesses found (``screening``) and, when the
+    seconds per step, what the screening of the guesses found (``screening``), the figures drawn
+    while the gait was verified (``ahead``, :class:`~.plan_files.FiguresAhead`) and, when the
     budget ran out, where."""
 
     prepared: Any = None
@@ -361,6 +356,7 @@ class _Reached:
     screening: tuple = ()
     optimum: tuple | None = None     # (task key, Optimum) of the search's solution, for the memo
     task_key: str | None = None      # the task's key in the memo (:mod:`.planning.plan_memo`)
+    ahead: Any = None                # the figures drawn while the gait is verified (draw_ahead)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -398,7 +394,7 @@ def _run_plan(request: _Request, reached: _Reached) -> None:
 
     from .tasks.reachability import unreachable_targets
     to_plan, settings, budget, progress = request.to_plan, request.settings, request.budget, request.progress
-    params, verify = request.params, request.verify
+    params = request.params
     t0 = time.perf_counter()
     with budget.stage("derivation"):
         reached.prepared = _prepared(request)
@@ -411,9 +407,8 @@ def _run_plan(request: _Request, reached: _Reached) -> None:
         progress.note(large_request_note(problem))
     def verify_one(solution):
         with budget.stage("verification"):
-            prepared = reached.prepared
             return _derived(request, reached, solution, "verification", lambda: verified_gait(
-                solution, prepared.model, prepared.stated, to_plan, params, progress=progress))
+                solution, _reference(reached.prepared, to_plan, params), progress=progress))
     t0 = time.perf_counter()
     try:
         _searched(request, problem, reached)
@@ -424,25 +419,45 @@ def _run_plan(request: _Request, reached: _Reached) -> None:
         t0 = time.perf_counter()
         reached.search = robust_search(reached.search, reached.prepared, to_plan, settings, budget, progress)
         reached.timings["robust_s"] = time.perf_counter() - t0
+    found = reached.search
+    reached.solution = _derived(request, reached, found.solution, "momentum coordinates",
+                                lambda: _in_momentum(found, reached.prepared, to_plan, params))
+
+    def checked():
+        _checked(request, reached, verify_one)
+    if reached.search.solution is not None and settings.figures_ahead is not None:     # issue 40
+        t0 = time.perf_counter()
+        reached.ahead = draw_ahead(_provisional(to_plan, reached), settings.figures_ahead, checked, progress)
+        hidden = reached.timings.get("verify_s", 0.0) + reached.timings.get("feedback_s", 0.0)
+        reached.timings["figures_s"] = max(0.0, time.perf_counter() - t0 - hidden)  # beyond the checks
+    else:
+        checked()
+
+
+def _checked(request: _Request, reached: _Reached, verify_one) -> None:
+    """Step 5 and the feedback, in ``reached``: the converged gait verified (refined when its
+    deciding check misses its nodes; the first converged gait instead when the exploration's
+    lower objective fails), then the feedback and stability along the gait kept (the refined one
+    when refined)."""
+    settings, budget, progress = request.settings, request.budget, request.progress
     search = reached.search
-    reached.solution = _derived(request, reached, search.solution, "momentum coordinates",
-                                lambda: _in_momentum(search, reached.prepared, to_plan, params))
-    if verify and search.solution is not None:
+    if request.verify and search.solution is not None:
         t0 = time.perf_counter()
         reached.solution = verify_one(search.solution)
         # refined: nominal again
         if refinable(reached.solution) and "robust" not in search.solution.settings:
             _refined(reached, settings, budget, progress, verify_one)
         if not _passed(reached.solution) and search.first is not None:
-            search = _first_instead(reached, search, settings, budget, progress, verify_one)
+            _first_instead(reached, search, settings, budget, progress, verify_one)
             _remember_kept(request, reached)
         reached.timings["verify_s"] = time.perf_counter() - t0
         _keep_verified(reached)
-    if search.solution is not None:                                          # issue 28
+    kept = reached.search
+    if kept.solution is not None:                                          # issue 28
         t0 = time.perf_counter()
         with budget.stage("the feedback and stability"):
-            extra = _derived(request, reached, search.solution, "feedback and stability",
-                             lambda: _feedback_and_stability(search, progress))
+            extra = _derived(request, reached, kept.solution, "feedback and stability",
+                             lambda: _feedback_and_stability(kept, progress))
             reached.solution = replace(reached.solution, **extra)
         reached.timings["feedback_s"] = time.perf_counter() - t0
 
@@ -494,6 +509,16 @@ def _keep_verified(reached: _Reached) -> None:
     if reached.search.solution is not None and float(reached.search.solution.objective) == optimum.objective:
         from .planning.plan_memo import store_optimum
         store_optimum(key, optimum)
+
+
+def _provisional(to_plan, reached: _Reached) -> PlanResult:
+    """The PlanResult of the converged gait before its verification (what the figures drawn
+    ahead show; :func:`~.plan_files.draw_ahead`)."""
+    search = reached.search
+    return PlanResult(label=to_plan.label, task=to_plan.task, solution=reached.solution,
+                      guess=search.won or "none", attempts=search.attempts, plan=to_plan,
+                      model=reached.prepared.model)
+
 
 
 def _passed(solution) -> bool:
@@ -571,15 +596,18 @@ class SearchSettings:
     workers: int
     limit: int
     warm_figures: bool = False
+    figures_ahead: Any = None
 
     @classmethod
-    def of(cls, options, *, warm_figures: bool = False) -> SearchSettings:
+    def of(cls, options, *, warm_figures: bool = False, figures_ahead=None) -> SearchSettings:
         """The settings of a plan's :class:`~.plan_options.PlanOptions` (the Hessian chosen, the
-        workers counted)."""
+        workers counted); ``warm_figures``: the figures' modules imported while the attempts
+        run; ``figures_ahead``: the :class:`~.plan_files.FigureStaging` of figures drawn while
+        the gait is verified (None: drawn after the result, if at all)."""
         workers = _default_workers() if options.workers in (None, "auto") else int(options.workers)
         return cls(solver=options.solver, transcription=options.transcription, jit=options.jit,
                    hessian=choose_hessian(options.hessian), max_iter=options.max_iter, workers=workers,
-                   limit=options.max_guesses, warm_figures=warm_figures)
+                   limit=options.max_guesses, warm_figures=warm_figures, figures_ahead=figures_ahead)
 
 
 def _prepared(request: _Request) -> Prepared:
@@ -724,7 +752,7 @@ def _search(request: _Request, guesses, reached: _Reached, *, explore: bool, fal
             with progress.phase(f"solve with {name} from up to {min(s.limit, len(guesses))} guesses"):
                 run = SearchRun(workers=s.workers, limit=s.limit, progress=progress, budget=budget,
                                 explore=explore, explore_workers=max(s.workers, _default_workers()),
-                                meanwhile=figure_modules if s.warm_figures else None,
+                                meanwhile=modules_for_later if s.warm_figures else None,
                                 in_process=in_process)
                 searched = (solve_with_fallbacks if fallbacks else solve_from_guesses)(ocp, guesses, run)
                 reached.search = reached.search.then(searched)
@@ -738,7 +766,12 @@ def _in_momentum(search, prepared, to_plan, params):
     solution = search.solution if search.solution is not None else search.closest
     if solution is None:
         return None
-    return verified_gait(solution, prepared.model, prepared.stated, to_plan, params, verify=False)
+    return verified_gait(solution, _reference(prepared, to_plan, params), verify=False)
+
+
+def _reference(prepared: Prepared, to_plan, params) -> GaitReference:
+    """What a plan's gaits are verified against (:class:`~.verification.gait_check.GaitReference`)."""
+    return GaitReference(prepared.model, prepared.stated, to_plan, params)
 
 
 def _feedback_and_stability(search, progress) -> dict:
@@ -749,98 +782,3 @@ def _feedback_and_stability(search, progress) -> dict:
         return {}
     from .verification.feedback import feedback_and_stability
     return feedback_and_stability(search.solution, progress)
-
-
-def summary_lines(result: PlanResult) -> list:
-    """The lines ``nhgait plan`` prints."""
-    s = result.solution
-    if s is None:             # the budget ran out before any attempt
-        lines = [f"nhgait plan {result.label}: FAILED (time budget spent)", "  no attempt was made"]
-        return lines + _closing_lines(result)
-    v = s.verification
-    status = "time budget spent; closest point: " + s.status if result.overrun is not None else s.status
-    lines = [f"nhgait plan {result.label}: {'SUCCESS' if result.success else 'FAILED'} ({status})",
-             f"  objective          J = {s.objective:.6f}",
-             f"  iterations         {s.iterations}  (guess: {result.guess}; tried {len(result.attempts)})",
-             f"  solve time         {s.solve_time_s * 1e3:.1f} ms  (functions "
-             f"{s.function_time_s * 1e3:.1f} ms, "
-             f"solver {s.solver_time_s * 1e3:.1f} ms); set-up {s.setup_time_s * 1e3:.1f} ms"]
-    if v is not None:
-        lines.append(f"  {open_loop_label(s)}{'passed' if v.passed else 'FAILED'}: max state error "
-                     f"{v.max_error:.2e}, conditions met to {v.max_condition_error:.2e}; relative to each "
-                     f"state's range {v.max_scaled_error:.2e}, {v.max_scaled_condition_error:.2e} (tolerance "
-                     f"{v.tolerance:g}; DOP853, rtol {v.rtol:g})")
-    else:
-        lines.append("  verification       not run")
-    lines += [f"  {line}" for line in solution_check_lines(s)]              # issue 41
-    st = s.settings
-    lines.append(f"  N = {st.get('intervals')}, T = {s.horizon:.4f} s, {st.get('transcription')}, "
-                 f"{st.get('solver')}, {st.get('hessian', 'exact')} Hessian, {_compiled_text(st)}, "
-                 f"{states_text(s)}")
-    lines += [f"  conditions         {line}"
-              for line in (result.conditions.lines() if result.conditions else ())]
-    if s.feedback is not None:                                               # issue 28
-        lines.append(f"  feedback           time-varying LQR, {s.feedback.gains.shape[0]} gains "
-                     f"{s.feedback.gains.shape[1]}×{s.feedback.gains.shape[2]} in solution.json; "
-                     "nhgait track applies it to a robot that differs")
-    if s.stability is not None:
-        lines += [f"  stability          {line}" for line in s.stability.summary()]
-    if st.get("robust"):                                                     # [task.robust]
-        from .planning.robust import summary_line
-        lines.append(f"  robust             {summary_line(st['robust'])}")
-    symmetry = getattr(result.model, "symmetry", None)
-    if symmetry is not None:
-        lines.append(f"  symmetry           {symmetry.chosen.group} moves the fibre "
-                     f"({', '.join(result.model.fiber)}); "
-                     f"the guesses loop the shape ({', '.join(result.model.shape)}); why, and the "
-                     "other choices (fiber = [...] in [system]): nhgait derive")
-    checked = getattr(s.problem, "model", None)
-    if symmetry is not None and checked is not None and not hasattr(checked, "fiber"):
-        lines.append("  verified in        x = (q, q̇) on the Euler–Lagrange equations: the gait crosses "
-                     "the singular set of every chart of the reduction tried")
-    elif symmetry is not None and checked is not None and tuple(checked.fiber) != tuple(result.model.fiber):
-        lines.append(f"  verified in        the chart with fiber ({', '.join(checked.fiber)}): the gait "
-                     "crosses the "
-                     f"singular set of fiber ({', '.join(result.model.fiber)}), where its momenta "
-                     "are not defined")
-    return lines + _closing_lines(result)
-
-
-def _closing_lines(result: PlanResult) -> list:
-    """The diagnosis and the files written."""
-    lines = []
-    if result.diagnosis:
-        lines.append("  why:")
-        lines.extend(f"    {line}" for line in result.diagnosis)
-    if result.unwritten:
-        lines.append(f"  files              NOT WRITTEN: {result.unwritten}")
-    if result.files:
-        lines.append("  files:")
-        lines.extend(f"    {f}" for f in result.files)
-        if result.success and not any(str(f).endswith(".gif") for f in result.files):
-            lines.append("  animation          not written (made on request): add --gif "
-                         "(plan(..., animate=True)) to write motion.gif")
-    if result.overrun is not None:
-        lines.append("  figures            not written: the time budget was spent")
-    return lines
-
-
-def _compiled_text(settings) -> str:
-    """Which code solved and what was started for later (:class:`~nhgait.ocp.nlp_code.CompileReport`)."""
-    c = settings.get("compile") or {}
-    later = c.get("later") or {}
-    after = ""
-    if later.get("summary"):
-        after = f"; {later['summary']}"
-    if not settings.get("jit"):
-        reason = settings.get("jit_fallback")
-        return "interpreted" + (f" ({reason}{after})" if reason else (f" ({after[2:]})" if after else ""))
-    size = f"{c.get('c_bytes', 0) / 1e6:.2f} MB of C"
-    if c.get("code") == "fast":
-        return f"compiled fast ({c.get('compiler')}, {size}, {c.get('compile_s', 0):.2f} s{after})"
-    size += f", {' '.join(c.get('flags') or [])}"
-    if c.get("switched_from"):
-        return (f"compiled ({size}, built in the background during this plan; the attempts before it ran "
-                f"{c['switched_from']})")
-    return f"compiled ({size}" + (", cached)" if settings.get("jit_cached")
-                                  else f", {c.get('compile_s', 0):.1f} s)")

@@ -146,12 +146,14 @@ def simulate_piecewise_constant(model, params, t, z0, controls, integrator: Inte
     """
     from scipy.integrate import solve_ivp
 
+    from nhgait.dynamics.numerics.buffered_call import BufferedCall
     method, rtol, atol = integrator.method, integrator.rtol, integrator.atol
     nz = len(z0)
     ts, zs, us = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", controls.shape[0])
     rate = model(ts, zs, us) if isinstance(model, ca.Function) else model.numeric["rhs"](ts, zs, us, params)
-    f = ca.Function("f", [ts, zs, us], [rate])
-    jac = ca.Function("J", [ts, zs, us], [ca.jacobian(rate, zs)])
+    f = BufferedCall(ca.Function("f", [ts, zs, us], [rate]))     # ż without per-call conversions
+    implicit = method in ("Radau", "BDF", "LSODA")
+    jac = ca.Function("J", [ts, zs, us], [ca.jacobian(rate, zs)]) if implicit else None
     out = np.full((nz, len(t)), np.nan)
     out[:, 0] = z0
     z = np.asarray(z0, dtype=float)
@@ -160,9 +162,7 @@ def simulate_piecewise_constant(model, params, t, z0, controls, integrator: Inte
         u = controls[:, k]
         try:
             sol = solve_ivp(_finite(f, u), (t[k], t[k + 1]), z, method=method, rtol=rtol, atol=atol,
-                            **({"jac": lambda tt, zz, u=u: np.asarray(jac(tt, zz, u))}
-                               if method in ("Radau", "BDF", "LSODA")
-                               else {}))
+                            **({"jac": lambda tt, zz, u=u: np.asarray(jac(tt, zz, u))} if implicit else {}))
         except _NotFinite:
             return out, False
         ok &= bool(sol.success)

@@ -237,7 +237,7 @@ def test_a_plan_whose_files_cannot_be_written_keeps_its_solution(sandbox, monkey
     result was written before the figures (issue 40), so solution.json is in place and holds
     the objective the summary printed."""
     from nhgait.gaits.figures import plots
-    monkeypatch.setattr(plots, "write_figures", _no_space)
+    monkeypatch.setattr(plots, "gait_figure", _no_space)       # in the figures' processes
     got = answer([*PLAN, "--out", sandbox.out / "p"]).check(1, r"figures +NOT WRITTEN: writing .* failed: "
                                                                r"no space left", sandbox)
     objective = float(re.search(r"J = ([-\d.e+]+)", got.out).group(1))
@@ -251,7 +251,7 @@ def _die(*args, **kwargs):
 
 
 def test_a_plan_whose_figures_process_dies_keeps_its_solution(sandbox, monkeypatch):
-    """The figures are drawn in supervised children (``plots.write_figures``); one that dies
+    """The figures are drawn in supervised children (``plots.figure_jobs``); one that dies
     without an answer (here: exits in the shape figure) is a failed write, said in one line,
     and solution.json, written before the figures, stays — not a traceback, not a hang, no
     child left."""

@@ -218,7 +218,7 @@ def test_countdown_estimate():
 # ----------------------------------------------------------------------------- 3. the API
 def test_help_lists_subpackages_the_first_five_things_and_the_true_default_solver():
     import nhgait
-    from nhgait.gaits.planner import solver_order
+    from nhgait.gaits.planning.options import solver_order
     text = pydoc.render_doc(nhgait, renderer=pydoc.plaintext)
     for name in ("nhgait.dynamics", "nhgait.ocp", "nhgait.gaits", "load_scene", "derive", "simulate", "plan"):
         assert name in text

@@ -68,7 +68,18 @@ def build_parser(argv=None) -> CommandParser:
 def main(argv=None) -> int:
     """Run one subcommand; its exit status (the module docstring's table). Run as the program
     (``argv`` None: the ``nhgait`` command), a stop by SIGINT/SIGTERM ends the process as soon
-    as its cleanup is done (:func:`~.stopping.exit_now`); called with ``argv`` it returns."""
+    as its cleanup is done (:func:`~.stopping.exit_now`), and so does a command that ends by
+    itself (:func:`~.stopping.end_process`: its threads joined, ``atexit`` run, the streams
+    flushed, the interpreter's teardown of CasADi, SciPy and matplotlib — 0.3–1 s — skipped);
+    called with ``argv`` it returns."""
+    status = _main(argv)
+    if argv is None:
+        from .stopping import end_process
+        end_process(status)
+    return status
+
+
+def _main(argv) -> int:
     from nhgait.dynamics.errors import ModelError
 
     from .stopping import cancel_background_builds, exit_now, stop_signals

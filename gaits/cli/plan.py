@@ -76,31 +76,34 @@ def add_plan_parser(subparsers) -> argparse.ArgumentParser:
 
 def run(args) -> int:
     """Plan with ``--out`` checked and locked first (:mod:`nhgait.gaits.files.outputs`); the result
-    first — solution.json and trajectory.csv written, the summary printed — then the figures
-    (and ``--gif``'s animation). Exit 1 when the plan failed or its files could not all be
+    first — solution.json and trajectory.csv written, the summary printed (``plan``'s
+    ``on_result``) — then the figures, drawn while the gait was verified and moved into place
+    now (and ``--gif``'s animation). Exit 1 when the plan failed or its files could not all be
     written (the summary says where the solution went)."""
     from nhgait.dynamics.numerics.background import builds_off
     from nhgait.dynamics.progress import Progress
 
     from ..files.outputs import output_directory, output_lock
-    from ..planner import plan, summary_lines, with_figures
+    from ..plan_summary import summary_lines
+    from ..planner import plan
     from ..planning.options import PlanOptions
     started = time.perf_counter()
     progress = Progress.silent() if args.quiet else Progress.to_stderr(verbose=args.verbose)
     out = output_directory(args.out)
-    with output_lock(out, f"nhgait plan {args.system}"), builds_off(args.no_background_build):
-        result = plan(args.system, args.gait, overrides=args.overrides, out_dir=out, animate=args.gif,
-                      progress=progress, guess=args.guess, figures=False,
-                      options=PlanOptions.values_of(args))
+    announced = []
+
+    def announce(result):
+        """The result, before anything optional."""
+        announced.append(result)
         lines = [line for line in summary_lines(result)      # the animation comes with the figures
                  if not (args.gif and line.startswith("  animation "))]
-        print("\n".join(lines), flush=True)                           # the result, before anything optional
-        t0 = time.perf_counter()
-        drawn = with_figures(result, out, animate=args.gif, progress=progress)
-        figures_s = time.perf_counter() - t0
-    print("\n".join(_figure_lines(result, drawn)))
-    timings = {**drawn.timings, "figures_s": figures_s} if drawn.files != result.files else drawn.timings
-    print(f"  wall time          {_wall_text(time.perf_counter() - started, timings)}")
+        print("\n".join(lines), flush=True)
+    with output_lock(out, f"nhgait plan {args.system}"), builds_off(args.no_background_build):
+        drawn = plan(args.system, args.gait, overrides=args.overrides, out_dir=out, animate=args.gif,
+                     progress=progress, guess=args.guess, on_result=announce,
+                     options=PlanOptions.values_of(args))
+    print("\n".join(_figure_lines(announced[0], drawn)))
+    print(f"  wall time          {_wall_text(time.perf_counter() - started, drawn.timings)}")
     return 0 if drawn.success and not drawn.unwritten else 1
 
 

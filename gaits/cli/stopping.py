@@ -44,8 +44,8 @@ from contextlib import contextmanager
 
 from nhgait.dynamics.errors import Terminated, clear_stops, note_stop, remove_temporary_folders
 
-__all__ = ["stop_signals", "Stop", "exit_now", "cancel_background_builds", "FORCE_AFTER_S", "EXIT_STATUS",
-           "MESSAGES"]
+__all__ = ["stop_signals", "Stop", "exit_now", "end_process", "cancel_background_builds", "FORCE_AFTER_S",
+           "EXIT_STATUS", "MESSAGES"]
 
 #: how long after a stop signal the watchdog ends a process that is still running (s)
 FORCE_AFTER_S = 1.5
@@ -183,6 +183,17 @@ def exit_now(status: int) -> int:
     finally:
         os._exit(status)
     return status  # pragma: no cover - never reached
+
+
+def end_process(status: int) -> int:
+    """End a command that finished by itself with ``status``, as the interpreter would — its
+    threads joined (``threading._shutdown``: thread pools told to stop first), the ``atexit``
+    handlers run, the streams flushed — but without the teardown of every module and object
+    (:func:`exit_now`). The background builders are detached and go on (they are meant to)."""
+    shutdown = getattr(threading, "_shutdown", None)
+    if shutdown is not None:
+        shutdown()
+    return exit_now(status)
 
 
 def _force_exit(signum: int) -> None:  # pragma: no cover - measured by tests/test_interrupts.py

@@ -25,7 +25,7 @@ from nhgait.dynamics.units import coordinate_unit, unit_of
 from .geometry import LoopOnPlane, draw_height_under_loop
 
 __all__ = ["plot_path", "plot_shape_loop", "plot_histories", "plot_momentum", "write_figures",
-           "FigureContext", "figure_context", "FigureLayout", "figure_layouts", "gait_figure",
+           "figure_jobs", "FigureContext", "figure_context", "FigureLayout", "figure_layouts", "gait_figure",
            "label", "unit", "strobe_nodes", "path_figure_size", "TIME_COLORMAP"]
 
 _GREEK = {g: c for g, c in zip(
@@ -399,19 +399,29 @@ def gait_figure(solution, ctx: FigureContext, layout: FigureLayout, failed: str 
 def write_figures(solution, out: Path, *, units=None, drawing=None, model=None,
                   failed: str | None = None) -> list:
     """path.png, shape.png, histories.png, momentum.png in ``out``; with ``failed`` (the reason)
-    every figure is titled "FAILED — not a verified gait". Two figures each in two supervised
-    children side by side (:func:`nhgait.ocp.supervision.supervise`: two cores, stopped with the
-    plan; one after the other in this process where there is no fork). The animation is
-    :func:`nhgait.gaits.figures.animation.animate_solution`."""
+    every figure is titled "FAILED — not a verified gait". Each figure in a supervised child,
+    two at a time (:func:`figure_jobs`, :func:`nhgait.ocp.supervision.supervise`: two cores,
+    stopped with the plan; one after the other in this process where there is no fork). The
+    animation is :func:`nhgait.gaits.figures.animation.animate_solution`."""
+    from nhgait.ocp.supervision import supervise
+    jobs = figure_jobs(solution, out, units=units, drawing=drawing, model=model, failed=failed)
+    return [path for paths in supervise(jobs, workers=2) for path in paths]
+
+
+def figure_jobs(solution, out: Path, *, units=None, drawing=None, model=None,
+                failed: str | None = None) -> list:
+    """One :class:`~nhgait.ocp.supervision.Job` per figure of :func:`write_figures` (each draws its
+    figure into ``out`` and gives its path in a list), the costliest first — shape.png, whose
+    background is a height function — so that two workers finish together; to run with other
+    jobs or while the parent works (``supervise``'s ``meanwhile``)."""
     from functools import partial
 
-    from nhgait.ocp.supervision import Job, supervise
+    from nhgait.ocp.supervision import Job
     model = model if model is not None else solution.problem.model
     ctx = figure_context(solution, model, units, drawing)
-    layouts = figure_layouts(solution, ctx)
-    jobs = [Job(partial(_drawn, solution, ctx, out, part, failed), None, _not_drawn)
-            for part in (layouts[0::2], layouts[1::2])]
-    return [path for paths in supervise(jobs, workers=2) for path in paths]
+    layouts = sorted(figure_layouts(solution, ctx), key=lambda layout: layout.name != "shape.png")
+    return [Job(partial(_drawn, solution, ctx, out, [layout], failed), None, _not_drawn)
+            for layout in layouts]
 
 
 def _drawn(solution, ctx, out: Path, layouts, failed) -> list:

@@ -52,9 +52,8 @@ try:
 except ImportError:  # pragma: no cover - Windows
     fcntl = None
 
-__all__ = ["output_directory", "output_file", "output_lock", "staged", "rescue", "write_failure", "LOCK_NAME",
-           "STAGING_PREFIX", "clear_stale_staging",
-           "PROBE_BYTES"]
+__all__ = ["output_directory", "output_file", "output_lock", "staged", "staging_folder", "move_into",
+           "rescue", "write_failure", "LOCK_NAME", "STAGING_PREFIX", "clear_stale_staging", "PROBE_BYTES"]
 
 #: bytes written by the probe (one block): a full, read-only or over-quota location cannot take them
 PROBE_BYTES = 4096
@@ -230,16 +229,32 @@ def _holder(fd: int) -> str:
 def staged(out, write) -> list:
     """The files ``write(staging)`` wrote (a list of paths in ``staging``), moved into ``out``
     (created): each file whole or not at all (module docstring). Returns their paths in ``out``."""
+    with staging_folder(out) as staging:
+        return move_into(out, [Path(path) for path in write(staging)])
+
+
+@contextlib.contextmanager
+def staging_folder(out):
+    """A staging folder ``out/.writing-<pid>-*`` (``out`` created), removed on leaving with
+    whatever is still in it, and registered meanwhile so that the stop watchdog removes it too
+    (:func:`~nhgait.dynamics.errors.temporary_folder`). Stale staging folders of writers no
+    longer running are removed first (:func:`clear_stale_staging`)."""
+    from nhgait.dynamics.errors import temporary_folder
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    from nhgait.dynamics.errors import temporary_folder
     clear_stale_staging(out)
     with tempfile.TemporaryDirectory(dir=out, prefix=f"{STAGING_PREFIX}{os.getpid()}-") as staging, \
             temporary_folder(staging):
-        written = [Path(path) for path in write(Path(staging))]
-        for path in written:
-            os.replace(path, out / path.name)
-    return [out / path.name for path in written]
+        yield Path(staging)
+
+
+def move_into(out, paths) -> list:
+    """``paths`` (files written whole in a staging folder of ``out``) moved into ``out``, each
+    by one rename; their new paths."""
+    out = Path(out)
+    for path in paths:
+        os.replace(path, out / Path(path).name)
+    return [out / Path(path).name for path in paths]
 
 
 def clear_stale_staging(out) -> list:

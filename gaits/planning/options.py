@@ -31,7 +31,7 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
 from typing import Any, NamedTuple
 
-__all__ = ["PlanOptions", "Collected", "whole_number"]
+__all__ = ["PlanOptions", "Collected", "whole_number", "solver_order"]
 
 
 def whole_number(value) -> bool:
@@ -54,7 +54,7 @@ class PlanOptions:
     ----------
     intervals : N control intervals, overriding the task's (None: the task's)
     solver : "auto" (FATROP then Ipopt for small ODEs, Ipopt then FATROP for larger ones:
-        :func:`~nhgait.gaits.planner.solver_order`), "fatrop" or "ipopt"
+        :func:`solver_order`), "fatrop" or "ipopt"
     transcription : None (multiple shooting; stage-ordered for FATROP), "collocation", or a
         transcription object (one with ``build``)
     jit : compile the NLP functions (None: when a C compiler is found, within the compile budget)
@@ -177,3 +177,29 @@ class PlanOptions:
         """One line: the options that differ from the defaults (``defaults`` when none do)."""
         changed = self.changed()
         return ", ".join(f"{k}={v!r}" for k, v in changed.items()) if changed else "defaults"
+
+
+def solver_order(solver: str, transcription=None, problem=None, hessian: str = "exact") -> tuple:
+    """The solvers ``plan`` tries, the next one when the previous finds no solution.
+
+    "auto": Ipopt alone for collocation (FATROP does not take it) and for the limited-memory
+    Hessian (Ipopt's L-BFGS; FATROP has none); for shooting, FATROP first
+    when the stage function is written inline (small ODEs: FATROP is the faster there), Ipopt
+    first when it is structured (robots of 5–10 coordinates: Ipopt is the faster there; the
+    measurements are in docs/gait-planning.md and docs/benchmarks.md)."""
+    from nhgait.ocp import ProblemError
+    from nhgait.ocp.solver import SOLVERS
+    if solver == "auto":
+        if transcription == "collocation" or hessian == "limited-memory":
+            return ("ipopt",)
+        return (("ipopt", "fatrop") if problem is not None and _structured_stage(problem)
+                else ("fatrop", "ipopt"))
+    if solver not in SOLVERS:
+        raise ProblemError([f"unknown solver {solver!r} (auto, {', '.join(SOLVERS)})"])
+    return (solver,)
+
+
+def _structured_stage(problem) -> bool:
+    from nhgait.ocp.stage import stage_mode
+    from nhgait.ocp.transcription import ode_function
+    return stage_mode(ode_function(problem), free_horizon=problem.free_horizon is not None) == "structured"

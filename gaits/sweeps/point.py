@@ -375,7 +375,7 @@ def _solve_within(job: PointJob, budget, reached: dict) -> dict:
     from ..planning.guesses import candidates
     from ..planning.search import solve_attempts, solve_with_fallbacks
     from ..planning.warm_start import warm_start
-    from ..verification.gait_check import unsolved, verified_gait
+    from ..verification.gait_check import GaitReference, unsolved, verified_gait
     solution = None
     if job.warm is not None:
         with budget.stage("the derivation and the NLP set-up"):
@@ -396,7 +396,7 @@ def _solve_within(job: PointJob, budget, reached: dict) -> dict:
         if solution is None:           # every candidate skipped by its screening
             solution = unsolved(problem, guesses.first_skipped)
     with budget.stage("verification"):
-        solution = verified_gait(solution, model, stated, resolved, job.params)
+        solution = verified_gait(solution, GaitReference(model, stated, resolved, job.params))
     out = _outcome(solution, reached["start"])
     return {**out, "warm": warm_data(out["solution"]) if out["success"] else None,
             "total_iterations": reached["spent"]}

@@ -175,8 +175,10 @@ def interval_errors(ode, t, states, controls) -> np.ndarray:
     return err
 
 
-def closed_loop(ode, t, states, controls, gains, lower, upper) -> tuple:
-    """(nodes nz × (N+1), ran): the closed loop of the module docstring from z_0."""
+def closed_loop(ode, t, states, controls, gains, bounds) -> tuple:
+    """(nodes nz × (N+1), ran): the closed loop of the module docstring from z_0; ``bounds`` =
+    (lower, upper) of the inputs (the saturation)."""
+    lower, upper = bounds
     N = controls.shape[1]
     out = np.full(states.shape, np.nan)
     out[:, 0] = z = states[:, 0]
@@ -228,12 +230,14 @@ def gait_checks(opened, tolerance: float, *, steps: int = 4) -> GaitChecks:
     """The checks of the module docstring of ``opened`` (a solution carrying its open-loop
     :class:`~nhgait.ocp.solution.Verification`), on its own problem's ODE; the stage Jacobians use
     the plan's ``steps`` RK4 sub-steps per interval."""
+    from nhgait.dynamics.numerics.buffered_call import BufferedCall
     from nhgait.ocp.feedback import default_weights, riccati, stage_jacobians
     from nhgait.ocp.solution import condition_errors, condition_scales, scales
     problem, v = opened.problem, opened.verification
     t, states, controls = np.asarray(opened.t, float), opened.z.T.astype(float), opened.u.T.astype(float)
     ode, names, scale = problem.ode(), tuple(opened.state_names), scales(states)
-    e_int, s_int = _worst(interval_errors(ode, t, states, controls), names, scale)
+    fast = BufferedCall(ode)              # the same ż, without the per-call conversions
+    e_int, s_int = _worst(interval_errors(fast, t, states, controls), names, scale)
     A, B, _ = stage_jacobians(problem, states, controls, float(opened.horizon), steps)
     sim, ran = np.full(states.shape, np.nan), False
     if np.all(np.isfinite(A)) and np.all(np.isfinite(B)):
@@ -243,8 +247,7 @@ def gait_checks(opened, tolerance: float, *, steps: int = 4) -> GaitChecks:
         except np.linalg.LinAlgError:
             K = np.full((problem.intervals, controls.shape[0], states.shape[0]), np.nan)
         if np.all(np.isfinite(K)):
-            lo, hi = problem.control_bound_vectors()
-            sim, ran = closed_loop(ode, t, states, controls, K, lo, hi)
+            sim, ran = closed_loop(fast, t, states, controls, K, problem.control_bound_vectors())
     e_cl, s_cl = _worst(np.abs(sim - states), names, scale)
     cond, cscale = (condition_errors(problem, sim, controls, t) if ran else {},
                     condition_scales(problem, states, controls, t))

@@ -10,15 +10,16 @@ the Euler–Lagrange equations, and re-simulated there by an independent integra
 """
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
 from ..tasks.statement import quantity_objects
 from .checks import check_lines, checks_of, gait_checks
 
-__all__ = ["verified_gait", "passed", "decided", "to_momentum_coordinates", "momentum_problem",
-           "screening_report", "unsolved"]
+__all__ = ["verified_gait", "GaitReference", "passed", "decided", "to_momentum_coordinates",
+           "momentum_problem", "screening_report", "unsolved"]
 
 
 def screening_report(guesses, search, problem) -> tuple:
@@ -59,30 +60,48 @@ def unsolved(problem, guess=None):
                               "transcription": "none", "solver": "none (no candidate solved)"})
 
 
-def verified_gait(solution, model, stated, to_plan, params, *, verify=True, progress=None):
-    """``solution`` (velocity coordinates) in the momentum coordinates of a chart of ``model``
-    regular along it (:func:`~nhgait.gaits.planning.charts.verification_chart`; a failed solution in
-    ``model``'s own) and, with ``verify``, verified there to the task's tolerance; in x = (q, q̇)
-    on the Euler–Lagrange equations (:func:`~nhgait.gaits.planning.charts.lagrange_ode`) when no chart is
-    regular along the gait, when the re-simulation in the chart stops (its singular set met
-    between the nodes), when the solution's states in the chart are not finite (a failed one
-    too: its trajectory is written out), and when the gait fails there before another chart is
-    tried (:func:`_lagrange_first`)."""
+@dataclass(frozen=True, eq=False)
+class GaitReference:
+    """What a gait is verified against: ``model`` the derived model (momentum coordinates, its
+    parameters symbolic), ``stated`` the problem as the task states it (before its conditions
+    were normalised), ``plan`` the scene and task (:class:`~nhgait.gaits.tasks.sources.Plan`)
+    and ``params`` the parameter values (None: the scene's)."""
+
+    model: Any
+    stated: Any
+    plan: Any
+    params: Any = None
+
+    def problem_on(self, model):
+        """The stated problem on ``model`` (a chart of the derived model, or the Euler–Lagrange
+        ODE) with this reference's parameter values: :func:`momentum_problem`."""
+        return momentum_problem(model, self.stated, self.plan, self.params)
+
+
+def verified_gait(solution, reference: GaitReference, *, verify=True, progress=None):
+    """``solution`` (velocity coordinates) in the momentum coordinates of a chart of
+    ``reference.model`` regular along it (:func:`~nhgait.gaits.planning.charts.verification_chart`;
+    a failed solution in the model's own) and, with ``verify``, verified there to the task's
+    tolerance; in x = (q, q̇) on the Euler–Lagrange equations
+    (:func:`~nhgait.gaits.planning.charts.lagrange_ode`) when no chart is regular along the gait,
+    when the re-simulation in the chart stops (its singular set met between the nodes), when the
+    solution's states in the chart are not finite (a failed one too: its trajectory is written
+    out), and when the gait fails there before another chart is tried (:func:`_lagrange_first`)."""
     from nhgait.dynamics.progress import Progress
 
     from ..planning.charts import lagrange_ode, verification_chart
     progress = progress or Progress.silent()
-    n = len(model.system.coordinates)
-    regular, default = False, model
+    to_plan, default = reference.plan, reference.model
+    n = len(default.system.coordinates)
+    model, regular = default, False
     if verify and solution.success:
-        model, regular = verification_chart(to_plan.scene.system, model, solution.z[:, :n].T,
-                                            params, progress)
+        model, regular = verification_chart(to_plan.scene.system, default, solution.z[:, :n].T,
+                                            reference.params, progress)
         if not regular:
             model = lagrange_ode(to_plan.scene.system)
     def in_lagrange():
-        return to_momentum_coordinates(solution, momentum_problem(lagrange_ode(to_plan.scene.system), stated,
-                                                                  to_plan, params))
-    moved = to_momentum_coordinates(solution, momentum_problem(model, stated, to_plan, params))
+        return to_momentum_coordinates(solution, reference.problem_on(lagrange_ode(to_plan.scene.system)))
+    moved = to_momentum_coordinates(solution, reference.problem_on(model))
     if not np.all(np.isfinite(moved.z)) and np.all(np.isfinite(solution.z)):
         # a chart singular at some node (where the momenta are not defined): (q, q̇) instead
         moved, regular = in_lagrange(), False

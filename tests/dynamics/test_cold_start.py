@@ -103,7 +103,8 @@ def cold(tmp_path, monkeypatch):
 @needs_fast
 def test_first_plan_does_not_wait_for_the_optimised_build_and_the_next_run_uses_it(cold, tmp_path,
                                                                                    monkeypatch):
-    from nhgait.gaits.planner import plan, summary_lines
+    from nhgait.gaits.plan_summary import summary_lines
+    from nhgait.gaits.planner import plan
     held = HeldCompiler(tmp_path / "cc")
     held.hold(True)
     monkeypatch.setenv("NHGAIT_CC", str(held.script))

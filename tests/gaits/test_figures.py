@@ -189,7 +189,7 @@ def test_result_reprs_are_short_and_say_where_the_arrays_are(figures, out):
     assert "u (20, 2) columns" in text
     assert "verified to" in text
     assert "t = 0 … 4 s (21 samples)" in text
-    from nhgait.gaits.planner import summary_lines
+    from nhgait.gaits.plan_summary import summary_lines
     assert any("SE(2) (x, y, theta) moves the fibre (x, y, theta); the guesses loop the shape (s)" in line
                for line in summary_lines(result))
     md = result.solution._repr_markdown_()

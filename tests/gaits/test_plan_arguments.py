@@ -16,8 +16,9 @@ import pytest
 
 from nhgait.gaits import planner
 from nhgait.gaits.cli.main import main
-from nhgait.gaits.planner import plan, solver_order
+from nhgait.gaits.planner import plan
 from nhgait.gaits.planning.arguments import argument_problems, checked_request, override_list
+from nhgait.gaits.planning.options import solver_order
 from nhgait.gaits.tasks.sources import resolve
 from nhgait.ocp import ProblemError
 

@@ -255,7 +255,7 @@ def test_auto_solver_falls_back_to_ipopt(monkeypatch):
     failed), Ipopt plans the task and the report says which solver did what."""
     from dataclasses import replace as dc_replace
 
-    from nhgait.gaits.planner import solver_order
+    from nhgait.gaits.planning.options import solver_order
     from nhgait.ocp import OCPSolver, ProblemError
     assert solver_order("auto") == ("fatrop", "ipopt")
     assert solver_order("auto", "collocation") == ("ipopt",)

@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from nhgait.gaits.planner import plan, summary_lines
+from nhgait.gaits.plan_summary import summary_lines
+from nhgait.gaits.planner import plan
 from nhgait.gaits.verification import checks as verification_checks
 from nhgait.gaits.verification.checks import GaitChecks, checks_of, log_amplification
 

@@ -329,7 +329,8 @@ def test_the_task_states_its_time_limit():
 def test_a_plan_whose_budget_runs_out_fails_naming_the_phase(tmp_path):
     """A budget too short for the derivation: no attempt, no file, a failure whose diagnosis
     names the budget, the phase and the option to change."""
-    from nhgait.gaits.planner import plan, summary_lines
+    from nhgait.gaits.plan_summary import summary_lines
+    from nhgait.gaits.planner import plan
     result = plan("unicycle", "parallel-park", intervals=10, time_limit=1e-3, out_dir=tmp_path / "out")
     assert not result.success
     assert result.solution is None
