@@ -28,10 +28,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..tasks.reachability import numeric_connection_of, target_of
 from .waves import ends
 
-__all__ = ["LoopScore", "Target", "loop_scores", "rank_loops", "model_motion", "numeric_connection_of",
-           "target_of"]
+__all__ = ["LoopScore", "loop_scores", "rank_loops", "model_motion"]
 
 #: samples per horizon of a predicted loop (midpoint rule)
 SAMPLES = 240
@@ -55,45 +55,6 @@ class LoopScore:
     progress: float
     effort: float
     score: float
-
-
-def numeric_connection_of(problem):
-    """The :class:`~nhgait.dynamics.geometry.connection_fields.NumericConnection` of the problem's
-    model, or None when it has none (no reduced model, no shape, a fibre that is no group)."""
-    from nhgait.dynamics.errors import ModelError
-    from nhgait.dynamics.geometry.connection_fields import numeric_connection
-    base = getattr(problem.model, "base", problem.model)
-    if getattr(base, "layout", None) is None or not getattr(base, "shape", ()):
-        return None
-    try:
-        return numeric_connection(base, problem.model.numeric.params(problem.params))
-    except ModelError:
-        return None
-
-
-@dataclass(frozen=True, eq=False)
-class Target:
-    """The task's target direction ``d`` (fibre order) and the fibre components it concerns
-    (``mask``)."""
-
-    d: np.ndarray
-    mask: np.ndarray
-
-
-def target_of(problem, fiber: tuple) -> Target | None:
-    """The :class:`Target`: the planar position's change when the task fixes both ends of it and
-    it changes (mask: x, y), else the change of every fibre coordinate fixed at both ends (mask:
-    those); None when d = 0."""
-    d, mask = np.zeros(len(fiber)), np.zeros(len(fiber), bool)
-    for i, name in enumerate(fiber):
-        a, b = problem.fixed_value(problem.initial, name), problem.fixed_value(problem.final, name)
-        if a is not None and b is not None:
-            d[i], mask[i] = b - a, True
-    frame = getattr(problem.model.system, "planar_frame", None) or ()
-    planar = np.isin(np.arange(d.size), [fiber.index(c) for c in frame[:2] if c in fiber]) & mask
-    if planar.any() and np.linalg.norm(d[planar]) > 0:
-        d, mask = np.where(planar, d, 0.0), planar
-    return Target(d, mask) if np.linalg.norm(d) > 0 else None
 
 
 def _path(problem, guess, coordinates):
