@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import signal
 import statistics
 import subprocess
@@ -30,7 +31,8 @@ from pathlib import Path
 import sibling  # experiments/sibling.py
 
 BEFORE = ("import sys\nimport nhgait.gaits.planning.guesses as g\n"
-          "g.rank_loops = lambda problem, guesses, progress=None: list(guesses)\n"
+          "from nhgait.gaits.planning.loop_ranking import RankedLoops\n"
+          "g.rank_loops = lambda problem, guesses, progress=None: RankedLoops(tuple(guesses))\n"
           "from nhgait.gaits.cli.main import main\nsys.exit(main(sys.argv[1:]))\n")
 AFTER = "import sys\nfrom nhgait.gaits.cli.main import main\nsys.exit(main(sys.argv[1:]))\n"
 
@@ -56,7 +58,22 @@ def run(scene: Path, out: Path, arm: str, budget: float) -> dict:
     solution = out / "solution.json"
     won = json.loads(solution.read_text()).get("guess", {}).get("won") if solution.exists() else None
     return {"scene": str(scene), "arm": arm, "exit": proc.returncode, "verified": proc.returncode == 0,
-            "time_s": round(wall, 2), "ranked": "shape loops ranked" in log, "won": won}
+            "time_s": round(wall, 2), "ranked": "shape loops ranked" in log, "won": won,
+            "attempts": len(re.findall(r"^\[[ 0-9.]+ s\]   guess \d+/\d+ ", log, flags=re.M)),
+            "phases": phases(log)}
+
+
+def phases(log: str) -> dict:
+    """The plan's own "wall time … in all: model 1.4 s, …" line as {phase: seconds}."""
+    found = re.search(r"wall time\s+([0-9.]+) s in all: (.*)", log)
+    if not found:
+        return {}
+    out = {"all": float(found.group(1))}
+    for part in found.group(2).split(", "):
+        m = re.match(r"(.+?) ([0-9.]+) s$", part.strip())
+        if m:
+            out[m.group(1)] = float(m.group(2))
+    return out
 
 
 def main(argv=None) -> int:
@@ -94,6 +111,17 @@ def main(argv=None) -> int:
                         "median_time_s": statistics.median(r["time_s"] for r in mine)}
     before, after = summary["before"]["median_time_s"], summary["after"]["median_time_s"]
     summary["median_ratio_after_before"] = after / before
+    for arm in ("before", "after"):                        # where the time went: medians per phase
+        mine = [r["phases"] for r in rows if r["arm"] == arm and r["phases"]]
+        names = sorted({k for p in mine for k in p})
+        summary[arm]["median_phase_s"] = {k: statistics.median(p.get(k, 0.0) for p in mine) for k in names}
+        summary[arm]["median_attempts"] = statistics.median(r["attempts"] for r in rows if r["arm"] == arm)
+    pairs = {}
+    for r in rows:
+        pairs.setdefault(r["scene"], {}).setdefault(r["arm"], []).append(r["time_s"])
+    ratios = [statistics.median(v["after"]) / statistics.median(v["before"]) for v in pairs.values()
+              if v.get("before") and v.get("after")]
+    summary["median_paired_ratio"] = statistics.median(ratios) if ratios else None
     ranked = {r["scene"] for r in rows if r["ranked"]}
     summary["scenes_reordered"] = len(ranked)
     changed = [r for r in rows if r["scene"] in ranked]
