@@ -5,10 +5,14 @@ For each scene — ``--pairs`` robot-and-task pairs of ``experiments/robot_gener
 ``--seed``) and the user scenes given with ``--scene`` — two cold ``nhgait plan SCENE --no-gif``
 processes, each with a fresh empty ``NHGAIT_CACHE_DIR`` and ``--time-limit`` ``--budget`` s:
 ``before`` with :func:`nhgait.gaits.planning.loop_ranking.rank_loops` replaced by the identity (the
-candidates in their generated order), ``after`` as shipped. The arms alternate per scene. A row
-per (scene, arm): the exit code (0: a verified gait), the time to the answer, whether the
-ranking changed the order (the plan's log says "shape loops ranked"), the winning guess.
-Prints the verified counts and the median times to answer of both arms and their ratio, and
+candidates in their generated order) and without the one-shape-coordinate reach check
+(:func:`nhgait.gaits.tasks.reachability.shape_reach`), ``after`` as shipped. The arms alternate
+per scene. A row per (scene, arm): the exit code (0: a verified gait), the time to the answer, whether the
+ranking changed the order (the plan's log says "shape loops ranked"), the winning guess, the
+attempts made and the plan's own "wall time … in all" split (model, NLP set-up, guesses and
+solves, verification, figures, …).
+Prints the verified counts, the median times to answer of both arms and their ratio, the median
+of the per-scene ratios, the median seconds per phase and attempts per plan, and
 writes ``results.json`` into ``--out``. Progress on stderr (``--quiet``: none).
 
 Usage: python experiments/bench_loop_ranking.py [--seed 24] [--pairs 6] [--scene FILE ...]
@@ -33,6 +37,7 @@ import sibling  # experiments/sibling.py
 BEFORE = ("import sys\nimport nhgait.gaits.planning.guesses as g\n"
           "from nhgait.gaits.planning.loop_ranking import RankedLoops\n"
           "g.rank_loops = lambda problem, guesses, progress=None: RankedLoops(tuple(guesses))\n"
+          "import nhgait.gaits.tasks.reachability as r\nr.shape_reach = lambda problem: None\n"
           "from nhgait.gaits.cli.main import main\nsys.exit(main(sys.argv[1:]))\n")
 AFTER = "import sys\nfrom nhgait.gaits.cli.main import main\nsys.exit(main(sys.argv[1:]))\n"
 

@@ -151,7 +151,9 @@ def shape_reach(problem) -> ShapeReach | None:
     at p = 0 the rate is σ_rr ṙ², of the sign of σ_rr whatever r(t) does, so p never changes sign:
     when σ_rr·(Γ·d̂) < 0 over the whole interval (d̂ the target direction in the body frame at the
     start) the momentum pushes the body away from the target for every shape motion
-    (``momentum_away``). A principally kinematic robot (d = 0) moves along one curve s(r). The
+    (``momentum_away``; σ_rr(r) is ṗ at p = 0, ṙ = 1 and Γ(r)·d̂ the fibre velocity of p = 1 at
+    ṙ = 0 along d̂, both from the reduced equations at the start's fibre values — numbers only, no
+    symbolic work). A principally kinematic robot (d = 0) moves along one curve s(r). The
     remaining geometric part −A(r)ṙ and the turning of the body are sampled: smooth shape
     motions from rest within the interval (an end offset, strokes of several amplitudes and
     frequencies) over the horizon, each followed through the reconstruction and momentum
@@ -160,71 +162,99 @@ def shape_reach(problem) -> ShapeReach | None:
     the best displacement toward the target at any time is ``best``. Not reachable:
     ``momentum_away`` (or d = 0) and ``best`` < :data:`REACH_FRACTION` |d|.
     """
-    setting = _one_shape_setting(problem)
-    if setting is None:
+    case = _one_shape_case(problem)
+    if case is None:
         return None
-    name, interval, target, numeric = setting
-    base = getattr(problem.model, "base", problem.model)
-    values = problem.model.numeric.params(problem.params)
-    q0 = np.array([problem.fixed_value(problem.initial, c) or 0.0 for c in numeric.names])
-    distance = float(np.linalg.norm(target.d))
-    direction = target.d / distance
-    away = _momentum_away(base, values, q0, numeric, name, interval, direction)
-    best, kept, tried = _sampled_reach(problem, base, values, q0, numeric, name, interval, target)
-    reachable = not ((away or base.layout.d == 0) and kept > 0 and best < REACH_FRACTION * distance)
-    sentence = "" if reachable else _unreachable_sentence(problem, numeric, name, interval, target, best,
-                                                            kept, away)
-    return ShapeReach(shape=name, interval=interval, momentum_away=away, samples=kept, tried=tried,
+    model = getattr(problem.model, "base", problem.model)
+    values = np.asarray(problem.model.numeric.params(problem.params), float)
+    distance = float(np.linalg.norm(case.target.d))
+    away = _momentum_away(model, values, case)
+    best, kept, tried = _sampled_reach(problem, model, values, case)
+    reachable = not ((away or model.layout.d == 0) and kept > 0 and best < REACH_FRACTION * distance)
+    sentence = "" if reachable else _unreachable_sentence(problem, case, best, kept, away)
+    return ShapeReach(shape=case.name, interval=case.interval, momentum_away=away, samples=kept, tried=tried,
                       best=best, distance=distance, reachable=reachable, sentence=sentence)
 
 
-def _one_shape_setting(problem):
-    """(r, (lo, hi), Target, NumericConnection) when :func:`shape_reach` applies, else None."""
+@dataclass(frozen=True, eq=False)
+class _OneShape:
+    """The robot and task :func:`shape_reach` judges: the coordinates ``names`` and the start
+    ``q0``, the fibre (``fiber``, its rows ``si``), the shape coordinate ``name`` (row ``index``)
+    and its ``interval``, the :class:`Target`."""
+
+    names: tuple
+    q0: np.ndarray
+    fiber: tuple
+    si: tuple
+    name: str
+    index: int
+    interval: tuple
+    target: Target
+
+
+def _one_shape_case(problem) -> _OneShape | None:
+    """The :class:`_OneShape` when :func:`shape_reach` applies, else None."""
     model = getattr(problem.model, "base", problem.model)
     layout = getattr(model, "layout", None)
-    if layout is None or len(getattr(model, "shape", ())) != 1 or layout.d > 1:
+    if layout is None or len(layout.free) != 1 or layout.d > 1 or not layout.si:
         return None
-    n = len(model.system.coordinates)
+    names = tuple(model.system.coordinates)
+    n = len(names)
     if any(problem.fixed_value(problem.initial, v) != 0.0 for v in problem.state_names[n:]):
         return None                                        # not from rest
     tau = model.system.tau
     if any(not tau[i].is_zero for i in layout.si):
         return None                                        # something pushes along the fibre
-    numeric = numeric_connection_of(problem)
-    if numeric is None or len(numeric.shape) != 1:
-        return None
-    (name,) = numeric.shape
+    index = layout.free[0]
+    name = names[index]
     if name not in problem.state_bounds:
         return None
     lo, hi = problem.bounds(problem.state_bounds, name)
     if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
         return None
-    target = target_of(problem, numeric.fiber)
-    return None if target is None else (name, (lo, hi), target, numeric)
+    target = target_of(problem, tuple(layout.fiber))
+    if target is None:
+        return None
+    q0 = np.array([problem.fixed_value(problem.initial, c) or 0.0 for c in names])
+    return _OneShape(names=names, q0=q0, fiber=tuple(layout.fiber), si=tuple(layout.si), name=name,
+                     index=index, interval=(lo, hi), target=target)
 
 
-def _momentum_away(model, values, q0, numeric, name, interval, direction) -> bool:
+def _shape_momenta(model, values):
+    """(q, ṙ) → the shape momenta P_r = K_r(q)ṙ of the horizontal lift X_r ṙ (thesis step 8), CasADi."""
+    import casadi as ca
+    layout, numeric = model.layout, model.numeric
+    n, d, m = len(model.system.coordinates), layout.d, len(layout.free)
+    q, r_dot = ca.MX.sym("q", n), ca.MX.sym("rd", m)
+    X = numeric["basis"](ca.vertcat(q, ca.DM.zeros(len(model.momenta))), values)
+    P_r = numeric["state"](q, ca.mtimes(X[:, d:], r_dot), values)[n + d:]
+    return q, r_dot, P_r
+
+
+def _momentum_away(model, values, case: _OneShape) -> bool:
     """Whether σ_rr(r)·(Γ(r)·d̂) < 0 on a grid of the interval (one momentum; False otherwise)."""
     if model.layout.d != 1:
         return False
-    from nhgait.dynamics.geometry.reconstruction import reconstruction
-    equation = reconstruction(model)
-    body = np.linalg.solve(numeric.frame(q0), direction)
-    i = list(numeric.names).index(name)
-    signs = []
-    for r in np.linspace(*interval, 41):
-        q = q0.copy()
-        q[i] = r
-        e = equation.evaluate(q, values)
-        signs.append(float(e.sigma_rr.ravel()[0]) * float(body @ e.Gamma[:, 0]))
-    return bool(np.all(np.array(signs) < 0.0))
+    import casadi as ca
+    n = len(case.names)
+    q, r_dot, P_r = _shape_momenta(model, values)
+    u0 = ca.DM.zeros(len(model.system.inputs))
+    p_rate = model.numeric["rhs"](0.0, ca.vertcat(q, 0.0, P_r), u0, values)[n]       # σ_rr at ṙ = 1
+    pushed = model.numeric["qdot"](ca.vertcat(q, 1.0, ca.DM.zeros(P_r.shape[0])), values)
+    along = ca.dot(pushed[list(case.si)], ca.DM(case.target.d / np.linalg.norm(case.target.d)))
+    grid = np.linspace(*case.interval, 41)
+    Q = np.repeat(case.q0[:, None], grid.size, axis=1)
+    Q[case.index] = grid
+    f = ca.Function("momentum_sign", [q, r_dot], [p_rate * along]).map(grid.size)
+    signs = np.asarray(f(Q, np.ones((1, grid.size)))).ravel()
+    return bool(np.all(signs < 0.0))
 
 
-def _shape_paths(q0, i, interval, t) -> np.ndarray:
+def _shape_paths(case: _OneShape, t) -> np.ndarray:
     """The sampled shape motions r(t) (S×K, module constants), each from the start at rest:
     r0 + Δ(1 − cos πt/T)/2 + a(1 − cos 2πkt/T)/2, clipped to the interval."""
-    lo, hi = interval
-    r0 = float(np.clip(q0[i], lo, hi))
+    lo, hi = case.interval
+    r0 = float(np.clip(case.q0[case.index], lo, hi))
     T = float(t[-1])
     half = (hi - lo) / 2
     out = []
@@ -240,55 +270,45 @@ def _shape_paths(q0, i, interval, t) -> np.ndarray:
 
 
 def _input_function(model, values):
-    """(q, ṙ, r̈, p) → the inputs' least-squares residual data: Ṗ_r wanted − Ṗ_r(u = 0) and
+    """(q, ṙ, r̈, p) → what the inputs must do along a shape path: Ṗ_r wanted − Ṗ_r(u = 0) and
     ∂Ṗ_r/∂u (the reduced equations are affine in u), as one CasADi Function."""
     import casadi as ca
-    layout, numeric = model.layout, model.numeric
-    n, d = len(model.system.coordinates), layout.d
-    m, nu = len(layout.free), len(model.system.inputs)
-    basis, state, rhs = numeric["basis"], numeric["state"], numeric["rhs"]
-    q, r_dot, r_ddot, p = ca.MX.sym("q", n), ca.MX.sym("rd", m), ca.MX.sym("rdd", m), ca.MX.sym("p", d)
-    u = ca.MX.sym("u", nu)
-    vals = ca.DM(np.asarray(values, float))
-
-    def shape_momenta(qq, rd):
-        X = basis(ca.vertcat(qq, ca.DM.zeros(d + m)), vals)
-        return state(qq, ca.mtimes(X[:, d:], rd), vals)[n + d:]
-
-    P_r = shape_momenta(q, r_dot)
+    layout = model.layout
+    n, d, nu = len(model.system.coordinates), layout.d, len(model.system.inputs)
+    q, r_dot, P_r = _shape_momenta(model, values)
+    r_ddot, p, u = ca.MX.sym("rdd", r_dot.shape[0]), ca.MX.sym("p", d), ca.MX.sym("u", nu)
     # Ṗ_r along the path: ∂P_r/∂q q̇_r + ∂P_r/∂ṙ r̈ (the fibre does not enter K_r, thesis step 8)
     q_dot = ca.MX.zeros(n)
     for j, k in enumerate(layout.free):
         q_dot[k] = r_dot[j]
     wanted = ca.jtimes(P_r, q, q_dot) + ca.jtimes(P_r, r_dot, r_ddot)
-    zdot = rhs(0.0, ca.vertcat(q, p, P_r), u, vals)[n + d:]
-    G = ca.jacobian(zdot, u)
-    free = ca.substitute(zdot, u, ca.DM.zeros(nu))
-    return ca.Function("shape_inputs", [q, r_dot, r_ddot, p, u],
-                       [wanted - free, ca.substitute(G, u, ca.DM.zeros(nu))])
+    zdot = model.numeric["rhs"](0.0, ca.vertcat(q, p, P_r), u, values)[n + d:]
+    zero = ca.DM.zeros(nu)
+    return ca.Function("shape_inputs", [q, r_dot, r_ddot, p],
+                       [wanted - ca.substitute(zdot, u, zero), ca.substitute(ca.jacobian(zdot, u), u, zero)])
 
 
-def _sampled_reach(problem, model, values, q0, numeric, name, interval, target) -> tuple:
+def _sampled_reach(problem, model, values, case: _OneShape) -> tuple:
     """(best displacement toward the target, motions within the input bounds, motions tried)
     over :func:`_shape_paths` (:func:`shape_reach`)."""
     from nhgait.dynamics.geometry.prescribed import FibreIntegrator
     horizon = problem.free_horizon[1] if problem.free_horizon is not None else problem.horizon
     t = np.linspace(0.0, float(horizon), SAMPLE_NODES + 1)
-    i = list(numeric.names).index(name)
-    paths = _shape_paths(q0, i, interval, t)
+    paths = _shape_paths(case, t)
     integrate = FibreIntegrator(model, values)
     lo, hi = problem.control_bound_vectors()
-    inputs = _input_function(model, values) if np.isfinite(lo).any() or np.isfinite(hi).any() else None
-    mask, d = target.mask, target.d
+    bounded = np.isfinite(lo).any() or np.isfinite(hi).any()
+    inputs = _input_function(model, values).map(t.size) if bounded else None
+    mask, d = case.target.mask, case.target.d
     distance = float(np.linalg.norm(d))
     best, kept = -math.inf, 0
     for r in paths:
-        q = np.repeat(q0[:, None], t.size, axis=1)
-        q[i] = r
+        q = np.repeat(case.q0[:, None], t.size, axis=1)
+        q[case.index] = r
         motion = integrate(t, q)
         if not np.all(np.isfinite(motion.fiber)):
             continue
-        if inputs is not None and not _within_inputs(inputs, q, i, t, motion.momentum, lo, hi):
+        if inputs is not None and not _within_inputs(inputs, q, r, t, motion.momentum, (lo, hi)):
             continue
         kept += 1
         moved = motion.fiber - motion.fiber[:, :1]
@@ -297,29 +317,26 @@ def _sampled_reach(problem, model, values, q0, numeric, name, interval, target) 
     return best, kept, len(paths)
 
 
-def _within_inputs(inputs, q, i, t, momentum, lo, hi) -> bool:
-    """Whether the least-squares inputs of the path q(t) stay within [lo, hi] (× :data:`INPUT_SLACK`)."""
-    r = q[i]
+def _within_inputs(inputs, q, r, t, momentum, bounds) -> bool:
+    """Whether the least-squares inputs of the path q(t) (shape r(t)) stay within ``bounds``
+    (lo, hi) widened by :data:`INPUT_SLACK`; ``inputs`` is :func:`_input_function` mapped over t."""
+    lo, hi = bounds
     r_dot = np.gradient(r, t)
-    r_ddot = np.gradient(r_dot, t)
-    K = t.size
-    residual, G = inputs.map(K)(q, r_dot[None, :], r_ddot[None, :], momentum, np.zeros((lo.size, K)))
-    residual, G = np.asarray(residual), np.asarray(G)
-    m = residual.shape[0]
+    residual, G = inputs(q, r_dot[None, :], np.gradient(r_dot, t)[None, :], momentum)
+    residual, G = np.asarray(residual), np.asarray(G)                     # m×K, m×(K·nu)
+    m, K = residual.shape
+    stacked = G.reshape(m, K, lo.size).transpose(1, 0, 2)                 # K×m×nu
+    u = np.einsum("kij,kj->ki", np.linalg.pinv(stacked), residual.T)       # K×nu
     low, high = INPUT_SLACK * np.minimum(lo, 0) - 1e-9, INPUT_SLACK * np.maximum(hi, 0) + 1e-9
-    for k in range(K):
-        block = G[:, k * lo.size:(k + 1) * lo.size].reshape(m, lo.size)
-        u = np.linalg.lstsq(block, residual[:, k], rcond=None)[0]
-        if np.any(u < low) or np.any(u > high):
-            return False
-    return True
+    return bool(np.all(u >= low) and np.all(u <= high))
 
 
-def _unreachable_sentence(problem, numeric, name, interval, target, best, kept, away) -> str:
+def _unreachable_sentence(problem, case: _OneShape, best, kept, away) -> str:
     """The verdict of :func:`shape_reach` in one sentence a user can act on."""
+    target, name = case.target, case.name
     wanted = " and ".join(f"{c} by {v:+.3g}"
-                          for c, v, on in zip(numeric.fiber, target.d, target.mask, strict=True) if on and v)
-    lo, hi = interval
+                          for c, v, on in zip(case.fiber, target.d, target.mask, strict=True) if on and v)
+    lo, hi = case.interval
     lo_u, hi_u = problem.control_bound_vectors()
     limits = ", ".join(f"{u} in [{a:g}, {b:g}]"
                        for u, a, b in zip(problem.control_names, lo_u, hi_u, strict=True)
