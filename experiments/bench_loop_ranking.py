@@ -6,7 +6,9 @@ For each scene — ``--pairs`` robot-and-task pairs of ``experiments/robot_gener
 processes, each with a fresh empty ``NHGAIT_CACHE_DIR`` and ``--time-limit`` ``--budget`` s:
 ``before`` with :func:`nhgait.gaits.planning.loop_ranking.rank_loops` replaced by the identity (the
 candidates in their generated order) and without the one-shape-coordinate reach check
-(:func:`nhgait.gaits.tasks.reachability.shape_reach`), ``after`` as shipped. The arms alternate
+(:func:`nhgait.gaits.tasks.reachability.shape_reach`) and with the stall rule of before (three
+infeasible attempts in a row, :data:`nhgait.gaits.planning.infeasibility.STALL_WINDOW` = 3),
+``after`` as shipped. The arms alternate
 per scene. A row per (scene, arm): the exit code (0: a verified gait), the time to the answer, whether the
 ranking changed the order (the plan's log says "shape loops ranked"), the winning guess, the
 attempts made and the plan's own "wall time … in all" split (model, NLP set-up, guesses and
@@ -38,6 +40,7 @@ BEFORE = ("import sys\nimport nhgait.gaits.planning.guesses as g\n"
           "from nhgait.gaits.planning.loop_ranking import RankedLoops\n"
           "g.rank_loops = lambda problem, guesses, progress=None: RankedLoops(tuple(guesses))\n"
           "import nhgait.gaits.tasks.reachability as r\nr.shape_reach = lambda problem: None\n"
+          "import nhgait.gaits.planning.infeasibility as f\nf.STALL_WINDOW = f.STALL_ATTEMPTS\n"
           "from nhgait.gaits.cli.main import main\nsys.exit(main(sys.argv[1:]))\n")
 AFTER = "import sys\nfrom nhgait.gaits.cli.main import main\nsys.exit(main(sys.argv[1:]))\n"
 
@@ -55,9 +58,11 @@ def run(scene: Path, out: Path, arm: str, budget: float) -> dict:
                                     start_new_session=True)
             try:
                 proc.wait(timeout=budget + 120)
-            except subprocess.TimeoutExpired:          # the plan's whole process group
+            except BaseException:          # past its time, or this script stopped: the plan's group
                 os.killpg(proc.pid, signal.SIGKILL)
                 proc.wait()
+                if not isinstance(sys.exc_info()[1], subprocess.TimeoutExpired):
+                    raise
         wall = time.monotonic() - t0
     log = (out / "plan.log").read_text(errors="replace")
     solution = out / "solution.json"
@@ -81,7 +86,20 @@ def phases(log: str) -> dict:
     return out
 
 
+def _terminated(signum, frame):
+    """SIGTERM as an exception, so the plan running in its own session is stopped with this script."""
+    raise SystemExit(128 + signum)
+
+
 def main(argv=None) -> int:
+    previous = signal.signal(signal.SIGTERM, _terminated)
+    try:
+        return _run(argv)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _run(argv) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=24)
     ap.add_argument("--pairs", type=int, default=6)
