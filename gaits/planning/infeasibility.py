@@ -236,8 +236,10 @@ def _solve(problem, closest, *, elastic, steps: int, seconds: float) -> tuple:
         cost, slacks = cost + s, slacks + [(f"periodic.{name}", [], (0.0, 0.0), s)]
     opti.minimize(cost)
     _guess(opti, Z, U, problem, closest)
+    # both clocks: CPU time alone let a loaded machine stretch the 60 s to 77 s of wall time
     opti.solver("ipopt", {"print_time": False}, {"print_level": 0, "max_iter": 3000, "max_cpu_time": seconds,
-                                                "tol": 1e-10, "acceptable_iter": 0, "sb": "yes"})
+                                                "max_wall_time": seconds, "tol": 1e-10, "acceptable_iter": 0,
+                                                "sb": "yes"})
     try:
         sol = opti.solve()
         value, status = sol.value, "Solve_Succeeded"
