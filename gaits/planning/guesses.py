@@ -27,7 +27,7 @@ classical gaits (snakeboard rotor:wheel frequency ratios 1:1 drive, 2:1 rotate, 
 Amplitudes respect the task's bounds (at most 90 % of the distance to the nearer bound).
 The two-variable loops are ranked by the local connection's prediction of how far each moves
 the robot toward the target (:mod:`.loop_ranking`): the best first, the ones predicted to move
-it away after every other candidate; the ranking runs when the first candidate past the leading
+it away after every other candidate but the ramps; the ranking runs when the first candidate past the leading
 ones (path, fitted guess, warm start) is asked for (:class:`RankedOrder`).
 
 Configurations q(t) and their rates q̇(t) (ramps included) are mapped to the model's state
@@ -358,7 +358,7 @@ def candidates(problem, *, shape=None, screen=True, progress=None) -> Candidates
 
     def tail() -> list:
         ranked = rank_loops(problem, loops, progress)
-        out = _interleave(list(ranked.front[:-1]), rollouts) + list(ranked.front[-1:]) + list(ranked.away)
+        out = _interleave(list(ranked.front[:-1]), rollouts) + list(ranked.away) + list(ranked.front[-1:])
         return out[:1] + [fitted] + out[1:] if fitted is not None else out
 
     order = RankedOrder(head, tail, len(loops) + len(rollouts) + (fitted is not None))

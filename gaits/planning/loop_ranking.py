@@ -21,8 +21,8 @@ prediction means nothing: the 3-link snake's α₁ = α₂) gets no score and ke
 decreasing score, then those it cannot tell apart (in their order), in the slots the loops held;
 every other candidate keeps its place. The loops predicted to move the robot *away* from the
 target (progress below −:data:`SIGNIFICANT` |d|: about half of them, the mirror images of the
-good ones) are set apart (:class:`RankedLoops`), tried only after everything else — within the
-planner's limit of guesses per solver, dropped. Nothing changes when the model has no local
+good ones) are set apart (:class:`RankedLoops`), tried after every other candidate but the ramps
+alone — within the planner's limit of guesses per solver, dropped. Nothing changes when the model has no local
 connection or the task no target direction.
 
 The prediction is numeric only (:class:`Predictor`: the compiled basis X(q) and the fibre
@@ -97,7 +97,8 @@ class Predictor:
 def predictor_of(problem) -> Predictor | None:
     """The :class:`Predictor` of the problem's reduced model (None without one: no layout, no
     shape): the compiled basis X(q) and :class:`~nhgait.dynamics.geometry.prescribed.FibreIntegrator`,
-    nothing symbolic (the connection's bracket, which sympy simplifies for a second, is not needed)."""
+    nothing symbolic (the connection's bracket, simplified symbolically in about a second, is not
+    needed)."""
     from nhgait.dynamics.geometry.prescribed import FibreIntegrator
     base = getattr(problem.model, "base", problem.model)
     layout = getattr(base, "layout", None)
@@ -173,7 +174,7 @@ class RankedLoops:
     """The guesses of :func:`rank_loops`: ``front`` (the loops toward the target by decreasing
     score, then those the prediction cannot tell, in the slots the loops held; the other guesses
     in their places) and ``away`` (the loops predicted to move the robot away from the target,
-    least far first: tried only after everything else)."""
+    least far first: :mod:`.guesses` tries them after every other candidate but the ramps alone)."""
 
     front: tuple
     away: tuple = ()

@@ -47,4 +47,6 @@ def test_candidates_rank_the_snakeboards_loops_without_losing_one():
     toward = [label for label in labels if label in scores and scores[label].score > 0]
     assert away and toward
     assert max(labels.index(a) for a in toward) < min(labels.index(a) for a in away)
-    assert labels.index(away[0]) > labels.index("ramps only")       # after every other candidate
+    assert labels[-1] == "ramps only"                                # the last resort stays last
+    assert min(labels.index(a) for a in away) > max(i for i, label in enumerate(labels)
+                                                    if label not in away and label != "ramps only")
