@@ -22,8 +22,8 @@ decreasing score, then those it cannot tell apart (in their order), in the slots
 every other candidate keeps its place. The loops predicted to move the robot *away* from the
 target (progress below −:data:`SIGNIFICANT` |d|: about half of them, the mirror images of the
 good ones) are set apart (:class:`RankedLoops`), tried after every other candidate but the ramps
-alone — within the planner's limit of guesses per solver, dropped. Nothing changes when the model has no local
-connection or the task no target direction.
+alone (for a robot with roll-outs, beyond the planner's limit of guesses per solver). Nothing
+changes when the model has no local connection or the task no target direction.
 
 The prediction is numeric only (:class:`Predictor`: the compiled basis X(q) and the fibre
 integrator's one CasADi ``mapaccum`` per loop), so ranking the snakeboard's 21 loops costs
