@@ -143,7 +143,7 @@ def shape_reach(problem) -> ShapeReach | None:
     """Whether a robot with ONE bounded shape coordinate r, started at rest, can move toward its
     target within the bounds (None when the check does not apply: no local connection, another
     number of shape coordinates, r unbounded, a start not at rest, forces along the fibre, no
-    target direction).
+    target direction, a task in phases).
 
     With one shape coordinate there is no height function (no loop encloses an area); what moves
     the fibre is the reconstruction equation ξ = −A(r)ṙ + Γ(r)p with, for one nonholonomic
@@ -197,6 +197,8 @@ def _one_shape_case(problem) -> _OneShape | None:
     model = getattr(problem.model, "base", problem.model)
     layout = getattr(model, "layout", None)
     if layout is None or len(layout.free) != 1 or layout.d > 1 or not layout.si:
+        return None
+    if getattr(problem, "phases", ()):                     # horizons and bounds per phase: not judged
         return None
     names = tuple(model.system.coordinates)
     n = len(names)
