@@ -350,6 +350,6 @@ def _unreachable_sentence(problem, case: _OneShape, best, kept, away) -> str:
     return (f"not reachable within the bounds: the target ({wanted}) needs motion toward it, but {why}, "
             f"and none of {kept} sampled motions of {name} within [{lo:g}, {hi:g}]"
             + (f" and {limits}" if limits else "")
-            + f" brings it nearer than {max(best, 0.0):.2g} of the {float(np.linalg.norm(target.d)):.3g} "
-            f"needed in T = {float(horizon):g} s — widen the bounds of {name}, add an input that pushes "
-            "along the fibre, or move the target the other way")
+            + f" gets it nearer in T = {float(horizon):g} s (the best: {max(best, 0.0):.2g} of the "
+            f"{float(np.linalg.norm(target.d)):.3g} needed) — widen the bounds of {name}, add an input "
+            "that pushes along the fibre, or move the target the other way")
