@@ -10,10 +10,15 @@ of ``--repeats`` runs.
   runs them (a fresh process each; the cache already holding the derivation and the optimised
   library), against the floor of any such tool: a bare ``python -c "import casadi, sympy,
   numpy"``. Targets: plan ≤ 2×, derive ≤ 1.5× the floor.
+  Each plan also runs with ``NHGAIT_WARM_OPTIMA=0``: without the last verified optimum of
+  its task from the cache, as every warm run did before it (issue 40).
 * **in process, warm** — ``plan("snakeboard", "forward", intervals=100, verify=False)`` (P2) in
   a long-lived process, against the hand-written jit CasADi multiple-shooting reference's solve
   of the same problem (``experiments/reference_casadi_ocp.py``, Ipopt, gcc -O1; its NLP built
-  once; J = 0.109703). Target: ≤ 3×; the objectives are printed side by side.
+  once; J = 0.109703). Target: ≤ 3×; the objectives are printed side by side. A third row is
+  the same plan without the process's memo (``memo=False``), as every in-process plan ran before
+  the memo (issue 40): each call prepares the model, builds the NLP and the solver, builds and
+  screens the guesses and explores after the first success.
 
 The cache is a private folder (``--cache``; default: a new temporary one, warmed first by one
 run of each command, the optimised library's background build waited for). Writes
@@ -119,17 +124,28 @@ def _warm_plan(args: list, out: Path, cache: Path, background: bool) -> dict:
 
 
 def measure_processes(cache: Path, folder: Path, repeats: int, commands: tuple,
-                      background: bool = True) -> list:
-    """Rows of the whole-process runs against the floor, each command's runs taking turns."""
+                      background: bool = True, cold_guesses: bool = True) -> list:
+    """Rows of the whole-process runs against the floor, each command's runs taking turns;
+    ``cold_guesses``: each plan also with ``NHGAIT_WARM_OPTIMA=0`` (no last verified optimum
+    from the cache: the planner's guesses built, the exploration run — every warm run before
+    :mod:`nhgait.gaits.planning.plan_memo`)."""
     env = _env(cache, background)
+    cold_env = {**env, "NHGAIT_WARM_OPTIMA": "0"}
+    plans = [(label, args) for label, args, _ in commands if args[0] == "plan"] if cold_guesses else []
     times = {"floor": []} | {label: [] for label, _, _ in commands}
+    times |= {f"{label} cold": [] for label, _ in plans}
     for _ in range(repeats):
         times["floor"].append(_timed([sys.executable, "-c", FLOOR], env))
         for label, args, _ in commands:
             times[label].append(_timed(_command(args, folder / "runs"), env))
+        for label, args in plans:
+            times[f"{label} cold"].append(_timed(_command(args, folder / "runs"), cold_env))
     floor = _row(f'python -c "{FLOOR}" (the floor)', times["floor"], None, None)
-    return [floor] + [_row(f"nhgait {label}, warm", times[label], (floor["median_s"], floor["cpu_s"]), target)
+    base = (floor["median_s"], floor["cpu_s"])
+    rows = [floor] + [_row(f"nhgait {label}, warm", times[label], base, target)
                       for label, _, target in commands]
+    return rows + [_row(f"nhgait {label}, warm, NHGAIT_WARM_OPTIMA=0 (guesses built, exploration run)",
+                        times[f"{label} cold"], base, None) for label, _ in plans]
 
 
 def _both() -> tuple:
@@ -141,16 +157,21 @@ def _since(start: tuple) -> tuple:
     return now[0] - start[0], now[1] - start[1]
 
 
-def measure_in_process(cache: Path, repeats: int) -> list:
+def measure_in_process(cache: Path, repeats: int, with_bare: bool = True, background: bool = True) -> list:
     """Rows of the in-process warm P2 plan against the reference's solve, taking turns (CPU:
-    this process and the attempts' children)."""
+    this process and the attempts' children); ``with_bare``: also the same plan without the
+    process's memo (``plan(..., memo=False)``, :mod:`nhgait.gaits.planning.plan_memo`), as every
+    plan ran before it."""
     os.environ["NHGAIT_CACHE_DIR"] = str(cache)
+    os.environ["NHGAIT_BACKGROUND_BUILDS"] = "1" if background else "0"   # --no-background: none here either
     from nhgait.gaits.planner import plan
     ref = sibling.load("reference_casadi_ocp")
     run_ours = lambda: plan(P2["system"], P2["gait"], intervals=P2["intervals"], verify=False)  # noqa: E731
+    run_bare = lambda: plan(P2["system"], P2["gait"], intervals=P2["intervals"], verify=False,  # noqa: E731
+                            memo=False)
     ours = run_ours()                                     # warm-up: the process's first plan
     theirs = ref.solve("P2", P2["intervals"], jit=True)   # builds (and compiles) the reference once
-    ours_runs, theirs_runs = [], []
+    ours_runs, theirs_runs, bare_runs = [], [], []
     for _ in range(repeats):
         start = _both()
         ours = run_ours()
@@ -158,13 +179,22 @@ def measure_in_process(cache: Path, repeats: int) -> list:
         start = _both()
         theirs = ref.solve("P2", P2["intervals"], jit=True)
         theirs_runs.append((theirs["solve_time_s"], _since(start)[1]))
+        if with_bare:
+            start = _both()
+            bare = run_bare()
+            bare_runs.append(_since(start))
     reference = _row("reference jit CasADi solve of P2 (N = 100; NLP built once)", theirs_runs, None, None,
                      objective=theirs["objective"])
-    return [reference,
+    base = (reference["median_s"], reference["cpu_s"])
+    rows = [reference,
             _row('plan("snakeboard", "forward", intervals=100, verify=False), in process, warm', ours_runs,
-                 (reference["median_s"], reference["cpu_s"]), 3.0,
-                 objective=ours.solution.objective if ours.solution is not None else None,
+                 base, 3.0, objective=ours.solution.objective if ours.solution is not None else None,
                  success=ours.success)]
+    if with_bare:
+        rows.append(_row('the same plan without the memo (memo=False: each call prepares, builds, explores)',
+                         bare_runs, base, None, objective=bare.solution.objective if bare.solution else None,
+                         success=bare.success))
+    return rows
 
 
 def table(rows: list) -> str:
@@ -187,6 +217,8 @@ def main(argv=None) -> int:
                     help=f"the whole-process commands ({', '.join(ALL_COMMANDS)})")
     ap.add_argument("--cache", default=None, help="cache folder (default: a new temporary one, warmed first)")
     ap.add_argument("--out", default="out/bench_loop.json")
+    ap.add_argument("--no-bare", action="store_true",
+                    help="no rows without the memo (in process) or without the cache's optima (processes)")
     ap.add_argument("--no-background", action="store_true",
                     help="no optimised background build: the warm runs use the fast compiler's library")
     args = ap.parse_args(argv)
@@ -202,9 +234,10 @@ def main(argv=None) -> int:
         warm_up(cache, folder, commands, background)
         rows = []
         if "process" in sections:
-            rows += measure_processes(cache, folder, args.repeats, commands, background)
+            rows += measure_processes(cache, folder, args.repeats, commands, background,
+                                      cold_guesses=not args.no_bare)
         if "inprocess" in sections:
-            rows += measure_in_process(cache, args.repeats)
+            rows += measure_in_process(cache, args.repeats, with_bare=not args.no_bare, background=background)
     print(f"# the designer's loop: medians of {args.repeats} runs, ratios in this run "
           f"(load average {os.getloadavg()[0]:.1f})")
     print(table(rows))
@@ -212,7 +245,7 @@ def main(argv=None) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps({"rows": rows, "repeats": args.repeats}, indent=1, default=float))
     ok = all(r.get("success", True) for r in rows)
-    inproc = [r for r in rows if r.get("objective") is not None and "plan(" in r["what"]]
+    inproc = [r for r in rows if r.get("objective") is not None]     # ours, without the memo, the reference
     ok &= all(abs(r["objective"] - P2_OBJECTIVE) < 1e-5 for r in inproc)
     return 0 if ok else 1
 

@@ -44,7 +44,7 @@ def _compiled(functions: list, name: str, interpreted: bool) -> tuple:
     """(the functions, loaded from one library compiled with the budget's flags, the flags)."""
     import casadi as ca
 
-    from nhgait.dynamics.numerics.compiler import build_library
+    from nhgait.dynamics.numerics.compiler import Toolchain, build_library
     from nhgait.ocp.nlp_code import COMPILE_BUDGET
     if interpreted:
         return functions, None
@@ -53,7 +53,7 @@ def _compiled(functions: list, name: str, interpreted: bool) -> tuple:
         cg.add(f)
     source = cg.dump()
     flags = COMPILE_BUDGET.choose(len(source))[0] or ("-O0",)
-    lib = build_library(source, flags=flags, salt=f"bench_stage_cost casadi {ca.__version__}",
+    lib = build_library(source, Toolchain(flags=flags), salt=f"bench_stage_cost casadi {ca.__version__}",
                         label=f"compile {len(source) / 1e6:.2f} MB of C with {' '.join(flags)}")
     return [ca.external(f.name(), str(lib.path)) for f in functions], flags
 

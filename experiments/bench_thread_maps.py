@@ -35,7 +35,7 @@ import casadi as ca
 import numpy as np
 
 from nhgait.dynamics.numerics import openmp
-from nhgait.dynamics.numerics.compiler import CompilerUnavailable, build_library, compiler_command
+from nhgait.dynamics.numerics.compiler import CompilerUnavailable, Toolchain, build_library, compiler_command
 from nhgait.dynamics.numerics.fast_compiler import fast_compiler
 from nhgait.dynamics.numerics.thread_maps import threaded_map, with_grant
 
@@ -83,7 +83,7 @@ def mapped(jac, hess, n: int, mode: str, threads: int) -> ca.Function:
 def compiled(function: ca.Function, command, flags, libs) -> ca.Function:
     generator = ca.CodeGenerator("maps.c", {"with_header": False})
     generator.add(function)
-    lib = build_library(with_grant(generator.dump()), command=command, flags=flags, libs=libs,
+    lib = build_library(with_grant(generator.dump()), Toolchain(command, flags, libs),
                         salt="bench_thread_maps")
     out = ca.external("maps", str(lib.path))
     openmp.limit(lib.path)

@@ -50,7 +50,14 @@ from typing import Any
 from .files.exports import states_text
 from .plan_files import figure_modules, with_figures, write_figure_files, write_outputs, written  # noqa: F401
 from .planning.infeasibility import stalled, with_elastic
-from .planning.search import Attempt, Search, continuation, solve_from_guesses, solve_with_fallbacks  # noqa: F401
+from .planning.search import (  # noqa: F401
+    Attempt,
+    Search,
+    SearchRun,
+    continuation,
+    solve_from_guesses,
+    solve_with_fallbacks,
+)
 from .planning.warm_start import MAX_SOLUTION_BYTES, previous_answer, read_solution, warm_start  # noqa: F401
 from .tasks.statement import quantity_objects  # noqa: F401
 from .verification.checks import open_loop_label, solution_check_lines
@@ -254,7 +261,7 @@ def choose_hessian(hessian: str) -> str:
 
 
 def plan(system, task=None, *, overrides=(), params=None, guess=None, out_dir=None, animate=False,
-         figures=True, progress=None, options=None, **values) -> PlanResult:
+         figures=True, progress=None, options=None, memo=None, **values) -> PlanResult:
     r"""Plan a gait: see the module docstring.
 
     Parameters
@@ -273,6 +280,12 @@ def plan(system, task=None, *, overrides=(), params=None, guess=None, out_dir=No
     figures : False: in ``out_dir`` only solution.json and trajectory.csv (the result); the
         figures are then :func:`with_figures`'s (``nhgait plan`` prints the result line first)
     progress : a :class:`~nhgait.dynamics.progress.Progress` (None: silent)
+    memo : what this process keeps between plans, a
+        :class:`~nhgait.gaits.planning.plan_memo.PlanMemo` (None: the module's
+        :data:`~nhgait.gaits.planning.plan_memo.PLAN_MEMO`, bounded and clearable; False: none):
+        the built solver of each plan structure, reused by a plan of the same structure (also with
+        changed boundary values), and the last optimum of each task, from which a repeated plan
+        starts (without the exploration when it had been explored)
     options : how the plan is solved, a :class:`~.plan_options.PlanOptions` (or a mapping of its
         names; None: the defaults) — the grid (``intervals``), ``solver``, ``transcription``,
         ``jit``, ``workers``, ``max_iter``, ``hessian``, ``max_guesses``, ``verify`` and
@@ -304,9 +317,10 @@ def plan(system, task=None, *, overrides=(), params=None, guess=None, out_dir=No
         progress.note(f"options: {options.summary()}")
     settings = SearchSettings.of(options, warm_figures=out_dir is not None)
     reached = _Reached()
+    request = _Request(to_plan=to_plan, settings=settings, budget=budget, params=params, guess=guess,
+                       verify=options.verify, progress=progress, memo=_memo(memo))
     try:
-        _run_plan(to_plan, reached, settings, budget, params=params, guess=guess, verify=options.verify,
-                  progress=progress)
+        _run_plan(request, reached)
     except BudgetSpent as exc:
         reached.overrun = exc.overrun
         progress.note(f"  the time budget of {exc.overrun.seconds:g} s ran out during {exc.overrun.phase}")
@@ -345,18 +359,49 @@ class _Reached:
     timings: dict = field(default_factory=dict)
     overrun: Any = None
     screening: tuple = ()
+    optimum: tuple | None = None     # (task key, Optimum) of the search's solution, for the memo
+    task_key: str | None = None      # the task's key in the memo (:mod:`.planning.plan_memo`)
 
 
-def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, verify, progress) -> None:
+@dataclass(frozen=True, kw_only=True)
+class _Request:
+    """One plan as :func:`plan` checked it: what to plan (``to_plan``), how to search
+    (``settings``), within which ``budget``, the parameter values, the user's ``guess``
+    (or None), whether to ``verify``, where to talk (``progress``) and the process's ``memo``
+    (:class:`~.planning.plan_memo.PlanMemo`, or None: none)."""
+
+    to_plan: Any
+    settings: Any
+    budget: Any
+    params: Any
+    guess: Any
+    verify: bool
+    progress: Any
+    memo: Any = None
+
+
+def _memo(memo):
+    """The :class:`~.planning.plan_memo.PlanMemo` of ``plan(memo=...)``: None → the default one,
+    False → none; none either in a thread the memo does not serve."""
+    if memo is False:
+        return None
+    if memo is None:
+        from .planning.plan_memo import PLAN_MEMO
+        memo = PLAN_MEMO
+    return memo if memo.serves_this_thread() else None
+
+
+def _run_plan(request: _Request, reached: _Reached) -> None:
     """Steps 2–5 of the module docstring and the feedback along a converged plan, each within
-    ``budget``, recorded in ``reached``."""
+    ``request.budget``, recorded in ``reached``."""
     from nhgait.ocp import ProblemError
 
-    from .planning.guesses import candidates
     from .tasks.reachability import unreachable_targets
+    to_plan, settings, budget, progress = request.to_plan, request.settings, request.budget, request.progress
+    params, verify = request.params, request.verify
     t0 = time.perf_counter()
     with budget.stage("derivation"):
-        reached.prepared = prepare(to_plan, params=params, progress=progress)
+        reached.prepared = _prepared(request)
     reached.timings["prepare_s"] = time.perf_counter() - t0
     problem = reached.prepared.problem
     unreachable = unreachable_targets(problem, reached.prepared.model.system, params)
@@ -364,28 +409,24 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
         raise ProblemError(unreachable, title="unreachable task")
     if problem.intervals > LARGE_INTERVALS:
         progress.note(large_request_note(problem))
-    with budget.stage("the initial guesses"):
-        guesses = candidates(problem, progress=progress)
-        if guess is not None:
-            guesses = guesses.with_first(warm_start(guess, problem))
     def verify_one(solution):
         with budget.stage("verification"):
-            return verified_gait(solution, reached.prepared.model, reached.prepared.stated, to_plan, params,
-                                 progress=progress)
+            prepared = reached.prepared
+            return _derived(request, reached, solution, "verification", lambda: verified_gait(
+                solution, prepared.model, prepared.stated, to_plan, params, progress=progress))
     t0 = time.perf_counter()
     try:
-        _search(problem, guesses, settings, progress, budget, reached)
-    finally:                       # a spent budget still reports where the time went and what was screened
+        _searched(request, problem, reached)
+    finally:                       # a spent budget still reports where the time went
         reached.timings["solve_s"] = time.perf_counter() - t0 - reached.timings.get("setup_s", 0.0)
-        if reached.search is not None:
-            reached.search, reached.screening = screening_report(guesses, reached.search, problem)
     if to_plan.task.robust is not None and reached.search.solution is not None:    # [task.robust]
         from .planning.robust import robust_search
         t0 = time.perf_counter()
         reached.search = robust_search(reached.search, reached.prepared, to_plan, settings, budget, progress)
         reached.timings["robust_s"] = time.perf_counter() - t0
     search = reached.search
-    reached.solution = _in_momentum(search, reached.prepared, to_plan, params)
+    reached.solution = _derived(request, reached, search.solution, "momentum coordinates",
+                                lambda: _in_momentum(search, reached.prepared, to_plan, params))
     if verify and search.solution is not None:
         t0 = time.perf_counter()
         reached.solution = verify_one(search.solution)
@@ -394,12 +435,65 @@ def _run_plan(to_plan, reached: _Reached, settings, budget, *, params, guess, ve
             _refined(reached, settings, budget, progress, verify_one)
         if not _passed(reached.solution) and search.first is not None:
             search = _first_instead(reached, search, settings, budget, progress, verify_one)
+            _remember_kept(request, reached)
         reached.timings["verify_s"] = time.perf_counter() - t0
+        _keep_verified(reached)
     if search.solution is not None:                                          # issue 28
         t0 = time.perf_counter()
         with budget.stage("the feedback and stability"):
-            reached.solution = replace(reached.solution, **_feedback_and_stability(search, progress))
+            extra = _derived(request, reached, search.solution, "feedback and stability",
+                             lambda: _feedback_and_stability(search, progress))
+            reached.solution = replace(reached.solution, **extra)
         reached.timings["feedback_s"] = time.perf_counter() - t0
+
+
+def _derived(request: _Request, reached: _Reached, solution, what: str, make):
+    """``make()``, the value ``what`` of ``solution``, or the memo's of the same solution
+    (:func:`~.planning.plan_memo.solution_key`: the same content), said on the progress stream."""
+    if request.memo is None:
+        return make()
+    from .planning.plan_memo import solution_key
+    value, reused = request.memo.of_solution(solution_key(reached.task_key, solution, what), make)
+    if reused:
+        request.progress.note(f"  {what}: those of this same solution (bit for bit), computed before in "
+                              "this process")
+        if hasattr(value, "solve_time_s"):       # a Solution: this attempt's own record, not the earlier's
+            own = {k: value.settings[k] for k in ("transcribed_in",) if k in value.settings}
+            value = replace(value, **{name: getattr(solution, name) for name in ATTEMPT_RECORD},
+                            settings={**value.settings, **solution.settings, **own})
+    return value
+
+
+#: what a Solution records of the attempt that produced it (not of its trajectory)
+ATTEMPT_RECORD = ("iterations", "solve_time_s", "setup_time_s", "function_time_s", "solver_time_s", "stats")
+
+
+def _remember_kept(request: _Request, reached: _Reached) -> None:
+    """After the verification kept the first converged gait instead of the exploration's lower
+    objective (:func:`_first_instead`): that gait is the task's last optimum in the memo (a warm
+    start from the other would fail its verification again, with no first gait to fall back on)."""
+    if request.memo is None or reached.optimum is None or reached.search.solution is None:
+        return
+    from nhgait.ocp import InitialGuess
+
+    from .planning.plan_memo import LAST_OPTIMUM
+    kept = reached.search.solution
+    key, optimum = reached.optimum
+    if float(kept.objective) != optimum.objective:
+        guess = InitialGuess(kept.z.T, kept.u.T, kept.horizon, LAST_OPTIMUM)
+        reached.optimum = (key, replace(optimum, guess=guess, objective=float(kept.objective)))
+        request.memo.remember(*reached.optimum)
+
+
+def _keep_verified(reached: _Reached) -> None:
+    """The search's optimum in the disk cache for the next process (:mod:`.planning.plan_memo`)
+    when it is the solution kept and it passed its verification."""
+    if reached.optimum is None or reached.solution is None or not _passed(reached.solution):
+        return
+    key, optimum = reached.optimum
+    if reached.search.solution is not None and float(reached.search.solution.objective) == optimum.objective:
+        from .planning.plan_memo import store_optimum
+        store_optimum(key, optimum)
 
 
 def _passed(solution) -> bool:
@@ -488,36 +582,152 @@ class SearchSettings:
                    limit=options.max_guesses, warm_figures=warm_figures)
 
 
-def _search(problem, guesses, settings: SearchSettings, progress, budget, reached: _Reached) -> None:
+def _prepared(request: _Request) -> Prepared:
+    """:func:`prepare`, or the memo's :class:`Prepared` of the same plan (:mod:`.planning.plan_memo`)."""
+    to_plan, params, progress = request.to_plan, request.params, request.progress
+    if request.memo is None:
+        return prepare(to_plan, params=params, progress=progress)
+    from .planning.plan_memo import prepared_key
+    prepared, reused = request.memo.prepare(prepared_key(to_plan, params),
+                                            lambda: prepare(to_plan, params=params, progress=progress))
+    if reused:
+        velocities = ", ".join(prepared.specialised.velocities)
+        progress.note(f"  the model, its specialisation ({velocities}) and the problem of this plan, "
+                      "prepared before in this process: reused")
+    return prepared
+
+
+def _cold_guesses(request: _Request, problem):
+    """The planner's own candidates (:mod:`.planning.guesses`), the user's guess first."""
+    from .planning.guesses import candidates
+    with request.budget.stage("the initial guesses"):
+        guesses = candidates(problem, progress=request.progress)
+        if request.guess is not None:
+            guesses = guesses.with_first(warm_start(request.guess, problem))
+    return guesses
+
+
+def _searched(request: _Request, problem, reached: _Reached):
+    """The search of :func:`_search` in ``reached.search``, from the last optimum of this task
+    when the memo keeps one (:mod:`.planning.plan_memo`): alone when it had been explored (the
+    candidates built only when it fails), else in front of the candidates with the exploration.
+    The screening report of the guesses searched in ``reached.screening``; the optimum found is
+    remembered."""
+    memo, progress = request.memo, request.progress
+    keys = _memo_keys(request, reached.prepared)
+    last = memo.optimum(keys[1]) if memo is not None and request.guess is None else None
+    where = "kept in this process"
+    if last is None and memo is not None and request.guess is None:
+        from .planning.plan_memo import stored_optimum
+        last, where = stored_optimum(keys[1]), "verified, kept in the cache"      # an earlier process's
+    explore = request.guess is None               # a user's warm start answers where the user asked
+    guesses = []
+    if last is not None:
+        progress.note(f"  warm start from the last optimum of this task ({where}; J = {last.objective:.6g})"
+                      + ("; explored before: no exploration" if last.explored else ""))
+    try:
+        if last is not None and last.explored:
+            guesses = [last.guess]
+            _search(request, guesses, reached, explore=False, fallbacks=False, in_process=last.iteration_s)
+            if reached.search.solution is None:
+                progress.note("  the last optimum did not converge again: the planner's own guesses")
+        if reached.search is None or reached.search.solution is None:
+            guesses = _cold_guesses(request, problem)
+            if last is not None and not last.explored:
+                guesses = guesses.with_first(last.guess)
+            _search(request, guesses, reached, explore=explore)
+    finally:                       # a spent budget still reports what was screened
+        if reached.search is not None:
+            reached.search, reached.screening = screening_report(guesses, reached.search, problem)
+    found, reached.task_key = reached.search.solution, keys[1]
+    if memo is not None and found is not None:
+        from nhgait.ocp import InitialGuess
+
+        from .planning.plan_memo import LAST_OPTIMUM, Optimum
+        per_iteration = float(found.solve_time_s) / max(1, int(found.iterations))
+        if reached.search.won == LAST_OPTIMUM:     # kept as it was: every repetition starts there
+            reached.optimum = (keys[1], replace(last, iteration_s=per_iteration))
+        else:
+            explored = explore or (last is not None and last.explored)
+            guess = InitialGuess(found.z.T, found.u.T, found.horizon, LAST_OPTIMUM)
+            reached.optimum = (keys[1], Optimum(guess, float(found.objective), explored, per_iteration))
+        memo.remember(*reached.optimum)
+
+
+def _memo_keys(request: _Request, prepared) -> tuple:
+    """(structure key of the first solver, task key) of :mod:`.planning.plan_memo` (None, None
+    without a memo)."""
+    if request.memo is None:
+        return None, None
+    from .planning.plan_memo import structure_key, task_key
+    structure = structure_key(prepared, request.to_plan.scene, request.to_plan.task, request.settings, "")
+    return structure, task_key(structure, request.to_plan.task)
+
+
+def _built_solver(request: _Request, prepared, name: str, explore: bool):
+    """The solver ``name`` of ``problem``: the memo's of this structure (with this problem's
+    values), else built (with its time limit per attempt) and kept."""
+    from nhgait.ocp import OCPSolver, ProblemError, SolverOptions
+
+    from .planning.plan_memo import structure_key
+    from .planning.time_limits import attempt_limited
+    s, progress, problem = request.settings, request.progress, prepared.problem
+
+    memo = request.memo
+
+    def build():                    # a kept solver has the coarse grid a later cold plan uses
+        with progress.phase(f"build the NLP for {name} ({problem.intervals} intervals, {s.hessian} Hessian)"):
+            ocp = OCPSolver(problem, s.transcription,
+                            SolverOptions(jit=s.jit, solver=name, max_iter=s.max_iter, hessian=s.hessian,
+                                          coarse=explore or memo is not None), progress=progress)
+            return attempt_limited(ocp, None, progress)
+    if memo is None:
+        ocp = build()
+    else:
+        key = structure_key(prepared, request.to_plan.scene, request.to_plan.task, s,
+                            f"{name}{' (its own log)' if progress.verbose else ''}")
+        ocp, reused = memo.solver(key, build)
+        if reused:
+            ocp.talk_to(progress).adopt_optimised()     # kept switched: its copies inherit the library
+            try:
+                ocp = ocp.for_values(problem)
+            except ProblemError:            # not the NLP it seemed: built anew (and kept)
+                memo.solvers.clear()
+                ocp, _ = memo.solver(key, build)
+            else:
+                progress.note(f"  the NLP and the {name} solver of this structure, built before in this "
+                              "process: reused")
+    return ocp if explore else ocp.direct()
+
+
+def _search(request: _Request, guesses, reached: _Reached, *, explore: bool, fallbacks: bool = True,
+            in_process: float | None = None) -> None:
     """The solvers of :func:`solver_order` in turn until one converges: the search so far in
     ``reached.search``, the set-up seconds in ``reached.timings["setup_s"]``. Building a solver
     is interrupted when the budget runs out; each attempt gets at most the time left
-    (:func:`~.time_limits.attempt_limited`)."""
-    from nhgait.ocp import OCPSolver, SolverOptions
-
-    from .planning.time_limits import attempt_limited
-    s = settings
-    explore = not getattr(guesses, "given_first", False)     # a warm start answers where the user asked
-    reached.search = Search(None, (), None)
+    (:func:`~.time_limits.attempt_limited`). ``explore``: solves from generic guesses (the
+    coarse grid, the exploration after a first success); else from a warm start (neither).
+    ``fallbacks``: the continuation when no guess converges (:func:`solve_with_fallbacks`);
+    ``in_process``: the seconds per iteration of the solve a warm start comes from (its solve
+    may then run in this process: :class:`~.planning.search.SearchRun`)."""
+    s, progress, budget = request.settings, request.progress, request.budget
+    problem = reached.prepared.problem
+    reached.search = reached.search if reached.search is not None else Search(None, (), None)
     for name in solver_order(s.solver, s.transcription, problem, s.hessian):
         t0 = time.perf_counter()
         try:
             with budget.stage(f"the NLP set-up and compilation for {name}"):
-                with progress.phase(f"build the NLP for {name} ({problem.intervals} intervals, "
-                                    f"{s.hessian} Hessian)"):
-                    ocp = OCPSolver(problem, s.transcription,
-                                    SolverOptions(jit=s.jit, solver=name, max_iter=s.max_iter,
-                                                  hessian=s.hessian, coarse=explore),
-                                    progress=progress)
-                    ocp = attempt_limited(ocp, None, progress)
+                ocp = _built_solver(request, reached.prepared, name, explore)
         finally:
             reached.timings["setup_s"] = reached.timings.get("setup_s", 0.0) + time.perf_counter() - t0
         with budget.stage(f"the solves with {name}", interrupt=False):
             with progress.phase(f"solve with {name} from up to {min(s.limit, len(guesses))} guesses"):
-                reached.search = reached.search.then(solve_with_fallbacks(
-                    ocp, guesses, workers=s.workers, limit=s.limit, progress=progress, budget=budget,
-                    explore=explore, explore_workers=max(s.workers, _default_workers()),
-                    meanwhile=figure_modules if s.warm_figures else None))
+                run = SearchRun(workers=s.workers, limit=s.limit, progress=progress, budget=budget,
+                                explore=explore, explore_workers=max(s.workers, _default_workers()),
+                                meanwhile=figure_modules if s.warm_figures else None,
+                                in_process=in_process)
+                searched = (solve_with_fallbacks if fallbacks else solve_from_guesses)(ocp, guesses, run)
+                reached.search = reached.search.then(searched)
         if reached.search.solution is not None or stalled(reached.search.attempts):    # issue 41
             break
 

@@ -193,7 +193,7 @@ def _end_conditions(problem, mapping, where: str, rng):
         uses = [i for i in fixed if any(abs(J[j, i]) > RANK_TOL * (1 + np.abs(J[j]).max()) for J in anywhere)]
         implied_by = ", ".join([f"{problem.state_names[i]} = {fixed[i]:g}" for i in uses]
                                + [f"{names[k]} = {values[k]:g}" for k in kept])
-        verdict = _dependent(end, kept, j, values, points, Z, free)
+        verdict = _dependent(_Search(end, values, Z, free), kept, j, points)
         if verdict == "implied":
             dropped.append((name, f"implied by {implied_by or 'the other conditions'}"))
         elif verdict == "implied where both hold":
@@ -302,7 +302,17 @@ def _full_rank_everywhere(problem, end: _End, rows: list, columns: list, Z, fixe
     return True
 
 
-def _dependent(end: _End, kept: list, j: int, values, points: list, Z, free):
+class _Search(NamedTuple):
+    """One end's conditions searched: ``end`` (c(z) and its Jacobian), their stated ``values``
+    (m,), the sampled states ``samples`` and the indices of the ``free`` components of z."""
+
+    end: _End
+    values: np.ndarray
+    samples: list
+    free: np.ndarray
+
+
+def _dependent(search: _Search, kept: list, j: int, points: list):
     """The verdict on condition j, whose gradient (in the free components) lies in the span of
     the kept ones' at some of ``points`` (where the kept conditions hold):
 
@@ -315,6 +325,7 @@ def _dependent(end: _End, kept: list, j: int, values, points: list, Z, free):
       rank there (near those points it is a function of the kept ones, so imposing it would
       only make the constraint Jacobian rank-deficient), ``"independent"`` when it does.
     """
+    end, values, Z, free = search
     residuals = [float(end(z)[0][j] - values[j]) for z in points]
     worst = max(residuals, key=abs)
     if abs(worst) <= RESIDUAL_TOL * (1 + abs(values[j])):

@@ -43,6 +43,7 @@ from nhgait.dynamics.numerics.compiler import (
     SAME_BITS_FLAGS,
     CompilerUnavailable,
     Library,
+    Toolchain,
     build_library,
     builds_for_cpu,
     cached_library,
@@ -182,7 +183,7 @@ def choose_code(source: str, options, progress, *, salt: str, slot: str = "") ->
         flags = (*flags, openmp.FLAG)        # the stage maps on the cores (dropped where unsupported)
     optimiser = Path(command[0]).name if command else ""
     if flags is not None and command is not None:
-        found = cached_library(source, flags=flags, salt=salt)
+        found = cached_library(source, Toolchain(flags=flags), salt=salt)
         if found is not None:
             progress.note(f"  optimised library ({optimiser} {' '.join(flags)}) from the cache")
             return NlpCode(found, CompileReport(c_bytes=size, flags=flags, compile_s=0.0,
@@ -195,7 +196,7 @@ def choose_code(source: str, options, progress, *, salt: str, slot: str = "") ->
                                                    (flags, estimate, command))
     later = None
     if kind != "optimised":
-        later = (start_build(source, flags=flags, salt=salt, slot=slot, estimate_s=estimate)
+        later = (start_build(source, Toolchain(flags=flags), salt=salt, slot=slot, estimate_s=estimate)
                  if flags is not None else
                  BackgroundBuild(state="unavailable", flags=(), compiler=optimiser, reason=reason))
         progress.note(f"  {later.text()}")
@@ -248,8 +249,8 @@ def _ready_now(source, options, progress, salt, optimised) -> tuple:
     failed = None
     if fast is not None:
         try:
-            lib = build_library(source, command=fast.command, flags=fast.flags, libs=fast.libs, salt=salt,
-                                progress=progress, label=f"compile {mb:.2f} MB of C with {fast.name}")
+            lib = build_library(source, fast.toolchain, salt=salt, progress=progress,
+                                label=f"compile {mb:.2f} MB of C with {fast.name}")
         except CompilerUnavailable as exc:
             failed = f"the fast C compiler failed: {exc}"
         else:
@@ -272,7 +273,7 @@ def _optimised_now(source, progress, salt, optimised) -> tuple:
     label = f"compile {len(source) / 1e6:.2f} MB of C with {' '.join(flags)}"
     progress.note(f"{label} (about {estimate:.0f} s unless cached) …")
     try:
-        lib = build_library(source, flags=flags, salt=salt, progress=progress, label=label)
+        lib = build_library(source, Toolchain(flags=flags), salt=salt, progress=progress, label=label)
     except CompilerUnavailable as exc:
         return None, "interpreted", "", str(exc)
     progress.note(f"  compiled in {lib.compile_s:.1f} s (cached for the next run)")

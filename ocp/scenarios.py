@@ -34,6 +34,7 @@ the scenario objective), verified, fed back and tracked as any plan.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -44,7 +45,8 @@ from .schedule import schedule
 from .stage import stage_functions
 from .transcription import MultipleShooting
 
-__all__ = ["Scenarios", "ScenarioShooting", "AGGREGATES", "terminal_deviations", "rollout", "copy_states"]
+__all__ = ["Scenarios", "ScenarioShooting", "AGGREGATES", "terminal_deviations", "rollout", "copy_states",
+           "IntervalArguments"]
 
 AGGREGATES = ("mean", "worst")
 
@@ -126,10 +128,19 @@ def terminal_deviations(scenarios: Scenarios, problem, final_states, copy_finals
     return [ca.sumsqr((copy_finals[idx, s] - final_states[idx]) / scales) for s in range(scenarios.count)]
 
 
-def rollout(scenarios: Scenarios, stage, z0, controls, horizons, kappa, phases) -> np.ndarray:
+class IntervalArguments(NamedTuple):
+    """The stage's arguments besides z and u on each of the N intervals: the ``horizons`` T of
+    the interval's phase (N,), ``kappa`` (N,) and ``phases`` (2 × N: ν, t0)."""
+
+    horizons: object
+    kappa: object
+    phases: object
+
+
+def rollout(scenarios: Scenarios, stage, z0, controls, arguments: IntervalArguments) -> np.ndarray:
     """The copies' node states (S, nz_model, N+1) under ``controls`` (nu × N) from ``z0``, by the
-    stage F of the scenario NLP; ``horizons``, ``kappa`` (N,), ``phases`` (2 × N): the stage's
-    other arguments on each interval."""
+    stage F of the scenario NLP; ``arguments``: the stage's other arguments on each interval."""
+    horizons, kappa, phases = arguments
     N = controls.shape[1]
     out = np.zeros((scenarios.count, len(z0), N + 1))
     for s in range(scenarios.count):
@@ -217,7 +228,7 @@ def _with_copies(method: ScenarioShooting, problem, nlp0: TranscribedNLP, sc: Sc
     lbx = np.concatenate([nlp0.lbx, np.full(nzm * S * N, -np.inf)]
                          + ([np.zeros(1)] if worst is not None else []))
     ubx = np.concatenate([nlp0.ubx, np.full(nzm * S * N + (worst is not None), np.inf)])
-    fill = _guess_filler(nlp0, sc, stage, Trow, K, PH, n0, worst is not None, problem)
+    fill = _guess_filler(nlp0, sc, stage, IntervalArguments(Trow, K, PH))
     return replace(nlp0, transcription=method, w=w, f=f, g=g, lbx=lbx, ubx=ubx,
                    lbg=np.concatenate([nlp0.lbg, *lbg]), ubg=np.concatenate([nlp0.ubg, *ubg]),
                    layout=StageLayout(nlp0.layout.terms + (term,), g_linear), guess_filler=fill,
@@ -239,19 +250,23 @@ def _columns(nlp0, sc, nzm, n0, free, sched) -> np.ndarray:
     return np.array(cols, dtype=int).T
 
 
-def _guess_filler(nlp0, sc, stage, Trow, K, PH, n0, has_worst, problem):
+def _guess_filler(nlp0: TranscribedNLP, sc: Scenarios, stage, symbols: IntervalArguments):
     """The copies' states of a guess: the guess's inputs applied to each copy from its z_0
-    (:func:`rollout`, so every copy's gaps start at zero); τ: the largest deviation."""
-    horizon_row = ca.Function("horizon_row", [nlp0.w], [Trow])
+    (:func:`rollout`, so every copy's gaps start at zero); τ: the largest deviation.
+    ``symbols``: the nominal stage's horizon row (an expression of the nominal w) and its
+    constant κ and phase rows."""
+    problem, n0, has_worst = nlp0.problem, nlp0.n_w, sc.aggregate == "worst"
+    horizon_row = ca.Function("horizon_row", [nlp0.w], [symbols.horizons])
     nzm, S = len(problem.model_state_names), sc.count
-    kappa, phases = np.asarray(K, dtype=float).ravel(), np.asarray(PH, dtype=float)
+    kappa, phases = np.asarray(symbols.kappa, dtype=float).ravel(), np.asarray(symbols.phases, dtype=float)
 
     def fill(w0, states, controls):
         if nlp0.guess_filler is not None:
             nlp0.guess_filler(w0, states, controls)
         z0 = w0[nlp0.node_index[:nzm, 0]]
         T = np.asarray(horizon_row(w0[:n0])).ravel()
-        copies = rollout(sc, stage, z0, np.asarray(controls, float), T, kappa, phases)   # (S, nzm, N+1)
+        copies = rollout(sc, stage, z0, np.asarray(controls, float),
+                         IntervalArguments(T, kappa, phases))                     # (S, nzm, N+1)
         N = copies.shape[2] - 1
         w0[n0:n0 + nzm * S * N] = np.transpose(copies[:, :, 1:], (2, 0, 1)).ravel()
         if has_worst:

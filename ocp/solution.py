@@ -135,11 +135,11 @@ class Integrator:
     atol: float = 1e-12
 
 
-def simulate_piecewise_constant(model, params, t, z0, controls, integrator: Integrator = Integrator(), *,
-                                ode=None):
-    """Integrate ż = rhs(t, z, u_k, params) interval by interval with scipy ``solve_ivp`` (or
-    ż = ``ode(t, z, u)``, a Function with the parameters bound: a problem's states with its
-    integral states, :meth:`~nhgait.ocp.problem.OptimalControlProblem.ode`).
+def simulate_piecewise_constant(model, params, t, z0, controls, integrator: Integrator = Integrator()):
+    """Integrate ż = rhs(t, z, u_k, params) interval by interval with scipy ``solve_ivp``:
+    ``model`` a derived model (its numeric ``rhs``), or a CasADi Function ż = f(t, z, u) with
+    the parameters bound (``params`` then unused, None) — a problem's states with its integral
+    states, :meth:`~nhgait.ocp.problem.OptimalControlProblem.ode`.
 
     Returns the states at the grid ``t`` (nz × len(t)) and whether all intervals succeeded; a
     right-hand side that is not finite ends the integration there (the later columns NaN).
@@ -149,7 +149,7 @@ def simulate_piecewise_constant(model, params, t, z0, controls, integrator: Inte
     method, rtol, atol = integrator.method, integrator.rtol, integrator.atol
     nz = len(z0)
     ts, zs, us = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", controls.shape[0])
-    rate = ode(ts, zs, us) if ode is not None else model.numeric["rhs"](ts, zs, us, params)
+    rate = model(ts, zs, us) if isinstance(model, ca.Function) else model.numeric["rhs"](ts, zs, us, params)
     f = ca.Function("f", [ts, zs, us], [rate])
     jac = ca.Function("J", [ts, zs, us], [ca.jacobian(rate, zs)])
     out = np.full((nz, len(t)), np.nan)
@@ -389,9 +389,8 @@ class Solution:
         if self.problem is None:
             raise ValueError("this solution has no problem attached; cannot re-simulate")
         t0 = time.perf_counter()
-        sim, ok = simulate_piecewise_constant(self.problem.model, self.problem.params, self.t,
-                                              self.z[0], self.u.T,
-                                              Integrator(method, rtol, atol), ode=self.problem.ode())
+        sim, ok = simulate_piecewise_constant(self.problem.ode(), None, self.t, self.z[0], self.u.T,
+                                              Integrator(method, rtol, atol))
         err = np.abs(sim - self.z.T)
         err[np.isnan(err)] = np.inf                      # not reached (the integration stopped)
         return Verification(max_error=float(err.max()),

@@ -304,6 +304,7 @@ class OCPSolver:
                                        parallel=parallel_maps(self.options))
         self.jit_cached, self.jit_fallback, self.compiled, self.jit_path = None, None, False, None
         self.compile_report, self.coarse = None, None
+        self._capped: dict = {}               # capped copies (:meth:`capped`), shared by this solver's copies
         if self.options.jit is None and compiler_command() is None and fast_compiler() is None:
             self.jit_fallback = NO_COMPILER
             self.progress.note_once("no-compiler", f"{NO_COMPILER}: the NLP functions run interpreted")
@@ -414,14 +415,63 @@ class OCPSolver:
         """This solver for ``problem``, a problem of the same structure whose values (targets,
         bounds) differ: the NLP functions are reused, only the bounds are recomputed."""
         nlp = self.transcription.build(problem)
-        if nlp.n_w != self.nlp.n_w or nlp.lbg.shape != self.nlp.lbg.shape:
+        if (nlp.n_w != self.nlp.n_w or nlp.lbg.shape != self.nlp.lbg.shape
+                or nlp.row_labels != self.nlp.row_labels or nlp.objective_scale != self.nlp.objective_scale):
             raise ProblemError(["with_problem: the new problem has another structure"])
         other = object.__new__(OCPSolver)
         other.__dict__.update(self.__dict__)
         other.problem = problem
         other.nlp = replace(self.nlp, problem=problem, lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg)
         other.coarse = None                     # a problem grown from another: no coarse grid
+        other._capped = {}                      # its capped copies solve its own bounds
         return other
+
+    def for_values(self, problem: OptimalControlProblem) -> OCPSolver:
+        """This solver for ``problem`` of the same structure whose boundary and bound values
+        differ (:meth:`with_problem`), keeping its coarse grid (:mod:`.coarse`), whose solvers
+        get the new values too: the solver a cold plan of ``problem`` builds, without building
+        it (a long-lived process's memo, :mod:`nhgait.gaits.planning.plan_memo`). ``problem``
+        itself when it is this solver's. A problem of another structure is a ProblemError."""
+        if problem is self.problem:
+            return self
+        other = self.with_problem(problem)
+        if self.coarse is not None:
+            n, sub, warm = self.coarse
+            other.coarse = (n, sub.with_problem(problem.replace(intervals=n)),
+                            None if warm is None else warm.with_problem(problem))
+        return other
+
+    def talk_to(self, progress: Progress | None) -> OCPSolver:
+        """This solver (and its capped copies, :meth:`capped`) saying its notes and Ipopt's
+        iteration lines on ``progress`` from now on (None: silent) — a solver kept between plans
+        talks on each plan's own stream. The solver's own log (``progress.verbose``) is fixed
+        when it is made. Returns this solver."""
+        self.progress = progress or Progress.silent()
+        for solver in (self, *self._capped.values()):
+            solver.progress = self.progress
+            callback = getattr(solver, "_callback", None)
+            if callback is not None:
+                callback.progress = Progress.silent() if self.progress.verbose else self.progress
+        return self
+
+    def capped(self, iterations: int) -> OCPSolver | None:
+        """This solver whose solver plugin stops after ``iterations`` (its own ``max_iter``, for
+        a solver without an iteration callback too — FATROP), on the same compiled library; the
+        options (and the settings a solution reports) unchanged. Until the cap the iterates are
+        those of this solver, so a capped solve that converges is this solver's solve; one that
+        reaches the cap reports ``Maximum_Iterations_Exceeded``. None when interpreted (remaking
+        an interpreted solver costs as much as making it). Made once per cap and kept."""
+        if not self.compiled or self.jit_path is None:
+            return None
+        key = (int(iterations), repr(self.options), str(self.jit_path))
+        if key not in self._capped:      # one dict shared by this solver's copies (direct, time limits)
+            other = object.__new__(OCPSolver)
+            other.__dict__.update(self.__dict__)
+            other.coarse = None
+            opts = replace(self.options, max_iter=int(iterations)).nlpsol_options()
+            other.solver = other._nlpsol(f"ocp_capped_{int(iterations)}", external_nlp(self.jit_path), opts)
+            self._capped[key] = other
+        return self._capped[key]
 
     def settings(self) -> dict:
         stage = self.nlp.layout.stage.describe() if self.nlp.layout is not None else {}

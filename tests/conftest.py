@@ -15,13 +15,15 @@ sys.path.insert(0, str(Path(__file__).parent))  # the Kane oracle (tests/oracles
 def _no_background_builds():
     """No optimised build left running after a test (nhgait.dynamics.numerics.background):
     the tests of the background build turn it on for themselves and wait for or cancel it."""
-    old = os.environ.get("NHGAIT_BACKGROUND_BUILDS")
+    old = {name: os.environ.get(name) for name in ("NHGAIT_BACKGROUND_BUILDS", "NHGAIT_WARM_OPTIMA")}
     os.environ["NHGAIT_BACKGROUND_BUILDS"] = "0"
+    os.environ["NHGAIT_WARM_OPTIMA"] = "0"     # no plan starts from another test's verified optimum
     yield
-    if old is None:
-        os.environ.pop("NHGAIT_BACKGROUND_BUILDS", None)
-    else:
-        os.environ["NHGAIT_BACKGROUND_BUILDS"] = old
+    for name, value in old.items():
+        if value is None:
+            os.environ.pop(name, None)
+        else:
+            os.environ[name] = value
 
 
 @pytest.fixture(scope="session", autouse=True)
@@ -85,3 +87,14 @@ def particle(_temporary_cache):
     system = System(["x", "y"], "m*(x_dot**2 + y_dot**2)/2", [], forces={"x": "Fx", "y": "Fy"},
                     parameters={"m": 2.0}, inputs=["Fx", "Fy"])
     return specialise(derive(system, "reduced"))
+
+
+@pytest.fixture(autouse=True)
+def _fresh_plan_memo():
+    """Each test plans as a new process would: the planner's default memo of built solvers and
+    last optima (:mod:`nhgait.gaits.planning.plan_memo`) emptied after it, so that no test's
+    plan starts from another test's optimum (tests/gaits/test_plan_memo.py tests the memo)."""
+    yield
+    memo = sys.modules.get("nhgait.gaits.planning.plan_memo")
+    if memo is not None:
+        memo.PLAN_MEMO.clear()

@@ -40,12 +40,13 @@ HOLONOMIC_FUNCTIONS = OwnerMemo("holonomic constraint functions per system")
 NEWTON_ITERATIONS = 50
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Elimination:
-    """The statement after eliminating coordinates: the kept coordinate symbols q, q̇ and the
-    expressions L, constraints, forces in them; ``holonomic`` the constraints kept with the
-    dependent coordinate each was asked to solve for (a name, or None: chosen later);
-    ``eliminated`` the (name, φ) pairs in the order eliminated."""
+    """A statement before or after eliminating coordinates: the coordinate symbols q, q̇ and
+    the expressions L, constraints, forces in them; ``holonomic`` the (h, dependent) pairs of
+    the holonomic constraints — before :func:`eliminate` every one, each with the coordinate
+    it is asked to solve for (a name, or None: any); after it those kept (the name None:
+    chosen later); ``eliminated`` the (name, φ) pairs in the order eliminated."""
 
     q: tuple
     q_dot: tuple
@@ -53,7 +54,7 @@ class Elimination:
     constraints: tuple
     tau: tuple
     holonomic: tuple
-    eliminated: tuple
+    eliminated: tuple = ()
 
 
 def solvable_for(h, c, q) -> sp.Expr | None:
@@ -68,14 +69,15 @@ def solvable_for(h, c, q) -> sp.Expr | None:
     return None if c in phi.free_symbols else phi
 
 
-def eliminate(q, q_dot, L, constraints, tau, holonomic, wanted) -> Elimination:
-    """Eliminate, constraint by constraint, a coordinate solved from ``holonomic[i]``: the
-    coordinate ``wanted[i]`` (a name) when the constraint can be solved for it, else — with
-    ``wanted[i]`` None — the last coordinate it can be solved for; a constraint solved for
-    none is kept (module docstring)."""
-    q, q_dot, tau = list(q), list(q_dot), list(tau)
-    constraints, kept, done = list(constraints), [], []
-    pending = list(zip(holonomic, wanted, strict=True))
+def eliminate(stated: Elimination) -> Elimination:
+    """Eliminate, constraint by constraint, a coordinate solved from each holonomic constraint
+    h of ``stated.holonomic`` (pairs (h, wanted)): the coordinate ``wanted`` (a name) when h can
+    be solved for it, else — with ``wanted`` None — the last coordinate it can be solved for; a
+    constraint solved for none is kept (module docstring). Returns the statement in the
+    remaining coordinates, its ``eliminated`` extended."""
+    q, q_dot, tau, L = list(stated.q), list(stated.q_dot), list(stated.tau), stated.L
+    constraints, kept, done = list(stated.constraints), [], list(stated.eliminated)
+    pending = list(stated.holonomic)
     while pending:
         h, name = pending.pop(0)
         names = [c.name for c in q]

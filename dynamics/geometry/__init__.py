@@ -19,6 +19,8 @@ and why a shape loop moves it:
 * :func:`local_connection` — A(r), Γ(r) and the fibre group's bracket (:mod:`.connection_fields`);
 * :func:`height_function`, :func:`evaluate_heights` — the curvature H = −(dA − [A, A]) of the
   connection over two shape coordinates, as expressions and arrays (:mod:`.heights`);
+* :func:`scaled_momentum` — Shammas's scaled momentum of a mixed system (p̄ = e^{−F}p, σ̄, Γ̄) and
+  the momentum's part of its height functions, H̄ = H − σ̄_abΓ̄ (:mod:`.scaled_momentum`);
 * :func:`loop_displacement` — the Stokes and body-velocity-integral estimates of a shape loop's
   net displacement (:mod:`.stokes`); :func:`fibre_motion` — the fibre and momentum motion along
   a prescribed shape path (:mod:`.prescribed`).
@@ -37,6 +39,7 @@ _EXPORTS = {
     "AnalysisPoint": "distribution", "analysis_point": "distribution",
     "LocalConnection": "connection_fields", "local_connection": "connection_fields",
     "HeightFunctions": "heights", "height_function": "heights", "evaluate_heights": "heights",
+    "HeightGrid": "heights", "ScaledMomentum": "scaled_momentum", "scaled_momentum": "scaled_momentum",
     "LoopDisplacement": "stokes", "loop_displacement": "stokes",
     "FibreMotion": "prescribed", "fibre_motion": "prescribed",
 }

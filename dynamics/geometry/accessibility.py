@@ -25,7 +25,15 @@ import casadi as ca
 import numpy as np
 
 from ..derivation.reduction.model import PURELY_MECHANICAL
-from .distribution import ZERO_TOL, AnalysisPoint, bracket_levels, generic_point, lie_bracket, vector_text
+from .distribution import (
+    ZERO_TOL,
+    AnalysisPoint,
+    BracketSearch,
+    bracket_levels,
+    generic_point,
+    lie_bracket,
+    vector_text,
+)
 
 __all__ = ["Accessibility", "accessibility"]
 
@@ -89,7 +97,7 @@ def accessibility(model, point: AnalysisPoint) -> Accessibility:
     z, fields, affine = control_fields(model, point)
     dim = z.shape[0]
     generic = generic_point(point.z, system.n)
-    levels = bracket_levels(z, fields, point.z, generic, combine=lie_bracket(z), max_depth=2 * dim)
+    levels = bracket_levels(z, fields, point.z, generic, BracketSearch(lie_bracket(z), 2 * dim))
     rank = levels.ranks[-1]
     depth = next(j + 1 for j, r in enumerate(levels.ranks) if r == rank)
     span = np.column_stack([b.value for b in levels.fields if b.new]) if rank else np.zeros((dim, 0))

@@ -27,8 +27,8 @@ import numpy as np
 from ..errors import ModelError, SingularConfigurationError
 from ..suggestions import known_names
 
-__all__ = ["AnalysisPoint", "analysis_point", "GrowthVector", "growth_vector", "bracket_levels", "rank_of",
-           "RANK_TOL"]
+__all__ = ["AnalysisPoint", "analysis_point", "GrowthVector", "growth_vector", "bracket_levels",
+           "BracketSearch", "rank_of", "RANK_TOL"]
 
 #: relative rank tolerance: singular values of the unit-normalised field values below RANK_TOL·σ_max
 #: count as zero
@@ -188,28 +188,41 @@ def _evaluator(x: ca.SX, exprs: list, value_of=None):
     return lambda point: np.asarray(f(point), dtype=float).reshape(x.shape[0], len(exprs), order="F")
 
 
-def bracket_levels(x: ca.SX, generators: dict, point: np.ndarray, generic: np.ndarray, *,
-                   combine, max_depth: int, first: dict | None = None, value_of=None) -> BracketLevels:
-    """Levels 1 … max_depth of brackets of ``generators`` (name → SX column of ``x``).
+@dataclass(frozen=True)
+class BracketSearch:
+    """How :func:`bracket_levels` brackets: ``combine(a, b)`` forms the new element (a
+    :class:`LieBracket`, or a Lie derivative for covectors), at most ``max_depth`` levels;
+    ``first``: the elements of level 1 when they are not the generators (the outputs of an
+    observability test); ``value_of``: what an element's value is (its gradient, for
+    functions), the element itself by default."""
 
-    ``combine(a, b)`` forms the new element from a generator ``a`` and a kept element ``b``
+    combine: object
+    max_depth: int
+    first: dict | None = None
+    value_of: object = None
+
+
+def bracket_levels(x: ca.SX, generators: dict, point: np.ndarray, generic: np.ndarray,
+                   search: BracketSearch) -> BracketLevels:
+    """Levels 1 … ``search.max_depth`` of brackets of ``generators`` (name → SX column of ``x``).
+
+    ``search.combine(a, b)`` forms the new element from a generator ``a`` and a kept element ``b``
     (a Lie bracket of fields, or a Lie derivative for covectors: then ``x``-columns are the
     gradients, see :mod:`.observability`). ``point``: where ranks are reported; ``generic``: a
     generic nearby point. A level keeps, for the next, the fields that raise the rank at the
     point or at the generic point, then others not zero at the generic point up to
     ``len(x)`` fields (a field dependent at the point may still have brackets that are not).
     Stops when the rank at the point is full, after :data:`STALL_LEVELS` levels that add
-    nothing at either point, or at ``max_depth``. ``first``: the elements of level 1 when they
-    are not the generators (the outputs of an observability test); ``value_of``: what an
-    element's value is (its gradient, for functions), the element itself by default.
+    nothing at either point, or at ``max_depth`` (:class:`BracketSearch`).
     """
+    combine, first, value_of = search.combine, search.first, search.value_of
     dim = x.shape[0]
     names, exprs = list(generators), [generators[k] for k in generators]
     fields, ranks = [], []
     at_point, at_generic = np.zeros((dim, 0)), np.zeros((dim, 0))
     level = list((first or generators).items())
     stalled, idle = False, 0
-    for depth in range(1, max_depth + 1):
+    for depth in range(1, search.max_depth + 1):
         ev = _evaluator(x, [e for _, e in level], value_of)
         vp, vg = ev(point), ev(generic)
         kept, spare, grew = [], [], False
@@ -350,7 +363,7 @@ def growth_vector(model, point: AnalysisPoint) -> GrowthVector:
     system = model.system
     q, gens = distribution_fields(model, point.params)
     generic = generic_point(point.q, system.n)
-    levels = bracket_levels(q, gens, point.q, generic, combine=lie_bracket(q), max_depth=system.n)
+    levels = bracket_levels(q, gens, point.q, generic, BracketSearch(lie_bracket(q), system.n))
     ranks = list(levels.ranks)
     while len(ranks) > 1 and ranks[-1] == ranks[-2]:      # the levels that added nothing at q
         ranks.pop()

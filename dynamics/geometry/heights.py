@@ -12,17 +12,21 @@ term ½∫∫[ξ(s), ξ(t)]; Hatton & Choset's "total Lie bracket", Shammas's he
 clockwise loop moves it by −S·H_ab. The sign of H_k over a region therefore says which way a
 loop there can move the fibre coordinate k.
 
-For a mixed system (d > 0) ξ = −A(r)ṙ + Γ(r)p: H here is the curvature of A alone, the motion
-shape loops give with the nonholonomic momentum p held at zero; the momentum's drift Γp is not
-in it (Shammas's scaled-momentum height functions are not computed here; the motion with the
-momentum equation along a given loop is :func:`~.prescribed.fibre_motion`).
+For a mixed system (d > 0) ξ = −A(r)ṙ + Γ(r)p: H_ab is the curvature of A alone, the motion
+loops give with the nonholonomic momentum p held at zero. With ``momentum=`` (a
+:class:`~.scaled_momentum.ScaledMomentum`, one momentum) the functions below give Shammas's
+scaled-momentum height H̄_ab = H_ab − σ̄_ab Γ̄ instead: the displacement, per unit area, of an
+elliptical loop traced at a constant rate from rest, the momentum included (what is exact and
+what is approximate: :mod:`.scaled_momentum`).
 
-:func:`height_function` gives H_ab as sympy; :func:`evaluate_heights` the arrays over a grid
-(:class:`HeightFunctions`), with the connection's fields (rows of −A) for the figures.
+:func:`height_function` gives H_ab (or H̄_ab) as sympy; :func:`evaluate_heights` the arrays over
+a grid (:class:`HeightGrid` → :class:`HeightFunctions`), with the connection's fields (rows of
+−A) for the figures; :func:`evaluate_heights_numeric` the same from the compiled basis.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 
 import numpy as np
 import sympy as sp
@@ -30,7 +34,11 @@ import sympy as sp
 from ..errors import ModelError
 from .connection_fields import LocalConnection
 
-__all__ = ["HeightFunctions", "curvature", "height_function", "evaluate_heights", "evaluate_heights_numeric"]
+__all__ = ["HeightGrid", "HeightFunctions", "curvature", "height_function", "evaluate_heights",
+           "evaluate_heights_numeric"]
+
+#: the two forms of :attr:`HeightFunctions.form`
+CONNECTION, SCALED_MOMENTUM = "connection", "scaled momentum"
 
 
 def curvature(connection: LocalConnection, a: str, b: str) -> sp.Matrix:
@@ -40,10 +48,47 @@ def curvature(connection: LocalConnection, a: str, b: str) -> sp.Matrix:
     return (Ab.diff(q[a]) - Aa.diff(q[b]) - connection.bracket(Aa, Ab)).applyfunc(sp.cancel)
 
 
-def height_function(connection: LocalConnection, a: str, b: str) -> sp.Matrix:
+def height_function(connection: LocalConnection, a: str, b: str, *, momentum=None) -> sp.Matrix:
     """H_ab = −DA_ab, the body displacement per unit area of a counter-clockwise loop in the
-    (r_a, r_b) plane (l×1 sympy; module docstring)."""
-    return -curvature(connection, a, b)
+    (r_a, r_b) plane (l×1 sympy; module docstring); with ``momentum`` (a
+    :class:`~.scaled_momentum.ScaledMomentum` of the same plane) the scaled-momentum height
+    H̄_ab = H_ab − σ̄_abΓ̄."""
+    H = -curvature(connection, a, b)
+    if momentum is None:
+        return H
+    if tuple(momentum.pair) != (a, b):
+        raise ModelError([f"the scaled momentum is of the plane {momentum.pair}, the height of {(a, b)}"],
+                         title="invalid height-function request")
+    return H + momentum.height()
+
+
+@dataclass(frozen=True)
+class HeightGrid:
+    """Where to evaluate height functions: ``bounds`` {a: (low, high), b: (low, high)} of the
+    two shape coordinates, ``points`` per axis, the other coordinates at ``at`` (default 0),
+    the parameters ``params`` (a mapping or a vector in ``system.param_symbols`` order; None:
+    the system's — a numeric connection has its own), ``units`` name → text for the figures."""
+
+    bounds: Mapping
+    points: int = 41
+    at: Mapping = field(default_factory=dict)
+    params: object = None
+    units: Mapping = field(default_factory=dict)
+
+    def problems(self, shape: tuple, a: str, b: str) -> list:
+        """Every problem of the request (a, b) over this grid, for one ModelError."""
+        out = [f"{n!r} is not a shape coordinate (shape: {', '.join(shape)})"
+               for n in (a, b) if n not in shape]
+        out += [f"the pair needs two different shape coordinates, got {a!r} twice"] if a == b else []
+        out += [f"bounds of {n!r}: give (low, high) with low < high" for n in (a, b)
+                if n in shape and not (n in self.bounds
+                                       and float(self.bounds[n][0]) < float(self.bounds[n][1]))]
+        out += [f"points: give at least 2 per axis, got {self.points}"] if int(self.points) < 2 else []
+        return out
+
+    def axes(self, a: str, b: str) -> tuple:
+        """The grid values of ``a`` and ``b``."""
+        return tuple(np.linspace(*map(float, self.bounds[n]), int(self.points)) for n in (a, b))
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)
@@ -55,11 +100,15 @@ class HeightFunctions:
     fiber : names of the l body-velocity components (the fibre coordinates).
     pair : (a, b), the shape coordinates of the horizontal and vertical axes.
     a_values, b_values : grid values (na,), (nb,).
-    heights : l×nb×na, H_ab at (b_values[i], a_values[j]) (units of fibre k per rad² of shape).
+    heights : l×nb×na, H_ab (or H̄_ab) at (b_values[i], a_values[j]) (units of fibre k per rad²
+        of shape).
     fields : l×2×nb×na, the rows of −A restricted to (a, b): the shape velocity direction that
         moves fibre k forward fastest (arrows of the figures).
     at : the configuration values held fixed (other shape and fibre coordinates).
     units : name → unit text (the scene's, where given).
+    form : ``"connection"`` (H, momentum at zero) or ``"scaled momentum"`` (H̄ = H − σ̄_abΓ̄).
+    momentum_part : l×nb×na, −σ̄_abΓ̄ (the scaled-momentum form; None otherwise): ``heights``
+        minus it is the connection's H.
     """
 
     fiber: tuple
@@ -70,6 +119,8 @@ class HeightFunctions:
     fields: np.ndarray
     at: dict
     units: dict
+    form: str = CONNECTION
+    momentum_part: np.ndarray | None = None
 
     def component(self, name: str) -> int:
         if name not in self.fiber:
@@ -89,65 +140,95 @@ def _numeric(expr: sp.Matrix, system, at: dict, params, a, b):
     return sp.lambdify((qa, qb), expr.subs(sub), "numpy")
 
 
-def evaluate_heights(connection: LocalConnection, a: str, b: str, *, bounds: dict, at=None, params=None,
-                     points: int = 41, units=None) -> HeightFunctions:
-    """H_ab and the fields of −A over the grid ``bounds[a] × bounds[b]`` (``points`` each way),
-    the other coordinates at ``at`` (default 0), the parameters ``params`` (a mapping or a vector
-    in ``system.param_symbols`` order; default the system's); ``units``: the scene's units
-    (name → text) for the figures."""
-    problems = [f"{n!r} is not a shape coordinate (shape: {', '.join(connection.shape)})"
-                for n in (a, b) if n not in connection.shape]
-    problems += [f"the pair needs two different shape coordinates, got {a!r} twice"] if a == b else []
-    problems += [f"bounds of {n!r}: give (low, high) with low < high" for n in (a, b)
-                 if n in connection.shape and not (n in bounds and float(bounds[n][0]) < float(bounds[n][1]))]
+def _on_grid(function, av, bv, shape) -> np.ndarray:
+    """``function(a, b)`` at every grid point, as an array ``shape`` + (nb, na)."""
+    out = np.zeros(shape + (bv.size, av.size))
+    with np.errstate(all="ignore"):
+        for i, vb in enumerate(bv):
+            for j, va in enumerate(av):
+                out[..., i, j] = np.asarray(function(va, vb), float).reshape(shape)
+    return out
+
+
+def evaluate_heights(connection: LocalConnection, a: str, b: str, grid: HeightGrid, *,
+                     momentum=None) -> HeightFunctions:
+    """H_ab and the fields of −A over ``grid`` (:class:`HeightGrid`); with ``momentum`` (a
+    :class:`~.scaled_momentum.ScaledMomentum` of the plane) the scaled-momentum heights
+    H̄_ab = H_ab − σ̄_abΓ̄, the part −σ̄_abΓ̄ kept in ``momentum_part``."""
+    problems = grid.problems(connection.shape, a, b)
     if problems:
         raise ModelError(problems, title="invalid height-function request")
-    at = dict(at or {})
-    system = connection.system
-    H = _numeric(height_function(connection, a, b), system, at, params, a, b)
+    at, system, l = dict(grid.at), connection.system, len(connection.fiber)
     columns = [connection.shape.index(a), connection.shape.index(b)]
-    F = _numeric(-connection.A[:, columns], system, at, params, a, b)
-    av = np.linspace(*map(float, bounds[a]), points)
-    bv = np.linspace(*map(float, bounds[b]), points)
-    AA, BB = np.meshgrid(av, bv)
-    l = len(connection.fiber)
-    heights = np.zeros((l, points, points))
-    fields = np.zeros((l, 2, points, points))
-    with np.errstate(all="ignore"):
-        for i in range(points):
-            for j in range(points):
-                heights[:, i, j] = np.asarray(H(AA[i, j], BB[i, j]), float).ravel()
-                fields[:, :, i, j] = np.asarray(F(AA[i, j], BB[i, j]), float)
-    units = dict(units or {})
+    av, bv = grid.axes(a, b)
+    H = _numeric(height_function(connection, a, b), system, at, grid.params, a, b)
+    heights = _on_grid(H, av, bv, (l,))
+    fields = _on_grid(_numeric(-connection.A[:, columns], system, at, grid.params, a, b), av, bv, (l, 2))
+    part = None
+    if momentum is not None:
+        if tuple(momentum.pair) != (a, b):
+            raise ModelError([f"the scaled momentum is of the plane {momentum.pair}, "
+                              f"the heights of {(a, b)}"],
+                             title="invalid height-function request")
+        part = _on_grid(_numeric(momentum.height(), system, at, grid.params, a, b), av, bv, (l,))
+        heights = heights + part
     return HeightFunctions(fiber=connection.fiber, pair=(a, b), a_values=av, b_values=bv, heights=heights,
-                           fields=fields, at=at, units=units)
+                           fields=fields, at=at, units=dict(grid.units),
+                           form=CONNECTION if momentum is None else SCALED_MOMENTUM, momentum_part=part)
 
 
 #: relative step of the central differences of :func:`evaluate_heights_numeric`
 DIFFERENCE_STEP = 1e-5
 
 
-def evaluate_heights_numeric(connection, a: str, b: str, *, bounds: dict, at=None, points: int = 41,
-                             units=None) -> HeightFunctions:
+def _momentum_part(equation, connection, a, b):
+    """q ↦ −σ_abΓ (l,) from a ReconstructionEquation's numbers at the connection's parameters
+    (one momentum, σ_aa = σ_bb = 0: :mod:`.scaled_momentum`); the problems of the request
+    otherwise."""
+    names, params = connection.names, connection.params
+    problems = []
+    if len(equation.momenta) != 1:
+        problems.append(f"the scaled-momentum heights need one nonholonomic momentum, "
+                        f"{equation.system} has {len(equation.momenta)}")
+        return None, problems
+    ja, jb = equation.shape.index(a), equation.shape.index(b)
+
+    def part(q):
+        values = equation.evaluate(q, params)
+        rr = values.sigma_rr[0]
+        scale = max(abs(rr[ja, jb]), 1.0)
+        if max(abs(rr[ja, ja]), abs(rr[jb, jb]), abs(values.sigma_pp[0][0, 0])) > 1e-12 * scale:
+            raise ModelError([f"σ_aa, σ_bb or σ_pp is not zero at {dict(zip(names, q, strict=True))}: the "
+                              "momentum of a loop does not return to zero (see scaled_momentum)"],
+                             title="no scaled-momentum height function")
+        return -rr[ja, jb] * values.Gamma[:, 0]
+    return part, problems
+
+
+def evaluate_heights_numeric(connection, a: str, b: str, grid: HeightGrid, *,
+                             equation=None) -> HeightFunctions:
     """:func:`evaluate_heights` from a
     :class:`~.connection_fields.NumericConnection` (the compiled basis: no symbolic work, for a
     plan's figures and failure report): ∂A/∂r by central differences (step
     :data:`DIFFERENCE_STEP` × max(1, |r|); error about 1e-10 relative), the bracket from the
-    structure constants."""
-    problems = [f"{n!r} is not a shape coordinate (shape: {', '.join(connection.shape)})"
-                for n in (a, b) if n not in connection.shape]
-    problems += [f"bounds of {n!r}: give (low, high) with low < high" for n in (a, b)
-                 if n in connection.shape and not (n in bounds and float(bounds[n][0]) < float(bounds[n][1]))]
+    structure constants. With ``equation`` (the model's
+    :class:`~.reconstruction.ReconstructionEquation`, explicit or implicit form) the
+    scaled-momentum heights H̄ = H − σ_abΓ from its numbers (σ̄_abΓ̄ = σ_abΓ). The connection's
+    parameters are those it was built with (``grid.params`` must be None)."""
+    problems = grid.problems(connection.shape, a, b)
+    problems += ["grid.params: a numeric connection's parameters are bound when it is built "
+                 "(numeric_connection(model, params))"] if grid.params is not None else []
+    part_of = None
+    if equation is not None and not problems:
+        part_of, more = _momentum_part(equation, connection, a, b)
+        problems += more
     if problems:
         raise ModelError(problems, title="invalid height-function request")
     names = connection.names
-    q0 = np.array([float(dict(at or {}).get(c, 0.0)) for c in names])
+    q0 = np.array([float(dict(grid.at).get(c, 0.0)) for c in names])
     ia, ib = names.index(a), names.index(b)
     ja, jb = connection.shape.index(a), connection.shape.index(b)
-    av = np.linspace(*map(float, bounds[a]), points)
-    bv = np.linspace(*map(float, bounds[b]), points)
-    l = len(connection.fiber)
-    heights, fields = np.zeros((l, points, points)), np.zeros((l, 2, points, points))
+    av, bv = grid.axes(a, b)
 
     def column(q, i, j):
         h = DIFFERENCE_STEP * max(1.0, abs(q[i]))
@@ -156,14 +237,21 @@ def evaluate_heights_numeric(connection, a: str, b: str, *, bounds: dict, at=Non
         down[i] -= h
         return (connection.A(up)[:, j] - connection.A(down)[:, j]) / (2 * h)
 
-    with np.errstate(all="ignore"):
-        for i, vb in enumerate(bv):
-            for j, va in enumerate(av):
-                q = q0.copy()
-                q[ia], q[ib] = va, vb
-                A = connection.A(q)
-                curl = column(q, ia, jb) - column(q, ib, ja)
-                heights[:, i, j] = -curl + connection.bracket(A[:, ja], A[:, jb])
-                fields[:, :, i, j] = -A[:, [ja, jb]]
-    return HeightFunctions(fiber=connection.fiber, pair=(a, b), a_values=av, b_values=bv, heights=heights,
-                           fields=fields, at=dict(zip(names, q0, strict=True)), units=dict(units or {}))
+    def at(va, vb):
+        q = q0.copy()
+        q[ia], q[ib] = va, vb
+        return q
+
+    def height(va, vb):
+        q = at(va, vb)
+        A = connection.A(q)
+        return -(column(q, ia, jb) - column(q, ib, ja)) + connection.bracket(A[:, ja], A[:, jb])
+
+    l = len(connection.fiber)
+    heights = _on_grid(height, av, bv, (l,))
+    fields = _on_grid(lambda va, vb: -connection.A(at(va, vb))[:, [ja, jb]], av, bv, (l, 2))
+    part = None if part_of is None else _on_grid(lambda va, vb: part_of(at(va, vb)), av, bv, (l,))
+    return HeightFunctions(fiber=connection.fiber, pair=(a, b), a_values=av, b_values=bv,
+                           heights=heights if part is None else heights + part, fields=fields,
+                           at=dict(zip(names, q0, strict=True)), units=dict(grid.units),
+                           form=CONNECTION if part is None else SCALED_MOMENTUM, momentum_part=part)

@@ -26,7 +26,7 @@ from ..errors import ModelError
 from ..numerics.bridge import to_casadi
 from ..suggestions import known_names
 from .accessibility import control_fields
-from .distribution import ZERO_TOL, AnalysisPoint, bracket_levels, generic_point, rank_of
+from .distribution import ZERO_TOL, AnalysisPoint, BracketSearch, bracket_levels, generic_point, rank_of
 
 __all__ = ["Observability", "observability"]
 
@@ -113,8 +113,9 @@ def observability(model, point: AnalysisPoint, outputs, quantities=None) -> Obse
     dim = z.shape[0]
     first = output_functions(model, list(outputs), z, point.params, quantities)
     generic = generic_point(point.z, model.system.n)
-    levels = bracket_levels(z, fields, point.z, generic, combine=LieDerivative(z), max_depth=2 * dim,
-                            first=first, value_of=lambda h: ca.gradient(h, z))
+    levels = bracket_levels(z, fields, point.z, generic,
+                            BracketSearch(LieDerivative(z), 2 * dim, first=first,
+                                          value_of=lambda h: ca.gradient(h, z)))
     rank = levels.ranks[-1]
     depth = next(j + 1 for j, r in enumerate(levels.ranks) if r == rank)
     rows = np.column_stack([b.value for b in levels.fields]) if levels.fields else np.zeros((dim, 0))

@@ -13,7 +13,9 @@ the loop), and by Stokes's theorem on a loop in one shape plane (r_a, r_b),
 over the enclosed region, counted with its winding number (:func:`stokes_displacement`:
 a fan of triangles from the loop's centroid with signed areas, a 7-point Gauss rule on each).
 Both differ from the exact displacement at order ε³: the relative error falls linearly in ε.
-For a mixed system these are the displacements with the nonholonomic momentum held at zero.
+For a mixed system these are the displacements with the nonholonomic momentum held at zero;
+:func:`stokes_displacement` of the scaled-momentum height H̄ (:mod:`.scaled_momentum`) adds the
+momentum's part for an elliptical loop from rest.
 """
 from __future__ import annotations
 

@@ -6,7 +6,8 @@ build, which **the cache's one builder** compiles into the content-hash cache of
 :mod:`.compiler` while the plan goes on; the next run (or this process, between its attempts:
 ``OCPSolver.adopt_optimised``) loads the library from the cache::
 
-    build = start_build(source, flags=("-O1",), salt="nlp …", slot="snakeboard/forward", estimate_s=37)
+    build = start_build(source, Toolchain(flags=("-O1",)), salt="nlp …", slot="snakeboard/forward",
+                        estimate_s=37)
     build.state, build.pid, build.key            # "started" or "queued", the builder's pid, "ab12…"
 
 The builder (``python -m nhgait.dynamics.numerics.builder``, :mod:`.builder`) is:
@@ -68,6 +69,7 @@ from pathlib import Path
 from ..errors import STOP_SIGNALS
 from . import build_queue as queue
 from .compiler import (
+    Toolchain,
     compiler_command,
     library_dir,
     library_key,
@@ -290,14 +292,15 @@ def builds_off(off: bool = True):
             os.environ["NHGAIT_BACKGROUND_BUILDS"] = old
 
 
-def start_build(source: str, *, flags: tuple, salt: str, libs: tuple = ("-lm",), slot: str = "",
+def start_build(source: str, toolchain: Toolchain, *, salt: str, slot: str = "",
                 estimate_s: float | None = None, builders: Builders = BUILDERS) -> BackgroundBuild:
-    """Ask for the optimised build of ``source`` (module docstring) and return at once: the
-    request replaces the older one of ``slot`` (the robot and task; empty: the key alone), and
-    a builder is started when none runs. A build that cannot or should not be asked for says
-    why (``state``, ``reason``)."""
-    flags, libs = tuple(flags), tuple(libs)
-    command = compiler_command()
+    """Ask for the optimised build of ``source`` with ``toolchain`` (its command None: the
+    optimising compiler, :func:`~.compiler.compiler_command`; module docstring) and return at
+    once: the request replaces the older one of ``slot`` (the robot and task; empty: the key
+    alone), and a builder is started when none runs. A build that cannot or should not be
+    asked for says why (``state``, ``reason``)."""
+    flags, libs = toolchain.flags, toolchain.libs
+    command = list(toolchain.command) if toolchain.command is not None else compiler_command()
     if command is None:
         return BackgroundBuild(state="unavailable", flags=flags,
                                reason="no C compiler found (looked for $NHGAIT_CC, $CC, gcc and cc)")

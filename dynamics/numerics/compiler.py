@@ -3,8 +3,13 @@
 :func:`build_library` is the one way nhgait compiles C (the compiled integrator of
 :mod:`.compiled` and the NLP functions of :mod:`nhgait.ocp.solver`)::
 
-    lib = build_library(source, flags=("-O1",), salt="nlp", progress=progress)
+    lib = build_library(source, Toolchain(flags=("-O1",)), salt="nlp", progress=progress)
     lib.path, lib.cached, lib.compile_s, lib.c_bytes
+
+How C becomes a library is one value, a :class:`Toolchain` (the compiler command, the flags
+before ``-fPIC -shared``, the libraries after the source): the optimising compiler's
+(``Toolchain()``, its command found by :func:`compiler_command`) or the fast compiler's
+(:attr:`~.fast_compiler.FastCompiler.toolchain`).
 
 * **Cache with trust rules.** The library lives in ``<cache dir>/jit/<key>.so`` with
   ``key`` = :func:`library_key`, the SHA-256 of the source, the compiler command, the flags,
@@ -64,8 +69,9 @@ from ..errors import STOP_SIGNALS
 from ..memo import LruMemo
 from . import openmp
 
-__all__ = ["Library", "CompilerUnavailable", "build_library", "cached_library", "compiler_command",
-           "library_key", "jit_dir", "library_dir", "compile_in", "CompileJob", "STALE_BUILD_S",
+__all__ = ["Library", "Toolchain", "CompilerUnavailable", "build_library", "cached_library",
+           "compiler_command", "library_key", "jit_dir", "library_dir", "compile_in", "CompileJob",
+           "STALE_BUILD_S",
            "COMPILER_COMMANDS", "NATIVE_FLAGS", "host_cpu", "builds_for_cpu", "library_by_key",
            "known_compiler", "SAME_BITS_FLAGS", "WATCH_S",
            "recorded_flags"]
@@ -114,6 +120,23 @@ class Library:
     flags: tuple
     private: bool = False
     peak_mb: float | None = None
+
+
+@dataclass(frozen=True)
+class Toolchain:
+    """How a C file becomes a shared library: the compiler ``command`` (a program and its own
+    options; None: the optimising compiler of :func:`compiler_command`), ``flags`` (before
+    ``-fPIC -shared``) and ``libs`` (after the source)."""
+
+    command: tuple | None = None
+    flags: tuple = ("-O1",)
+    libs: tuple = ("-lm",)
+
+    def __post_init__(self):
+        object.__setattr__(self, "flags", tuple(self.flags))
+        object.__setattr__(self, "libs", tuple(self.libs))
+        if self.command is not None:
+            object.__setattr__(self, "command", tuple(self.command))
 
 
 def _compiler_setting() -> tuple[str, str] | None:
@@ -437,16 +460,15 @@ def _children_peak_mb() -> float | None:
     return round(kb / (1024.0 if sys.platform != "darwin" else 1024.0 ** 2), 1)
 
 
-def build_library(source: str, *, flags: tuple = ("-O1",), salt: str = "", libs: tuple = ("-lm",),
-                  progress=None, label: str = "compiling", timeout: float | None = None,
-                  command: list | tuple | None = None) -> Library:
-    """Compile ``source`` (or load it from the cache): see the module docstring. ``flags`` go
-    before ``-fPIC -shared``, ``libs`` after the source; ``salt`` only changes the key;
-    ``command``: the compiler (None: :func:`compiler_command`; the fast compiler of
-    :mod:`.fast_compiler` is passed here). Raises :class:`CompilerUnavailable`."""
+def build_library(source: str, toolchain: Toolchain = Toolchain(), *, salt: str = "", progress=None,
+                  label: str = "compiling", timeout: float | None = None) -> Library:
+    """Compile ``source`` with ``toolchain`` (or load it from the cache): see the module
+    docstring. ``salt`` only changes the key; ``progress`` gets a heartbeat labelled ``label``
+    while the compiler runs, which is killed after ``timeout`` seconds (None: no limit). Raises
+    :class:`CompilerUnavailable`."""
     from .cache import remove_stale_temporaries, unwritable_warning
-    command = list(command) if command is not None else _command()
-    flags, libs = tuple(flags), tuple(libs)
+    command = list(toolchain.command) if toolchain.command is not None else _command()
+    flags, libs = toolchain.flags, toolchain.libs
     key = library_key(source, flags=flags, salt=salt, libs=libs, command=command)
     job = CompileJob(source=source, command=command, flags=flags, libs=libs, salt=salt, key=key,
                progress=progress, label=label, timeout=timeout)
@@ -463,12 +485,12 @@ def build_library(source: str, *, flags: tuple = ("-O1",), salt: str = "", libs:
     return _compile_privately(job)
 
 
-def cached_library(source: str, *, flags: tuple = ("-O1",), salt: str = "", libs: tuple = ("-lm",),
-                   command: list | tuple | None = None) -> Library | None:
+def cached_library(source: str, toolchain: Toolchain = Toolchain(), *, salt: str = "") -> Library | None:
     """The library :func:`build_library` would give for these arguments if it is in the cache
     and trusted, else None (nothing is compiled). Raises :class:`CompilerUnavailable` when
-    ``command`` is None and there is no compiler."""
-    key = library_key(source, flags=tuple(flags), salt=salt, libs=tuple(libs), command=command)
+    ``toolchain.command`` is None and there is no compiler."""
+    flags = toolchain.flags
+    key = library_key(source, flags=flags, salt=salt, libs=toolchain.libs, command=toolchain.command)
     directory = _library_dir()
     found = None if directory is None else _cached(directory, key)
     if found is None:

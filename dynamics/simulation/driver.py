@@ -186,8 +186,8 @@ def _segments(t0, tf, controller, system=None, params=None):
 # --------------------------------------------------------------------------------------------
 # the driver
 # --------------------------------------------------------------------------------------------
-def simulate(model, t_span, q0, qdot0, *, controller=None, params=None,
-             options: SimulationOptions | None = None, **keywords) -> Trajectory:
+def simulate(model, t_span, q0, qdot0, *, controller=None, options: SimulationOptions | None = None,
+             **keywords) -> Trajectory:
     """Simulate a derived formulation from a consistent physical state (q0, q̇0).
 
     Parameters
@@ -200,17 +200,15 @@ def simulate(model, t_span, q0, qdot0, *, controller=None, params=None,
         raises for an inconsistent or singular state).
     controller : callable (t, q, q̇) → u (m,), optional
         See :mod:`.controllers`. None applies u = 0.
-    params : dict or (n_params,) array, optional
-        Parameter values overriding the system's defaults; checked like the defaults (finite,
-        positive-definite kinetic metric).
     options : SimulationOptions, optional
-        How to integrate (every default when None).
+        How to integrate, and the parameter values (every default when None).
     **keywords
         Any field of :class:`~.options.SimulationOptions`, replacing the one of ``options``:
-        ``method`` (:data:`METHODS`, see the module docstring), ``rtol``, ``atol``, ``t_eval``,
-        ``dae`` ("index1", "idas"), ``stabilization`` (None, "baumgarte", "projection"),
-        ``baumgarte`` (α, β), ``max_step``, ``max_steps``, ``singular_tol``, ``outputs``,
-        ``quantities``.
+        ``params`` (dict or (n_params,) array: parameter values overriding the system's
+        defaults, checked like them — finite, positive-definite kinetic metric), ``method``
+        (:data:`METHODS`, see the module docstring), ``rtol``, ``atol``, ``t_eval``, ``dae``
+        ("index1", "idas"), ``stabilization`` (None, "baumgarte", "projection"), ``baumgarte``
+        (α, β), ``max_step``, ``max_steps``, ``singular_tol``, ``outputs``, ``quantities``.
 
     Returns
     -------
@@ -230,8 +228,9 @@ def simulate(model, t_span, q0, qdot0, *, controller=None, params=None,
     >>> float(abs(traj.constraint_residual).max()) < 1e-12
     True
     """
-    call = _Call(model=model, t_span=t_span, q0=q0, qdot0=qdot0, controller=controller, params=params,
-                 options=SimulationOptions.from_keywords(options, **keywords))
+    options = SimulationOptions.from_keywords(options, **keywords)
+    call = _Call(model=model, t_span=t_span, q0=q0, qdot0=qdot0, controller=controller, params=options.params,
+                 options=options)
     resolved = _checked_outputs(call)
     prepared, request = _prepare(call, resolved)
     route = "IDAS" if call.options.idas and model.dae_options_apply else call.options.method

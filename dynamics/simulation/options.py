@@ -1,8 +1,8 @@
 """How :func:`~.driver.simulate` integrates, stated once: :class:`SimulationOptions`.
 
-Every option of ``simulate`` besides the model, the time span, the initial state, the
-controller and the parameter values is a field here, with its default and its meaning, and
-nowhere else: ``simulate(model, t_span, q0, q̇0, method="Radau", rtol=1e-9)`` builds one
+Every option of ``simulate`` besides the model, the time span, the initial state and the
+controller — the parameter values among them — is a field here, with its default and its
+meaning, and nowhere else: ``simulate(model, t_span, q0, q̇0, method="Radau", rtol=1e-9)`` builds one
 ``SimulationOptions`` from its keywords (an unknown keyword is a
 :class:`~nhgait.dynamics.errors.ModelError` naming the close matches), and every integration
 route reads the same object from its :class:`~.integrators.RunRequest`.
@@ -65,6 +65,8 @@ class SimulationOptions:
     outputs : sequence of names, optional — integrate only what they depend on (:mod:`.closure`).
     quantities : mapping name → sympy expression of (q, q̇, parameters), optional — named
         quantities that ``outputs`` may refer to (a scene's ``[quantities]``).
+    params : dict or (n_params,) array, optional — parameter values overriding the system's
+        defaults; checked like the defaults (finite, positive-definite kinetic metric).
 
     Examples
     --------
@@ -92,6 +94,7 @@ class SimulationOptions:
     singular_tol: float | None = SINGULAR_EVENT_TOL
     outputs: object = None
     quantities: dict | None = None
+    params: object = None
 
     @classmethod
     def from_keywords(cls, options: SimulationOptions | None = None, **keywords) -> SimulationOptions:

@@ -23,6 +23,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -185,30 +186,64 @@ def write_csv(name, case, out_dir, columns) -> list:
     return files
 
 
-def reproduce(out_dir, *, rtol=1e-10, formulations=FORMULATIONS, idas=True, reference=None,
-              figures=True, columns=None, progress=None) -> dict:
+@dataclass(frozen=True, kw_only=True)
+class ReproductionOptions:
+    """What :func:`reproduce` runs and writes.
+
+    Attributes
+    ----------
+    rtol : relative tolerance of every run (atol = rtol·1e-2).
+    formulations : subset of ("reduced", "lagrange", "hamilton").
+    idas : also integrate the DAE forms with CasADi IDAS.
+    figures : write the PNG figures.
+    columns : None, or "q" / "qdot" / "all": also write every run as ``<case>_<run>.csv`` with
+        those columns (:meth:`~nhgait.dynamics.simulation.driver.Trajectory.to_csv`).
+    """
+
+    rtol: float = 1e-10
+    formulations: tuple = tuple(FORMULATIONS)
+    idas: bool = True
+    figures: bool = True
+    columns: str | None = None
+
+    @classmethod
+    def of(cls, options=None, **values) -> ReproductionOptions:
+        """``options`` (None: the defaults) with ``values`` (the fields as keywords) on top; an
+        unknown name is one :class:`~nhgait.ocp.ProblemError` naming it."""
+        from nhgait.dynamics.suggestions import known_names
+        from nhgait.ocp import ProblemError
+        names = tuple(f.name for f in fields(cls))
+        unknown = [f"unknown option {name!r}" + known_names(name, names, label="options")
+                   for name in values if name not in names]
+        if unknown:
+            raise ProblemError(unknown, title="invalid reproduction options")
+        return replace(options or cls(), **values)
+
+
+def reproduce(out_dir, options: ReproductionOptions | None = None, *, reference=None, progress=None,
+              **values) -> dict:
     """Run both thesis cases, write ``summary.json`` and the figures into ``out_dir``.
 
     Parameters
     ----------
     out_dir : path, created if missing.
-    rtol : relative tolerance of every run (atol = rtol·1e-2).
-    formulations : subset of ("reduced", "lagrange", "hamilton").
-    idas : also integrate the DAE forms with CasADi IDAS.
+    options : what is run and written (:class:`ReproductionOptions`: ``rtol``,
+        ``formulations``, ``idas``, ``figures``, ``columns``; None: the defaults)
     reference : callable (name, t_eval (N,), q0 (n,), qdot0 (n,), controller) →
         (label, q (N, n), info dict), optional — an independent solution on the ``t_eval`` grid,
         added to the comparison (``info``, e.g. wall time, goes into the summary) and drawn as
         the figures' reference.
-    figures : write the PNG figures.
-    columns : None, or "q" / "qdot" / "all": also write every run as ``<case>_<run>.csv`` with
-        those columns (:meth:`~nhgait.dynamics.simulation.driver.Trajectory.to_csv`).
     progress : a text stream (stderr) for one line per finished case with an estimate of the
         time left (:class:`~nhgait.dynamics.countdown.Countdown`); None: silent.
+    **values : the options as keywords, on top of ``options`` (``reproduce(out, rtol=1e-8)``)
 
     Returns
     -------
     dict — the JSON summary (also written to ``out_dir/summary.json``).
     """
+    options = ReproductionOptions.of(options, **values)
+    rtol, formulations, idas = options.rtol, options.formulations, options.idas
+    figures, columns = options.figures, options.columns
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     summary = {"settings": {"rtol": rtol, "atol": rtol * 1e-2, "formulations": list(formulations),

@@ -3,10 +3,11 @@
 The disk cache (:mod:`nhgait.dynamics.numerics.cache`: ``$NHGAIT_CACHE_DIR``, else the user's
 cache directory) and its background builds (:mod:`nhgait.dynamics.numerics.background`):
 
-* ``list`` (the default): the entries — derived models (``*.pkl``), compiled libraries
-  (``jit/*.so``), failed builds (``jit/*.failed``), build folders being written — with their
-  sizes, the builds waiting in the queue (``builds/*.req``: robot and task, flags, estimate,
-  age) and the running builder (its pid and age);
+* ``list`` (the default): the entries — derived models (``*.pkl``), the last verified optimum
+  of each task (``*.optimum``: a later plan's first guess, :mod:`nhgait.gaits.planning.plan_memo`),
+  compiled libraries (``jit/*.so``), failed builds (``jit/*.failed``), build folders being
+  written — with their sizes, the builds waiting in the queue (``builds/*.req``: robot and
+  task, flags, estimate, age) and the running builder (its pid and age);
 * ``stop``: withdraws every pending build and ends the builder (its compiler killed, its build
   folder removed);
 * ``clean``: ``stop``, then removes everything nhgait keeps in the cache directory (only its own
@@ -26,6 +27,8 @@ __all__ = ["add_cache_parser", "cmd_cache", "survey"]
 
 #: a derived model's entry (:func:`nhgait.dynamics.numerics.cache.store`)
 ENTRY = re.compile(r"[0-9a-f]{64}\.pkl")
+#: a task's last verified optimum (:func:`nhgait.gaits.planning.plan_memo.store_optimum`)
+OPTIMUM = re.compile(r"[0-9a-f]{64}\.optimum")
 
 
 def add_cache_parser(subparsers):
@@ -62,6 +65,7 @@ def survey(cache: Path) -> dict:
     from nhgait.dynamics.numerics import build_queue
     jit, now = cache / "jit", time.time()
     kinds = {"models": [p for p in _files(cache, "*.pkl") if ENTRY.fullmatch(p.name)],
+             "optima": [p for p in _files(cache, "*.optimum") if OPTIMUM.fullmatch(p.name)],
              "libraries": _files(jit, "*.so"), "failed builds": _files(jit, "*.failed"),
              "build folders": _files(jit, ".build-*")}
     entries = {kind: {"count": len(paths), "bytes": sum(_size(p) for p in paths)}
@@ -106,8 +110,9 @@ def clean(cache: Path) -> int:
     entries (files or folders) were removed. The directory itself goes when it is left empty."""
     from nhgait.dynamics.numerics.build_queue import QUEUE_FOLDER
     removed = 0
-    for path in [*(p for p in _files(cache, "*.pkl") if ENTRY.fullmatch(p.name)), *_files(cache, ".tmp-*"),
-                 cache / "jit", cache / QUEUE_FOLDER]:
+    for path in [*(p for p in _files(cache, "*.pkl") if ENTRY.fullmatch(p.name)),
+                 *(p for p in _files(cache, "*.optimum") if OPTIMUM.fullmatch(p.name)),
+                 *_files(cache, ".tmp-*"), cache / "jit", cache / QUEUE_FOLDER]:
         if path.is_dir() and not path.is_symlink():
             shutil.rmtree(path, ignore_errors=True)
         elif path.exists() or path.is_symlink():

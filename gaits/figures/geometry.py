@@ -9,6 +9,8 @@ The arrays come from :func:`nhgait.dynamics.geometry.heights.evaluate_heights`
   the zero contour drawn), its colour bar with name and units, the field of −A_k as arrows and,
   optionally, a loop with its direction;
 * :func:`heights_figure` — one panel per fibre component;
+* :func:`height_parts_figure` — a mixed system's scaled-momentum heights H̄ = H − σ̄Γ̄ in their
+  parts (connection, momentum, sum), one row per fibre component;
 * :func:`draw_height_under_loop` — what a plan's ``shape.png`` draws under a two-variable loop:
   the height function of the direction the gait moves.
 
@@ -16,9 +18,17 @@ Every function takes an optional ``ax``; none calls ``plt.show()`` or changes ``
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-__all__ = ["plot_height_function", "heights_figure", "draw_height_under_loop", "moved_component"]
+__all__ = ["plot_height_function", "heights_figure", "height_parts_figure", "LoopOnPlane",
+           "draw_height_under_loop", "moved_component"]
+
+#: how a colour bar names each :attr:`HeightFunctions.form` (and the parts of
+#: :func:`height_parts_figure`)
+_FORM_WORDS = {"connection": "height", "scaled momentum": "scaled-momentum height H̄",
+               "connection part": "connection's height H", "momentum part": "momentum part −σ̄Γ̄"}
 
 #: colours saturate at this percentile of |H| (near the singular set of A, H is unbounded)
 CLIP_PERCENTILE = 95.0
@@ -69,10 +79,12 @@ def plot_height_function(heights, component: str, ax=None, *, loop=None, arrows:
     else:
         ax.text(0.5, 0.5, f"H = 0 over this plane:\nno loop here moves {component}", transform=ax.transAxes,
                 ha="center", va="center")
+    what = _FORM_WORDS.get(heights.form, "height")
     if colorbar:
         unit = _height_unit(heights, k)
-        text = (f"height of {component}" + (f" [{unit}]" if unit else "")
+        text = (f"{what} of {component}" + (f" [{unit}]" if unit else "")
                 + "\nper unit area of a counter-clockwise loop"
+                + (" from rest" if heights.form in ("scaled momentum", "momentum part") else "")
                 + (f"\n(colours clipped at the {CLIP_PERCENTILE:g}th percentile)" if clipped else ""))
         ax.figure.colorbar(filled, ax=ax, label=text)
     if arrows and np.any(np.hypot(*heights.fields[k]) > 0):
@@ -91,7 +103,7 @@ def plot_height_function(heights, component: str, ax=None, *, loop=None, arrows:
         ax.legend(fontsize="small", loc="upper right")
     ax.set_xlabel(_label(heights, heights.pair[0]))
     ax.set_ylabel(_label(heights, heights.pair[1]))
-    ax.set_title(f"height of {component}; arrows: −A row of {component}", fontsize="medium")
+    ax.set_title(f"{what} of {component}; arrows: −A row of {component}", fontsize="medium")
     return ax
 
 
@@ -106,22 +118,54 @@ def heights_figure(heights, *, loop=None):
     return fig
 
 
+def height_parts_figure(heights, *, loop=None, components=None):
+    """The scaled-momentum heights (:attr:`HeightFunctions.form` ``"scaled momentum"``) in their
+    parts, one row per fibre component (``components``, default all): the connection's height
+    H, the momentum part −σ̄Γ̄ and their sum H̄ (:mod:`nhgait.dynamics.geometry.scaled_momentum`)."""
+    from dataclasses import replace
+
+    from matplotlib.figure import Figure
+    if heights.momentum_part is None:
+        raise ValueError("height_parts_figure needs scaled-momentum heights "
+                         "(evaluate_heights(..., momentum=...))")
+    names = list(components or heights.fiber)
+    parts = [replace(heights, heights=heights.heights - heights.momentum_part, form="connection part"),
+             replace(heights, heights=heights.momentum_part, form="momentum part"), heights]
+    fig = Figure(figsize=(5.2 * 3, 4.6 * len(names)), layout="constrained")
+    axes = np.atleast_2d(fig.subplots(len(names), 3))
+    for row, name in zip(axes, names, strict=True):
+        for ax, part in zip(row, parts, strict=True):
+            plot_height_function(part, name, ax, loop=loop)
+    return fig
+
+
 def moved_component(fiber: tuple, moved_body) -> str:
     """The fibre component a gait moved most (``moved_body``: its net change in the body frame
     at its start, fibre order)."""
     return fiber[int(np.argmax(np.abs(np.asarray(moved_body, float))))]
 
 
-def draw_height_under_loop(ax, model, q_start, q_end, loop, pair, *, units=None, params=None,
+@dataclass(frozen=True)
+class LoopOnPlane:
+    """A gait's two-variable shape loop: the configurations ``q_start`` and ``q_end`` (n, the
+    system's order) at its ends, its ``samples`` ((a values, b values)) and the shape ``pair``
+    (a, b) of the plane."""
+
+    q_start: np.ndarray
+    q_end: np.ndarray
+    samples: tuple
+    pair: tuple
+
+
+def draw_height_under_loop(ax, model, loop: LoopOnPlane, *, units=None, params=None,
                            draw_loop: bool = True) -> bool:
     """Draw, on ``ax``, the height function of the direction a gait moved (its net fibre change
-    from ``q_start`` to ``q_end``, in the body frame at the start) over the box around ``loop``
-    ((a samples, b samples) of the shape ``pair``), the other coordinates at ``q_start``, with
-    the connection's arrows (and the loop, with ``draw_loop``). False (nothing drawn) when
-    ``model`` has no local connection."""
+    from ``loop.q_start`` to ``loop.q_end``, in the body frame at the start) over the box around
+    the loop's samples, the other coordinates at ``q_start``, with the connection's arrows (and
+    the loop, with ``draw_loop``). False (nothing drawn) when ``model`` has no local connection."""
     from nhgait.dynamics.errors import ModelError
     from nhgait.dynamics.geometry.connection_fields import numeric_connection
-    from nhgait.dynamics.geometry.heights import evaluate_heights_numeric
+    from nhgait.dynamics.geometry.heights import HeightGrid, evaluate_heights_numeric
     base = getattr(model, "base", model)
     if getattr(base, "layout", None) is None:
         return False
@@ -130,17 +174,19 @@ def draw_height_under_loop(ax, model, q_start, q_end, loop, pair, *, units=None,
     except ModelError:
         return False
     names = tuple(base.system.coordinates)
+    pair = tuple(loop.pair)
     if any(p not in connection.shape for p in pair):
         return False
     idx = [names.index(c) for c in connection.fiber]
-    q0, q1 = np.asarray(q_start, float), np.asarray(q_end, float)
+    q0, q1 = np.asarray(loop.q_start, float), np.asarray(loop.q_end, float)
     g0 = connection.frame(q0)
     moved = np.linalg.solve(g0, q1[idx] - q0[idx])
-    u, v = (np.asarray(x, float) for x in loop)
+    u, v = (np.asarray(x, float) for x in loop.samples)
     pad_u, pad_v = 0.25 * max(np.ptp(u), 1e-3), 0.25 * max(np.ptp(v), 1e-3)
     bounds = {pair[0]: (u.min() - pad_u, u.max() + pad_u), pair[1]: (v.min() - pad_v, v.max() + pad_v)}
-    heights = evaluate_heights_numeric(connection, *pair, bounds=bounds, at=dict(zip(names, q0, strict=True)),
-                                       points=31, units=units)
+    heights = evaluate_heights_numeric(connection, *pair, HeightGrid(bounds=bounds, points=31,
+                                                                     at=dict(zip(names, q0, strict=True)),
+                                                                     units=dict(units or {})))
     plot_height_function(heights, moved_component(connection.fiber, moved), ax,
                          loop=(u, v) if draw_loop else None)
     return True

@@ -22,7 +22,7 @@ import numpy as np
 
 from nhgait.dynamics.units import coordinate_unit, unit_of
 
-from .geometry import draw_height_under_loop
+from .geometry import LoopOnPlane, draw_height_under_loop
 
 __all__ = ["plot_path", "plot_shape_loop", "plot_histories", "plot_momentum", "write_figures",
            "FigureContext", "figure_context", "FigureLayout", "figure_layouts", "gait_figure",
@@ -210,8 +210,9 @@ def plot_shape_loop(solution, ctx: FigureContext, ax=None):
         xl, yl = with_unit(ctx, a), with_unit(ctx, b)
         title = "shape loop"
         q = np.vstack([series(solution, c) for c in ctx.system.coordinates])
-        if draw_height_under_loop(ax, ctx.model or solution.problem.model, q[:, 0], q[:, -1], (u, v), (a, b),
-                                  units=ctx.units, params=getattr(solution.problem, "params", None),
+        if draw_height_under_loop(ax, ctx.model or solution.problem.model,
+                                  LoopOnPlane(q[:, 0], q[:, -1], (u, v), (a, b)), units=ctx.units,
+                                  params=getattr(solution.problem, "params", None),
                                   draw_loop=False):
             title = "shape loop over the height function"
     else:

@@ -44,8 +44,9 @@ def checked_request(system, task, arguments: dict) -> PlanRequest:
 
     from ..files.outputs import output_directory
     from ..tasks.sources import resolve
-    problems = argument_problems(**arguments)
     values = {**(arguments.get("values") or {}), **{k: v for k, v in arguments.items() if k not in OWN}}
+    problems = argument_problems(**{k: v for k, v in arguments.items() if k in OWN and k != "values"},
+                                 **values)
     options = PlanOptions.collect(arguments.get("options"), **values).options
     out_dir, to_plan, caught = arguments.get("out_dir"), None, []
     try:
@@ -86,12 +87,12 @@ def override_list(overrides, intervals=None) -> list | None:
 
 
 def argument_problems(*, overrides=(), params=None, out_dir=None, animate=False, progress=None,
-                      options=None, values=None, **more) -> list:
+                      options=None, **values) -> list:
     """What is wrong with ``plan``'s arguments (the names and meanings of
     :func:`~nhgait.gaits.planner.plan`): its own, and its options — ``options`` (a
-    :class:`~.plan_options.PlanOptions`, a mapping or None) with ``values`` and ``more`` (option
-    names as keywords) on top (:meth:`~.plan_options.PlanOptions.collect`)."""
-    problems = list(PlanOptions.collect(options, **(values or {}), **more).problems)
+    :class:`~.plan_options.PlanOptions`, a mapping or None) with ``values`` (option names as
+    keywords) on top (:meth:`~.plan_options.PlanOptions.collect`)."""
+    problems = list(PlanOptions.collect(options, **values).problems)
     problems += _switch_problems(animate=animate)
     if override_list(overrides) is None:
         problems.append(f"overrides = {overrides!r}: give 'key=value' strings, a list of them or one "

@@ -19,6 +19,7 @@ its forward axis); at the knots the heading turns in place, which the solver smo
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -74,8 +75,18 @@ def _filled(t_knots, values, default) -> np.ndarray:
     return np.interp(t_knots, t_knots[known], values[known])
 
 
-def _headings(t, t_knots, x, y, start, end, alpha) -> np.ndarray:
-    """θ(t): the legs' directions at their middles, the stated start and end headings."""
+class _Knots(NamedTuple):
+    """The path's knots: their times (on the problem's grid) and positions, each (K,)."""
+
+    t: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+
+
+def _headings(t, knots: _Knots, ends: tuple, alpha: float) -> np.ndarray:
+    """θ(t): the legs' directions at their middles, the stated start and end headings
+    (``ends``: (start, end), each None when the task leaves it open)."""
+    (t_knots, x, y), (start, end) = knots, ends
     legs = [(0.5 * (t_knots[j] + t_knots[j + 1]), math.atan2(y[j + 1] - y[j], x[j + 1] - x[j]) - alpha)
             for j in range(len(x) - 1) if math.hypot(x[j + 1] - x[j], y[j + 1] - y[j]) > 0]
     times, angles = [t[0]], [start if start is not None else (legs[0][1] if legs else 0.0)]
@@ -105,7 +116,7 @@ def path_guess(problem, coordinates: tuple, ramps) -> InitialGuess:
     q[coordinates.index(fy)] = np.interp(t, t_knots, y)
     alpha = float(getattr(problem.model.system, "forward_angle", 0.0))
     start, end = problem.fixed_value(problem.initial, fh), problem.fixed_value(problem.final, fh)
-    q[coordinates.index(fh)] = _headings(t, t_knots, x, y, start, end, alpha)
+    q[coordinates.index(fh)] = _headings(t, _Knots(t_knots, x, y), (start, end), alpha)
     qdot = np.gradient(q, t, axis=1)
     state = problem.model.numeric["state"]
     Z = np.column_stack([np.asarray(state(q[:, j], qdot[:, j], problem.params)).ravel()

@@ -2,7 +2,7 @@
 
 :func:`solve_with_fallbacks` is what the planner and the sweep call::
 
-    search = solve_with_fallbacks(solver, guesses, workers=2, limit=12, progress=progress)
+    search = solve_with_fallbacks(solver, guesses, SearchRun(workers=2, limit=12, progress=progress))
     search.solution, search.won, search.attempts, search.closest
 
 * :func:`solve_from_guesses` — the guesses in batches of ``workers``, each attempt in a child
@@ -35,8 +35,8 @@ from nhgait.ocp.coarse import WARM_IPOPT as _WARM_IPOPT
 
 from .infeasibility import STALL_ATTEMPTS, stalled
 
-__all__ = ["Attempt", "Search", "WARM_IPOPT", "attempt_of", "solve_attempts", "solve_from_guesses",
-           "solve_with_fallbacks", "continuation"]
+__all__ = ["Attempt", "Search", "SearchRun", "WARM_IPOPT", "attempt_of", "solve_attempts",
+           "solve_from_guesses", "solve_with_fallbacks", "continuation"]
 
 
 @dataclass(kw_only=True, frozen=True)
@@ -204,21 +204,47 @@ def _built(guesses, indices, budget) -> list | None:
 
 
 # ----------------------------------------------------------------------------- the search
-def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None = None, progress=None,
-                       budget=None, explore: bool = False, explore_workers: int | None = None,
-                       meanwhile=None) -> Search:
-    """Try ``guesses`` (at most ``limit``) in batches of ``workers``; the best success of the
-    first batch with one — with ``explore``, the best of that and of the next
+@dataclass(frozen=True, kw_only=True)
+class SearchRun:
+    """How :func:`solve_from_guesses` and :func:`solve_with_fallbacks` try the guesses:
+    ``workers`` attempts at once, at most ``limit`` guesses (None: all), ``progress`` (None:
+    silent), the plan's ``budget`` (None: none), ``explore`` (the next guesses after a first
+    success, :func:`_explored`) with ``explore_workers`` at once (None: ``workers``), and
+    ``meanwhile``: run in this process while the first attempts work (:func:`solve_attempts`);
+    ``in_process``: the seconds per iteration measured on the solve a warm start comes from — a
+    batch of one guess is then first solved in this process when that cannot delay a stop
+    (:func:`_in_process`); None: never."""
+
+    workers: int = 1
+    limit: int | None = None
+    progress: Any = None
+    budget: Any = None
+    explore: bool = False
+    explore_workers: int | None = None
+    meanwhile: Any = None
+    in_process: float | None = None
+
+    @classmethod
+    def of(cls, run: SearchRun | None, fields: dict) -> SearchRun:
+        """``run`` (None: the defaults) with ``fields`` changed (the keyword form of the calls)."""
+        return replace(run or cls(), **fields) if fields else (run or cls())
+
+
+def solve_from_guesses(solver, guesses, run: SearchRun | None = None, **fields) -> Search:
+    """Try ``guesses`` (at most ``run.limit``) in batches of ``run.workers``; the best success of
+    the first batch with one — with ``run.explore``, the best of that and of the next
     :data:`EXPLORE_GUESSES` guesses tried within the exploration's window (:func:`_explored`),
-    ``explore_workers`` at once (None: ``workers``). ``meanwhile``: run in this process while
-    the first attempts work (:func:`solve_attempts`).
-    With a ``budget`` (:class:`~nhgait.ocp.budget.Budget`) each attempt gets at most the time
+    ``run.explore_workers`` at once (None: ``workers``). ``run.meanwhile``: run in this process
+    while the first attempts work (:func:`solve_attempts`). ``fields``: :class:`SearchRun`'s
+    fields as keywords (``limit=4, explore=True``).
+    With a ``run.budget`` (:class:`~nhgait.ocp.budget.Budget`) each attempt gets at most the time
     left, and no batch starts once it is spent."""
     from nhgait.dynamics.progress import Progress
-    progress = progress or Progress.silent()
+    run = SearchRun.of(run, fields)
+    progress, budget, meanwhile = run.progress or Progress.silent(), run.budget, run.meanwhile
     name = solver.options.solver
-    workers = max(1, int(workers))
-    total = len(guesses) if limit is None else min(len(guesses), int(limit))
+    workers = max(1, int(run.workers))
+    total = len(guesses) if run.limit is None else min(len(guesses), int(run.limit))
     attempts, closest = [], None
     for start in range(0, total, workers):
         batch = _built(guesses, range(start, min(start + workers, total)), budget)
@@ -226,8 +252,9 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
             break
         solver.adopt_optimised()
         t0, aside = time.monotonic(), _Aside(meanwhile)
-        sols = solve_attempts(solver, batch, workers=workers, budget=budget, progress=progress,
-                              meanwhile=aside if meanwhile is not None else None)
+        here = _in_process(solver, batch, run) if run.in_process is not None else None
+        sols = here or solve_attempts(solver, batch, workers=workers, budget=budget, progress=progress,
+                                      meanwhile=aside if meanwhile is not None else None)
         meanwhile = None
         for k, (g, s) in enumerate(zip(batch, sols, strict=True)):
             attempts.append(attempt_of(g.label, s, name))
@@ -242,13 +269,55 @@ def solve_from_guesses(solver, guesses, *, workers: int = 1, limit: int | None =
         if good:
             _, i = min(good)
             found = Search(sols[i], tuple(attempts), batch[i].label, closest)
-            if not explore:
+            if not run.explore:
                 return found
             window = _Window.after(found.solution, time.monotonic() - t0 - aside.seconds, solver, budget)
-            return _explored(solver, guesses, found, range(start + len(batch), min(total, start + len(batch)
-                                                                                  + EXPLORE_GUESSES)),
-                             window, max(1, int(explore_workers or workers)), budget, progress)
+            after = start + len(batch)
+            return _explored(solver, guesses, found, range(after, min(total, after + EXPLORE_GUESSES)),
+                             window, replace(run, progress=progress,
+                                             workers=max(1, int(run.explore_workers or workers))))
     return Search(None, tuple(attempts), None, closest)
+
+
+#: a warm start is solved in this process, not in a supervised child, when its solver stops by
+#: itself within this many iterations (:meth:`~nhgait.ocp.solver.OCPSolver.capped`) ...
+IN_PROCESS_ITERATIONS = 50
+#: ... and so many iterations took at most this long at the cost per iteration measured on the
+#: solve it starts from: a stop signal, whose handler runs once the solver returns (FATROP has no
+#: callback), then waits at most about that long (the command line's watchdog ends a process
+#: still running 1.5 s after one, :mod:`nhgait.gaits.cli.stopping`); a loaded machine, whose
+#: iterations take longer, solves in a supervised child. (The cost per iteration may have been
+#: measured in a child granted two threads, :mod:`nhgait.dynamics.numerics.openmp`; this process
+#: runs its maps on one, so the bound can be up to twice this: still below the watchdog's.)
+IN_PROCESS_MAX_S = 0.5
+
+
+def _in_process(solver, batch, run: SearchRun) -> list | None:
+    """[the converged solution of the one guess in ``batch``] solved in this process, or None:
+    not one guess, interpreted code, a cap (:data:`IN_PROCESS_ITERATIONS`) whose iterations could
+    take longer than :data:`IN_PROCESS_MAX_S` (at ``run.in_process`` seconds each), less than
+    twice that left of ``run.budget``, or no convergence within the cap (then the caller's
+    supervised attempt solves it as ever). Until the cap the iterates are the supervised solve's,
+    so a converged answer is the same one; the supervised child costs a fork and a pickled
+    solution, more than a warm start's solve (issue 40)."""
+    budget, progress = run.budget, run.progress
+    worst = IN_PROCESS_ITERATIONS * float(run.in_process)
+    if len(batch) != 1 or worst > IN_PROCESS_MAX_S or (budget is not None
+                                                      and budget.remaining() < 2 * IN_PROCESS_MAX_S):
+        return None
+    capped = solver.capped(IN_PROCESS_ITERATIONS)
+    if capped is None:
+        return None
+    solution = capped.solve(batch[0])
+    if not solution.success:
+        if progress is not None:
+            progress.note(f"  in this process: {solution.status} within {IN_PROCESS_ITERATIONS} iterations; "
+                          "solved again in a supervised child")
+        return None
+    if progress is not None:
+        progress.note(f"  solved in this process (a warm start: at most {IN_PROCESS_ITERATIONS} iterations, "
+                      f"about {worst:.2g} s at most; no supervised child)")
+    return [solution]
 
 
 class _Aside:
@@ -318,8 +387,7 @@ def _cost(solution) -> float:
     return solution.iterations + coarse
 
 
-def _explored(solver, guesses, found: Search, indices, window: _Window, workers: int, budget,
-              progress) -> Search:
+def _explored(solver, guesses, found: Search, indices, window: _Window, run: SearchRun) -> Search:
     """``found`` or a lower objective among the guesses at ``indices`` tried after it, in order,
     each attempt within what is left of ``window`` (the closest failure and every attempt kept;
     the first success kept as ``first`` when another wins).
@@ -327,8 +395,9 @@ def _explored(solver, guesses, found: Search, indices, window: _Window, workers:
     a coarse grid (:mod:`nhgait.ocp.coarse`) leads a guess to the optimum it leads to, which need
     not be the direct solve's — the exploration keeps the optima the direct solves reach within
     its reach (the user's 3-link snake: the coarse grid led the first guess to J = 0.01105, the
-    direct solve of the second reaches 0.008693)."""
-    name = solver.options.solver
+    direct solve of the second reaches 0.008693). ``run``: its ``workers`` at once, within its
+    ``budget``, talking on its ``progress``."""
+    name, workers, budget, progress = solver.options.solver, run.workers, run.budget, run.progress
     attempts, best, label, repeats = list(found.attempts), found.solution, found.won, 0
     indices = list(indices)
     if indices and window.left() != 0.0:
@@ -365,15 +434,14 @@ def _explored(solver, guesses, found: Search, indices, window: _Window, workers:
     return Search(best, tuple(attempts), label, found.closest, found.solution, found.won)
 
 
-def solve_with_fallbacks(solver, guesses, *, workers: int = 1, limit: int | None = None, progress=None,
-                         budget=None, explore: bool = False, explore_workers: int | None = None,
-                         meanwhile=None) -> Search:
-    """The guesses in order (:func:`solve_from_guesses`, exploring with ``explore``), then
+def solve_with_fallbacks(solver, guesses, run: SearchRun | None = None, **fields) -> Search:
+    """The guesses in order (:func:`solve_from_guesses`, exploring with ``run.explore``), then
     :func:`continuation` from the first one (for screened candidates, the first that passed its
-    screening: a regular guess; not once ``budget`` is spent)."""
-    search = solve_from_guesses(solver, guesses, workers=workers, limit=limit, progress=progress,
-                                budget=budget, explore=explore, explore_workers=explore_workers,
-                                meanwhile=meanwhile)
+    screening: a regular guess; not once ``run.budget`` is spent). ``fields``: :class:`SearchRun`'s
+    fields as keywords."""
+    run = SearchRun.of(run, fields)
+    budget, progress = run.budget, run.progress
+    search = solve_from_guesses(solver, guesses, run)
     first = (None if search.solution is not None or _spent(budget) or stalled(search.attempts)
              else _built(guesses, range(1), budget))
     if first:

@@ -41,10 +41,11 @@ from nhgait.ocp import ProblemError
 
 from .backends import WorkerDied, make_backend
 from .grid import Grid, parse_grid
+from .options import SweepOptions
 from .point import PointJob, SweepCase, point_task, prepare_worker, solve_chain, solve_point
 from .store import PointRecord, StoreWriteError, SweepStore
 
-__all__ = ["sweep", "run_sweep", "RunOptions", "load_sweep", "SweepResult", "Progress"]
+__all__ = ["sweep", "run_sweep", "RunOptions", "SweepOptions", "load_sweep", "SweepResult", "Progress"]
 
 _RESULT_KEYS = ("success", "status", "message", "objective", "iterations", "total_iterations", "solve_time_s",
                 "wall_time_s", "verification_error", "constraint_violation", "start", "worker")
@@ -382,31 +383,27 @@ def run_sweep(case: SweepCase, grid: Grid, backend, store: SweepStore,
                        units=dict(case.units))
 
 
-def sweep(system, task=None, grid=(), *, out, overrides=(), params=None, scheduler: str | None = None,
-          workers: int | None = None, backend=None, resume: bool = False, warm_start: bool = True,
-          options: dict | None = None, progress: Callable | None = None,
-          chain: int | None = None) -> SweepResult:
+def sweep(system, task=None, grid=(), *, out, options: SweepOptions | None = None, **values) -> SweepResult:
     """Sweep ``task`` on ``system`` over ``grid``, storing every point in ``out``.
 
     Parameters
     ----------
     system : scene file or built-in scene name
     task : None (the scene's ``[task]``), a built-in gait name, or a ``[task]`` dict
-    overrides : ``key.sub=value`` changes of the base task (``--set``)
     grid : ``NAME=SPEC`` axis texts (``"final.x=0.2:2.0:10"``; :mod:`.sweep_grid`) or a
         mapping name → values
     out : the sweep directory (``sweep.sqlite``, ``solutions/``)
-    params : parameter values overriding the scene's
-    scheduler : Dask scheduler address or ``local:N`` (None: the local process pool)
-    workers : local pool size (None: one per core; 0: in this process)
-    backend : an open back end to use instead (not closed here)
-    resume : continue the sweep stored in ``out`` (solve only its missing points)
-    warm_start : continue from solved neighbours (False: every point cold, for comparison)
-    options : planner options (``transcription``, ``solver``, ``jit``, ``time_limit``: seconds per
-        point); an unknown name is an error
-    progress : callback receiving a :class:`Progress` after each point
-    chain : points per back-end task down the continuation tree (None: the back end's choice;
-        1 for the local pool, 4 for Dask)
+    options : how the sweep runs, a :class:`~.options.SweepOptions` — ``overrides`` and
+        ``params`` of the base task, the planner options of every point (``plan``: a
+        :class:`~nhgait.gaits.planning.options.PlanOptions` or a mapping of ``transcription``,
+        ``solver``, ``jit``, ``time_limit``: seconds per point), ``scheduler``, ``workers``,
+        an open ``backend``, ``resume``, ``warm_start``, ``progress``, ``chain``; a mapping
+        here is the planner options (as before SweepOptions); None: the defaults
+    **values : the same options as keywords, on top of ``options``, e.g.
+        ``sweep(..., out=out, workers=0, overrides=["intervals=30"])``
+
+    Every problem of the options is one :class:`~nhgait.ocp.ProblemError` (an unknown name
+    among them), raised before any derivation.
 
     Examples
     --------
@@ -424,25 +421,22 @@ def sweep(system, task=None, grid=(), *, out, overrides=(), params=None, schedul
     True
     """
     from ..files.outputs import output_directory, output_lock
-    from .backends import backend_problems
-    from .point import option_problems
-    problems = option_problems(options) + (backend_problems(scheduler, workers) if backend is None else [])
-    if problems:                                    # before any derivation, like the location
-        raise ProblemError(problems, title="invalid sweep")
+    options = SweepOptions.of(options, **values)    # before any derivation, like the location
     out = output_directory(out)                     # before any derivation: exit 2 for a bad location
     with output_lock(out, f"nhgait sweep {system} --out {out}"):   # one writer: a second run is refused now
         from .point import check_case, describe_case
-        case = describe_case(system, task, overrides=overrides, params=params, options=options)
+        case = describe_case(system, task, overrides=options.overrides, params=options.params,
+                             options=options.planner())
         the_grid = grid if isinstance(grid, Grid) else parse_grid(grid, parameters=tuple(case.params))
         centre = the_grid.point(the_grid.centre)
         check_case(case, PointJob(case, centre.id, *point_task(case.task, case.params, centre)))
-        own = backend is None
-        backend = make_backend(scheduler, workers) if own else backend
+        own = options.backend is None
+        backend = make_backend(options.scheduler, options.workers) if own else options.backend
         try:
             with SweepStore(out, lock=False) as store:
                 return run_sweep(case, the_grid, backend, store,
-                                 RunOptions(resume=resume, warm_start=warm_start,
-                                            progress=progress, chain=chain))
+                                 RunOptions(resume=options.resume, warm_start=options.warm_start,
+                                            progress=options.progress, chain=options.chain))
         finally:
             if own:
                 backend.close()

@@ -8,16 +8,86 @@
 
 Each returns or raises every problem it finds; :func:`~.study.track` joins them with the time
 budget's and the back end's into one :class:`~nhgait.ocp.ProblemError` before planning.
+
+The request itself is one value, :class:`TrackingOptions` (gathered by
+:meth:`TrackingOptions.collect` from ``track``'s keywords, as
+:class:`~nhgait.gaits.planning.options.PlanOptions` are from ``plan``'s); how the plan is
+solved is the shared :class:`~nhgait.gaits.planning.options.PlanOptions` (``plan``), its
+``time_limit`` the whole study's.
 """
 from __future__ import annotations
 
 import math
 import numbers
 from collections.abc import Mapping
+from dataclasses import dataclass, fields
+from typing import Any, NamedTuple
 
-from ..planning.options import whole_number
+from ..planning.options import PlanOptions, whole_number
+from .runs import Noise
 
-__all__ = ["request_problems", "parse_mismatch"]
+__all__ = ["request_problems", "parse_mismatch", "TrackingOptions"]
+
+
+class _Collected(NamedTuple):
+    options: TrackingOptions | None  #: None when a name is unknown
+    problems: list                   #: every problem of the values, in words
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrackingOptions:
+    """What a tracking study does besides planning (:func:`~.study.track`).
+
+    Attributes
+    ----------
+    overrides : ``--set`` strings of the task
+    mismatch : ``params.NAME=FACTOR`` strings or a mapping name → factor (:func:`parse_mismatch`)
+    samples : K noisy samples; seed : of the noise (an integer ≥ 0); noise : a :class:`~.runs.Noise`
+    plan_file : a ``solution.json`` (with its feedback) to track instead of planning
+    scheduler, workers : the sweep back ends the samples run on
+        (:func:`~nhgait.gaits.sweeps.backends.make_backend`); both None and K ≤
+        :data:`~.study.SERIAL_SAMPLES`: in this process
+    plan : how the plan is solved, a :class:`~nhgait.gaits.planning.options.PlanOptions`; its
+        ``time_limit`` is the seconds the whole study may take (the plan and the samples)
+    """
+
+    overrides: Any = ()
+    mismatch: Any = ()
+    samples: int = 20
+    seed: int = 0
+    noise: Noise = Noise()
+    plan_file: Any = None
+    scheduler: str | None = None
+    workers: int | None = None
+    plan: PlanOptions = PlanOptions()
+
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        return tuple(f.name for f in fields(cls))
+
+    @classmethod
+    def collect(cls, options=None, **values) -> _Collected:
+        """(the options, the problems of the plan's options): ``options`` (a TrackingOptions or
+        None) with ``values`` on top — its fields, or a plan option's name (``time_limit``,
+        ``intervals``, …; ``workers`` is the samples') that goes into ``plan``; ``plan`` may be
+        a PlanOptions, a mapping of its names or None. An unknown name is listed with the close
+        matches; the other values are :func:`request_problems`' to check (with the task)."""
+        from nhgait.dynamics.suggestions import known_names
+        if options is not None and not isinstance(options, TrackingOptions):
+            return _Collected(None, [f"options = {options!r} must be TrackingOptions or None"])
+        given = {} if options is None else {name: getattr(options, name) for name in cls.names()}
+        planned = {k: values.pop(k) for k in list(values)
+                   if k not in cls.names() and k in PlanOptions.names()}
+        given.update(values)
+        unknown = [f"unknown option {name!r}"
+                   + known_names(str(name), cls.names() + PlanOptions.names(), label="options")
+                   for name in given if name not in cls.names()]
+        if unknown:
+            return _Collected(None, unknown)
+        plan, problems = PlanOptions.collect(given.get("plan"), **planned)
+        if plan is None:
+            return _Collected(None, problems)
+        return _Collected(cls(**{**given, "plan": plan}), problems)
 
 
 def request_problems(samples, seed, noise, *, plan_file=None, task=None, overrides=()) -> list:

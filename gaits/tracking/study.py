@@ -26,13 +26,14 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
-from .request import parse_mismatch, request_problems
+from .request import TrackingOptions, parse_mismatch, request_problems
 from .runs import LOOPS, Noise, TrackingCase, run_samples
 
-__all__ = ["track", "TrackingResult", "parse_mismatch", "summarise", "summary_lines",
+__all__ = ["track", "TrackingResult", "TrackingOptions", "parse_mismatch", "summarise", "summary_lines",
            "Noise", "SERIAL_SAMPLES"]
 
 #: studies of at most this many samples run in this process unless a back end is named
@@ -105,16 +106,17 @@ def _plan_file_problems(data: dict, plan_file) -> list:
     return problems
 
 
-def _planned(system, task, overrides, data, progress, time_limit):
+def _planned(system, task, data, options: TrackingOptions, progress):
     """(label, task table, nominal parameters, Feedback dict, units, PlanResult or None);
-    the plan within ``time_limit`` (the planner's rule; it counts from the plan's start)."""
+    the plan solved with ``options.plan`` (its time limit the planner's rule; it counts from
+    the plan's start)."""
     from ..planner import plan
     from ..tasks.sources import resolve
     if data is not None:
         resolved = resolve(system, data["task"])
         return (data.get("system", resolved.label), data["task"], dict(data["problem"]["params"]),
                 data["feedback"], dict(resolved.units), None)
-    result = plan(system, task, overrides=overrides, progress=progress, time_limit=time_limit)
+    result = plan(system, task, overrides=options.overrides, progress=progress, options=options.plan)
     if not result.success:
         raise _PlanFailed(result)
     p = result.solution.problem
@@ -131,48 +133,49 @@ class _PlanFailed(Exception):
         self.result = result
 
 
-def track(system, task=None, *, overrides=(), mismatch=(), samples: int = 20, seed: int = 0,
-          noise: Noise = Noise(), plan_file=None, scheduler=None, workers=None, out_dir=None, progress=None,
-          time_limit=None) -> TrackingResult:
+def track(system, task=None, *, out_dir=None, progress=None, options: TrackingOptions | None = None,
+          **values) -> TrackingResult:
     """A tracking study (module docstring).
 
     Parameters
     ----------
     system : scene file or built-in name; task : as for :func:`~nhgait.gaits.planner.plan`
-    overrides : ``--set`` strings of the task; mismatch : ``params.NAME=FACTOR`` strings or a
-        mapping name → factor; samples : K; seed : of the noise; noise : :class:`Noise`
-    plan_file : a ``solution.json`` (with its feedback) to track instead of planning
-    scheduler, workers : the sweep back ends (:func:`~nhgait.gaits.sweeps.backends.make_backend`);
-        both None and K ≤ :data:`SERIAL_SAMPLES`: in this process
     out_dir : write tracking.json (and the plan's solution.json) and the figures there (checked
         before any work)
-    time_limit : seconds the whole study may take (module docstring; ``inf``: unlimited)
+    progress : a :class:`~nhgait.dynamics.progress.Progress` (None: silent)
+    options : the study, a :class:`~.request.TrackingOptions` — ``overrides`` (``--set``
+        strings of the task), ``mismatch`` (``params.NAME=FACTOR`` strings or a mapping name →
+        factor), ``samples`` (K), ``seed`` (of the noise), ``noise`` (:class:`Noise`),
+        ``plan_file`` (a ``solution.json`` with its feedback, tracked instead of planning),
+        ``scheduler`` and ``workers`` (the sweep back ends,
+        :func:`~nhgait.gaits.sweeps.backends.make_backend`; both None and K ≤
+        :data:`SERIAL_SAMPLES`: in this process) and ``plan``: how the plan is solved, the
+        planner's :class:`~nhgait.gaits.planning.options.PlanOptions`, whose ``time_limit`` is
+        the seconds the whole study may take (module docstring; ``inf``: unlimited)
+    **values : the same options as keywords, on top of ``options`` — also a plan option by its
+        name (``time_limit=60``, ``intervals=40``; ``workers`` is the samples')
+
+    Every problem of the request is one :class:`~nhgait.ocp.ProblemError`, raised before planning.
     """
     from nhgait.dynamics.progress import Progress
     from nhgait.ocp.budget import BudgetSpent
 
     from ..files.outputs import output_directory
-    from ..planning.time_limits import budget_for
     from ..sweeps.point import describe_case
     started = time.monotonic()
     progress = progress or Progress.silent()
     if out_dir is not None:
         out_dir = output_directory(out_dir, "out_dir")
-    early = request_problems(samples, seed, noise, plan_file=plan_file, task=task, overrides=overrides)
-    data, resolved = _read_request(system, task, overrides, plan_file, early)
+    options, early = _collected(task, options, values)
+    data, resolved = _read_request(system, task, options, early)
     scene_system = resolved.scene.system
-    factors, budget = _checked_request(early, mismatch, scene_system,
-                                       lambda: budget_for(len(scene_system.coordinates), time_limit,
-                                                          resolved.task.time_limit, given_as=GIVEN,
-                                                          started=started),
-                                       (scheduler, workers))
+    factors, budget = _checked_request(early, options, scene_system,
+                                       lambda: _budget(scene_system, resolved.task, options, started))
     progress.note(f"time budget of the study (the plan and the samples): {budget.describe()}; "
                   "--time-limit SECONDS to change it")
     timings, t0 = {}, time.perf_counter()
     try:
-        label, task_table, params, feedback, units, planned = _planned(system, task, overrides, data,
-                                                                       progress,
-                                                                        time_limit)
+        label, task_table, params, feedback, units, planned = _planned(system, task, data, options, progress)
     except _PlanFailed as failed:
         return _failed_plan(failed.result, out_dir)
     timings["plan_s"] = time.perf_counter() - t0
@@ -180,11 +183,12 @@ def track(system, task=None, *, overrides=(), mismatch=(), samples: int = 20, se
     base = describe_case(system, task_table, params=params)
     key = hashlib.sha256(json.dumps([base.scene.sha256, task_table, params, robot, feedback["gains"]],
                                     sort_keys=True, default=str).encode()).hexdigest()
+    samples = options.samples
     case = TrackingCase(scene=base.scene, task=base.task, params=params, robot=robot, feedback=feedback,
-                        noise=noise, seed=int(seed), key=key)
+                        noise=options.noise, seed=int(options.seed), key=key)
     t0, answers, overrun = time.perf_counter(), [], None
     try:
-        _run(case, int(samples), scheduler, workers, progress, budget, answers)
+        _run(case, options, progress, budget, answers)
     except BudgetSpent as exc:
         overrun = exc.overrun
         progress.note(f"  the time budget of {overrun.seconds:g} s ran out during {overrun.phase}")
@@ -205,6 +209,32 @@ def track(system, task=None, *, overrides=(), mismatch=(), samples: int = 20, se
     return result
 
 
+class _Collected(NamedTuple):
+    options: TrackingOptions     #: the study's options
+    problems: list               #: the problems of its values that need no scene
+
+
+def _collected(task, options, values: dict) -> _Collected:
+    """The study's :class:`~.request.TrackingOptions` and the problems of its values that need
+    no scene (:func:`~.request.request_problems`, with the plan options'); an unknown name: one
+    ProblemError at once."""
+    from nhgait.ocp import ProblemError
+    options, problems = TrackingOptions.collect(options, **values)
+    if options is None:
+        raise ProblemError(problems, title="invalid tracking study")
+    return _Collected(options, problems + request_problems(options.samples, options.seed, options.noise,
+                                                           plan_file=options.plan_file, task=task,
+                                                           overrides=options.overrides))
+
+
+def _budget(system, task, options: TrackingOptions, started: float):
+    """The study's :class:`~nhgait.ocp.budget.Budget`: the plan options' ``time_limit``, else
+    the task's, else the planner's default for the robot's size."""
+    from ..planning.time_limits import budget_for
+    return budget_for(len(system.coordinates), options.plan.time_limit, task.time_limit, given_as=GIVEN,
+                      started=started)
+
+
 #: how a budget given by the caller is named in the progress output and in failures
 GIVEN = "--time-limit / track(time_limit=...)"
 
@@ -216,7 +246,7 @@ def _overrun_lines(overrun) -> list:
                                 "fewer --samples, or more --workers"]
 
 
-def _read_request(system, task, overrides, plan_file, problems: list) -> tuple:
+def _read_request(system, task, options: TrackingOptions, problems: list) -> tuple:
     """(the plan file's content or None, the resolved scene and task); when they cannot be read,
     one ProblemError that lists ``problems`` (the rest of the request's) as well."""
     from nhgait.dynamics.errors import ModelError
@@ -224,8 +254,8 @@ def _read_request(system, task, overrides, plan_file, problems: list) -> tuple:
 
     from ..tasks.sources import resolve
     try:
-        data = _plan_data(plan_file, system)
-        resolved = (resolve(system, task, overrides=overrides) if data is None
+        data = _plan_data(options.plan_file, system)
+        resolved = (resolve(system, task, overrides=options.overrides) if data is None
                     else resolve(system, data["task"]))
     except ModelError as exc:
         if not problems:
@@ -234,24 +264,23 @@ def _read_request(system, task, overrides, plan_file, problems: list) -> tuple:
     return data, resolved
 
 
-def _checked_request(problems: list, mismatch, system, make_budget, backend) -> tuple:
+def _checked_request(problems: list, options: TrackingOptions, system, make_budget) -> tuple:
     """(the mismatch factors, the study's budget from ``make_budget()``); one ProblemError for
-    every problem of the request — ``problems`` (:func:`~.request.request_problems`), the
-    mismatch's, the budget's and the back end's (``backend``: (scheduler, workers)) — before
-    planning."""
+    every problem of the request — ``problems`` (:func:`_collected`'s), the mismatch's, the
+    budget's and the back end's — before planning."""
     from nhgait.ocp import ProblemError
 
     from ..sweeps.backends import backend_problems
-    problems = [*problems, *backend_problems(*backend)]
+    problems = [*problems, *backend_problems(options.scheduler, options.workers)]
     factors, budget = {}, None
     try:
-        factors = parse_mismatch(mismatch, system.parameters)
+        factors = parse_mismatch(options.mismatch, system.parameters)
     except ProblemError as exc:
         problems += list(exc.problems)
     try:
         budget = make_budget()
-    except ProblemError as exc:
-        problems += list(exc.problems)
+    except ProblemError as exc:              # a time_limit the plan options' check named already: once
+        problems += [p for p in exc.problems if p not in problems]
     if problems:
         raise ProblemError(problems, title="invalid tracking study")
     return factors, budget
@@ -280,12 +309,14 @@ def _failed_plan(result, out_dir) -> TrackingResult:
     return failed if out_dir is None else _written(failed, out_dir, None, None)
 
 
-def _run(case: TrackingCase, samples: int, scheduler, workers, progress, budget, answers: list) -> None:
+def _run(case: TrackingCase, options: TrackingOptions, progress, budget, answers: list) -> None:
     """The noise-free run (index −1, here: it compiles the closed loop, which the workers then
-    load from the cache) and the K samples, appended to ``answers`` as they come, within
-    ``budget`` (:class:`~nhgait.ocp.budget.BudgetSpent` when it runs out; ``answers`` then
-    holds what was done)."""
+    load from the cache) and the K = ``options.samples`` samples (in this process or on the back
+    end of ``options.scheduler``, ``options.workers``), appended to ``answers`` as they come,
+    within ``budget`` (:class:`~nhgait.ocp.budget.BudgetSpent` when it runs out; ``answers``
+    then holds what was done)."""
     from ..sweeps.backends import make_backend
+    samples, scheduler, workers = int(options.samples), options.scheduler, options.workers
     with budget.stage("the noise-free run"), \
             progress.phase("the noise-free run, open and closed loop (compiles the closed loop once)"):
         answers += run_samples(case, [-1])

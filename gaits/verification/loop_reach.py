@@ -30,8 +30,8 @@ SINGULAR_RATIO = 50.0
 
 def _plane_reach(connection, pair, bounds, at, direction) -> tuple:
     """(P+, P−, cells left out) of one bounded plane (module docstring, :data:`SINGULAR_RATIO`)."""
-    from nhgait.dynamics.geometry.heights import evaluate_heights_numeric
-    grid = evaluate_heights_numeric(connection, *pair, bounds=bounds, at=at, points=POINTS)
+    from nhgait.dynamics.geometry.heights import HeightGrid, evaluate_heights_numeric
+    grid = evaluate_heights_numeric(connection, *pair, HeightGrid(bounds=bounds, points=POINTS, at=at))
     with np.errstate(all="ignore"):
         h = np.tensordot(direction, grid.heights, axes=1)
         size = np.abs(h[np.isfinite(h)])

@@ -22,6 +22,10 @@ import pytest
 
 from nhgait.dynamics.numerics import background, build_queue, builder  # noqa: F401 - the builder imports
 from nhgait.dynamics.numerics.background import Builders, start_build
+from nhgait.dynamics.numerics.compiler import Toolchain
+
+#: the optimising compiler at -O1
+O1 = Toolchain(flags=("-O1",))
 
 pytestmark = pytest.mark.skipif(not Path("/proc/self/cmdline").exists() or os.name != "posix",
                                 reason="reads the process table of Linux")
@@ -125,8 +129,8 @@ def source(name: str) -> str:
 def test_two_builds_asked_for_in_one_cache_give_one_builder(queue):
     cache, fake = queue
     mine = Builders()
-    first = start_build(source("a"), flags=("-O1",), salt="t", slot="robot A", builders=mine)
-    second = start_build(source("b"), flags=("-O1",), salt="t", slot="robot B", builders=mine)
+    first = start_build(source("a"), O1, salt="t", slot="robot A", builders=mine)
+    second = start_build(source("b"), O1, salt="t", slot="robot B", builders=mine)
     assert (first.state, second.state) == ("started", "queued")
     assert first.pid == second.pid
     until(lambda: fake.runs(), "the builder to start its first compile")
@@ -145,8 +149,9 @@ def test_two_builds_asked_for_in_one_cache_give_one_builder(queue):
 def test_plans_asking_at_once_from_separate_processes_start_one_builder(queue):
     cache, fake = queue
     script = ("import sys\nfrom nhgait.dynamics.numerics.background import start_build\n"
-              "b = start_build(f'int f{sys.argv[1]}(void) {{ return 1; }}\\n', flags=('-O1',), salt='t', "
-              "slot=sys.argv[1])\nprint(b.state, b.pid)\n")
+              "from nhgait.dynamics.numerics.compiler import Toolchain\n"
+              "b = start_build(f'int f{sys.argv[1]}(void) {{ return 1; }}\\n', Toolchain(flags=('-O1',)), "
+              "salt='t', slot=sys.argv[1])\nprint(b.state, b.pid)\n")
     procs = [subprocess.Popen([sys.executable, "-c", script, str(k)], stdout=subprocess.PIPE, text=True)
              for k in range(4)]
     answers = [p.communicate(timeout=GUARD_S)[0].split() for p in procs]
@@ -166,13 +171,13 @@ def test_a_stale_request_is_dropped_and_its_compiler_killed(queue):
     its compiler killed, one replaced while it waits is never compiled."""
     cache, fake = queue
     mine = Builders()
-    old = start_build(source("old"), flags=("-O1",), salt="t", slot="snakeboard/forward", builders=mine)
+    old = start_build(source("old"), O1, salt="t", slot="snakeboard/forward", builders=mine)
     (compiler, key), = until(lambda: fake.runs(), "the first compile")
     assert key == old.key
-    waiting = start_build(source("w1"), flags=("-O1",), salt="t", slot="unicycle/park", builders=mine)
-    newer_waiting = start_build(source("w2"), flags=("-O1",), salt="t", slot="unicycle/park", builders=mine)
+    waiting = start_build(source("w1"), O1, salt="t", slot="unicycle/park", builders=mine)
+    newer_waiting = start_build(source("w2"), O1, salt="t", slot="unicycle/park", builders=mine)
     assert waiting.state == newer_waiting.state == "queued"
-    new = start_build(source("new"), flags=("-O1",), salt="t", slot="snakeboard/forward", builders=mine)
+    new = start_build(source("new"), O1, salt="t", slot="snakeboard/forward", builders=mine)
     until(lambda: not alive(compiler), "the stale request's compiler to be killed")
     fake.hold(False)
     assert mine.wait(timeout=GUARD_S)
@@ -188,7 +193,7 @@ def test_a_stale_request_is_dropped_and_its_compiler_killed(queue):
 @pytest.mark.parametrize("what", ["cache", "jit"])
 def test_a_deleted_cache_folder_stops_the_builder_and_its_compiler(queue, what):
     cache, fake = queue
-    build = start_build(source("gone"), flags=("-O1",), salt="t", slot="x", builders=Builders())
+    build = start_build(source("gone"), O1, salt="t", slot="x", builders=Builders())
     (compiler, _), = until(lambda: fake.runs(), "the compile")
     shutil.rmtree(cache if what == "cache" else cache / "jit")
     until(lambda: not alive(build.pid), "the builder to stop")
@@ -199,7 +204,7 @@ def test_a_deleted_cache_folder_stops_the_builder_and_its_compiler(queue, what):
 @pytest.mark.parametrize("signame", ["SIGHUP", "SIGTERM"])
 def test_a_signal_ends_the_builder_and_its_compiler(queue, signame):
     cache, fake = queue
-    build = start_build(source("sig"), flags=("-O1",), salt="t", slot="x", builders=Builders())
+    build = start_build(source("sig"), O1, salt="t", slot="x", builders=Builders())
     (compiler, _), = until(lambda: fake.runs(), "the compile")
     os.kill(build.pid, getattr(signal, signame))
     until(lambda: not alive(build.pid), "the builder to end")
@@ -215,8 +220,8 @@ def test_a_compile_over_its_budget_is_killed_and_not_recorded_as_failed(queue, m
     dropped too (a machine too busy for one build is too busy for the next)."""
     cache, fake = queue
     monkeypatch.setattr(background, "budgets", lambda estimate: (0.5, 30.0))
-    build = start_build(source("slow"), flags=("-O1",), salt="t", slot="x", builders=Builders())
-    start_build(source("next"), flags=("-O1",), salt="t", slot="y", builders=Builders())
+    build = start_build(source("slow"), O1, salt="t", slot="x", builders=Builders())
+    start_build(source("next"), O1, salt="t", slot="y", builders=Builders())
     assert build.budget_s == 0.5
     until(lambda: not alive(build.pid), "the builder to give up at its budget")
     assert not any(alive(pid) for pid, _ in fake.runs())
@@ -228,9 +233,9 @@ def test_a_compile_over_its_budget_is_killed_and_not_recorded_as_failed(queue, m
 def test_a_stopped_plan_withdraws_its_request_and_stops_an_idle_builder(queue):
     cache, fake = queue
     mine, theirs = Builders(), Builders()
-    ours = start_build(source("ours"), flags=("-O1",), salt="t", slot="ours", builders=mine)
+    ours = start_build(source("ours"), O1, salt="t", slot="ours", builders=mine)
     (compiler, _), = until(lambda: fake.runs(), "the compile")
-    other = start_build(source("other"), flags=("-O1",), salt="t", slot="other", builders=theirs)
+    other = start_build(source("other"), O1, salt="t", slot="other", builders=theirs)
     assert mine.cancel() == 1               # another plan's request waits: the builder goes on
     until(lambda: not alive(compiler), "the withdrawn request's compiler to be killed")
     assert alive(ours.pid)
@@ -255,7 +260,7 @@ def test_without_a_c_compiler_no_builder_is_started(tmp_path, monkeypatch):
     monkeypatch.setenv("NHGAIT_CACHE_DIR", str(tmp_path / "cache"))
     monkeypatch.setenv("NHGAIT_BACKGROUND_BUILDS", "1")
     assert compiler_command() is None
-    build = start_build(source("none"), flags=("-O1",), salt="t", slot="x", builders=Builders())
+    build = start_build(source("none"), O1, salt="t", slot="x", builders=Builders())
     assert build.state == "unavailable"
     assert "no C compiler" in build.reason
     assert not builders_of(tmp_path / "cache")
@@ -266,7 +271,7 @@ def test_the_queue_is_listed_with_its_builder(queue, capsys):
     stop`` withdraws them and ends the builder; ``nhgait cache clean`` empties the cache."""
     from nhgait.gaits.cli.main import main
     cache, fake = queue
-    build = start_build(source("listed"), flags=("-O1",), salt="t", slot="robot/task", builders=Builders())
+    build = start_build(source("listed"), O1, salt="t", slot="robot/task", builders=Builders())
     until(lambda: fake.runs(), "the compile")
     assert main(["cache"]) == 0
     out = capsys.readouterr().out
@@ -293,7 +298,7 @@ def test_no_background_build_asks_for_none_and_puts_the_setting_back(queue, monk
     args = build_parser().parse_args(["plan", "unicycle", "--no-background-build", "--out", "x"])
     assert args.no_background_build
     with builds_off(args.no_background_build):
-        build = start_build(source("off"), flags=("-O1",), salt="t", slot="x", builders=Builders())
+        build = start_build(source("off"), O1, salt="t", slot="x", builders=Builders())
     assert build.state == "off" and "NHGAIT_BACKGROUND_BUILDS" in build.reason
     assert os.environ["NHGAIT_BACKGROUND_BUILDS"] == "1"
     assert not builders_of(cache)

@@ -27,9 +27,12 @@ import numpy as np
 import pytest
 
 from nhgait.dynamics.numerics.background import BUILDERS, Builders, start_build
-from nhgait.dynamics.numerics.compiler import build_library, jit_dir
+from nhgait.dynamics.numerics.compiler import Toolchain, build_library, jit_dir
 from nhgait.dynamics.numerics.fast_compiler import MISSING, fast_compiler
 from nhgait.ocp.nlp_code import NO_COMPILER
+
+#: the optimising compiler at -O1
+O1 = Toolchain(flags=("-O1",))
 
 REAL_CC = shutil.which("gcc") or shutil.which("cc")
 needs_cc = pytest.mark.skipif(REAL_CC is None, reason="no C compiler")
@@ -168,11 +171,11 @@ def test_a_failed_background_build_is_recorded_once_and_not_started_again(cold, 
     failing = HeldCompiler(tmp_path / "cc", "#!/bin/sh\necho 'cc1: out of memory' >&2\nexit 1\n")
     monkeypatch.setenv("NHGAIT_CC", str(failing.script))
     source = "int nhgait_answer(void) { return 42; }\n"
-    build = start_build(source, flags=("-O1",), salt="test")
+    build = start_build(source, O1, salt="test")
     assert build.state == "started"
     assert BUILDERS.wait()                            # a tiny source: the builder's end, unbounded
     assert "out of memory" in json.loads((jit_dir() / f"{build.key}.failed").read_text())["reason"]
-    again = start_build(source, flags=("-O1",), salt="test")
+    again = start_build(source, O1, salt="test")
     assert again.state == "failed before"
     assert "out of memory" in again.reason
     assert sorted(p.name for p in jit_dir().iterdir()) == [f"{build.key}.failed"]   # no library, no folder
@@ -185,7 +188,7 @@ def test_cancelled_builder_leaves_no_compiler_and_no_folder(cold, tmp_path, monk
     held.hold(True)
     monkeypatch.setenv("NHGAIT_CC", str(held.script))
     builders = Builders()
-    build = start_build("int nhgait_answer(void) { return 42; }\n", flags=("-O1",), salt="test",
+    build = start_build("int nhgait_answer(void) { return 42; }\n", O1, salt="test",
                         builders=builders)
     assert build.state == "started"
     deadline = time.monotonic() + 120                         # a hang guard
@@ -212,7 +215,7 @@ def test_the_builder_and_its_autogroup_run_at_the_lowest_priority(cold, tmp_path
                                  f"nice > '{folder}/nice'\n"
                                  f"exec '{REAL_CC}' \"$@\"\n")
     monkeypatch.setenv("NHGAIT_CC", str(probe.script))
-    build = start_build("int nhgait_answer(void) { return 42; }\n", flags=("-O1",), salt="priority test")
+    build = start_build("int nhgait_answer(void) { return 42; }\n", O1, salt="priority test")
     assert build.state == "started"
     assert BUILDERS.wait()                            # a tiny source: the builder's end, unbounded
     assert (folder / "nice").read_text().split() == ["19"]
@@ -239,7 +242,7 @@ def test_fast_compiler_library_agrees_with_casadi_virtual_machine(cold):
     cg = ca.CodeGenerator("f.c", {"with_header": False})
     cg.add(f)
     fast = fast_compiler()
-    lib = build_library(cg.dump(), command=fast.command, flags=fast.flags, libs=fast.libs, salt="test")
+    lib = build_library(cg.dump(), fast.toolchain, salt="test")
     compiled = ca.external("f", str(lib.path))
     rng = np.random.default_rng(25)
     for point in rng.uniform(-2.0, 2.0, size=(20, 4)):
@@ -269,9 +272,9 @@ def test_the_optimised_library_computes_the_fast_compilers_bits(cold):
     flags = COMPILE_BUDGET.choose(len(source))[0]
     assert "-ffp-contract=off" in flags
     fast = fast_compiler()
-    tcc = ca.external("h", str(build_library(source, command=fast.command, flags=fast.flags, libs=fast.libs,
+    tcc = ca.external("h", str(build_library(source, fast.toolchain,
                                              salt="bits").path))
-    optimised = ca.external("h", str(build_library(source, flags=flags, salt="bits").path))
+    optimised = ca.external("h", str(build_library(source, Toolchain(flags=flags), salt="bits").path))
     rng = np.random.default_rng(37)
     for point, weights in zip(rng.uniform(-2, 2, (50, 6)), rng.uniform(-3, 3, (50, 3)), strict=True):
         for a, b in zip(tcc(point, weights), optimised(point, weights), strict=True):

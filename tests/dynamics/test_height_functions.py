@@ -16,7 +16,7 @@ from nhgait.dynamics.derivation.input.scene import load_scene
 from nhgait.dynamics.derivation.models import snakeboard
 from nhgait.dynamics.errors import ModelError
 from nhgait.dynamics.geometry.connection_fields import local_connection, numeric_connection
-from nhgait.dynamics.geometry.heights import evaluate_heights, height_function
+from nhgait.dynamics.geometry.heights import HeightGrid, evaluate_heights, height_function
 from nhgait.dynamics.geometry.stokes import loop_displacement, stokes_displacement
 
 SNAKE3 = Path(__file__).resolve().parents[1] / "scenes" / "snake3.toml"
@@ -72,8 +72,8 @@ def test_height_function_matches_complex_step_and_se2_bracket(name, pair, reques
 
 def test_the_snakeboard_heights_are_not_trivial(board):
     """The snakeboard's x height over (ψ, φ) is nonzero away from φ = 0 (a drive gait exists)."""
-    grid = evaluate_heights(local_connection(board), "psi", "phi", bounds={"psi": (-1, 1), "phi": (-1, 1)},
-                            points=9)
+    grid = evaluate_heights(local_connection(board), "psi", "phi",
+                            HeightGrid(bounds={"psi": (-1, 1), "phi": (-1, 1)}, points=9))
     assert grid.heights.shape == (3, 9, 9) and grid.fields.shape == (3, 2, 9, 9)
     assert np.max(np.abs(grid.heights[0])) > 1e-3
 
@@ -146,8 +146,8 @@ def test_a_flipped_connection_fails_the_simulation_check(snake3):
 
 
 def test_bad_requests_name_every_problem(board):
-    with pytest.raises(ModelError, match=r"(?s)'x' is not a shape coordinate.*bounds of 'phi'"):
-        evaluate_heights(local_connection(board), "x", "phi", bounds={})
+    with pytest.raises(ModelError, match=r"(?s)'x' is not a shape coordinate.*bounds of 'phi'.*points"):
+        evaluate_heights(local_connection(board), "x", "phi", HeightGrid(bounds={}, points=1))
 
 
 def test_fibre_motion_of_a_prescribed_loop_equals_the_constraints(snake3):
@@ -185,8 +185,8 @@ def test_numeric_heights_equal_the_symbolic_ones(name, pair, box, request):
     to 1e-7 of the largest height on the grid (differences of step 1e-5: error ~1e-10)."""
     from nhgait.dynamics.geometry.heights import evaluate_heights_numeric
     model = request.getfixturevalue(name)
-    symbolic = evaluate_heights(local_connection(model), *pair, bounds=box, points=7)
-    numeric = evaluate_heights_numeric(numeric_connection(model), *pair, bounds=box, points=7)
+    symbolic = evaluate_heights(local_connection(model), *pair, HeightGrid(bounds=box, points=7))
+    numeric = evaluate_heights_numeric(numeric_connection(model), *pair, HeightGrid(bounds=box, points=7))
     scale = np.max(np.abs(symbolic.heights))
     assert np.max(np.abs(numeric.heights - symbolic.heights)) <= 1e-7 * scale
     assert np.allclose(numeric.fields, symbolic.fields, atol=1e-12)

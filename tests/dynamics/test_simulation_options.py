@@ -43,3 +43,19 @@ def test_combinations_and_values():
     assert SimulationOptions(stabilization="baumgarte", baumgarte=(2.0, 1.0)).combination_problems() == []
     assert any("max_steps" in p for p in SimulationOptions(max_steps=0).value_problems(0.0, 1.0))
     assert any("max_steps" in p for p in SimulationOptions(max_steps=2.5).value_problems(0.0, 1.0))
+
+
+def test_the_parameter_values_travel_in_the_options():
+    """``params`` is a field like the others (issue 44): the unicycle rolled straight at φ̇ = 1 for
+    1 s moves x = r φ = r — the radius of the options, or of the keyword on top of them — and a
+    bad value is named like a keyword's."""
+    from nhgait.dynamics import derive, simulate
+    model = derive("unicycle")
+    options = SimulationOptions(params={"r": 0.2}, t_eval=[0.0, 1.0])
+    for given, radius in (({}, 0.2), ({"params": {"r": 0.05}}, 0.05)):
+        traj = simulate(model, (0.0, 1.0), [0, 0, 0, 0], [radius, 0, 0, 1.0], options=options, **given)
+        assert traj.success
+        assert traj.q[-1] == pytest.approx([radius, 0.0, 0.0, 1.0], abs=1e-9)
+    with pytest.raises(ModelError, match="the given params"):
+        simulate(model, (0.0, 1.0), [0, 0, 0, 0], [0.1, 0, 0, 1.0],
+                 options=SimulationOptions(params={"m": -1.0}))

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from nhgait.dynamics.numerics import openmp
-from nhgait.dynamics.numerics.compiler import build_library, compiler_command
+from nhgait.dynamics.numerics.compiler import Toolchain, build_library, compiler_command
 from nhgait.dynamics.numerics.fast_compiler import fast_compiler
 from nhgait.dynamics.numerics.thread_maps import CREATE, map_threads, threaded_map, with_grant
 
@@ -97,7 +97,7 @@ def test_compiled_threaded_maps_give_the_serial_bits_on_any_grant(compiler, tmp_
         np.testing.assert_allclose(want, closed, rtol=1e-13, atol=1e-14)
     for threads in (1, 2, 3, POINTS):
         source = with_grant(_source(_mapped(threads)))
-        lib = build_library(source, command=command, flags=flags, libs=libs, salt="thread maps test")
+        lib = build_library(source, Toolchain(command, flags, libs), salt="thread maps test")
         compiled = ca.external("stage_sum", str(lib.path))
         openmp.limit(lib.path)
         for grant in (1, 2, 64):

@@ -8,15 +8,17 @@ import pytest
 from nhgait.dynamics import derive
 from nhgait.dynamics.derivation.models import snakeboard
 from nhgait.dynamics.geometry.connection_fields import local_connection
-from nhgait.dynamics.geometry.heights import evaluate_heights
+from nhgait.dynamics.geometry.heights import HeightGrid, evaluate_heights
 from nhgait.gaits.figures.geometry import heights_figure, moved_component
 
 
 @pytest.fixture(scope="module")
 def board_heights():
     model = derive(snakeboard(), "reduced")
-    return evaluate_heights(local_connection(model), "psi", "phi", bounds={"psi": (-1, 1), "phi": (-1, 1)},
-                            points=11, units={"x": "m", "y": "m", "theta": "rad", "psi": "rad", "phi": "rad"})
+    return evaluate_heights(local_connection(model), "psi", "phi",
+                            HeightGrid(bounds={"psi": (-1, 1), "phi": (-1, 1)}, points=11,
+                                       units={"x": "m", "y": "m", "theta": "rad", "psi": "rad",
+                                              "phi": "rad"}))
 
 
 def test_height_figure_has_names_units_colour_bar_and_arrows(board_heights, tmp_path):

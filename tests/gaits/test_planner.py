@@ -169,8 +169,8 @@ def test_continuation_grows_an_easier_problem():
 
 
 def test_parallel_candidates_agree_with_sequential():
-    seq = plan("snakeboard", "rotate", intervals=25, jit=False, workers=1, verify=False)
-    par = plan("snakeboard", "rotate", intervals=25, jit=False, workers=2, verify=False)
+    seq = plan("snakeboard", "rotate", intervals=25, jit=False, workers=1, verify=False, memo=False)
+    par = plan("snakeboard", "rotate", intervals=25, jit=False, workers=2, verify=False, memo=False)
     assert par.success
     assert len(par.attempts) >= 2            # the first batch (two at once), then the exploration's
     best = min(a.objective for a in par.attempts if a.success)

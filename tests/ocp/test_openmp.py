@@ -53,7 +53,7 @@ def _guess() -> InitialGuess:
 def test_a_compiler_without_openmp_builds_without_the_flag(tmp_path, monkeypatch):
     """gcc given a wrapper that refuses -fopenmp: the library is built once more without it,
     and its record and flags say so (the key keeps the flags asked for)."""
-    from nhgait.dynamics.numerics.compiler import build_library
+    from nhgait.dynamics.numerics.compiler import Toolchain, build_library
     real = compiler_command()
     if real is None:
         pytest.skip("no C compiler")
@@ -63,9 +63,9 @@ def test_a_compiler_without_openmp_builds_without_the_flag(tmp_path, monkeypatch
     wrapper.chmod(0o755)
     monkeypatch.setenv("NHGAIT_CACHE_DIR", str(tmp_path / "cache"))
     source = "double twice(double x) { return 2 * x; }\n"
-    lib = build_library(source, flags=("-O1", openmp.FLAG), salt="openmp test", command=[str(wrapper)])
+    lib = build_library(source, Toolchain([str(wrapper)], ("-O1", openmp.FLAG)), salt="openmp test")
     assert lib.flags == ("-O1",) and not lib.cached
-    again = build_library(source, flags=("-O1", openmp.FLAG), salt="openmp test", command=[str(wrapper)])
+    again = build_library(source, Toolchain([str(wrapper)], ("-O1", openmp.FLAG)), salt="openmp test")
     assert again.cached and again.flags == ("-O1",) and again.path == lib.path
 
 

@@ -33,7 +33,7 @@ import sympy as sp
 from nhgait.dynamics.suggestions import known_names
 
 from ...algebra.symbols import TIME
-from ..holonomic import choose_dependent, eliminate, velocity_row
+from ..holonomic import Elimination, choose_dependent, eliminate, velocity_row
 from ..velocity_forms import linear_split, quadratic_split
 from .expressions import CONSTANTS, FUNCTIONS, expression_problems, name_clashes, number_problems
 
@@ -309,7 +309,8 @@ def _holonomic(statement, declared: _Declared, symbols: _Symbols, problems: list
 
 def _constrained(stated: _Stated, holonomic, wanted, declared: _Declared, problems: list) -> _Stated:
     """Step 4b: eliminate what can be solved, keep the rest with its velocity rows (:mod:`.holonomic`)."""
-    el = eliminate(stated.q, stated.q_dot, stated.L, stated.cons, stated.tau, holonomic, wanted)
+    el = eliminate(Elimination(q=stated.q, q_dot=stated.q_dot, L=stated.L, constraints=stated.cons,
+                               tau=stated.tau, holonomic=tuple(zip(holonomic, wanted, strict=True))))
     params = dict(zip(declared.parameters, declared.values, strict=True))
     kept = [h for h, _ in el.holonomic]
     names = [c.name for c in el.q]
