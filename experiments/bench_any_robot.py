@@ -14,7 +14,9 @@ For ``--pairs`` robot-and-task pairs of ``experiments/robot_generator.py`` (seed
   planner's stated cause (its status and the first line of its message), ``infeasible`` (a
   solver proved it), ``budget`` (stopped by this script, or the planner's own time limit),
   ``rejected`` (exit 2: the planner called the scene bad input) or ``crash`` (any other exit);
-  the time to the answer, iterations, objective, the re-simulation error;
+  the time to the answer and where it went (the plan's own "wall time … in all" split: model, NLP
+  set-up, guesses and solves, verification, figures, start-up), iterations, objective, the
+  re-simulation error;
 * **reference** (``experiments/reference_dae_ocp.py``: the Lagrange DAE in (q, q̇, λ), same N and
   horizon, Ipopt): from the planner's best point (its ``solution.json``: q, q̇, u) and from the
   reference's own guess, for every pair the planner does not verify (``--reference all``: every
@@ -130,7 +132,8 @@ def run_plan(scene: Path, out: Path, budget: float, time_limit: bool, grace: flo
         if leftover:                                  # children that outlived the plan
             os.killpg(proc.pid, signal.SIGKILL)
     row = {"exit": proc.returncode, "time_s": round(wall, 2), "stopped_by_bench": stopped is not None,
-           "left_processes": leftover, "log": str(log)}
+           "left_processes": leftover, "log": str(log),
+           "phases": sibling.load("bench_loop_ranking").phases(log.read_text(errors="replace"))}
     if stopped:
         row.update(stopped)
     return row
@@ -266,7 +269,16 @@ def summary(rows: list) -> dict:
             "failures_by_cause": dict(sorted(causes.items(), key=lambda kv: -kv[1])),
             "time_s": {"median": statistics.median(times) if times else None, "p90": q(0.9),
                        "max": times[-1] if times else None},
+            "median_phase_s": _phase_medians(rows),
             "worst_times": sorted(((r["time_s"], r["pair"], r["outcome"]) for r in rows), reverse=True)[:5]}
+
+
+def _phase_medians(rows: list) -> dict:
+    """Where the time to answer went: the median seconds of each phase of the plans' own "wall
+    time … in all" split (model, NLP set-up, guesses and solves, verification, figures, …)."""
+    split = [r["phases"] for r in rows if r.get("phases")]
+    names = sorted({k for p in split for k in p})
+    return {k: statistics.median(p.get(k, 0.0) for p in split) for k in names}
 
 
 COLUMNS = ("pair", "family", "n", "k", "task", "outcome", "cause", "time_s", "budget_s", "iterations",
@@ -303,7 +315,9 @@ def write_tables(rows: list, summ: dict, out: Path, meta: dict) -> None:
            f"Answered by the planner itself within the budget (not stopped by this script, nothing left "
            f"running): {s['answered_within_budget']} of {s['pairs']}.",
            f"Time to answer: median {_fmt(s['time_s']['median'])} s, 90 % {_fmt(s['time_s']['p90'])} s, "
-           f"max {_fmt(s['time_s']['max'])} s."]
+           f"max {_fmt(s['time_s']['max'])} s.",
+           "Where it went (medians of the plans' own split): "
+           + ", ".join(f"{k} {v:.3g} s" for k, v in s.get("median_phase_s", {}).items())]
     (out / "table.md").write_text("\n".join(md) + "\n")
     (out / "results.json").write_text(json.dumps({"meta": meta, "summary": summ, "rows": rows}, indent=1,
                                                  default=str))

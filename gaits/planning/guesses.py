@@ -25,6 +25,11 @@ classical gaits (snakeboard rotor:wheel frequency ratios 1:1 drive, 2:1 rotate, 
   path through them (:mod:`.path_guess`).
 
 Amplitudes respect the task's bounds (at most 90 % of the distance to the nearer bound).
+The two-variable loops are ranked by the local connection's prediction of how far each moves
+the robot toward the target (:mod:`.loop_ranking`): the best first, the ones predicted to move
+it away after every other candidate but the ramps; the ranking runs when the first candidate past the leading
+ones (path, fitted guess, warm start) is asked for (:class:`RankedOrder`).
+
 Configurations q(t) and their rates q̇(t) (ramps included) are mapped to the model's state
 by its ``state(q, q̇)`` map; the controls are zero. :func:`candidates` returns them in order;
 the planner tries them (several at once when cores allow) and reports which one won.
@@ -59,7 +64,7 @@ from .waves import (
 )
 
 __all__ = ["ShapeGuess", "shape_guesses", "rollout_guesses", "guess_from_shape", "candidates", "Candidates",
-           "Screened", "screened_dict", "RATIOS", "AMPLITUDES"]
+           "CandidateSetting", "RankedOrder", "Screened", "screened_dict", "RATIOS", "AMPLITUDES"]
 
 RATIOS = ((1, 1), (2, 1), (1, 2), (3, 2), (2, 3))
 #: (A, B) as fractions of the largest allowed amplitude of each variable (1 rad when unbounded)
@@ -184,6 +189,47 @@ def screened_dict(record: Screened) -> dict:
             "t": c.t, "configuration": dict(zip(c.coordinates, c.q, strict=True)), "measure": c.measure}
 
 
+@dataclass(frozen=True, eq=False)
+class CandidateSetting:
+    """What every candidate of one problem shares: the ``problem``, its ``coordinates``, the
+    ``screen`` (:class:`~.screening.Screen`, None: unchecked), the ``start`` of the coordinates
+    free at t = 0, the ``progress`` that hears about repairs and skips, and ``blocked``: the
+    :class:`~.screening.Check` of an end every candidate shares on the singular set (None)."""
+
+    problem: object
+    coordinates: tuple
+    screen: object = None
+    start: tuple = ()
+    progress: object = None
+    blocked: object = None
+
+
+class RankedOrder(Sequence):
+    """The candidates' order (:func:`candidates`): ``head`` (a path guess, a leading fitted
+    guess) and the rest, made by ``tail()`` — which ranks the shape loops
+    (:func:`~.loop_ranking.rank_loops`) — only when an item past the head is first asked for,
+    so a plan whose leading guesses converge never pays for the ranking. ``length`` is the
+    tail's length (the ranking reorders, it does not remove)."""
+
+    def __init__(self, head, tail, length: int):
+        self._head, self._make, self._length, self._tail = tuple(head), tail, int(length), None
+
+    def __len__(self) -> int:
+        return len(self._head) + self._length
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(len(self)))]
+        i = index + len(self) if index < 0 else index
+        if not 0 <= i < len(self):
+            raise IndexError(index)
+        if i < len(self._head):
+            return self._head[i]
+        if self._tail is None:
+            self._tail = list(self._make())
+        return self._tail[i - len(self._head)]
+
+
 class Candidates(Sequence):
     """The planner's initial guesses in order of preference, each built and screened when first
     used (a rollout integrates the kinematics, so building all of them up front would delay the
@@ -198,13 +244,11 @@ class Candidates(Sequence):
     ``start`` is where the coordinates free at t = 0 start in every candidate (off the singular
     set; empty when their centres are regular)."""
 
-    def __init__(self, problem, shapes, coordinates, first=(), *, screen=None, start=(), progress=None,
-                 blocked=None):
-        from nhgait.dynamics.progress import Progress
-        self._problem, self._shapes, self._coordinates = problem, tuple(shapes), tuple(coordinates)
-        self._first = tuple(first)
-        self._screen, self.start, self._blocked = screen, tuple(start), blocked
-        self._progress = progress or Progress.silent()
+    def __init__(self, setting: CandidateSetting, shapes, first=()):
+        self._setting, self._shapes, self._first = setting, shapes, tuple(first)
+        self._problem, self._coordinates = setting.problem, setting.coordinates
+        self._screen, self.start, self._blocked = setting.screen, setting.start, setting.blocked
+        self._progress = setting.progress
         self._accepted: list = []
         self._next = 0
         self.screened: list = []
@@ -286,9 +330,7 @@ class Candidates(Sequence):
         return bool(self._first)
 
     def with_first(self, guess) -> Candidates:
-        return Candidates(self._problem, self._shapes, self._coordinates, (guess, *self._first),
-                          screen=self._screen, start=self.start, progress=self._progress,
-                          blocked=self._blocked)
+        return Candidates(self._setting, self._shapes, (guess, *self._first))
 
 
 def candidates(problem, *, shape=None, screen=True, progress=None) -> Candidates:
@@ -303,21 +345,35 @@ def candidates(problem, *, shape=None, screen=True, progress=None) -> Candidates
     start, moved = (_regular_start(problem, checks, coords, shape, progress) if checks is not None
                     else ((), None))
     n_pairs = len(shape) * (len(shape) - 1) // 2
-    loops = rank_loops(problem, _order(shape_guesses(problem, shape, start), n_pairs), progress)
+    loops = _order(shape_guesses(problem, shape, start), n_pairs)
     rollouts = rollout_guesses(problem, shape, _rate_states(model, shape), start)
-    from .fitted import applies, leads
-    ordered = _interleave(loops[:-1], rollouts) + loops[-1:]
-    if applies(problem):
-        at = 0 if leads(problem, shape) else 1
-        ordered = ordered[:at] + [ShapeGuess(FITTED_LABEL, (), start=start)] + ordered[at:]
     from . import path_guess
+    from .fitted import applies, leads
+    head, fitted = [], None
     if path_guess.applies(problem):        # a task that says where to pass: along there first
-        ordered = [ShapeGuess(PATH_LABEL, (), start=start)] + ordered
-    out = Candidates(problem, ordered, coords, screen=checks, start=start, progress=progress,
-                     blocked=_blocked_end(problem, checks, coords, start) if checks is not None else None)
+        head.append(ShapeGuess(PATH_LABEL, (), start=start))
+    if applies(problem):                   # the fitted guess first, or second after the best loop
+        fitted = ShapeGuess(FITTED_LABEL, (), start=start)
+        head, fitted = (head + [fitted], None) if leads(problem, shape) else (head, fitted)
+
+    def tail() -> list:
+        ranked = rank_loops(problem, loops, progress)
+        out = _interleave(list(ranked.front[:-1]), rollouts) + list(ranked.away) + list(ranked.front[-1:])
+        return out[:1] + [fitted] + out[1:] if fitted is not None else out
+
+    order = RankedOrder(head, tail, len(loops) + len(rollouts) + (fitted is not None))
+    blocked = _blocked_end(problem, checks, coords, start) if checks is not None else None
+    setting = CandidateSetting(problem, coords, screen=checks, start=start, progress=progress or _silent(),
+                               blocked=blocked)
+    out = Candidates(setting, order)
     if moved is not None:
         out.screened.append(moved)
     return out
+
+
+def _silent():
+    from nhgait.dynamics.progress import Progress
+    return Progress.silent()
 
 
 def _blocked_end(problem, checks, coords, start):

@@ -17,21 +17,31 @@ much nearer the target it ends (Δs restricted to the components of d), per unit
 :data:`TRUSTED_PEAK` times its median (it passes near the singular set of A, where the
 prediction means nothing: the 3-link snake's α₁ = α₂) gets no score and keeps its place.
 
-:func:`rank_loops` puts the two-variable loops in order of decreasing score (ties and loops
-that move away from the target keep their order, after the others); every other candidate
-keeps its place. Nothing changes when the model has no connection or no target direction.
+:func:`rank_loops` puts the two-variable loops that move toward the target first, in order of
+decreasing score, then those it cannot tell apart (in their order), in the slots the loops held;
+every other candidate keeps its place. The loops predicted to move the robot *away* from the
+target (progress below −:data:`SIGNIFICANT` |d|: about half of them, the mirror images of the
+good ones) are set apart (:class:`RankedLoops`), tried after every other candidate but the ramps
+alone (for a robot with roll-outs, beyond the planner's limit of guesses per solver). Nothing
+changes when the model has no local connection or the task no target direction.
+
+The prediction is numeric only (:class:`Predictor`: the compiled basis X(q) and the fibre
+integrator's one CasADi ``mapaccum`` per loop), so ranking the snakeboard's 21 loops costs
+tens of milliseconds, and :mod:`.guesses` ranks only when a guess beyond the leading ones (a
+warm start, the path through the task's places, the fitted guess) is first asked for.
 """
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..tasks.reachability import target_of
 from .waves import ends
 
-__all__ = ["LoopScore", "Target", "loop_scores", "rank_loops", "model_motion", "numeric_connection_of",
-           "target_of"]
+__all__ = ["LoopScore", "Predictor", "RankedLoops", "loop_scores", "predictor_of", "rank_loops"]
 
 #: samples per horizon of a predicted loop (midpoint rule)
 SAMPLES = 240
@@ -57,45 +67,6 @@ class LoopScore:
     score: float
 
 
-def numeric_connection_of(problem):
-    """The :class:`~nhgait.dynamics.geometry.connection_fields.NumericConnection` of the problem's
-    model, or None when it has none (no reduced model, no shape, a fibre that is no group)."""
-    from nhgait.dynamics.errors import ModelError
-    from nhgait.dynamics.geometry.connection_fields import numeric_connection
-    base = getattr(problem.model, "base", problem.model)
-    if getattr(base, "layout", None) is None or not getattr(base, "shape", ()):
-        return None
-    try:
-        return numeric_connection(base, problem.model.numeric.params(problem.params))
-    except ModelError:
-        return None
-
-
-@dataclass(frozen=True, eq=False)
-class Target:
-    """The task's target direction ``d`` (fibre order) and the fibre components it concerns
-    (``mask``)."""
-
-    d: np.ndarray
-    mask: np.ndarray
-
-
-def target_of(problem, fiber: tuple) -> Target | None:
-    """The :class:`Target`: the planar position's change when the task fixes both ends of it and
-    it changes (mask: x, y), else the change of every fibre coordinate fixed at both ends (mask:
-    those); None when d = 0."""
-    d, mask = np.zeros(len(fiber)), np.zeros(len(fiber), bool)
-    for i, name in enumerate(fiber):
-        a, b = problem.fixed_value(problem.initial, name), problem.fixed_value(problem.final, name)
-        if a is not None and b is not None:
-            d[i], mask[i] = b - a, True
-    frame = getattr(problem.model.system, "planar_frame", None) or ()
-    planar = np.isin(np.arange(d.size), [fiber.index(c) for c in frame[:2] if c in fiber]) & mask
-    if planar.any() and np.linalg.norm(d[planar]) > 0:
-        d, mask = np.where(planar, d, 0.0), planar
-    return Target(d, mask) if np.linalg.norm(d) > 0 else None
-
-
 def _path(problem, guess, coordinates):
     """q(t) (n×SAMPLES+1) of a loop candidate: the ramps plus its waves."""
     T = float(problem.horizon)
@@ -110,52 +81,83 @@ def _path(problem, guess, coordinates):
     return t, q
 
 
-def model_motion(problem):
-    """The fibre path (l×K) along configurations q (n×K) at times t, by the problem's model
-    (:func:`~nhgait.dynamics.geometry.prescribed.fibre_motion`, from rest)."""
+@dataclass(frozen=True, eq=False)
+class Predictor:
+    """What the ranking needs of a model: the ``fiber`` and ``shape`` names, the shape's rows in q
+    (``shape_index``), ``lift_sizes(q)`` → ‖gA‖ at each column of q (n×K) and ``motion(t, q)`` →
+    the fibre path (l×K) from rest along q(t)."""
+
+    fiber: tuple
+    shape: tuple
+    shape_index: tuple
+    lift_sizes: Callable
+    motion: Callable
+
+
+def predictor_of(problem) -> Predictor | None:
+    """The :class:`Predictor` of the problem's reduced model (None without one: no layout, no
+    shape): the compiled basis X(q) and :class:`~nhgait.dynamics.geometry.prescribed.FibreIntegrator`,
+    nothing symbolic (the connection's bracket, simplified symbolically in about a second, is not
+    needed)."""
     from nhgait.dynamics.geometry.prescribed import FibreIntegrator
-    integrate = FibreIntegrator(getattr(problem.model, "base", problem.model),
-                                problem.model.numeric.params(problem.params))
-    return lambda t, q: integrate(t, q).fiber
+    base = getattr(problem.model, "base", problem.model)
+    layout = getattr(base, "layout", None)
+    if layout is None or not getattr(base, "shape", ()):
+        return None
+    values = np.asarray(problem.model.numeric.params(problem.params), float)
+    names = tuple(base.system.coordinates)
+    si, free = list(layout.si), list(layout.free)
+    m, extra = len(free), len(base.momenta)
+    basis = base.numeric["basis"]
+
+    def lift_sizes(q):
+        K = q.shape[1]
+        X = np.asarray(basis.map(K)(np.vstack([q, np.zeros((extra, K))]), values))
+        cols = X.shape[1] // K
+        blocks = X[si].reshape(len(si), K, cols)[:, :, cols - m:]
+        return np.sqrt(np.sum(blocks ** 2, axis=(0, 2)))
+
+    integrate = FibreIntegrator(base, values)
+    return Predictor(fiber=tuple(layout.fiber), shape=tuple(names[i] for i in free), shape_index=tuple(free),
+                     lift_sizes=lift_sizes, motion=lambda t, q: integrate(t, q).fiber)
 
 
-def _predicted(motion, connection, t, q):
+def _predicted(predictor, t, q):
     """(Δs, ‖ṙ‖, trusted) of the path q(t) (module docstring); ``trusted`` as there."""
-    r = q[list(connection.shape_index)]
-    sizes = connection.lift_sizes(q)
+    r = q[list(predictor.shape_index)]
+    sizes = predictor.lift_sizes(q)
     rate = np.diff(r, axis=1) / np.diff(t)
     effort = math.sqrt(float(np.sum(rate ** 2 * np.diff(t))))
     trusted = bool(np.all(np.isfinite(sizes)) and max(sizes) <= TRUSTED_PEAK * max(np.median(sizes), 1e-12))
     if not trusted:
         return None, effort, False
-    s = motion(t, q)
+    s = predictor.motion(t, q)
     return s[:, -1] - s[:, 0], effort, bool(np.all(np.isfinite(s)))
 
 
-def loop_scores(problem, guesses, motion=None) -> list:
+def loop_scores(problem, guesses, predictor=None) -> list:
     """:class:`LoopScore` of every two-variable loop in ``guesses`` (others: None); [] when the
-    model has no connection or the task no target direction. ``motion(t, q)`` → the fibre path
-    (default :func:`model_motion`)."""
-    connection = numeric_connection_of(problem)
-    if connection is None:
+    model has no connection or the task no target direction. ``predictor``: a :class:`Predictor`
+    (default :func:`predictor_of` the problem)."""
+    predictor = predictor or predictor_of(problem)
+    if predictor is None:
         return []
-    target = target_of(problem, connection.fiber)
+    target = target_of(problem, predictor.fiber)
     if target is None:
         return []
     d, mask = target.d, target.mask
     coordinates = tuple(problem.model.system.coordinates)
-    motion = motion or model_motion(problem)
     out = []
     scored = 0
     for g in guesses:
-        if (len(g.waves) != 2 or g.rates or any(w[0] not in connection.shape for w in g.waves)
+        if (len(g.waves) != 2 or g.rates or any(w[0] not in predictor.shape for w in g.waves)
                 or scored >= MAX_SCORED):
             out.append(None)
             continue
         scored += 1
         t, q = _path(problem, g, coordinates)
         with np.errstate(all="ignore"):
-            moved, effort, trusted = _predicted(motion, connection, t, q)
+            moved, effort, trusted = _predicted(predictor, t, q)
         if not trusted:
             out.append(None)
             continue
@@ -167,19 +169,42 @@ def loop_scores(problem, guesses, motion=None) -> list:
     return out
 
 
-def rank_loops(problem, guesses: list, progress=None, motion=None) -> list:
-    """``guesses`` with the two-variable loops reordered by decreasing score (module
-    docstring), in the slots the loops held; ``progress`` hears the best prediction."""
-    scores = loop_scores(problem, guesses, motion)
+@dataclass(frozen=True)
+class RankedLoops:
+    """The guesses of :func:`rank_loops`: ``front`` (the loops toward the target by decreasing
+    score, then those the prediction cannot tell, in the slots the loops held; the other guesses
+    in their places) and ``away`` (the loops predicted to move the robot away from the target,
+    least far first: :mod:`.guesses` tries them after every other candidate but the ramps alone)."""
+
+    front: tuple
+    away: tuple = ()
+
+
+def rank_loops(problem, guesses: list, progress=None, predictor=None) -> RankedLoops:
+    """``guesses`` with the two-variable loops reordered by decreasing score (module docstring):
+    the loops that move toward the target first, in the slots the loops held, those predicted to
+    move away from it (progress below −:data:`SIGNIFICANT` |d|) set apart; ``progress`` hears the
+    best prediction."""
+    scores = loop_scores(problem, guesses, predictor)
     slots = [i for i, s in enumerate(scores) if s is not None]
     if not slots:
-        return list(guesses)
-    order = sorted(slots, key=lambda i: (-scores[i].score if scores[i].score > 0 else math.inf, i))
-    out = list(guesses)
-    for slot, i in zip(slots, order, strict=True):
-        out[slot] = guesses[i]
-    if progress is not None and order != slots:
-        best = scores[order[0]]
-        progress.note(f"  shape loops ranked by the connection's prediction: {best.label!r} first "
-                      f"({best.progress:.3g} toward the target per {best.effort:.3g} of ‖ṙ‖)")
-    return out
+        return RankedLoops(tuple(guesses))
+    toward = sorted((i for i in slots if scores[i].score > 0), key=lambda i: -scores[i].score)
+    away = sorted((i for i in slots if scores[i].score < 0), key=lambda i: -scores[i].score)
+    unknown = [i for i in slots if scores[i].score == 0]
+    filled, in_slots = iter(toward + unknown), set(slots)
+    front = []
+    for i, g in enumerate(guesses):
+        if i not in in_slots:
+            front.append(g)
+            continue
+        j = next(filled, None)
+        if j is not None:
+            front.append(guesses[j])
+    if progress is not None and (toward + unknown + away) != slots:
+        best = scores[toward[0]] if toward else None
+        progress.note("  shape loops ranked by the connection's prediction: "
+                      + (f"{best.label!r} first ({best.progress:.3g} toward the target per {best.effort:.3g} "
+                         "of ‖ṙ‖)" if best else "none moves toward the target")
+                      + (f"; {len(away)} predicted to move away from it tried last" if away else ""))
+    return RankedLoops(tuple(front), tuple(guesses[i] for i in away))

@@ -46,7 +46,7 @@ def _plane_reach(connection, pair, bounds, at, direction) -> tuple:
 def reach_sentence(problem) -> str:
     """The sentence of the module docstring for ``problem`` ('' when it does not apply: no local
     connection, no target direction, fewer than two bounded shape coordinates)."""
-    from ..planning.loop_ranking import numeric_connection_of, target_of
+    from ..tasks.reachability import numeric_connection_of, target_of
     numeric = numeric_connection_of(problem)
     target = None if numeric is None else target_of(problem, numeric.fiber)
     bounded = {} if numeric is None else {c: problem.bounds(problem.state_bounds, c) for c in numeric.shape

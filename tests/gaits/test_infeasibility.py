@@ -88,6 +88,18 @@ def test_stalled_needs_the_same_infeasible_point_three_times():
     assert not stalled(same[:2] + [_attempt("Solve_Succeeded", 0.0, True)])
 
 
+def test_stalled_sees_two_kinds_of_guesses_stop_at_two_points():
+    """Shape loops and roll-outs interleaved, each kind at its own infeasible point (a snakeboard
+    under tight torque bounds): the third at one point within the last five stops the search,
+    an attempt that is not infeasible among them does not."""
+    loop, rollout = "Infeasible_Problem_Detected", "Infeasible_Problem_Detected"
+    mixed = [_attempt(loop, 0.100), _attempt(rollout, 0.180), _attempt(loop, 0.110), _attempt(rollout, 0.182)]
+    assert not stalled(mixed)                                            # two at each point
+    assert stalled(mixed + [_attempt(rollout, 0.179)])                   # the third at 0.18
+    assert not stalled(mixed + [_attempt("Maximum_Iterations_Exceeded", 0.179)])
+    assert not stalled([_attempt("Solve_Succeeded", 0.0, True)] + mixed[1:] + [_attempt(rollout, 0.2)])
+
+
 def test_the_convergence_figure_draws_each_attempt(stalling, tmp_path):
     attempts = stalling.attempts
     top, bottom = plot_convergence(attempts)

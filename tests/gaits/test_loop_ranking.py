@@ -42,17 +42,8 @@ def test_ranking_puts_the_loop_predicted_toward_the_target_first():
     from nhgait.gaits.planning import loop_ranking
     from nhgait.gaits.planning.waves import ShapeGuess
 
-    class Connection:                     # ξ = −A ṙ with A = [[0, -r_a], [0, 0], [0, 0]]: H_x = 1
-        fiber, shape, fiber_index, shape_index = ("x", "y", "theta"), ("a", "b"), (0, 1, 2), (3, 4)
-
-        def A(self, q):
-            return np.array([[0.0, -q[3]], [0, 0], [0, 0]])
-
-        def frame(self, q):
-            return np.eye(3)
-
-        def lift_sizes(self, q):
-            return np.array([np.linalg.norm(self.A(q[:, k])) for k in range(q.shape[1])])
+    def A(q):                             # ξ = −A ṙ with A = [[0, -r_a], [0, 0], [0, 0]]: H_x = 1
+        return np.array([[0.0, -q[3]], [0, 0], [0, 0]])
 
     class Problem:
         horizon, initial, final, periodic, state_bounds = 1.0, {"x": 0.0}, {"x": 0.05}, (), {}
@@ -68,22 +59,22 @@ def test_ranking_puts_the_loop_predicted_toward_the_target_first():
 
     ccw = ShapeGuess("ccw", (("a", 0.1, 1, np.pi / 2), ("b", 0.1, 1, 0.0)))       # a = cos, b = sin
     cw = ShapeGuess("cw", (("a", 0.1, 1, np.pi / 2), ("b", -0.1, 1, 0.0)))
+    ramps = ShapeGuess("ramps only", ())
+
     def motion(t, q):                     # ṡ = −A ṙ, trapezoidal (s does not enter A)
         rdot = np.diff(q[3:], axis=1)
-        A = [Connection().A(0.5 * (q[:, k] + q[:, k + 1])) for k in range(t.size - 1)]
-        steps = np.array([-a @ dr for a, dr in zip(A, rdot.T, strict=True)]).T
+        steps = np.array([-A(0.5 * (q[:, k] + q[:, k + 1])) @ dr for k, dr in enumerate(rdot.T)]).T
         return np.hstack([np.zeros((3, 1)), np.cumsum(steps, axis=1)])
 
-    original = loop_ranking.numeric_connection_of
-    loop_ranking.numeric_connection_of = lambda problem: Connection()
-    try:
-        scores = loop_ranking.loop_scores(Problem(), [cw, ccw], motion)
-        ranked = loop_ranking.rank_loops(Problem(), [cw, ccw], motion=motion)
-    finally:
-        loop_ranking.numeric_connection_of = original
+    predictor = loop_ranking.Predictor(
+        fiber=("x", "y", "theta"), shape=("a", "b"), shape_index=(3, 4),
+        lift_sizes=lambda q: np.array([np.linalg.norm(A(q[:, k])) for k in range(q.shape[1])]), motion=motion)
+    scores = loop_ranking.loop_scores(Problem(), [cw, ccw], predictor)
+    ranked = loop_ranking.rank_loops(Problem(), [cw, ramps, ccw], predictor=predictor)
     assert scores[1].moved[0] == pytest.approx(np.pi * 0.01, rel=1e-3)       # H·area = π ε²
     assert scores[0].moved[0] == pytest.approx(-np.pi * 0.01, rel=1e-3)
-    assert [g.label for g in ranked] == ["ccw", "cw"]
+    assert [g.label for g in ranked.front] == ["ccw", "ramps only"]     # the loop toward x = +0.05 first
+    assert [g.label for g in ranked.away] == ["cw"]                       # the mirror image: tried last
 
 
 def _problem(text):
