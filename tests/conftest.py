@@ -85,3 +85,15 @@ def particle(_temporary_cache):
     system = System(["x", "y"], "m*(x_dot**2 + y_dot**2)/2", [], forces={"x": "Fx", "y": "Fy"},
                     parameters={"m": 2.0}, inputs=["Fx", "Fy"])
     return specialise(derive(system, "reduced"))
+
+
+def pytest_collection_modifyitems(config, items):
+    """Under pytest-xdist, the costliest test files first (tests/file_costs.py): each file is one
+    unit of work of ``--dist loadfile`` and a worker takes the next when it is almost done, so
+    handing out the long files first lets the workers end together (the Makefile turns xdist's
+    own order, most tests first, off). The order within a file is kept; without xdist nothing
+    changes."""
+    if not os.environ.get("PYTEST_XDIST_WORKER"):
+        return
+    import file_costs
+    items.sort(key=lambda item: -file_costs.cost(item.nodeid.split("::", 1)[0]))
