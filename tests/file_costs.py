@@ -9,7 +9,8 @@ rule) lets both workers end together; ``tests/conftest.py`` sorts the collection
 :data:`COSTS_FILE` and the Makefile turns xdist's own reordering off (``--no-loadscope-reorder``).
 
 The costs are seconds measured on one run (the sum of setup, call and teardown of a file's tests);
-they only order the work, they are asserted nowhere. A file not listed counts as :data:`DEFAULT_S`.
+they only order the work, they are asserted nowhere. A file not listed (a new one) counts as the
+median file.
 Refresh them after a run with a JUnit report::
 
     .venv/bin/python -m pytest -n 2 --dist loadfile --junitxml=/tmp/suite.xml
@@ -18,6 +19,7 @@ Refresh them after a run with a JUnit report::
 from __future__ import annotations
 
 import json
+import statistics
 import sys
 import xml.etree.ElementTree as ET
 from functools import lru_cache
@@ -25,8 +27,6 @@ from pathlib import Path
 
 COSTS_FILE = Path(__file__).with_name("file_costs.json")
 ROOT = Path(__file__).resolve().parents[1]
-#: seconds assumed for a file with no measured cost (a typical new file of a few fast tests)
-DEFAULT_S = 2.0
 
 
 @lru_cache(maxsize=1)
@@ -38,9 +38,14 @@ def costs() -> dict:
         return {}
 
 
+@lru_cache(maxsize=1)
+def _median() -> float:
+    return statistics.median(costs().values()) if costs() else 0.0
+
+
 def cost(path: str) -> float:
-    """The measured seconds of the test file ``path`` (:data:`DEFAULT_S` if not measured)."""
-    return costs().get(path, DEFAULT_S)
+    """The measured seconds of the test file ``path`` (the median file's if not measured)."""
+    return costs().get(path, _median())
 
 
 def _file_of(classname: str) -> str:
