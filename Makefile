@@ -13,7 +13,8 @@ DOCS_STAMP := $(VENV)/.docs-installed
 DOCS_OUT ?= out/docs
 # pytest-xdist workers of `make test` (the suite is written to run on any number; 2 fits a laptop);
 # --dist loadfile keeps a module's tests on one worker, so its module-scoped fixtures (plans, the
-# docs build) are made once, not once per worker
+# docs build) are made once, not once per worker; the files are handed out costliest first
+# (tests/file_costs.py, ordered in tests/conftest.py), so xdist's own order is turned off
 TEST_WORKERS ?= 2
 
 .PHONY: demo test docs bench reproduce clean
@@ -45,7 +46,7 @@ demo: $(CORE_STAMP)
 
 test: $(STAMP) $(DOCS_STAMP)
 	$(PY) -m ruff check .
-	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 # The documentation: pages (docs/*.md), the API reference (docstrings) and the gallery (each
 # examples/gallery/plot_*.py run); warnings are errors. tests/test_docs_build.py runs the same.

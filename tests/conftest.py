@@ -28,8 +28,18 @@ def _no_background_builds():
 
 @pytest.fixture(scope="session", autouse=True)
 def _temporary_cache(tmp_path_factory):
+    """An empty model cache for the run. Under pytest-xdist the workers of one run share it (in
+    the run's temporary folder, beside the workers' own): a model or compiled library one
+    worker made is a cache hit for the other. The cache is made for this — entries are written
+    to a temporary file and renamed into place, so concurrent writers of one entry leave one
+    valid entry (nhgait.dynamics.numerics.cache; tests/dynamics/test_cache.py)."""
     old = os.environ.get("NHGAIT_CACHE_DIR")
-    os.environ["NHGAIT_CACHE_DIR"] = str(tmp_path_factory.mktemp("nhgait-cache"))
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        folder = tmp_path_factory.getbasetemp().parent / "nhgait-cache"
+        folder.mkdir(mode=0o700, exist_ok=True)
+    else:
+        folder = tmp_path_factory.mktemp("nhgait-cache")
+    os.environ["NHGAIT_CACHE_DIR"] = str(folder)
     yield
     if old is None:
         os.environ.pop("NHGAIT_CACHE_DIR", None)
@@ -69,11 +79,22 @@ def models(systems):
     return _View()
 
 
+@pytest.fixture(scope="session")
+def _worker_cache(tmp_path_factory, _temporary_cache):
+    """A model cache of this process alone, for the sandboxes: the run's cache is shared by the
+    xdist workers, and a temporary file the other worker is writing there at the moment a
+    sandbox looks would count as a leftover of the case."""
+    if not os.environ.get("PYTEST_XDIST_WORKER"):
+        return Path(os.environ["NHGAIT_CACHE_DIR"])
+    return tmp_path_factory.mktemp("nhgait-worker-cache")
+
+
 @pytest.fixture
-def sandbox(tmp_path, monkeypatch):
-    """A private TMPDIR and output folder and the session's cache, checked for leftovers by the
-    hostile-input tests (tests/adversarial.py)."""
+def sandbox(tmp_path, monkeypatch, _worker_cache):
+    """A private TMPDIR and output folder and this worker's cache (shared by the sandboxes of the
+    session), checked for leftovers by the hostile-input tests (tests/adversarial.py)."""
     from adversarial import make_sandbox
+    monkeypatch.setenv("NHGAIT_CACHE_DIR", str(_worker_cache))
     return make_sandbox(tmp_path, monkeypatch)
 
 
@@ -98,3 +119,15 @@ def _fresh_plan_memo():
     memo = sys.modules.get("nhgait.gaits.planning.plan_memo")
     if memo is not None:
         memo.PLAN_MEMO.clear()
+
+
+def pytest_collection_modifyitems(config, items):
+    """Under pytest-xdist, the costliest test files first (tests/file_costs.py): each file is one
+    unit of work of ``--dist loadfile`` and a worker takes the next when it is almost done, so
+    handing out the long files first lets the workers end together (the Makefile turns xdist's
+    own order, most tests first, off). The order within a file is kept; without xdist nothing
+    changes."""
+    if not os.environ.get("PYTEST_XDIST_WORKER"):
+        return
+    import file_costs
+    items.sort(key=lambda item: -file_costs.cost(item.nodeid.split("::", 1)[0]))
