@@ -384,7 +384,7 @@ def run_sweep(case: SweepCase, grid: Grid, backend, store: SweepStore,
 
 
 def sweep(system, task=None, grid=(), *, out, options: SweepOptions | None = None, **values) -> SweepResult:
-    """Sweep ``task`` on ``system`` over ``grid``, storing every point in ``out``.
+    r"""Sweep ``task`` on ``system`` over ``grid``, storing every point in ``out``.
 
     Parameters
     ----------
@@ -399,9 +399,11 @@ def sweep(system, task=None, grid=(), *, out, options: SweepOptions | None = Non
         ``solver``, ``jit``, ``time_limit``: seconds per point), ``scheduler``, ``workers``,
         an open ``backend``, ``resume``, ``warm_start``, ``progress``, ``chain``; a mapping
         here is the planner options (as before SweepOptions); None: the defaults
-    **values : the same options as keywords, on top of ``options``, e.g.
+    \*\*values : the same options as keywords, on top of ``options``, e.g.
         ``sweep(..., out=out, workers=0, overrides=["intervals=30"])``
 
+    Notes
+    -----
     Every problem of the options is one :class:`~nhgait.ocp.ProblemError` (an unknown name
     among them), raised before any derivation.
 

@@ -135,7 +135,7 @@ class _PlanFailed(Exception):
 
 def track(system, task=None, *, out_dir=None, progress=None, options: TrackingOptions | None = None,
           **values) -> TrackingResult:
-    """A tracking study (module docstring).
+    r"""A tracking study (module docstring).
 
     Parameters
     ----------
@@ -152,9 +152,11 @@ def track(system, task=None, *, out_dir=None, progress=None, options: TrackingOp
         :data:`SERIAL_SAMPLES`: in this process) and ``plan``: how the plan is solved, the
         planner's :class:`~nhgait.gaits.planning.options.PlanOptions`, whose ``time_limit`` is
         the seconds the whole study may take (module docstring; ``inf``: unlimited)
-    **values : the same options as keywords, on top of ``options`` — also a plan option by its
+    \*\*values : the same options as keywords, on top of ``options`` — also a plan option by its
         name (``time_limit=60``, ``intervals=40``; ``workers`` is the samples')
 
+    Notes
+    -----
     Every problem of the request is one :class:`~nhgait.ocp.ProblemError`, raised before planning.
     """
     from nhgait.dynamics.progress import Progress
