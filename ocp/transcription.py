@@ -567,7 +567,8 @@ class StageShooting(MultipleShooting):
                                                   else float(np.sum(sched.initial_horizons())))
         for name, weight in problem.end_weights.items():
             f = f + float(weight) * b.qfun(name)(Z[:, N])
-        return self._layout(b, _StageVector(w, lo, hi, nx, nc, yper, counts), f, g, layout)
+        vector = _StageVector(w=w, lo=lo, hi=hi, nx=nx, nc=nc, yper=yper, counts=counts)
+        return self._layout(b, vector, f, g, layout)
 
     @staticmethod
     def _run(b, gaps, blocks, a, c, counts):
@@ -635,7 +636,7 @@ class StageShooting(MultipleShooting):
                                  structure=structure))
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, kw_only=True)
 class _StageVector:
     """The stage-ordered decision vector of :class:`StageShooting`: ``w``, the node bounds
     ``lo``/``hi`` (nz × (N+1)), ``nx`` (a stage's state with its carried copies), ``nc`` (the

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 import sympy as sp
@@ -34,7 +35,7 @@ import sympy as sp
 from ..errors import ModelError
 from .connection_fields import LocalConnection
 
-__all__ = ["HeightGrid", "HeightFunctions", "curvature", "height_function", "evaluate_heights",
+__all__ = ["HeightGrid", "GridAxes", "HeightFunctions", "curvature", "height_function", "evaluate_heights",
            "evaluate_heights_numeric"]
 
 #: the two forms of :attr:`HeightFunctions.form`
@@ -62,6 +63,13 @@ def height_function(connection: LocalConnection, a: str, b: str, *, momentum=Non
     return H + momentum.height()
 
 
+class GridAxes(NamedTuple):
+    """The grid values of a shape plane (a, b): ``a_values`` (na,) and ``b_values`` (nb,)."""
+
+    a_values: np.ndarray
+    b_values: np.ndarray
+
+
 @dataclass(frozen=True)
 class HeightGrid:
     """Where to evaluate height functions: ``bounds`` {a: (low, high), b: (low, high)} of the
@@ -86,9 +94,9 @@ class HeightGrid:
         out += [f"points: give at least 2 per axis, got {self.points}"] if int(self.points) < 2 else []
         return out
 
-    def axes(self, a: str, b: str) -> tuple:
-        """The grid values of ``a`` and ``b``."""
-        return tuple(np.linspace(*map(float, self.bounds[n]), int(self.points)) for n in (a, b))
+    def axes(self, a: str, b: str) -> GridAxes:
+        """The grid values of ``a`` and ``b``: ``points`` evenly spaced over each one's bounds."""
+        return GridAxes(*(np.linspace(*map(float, self.bounds[n]), int(self.points)) for n in (a, b)))
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)

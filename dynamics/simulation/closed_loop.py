@@ -294,7 +294,7 @@ def _checked_shape(u, m, method):
     return u
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class _LoopExpressions:
     """The CasADi expressions of the closed loop that decide what must be integrated: the state
     ``x``, ``params``, ẋ, the singular-set ``measure``, q̇, the residual ``g``, the ``power``
@@ -347,8 +347,9 @@ def _build(model, controller, stabilisation: Stabilisation, seeds) -> ClosedLoop
     power = num["power"](t_c, x, u, params)
     energy = num["energy"](x, params)
     metric = ca.vec(_velocity_metric(energy, x[n:]))
-    index, measure, has_work = _integrated(model, seeds, _LoopExpressions(x, params, xdot, measure, qdot, g,
-                                                                          power, n_int, bool(u_args)))
+    loop = _LoopExpressions(x=x, params=params, xdot=xdot, measure=measure, qdot=qdot, g=g, power=power,
+                            n_int=n_int, opaque_u=bool(u_args))
+    index, measure, has_work = _integrated(model, seeds, loop)
     if len(index) == nx:
         x_s = x
 

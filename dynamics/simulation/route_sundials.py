@@ -28,7 +28,7 @@ class _Start(NamedTuple):
     lam: np.ndarray | None
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, kw_only=True)
 class _SundialsCall:
     """One SUNDIALS problem on one segment: ``kind`` ("cvodes" or "idas"), the CasADi
     ``problem`` and ``opts``, ``pv`` = (p, t_hi) its parameter vector, the ``segment``, the
@@ -88,8 +88,8 @@ def integrate_sundials(request: RunRequest, kind: str, lam0=None) -> Run:
             grid.append(b)
         names = dict(zip(grid, wanted, strict=False)) if te is not None else {b: b}
         watch = None if measure is None else EventWatch(measure, segment.params, options.singular_tol)
-        call = _SundialsCall(kind, problem, opts, np.r_[segment.params, segment.t_hi], segment, watch,
-                             options.max_steps)
+        call = _SundialsCall(kind=kind, problem=problem, opts=opts, pv=np.r_[segment.params, segment.t_hi],
+                             segment=segment, watch=watch, max_steps=options.max_steps)
         start = _Start(a, y, lam)
         for c in range(0, len(grid), _CHUNK):
             chunk = grid[c:c + _CHUNK]

@@ -29,6 +29,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -88,13 +89,14 @@ def cmd_analyse(args) -> int:
         growth = growth_vector(model, point)
         access = accessibility(model, point)
         observe = (observability(model, point, outputs, scene.quantities) if outputs is not None else None)
+    analyses = _Analyses(growth=growth, access=access, observe=observe)
     heights = None
     if pair is not None:
         with progress.phase(f"height functions over ({', '.join(pair)})"):
             heights = heights_at(model, scene, point, pair, figure=args.figure)
     note = _bounds_note(scene)
     if args.json:
-        out = _as_dict(model, point, growth, access, observe, note, RANK_TOL)
+        out = _as_dict(model, point, analyses, note, RANK_TOL)
         if heights is not None:
             out["heights"] = heights.as_dict()
         print(json.dumps(out, indent=1))
@@ -113,8 +115,19 @@ def cmd_analyse(args) -> int:
     return 0
 
 
-def _as_dict(model, point, growth, access, observe, note, tol) -> dict:
+class _Analyses(NamedTuple):
+    """The three rank analyses at one point: ``growth`` (the constraint distribution's growth
+    vector), ``access`` (the control system's accessibility rank) and ``observe`` (the
+    observability rank of the ``--outputs``, else None)."""
+
+    growth: Any
+    access: Any
+    observe: Any
+
+
+def _as_dict(model, point, analyses: _Analyses, note, tol) -> dict:
     """The ``--json`` object."""
+    growth, access, observe = analyses
     names = model.system.coordinates
     out = {
         "system": model.system.name, "classification": model.classification, "rank_tolerance": tol,

@@ -41,11 +41,12 @@ import signal
 import sys
 import threading
 from contextlib import contextmanager
+from typing import NamedTuple
 
 from nhgait.dynamics.errors import Terminated, clear_stops, note_stop, remove_temporary_folders
 
-__all__ = ["stop_signals", "Stop", "exit_now", "end_process", "cancel_background_builds", "FORCE_AFTER_S",
-           "EXIT_STATUS", "MESSAGES"]
+__all__ = ["stop_signals", "Stop", "Ending", "exit_now", "end_process", "cancel_background_builds",
+           "FORCE_AFTER_S", "EXIT_STATUS", "MESSAGES"]
 
 #: how long after a stop signal the watchdog ends a process that is still running (s)
 FORCE_AFTER_S = 1.5
@@ -54,6 +55,14 @@ EXIT_STATUS = {signal.SIGINT: 130, signal.SIGTERM: 143, signal.SIGHUP: 129}
 #: what ``nhgait`` says when it stops on a signal
 MESSAGES = {signal.SIGINT: "nhgait: interrupted", signal.SIGTERM: "nhgait: terminated",
             signal.SIGHUP: "nhgait: hung up"}
+
+
+class Ending(NamedTuple):
+    """How ``nhgait`` ends on a stop signal: its exit ``status`` (128 + signal) and the
+    ``message`` it prints."""
+
+    status: int
+    message: str
 
 
 class Stop:
@@ -67,10 +76,10 @@ class Stop:
         """The exception the signal stands for: Terminated (SIGTERM, SIGHUP) or KeyboardInterrupt."""
         return Terminated() if self.signal in (signal.SIGTERM, signal.SIGHUP) else KeyboardInterrupt()
 
-    def ending(self) -> tuple:
-        """(exit status, message) of a :class:`Terminated` stop: SIGHUP's or SIGTERM's."""
+    def ending(self) -> Ending:
+        """The :class:`Ending` of a :class:`Terminated` stop: SIGHUP's or SIGTERM's."""
         signum = signal.SIGHUP if self.signal == signal.SIGHUP else signal.SIGTERM
-        return EXIT_STATUS[signum], MESSAGES[signum]
+        return Ending(status=EXIT_STATUS[signum], message=MESSAGES[signum])
 
     def handler(self, signum, frame):
         self.signal = signum

@@ -58,12 +58,12 @@ import os
 import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 from nhgait.dynamics.memo import LruMemo
 
-__all__ = ["PlanMemo", "Optimum", "PLAN_MEMO", "prepared_key", "structure_key", "solution_key", "task_key",
-           "stored_optimum", "store_optimum", "SOLVER_ENTRIES", "OPTIMUM_ENTRIES"]
+__all__ = ["PlanMemo", "Kept", "Optimum", "PLAN_MEMO", "prepared_key", "structure_key", "solution_key",
+           "task_key", "stored_optimum", "store_optimum", "SOLVER_ENTRIES", "OPTIMUM_ENTRIES"]
 
 #: built solvers kept (each holds its NLP functions and loaded library: a few MB)
 SOLVER_ENTRIES = 8
@@ -75,6 +75,14 @@ LAST_OPTIMUM = "last optimum"
 OPTIMUM_SUFFIX = ".optimum"
 #: the environment variable that turns the disk cache's optima off ("0")
 WARM_OPTIMA_ENV = "NHGAIT_WARM_OPTIMA"
+
+
+class Kept(NamedTuple):
+    """What a :class:`PlanMemo` hands out: the ``value`` (kept or just made) and whether it
+    was ``reused`` (kept from an earlier plan: nothing was built or computed)."""
+
+    value: Any
+    reused: bool
 
 
 @dataclass(frozen=True)
@@ -128,37 +136,37 @@ class PlanMemo:
             self._thread = ident
         return self._thread == ident
 
-    def solver(self, key: str | None, build: Callable[[], Any]) -> tuple:
-        """(solver, reused): the solver kept for ``key``, else ``build()`` kept (``key`` None:
-        built and not kept)."""
+    def solver(self, key: str | None, build: Callable[[], Any]) -> Kept:
+        """The solver kept for ``key`` (reused), else ``build()`` kept (``key`` None: built and
+        not kept)."""
         if key is not None and key in self.solvers:
             self.reuses += 1
-            return self.solvers.get(key), True
+            return Kept(value=self.solvers.get(key), reused=True)
         solver = build()
         self.builds += 1
         if key is not None:
             self.solvers.get(key, lambda: solver)
-        return solver, False
+        return Kept(value=solver, reused=False)
 
-    def prepare(self, key: str | None, make: Callable[[], Any]) -> tuple:
-        """(prepared, reused): the :class:`~nhgait.gaits.planner.Prepared` kept for ``key``,
-        else ``make()`` kept (``key`` None: made and not kept)."""
+    def prepare(self, key: str | None, make: Callable[[], Any]) -> Kept:
+        """The :class:`~nhgait.gaits.planner.Prepared` kept for ``key`` (reused), else
+        ``make()`` kept (``key`` None: made and not kept)."""
         if key is not None and key in self.prepared:
-            return self.prepared.get(key), True
+            return Kept(value=self.prepared.get(key), reused=True)
         value = make()
         if key is not None:
             self.prepared.get(key, lambda: value)
-        return value, False
+        return Kept(value=value, reused=False)
 
-    def of_solution(self, key: str | None, make: Callable[[], Any]) -> tuple:
-        """(value, reused): the value kept for the solution key ``key`` (:func:`solution_key`),
-        else ``make()`` kept (``key`` None: made and not kept)."""
+    def of_solution(self, key: str | None, make: Callable[[], Any]) -> Kept:
+        """The value kept for the solution key ``key`` (:func:`solution_key`; reused), else
+        ``make()`` kept (``key`` None: made and not kept)."""
         if key is not None and key in self.derived:
-            return self.derived.get(key), True
+            return Kept(value=self.derived.get(key), reused=True)
         value = make()
         if key is not None:
             self.derived.get(key, lambda: value)
-        return value, False
+        return Kept(value=value, reused=False)
 
     def optimum(self, key: str | None) -> Optimum | None:
         """The last optimum of the task ``key`` (None: none kept)."""

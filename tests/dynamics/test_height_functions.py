@@ -190,3 +190,9 @@ def test_numeric_heights_equal_the_symbolic_ones(name, pair, box, request):
     scale = np.max(np.abs(symbolic.heights))
     assert np.max(np.abs(numeric.heights - symbolic.heights)) <= 1e-7 * scale
     assert np.allclose(numeric.fields, symbolic.fields, atol=1e-12)
+
+
+def test_grid_axes_are_named_and_evenly_spaced_over_the_bounds():
+    axes = HeightGrid(bounds={"a": (0.0, 1.0), "b": (-2.0, 2.0)}, points=5).axes("a", "b")
+    np.testing.assert_allclose(axes.a_values, [0.0, 0.25, 0.5, 0.75, 1.0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(axes.b_values, [-2.0, -1.0, 0.0, 1.0, 2.0], rtol=0, atol=1e-15)

@@ -172,3 +172,12 @@ def test_a_last_optimum_that_fails_gives_way_to_the_planners_guesses(cold):
     assert again.success and again.guess != LAST_OPTIMUM
     assert again.attempts[0].label == LAST_OPTIMUM and not again.attempts[0].success
     assert again.solution.objective == pytest.approx(cold.solution.objective, rel=OBJECTIVE_TOLERANCE)
+
+
+def test_memo_hands_out_named_kept_values_and_says_when_reused():
+    memo = PlanMemo()
+    first, again = memo.solver("a", lambda: "A"), memo.solver("a", lambda: "not built")
+    assert (first.value, first.reused, again.value, again.reused) == ("A", False, "A", True)
+    assert (memo.builds, memo.reuses) == (1, 1)
+    assert memo.prepare(None, lambda: 1).reused is False and memo.prepare(None, lambda: 2).value == 2
+    assert memo.of_solution("s", lambda: 3).reused is False and memo.of_solution("s", lambda: 4) == (3, True)

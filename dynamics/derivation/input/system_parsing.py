@@ -224,9 +224,11 @@ def parse_system(statement) -> ParsedSystem:
     complete = declared.names_ok and L is not None and None not in cons and not problems
     if declared.names_ok:
         _check_structure(L, cons, symbols.q_dot, problems)
-    stated = _Stated(symbols.q, symbols.q_dot, L, tuple(cons), tuple(tau), (), (),
-                     tuple(getattr(statement, "eliminated", ()) or ()),
-                     statement.lagrangian, statement.constraints, statement.forces)
+    stated = _Stated(q=symbols.q, q_dot=symbols.q_dot, L=L, cons=tuple(cons), tau=tuple(tau),
+                     holonomic=(), dependent=(),
+                     eliminated=tuple(getattr(statement, "eliminated", ()) or ()),
+                     lagrangian=statement.lagrangian, constraints=statement.constraints,
+                     forces=statement.forces)
     if holonomic and complete and not problems:
         problems += _motion_left(holonomic, declared.coordinates)
     if holonomic and complete and not problems:
@@ -243,7 +245,7 @@ def parse_system(statement) -> ParsedSystem:
         forces=stated.forces, problems=tuple(problems), complete=complete)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class _Stated:
     """The statement in its working coordinates (after any elimination)."""
 
@@ -323,9 +325,11 @@ def _constrained(stated: _Stated, holonomic, wanted, declared: _Declared, proble
     rows = tuple(velocity_row(h, el.q, el.q_dot) for h in kept)
     changed = bool(el.eliminated)
     forces = {c: t for c, t in zip(names, el.tau, strict=True) if t != 0} if changed else stated.forces
-    return _Stated(el.q, el.q_dot, el.L, el.constraints + rows, el.tau, tuple(kept), tuple(dependent),
-                   stated.eliminated + el.eliminated, el.L if changed else stated.lagrangian,
-                   list(el.constraints) if changed else stated.constraints, forces)
+    return _Stated(q=el.q, q_dot=el.q_dot, L=el.L, cons=el.constraints + rows, tau=el.tau,
+                   holonomic=tuple(kept), dependent=tuple(dependent),
+                   eliminated=stated.eliminated + el.eliminated,
+                   lagrangian=el.L if changed else stated.lagrangian,
+                   constraints=list(el.constraints) if changed else stated.constraints, forces=forces)
 
 
 def _declare(statement, problems: list) -> _Declared:
