@@ -147,6 +147,21 @@ class NumericConnection:
         Xs = X[np.ix_(self.fiber_index, range(X.shape[1] - len(self.shape), X.shape[1]))]
         return -np.linalg.solve(self.frame(q), Xs)
 
+    def A_many(self, q_samples) -> np.ndarray:
+        """A at each column of ``q_samples`` (n×K), as a (K, l, m) array, in one mapped call of
+        the basis (:meth:`A` at each column, to rounding): A = −g(s)⁻¹ X[s rows, shape columns],
+        g evaluated once per distinct fibre configuration s (it depends on s only)."""
+        q = np.asarray(q_samples, float)
+        K, m, l = q.shape[1], len(self.shape), len(self.fiber)
+        Z = np.vstack([q, np.zeros((self.n_momenta + m, K))])
+        X = np.asarray(self.basis.map(K)(Z, self.params))          # n × (K·columns), sample by sample
+        cols = X.shape[1] // K
+        Xs = X[list(self.fiber_index)].reshape(l, K, cols)[:, :, cols - m:].transpose(1, 0, 2)
+        _, first, which = np.unique(q[list(self.fiber_index)].T, axis=0, return_index=True,
+                                    return_inverse=True)
+        frames = np.stack([self.frame(q[:, k]) for k in first])[which.ravel()]
+        return -np.linalg.solve(frames, Xs)
+
     def lift_sizes(self, q_samples) -> np.ndarray:
         """‖gA‖ (Frobenius) at each column of ``q_samples`` (n×K), in one mapped call of the
         basis: the size of the fibre velocity per unit shape velocity (= ‖A‖ when g is a rotation)."""

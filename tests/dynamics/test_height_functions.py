@@ -190,3 +190,17 @@ def test_numeric_heights_equal_the_symbolic_ones(name, pair, box, request):
     scale = np.max(np.abs(symbolic.heights))
     assert np.max(np.abs(numeric.heights - symbolic.heights)) <= 1e-7 * scale
     assert np.allclose(numeric.fields, symbolic.fields, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["snake3", "board"])
+def test_the_mapped_connection_equals_the_pointwise_one(name, request):
+    """NumericConnection.A_many (one mapped call of the basis, a frame per distinct fibre
+    configuration) = A at each column to 1e-12, for configurations with different fibres."""
+    model = request.getfixturevalue(name)
+    connection = numeric_connection(model)
+    rng = np.random.default_rng(3)
+    q = rng.uniform(-0.8, 0.8, (len(connection.names), 9))
+    q[:, 5:] = q[:, [5]]                      # some columns share a fibre configuration
+    many = connection.A_many(q)
+    for k in range(q.shape[1]):
+        assert np.allclose(many[k], connection.A(q[:, k]), rtol=0, atol=1e-12)
