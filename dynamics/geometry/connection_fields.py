@@ -90,8 +90,9 @@ def structure_constants(g: sp.Matrix, s: list) -> np.ndarray:
     return c
 
 
-#: fibre configurations (scaled by the fibre's size) where :func:`numeric_structure_constants`
-#: evaluates the bracket, and the relative spread between them it accepts as constant
+#: the fibre configurations (one row each, the first l entries) where
+#: :func:`numeric_structure_constants` evaluates the bracket, and the spread between them
+#: (relative to max |c|) it accepts as constant
 _SAMPLES = np.array([[0.31, -0.72, 1.13, 0.57, -1.41, 0.88], [-1.07, 0.46, -0.29, 1.62, 0.21, -0.64],
                      [0.83, 1.37, -0.95, -0.18, 0.74, 1.26]])
 _CONSTANT_RTOL = 1e-9
