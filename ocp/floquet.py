@@ -227,11 +227,20 @@ class Stability:
                 "summary": self.summary()}
 
 
+#: up to this many states the monodromies are integrated in this process: the variational
+#: system (nz(nz + 1) states) takes tens of milliseconds (the snakeboard's, nz = 8: 35–45 ms a
+#: loop), less than forking a child for it; a stop is handled between two intervals' CVODES calls
+INLINE_STATES = 10
+
+
 def _monodromies(loops, workers: int) -> list:
-    """Φ of each of ``loops``, in supervised children."""
+    """Φ of each of ``loops``: in this process for a small state (:data:`INLINE_STATES`), else
+    in supervised children."""
     from functools import partial
 
     from .supervision import Job, supervise
+    if all(loop.nz <= INLINE_STATES for loop in loops):
+        return [_phi(loop) for loop in loops]
     jobs = [Job(partial(_phi, loop), None, _died) for loop in loops]
     return supervise(jobs, workers=workers)
 
@@ -254,7 +263,8 @@ def stability(ode: ca.Function, feedback, fiber=(), *, workers: int = 2) -> Stab
     ODE f(t, z, u) it was designed on; ``fiber``: names of the fibre coordinates. The open and
     the closed loop's :func:`monodromy` are integrated side by side, each in a supervised child
     (:mod:`.supervision`: on ``workers`` cores, stopped with the plan; in this process where
-    there is no fork). Raises RuntimeError when CVODES gives up on either."""
+    there is no fork, or for at most :data:`INLINE_STATES` states). Raises RuntimeError when
+    CVODES gives up on either."""
     fb = feedback
     closed = Loop(ode, fb.t, fb.states, fb.controls, fb.rates, fb.gains)
     open_loop, closed_loop = _monodromies((closed.opened(), closed), workers)

@@ -28,7 +28,7 @@ import sympy as sp
 from ..errors import ModelError
 
 __all__ = ["LocalConnection", "NumericConnection", "local_connection", "numeric_connection",
-           "structure_constants"]
+           "structure_constants", "numeric_structure_constants"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,6 +90,44 @@ def structure_constants(g: sp.Matrix, s: list) -> np.ndarray:
     return c
 
 
+#: the fibre configurations (one row each, the first l entries) where
+#: :func:`numeric_structure_constants` evaluates the bracket, and the spread between them
+#: (relative to max |c|) it accepts as constant
+_SAMPLES = np.array([[0.31, -0.72, 1.13, 0.57, -1.41, 0.88], [-1.07, 0.46, -0.29, 1.62, 0.21, -0.64],
+                     [0.83, 1.37, -0.95, -0.18, 0.74, 1.26]])
+_CONSTANT_RTOL = 1e-9
+
+
+def numeric_structure_constants(g: sp.Matrix, s: list) -> np.ndarray:
+    """:func:`structure_constants` by numbers: c^k_ij = (g⁻¹((∂X_j/∂s)X_i − (∂X_i/∂s)X_j))_k at
+    three fibre configurations, the same to :data:`_CONSTANT_RTOL` (relative to max |c|) — no
+    symbolic inverse or simplification (a plan's figures and checks). Where g has symbols
+    other than ``s``, is singular at a sample, has more than six fibre coordinates or gives
+    different constants, the symbolic :func:`structure_constants` decides (and names the problem)."""
+    l = g.shape[0]
+    if g == sp.eye(l):
+        return np.zeros((l, l, l))
+    if not g.free_symbols <= set(s) or len(s) > _SAMPLES.shape[1]:
+        return structure_constants(g, s)
+    frame = sp.lambdify(s, [g, *(g[:, i].jacobian(s) for i in range(l))], "numpy")
+    found = []
+    for point in _SAMPLES[:, :len(s)]:
+        G, *J = (np.asarray(m, float) for m in frame(*point))
+        c = np.zeros((l, l, l))
+        try:
+            for i in range(l):
+                for j in range(i + 1, l):
+                    c[:, i, j] = np.linalg.solve(G, J[j] @ G[:, i] - J[i] @ G[:, j])
+                    c[:, j, i] = -c[:, i, j]
+        except np.linalg.LinAlgError:
+            return structure_constants(g, s)
+        found.append(c)
+    spread = max(float(np.max(np.abs(c - found[0]))) for c in found)
+    if spread > _CONSTANT_RTOL * max(1.0, float(np.max(np.abs(found[0])))):
+        return structure_constants(g, s)
+    return found[0]
+
+
 def local_connection(model) -> LocalConnection:
     """A(r), Γ(r) and the bracket of a :class:`~nhgait.dynamics.derivation.reduction.ReducedODE`:
     the explicit form's step 5 as it stands, the implicit form's step 5 run again on sympy."""
@@ -147,6 +185,21 @@ class NumericConnection:
         Xs = X[np.ix_(self.fiber_index, range(X.shape[1] - len(self.shape), X.shape[1]))]
         return -np.linalg.solve(self.frame(q), Xs)
 
+    def A_many(self, q_samples) -> np.ndarray:
+        """A at each column of ``q_samples`` (n×K), as a (K, l, m) array, in one mapped call of
+        the basis (:meth:`A` at each column, to rounding): A = −g(s)⁻¹ X[s rows, shape columns],
+        g evaluated once per distinct fibre configuration s (it depends on s only)."""
+        q = np.asarray(q_samples, float)
+        K, m, l = q.shape[1], len(self.shape), len(self.fiber)
+        Z = np.vstack([q, np.zeros((self.n_momenta + m, K))])
+        X = np.asarray(self.basis.map(K)(Z, self.params))          # n × (K·columns), sample by sample
+        cols = X.shape[1] // K
+        Xs = X[list(self.fiber_index)].reshape(l, K, cols)[:, :, cols - m:].transpose(1, 0, 2)
+        _, first, which = np.unique(q[list(self.fiber_index)].T, axis=0, return_index=True,
+                                    return_inverse=True)
+        frames = np.stack([self.frame(q[:, k]) for k in first])[which.ravel()]
+        return -np.linalg.solve(frames, Xs)
+
     def lift_sizes(self, q_samples) -> np.ndarray:
         """‖gA‖ (Frobenius) at each column of ``q_samples`` (n×K), in one mapped call of the
         basis: the size of the fibre velocity per unit shape velocity (= ‖A‖ when g is a rotation)."""
@@ -177,7 +230,7 @@ def numeric_connection(model, params=None) -> NumericConnection:
     shape = tuple(model.system.coordinates[i] for i in layout.free)
     return NumericConnection(fiber=tuple(layout.fiber), shape=shape, names=tuple(model.system.coordinates),
                              fiber_index=tuple(layout.si), shape_index=tuple(layout.free),
-                             structure=structure_constants(g, s), basis=model.numeric["basis"],
+                             structure=numeric_structure_constants(g, s), basis=model.numeric["basis"],
                              g_function=sp.lambdify([*layout.system.q, *layout.system.param_symbols], g,
                                                     "numpy"), params=values,
                              n_momenta=nP - len(layout.free))

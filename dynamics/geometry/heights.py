@@ -213,6 +213,35 @@ def _momentum_part(equation, connection, a, b):
     return part, problems
 
 
+def _heights_and_fields(connection, q0, rows, columns, axes) -> tuple:
+    """(H (l, nb, na), the fields of −A (l, 2, nb, na)) over the grid ``axes`` (a values, b
+    values) of the coordinates at positions ``rows`` of q (their columns of A: ``columns``), the
+    other coordinates at ``q0``: A at every grid point and its four central-difference
+    neighbours in one mapped call of the basis (:meth:`NumericConnection.A_many`). Points where
+    A is not finite give non-finite values, as the pointwise evaluation did."""
+    (ia, ib), (ja, jb), (av, bv) = rows, columns, axes
+    B, Av = np.meshgrid(bv, av, indexing="ij")                  # (nb, na), b the row
+    points = np.repeat(q0[:, None], B.size, axis=1)
+    points[ia], points[ib] = Av.ravel(), B.ravel()
+    steps = {i: DIFFERENCE_STEP * np.maximum(1.0, np.abs(points[i])) for i in (ia, ib)}
+    shifted = [points]
+    for i in (ia, ib):
+        for sign in (1.0, -1.0):
+            moved = points.copy()
+            moved[i] = points[i] + sign * steps[i]
+            shifted.append(moved)
+    with np.errstate(all="ignore"):
+        A = connection.A_many(np.hstack(shifted)).reshape(5, B.size, len(connection.fiber), -1)
+        d_a = (A[1, :, :, jb] - A[2, :, :, jb]) / (2 * steps[ia][:, None])   # ∂A_b/∂r_a
+        d_b = (A[3, :, :, ja] - A[4, :, :, ja]) / (2 * steps[ib][:, None])   # ∂A_a/∂r_b
+        bracket = np.einsum("kij,pi,pj->pk", connection.structure, A[0, :, :, ja], A[0, :, :, jb])
+        H = -(d_a - d_b) + bracket                                             # (points, l)
+    shape = B.shape
+    heights = np.moveaxis(H.reshape(shape + (H.shape[1],)), -1, 0)
+    fields = np.moveaxis(-A[0][:, :, [ja, jb]].reshape(shape + (A.shape[2], 2)), (2, 3), (0, 1))
+    return heights, fields
+
+
 def evaluate_heights_numeric(connection, a: str, b: str, grid: HeightGrid, *,
                              equation=None) -> HeightFunctions:
     """:func:`evaluate_heights` from a
@@ -238,26 +267,14 @@ def evaluate_heights_numeric(connection, a: str, b: str, grid: HeightGrid, *,
     ja, jb = connection.shape.index(a), connection.shape.index(b)
     av, bv = grid.axes(a, b)
 
-    def column(q, i, j):
-        h = DIFFERENCE_STEP * max(1.0, abs(q[i]))
-        up, down = q.copy(), q.copy()
-        up[i] += h
-        down[i] -= h
-        return (connection.A(up)[:, j] - connection.A(down)[:, j]) / (2 * h)
+    heights, fields = _heights_and_fields(connection, q0, (ia, ib), (ja, jb), (av, bv))
 
     def at(va, vb):
         q = q0.copy()
         q[ia], q[ib] = va, vb
         return q
 
-    def height(va, vb):
-        q = at(va, vb)
-        A = connection.A(q)
-        return -(column(q, ia, jb) - column(q, ib, ja)) + connection.bracket(A[:, ja], A[:, jb])
-
     l = len(connection.fiber)
-    heights = _on_grid(height, av, bv, (l,))
-    fields = _on_grid(lambda va, vb: -connection.A(at(va, vb))[:, [ja, jb]], av, bv, (l, 2))
     part = None if part_of is None else _on_grid(lambda va, vb: part_of(at(va, vb)), av, bv, (l,))
     return HeightFunctions(fiber=connection.fiber, pair=(a, b), a_values=av, b_values=bv,
                            heights=heights if part is None else heights + part, fields=fields,

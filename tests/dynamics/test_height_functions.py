@@ -196,3 +196,36 @@ def test_grid_axes_are_named_and_evenly_spaced_over_the_bounds():
     axes = HeightGrid(bounds={"a": (0.0, 1.0), "b": (-2.0, 2.0)}, points=5).axes("a", "b")
     np.testing.assert_allclose(axes.a_values, [0.0, 0.25, 0.5, 0.75, 1.0], rtol=0, atol=1e-15)
     np.testing.assert_allclose(axes.b_values, [-2.0, -1.0, 0.0, 1.0, 2.0], rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("name", ["snake3", "board"])
+def test_the_mapped_connection_equals_the_pointwise_one(name, request):
+    """NumericConnection.A_many (one mapped call of the basis, a frame per distinct fibre
+    configuration) = A at each column to 1e-12, for configurations with different fibres."""
+    model = request.getfixturevalue(name)
+    connection = numeric_connection(model)
+    rng = np.random.default_rng(3)
+    q = rng.uniform(-0.8, 0.8, (len(connection.names), 9))
+    q[:, 5:] = q[:, [5]]                      # some columns share a fibre configuration
+    many = connection.A_many(q)
+    for k in range(q.shape[1]):
+        assert np.allclose(many[k], connection.A(q[:, k]), rtol=0, atol=1e-12)
+
+
+def test_numeric_structure_constants_equal_the_symbolic_ones(snake3, board):
+    """numeric_structure_constants (numbers at three fibre configurations) = structure_constants
+    (sympy inverse and simplification) to 1e-12, for SE(2) in both frames and the identity; a
+    frame that is no group frame still gets the symbolic route's error."""
+    from nhgait.dynamics.geometry.connection_fields import numeric_structure_constants, structure_constants
+    for model in (snake3, board):
+        layout = model.layout
+        s = [layout.system.q[i] for i in layout.si]
+        g = sp.Matrix(layout.g)
+        assert np.allclose(numeric_structure_constants(g, s), structure_constants(g, s), rtol=0, atol=1e-12)
+    x, y, th = sp.symbols("x y theta")
+    turning = sp.Matrix([[sp.cos(th), -sp.sin(th), 0], [sp.sin(th), sp.cos(th), 0], [0, 0, 1]])
+    c = numeric_structure_constants(turning, [x, y, th])
+    assert np.allclose([c[0, 1, 2], c[1, 2, 0], c[2, 0, 1]], [1.0, 1.0, 0.0], atol=1e-12)
+    assert np.allclose(numeric_structure_constants(sp.eye(3), [x, y, th]), 0.0)
+    with pytest.raises(ModelError, match="not constant"):
+        numeric_structure_constants(sp.Matrix([[1, 0], [0, 1 + x ** 2]]), [x, y])

@@ -76,8 +76,9 @@ def test_stability_reports_the_closed_form_multipliers_and_verdicts():
 
 
 def test_a_variational_process_that_dies_is_a_runtime_error(monkeypatch):
-    """The two monodromies run in supervised children: one that dies without an answer is the
-    RuntimeError the planner reports as "not computed" — not a hang, not a wrong matrix."""
+    """The two monodromies of a larger state (above floquet.INLINE_STATES) run in supervised
+    children: one that dies without an answer is the RuntimeError the planner reports as "not
+    computed" — not a hang, not a wrong matrix."""
     import os
 
     from nhgait.ocp import floquet
@@ -90,6 +91,7 @@ def test_a_variational_process_that_dies_is_a_runtime_error(monkeypatch):
     feedback = Feedback(t=t, states=ref, controls=u, gains=gains, rates=rates, state_names=("p", "q", "r"),
                         control_names=("u1", "u2", "u3"), weights=Weights(ones, ones, ones, ones, ones),
                         lower=-np.inf * ones, upper=np.inf * ones)
+    monkeypatch.setattr(floquet, "INLINE_STATES", 0)       # this 3-state loop as a larger one
     monkeypatch.setattr(floquet, "monodromy", lambda *a, **k: os._exit(3))
     with pytest.raises(RuntimeError, match="variational equations' process ended without an answer"):
         stability(ode, feedback)
