@@ -26,7 +26,7 @@ Writes ``out/bench_tracking.json``. The machine's cores may be shared: quote one
 
 Usage: python experiments/bench_tracking.py [--quick] [--workers 2]
        [--sections snakeboard,tiago,six,floquet,robust] [--out out/bench_tracking.json]
-(``--quick``: N = 30 plans, 4 samples, 8 samples of part 3 — a smoke run, not the targets.)
+(``--quick``: N = 30 plans (part 3's too), 4 samples, 8 samples of part 3 — a smoke run, not the targets.)
 """
 from __future__ import annotations
 
@@ -72,12 +72,13 @@ def tiago(samples: int, overrides) -> dict:
     return {**_ratio(result.report), "wall_s": time.perf_counter() - t0, "samples": samples}
 
 
-def six_coordinates(samples: int, workers: int, folder: Path) -> dict:
+def six_coordinates(samples: int, workers: int, folder: Path, overrides=()) -> dict:
     from nhgait.gaits.tracking.study import track
     scene = folder / "snakeboard_two_steering.toml"
     scene.write_text(sibling.load("scale_tasks").scene_with_task("snakeboard_two_steering"))
     t0 = time.perf_counter()
-    result = track(str(scene), mismatch=["params.m=1.1"], samples=samples, seed=0, workers=workers)
+    result = track(str(scene), overrides=list(overrides), mismatch=["params.m=1.1"], samples=samples, seed=0,
+                   workers=workers)
     wall = time.perf_counter() - t0
     return {**_ratio(result.report), "samples": samples, "workers": workers, "n": 6,
             "samples_s": result.timings["samples_s"], "plan_s": result.timings["plan_s"], "wall_s": wall,
@@ -202,7 +203,7 @@ def main(argv=None) -> int:
         if "tiago" in sections:
             results["tiago"] = tiago(samples, overrides)
         if "six" in sections:
-            results["six_coordinates"] = six_coordinates(many, args.workers, Path(folder))
+            results["six_coordinates"] = six_coordinates(many, args.workers, Path(folder), overrides)
     if "floquet" in sections:
         results["floquet"] = floquet(overrides)
     if "robust" in sections:

@@ -27,10 +27,17 @@ def out(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def figures(out):
-    """name → Figure for every PNG written by the four commands (their files in ``out``)."""
-    caught = {}
+def cli_runs(out):
+    """The four commands run once: ``figures`` (name → Figure for every PNG written, their files
+    in ``out``) and ``plan`` (the PlanResult the ``plan`` command made)."""
+    from nhgait.gaits import planner
+    caught, plans = {}, []
     original = Figure.savefig
+    original_plan = planner.plan
+
+    def keep_plan(*args, **kwargs):
+        plans.append(original_plan(*args, **kwargs))
+        return plans[-1]
 
     def catch(fig, fname, *args, **kwargs):
         original(fig, fname, *args, **kwargs)
@@ -40,6 +47,7 @@ def figures(out):
     from nhgait.ocp import supervision
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(Figure, "savefig", catch)
+        mp.setattr(planner, "plan", keep_plan)
         # a plan draws its figures in supervised children: here in this process, to be caught
         mp.setattr(supervision, "supervise", lambda jobs, **kwargs: [job.run() for job in jobs])
         runs = (["simulate", SLIDER, "--plot", str(out / "simulate")],
@@ -51,7 +59,13 @@ def figures(out):
                  "--out", str(out / "bench")])
         for args in runs:
             assert main(args) == 0, args
-    return caught
+    assert len(plans) == 1
+    return SimpleNamespace(figures=caught, plan=plans[0])
+
+
+@pytest.fixture(scope="module")
+def figures(cli_runs):
+    return cli_runs.figures
 
 
 EXPECTED = {"simulate/time_series.png", "simulate/path.png", "simulate/checks.png", "plan/path.png",
@@ -171,17 +185,16 @@ def test_eighteen_series_get_eighteen_styles():
                 assert a[2] != b[2], (a, b)
 
 
-def test_result_reprs_are_short_and_say_where_the_arrays_are(figures, out):
+def test_result_reprs_are_short_and_say_where_the_arrays_are(cli_runs, out):
     """PlanResult, Solution and SweepResult of this robot print a few lines (issue 18: a
-    trajectory's repr was 4 194 characters of arrays)."""
-    from nhgait.gaits.planner import plan
+    trajectory's repr was 4 194 characters of arrays). The plan is the ``plan`` command's."""
     from nhgait.gaits.sweeps.driver import load_sweep
     text = repr(load_sweep(out / "sweep"))
     assert text.startswith("<SweepResult sleigh_slider/sidestep: 4 of 4 points solved and "
                            "verified, grid (2, 2)")
     assert "result.objectives()" in text
     assert len(text) < 400
-    result = plan(SLIDER, jit=False)
+    result = cli_runs.plan
     text = repr(result)
     assert text.startswith("<PlanResult sleigh_slider/sidestep: SUCCESS")
     assert len(text) < 600

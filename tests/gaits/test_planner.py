@@ -289,7 +289,7 @@ def test_scene_quantities_in_a_task(tmp_path):
                                                                 "[0.0, 0.16]}")
     scene = tmp_path / "car_q.toml"
     scene.write_text(text)
-    result = plan(str(scene), intervals=50, jit=False)
+    result = plan(str(scene), intervals=25, jit=False)      # what is asserted holds at any N
     s = result.solution
     assert s.success
     assert s.settings["velocities"] == ["v_rear", "phi_dot"]
