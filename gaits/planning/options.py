@@ -31,7 +31,7 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
 from typing import Any, NamedTuple
 
-__all__ = ["PlanOptions", "Collected", "whole_number", "solver_order"]
+__all__ = ["PlanOptions", "OptionValues", "Collected", "whole_number", "solver_order"]
 
 
 def whole_number(value) -> bool:
@@ -40,14 +40,40 @@ def whole_number(value) -> bool:
 
 
 class Collected(NamedTuple):
-    """What :meth:`PlanOptions.collect` returns."""
+    """What an options value's ``collect`` returns (:class:`PlanOptions`, and the sweep's and
+    the tracking study's options)."""
 
-    options: PlanOptions | None    #: None when a name is unknown
+    options: Any                   #: the options; None when a name is unknown
     problems: list                 #: every problem of the values, in words
 
 
+class OptionValues:
+    """What every options value of nhgait shares (:class:`PlanOptions`,
+    :class:`~nhgait.gaits.sweeps.options.SweepOptions`,
+    :class:`~nhgait.gaits.tracking.request.TrackingOptions`, all frozen dataclasses): its names,
+    and :meth:`of` — its ``collect`` with the problems raised as one
+    :class:`~nhgait.ocp.ProblemError` titled :attr:`TITLE`."""
+
+    TITLE = "invalid options"
+
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        """The option names, in the order of the docstring."""
+        return tuple(f.name for f in fields(cls))
+
+    @classmethod
+    def of(cls, options=None, **values):
+        """``options`` with ``values`` on top, checked: every problem in one
+        :class:`~nhgait.ocp.ProblemError` (with the close matches of an unknown name)."""
+        from nhgait.ocp import ProblemError
+        made, problems = cls.collect(options, **values)
+        if problems:
+            raise ProblemError(problems, title=cls.TITLE)
+        return made
+
+
 @dataclass(frozen=True, kw_only=True)
-class PlanOptions:
+class PlanOptions(OptionValues):
     """How :func:`~nhgait.gaits.planner.plan` searches (module docstring).
 
     Attributes
@@ -78,21 +104,7 @@ class PlanOptions:
     verify: bool = True
     time_limit: float | None = None
 
-    @classmethod
-    def names(cls) -> tuple[str, ...]:
-        """The option names, in the order of the docstring."""
-        return tuple(f.name for f in fields(cls))
-
-    @classmethod
-    def of(cls, options=None, **values) -> PlanOptions:
-        """``options`` (a PlanOptions, a mapping of option names or None) with ``values`` on top,
-        checked: an unknown name or a wrong value is one :class:`~nhgait.ocp.ProblemError`
-        naming every problem (with the close matches of an unknown name)."""
-        from nhgait.ocp import ProblemError
-        made, problems = cls.collect(options, **values)
-        if problems:
-            raise ProblemError(problems, title="invalid plan options")
-        return made
+    TITLE = "invalid plan options"
 
     @classmethod
     def collect(cls, options=None, **values) -> Collected:

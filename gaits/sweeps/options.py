@@ -26,9 +26,9 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields
-from typing import Any, NamedTuple
+from typing import Any
 
-from ..planning.options import PlanOptions
+from ..planning.options import Collected, OptionValues, PlanOptions
 from .point import OPTIONS, option_problems
 
 __all__ = ["SweepOptions", "PLAN_OPTIONS"]
@@ -37,13 +37,8 @@ __all__ = ["SweepOptions", "PLAN_OPTIONS"]
 PLAN_OPTIONS = OPTIONS
 
 
-class _Collected(NamedTuple):
-    options: SweepOptions | None     #: None when a name is unknown
-    problems: list                   #: every problem, in words
-
-
 @dataclass(frozen=True, kw_only=True)
-class SweepOptions:
+class SweepOptions(OptionValues):
     """How :func:`~nhgait.gaits.sweeps.driver.sweep` runs (module docstring).
 
     Attributes
@@ -74,21 +69,10 @@ class SweepOptions:
     chain: int | None = None
     progress: Callable | None = None
 
-    @classmethod
-    def names(cls) -> tuple[str, ...]:
-        return tuple(f.name for f in fields(cls))
+    TITLE = "invalid sweep"
 
     @classmethod
-    def of(cls, options=None, **values) -> SweepOptions:
-        """:meth:`collect`, raising its problems as one :class:`~nhgait.ocp.ProblemError`."""
-        from nhgait.ocp import ProblemError
-        made, problems = cls.collect(options, **values)
-        if problems:
-            raise ProblemError(problems, title="invalid sweep")
-        return made
-
-    @classmethod
-    def collect(cls, options=None, **values) -> _Collected:
+    def collect(cls, options=None, **values) -> Collected:
         """(the options, their problems): ``options`` — a SweepOptions, None, or (as before
         these options existed) a mapping of planner options, which becomes ``plan`` — with
         ``values`` (the fields as keywords) on top; an unknown name or a wrong value is listed
@@ -101,15 +85,15 @@ class SweepOptions:
         elif isinstance(options, (Mapping, PlanOptions)):
             given = {"plan": options}
         else:
-            return _Collected(None, [f"options = {options!r} must be SweepOptions, a mapping of planner "
+            return Collected(None, [f"options = {options!r} must be SweepOptions, a mapping of planner "
                                      f"options ({', '.join(PLAN_OPTIONS)}) or None"])
         given.update(values)
         unknown = [f"unknown option {name!r}" + known_names(str(name), cls.names(), label="options")
                    for name in given if name not in cls.names()]
         if unknown:
-            return _Collected(None, unknown)
+            return Collected(None, unknown)
         made = cls(**given)
-        return _Collected(made, made.problems())
+        return Collected(made, made.problems())
 
     def planner(self) -> dict:
         """The planner options of a point, as the names that differ from the defaults (what a

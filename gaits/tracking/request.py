@@ -20,22 +20,17 @@ from __future__ import annotations
 import math
 import numbers
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
-from typing import Any, NamedTuple
+from dataclasses import dataclass
+from typing import Any
 
-from ..planning.options import PlanOptions, whole_number
+from ..planning.options import Collected, OptionValues, PlanOptions, whole_number
 from .runs import Noise
 
 __all__ = ["request_problems", "parse_mismatch", "TrackingOptions"]
 
 
-class _Collected(NamedTuple):
-    options: TrackingOptions | None  #: None when a name is unknown
-    problems: list                   #: every problem of the values, in words
-
-
 @dataclass(frozen=True, kw_only=True)
-class TrackingOptions:
+class TrackingOptions(OptionValues):
     """What a tracking study does besides planning (:func:`~.study.track`).
 
     Attributes
@@ -61,12 +56,10 @@ class TrackingOptions:
     workers: int | None = None
     plan: PlanOptions = PlanOptions()
 
-    @classmethod
-    def names(cls) -> tuple[str, ...]:
-        return tuple(f.name for f in fields(cls))
+    TITLE = "invalid tracking study"
 
     @classmethod
-    def collect(cls, options=None, **values) -> _Collected:
+    def collect(cls, options=None, **values) -> Collected:
         """(the options, the problems of the plan's options): ``options`` (a TrackingOptions or
         None) with ``values`` on top — its fields, or a plan option's name (``time_limit``,
         ``intervals``, …; ``workers`` is the samples') that goes into ``plan``; ``plan`` may be
@@ -74,7 +67,7 @@ class TrackingOptions:
         matches; the other values are :func:`request_problems`' to check (with the task)."""
         from nhgait.dynamics.suggestions import known_names
         if options is not None and not isinstance(options, TrackingOptions):
-            return _Collected(None, [f"options = {options!r} must be TrackingOptions or None"])
+            return Collected(None, [f"options = {options!r} must be TrackingOptions or None"])
         given = {} if options is None else {name: getattr(options, name) for name in cls.names()}
         planned = {k: values.pop(k) for k in list(values)
                    if k not in cls.names() and k in PlanOptions.names()}
@@ -83,11 +76,11 @@ class TrackingOptions:
                    + known_names(str(name), cls.names() + PlanOptions.names(), label="options")
                    for name in given if name not in cls.names()]
         if unknown:
-            return _Collected(None, unknown)
+            return Collected(None, unknown)
         plan, problems = PlanOptions.collect(given.get("plan"), **planned)
         if plan is None:
-            return _Collected(None, problems)
-        return _Collected(cls(**{**given, "plan": plan}), problems)
+            return Collected(None, problems)
+        return Collected(cls(**{**given, "plan": plan}), problems)
 
 
 def request_problems(samples, seed, noise, *, plan_file=None, task=None, overrides=()) -> list:

@@ -9,35 +9,20 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-import casadi as ca
 import numpy as np
+from linear_ocp import linear_problem
 from scipy.linalg import expm, solve_discrete_are
 
-from nhgait.dynamics.numerics.numeric_model import NumericModel
 from nhgait.dynamics.progress import Progress
 from nhgait.gaits.verification.feedback import feedback_and_stability
-from nhgait.ocp import OptimalControlProblem
 
 A = np.array([[0.0, 1.0, 0.0], [-4.0, -0.3, 0.5], [0.2, 0.0, -1.0]])
 B = np.array([[0.0, 0.0], [1.0, 0.0], [0.3, -2.0]])
 
 
-def _problem(T, N):
-    t, z, u, params = ca.SX.sym("t"), ca.SX.sym("z", 3), ca.SX.sym("u", 2), ca.SX.sym("params", 0)
-    rhs = ca.mtimes(ca.DM(A), z) + ca.mtimes(ca.DM(B), u)
-    numeric = NumericModel("reduced", ("a", "b", "c"), ("u1", "u2"), (), (),
-                           {"rhs": ca.Function("rhs", [t, z, u, params], [rhs]),
-                            "qdot": ca.Function("qdot", [z, params], [z[1:2]])}, n_coordinates=1)
-
-    class Model:
-        state_names = ("a", "b", "c")
-    Model.numeric = numeric
-    return OptimalControlProblem(Model(), T, N, initial={"a": 0.0}, control_bounds=1.0)
-
-
 def test_the_stored_feedback_is_the_stationary_lqr_of_the_exact_discrete_system():
     T, N = 20.0, 200
-    problem = _problem(T, N)
+    problem = linear_problem(A, B, T, N)
     rng = np.random.default_rng(2)
     t = np.linspace(0.0, T, N + 1)
     states, controls = rng.uniform(-1, 1, (3, N + 1)), rng.uniform(-1, 1, (2, N))  # linear: any point

@@ -19,10 +19,9 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 import pytest
+from linear_ocp import linear_problem
 
-from nhgait.dynamics.numerics.numeric_model import NumericModel
 from nhgait.dynamics.simulation.gain_schedule import GainSchedule
-from nhgait.ocp import OptimalControlProblem
 from nhgait.ocp.feedback import Feedback, default_weights, riccati, stage_jacobians, state_scales
 
 
@@ -52,19 +51,6 @@ def test_riccati_converges_to_the_discrete_algebraic_riccati_solution():
     assert np.max(np.abs(K[0] - K_dare)) <= 1e-9 * max(1.0, np.max(np.abs(K_dare)))
 
 
-def _linear_problem(A, B, T, N):
-    t, z, u, params = ca.SX.sym("t"), ca.SX.sym("z", 3), ca.SX.sym("u", 2), ca.SX.sym("params", 0)
-    rhs = ca.mtimes(ca.DM(A), z) + ca.mtimes(ca.DM(B), u)
-    numeric = NumericModel("reduced", ("a", "b", "c"), ("u1", "u2"), (), (),
-                           {"rhs": ca.Function("rhs", [t, z, u, params], [rhs]),
-                            "qdot": ca.Function("qdot", [z, params], [z[1:2]])}, n_coordinates=1)
-
-    class Model:
-        state_names = ("a", "b", "c")
-    Model.numeric = numeric
-    return OptimalControlProblem(Model(), T, N, initial={"a": 0.0}, control_bounds=1.0)
-
-
 def test_stage_jacobians_of_a_linear_ode_are_its_exact_propagator():
     """[A_k B_k] = [e^{hA}, A⁻¹(e^{hA} − I)B] up to RK4's error bound (module docstring), at
     every interval; the plan's defect of an exact trajectory is at that level too."""
@@ -72,7 +58,7 @@ def test_stage_jacobians_of_a_linear_ode_are_its_exact_propagator():
     A = np.array([[0.0, 1.0, 0.0], [-4.0, -0.3, 0.5], [0.2, 0.0, -1.0]])
     B = np.array([[0.0, 0.0], [1.0, 0.0], [0.3, -2.0]])
     T, N, M = 2.0, 8, 4
-    problem = _linear_problem(A, B, T, N)
+    problem = linear_problem(A, B, T, N)
     h = T / N
     E = expm(h * A)
     rng = np.random.default_rng(5)
@@ -95,7 +81,7 @@ def test_state_scales_follow_the_documented_rules():
     """Bound width when both ends are finite; else the plan's range; a flat state takes the
     largest range of its kind (configuration coordinates / velocity states)."""
     A, B = np.eye(3), np.ones((3, 2))
-    problem = _linear_problem(A, B, 1.0, 2).replace(state_bounds={"b": (-2.0, 3.0)})
+    problem = linear_problem(A, B, 1.0, 2).replace(state_bounds={"b": (-2.0, 3.0)})
     states = np.array([[0.0, 0.5, 1.0], [0.0, 0.1, 0.0], [0.0, 1e-6, 0.0]])
     s = state_scales(problem, states)
     assert s.tolist() == [1.0, 5.0, 5.0]        # a: range; b: bound width; c: flat → the largest velocity
