@@ -71,6 +71,18 @@ class OptionValues:
             raise ProblemError(problems, title=cls.TITLE)
         return made
 
+    @classmethod
+    def made(cls, given: dict) -> Collected:
+        """The options of ``given`` (name → value), their own problems listed; None and every
+        unknown name (with its close matches) when one is unknown."""
+        from nhgait.dynamics.suggestions import known_names
+        unknown = [f"unknown option {name!r}" + known_names(str(name), cls.names(), label="options")
+                   for name in given if name not in cls.names()]
+        if unknown:
+            return Collected(None, unknown)
+        options = cls(**given)
+        return Collected(options, options.problems())
+
 
 @dataclass(frozen=True, kw_only=True)
 class PlanOptions(OptionValues):
@@ -111,7 +123,6 @@ class PlanOptions(OptionValues):
         """(the options, their problems) — as :meth:`of`, with the problems listed instead of
         raised (a caller that checks more than the options lists them all in one error); the
         options are None when a name is unknown or ``options`` is not one of its kinds."""
-        from nhgait.dynamics.suggestions import known_names
         if isinstance(options, PlanOptions):
             given = asdict(options)
         elif options is None:
@@ -121,13 +132,7 @@ class PlanOptions(OptionValues):
         else:
             return Collected(None, [f"options = {options!r} must be a PlanOptions, a mapping of option "
                                     "names or None"])
-        given.update(values)
-        unknown = [f"unknown option {name!r}" + known_names(str(name), cls.names(), label="options")
-                   for name in given if name not in cls.names()]
-        if unknown:
-            return Collected(None, unknown)
-        made = cls(**given)
-        return Collected(made, made.problems())
+        return cls.made({**given, **values})
 
     @classmethod
     def values_of(cls, args) -> dict:

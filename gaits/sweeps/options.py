@@ -77,7 +77,6 @@ class SweepOptions(OptionValues):
         these options existed) a mapping of planner options, which becomes ``plan`` — with
         ``values`` (the fields as keywords) on top; an unknown name or a wrong value is listed
         with every other problem."""
-        from nhgait.dynamics.suggestions import known_names
         if isinstance(options, SweepOptions):
             given = {f.name: getattr(options, f.name) for f in fields(cls)}
         elif options is None:
@@ -87,13 +86,7 @@ class SweepOptions(OptionValues):
         else:
             return Collected(None, [f"options = {options!r} must be SweepOptions, a mapping of planner "
                                      f"options ({', '.join(PLAN_OPTIONS)}) or None"])
-        given.update(values)
-        unknown = [f"unknown option {name!r}" + known_names(str(name), cls.names(), label="options")
-                   for name in given if name not in cls.names()]
-        if unknown:
-            return Collected(None, unknown)
-        made = cls(**given)
-        return Collected(made, made.problems())
+        return cls.made({**given, **values})
 
     def planner(self) -> dict:
         """The planner options of a point, as the names that differ from the defaults (what a
