@@ -149,9 +149,15 @@ def test_an_interrupt_in_the_parent_kills_every_child_at_once(tmp_path):
         finally:                              # a child that never starts: fail, do not hang
             signal.pthread_kill(main, signal.SIGINT)
 
-    threading.Thread(target=interrupt_when_both_run, daemon=True).start()
-    with pytest.raises(KeyboardInterrupt):
-        supervise([Job(_sleep_in_c(path), None, _failed) for path in pids], workers=2)
+    # Ctrl-C as Python handles it by default, also when this process inherited SIGINT ignored
+    # (a background job of a non-interactive shell: Python then installs no handler of its own)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        threading.Thread(target=interrupt_when_both_run, daemon=True).start()
+        with pytest.raises(KeyboardInterrupt):
+            supervise([Job(_sleep_in_c(path), None, _failed) for path in pids], workers=2)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     children = [int(path.read_text()) for path in pids]
     assert not any(_alive(pid) for pid in children)
 
