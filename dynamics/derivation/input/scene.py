@@ -388,18 +388,9 @@ def _input_laws(inputs, system, params, problems):
     names["t"] = TIME
     exprs, ok = [], True
     for u in system.inputs:
-        value = inputs[u]
-        e = parse_field(value if isinstance(value, str) else value, names,
-                        f"[simulation].inputs.{u}", problems)
-        if e is None:
-            ok = False
-            continue
-        bad_syms = sorted(s.name for s in e.free_symbols if s.name not in names)
-        if bad_syms:
-            allowed = "allowed: t, coordinates, velocities, parameters"
-            problems.append(f"[simulation].inputs.{u}: unknown symbol(s) {bad_syms}"
-                            f"{known_names(bad_syms[0], list(names), label=allowed)}")
-            ok = False
+        e = _known_expression(inputs[u], names, f"[simulation].inputs.{u}", problems,
+                              "allowed: t, coordinates, velocities, parameters")
+        ok = ok and e is not None
         exprs.append(e)
     return ExpressionController(system, tuple(exprs), params) if ok else None
 
@@ -437,17 +428,25 @@ def _quantities(system, table, problems) -> dict:
         if not isinstance(text, str):
             problems.append(f"{where}: must be an expression string, got {text!r}")
             continue
-        e = parse_field(text, names, where, problems)
-        if e is None:
-            continue
-        bad = sorted(s.name for s in e.free_symbols if s.name not in names)
-        if bad:
-            allowed = "allowed: coordinates, velocities, accelerations, inputs, parameters"
-            problems.append(f"{where}: unknown symbol(s) {bad}"
-                            f"{known_names(bad[0], list(names), label=allowed)}")
-            continue
-        out[key] = e
+        e = _known_expression(text, names, where, problems,
+                              "allowed: coordinates, velocities, accelerations, inputs, parameters")
+        if e is not None:
+            out[key] = e
     return out
+
+
+def _known_expression(text, names: dict, where: str, problems: list, allowed: str):
+    """The expression of ``text`` (:func:`parse_field`: data, never code) when every symbol in
+    it is one of ``names``; else None, its problem in ``problems`` (the unknown symbols, the
+    close matches of the first, and what is ``allowed``)."""
+    e = parse_field(text, names, where, problems)
+    if e is None:
+        return None
+    bad = sorted(s.name for s in e.free_symbols if s.name not in names)
+    if bad:
+        problems.append(f"{where}: unknown symbol(s) {bad}{known_names(bad[0], list(names), label=allowed)}")
+        return None
+    return e
 
 
 def load_scene(path_or_name, overrides=()) -> Scene:
