@@ -108,6 +108,16 @@ class _Newest:
         self.replaced = optimum
 
 
+def _kept(store: LruMemo, key: str | None, make: Callable[[], Any]) -> Kept:
+    """``store``'s value for ``key`` (reused), else ``make()``, kept under ``key`` unless it is None."""
+    if key is not None and key in store:
+        return Kept(value=store.get(key), reused=True)
+    value = make()
+    if key is not None:
+        store.get(key, lambda: value)
+    return Kept(value=value, reused=False)
+
+
 class PlanMemo:
     """A process's built solvers by structure and last optima by task (module docstring).
 
@@ -138,35 +148,23 @@ class PlanMemo:
 
     def solver(self, key: str | None, build: Callable[[], Any]) -> Kept:
         """The solver kept for ``key`` (reused), else ``build()`` kept (``key`` None: built and
-        not kept)."""
-        if key is not None and key in self.solvers:
+        not kept); counted in :attr:`builds` and :attr:`reuses`."""
+        kept = _kept(self.solvers, key, build)
+        if kept.reused:
             self.reuses += 1
-            return Kept(value=self.solvers.get(key), reused=True)
-        solver = build()
-        self.builds += 1
-        if key is not None:
-            self.solvers.get(key, lambda: solver)
-        return Kept(value=solver, reused=False)
+        else:
+            self.builds += 1
+        return kept
 
     def prepare(self, key: str | None, make: Callable[[], Any]) -> Kept:
         """The :class:`~nhgait.gaits.planner.Prepared` kept for ``key`` (reused), else
         ``make()`` kept (``key`` None: made and not kept)."""
-        if key is not None and key in self.prepared:
-            return Kept(value=self.prepared.get(key), reused=True)
-        value = make()
-        if key is not None:
-            self.prepared.get(key, lambda: value)
-        return Kept(value=value, reused=False)
+        return _kept(self.prepared, key, make)
 
     def of_solution(self, key: str | None, make: Callable[[], Any]) -> Kept:
         """The value kept for the solution key ``key`` (:func:`solution_key`; reused), else
         ``make()`` kept (``key`` None: made and not kept)."""
-        if key is not None and key in self.derived:
-            return Kept(value=self.derived.get(key), reused=True)
-        value = make()
-        if key is not None:
-            self.derived.get(key, lambda: value)
-        return Kept(value=value, reused=False)
+        return _kept(self.derived, key, make)
 
     def optimum(self, key: str | None) -> Optimum | None:
         """The last optimum of the task ``key`` (None: none kept)."""
