@@ -63,18 +63,19 @@ def _check(traj, reference):
     assert np.max(np.abs(sideways)) <= 1e-9
 
 
-def test_the_sundials_route_agrees_with_a_tighter_integrator_and_keeps_the_energy(sleigh, monkeypatch):
-    model, reference = sleigh
-    calls = _spied(monkeypatch, "integrate_sundials", route_sundials.integrate_sundials)
-    traj = simulate(model, (0.0, 4.0), Q0, QDOT0, method="CVODES", rtol=1e-9, atol=1e-11, t_eval=T_EVAL)
-    assert calls == ["integrate_sundials"]
-    _check(traj, reference)
+NO_C_COMPILER = shutil.which("gcc") is None and shutil.which("cc") is None
 
 
-@pytest.mark.skipif(shutil.which("gcc") is None and shutil.which("cc") is None, reason="no C compiler")
-def test_the_compiled_route_agrees_with_a_tighter_integrator_and_keeps_the_energy(sleigh, monkeypatch):
+@pytest.mark.parametrize("method, route, module", [
+    ("CVODES", "integrate_sundials", route_sundials),
+    pytest.param("compiled", "integrate_compiled", route_compiled,
+                 marks=pytest.mark.skipif(NO_C_COMPILER, reason="no C compiler"))])
+def test_each_route_agrees_with_a_tighter_integrator_and_keeps_the_energy(sleigh, monkeypatch, method, route,
+                                                                           module):
+    """The SUNDIALS and the compiled routes (each spied on: the route really ran) against the
+    tighter reference, the sleigh's energy and its rolling constraint (:func:`_check`)."""
     model, reference = sleigh
-    calls = _spied(monkeypatch, "integrate_compiled", route_compiled.integrate_compiled)
-    traj = simulate(model, (0.0, 4.0), Q0, QDOT0, method="compiled", rtol=1e-9, atol=1e-11, t_eval=T_EVAL)
-    assert calls == ["integrate_compiled"]
+    calls = _spied(monkeypatch, route, getattr(module, route))
+    traj = simulate(model, (0.0, 4.0), Q0, QDOT0, method=method, rtol=1e-9, atol=1e-11, t_eval=T_EVAL)
+    assert calls == [route]
     _check(traj, reference)
